@@ -1,0 +1,56 @@
+#include "cdvr/error.h"
+
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+
+cdvr_status cdvr_error_set(cdvr_error *err, cdvr_status status, const char *fmt, ...)
+{
+    if (err) {
+        va_list ap;
+        va_start(ap, fmt);
+        vsnprintf(err->msg, sizeof err->msg, fmt, ap);
+        va_end(ap);
+        err->status = status;
+    }
+    return status;
+}
+
+void cdvr_error_clear(cdvr_error *err)
+{
+    if (err) {
+        err->status = CDVR_OK;
+        err->msg[0] = '\0';
+    }
+}
+
+const char *cdvr_status_name(cdvr_status status)
+{
+    switch (status) {
+    case CDVR_OK: return "ok";
+    case CDVR_ERR_ARG: return "argument";
+    case CDVR_ERR_IO: return "io";
+    case CDVR_ERR_FORMAT: return "format";
+    case CDVR_ERR_CORRUPT: return "corrupt";
+    case CDVR_ERR_NOMEM: return "nomem";
+    case CDVR_ERR_UNSUPPORTED: return "unsupported";
+    case CDVR_ERR_DEVICE: return "device";
+    }
+    return "unknown";
+}
+
+int cdvr_size_mul(size_t a, size_t b, size_t *out)
+{
+    if (a != 0 && b > SIZE_MAX / a)
+        return 0;
+    *out = a * b;
+    return 1;
+}
+
+int cdvr_size_add(size_t a, size_t b, size_t *out)
+{
+    if (b > SIZE_MAX - a)
+        return 0;
+    *out = a + b;
+    return 1;
+}

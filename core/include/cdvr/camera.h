@@ -1,0 +1,33 @@
+/* cdvr/camera.h - pinhole (or orthographic) camera, DESIGN.md section 6.
+ *
+ * f = normalize(center - eye), u = up made orthogonal to f and normalised, r = f x u,
+ * aspect = width / height. Pixel (x, y) (x right, y down, from 0) is the ray from eye along
+ *   normalize(f + ((2(x+0.5)/W - 1) * aspect * r - (2(y+0.5)/H - 1) * u) * tan(fov/2)).
+ * Orthographic: direction f, origin eye + ((2(x+0.5)/W-1)*aspect*r - (2(y+0.5)/H-1)*u) * h/2
+ * with h = ortho_height (world units, full height of the view).
+ */
+#ifndef CDVR_CAMERA_H
+#define CDVR_CAMERA_H
+
+#include "cdvr/error.h"
+
+typedef struct cdvr_camera {
+    double eye[3], center[3], up[3];
+    double fov;       /* vertical full view angle in degrees, (0, 180) */
+    int width, height;
+    int orthographic;
+    double ortho_height;
+} cdvr_camera;
+
+/* Checks fov range, positive size, eye != center, up not parallel to the view direction. */
+cdvr_status cdvr_camera_validate(const cdvr_camera *cam, cdvr_error *err);
+/* Orthonormal basis f (forward), u (up), r (right). */
+void cdvr_camera_basis(const cdvr_camera *cam, double f[3], double u[3], double r[3]);
+/* Ray through pixel (x, y): origin and unit direction. */
+void cdvr_camera_ray(const cdvr_camera *cam, int x, int y, double origin[3], double dir[3]);
+/* Camera on a circle around center: eye at distance `distance`, angle `azimuth_deg` around
+ * the up axis, `elevation_deg` above the plane orthogonal to up. */
+void cdvr_camera_orbit(cdvr_camera *cam, const double center[3], const double up[3],
+                       double distance, double azimuth_deg, double elevation_deg);
+
+#endif

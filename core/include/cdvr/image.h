@@ -1,0 +1,34 @@
+/* cdvr/image.h - RGBA float images produced by the renderers.
+ *
+ * Pixels are premultiplied RGBA floats in [0,1], accumulated front to back, *before* the
+ * background is composited; row 0 is the top row, x grows to the right. The background is
+ * kept beside the pixels and composited when the image is saved or compared:
+ *   out = c + (1 - a) * background.
+ */
+#ifndef CDVR_IMAGE_H
+#define CDVR_IMAGE_H
+
+#include <stdint.h>
+
+#include "cdvr/error.h"
+
+typedef struct cdvr_image {
+    int width, height;
+    float *rgba;          /* width*height*4, premultiplied */
+    float background[4];  /* straight RGBA, default opaque black */
+} cdvr_image;
+
+cdvr_status cdvr_image_create(int width, int height, cdvr_image **out, cdvr_error *err);
+void cdvr_image_free(cdvr_image *img);
+/* Pointer to the 4 floats of pixel (x, y). */
+float *cdvr_image_pixel(const cdvr_image *img, int x, int y);
+/* Composited pixel over the background as floats in [0,1] (rgb) and alpha of the result. */
+void cdvr_image_composited(const cdvr_image *img, int x, int y, float out[4]);
+/* 8-bit RGBA of the composited image, row 0 first; each channel round(clamp(x,0,1)*255)
+ * (round half up). buf holds width*height*4 bytes. */
+void cdvr_image_to_rgba8(const cdvr_image *img, uint8_t *buf);
+/* Writes a PNG (8-bit RGBA of cdvr_image_to_rgba8) through stb_image_write, to a temporary
+ * name then renamed, so no partial file is left under path. */
+cdvr_status cdvr_image_save_png(const cdvr_image *img, const char *path, cdvr_error *err);
+
+#endif

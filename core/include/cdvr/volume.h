@@ -1,0 +1,112 @@
+/* cdvr/volume.h - scalar volumes and time series in memory, and their file I/O.
+ *
+ * A cdvr_volume holds `timesteps` frames of dims[0] x dims[1] x dims[2] voxels of
+ * one scalar type, contiguous: voxel (x,y,z) of frame t (all from 0) is element
+ * x + X*(y + Y*(z + Z*t)). World position of voxel (i,j,k) is origin + (i,j,k)*spacing
+ * (VTK image-data convention, DESIGN.md section 6).
+ */
+#ifndef CDVR_VOLUME_H
+#define CDVR_VOLUME_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "cdvr/error.h"
+
+typedef enum cdvr_type {
+    CDVR_TYPE_U8 = 0,
+    CDVR_TYPE_U16,
+    CDVR_TYPE_I16,
+    CDVR_TYPE_F32
+} cdvr_type;
+
+typedef struct cdvr_volume {
+    size_t dims[3];
+    size_t timesteps;
+    cdvr_type type;
+    double spacing[3];
+    double origin[3];
+    void *data;
+} cdvr_volume;
+
+/* Bytes per voxel of a type (1, 2, 2, 4). */
+size_t cdvr_type_size(cdvr_type type);
+/* "u8", "u16", "i16", "f32". */
+const char *cdvr_type_name(cdvr_type type);
+/* Parses a type name (also accepts "uint8", "uchar", "uint16", "int16", "short", "float", "float32");
+ * returns 1 on success. */
+int cdvr_type_parse(const char *name, cdvr_type *type);
+
+/* Allocates a zero-filled volume; spacing 1, origin 0. Fails with CDVR_ERR_NOMEM when the
+ * byte count overflows size_t, CDVR_ERR_ARG for a zero dim or zero timesteps. */
+cdvr_status cdvr_volume_create(const size_t dims[3], size_t timesteps, cdvr_type type,
+                               cdvr_volume **out, cdvr_error *err);
+void cdvr_volume_free(cdvr_volume *vol);
+
+/* Voxels per frame (dims product) and bytes per frame. */
+size_t cdvr_volume_voxels(const cdvr_volume *vol);
+size_t cdvr_volume_frame_bytes(const cdvr_volume *vol);
+/* Pointer to the first voxel of frame t (from 0); NULL if t is out of range. */
+void *cdvr_volume_frame(const cdvr_volume *vol, size_t t);
+/* Value of voxel (x,y,z) in frame t as double; coordinates must be in range. */
+double cdvr_volume_get(const cdvr_volume *vol, size_t x, size_t y, size_t z, size_t t);
+/* Minimum and maximum over all finite values (NaN and +-Inf ignored); both 0 if none. */
+void cdvr_volume_range(const cdvr_volume *vol, double *lo, double *hi);
+/* A new volume holding frames [t0, t0+count) of vol (copied). */
+cdvr_status cdvr_volume_slice_time(const cdvr_volume *vol, size_t t0, size_t count,
+                                   cdvr_volume **out, cdvr_error *err);
+
+/* Raw file description. header_bytes are skipped at the start of the file. timesteps 0
+ * means 1. The file must hold exactly header_bytes + product(dims)*timesteps*typesize bytes. */
+typedef struct cdvr_raw_opts {
+    size_t dims[3];
+    size_t timesteps;
+    cdvr_type type;
+    int big_endian;
+    size_t header_bytes;
+    double spacing[3]; /* 0 -> 1 */
+} cdvr_raw_opts;
+
+cdvr_status cdvr_volume_load_raw(const char *path, const cdvr_raw_opts *opts,
+                                 cdvr_volume **out, cdvr_error *err);
+/* .nrrd / .nhdr through teem. 3D (or 4D: the 4th axis becomes timesteps). */
+cdvr_status cdvr_volume_load_nrrd(const char *path, cdvr_volume **out, cdvr_error *err);
+/* .nii / .nii.gz through niftilib. 3D, or 4D (timesteps = dim[4]). */
+cdvr_status cdvr_volume_load_nifti(const char *path, cdvr_volume **out, cdvr_error *err);
+/* Dispatch on the extension; raw needs opts (NULL -> error naming the missing dims/type). */
+cdvr_status cdvr_volume_load(const char *path, const cdvr_raw_opts *raw, cdvr_volume **out,
+                             cdvr_error *err);
+/* Loads count files (each 3D, or 4D) and concatenates their timesteps; dims and type must
+ * agree (the error names the first file that differs). */
+cdvr_status cdvr_volume_load_series(const char *const *paths, size_t count,
+                                    const cdvr_raw_opts *raw, cdvr_volume **out,
+                                    cdvr_error *err);
+
+/* Quantisation to u8 over the window [lo, hi]:
+ *   q = round((v - lo) * 255 / (hi - lo)) clamped to [0, 255], round half up (floor(x + 0.5)).
+ *   v < lo or -Inf -> 0 (counted in clipped_low); v > hi or +Inf -> 255 (clipped_high);
+ *   NaN -> 0 (counted in nan_count). hi == lo: v <= lo -> 0, v > lo -> 255. hi < lo is an error.
+ * Inf values are counted in the clipped counts and also in inf_count. */
+typedef struct cdvr_quantize_report {
+    size_t clipped_low, clipped_high, nan_count, inf_count;
+} cdvr_quantize_report;
+
+cdvr_status cdvr_volume_quantize(const cdvr_volume *in, double lo, double hi, cdvr_volume **out,
+                                 cdvr_quantize_report *report, cdvr_error *err);
+
+/* Synthetic test fields (cdvr.generate). */
+typedef struct cdvr_generate_opts {
+    size_t dims[3];   /* 0 -> 64 */
+    size_t timesteps; /* 0 -> 1 */
+    cdvr_type type;   /* output type: u8 (default) or f32 */
+    double value;     /* "box": value inside the box (default 128); "sphere": inside value (255) */
+    double radius;    /* "sphere": radius as a fraction of the half extent (default 0.8) */
+    double fM, alpha; /* "ml": Marschner-Lobb parameters (default fM = 6, alpha = 0.25) */
+} cdvr_generate_opts;
+
+/* name: "box" (constant everywhere), "sphere" (value inside, 0 outside; centre moves with t),
+ * "ml" (Marschner-Lobb on [-1,1]^3, scaled to [0,255] for u8), "ramp" (x ramp 0..255). */
+cdvr_status cdvr_volume_generate(const char *name, const cdvr_generate_opts *opts,
+                                 cdvr_volume **out, cdvr_error *err);
+
+#endif

@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# scripts/setup.sh - the README's set-up: install Debian packages, build, then run.
+#   scripts/setup.sh demo           install, build, run scripts/demo.lua on the bundled data
+#   scripts/setup.sh test           install, build, run the whole test suite (ctest)
+#   scripts/setup.sh test-sanitize  the same with AddressSanitizer + UBSan (build-asan/)
+# Environment: CDVR_JOBS (parallel build jobs, default: number of cores).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+mode=${1:-demo}
+packages=(build-essential cmake pkg-config liblua5.4-dev libteem-dev libniftiio-dev zlib1g-dev
+          liblzo2-dev opencl-headers ocl-icd-opencl-dev pocl-opencl-icd clinfo libstb-dev
+          libreadline-dev gnuplot-nox)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "setup: installing ${missing[*]}" >&2
+  sudo=""; [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2
+fi
+
+jobs=${CDVR_JOBS:-$(nproc)}
+build() { # build DIR [cmake args...]
+  local dir=$1; shift
+  cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo "$@" >/dev/null
+  cmake --build "$dir" -j"$jobs"
+}
+
+case "$mode" in
+  demo)
+    build build
+    ./build/cdvr scripts/demo.lua ;;
+  test)
+    build build
+    cd build && ctest --output-on-failure -j"$jobs" ;;
+  test-sanitize)
+    build build-asan -DCDVR_SANITIZE=ON
+    cd build-asan && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
+      ctest --output-on-failure -j"$jobs" ;;
+  *)
+    echo "usage: scripts/setup.sh demo|test|test-sanitize" >&2; exit 2 ;;
+esac
