@@ -67,6 +67,10 @@ cdvr_store *lcdvr_checkstore(lua_State *L, int idx);
 /* OpenCL rendering for cdvr.render{device="cl"} (l_device.c). Pushes the image or raises. */
 int lcdvr_render_cl(lua_State *L, const cdvr_volume *vol, size_t t, void *render_opts);
 
+/* OpenCL decode for st:decode(t, variant, {device="cl"}) (l_device.c): decodes timestep t
+ * (from 0) of variant v with the decode kernel and pushes a new u8 volume, or raises. */
+int lcdvr_decode_cl(lua_State *L, const cdvr_store *st, size_t v, size_t t);
+
 /* Module openers (the host calls each, in this order). */
 int lcdvr_open_volume(lua_State *L);
 int lcdvr_open_image(lua_State *L);
