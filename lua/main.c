@@ -98,6 +98,13 @@ static int l_help(lua_State *L)
     return 0;
 }
 
+/* cdvr.help_add(name, description): lets Lua modules (share/lua/cdvr) document themselves. */
+static int l_help_add(lua_State *L)
+{
+    lcdvr_help_add(L, luaL_checkstring(L, 1), luaL_checkstring(L, 2));
+    return 0;
+}
+
 static int msghandler(lua_State *L)
 {
     const char *msg = lua_tostring(L, 1);
@@ -150,6 +157,8 @@ static int open_cdvr(lua_State *L)
     lua_setfield(L, -2, "share_dir");
     lua_pushcfunction(L, l_help);
     lua_setfield(L, -2, "help");
+    lua_pushcfunction(L, l_help_add);
+    lua_setfield(L, -2, "help_add");
     lcdvr_help_add(L, "cdvr.help([filter])", "list every function with a one-line description");
     lcdvr_open_volume(L);
     lcdvr_open_image(L);
