@@ -1,0 +1,111 @@
+/* cdvr/device.h - the OpenCL device pipeline (DESIGN.md sections 2 and 6).
+ *
+ * A cdvr_cl is one OpenCL context, queue and compiled program on one device; a
+ * cdvr_cl_stream holds the device buffers of one playback (one volume size). Every call is
+ * blocking (it returns when the device work is done), so the caller can time each stage, and
+ * all calls on one cdvr_cl and its streams must come from one thread at a time.
+ *
+ * Device choice: the first GPU over all platforms, else the first CPU device. The environment
+ * variable CDVR_CL_DEVICE overrides it: "gpu", "cpu", "none" (no device: cdvr_cl_open fails
+ * with CDVR_ERR_DEVICE, everything on the CPU keeps working), "P:D" (platform P, device D,
+ * indices from 0 as clinfo -l lists them) or any other text, matched as a case-insensitive
+ * substring of the device name.
+ *
+ * Kernels are compiled at run time from the OpenCL C sources in CDVR_KERNELS (environment)
+ * or else the build's kernels/ directory. Program binaries are cached on disk in
+ * CDVR_CACHE_DIR, else $XDG_CACHE_HOME/cdvr, else ~/.cache/cdvr, keyed by a hash of the
+ * source, build options, device name, driver version and platform; an unreadable, corrupt
+ * or stale entry is ignored and rebuilt.
+ *
+ * This header needs no OpenCL headers; without OpenCL in the build (CDVR_HAVE_OPENCL 0) the
+ * functions are not compiled and the Lua layer reports that OpenCL is not built in.
+ */
+#ifndef CDVR_DEVICE_H
+#define CDVR_DEVICE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "cdvr/error.h"
+#include "cdvr/image.h"
+#include "cdvr/pvtc.h"
+#include "cdvr/render.h"
+#include "cdvr/tf.h"
+
+typedef struct cdvr_cl cdvr_cl;
+typedef struct cdvr_cl_stream cdvr_cl_stream;
+
+/* What was opened (strings are NUL-terminated, truncated if longer). */
+typedef struct cdvr_cl_info {
+    char platform[128];
+    char device[128];
+    char device_version[128];
+    char driver_version[64];
+    int is_gpu;                  /* 1 for CL_DEVICE_TYPE_GPU, 0 for CPU / other */
+    unsigned compute_units;
+    uint64_t global_mem_bytes;
+    uint64_t max_alloc_bytes;
+    int platform_index, device_index;
+    double build_seconds;        /* time to get the program (compile, or load from cache) */
+    int from_cache;              /* 1 if the program binary came from the on-disk cache */
+    char cache_path[512];        /* the cache file used or written ("" if caching failed) */
+} cdvr_cl_info;
+
+/* Chooses a device (see above), creates context, queue and program. On failure *out is NULL
+ * and err names the reason (no platform, CDVR_CL_DEVICE=none, no match for the override,
+ * missing kernel file, build failure with the build log). */
+cdvr_status cdvr_cl_open(cdvr_cl **out, cdvr_error *err);
+/* Releases everything; NULL is allowed. Streams must be freed first. */
+void cdvr_cl_close(cdvr_cl *cl);
+/* Device name as the driver reports it. */
+const char *cdvr_cl_device_name(const cdvr_cl *cl);
+/* Platform, device and build details. */
+const cdvr_cl_info *cdvr_cl_get_info(const cdvr_cl *cl);
+
+/* Brick edge (voxels) of the min/max grid used for empty-space skipping. */
+#define CDVR_CL_BRICK 8
+
+/* Device buffers for frames of dims (u8), the chunk payload, the TF and the brick grid.
+ * Buffers grow on demand (larger payloads, more frames per chunk). */
+cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_stream **out,
+                                  cdvr_error *err);
+/* Releases the stream's buffers; NULL is allowed. */
+void cdvr_cl_stream_free(cdvr_cl_stream *s);
+
+/* b2: copies a chunk payload (PVTC bytes, or `count` raw u8 frames) to the device. */
+cdvr_status cdvr_cl_upload(cdvr_cl_stream *s, const void *payload, size_t bytes,
+                           cdvr_error *err);
+
+/* b3: decodes the uploaded chunk into device frames 0 .. count-1. codec CDVR_CODEC_RAW: the
+ * payload must be exactly count frames (it is copied on the device); CDVR_CODEC_PVTC (p
+ * required): the payload must be the chunk size of p for the stream's dims, count <= T for
+ * time packing and count == 1 for space packing. Bit-exact with cdvr_pvtc_decode_chunk. */
+cdvr_status cdvr_cl_decode(cdvr_cl_stream *s, int codec, const cdvr_pvtc_params *p,
+                           size_t count, cdvr_error *err);
+
+/* b4: per-frame setup for device frame `frame` (from 0, < count of the last decode): uploads
+ * the TF table, computes the brick min/max grid (bricks of CDVR_CL_BRICK^3 voxels, each range
+ * including the upper one-voxel apron that trilinear interpolation reads) and the per-brick
+ * flag "some value in [min, max] has alpha > 0 under this TF". */
+cdvr_status cdvr_cl_setup(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf, cdvr_error *err);
+
+/* b5: ray casts device frame `frame` with the TF of the last cdvr_cl_setup (which must have
+ * been called for this frame) following render.h exactly, in float. opts->tf is used only
+ * for its unit when opts->unit is 0 (NULL: the TF of the setup); opts->threads and
+ * opts->samples are ignored (see cdvr_cl_last_samples). img must have the camera's size;
+ * its pixels are overwritten and its background set from opts->background. */
+cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_opts *opts,
+                           const double spacing[3], const double origin[3], cdvr_image *img,
+                           cdvr_error *err);
+
+/* Empty-space skipping on (default) or off. Results agree within rounding (0.5/255). */
+void cdvr_cl_set_skipping(cdvr_cl_stream *s, int enabled);
+/* Samples taken (trilinear + classification) by the last cdvr_cl_render. */
+uint64_t cdvr_cl_last_samples(const cdvr_cl_stream *s);
+/* Bricks flagged visible / total by the last cdvr_cl_setup. */
+void cdvr_cl_brick_counts(const cdvr_cl_stream *s, size_t *visible, size_t *total);
+
+/* Copies device frame `frame` (from 0) to out (dims product bytes). */
+cdvr_status cdvr_cl_download(cdvr_cl_stream *s, size_t frame, uint8_t *out, cdvr_error *err);
+
+#endif
