@@ -1,0 +1,243 @@
+/* core/pvtc_lsq.c - the default PVTC block encoder (DESIGN.md 4.1): principal axis of the
+ * block's T-dimensional points, then alternate (a) nearest-palette index assignment, (b) the
+ * 2x2 least-squares solve for the endpoints given the index weights {1, 2/3, 1/3, 0}, and
+ * (c) a search of the quantised endpoint neighbourhood that minimises the true decoded error
+ * (exact integer palette arithmetic). Every step only accepts a lower error, and the result
+ * is compared with bbox, so it is never worse than bbox on any block. */
+#include <math.h>
+#include <string.h>
+
+#include "pvtc_internal.h"
+
+#define LSQ_MAX_ITERATIONS 6
+#define POWER_ITERATIONS 12
+#define SEARCH_RADIUS 2
+
+static const double INDEX_WEIGHT[4] = {1.0, 2.0 / 3.0, 1.0 / 3.0, 0.0};
+
+static int clamp_int(int v, int lo, int hi)
+{
+    return v < lo ? lo : v > hi ? hi : v;
+}
+
+/* 8-bit real value -> nearest quantised value, clamped to the channel's range. */
+static int quantize_real(int bits, double x)
+{
+    int max = (1 << bits) - 1;
+    return clamp_int((int)floor(x * max / 255.0 + 0.5), 0, max);
+}
+
+/* ---- principal axis ---------------------------------------------------------------------- */
+
+static void block_mean_cov(const pvtc_block *blk, double mean[3], double cov[3][3])
+{
+    memset(cov, 0, 9 * sizeof(double));
+    for (int c = 0; c < 3; c++)
+        mean[c] = 0.0;
+    for (int i = 0; i < blk->npos; i++)
+        for (int c = 0; c < blk->T; c++)
+            mean[c] += blk->v[i][c];
+    for (int c = 0; c < blk->T; c++)
+        mean[c] /= blk->npos;
+    for (int i = 0; i < blk->npos; i++)
+        for (int r = 0; r < blk->T; r++)
+            for (int c = 0; c < blk->T; c++)
+                cov[r][c] += (blk->v[i][r] - mean[r]) * (blk->v[i][c] - mean[c]);
+}
+
+/* Principal eigenvector by power iteration, started from the covariance column of largest
+ * norm (never orthogonal to the principal axis). Returns 0 when all points are equal. */
+static int principal_axis(int T, double cov[3][3], double axis[3])
+{
+    int best_col = 0;
+    double best_norm = 0.0;
+    for (int c = 0; c < T; c++) {
+        double n = 0.0;
+        for (int r = 0; r < T; r++)
+            n += cov[r][c] * cov[r][c];
+        if (n > best_norm) {
+            best_norm = n;
+            best_col = c;
+        }
+    }
+    if (best_norm < 1e-12)
+        return 0;
+    double v[3] = {0.0, 0.0, 0.0};
+    for (int r = 0; r < T; r++)
+        v[r] = cov[r][best_col];
+    for (int it = 0; it < POWER_ITERATIONS; it++) {
+        double w[3] = {0.0, 0.0, 0.0}, norm = 0.0;
+        for (int r = 0; r < T; r++) {
+            for (int c = 0; c < T; c++)
+                w[r] += cov[r][c] * v[c];
+            norm += w[r] * w[r];
+        }
+        if (norm < 1e-24)
+            return 0;
+        norm = sqrt(norm);
+        for (int r = 0; r < T; r++)
+            v[r] = w[r] / norm;
+    }
+    memcpy(axis, v, sizeof v);
+    return 1;
+}
+
+/* Endpoints at the extreme projections onto the principal axis (both at the mean when the
+ * PCA is degenerate, i.e. a constant block). */
+static void principal_endpoints(const pvtc_block *blk, pvtc_code *code)
+{
+    double mean[3], cov[3][3], axis[3] = {0.0, 0.0, 0.0};
+    block_mean_cov(blk, mean, cov);
+    double tmin = 0.0, tmax = 0.0;
+    if (principal_axis(blk->T, cov, axis)) {
+        tmin = tmax = 0.0;
+        for (int i = 0; i < blk->npos; i++) {
+            double t = 0.0;
+            for (int c = 0; c < blk->T; c++)
+                t += (blk->v[i][c] - mean[c]) * axis[c];
+            if (t < tmin)
+                tmin = t;
+            if (t > tmax)
+                tmax = t;
+        }
+    }
+    for (int c = 0; c < blk->T; c++) {
+        int bits = pvtc_channel_bits(blk->T, c);
+        code->qa[c] = quantize_real(bits, mean[c] + tmax * axis[c]);
+        code->qb[c] = quantize_real(bits, mean[c] + tmin * axis[c]);
+    }
+}
+
+/* ---- per-index statistics for fixed indices ---------------------------------------------- */
+
+typedef struct index_stats {
+    double count[4];
+    double sum[3][4];   /* per channel, per index: sum of v */
+    double sumsq[3][4]; /* per channel, per index: sum of v^2 */
+} index_stats;
+
+static void gather_stats(const pvtc_block *blk, const pvtc_code *code, index_stats *st)
+{
+    memset(st, 0, sizeof *st);
+    for (int i = 0; i < blk->npos; i++) {
+        int k = code->index[i];
+        st->count[k] += 1.0;
+        for (int c = 0; c < blk->T; c++) {
+            double v = blk->v[i][c];
+            st->sum[c][k] += v;
+            st->sumsq[c][k] += v * v;
+        }
+    }
+}
+
+/* Least-squares endpoints for the current indices; returns 0 if the system is singular (all
+ * positions share one palette weight). */
+static int least_squares_endpoints(int T, const index_stats *st, pvtc_code *code)
+{
+    double aa = 0.0, ab = 0.0, bb = 0.0;
+    for (int k = 0; k < 4; k++) {
+        double w = INDEX_WEIGHT[k];
+        aa += st->count[k] * w * w;
+        ab += st->count[k] * w * (1.0 - w);
+        bb += st->count[k] * (1.0 - w) * (1.0 - w);
+    }
+    double det = aa * bb - ab * ab;
+    if (fabs(det) < 1e-9)
+        return 0;
+    for (int c = 0; c < T; c++) {
+        double ra = 0.0, rb = 0.0;
+        for (int k = 0; k < 4; k++) {
+            ra += INDEX_WEIGHT[k] * st->sum[c][k];
+            rb += (1.0 - INDEX_WEIGHT[k]) * st->sum[c][k];
+        }
+        int bits = pvtc_channel_bits(T, c);
+        code->qa[c] = quantize_real(bits, (bb * ra - ab * rb) / det);
+        code->qb[c] = quantize_real(bits, (aa * rb - ab * ra) / det);
+    }
+    return 1;
+}
+
+/* Exact squared error of channel c with 8-bit endpoints a, b for the fixed indices. */
+static double channel_error(const index_stats *st, int c, int a, int b)
+{
+    int pal[4];
+    pvtc_palette(a, b, pal);
+    double e = 0.0;
+    for (int k = 0; k < 4; k++)
+        e += st->count[k] * pal[k] * pal[k] - 2.0 * pal[k] * st->sum[c][k] + st->sumsq[c][k];
+    return e;
+}
+
+/* With indices fixed the error separates by channel: per channel, the best quantised (a, b)
+ * within SEARCH_RADIUS steps of the current pair. */
+static void search_neighbourhood(int T, const index_stats *st, pvtc_code *code)
+{
+    for (int c = 0; c < T; c++) {
+        int bits = pvtc_channel_bits(T, c), max = (1 << bits) - 1;
+        int qa0 = code->qa[c], qb0 = code->qb[c];
+        double best = channel_error(st, c, pvtc_expand(bits, qa0), pvtc_expand(bits, qb0));
+        for (int qa = clamp_int(qa0 - SEARCH_RADIUS, 0, max);
+             qa <= clamp_int(qa0 + SEARCH_RADIUS, 0, max); qa++)
+            for (int qb = clamp_int(qb0 - SEARCH_RADIUS, 0, max);
+                 qb <= clamp_int(qb0 + SEARCH_RADIUS, 0, max); qb++) {
+                double e = channel_error(st, c, pvtc_expand(bits, qa), pvtc_expand(bits, qb));
+                if (e < best) {
+                    best = e;
+                    code->qa[c] = qa;
+                    code->qb[c] = qb;
+                }
+            }
+    }
+}
+
+/* ---- refinement loop --------------------------------------------------------------------- */
+
+static uint32_t refine(const pvtc_block *blk, pvtc_code *code)
+{
+    uint32_t err = pvtc_assign_indices(blk, code);
+    index_stats st;
+    pvtc_code trial;
+    for (int it = 0; it < LSQ_MAX_ITERATIONS && err > 0; it++) {
+        gather_stats(blk, code, &st);
+        trial = *code;
+        if (least_squares_endpoints(blk->T, &st, &trial)) {
+            uint32_t e = pvtc_assign_indices(blk, &trial);
+            if (e < err) {
+                *code = trial;
+                err = e;
+                gather_stats(blk, code, &st);
+            }
+        }
+        trial = *code;
+        search_neighbourhood(blk->T, &st, &trial);
+        uint32_t e = pvtc_assign_indices(blk, &trial);
+        if (e >= err)
+            break;
+        *code = trial;
+        err = e;
+    }
+    return err;
+}
+
+uint32_t pvtc_encode_block_lsq(const pvtc_block *blk, pvtc_code *code)
+{
+    pvtc_code bbox, from_bbox, from_axis;
+    uint32_t bbox_err = pvtc_encode_block_bbox(blk, &bbox);
+    *code = bbox;
+    if (bbox_err == 0)
+        return 0;
+    principal_endpoints(blk, &from_axis);
+    uint32_t axis_err = refine(blk, &from_axis);
+    from_bbox = bbox;
+    uint32_t refined_bbox_err = refine(blk, &from_bbox);
+    uint32_t best = bbox_err;
+    if (axis_err < best) {
+        *code = from_axis;
+        best = axis_err;
+    }
+    if (refined_bbox_err < best) {
+        *code = from_bbox;
+        best = refined_bbox_err;
+    }
+    return best;
+}
