@@ -1,0 +1,98 @@
+/* cdvr/player.h - out-of-core playback of a store, one frame per timestep (DESIGN.md §2, §7).
+ *
+ * Stages per frame (seed 000 Table 4):
+ *   b1  read    chunk bytes from disk (pread, CRC check; optional cold cache, bandwidth cap)
+ *   b1' unzip   stage-2 decode (LZO) on the CPU
+ *   b2  upload  host -> device copy of the chunk payload
+ *   b3  decode  decode kernel (or C decoder on the cpu device)
+ *   b4  setup   per-frame setup: TF table, brick min/max grid for empty-space skipping
+ *   b5  render  ray cast
+ * With `pipelined`, b1 runs in a reader thread and b1' in an unzip thread, connected to the
+ * calling (device) thread by bounded queues of `ring` buffers, so stages overlap. Callbacks
+ * (decide, camera) always run on the calling thread: a Lua state is never touched elsewhere.
+ *
+ * Chunk-level costs (b1, b1', b2, b3) are shared equally by the frames of the chunk (a PVTC
+ * chunk with time packing holds T timesteps), so per-frame rows add up to the total work.
+ * frame_ms is the wall time between the completion of consecutive frames (the first frame:
+ * since the start of run), so the median of frame_ms gives the sustained frame rate.
+ */
+#ifndef CDVR_PLAYER_H
+#define CDVR_PLAYER_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "cdvr/camera.h"
+#include "cdvr/error.h"
+#include "cdvr/image.h"
+#include "cdvr/render.h"
+#include "cdvr/store.h"
+#include "cdvr/tf.h"
+
+typedef struct cdvr_frame_row {
+    size_t frame;            /* 0-based frame number in this run */
+    size_t t;                /* timestep (0-based) */
+    int variant;             /* variant index (0-based) */
+    double read_ms, unzip_ms, upload_ms, decode_ms, setup_ms, render_ms, frame_ms;
+    uint64_t bytes;          /* stored bytes read, this frame's share */
+    uint64_t payload_bytes;  /* bytes after stage 2, this frame's share */
+    int group_start;         /* 1 if a policy decision was made for this frame's group */
+    char reason[160];        /* the decision's one-line reason (group_start only) */
+    cdvr_status status;      /* CDVR_OK, or the failure of this frame */
+    char error[CDVR_ERRMSG_MAX];
+} cdvr_frame_row;
+
+typedef struct cdvr_player cdvr_player;
+
+/* Called at each group boundary with the next timestep t (0-based) and group index (0-based);
+ * sets *variant (0-based) and a one-line reason. The rows so far are cdvr_player_rows(). */
+typedef cdvr_status (*cdvr_decide_fn)(void *ud, cdvr_player *player, size_t t, size_t group,
+                                      int *variant, char *reason, size_t reason_size,
+                                      cdvr_error *err);
+/* Called before rendering each frame: fills *cam (width/height preset from the player's
+ * camera) for timestep t (0-based) and frame number. */
+typedef cdvr_status (*cdvr_camera_fn)(void *ud, size_t t, size_t frame, cdvr_camera *cam,
+                                      cdvr_error *err);
+/* Called after each frame with the row and the image (e.g. to write a PNG); may be NULL. */
+typedef cdvr_status (*cdvr_frame_fn)(void *ud, const cdvr_frame_row *row, const cdvr_image *img,
+                                     cdvr_error *err);
+
+typedef enum cdvr_device_kind { CDVR_DEVICE_CPU = 0, CDVR_DEVICE_CL = 1 } cdvr_device_kind;
+
+typedef struct cdvr_player_opts {
+    const cdvr_store *store;
+    cdvr_device_kind device;
+    const cdvr_tf *tf;
+    cdvr_camera camera;          /* initial camera (also used when camera_fn is NULL) */
+    double step, unit, term_alpha;
+    float background[4];
+    int threads;                 /* CPU render threads (cpu device), 0 = all */
+    int variant;                 /* initial variant (0-based) */
+    int pipelined;               /* 1: reader/unzip threads; 0: serial */
+    int ring;                    /* queue depth (buffers per queue), default 3 */
+    int cold;                    /* drop chunks from the page cache (posix_fadvise) */
+    double read_mbps;            /* > 0: cap read bandwidth (MB/s, 1e6 bytes) */
+    int empty_skip;              /* 1 (default): empty-space skipping on the cl device */
+    cdvr_decide_fn decide;       /* NULL: always `variant` */
+    void *decide_ud;
+    cdvr_camera_fn camera_fn;
+    void *camera_ud;
+    cdvr_frame_fn frame_fn;
+    void *frame_ud;
+} cdvr_player_opts;
+
+/* Lowest common multiple of the variants' timesteps per chunk (the group length). */
+size_t cdvr_player_group_length(const cdvr_store *st);
+
+cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, cdvr_error *err);
+void cdvr_player_free(cdvr_player *p);
+/* Plays `frames` frames starting at timestep `first` (0-based), wrapping around at the end of
+ * the series. A failed frame (corrupt chunk, ...) gets a row with its status and the run goes
+ * on; a failing callback stops the run and returns its error (rows so far are kept). */
+cdvr_status cdvr_player_run(cdvr_player *p, size_t first, size_t frames, cdvr_error *err);
+/* Rows of the last run (valid until the next run or free). */
+const cdvr_frame_row *cdvr_player_rows(const cdvr_player *p, size_t *count);
+/* Median frame rate of the last run: 1000 / median(frame_ms) over frames without error. */
+double cdvr_player_fps(const cdvr_player *p);
+
+#endif
