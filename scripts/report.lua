@@ -1,0 +1,130 @@
+-- scripts/report.lua DATASET... [--out DIR] [--frames N] [--width W] [--device cl|cpu|auto]
+-- Speed against error (DESIGN.md §8). For each dataset (a directory of NRRD files, a printf
+-- pattern, a 4D NIfTI or a single volume): encode every PVTC variant (S 1/4, T 2/3, time and
+-- space packing) and raw, play each back along the same orbit path, and measure
+--   fps / frame_ms : median over the played frames (pipelined player);
+--   image_psnr     : mean over the path's frames of the PSNR of the render of the decoded
+--                    variant against the render of the uncompressed data (same camera);
+--   volume_psnr, maxerr : measured at encode time over all timesteps.
+-- Writes DIR/report.csv and DIR/report.png (gnuplot: fps against image PSNR, one labelled
+-- point per configuration).
+package.path = (arg[0]:match("^(.*)/[^/]*$") or ".") .. "/bench/?.lua;" .. package.path
+local common = require "common"
+
+local datasets, opt = {}, {out = "out/report", frames = "24", width = "256", device = "auto"}
+local i = 1
+while i <= #arg do
+  local a = arg[i]
+  if a:match("^%-%-") then opt[a:sub(3)] = arg[i + 1]; i = i + 2
+  else datasets[#datasets + 1] = a; i = i + 1 end
+end
+if #datasets == 0 then datasets = {common.shared_data() .. "/series/viscousfingers"} end
+local frames, width = tonumber(opt.frames), tonumber(opt.width)
+os.execute(('mkdir -p "%s"'):format(opt.out))
+
+local configs = {{name = "raw", codec = "raw"}}
+for _, pack in ipairs{"time", "space"} do
+  for _, S in ipairs{1, 4} do
+    for _, T in ipairs{2, 3} do
+      configs[#configs + 1] = {S = S, T = T, pack = pack,
+                               name = ("S%dT%d%s"):format(S, T, pack == "space" and "s" or "")}
+    end
+  end
+end
+
+local function render_device()
+  if opt.device ~= "auto" then return opt.device end
+  return (cdvr.cl_info and cdvr.cl_info()) and "cl" or "cpu"
+end
+local device = render_device()
+
+local rows = {}
+for _, spec in ipairs(datasets) do
+  local vol, name = common.load_dataset(spec)
+  local lo, hi = vol:range()
+  local q = vol:quantize{lo = lo, hi = hi}
+  local tmp = os.tmpname()
+  common.progress("%s: encoding %d configurations", name, #configs)
+  local st = assert(cdvr.encode(q, {variants = configs, stage2 = "none", path = tmp}))
+  local info = st:info()
+  local nx, ny, nz = q:dims()
+  local c = {(nx - 1) / 2, (ny - 1) / 2, (nz - 1) / 2}
+  local path = cdvr.path.orbit{center = c, distance = 2.6 * math.max(nx, ny, nz), up = {0, 0, 1},
+                               elevation = 25, period = frames, fov = 30}
+  local tf = cdvr.tf("hot")
+  -- reference renders of the uncompressed data along the path
+  local refs = {}
+  for f = 1, frames do
+    local t = (f - 1) % info.timesteps + 1
+    refs[f] = cdvr.render(q, {tf = tf, camera = path:camera(f, width, width), t = t, device = device})
+  end
+  for vi, var in ipairs(info.variants) do
+    common.progress("%s: %s (%d/%d)", name, var.name, vi, #info.variants)
+    local p = cdvr.player{store = st, tf = tf, camera = path, variant = var.name, width = width,
+                          height = width, device = device}
+    local r = p:run{frames = frames}
+    p:close()
+    local psnr_sum, nfinite = 0, 0
+    for f = 1, frames do
+      local t = (f - 1) % info.timesteps + 1
+      local img = cdvr.render(st:decode(t, var.name), {tf = tf, camera = path:camera(f, width, width), device = device})
+      local cmp = cdvr.compare(img, refs[f])
+      psnr_sum = psnr_sum + (cmp.psnr == math.huge and 0 or cmp.psnr)
+      nfinite = nfinite + (cmp.psnr == math.huge and 0 or 1)
+    end
+    local image_psnr = nfinite == 0 and math.huge or psnr_sum / nfinite
+    rows[#rows + 1] = {dataset = name, config = var.name, codec = var.codec,
+                       bpv = 8 * var.bytes / info.raw_bytes, ratio = var.bytes / info.raw_bytes,
+                       fps = r.fps, frame_ms = r.median.frame_ms, image_psnr = image_psnr,
+                       volume_psnr = var.psnr, maxerr = var.maxerr}
+  end
+  st:close()
+  os.remove(tmp)
+end
+common.progress_done()
+
+local csv = assert(io.open(opt.out .. "/report.csv", "w"))
+csv:write("dataset,config,codec,bpv,ratio,fps,frame_ms,image_psnr,volume_psnr,maxerr\n")
+local function fmt(x) return x == math.huge and "inf" or ("%.4f"):format(x) end
+for _, r in ipairs(rows) do
+  csv:write(("%s,%s,%s,%s,%s,%s,%s,%s,%s,%s\n"):format(r.dataset, r.config, r.codec, fmt(r.bpv),
+    fmt(r.ratio), fmt(r.fps), fmt(r.frame_ms), fmt(r.image_psnr), fmt(r.volume_psnr), fmt(r.maxerr)))
+end
+csv:close()
+io.write(io.open(opt.out .. "/report.csv"):read("a"))
+
+-- Chart: lossless points (inf PSNR) are drawn at the right edge and labelled so.
+local maxfin = 0
+for _, r in ipairs(rows) do
+  if r.image_psnr ~= math.huge then maxfin = math.max(maxfin, r.image_psnr) end
+end
+local lossless_x = maxfin + 6
+local dat = assert(io.open(opt.out .. "/report.dat", "w"))
+for _, r in ipairs(rows) do
+  local x = r.image_psnr == math.huge and lossless_x or r.image_psnr
+  local label = r.config .. (r.image_psnr == math.huge and " (lossless)" or "")
+  if #datasets > 1 then label = r.dataset .. ":" .. label end
+  dat:write(("%.4f %.4f \"%s\"\n"):format(x, r.fps, label))
+end
+dat:close()
+local gp = assert(io.open(opt.out .. "/report.gp", "w"))
+gp:write(([[
+set terminal pngcairo size 1000,700 font ",11"
+set output "%s/report.png"
+set title "cdvr: playback speed against image quality (%s, %dx%d, device %s)"
+set xlabel "image PSNR against the uncompressed render (dB, higher is better)"
+set ylabel "frames per second (median, higher is better)"
+set grid
+set key off
+set offsets 1, 3, 2, 2
+plot "%s/report.dat" using 1:2 with points pt 7 ps 1.5 lc rgb "#1f77b4", \
+     "" using 1:2:3 with labels offset 0,1 font ",9"
+]]):format(opt.out, table.concat(datasets, ", "):gsub("[^%w%./_,-]", ""):sub(-60), width, width,
+           device, opt.out))
+gp:close()
+local ok = os.execute(('gnuplot "%s/report.gp"'):format(opt.out))
+if not ok then
+  io.stderr:write("report.lua: gnuplot failed; report.csv is written\n")
+  os.exit(1)
+end
+io.stderr:write(("report.lua: wrote %s/report.csv and %s/report.png\n"):format(opt.out, opt.out))
