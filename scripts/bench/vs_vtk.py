@@ -1,0 +1,180 @@
+#!/usr/bin/python3
+"""scripts/bench/vs_vtk.py [--volume PATH] [--repeats N] [--size 512]
+
+Renders the engine CT (256x256x128, ../shared/data) with the same camera, transfer function
+and sample distance in VTK's vtkFixedPointVolumeRayCastMapper (offscreen, under xvfb-run) and in
+cdvr (device cl and cpu), in one run; prints median frame times, their ratios, and the image
+PSNR of each cdvr image against VTK's. Installs python3-vtk9 and xvfb with apt-get when
+missing, and re-executes itself under xvfb-run when no display is set.
+Run from the repository root after building (build/cdvr).
+"""
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+
+# One transfer function for both: value, r, g, b, opacity per unit length. The engine's
+# metal (values above ~180) is opaque and bright; the casing is faint.
+TF = [(0, 0, 0, 0, 0), (80, 0.6, 0.3, 0.1, 0.0), (120, 0.8, 0.5, 0.2, 0.02),
+      (180, 0.9, 0.9, 0.9, 0.3), (255, 1.0, 1.0, 1.0, 0.9)]
+EYE, CENTER, UP, FOV = (560.0, -330.0, 330.0), (127.5, 127.5, 63.5), (0.0, 0.0, 1.0), 30.0
+STEP = 0.5
+
+
+def ensure_packages():
+    try:
+        import vtk  # noqa: F401
+        have_vtk = True
+    except ImportError:
+        have_vtk = False
+    need = [] if have_vtk else ["python3-vtk9"]
+    if not shutil.which("xvfb-run"):
+        need.append("xvfb")
+    if need:
+        sudo = [] if os.geteuid() == 0 else ["sudo"]
+        subprocess.check_call(sudo + ["apt-get", "update", "-qq"])
+        subprocess.check_call(sudo + ["apt-get", "install", "-y", "-qq"] + need,
+                              env=dict(os.environ, DEBIAN_FRONTEND="noninteractive"))
+    if not os.environ.get("DISPLAY") and not os.environ.get("CDVR_UNDER_XVFB"):
+        env = dict(os.environ, CDVR_UNDER_XVFB="1")
+        os.execvpe("xvfb-run", ["xvfb-run", "-a", "-s", "-screen 0 1024x768x24",
+                                "/usr/bin/python3"] + sys.argv, env)
+
+
+def render_vtk(path, size, repeats, out_png):
+    import vtk
+    reader = vtk.vtkNrrdReader()
+    reader.SetFileName(path)
+    reader.Update()
+    color = vtk.vtkColorTransferFunction()
+    opacity = vtk.vtkPiecewiseFunction()
+    for v, r, g, b, a in TF:
+        color.AddRGBPoint(v, r, g, b)
+        opacity.AddPoint(v, a)
+    prop = vtk.vtkVolumeProperty()
+    prop.SetColor(color)
+    prop.SetScalarOpacity(opacity)
+    prop.SetScalarOpacityUnitDistance(1.0)
+    prop.SetInterpolationTypeToLinear()
+    prop.ShadeOff()
+    mapper = vtk.vtkFixedPointVolumeRayCastMapper()
+    mapper.SetInputConnection(reader.GetOutputPort())
+    mapper.SetSampleDistance(STEP)
+    mapper.SetInteractiveSampleDistance(STEP)
+    mapper.AutoAdjustSampleDistancesOff()
+    mapper.SetImageSampleDistance(1.0)
+    mapper.SetNumberOfThreads(os.cpu_count() or 1)
+    volume = vtk.vtkVolume()
+    volume.SetMapper(mapper)
+    volume.SetProperty(prop)
+    ren = vtk.vtkRenderer()
+    ren.AddVolume(volume)
+    ren.SetBackground(0, 0, 0)
+    cam = ren.GetActiveCamera()
+    cam.SetPosition(*EYE)
+    cam.SetFocalPoint(*CENTER)
+    cam.SetViewUp(*UP)
+    cam.SetViewAngle(FOV)
+    ren.ResetCameraClippingRange()
+    win = vtk.vtkRenderWindow()
+    win.SetOffScreenRendering(1)
+    win.AddRenderer(ren)
+    win.SetSize(size, size)
+    win.Render()  # first frame builds the mapper's tables
+    times = []
+    for _ in range(repeats):
+        volume.Modified()
+        t0 = time.perf_counter()
+        win.Render()
+        times.append((time.perf_counter() - t0) * 1e3)
+    w2i = vtk.vtkWindowToImageFilter()
+    w2i.SetInput(win)
+    w2i.ReadFrontBufferOff()
+    w2i.Update()
+    png = vtk.vtkPNGWriter()
+    png.SetFileName(out_png)
+    png.SetInputConnection(w2i.GetOutputPort())
+    png.Write()
+    return sorted(times)[len(times) // 2]
+
+
+def render_cdvr(path, size, repeats, device, out_png):
+    pts = ", ".join("{%g, %g, %g, %g, %g}" % p for p in TF)
+    lua = f"""
+local v = assert(cdvr.load({path!r}))
+local tf = cdvr.tf{{ {pts}, unit = 1 }}
+local cam = cdvr.camera{{eye={{{EYE[0]},{EYE[1]},{EYE[2]}}}, center={{{CENTER[0]},{CENTER[1]},{CENTER[2]}}},
+                         up={{0,0,1}}, fov={FOV}, width={size}, height={size}}}
+local opts = {{tf=tf, camera=cam, step={STEP}, device={device!r}, background={{0,0,0,1}}}}
+local img = cdvr.render(v, opts)   -- warm-up (kernel build, upload)
+local ms = {{}}
+for i = 1, {repeats} do
+  local t0 = cdvr.clock()
+  img = cdvr.render(v, opts)
+  ms[#ms + 1] = (cdvr.clock() - t0) * 1e3
+end
+table.sort(ms)
+img:save({out_png!r})
+print(ms[#ms // 2 + 1])
+"""
+    exe = os.path.join(ROOT, "build", "cdvr")
+    res = subprocess.run([exe, "-e", lua], capture_output=True, text=True)
+    if res.returncode != 0:
+        raise RuntimeError(f"cdvr ({device}) failed: {res.stderr.strip()}")
+    return float(res.stdout.strip().splitlines()[-1])
+
+
+def psnr(png_a, png_b):
+    import numpy as np
+    import vtk
+    from vtk.util.numpy_support import vtk_to_numpy
+
+    def load(p):
+        r = vtk.vtkPNGReader()
+        r.SetFileName(p)
+        r.Update()
+        img = r.GetOutput()
+        w, h, _ = img.GetDimensions()
+        arr = vtk_to_numpy(img.GetPointData().GetScalars()).reshape(h, w, -1)[:, :, :3]
+        return np.flipud(arr).astype(np.float64)  # VTK rows start at the bottom
+
+    a, b = load(png_a), load(png_b)
+    mse = float(np.mean((a - b) ** 2))
+    return float("inf") if mse == 0 else 10 * np.log10(255.0 ** 2 / mse)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    default = os.path.join(os.environ.get("CDVR_SHARED_DATA", os.path.join(ROOT, "..", "shared", "data")),
+                           "ct", "engine_256x256x128_u8.nrrd")
+    ap.add_argument("--volume", default=default)
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--out", default=os.path.join(ROOT, "out", "vs_vtk"))
+    args = ap.parse_args()
+    ensure_packages()
+    os.makedirs(args.out, exist_ok=True)
+    vtk_png = os.path.join(args.out, "vtk.png")
+    vtk_ms = render_vtk(args.volume, args.size, args.repeats, vtk_png)
+    print("renderer,median_ms,fps,speedup_vs_vtk,image_psnr_vs_vtk_db")
+    print(f"vtk_fixed_point,{vtk_ms:.2f},{1e3 / vtk_ms:.2f},1.00,inf")
+    for device in ("cl", "cpu"):
+        png = os.path.join(args.out, f"cdvr_{device}.png")
+        try:
+            ms = render_cdvr(args.volume, args.size, args.repeats, device, png)
+        except RuntimeError as e:
+            print(f"cdvr_{device},nan,nan,nan,nan  # {e}")
+            continue
+        print(f"cdvr_{device},{ms:.2f},{1e3 / ms:.2f},{vtk_ms / ms:.2f},{psnr(png, vtk_png):.2f}")
+    print(f"# images in {args.out}; {os.cpu_count()} cores; step {STEP}, {args.size}x{args.size}",
+          file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
