@@ -1,0 +1,58 @@
+/* core/cl_internal.h - what cl_device.c, cl_pvtc.c and cl_render.c share (not installed). */
+#ifndef CDVR_CL_INTERNAL_H
+#define CDVR_CL_INTERNAL_H
+
+#ifdef __APPLE__
+#include <OpenCL/cl.h>
+#else
+#include <CL/cl.h>
+#endif
+
+#include "cdvr/device.h"
+
+struct cdvr_cl {
+    cl_platform_id platform;
+    cl_device_id device;
+    cl_context context;
+    cl_command_queue queue;
+    cl_program program;
+    cl_kernel k_decode, k_bricks, k_raycast;
+    cdvr_cl_info info;
+};
+
+struct cdvr_cl_stream {
+    cdvr_cl *cl;
+    size_t dims[3];
+    size_t voxels;               /* dims product */
+    size_t brick_dims[3];
+    size_t nbricks;
+    cl_mem payload;              /* uploaded chunk */
+    size_t payload_capacity, payload_bytes;
+    cl_mem frames;               /* decoded u8 frames, contiguous */
+    size_t frame_capacity, frames_valid;
+    cl_mem table;                /* 256 float4: rgb + alpha per unit */
+    cl_mem alpha_corrected;      /* 256 floats, step-corrected alpha */
+    cl_mem visible_prefix;       /* 257 ints: prefix count of entries with alpha > 0 */
+    cl_mem brick_visible;        /* nbricks uchar flags */
+    cl_mem image;                /* width*height float4 */
+    cl_mem samples;              /* width*height uint sample counters */
+    size_t image_pixels;
+    cdvr_tf tf;                  /* TF of the last setup */
+    size_t setup_frame;          /* frame of the last setup, (size_t)-1 for none */
+    size_t bricks_visible;
+    int skipping;
+    uint64_t last_samples;
+};
+
+/* "CL_OUT_OF_RESOURCES" etc. for an OpenCL error code. */
+const char *cdvr_cl_error_name(cl_int code);
+/* If code is not CL_SUCCESS fills err with "OpenCL: what: NAME (code)" and returns
+ * CDVR_ERR_DEVICE; otherwise returns CDVR_OK. */
+cdvr_status cdvr_cl_check(cl_int code, const char *what, cdvr_error *err);
+/* (Re)allocates *mem to hold at least bytes (contents are lost on growth). */
+cdvr_status cdvr_cl_ensure_buffer(cdvr_cl *cl, cl_mem *mem, size_t *capacity, size_t bytes,
+                                  cl_mem_flags flags, const char *what, cdvr_error *err);
+/* Releases a buffer if set and clears the handle. */
+void cdvr_cl_release(cl_mem *mem);
+
+#endif

@@ -1,0 +1,292 @@
+/* core/cl_render.c - per-frame setup (b4: TF, brick visibility) and ray casting (b5). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cl_internal.h"
+
+/* Mirrors the kernel's cam_params struct (all 4-byte members, no padding). */
+typedef struct cam_params {
+    cl_float eye[3], f[3], u[3], r[3];
+    cl_float tan_half, aspect, ortho_half_height;
+    cl_int orthographic, width, height;
+} cam_params;
+
+static cdvr_status run_kernel(cdvr_cl *cl, cl_kernel k, cl_uint ndim, const size_t *global,
+                              const char *what, cdvr_error *err)
+{
+    cl_int code = clEnqueueNDRangeKernel(cl->queue, k, ndim, NULL, global, NULL, 0, NULL, NULL);
+    if (!code)
+        code = clFinish(cl->queue);
+    return cdvr_cl_check(code, what, err);
+}
+
+static cdvr_status write_buffer(cdvr_cl *cl, cl_mem mem, const void *data, size_t bytes,
+                                const char *what, cdvr_error *err)
+{
+    cl_int code = clEnqueueWriteBuffer(cl->queue, mem, CL_TRUE, 0, bytes, data, 0, NULL, NULL);
+    return cdvr_cl_check(code, what, err);
+}
+
+static cdvr_status compute_bricks(cdvr_cl_stream *s, size_t frame, cdvr_error *err)
+{
+    cl_kernel k = s->cl->k_bricks;
+    cl_ulong offset = (cl_ulong)(frame * s->voxels);
+    cl_uint args[7] = {(cl_uint)s->dims[0], (cl_uint)s->dims[1], (cl_uint)s->dims[2],
+                       CDVR_CL_BRICK, (cl_uint)s->brick_dims[0], (cl_uint)s->brick_dims[1],
+                       (cl_uint)s->brick_dims[2]};
+    cl_int code = clSetKernelArg(k, 0, sizeof(cl_mem), &s->frames);
+    code |= clSetKernelArg(k, 1, sizeof offset, &offset);
+    for (cl_uint i = 0; i < 7; i++)
+        code |= clSetKernelArg(k, 2 + i, sizeof(cl_uint), &args[i]);
+    code |= clSetKernelArg(k, 9, sizeof(cl_mem), &s->visible_prefix);
+    code |= clSetKernelArg(k, 10, sizeof(cl_mem), &s->brick_visible);
+    if (code != CL_SUCCESS)
+        return cdvr_cl_check(CL_INVALID_KERNEL_ARGS, "brick_visibility arguments", err);
+    cdvr_status st = run_kernel(s->cl, k, 1, &s->nbricks, "brick_visibility kernel", err);
+    if (st)
+        return st;
+    unsigned char *flags = malloc(s->nbricks);
+    if (!flags)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL setup: out of memory");
+    code = clEnqueueReadBuffer(s->cl->queue, s->brick_visible, CL_TRUE, 0, s->nbricks, flags, 0,
+                               NULL, NULL);
+    s->bricks_visible = 0;
+    for (size_t i = 0; i < s->nbricks; i++)
+        s->bricks_visible += flags[i] != 0;
+    free(flags);
+    return cdvr_cl_check(code, "read brick flags", err);
+}
+
+cdvr_status cdvr_cl_setup(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf, cdvr_error *err)
+{
+    s->setup_frame = (size_t)-1;
+    if (!tf)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL setup: no transfer function");
+    if (frame >= s->frames_valid)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL setup: frame %zu not decoded (%zu frames)",
+                              frame, s->frames_valid);
+    s->tf = *tf;
+    cl_int prefix[257];
+    prefix[0] = 0;
+    for (int i = 0; i < 256; i++)
+        prefix[i + 1] = prefix[i] + (tf->table[i][3] > 0.0f);
+    cdvr_status st = write_buffer(s->cl, s->table, tf->table, sizeof tf->table, "upload TF table", err);
+    if (!st)
+        st = write_buffer(s->cl, s->visible_prefix, prefix, sizeof prefix, "upload TF visibility", err);
+    if (!st)
+        st = compute_bricks(s, frame, err);
+    if (st)
+        return st;
+    s->setup_frame = frame;
+    return CDVR_OK;
+}
+
+void cdvr_cl_set_skipping(cdvr_cl_stream *s, int enabled)
+{
+    s->skipping = enabled != 0;
+}
+
+uint64_t cdvr_cl_last_samples(const cdvr_cl_stream *s)
+{
+    return s->last_samples;
+}
+
+void cdvr_cl_brick_counts(const cdvr_cl_stream *s, size_t *visible, size_t *total)
+{
+    if (visible)
+        *visible = s->bricks_visible;
+    if (total)
+        *total = s->nbricks;
+}
+
+/* camera.h's basis: f = normalize(center - eye), u = up orthogonalised to f, r = f x u. */
+static cdvr_status camera_params(const cdvr_camera *cam, cam_params *out, cdvr_error *err)
+{
+    double f[3], u[3], r[3], fl = 0, dot = 0, ul = 0;
+    for (int i = 0; i < 3; i++) {
+        f[i] = cam->center[i] - cam->eye[i];
+        fl += f[i] * f[i];
+    }
+    if (!(cam->width > 0 && cam->height > 0 && cam->fov > 0 && cam->fov < 180 && fl > 0))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: invalid camera (size %dx%d, fov %g)",
+                              cam->width, cam->height, cam->fov);
+    for (int i = 0; i < 3; i++)
+        f[i] /= sqrt(fl);
+    for (int i = 0; i < 3; i++)
+        dot += cam->up[i] * f[i];
+    for (int i = 0; i < 3; i++) {
+        u[i] = cam->up[i] - dot * f[i];
+        ul += u[i] * u[i];
+    }
+    if (!(ul > 1e-24))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: camera up is parallel to the view");
+    for (int i = 0; i < 3; i++)
+        u[i] /= sqrt(ul);
+    r[0] = f[1] * u[2] - f[2] * u[1];
+    r[1] = f[2] * u[0] - f[0] * u[2];
+    r[2] = f[0] * u[1] - f[1] * u[0];
+    for (int i = 0; i < 3; i++) {
+        out->eye[i] = (cl_float)cam->eye[i];
+        out->f[i] = (cl_float)f[i];
+        out->u[i] = (cl_float)u[i];
+        out->r[i] = (cl_float)r[i];
+    }
+    out->tan_half = (cl_float)tan(cam->fov * M_PI / 360.0);
+    out->aspect = (cl_float)((double)cam->width / cam->height);
+    out->ortho_half_height = (cl_float)(cam->ortho_height / 2);
+    out->orthographic = cam->orthographic != 0;
+    out->width = cam->width;
+    out->height = cam->height;
+    return CDVR_OK;
+}
+
+typedef struct render_params {
+    float step, unit, term_alpha;
+} render_params;
+
+/* render.h defaults: step 0.5 min(spacing), unit from opts, TF or min(spacing), term 0.99. */
+static render_params resolve(const cdvr_render_opts *opts, const cdvr_tf *tf, const double spacing[3])
+{
+    double min_spacing = fmin(spacing[0], fmin(spacing[1], spacing[2]));
+    const cdvr_tf *unit_tf = opts->tf ? opts->tf : tf;
+    render_params rp;
+    rp.step = (float)(opts->step > 0 ? opts->step : 0.5 * min_spacing);
+    rp.unit = (float)(opts->unit > 0 ? opts->unit : unit_tf->unit > 0 ? unit_tf->unit : min_spacing);
+    rp.term_alpha = (float)(opts->term_alpha > 0 ? opts->term_alpha : 0.99);
+    return rp;
+}
+
+static cdvr_status upload_corrected_alpha(cdvr_cl_stream *s, render_params rp, cdvr_error *err)
+{
+    cl_float corrected[256];
+    for (int i = 0; i < 256; i++)
+        corrected[i] = (cl_float)(1.0 - pow(1.0 - s->tf.table[i][3], (double)rp.step / rp.unit));
+    return write_buffer(s->cl, s->alpha_corrected, corrected, sizeof corrected,
+                        "upload corrected alpha", err);
+}
+
+static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_params rp,
+                                    const cam_params *cam, const double spacing[3],
+                                    const double origin[3])
+{
+    cl_kernel k = s->cl->k_raycast;
+    cl_ulong offset = (cl_ulong)(frame * s->voxels);
+    cl_int ints[3] = {(cl_int)s->dims[0], (cl_int)s->dims[1], (cl_int)s->dims[2]};
+    cl_float geo[6] = {(cl_float)origin[0], (cl_float)origin[1], (cl_float)origin[2],
+                       (cl_float)spacing[0], (cl_float)spacing[1], (cl_float)spacing[2]};
+    cl_float inv_unit = 1.0f / rp.unit;
+    cl_int bricks[5] = {CDVR_CL_BRICK, (cl_int)s->brick_dims[0], (cl_int)s->brick_dims[1],
+                        (cl_int)s->brick_dims[2], s->skipping};
+    cl_uint a = 0;
+    cl_int code = clSetKernelArg(k, a++, sizeof(cl_mem), &s->frames);
+    code |= clSetKernelArg(k, a++, sizeof offset, &offset);
+    for (int i = 0; i < 3; i++)
+        code |= clSetKernelArg(k, a++, sizeof(cl_int), &ints[i]);
+    for (int i = 0; i < 6; i++)
+        code |= clSetKernelArg(k, a++, sizeof(cl_float), &geo[i]);
+    code |= clSetKernelArg(k, a++, sizeof(cl_float), &rp.step);
+    code |= clSetKernelArg(k, a++, sizeof(cl_float), &rp.term_alpha);
+    code |= clSetKernelArg(k, a++, sizeof *cam, cam);
+    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->table);
+    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->alpha_corrected);
+    code |= clSetKernelArg(k, a++, sizeof inv_unit, &inv_unit);
+    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->brick_visible);
+    for (int i = 0; i < 5; i++)
+        code |= clSetKernelArg(k, a++, sizeof(cl_int), &bricks[i]);
+    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->image);
+    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->samples);
+    return code == CL_SUCCESS ? CDVR_OK : CDVR_ERR_DEVICE;
+}
+
+static cdvr_status ensure_image(cdvr_cl_stream *s, size_t pixels, cdvr_error *err)
+{
+    if (s->image && s->image_pixels >= pixels)
+        return CDVR_OK;
+    size_t cap_img = 0, cap_samples = 0;
+    cdvr_cl_release(&s->samples);
+    s->image_pixels = 0;
+    size_t img_bytes, sample_bytes;
+    if (!cdvr_size_mul(pixels, 4 * sizeof(cl_float), &img_bytes) ||
+        !cdvr_size_mul(pixels, sizeof(cl_uint), &sample_bytes))
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL render: image of %zu pixels overflows", pixels);
+    cdvr_status st = cdvr_cl_ensure_buffer(s->cl, &s->image, &cap_img, img_bytes,
+                                           CL_MEM_WRITE_ONLY, "image", err);
+    if (!st)
+        st = cdvr_cl_ensure_buffer(s->cl, &s->samples, &cap_samples, sample_bytes,
+                                   CL_MEM_WRITE_ONLY, "sample counters", err);
+    if (st)
+        return st;
+    s->image_pixels = pixels;
+    return CDVR_OK;
+}
+
+static cdvr_status read_results(cdvr_cl_stream *s, cdvr_image *img, size_t pixels, cdvr_error *err)
+{
+    cl_uint *counts = malloc(pixels * sizeof *counts);
+    if (!counts)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL render: out of memory");
+    cl_int code = clEnqueueReadBuffer(s->cl->queue, s->image, CL_TRUE, 0,
+                                      pixels * 4 * sizeof(float), img->rgba, 0, NULL, NULL);
+    if (!code)
+        code = clEnqueueReadBuffer(s->cl->queue, s->samples, CL_TRUE, 0, pixels * sizeof *counts,
+                                   counts, 0, NULL, NULL);
+    uint64_t total = 0;
+    for (size_t i = 0; i < pixels; i++)
+        total += counts[i];
+    free(counts);
+    s->last_samples = total;
+    return cdvr_cl_check(code, "read image", err);
+}
+
+static cdvr_status check_render_args(const cdvr_cl_stream *s, size_t frame,
+                                     const cdvr_render_opts *opts, const double spacing[3],
+                                     const cdvr_image *img, cdvr_error *err)
+{
+    if (!opts || !opts->camera || !img)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: camera and image are required");
+    if (s->setup_frame != frame)
+        return cdvr_error_set(err, CDVR_ERR_ARG,
+                              "OpenCL render: frame %zu has no setup (call cdvr_cl_setup first)", frame);
+    for (int i = 0; i < 3; i++)
+        if (!(spacing[i] > 0) || !isfinite(spacing[i]))
+            return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: spacing must be positive");
+    if (img->width != opts->camera->width || img->height != opts->camera->height)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: image %dx%d, camera %dx%d",
+                              img->width, img->height, opts->camera->width, opts->camera->height);
+    if (!(opts->step >= 0) || !(opts->unit >= 0))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: step and unit must be >= 0");
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_opts *opts,
+                           const double spacing[3], const double origin[3], cdvr_image *img,
+                           cdvr_error *err)
+{
+    cam_params cam;
+    cdvr_status st = check_render_args(s, frame, opts, spacing, img, err);
+    if (!st)
+        st = camera_params(opts->camera, &cam, err);
+    if (st)
+        return st;
+    render_params rp = resolve(opts, &s->tf, spacing);
+    if (!(rp.step > 0) || !(rp.unit > 0))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: step %g and unit %g must be > 0",
+                              rp.step, rp.unit);
+    size_t pixels = (size_t)img->width * (size_t)img->height;
+    st = ensure_image(s, pixels, err);
+    if (!st)
+        st = upload_corrected_alpha(s, rp, err);
+    if (st)
+        return st;
+    if (set_raycast_args(s, frame, rp, &cam, spacing, origin))
+        return cdvr_cl_check(CL_INVALID_KERNEL_ARGS, "raycast arguments", err);
+    size_t global[2] = {(size_t)img->width, (size_t)img->height};
+    st = run_kernel(s->cl, s->cl->k_raycast, 2, global, "raycast kernel", err);
+    if (!st)
+        st = read_results(s, img, pixels, err);
+    if (st)
+        return st;
+    memcpy(img->background, opts->background, sizeof img->background);
+    return CDVR_OK;
+}
