@@ -1,0 +1,482 @@
+-- cdvr.policy: rate-control policies for cdvr.player (DESIGN.md §7).
+--
+-- The player calls policy(stats) at each group boundary (multiples of the lcm of the
+-- variants' T) and reads the next group from the variant it returns:
+--
+--   policy(stats) -> variant_name [, reason]     -- reason: one line, shown in the report
+--
+--   stats = {
+--     target_fps = number or nil,
+--     t = next timestep to read (1-based), group = group index (1-based),
+--     current = name of the variant used for the last group (nil at the start),
+--     capture = true when frames are being written (then never choose below the user's
+--               quality),
+--     min_psnr = number or nil (quality floor the user set),
+--     pipelined = true when the player overlaps stages (optional; default false),
+--     frames = { last rows, oldest first, at most 16: {t=, variant=, read_ms=, unzip_ms=,
+--                upload_ms=, decode_ms=, setup_ms=, render_ms=, frame_ms=, bytes= (stored
+--                bytes read for this frame's chunk share), payload_bytes=} },
+--     variants = { {name=, codec=, S=, T=, pack=, stage2=, bytes_per_timestep= (stored),
+--                   payload_bytes_per_timestep=, psnr=, group=T or 1}, ... }
+--   }                                              -- psnr: encode-time PSNR
+--
+-- Orders: by quality, psnr descending (a raw variant, or psnr = inf, is best; a variant
+-- without psnr ranks below every measured one), ties broken by more stored bytes; by speed,
+-- stored bytes per timestep ascending.
+--
+-- Quality floor: stats.min_psnr is honoured in every mode (playback runs slower rather than
+-- dropping below it; if no variant reaches it, the best one is used). With stats.capture the
+-- floor is also the PSNR of the user's choice (opts.variant) and the choice is deterministic,
+-- independent of timings, so captured movies are repeatable: the fastest variant meeting the
+-- floor, or the best-quality variant when there is no floor.
+--
+-- Timing model (open_loop, and closed_loop's step-up prediction), from the recent frames:
+--   read   = bytes_per_timestep / (median of bytes / read_ms)
+--   unzip  = payload_bytes_per_timestep / (median of payload_bytes / unzip_ms), only for a
+--            variant with stage 2 that actually shrank its chunks
+--   upload = payload_bytes_per_timestep / (median of payload_bytes / upload_ms)
+--   decode = median decode_ms of that variant's frames (every variant outputs one timestep
+--            per frame), else of all frames
+--   setup, render = medians over all frames (they do not depend on the variant)
+-- Serial player: the sum. Pipelined player (cdvr/player.h: reader thread, unzip thread, and
+-- the device thread doing upload..render): max(read, unzip, upload+decode+setup+render).
+-- A stage never measured yet counts as 0 ms (the next group measures it).
+--
+--   policy.fixed([name])
+--   policy.open_loop{target_fps=, margin=0.9, pipelined=, variant=}
+--   policy.closed_loop{target_fps=, hysteresis=0.1, window=, up_after=2, memory=8, variant=}
+--   policy.get(name_or_fn [, opts])
+local policy = {}
+
+local INF = math.huge
+
+-- ---- small helpers ------------------------------------------------------------------------
+local function median(values)
+  local n = #values
+  if n == 0 then return nil end
+  local sorted = table.move(values, 1, n, 1, {})
+  table.sort(sorted)
+  if n % 2 == 1 then return sorted[(n + 1) // 2] end
+  return (sorted[n // 2] + sorted[n // 2 + 1]) / 2
+end
+
+local function positive(x) return type(x) == "number" and x > 0 and x < INF end
+
+local function quality(v)
+  if v.psnr ~= nil then return v.psnr end
+  if v.codec == "raw" then return INF end
+  return -INF
+end
+
+local function stored_bytes(v) return v.bytes_per_timestep end
+local function payload_bytes(v) return v.payload_bytes_per_timestep or v.bytes_per_timestep end
+
+local function better(a, b)
+  local qa, qb = quality(a), quality(b)
+  if qa ~= qb then return qa > qb end
+  if stored_bytes(a) ~= stored_bytes(b) then return stored_bytes(a) > stored_bytes(b) end
+  return a.name < b.name
+end
+
+local function faster(a, b)
+  if stored_bytes(a) ~= stored_bytes(b) then return stored_bytes(a) < stored_bytes(b) end
+  if payload_bytes(a) ~= payload_bytes(b) then return payload_bytes(a) < payload_bytes(b) end
+  return better(a, b)
+end
+
+local function fmt_ms(ms) return string.format("%.1f ms", ms) end
+
+local function fmt_psnr(v)
+  local q = quality(v)
+  if q == INF then return "lossless" end
+  if q == -INF then return "PSNR unknown" end
+  return string.format("%.1f dB", q)
+end
+
+-- Checks the parts of stats every policy needs; returns variants sorted by quality (best
+-- first) and a name -> variant map.
+local function check_stats(stats, who)
+  if type(stats) ~= "table" then
+    error(string.format("%s: stats table expected, got %s", who, type(stats)), 3)
+  end
+  local variants = stats.variants
+  if type(variants) ~= "table" or #variants == 0 then
+    error(string.format("%s: stats.variants is empty", who), 3)
+  end
+  local by_quality, by_name = {}, {}
+  for i, v in ipairs(variants) do
+    if type(v) ~= "table" or type(v.name) ~= "string" then
+      error(string.format("%s: stats.variants[%d].name missing", who, i), 3)
+    end
+    if type(v.bytes_per_timestep) ~= "number" then
+      error(string.format("%s: stats.variants[%d] (%s): bytes_per_timestep missing", who, i, v.name), 3)
+    end
+    if v.psnr ~= nil and (type(v.psnr) ~= "number" or v.psnr ~= v.psnr) then
+      error(string.format("%s: stats.variants[%d] (%s): psnr must be a number", who, i, v.name), 3)
+    end
+    by_quality[i] = v
+    by_name[v.name] = v
+  end
+  table.sort(by_quality, better)
+  return by_quality, by_name
+end
+
+local function target_fps(opts, stats)
+  local fps = opts.target_fps or stats.target_fps
+  if fps ~= nil and not positive(fps) then
+    error(string.format("policy: target_fps must be a positive number, got %s", tostring(fps)), 3)
+  end
+  return fps
+end
+
+-- The quality floor (dB, or nil) and a text naming where it comes from.
+local function quality_floor(stats, opts, by_name)
+  local floor, source = stats.min_psnr, "min_psnr"
+  if floor ~= nil then source = string.format("min_psnr %.1f dB", floor) end
+  if stats.capture and opts.variant then
+    local chosen = by_name[opts.variant]
+    if not chosen then
+      error(string.format("policy: no variant named %s", tostring(opts.variant)), 3)
+    end
+    if floor == nil or quality(chosen) > floor then
+      floor, source = quality(chosen), "the quality of " .. chosen.name
+    end
+  end
+  return floor, source
+end
+
+-- Variants (quality order) that meet the floor; when none does, the best one alone.
+local function allowed_variants(by_quality, floor)
+  if floor == nil then return by_quality, true end
+  local out = {}
+  for _, v in ipairs(by_quality) do
+    if quality(v) >= floor then out[#out + 1] = v end
+  end
+  if #out == 0 then return { by_quality[1] }, false end
+  return out, true
+end
+
+local function contains(list, item)
+  for _, v in ipairs(list) do
+    if v == item then return true end
+  end
+  return false
+end
+
+local function fastest(list)
+  local best = list[1]
+  for i = 2, #list do
+    if faster(list[i], best) then best = list[i] end
+  end
+  return best
+end
+
+-- Deterministic capture choice: see the module comment.
+local function capture_choice(who, by_quality, floor, source)
+  local allowed, met = allowed_variants(by_quality, floor)
+  if floor == nil then
+    return allowed[1].name, string.format("%s: capture, best quality %s (%s)", who,
+                                         allowed[1].name, fmt_psnr(allowed[1]))
+  end
+  if not met then
+    return allowed[1].name, string.format("%s: capture, no variant reaches %s; best is %s (%s)",
+                                         who, source, allowed[1].name, fmt_psnr(allowed[1]))
+  end
+  local v = fastest(allowed)
+  return v.name, string.format("%s: capture, %s is the fastest variant meeting %s", who, v.name, source)
+end
+
+-- ---- timing model -------------------------------------------------------------------------
+local function rate_median(frames, amount_field, ms_field)
+  local rates = {}
+  for _, f in ipairs(frames) do
+    if positive(f[amount_field]) and positive(f[ms_field]) then
+      rates[#rates + 1] = f[amount_field] / f[ms_field]
+    end
+  end
+  return median(rates)
+end
+
+local function field_median(frames, field, variant)
+  local values = {}
+  for _, f in ipairs(frames) do
+    if type(f[field]) == "number" and f[field] >= 0 and (variant == nil or f.variant == variant) then
+      values[#values + 1] = f[field]
+    end
+  end
+  return median(values)
+end
+
+-- Bandwidths (bytes per ms) and variant-independent times measured on frames; nil if none.
+function policy.measure(frames)
+  if type(frames) ~= "table" or #frames == 0 then return nil end
+  local m = {
+    read = rate_median(frames, "bytes", "read_ms"),
+    unzip = rate_median(frames, "payload_bytes", "unzip_ms"),
+    upload = rate_median(frames, "payload_bytes", "upload_ms"),
+    decode_all = field_median(frames, "decode_ms"),
+    setup = field_median(frames, "setup_ms") or 0,
+    render = field_median(frames, "render_ms") or 0,
+    frames = frames,
+  }
+  m.decode = {}
+  return m
+end
+
+local function uses_stage2(v)
+  return v.stage2 ~= nil and v.stage2 ~= false and v.stage2 ~= "none"
+    and stored_bytes(v) < payload_bytes(v)
+end
+
+-- Predicted frame time (ms) of variant v from measurement m.
+function policy.predict(v, m, pipelined)
+  local function per(bytes, rate) return rate and bytes / rate or 0 end
+  local read = per(stored_bytes(v), m.read)
+  local unzip = uses_stage2(v) and per(payload_bytes(v), m.unzip) or 0
+  local upload = per(payload_bytes(v), m.upload)
+  if m.decode[v.name] == nil then
+    m.decode[v.name] = field_median(m.frames, "decode_ms", v.name) or m.decode_all or false
+  end
+  local decode = m.decode[v.name] or 0
+  local device = upload + decode + m.setup + m.render
+  if pipelined then
+    return math.max(read, unzip, device)
+  end
+  return read + unzip + device
+end
+
+-- ---- fixed --------------------------------------------------------------------------------
+function policy.fixed(name)
+  if name ~= nil and type(name) ~= "string" then
+    error(string.format("bad argument #1 to 'fixed' (string expected, got %s)", type(name)), 2)
+  end
+  return function(stats)
+    local by_quality, by_name = check_stats(stats, "fixed")
+    if name == nil then
+      return by_quality[1].name, "fixed: best quality"
+    end
+    if not by_name[name] then
+      local names = {}
+      for _, v in ipairs(by_quality) do names[#names + 1] = v.name end
+      error(string.format("policy.fixed: no variant named %s (have: %s)", name,
+                          table.concat(names, ", ")), 2)
+    end
+    return name, "fixed"
+  end
+end
+
+-- ---- open loop ----------------------------------------------------------------------------
+local function check_opts(opts, fname)
+  if opts == nil then return {} end
+  if type(opts) ~= "table" then
+    error(string.format("bad argument #1 to '%s' (table expected, got %s)", fname, type(opts)), 3)
+  end
+  return opts
+end
+
+function policy.open_loop(opts)
+  opts = check_opts(opts, "open_loop")
+  local margin = opts.margin or 0.9
+  if not positive(margin) then
+    error(string.format("open_loop: margin must be a positive number, got %s", tostring(margin)), 2)
+  end
+  return function(stats)
+    local by_quality, by_name = check_stats(stats, "open_loop")
+    local floor, source = quality_floor(stats, opts, by_name)
+    if stats.capture then return capture_choice("open_loop", by_quality, floor, source) end
+    local allowed = allowed_variants(by_quality, floor)
+    local fps = target_fps(opts, stats)
+    if fps == nil then
+      return allowed[1].name, "open_loop: no target, best quality " .. allowed[1].name
+    end
+    local m = policy.measure(stats.frames)
+    if m == nil then
+      return allowed[1].name, "open_loop: no measurements yet, best quality " .. allowed[1].name
+    end
+    local pipelined = stats.pipelined
+    if pipelined == nil then pipelined = opts.pipelined end
+    local budget = 1000 / fps * margin
+    local quickest, quickest_ms
+    for _, v in ipairs(allowed) do
+      local ms = policy.predict(v, m, pipelined)
+      if ms <= budget then
+        return v.name, string.format("open_loop: %s predicted %s <= %s", v.name, fmt_ms(ms), fmt_ms(budget))
+      end
+      if quickest_ms == nil or ms < quickest_ms then quickest, quickest_ms = v, ms end
+    end
+    return quickest.name, string.format("open_loop: none fits %s, fastest %s predicted %s",
+                                        fmt_ms(budget), quickest.name, fmt_ms(quickest_ms))
+  end
+end
+
+-- ---- closed loop --------------------------------------------------------------------------
+local function group_length(variants)
+  local function gcd(a, b) while b ~= 0 do a, b = b, a % b end return a end
+  local len = 1
+  for _, v in ipairs(variants) do
+    local g = math.tointeger(v.group or v.T or 1) or 1
+    if g > 0 then len = len // gcd(len, g) * g end
+  end
+  return len
+end
+
+local function recent_frame_times(frames, name, window)
+  local times = {}
+  if type(frames) ~= "table" then return times end
+  for i = #frames, 1, -1 do
+    local f = frames[i]
+    if f.variant == name and positive(f.frame_ms) then
+      times[#times + 1] = f.frame_ms
+      if #times >= window then break end
+    end
+  end
+  return times
+end
+
+-- Among allowed, the best-quality variant faster than cur (the next step down).
+local function step_down(allowed, cur)
+  for _, v in ipairs(allowed) do
+    if stored_bytes(v) < stored_bytes(cur) then return v end
+  end
+  return nil
+end
+
+-- Among allowed, the cheapest variant of better quality than cur (the next step up).
+local function step_up(allowed, cur)
+  local pick
+  for _, v in ipairs(allowed) do
+    if quality(v) > quality(cur) and (pick == nil or faster(v, pick)) then pick = v end
+  end
+  return pick
+end
+
+-- Time of `up` predicted from cur's measured median: the timing model's ratio when stage
+-- timings exist, else the stored-bytes ratio; never below what up measured recently.
+local function predict_up(state, stats, up, cur, measured_ms, pipelined)
+  local m = policy.measure(stats.frames)
+  local cur_model = m and policy.predict(cur, m, pipelined) or 0
+  local ratio
+  if cur_model > 0 then
+    ratio = policy.predict(up, m, pipelined) / cur_model
+  else
+    ratio = stored_bytes(cur) > 0 and stored_bytes(up) / stored_bytes(cur) or 1
+  end
+  local predicted = measured_ms * ratio
+  local seen = state.memory[up.name]
+  if seen and (stats.group or 0) - seen.group <= state.memory_groups then
+    predicted = math.max(predicted, seen.ms)
+  end
+  return predicted
+end
+
+local function closed_loop_step(state, stats, allowed, cur, fps)
+  local target = 1000 / fps
+  local h = state.hysteresis
+  local times = recent_frame_times(stats.frames, cur.name, state.window or
+                                   math.min(16, math.max(3, group_length(stats.variants))))
+  local measured = median(times)
+  if measured == nil then
+    state.up_streak = 0
+    return cur.name, string.format("closed_loop: %s, no frames measured yet", cur.name)
+  end
+  state.memory[cur.name] = { ms = measured, group = stats.group or 0 }
+  local what = string.format("closed_loop: %s median %s", cur.name, fmt_ms(measured))
+  if measured > target * (1 + h) then
+    state.up_streak = 0
+    local down = step_down(allowed, cur)
+    if not down then
+      return cur.name, string.format("%s > %s, already the fastest allowed", what, fmt_ms(target * (1 + h)))
+    end
+    return down.name, string.format("%s > %s, step down to %s", what, fmt_ms(target * (1 + h)), down.name)
+  end
+  if measured >= target * (1 - h) then
+    state.up_streak = 0
+    return cur.name, string.format("%s within %s +-%d%%, stay", what, fmt_ms(target), math.floor(h * 100 + 0.5))
+  end
+  local up = step_up(allowed, cur)
+  if not up then
+    state.up_streak = 0
+    return cur.name, string.format("%s < %s, already the best allowed", what, fmt_ms(target * (1 - h)))
+  end
+  local pipelined = stats.pipelined
+  if pipelined == nil then pipelined = state.pipelined end
+  local predicted = predict_up(state, stats, up, cur, measured, pipelined)
+  if predicted > target then
+    state.up_streak = 0
+    return cur.name, string.format("%s, %s predicted %s > %s, stay", what, up.name, fmt_ms(predicted), fmt_ms(target))
+  end
+  state.up_streak = state.up_streak + 1
+  if state.up_streak < state.up_after then
+    return cur.name, string.format("%s, %s predicted %s fits, waiting (%d/%d)", what, up.name,
+                                   fmt_ms(predicted), state.up_streak, state.up_after)
+  end
+  state.up_streak = 0
+  return up.name, string.format("%s, %s predicted %s <= %s, step up", what, up.name,
+                                fmt_ms(predicted), fmt_ms(target))
+end
+
+function policy.closed_loop(opts)
+  opts = check_opts(opts, "closed_loop")
+  local state = {
+    hysteresis = opts.hysteresis or 0.1,
+    window = opts.window,
+    up_after = opts.up_after or 2,
+    memory_groups = opts.memory or 8,
+    pipelined = opts.pipelined,
+    up_streak = 0,
+    memory = {},
+  }
+  if type(state.hysteresis) ~= "number" or state.hysteresis < 0 or state.hysteresis >= 1 then
+    error(string.format("closed_loop: hysteresis must be in [0, 1), got %s", tostring(state.hysteresis)), 2)
+  end
+  if state.window ~= nil and (math.tointeger(state.window) or 0) < 1 then
+    error(string.format("closed_loop: window must be a positive integer, got %s", tostring(state.window)), 2)
+  end
+  if (math.tointeger(state.up_after) or 0) < 1 then
+    error(string.format("closed_loop: up_after must be a positive integer, got %s", tostring(state.up_after)), 2)
+  end
+  return function(stats)
+    local by_quality, by_name = check_stats(stats, "closed_loop")
+    local floor, source = quality_floor(stats, opts, by_name)
+    if stats.capture then return capture_choice("closed_loop", by_quality, floor, source) end
+    local allowed = allowed_variants(by_quality, floor)
+    local fps = target_fps(opts, stats)
+    if fps == nil then
+      return allowed[1].name, "closed_loop: no target, best quality " .. allowed[1].name
+    end
+    local cur = by_name[stats.current or false]
+    if cur == nil then
+      local start = by_name[opts.variant or false] or allowed[1]
+      return start.name, "closed_loop: start at " .. start.name
+    end
+    if not contains(allowed, cur) then
+      local lift = fastest(allowed)
+      return lift.name, string.format("closed_loop: %s is below %s, use %s", cur.name, source, lift.name)
+    end
+    return closed_loop_step(state, stats, allowed, cur, fps)
+  end
+end
+
+-- ---- lookup -------------------------------------------------------------------------------
+local BUILDERS = {
+  fixed = function(opts) return policy.fixed(opts.variant) end,
+  open_loop = policy.open_loop,
+  closed_loop = policy.closed_loop,
+}
+
+function policy.get(name_or_fn, opts)
+  opts = check_opts(opts, "get")
+  local kind = type(name_or_fn)
+  local mt = getmetatable(name_or_fn)
+  if kind == "function" or (kind == "table" and type(mt) == "table" and mt.__call) then
+    return name_or_fn
+  elseif kind == "string" and BUILDERS[name_or_fn] then
+    return BUILDERS[name_or_fn](opts)
+  elseif kind == "string" then
+    error(string.format("policy.get: unknown policy '%s' (fixed, open_loop, closed_loop or a function)",
+                        name_or_fn), 2)
+  end
+  error(string.format("bad argument #1 to 'get' (policy name or function expected, got %s)", kind), 2)
+end
+
+return policy
