@@ -1,0 +1,359 @@
+/* tests/test_render.c - the CPU reference ray caster against the analytic constant-density
+ * box of DESIGN.md section 6, hard cases of section 9, symmetry, thread invariance and a
+ * real CT volume written as PNG. */
+#include "check.h"
+#include "cdvr/render.h"
+
+#include <stdint.h>
+#include <string.h>
+
+static cdvr_volume *make_volume(size_t x, size_t y, size_t z)
+{
+    size_t dims[3] = {x, y, z};
+    cdvr_volume *v = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_volume_create(dims, 1, CDVR_TYPE_U8, &v, &err), err);
+    return v;
+}
+
+static cdvr_volume *constant_volume(size_t n, uint8_t value)
+{
+    cdvr_volume *v = make_volume(n, n, n);
+    if (v)
+        memset(v->data, value, cdvr_volume_voxels(v));
+    return v;
+}
+
+static void constant_tf(cdvr_tf *tf, double alpha, double unit)
+{
+    cdvr_tf_point p = {100, 1, 1, 1, alpha};
+    cdvr_error err;
+    CHECK_OK(cdvr_tf_init(tf, &p, 1, unit, &err), err);
+}
+
+static cdvr_camera camera(const double eye[3], const double center[3], int size)
+{
+    cdvr_camera cam = {{eye[0], eye[1], eye[2]}, {center[0], center[1], center[2]},
+                       {0, 0, 1}, 40.0, size, size, 0, 0.0};
+    return cam;
+}
+
+static cdvr_render_opts options(const cdvr_tf *tf, const cdvr_camera *cam, double step,
+                                double term)
+{
+    cdvr_render_opts o;
+    memset(&o, 0, sizeof o);
+    o.tf = tf;
+    o.camera = cam;
+    o.step = step;
+    o.term_alpha = term;
+    o.background[3] = 1.0f;
+    o.threads = 2;
+    return o;
+}
+
+static cdvr_image *render(const cdvr_volume *v, cdvr_render_opts *o)
+{
+    cdvr_image *img = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_render_cpu(v, 0, o, &img, &err), err);
+    return img;
+}
+
+/* Length of ray o + t d (t >= 0) inside box [lo, hi], in double. */
+static double chord_length(const double lo[3], const double hi[3], const double o[3],
+                           const double d[3])
+{
+    double t0 = 0.0, t1 = HUGE_VAL;
+    for (int a = 0; a < 3; a++) {
+        if (d[a] == 0.0) {
+            if (o[a] < lo[a] || o[a] > hi[a])
+                return 0.0;
+            continue;
+        }
+        double ta = (lo[a] - o[a]) / d[a], tb = (hi[a] - o[a]) / d[a];
+        t0 = fmax(t0, fmin(ta, tb));
+        t1 = fmin(t1, fmax(ta, tb));
+    }
+    return t1 > t0 ? t1 - t0 : 0.0;
+}
+
+/* Every pixel: 1 - A = (1 - alpha)^(L/unit) to 1e-3, colour = A (white, premultiplied).
+ * Returns the chord length of the centre pixel. */
+static double check_transmittance(const cdvr_volume *v, const cdvr_camera *cam, double alpha,
+                                  double unit, double step, const char *what)
+{
+    cdvr_tf tf;
+    constant_tf(&tf, alpha, unit);
+    cdvr_render_opts o = options(&tf, cam, step, 2.0);
+    cdvr_image *img = render(v, &o);
+    if (!img)
+        return 0.0;
+    double lo[3] = {0, 0, 0}, hi[3], centre = 0.0, worst = 0.0;
+    for (int a = 0; a < 3; a++)
+        hi[a] = (double)(v->dims[a] - 1);
+    for (int y = 0; y < cam->height; y++)
+        for (int x = 0; x < cam->width; x++) {
+            double ro[3], rd[3];
+            cdvr_camera_ray(cam, x, y, ro, rd);
+            double L = chord_length(lo, hi, ro, rd);
+            const float *p = cdvr_image_pixel(img, x, y);
+            double expect = pow(1.0 - alpha, L / unit);
+            worst = fmax(worst, fabs((1.0 - p[3]) - expect));
+            worst = fmax(worst, fabs(p[0] - p[3]));
+            if (x == cam->width / 2 && y == cam->height / 2)
+                centre = L;
+        }
+    CHECK(worst <= 1e-3, "%s, step %g: transmittance off by %g", what, step, worst);
+    cdvr_image_free(img);
+    return centre;
+}
+
+static void test_analytic_box(void)
+{
+    cdvr_volume *v = constant_volume(16, 100);
+    if (!v)
+        return;
+    const double steps[] = {0.05, 0.37, 1.0, 3.0, 40.0};
+    double center[3] = {7.5, 7.5, 7.5};
+    for (size_t i = 0; i < sizeof steps / sizeof steps[0]; i++) {
+        double s = steps[i];
+        /* odd size: the centre pixel's ray is exactly the y axis (x and z components 0) */
+        double eye_axis[3] = {7.5, -30, 7.5};
+        cdvr_camera cam = camera(eye_axis, center, 9);
+        double L = check_transmittance(v, &cam, 0.3, 10.0, s, "axis-parallel");
+        CHECK(fabs(L - 15.0) < 1e-9, "axis chord %g", L);
+        check_transmittance(v, &cam, 0.3, 1.0, s, "axis-parallel, unit 1");
+        cam.orthographic = 1;
+        cam.ortho_height = 20.0; /* rays along y, some miss the box entirely */
+        check_transmittance(v, &cam, 0.3, 10.0, s, "orthographic");
+        double eye_diag[3] = {7.5 - 30, 7.5 - 30, 7.5};
+        cam = camera(eye_diag, center, 9);
+        L = check_transmittance(v, &cam, 0.3, 10.0, s, "45 degrees");
+        CHECK(fabs(L - 15.0 * sqrt(2.0)) < 1e-6, "diagonal chord %g", L);
+        double eye_in[3] = {5, 6, 7}, look[3] = {10, 6.2, 7.1};
+        cam = camera(eye_in, look, 9);
+        cam.fov = 90.0;
+        check_transmittance(v, &cam, 0.3, 10.0, s, "camera inside");
+    }
+    cdvr_volume_free(v);
+}
+
+static void test_zero_and_full_opacity(void)
+{
+    cdvr_volume *v = constant_volume(16, 100);
+    if (!v)
+        return;
+    double eye[3] = {30, -25, 20}, center[3] = {7.5, 7.5, 7.5};
+    cdvr_camera cam = camera(eye, center, 24);
+    cdvr_tf tf;
+    constant_tf(&tf, 0.0, 1.0);
+    cdvr_render_opts o = options(&tf, &cam, 0.5, 0.0);
+    cdvr_image *img = render(v, &o);
+    int nonzero = 0, hits = 0;
+    for (int i = 0; img && i < 24 * 24 * 4; i++)
+        nonzero += img->rgba[i] != 0.0f;
+    CHECK(img && nonzero == 0, "zero-opacity TF left %d nonzero channels", nonzero);
+    CHECK(o.samples > 0, "no samples taken");
+    cdvr_image_free(img);
+
+    cdvr_tf_point red = {100, 1, 0, 0, 1.0};
+    cdvr_error err;
+    CHECK_OK(cdvr_tf_init(&tf, &red, 1, 1.0, &err), err);
+    o = options(&tf, &cam, 0.5, 0.0);
+    img = render(v, &o);
+    for (int y = 0; img && y < 24; y++)
+        for (int x = 0; x < 24; x++) {
+            const float *p = cdvr_image_pixel(img, x, y);
+            CHECK(p[3] == 0.0f || (p[3] == 1.0f && p[0] == 1.0f && p[1] == 0.0f),
+                  "pixel %d,%d = %g %g %g %g", x, y, p[0], p[1], p[2], p[3]);
+            hits += p[3] == 1.0f;
+        }
+    CHECK(hits > 100, "only %d pixels hit the box", hits);
+    CHECK(o.samples == (uint64_t)hits, "full opacity took %llu samples for %d rays",
+          (unsigned long long)o.samples, hits);
+    cdvr_image_free(img);
+    cdvr_volume_free(v);
+}
+
+/* Deterministic bumpy field: values from a fixed LCG, smoothed by trilinear sampling. */
+static cdvr_volume *noise_volume(size_t n)
+{
+    cdvr_volume *v = make_volume(n, n, n);
+    uint32_t state = 12345u;
+    for (size_t i = 0; v && i < cdvr_volume_voxels(v); i++) {
+        state = state * 1664525u + 1013904223u;
+        ((uint8_t *)v->data)[i] = (uint8_t)(state >> 24);
+    }
+    return v;
+}
+
+static void test_early_termination_and_threads(void)
+{
+    cdvr_volume *v = noise_volume(20);
+    if (!v)
+        return;
+    cdvr_tf_point pts[] = {{0, 0, 0, 1, 0}, {128, 0, 1, 0, 0.2}, {255, 1, 0, 0, 0.9}};
+    cdvr_tf tf;
+    cdvr_error err;
+    CHECK_OK(cdvr_tf_init(&tf, pts, 3, 1.0, &err), err);
+    double eye[3] = {-20, -30, 25}, center[3] = {9.5, 9.5, 9.5};
+    cdvr_camera cam = camera(eye, center, 32);
+    cdvr_render_opts full = options(&tf, &cam, 0.3, 2.0), early = options(&tf, &cam, 0.3, 0.0);
+    cdvr_image *a = render(v, &full), *b = render(v, &early);
+    early.threads = 1;
+    cdvr_image *c = render(v, &early);
+    early.threads = 5;
+    cdvr_image *d = render(v, &early);
+    if (a && b && c && d) {
+        double worst = 0.0;
+        int opaque = 0;
+        for (int i = 0; i < 32 * 32 * 4; i++)
+            worst = fmax(worst, fabs(a->rgba[i] - b->rgba[i]));
+        for (int i = 3; i < 32 * 32 * 4; i += 4)
+            opaque += b->rgba[i] >= 0.99f;
+        CHECK(worst <= 0.011, "early termination changed a pixel by %g", worst);
+        CHECK(opaque > 50, "only %d rays terminated early: test too weak", opaque);
+        CHECK(early.samples < full.samples, "early termination saved no samples");
+        CHECK(memcmp(b->rgba, c->rgba, 32 * 32 * 4 * sizeof(float)) == 0 &&
+                  memcmp(b->rgba, d->rgba, 32 * 32 * 4 * sizeof(float)) == 0,
+              "thread count changes the image");
+    }
+    cdvr_image_free(a);
+    cdvr_image_free(b);
+    cdvr_image_free(c);
+    cdvr_image_free(d);
+    cdvr_volume_free(v);
+}
+
+static void test_sphere_symmetry(void)
+{
+    cdvr_volume *v = make_volume(32, 32, 32);
+    if (!v)
+        return;
+    uint8_t *vox = v->data;
+    for (int z = 0; z < 32; z++)
+        for (int y = 0; y < 32; y++)
+            for (int x = 0; x < 32; x++) {
+                double r = sqrt((x - 15.5) * (x - 15.5) + (y - 15.5) * (y - 15.5) +
+                                (z - 12.0) * (z - 12.0));
+                vox[x + 32 * (y + 32 * z)] = r < 11.0 ? (uint8_t)(250 - 20 * r) : 0;
+            }
+    cdvr_tf_point pts[] = {{20, 0, 0, 0, 0}, {120, 1, 0.5, 0, 0.1}, {250, 1, 1, 1, 0.8}};
+    cdvr_tf tf;
+    cdvr_error err;
+    CHECK_OK(cdvr_tf_init(&tf, pts, 3, 1.0, &err), err);
+    double eye[3] = {15.5, -50, 30}, center[3] = {15.5, 15.5, 12};
+    cdvr_camera cam = camera(eye, center, 32);
+    cdvr_render_opts o = options(&tf, &cam, 0.37, 0.0);
+    cdvr_image *img = render(v, &o);
+    double worst = 0.0, top = 0.0, bottom = 0.0;
+    for (int y = 0; img && y < 32; y++)
+        for (int x = 0; x < 16; x++) {
+            const float *p = cdvr_image_pixel(img, x, y), *q = cdvr_image_pixel(img, 31 - x, y);
+            for (int c = 0; c < 4; c++)
+                worst = fmax(worst, fabs(p[c] - q[c]));
+            if (y < 16)
+                top += p[3];
+            else
+                bottom += p[3];
+        }
+    CHECK(img && worst < 1e-4, "sphere not left-right symmetric: %g", worst);
+    CHECK(top > 1.0 && bottom > 1.0, "sphere not visible: %g %g", top, bottom);
+    cdvr_image_free(img);
+    cdvr_volume_free(v);
+}
+
+static void test_bad_input(void)
+{
+    cdvr_volume *v = constant_volume(4, 100);
+    size_t dims[3] = {4, 4, 4};
+    cdvr_volume *f = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_volume_create(dims, 1, CDVR_TYPE_F32, &f, &err), err);
+    if (!v || !f)
+        return;
+    cdvr_tf tf;
+    constant_tf(&tf, 0.5, 1.0);
+    double eye[3] = {1.5, -10, 1.5}, center[3] = {1.5, 1.5, 1.5};
+    cdvr_camera cam = camera(eye, center, 8);
+    cdvr_render_opts o = options(&tf, &cam, 0.0, 0.0);
+    cdvr_image *img = NULL;
+    CHECK(cdvr_render_cpu(f, 0, &o, &img, &err) == CDVR_ERR_ARG && !img, "f32 accepted");
+    CHECK(strstr(err.msg, "quantize") != NULL, "message: %s", err.msg);
+    CHECK(cdvr_render_cpu(v, 1, &o, &img, &err) == CDVR_ERR_ARG, "timestep 1 of 1 accepted");
+    o.step = -1.0;
+    CHECK(cdvr_render_cpu(v, 0, &o, &img, &err) == CDVR_ERR_ARG, "negative step accepted");
+    o.step = 1e-12;
+    CHECK(cdvr_render_cpu(v, 0, &o, &img, &err) == CDVR_ERR_ARG, "absurd step accepted");
+    o.step = 0.0;
+    cam.fov = 200.0;
+    CHECK(cdvr_render_cpu(v, 0, &o, &img, &err) == CDVR_ERR_ARG, "bad camera accepted");
+    cam.fov = 40.0;
+    v->spacing[1] = 0.0;
+    CHECK(cdvr_render_cpu(v, 0, &o, &img, &err) == CDVR_ERR_ARG, "zero spacing accepted");
+    v->spacing[1] = 2.0;
+    double step, unit, term;
+    cdvr_render_resolve(v, &o, &step, &unit, &term);
+    CHECK(step == 0.5 && unit == 1.0 && fabs(term - 0.99) < 1e-12, "defaults %g %g %g", step,
+          unit, term);
+    /* a 1-voxel-thick volume is a flat box: no ray crosses a positive length */
+    cdvr_volume *flat = make_volume(4, 4, 1);
+    CHECK_OK(cdvr_render_cpu(flat, 0, &o, &img, &err), err);
+    cdvr_image_free(img);
+    cdvr_volume_free(flat);
+    cdvr_volume_free(v);
+    cdvr_volume_free(f);
+}
+
+static void test_engine_png(void)
+{
+    const char *dir = check_shared_data();
+    if (!dir) {
+        printf("CDVR_SHARED_DATA not set: engine render skipped\n");
+        return;
+    }
+    char path[1024];
+    snprintf(path, sizeof path, "%s/ct/engine_256x256x128_u8.nrrd", dir);
+    cdvr_volume *v = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_volume_load_nrrd(path, &v, &err), err);
+    if (!v)
+        return;
+    /* share/tf/ct_bone.lua: block material faint, dense metal opaque and bright */
+    cdvr_tf_point pts[] = {{0, 0, 0, 0, 0},         {120, 0.5, 0.3, 0.2, 0},
+                           {140, 0.8, 0.6, 0.5, 0.02}, {165, 0.9, 0.8, 0.7, 0.03},
+                           {185, 1, 0.95, 0.85, 0.6}, {255, 1, 1, 1, 0.95}};
+    cdvr_tf tf;
+    CHECK_OK(cdvr_tf_init(&tf, pts, 6, 1.0, &err), err);
+    cdvr_camera cam = {{0}, {0}, {0}, 30.0, 256, 256, 0, 0.0};
+    double center[3] = {127.5, 127.5, 63.5}, up[3] = {0, 0, 1};
+    cdvr_camera_orbit(&cam, center, up, 650.0, -60.0, 25.0);
+    cdvr_render_opts o = options(&tf, &cam, 1.0, 0.0);
+    o.threads = 0;
+    cdvr_image *img = render(v, &o);
+    if (img) {
+        int empty = 0, solid = 0;
+        for (int i = 3; i < 256 * 256 * 4; i += 4) {
+            empty += img->rgba[i] == 0.0f;
+            solid += img->rgba[i] > 0.5f;
+        }
+        CHECK(empty > 1000 && solid > 1000, "engine image: %d empty, %d solid pixels", empty,
+              solid);
+        CHECK_OK(cdvr_image_save_png(img, "test_render_engine.png", &err), err);
+        printf("wrote test_render_engine.png (%llu samples)\n", (unsigned long long)o.samples);
+    }
+    cdvr_image_free(img);
+    cdvr_volume_free(v);
+}
+
+int main(void)
+{
+    test_analytic_box();
+    test_zero_and_full_opacity();
+    test_early_termination_and_threads();
+    test_sphere_symmetry();
+    test_bad_input();
+    test_engine_png();
+    return check_finish();
+}
