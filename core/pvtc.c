@@ -367,19 +367,34 @@ static size_t clamp_index(size_t v, size_t n)
     return v < n ? v : n - 1;
 }
 
-/* Gathers block (bx, by, bz) with edge replication in x, y and z (packed slices past Z repeat
- * slice Z-1). */
+/* Voxel slice that pads channel c at packed position zp. Packed positions past the last one
+ * repeat it; inside a partly filled last position, a missing channel takes the same channel
+ * one packed position back (slice - T), so padding never mixes channels of unrelated slices
+ * into a block (the decoder crops padding, so any value is valid; this one costs least). */
+static size_t padded_slice(const chunk_layout *lay, int c, size_t zp)
+{
+    const size_t Z = lay->dims[2], T = (size_t)lay->T;
+    if (!lay->space)
+        return clamp_index(zp, Z);
+    size_t last = (Z - 1) / T;
+    size_t slice = T * (zp < last ? zp : last) + (size_t)c;
+    if (slice < Z)
+        return slice;
+    return last > 0 ? slice - T : Z - 1;
+}
+
+/* Gathers block (bx, by, bz) with edge replication in x, y and z. */
 static void gather_block(const chunk_layout *lay, const uint8_t *const *frames, size_t bx,
                          size_t by, size_t bz, pvtc_block *blk)
 {
-    const size_t X = lay->dims[0], Y = lay->dims[1], Z = lay->dims[2];
+    const size_t X = lay->dims[0], Y = lay->dims[1];
     blk->T = lay->T;
     blk->npos = 16 * lay->S;
     for (int zi = 0; zi < lay->S; zi++) {
         size_t zp = bz * (size_t)lay->S + (size_t)zi;
         for (int c = 0; c < lay->T; c++) {
             const uint8_t *plane = frames[channel_frame(lay, c)] +
-                                   lay->plane * clamp_index(channel_slice(lay, c, zp), Z);
+                                   lay->plane * padded_slice(lay, c, zp);
             for (int y = 0; y < 4; y++) {
                 const uint8_t *row = plane + X * clamp_index(4 * by + (size_t)y, Y);
                 for (int x = 0; x < 4; x++)

@@ -82,15 +82,16 @@ static int principal_axis(int T, double cov[3][3], double axis[3])
     return 1;
 }
 
-/* Endpoints at the extreme projections onto the principal axis (both at the mean when the
- * PCA is degenerate, i.e. a constant block). */
-static void principal_endpoints(const pvtc_block *blk, pvtc_code *code)
+/* Endpoints at the extreme projections onto the principal axis. Returns 0 (code untouched)
+ * when the PCA is degenerate: all points equal, a constant block. */
+static int principal_endpoints(const pvtc_block *blk, pvtc_code *code)
 {
     double mean[3], cov[3][3], axis[3] = {0.0, 0.0, 0.0};
     block_mean_cov(blk, mean, cov);
     double tmin = 0.0, tmax = 0.0;
-    if (principal_axis(blk->T, cov, axis)) {
-        tmin = tmax = 0.0;
+    if (!principal_axis(blk->T, cov, axis))
+        return 0;
+    {
         for (int i = 0; i < blk->npos; i++) {
             double t = 0.0;
             for (int c = 0; c < blk->T; c++)
@@ -106,6 +107,48 @@ static void principal_endpoints(const pvtc_block *blk, pvtc_code *code)
         code->qa[c] = quantize_real(bits, mean[c] + tmax * axis[c]);
         code->qb[c] = quantize_real(bits, mean[c] + tmin * axis[c]);
     }
+    return 1;
+}
+
+/* Best quantised (a, b) of one channel whose palette entry k (0 or 1; 2 and 3 mirror them)
+ * is closest to value; returns the squared error. */
+static int fit_value(int bits, int k, int value, int *qa_out, int *qb_out)
+{
+    int max = (1 << bits) - 1, best = -1, pal[4];
+    for (int qa = 0; qa <= max && best != 0; qa++)
+        for (int qb = (k == 0 ? qa : 0); qb <= (k == 0 ? qa : max); qb++) {
+            pvtc_palette(pvtc_expand(bits, qa), pvtc_expand(bits, qb), pal);
+            int e = (pal[k] - value) * (pal[k] - value);
+            if (best < 0 || e < best) {
+                best = e;
+                *qa_out = qa;
+                *qb_out = qb;
+                if (e == 0)
+                    break;
+            }
+        }
+    return best;
+}
+
+/* Constant block: every position takes the same palette entry k, and each channel gets the
+ * quantised pair whose entry k is nearest to its value (5/6-bit endpoints cannot hold every
+ * 8-bit value, but an interpolated entry often can). */
+static uint32_t fit_constant(const pvtc_block *blk, pvtc_code *code)
+{
+    uint32_t best_total = UINT32_MAX;
+    for (int k = 0; k < 2; k++) {
+        pvtc_code trial;
+        uint32_t total = 0;
+        for (int c = 0; c < blk->T; c++)
+            total += (uint32_t)fit_value(pvtc_channel_bits(blk->T, c), k, blk->v[0][c],
+                                         &trial.qa[c], &trial.qb[c]);
+        if (total < best_total) {
+            best_total = total;
+            memset(trial.index, k, sizeof trial.index);
+            *code = trial;
+        }
+    }
+    return best_total;
 }
 
 /* ---- per-index statistics for fixed indices ---------------------------------------------- */
@@ -226,8 +269,11 @@ uint32_t pvtc_encode_block_lsq(const pvtc_block *blk, pvtc_code *code)
     *code = bbox;
     if (bbox_err == 0)
         return 0;
-    principal_endpoints(blk, &from_axis);
-    uint32_t axis_err = refine(blk, &from_axis);
+    uint32_t axis_err;
+    if (principal_endpoints(blk, &from_axis))
+        axis_err = refine(blk, &from_axis);
+    else
+        axis_err = fit_constant(blk, &from_axis);
     from_bbox = bbox;
     uint32_t refined_bbox_err = refine(blk, &from_bbox);
     uint32_t best = bbox_err;
