@@ -1,9 +1,14 @@
 /* core/volume.c - cdvr_volume allocation, access and type helpers. */
 #include "cdvr/volume.h"
+#include "volume_io.h"
 
+#include <errno.h>
+#include <float.h>
+#include <stdio.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 size_t cdvr_type_size(cdvr_type type)
 {
@@ -148,5 +153,64 @@ cdvr_status cdvr_volume_slice_time(const cdvr_volume *vol, size_t t0, size_t cou
     memcpy((*out)->spacing, vol->spacing, sizeof vol->spacing);
     memcpy((*out)->origin, vol->origin, sizeof vol->origin);
     memcpy((*out)->data, cdvr_volume_frame(vol, t0), count * cdvr_volume_frame_bytes(vol));
+    return CDVR_OK;
+}
+
+/* ---- helpers for the loaders (core/volume_io.h) ------------------------------------------- */
+
+int cdvr_volume_bytes_for(const size_t dims[3], size_t timesteps, cdvr_type type, size_t *bytes)
+{
+    size_t n = cdvr_type_size(type);
+    return cdvr_size_mul(n, dims[0], &n) && cdvr_size_mul(n, dims[1], &n) &&
+           cdvr_size_mul(n, dims[2], &n) && cdvr_size_mul(n, timesteps, bytes);
+}
+
+void cdvr_swap_bytes(void *data, size_t count, size_t elem_size)
+{
+    unsigned char *p = data;
+    for (size_t i = 0; i < count; i++, p += elem_size) {
+        for (size_t a = 0, b = elem_size - 1; a < b; a++, b--) {
+            unsigned char tmp = p[a];
+            p[a] = p[b];
+            p[b] = tmp;
+        }
+    }
+}
+
+int cdvr_host_is_little_endian(void)
+{
+    const uint16_t probe = 1;
+    unsigned char first;
+    memcpy(&first, &probe, 1);
+    return first == 1;
+}
+
+float cdvr_double_to_f32(double v)
+{
+    /* a double outside float's range has no defined conversion in C; saturate to +-Inf */
+    if (v > FLT_MAX)
+        return INFINITY;
+    if (v < -FLT_MAX)
+        return -INFINITY;
+    return (float)v;
+}
+
+void cdvr_convert_to_f32(float *dst, const void *src, size_t count, cdvr_value_reader read)
+{
+    for (size_t i = 0; i < count; i++)
+        dst[i] = cdvr_double_to_f32(read(src, i));
+}
+
+cdvr_status cdvr_check_readable(const char *path, cdvr_error *err)
+{
+    struct stat sb;
+    if (stat(path, &sb) != 0)
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    if (!S_ISREG(sb.st_mode))
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: not a regular file", path);
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    fclose(f);
     return CDVR_OK;
 }

@@ -69,6 +69,13 @@ typedef struct cdvr_raw_opts {
 
 cdvr_status cdvr_volume_load_raw(const char *path, const cdvr_raw_opts *opts,
                                  cdvr_volume **out, cdvr_error *err);
+/* Writes all timesteps' voxels, no header, to `path` (little endian unless big_endian),
+ * through a temporary file in the same directory that is renamed over `path` at the end. */
+cdvr_status cdvr_volume_save_raw(const cdvr_volume *vol, const char *path, int big_endian,
+                                 cdvr_error *err);
+
+/* Loaders keep u8, u16, i16 and f32 as they are; other file types (i8, u32, i32, i64, u64,
+ * f64) become f32, each value rounded to the nearest float (beyond float's range: +-Inf). */
 /* .nrrd / .nhdr through teem. 3D (or 4D: the 4th axis becomes timesteps). */
 cdvr_status cdvr_volume_load_nrrd(const char *path, cdvr_volume **out, cdvr_error *err);
 /* .nii / .nii.gz through niftilib. 3D, or 4D (timesteps = dim[4]). */

@@ -1,0 +1,161 @@
+/* core/io_nifti.c - NIfTI-1 (.nii, .nii.gz, .hdr/.img pairs) through niftilib. */
+#include "cdvr/volume.h"
+#include "volume_io.h"
+
+#include <math.h>
+#include <nifti1_io.h>
+#include <string.h>
+
+static double read_u8(const void *p, size_t i) { return ((const uint8_t *)p)[i]; }
+static double read_i8(const void *p, size_t i) { return ((const int8_t *)p)[i]; }
+static double read_u16(const void *p, size_t i) { return ((const uint16_t *)p)[i]; }
+static double read_i16(const void *p, size_t i) { return ((const int16_t *)p)[i]; }
+static double read_u32(const void *p, size_t i) { return ((const uint32_t *)p)[i]; }
+static double read_i32(const void *p, size_t i) { return ((const int32_t *)p)[i]; }
+static double read_u64(const void *p, size_t i) { return (double)((const uint64_t *)p)[i]; }
+static double read_i64(const void *p, size_t i) { return (double)((const int64_t *)p)[i]; }
+static double read_f32(const void *p, size_t i) { return ((const float *)p)[i]; }
+static double read_f64(const void *p, size_t i) { return ((const double *)p)[i]; }
+
+/* Reader for a NIfTI datatype and the type it keeps when no conversion is needed
+ * (*native = 0 for the types that become f32). NULL for unsupported datatypes. */
+static cdvr_value_reader nifti_reader(int datatype, cdvr_type *type, int *native)
+{
+    *native = 1;
+    switch (datatype) {
+    case DT_UINT8: *type = CDVR_TYPE_U8; return read_u8;
+    case DT_UINT16: *type = CDVR_TYPE_U16; return read_u16;
+    case DT_INT16: *type = CDVR_TYPE_I16; return read_i16;
+    case DT_FLOAT32: *type = CDVR_TYPE_F32; return read_f32;
+    default: break;
+    }
+    *native = 0;
+    *type = CDVR_TYPE_F32;
+    switch (datatype) {
+    case DT_INT8: return read_i8;
+    case DT_UINT32: return read_u32;
+    case DT_INT32: return read_i32;
+    case DT_UINT64: return read_u64;
+    case DT_INT64: return read_i64;
+    case DT_FLOAT64: return read_f64;
+    default: return NULL;
+    }
+}
+
+/* slope/intercept to apply, or 0 when the header sets none (slope 0 or identity). */
+static int nifti_scaling(const nifti_image *nim, double *slope, double *inter)
+{
+    *slope = nim->scl_slope;
+    *inter = nim->scl_inter;
+    if (!isfinite(*slope) || *slope == 0.0)
+        return 0;
+    if (!isfinite(*inter))
+        *inter = 0.0;
+    return !(*slope == 1.0 && *inter == 0.0);
+}
+
+static cdvr_status nifti_shape(const char *path, const nifti_image *nim, size_t dims[3],
+                               size_t *timesteps, cdvr_error *err)
+{
+    if (nim->ndim > 4 || nim->nu > 1 || nim->nv > 1 || nim->nw > 1)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                              "%s: NIfTI has %d dimensions (dim[5..7] = %d %d %d): only 3D volumes "
+                              "and 4D time series are supported",
+                              path, nim->ndim, nim->nu, nim->nv, nim->nw);
+    int n[4] = {nim->nx, nim->ny, nim->nz, nim->nt};
+    for (int i = 0; i < 4; i++)
+        if (n[i] < 1)
+            return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI dim[%d] = %d is not positive",
+                                  path, i + 1, n[i]);
+    for (int i = 0; i < 3; i++)
+        dims[i] = (size_t)n[i];
+    *timesteps = (size_t)n[3];
+    return CDVR_OK;
+}
+
+/* Spacing from pixdim (absolute values; 0 or non-finite -> 1); origin from the qform offset,
+ * else the sform translation. Axis flips and rotations are not applied: cdvr renders in
+ * index order. */
+static void nifti_geometry(const nifti_image *nim, cdvr_volume *vol)
+{
+    double pix[3] = {nim->dx, nim->dy, nim->dz};
+    for (int i = 0; i < 3; i++)
+        if (isfinite(pix[i]) && pix[i] != 0.0)
+            vol->spacing[i] = fabs(pix[i]);
+    double origin[3] = {0, 0, 0};
+    if (nim->qform_code > 0) {
+        origin[0] = nim->qoffset_x;
+        origin[1] = nim->qoffset_y;
+        origin[2] = nim->qoffset_z;
+    } else if (nim->sform_code > 0) {
+        for (int i = 0; i < 3; i++)
+            origin[i] = nim->sto_xyz.m[i][3];
+    }
+    for (int i = 0; i < 3; i++)
+        if (isfinite(origin[i]))
+            vol->origin[i] = origin[i];
+}
+
+static void copy_voxels(cdvr_volume *vol, const nifti_image *nim, cdvr_value_reader reader,
+                        int native, int scaled, double slope, double inter)
+{
+    size_t count = cdvr_volume_voxels(vol) * vol->timesteps;
+    if (native && !scaled) {
+        memcpy(vol->data, nim->data, count * cdvr_type_size(vol->type));
+        return;
+    }
+    float *dst = vol->data;
+    for (size_t i = 0; i < count; i++) {
+        double v = reader(nim->data, i);
+        dst[i] = cdvr_double_to_f32(scaled ? v * slope + inter : v);
+    }
+}
+
+static cdvr_status nifti_to_volume(const char *path, const nifti_image *nim, cdvr_volume **out,
+                                   cdvr_error *err)
+{
+    cdvr_type type;
+    int native;
+    cdvr_value_reader reader = nifti_reader(nim->datatype, &type, &native);
+    if (!reader)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI datatype %s (%d) is not supported",
+                              path, nifti_datatype_string(nim->datatype), nim->datatype);
+    double slope, inter;
+    int scaled = nifti_scaling(nim, &slope, &inter);
+    if (scaled)
+        type = CDVR_TYPE_F32;
+    size_t dims[3] = {0, 0, 0}, timesteps = 0;
+    cdvr_status st = nifti_shape(path, nim, dims, &timesteps, err);
+    if (st == CDVR_OK)
+        st = cdvr_volume_create(dims, timesteps, type, out, err);
+    if (st != CDVR_OK)
+        return st;
+    if (nim->nvox != cdvr_volume_voxels(*out) * timesteps) {
+        cdvr_volume_free(*out);
+        *out = NULL;
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI voxel count %zu does not match its dims",
+                              path, nim->nvox);
+    }
+    copy_voxels(*out, nim, reader, native, scaled, slope, inter);
+    nifti_geometry(nim, *out);
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_volume_load_nifti(const char *path, cdvr_volume **out, cdvr_error *err)
+{
+    *out = NULL;
+    cdvr_status st = cdvr_check_readable(path, err);
+    if (st != CDVR_OK)
+        return st;
+    nifti_image *nim = nifti_image_read(path, 1);
+    if (!nim || !nim->data) {
+        nifti_image_free(nim);
+        return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                              "%s: cannot read NIfTI: not a NIfTI-1 file, corrupt header, or data "
+                              "truncated (niftilib's reason is on stderr)",
+                              path);
+    }
+    st = nifti_to_volume(path, nim, out, err);
+    nifti_image_free(nim);
+    return st;
+}
