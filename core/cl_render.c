@@ -142,7 +142,7 @@ static cdvr_status camera_params(const cdvr_camera *cam, cam_params *out, cdvr_e
 }
 
 typedef struct render_params {
-    float step, unit, term_alpha;
+    double step, unit, term_alpha;
 } render_params;
 
 /* render.h defaults: step 0.5 min(spacing), unit from opts, TF or min(spacing), term 0.99. */
@@ -151,9 +151,9 @@ static render_params resolve(const cdvr_render_opts *opts, const cdvr_tf *tf, co
     double min_spacing = fmin(spacing[0], fmin(spacing[1], spacing[2]));
     const cdvr_tf *unit_tf = opts->tf ? opts->tf : tf;
     render_params rp;
-    rp.step = (float)(opts->step > 0 ? opts->step : 0.5 * min_spacing);
-    rp.unit = (float)(opts->unit > 0 ? opts->unit : unit_tf->unit > 0 ? unit_tf->unit : min_spacing);
-    rp.term_alpha = (float)(opts->term_alpha > 0 ? opts->term_alpha : 0.99);
+    rp.step = opts->step > 0 ? opts->step : 0.5 * min_spacing;
+    rp.unit = opts->unit > 0 ? opts->unit : unit_tf->unit > 0 ? unit_tf->unit : min_spacing;
+    rp.term_alpha = opts->term_alpha > 0 ? opts->term_alpha : 0.99;
     return rp;
 }
 
@@ -161,7 +161,7 @@ static cdvr_status upload_corrected_alpha(cdvr_cl_stream *s, render_params rp, c
 {
     cl_float corrected[256];
     for (int i = 0; i < 256; i++)
-        corrected[i] = (cl_float)(1.0 - pow(1.0 - s->tf.table[i][3], (double)rp.step / rp.unit));
+        corrected[i] = (cl_float)(1.0 - pow(1.0 - s->tf.table[i][3], rp.step / rp.unit));
     return write_buffer(s->cl, s->alpha_corrected, corrected, sizeof corrected,
                         "upload corrected alpha", err);
 }
@@ -173,9 +173,12 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
     cl_kernel k = s->cl->k_raycast;
     cl_ulong offset = (cl_ulong)(frame * s->voxels);
     cl_int ints[3] = {(cl_int)s->dims[0], (cl_int)s->dims[1], (cl_int)s->dims[2]};
-    cl_float geo[6] = {(cl_float)origin[0], (cl_float)origin[1], (cl_float)origin[2],
-                       (cl_float)spacing[0], (cl_float)spacing[1], (cl_float)spacing[2]};
-    cl_float inv_unit = 1.0f / rp.unit;
+    cl_float geo[9];
+    for (int i = 0; i < 3; i++) {
+        geo[i] = (cl_float)origin[i];
+        geo[3 + i] = (cl_float)(1.0 / spacing[i]);
+        geo[6 + i] = (cl_float)(origin[i] + (double)(s->dims[i] - 1) * spacing[i]);
+    }
     cl_int bricks[5] = {CDVR_CL_BRICK, (cl_int)s->brick_dims[0], (cl_int)s->brick_dims[1],
                         (cl_int)s->brick_dims[2], s->skipping};
     cl_uint a = 0;
@@ -183,14 +186,16 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
     code |= clSetKernelArg(k, a++, sizeof offset, &offset);
     for (int i = 0; i < 3; i++)
         code |= clSetKernelArg(k, a++, sizeof(cl_int), &ints[i]);
-    for (int i = 0; i < 6; i++)
+    for (int i = 0; i < 9; i++)
         code |= clSetKernelArg(k, a++, sizeof(cl_float), &geo[i]);
-    code |= clSetKernelArg(k, a++, sizeof(cl_float), &rp.step);
-    code |= clSetKernelArg(k, a++, sizeof(cl_float), &rp.term_alpha);
+    cl_float step = (cl_float)rp.step, term_alpha = (cl_float)rp.term_alpha;
+    cl_float unit = (cl_float)rp.unit;
+    code |= clSetKernelArg(k, a++, sizeof step, &step);
+    code |= clSetKernelArg(k, a++, sizeof term_alpha, &term_alpha);
     code |= clSetKernelArg(k, a++, sizeof *cam, cam);
     code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->table);
     code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->alpha_corrected);
-    code |= clSetKernelArg(k, a++, sizeof inv_unit, &inv_unit);
+    code |= clSetKernelArg(k, a++, sizeof unit, &unit);
     code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->brick_visible);
     for (int i = 0; i < 5; i++)
         code |= clSetKernelArg(k, a++, sizeof(cl_int), &bricks[i]);
@@ -241,7 +246,8 @@ static cdvr_status read_results(cdvr_cl_stream *s, cdvr_image *img, size_t pixel
 
 static cdvr_status check_render_args(const cdvr_cl_stream *s, size_t frame,
                                      const cdvr_render_opts *opts, const double spacing[3],
-                                     const cdvr_image *img, cdvr_error *err)
+                                     const double origin[3], const cdvr_image *img,
+                                     cdvr_error *err)
 {
     if (!opts || !opts->camera || !img)
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: camera and image are required");
@@ -249,8 +255,10 @@ static cdvr_status check_render_args(const cdvr_cl_stream *s, size_t frame,
         return cdvr_error_set(err, CDVR_ERR_ARG,
                               "OpenCL render: frame %zu has no setup (call cdvr_cl_setup first)", frame);
     for (int i = 0; i < 3; i++)
-        if (!(spacing[i] > 0) || !isfinite(spacing[i]))
-            return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: spacing must be positive");
+        if (!(spacing[i] > 0) || !isfinite(spacing[i]) || !isfinite(origin[i]))
+            return cdvr_error_set(err, CDVR_ERR_ARG,
+                                  "OpenCL render: spacing %g and origin %g (axis %d) must be finite, "
+                                  "spacing positive", spacing[i], origin[i], i);
     if (img->width != opts->camera->width || img->height != opts->camera->height)
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: image %dx%d, camera %dx%d",
                               img->width, img->height, opts->camera->width, opts->camera->height);
@@ -264,7 +272,7 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
                            cdvr_error *err)
 {
     cam_params cam;
-    cdvr_status st = check_render_args(s, frame, opts, spacing, img, err);
+    cdvr_status st = check_render_args(s, frame, opts, spacing, origin, img, err);
     if (!st)
         st = camera_params(opts->camera, &cam, err);
     if (st)

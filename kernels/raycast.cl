@@ -39,24 +39,23 @@ static float trilinear(__global const uchar *vol, float3 g, int X, int Y, int Z)
     int x0 = (int)g.x, y0 = (int)g.y, z0 = (int)g.z;
     int x1 = min(x0 + 1, X - 1), y1 = min(y0 + 1, Y - 1), z1 = min(z0 + 1, Z - 1);
     float fx = g.x - (float)x0, fy = g.y - (float)y0, fz = g.z - (float)z0;
-    float c00 = voxel(vol, x0, y0, z0, X, Y) * (1 - fx) + voxel(vol, x1, y0, z0, X, Y) * fx;
-    float c10 = voxel(vol, x0, y1, z0, X, Y) * (1 - fx) + voxel(vol, x1, y1, z0, X, Y) * fx;
-    float c01 = voxel(vol, x0, y0, z1, X, Y) * (1 - fx) + voxel(vol, x1, y0, z1, X, Y) * fx;
-    float c11 = voxel(vol, x0, y1, z1, X, Y) * (1 - fx) + voxel(vol, x1, y1, z1, X, Y) * fx;
-    float c0 = c00 * (1 - fy) + c10 * fy, c1 = c01 * (1 - fy) + c11 * fy;
-    return c0 * (1 - fz) + c1 * fz;
+    float c00 = mix(voxel(vol, x0, y0, z0, X, Y), voxel(vol, x1, y0, z0, X, Y), fx);
+    float c10 = mix(voxel(vol, x0, y1, z0, X, Y), voxel(vol, x1, y1, z0, X, Y), fx);
+    float c01 = mix(voxel(vol, x0, y0, z1, X, Y), voxel(vol, x1, y0, z1, X, Y), fx);
+    float c11 = mix(voxel(vol, x0, y1, z1, X, Y), voxel(vol, x1, y1, z1, X, Y), fx);
+    return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
 }
 
-/* Ray parameter where the ray leaves the (world-space) box of brick b. */
-static float brick_exit(float3 o, float3 d, float3 lo, float3 hi)
+/* Ray parameter where the grid-space ray g0 + t*gd leaves the box [lo, lo + B) of a brick. */
+static float brick_exit(float3 g0, float3 gd, float3 lo, float B)
 {
     float t = INFINITY;
-    if (d.x > 1e-12f) t = fmin(t, (hi.x - o.x) / d.x);
-    if (d.x < -1e-12f) t = fmin(t, (lo.x - o.x) / d.x);
-    if (d.y > 1e-12f) t = fmin(t, (hi.y - o.y) / d.y);
-    if (d.y < -1e-12f) t = fmin(t, (lo.y - o.y) / d.y);
-    if (d.z > 1e-12f) t = fmin(t, (hi.z - o.z) / d.z);
-    if (d.z < -1e-12f) t = fmin(t, (lo.z - o.z) / d.z);
+    if (gd.x > 0.0f) t = fmin(t, (lo.x + B - g0.x) / gd.x);
+    if (gd.x < 0.0f) t = fmin(t, (lo.x - g0.x) / gd.x);
+    if (gd.y > 0.0f) t = fmin(t, (lo.y + B - g0.y) / gd.y);
+    if (gd.y < 0.0f) t = fmin(t, (lo.y - g0.y) / gd.y);
+    if (gd.z > 0.0f) t = fmin(t, (lo.z + B - g0.z) / gd.z);
+    if (gd.z < 0.0f) t = fmin(t, (lo.z - g0.z) / gd.z);
     return t;
 }
 
@@ -66,13 +65,14 @@ typedef struct cam_params {
     int orthographic, width, height;
 } cam_params;
 
-/* vol_info: dims (ints); geometry: origin[3], spacing[3], step, unit, term_alpha;
- * bricks: B, nbx, nby, nbz, skipping. */
+/* Geometry as render_cpu.c holds it: origin, 1/spacing and the box's upper corner (computed
+ * in double on the host). Bricks: edge B, counts nbx, nby, nbz, skipping on/off. */
 __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, int Z,
-                      float ox, float oy, float oz, float sx, float sy, float sz,
+                      float ox, float oy, float oz, float isx, float isy, float isz,
+                      float hx, float hy, float hz,
                       float step, float term_alpha, cam_params cam,
                       __global const float4 *table, __global const float *alpha_corrected,
-                      float inv_unit, __global const uchar *brick_visible, int B,
+                      float unit, __global const uchar *brick_visible, int B,
                       int nbx, int nby, int nbz, int skipping, __global float4 *image,
                       __global uint *samples)
 {
@@ -94,28 +94,28 @@ __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, 
         o = eye;
         d = normalize(f + (sxn * cam.aspect * r - syn * u) * cam.tan_half);
     }
-    float3 origin = (float3)(ox, oy, oz), spacing = (float3)(sx, sy, sz);
+    float3 origin = (float3)(ox, oy, oz), inv_spacing = (float3)(isx, isy, isz);
     float3 dims_m1 = (float3)((float)(X - 1), (float)(Y - 1), (float)(Z - 1));
     float4 acc = (float4)(0.0f);
     uint taken = 0;
     ray_box box;
-    if (intersect_box(o, d, origin, origin + dims_m1 * spacing, &box)) {
+    if (intersect_box(o, d, origin, (float3)(hx, hy, hz), &box)) {
         float L = box.t_far - box.t_near;
         int n = max((int)ceil(L / step), 1);
+        float3 g0 = (o - origin) * inv_spacing, gd = d * inv_spacing;
         for (int i = 0; i < n; i++) {
-            float t0 = box.t_near + (float)i * step;
-            int last = i == n - 1;
-            float t1 = last ? box.t_far : fmin(box.t_near + (float)(i + 1) * step, box.t_far);
-            float ds = t1 - t0;
-            float3 p = o + (0.5f * (t0 + t1)) * d;
-            float3 g = clamp((p - origin) / spacing, (float3)(0.0f), dims_m1);
+            float ts = box.t_near + (float)i * step;
+            float ds = i < n - 1 ? step : box.t_far - ts;
+            if (ds <= 0.0f)
+                break;
+            float3 p = o + (ts + 0.5f * ds) * d;
+            float3 g = clamp((p - origin) * inv_spacing, (float3)(0.0f), dims_m1);
             if (skipping) {
                 int bx = min((int)g.x / B, nbx - 1), by = min((int)g.y / B, nby - 1);
                 int bz = min((int)g.z / B, nbz - 1);
                 if (!brick_visible[bx + nbx * (by + nby * bz)]) {
-                    float3 lo = origin + (float3)((float)(bx * B), (float)(by * B), (float)(bz * B)) * spacing;
-                    float3 hi = lo + (float)B * spacing;
-                    float te = brick_exit(o, d, lo, hi);
+                    float3 lo = (float3)((float)(bx * B), (float)(by * B), (float)(bz * B));
+                    float te = brick_exit(g0, gd, lo, (float)B);
                     /* first segment whose midpoint may lie past the brick, one early for
                      * rounding safety; never backwards */
                     float next = ceil((te - box.t_near) / step - 0.5f) - 1.0f;
@@ -129,16 +129,18 @@ __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, 
             float fr = s - (float)i0;
             float4 c = mix(table[i0], table[i0 + 1], fr);
             float a;
-            if (!last)
+            if (ds >= step)
                 a = mix(alpha_corrected[i0], alpha_corrected[i0 + 1], fr);
             else
-                a = 1.0f - pow(1.0f - c.w, ds * inv_unit);
+                a = 1.0f - pow(1.0f - c.w, ds / unit);
             taken++;
-            float w = (1.0f - acc.w) * a;
-            acc.xyz += w * c.xyz;
-            acc.w += w;
-            if (acc.w >= term_alpha)
-                break;
+            if (a > 0.0f) {
+                float w = (1.0f - acc.w) * a;
+                acc.xyz += w * c.xyz;
+                acc.w += w;
+                if (acc.w >= term_alpha || acc.w >= 1.0f)
+                    break;
+            }
         }
     }
     image[py * cam.width + px] = acc;
