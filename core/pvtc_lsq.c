@@ -12,6 +12,7 @@
 #define LSQ_MAX_ITERATIONS 6
 #define POWER_ITERATIONS 12
 #define SEARCH_RADIUS 2
+#define CLUSTER_FIT_MAX_POSITIONS 16
 
 static const double INDEX_WEIGHT[4] = {1.0, 2.0 / 3.0, 1.0 / 3.0, 0.0};
 
@@ -84,9 +85,9 @@ static int principal_axis(int T, double cov[3][3], double axis[3])
 
 /* Endpoints at the extreme projections onto the principal axis. Returns 0 (code untouched)
  * when the PCA is degenerate: all points equal, a constant block. */
-static int principal_endpoints(const pvtc_block *blk, pvtc_code *code)
+static int principal_endpoints(const pvtc_block *blk, pvtc_code *code, double axis[3])
 {
-    double mean[3], cov[3][3], axis[3] = {0.0, 0.0, 0.0};
+    double mean[3], cov[3][3];
     block_mean_cov(blk, mean, cov);
     double tmin = 0.0, tmax = 0.0;
     if (!principal_axis(blk->T, cov, axis))
@@ -233,6 +234,89 @@ static void search_neighbourhood(int T, const index_stats *st, pvtc_code *code)
     }
 }
 
+/* ---- cluster fit (S = 1) ------------------------------------------------------------------
+ * As in BC1 cluster-fit encoders: order the points along the principal axis and try every
+ * split of that order into four runs (palette entries b, 2/3 b, 2/3 a, a); for each split the
+ * least-squares endpoints and their error follow from prefix sums. The best split seeds the
+ * refinement. C(n+3, 3) splits: 969 for 16 points, so only used for S = 1. */
+
+static void sort_by_projection(const pvtc_block *blk, const double axis[3], int order[])
+{
+    double key[PVTC_MAX_POSITIONS];
+    for (int i = 0; i < blk->npos; i++) {
+        key[i] = 0.0;
+        for (int c = 0; c < blk->T; c++)
+            key[i] += blk->v[i][c] * axis[c];
+        order[i] = i;
+    }
+    for (int i = 1; i < blk->npos; i++) { /* insertion sort: at most 16 points */
+        int o = order[i], j = i;
+        while (j > 0 && key[order[j - 1]] > key[o]) {
+            order[j] = order[j - 1];
+            j--;
+        }
+        order[j] = o;
+    }
+}
+
+typedef struct split_fit {
+    double a[3], b[3], err;
+} split_fit;
+
+/* Least-squares endpoints for runs [0,i) [i,j) [j,k) [k,n) with a-weights 0, 1/3, 2/3, 1,
+ * clamped to [0, 255]; err is the squared error without the constant sum of v^2. */
+static void fit_split(int T, const double prefix[][3], const int bounds[5], split_fit *fit)
+{
+    double aa = 0, ab = 0, bb = 0, xa[3] = {0, 0, 0}, xb[3] = {0, 0, 0};
+    for (int g = 0; g < 4; g++) {
+        double w = g / 3.0, n = bounds[g + 1] - bounds[g];
+        aa += n * w * w;
+        ab += n * w * (1 - w);
+        bb += n * (1 - w) * (1 - w);
+        for (int c = 0; c < T; c++) {
+            double sum = prefix[bounds[g + 1]][c] - prefix[bounds[g]][c];
+            xa[c] += w * sum;
+            xb[c] += (1 - w) * sum;
+        }
+    }
+    double det = aa * bb - ab * ab;
+    fit->err = INFINITY;
+    if (fabs(det) < 1e-9)
+        return;
+    fit->err = 0;
+    for (int c = 0; c < T; c++) {
+        double a = fmin(255.0, fmax(0.0, (bb * xa[c] - ab * xb[c]) / det));
+        double b = fmin(255.0, fmax(0.0, (aa * xb[c] - ab * xa[c]) / det));
+        fit->a[c] = a;
+        fit->b[c] = b;
+        fit->err += a * a * aa + 2 * a * b * ab + b * b * bb - 2 * (a * xa[c] + b * xb[c]);
+    }
+}
+
+static void cluster_fit(const pvtc_block *blk, const double axis[3], pvtc_code *code)
+{
+    int order[PVTC_MAX_POSITIONS], n = blk->npos;
+    double prefix[PVTC_MAX_POSITIONS + 1][3] = {{0}};
+    sort_by_projection(blk, axis, order);
+    for (int i = 0; i < n; i++)
+        for (int c = 0; c < 3; c++)
+            prefix[i + 1][c] = prefix[i][c] + (c < blk->T ? blk->v[order[i]][c] : 0);
+    split_fit best = {{0}, {0}, INFINITY}, fit;
+    for (int i = 0; i <= n; i++)
+        for (int j = i; j <= n; j++)
+            for (int k = j; k <= n; k++) {
+                const int bounds[5] = {0, i, j, k, n};
+                fit_split(blk->T, (const double(*)[3])prefix, bounds, &fit);
+                if (fit.err < best.err)
+                    best = fit;
+            }
+    for (int c = 0; c < blk->T; c++) {
+        int bits = pvtc_channel_bits(blk->T, c);
+        code->qa[c] = quantize_real(bits, best.a[c]);
+        code->qb[c] = quantize_real(bits, best.b[c]);
+    }
+}
+
 /* ---- refinement loop --------------------------------------------------------------------- */
 
 static uint32_t refine(const pvtc_block *blk, pvtc_code *code)
@@ -270,10 +354,21 @@ uint32_t pvtc_encode_block_lsq(const pvtc_block *blk, pvtc_code *code)
     if (bbox_err == 0)
         return 0;
     uint32_t axis_err;
-    if (principal_endpoints(blk, &from_axis))
+    double axis[3] = {0.0, 0.0, 0.0};
+    if (principal_endpoints(blk, &from_axis, axis)) {
         axis_err = refine(blk, &from_axis);
-    else
+        if (blk->npos <= CLUSTER_FIT_MAX_POSITIONS) {
+            pvtc_code from_clusters;
+            cluster_fit(blk, axis, &from_clusters);
+            uint32_t e = refine(blk, &from_clusters);
+            if (e < axis_err) {
+                axis_err = e;
+                from_axis = from_clusters;
+            }
+        }
+    } else {
         axis_err = fit_constant(blk, &from_axis);
+    }
     from_bbox = bbox;
     uint32_t refined_bbox_err = refine(blk, &from_bbox);
     uint32_t best = bbox_err;

@@ -169,7 +169,7 @@ static double series_mse(const cdvr_volume *q, int S, cdvr_pvtc_encoder enc)
     return sse / ((double)n * (double)q->timesteps);
 }
 
-/* Real data: six viscous-fingers timesteps quantised over [0, max]; lsq must gain >= 1 dB. */
+/* Real data: six viscous-fingers timesteps quantised over [0, max]; lsq must gain >= 1.5 dB (the target). */
 static int test_real_data(void)
 {
     const char *dir = check_shared_data();
@@ -199,7 +199,7 @@ static int test_real_data(void)
             double gain = 10.0 * log10(mse_bbox / mse_lsq);
             printf("viscous fingers t060-065 S%dT3 time: mse bbox %.3f lsq %.3f gain %.2f dB\n",
                    S, mse_bbox, mse_lsq, gain);
-            CHECK(mse_lsq > 0 && gain >= 1.0, "S%dT3 gain %.2f dB", S, gain);
+            CHECK(mse_lsq > 0 && gain >= 1.5, "S%dT3 gain %.2f dB", S, gain);
         }
     cdvr_volume_free(vol);
     cdvr_volume_free(q);
