@@ -45,6 +45,13 @@
 --   policy.fixed([name])
 --   policy.open_loop{target_fps=, margin=0.9, pipelined=, variant=}
 --   policy.closed_loop{target_fps=, hysteresis=0.1, window=, up_after=2, memory=8, variant=}
+--     Feedback on the median frame_ms of the current variant's last `window` frames (default
+--     the group length, at least 3, at most 16). Above target*(1+h): one step down, to the
+--     best-quality variant with fewer stored bytes. Below target*(1-h): step up to the best
+--     variant whose predicted time (measured median times the timing model's ratio, or the
+--     stored-bytes ratio without stage timings; never less than what that variant measured
+--     in the last `memory` groups) fits the target, once that has held for `up_after`
+--     consecutive groups. Otherwise stay. It starts at opts.variant or the best quality.
 --   policy.get(name_or_fn [, opts])
 local policy = {}
 
@@ -341,15 +348,6 @@ local function step_down(allowed, cur)
   return nil
 end
 
--- Among allowed, the cheapest variant of better quality than cur (the next step up).
-local function step_up(allowed, cur)
-  local pick
-  for _, v in ipairs(allowed) do
-    if quality(v) > quality(cur) and (pick == nil or faster(v, pick)) then pick = v end
-  end
-  return pick
-end
-
 -- Time of `up` predicted from cur's measured median: the timing model's ratio when stage
 -- timings exist, else the stored-bytes ratio; never below what up measured recently.
 local function predict_up(state, stats, up, cur, measured_ms, pipelined)
@@ -367,6 +365,20 @@ local function predict_up(state, stats, up, cur, measured_ms, pipelined)
     predicted = math.max(predicted, seen.ms)
   end
   return predicted
+end
+
+-- The best-quality allowed variant better than cur whose predicted time fits target, and its
+-- prediction; when none fits, the cheapest better one and its prediction; nil when cur is best.
+local function step_up(state, stats, allowed, cur, measured, pipelined, target)
+  local cheapest, cheapest_ms
+  for _, v in ipairs(allowed) do
+    if quality(v) > quality(cur) then
+      local ms = predict_up(state, stats, v, cur, measured, pipelined)
+      if ms <= target then return v, ms end
+      if cheapest == nil or faster(v, cheapest) then cheapest, cheapest_ms = v, ms end
+    end
+  end
+  return cheapest, cheapest_ms
 end
 
 local function closed_loop_step(state, stats, allowed, cur, fps)
@@ -393,14 +405,13 @@ local function closed_loop_step(state, stats, allowed, cur, fps)
     state.up_streak = 0
     return cur.name, string.format("%s within %s +-%d%%, stay", what, fmt_ms(target), math.floor(h * 100 + 0.5))
   end
-  local up = step_up(allowed, cur)
+  local pipelined = stats.pipelined
+  if pipelined == nil then pipelined = state.pipelined end
+  local up, predicted = step_up(state, stats, allowed, cur, measured, pipelined, target)
   if not up then
     state.up_streak = 0
     return cur.name, string.format("%s < %s, already the best allowed", what, fmt_ms(target * (1 - h)))
   end
-  local pipelined = stats.pipelined
-  if pipelined == nil then pipelined = state.pipelined end
-  local predicted = predict_up(state, stats, up, cur, measured, pipelined)
   if predicted > target then
     state.up_streak = 0
     return cur.name, string.format("%s, %s predicted %s > %s, stay", what, up.name, fmt_ms(predicted), fmt_ms(target))
