@@ -1,0 +1,295 @@
+/* tests/test_cl_render.c - the ray-cast kernel against the CPU reference (cdvr_render_cpu):
+ * image PSNR >= 50 dB for axis-parallel, 45-degree, inside-the-volume and orthographic views
+ * on the engine CT and on synthetic volumes; empty-space skipping on vs off changes no pixel
+ * by more than 0.5/255 and takes fewer samples; zero/full opacity, tiny and huge steps;
+ * misuse errors. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cdvr/camera.h"
+#include "cdvr/compare.h"
+#include "cdvr/device.h"
+#include "cdvr/render.h"
+#include "cdvr/store.h"
+#include "cdvr/tf.h"
+#include "cdvr/volume.h"
+#include "check.h"
+
+#if CDVR_HAVE_OPENCL
+
+#define IMAGE_SIZE 128
+
+typedef struct scene {
+    const cdvr_volume *vol;
+    cdvr_cl_stream *stream;
+    cdvr_tf tf;
+    cdvr_camera cam;
+    double step;
+    const char *name;
+} scene;
+
+static void make_tf(cdvr_tf *tf, const cdvr_tf_point *pts, size_t n)
+{
+    cdvr_error err;
+    cdvr_status st = cdvr_tf_init(tf, pts, n, 0.0, &err);
+    CHECK_OK(st, err);
+}
+
+static cdvr_status upload_volume(cdvr_cl *cl, const cdvr_volume *vol, cdvr_cl_stream **out,
+                                 cdvr_error *err)
+{
+    cdvr_status st = cdvr_cl_stream_create(cl, vol->dims, out, err);
+    if (!st)
+        st = cdvr_cl_upload(*out, vol->data, cdvr_volume_voxels(vol), err);
+    if (!st)
+        st = cdvr_cl_decode(*out, CDVR_CODEC_RAW, NULL, 1, err);
+    return st;
+}
+
+/* Renders sc on the device; NULL on failure (recorded). */
+static cdvr_image *render_cl(const scene *sc, int skipping, uint64_t *samples)
+{
+    cdvr_error err;
+    cdvr_image *img = NULL;
+    cdvr_render_opts opts = {.tf = &sc->tf, .camera = &sc->cam, .step = sc->step};
+    cdvr_cl_set_skipping(sc->stream, skipping);
+    cdvr_status st = cdvr_image_create(sc->cam.width, sc->cam.height, &img, &err);
+    if (!st)
+        st = cdvr_cl_setup(sc->stream, 0, &sc->tf, &err);
+    if (!st)
+        st = cdvr_cl_render(sc->stream, 0, &opts, sc->vol->spacing, sc->vol->origin, img, &err);
+    CHECK(st == CDVR_OK, "%s: cl render: %s", sc->name, err.msg);
+    if (st) {
+        cdvr_image_free(img);
+        return NULL;
+    }
+    *samples = cdvr_cl_last_samples(sc->stream);
+    return img;
+}
+
+static double compare(const cdvr_image *a, const cdvr_image *b, double *maxerr)
+{
+    cdvr_compare_result res;
+    cdvr_error err;
+    cdvr_status st = cdvr_compare_images(a, b, &res, &err);
+    CHECK_OK(st, err);
+    *maxerr = res.maxerr;
+    return res.psnr;
+}
+
+/* Device (skipping on and off) against the CPU reference. Returns the CPU image's mean alpha
+ * so callers can make sure the scene is not empty. */
+static double check_scene(const scene *sc)
+{
+    cdvr_error err;
+    cdvr_image *ref = NULL;
+    cdvr_render_opts opts = {.tf = &sc->tf, .camera = &sc->cam, .step = sc->step};
+    cdvr_status st = cdvr_render_cpu(sc->vol, 0, &opts, &ref, &err);
+    CHECK_OK(st, err);
+    uint64_t on_samples = 0, off_samples = 0;
+    cdvr_image *on = render_cl(sc, 1, &on_samples), *off = render_cl(sc, 0, &off_samples);
+    double mean_alpha = 0, maxerr = 0;
+    if (ref && on && off) {
+        double psnr = compare(on, ref, &maxerr);
+        printf("%-28s psnr %6.1f dB  maxerr %.3f  samples cpu %llu cl %llu (skip off %llu)\n",
+               sc->name, psnr, maxerr, (unsigned long long)opts.samples,
+               (unsigned long long)on_samples, (unsigned long long)off_samples);
+        CHECK(psnr >= 50.0, "%s: device vs cpu PSNR %.2f dB < 50", sc->name, psnr);
+        compare(on, off, &maxerr);
+        CHECK(maxerr <= 0.5, "%s: skipping on/off differ by %.3f/255", sc->name, maxerr);
+        CHECK(on_samples <= off_samples, "%s: skipping took more samples", sc->name);
+        for (int i = 0; i < ref->width * ref->height; i++)
+            mean_alpha += ref->rgba[4 * i + 3];
+        mean_alpha /= ref->width * ref->height;
+    }
+    cdvr_image_free(ref);
+    cdvr_image_free(on);
+    cdvr_image_free(off);
+    return mean_alpha;
+}
+
+static void look(cdvr_camera *cam, const double eye[3], const double center[3], const double up[3])
+{
+    memset(cam, 0, sizeof *cam);
+    memcpy(cam->eye, eye, sizeof cam->eye);
+    memcpy(cam->center, center, sizeof cam->center);
+    memcpy(cam->up, up, sizeof cam->up);
+    cam->fov = 30;
+    cam->width = cam->height = IMAGE_SIZE;
+}
+
+static void volume_centre(const cdvr_volume *vol, double c[3], double *extent)
+{
+    *extent = 0;
+    for (int a = 0; a < 3; a++) {
+        double len = (double)(vol->dims[a] - 1) * vol->spacing[a];
+        c[a] = vol->origin[a] + 0.5 * len;
+        *extent = fmax(*extent, len);
+    }
+}
+
+static void engine_scenes(cdvr_cl *cl, const char *data)
+{
+    char path[1024];
+    snprintf(path, sizeof path, "%s/ct/engine_256x256x128_u8.nrrd", data);
+    cdvr_volume *vol;
+    cdvr_error err;
+    cdvr_status st = cdvr_volume_load_nrrd(path, &vol, &err);
+    CHECK_OK(st, err);
+    if (st)
+        return;
+    scene sc = {.vol = vol, .step = 0};
+    st = upload_volume(cl, vol, &sc.stream, &err);
+    CHECK_OK(st, err);
+    const cdvr_tf_point pts[] = {{0, 0, 0, 0, 0}, {70, 0, 0, 0, 0}, {110, .9, .6, .3, .05},
+                                 {200, 1, 1, .9, .4}, {255, 1, 1, 1, .9}};
+    make_tf(&sc.tf, pts, sizeof pts / sizeof *pts);
+    double c[3], ext, up[3] = {0, 0, 1};
+    volume_centre(vol, c, &ext);
+    if (!st) {
+        double eye[3] = {c[0], c[1] - 2.5 * ext, c[2]};
+        look(&sc.cam, eye, c, up);
+        sc.name = "engine axis-parallel";
+        CHECK(check_scene(&sc) > 0.05, "engine axis view is empty");
+        cdvr_camera_orbit(&sc.cam, c, up, 2.5 * ext, 45, 45);
+        sc.name = "engine 45 degrees";
+        CHECK(check_scene(&sc) > 0.05, "engine 45 view is empty");
+        double inside[3] = {c[0] + 10, c[1] - 20, c[2] + 5};
+        look(&sc.cam, inside, c, up);
+        sc.cam.fov = 70;
+        sc.name = "engine camera inside";
+        CHECK(check_scene(&sc) > 0.05, "engine inside view is empty");
+        look(&sc.cam, eye, c, up);
+        sc.cam.orthographic = 1;
+        sc.cam.ortho_height = 1.1 * ext;
+        sc.name = "engine orthographic axis";
+        CHECK(check_scene(&sc) > 0.05, "engine orthographic view is empty");
+        size_t visible, total;
+        cdvr_cl_brick_counts(sc.stream, &visible, &total);
+        CHECK(visible > 0 && visible < total, "engine bricks visible %zu of %zu", visible, total);
+    }
+    cdvr_cl_stream_free(sc.stream);
+    cdvr_volume_free(vol);
+}
+
+static void synthetic_scenes(cdvr_cl *cl)
+{
+    cdvr_generate_opts gen = {{40, 33, 27}, 1, CDVR_TYPE_U8, 0, 0, 0, 0};
+    cdvr_volume *vol;
+    cdvr_error err;
+    cdvr_status st = cdvr_volume_generate("ml", &gen, &vol, &err);
+    CHECK_OK(st, err);
+    if (st)
+        return;
+    vol->spacing[0] = 1.5;
+    vol->spacing[2] = 0.7;
+    vol->origin[1] = -3;
+    scene sc = {.vol = vol};
+    st = upload_volume(cl, vol, &sc.stream, &err);
+    CHECK_OK(st, err);
+    const cdvr_tf_point pts[] = {{0, 0, 0, 0, 0}, {120, 0, 0, 0, 0}, {160, .2, .7, 1, .2},
+                                 {255, 1, .3, .1, .7}};
+    make_tf(&sc.tf, pts, sizeof pts / sizeof *pts);
+    double c[3], ext, up[3] = {0, 1, 0};
+    volume_centre(vol, c, &ext);
+    const struct { double az, el, step; const char *name; } views[] = {
+        {0, 0, 0, "ml axis-parallel"}, {45, 30, 0, "ml 45 degrees"},
+        {20, 10, 0.07, "ml tiny step"}, {60, -20, 6.0, "ml huge step"}};
+    for (size_t i = 0; i < sizeof views / sizeof *views && !st; i++) {
+        double zup[3] = {0, 0, 1};
+        look(&sc.cam, c, c, up);
+        cdvr_camera_orbit(&sc.cam, c, i == 0 ? up : zup, 2.2 * ext, views[i].az, views[i].el);
+        sc.step = views[i].step;
+        sc.name = views[i].name;
+        CHECK(check_scene(&sc) > 0.02, "%s is empty", sc.name);
+    }
+    /* zero opacity everywhere: nothing visible, every brick skipped */
+    const cdvr_tf_point clear[] = {{0, 1, 1, 1, 0}, {255, 1, 1, 1, 0}};
+    make_tf(&sc.tf, clear, 2);
+    sc.step = 0;
+    sc.name = "ml zero opacity";
+    CHECK(check_scene(&sc) == 0.0, "zero opacity TF shows something");
+    size_t visible = 1, total = 0;
+    cdvr_cl_brick_counts(sc.stream, &visible, &total);
+    CHECK(visible == 0 && total == 5 * 5 * 4, "zero opacity: %zu of %zu bricks visible", visible, total);
+    const cdvr_tf_point opaque[] = {{0, .5, .5, .5, 1}, {255, 1, 1, 1, 1}};
+    make_tf(&sc.tf, opaque, 2);
+    sc.name = "ml full opacity";
+    CHECK(check_scene(&sc) > 0.1, "full opacity TF shows nothing");
+    cdvr_cl_stream_free(sc.stream);
+    cdvr_volume_free(vol);
+}
+
+static void misuse(cdvr_cl *cl)
+{
+    size_t dims[3] = {8, 8, 8};
+    cdvr_cl_stream *s;
+    cdvr_error err;
+    cdvr_image *img = NULL;
+    cdvr_camera cam = {{0, -30, 4}, {4, 4, 4}, {0, 0, 1}, 30, 16, 16, 0, 0};
+    cdvr_tf tf;
+    const cdvr_tf_point pts[] = {{0, 1, 1, 1, .5}, {255, 1, 1, 1, .5}};
+    make_tf(&tf, pts, 2);
+    cdvr_render_opts opts = {.tf = &tf, .camera = &cam};
+    double spacing[3] = {1, 1, 1}, origin[3] = {0, 0, 0};
+    cdvr_status st = cdvr_cl_stream_create(cl, dims, &s, &err);
+    CHECK_OK(st, err);
+    if (st)
+        return;
+    cdvr_image_create(16, 16, &img, &err);
+    st = cdvr_cl_setup(s, 0, &tf, &err);
+    CHECK(st == CDVR_ERR_ARG, "setup before decode: status %d", (int)st);
+    st = cdvr_cl_render(s, 0, &opts, spacing, origin, img, &err);
+    CHECK(st == CDVR_ERR_ARG && strstr(err.msg, "setup"), "render before setup: %s", err.msg);
+    uint8_t zeros[512] = {0};
+    st = cdvr_cl_upload(s, zeros, sizeof zeros, &err);
+    if (!st)
+        st = cdvr_cl_decode(s, CDVR_CODEC_RAW, NULL, 1, &err);
+    if (!st)
+        st = cdvr_cl_setup(s, 0, &tf, &err);
+    CHECK_OK(st, err);
+    cam.width = 17;
+    st = cdvr_cl_render(s, 0, &opts, spacing, origin, img, &err);
+    CHECK(st == CDVR_ERR_ARG, "image/camera size mismatch: status %d", (int)st);
+    cam.width = 16;
+    spacing[1] = 0;
+    st = cdvr_cl_render(s, 0, &opts, spacing, origin, img, &err);
+    CHECK(st == CDVR_ERR_ARG, "zero spacing: status %d", (int)st);
+    spacing[1] = 1;
+    memcpy(cam.center, cam.eye, sizeof cam.eye);
+    st = cdvr_cl_render(s, 0, &opts, spacing, origin, img, &err);
+    CHECK(st == CDVR_ERR_ARG, "eye == center: status %d", (int)st);
+    cdvr_image_free(img);
+    cdvr_cl_stream_free(s);
+}
+
+int main(void)
+{
+    cdvr_cl *cl;
+    cdvr_error err;
+    if (cdvr_cl_open(&cl, &err)) {
+        printf("skip: no OpenCL device: %s\n", err.msg);
+        return 77;
+    }
+    const char *data = check_shared_data();
+    if (data)
+        engine_scenes(cl, data);
+    synthetic_scenes(cl);
+    misuse(cl);
+    cdvr_cl_close(cl);
+    if (!data) {
+        printf("skip: CDVR_SHARED_DATA not set (synthetic part: %d failed)\n", check_failed_count);
+        return check_failed_count ? 1 : 77;
+    }
+    return check_finish();
+}
+
+#else
+int main(void)
+{
+    printf("skip: built without OpenCL\n");
+    return 77;
+}
+#endif
