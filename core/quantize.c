@@ -42,8 +42,8 @@ static uint8_t quantize_value(const window *w, double v, cdvr_quantize_report *r
     }
     if (w->width == 0.0) /* hi == lo and v == lo */
         return 0;
-    double offset = w->halve ? v * 0.5 - w->lo * 0.5 : v - w->lo;
-    double q = floor(offset * 255.0 / w->width + 0.5);
+    double q = w->halve ? floor((v * 0.5 - w->lo * 0.5) / w->width * 255.0 + 0.5)
+                        : floor((v - w->lo) * 255.0 / w->width + 0.5);
     return q >= 255.0 ? 255 : q <= 0.0 ? 0 : (uint8_t)q;
 }
 
