@@ -264,6 +264,37 @@ static void test_sphere_symmetry(void)
     cdvr_volume_free(v);
 }
 
+/* Image orientation: y down with up = +z, x right = f x u. Content only in the upper (z) and
+ * right (x, seen from -y) corner must land in the top-right quadrant. */
+static void test_orientation(void)
+{
+    cdvr_volume *v = make_volume(16, 16, 16);
+    if (!v)
+        return;
+    uint8_t *vox = v->data;
+    for (int z = 12; z < 16; z++)
+        for (int y = 0; y < 16; y++)
+            for (int x = 12; x < 16; x++)
+                vox[x + 16 * (y + 16 * z)] = 200;
+    cdvr_tf_point pts[] = {{0, 0, 0, 0, 0}, {200, 1, 1, 1, 0.5}};
+    cdvr_tf tf;
+    cdvr_error err;
+    CHECK_OK(cdvr_tf_init(&tf, pts, 2, 1.0, &err), err);
+    double eye[3] = {7.5, -40, 7.5}, center[3] = {7.5, 7.5, 7.5};
+    cdvr_camera cam = camera(eye, center, 16);
+    cdvr_render_opts o = options(&tf, &cam, 0.5, 0.0);
+    cdvr_image *img = render(v, &o);
+    double quadrant[2][2] = {{0, 0}, {0, 0}};
+    for (int y = 0; img && y < 16; y++)
+        for (int x = 0; x < 16; x++)
+            quadrant[y / 8][x / 8] += cdvr_image_pixel(img, x, y)[3];
+    CHECK(quadrant[0][1] > 1.0 && quadrant[0][0] + quadrant[1][0] + quadrant[1][1] < 1e-6,
+          "content not top-right: TL %g TR %g BL %g BR %g", quadrant[0][0], quadrant[0][1],
+          quadrant[1][0], quadrant[1][1]);
+    cdvr_image_free(img);
+    cdvr_volume_free(v);
+}
+
 static void test_bad_input(void)
 {
     cdvr_volume *v = constant_volume(4, 100);
@@ -353,6 +384,7 @@ int main(void)
     test_zero_and_full_opacity();
     test_early_termination_and_threads();
     test_sphere_symmetry();
+    test_orientation();
     test_bad_input();
     test_engine_png();
     return check_finish();
