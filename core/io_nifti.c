@@ -4,6 +4,8 @@
 
 #include <math.h>
 #include <nifti1_io.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 static double read_u8(const void *p, size_t i) { return ((const uint8_t *)p)[i]; }
@@ -96,19 +98,50 @@ static void nifti_geometry(const nifti_image *nim, cdvr_volume *vol)
             vol->origin[i] = origin[i];
 }
 
-static void copy_voxels(cdvr_volume *vol, const nifti_image *nim, cdvr_value_reader reader,
-                        int native, int scaled, double slope, double inter)
+/* Reads the voxel bytes itself: niftilib pads a short data section with zeros and reports
+ * success, and a truncated file must be an error here. */
+static cdvr_status read_nifti_data(const char *path, const nifti_image *nim, void *buf, size_t bytes,
+                                   cdvr_error *err)
 {
-    size_t count = cdvr_volume_voxels(vol) * vol->timesteps;
-    if (native && !scaled) {
-        memcpy(vol->data, nim->data, count * cdvr_type_size(vol->type));
-        return;
-    }
+    znzFile fp = znzopen(nim->iname, "rb", nifti_is_gzfile(nim->iname));
+    if (znz_isnull(fp))
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot open NIfTI data file %s", path, nim->iname);
+    size_t got = 0;
+    if (znzseek(fp, (long)nim->iname_offset, SEEK_SET) >= 0)
+        got = znzread(buf, 1, bytes, fp);
+    znzclose(fp);
+    if (got != bytes)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                              "%s: NIfTI data truncated: %dx%dx%dx%d %s need %zu bytes from offset %d, got %zu",
+                              path, nim->nx, nim->ny, nim->nz, nim->nt, nifti_datatype_string(nim->datatype),
+                              bytes, nim->iname_offset, got);
+    if (nim->swapsize > 1 && nim->byteorder != nifti_short_order())
+        nifti_swap_Nbytes(bytes / (size_t)nim->swapsize, nim->swapsize, buf);
+    return CDVR_OK;
+}
+
+/* Fills vol from the file: straight into vol->data when the type is kept, else through a
+ * buffer of file values converted (and scaled) to f32. */
+static cdvr_status load_voxels(const char *path, const nifti_image *nim, cdvr_volume *vol,
+                               cdvr_value_reader reader, int native, int scaled, double slope,
+                               double inter, cdvr_error *err)
+{
+    size_t count = cdvr_volume_voxels(vol) * vol->timesteps, bytes;
+    if (nim->nbyper <= 0 || !cdvr_size_mul(count, (size_t)nim->nbyper, &bytes))
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI data size overflows", path);
+    if (native && !scaled)
+        return read_nifti_data(path, nim, vol->data, bytes, err);
+    void *buf = malloc(bytes ? bytes : 1);
+    if (!buf)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: cannot allocate %zu bytes", path, bytes);
+    cdvr_status st = read_nifti_data(path, nim, buf, bytes, err);
     float *dst = vol->data;
-    for (size_t i = 0; i < count; i++) {
-        double v = reader(nim->data, i);
+    for (size_t i = 0; st == CDVR_OK && i < count; i++) {
+        double v = reader(buf, i);
         dst[i] = cdvr_double_to_f32(scaled ? v * slope + inter : v);
     }
+    free(buf);
+    return st;
 }
 
 static cdvr_status nifti_to_volume(const char *path, const nifti_image *nim, cdvr_volume **out,
@@ -136,7 +169,12 @@ static cdvr_status nifti_to_volume(const char *path, const nifti_image *nim, cdv
         return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI voxel count %zu does not match its dims",
                               path, nim->nvox);
     }
-    copy_voxels(*out, nim, reader, native, scaled, slope, inter);
+    st = load_voxels(path, nim, *out, reader, native, scaled, slope, inter, err);
+    if (st != CDVR_OK) {
+        cdvr_volume_free(*out);
+        *out = NULL;
+        return st;
+    }
     nifti_geometry(nim, *out);
     return CDVR_OK;
 }
@@ -147,14 +185,12 @@ cdvr_status cdvr_volume_load_nifti(const char *path, cdvr_volume **out, cdvr_err
     cdvr_status st = cdvr_check_readable(path, err);
     if (st != CDVR_OK)
         return st;
-    nifti_image *nim = nifti_image_read(path, 1);
-    if (!nim || !nim->data) {
-        nifti_image_free(nim);
+    nifti_image *nim = nifti_image_read(path, 0); /* header only */
+    if (!nim)
         return cdvr_error_set(err, CDVR_ERR_FORMAT,
-                              "%s: cannot read NIfTI: not a NIfTI-1 file, corrupt header, or data "
-                              "truncated (niftilib's reason is on stderr)",
+                              "%s: cannot read NIfTI header: not a NIfTI-1 file or corrupt "
+                              "(niftilib's reason is on stderr)",
                               path);
-    }
     st = nifti_to_volume(path, nim, out, err);
     nifti_image_free(nim);
     return st;
