@@ -201,10 +201,12 @@ static int l_orbit_camera(lua_State *L)
 {
     double lo[3], hi[3], center[3], radius2 = 0.0;
     read_box(L, lo, hi);
-    if (!lua_isnoneornil(L, 2))
-        luaL_checktype(L, 2, LUA_TTABLE);
-    else
-        lua_newtable(L), lua_replace(L, 2);
+    lua_settop(L, 2);
+    if (lua_isnil(L, 2)) {
+        lua_newtable(L);
+        lua_replace(L, 2);
+    }
+    luaL_checktype(L, 2, LUA_TTABLE);
     for (int a = 0; a < 3; a++) {
         center[a] = 0.5 * (lo[a] + hi[a]);
         radius2 += 0.25 * (hi[a] - lo[a]) * (hi[a] - lo[a]);
