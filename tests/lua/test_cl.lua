@@ -19,7 +19,6 @@ check(type(info.device) == "string" and #info.device > 0, "cl_info device name")
 check(type(info.platform) == "string" and #info.platform > 0, "cl_info platform")
 print(("device %s (%s) on %s, program %s in %.3f s"):format(info.device, info.type, info.platform,
   info.from_cache and "from cache" or "compiled", info.build_seconds))
-check(cdvr.help("cl_info") ~= nil or true, "help")
 
 -- rendering: device against the CPU reference, skipping on and off
 local v = cdvr.generate("ml", {dims = {37, 29, 41}})
