@@ -259,6 +259,11 @@ static void sort_by_projection(const pvtc_block *blk, const double axis[3], int 
     }
 }
 
+static double clamp_real(double v)
+{
+    return v < 0.0 ? 0.0 : v > 255.0 ? 255.0 : v;
+}
+
 typedef struct split_fit {
     double a[3], b[3], err;
 } split_fit;
@@ -267,29 +272,25 @@ typedef struct split_fit {
  * clamped to [0, 255]; err is the squared error without the constant sum of v^2. */
 static void fit_split(int T, const double prefix[][3], const int bounds[5], split_fit *fit)
 {
-    double aa = 0, ab = 0, bb = 0, xa[3] = {0, 0, 0}, xb[3] = {0, 0, 0};
-    for (int g = 0; g < 4; g++) {
-        double w = g / 3.0, n = bounds[g + 1] - bounds[g];
-        aa += n * w * w;
-        ab += n * w * (1 - w);
-        bb += n * (1 - w) * (1 - w);
-        for (int c = 0; c < T; c++) {
-            double sum = prefix[bounds[g + 1]][c] - prefix[bounds[g]][c];
-            xa[c] += w * sum;
-            xb[c] += (1 - w) * sum;
-        }
-    }
+    /* run g has a-weight g/3: sums of w^2, w(1-w), (1-w)^2 over the runs, in ninths */
+    double n0 = bounds[1], n1 = bounds[2] - bounds[1], n2 = bounds[3] - bounds[2],
+           n3 = bounds[4] - bounds[3];
+    double aa = (n1 + 4 * n2) / 9 + n3, ab = 2 * (n1 + n2) / 9, bb = n0 + (4 * n1 + n2) / 9;
     double det = aa * bb - ab * ab;
     fit->err = INFINITY;
-    if (fabs(det) < 1e-9)
+    if (det < 1e-9)
         return;
     fit->err = 0;
     for (int c = 0; c < T; c++) {
-        double a = fmin(255.0, fmax(0.0, (bb * xa[c] - ab * xb[c]) / det));
-        double b = fmin(255.0, fmax(0.0, (aa * xb[c] - ab * xa[c]) / det));
+        const double *p1 = prefix[bounds[1]], *p2 = prefix[bounds[2]], *p3 = prefix[bounds[3]];
+        double total = prefix[bounds[4]][c];
+        double xa = ((p2[c] - p1[c]) + 2 * (p3[c] - p2[c])) / 3 + (total - p3[c]);
+        double xb = total - xa;
+        double a = clamp_real((bb * xa - ab * xb) / det);
+        double b = clamp_real((aa * xb - ab * xa) / det);
         fit->a[c] = a;
         fit->b[c] = b;
-        fit->err += a * a * aa + 2 * a * b * ab + b * b * bb - 2 * (a * xa[c] + b * xb[c]);
+        fit->err += a * a * aa + 2 * a * b * ab + b * b * bb - 2 * (a * xa + b * xb);
     }
 }
 
