@@ -169,6 +169,16 @@ do
   end
 end
 
+-- bundled demo data (share/data)
+local source = os.getenv("CDVR_SOURCE_DIR")
+if source and source ~= "" then
+  local n = assert(cdvr.load(source .. "/share/data/neghip_66x66x66_u8.nrrd"))
+  local lo, hi = n:range()
+  check(n:type() == "u8" and select(1, n:dims()) == 66 and lo == 0 and hi == 255, "bundled neghip")
+  local a = assert(cdvr.load(source .. "/share/data/mpld_asl_64x64x24x25_f32.nii.gz"))
+  check(#a == 25 and a:get(32, 32, 12, 1) == 1020, "bundled mpld_asl")
+end
+
 -- real data
 local data = os.getenv("CDVR_SHARED_DATA")
 if data and data ~= "" then
