@@ -1,4 +1,5 @@
 /* core/cl_render.c - per-frame setup (b4: TF, brick visibility) and ray casting (b5). */
+#include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -281,6 +282,12 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     if (!(rp.step > 0) || !(rp.unit > 0))
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: step %g and unit %g must be > 0",
                               rp.step, rp.unit);
+    double diagonal = 0;
+    for (int a = 0; a < 3; a++)
+        diagonal += pow((double)(s->dims[a] - 1) * spacing[a], 2);
+    if (sqrt(diagonal) / rp.step > (double)INT_MAX)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: step %g too small for a box of "
+                              "diagonal %g", rp.step, sqrt(diagonal));
     size_t pixels = (size_t)img->width * (size_t)img->height;
     st = ensure_image(s, pixels, err);
     if (!st)
