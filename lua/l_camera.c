@@ -2,7 +2,12 @@
  * cam:get(), cam:set{...}; fields readable as cam.eye, cam.fov, ... */
 #include "lcdvr.h"
 
+#include <errno.h>
 #include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <sys/stat.h>
+#include <unistd.h>
 #include <string.h>
 
 static const double kPi = 3.14159265358979323846;
@@ -54,8 +59,31 @@ static cdvr_camera default_camera(void)
     return cam;
 }
 
+/* cdvr.camera(path.lua): runs the file (it returns the field table) and builds from that;
+ * an unreadable file returns nil, message. */
+static int camera_from_file(lua_State *L, const char *path)
+{
+    if (luaL_loadfilex(L, path, "t") != LUA_OK) {
+        luaL_pushfail(L);
+        lua_insert(L, -2);
+        return 2;
+    }
+    lua_call(L, 0, 1);
+    if (!lua_istable(L, -1))
+        return luaL_error(L, "%s: camera file must return a table, got %s", path,
+                          luaL_typename(L, -1));
+    lua_replace(L, 1);
+    lua_settop(L, 1);
+    return -1;
+}
+
 static int l_camera(lua_State *L)
 {
+    if (lua_type(L, 1) == LUA_TSTRING) {
+        int pushed = camera_from_file(L, lua_tostring(L, 1));
+        if (pushed >= 0)
+            return pushed;
+    }
     luaL_checktype(L, 1, LUA_TTABLE);
     cdvr_camera cam = default_camera();
     lua_getfield(L, 1, "eye");
@@ -127,6 +155,55 @@ static int camera_set(lua_State *L)
     check_valid(L, &changed);
     *cam = changed;
     lua_settop(L, 1);
+    return 1;
+}
+
+static void write_vec3(FILE *f, const char *key, const double v[3])
+{
+    fprintf(f, "  %s = {%.17g, %.17g, %.17g},\n", key, v[0], v[1], v[2]);
+}
+
+/* Writes the camera as a Lua file returning its fields; returns 0 or -1 (errno set). */
+static int write_camera(FILE *f, const cdvr_camera *cam)
+{
+    fprintf(f, "-- cdvr camera: cdvr.camera(dofile(path)) or cdvr.camera(path)\nreturn {\n");
+    write_vec3(f, "eye", cam->eye);
+    write_vec3(f, "center", cam->center);
+    write_vec3(f, "up", cam->up);
+    fprintf(f, "  fov = %.17g, width = %d, height = %d,\n", cam->fov, cam->width, cam->height);
+    fprintf(f, "  orthographic = %s, ortho_height = %.17g,\n}\n",
+            cam->orthographic ? "true" : "false", cam->ortho_height);
+    if (ferror(f) || fflush(f) != 0 || fsync(fileno(f)) != 0)
+        return -1;
+    return 0;
+}
+
+/* cam:save(path): temporary file then rename; true or nil, message. */
+static int camera_save(lua_State *L)
+{
+    const cdvr_camera *cam = lcdvr_checkcamera(L, 1);
+    const char *path = luaL_checkstring(L, 2);
+    size_t n = strlen(path) + 16;
+    char *tmp = (char *)lua_newuserdatauv(L, n, 0);
+    snprintf(tmp, n, "%s.tmpXXXXXX", path);
+    int fd = mkstemp(tmp);
+    FILE *f = fd >= 0 ? fdopen(fd, "w") : NULL;
+    if (f)
+        fchmod(fd, 0644); /* mkstemp creates 0600 */
+    int failed = f ? write_camera(f, cam) : -1, e = errno;
+    if (f && fclose(f) != 0 && !failed)
+        failed = -1, e = errno;
+    else if (!f && fd >= 0)
+        close(fd);
+    if (!failed && rename(tmp, path) != 0)
+        failed = -1, e = errno;
+    if (failed) {
+        if (fd >= 0)
+            unlink(tmp);
+        errno = e;
+        return luaL_fileresult(L, 0, path);
+    }
+    lua_pushboolean(L, 1);
     return 1;
 }
 
@@ -229,7 +306,8 @@ static int l_orbit_camera(lua_State *L)
     return 1;
 }
 
-static const luaL_Reg camera_methods[] = {{"get", camera_get}, {"set", camera_set}, {NULL, NULL}};
+static const luaL_Reg camera_methods[] = {
+    {"get", camera_get}, {"set", camera_set}, {"save", camera_save}, {NULL, NULL}};
 
 static const luaL_Reg camera_meta[] = {
     {"__gc", camera_gc}, {"__close", camera_gc}, {"__tostring", camera_tostring}, {NULL, NULL}};
@@ -252,6 +330,8 @@ int lcdvr_open_camera(lua_State *L)
                    "camera around the box centre looking at it; azimuth 0 = +x side for up z; "
                    "default distance fits the box");
     lcdvr_help_add(L, "cam:get()", "table of the camera's fields (also readable as cam.eye, cam.fov, ...)");
+    lcdvr_help_add(L, "cdvr.camera(path.lua)", "camera saved by cam:save (nil, msg if unreadable)");
+    lcdvr_help_add(L, "cam:save(path)", "write a Lua file cdvr.camera(path) reads back; true or nil, msg");
     lcdvr_help_add(L, "cam:set{...}", "change fields (validated; the camera is unchanged on error)");
     return 0;
 }

@@ -68,6 +68,16 @@ raises(function() cdvr.camera{eye = {1, 2}} end, "3 numbers", "short eye")
 raises(function() cdvr.camera{eye = {0, -1, 0}, width = 0} end, "width", "zero width")
 raises(function() cdvr.camera{eye = {0, -1, 0}, orthographic = true} end, "ortho_height", "ortho without height")
 check(tostring(cam):find("cdvr.Camera", 1, true), "camera tostring")
+local campath = tmpdir .. "/test_render_cam.lua"
+check(cam:save(campath) == true, "cam:save")
+local cam2 = cdvr.camera(campath)
+check(cam2.fov == 60 and cam2.width == 64 and cam2.eye[2] == -10, "camera reads back from its file")
+check(cdvr.camera(dofile(campath)).height == 32, "cdvr.camera(dofile(path))")
+os.remove(campath)
+nilv, msg = cam:save("/nonexistent-dir/cam.lua")
+check(nilv == nil and msg:find("nonexistent", 1, true), "cam:save to a bad path: " .. tostring(msg))
+nilv, msg = cdvr.camera("/nonexistent-dir/cam.lua")
+check(nilv == nil and type(msg) == "string", "cdvr.camera of a missing file returns nil, msg")
 
 local orbit = cdvr.orbit_camera({17, 17, 17}, {azimuth = 90, elevation = 0, width = 33, height = 33})
 check(near(orbit.center[1], 8) and near(orbit.center[3], 8) and orbit.eye[2] > 8 and near(orbit.eye[1], 8, 1e-9),
