@@ -403,6 +403,11 @@ static cdvr_status consume(cdvr_player *p, chunk_item *it, cdvr_error *err)
         cdvr_image_free(img);
         double now = now_ms();
         row->frame_ms = now - p->t_last_frame;
+        if (p->opts.pace_fps > 0) {
+            sleep_ms(1e3 / p->opts.pace_fps - row->frame_ms);
+            now = now_ms();
+        }
+        row->interval_ms = now - p->t_last_frame;
         p->t_last_frame = now;
         if (cb != CDVR_OK)
             return cb;
@@ -679,7 +684,7 @@ double cdvr_player_fps(const cdvr_player *p)
     size_t n = 0;
     for (size_t i = 0; ms && i < p->nrows; i++)
         if (p->rows[i].status == CDVR_OK)
-            ms[n++] = p->rows[i].frame_ms;
+            ms[n++] = p->rows[i].interval_ms;
     double fps = 0;
     if (n) {
         qsort(ms, n, sizeof *ms, cmp_double);

@@ -91,6 +91,7 @@ static void push_row(lua_State *L, const cdvr_store *st, const cdvr_frame_row *r
     setnum(L, "setup_ms", r->setup_ms);
     setnum(L, "render_ms", r->render_ms);
     setnum(L, "frame_ms", r->frame_ms);
+    setnum(L, "interval_ms", r->interval_ms);
     setnum(L, "bytes", (double)r->bytes);
     setnum(L, "payload_bytes", (double)r->payload_bytes);
     if (r->group_start) {
@@ -434,6 +435,8 @@ static int l_player(lua_State *L)
             lp->opts.variant = v;
         }
     }
+    if (!lp->capture && lcdvr_optbooleanfield(L, 1, "pace", 1))
+        lp->opts.pace_fps = lcdvr_optnumberfield(L, 1, "target_fps", 0);
     if (resolve_policy(L, ud) && !lp->capture) {
         lp->opts.decide = decide_cb;
         lp->opts.decide_ud = lp;
@@ -464,17 +467,18 @@ static double median(double *v, size_t n)
 /* Pushes {read_ms=, ..., frame_ms=, serial_ms=} medians over frames without error. */
 static void push_stage_medians(lua_State *L, const cdvr_frame_row *rows, size_t n)
 {
-    static const char *const names[] = {"read_ms", "unzip_ms", "upload_ms", "decode_ms", "setup_ms", "render_ms", "frame_ms", "serial_ms"};
+    static const char *const names[] = {"read_ms", "unzip_ms", "upload_ms", "decode_ms", "setup_ms", "render_ms", "frame_ms", "serial_ms", "interval_ms"};
     double *vals = lua_newuserdatauv(L, (n ? n : 1) * sizeof(double), 0); /* scratch */
-    lua_createtable(L, 0, 8);                                             /* scratch, medians */
-    for (int k = 0; k < 8; k++) {
+    lua_createtable(L, 0, 9);                                             /* scratch, medians */
+    for (int k = 0; k < 9; k++) {
         size_t m = 0;
         for (size_t i = 0; i < n; i++) {
             const cdvr_frame_row *r = &rows[i];
             if (r->status != CDVR_OK)
                 continue;
-            double stage[8] = {r->read_ms, r->unzip_ms, r->upload_ms, r->decode_ms, r->setup_ms, r->render_ms, r->frame_ms,
-                               r->read_ms + r->unzip_ms + r->upload_ms + r->decode_ms + r->setup_ms + r->render_ms};
+            double stage[9] = {r->read_ms, r->unzip_ms, r->upload_ms, r->decode_ms, r->setup_ms, r->render_ms, r->frame_ms,
+                               r->read_ms + r->unzip_ms + r->upload_ms + r->decode_ms + r->setup_ms + r->render_ms,
+                               r->interval_ms};
             vals[m++] = stage[k];
         }
         setnum(L, names[k], median(vals, m));
@@ -553,7 +557,7 @@ int lcdvr_open_player(lua_State *L)
     lcdvr_help_add(L, "cdvr.player{store=, tf=, camera=, policy=, ...}",
                    "playback of a store: reader, stage-2 and device threads; camera = cdvr.Camera, path or function(frame, t); "
                    "policy = function(stats) or 'fixed'|'open_loop'|'closed_loop'; target_fps, variant, pipeline, cold, read_mbps, "
-                   "out='frames/%04d.png' (capture: deterministic), device='cl'|'cpu'");
+                   "out='frames/%04d.png' (capture: deterministic), device='cl'|'cpu', pace (default true with target_fps)");
     lcdvr_help_add(L, "p:run{frames=N, first=1}",
                    "plays N frames -> {fps=, frames={rows: t, variant, read_ms .. render_ms, frame_ms, reason, error}, median={...}}");
     return 0;

@@ -14,7 +14,9 @@
  * Chunk-level costs (b1, b1', b2, b3) are shared equally by the frames of the chunk (a PVTC
  * chunk with time packing holds T timesteps), so per-frame rows add up to the total work.
  * frame_ms is the wall time between the completion of consecutive frames (the first frame:
- * since the start of run), so the median of frame_ms gives the sustained frame rate.
+ * since the start of run) not counting pacing; interval_ms adds the pacing wait (interactive
+ * playback with a target frame rate does not show frames faster than the target), so
+ * 1000 / median(interval_ms) is the achieved frame rate and frame_ms what the work costs.
  */
 #ifndef CDVR_PLAYER_H
 #define CDVR_PLAYER_H
@@ -34,6 +36,7 @@ typedef struct cdvr_frame_row {
     size_t t;                /* timestep (0-based) */
     int variant;             /* variant index (0-based) */
     double read_ms, unzip_ms, upload_ms, decode_ms, setup_ms, render_ms, frame_ms;
+    double interval_ms;      /* frame_ms plus the pacing wait */
     uint64_t bytes;          /* stored bytes read, this frame's share */
     uint64_t payload_bytes;  /* bytes after stage 2, this frame's share */
     int group_start;         /* 1 if a policy decision was made for this frame's group */
@@ -73,6 +76,7 @@ typedef struct cdvr_player_opts {
     int cold;                    /* drop chunks from the page cache (posix_fadvise) */
     double read_mbps;            /* > 0: cap read bandwidth (MB/s, 1e6 bytes) */
     int empty_skip;              /* 1 (default): empty-space skipping on the cl device */
+    double pace_fps;             /* > 0: show frames no faster than this (interactive pacing) */
     cdvr_decide_fn decide;       /* NULL: always `variant` */
     void *decide_ud;
     cdvr_camera_fn camera_fn;
@@ -92,7 +96,7 @@ void cdvr_player_free(cdvr_player *p);
 cdvr_status cdvr_player_run(cdvr_player *p, size_t first, size_t frames, cdvr_error *err);
 /* Rows of the last run (valid until the next run or free). */
 const cdvr_frame_row *cdvr_player_rows(const cdvr_player *p, size_t *count);
-/* Median frame rate of the last run: 1000 / median(frame_ms) over frames without error. */
+/* Achieved frame rate of the last run: 1000 / median(interval_ms) over frames without error. */
 double cdvr_player_fps(const cdvr_player *p);
 
 #endif
