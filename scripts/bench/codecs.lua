@@ -71,8 +71,12 @@ local function load_dataset(spec)
   return v
 end
 
+-- "viscousfingers" for a series pattern or directory, the file name without extensions else.
 local function short_name(spec)
-  return (spec:gsub("/+$", ""):match("([^/]+)$") or spec):gsub("%%.*$", ""):gsub("[_%.]+$", "")
+  local path = spec:gsub("/+$", "")
+  if spec:find("%%") then path = path:match("^(.*)/[^/]*$") or path end
+  local base = path:match("([^/]+)$") or path
+  return (base:gsub("%.nii%.gz$", ""):gsub("%.[^.]*$", ""))
 end
 
 local VARIANTS = {}
