@@ -4,7 +4,7 @@
 Renders the engine CT (256x256x128, ../shared/data) with the same camera, transfer function
 and sample distance in VTK's vtkFixedPointVolumeRayCastMapper (offscreen, under xvfb-run) and in
 cdvr (device cl and cpu), in one run; prints median frame times, their ratios, and the image
-PSNR of each cdvr image against VTK's. Installs python3-vtk9 and xvfb with apt-get when
+PSNR of each cdvr image against VTK's. Installs python3-vtk9, python3-numpy and xvfb with apt-get when
 missing, and re-executes itself under xvfb-run when no display is set.
 Run from the repository root after building (build/cdvr).
 """
@@ -34,6 +34,10 @@ def ensure_packages():
     except ImportError:
         have_vtk = False
     need = [] if have_vtk else ["python3-vtk9"]
+    try:
+        import numpy  # noqa: F401
+    except ImportError:
+        need.append("python3-numpy")
     if not shutil.which("xvfb-run"):
         need.append("xvfb")
     if need:
@@ -47,11 +51,42 @@ def ensure_packages():
                                 "/usr/bin/python3"] + sys.argv, env)
 
 
+def read_nrrd(path):
+    """Attached-header NRRD (raw or gzip encoding) -> vtkImageData. VTK's own vtkNrrdReader
+    resolves to the MPI-parallel reader in Debian's build and fails without MPI."""
+    import gzip
+    import numpy as np
+    import vtk
+    from vtk.util.numpy_support import numpy_to_vtk
+    with open(path, "rb") as f:
+        raw = f.read()
+    end = raw.index(b"\n\n")
+    fields = {}
+    for line in raw[:end].decode().splitlines()[1:]:
+        if ":" in line and not line.startswith("#"):
+            k, v = line.split(":", 1)
+            fields[k.strip()] = v.strip()
+    dims = [int(x) for x in fields["sizes"].split()]
+    types = {"uchar": np.uint8, "unsigned char": np.uint8, "uint8": np.uint8,
+             "ushort": np.uint16, "unsigned short": np.uint16, "uint16": np.uint16,
+             "short": np.int16, "int16": np.int16, "float": np.float32}
+    dtype = np.dtype(types[fields["type"]])
+    if fields.get("endian", "little") == "big":
+        dtype = dtype.newbyteorder(">")
+    data = raw[end + 2:]
+    if fields.get("encoding") in ("gzip", "gz"):
+        data = gzip.decompress(data)
+    arr = np.frombuffer(data, dtype=dtype, count=int(np.prod(dims))).astype(dtype.newbyteorder("="))
+    img = vtk.vtkImageData()
+    img.SetDimensions(*dims[:3])
+    img.SetSpacing(1, 1, 1)
+    img.GetPointData().SetScalars(numpy_to_vtk(arr, deep=True))
+    return img
+
+
 def render_vtk(path, size, repeats, out_png):
     import vtk
-    reader = vtk.vtkNrrdReader()
-    reader.SetFileName(path)
-    reader.Update()
+    image = read_nrrd(path)
     color = vtk.vtkColorTransferFunction()
     opacity = vtk.vtkPiecewiseFunction()
     for v, r, g, b, a in TF:
@@ -64,7 +99,7 @@ def render_vtk(path, size, repeats, out_png):
     prop.SetInterpolationTypeToLinear()
     prop.ShadeOff()
     mapper = vtk.vtkFixedPointVolumeRayCastMapper()
-    mapper.SetInputConnection(reader.GetOutputPort())
+    mapper.SetInputData(image)
     mapper.SetSampleDistance(STEP)
     mapper.SetInteractiveSampleDistance(STEP)
     mapper.AutoAdjustSampleDistancesOff()
