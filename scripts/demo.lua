@@ -3,7 +3,7 @@
 -- back under the closed-loop rate-control policy along an orbit camera path, writes the frames
 -- to out/demo/NNNN.png, and prints the speed-against-error table.
 --   build/cdvr scripts/demo.lua [--out DIR] [--frames N] [--target-fps F]
-local opt = {out = "out/demo", frames = "25", ["target-fps"] = "15"}
+local opt = {out = "out/demo", frames = "25", ["target-fps"] = "10"}
 for i = 1, #arg, 2 do opt[(arg[i] or ""):gsub("^%-%-", "")] = arg[i + 1] end
 
 local data = cdvr.share_dir .. "/data/mpld_asl_64x64x24x25_f32.nii.gz"
@@ -20,32 +20,38 @@ local st = assert(cdvr.encode(q, {variants = {{S = 1, T = 3}, {S = 4, T = 3}, {c
                                   stage2 = "lzo", path = store_path}))
 local info = st:info()
 
-local tf = cdvr.tf("hot")
+-- perfusion: low signal transparent blue, mid green-yellow, high red and opaque
+local tf = cdvr.tf{{0, 0, 0, 0, 0}, {40, 0.1, 0.2, 0.6, 0}, {80, 0.2, 0.6, 1.0, 0.12},
+                   {115, 0.9, 0.9, 0.3, 0.35}, {160, 1.0, 0.35, 0.1, 0.8}, {255, 1, 1, 1, 1}}
 local frames = tonumber(opt.frames)
-local path = cdvr.path.orbit{center = {(nx - 1) / 2, (ny - 1) / 2, (nz - 1) / 2},
-                             distance = 3.2 * math.max(nx, ny, nz), elevation = 30,
+-- orbit around the centre of the volume's world box (spacing in mm)
+local sx, sy, sz = q:spacing()
+local ox, oy, oz = q:origin()
+local ext = {(nx - 1) * sx, (ny - 1) * sy, (nz - 1) * sz}
+local path = cdvr.path.orbit{center = {ox + ext[1] / 2, oy + ext[2] / 2, oz + ext[3] / 2},
+                             distance = 1.9 * math.max(ext[1], ext[2], ext[3]), elevation = 30,
                              period = frames, fov = 30}
-local p = cdvr.player{store = st, tf = tf, camera = path, width = 384, height = 384,
+local p = cdvr.player{store = st, tf = tf, camera = path, width = 256, height = 256,
                       policy = "closed_loop", target_fps = tonumber(opt["target-fps"])}
 local run = p:run{frames = frames}
 p:close()
 
 -- Capture pass: deterministic frames at the best quality, written as PNG.
 local best = info.variants[1].name
-local cap = cdvr.player{store = st, tf = tf, camera = path, width = 384, height = 384,
+local cap = cdvr.player{store = st, tf = tf, camera = path, width = 256, height = 256,
                         variant = best, out = opt.out .. "/%04d.png"}
 cap:run{frames = frames}
 cap:close()
 
 -- Speed against error, per variant: fps of a fixed-variant run, image PSNR of frame 1.
-local ref = cdvr.render(q, {tf = tf, camera = path:camera(1, 384, 384), t = 1})
+local ref = cdvr.render(q, {tf = tf, camera = path:camera(1, 256, 256), t = 1})
 print()
 print(("%-8s %8s %8s %10s %10s %8s"):format("variant", "bpv", "ratio", "vol_psnr", "img_psnr", "fps"))
 for _, var in ipairs(info.variants) do
-  local fp = cdvr.player{store = st, tf = tf, camera = path, width = 384, height = 384, variant = var.name}
+  local fp = cdvr.player{store = st, tf = tf, camera = path, width = 256, height = 256, variant = var.name}
   local r = fp:run{frames = math.min(frames, 12)}
   fp:close()
-  local img = cdvr.render(st:decode(1, var.name), {tf = tf, camera = path:camera(1, 384, 384)})
+  local img = cdvr.render(st:decode(1, var.name), {tf = tf, camera = path:camera(1, 256, 256)})
   local ipsnr = cdvr.compare(img, ref).psnr
   print(("%-8s %8.3f %8.4f %10.2f %10.2f %8.1f"):format(var.name, 8 * var.bytes / info.raw_bytes,
     var.bytes / info.raw_bytes, var.psnr, ipsnr, r.fps))

@@ -48,9 +48,12 @@ for _, spec in ipairs(datasets) do
   local st = assert(cdvr.encode(q, {variants = configs, stage2 = "none", path = tmp}))
   local info = st:info()
   local nx, ny, nz = q:dims()
-  local c = {(nx - 1) / 2, (ny - 1) / 2, (nz - 1) / 2}
-  local path = cdvr.path.orbit{center = c, distance = 2.6 * math.max(nx, ny, nz), up = {0, 0, 1},
-                               elevation = 25, period = frames, fov = 30}
+  local sx, sy, sz = q:spacing()
+  local ox, oy, oz = q:origin()
+  local ext = {(nx - 1) * sx, (ny - 1) * sy, (nz - 1) * sz}
+  local c = {ox + ext[1] / 2, oy + ext[2] / 2, oz + ext[3] / 2}
+  local path = cdvr.path.orbit{center = c, distance = 2.4 * math.max(ext[1], ext[2], ext[3]),
+                               up = {0, 0, 1}, elevation = 25, period = frames, fov = 30}
   local tf = cdvr.tf("hot")
   -- reference renders of the uncompressed data along the path
   local refs = {}
