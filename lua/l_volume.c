@@ -134,9 +134,11 @@ static int volume_frame(lua_State *L)
 {
     const cdvr_volume *v = lcdvr_checkvolume(L, 1);
     size_t t = check_timestep(L, v, 2);
+    lua_Integer count = luaL_optinteger(L, 3, 1);
+    luaL_argcheck(L, count >= 1 && (lua_Unsigned)count <= v->timesteps - t, 3, "timestep count out of range");
     cdvr_volume *frame;
     cdvr_error err;
-    if (cdvr_volume_slice_time(v, t, 1, &frame, &err) != CDVR_OK)
+    if (cdvr_volume_slice_time(v, t, (size_t)count, &frame, &err) != CDVR_OK)
         return lcdvr_raise(L, &err);
     lcdvr_pushvolume(L, frame);
     return 1;
@@ -541,7 +543,7 @@ int lcdvr_open_volume(lua_State *L)
     lcdvr_help_add(L, "v:set(x, y, z [, t], value)", "set a voxel (x, y, z from 0; t from 1)");
     lcdvr_help_add(L, "v:spacing()", "voxel spacing sx, sy, sz");
     lcdvr_help_add(L, "v:origin()", "world position of voxel (0,0,0)");
-    lcdvr_help_add(L, "v:frame(t)", "new 3D volume holding timestep t (from 1)");
+    lcdvr_help_add(L, "v:frame(t [, count])", "new volume holding timesteps t .. t+count-1 (t from 1, count default 1)");
     lcdvr_help_add(L, "v:bytes()", "size of the voxel data in bytes (all timesteps)");
     lcdvr_help_add(L, "v:quantize{lo=, hi=}",
                    "u8 volume over window [lo, hi] (default: range) and report {clipped=, clipped_low=, clipped_high=, nan=, inf=}");

@@ -217,8 +217,10 @@ static char *read_line(const char *prompt)
         return line;
     }
 #endif
-    fputs(prompt, stdout);
-    fflush(stdout);
+    if (isatty(STDIN_FILENO)) { /* piped input: no prompts, so output stays plain */
+        fputs(prompt, stdout);
+        fflush(stdout);
+    }
     size_t cap = 0;
     char *line = NULL;
     ssize_t len = getline(&line, &cap, stdin);
@@ -257,7 +259,6 @@ static int load_console_chunk(lua_State *L, char *first)
         return LUA_OK;
     }
     lua_pop(L, 2);
-    luaL_Buffer b;
     lua_pushstring(L, first);                     /* code */
     for (;;) {
         size_t len;
@@ -273,11 +274,9 @@ static int load_console_chunk(lua_State *L, char *first)
             lua_pushstring(L, "incomplete input at end of file");
             return LUA_ERRSYNTAX;
         }
-        luaL_buffinit(L, &b);
-        luaL_addvalue(&b);                        /* moves code into the buffer */
-        luaL_addchar(&b, '\n');
-        luaL_addstring(&b, more);
-        luaL_pushresult(&b);                      /* code .. "\n" .. more */
+        lua_pushliteral(L, "\n");
+        lua_pushstring(L, more);
+        lua_concat(L, 3);                         /* code .. "\n" .. more */
         free(more);
     }
 }

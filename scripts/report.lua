@@ -6,6 +6,7 @@
 --   image_psnr     : mean over the path's frames of the PSNR of the render of the decoded
 --                    variant against the render of the uncompressed data (same camera);
 --   volume_psnr, maxerr : measured at encode time over all timesteps.
+-- --timesteps N keeps the first N timesteps of each dataset (for quick runs).
 -- Writes DIR/report.csv and DIR/report.png (gnuplot: fps against image PSNR, one labelled
 -- point per configuration).
 package.path = (arg[0]:match("^(.*)/[^/]*$") or ".") .. "/bench/?.lua;" .. package.path
@@ -38,9 +39,13 @@ local function render_device()
 end
 local device = render_device()
 
-local rows = {}
+local rows, names = {}, {}
 for _, spec in ipairs(datasets) do
   local vol, name = common.load_dataset(spec)
+  names[#names + 1] = name
+  if opt.timesteps and tonumber(opt.timesteps) < vol:timesteps() then
+    vol = vol:frame(1, tonumber(opt.timesteps))
+  end
   local lo, hi = vol:range()
   local q = vol:quantize{lo = lo, hi = hi}
   local tmp = os.tmpname()
@@ -112,7 +117,7 @@ end
 dat:close()
 local gp = assert(io.open(opt.out .. "/report.gp", "w"))
 gp:write(([[
-set terminal pngcairo size 1000,700 font ",11"
+set terminal pngcairo size 1000,700 font ",11" noenhanced
 set output "%s/report.png"
 set title "cdvr: playback speed against image quality (%s, %dx%d, device %s)"
 set xlabel "image PSNR against the uncompressed render (dB, higher is better)"
@@ -122,7 +127,7 @@ set key off
 set offsets 1, 3, 2, 2
 plot "%s/report.dat" using 1:2 with points pt 7 ps 1.5 lc rgb "#1f77b4", \
      "" using 1:2:3 with labels offset 0,1 font ",9"
-]]):format(opt.out, table.concat(datasets, ", "):gsub("[^%w%./_,-]", ""):sub(-60), width, width,
+]]):format(opt.out, table.concat(names, ", "):gsub('"', ""):sub(1, 60), width, width,
            device, opt.out))
 gp:close()
 local ok = os.execute(('gnuplot "%s/report.gp"'):format(opt.out))
