@@ -46,7 +46,7 @@ struct cdvr_player {
     size_t first, frames;
     cdvr_frame_row *rows;
     size_t nrows, rows_cap;
-    double t_start, t_last_frame;
+    double t_start, t_last_frame, t_deadline;
 
     /* pipeline */
     pthread_mutex_t mu;
@@ -370,16 +370,40 @@ static void fill_row(cdvr_frame_row *row, const chunk_item *it, const cdvr_chunk
     }
 }
 
-/* Renders the frames of one item. Returns non-OK only for callback failures (stop the run). */
+/* Shows frame `row` no earlier than its slot in the paced schedule (deadline k = deadline
+ * k-1 + 1/pace_fps, so one late frame is caught up by the next; a frame more than one
+ * period late restarts the schedule) and records its display interval. */
+static void pace_and_show(cdvr_player *p, cdvr_frame_row *row)
+{
+    double now = now_ms();
+    if (p->opts.pace_fps > 0) {
+        double period = 1e3 / p->opts.pace_fps;
+        double deadline = p->t_deadline + period;
+        if (now > deadline + period)
+            deadline = now;
+        sleep_ms(deadline - now);
+        p->t_deadline = deadline;
+        now = now_ms();
+    }
+    row->interval_ms = now - p->t_last_frame;
+    p->t_last_frame = now;
+}
+
+/* Renders the frames of one item. Returns non-OK only for callback failures (stop the run).
+ * frame_ms: the work from the end of the previous chunk's last frame to the end of this
+ * chunk's last frame, pacing waits excluded, shared equally by the chunk's frames. */
 static cdvr_status consume(cdvr_player *p, chunk_item *it, cdvr_error *err)
 {
     const cdvr_chunk_info *ch = cdvr_store_chunk(p->opts.store, (size_t)it->variant, it->chunk);
     size_t n = it->t_end - it->t_begin;
+    size_t first_row = p->nrows;
+    double work_start = p->t_last_frame, work_ms = 0;
     double upload_ms = 0, decode_ms = 0;
     cdvr_error frame_err = it->err;
     if (frame_err.status == CDVR_OK)
         upload_decode(p, it, &upload_ms, &decode_ms, &frame_err);
-    for (size_t t = it->t_begin; t < it->t_end; t++) {
+    cdvr_status cb = CDVR_OK;
+    for (size_t t = it->t_begin; t < it->t_end && cb == CDVR_OK; t++) {
         cdvr_frame_row *row = add_row(p);
         if (!row)
             return cdvr_error_set(err, CDVR_ERR_NOMEM, "player: cannot grow the frame table");
@@ -397,22 +421,20 @@ static cdvr_status consume(cdvr_player *p, chunk_item *it, cdvr_error *err)
         row->status = ferr.status;
         if (ferr.status != CDVR_OK)
             snprintf(row->error, sizeof row->error, "%s", ferr.msg);
-        cdvr_status cb = CDVR_OK;
         if (ferr.status == CDVR_OK && p->opts.frame_fn)
             cb = p->opts.frame_fn(p->opts.frame_ud, row, img, err);
         cdvr_image_free(img);
-        double now = now_ms();
-        row->frame_ms = now - p->t_last_frame;
-        if (p->opts.pace_fps > 0) {
-            sleep_ms(1e3 / p->opts.pace_fps - row->frame_ms);
-            now = now_ms();
-        }
-        row->interval_ms = now - p->t_last_frame;
-        p->t_last_frame = now;
-        if (cb != CDVR_OK)
-            return cb;
+        work_ms += now_ms() - work_start;
+        pace_and_show(p, row);
+        work_start = p->t_last_frame;
     }
-    return CDVR_OK;
+    size_t shown = p->nrows - first_row;
+    for (size_t i = first_row; i < p->nrows; i++) {
+        p->rows[i].frame_ms = work_ms / (double)shown;
+        if (p->opts.pace_fps <= 0)
+            p->rows[i].interval_ms = p->rows[i].frame_ms;
+    }
+    return cb;
 }
 
 /* ---- threads ---------------------------------------------------------------------------- */
@@ -661,7 +683,7 @@ cdvr_status cdvr_player_run(cdvr_player *p, size_t first, size_t frames, cdvr_er
     memset(&p->unzip_q, 0, sizeof p->unzip_q);
     for (size_t i = 0; i < p->nitems; i++)
         queue_push(&p->free_items, &p->items[i]);
-    p->t_start = p->t_last_frame = now_ms();
+    p->t_start = p->t_last_frame = p->t_deadline = now_ms();
     cdvr_error_clear(err);
     return p->opts.pipelined ? run_pipelined(p, err) : run_serial(p, err);
 }

@@ -13,10 +13,12 @@
  *
  * Chunk-level costs (b1, b1', b2, b3) are shared equally by the frames of the chunk (a PVTC
  * chunk with time packing holds T timesteps), so per-frame rows add up to the total work.
- * frame_ms is the wall time between the completion of consecutive frames (the first frame:
- * since the start of run) not counting pacing; interval_ms adds the pacing wait (interactive
- * playback with a target frame rate does not show frames faster than the target), so
- * 1000 / median(interval_ms) is the achieved frame rate and frame_ms what the work costs.
+ * frame_ms is the calling thread's wall time for the frame's chunk (waiting for data, b2..b5,
+ * callbacks, from the end of the previous chunk's last frame), shared equally by the chunk's
+ * frames, pacing waits excluded: the sustained cost of a frame. With pace_fps > 0
+ * (interactive playback with a target frame rate) frames are shown on a fixed schedule of
+ * 1/pace_fps and interval_ms is the real time between shown frames; without pacing
+ * interval_ms = frame_ms. cdvr_player_fps is 1000 / median(interval_ms).
  */
 #ifndef CDVR_PLAYER_H
 #define CDVR_PLAYER_H
