@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# The user-facing scripts run end to end: report.lua on a small series (CSV header and rows,
+# PNG chart), regress.lua against share/regress/reference.lua, demo.lua (short).
+cdvr=${1:?usage: test_scripts.sh path/to/cdvr}
+src=${CDVR_SOURCE_DIR:-$(cd "$(dirname "$0")/.." && pwd)}
+tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
+passed=0; failed=0
+check() { local name=$1; shift; if "$@"; then passed=$((passed+1)); else failed=$((failed+1)); echo "FAIL: $name" >&2; fi; }
+
+cd "$src" || exit 1
+"$cdvr" scripts/report.lua share/data/mpld_asl_64x64x24x25_f32.nii.gz --timesteps 6 --frames 6 \
+  --width 48 --out "$tmp/report" >"$tmp/report.out" 2>"$tmp/report.err"
+check "report.lua exit 0" [ $? -eq 0 ]
+check "report.csv header" [ "$(head -1 "$tmp/report/report.csv")" = "dataset,config,codec,bpv,ratio,fps,frame_ms,image_psnr,volume_psnr,maxerr" ]
+check "report.csv rows (raw + 8 PVTC variants)" [ "$(tail -n +2 "$tmp/report/report.csv" | wc -l)" -eq 9 ]
+check "report.csv raw is lossless" grep -q '^mpld_asl_64x64x24x25_f32,raw,raw,8.0000,1.0000,.*,inf,inf,0.0000$' "$tmp/report/report.csv"
+check "report.csv S4T3 ratio 5/48" grep -q '^mpld_asl_64x64x24x25_f32,S4T3,pvtc,0.8333,0.1042,' "$tmp/report/report.csv"
+check "report.png is a PNG" [ "$(head -c 8 "$tmp/report/report.png" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ]
+
+"$cdvr" scripts/regress.lua >"$tmp/regress.out" 2>"$tmp/regress.err"
+rc=$?
+check "regress.lua passes" [ $rc -eq 0 ]
+[ $rc -eq 0 ] || cat "$tmp/regress.err" >&2
+# a moved figure must fail and be named
+sed 's/value = \([0-9.]*\)/value = \1 + 5/' share/regress/reference.lua > "$tmp/moved.lua"
+"$cdvr" scripts/regress.lua --reference "$tmp/moved.lua" >/dev/null 2>"$tmp/moved.err"
+check "regress.lua fails on moved figures" [ $? -ne 0 ]
+check "regress.lua names the moved check" grep -q "MOVED ml/S1T3/volume_psnr" "$tmp/moved.err"
+
+"$cdvr" scripts/demo.lua --frames 6 --out "$tmp/demo" >"$tmp/demo.out" 2>&1
+check "demo.lua exit 0" [ $? -eq 0 ]
+check "demo frames written" [ -s "$tmp/demo/0006.png" ]
+check "demo table printed" grep -q '^S1T3 ' "$tmp/demo.out"
+
+echo "$passed passed, $failed failed"
+[ $failed -eq 0 ]
