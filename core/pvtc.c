@@ -310,10 +310,11 @@ static void decode_block_interior(const chunk_layout *lay, const uint8_t pal[3][
     }
 }
 
-/* Edge block: crops positions that fall outside the volume (padding). */
-static void decode_block_edge(const chunk_layout *lay, const uint8_t pal[3][4],
-                              const uint8_t *words, size_t x0, size_t y0, size_t zp0,
-                              uint8_t *const *frames, int nch)
+/* The reference decoder, one voxel at a time, cropping positions outside the volume
+ * (padding): the readable definition that the faster paths must match bit for bit. */
+static void decode_block_reference(const chunk_layout *lay, const uint8_t pal[3][4],
+                                   const uint8_t *words, size_t x0, size_t y0, size_t zp0,
+                                   uint8_t *const *frames, int nch)
 {
     const size_t X = lay->dims[0], Y = lay->dims[1], Z = lay->dims[2];
     for (int zi = 0; zi < lay->S; zi++) {
@@ -327,6 +328,54 @@ static void decode_block_edge(const chunk_layout *lay, const uint8_t pal[3][4],
                 for (size_t x = 0; x < 4 && x0 + x < X; x++)
                     plane[X * (y0 + y) + x0 + x] = pal[c][(w >> (2 * (x + 4 * y))) & 3];
         }
+    }
+}
+
+/* Destinations of block row (by, bz), whose voxel rows all lie inside the volume in y and z;
+ * its first X / 4 blocks lie wholly inside. */
+static void row_job_init(const chunk_layout *lay, const uint8_t *ep, const uint8_t *idx,
+                         size_t by, size_t bz, uint8_t *const *frames, int nch,
+                         pvtc_row_job *job)
+{
+    const size_t X = lay->dims[0];
+    job->endpoints = ep;
+    job->words = idx;
+    job->stride = X;
+    job->nblocks = X / 4;
+    job->S = lay->S;
+    job->T = lay->T;
+    job->nch = nch;
+    for (int zi = 0; zi < lay->S; zi++)
+        for (int c = 0; c < nch; c++)
+            job->dst[zi][c] = frames[channel_frame(lay, c)] +
+                              lay->plane * channel_slice(lay, c, bz * (size_t)lay->S + (size_t)zi) +
+                              X * 4 * by;
+}
+
+/* Decodes one row of blocks (ep, idx: its first block) with the given path: blocks wholly
+ * inside the volume go to the fast paths, the rest to the reference. */
+static void decode_row(const chunk_layout *lay, const uint8_t *ep, const uint8_t *idx, size_t by,
+                       size_t bz, uint8_t *const *frames, int nch, pvtc_decode_path path)
+{
+    const size_t idx_stride = 4 * (size_t)lay->S, y0 = 4 * by, zp0 = bz * (size_t)lay->S;
+    size_t x_inside = 0, done = 0;
+    if (path != PVTC_DECODE_REFERENCE && (bz + 1) * lay->zdepth <= lay->dims[2] &&
+        y0 + 4 <= lay->dims[1]) {
+        x_inside = lay->dims[0] / 4;
+        if (path == PVTC_DECODE_SSSE3) {
+            pvtc_row_job job;
+            row_job_init(lay, ep, idx, by, bz, frames, nch, &job);
+            done = pvtc_decode_row_ssse3(&job);
+        }
+    }
+    uint8_t pal[3][4];
+    for (size_t bx = done; bx < lay->geom.blocks[0]; bx++) {
+        block_palettes(lay->T, ep + 4 * bx, pal);
+        if (bx < x_inside)
+            decode_block_interior(lay, pal, idx + idx_stride * bx, 4 * bx, y0, zp0, frames, nch);
+        else
+            decode_block_reference(lay, pal, idx + idx_stride * bx, 4 * bx, y0, zp0, frames,
+                                   nch);
     }
 }
 
@@ -354,36 +403,47 @@ static cdvr_status check_decode_args(const chunk_layout *lay, const cdvr_pvtc_pa
     return CDVR_OK;
 }
 
-cdvr_status cdvr_pvtc_decode_chunk(const cdvr_pvtc_params *params, const size_t dims[3],
+static cdvr_status resolve_path(pvtc_decode_path *path, cdvr_error *err)
+{
+    int ssse3 = pvtc_ssse3_available();
+    if (*path == PVTC_DECODE_AUTO)
+        *path = ssse3 ? PVTC_DECODE_SSSE3 : PVTC_DECODE_PORTABLE;
+    else if (*path == PVTC_DECODE_SSSE3 && !ssse3)
+        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED,
+                              "pvtc decode: the SSSE3 path is not available on this CPU or build");
+    else if (*path != PVTC_DECODE_REFERENCE && *path != PVTC_DECODE_PORTABLE &&
+             *path != PVTC_DECODE_SSSE3)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "pvtc decode: unknown path %d", (int)*path);
+    return CDVR_OK;
+}
+
+cdvr_status pvtc_decode_chunk_path(const cdvr_pvtc_params *params, const size_t dims[3],
                                    const uint8_t *in, size_t in_bytes, uint8_t *const *frames,
-                                   size_t nframes, cdvr_error *err)
+                                   size_t nframes, pvtc_decode_path path, cdvr_error *err)
 {
     chunk_layout lay;
-    cdvr_status st = layout_init(params, dims, &lay, err);
+    cdvr_status st = resolve_path(&path, err);
+    if (st == CDVR_OK)
+        st = layout_init(params, dims, &lay, err);
     if (st == CDVR_OK)
         st = check_decode_args(&lay, params, in, in_bytes, frames, nframes, err);
     if (st != CDVR_OK)
         return st;
     const int nch = lay.space ? lay.T : (int)nframes;
-    const size_t *nb = lay.geom.blocks;
+    const size_t *nb = lay.geom.blocks, row_idx_bytes = 4 * (size_t)lay.S * nb[0];
     const uint8_t *ep = in, *idx = in + 4 * lay.geom.nblocks;
-    const size_t idx_stride = 4 * (size_t)lay.S;
-    uint8_t pal[3][4];
-    for (size_t bz = 0; bz < nb[2]; bz++) {
-        size_t zp0 = bz * (size_t)lay.S;
-        int z_inside = (bz + 1) * lay.zdepth <= dims[2];
-        for (size_t by = 0; by < nb[1]; by++) {
-            int yz_inside = z_inside && 4 * by + 4 <= dims[1];
-            for (size_t bx = 0; bx < nb[0]; bx++, ep += 4, idx += idx_stride) {
-                block_palettes(lay.T, ep, pal);
-                if (yz_inside && 4 * bx + 4 <= dims[0])
-                    decode_block_interior(&lay, pal, idx, 4 * bx, 4 * by, zp0, frames, nch);
-                else
-                    decode_block_edge(&lay, pal, idx, 4 * bx, 4 * by, zp0, frames, nch);
-            }
-        }
-    }
+    for (size_t bz = 0; bz < nb[2]; bz++)
+        for (size_t by = 0; by < nb[1]; by++, ep += 4 * nb[0], idx += row_idx_bytes)
+            decode_row(&lay, ep, idx, by, bz, frames, nch, path);
     return CDVR_OK;
+}
+
+cdvr_status cdvr_pvtc_decode_chunk(const cdvr_pvtc_params *params, const size_t dims[3],
+                                   const uint8_t *in, size_t in_bytes, uint8_t *const *frames,
+                                   size_t nframes, cdvr_error *err)
+{
+    return pvtc_decode_chunk_path(params, dims, in, in_bytes, frames, nframes, PVTC_DECODE_AUTO,
+                                  err);
 }
 
 /* ---- encoder: gather, encode, scatter ---------------------------------------------------- */

@@ -3,7 +3,10 @@
 #ifndef CDVR_PVTC_INTERNAL_H
 #define CDVR_PVTC_INTERNAL_H
 
+#include <stddef.h>
 #include <stdint.h>
+
+#include "cdvr/pvtc.h"
 
 #define PVTC_MAX_POSITIONS 64 /* 4 x 4 x S with S <= 4 */
 #define PVTC_MAX_CHANNELS 3
@@ -42,5 +45,36 @@ uint32_t pvtc_code_error(const pvtc_block *blk, const pvtc_code *code);
 /* Encoders: fill code completely and return its squared error. */
 uint32_t pvtc_encode_block_bbox(const pvtc_block *blk, pvtc_code *code);
 uint32_t pvtc_encode_block_lsq(const pvtc_block *blk, pvtc_code *code);
+
+/* ---- decoder paths ------------------------------------------------------------------------
+ * The reference decoder (one voxel at a time, pvtc.c) is the definition; the portable
+ * (64-bit SWAR) and SSSE3 paths must be bit-exact with it. AUTO picks the fastest available. */
+typedef enum pvtc_decode_path {
+    PVTC_DECODE_AUTO = 0,
+    PVTC_DECODE_REFERENCE,
+    PVTC_DECODE_PORTABLE,
+    PVTC_DECODE_SSSE3
+} pvtc_decode_path;
+
+/* cdvr_pvtc_decode_chunk with a chosen path; CDVR_ERR_UNSUPPORTED if this CPU or build lacks
+ * it. */
+cdvr_status pvtc_decode_chunk_path(const cdvr_pvtc_params *params, const size_t dims[3],
+                                   const uint8_t *in, size_t in_bytes, uint8_t *const *frames,
+                                   size_t nframes, pvtc_decode_path path, cdvr_error *err);
+
+/* One row of blocks (fixed y and z block coordinates) whose first nblocks blocks lie wholly
+ * inside the volume. */
+typedef struct pvtc_row_job {
+    const uint8_t *endpoints; /* 4 bytes per block, block 0 of the row first */
+    const uint8_t *words;     /* 4 * S bytes of index words per block */
+    uint8_t *dst[4][PVTC_MAX_CHANNELS]; /* [zi][c]: voxel x = 0 of the block row's first row */
+    size_t stride;            /* X: bytes from one voxel row to the next */
+    size_t nblocks;
+    int S, T, nch;            /* nch: channels to write (time packing may want fewer than T) */
+} pvtc_row_job;
+
+int pvtc_ssse3_available(void);
+/* Decodes the leading blocks of the row in groups of four; returns how many it decoded. */
+size_t pvtc_decode_row_ssse3(const pvtc_row_job *job);
 
 #endif
