@@ -539,7 +539,7 @@ cdvr_status cdvr_cl_open(cdvr_cl **out, cdvr_error *err)
     if (!st)
         st = create_kernel(cl, "pvtc_decode", &cl->k_decode, err);
     if (!st)
-        st = create_kernel(cl, "brick_visibility", &cl->k_bricks, err);
+        st = create_kernel(cl, "brick_minmax", &cl->k_bricks, err);
     if (!st)
         st = create_kernel(cl, "raycast", &cl->k_raycast, err);
     if (st) {

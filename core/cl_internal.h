@@ -30,13 +30,18 @@ struct cdvr_cl_stream {
     size_t payload_capacity, payload_bytes;
     cl_mem frames;               /* decoded u8 frames, contiguous */
     size_t frame_capacity, frames_valid;
-    cl_mem table;                /* 256 float4: rgb + alpha per unit */
-    cl_mem alpha_corrected;      /* 256 floats, step-corrected alpha */
-    cl_mem visible_prefix;       /* 257 ints: prefix count of entries with alpha > 0 */
+    cl_mem table;                /* 256 float4: rgb + step-corrected alpha (per render) */
+    cl_mem alpha_unit;           /* 256 floats: alpha per unit length (shorter last segment) */
+    cl_mem brick_minmax;         /* nbricks uchar2: value range per brick incl. apron */
     cl_mem brick_visible;        /* nbricks uchar flags */
     cl_mem image;                /* width*height float4 */
     cl_mem samples;              /* width*height uint sample counters */
     size_t image_pixels;
+    unsigned char *minmax_host;  /* copy of brick_minmax for minmax_frame */
+    unsigned char *flags_host;   /* nbricks flags as last uploaded */
+    size_t minmax_frame;         /* frame the min/max grid belongs to, (size_t)-1 for none */
+    int flags_valid;             /* brick_visible matches minmax_host and tf_visible */
+    unsigned char tf_visible[256]; /* alpha > 0 per TF entry, as the flags were built */
     cdvr_tf tf;                  /* TF of the last setup */
     size_t setup_frame;          /* frame of the last setup, (size_t)-1 for none */
     size_t bricks_visible;

@@ -36,17 +36,24 @@ cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_str
     }
     s->skipping = 1;
     s->setup_frame = (size_t)-1;
-    size_t cap = 0;
-    cdvr_status st = cdvr_cl_ensure_buffer(cl, &s->table, &cap, 256 * 4 * sizeof(float),
-                                           CL_MEM_READ_ONLY, "TF table", err);
+    s->minmax_frame = (size_t)-1;
+    size_t cap = 0, minmax_bytes = 2 * s->nbricks; /* nbricks < voxels: no overflow */
+    s->minmax_host = malloc(minmax_bytes);
+    s->flags_host = malloc(s->nbricks);
+    cdvr_status st = (s->minmax_host && s->flags_host)
+                         ? CDVR_OK
+                         : cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL stream: out of memory");
     if (!st)
-        st = cdvr_cl_ensure_buffer(cl, &s->alpha_corrected, &cap, 256 * sizeof(float),
-                                   CL_MEM_READ_ONLY, "corrected alpha table", err);
+        st = cdvr_cl_ensure_buffer(cl, &s->table, &cap, 256 * 4 * sizeof(float),
+                                   CL_MEM_READ_ONLY, "TF table", err);
     if (!st)
-        st = cdvr_cl_ensure_buffer(cl, &s->visible_prefix, &cap, 257 * sizeof(cl_int),
-                                   CL_MEM_READ_ONLY, "TF visibility prefix", err);
+        st = cdvr_cl_ensure_buffer(cl, &s->alpha_unit, &cap, 256 * sizeof(float),
+                                   CL_MEM_READ_ONLY, "alpha table", err);
     if (!st)
-        st = cdvr_cl_ensure_buffer(cl, &s->brick_visible, &cap, s->nbricks, CL_MEM_READ_WRITE,
+        st = cdvr_cl_ensure_buffer(cl, &s->brick_minmax, &cap, minmax_bytes, CL_MEM_READ_WRITE,
+                                   "brick min/max grid", err);
+    if (!st)
+        st = cdvr_cl_ensure_buffer(cl, &s->brick_visible, &cap, s->nbricks, CL_MEM_READ_ONLY,
                                    "brick flags", err);
     if (st) {
         cdvr_cl_stream_free(s);
@@ -60,10 +67,12 @@ void cdvr_cl_stream_free(cdvr_cl_stream *s)
 {
     if (!s)
         return;
-    cl_mem *mems[] = {&s->payload, &s->frames, &s->table, &s->alpha_corrected,
-                      &s->visible_prefix, &s->brick_visible, &s->image, &s->samples};
+    cl_mem *mems[] = {&s->payload, &s->frames, &s->table, &s->alpha_unit,
+                      &s->brick_minmax, &s->brick_visible, &s->image, &s->samples};
     for (size_t i = 0; i < sizeof mems / sizeof *mems; i++)
         cdvr_cl_release(mems[i]);
+    free(s->minmax_host);
+    free(s->flags_host);
     free(s);
 }
 
@@ -171,6 +180,7 @@ cdvr_status cdvr_cl_decode(cdvr_cl_stream *s, int codec, const cdvr_pvtc_params 
 {
     s->frames_valid = 0;
     s->setup_frame = (size_t)-1;
+    s->minmax_frame = (size_t)-1;
     if (!s->payload_bytes)
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL decode: no chunk uploaded");
     if (codec != CDVR_CODEC_RAW && codec != CDVR_CODEC_PVTC)

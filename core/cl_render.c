@@ -1,6 +1,7 @@
 /* core/cl_render.c - per-frame setup (b4: TF, brick visibility) and ray casting (b5). */
 #include <limits.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -14,9 +15,9 @@ typedef struct cam_params {
 } cam_params;
 
 static cdvr_status run_kernel(cdvr_cl *cl, cl_kernel k, cl_uint ndim, const size_t *global,
-                              const char *what, cdvr_error *err)
+                              const size_t *local, const char *what, cdvr_error *err)
 {
-    cl_int code = clEnqueueNDRangeKernel(cl->queue, k, ndim, NULL, global, NULL, 0, NULL, NULL);
+    cl_int code = clEnqueueNDRangeKernel(cl->queue, k, ndim, NULL, global, local, 0, NULL, NULL);
     if (!code)
         code = clFinish(cl->queue);
     return cdvr_cl_check(code, what, err);
@@ -29,7 +30,8 @@ static cdvr_status write_buffer(cdvr_cl *cl, cl_mem mem, const void *data, size_
     return cdvr_cl_check(code, what, err);
 }
 
-static cdvr_status compute_bricks(cdvr_cl_stream *s, size_t frame, cdvr_error *err)
+/* Min/max of every brick of device frame `frame`, copied to s->minmax_host. */
+static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *err)
 {
     cl_kernel k = s->cl->k_bricks;
     cl_ulong offset = (cl_ulong)(frame * s->voxels);
@@ -40,25 +42,33 @@ static cdvr_status compute_bricks(cdvr_cl_stream *s, size_t frame, cdvr_error *e
     code |= clSetKernelArg(k, 1, sizeof offset, &offset);
     for (cl_uint i = 0; i < 7; i++)
         code |= clSetKernelArg(k, 2 + i, sizeof(cl_uint), &args[i]);
-    code |= clSetKernelArg(k, 9, sizeof(cl_mem), &s->visible_prefix);
-    code |= clSetKernelArg(k, 10, sizeof(cl_mem), &s->brick_visible);
+    code |= clSetKernelArg(k, 9, sizeof(cl_mem), &s->brick_minmax);
     if (code != CL_SUCCESS)
-        return cdvr_cl_check(CL_INVALID_KERNEL_ARGS, "brick_visibility arguments", err);
-    cdvr_status st = run_kernel(s->cl, k, 1, &s->nbricks, "brick_visibility kernel", err);
+        return cdvr_cl_check(CL_INVALID_KERNEL_ARGS, "brick_minmax arguments", err);
+    cdvr_status st = run_kernel(s->cl, k, 1, &s->nbricks, NULL, "brick_minmax kernel", err);
     if (st)
         return st;
-    unsigned char *flags = malloc(s->nbricks);
-    if (!flags)
-        return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL setup: out of memory");
-    code = clEnqueueReadBuffer(s->cl->queue, s->brick_visible, CL_TRUE, 0, s->nbricks, flags, 0,
-                               NULL, NULL);
-    s->bricks_visible = 0;
-    for (size_t i = 0; i < s->nbricks; i++)
-        s->bricks_visible += flags[i] != 0;
-    free(flags);
-    return cdvr_cl_check(code, "read brick flags", err);
+    code = clEnqueueReadBuffer(s->cl->queue, s->brick_minmax, CL_TRUE, 0, 2 * s->nbricks,
+                               s->minmax_host, 0, NULL, NULL);
+    return cdvr_cl_check(code, "read brick min/max grid", err);
 }
 
+/* Flags "some value in the brick's [min, max] has alpha > 0" from the host min/max grid,
+ * uploaded for the ray caster. */
+static cdvr_status upload_flags(cdvr_cl_stream *s, const int prefix[257], cdvr_error *err)
+{
+    s->bricks_visible = 0;
+    for (size_t b = 0; b < s->nbricks; b++) {
+        int lo = s->minmax_host[2 * b], hi = s->minmax_host[2 * b + 1];
+        s->flags_host[b] = prefix[hi + 1] - prefix[lo] > 0;
+        s->bricks_visible += s->flags_host[b];
+    }
+    return write_buffer(s->cl, s->brick_visible, s->flags_host, s->nbricks, "upload brick flags",
+                        err);
+}
+
+/* The min/max grid is computed once per decoded frame; the flags again only when the set of
+ * TF entries with alpha > 0 changes. */
 cdvr_status cdvr_cl_setup(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf, cdvr_error *err)
 {
     s->setup_frame = (size_t)-1;
@@ -68,17 +78,29 @@ cdvr_status cdvr_cl_setup(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf, cd
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL setup: frame %zu not decoded (%zu frames)",
                               frame, s->frames_valid);
     s->tf = *tf;
-    cl_int prefix[257];
+    unsigned char visible[256];
+    int prefix[257];
     prefix[0] = 0;
-    for (int i = 0; i < 256; i++)
-        prefix[i + 1] = prefix[i] + (tf->table[i][3] > 0.0f);
-    cdvr_status st = write_buffer(s->cl, s->table, tf->table, sizeof tf->table, "upload TF table", err);
-    if (!st)
-        st = write_buffer(s->cl, s->visible_prefix, prefix, sizeof prefix, "upload TF visibility", err);
-    if (!st)
-        st = compute_bricks(s, frame, err);
-    if (st)
-        return st;
+    for (int i = 0; i < 256; i++) {
+        visible[i] = tf->table[i][3] > 0.0f;
+        prefix[i + 1] = prefix[i] + visible[i];
+    }
+    cdvr_status st = CDVR_OK;
+    if (s->minmax_frame != frame) {
+        s->flags_valid = 0;
+        st = compute_minmax(s, frame, err);
+        if (st)
+            return st;
+        s->minmax_frame = frame;
+    }
+    if (!s->flags_valid || memcmp(visible, s->tf_visible, sizeof visible)) {
+        s->flags_valid = 0;
+        st = upload_flags(s, prefix, err);
+        if (st)
+            return st;
+        memcpy(s->tf_visible, visible, sizeof visible);
+        s->flags_valid = 1;
+    }
     s->setup_frame = frame;
     return CDVR_OK;
 }
@@ -142,6 +164,15 @@ static cdvr_status camera_params(const cdvr_camera *cam, cam_params *out, cdvr_e
     return CDVR_OK;
 }
 
+/* Work-group tile of the ray caster: neighbouring rays share voxels and bricks in cache. */
+#define RAY_TILE_W 8
+#define RAY_TILE_H 8
+
+static size_t round_up(size_t n, size_t m)
+{
+    return (n + m - 1) / m * m;
+}
+
 typedef struct render_params {
     double step, unit, term_alpha;
 } render_params;
@@ -158,13 +189,20 @@ static render_params resolve(const cdvr_render_opts *opts, const cdvr_tf *tf, co
     return rp;
 }
 
-static cdvr_status upload_corrected_alpha(cdvr_cl_stream *s, render_params rp, cdvr_error *err)
+/* rgb + step-corrected alpha (full segments) and alpha per unit (the shorter last one). */
+static cdvr_status upload_tables(cdvr_cl_stream *s, render_params rp, cdvr_error *err)
 {
-    cl_float corrected[256];
-    for (int i = 0; i < 256; i++)
-        corrected[i] = (cl_float)(1.0 - pow(1.0 - s->tf.table[i][3], rp.step / rp.unit));
-    return write_buffer(s->cl, s->alpha_corrected, corrected, sizeof corrected,
-                        "upload corrected alpha", err);
+    cl_float table[256][4], alpha[256];
+    for (int i = 0; i < 256; i++) {
+        for (int c = 0; c < 3; c++)
+            table[i][c] = s->tf.table[i][c];
+        alpha[i] = s->tf.table[i][3];
+        table[i][3] = (cl_float)(1.0 - pow(1.0 - s->tf.table[i][3], rp.step / rp.unit));
+    }
+    cdvr_status st = write_buffer(s->cl, s->table, table, sizeof table, "upload TF table", err);
+    if (!st)
+        st = write_buffer(s->cl, s->alpha_unit, alpha, sizeof alpha, "upload alpha table", err);
+    return st;
 }
 
 static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_params rp,
@@ -195,7 +233,7 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
     code |= clSetKernelArg(k, a++, sizeof term_alpha, &term_alpha);
     code |= clSetKernelArg(k, a++, sizeof *cam, cam);
     code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->table);
-    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->alpha_corrected);
+    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->alpha_unit);
     code |= clSetKernelArg(k, a++, sizeof unit, &unit);
     code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->brick_visible);
     for (int i = 0; i < 5; i++)
@@ -291,13 +329,17 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     size_t pixels = (size_t)img->width * (size_t)img->height;
     st = ensure_image(s, pixels, err);
     if (!st)
-        st = upload_corrected_alpha(s, rp, err);
+        st = upload_tables(s, rp, err);
     if (st)
         return st;
     if (set_raycast_args(s, frame, rp, &cam, spacing, origin))
         return cdvr_cl_check(CL_INVALID_KERNEL_ARGS, "raycast arguments", err);
-    size_t global[2] = {(size_t)img->width, (size_t)img->height};
-    st = run_kernel(s->cl, s->cl->k_raycast, 2, global, "raycast kernel", err);
+    size_t local[2] = {RAY_TILE_W, RAY_TILE_H};
+    const char *tile = getenv("CDVR_TILE");
+    if (tile) sscanf(tile, "%zux%zu", &local[0], &local[1]);
+    size_t global[2] = {round_up((size_t)img->width, local[0]),
+                        round_up((size_t)img->height, local[1])};
+    st = run_kernel(s->cl, s->cl->k_raycast, 2, global, local, "raycast kernel", err);
     if (!st)
         st = read_results(s, img, pixels, err);
     if (st)

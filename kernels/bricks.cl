@@ -1,11 +1,9 @@
-/* kernels/bricks.cl - per-brick visibility for empty-space skipping. One work-item per
+/* kernels/bricks.cl - the brick min/max grid for empty-space skipping. One work-item per
  * brick of B^3 voxels: min and max over the brick plus the one-voxel upper apron that
- * trilinear interpolation reads (voxels B*b .. B*b + B, clamped to the volume), then
- * visible = some table entry in [min, max] has alpha > 0, from the prefix count
- * visible_prefix[i] = number of entries j < i with alpha > 0. */
-__kernel void brick_visibility(__global const uchar *frames, ulong offset, uint X, uint Y, uint Z, uint B,
-                               uint nbx, uint nby, uint nbz,
-                               __global const int *visible_prefix, __global uchar *flags)
+ * trilinear interpolation reads (voxels B*b .. B*b + B, clamped to the volume). The host
+ * turns the grid into per-brick visibility flags for each transfer function. */
+__kernel void brick_minmax(__global const uchar *frames, ulong offset, uint X, uint Y, uint Z,
+                           uint B, uint nbx, uint nby, uint nbz, __global uchar2 *minmax)
 {
     uint b = get_global_id(0);
     __global const uchar *frame = frames + offset;
@@ -23,5 +21,5 @@ __kernel void brick_visibility(__global const uchar *frames, ulong offset, uint 
                 hi = max(hi, v);
             }
         }
-    flags[b] = (uchar)(visible_prefix[hi + 1] - visible_prefix[lo] > 0);
+    minmax[b] = (uchar2)((uchar)lo, (uchar)hi);
 }

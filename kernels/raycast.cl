@@ -1,9 +1,15 @@
 /* kernels/raycast.cl - ray casting as defined in core/include/cdvr/render.h, in float:
  * slab test, segments of length `step` from t_near with a partial last one, midpoint
  * samples, trilinear interpolation, post-classification with the step-corrected table,
- * front-to-back compositing and early termination. Empty-space skipping jumps over bricks
- * flagged invisible while staying on the t_near + i*step segment grid, so skipped segments
- * are exactly those whose samples would have had zero opacity. */
+ * front-to-back compositing and early termination.
+ *
+ * For speed the ray is carried in grid (voxel) coordinates: sample i of the full segments
+ * sits at g0 + i*dg, so a sample costs one multiply-add per axis, an integer base index with
+ * clamped increments, eight byte loads and one float4 table pair. Empty-space skipping walks
+ * the brick grid: for the brick holding the current sample it computes, in sample units, where
+ * the ray leaves the brick; an invisible brick is jumped over in one step (conservatively, so
+ * a skipped sample is always inside it), a visible brick's samples run in a tight inner loop.
+ * Skipped samples are exactly those whose value range has zero opacity under the TF. */
 
 typedef struct ray_box {
     float t_near, t_far;
@@ -29,34 +35,52 @@ static int intersect_box(float3 o, float3 d, float3 lo, float3 hi, ray_box *out)
     return out->t_far > out->t_near;
 }
 
-static float voxel(__global const uchar *vol, int x, int y, int z, int X, int Y)
-{
-    return (float)vol[(ulong)x + (ulong)X * ((ulong)y + (ulong)Y * (ulong)z)];
-}
+typedef struct volume_geo {
+    __global const uchar *vol;
+    int X, Y, Z;
+    long XY;
+    float3 top; /* dims - 1 */
+} volume_geo;
 
-static float trilinear(__global const uchar *vol, float3 g, int X, int Y, int Z)
+/* render.h step 3 at grid position g (clamped here): trilinear, upper index clamped. */
+static float trilinear(const volume_geo *v, float3 g)
 {
+    g = clamp(g, (float3)(0.0f), v->top);
     int x0 = (int)g.x, y0 = (int)g.y, z0 = (int)g.z;
-    int x1 = min(x0 + 1, X - 1), y1 = min(y0 + 1, Y - 1), z1 = min(z0 + 1, Z - 1);
     float fx = g.x - (float)x0, fy = g.y - (float)y0, fz = g.z - (float)z0;
-    float c00 = mix(voxel(vol, x0, y0, z0, X, Y), voxel(vol, x1, y0, z0, X, Y), fx);
-    float c10 = mix(voxel(vol, x0, y1, z0, X, Y), voxel(vol, x1, y1, z0, X, Y), fx);
-    float c01 = mix(voxel(vol, x0, y0, z1, X, Y), voxel(vol, x1, y0, z1, X, Y), fx);
-    float c11 = mix(voxel(vol, x0, y1, z1, X, Y), voxel(vol, x1, y1, z1, X, Y), fx);
+    long base = (long)x0 + (long)v->X * (long)y0 + v->XY * (long)z0;
+    long dx = x0 < v->X - 1 ? 1 : 0;
+    long dy = y0 < v->Y - 1 ? (long)v->X : 0;
+    long dz = z0 < v->Z - 1 ? v->XY : 0;
+    __global const uchar *p = v->vol + base;
+    float c00 = mix((float)p[0], (float)p[dx], fx);
+    float c10 = mix((float)p[dy], (float)p[dy + dx], fx);
+    float c01 = mix((float)p[dz], (float)p[dz + dx], fx);
+    float c11 = mix((float)p[dz + dy], (float)p[dz + dy + dx], fx);
     return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
 }
 
-/* Ray parameter where the grid-space ray g0 + t*gd leaves the box [lo, lo + B) of a brick. */
-static float brick_exit(float3 g0, float3 gd, float3 lo, float B)
+/* Front-to-back compositing of one classified sample; returns 1 once the ray is done. */
+static int composite(float4 *acc, float3 rgb, float a, float term_alpha)
 {
-    float t = INFINITY;
-    if (gd.x > 0.0f) t = fmin(t, (lo.x + B - g0.x) / gd.x);
-    if (gd.x < 0.0f) t = fmin(t, (lo.x - g0.x) / gd.x);
-    if (gd.y > 0.0f) t = fmin(t, (lo.y + B - g0.y) / gd.y);
-    if (gd.y < 0.0f) t = fmin(t, (lo.y - g0.y) / gd.y);
-    if (gd.z > 0.0f) t = fmin(t, (lo.z + B - g0.z) / gd.z);
-    if (gd.z < 0.0f) t = fmin(t, (lo.z - g0.z) / gd.z);
-    return t;
+    float w = (1.0f - acc->w) * a;
+    acc->xyz += w * rgb;
+    acc->w += w;
+    return acc->w >= term_alpha || acc->w >= 1.0f;
+}
+
+/* Full segment: table holds rgb and the step-corrected alpha per entry. */
+static int sample_full(const volume_geo *v, float3 g, __global const float4 *table,
+                       float term_alpha, float4 *acc)
+{
+    float s = trilinear(v, g);
+    int i0 = min((int)s, 254);
+    float fr = s - (float)i0;
+    float4 lo = table[i0], hi = table[i0 + 1];
+    float a = mix(lo.w, hi.w, fr);
+    if (!(a > 0.0f))
+        return 0;
+    return composite(acc, mix(lo.xyz, hi.xyz, fr), a, term_alpha);
 }
 
 typedef struct cam_params {
@@ -65,13 +89,65 @@ typedef struct cam_params {
     int orthographic, width, height;
 } cam_params;
 
+typedef struct bricks {
+    __global const uchar *visible;
+    int B, nbx, nby, nbz;
+    float3 inv_dg;   /* 1 / dg per axis, +inf where dg is 0 */
+    float3 exit_off; /* B where dg >= 0 (the ray leaves through the upper face), else 0 */
+} bricks;
+
+/* Sample-index parameter where the ray g0 + i*dg leaves the brick holding grid point g
+ * (clamped); *visible gets the brick's flag. */
+static float brick_exit(const bricks *b, const volume_geo *v, float3 g0, float3 g, int *visible)
+{
+    g = clamp(g, (float3)(0.0f), v->top);
+    int bx = min((int)g.x / b->B, b->nbx - 1), by = min((int)g.y / b->B, b->nby - 1);
+    int bz = min((int)g.z / b->B, b->nbz - 1);
+    *visible = b->visible[bx + b->nbx * (by + b->nby * bz)];
+    float3 lo = (float3)((float)(bx * b->B), (float)(by * b->B), (float)(bz * b->B));
+    float3 t = (lo + b->exit_off - g0) * b->inv_dg;
+    return fmin(t.x, fmin(t.y, t.z));
+}
+
+/* Tolerance (in samples) that keeps a skip short of the computed brick exit, so rounding
+ * never skips a sample that lies past the brick's face. */
+#define SKIP_MARGIN 0.01f
+
+/* Marches the n_full full segments from index 0; returns 1 if the ray terminated early. */
+static int march_full(const volume_geo *v, const bricks *b, int skipping, float3 g0,
+                      float3 dg, int n_full, __global const float4 *table, float term_alpha,
+                      float4 *acc, uint *taken)
+{
+    int i = 0;
+    while (i < n_full) {
+        int end = n_full;
+        if (skipping) {
+            int visible;
+            float t_exit = brick_exit(b, v, g0, g0 + (float)i * dg, &visible);
+            t_exit = fmin(t_exit, (float)n_full);
+            if (!visible) {
+                i = max(i + 1, (int)ceil(t_exit - SKIP_MARGIN));
+                continue;
+            }
+            end = clamp((int)ceil(t_exit), i + 1, n_full);
+        }
+        for (; i < end; i++) {
+            (*taken)++;
+            if (sample_full(v, g0 + (float)i * dg, table, term_alpha, acc))
+                return 1;
+        }
+    }
+    return 0;
+}
+
 /* Geometry as render_cpu.c holds it: origin, 1/spacing and the box's upper corner (computed
- * in double on the host). Bricks: edge B, counts nbx, nby, nbz, skipping on/off. */
+ * in double on the host). table: rgb + step-corrected alpha; alpha: alpha per unit (for the
+ * shorter last segment). Bricks: edge B, counts nbx, nby, nbz, skipping on/off. */
 __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, int Z,
                       float ox, float oy, float oz, float isx, float isy, float isz,
                       float hx, float hy, float hz,
                       float step, float term_alpha, cam_params cam,
-                      __global const float4 *table, __global const float *alpha_corrected,
+                      __global const float4 *table, __global const float *alpha,
                       float unit, __global const uchar *brick_visible, int B,
                       int nbx, int nby, int nbz, int skipping, __global float4 *image,
                       __global uint *samples)
@@ -79,7 +155,6 @@ __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, 
     int px = get_global_id(0), py = get_global_id(1);
     if (px >= cam.width || py >= cam.height)
         return;
-    __global const uchar *vol = frames + offset;
     float3 eye = (float3)(cam.eye[0], cam.eye[1], cam.eye[2]);
     float3 f = (float3)(cam.f[0], cam.f[1], cam.f[2]);
     float3 u = (float3)(cam.u[0], cam.u[1], cam.u[2]);
@@ -95,52 +170,36 @@ __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, 
         d = normalize(f + (sxn * cam.aspect * r - syn * u) * cam.tan_half);
     }
     float3 origin = (float3)(ox, oy, oz), inv_spacing = (float3)(isx, isy, isz);
-    float3 dims_m1 = (float3)((float)(X - 1), (float)(Y - 1), (float)(Z - 1));
+    volume_geo v = {frames + offset, X, Y, Z, (long)X * (long)Y,
+                    (float3)((float)(X - 1), (float)(Y - 1), (float)(Z - 1))};
     float4 acc = (float4)(0.0f);
     uint taken = 0;
     ray_box box;
     if (intersect_box(o, d, origin, (float3)(hx, hy, hz), &box)) {
         float L = box.t_far - box.t_near;
         int n = max((int)ceil(L / step), 1);
-        float3 g0 = (o - origin) * inv_spacing, gd = d * inv_spacing;
-        for (int i = 0; i < n; i++) {
-            float ts = box.t_near + (float)i * step;
-            float ds = i < n - 1 ? step : box.t_far - ts;
-            if (ds <= 0.0f)
-                break;
-            float3 p = o + (ts + 0.5f * ds) * d;
-            float3 g = clamp((p - origin) * inv_spacing, (float3)(0.0f), dims_m1);
-            if (skipping) {
-                int bx = min((int)g.x / B, nbx - 1), by = min((int)g.y / B, nby - 1);
-                int bz = min((int)g.z / B, nbz - 1);
-                if (!brick_visible[bx + nbx * (by + nby * bz)]) {
-                    float3 lo = (float3)((float)(bx * B), (float)(by * B), (float)(bz * B));
-                    float te = brick_exit(g0, gd, lo, (float)B);
-                    /* first segment whose midpoint may lie past the brick, one early for
-                     * rounding safety; never backwards */
-                    float next = ceil((te - box.t_near) / step - 0.5f) - 1.0f;
-                    if (next > (float)(i + 1))
-                        i = (int)fmin(next, (float)n) - 1;
-                    continue;
-                }
-            }
-            float s = trilinear(vol, g, X, Y, Z);
+        float3 g0 = (o + (box.t_near + 0.5f * step) * d - origin) * inv_spacing;
+        float3 dg = d * step * inv_spacing;
+        bricks b = {brick_visible, B, nbx, nby, nbz,
+                    (float3)(dg.x != 0.0f ? 1.0f / dg.x : INFINITY,
+                             dg.y != 0.0f ? 1.0f / dg.y : INFINITY,
+                             dg.z != 0.0f ? 1.0f / dg.z : INFINITY),
+                    (float3)(dg.x >= 0.0f ? (float)B : 0.0f, dg.y >= 0.0f ? (float)B : 0.0f,
+                             dg.z >= 0.0f ? (float)B : 0.0f)};
+        int done = march_full(&v, &b, skipping, g0, dg, n - 1, table, term_alpha, &acc, &taken);
+        /* the last segment, shorter than step unless L is a multiple of it */
+        float ts = box.t_near + (float)(n - 1) * step;
+        float ds = box.t_far - ts;
+        if (!done && ds > 0.0f) {
+            taken++;
+            float s = trilinear(&v, (o + (ts + 0.5f * ds) * d - origin) * inv_spacing);
             int i0 = min((int)s, 254);
             float fr = s - (float)i0;
-            float4 c = mix(table[i0], table[i0 + 1], fr);
-            float a;
-            if (ds >= step)
-                a = mix(alpha_corrected[i0], alpha_corrected[i0 + 1], fr);
-            else
-                a = 1.0f - pow(1.0f - c.w, ds / unit);
-            taken++;
-            if (a > 0.0f) {
-                float w = (1.0f - acc.w) * a;
-                acc.xyz += w * c.xyz;
-                acc.w += w;
-                if (acc.w >= term_alpha || acc.w >= 1.0f)
-                    break;
-            }
+            float4 lo = table[i0], hi = table[i0 + 1];
+            float a = ds >= step ? mix(lo.w, hi.w, fr)
+                                 : 1.0f - pow(1.0f - mix(alpha[i0], alpha[i0 + 1], fr), ds / unit);
+            if (a > 0.0f)
+                composite(&acc, mix(lo.xyz, hi.xyz, fr), a, term_alpha);
         }
     }
     image[py * cam.width + px] = acc;

@@ -1,12 +1,12 @@
 #!/usr/bin/python3
-"""scripts/bench/vs_vtk.py [--volume PATH] [--repeats N] [--size 512]
+"""scripts/bench/vs_vtk.py [--volume PATH] [--repeats N] [--size 512] [--cdvr build/cdvr]
 
 Renders the engine CT (256x256x128, ../shared/data) with the same camera, transfer function
 and sample distance in VTK's vtkFixedPointVolumeRayCastMapper (offscreen, under xvfb-run) and in
 cdvr (device cl and cpu), in one run; prints median frame times, their ratios, and the image
 PSNR of each cdvr image against VTK's. Installs python3-vtk9, python3-numpy and xvfb with apt-get when
 missing, and re-executes itself under xvfb-run when no display is set.
-Run from the repository root after building (build/cdvr).
+Run from the repository root after building (build/cdvr, or the executable given by --cdvr).
 """
 import argparse
 import os
@@ -139,7 +139,7 @@ def render_vtk(path, size, repeats, out_png):
     return sorted(times)[len(times) // 2]
 
 
-def render_cdvr(path, size, repeats, device, out_png):
+def render_cdvr(exe, path, size, repeats, device, out_png):
     pts = ", ".join("{%g, %g, %g, %g, %g}" % p for p in TF)
     lua = f"""
 local v = assert(cdvr.load({path!r}))
@@ -158,7 +158,6 @@ table.sort(ms)
 img:save({out_png!r})
 print(ms[#ms // 2 + 1])
 """
-    exe = os.path.join(ROOT, "build", "cdvr")
     res = subprocess.run([exe, "-e", lua], capture_output=True, text=True)
     if res.returncode != 0:
         raise RuntimeError(f"cdvr ({device}) failed: {res.stderr.strip()}")
@@ -191,6 +190,8 @@ def main():
     ap.add_argument("--volume", default=default)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--cdvr", default=os.path.join(ROOT, "build", "cdvr"),
+                    help="cdvr executable to benchmark")
     ap.add_argument("--out", default=os.path.join(ROOT, "out", "vs_vtk"))
     args = ap.parse_args()
     ensure_packages()
@@ -202,7 +203,7 @@ def main():
     for device in ("cl", "cpu"):
         png = os.path.join(args.out, f"cdvr_{device}.png")
         try:
-            ms = render_cdvr(args.volume, args.size, args.repeats, device, png)
+            ms = render_cdvr(os.path.abspath(args.cdvr), args.volume, args.size, args.repeats, device, png)
         except RuntimeError as e:
             print(f"cdvr_{device},nan,nan,nan,nan  # {e}")
             continue
