@@ -40,7 +40,7 @@ case "$mode" in
   test-sanitize)
     build build-asan -DCDVR_SANITIZE=ON
     cd build-asan && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
-      ctest --output-on-failure -j"$jobs" ;;
+      LSAN_OPTIONS=suppressions=$PWD/../tests/lsan.supp ctest --output-on-failure -j"$jobs" ;;
   *)
     echo "usage: scripts/setup.sh demo|test|test-sanitize" >&2; exit 2 ;;
 esac
