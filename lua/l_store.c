@@ -518,23 +518,31 @@ static size_t checkrepeats(lua_State *L, int idx)
     return (size_t)r;
 }
 
+/* cdvr.bench_memcpy(bytes [, repeats [, piece]]): median MB/s of copying `bytes` from one
+ * buffer into another; with `piece`, the source is copied piece by piece into one reused
+ * destination of `piece` bytes - the same write working set as st:bench_decode, which
+ * decodes every chunk into one reused buffer of a chunk's frames. */
 static int l_bench_memcpy(lua_State *L)
 {
     lua_Integer bytes = luaL_checkinteger(L, 1);
     luaL_argcheck(L, bytes >= 1 && bytes <= ((lua_Integer)1 << 34), 1, "bytes must be 1..2^34");
     size_t n = (size_t)bytes, repeats = checkrepeats(L, 2);
-    uint8_t *src = lua_newuserdatauv(L, n, 0), *dst = lua_newuserdatauv(L, n, 0);
+    lua_Integer piece_arg = luaL_optinteger(L, 3, bytes);
+    luaL_argcheck(L, piece_arg >= 1 && piece_arg <= bytes, 3, "piece must be 1..bytes");
+    size_t piece = (size_t)piece_arg;
+    uint8_t *src = lua_newuserdatauv(L, n, 0), *dst = lua_newuserdatauv(L, piece, 0);
     double *mbps = lua_newuserdatauv(L, repeats * sizeof *mbps, 0);
     memset(src, 1, n);
-    memset(dst, 0, n); /* fault the pages in before timing, as the decoders' outputs are */
+    memset(dst, 0, piece); /* fault the pages in before timing, as the decoders' outputs are */
     for (size_t r = 0; r < repeats; r++) {
         src[r % n] = (uint8_t)r;
         double t0 = now_seconds();
-        memcpy(dst, src, n);
+        for (size_t off = 0; off < n; off += piece)
+            memcpy(dst, src + off, n - off < piece ? n - off : piece);
         double dt = now_seconds() - t0;
         mbps[r] = dt > 0 ? (double)n / dt / 1e6 : HUGE_VAL;
     }
-    volatile uint8_t sink = dst[(repeats - 1) % n]; /* the copies are observable */
+    volatile uint8_t sink = dst[(repeats - 1) % piece]; /* the copies are observable */
     (void)sink;
     lua_pushnumber(L, median(mbps, repeats));
     return 1;
@@ -654,7 +662,7 @@ int lcdvr_open_store(lua_State *L)
                    "median MB/s (output bytes) of the C decoder over all chunks, single thread");
     lcdvr_help_add(L, "st:bench_unpack([variant] [, repeats])",
                    "median MB/s (payload bytes) of undoing stage 2 (LZO) over all chunks");
-    lcdvr_help_add(L, "cdvr.bench_memcpy(bytes [, repeats])", "median memcpy MB/s for a buffer size");
+    lcdvr_help_add(L, "cdvr.bench_memcpy(bytes [, repeats [, piece]])", "median memcpy MB/s for a buffer size (piece: copy into one reused buffer of that size)");
     lcdvr_help_add(L, "cdvr.clock()", "monotonic time in seconds");
     return 0;
 }
