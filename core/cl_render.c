@@ -53,16 +53,46 @@ static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *e
     return cdvr_cl_check(code, "read brick min/max grid", err);
 }
 
-/* Flags "some value in the brick's [min, max] has alpha > 0" from the host min/max grid,
- * uploaded for the ray caster. */
+/* One chamfer pass of the chessboard distance transform: each brick takes the minimum over
+ * its 13 neighbours already visited in the scan direction (dir = +1 forward, -1 backward)
+ * plus one. Two passes give the exact L-infinity distance to the nearest visible brick. */
+static void chessboard_pass(unsigned char *dist, const size_t n[3], int dir)
+{
+    long nx = (long)n[0], ny = (long)n[1], nz = (long)n[2];
+    for (long k = 0; k < nx * ny * nz; k++) {
+        long idx = dir > 0 ? k : nx * ny * nz - 1 - k;
+        long x = idx % nx, y = (idx / nx) % ny, z = idx / (nx * ny);
+        int best = dist[idx];
+        for (long dz = -1; dz <= 0; dz++)
+            for (long dy = -1; dy <= 1; dy++)
+                for (long dx = -1; dx <= 1; dx++) {
+                    if ((dz < 0 || dy < 0 || (dy == 0 && dx < 0)) == 0)
+                        continue; /* only neighbours before idx in forward order */
+                    long qx = x + dir * dx, qy = y + dir * dy, qz = z + dir * dz;
+                    if (qx < 0 || qy < 0 || qz < 0 || qx >= nx || qy >= ny || qz >= nz)
+                        continue;
+                    int cand = dist[qx + nx * (qy + ny * qz)] + 1;
+                    if (cand < best)
+                        best = cand;
+                }
+        dist[idx] = (unsigned char)best;
+    }
+}
+
+/* Per brick: 0 if some value in its [min, max] has alpha > 0 under the TF, else the
+ * chessboard distance (in bricks, at most 255) to the nearest such brick, so that the ray
+ * caster can jump over the whole empty cube around it. Uploaded for the ray caster. */
 static cdvr_status upload_flags(cdvr_cl_stream *s, const int prefix[257], cdvr_error *err)
 {
     s->bricks_visible = 0;
     for (size_t b = 0; b < s->nbricks; b++) {
         int lo = s->minmax_host[2 * b], hi = s->minmax_host[2 * b + 1];
-        s->flags_host[b] = prefix[hi + 1] - prefix[lo] > 0;
-        s->bricks_visible += s->flags_host[b];
+        int visible = prefix[hi + 1] - prefix[lo] > 0;
+        s->flags_host[b] = visible ? 0 : 255;
+        s->bricks_visible += (size_t)visible;
     }
+    chessboard_pass(s->flags_host, s->brick_dims, 1);
+    chessboard_pass(s->flags_host, s->brick_dims, -1);
     return write_buffer(s->cl, s->brick_visible, s->flags_host, s->nbricks, "upload brick flags",
                         err);
 }
@@ -205,6 +235,15 @@ static cdvr_status upload_tables(cdvr_cl_stream *s, render_params rp, cdvr_error
     return st;
 }
 
+/* log2 of CDVR_CL_BRICK (a power of two) for the kernel's shifts */
+static cl_int brick_shift(void)
+{
+    cl_int shift = 0;
+    while ((1 << shift) < CDVR_CL_BRICK)
+        shift++;
+    return shift;
+}
+
 static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_params rp,
                                     const cam_params *cam, const double spacing[3],
                                     const double origin[3])
@@ -218,7 +257,7 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
         geo[3 + i] = (cl_float)(1.0 / spacing[i]);
         geo[6 + i] = (cl_float)(origin[i] + (double)(s->dims[i] - 1) * spacing[i]);
     }
-    cl_int bricks[5] = {CDVR_CL_BRICK, (cl_int)s->brick_dims[0], (cl_int)s->brick_dims[1],
+    cl_int bricks[5] = {brick_shift(), (cl_int)s->brick_dims[0], (cl_int)s->brick_dims[1],
                         (cl_int)s->brick_dims[2], s->skipping};
     cl_uint a = 0;
     cl_int code = clSetKernelArg(k, a++, sizeof(cl_mem), &s->frames);

@@ -90,22 +90,26 @@ typedef struct cam_params {
 } cam_params;
 
 typedef struct bricks {
-    __global const uchar *visible;
-    int B, nbx, nby, nbz;
-    float3 inv_dg;   /* 1 / dg per axis, +inf where dg is 0 */
-    float3 exit_off; /* B where dg >= 0 (the ray leaves through the upper face), else 0 */
+    __global const uchar *dist; /* 0: visible; else distance to the nearest visible brick */
+    int shift, nbx, nby, nbz;   /* brick edge 1 << shift */
+    float3 inv_dg;              /* 1 / dg per axis, +inf where dg is 0 */
+    int3 forward;               /* -1 (true) where dg >= 0: the ray leaves by the upper face */
 } bricks;
 
-/* Sample-index parameter where the ray g0 + i*dg leaves the brick holding grid point g
- * (clamped); *visible gets the brick's flag. */
+/* Sample-index parameter where the ray g0 + i*dg leaves the empty region around the brick
+ * holding grid point g (clamped): the brick itself if it is visible (*visible = 1), else the
+ * cube of bricks within chessboard distance dist - 1, all invisible (dist from the host). */
 static float brick_exit(const bricks *b, const volume_geo *v, float3 g0, float3 g, int *visible)
 {
     g = clamp(g, (float3)(0.0f), v->top);
-    int bx = min((int)g.x / b->B, b->nbx - 1), by = min((int)g.y / b->B, b->nby - 1);
-    int bz = min((int)g.z / b->B, b->nbz - 1);
-    *visible = b->visible[bx + b->nbx * (by + b->nby * bz)];
-    float3 lo = (float3)((float)(bx * b->B), (float)(by * b->B), (float)(bz * b->B));
-    float3 t = (lo + b->exit_off - g0) * b->inv_dg;
+    int bx = min((int)g.x >> b->shift, b->nbx - 1), by = min((int)g.y >> b->shift, b->nby - 1);
+    int bz = min((int)g.z >> b->shift, b->nbz - 1);
+    int dist = b->dist[bx + b->nbx * (by + b->nby * bz)];
+    *visible = dist == 0;
+    int3 reach = (int3)(max(dist, 1)) - (int3)(1) ; /* bricks on each side that are empty */
+    int3 up = (int3)(bx, by, bz) + reach + (int3)(1), down = (int3)(bx, by, bz) - reach;
+    int3 face = select(down, up, b->forward);
+    float3 t = (convert_float3(face << b->shift) - g0) * b->inv_dg;
     return fmin(t.x, fmin(t.y, t.z));
 }
 
@@ -142,13 +146,13 @@ static int march_full(const volume_geo *v, const bricks *b, int skipping, float3
 
 /* Geometry as render_cpu.c holds it: origin, 1/spacing and the box's upper corner (computed
  * in double on the host). table: rgb + step-corrected alpha; alpha: alpha per unit (for the
- * shorter last segment). Bricks: edge B, counts nbx, nby, nbz, skipping on/off. */
+ * shorter last segment). Bricks: edge 1 << brick_shift, counts nbx, nby, nbz, skipping on/off. */
 __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, int Z,
                       float ox, float oy, float oz, float isx, float isy, float isz,
                       float hx, float hy, float hz,
                       float step, float term_alpha, cam_params cam,
                       __global const float4 *table, __global const float *alpha,
-                      float unit, __global const uchar *brick_visible, int B,
+                      float unit, __global const uchar *brick_visible, int brick_shift,
                       int nbx, int nby, int nbz, int skipping, __global float4 *image,
                       __global uint *samples)
 {
@@ -180,12 +184,11 @@ __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, 
         int n = max((int)ceil(L / step), 1);
         float3 g0 = (o + (box.t_near + 0.5f * step) * d - origin) * inv_spacing;
         float3 dg = d * step * inv_spacing;
-        bricks b = {brick_visible, B, nbx, nby, nbz,
+        bricks b = {brick_visible, brick_shift, nbx, nby, nbz,
                     (float3)(dg.x != 0.0f ? 1.0f / dg.x : INFINITY,
                              dg.y != 0.0f ? 1.0f / dg.y : INFINITY,
                              dg.z != 0.0f ? 1.0f / dg.z : INFINITY),
-                    (float3)(dg.x >= 0.0f ? (float)B : 0.0f, dg.y >= 0.0f ? (float)B : 0.0f,
-                             dg.z >= 0.0f ? (float)B : 0.0f)};
+                    dg >= (float3)(0.0f)};
         int done = march_full(&v, &b, skipping, g0, dg, n - 1, table, term_alpha, &acc, &taken);
         /* the last segment, shorter than step unless L is a multiple of it */
         float ts = box.t_near + (float)(n - 1) * step;
