@@ -69,7 +69,8 @@ static int composite(float4 *acc, float3 rgb, float a, float term_alpha)
     return acc->w >= term_alpha || acc->w >= 1.0f;
 }
 
-/* Full segment: table holds rgb and the step-corrected alpha per entry. */
+/* Full segment: table holds rgb and the step-corrected alpha per entry. Compositing a zero
+ * alpha changes nothing, so it is done unconditionally (no unpredictable branch). */
 static int sample_full(const volume_geo *v, float3 g, __global const float4 *table,
                        float term_alpha, float4 *acc)
 {
@@ -77,10 +78,10 @@ static int sample_full(const volume_geo *v, float3 g, __global const float4 *tab
     int i0 = min((int)s, 254);
     float fr = s - (float)i0;
     float4 lo = table[i0], hi = table[i0 + 1];
-    float a = mix(lo.w, hi.w, fr);
-    if (!(a > 0.0f))
-        return 0;
-    return composite(acc, mix(lo.xyz, hi.xyz, fr), a, term_alpha);
+    float4 c = mix(lo, hi, fr);
+    float w = (1.0f - acc->w) * c.w;
+    *acc += w * (float4)(c.xyz, 1.0f);
+    return acc->w >= term_alpha || acc->w >= 1.0f;
 }
 
 typedef struct cam_params {
@@ -199,8 +200,13 @@ __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, 
             int i0 = min((int)s, 254);
             float fr = s - (float)i0;
             float4 lo = table[i0], hi = table[i0 + 1];
-            float a = ds >= step ? mix(lo.w, hi.w, fr)
-                                 : 1.0f - pow(1.0f - mix(alpha[i0], alpha[i0 + 1], fr), ds / unit);
+            float a = mix(alpha[i0], alpha[i0 + 1], fr);
+            /* pow is costly on CPU devices and most last segments lie in empty space, where
+             * 1 - pow(1, x) is exactly 0 anyway */
+            if (ds >= step)
+                a = mix(lo.w, hi.w, fr);
+            else if (a > 0.0f)
+                a = 1.0f - pow(1.0f - a, ds / unit);
             if (a > 0.0f)
                 composite(&acc, mix(lo.xyz, hi.xyz, fr), a, term_alpha);
         }
