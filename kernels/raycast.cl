@@ -107,7 +107,7 @@ static float brick_exit(const bricks *b, const volume_geo *v, float3 g0, float3 
     int bz = min((int)g.z >> b->shift, b->nbz - 1);
     int dist = b->dist[bx + b->nbx * (by + b->nby * bz)];
     *visible = dist == 0;
-    int3 reach = (int3)(max(dist, 1)) - (int3)(1) ; /* bricks on each side that are empty */
+    int3 reach = (int3)(max(dist, 1)) - (int3)(1); /* bricks on each side that are empty */
     int3 up = (int3)(bx, by, bz) + reach + (int3)(1), down = (int3)(bx, by, bz) - reach;
     int3 face = select(down, up, b->forward);
     float3 t = (convert_float3(face << b->shift) - g0) * b->inv_dg;

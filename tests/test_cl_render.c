@@ -1,7 +1,8 @@
 /* tests/test_cl_render.c - the ray-cast kernel against the CPU reference (cdvr_render_cpu):
  * image PSNR >= 50 dB for axis-parallel, 45-degree, inside-the-volume and orthographic views
  * on the engine CT and on synthetic volumes; empty-space skipping on vs off changes no pixel
- * by more than 0.5/255 and takes fewer samples; zero/full opacity, tiny and huge steps;
+ * by more than 0.5/255 and takes fewer samples (also over a sparse volume, where rays jump
+ * over large empty regions); zero/full opacity, tiny and huge steps;
  * misuse errors. */
 #include <math.h>
 #include <stdio.h>
@@ -213,11 +214,47 @@ static void synthetic_scenes(cdvr_cl *cl)
     CHECK(check_scene(&sc) == 0.0, "zero opacity TF shows something");
     size_t visible = 1, total = 0;
     cdvr_cl_brick_counts(sc.stream, &visible, &total);
-    CHECK(visible == 0 && total == 5 * 5 * 4, "zero opacity: %zu of %zu bricks visible", visible, total);
+    size_t expect = ((40 + CDVR_CL_BRICK - 1) / CDVR_CL_BRICK) * ((33 + CDVR_CL_BRICK - 1) / CDVR_CL_BRICK) *
+                    ((27 + CDVR_CL_BRICK - 1) / CDVR_CL_BRICK);
+    CHECK(visible == 0 && total == expect, "zero opacity: %zu of %zu bricks visible (grid %zu)",
+          visible, total, expect);
     const cdvr_tf_point opaque[] = {{0, .5, .5, .5, 1}, {255, 1, 1, 1, 1}};
     make_tf(&sc.tf, opaque, 2);
     sc.name = "ml full opacity";
     CHECK(check_scene(&sc) > 0.1, "full opacity TF shows nothing");
+    cdvr_cl_stream_free(sc.stream);
+    cdvr_volume_free(vol);
+}
+
+/* A few isolated bright voxels in an empty volume: rays jump over large empty cubes of bricks
+ * (distance map) and must still land on every visible brick, from several directions. */
+static void sparse_scenes(cdvr_cl *cl)
+{
+    size_t dims[3] = {61, 47, 53};
+    cdvr_volume *vol;
+    cdvr_error err;
+    cdvr_status st = cdvr_volume_create(dims, 1, CDVR_TYPE_U8, &vol, &err);
+    CHECK_OK(st, err);
+    if (st)
+        return;
+    const int points[][3] = {{30, 23, 26}, {3, 5, 7}, {57, 40, 50}, {12, 44, 31}, {48, 9, 14},
+                             {31, 23, 26}, {0, 0, 0}, {60, 46, 52}, {22, 30, 45}};
+    for (size_t i = 0; i < sizeof points / sizeof *points; i++)
+        ((uint8_t *)vol->data)[points[i][0] + dims[0] * (points[i][1] + dims[1] * (size_t)points[i][2])] = 255;
+    scene sc = {.vol = vol};
+    st = upload_volume(cl, vol, &sc.stream, &err);
+    CHECK_OK(st, err);
+    const cdvr_tf_point pts[] = {{0, 0, 0, 0, 0}, {40, 0, 0, 0, 0}, {255, 1, .8, .2, 1}};
+    make_tf(&sc.tf, pts, sizeof pts / sizeof *pts);
+    double c[3], ext, up[3] = {0, 0, 1};
+    volume_centre(vol, c, &ext);
+    const struct { double az, el; } views[] = {{0, 0}, {33, 21}, {145, -38}, {260, 60}};
+    for (size_t i = 0; i < sizeof views / sizeof *views && !st; i++) {
+        look(&sc.cam, c, c, up);
+        cdvr_camera_orbit(&sc.cam, c, up, 1.6 * ext, views[i].az, views[i].el);
+        sc.name = "sparse points";
+        CHECK(check_scene(&sc) > 0.0, "sparse view %zu is empty", i);
+    }
     cdvr_cl_stream_free(sc.stream);
     cdvr_volume_free(vol);
 }
@@ -277,6 +314,7 @@ int main(void)
     if (data)
         engine_scenes(cl, data);
     synthetic_scenes(cl);
+    sparse_scenes(cl);
     misuse(cl);
     cdvr_cl_close(cl);
     if (!data) {

@@ -63,7 +63,7 @@ const char *cdvr_cl_device_name(const cdvr_cl *cl);
 const cdvr_cl_info *cdvr_cl_get_info(const cdvr_cl *cl);
 
 /* Brick edge (voxels) of the min/max grid used for empty-space skipping. */
-#define CDVR_CL_BRICK 8
+#define CDVR_CL_BRICK 4
 
 /* Device buffers for frames of dims (u8), the chunk payload, the TF and the brick grid.
  * Buffers grow on demand (larger payloads, more frames per chunk). */
