@@ -79,20 +79,45 @@ static void chessboard_pass(unsigned char *dist, const size_t n[3], int dir)
     }
 }
 
-/* Per brick: 0 if some value in its [min, max] has alpha > 0 under the TF, else the
- * chessboard distance (in bricks, at most 255) to the nearest such brick, so that the ray
- * caster can jump over the whole empty cube around it. Uploaded for the ray caster. */
+/* Chessboard distance (in bricks, 1 .. BRICK_REACH_MAX) from each brick with seed[b] == 0 to
+ * the nearest brick with seed[b] != 0, into dist; bricks outside the grid are never seeds. */
+#define BRICK_REACH_MAX 127
+static void chessboard_distance(const unsigned char *seed, unsigned char *dist, const size_t n[3],
+                                size_t count)
+{
+    for (size_t b = 0; b < count; b++)
+        dist[b] = seed[b] ? 0 : 255;
+    chessboard_pass(dist, n, 1);
+    chessboard_pass(dist, n, -1);
+}
+
+/* Per brick, one byte for the ray caster's walk: invisible bricks (no value of [min, max] has
+ * alpha > 0) store their distance d to the nearest visible brick (the cube of bricks within
+ * d - 1 is empty and is jumped in one step); visible bricks store 128 + d, d the distance to
+ * the nearest invisible brick (the cube within d - 1 is all visible and is sampled without
+ * further look-ups). Distances are capped at BRICK_REACH_MAX. */
 static cdvr_status upload_flags(cdvr_cl_stream *s, const int prefix[257], cdvr_error *err)
 {
+    unsigned char *visible = malloc(2 * s->nbricks);
+    if (!visible)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL setup: out of memory");
+    unsigned char *hidden = visible + s->nbricks;
     s->bricks_visible = 0;
     for (size_t b = 0; b < s->nbricks; b++) {
         int lo = s->minmax_host[2 * b], hi = s->minmax_host[2 * b + 1];
-        int visible = prefix[hi + 1] - prefix[lo] > 0;
-        s->flags_host[b] = visible ? 0 : 255;
-        s->bricks_visible += (size_t)visible;
+        visible[b] = prefix[hi + 1] - prefix[lo] > 0;
+        hidden[b] = !visible[b];
+        s->bricks_visible += visible[b];
     }
-    chessboard_pass(s->flags_host, s->brick_dims, 1);
-    chessboard_pass(s->flags_host, s->brick_dims, -1);
+    unsigned char *to_visible = s->flags_host;
+    chessboard_distance(visible, to_visible, s->brick_dims, s->nbricks);
+    chessboard_distance(hidden, hidden, s->brick_dims, s->nbricks);
+    for (size_t b = 0; b < s->nbricks; b++) {
+        int d = visible[b] ? hidden[b] : to_visible[b];
+        d = d > BRICK_REACH_MAX ? BRICK_REACH_MAX : d;
+        s->flags_host[b] = (unsigned char)(visible[b] ? 128 + d : d);
+    }
+    free(visible);
     return write_buffer(s->cl, s->brick_visible, s->flags_host, s->nbricks, "upload brick flags",
                         err);
 }

@@ -91,23 +91,23 @@ typedef struct cam_params {
 } cam_params;
 
 typedef struct bricks {
-    __global const uchar *dist; /* 0: visible; else distance to the nearest visible brick */
+    __global const uchar *dist; /* per brick: d if invisible, 128 + d if visible (see host) */
     int shift, nbx, nby, nbz;   /* brick edge 1 << shift */
     float3 inv_dg;              /* 1 / dg per axis, +inf where dg is 0 */
     int3 forward;               /* -1 (true) where dg >= 0: the ray leaves by the upper face */
 } bricks;
 
-/* Sample-index parameter where the ray g0 + i*dg leaves the empty region around the brick
- * holding grid point g (clamped): the brick itself if it is visible (*visible = 1), else the
- * cube of bricks within chessboard distance dist - 1, all invisible (dist from the host). */
+/* Sample-index parameter where the ray g0 + i*dg leaves the cube of like bricks around the
+ * brick holding grid point g (clamped): code d (invisible) or 128 + d (visible, *visible = 1)
+ * from the host says that all bricks within chessboard distance d - 1 share its state. */
 static float brick_exit(const bricks *b, const volume_geo *v, float3 g0, float3 g, int *visible)
 {
     g = clamp(g, (float3)(0.0f), v->top);
     int bx = min((int)g.x >> b->shift, b->nbx - 1), by = min((int)g.y >> b->shift, b->nby - 1);
     int bz = min((int)g.z >> b->shift, b->nbz - 1);
-    int dist = b->dist[bx + b->nbx * (by + b->nby * bz)];
-    *visible = dist == 0;
-    int3 reach = (int3)(max(dist, 1)) - (int3)(1); /* bricks on each side that are empty */
+    int code = b->dist[bx + b->nbx * (by + b->nby * bz)];
+    *visible = code >= 128;
+    int3 reach = (int3)(max(code & 127, 1) - 1); /* bricks on each side that are alike */
     int3 up = (int3)(bx, by, bz) + reach + (int3)(1), down = (int3)(bx, by, bz) - reach;
     int3 face = select(down, up, b->forward);
     float3 t = (convert_float3(face << b->shift) - g0) * b->inv_dg;
