@@ -38,14 +38,8 @@ cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_str
     s->setup_frame = (size_t)-1;
     s->minmax_frame = (size_t)-1;
     size_t cap = 0, minmax_bytes = 2 * s->nbricks; /* nbricks < voxels: no overflow */
-    s->minmax_host = malloc(minmax_bytes);
-    s->flags_host = malloc(s->nbricks);
-    cdvr_status st = (s->minmax_host && s->flags_host)
-                         ? CDVR_OK
-                         : cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL stream: out of memory");
-    if (!st)
-        st = cdvr_cl_ensure_buffer(cl, &s->table, &cap, 256 * 4 * sizeof(float),
-                                   CL_MEM_READ_ONLY, "TF table", err);
+    cdvr_status st = cdvr_cl_ensure_buffer(cl, &s->table, &cap, 256 * 4 * sizeof(float),
+                                           CL_MEM_READ_ONLY, "TF table", err);
     if (!st)
         st = cdvr_cl_ensure_buffer(cl, &s->alpha_unit, &cap, 256 * sizeof(float),
                                    CL_MEM_READ_ONLY, "alpha table", err);
@@ -55,6 +49,12 @@ cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_str
     if (!st)
         st = cdvr_cl_ensure_buffer(cl, &s->brick_visible, &cap, s->nbricks, CL_MEM_READ_ONLY,
                                    "brick flags", err);
+    if (!st) { /* host copies only once the device has accepted the sizes */
+        s->minmax_host = malloc(minmax_bytes);
+        s->flags_host = malloc(s->nbricks);
+        if (!s->minmax_host || !s->flags_host)
+            st = cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL stream: out of memory");
+    }
     if (st) {
         cdvr_cl_stream_free(s);
         return st;

@@ -1,7 +1,6 @@
 /* core/cl_render.c - per-frame setup (b4: TF, brick visibility) and ray casting (b5). */
 #include <limits.h>
 #include <math.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -219,7 +218,8 @@ static cdvr_status camera_params(const cdvr_camera *cam, cam_params *out, cdvr_e
     return CDVR_OK;
 }
 
-/* Work-group tile of the ray caster: neighbouring rays share voxels and bricks in cache. */
+/* Work-group tile of the ray caster: neighbouring rays share voxels and bricks in cache.
+ * On PoCL's CPU device 8x8, 16x4, 16x16 and 64x1 measured within noise of each other. */
 #define RAY_TILE_W 8
 #define RAY_TILE_H 8
 
@@ -399,8 +399,6 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     if (set_raycast_args(s, frame, rp, &cam, spacing, origin))
         return cdvr_cl_check(CL_INVALID_KERNEL_ARGS, "raycast arguments", err);
     size_t local[2] = {RAY_TILE_W, RAY_TILE_H};
-    const char *tile = getenv("CDVR_TILE");
-    if (tile) sscanf(tile, "%zux%zu", &local[0], &local[1]);
     size_t global[2] = {round_up((size_t)img->width, local[0]),
                         round_up((size_t)img->height, local[1])};
     st = run_kernel(s->cl, s->cl->k_raycast, 2, global, local, "raycast kernel", err);
