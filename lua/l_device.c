@@ -164,11 +164,6 @@ int lcdvr_render_cl(lua_State *L, const cdvr_volume *vol, size_t t, void *render
     cdvr_cl_stream *s = device_stream(L, d, vol->dims);
     cdvr_image *img;
     cdvr_error err;
-    /* The pixels live outside Lua's heap, so the collector does not see them: step it as if
-     * they were allocated here, so that render loops recycle the images they drop instead of
-     * growing (fresh pages cost a page fault each, about 11 ms for 512x512 here). */
-    size_t pixel_kb = (size_t)opts->camera->width * (size_t)opts->camera->height * 16 / 1024;
-    lua_gc(L, LUA_GCSTEP, pixel_kb > INT_MAX ? INT_MAX : (int)pixel_kb);
     if (cdvr_image_create(opts->camera->width, opts->camera->height, &img, &err) != CDVR_OK)
         return lcdvr_raise(L, &err);
     lcdvr_pushimage(L, img); /* owned by Lua from here, so an error cannot leak it */
@@ -324,58 +319,6 @@ int lcdvr_open_device(lua_State *L)
     lcdvr_setfuncs(L, funcs);
     lcdvr_help_add(L, "cdvr.cl_info()", "OpenCL device info, or nil, message (not built in here)");
     return 0;
-}
-
-static uint64_t mix64(uint64_t h)
-{
-    h ^= h >> 33;
-    h *= 0xff51afd7ed558ccdULL;
-    h ^= h >> 33;
-    h *= 0xc4ceb9fe1a85ec53ULL;
-    return h ^ (h >> 33);
-}
-
-/* 64-bit hash of the voxels (four independent multiply-rotate lanes, then an avalanche):
- * cdvr.render{device="cl"} re-uploads a frame only when its contents changed, since a
- * volume may be edited in place (v:set) between renders. */
-static uint64_t frame_hash(const uint8_t *data, size_t bytes)
-{
-    uint64_t lane[4] = {0x9e3779b97f4a7c15ULL, 0xbf58476d1ce4e5b9ULL, 0x94d049bb133111ebULL,
-                        0x2545f4914f6cdd1dULL};
-    size_t i = 0;
-    for (; i + 32 <= bytes; i += 32)
-        for (int k = 0; k < 4; k++) {
-            uint64_t w;
-            memcpy(&w, data + i + 8 * k, sizeof w);
-            lane[k] = (lane[k] ^ w) * 0x9fb21c651e98df25ULL;
-            lane[k] = (lane[k] << 29) | (lane[k] >> 35);
-        }
-    uint64_t h = (uint64_t)bytes;
-    for (; i < bytes; i++)
-        h = (h ^ data[i]) * 0x100000001b3ULL;
-    for (int k = 0; k < 4; k++)
-        h = mix64(h ^ mix64(lane[k] + (uint64_t)k));
-    return h;
-}
-
-/* Makes the stream's frame 0 hold frame t of vol, uploading only if it changed. */
-static cdvr_status upload_frame(ldevice *d, cdvr_cl_stream *s, const cdvr_volume *vol, size_t t,
-                                cdvr_error *err)
-{
-    const uint8_t *voxels = cdvr_volume_frame(vol, t);
-    size_t bytes = cdvr_volume_voxels(vol);
-    uint64_t hash = frame_hash(voxels, bytes);
-    if (d->frame_cached && d->frame_hash == hash)
-        return CDVR_OK;
-    d->frame_cached = 0;
-    cdvr_status st = cdvr_cl_upload(s, voxels, bytes, err);
-    if (!st)
-        st = cdvr_cl_decode(s, CDVR_CODEC_RAW, NULL, 1, err);
-    if (st)
-        return st;
-    d->frame_cached = 1;
-    d->frame_hash = hash;
-    return CDVR_OK;
 }
 
 int lcdvr_render_cl(lua_State *L, const cdvr_volume *vol, size_t t, void *render_opts)

@@ -12,13 +12,7 @@
 package.path = (arg[0]:match("^(.*)/[^/]*$") or ".") .. "/bench/?.lua;" .. package.path
 local common = require "common"
 
-local datasets, opt = {}, {out = "out/report", frames = "24", width = "256", device = "auto"}
-local i = 1
-while i <= #arg do
-  local a = arg[i]
-  if a:match("^%-%-") then opt[a:sub(3)] = arg[i + 1]; i = i + 2
-  else datasets[#datasets + 1] = a; i = i + 1 end
-end
+local datasets, opt = common.parse_args(arg, {out = "out/report", frames = "24", width = "256", device = "auto"})
 if #datasets == 0 then datasets = {common.shared_data() .. "/series/viscousfingers"} end
 local frames, width = tonumber(opt.frames), tonumber(opt.width)
 os.execute(('mkdir -p "%s"'):format(opt.out))

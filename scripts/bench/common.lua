@@ -9,6 +9,23 @@ function M.shared_data()
   return here .. "/../shared/data"
 end
 
+-- Splits arg into positional arguments and "--name value" options (defaults in `opt`).
+function M.parse_args(argv, opt)
+  local positional = {}
+  local i = 1
+  while i <= #argv do
+    local a = argv[i]
+    if a:match("^%-%-") then
+      opt[a:sub(3)] = argv[i + 1]
+      i = i + 2
+    else
+      positional[#positional + 1] = a
+      i = i + 1
+    end
+  end
+  return positional, opt
+end
+
 function M.exists(path)
   local f = io.open(path, "rb")
   if f then f:close() return true end

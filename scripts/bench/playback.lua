@@ -9,13 +9,7 @@
 package.path = (arg[0]:match("^(.*)/[^/]*$") or ".") .. "/?.lua;" .. package.path
 local common = require "common"
 
-local args, opt = {}, {frames = 30, width = 512, device = "auto"}
-local i = 1
-while i <= #arg do
-  local a = arg[i]
-  if a:match("^%-%-") then opt[a:sub(3)] = arg[i + 1]; i = i + 2
-  else args[#args + 1] = a; i = i + 1 end
-end
+local args, opt = common.parse_args(arg, {frames = 30, width = 512, device = "auto"})
 local dataset = args[1] or (common.shared_data() .. "/series/viscousfingers")
 local frames, width = tonumber(opt.frames), tonumber(opt.width)
 
