@@ -560,5 +560,6 @@ int lcdvr_open_player(lua_State *L)
                    "out='frames/%04d.png' (capture: deterministic), device='cl'|'cpu', pace (default true with target_fps)");
     lcdvr_help_add(L, "p:run{frames=N, first=1}",
                    "plays N frames -> {fps=, frames={rows: t, variant, read_ms .. render_ms, frame_ms, reason, error}, median={...}}");
+    lcdvr_help_add(L, "p:close()", "release the player's buffers and its OpenCL stream");
     return 0;
 }
