@@ -1,4 +1,5 @@
 /* core/image.c - RGBA float images, compositing and PNG output (cdvr/image.h). */
+#include "cdvr/atomicfile.h"
 #include "cdvr/image.h"
 
 #include <errno.h>
@@ -115,9 +116,7 @@ static int write_png_file(FILE *file, const cdvr_image *img, const uint8_t *rgba
     if (!stbi_write_png_to_func(png_write, &sink, img->width, img->height, 4, rgba8,
                                 img->width * 4))
         return -1;
-    if (sink.failed || fflush(file) != 0 || fsync(fileno(file)) != 0)
-        return -1;
-    return 0;
+    return sink.failed ? -1 : 0;
 }
 
 cdvr_status cdvr_image_save_png(const cdvr_image *img, const char *path, cdvr_error *err)
@@ -128,45 +127,14 @@ cdvr_status cdvr_image_save_png(const cdvr_image *img, const char *path, cdvr_er
         return cdvr_error_set(err, CDVR_ERR_ARG, "%s: image %dx%d too large for PNG", path,
                               img->width, img->height);
     size_t bytes = (size_t)img->width * (size_t)img->height * 4;
-    size_t plen = strlen(path);
     uint8_t *rgba8 = malloc(bytes);
-    char *tmp = malloc(plen + 16);
-    if (!rgba8 || !tmp) {
-        free(rgba8);
-        free(tmp);
+    if (!rgba8)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for the PNG", path);
-    }
     cdvr_image_to_rgba8(img, rgba8);
-    snprintf(tmp, plen + 16, "%s.tmpXXXXXX", path);
-    cdvr_status st = CDVR_OK;
-    int fd = mkstemp(tmp);
-    FILE *file = fd >= 0 ? fdopen(fd, "wb") : NULL;
-    if (!file) {
-        st = cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot create temporary file: %s", path,
-                            strerror(errno));
-        if (fd >= 0) {
-            close(fd);
-            unlink(tmp);
-        }
-    } else {
-        fchmod(fd, 0644); /* mkstemp creates 0600; a PNG is meant to be shared */
-        int failed = write_png_file(file, img, rgba8);
-        int saved_errno = errno;
-        if (fclose(file) != 0 && !failed) {
-            failed = 1;
-            saved_errno = errno;
-        }
-        if (!failed && rename(tmp, path) != 0) {
-            failed = 1;
-            saved_errno = errno;
-        }
-        if (failed) {
-            unlink(tmp);
-            st = cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot write PNG: %s", path,
-                                strerror(saved_errno));
-        }
-    }
-    free(tmp);
+    cdvr_atomic_file af;
+    cdvr_status st = cdvr_atomic_open(&af, path, err);
+    if (st == CDVR_OK)
+        st = cdvr_atomic_commit(&af, write_png_file(af.f, img, rgba8) != 0, err);
     free(rgba8);
     return st;
 }

@@ -1,4 +1,5 @@
 /* core/io_raw.c - headerless raw volumes: cdvr_volume_load_raw and cdvr_volume_save_raw. */
+#include "cdvr/atomicfile.h"
 #include "cdvr/volume.h"
 #include "volume_io.h"
 
@@ -113,53 +114,17 @@ static int write_data(FILE *f, const unsigned char *data, size_t bytes, size_t e
     return 1;
 }
 
-static cdvr_status make_temp(const char *path, char **tmp_name, FILE **f, cdvr_error *err)
-{
-    size_t len = strlen(path);
-    char *name = malloc(len + sizeof ".tmp.XXXXXX");
-    if (!name)
-        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
-    memcpy(name, path, len);
-    memcpy(name + len, ".tmp.XXXXXX", sizeof ".tmp.XXXXXX");
-    int fd = mkstemp(name);
-    if (fd < 0 || !(*f = fdopen(fd, "wb"))) {
-        int saved = errno;
-        if (fd >= 0) {
-            close(fd);
-            unlink(name);
-        }
-        free(name);
-        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot create temporary file: %s", path,
-                              strerror(saved));
-    }
-    *tmp_name = name;
-    return CDVR_OK;
-}
-
 cdvr_status cdvr_volume_save_raw(const cdvr_volume *vol, const char *path, int big_endian,
                                  cdvr_error *err)
 {
     size_t bytes;
     if (!cdvr_volume_bytes_for(vol->dims, vol->timesteps, vol->type, &bytes))
         return cdvr_error_set(err, CDVR_ERR_ARG, "%s: volume size overflows", path);
-    char *tmp_name = NULL;
-    FILE *f = NULL;
-    cdvr_status st = make_temp(path, &tmp_name, &f, err);
+    cdvr_atomic_file af;
+    cdvr_status st = cdvr_atomic_open(&af, path, err);
     if (st != CDVR_OK)
         return st;
     size_t elem = cdvr_type_size(vol->type);
     int swap = elem > 1 && (big_endian ? 1 : 0) == cdvr_host_is_little_endian();
-    int ok = write_data(f, vol->data, bytes, elem, swap) && fflush(f) == 0 && fsync(fileno(f)) == 0;
-    int saved = errno;
-    ok = (fclose(f) == 0) && ok;
-    if (ok && rename(tmp_name, path) != 0) {
-        saved = errno;
-        ok = 0;
-    }
-    if (!ok) {
-        unlink(tmp_name);
-        st = cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot write: %s", path, strerror(saved));
-    }
-    free(tmp_name);
-    return st;
+    return cdvr_atomic_commit(&af, !write_data(af.f, vol->data, bytes, elem, swap), err);
 }

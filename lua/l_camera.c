@@ -1,5 +1,6 @@
 /* lua/l_camera.c - cdvr.Camera: cdvr.camera{...}, cdvr.orbit_camera(volume, {...}),
  * cam:get(), cam:set{...}; fields readable as cam.eye, cam.fov, ... */
+#include "cdvr/atomicfile.h"
 #include "lcdvr.h"
 
 #include <errno.h>
@@ -173,9 +174,7 @@ static int write_camera(FILE *f, const cdvr_camera *cam)
     fprintf(f, "  fov = %.17g, width = %d, height = %d,\n", cam->fov, cam->width, cam->height);
     fprintf(f, "  orthographic = %s, ortho_height = %.17g,\n}\n",
             cam->orthographic ? "true" : "false", cam->ortho_height);
-    if (ferror(f) || fflush(f) != 0 || fsync(fileno(f)) != 0)
-        return -1;
-    return 0;
+    return ferror(f) ? -1 : 0;
 }
 
 /* cam:save(path): temporary file then rename; true or nil, message. */
@@ -183,26 +182,11 @@ static int camera_save(lua_State *L)
 {
     const cdvr_camera *cam = lcdvr_checkcamera(L, 1);
     const char *path = luaL_checkstring(L, 2);
-    size_t n = strlen(path) + 16;
-    char *tmp = (char *)lua_newuserdatauv(L, n, 0);
-    snprintf(tmp, n, "%s.tmpXXXXXX", path);
-    int fd = mkstemp(tmp);
-    FILE *f = fd >= 0 ? fdopen(fd, "w") : NULL;
-    if (f)
-        fchmod(fd, 0644); /* mkstemp creates 0600 */
-    int failed = f ? write_camera(f, cam) : -1, e = errno;
-    if (f && fclose(f) != 0 && !failed)
-        failed = -1, e = errno;
-    else if (!f && fd >= 0)
-        close(fd);
-    if (!failed && rename(tmp, path) != 0)
-        failed = -1, e = errno;
-    if (failed) {
-        if (fd >= 0)
-            unlink(tmp);
-        errno = e;
-        return luaL_fileresult(L, 0, path);
-    }
+    cdvr_atomic_file af;
+    cdvr_error err;
+    if (cdvr_atomic_open(&af, path, &err) != CDVR_OK ||
+        cdvr_atomic_commit(&af, write_camera(af.f, cam) != 0, &err) != CDVR_OK)
+        return lcdvr_fail(L, &err);
     lua_pushboolean(L, 1);
     return 1;
 }

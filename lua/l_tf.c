@@ -1,5 +1,6 @@
 /* lua/l_tf.c - cdvr.TF: transfer functions in Lua (cdvr.tf, presets in share/tf, save/load as
  * plain Lua files). */
+#include "cdvr/atomicfile.h"
 #include "lcdvr.h"
 
 #include <errno.h>
@@ -172,40 +173,18 @@ static int write_tf(FILE *f, const cdvr_tf *tf)
         fprintf(f, "  {%.17g, %.17g, %.17g, %.17g, %.17g},\n", p->value, p->r, p->g, p->b, p->a);
     }
     fprintf(f, "}\n");
-    if (ferror(f) || fflush(f) != 0 || fsync(fileno(f)) != 0)
-        return -1;
-    return 0;
+    return ferror(f) ? -1 : 0;
 }
 
 static int tf_save(lua_State *L)
 {
     const cdvr_tf *tf = lcdvr_checktf(L, 1);
     const char *path = luaL_checkstring(L, 2);
-    char *tmp = (char *)lua_newuserdatauv(L, strlen(path) + 16, 0);
-    snprintf(tmp, strlen(path) + 16, "%s.tmpXXXXXX", path);
-    int fd = mkstemp(tmp);
-    FILE *f = fd >= 0 ? fdopen(fd, "w") : NULL;
-    if (!f) {
-        int e = errno;
-        if (fd >= 0) {
-            close(fd);
-            unlink(tmp);
-        }
-        errno = e;
-        return luaL_fileresult(L, 0, path);
-    }
-    fchmod(fd, 0644);
-    int failed = write_tf(f, tf);
-    int e = errno;
-    if (fclose(f) != 0 && !failed)
-        failed = -1, e = errno;
-    if (!failed && rename(tmp, path) != 0)
-        failed = -1, e = errno;
-    if (failed) {
-        unlink(tmp);
-        errno = e;
-        return luaL_fileresult(L, 0, path);
-    }
+    cdvr_atomic_file af;
+    cdvr_error err;
+    if (cdvr_atomic_open(&af, path, &err) != CDVR_OK ||
+        cdvr_atomic_commit(&af, write_tf(af.f, tf) != 0, &err) != CDVR_OK)
+        return lcdvr_fail(L, &err);
     lua_pushboolean(L, 1);
     return 1;
 }
