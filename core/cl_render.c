@@ -218,10 +218,12 @@ static cdvr_status camera_params(const cdvr_camera *cam, cam_params *out, cdvr_e
     return CDVR_OK;
 }
 
-/* Work-group tile of the ray caster: neighbouring rays share voxels and bricks in cache.
- * On PoCL's CPU device 8x8, 16x4, 16x16 and 64x1 measured within noise of each other. */
-#define RAY_TILE_W 8
-#define RAY_TILE_H 8
+/* Rays per work-item (kernels/raycast.cl marches RAY_PACKET neighbouring pixels of a row in
+ * lock-step) and the work-group in work-items: neighbouring rays share voxels and bricks in
+ * cache. */
+#define RAY_PACKET 8
+#define RAY_GROUP_W 8
+#define RAY_GROUP_H 8
 
 static size_t round_up(size_t n, size_t m)
 {
@@ -398,8 +400,9 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
         return st;
     if (set_raycast_args(s, frame, rp, &cam, spacing, origin))
         return cdvr_cl_check(CL_INVALID_KERNEL_ARGS, "raycast arguments", err);
-    size_t local[2] = {RAY_TILE_W, RAY_TILE_H};
-    size_t global[2] = {round_up((size_t)img->width, local[0]),
+    size_t local[2] = {RAY_GROUP_W, RAY_GROUP_H};
+    size_t packets = ((size_t)img->width + RAY_PACKET - 1) / RAY_PACKET;
+    size_t global[2] = {round_up(packets, local[0]),
                         round_up((size_t)img->height, local[1])};
     st = run_kernel(s->cl, s->cl->k_raycast, 2, global, local, "raycast kernel", err);
     if (!st)

@@ -3,86 +3,28 @@
  * samples, trilinear interpolation, post-classification with the step-corrected table,
  * front-to-back compositing and early termination.
  *
- * For speed the ray is carried in grid (voxel) coordinates: sample i of the full segments
- * sits at g0 + i*dg, so a sample costs one multiply-add per axis, an integer base index with
- * clamped increments, eight byte loads and one float4 table pair. Empty-space skipping walks
- * the brick grid: for the brick holding the current sample it computes, in sample units, where
- * the ray leaves the brick; an invisible brick is jumped over in one step (conservatively, so
- * a skipped sample is always inside it), a visible brick's samples run in a tight inner loop.
- * Skipped samples are exactly those whose value range has zero opacity under the TF. */
+ * Each work-item marches a packet of RAY_PACKET horizontally neighbouring rays in lock-step
+ * on float8 lanes, so the CPU device's compiler emits vector code (PoCL does not vectorise
+ * across work-items: the march loop is data dependent). Every lane keeps its own sample index
+ * on its own segment grid; lane masks (-1 true, as vector comparisons give) say which lanes
+ * sample, which look up bricks and which are still running.
+ *
+ * Rays are carried in grid (voxel) coordinates: sample i of the full segments sits at
+ * g0 + i*dg. Empty-space skipping walks the brick grid: for the brick holding a lane's current
+ * sample it computes, in sample units, where the ray leaves the cube of like bricks around
+ * it; an invisible cube is jumped in one step (conservatively, so a skipped sample is always
+ * inside it), a visible cube's samples need no further look-ups. Skipped samples are exactly
+ * those whose value range has zero opacity under the TF. */
 
-typedef struct ray_box {
-    float t_near, t_far;
-} ray_box;
+#define RAY_PACKET 8
+typedef float8 vfloat;
+typedef int8 vint;
+typedef long8 vlong;
 
-static int intersect_box(float3 o, float3 d, float3 lo, float3 hi, ray_box *out)
-{
-    float t_enter = -INFINITY, t_exit = INFINITY;
-    float oa[3] = {o.x, o.y, o.z}, da[3] = {d.x, d.y, d.z};
-    float la[3] = {lo.x, lo.y, lo.z}, ha[3] = {hi.x, hi.y, hi.z};
-    for (int a = 0; a < 3; a++) {
-        if (fabs(da[a]) < 1e-12f) {
-            if (oa[a] < la[a] || oa[a] > ha[a])
-                return 0;
-            continue;
-        }
-        float t0 = (la[a] - oa[a]) / da[a], t1 = (ha[a] - oa[a]) / da[a];
-        t_enter = fmax(t_enter, fmin(t0, t1));
-        t_exit = fmin(t_exit, fmax(t0, t1));
-    }
-    out->t_near = fmax(t_enter, 0.0f);
-    out->t_far = t_exit;
-    return out->t_far > out->t_near;
-}
-
-typedef struct volume_geo {
-    __global const uchar *vol;
-    int X, Y, Z;
-    long XY;
-    float3 top; /* dims - 1 */
-} volume_geo;
-
-/* render.h step 3 at grid position g (clamped here): trilinear, upper index clamped. */
-static float trilinear(const volume_geo *v, float3 g)
-{
-    g = clamp(g, (float3)(0.0f), v->top);
-    int x0 = (int)g.x, y0 = (int)g.y, z0 = (int)g.z;
-    float fx = g.x - (float)x0, fy = g.y - (float)y0, fz = g.z - (float)z0;
-    long base = (long)x0 + (long)v->X * (long)y0 + v->XY * (long)z0;
-    long dx = x0 < v->X - 1 ? 1 : 0;
-    long dy = y0 < v->Y - 1 ? (long)v->X : 0;
-    long dz = z0 < v->Z - 1 ? v->XY : 0;
-    __global const uchar *p = v->vol + base;
-    float c00 = mix((float)p[0], (float)p[dx], fx);
-    float c10 = mix((float)p[dy], (float)p[dy + dx], fx);
-    float c01 = mix((float)p[dz], (float)p[dz + dx], fx);
-    float c11 = mix((float)p[dz + dy], (float)p[dz + dy + dx], fx);
-    return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
-}
-
-/* Front-to-back compositing of one classified sample; returns 1 once the ray is done. */
-static int composite(float4 *acc, float3 rgb, float a, float term_alpha)
-{
-    float w = (1.0f - acc->w) * a;
-    acc->xyz += w * rgb;
-    acc->w += w;
-    return acc->w >= term_alpha || acc->w >= 1.0f;
-}
-
-/* Full segment: table holds rgb and the step-corrected alpha per entry. Compositing a zero
- * alpha changes nothing, so it is done unconditionally (no unpredictable branch). */
-static int sample_full(const volume_geo *v, float3 g, __global const float4 *table,
-                       float term_alpha, float4 *acc)
-{
-    float s = trilinear(v, g);
-    int i0 = min((int)s, 254);
-    float fr = s - (float)i0;
-    float4 lo = table[i0], hi = table[i0 + 1];
-    float4 c = mix(lo, hi, fr);
-    float w = (1.0f - acc->w) * c.w;
-    *acc += w * (float4)(c.xyz, 1.0f);
-    return acc->w >= term_alpha || acc->w >= 1.0f;
-}
+/* Per lane of a packet: one coordinate per axis. */
+typedef struct vec3x8 {
+    vfloat x, y, z;
+} vec3x8;
 
 typedef struct cam_params {
     float eye[3], f[3], u[3], r[3];
@@ -90,64 +32,311 @@ typedef struct cam_params {
     int orthographic, width, height;
 } cam_params;
 
+typedef struct volume_geo {
+    __global const uchar *vol;
+    int3 dims;
+    int3 base_max;  /* largest lower trilinear corner per axis: max(dims - 2, 0) */
+    long3 stride;   /* index step to the upper corner per axis; 0 where dims is 1 */
+    float3 top;     /* dims - 1 */
+} volume_geo;
+
+/* Per-lane rays of the packet and their clipped segments. */
+typedef struct packet {
+    vec3x8 o, d;
+    vfloat t_near, t_far;
+    vint hit;
+} packet;
+
+static void camera_rays(const cam_params *cam, vint px, int py, packet *p)
+{
+    vfloat sxn = 2.0f * (convert_float8(px) + 0.5f) / (float)cam->width - 1.0f;
+    float syn = 2.0f * ((float)py + 0.5f) / (float)cam->height - 1.0f;
+    vfloat sx = sxn * cam->aspect;
+    vfloat side[3];
+    for (int a = 0; a < 3; a++)
+        side[a] = sx * cam->r[a] - syn * cam->u[a];
+    if (cam->orthographic) {
+        float h = cam->ortho_half_height;
+        p->o = (vec3x8){cam->eye[0] + side[0] * h, cam->eye[1] + side[1] * h,
+                        cam->eye[2] + side[2] * h};
+        p->d = (vec3x8){(vfloat)cam->f[0], (vfloat)cam->f[1], (vfloat)cam->f[2]};
+        return;
+    }
+    p->o = (vec3x8){(vfloat)cam->eye[0], (vfloat)cam->eye[1], (vfloat)cam->eye[2]};
+    vfloat dx = cam->f[0] + side[0] * cam->tan_half, dy = cam->f[1] + side[1] * cam->tan_half;
+    vfloat dz = cam->f[2] + side[2] * cam->tan_half;
+    vfloat inv_len = 1.0f / sqrt(dx * dx + dy * dy + dz * dz);
+    p->d = (vec3x8){dx * inv_len, dy * inv_len, dz * inv_len};
+}
+
+/* One slab of render.h step 1; a ray parallel to the faces misses if it lies outside. */
+static void slab(vfloat o, vfloat d, float lo, float hi, vfloat *t_enter, vfloat *t_exit,
+                 vint *miss)
+{
+    vint parallel = fabs(d) < 1e-12f;
+    *miss |= parallel & (o < lo | o > hi);
+    vfloat t0 = (lo - o) / d, t1 = (hi - o) / d;
+    *t_enter = select(fmax(*t_enter, fmin(t0, t1)), *t_enter, parallel);
+    *t_exit = select(fmin(*t_exit, fmax(t0, t1)), *t_exit, parallel);
+}
+
+static void intersect_box(packet *p, float3 lo, float3 hi)
+{
+    vfloat t_enter = (vfloat)(-INFINITY), t_exit = (vfloat)(INFINITY);
+    vint miss = (vint)(0);
+    slab(p->o.x, p->d.x, lo.x, hi.x, &t_enter, &t_exit, &miss);
+    slab(p->o.y, p->d.y, lo.y, hi.y, &t_enter, &t_exit, &miss);
+    slab(p->o.z, p->d.z, lo.z, hi.z, &t_enter, &t_exit, &miss);
+    p->t_near = fmax(t_enter, 0.0f);
+    p->t_far = t_exit;
+    p->hit &= ~miss & (p->t_far > p->t_near);
+}
+
+/* Byte of each lane at p[idx]; lanes are independent scalar loads. */
+static vfloat gather8(__global const uchar *p, vlong idx)
+{
+    return convert_float8((uchar8)(p[idx.s0], p[idx.s1], p[idx.s2], p[idx.s3], p[idx.s4],
+                                   p[idx.s5], p[idx.s6], p[idx.s7]));
+}
+
+/* render.h step 3 at grid position g (clamped here). The lower corner stays at most dims - 2
+ * so the upper one is always inside: at g == dims - 1 that weights the upper voxel by 1,
+ * which is the clamped upper index of render.h. */
+static vfloat trilinear(const volume_geo *v, vec3x8 g)
+{
+    vint x0 = min(convert_int8(clamp(g.x, 0.0f, v->top.x)), v->base_max.x);
+    vint y0 = min(convert_int8(clamp(g.y, 0.0f, v->top.y)), v->base_max.y);
+    vint z0 = min(convert_int8(clamp(g.z, 0.0f, v->top.z)), v->base_max.z);
+    vfloat fx = clamp(g.x, 0.0f, v->top.x) - convert_float8(x0);
+    vfloat fy = clamp(g.y, 0.0f, v->top.y) - convert_float8(y0);
+    vfloat fz = clamp(g.z, 0.0f, v->top.z) - convert_float8(z0);
+    vlong base = convert_long8(x0) + v->stride.y * convert_long8(y0) +
+                 v->stride.z * convert_long8(z0);
+    long sx = v->stride.x, sy = v->stride.y, sz = v->stride.z;
+    __global const uchar *p = v->vol;
+    vfloat c00 = mix(gather8(p, base), gather8(p, base + sx), fx);
+    vfloat c10 = mix(gather8(p, base + sy), gather8(p, base + sy + sx), fx);
+    vfloat c01 = mix(gather8(p, base + sz), gather8(p, base + sz + sx), fx);
+    vfloat c11 = mix(gather8(p, base + sz + sy), gather8(p, base + sz + sy + sx), fx);
+    return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
+}
+
+/* Classified sample per lane: rgb lerped from the table, alpha per the caller. */
+typedef struct rgba8 {
+    vfloat r, g, b, a;
+} rgba8;
+
+#define TABLE_LANE(k)                                                                          \
+    do {                                                                                       \
+        float4 lo = table[i0.s##k], hi = table[i0.s##k + 1];                                   \
+        c0.r.s##k = lo.x; c0.g.s##k = lo.y; c0.b.s##k = lo.z; c0.a.s##k = lo.w;                \
+        c1.r.s##k = hi.x; c1.g.s##k = hi.y; c1.b.s##k = hi.z; c1.a.s##k = hi.w;                \
+    } while (0)
+
+/* render.h step 4 for full segments: lerp of rgb and of the step-corrected alpha. *i0_out and
+ * *fr_out give the table position for the shorter last segment's alpha. */
+static rgba8 classify(vfloat s, __global const float4 *table, vint *i0_out, vfloat *fr_out)
+{
+    vint i0 = min(convert_int8(s), 254);
+    vfloat fr = s - convert_float8(i0);
+    rgba8 c0, c1;
+    TABLE_LANE(0); TABLE_LANE(1); TABLE_LANE(2); TABLE_LANE(3);
+    TABLE_LANE(4); TABLE_LANE(5); TABLE_LANE(6); TABLE_LANE(7);
+    *i0_out = i0;
+    *fr_out = fr;
+    return (rgba8){mix(c0.r, c1.r, fr), mix(c0.g, c1.g, fr), mix(c0.b, c1.b, fr),
+                   mix(c0.a, c1.a, fr)};
+}
+
+/* render.h step 5 on the lanes whose alpha is given (others pass 0 and change nothing). */
+static void composite(rgba8 *acc, rgba8 c)
+{
+    vfloat w = (1.0f - acc->a) * c.a;
+    acc->r += w * c.r;
+    acc->g += w * c.g;
+    acc->b += w * c.b;
+    acc->a += w;
+}
+
 typedef struct bricks {
     __global const uchar *dist; /* per brick: d if invisible, 128 + d if visible (see host) */
     int shift, nbx, nby, nbz;   /* brick edge 1 << shift */
-    float3 inv_dg;              /* 1 / dg per axis, +inf where dg is 0 */
-    int3 forward;               /* -1 (true) where dg >= 0: the ray leaves by the upper face */
+    vec3x8 inv_dg;              /* 1 / dg per axis, +inf where dg is 0 */
+    vint fwd_x, fwd_y, fwd_z;   /* -1 where dg >= 0: the ray leaves by the upper face */
 } bricks;
 
-/* Sample-index parameter where the ray g0 + i*dg leaves the cube of like bricks around the
- * brick holding grid point g (clamped): code d (invisible) or 128 + d (visible, *visible = 1)
- * from the host says that all bricks within chessboard distance d - 1 share its state. */
-static float brick_exit(const bricks *b, const volume_geo *v, float3 g0, float3 g, int *visible)
+/* Per lane, the parameter of the face where the ray leaves the cube of like bricks around
+ * the brick holding grid point g. Code d (invisible) or 128 + d (visible) from the host says
+ * that all bricks within chessboard distance d - 1 share its state. */
+static vfloat brick_exit(const bricks *b, const volume_geo *v, vec3x8 g0, vec3x8 g,
+                         vint *visible)
 {
-    g = clamp(g, (float3)(0.0f), v->top);
-    int bx = min((int)g.x >> b->shift, b->nbx - 1), by = min((int)g.y >> b->shift, b->nby - 1);
-    int bz = min((int)g.z >> b->shift, b->nbz - 1);
-    int code = b->dist[bx + b->nbx * (by + b->nby * bz)];
+    vint bx = min(convert_int8(clamp(g.x, 0.0f, v->top.x)) >> b->shift, b->nbx - 1);
+    vint by = min(convert_int8(clamp(g.y, 0.0f, v->top.y)) >> b->shift, b->nby - 1);
+    vint bz = min(convert_int8(clamp(g.z, 0.0f, v->top.z)) >> b->shift, b->nbz - 1);
+    vint idx = bx + b->nbx * (by + b->nby * bz);
+    __global const uchar *d = b->dist;
+    vint code = convert_int8((uchar8)(d[idx.s0], d[idx.s1], d[idx.s2], d[idx.s3], d[idx.s4],
+                                      d[idx.s5], d[idx.s6], d[idx.s7]));
     *visible = code >= 128;
-    int3 reach = (int3)(max(code & 127, 1) - 1); /* bricks on each side that are alike */
-    int3 up = (int3)(bx, by, bz) + reach + (int3)(1), down = (int3)(bx, by, bz) - reach;
-    int3 face = select(down, up, b->forward);
-    float3 t = (convert_float3(face << b->shift) - g0) * b->inv_dg;
-    return fmin(t.x, fmin(t.y, t.z));
+    vint reach = max(code & 127, 1) - 1; /* bricks on each side that are alike */
+    vint fx = select(bx - reach, bx + reach + 1, b->fwd_x);
+    vint fy = select(by - reach, by + reach + 1, b->fwd_y);
+    vint fz = select(bz - reach, bz + reach + 1, b->fwd_z);
+    vfloat tx = (convert_float8(fx << b->shift) - g0.x) * b->inv_dg.x;
+    vfloat ty = (convert_float8(fy << b->shift) - g0.y) * b->inv_dg.y;
+    vfloat tz = (convert_float8(fz << b->shift) - g0.z) * b->inv_dg.z;
+    return fmin(tx, fmin(ty, tz));
 }
 
 /* Tolerance (in samples) that keeps a skip short of the computed brick exit, so rounding
  * never skips a sample that lies past the brick's face. */
 #define SKIP_MARGIN 0.01f
 
-/* Marches the n_full full segments from index 0; returns 1 if the ray terminated early. */
-static int march_full(const volume_geo *v, const bricks *b, int skipping, float3 g0,
-                      float3 dg, int n_full, __global const float4 *table, float term_alpha,
-                      float4 *acc, uint *taken)
+/* March state of a packet over its full segments. */
+typedef struct march {
+    vint i, end, n_full, active, done, taken;
+} march;
+
+static vec3x8 at(vec3x8 g0, vec3x8 dg, vint i)
 {
-    int i = 0;
-    while (i < n_full) {
-        int end = n_full;
+    vfloat fi = convert_float8(i);
+    return (vec3x8){g0.x + fi * dg.x, g0.y + fi * dg.y, g0.z + fi * dg.z};
+}
+
+/* Lanes whose visible run is used up look up their brick: an invisible cube moves the lane's
+ * index past it, a visible one sets the end of the lane's next run. */
+static void brick_step(march *m, vint need, const bricks *b, const volume_geo *v, vec3x8 g0,
+                       vec3x8 dg)
+{
+    vint visible;
+    vfloat t_exit = fmin(brick_exit(b, v, g0, at(g0, dg, m->i), &visible),
+                         convert_float8(m->n_full));
+    vint skip_to = max(m->i + 1, convert_int8(ceil(t_exit - SKIP_MARGIN)));
+    vint run_end = clamp(convert_int8(ceil(t_exit)), m->i + 1, m->n_full);
+    m->i = select(m->i, select(skip_to, m->i, visible), need);
+    m->end = select(m->end, select(m->end, run_end, visible), need);
+}
+
+/* Samples the lanes inside a visible run (all lanes run when skipping is off). */
+static void sample_step(march *m, vint run, const volume_geo *v, vec3x8 g0, vec3x8 dg,
+                        __global const float4 *table, float term_alpha, rgba8 *acc)
+{
+    vint i0;
+    vfloat fr;
+    rgba8 c = classify(trilinear(v, at(g0, dg, m->i)), table, &i0, &fr);
+    c.a = select((vfloat)(0.0f), c.a, run);
+    composite(acc, c);
+    m->i -= run;
+    m->taken -= run;
+    vint stop = run & (acc->a >= term_alpha | acc->a >= 1.0f);
+    m->done |= stop;
+    m->active &= ~stop & (m->i < m->n_full);
+}
+
+static void march_full(march *m, int skipping, const bricks *b, const volume_geo *v,
+                       vec3x8 g0, vec3x8 dg, __global const float4 *table, float term_alpha,
+                       rgba8 *acc)
+{
+    while (any(m->active)) {
         if (skipping) {
-            int visible;
-            float t_exit = brick_exit(b, v, g0, g0 + (float)i * dg, &visible);
-            t_exit = fmin(t_exit, (float)n_full);
-            if (!visible) {
-                i = max(i + 1, (int)ceil(t_exit - SKIP_MARGIN));
-                continue;
+            vint need = m->active & (m->i >= m->end);
+            if (any(need)) {
+                brick_step(m, need, b, v, g0, dg);
+                m->active &= m->i < m->n_full;
             }
-            end = clamp((int)ceil(t_exit), i + 1, n_full);
         }
-        for (; i < end; i++) {
-            (*taken)++;
-            if (sample_full(v, g0 + (float)i * dg, table, term_alpha, acc))
-                return 1;
-        }
+        vint run = m->active & (m->i < m->end);
+        if (any(run))
+            sample_step(m, run, v, g0, dg, table, term_alpha, acc);
     }
-    return 0;
+}
+
+/* The last segment, shorter than step unless L is a multiple of it, on lanes `last`. */
+static void last_segment(const packet *p, vint n, vint last, float step, float unit,
+                         const volume_geo *v, float3 origin, float3 inv_spacing,
+                         __global const float4 *table, __global const float *alpha,
+                         rgba8 *acc, vint *taken)
+{
+    vfloat ts = p->t_near + convert_float8(n - 1) * step;
+    vfloat ds = p->t_far - ts;
+    last &= ds > 0.0f;
+    if (!any(last))
+        return;
+    vfloat tm = ts + 0.5f * ds;
+    vec3x8 g = {(p->o.x + tm * p->d.x - origin.x) * inv_spacing.x,
+                (p->o.y + tm * p->d.y - origin.y) * inv_spacing.y,
+                (p->o.z + tm * p->d.z - origin.z) * inv_spacing.z};
+    vint i0;
+    vfloat fr;
+    rgba8 c = classify(trilinear(v, g), table, &i0, &fr);
+    vint i1 = i0 + 1;
+    vfloat a0 = (vfloat)(alpha[i0.s0], alpha[i0.s1], alpha[i0.s2], alpha[i0.s3],
+                         alpha[i0.s4], alpha[i0.s5], alpha[i0.s6], alpha[i0.s7]);
+    vfloat a1 = (vfloat)(alpha[i1.s0], alpha[i1.s1], alpha[i1.s2], alpha[i1.s3],
+                         alpha[i1.s4], alpha[i1.s5], alpha[i1.s6], alpha[i1.s7]);
+    vfloat a = mix(a0, a1, fr);
+    /* 1 - pow(1, x) is exactly 0: most last segments lie in empty space */
+    vint partial = ds < step & a > 0.0f;
+    if (any(partial))
+        a = select(a, 1.0f - pow(1.0f - a, ds / unit), partial);
+    c.a = select(a, c.a, ds >= step);
+    c.a = select((vfloat)(0.0f), c.a, last & c.a > 0.0f);
+    composite(acc, c);
+    *taken -= last;
+}
+
+static volume_geo make_geo(__global const uchar *vol, int X, int Y, int Z)
+{
+    volume_geo v;
+    v.vol = vol;
+    v.dims = (int3)(X, Y, Z);
+    v.base_max = max(v.dims - 2, 0);
+    v.stride = (long3)(X > 1 ? 1 : 0, Y > 1 ? (long)X : 0, Z > 1 ? (long)X * (long)Y : 0);
+    v.top = convert_float3(v.dims - 1);
+    return v;
+}
+
+static bricks make_bricks(__global const uchar *dist, int shift, int nbx, int nby, int nbz,
+                          vec3x8 dg)
+{
+    bricks b;
+    b.dist = dist;
+    b.shift = shift;
+    b.nbx = nbx;
+    b.nby = nby;
+    b.nbz = nbz;
+    b.inv_dg = (vec3x8){select((vfloat)(INFINITY), 1.0f / dg.x, dg.x != 0.0f),
+                        select((vfloat)(INFINITY), 1.0f / dg.y, dg.y != 0.0f),
+                        select((vfloat)(INFINITY), 1.0f / dg.z, dg.z != 0.0f)};
+    b.fwd_x = dg.x >= 0.0f;
+    b.fwd_y = dg.y >= 0.0f;
+    b.fwd_z = dg.z >= 0.0f;
+    return b;
+}
+
+static void store_pixels(__global float4 *image, __global uint *samples, int row, vint px,
+                         int width, rgba8 acc, vint taken)
+{
+    float r[8], g[8], b[8], a[8];
+    int px_[8], taken_[8];
+    vstore8(acc.r, 0, r);
+    vstore8(acc.g, 0, g);
+    vstore8(acc.b, 0, b);
+    vstore8(acc.a, 0, a);
+    vstore8(px, 0, px_);
+    vstore8(taken, 0, taken_);
+    for (int k = 0; k < RAY_PACKET; k++)
+        if (px_[k] < width) {
+            image[row + px_[k]] = (float4)(r[k], g[k], b[k], a[k]);
+            samples[row + px_[k]] = (uint)taken_[k];
+        }
 }
 
 /* Geometry as render_cpu.c holds it: origin, 1/spacing and the box's upper corner (computed
  * in double on the host). table: rgb + step-corrected alpha; alpha: alpha per unit (for the
- * shorter last segment). Bricks: edge 1 << brick_shift, counts nbx, nby, nbz, skipping on/off. */
+ * shorter last segment). Bricks: edge 1 << brick_shift, counts nbx, nby, nbz, skipping on/off.
+ * Work-item (gx, py) renders pixels RAY_PACKET * gx .. + RAY_PACKET - 1 of row py. */
 __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, int Z,
                       float ox, float oy, float oz, float isx, float isy, float isz,
                       float hx, float hy, float hz,
@@ -157,60 +346,41 @@ __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, 
                       int nbx, int nby, int nbz, int skipping, __global float4 *image,
                       __global uint *samples)
 {
-    int px = get_global_id(0), py = get_global_id(1);
-    if (px >= cam.width || py >= cam.height)
+    int px0 = get_global_id(0) * RAY_PACKET, py = get_global_id(1);
+    if (px0 >= cam.width || py >= cam.height)
         return;
-    float3 eye = (float3)(cam.eye[0], cam.eye[1], cam.eye[2]);
-    float3 f = (float3)(cam.f[0], cam.f[1], cam.f[2]);
-    float3 u = (float3)(cam.u[0], cam.u[1], cam.u[2]);
-    float3 r = (float3)(cam.r[0], cam.r[1], cam.r[2]);
-    float sxn = 2.0f * ((float)px + 0.5f) / (float)cam.width - 1.0f;
-    float syn = 2.0f * ((float)py + 0.5f) / (float)cam.height - 1.0f;
-    float3 o, d;
-    if (cam.orthographic) {
-        o = eye + (sxn * cam.aspect * r - syn * u) * cam.ortho_half_height;
-        d = f;
-    } else {
-        o = eye;
-        d = normalize(f + (sxn * cam.aspect * r - syn * u) * cam.tan_half);
-    }
+    vint px = px0 + (vint)(0, 1, 2, 3, 4, 5, 6, 7);
+    packet p;
+    camera_rays(&cam, px, py, &p);
+    p.hit = px < cam.width;
     float3 origin = (float3)(ox, oy, oz), inv_spacing = (float3)(isx, isy, isz);
-    volume_geo v = {frames + offset, X, Y, Z, (long)X * (long)Y,
-                    (float3)((float)(X - 1), (float)(Y - 1), (float)(Z - 1))};
-    float4 acc = (float4)(0.0f);
-    uint taken = 0;
-    ray_box box;
-    if (intersect_box(o, d, origin, (float3)(hx, hy, hz), &box)) {
-        float L = box.t_far - box.t_near;
-        int n = max((int)ceil(L / step), 1);
-        float3 g0 = (o + (box.t_near + 0.5f * step) * d - origin) * inv_spacing;
-        float3 dg = d * step * inv_spacing;
-        bricks b = {brick_visible, brick_shift, nbx, nby, nbz,
-                    (float3)(dg.x != 0.0f ? 1.0f / dg.x : INFINITY,
-                             dg.y != 0.0f ? 1.0f / dg.y : INFINITY,
-                             dg.z != 0.0f ? 1.0f / dg.z : INFINITY),
-                    dg >= (float3)(0.0f)};
-        int done = march_full(&v, &b, skipping, g0, dg, n - 1, table, term_alpha, &acc, &taken);
-        /* the last segment, shorter than step unless L is a multiple of it */
-        float ts = box.t_near + (float)(n - 1) * step;
-        float ds = box.t_far - ts;
-        if (!done && ds > 0.0f) {
-            taken++;
-            float s = trilinear(&v, (o + (ts + 0.5f * ds) * d - origin) * inv_spacing);
-            int i0 = min((int)s, 254);
-            float fr = s - (float)i0;
-            float4 lo = table[i0], hi = table[i0 + 1];
-            float a = mix(alpha[i0], alpha[i0 + 1], fr);
-            /* pow is costly on CPU devices and most last segments lie in empty space, where
-             * 1 - pow(1, x) is exactly 0 anyway */
-            if (ds >= step)
-                a = mix(lo.w, hi.w, fr);
-            else if (a > 0.0f)
-                a = 1.0f - pow(1.0f - a, ds / unit);
-            if (a > 0.0f)
-                composite(&acc, mix(lo.xyz, hi.xyz, fr), a, term_alpha);
-        }
-    }
-    image[py * cam.width + px] = acc;
-    samples[py * cam.width + px] = taken;
+    intersect_box(&p, origin, (float3)(hx, hy, hz));
+    /* lanes that miss get an empty, well-defined segment (their t values may be inf/NaN) */
+    p.t_near = select((vfloat)(0.0f), p.t_near, p.hit);
+    p.t_far = select((vfloat)(0.0f), p.t_far, p.hit);
+    vint n = max(convert_int8(ceil((p.t_far - p.t_near) / step)), 1);
+    vfloat t0 = p.t_near + 0.5f * step;
+    vec3x8 g0 = {(p.o.x + t0 * p.d.x - origin.x) * inv_spacing.x,
+                 (p.o.y + t0 * p.d.y - origin.y) * inv_spacing.y,
+                 (p.o.z + t0 * p.d.z - origin.z) * inv_spacing.z};
+    g0.x = select((vfloat)(0.0f), g0.x, p.hit);
+    g0.y = select((vfloat)(0.0f), g0.y, p.hit);
+    g0.z = select((vfloat)(0.0f), g0.z, p.hit);
+    vec3x8 dg = {select((vfloat)(0.0f), p.d.x * step * inv_spacing.x, p.hit),
+                 select((vfloat)(0.0f), p.d.y * step * inv_spacing.y, p.hit),
+                 select((vfloat)(0.0f), p.d.z * step * inv_spacing.z, p.hit)};
+    volume_geo v = make_geo(frames + offset, X, Y, Z);
+    bricks b = make_bricks(brick_visible, brick_shift, nbx, nby, nbz, dg);
+    march m;
+    m.i = (vint)(0);
+    m.n_full = select((vint)(0), n - 1, p.hit);
+    m.end = skipping ? (vint)(0) : m.n_full;
+    m.active = p.hit & (m.n_full > 0);
+    m.done = (vint)(0);
+    m.taken = (vint)(0);
+    rgba8 acc = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
+    march_full(&m, skipping, &b, &v, g0, dg, table, term_alpha, &acc);
+    last_segment(&p, n, p.hit & ~m.done, step, unit, &v, origin, inv_spacing, table, alpha,
+                 &acc, &m.taken);
+    store_pixels(image, samples, py * cam.width, px, cam.width, acc, m.taken);
 }
