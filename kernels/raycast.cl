@@ -99,25 +99,60 @@ static vfloat gather8(__global const uchar *p, vlong idx)
                                    p[idx.s5], p[idx.s6], p[idx.s7]));
 }
 
-/* render.h step 3 at grid position g (clamped here). The lower corner stays at most dims - 2
- * so the upper one is always inside: at g == dims - 1 that weights the upper voxel by 1,
- * which is the clamped upper index of render.h. */
+/* Clamped grid position -> lower trilinear corner, at most dims - 2 so the upper corner is
+ * always inside (at g == dims - 1 the upper voxel gets weight 1: the clamped index of
+ * render.h); *frac gets the weight of the upper corner. */
+static vint corner(vfloat g, float top, int base_max, vfloat *frac)
+{
+    g = clamp(g, 0.0f, top);
+    vint i0 = min(convert_int8(g), base_max);
+    *frac = g - convert_float8(i0);
+    return i0;
+}
+
+#ifdef __ENDIAN_LITTLE__
+/* Voxels x0 and x0 + 1 of a row in one 16-bit load: low byte x0. */
+static ushort pair_at(__global const uchar *q)
+{
+    return as_ushort(vload2(0, q));
+}
+
+#define PAIRS8(p, base, off)                                                                   \
+    (ushort8)(pair_at(p + base.s0 + off), pair_at(p + base.s1 + off), pair_at(p + base.s2 + off), \
+              pair_at(p + base.s3 + off), pair_at(p + base.s4 + off), pair_at(p + base.s5 + off), \
+              pair_at(p + base.s6 + off), pair_at(p + base.s7 + off))
+
+static vfloat lerp_pairs(ushort8 w, vfloat fx)
+{
+    return mix(convert_float8(w & (ushort)0xff), convert_float8(w >> (ushort)8), fx);
+}
+#endif
+
+/* render.h step 3 at grid position g (clamped here). */
 static vfloat trilinear(const volume_geo *v, vec3x8 g)
 {
-    vint x0 = min(convert_int8(clamp(g.x, 0.0f, v->top.x)), v->base_max.x);
-    vint y0 = min(convert_int8(clamp(g.y, 0.0f, v->top.y)), v->base_max.y);
-    vint z0 = min(convert_int8(clamp(g.z, 0.0f, v->top.z)), v->base_max.z);
-    vfloat fx = clamp(g.x, 0.0f, v->top.x) - convert_float8(x0);
-    vfloat fy = clamp(g.y, 0.0f, v->top.y) - convert_float8(y0);
-    vfloat fz = clamp(g.z, 0.0f, v->top.z) - convert_float8(z0);
+    vfloat fx, fy, fz;
+    vint x0 = corner(g.x, v->top.x, v->base_max.x, &fx);
+    vint y0 = corner(g.y, v->top.y, v->base_max.y, &fy);
+    vint z0 = corner(g.z, v->top.z, v->base_max.z, &fz);
     vlong base = convert_long8(x0) + v->stride.y * convert_long8(y0) +
                  v->stride.z * convert_long8(z0);
     long sx = v->stride.x, sy = v->stride.y, sz = v->stride.z;
     __global const uchar *p = v->vol;
-    vfloat c00 = mix(gather8(p, base), gather8(p, base + sx), fx);
-    vfloat c10 = mix(gather8(p, base + sy), gather8(p, base + sy + sx), fx);
-    vfloat c01 = mix(gather8(p, base + sz), gather8(p, base + sz + sx), fx);
-    vfloat c11 = mix(gather8(p, base + sz + sy), gather8(p, base + sz + sy + sx), fx);
+    vfloat c00, c10, c01, c11;
+#ifdef __ENDIAN_LITTLE__
+    if (sx == 1) {
+        c00 = lerp_pairs(PAIRS8(p, base, 0), fx);
+        c10 = lerp_pairs(PAIRS8(p, base, sy), fx);
+        c01 = lerp_pairs(PAIRS8(p, base, sz), fx);
+        c11 = lerp_pairs(PAIRS8(p, base, sz + sy), fx);
+        return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
+    }
+#endif
+    c00 = mix(gather8(p, base), gather8(p, base + sx), fx);
+    c10 = mix(gather8(p, base + sy), gather8(p, base + sy + sx), fx);
+    c01 = mix(gather8(p, base + sz), gather8(p, base + sz + sx), fx);
+    c11 = mix(gather8(p, base + sz + sy), gather8(p, base + sz + sy + sx), fx);
     return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
 }
 
