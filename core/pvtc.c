@@ -352,6 +352,17 @@ static void row_job_init(const chunk_layout *lay, const uint8_t *ep, const uint8
                               X * 4 * by;
 }
 
+/* Advances job past its first n blocks (AVX2 leaves up to seven for SSSE3's groups of four). */
+static void row_job_skip(pvtc_row_job *job, size_t n)
+{
+    job->endpoints += 4 * n;
+    job->words += 4 * (size_t)job->S * n;
+    job->nblocks -= n;
+    for (int zi = 0; zi < job->S; zi++)
+        for (int c = 0; c < job->nch; c++)
+            job->dst[zi][c] += 4 * n;
+}
+
 /* Decodes one row of blocks (ep, idx: its first block) with the given path: blocks wholly
  * inside the volume go to the fast paths, the rest to the reference. */
 static void decode_row(const chunk_layout *lay, const uint8_t *ep, const uint8_t *idx, size_t by,
@@ -362,10 +373,12 @@ static void decode_row(const chunk_layout *lay, const uint8_t *ep, const uint8_t
     if (path != PVTC_DECODE_REFERENCE && (bz + 1) * lay->zdepth <= lay->dims[2] &&
         y0 + 4 <= lay->dims[1]) {
         x_inside = lay->dims[0] / 4;
-        if (path == PVTC_DECODE_SSSE3) {
+        if (path == PVTC_DECODE_SSSE3 || path == PVTC_DECODE_AVX2) {
             pvtc_row_job job;
             row_job_init(lay, ep, idx, by, bz, frames, nch, &job);
-            done = pvtc_decode_row_ssse3(&job);
+            done = path == PVTC_DECODE_AVX2 ? pvtc_decode_row_avx2(&job) : 0;
+            row_job_skip(&job, done);
+            done += pvtc_decode_row_ssse3(&job);
         }
     }
     uint8_t pal[3][4];
@@ -405,14 +418,15 @@ static cdvr_status check_decode_args(const chunk_layout *lay, const cdvr_pvtc_pa
 
 static cdvr_status resolve_path(pvtc_decode_path *path, cdvr_error *err)
 {
-    int ssse3 = pvtc_ssse3_available();
+    int ssse3 = pvtc_ssse3_available(), avx2 = ssse3 && pvtc_avx2_available();
     if (*path == PVTC_DECODE_AUTO)
-        *path = ssse3 ? PVTC_DECODE_SSSE3 : PVTC_DECODE_PORTABLE;
-    else if (*path == PVTC_DECODE_SSSE3 && !ssse3)
+        *path = avx2 ? PVTC_DECODE_AVX2 : ssse3 ? PVTC_DECODE_SSSE3 : PVTC_DECODE_PORTABLE;
+    else if ((*path == PVTC_DECODE_SSSE3 && !ssse3) || (*path == PVTC_DECODE_AVX2 && !avx2))
         return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED,
-                              "pvtc decode: the SSSE3 path is not available on this CPU or build");
+                              "pvtc decode: the %s path is not available on this CPU or build",
+                              *path == PVTC_DECODE_AVX2 ? "AVX2" : "SSSE3");
     else if (*path != PVTC_DECODE_REFERENCE && *path != PVTC_DECODE_PORTABLE &&
-             *path != PVTC_DECODE_SSSE3)
+             *path != PVTC_DECODE_SSSE3 && *path != PVTC_DECODE_AVX2)
         return cdvr_error_set(err, CDVR_ERR_ARG, "pvtc decode: unknown path %d", (int)*path);
     return CDVR_OK;
 }

@@ -48,12 +48,14 @@ uint32_t pvtc_encode_block_lsq(const pvtc_block *blk, pvtc_code *code);
 
 /* ---- decoder paths ------------------------------------------------------------------------
  * The reference decoder (one voxel at a time, pvtc.c) is the definition; the portable
- * (64-bit SWAR) and SSSE3 paths must be bit-exact with it. AUTO picks the fastest available. */
+ * (64-bit SWAR), SSSE3 and AVX2 paths must be bit-exact with it. AUTO picks the fastest
+ * available. */
 typedef enum pvtc_decode_path {
     PVTC_DECODE_AUTO = 0,
     PVTC_DECODE_REFERENCE,
     PVTC_DECODE_PORTABLE,
-    PVTC_DECODE_SSSE3
+    PVTC_DECODE_SSSE3,
+    PVTC_DECODE_AVX2
 } pvtc_decode_path;
 
 /* cdvr_pvtc_decode_chunk with a chosen path; CDVR_ERR_UNSUPPORTED if this CPU or build lacks
@@ -76,5 +78,8 @@ typedef struct pvtc_row_job {
 int pvtc_ssse3_available(void);
 /* Decodes the leading blocks of the row in groups of four; returns how many it decoded. */
 size_t pvtc_decode_row_ssse3(const pvtc_row_job *job);
+int pvtc_avx2_available(void);
+/* Decodes the leading blocks of the row in groups of eight; returns how many it decoded. */
+size_t pvtc_decode_row_avx2(const pvtc_row_job *job);
 
 #endif

@@ -21,7 +21,7 @@ int pvtc_ssse3_available(void)
  * x / 3 == (x * 0xAAAB) >> 17 for every x < 2^17; here x <= 766. */
 static PVTC_SSSE3 __m128i palettes_from_pairs(__m128i ab)
 {
-    const int swap_pairs = _MM_SHUFFLE(2, 3, 0, 1);
+    enum { swap_pairs = _MM_SHUFFLE(2, 3, 0, 1) }; /* a constant expression for clang too */
     __m128i ba = _mm_shufflehi_epi16(_mm_shufflelo_epi16(ab, swap_pairs), swap_pairs);
     __m128i num = _mm_add_epi16(_mm_add_epi16(ab, ab), _mm_add_epi16(ba, _mm_set1_epi16(1)));
     __m128i third = _mm_srli_epi16(_mm_mulhi_epu16(num, _mm_set1_epi16((short)0xAAAB)), 1);

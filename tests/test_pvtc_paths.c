@@ -1,6 +1,6 @@
-/* tests/test_pvtc_paths.c - the fast PVTC decoders (portable SWAR, SSSE3) are bit-exact with
+/* tests/test_pvtc_paths.c - the fast PVTC decoders (portable SWAR, SSSE3, AVX2) are bit-exact with
  * the reference decoder on random chunks of every variant, odd dims (groups of four blocks,
- * leftovers and cropped edges), and every frame count; untouched output stays untouched. */
+ * groups of eight with SSSE3 leftovers, cropped edges), and every frame count; untouched output stays untouched. */
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -16,13 +16,15 @@ static const cdvr_pvtc_params VARIANTS[8] = {
     {4, 2, CDVR_PACK_TIME},  {1, 3, CDVR_PACK_SPACE}, {1, 2, CDVR_PACK_SPACE},
     {4, 3, CDVR_PACK_SPACE}, {4, 2, CDVR_PACK_SPACE}};
 
-/* x: no whole block, one group, group + leftover, two groups + edge, four groups; y and z
+/* x (blocks): none whole, one group of four, four + leftover, 4 + 4 + edge (AVX2: 8 + edge),
+ * 5 (AVX2 nothing, SSSE3 4 + 1), 8 + 4 + 1 + edge, 16 (two AVX2 groups), 25 + edge; y and z
  * with and without padding for S and S*T. */
-static const size_t DIMS[][3] = {{1, 1, 1},  {5, 3, 7},   {9, 8, 13}, {17, 4, 12},
-                                 {20, 12, 8}, {35, 9, 26}, {64, 8, 24}, {16, 16, 5}};
+static const size_t DIMS[][3] = {{1, 1, 1},   {5, 3, 7},    {9, 8, 13},  {17, 4, 12},
+                                 {20, 12, 8}, {35, 9, 26},  {64, 8, 24}, {16, 16, 5},
+                                 {54, 8, 12}, {102, 5, 24}};
 #define NDIMS (sizeof DIMS / sizeof DIMS[0])
 
-static const char *const PATH_NAME[] = {"auto", "reference", "portable", "ssse3"};
+static const char *const PATH_NAME[] = {"auto", "reference", "portable", "ssse3", "avx2"};
 
 typedef struct decoded {
     uint8_t *buf; /* 3 frames */
@@ -74,7 +76,7 @@ static void compare_path(const cdvr_pvtc_params *p, const size_t dims[3], const 
 }
 
 static void test_variant_dims(const cdvr_pvtc_params *p, const size_t dims[3], uint32_t *seed,
-                              int have_ssse3)
+                              int have_ssse3, int have_avx2)
 {
     cdvr_pvtc_geometry g;
     cdvr_error err;
@@ -100,30 +102,33 @@ static void test_variant_dims(const cdvr_pvtc_params *p, const size_t dims[3], u
         compare_path(p, dims, chunk, g.chunk_bytes, nframes, &ref, PVTC_DECODE_AUTO);
         if (have_ssse3)
             compare_path(p, dims, chunk, g.chunk_bytes, nframes, &ref, PVTC_DECODE_SSSE3);
+        if (have_avx2)
+            compare_path(p, dims, chunk, g.chunk_bytes, nframes, &ref, PVTC_DECODE_AVX2);
         free(ref.buf);
     }
     free(chunk);
 }
 
 /* Every path against hand-computed voxels, so that the comparison cannot pass with every
- * path equally wrong: four S1T3 blocks in a row (one SSSE3 group), each U = 0xFC10
- * (255, 130, 132), D = 0, row 0 indices 0 1 2 3 -> channel 0 values 255 170 85 0, row 1
- * index 0. */
+ * path equally wrong: eight S1T3 blocks in a row (one AVX2 group, two SSSE3 groups), each
+ * U = 0xFC10 (255, 130, 132), D = 0, row 0 indices 0 1 2 3 -> channel 0 values 255 170 85 0,
+ * row 1 index 0. */
 static void test_hand_computed(void)
 {
+    enum { NBLOCKS = 8, X = 4 * NBLOCKS };
     const cdvr_pvtc_params p = {1, 3, CDVR_PACK_TIME};
-    const size_t dims[3] = {16, 4, 1};
+    const size_t dims[3] = {X, 4, 1};
     const uint8_t endpoints[4] = {0x10, 0xFC, 0x00, 0x00}, word[4] = {0xE4, 0x00, 0x00, 0x00};
     const uint8_t row0[3][4] = {{255, 170, 85, 0}, {130, 87, 43, 0}, {132, 88, 44, 0}};
-    uint8_t chunk[32];
-    for (int k = 0; k < 4; k++) {
+    uint8_t chunk[8 * NBLOCKS];
+    for (int k = 0; k < NBLOCKS; k++) {
         memcpy(chunk + 4 * k, endpoints, 4);
-        memcpy(chunk + 16 + 4 * k, word, 4);
+        memcpy(chunk + 4 * NBLOCKS + 4 * k, word, 4);
     }
-    for (int path = PVTC_DECODE_REFERENCE; path <= PVTC_DECODE_SSSE3; path++) {
+    for (int path = PVTC_DECODE_REFERENCE; path <= PVTC_DECODE_AVX2; path++) {
         decoded out;
         cdvr_error err;
-        if (!decoded_init(&out, 64))
+        if (!decoded_init(&out, 4 * X))
             return;
         cdvr_status st = pvtc_decode_chunk_path(&p, dims, chunk, sizeof chunk, out.frames, 3,
                                                 (pvtc_decode_path)path, &err);
@@ -133,9 +138,9 @@ static void test_hand_computed(void)
         }
         CHECK_OK(st, err);
         for (int c = 0; c < 3; c++)
-            for (int k = 0; k < 4; k++) {
+            for (int k = 0; k < NBLOCKS; k++) {
                 const uint8_t *v = out.frames[c] + 4 * k;
-                CHECK(memcmp(v, row0[c], 4) == 0 && v[16] == row0[c][0] && v[19] == row0[c][0],
+                CHECK(memcmp(v, row0[c], 4) == 0 && v[X] == row0[c][0] && v[X + 3] == row0[c][0],
                       "%s path: channel %d block %d row 0 is %d %d %d %d", PATH_NAME[path], c, k,
                       v[0], v[1], v[2], v[3]);
             }
@@ -159,12 +164,15 @@ static void test_bad_path(void)
 int main(void)
 {
     int have_ssse3 = pvtc_ssse3_available();
+    int have_avx2 = pvtc_avx2_available();
     if (!have_ssse3)
         printf("SSSE3 path not available here: portable and reference compared only\n");
+    if (!have_avx2)
+        printf("AVX2 path not available here: not compared\n");
     uint32_t seed = 77u;
     for (int v = 0; v < 8; v++)
         for (size_t d = 0; d < NDIMS; d++)
-            test_variant_dims(&VARIANTS[v], DIMS[d], &seed, have_ssse3);
+            test_variant_dims(&VARIANTS[v], DIMS[d], &seed, have_ssse3, have_avx2);
     test_hand_computed();
     test_bad_path();
     return check_finish();
