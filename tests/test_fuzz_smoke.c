@@ -1,0 +1,344 @@
+/* tests/test_fuzz_smoke.c - runs the libFuzzer targets of tests/fuzz/ (store reader, PVTC
+ * chunk decoder, LZO stage 2, NRRD/NIfTI/raw loaders) without libFuzzer: a deterministic
+ * corpus of valid inputs built here, then thousands of seeded mutations of each (bit flips,
+ * byte sets, truncations, insertions, copies). In the sanitizer build any out-of-bounds access
+ * fails the test; in every build a target's differential check (FUZZ_ASSERT) aborts it. */
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "check.h"
+#include "cdvr/pvtc.h"
+#include "cdvr/store.h"
+#include "cdvr/volume.h"
+
+#define LLVMFuzzerTestOneInput fuzz_store_input
+#include "fuzz/fuzz_store.c"
+#undef LLVMFuzzerTestOneInput
+#define LLVMFuzzerTestOneInput fuzz_pvtc_input
+#include "fuzz/fuzz_pvtc.c"
+#undef LLVMFuzzerTestOneInput
+#define LLVMFuzzerTestOneInput fuzz_lzo_input
+#include "fuzz/fuzz_lzo.c"
+#undef LLVMFuzzerTestOneInput
+#define LLVMFuzzerTestOneInput fuzz_load_input
+#include "fuzz/fuzz_load.c"
+#undef LLVMFuzzerTestOneInput
+
+typedef int (*fuzz_target)(const uint8_t *data, size_t size);
+
+typedef struct bytes {
+    uint8_t *p;
+    size_t n, cap;
+} bytes;
+
+static int bytes_append(bytes *b, const void *src, size_t n)
+{
+    if (b->n + n > b->cap) {
+        size_t cap = 2 * (b->n + n) + 64;
+        uint8_t *p = realloc(b->p, cap);
+        if (!p)
+            return 0;
+        b->p = p;
+        b->cap = cap;
+    }
+    if (n)
+        memcpy(b->p + b->n, src, n);
+    b->n += n;
+    return 1;
+}
+
+static uint32_t rng_next(uint32_t *state)
+{
+    *state ^= *state << 13;
+    *state ^= *state >> 17;
+    *state ^= *state << 5;
+    return *state;
+}
+
+/* One random edit of m (which has room for 64 more bytes than m->n). Truncations are rare so
+ * that most mutants keep their size fields consistent and reach the parsers' later checks. */
+static void mutate_once(bytes *m, uint32_t *rng)
+{
+    static const uint8_t interesting[] = {0, 1, 2, 3, 4, 0x7f, 0x80, 0xfe, 0xff};
+    size_t n = m->n, at = n ? rng_next(rng) % n : 0;
+    uint32_t op = rng_next(rng) % 20;
+    if (op == 0) { /* truncation */
+        m->n = at;
+    } else if (op <= 2) { /* insertion of up to 16 random bytes */
+        size_t k = 1 + rng_next(rng) % 16;
+        if (n + k > m->cap)
+            return;
+        memmove(m->p + at + k, m->p + at, n - at);
+        for (size_t i = 0; i < k; i++)
+            m->p[at + i] = (uint8_t)rng_next(rng);
+        m->n = n + k;
+    } else if (op <= 5) { /* copy of up to 8 bytes inside the input (moves size fields) */
+        size_t from = n ? rng_next(rng) % n : 0, k = 1 + rng_next(rng) % 8;
+        for (size_t i = 0; i < k && from + i < n && at + i < n; i++)
+            m->p[at + i] = m->p[from + i];
+    } else if (n && op <= 11) { /* bit flip */
+        m->p[at] ^= (uint8_t)(1u << (rng_next(rng) % 8));
+    } else if (n && op <= 15) { /* interesting byte */
+        m->p[at] = interesting[rng_next(rng) % sizeof interesting];
+    } else if (n) { /* random byte */
+        m->p[at] = (uint8_t)rng_next(rng);
+    }
+}
+
+/* With CDVR_FUZZ_SEED_DIR set, the seed is also written there as NAME_N (libFuzzer corpus
+ * directories NAME/, see tests/fuzz/README). */
+static void save_seed(const char *name, const bytes *seed)
+{
+    static int counter = 0;
+    const char *dir = getenv("CDVR_FUZZ_SEED_DIR");
+    char path[512];
+    if (!dir || !*dir || snprintf(path, sizeof path, "%s/%s/seed_%d", dir, name, counter++) >=
+                             (int)sizeof path)
+        return;
+    FILE *f = fopen(path, "wb");
+    CHECK(f && fwrite(seed->p, 1, seed->n, f) == seed->n, "cannot write %s", path);
+    if (f)
+        fclose(f);
+}
+
+/* Runs target on seed, then on `count` mutations of it (1..4 edits each). keep_first: that
+ * many leading bytes (mode/selector bytes) are restored after mutating, so that every mode is
+ * driven deliberately rather than by chance. */
+static void fuzz_seed(const char *name, fuzz_target target, const bytes *seed, size_t count,
+                      size_t keep_first, uint32_t rng)
+{
+    save_seed(name, seed);
+    bytes m = {malloc(seed->n + 64), 0, seed->n + 64};
+    if (!m.p) {
+        CHECK(0, "out of memory");
+        return;
+    }
+    target(seed->p, seed->n);
+    for (size_t i = 0; i < count; i++) {
+        memcpy(m.p, seed->p, seed->n);
+        m.n = seed->n;
+        int edits = 1 + (int)(rng_next(&rng) % 4);
+        for (int e = 0; e < edits; e++)
+            mutate_once(&m, &rng);
+        if (m.n >= keep_first)
+            memcpy(m.p, seed->p, keep_first);
+        target(m.p, m.n);
+    }
+    free(m.p);
+    CHECK(1, "ran");
+}
+
+/* ---- corpus ---------------------------------------------------------------------------- */
+
+/* A smooth 10x7x5 series of 5 timesteps with a constant region (LZO pays on it). */
+static cdvr_volume *make_series(void)
+{
+    const size_t dims[3] = {10, 7, 5};
+    cdvr_volume *vol = NULL;
+    cdvr_error err;
+    if (cdvr_volume_create(dims, 5, CDVR_TYPE_U8, &vol, &err) != CDVR_OK)
+        return NULL;
+    uint8_t *v = vol->data;
+    for (size_t t = 0; t < 5; t++)
+        for (size_t z = 0; z < 5; z++)
+            for (size_t y = 0; y < 7; y++)
+                for (size_t x = 0; x < 10; x++)
+                    *v++ = (uint8_t)(x < 4 ? 40 : 20 * x + 9 * y + 5 * z + 7 * t);
+    return vol;
+}
+
+/* Store seed: mode byte + a store with four variants (two with LZO, one raw). */
+static int make_store_seed(bytes *seed, uint8_t mode)
+{
+    cdvr_variant_spec specs[4];
+    memset(specs, 0, sizeof specs);
+    specs[0] = (cdvr_variant_spec){"", CDVR_CODEC_PVTC, {1, 3, CDVR_PACK_TIME}, CDVR_ENCODER_BBOX,
+                                   CDVR_STAGE2_LZO, 0.0};
+    specs[1] = (cdvr_variant_spec){"", CDVR_CODEC_PVTC, {4, 2, CDVR_PACK_SPACE},
+                                   CDVR_ENCODER_BBOX, CDVR_STAGE2_LZO, 0.0};
+    specs[2] = (cdvr_variant_spec){"", CDVR_CODEC_RAW, {0, 0, CDVR_PACK_TIME}, CDVR_ENCODER_LSQ,
+                                   CDVR_STAGE2_LZO, 0.0};
+    specs[3] = (cdvr_variant_spec){"", CDVR_CODEC_PVTC, {4, 3, CDVR_PACK_TIME},
+                                   CDVR_ENCODER_BBOX, CDVR_STAGE2_NONE, -1.0};
+    cdvr_encode_opts opts = {.variants = specs, .nvariants = 4, .qlo = 0, .qhi = 1,
+                             .source_type = CDVR_TYPE_U8};
+    cdvr_volume *vol = make_series();
+    char path[256];
+    cdvr_error err;
+    int ok = vol && fuzz_write_temp(NULL, 0, ".cdv", path);
+    cdvr_status st = ok ? cdvr_store_encode(vol, &opts, path, &err) : CDVR_ERR_NOMEM;
+    CHECK_OK(st, err);
+    cdvr_volume_free(vol);
+    if (!ok)
+        return 0;
+    FILE *f = st == CDVR_OK ? fopen(path, "rb") : NULL;
+    uint8_t buf[4096];
+    size_t got;
+    ok = f && bytes_append(seed, &mode, 1);
+    while (ok && (got = fread(buf, 1, sizeof buf, f)) > 0)
+        ok = bytes_append(seed, buf, got);
+    if (f)
+        fclose(f);
+    /* the seed is what the store target wants: it opens, LZO chunks included */
+    cdvr_store *opened = NULL;
+    if (ok && cdvr_store_open(path, &opened, &err) == CDVR_OK) {
+        size_t lzo_chunks = 0;
+        for (size_t v = 0; v < 4; v++)
+            for (size_t c = 0; c < cdvr_store_variant(opened, v)->nchunks; c++)
+                lzo_chunks += (size_t)cdvr_store_chunk(opened, v, c)->stage2;
+        CHECK(cdvr_store_get_info(opened)->nvariants == 4 && lzo_chunks > 0,
+              "store seed: %zu variants, %zu LZO chunks", cdvr_store_get_info(opened)->nvariants,
+              lzo_chunks);
+        cdvr_store_close(opened);
+    } else {
+        CHECK(0, "store seed does not open: %s", ok ? err.msg : "no bytes");
+    }
+    unlink(path);
+    return ok;
+}
+
+/* PVTC seed: header bytes for (params, dims) + an encoded chunk of make_series' first frames. */
+static int make_pvtc_seed(bytes *seed, uint8_t param_bits, uint8_t path)
+{
+    const cdvr_pvtc_params p = {param_bits & 1 ? 4 : 1, param_bits & 2 ? 3 : 2,
+                                param_bits & 4 ? CDVR_PACK_SPACE : CDVR_PACK_TIME};
+    cdvr_volume *vol = make_series();
+    cdvr_pvtc_geometry g;
+    cdvr_error err;
+    int ok = vol && cdvr_pvtc_geometry_get(&p, vol->dims, &g, &err) == CDVR_OK;
+    uint8_t *chunk = ok ? malloc(g.chunk_bytes) : NULL;
+    const uint8_t *frames[3];
+    for (size_t f = 0; ok && f < 3; f++)
+        frames[f] = cdvr_volume_frame(vol, f);
+    ok = chunk && cdvr_pvtc_encode_chunk(&p, CDVR_ENCODER_LSQ, vol->dims, frames, chunk, &err) ==
+                      CDVR_OK;
+    uint8_t nframes = p.pack == CDVR_PACK_SPACE ? 1 : (uint8_t)p.T;
+    uint8_t head[5] = {(uint8_t)(param_bits | path << 3 | nframes << 6), (uint8_t)vol->dims[0] - 1,
+                       (uint8_t)vol->dims[1] - 1, (uint8_t)vol->dims[2] - 1, 1};
+    ok = ok && bytes_append(seed, head, 5) && bytes_append(seed, chunk, g.chunk_bytes);
+    CHECK(ok, "pvtc seed %d", param_bits);
+    free(chunk);
+    cdvr_volume_free(vol);
+    return ok;
+}
+
+static int make_lzo_seed(bytes *seed)
+{
+    cdvr_volume *vol = make_series();
+    size_t n = vol ? cdvr_volume_frame_bytes(vol) * 2 : 0, packed_n = 0;
+    uint8_t *packed = vol ? malloc(cdvr_lzo_bound(n)) : NULL;
+    cdvr_error err;
+    uint8_t head[2] = {(uint8_t)n, (uint8_t)(n >> 8)};
+    int ok = packed && cdvr_lzo_compress(vol->data, n, packed, cdvr_lzo_bound(n), &packed_n,
+                                         &err) == CDVR_OK &&
+             bytes_append(seed, head, 2) && bytes_append(seed, packed, packed_n);
+    CHECK(ok && packed_n < n, "lzo seed: %zu -> %zu bytes", n, packed_n);
+    free(packed);
+    cdvr_volume_free(vol);
+    return ok;
+}
+
+static int make_nrrd_seed(bytes *seed)
+{
+    const char header[] = "NRRD0004\ntype: int16\ndimension: 4\nsizes: 3 4 2 2\n"
+                          "kinds: space space space time\nspace dimension: 3\n"
+                          "space directions: (1.5,0,0) (0,1,0) (0,0,2) none\n"
+                          "space origin: (1,2,3)\nendian: little\n"
+                          "encoding: raw\n\n";
+    uint8_t sel = 0, data[96];
+    for (int i = 0; i < 96; i++)
+        data[i] = (uint8_t)(i * 37);
+    return bytes_append(seed, &sel, 1) && bytes_append(seed, header, sizeof header - 1) &&
+           bytes_append(seed, data, sizeof data);
+}
+
+/* A NIfTI-1 single file: 348-byte header, 4 bytes of extension flags, int16 voxels 3x2x2x2. */
+static int make_nifti_seed(bytes *seed, uint8_t sel)
+{
+    uint8_t hdr[352] = {0}, data[48];
+    const int16_t dim[8] = {4, 3, 2, 2, 2, 1, 1, 1};
+    const float pixdim[8] = {1, 1.5f, 2, 2.5f, 1, 1, 1, 1}, vox_offset = 352, slope = 1;
+    fuzz_put_le(hdr, 348, 4);
+    for (int i = 0; i < 8; i++)
+        fuzz_put_le(hdr + 40 + 2 * i, (uint16_t)dim[i], 2);
+    fuzz_put_le(hdr + 70, 4, 2);  /* datatype int16 */
+    fuzz_put_le(hdr + 72, 16, 2); /* bitpix */
+    memcpy(hdr + 76, pixdim, sizeof pixdim);
+    memcpy(hdr + 108, &vox_offset, 4);
+    memcpy(hdr + 112, &slope, 4);
+    memcpy(hdr + 344, "n+1", 4);
+    for (int i = 0; i < 48; i++)
+        data[i] = (uint8_t)(i * 29 + 3);
+    return bytes_append(seed, &sel, 1) && bytes_append(seed, hdr, sizeof hdr) &&
+           bytes_append(seed, data, sizeof data);
+}
+
+static int make_raw_seed(bytes *seed)
+{
+    /* selector 5, dims 5x3x2, type u16 (1), little endian, 4 header bytes, 2 timesteps */
+    const uint8_t head[9] = {5, 4, 2, 1, 1, 0, 4, 2, 16};
+    uint8_t data[4 + 2 * 5 * 3 * 2 * 2];
+    for (size_t i = 0; i < sizeof data; i++)
+        data[i] = (uint8_t)(i * 13);
+    return bytes_append(seed, head, sizeof head) && bytes_append(seed, data, sizeof data);
+}
+
+/* The seeds themselves load: the loader target is not rejecting everything up front. */
+static void check_loader_seed(const bytes *seed, const char *suffix, size_t skip, size_t timesteps)
+{
+    char path[256];
+    cdvr_volume *vol = NULL;
+    cdvr_error err;
+    cdvr_raw_opts opts;
+    if (skip == 9)
+        load_raw_opts(seed->p + 1, &opts);
+    if (!fuzz_write_temp(seed->p + skip, seed->n - skip, suffix, path)) {
+        CHECK(0, "cannot write %s seed", suffix);
+        return;
+    }
+    cdvr_status st = cdvr_volume_load(path, skip == 9 ? &opts : NULL, &vol, &err);
+    CHECK_OK(st, err);
+    if (st == CDVR_OK)
+        CHECK(vol->timesteps == timesteps, "%s seed: %zu timesteps", suffix, vol->timesteps);
+    cdvr_volume_free(vol);
+    unlink(path);
+}
+
+int main(void)
+{
+    bytes seed = {0};
+    for (uint8_t mode = 0; mode < 4; mode++) {
+        seed.n = 0;
+        if (make_store_seed(&seed, mode))
+            fuzz_seed("store", fuzz_store_input, &seed, 600, 1, 1000u + mode);
+    }
+    for (uint8_t bits = 0; bits < 8; bits++) {
+        seed.n = 0;
+        if (make_pvtc_seed(&seed, bits, (uint8_t)(bits % 5)))
+            fuzz_seed("pvtc", fuzz_pvtc_input, &seed, 300, 1, 2000u + bits);
+    }
+    seed.n = 0;
+    if (make_lzo_seed(&seed))
+        fuzz_seed("lzo", fuzz_lzo_input, &seed, 2000, 0, 3000u);
+    seed.n = 0;
+    if (make_nrrd_seed(&seed)) {
+        check_loader_seed(&seed, ".nrrd", 1, 2);
+        fuzz_seed("load", fuzz_load_input, &seed, 1500, 1, 4000u);
+    }
+    for (uint8_t sel = 2; sel <= 4; sel++) {
+        seed.n = 0;
+        if (make_nifti_seed(&seed, sel)) {
+            if (sel == 2)
+                check_loader_seed(&seed, ".nii", 1, 2);
+            fuzz_seed("load", fuzz_load_input, &seed, 700, 1, 5000u + sel);
+        }
+    }
+    seed.n = 0;
+    if (make_raw_seed(&seed)) {
+        check_loader_seed(&seed, ".raw", 9, 2);
+        fuzz_seed("load", fuzz_load_input, &seed, 1000, 1, 6000u);
+    }
+    free(seed.p);
+    return check_finish();
+}
