@@ -45,6 +45,8 @@ struct cdvr_cl_stream {
     cdvr_tf tf;                  /* TF of the last setup */
     size_t setup_frame;          /* frame of the last setup, (size_t)-1 for none */
     size_t bricks_visible;
+    cl_float visible_lo[3];      /* grid box holding every visible brick (lower corner of its */
+    cl_float visible_hi[3];      /* bricks, +-inf at the grid's faces); lo > hi: none visible */
     int skipping;
     uint64_t last_samples;
 };

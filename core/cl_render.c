@@ -1,6 +1,7 @@
 /* core/cl_render.c - per-frame setup (b4: TF, brick visibility) and ray casting (b5). */
 #include <limits.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -90,6 +91,33 @@ static void chessboard_distance(const unsigned char *seed, unsigned char *dist, 
     chessboard_pass(dist, n, -1);
 }
 
+/* Grid-coordinate box around the visible bricks: samples outside it lie in invisible bricks.
+ * A face on the grid's border is moved to infinity, since samples beyond the volume are
+ * clamped into the border bricks. */
+static void visible_box(cdvr_cl_stream *s, const unsigned char *visible)
+{
+    size_t lo[3] = {SIZE_MAX, SIZE_MAX, SIZE_MAX}, hi[3] = {0, 0, 0};
+    const size_t *n = s->brick_dims;
+    for (size_t b = 0; b < s->nbricks; b++) {
+        if (!visible[b])
+            continue;
+        size_t at[3] = {b % n[0], b / n[0] % n[1], b / (n[0] * n[1])};
+        for (int a = 0; a < 3; a++) {
+            lo[a] = at[a] < lo[a] ? at[a] : lo[a];
+            hi[a] = at[a] > hi[a] ? at[a] : hi[a];
+        }
+    }
+    for (int a = 0; a < 3; a++) {
+        if (lo[a] == SIZE_MAX) { /* nothing visible: an empty box */
+            s->visible_lo[a] = INFINITY;
+            s->visible_hi[a] = -INFINITY;
+            continue;
+        }
+        s->visible_lo[a] = lo[a] == 0 ? -INFINITY : (cl_float)(lo[a] * CDVR_CL_BRICK);
+        s->visible_hi[a] = hi[a] + 1 == n[a] ? INFINITY : (cl_float)((hi[a] + 1) * CDVR_CL_BRICK);
+    }
+}
+
 /* Per brick, one byte for the ray caster's walk: invisible bricks (no value of [min, max] has
  * alpha > 0) store their distance d to the nearest visible brick (the cube of bricks within
  * d - 1 is empty and is jumped in one step); visible bricks store 128 + d, d the distance to
@@ -108,6 +136,7 @@ static cdvr_status upload_flags(cdvr_cl_stream *s, const int prefix[257], cdvr_e
         hidden[b] = !visible[b];
         s->bricks_visible += visible[b];
     }
+    visible_box(s, visible);
     unsigned char *to_visible = s->flags_host;
     chessboard_distance(visible, to_visible, s->brick_dims, s->nbricks);
     chessboard_distance(hidden, hidden, s->brick_dims, s->nbricks);
@@ -304,6 +333,10 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
     code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->brick_visible);
     for (int i = 0; i < 5; i++)
         code |= clSetKernelArg(k, a++, sizeof(cl_int), &bricks[i]);
+    for (int i = 0; i < 3; i++)
+        code |= clSetKernelArg(k, a++, sizeof(cl_float), &s->visible_lo[i]);
+    for (int i = 0; i < 3; i++)
+        code |= clSetKernelArg(k, a++, sizeof(cl_float), &s->visible_hi[i]);
     code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->image);
     code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->samples);
     return code == CL_SUCCESS ? CDVR_OK : CDVR_ERR_DEVICE;

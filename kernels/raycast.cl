@@ -368,6 +368,40 @@ static void store_pixels(__global float4 *image, __global uint *samples, int row
         }
 }
 
+/* Per lane, the parameter range [*enter, *exit) (in samples) where g0 + i*dg lies in the
+ * grid slab [lo, hi) of one axis; a ray parallel to it is inside or outside throughout. */
+static void visible_slab(vfloat g0, vfloat dg, float lo, float hi, vfloat *enter,
+                         vfloat *exit)
+{
+    vfloat t0 = (lo - g0) / dg, t1 = (hi - g0) / dg;
+    vint parallel = dg == 0.0f;
+    vint inside = g0 >= lo & g0 < hi;
+    vfloat flat_enter = select((vfloat)(INFINITY), (vfloat)(-INFINITY), inside);
+    *enter = fmax(*enter, select(fmin(t0, t1), flat_enter, parallel));
+    *exit = fmin(*exit, select(fmax(t0, t1), -flat_enter, parallel));
+}
+
+/* Sample indices [*first, *stop) of the full segments that can lie in visible bricks: the
+ * others are in invisible bricks outside the visible box, which the host sized in grid
+ * coordinates. One sample of margin on each side absorbs rounding. */
+static void visible_range(vec3x8 g0, vec3x8 dg, float3 lo, float3 hi, vint n_full,
+                          vint *first, vint *stop)
+{
+    if (any(lo > hi)) { /* no visible brick */
+        *first = *stop = (vint)(0);
+        return;
+    }
+    vfloat enter = (vfloat)(-INFINITY), exit = (vfloat)(INFINITY);
+    visible_slab(g0.x, dg.x, lo.x, hi.x, &enter, &exit);
+    visible_slab(g0.y, dg.y, lo.y, hi.y, &enter, &exit);
+    visible_slab(g0.z, dg.z, lo.z, hi.z, &enter, &exit);
+    vfloat limit = convert_float8(n_full) + 1.0f;
+    enter = clamp(floor(enter) - 1.0f, 0.0f, limit);
+    exit = clamp(ceil(exit) + 1.0f, 0.0f, limit);
+    *first = convert_int8(enter);
+    *stop = min(convert_int8(exit), n_full);
+}
+
 /* Geometry as render_cpu.c holds it: origin, 1/spacing and the box's upper corner (computed
  * in double on the host). table: rgb + step-corrected alpha; alpha: alpha per unit (for the
  * shorter last segment). Bricks: edge 1 << brick_shift, counts nbx, nby, nbz, skipping on/off.
@@ -378,7 +412,8 @@ __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, 
                       float step, float term_alpha, cam_params cam,
                       __global const float4 *table, __global const float *alpha,
                       float unit, __global const uchar *brick_visible, int brick_shift,
-                      int nbx, int nby, int nbz, int skipping, __global float4 *image,
+                      int nbx, int nby, int nbz, int skipping, float vlx, float vly,
+                      float vlz, float vhx, float vhy, float vhz, __global float4 *image,
                       __global uint *samples)
 {
     int px0 = get_global_id(0) * RAY_PACKET, py = get_global_id(1);
@@ -409,13 +444,21 @@ __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, 
     march m;
     m.i = (vint)(0);
     m.n_full = select((vint)(0), n - 1, p.hit);
+    vint last = p.hit;
+    if (skipping) {
+        float3 vis_lo = (float3)(vlx, vly, vlz), vis_hi = (float3)(vhx, vhy, vhz);
+        vint stop;
+        visible_range(g0, dg, vis_lo, vis_hi, m.n_full, &m.i, &stop);
+        last &= stop >= m.n_full; /* the last segment lies beyond the full ones */
+        m.n_full = stop;
+    }
     m.end = skipping ? (vint)(0) : m.n_full;
-    m.active = p.hit & (m.n_full > 0);
+    m.active = p.hit & (m.i < m.n_full);
     m.done = (vint)(0);
     m.taken = (vint)(0);
     rgba8 acc = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
     march_full(&m, skipping, &b, &v, g0, dg, table, term_alpha, &acc);
-    last_segment(&p, n, p.hit & ~m.done, step, unit, &v, origin, inv_spacing, table, alpha,
+    last_segment(&p, n, last & ~m.done, step, unit, &v, origin, inv_spacing, table, alpha,
                  &acc, &m.taken);
     store_pixels(image, samples, py * cam.width, px, cam.width, acc, m.taken);
 }
