@@ -264,9 +264,15 @@ static void sample_step(march *m, vint run, const volume_geo *v, vec3x8 g0, vec3
     composite(acc, c);
     m->i -= run;
     m->taken -= run;
+    /* Termination changes the lanes only behind a branch: as a data dependency it would chain
+     * each step's sample addresses to the previous step's compositing, while the branch
+     * (rarely taken) lets the CPU start the next step's loads early. */
     vint stop = run & (acc->a >= term_alpha | acc->a >= 1.0f);
-    m->done |= stop;
-    m->active &= ~stop & (m->i < m->n_full);
+    if (any(stop)) {
+        m->done |= stop;
+        m->active &= ~stop;
+    }
+    m->active &= m->i < m->n_full;
 }
 
 static void march_full(march *m, int skipping, const bricks *b, const volume_geo *v,
