@@ -3,6 +3,9 @@
 #include "volume_io.h"
 
 #include <math.h>
+#include <errno.h>
+#include <sys/stat.h>
+#include <stdint.h>
 #include <nifti1_io.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -144,6 +147,35 @@ static cdvr_status load_voxels(const char *path, const nifti_image *nim, cdvr_vo
     return st;
 }
 
+/* Refuses headers that claim more voxel data than the file can hold, before anything is
+ * allocated: a plain file must hold offset + bytes; a gzip file of n bytes inflates to at most
+ * 1032 n (deflate's maximum ratio). */
+static cdvr_status check_data_size(const char *path, const nifti_image *nim, cdvr_error *err)
+{
+    size_t need;
+    if (nim->nbyper <= 0 || nim->iname_offset < 0 || !cdvr_size_mul(nim->nvox, (size_t)nim->nbyper, &need) ||
+        !cdvr_size_add(need, (size_t)nim->iname_offset, &need))
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI data size overflows", path);
+    struct stat sb;
+    if (stat(nim->iname, &sb) != 0)
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot open NIfTI data file %s: %s", path, nim->iname,
+                              strerror(errno));
+    size_t have = (size_t)sb.st_size;
+    if (nifti_is_gzfile(nim->iname)) {
+        if (have > SIZE_MAX / 1032 || need / 1032 <= have)
+            return CDVR_OK;
+        return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                              "%s: NIfTI header claims %zu bytes of voxel data (%dx%dx%dx%d %s), more than a %zu-byte gzip "
+                              "file can hold",
+                              path, need, nim->nx, nim->ny, nim->nz, nim->nt, nifti_datatype_string(nim->datatype), have);
+    }
+    if (need <= have)
+        return CDVR_OK;
+    return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                          "%s: NIfTI data truncated: header claims %dx%dx%dx%d %s = %zu bytes with the header, file has %zu",
+                          path, nim->nx, nim->ny, nim->nz, nim->nt, nifti_datatype_string(nim->datatype), need, have);
+}
+
 static cdvr_status nifti_to_volume(const char *path, const nifti_image *nim, cdvr_volume **out,
                                    cdvr_error *err)
 {
@@ -159,6 +191,8 @@ static cdvr_status nifti_to_volume(const char *path, const nifti_image *nim, cdv
         type = CDVR_TYPE_F32;
     size_t dims[3] = {0, 0, 0}, timesteps = 0;
     cdvr_status st = nifti_shape(path, nim, dims, &timesteps, err);
+    if (st == CDVR_OK)
+        st = check_data_size(path, nim, err);
     if (st == CDVR_OK)
         st = cdvr_volume_create(dims, timesteps, type, out, err);
     if (st != CDVR_OK)

@@ -3,6 +3,8 @@
  * cdvr_volume_load dispatch, series and save_raw. Temporary files live in the working
  * directory and are removed. */
 #include "check.h"
+#include <zlib.h>
+
 #include "cdvr/volume.h"
 
 #include <dirent.h>
@@ -339,6 +341,38 @@ static void write_nifti_i16(const char *path, float slope, float inter, size_t d
     write_file(path, file, 352 + data_bytes);
 }
 
+/* A header claiming 30000^3 u8 voxels over a few bytes of data (plain and gzip): refused as
+ * FORMAT before anything the size of the claim is allocated (found by tests/fuzz/fuzz_load). */
+static void test_nifti_huge_claim(void)
+{
+    unsigned char file[352 + 16];
+    memset(file, 0, sizeof file);
+    int32_t sizeof_hdr = 348;
+    memcpy(file, &sizeof_hdr, 4);
+    const int16_t dim[8] = {3, 30000, 30000, 30000, 1, 1, 1, 1};
+    for (int i = 0; i < 8; i++)
+        put_i16(file, 40 + 2 * (size_t)i, dim[i]);
+    put_i16(file, 70, 2); /* DT_UINT8 */
+    put_i16(file, 72, 8);
+    for (int i = 0; i < 4; i++)
+        put_f32(file, 76 + 4 * (size_t)i, 1);
+    put_f32(file, 108, 352);
+    memcpy(file + 344, "n+1", 4);
+    write_file(TMP "huge.nii", file, sizeof file);
+    gzFile gz = gzopen(TMP "huge.nii.gz", "wb");
+    gzwrite(gz, file, sizeof file);
+    gzclose(gz);
+    cdvr_volume *v = NULL;
+    cdvr_error err;
+    CHECK(cdvr_volume_load(TMP "huge.nii", NULL, &v, &err) == CDVR_ERR_FORMAT && !v && contains(err.msg, "huge.nii") &&
+              contains(err.msg, "30000x30000x30000"),
+          "huge claim, plain: %s", err.msg);
+    CHECK(cdvr_volume_load(TMP "huge.nii.gz", NULL, &v, &err) == CDVR_ERR_FORMAT && !v && contains(err.msg, "gzip"),
+          "huge claim, gzip: %s", err.msg);
+    unlink(TMP "huge.nii");
+    unlink(TMP "huge.nii.gz");
+}
+
 static void test_nifti_small(void)
 {
     cdvr_volume *v = NULL;
@@ -511,6 +545,7 @@ int main(void)
     test_nrrd_small();
     test_nrrd_bad();
     test_nifti_small();
+    test_nifti_huge_claim();
     const char *dir = check_shared_data();
     if (dir) {
         test_real_nrrd(dir);
