@@ -247,10 +247,11 @@ static cdvr_status camera_params(const cdvr_camera *cam, cam_params *out, cdvr_e
     return CDVR_OK;
 }
 
-/* Rays per work-item (kernels/raycast.cl marches RAY_PACKET neighbouring pixels of a row in
- * lock-step) and the work-group in work-items: neighbouring rays share voxels and bricks in
- * cache. */
-#define RAY_PACKET 8
+/* Pixels per work-item (kernels/raycast.cl marches a packet of PACKET_W x PACKET_H
+ * neighbouring rays in lock-step) and the work-group in work-items: neighbouring rays share
+ * voxels and bricks in cache. */
+#define PACKET_W 4
+#define PACKET_H 2
 #define RAY_GROUP_W 8
 #define RAY_GROUP_H 8
 
@@ -434,9 +435,9 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     if (set_raycast_args(s, frame, rp, &cam, spacing, origin))
         return cdvr_cl_check(CL_INVALID_KERNEL_ARGS, "raycast arguments", err);
     size_t local[2] = {RAY_GROUP_W, RAY_GROUP_H};
-    size_t packets = ((size_t)img->width + RAY_PACKET - 1) / RAY_PACKET;
-    size_t global[2] = {round_up(packets, local[0]),
-                        round_up((size_t)img->height, local[1])};
+    size_t packets_x = ((size_t)img->width + PACKET_W - 1) / PACKET_W;
+    size_t packets_y = ((size_t)img->height + PACKET_H - 1) / PACKET_H;
+    size_t global[2] = {round_up(packets_x, local[0]), round_up(packets_y, local[1])};
     st = run_kernel(s->cl, s->cl->k_raycast, 2, global, local, "raycast kernel", err);
     if (!st)
         st = read_results(s, img, pixels, err);

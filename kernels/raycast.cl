@@ -16,7 +16,9 @@
  * inside it), a visible cube's samples need no further look-ups. Skipped samples are exactly
  * those whose value range has zero opacity under the TF. */
 
-#define RAY_PACKET 8
+#define RAY_PACKET 8 /* a packet is PACKET_W x PACKET_H pixels (lanes row by row) */
+#define PACKET_W 4
+#define PACKET_H 2
 typedef float8 vfloat;
 typedef int8 vint;
 typedef long8 vlong;
@@ -47,10 +49,10 @@ typedef struct packet {
     vint hit;
 } packet;
 
-static void camera_rays(const cam_params *cam, vint px, int py, packet *p)
+static void camera_rays(const cam_params *cam, vint px, vint py, packet *p)
 {
     vfloat sxn = 2.0f * (convert_float8(px) + 0.5f) / (float)cam->width - 1.0f;
-    float syn = 2.0f * ((float)py + 0.5f) / (float)cam->height - 1.0f;
+    vfloat syn = 2.0f * (convert_float8(py) + 0.5f) / (float)cam->height - 1.0f;
     vfloat sx = sxn * cam->aspect;
     vfloat side[3];
     for (int a = 0; a < 3; a++)
@@ -356,21 +358,22 @@ static bricks make_bricks(__global const uchar *dist, int shift, int nbx, int nb
     return b;
 }
 
-static void store_pixels(__global float4 *image, __global uint *samples, int row, vint px,
-                         int width, rgba8 acc, vint taken)
+static void store_pixels(__global float4 *image, __global uint *samples, vint px, vint py,
+                         int width, int height, rgba8 acc, vint taken)
 {
     float r[8], g[8], b[8], a[8];
-    int px_[8], taken_[8];
+    int px_[8], py_[8], taken_[8];
     vstore8(acc.r, 0, r);
     vstore8(acc.g, 0, g);
     vstore8(acc.b, 0, b);
     vstore8(acc.a, 0, a);
     vstore8(px, 0, px_);
+    vstore8(py, 0, py_);
     vstore8(taken, 0, taken_);
     for (int k = 0; k < RAY_PACKET; k++)
-        if (px_[k] < width) {
-            image[row + px_[k]] = (float4)(r[k], g[k], b[k], a[k]);
-            samples[row + px_[k]] = (uint)taken_[k];
+        if (px_[k] < width && py_[k] < height) {
+            image[py_[k] * width + px_[k]] = (float4)(r[k], g[k], b[k], a[k]);
+            samples[py_[k] * width + px_[k]] = (uint)taken_[k];
         }
 }
 
@@ -411,7 +414,7 @@ static void visible_range(vec3x8 g0, vec3x8 dg, float3 lo, float3 hi, vint n_ful
 /* Geometry as render_cpu.c holds it: origin, 1/spacing and the box's upper corner (computed
  * in double on the host). table: rgb + step-corrected alpha; alpha: alpha per unit (for the
  * shorter last segment). Bricks: edge 1 << brick_shift, counts nbx, nby, nbz, skipping on/off.
- * Work-item (gx, py) renders pixels RAY_PACKET * gx .. + RAY_PACKET - 1 of row py. */
+ * Work-item (gx, gy) renders the PACKET_W x PACKET_H pixels from (PACKET_W gx, PACKET_H gy). */
 __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, int Z,
                       float ox, float oy, float oz, float isx, float isy, float isz,
                       float hx, float hy, float hz,
@@ -422,13 +425,13 @@ __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, 
                       float vlz, float vhx, float vhy, float vhz, __global float4 *image,
                       __global uint *samples)
 {
-    int px0 = get_global_id(0) * RAY_PACKET, py = get_global_id(1);
-    if (px0 >= cam.width || py >= cam.height)
+    int px0 = get_global_id(0) * PACKET_W, py0 = get_global_id(1) * PACKET_H;
+    if (px0 >= cam.width || py0 >= cam.height)
         return;
-    vint px = px0 + (vint)(0, 1, 2, 3, 4, 5, 6, 7);
+    vint px = px0 + (vint)(0, 1, 2, 3, 0, 1, 2, 3), py = py0 + (vint)(0, 0, 0, 0, 1, 1, 1, 1);
     packet p;
     camera_rays(&cam, px, py, &p);
-    p.hit = px < cam.width;
+    p.hit = px < cam.width & py < cam.height;
     float3 origin = (float3)(ox, oy, oz), inv_spacing = (float3)(isx, isy, isz);
     intersect_box(&p, origin, (float3)(hx, hy, hz));
     /* lanes that miss get an empty, well-defined segment (their t values may be inf/NaN) */
@@ -466,5 +469,5 @@ __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, 
     march_full(&m, skipping, &b, &v, g0, dg, table, term_alpha, &acc);
     last_segment(&p, n, last & ~m.done, step, unit, &v, origin, inv_spacing, table, alpha,
                  &acc, &m.taken);
-    store_pixels(image, samples, py * cam.width, px, cam.width, acc, m.taken);
+    store_pixels(image, samples, px, py, cam.width, cam.height, acc, m.taken);
 }
