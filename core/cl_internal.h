@@ -35,8 +35,8 @@ struct cdvr_cl_stream {
     cl_mem brick_minmax;         /* nbricks uchar2: value range per brick incl. apron */
     cl_mem brick_visible;        /* nbricks uchar flags */
     cl_mem image;                /* width*height float4 */
-    cl_mem samples;              /* width*height uint sample counters */
-    size_t image_pixels;
+    cl_mem samples;              /* uint sample counter per ray-cast work-item */
+    size_t image_pixels, sample_slots;
     unsigned char *minmax_host;  /* copy of brick_minmax for minmax_frame */
     unsigned char *flags_host;   /* nbricks flags as last uploaded */
     size_t minmax_frame;         /* frame the min/max grid belongs to, (size_t)-1 for none */

@@ -343,16 +343,18 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
     return code == CL_SUCCESS ? CDVR_OK : CDVR_ERR_DEVICE;
 }
 
-static cdvr_status ensure_image(cdvr_cl_stream *s, size_t pixels, cdvr_error *err)
+/* Device image of `pixels` and one sample counter per work-item (`items`). */
+static cdvr_status ensure_image(cdvr_cl_stream *s, size_t pixels, size_t items, cdvr_error *err)
 {
-    if (s->image && s->image_pixels >= pixels)
+    if (s->image && s->image_pixels >= pixels && s->sample_slots >= items)
         return CDVR_OK;
     size_t cap_img = 0, cap_samples = 0;
     cdvr_cl_release(&s->samples);
     s->image_pixels = 0;
+    s->sample_slots = 0;
     size_t img_bytes, sample_bytes;
     if (!cdvr_size_mul(pixels, 4 * sizeof(cl_float), &img_bytes) ||
-        !cdvr_size_mul(pixels, sizeof(cl_uint), &sample_bytes))
+        !cdvr_size_mul(items, sizeof(cl_uint), &sample_bytes))
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL render: image of %zu pixels overflows", pixels);
     cdvr_status st = cdvr_cl_ensure_buffer(s->cl, &s->image, &cap_img, img_bytes,
                                            CL_MEM_WRITE_ONLY, "image", err);
@@ -362,21 +364,23 @@ static cdvr_status ensure_image(cdvr_cl_stream *s, size_t pixels, cdvr_error *er
     if (st)
         return st;
     s->image_pixels = pixels;
+    s->sample_slots = items;
     return CDVR_OK;
 }
 
-static cdvr_status read_results(cdvr_cl_stream *s, cdvr_image *img, size_t pixels, cdvr_error *err)
+static cdvr_status read_results(cdvr_cl_stream *s, cdvr_image *img, size_t pixels, size_t items,
+                                cdvr_error *err)
 {
-    cl_uint *counts = malloc(pixels * sizeof *counts);
+    cl_uint *counts = malloc(items * sizeof *counts);
     if (!counts)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL render: out of memory");
     cl_int code = clEnqueueReadBuffer(s->cl->queue, s->image, CL_TRUE, 0,
                                       pixels * 4 * sizeof(float), img->rgba, 0, NULL, NULL);
     if (!code)
-        code = clEnqueueReadBuffer(s->cl->queue, s->samples, CL_TRUE, 0, pixels * sizeof *counts,
+        code = clEnqueueReadBuffer(s->cl->queue, s->samples, CL_TRUE, 0, items * sizeof *counts,
                                    counts, 0, NULL, NULL);
     uint64_t total = 0;
-    for (size_t i = 0; i < pixels; i++)
+    for (size_t i = 0; code == CL_SUCCESS && i < items; i++)
         total += counts[i];
     free(counts);
     s->last_samples = total;
@@ -423,24 +427,25 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     double diagonal = 0;
     for (int a = 0; a < 3; a++)
         diagonal += pow((double)(s->dims[a] - 1) * spacing[a], 2);
-    if (sqrt(diagonal) / rp.step > (double)INT_MAX)
+    /* segment counts are ints, and a work-item sums its packet's counts in 32 bits */
+    if (sqrt(diagonal) / rp.step > (double)UINT32_MAX / (PACKET_W * PACKET_H))
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: step %g too small for a box of "
                               "diagonal %g", rp.step, sqrt(diagonal));
     size_t pixels = (size_t)img->width * (size_t)img->height;
-    st = ensure_image(s, pixels, err);
+    size_t local[2] = {RAY_GROUP_W, RAY_GROUP_H};
+    size_t packets_x = ((size_t)img->width + PACKET_W - 1) / PACKET_W;
+    size_t packets_y = ((size_t)img->height + PACKET_H - 1) / PACKET_H;
+    size_t global[2] = {round_up(packets_x, local[0]), round_up(packets_y, local[1])};
+    st = ensure_image(s, pixels, global[0] * global[1], err);
     if (!st)
         st = upload_tables(s, rp, err);
     if (st)
         return st;
     if (set_raycast_args(s, frame, rp, &cam, spacing, origin))
         return cdvr_cl_check(CL_INVALID_KERNEL_ARGS, "raycast arguments", err);
-    size_t local[2] = {RAY_GROUP_W, RAY_GROUP_H};
-    size_t packets_x = ((size_t)img->width + PACKET_W - 1) / PACKET_W;
-    size_t packets_y = ((size_t)img->height + PACKET_H - 1) / PACKET_H;
-    size_t global[2] = {round_up(packets_x, local[0]), round_up(packets_y, local[1])};
     st = run_kernel(s->cl, s->cl->k_raycast, 2, global, local, "raycast kernel", err);
     if (!st)
-        st = read_results(s, img, pixels, err);
+        st = read_results(s, img, pixels, global[0] * global[1], err);
     if (st)
         return st;
     memcpy(img->background, opts->background, sizeof img->background);

@@ -358,23 +358,20 @@ static bricks make_bricks(__global const uchar *dist, int shift, int nbx, int nb
     return b;
 }
 
-static void store_pixels(__global float4 *image, __global uint *samples, vint px, vint py,
-                         int width, int height, rgba8 acc, vint taken)
+static void store_pixels(__global float4 *image, vint px, vint py, int width, int height,
+                         rgba8 acc)
 {
     float r[8], g[8], b[8], a[8];
-    int px_[8], py_[8], taken_[8];
+    int px_[8], py_[8];
     vstore8(acc.r, 0, r);
     vstore8(acc.g, 0, g);
     vstore8(acc.b, 0, b);
     vstore8(acc.a, 0, a);
     vstore8(px, 0, px_);
     vstore8(py, 0, py_);
-    vstore8(taken, 0, taken_);
     for (int k = 0; k < RAY_PACKET; k++)
-        if (px_[k] < width && py_[k] < height) {
+        if (px_[k] < width && py_[k] < height)
             image[py_[k] * width + px_[k]] = (float4)(r[k], g[k], b[k], a[k]);
-            samples[py_[k] * width + px_[k]] = (uint)taken_[k];
-        }
 }
 
 /* Per lane, the parameter range [*enter, *exit) (in samples) where g0 + i*dg lies in the
@@ -423,11 +420,14 @@ __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, 
                       float unit, __global const uchar *brick_visible, int brick_shift,
                       int nbx, int nby, int nbz, int skipping, float vlx, float vly,
                       float vlz, float vhx, float vhy, float vhz, __global float4 *image,
-                      __global uint *samples)
+                      __global uint *samples) /* per work-item */
 {
     int px0 = get_global_id(0) * PACKET_W, py0 = get_global_id(1) * PACKET_H;
-    if (px0 >= cam.width || py0 >= cam.height)
+    size_t slot = get_global_id(1) * get_global_size(0) + get_global_id(0);
+    if (px0 >= cam.width || py0 >= cam.height) {
+        samples[slot] = 0;
         return;
+    }
     vint px = px0 + (vint)(0, 1, 2, 3, 0, 1, 2, 3), py = py0 + (vint)(0, 0, 0, 0, 1, 1, 1, 1);
     packet p;
     camera_rays(&cam, px, py, &p);
@@ -469,5 +469,7 @@ __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, 
     march_full(&m, skipping, &b, &v, g0, dg, table, term_alpha, &acc);
     last_segment(&p, n, last & ~m.done, step, unit, &v, origin, inv_spacing, table, alpha,
                  &acc, &m.taken);
-    store_pixels(image, samples, px, py, cam.width, cam.height, acc, m.taken);
+    store_pixels(image, px, py, cam.width, cam.height, acc);
+    int8 t = m.taken;
+    samples[slot] = (uint)(t.s0 + t.s1 + t.s2 + t.s3 + t.s4 + t.s5 + t.s6 + t.s7);
 }
