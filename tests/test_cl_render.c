@@ -2,7 +2,9 @@
  * image PSNR >= 50 dB for axis-parallel, 45-degree, inside-the-volume and orthographic views
  * on the engine CT and on synthetic volumes; empty-space skipping on vs off changes no pixel
  * by more than 0.5/255 and takes fewer samples (also over a sparse volume, where rays jump
- * over large empty regions); zero/full opacity, tiny and huge steps;
+ * over large empty regions, and over compact blobs, where rays start and stop at the box
+ * around the visible bricks); without skipping the sample counts equal the CPU's; zero/full
+ * opacity, tiny and huge steps; odd image sizes;
  * misuse errors. */
 #include <math.h>
 #include <stdio.h>
@@ -101,6 +103,8 @@ static double check_scene(const scene *sc)
         compare(on, off, &maxerr);
         CHECK(maxerr <= 0.5, "%s: skipping on/off differ by %.3f/255", sc->name, maxerr);
         CHECK(on_samples <= off_samples, "%s: skipping took more samples", sc->name);
+        CHECK(off_samples == opts.samples, "%s: %llu samples without skipping, cpu %llu",
+              sc->name, (unsigned long long)off_samples, (unsigned long long)opts.samples);
         for (int i = 0; i < ref->width * ref->height; i++)
             mean_alpha += ref->rgba[4 * i + 3];
         mean_alpha /= ref->width * ref->height;
@@ -259,6 +263,54 @@ static void sparse_scenes(cdvr_cl *cl)
     cdvr_volume_free(vol);
 }
 
+/* Fills the voxel box [lo, hi] (inclusive) of vol with value. */
+static void fill_box(cdvr_volume *vol, const size_t lo[3], const size_t hi[3], uint8_t value)
+{
+    for (size_t z = lo[2]; z <= hi[2]; z++)
+        for (size_t y = lo[1]; y <= hi[1]; y++)
+            for (size_t x = lo[0]; x <= hi[0]; x++)
+                ((uint8_t *)vol->data)[x + vol->dims[0] * (y + vol->dims[1] * z)] = value;
+}
+
+/* Visible voxels in compact blocks: rays start and stop at the box around the visible bricks,
+ * which lies inside the grid (faces at brick boundaries) or touches one of its faces (that
+ * face at infinity). Odd image sizes leave packets of rays partly outside the image. */
+static void blob_scenes(cdvr_cl *cl)
+{
+    size_t dims[3] = {61, 47, 53};
+    cdvr_volume *vol;
+    cdvr_error err;
+    cdvr_status st = cdvr_volume_create(dims, 1, CDVR_TYPE_U8, &vol, &err);
+    CHECK_OK(st, err);
+    if (st)
+        return;
+    vol->spacing[1] = 1.3;
+    /* blocks filling whole bricks: the first and last samples inside the box are visible */
+    const size_t lo[2][3] = {{20, 12, 28}, {0, 28, 8}}, hi[2][3] = {{31, 23, 35}, {7, 35, 15}};
+    const uint8_t value[2] = {200, 120};
+    const double view[][2] = {{0, 0}, {90, 0}, {37, 24}, {200, -65}};
+    for (int blob = 0; blob < 2; blob++) {
+        fill_box(vol, lo[blob], hi[blob], value[blob]);
+        scene sc = {.vol = vol};
+        st = upload_volume(cl, vol, &sc.stream, &err);
+        CHECK_OK(st, err);
+        const cdvr_tf_point pts[] = {{0, 0, 0, 0, 0}, {60, 0, 0, 0, 0}, {255, 1, .6, .3, .4}};
+        make_tf(&sc.tf, pts, sizeof pts / sizeof *pts);
+        double c[3], ext, up[3] = {0, 0, 1};
+        volume_centre(vol, c, &ext);
+        for (size_t i = 0; i < sizeof view / sizeof *view && !st; i++) {
+            look(&sc.cam, c, c, up);
+            cdvr_camera_orbit(&sc.cam, c, up, 1.8 * ext, view[i][0], view[i][1]);
+            sc.cam.width = 101 - 2 * (int)i;
+            sc.cam.height = 77 + (int)i;
+            sc.name = blob ? "blob at a face" : "blob inside";
+            CHECK(check_scene(&sc) > 0.005, "%s view %zu is empty", sc.name, i);
+        }
+        cdvr_cl_stream_free(sc.stream);
+    }
+    cdvr_volume_free(vol);
+}
+
 static void misuse(cdvr_cl *cl)
 {
     size_t dims[3] = {8, 8, 8};
@@ -315,6 +367,7 @@ int main(void)
         engine_scenes(cl, data);
     synthetic_scenes(cl);
     sparse_scenes(cl);
+    blob_scenes(cl);
     misuse(cl);
     cdvr_cl_close(cl);
     if (!data) {
