@@ -6,7 +6,8 @@
 --   image_psnr     : mean over the path's frames of the PSNR of the render of the decoded
 --                    variant against the render of the uncompressed data (same camera);
 --   volume_psnr, maxerr : measured at encode time over all timesteps.
--- --timesteps N keeps the first N timesteps of each dataset (for quick runs).
+-- --timesteps N keeps the first N timesteps of each dataset (for quick runs); --read-mbps M
+-- plays through an emulated disk of M MB/s (the out-of-core case compression is for).
 -- Writes DIR/report.csv and DIR/report.png (gnuplot: fps against image PSNR, one labelled
 -- point per configuration).
 package.path = (arg[0]:match("^(.*)/[^/]*$") or ".") .. "/bench/?.lua;" .. package.path
@@ -63,7 +64,7 @@ for _, spec in ipairs(datasets) do
   for vi, var in ipairs(info.variants) do
     common.progress("%s: %s (%d/%d)", name, var.name, vi, #info.variants)
     local p = cdvr.player{store = st, tf = tf, camera = path, variant = var.name, width = width,
-                          height = width, device = device}
+                          height = width, device = device, read_mbps = tonumber(opt["read-mbps"])}
     local r = p:run{frames = frames}
     p:close()
     local psnr_sum, nfinite = 0, 0
@@ -113,7 +114,7 @@ local gp = assert(io.open(opt.out .. "/report.gp", "w"))
 gp:write(([[
 set terminal pngcairo size 1000,700 font ",11" noenhanced
 set output "%s/report.png"
-set title "cdvr: playback speed against image quality (%s, %dx%d, device %s)"
+set title "cdvr: playback speed against image quality (%s, %dx%d, device %s%s)"
 set xlabel "image PSNR against the uncompressed render (dB, higher is better)"
 set ylabel "frames per second (median, higher is better)"
 set grid
@@ -122,7 +123,8 @@ set offsets 1, 3, 2, 2
 plot "%s/report.dat" using 1:2 with points pt 7 ps 1.5 lc rgb "#1f77b4", \
      "" using 1:2:3 with labels offset 0,1 font ",9"
 ]]):format(opt.out, table.concat(names, ", "):gsub('"', ""):sub(1, 60), width, width,
-           device, opt.out))
+           device, opt["read-mbps"] and (", disk emulated at " .. opt["read-mbps"] .. " MB/s") or "",
+           opt.out))
 gp:close()
 local ok = os.execute(('gnuplot "%s/report.gp"'):format(opt.out))
 if not ok then
