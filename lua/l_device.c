@@ -20,8 +20,8 @@ typedef struct ldevice {
     cdvr_cl *cl;             /* NULL until opened, and once closed */
     cdvr_cl_stream *stream;  /* reused while the dims stay the same */
     size_t stream_dims[3];
-    int frame_cached;        /* the stream's frame 0 holds voxels hashing to frame_hash */
-    uint64_t frame_hash;
+    uint8_t *frame_copy;     /* host copy of the voxels in the stream's frame 0, or NULL */
+    size_t frame_bytes;
 } ldevice;
 
 static ldevice *toldevice(lua_State *L, int idx)
@@ -29,11 +29,19 @@ static ldevice *toldevice(lua_State *L, int idx)
     return (ldevice *)luaL_checkudata(L, idx, LCDVR_CLDEVICE);
 }
 
+static void forget_frame(ldevice *d)
+{
+    free(d->frame_copy);
+    d->frame_copy = NULL;
+    d->frame_bytes = 0;
+}
+
 static int device_gc(lua_State *L)
 {
     ldevice *d = toldevice(L, 1);
     cdvr_cl_stream_free(d->stream);
     cdvr_cl_close(d->cl);
+    forget_frame(d);
     d->stream = NULL;
     d->cl = NULL;
     return 0;
@@ -86,7 +94,7 @@ static cdvr_cl_stream *device_stream(lua_State *L, ldevice *d, const size_t dims
         return d->stream;
     cdvr_cl_stream_free(d->stream);
     d->stream = NULL;
-    d->frame_cached = 0;
+    forget_frame(d);
     cdvr_error err;
     if (cdvr_cl_stream_create(d->cl, dims, &d->stream, &err) != CDVR_OK)
         lcdvr_raise(L, &err);
@@ -101,55 +109,27 @@ static double now_ms(void)
     return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
 }
 
-static uint64_t mix64(uint64_t h)
-{
-    h ^= h >> 33;
-    h *= 0xff51afd7ed558ccdULL;
-    h ^= h >> 33;
-    h *= 0xc4ceb9fe1a85ec53ULL;
-    return h ^ (h >> 33);
-}
-
-/* 64-bit hash of the voxels (four independent multiply-rotate lanes, then an avalanche):
- * cdvr.render{device="cl"} re-uploads a frame only when its contents changed, since a
- * volume may be edited in place (v:set) between renders. */
-static uint64_t frame_hash(const uint8_t *data, size_t bytes)
-{
-    uint64_t lane[4] = {0x9e3779b97f4a7c15ULL, 0xbf58476d1ce4e5b9ULL, 0x94d049bb133111ebULL,
-                        0x2545f4914f6cdd1dULL};
-    size_t i = 0;
-    for (; i + 32 <= bytes; i += 32)
-        for (int k = 0; k < 4; k++) {
-            uint64_t w;
-            memcpy(&w, data + i + 8 * k, sizeof w);
-            lane[k] = (lane[k] ^ w) * 0x9fb21c651e98df25ULL;
-            lane[k] = (lane[k] << 29) | (lane[k] >> 35);
-        }
-    uint64_t h = (uint64_t)bytes;
-    for (; i < bytes; i++)
-        h = (h ^ data[i]) * 0x100000001b3ULL;
-    for (int k = 0; k < 4; k++)
-        h = mix64(h ^ mix64(lane[k] + (uint64_t)k));
-    return h;
-}
-
-/* Makes the stream's frame 0 hold frame t of vol, uploading only if it changed. */
+/* Makes the stream's frame 0 hold frame t of vol, uploading only if it changed: a volume may
+ * be edited in place (v:set) between renders, so the voxels are compared with a host copy of
+ * what was uploaded (memcmp is exact and faster than hashing the frame). */
 static cdvr_status upload_frame(ldevice *d, cdvr_cl_stream *s, const cdvr_volume *vol, size_t t,
                                 cdvr_error *err)
 {
     const uint8_t *voxels = cdvr_volume_frame(vol, t);
     size_t bytes = cdvr_volume_voxels(vol);
-    uint64_t hash = frame_hash(voxels, bytes);
-    if (d->frame_cached && d->frame_hash == hash)
+    if (d->frame_copy && d->frame_bytes == bytes && !memcmp(d->frame_copy, voxels, bytes))
         return CDVR_OK;
-    d->frame_cached = 0;
+    forget_frame(d);
     cdvr_status st = cdvr_cl_upload(s, voxels, bytes, err);
     if (!st)
         st = cdvr_cl_decode(s, CDVR_CODEC_RAW, NULL, 1, err);
     if (st)
         return st;
-    d->frame_cached = 1;
-    d->frame_hash = hash;
+    d->frame_copy = malloc(bytes ? bytes : 1);
+    if (d->frame_copy) { /* without a copy the next render uploads again */
+        memcpy(d->frame_copy, voxels, bytes);
+        d->frame_bytes = bytes;
+    }
     return CDVR_OK;
 }
 
@@ -233,7 +213,7 @@ int lcdvr_decode_cl(lua_State *L, const cdvr_store *st, size_t v, size_t t)
     memcpy(vol->spacing, info->spacing, sizeof vol->spacing);
     memcpy(vol->origin, info->origin, sizeof vol->origin);
     lcdvr_pushvolume(L, vol); /* owned by Lua from here */
-    d->frame_cached = 0;      /* the stream's frames are about to be replaced */
+    forget_frame(d);         /* the stream's frames are about to be replaced */
     uint8_t *payload = read_payload(L, st, v, c, chunk);
     cdvr_status status = cdvr_cl_upload(s, payload, (size_t)chunk->payload_bytes, &err);
     free(payload);
