@@ -368,23 +368,35 @@ static cdvr_status ensure_image(cdvr_cl_stream *s, size_t pixels, size_t items, 
     return CDVR_OK;
 }
 
-static cdvr_status read_results(cdvr_cl_stream *s, cdvr_image *img, size_t pixels, size_t items,
-                                cdvr_error *err)
+/* Runs the ray caster and reads the image and the sample counters back, with one wait for
+ * all three commands (the in-order queue keeps the reads behind the kernel). */
+static cdvr_status cast_and_read(cdvr_cl_stream *s, const size_t global[2], const size_t local[2],
+                                 cdvr_image *img, size_t pixels, cdvr_error *err)
 {
+    size_t items = global[0] * global[1];
     cl_uint *counts = malloc(items * sizeof *counts);
     if (!counts)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL render: out of memory");
-    cl_int code = clEnqueueReadBuffer(s->cl->queue, s->image, CL_TRUE, 0,
-                                      pixels * 4 * sizeof(float), img->rgba, 0, NULL, NULL);
-    if (!code)
-        code = clEnqueueReadBuffer(s->cl->queue, s->samples, CL_TRUE, 0, items * sizeof *counts,
-                                   counts, 0, NULL, NULL);
+    cl_command_queue q = s->cl->queue;
+    cl_int code = clEnqueueNDRangeKernel(q, s->cl->k_raycast, 2, NULL, global, local, 0, NULL, NULL);
+    const char *what = "raycast kernel";
+    if (!code) {
+        what = "read image";
+        code = clEnqueueReadBuffer(q, s->image, CL_FALSE, 0, pixels * 4 * sizeof(float),
+                                   img->rgba, 0, NULL, NULL);
+        cl_int sample_code = code ? code : clEnqueueReadBuffer(q, s->samples, CL_FALSE, 0,
+                                                               items * sizeof *counts, counts,
+                                                               0, NULL, NULL);
+        /* wait even if a read failed to enqueue: the other may still write into our memory */
+        cl_int finish_code = clFinish(q);
+        code = code ? code : sample_code ? sample_code : finish_code;
+    }
     uint64_t total = 0;
     for (size_t i = 0; code == CL_SUCCESS && i < items; i++)
         total += counts[i];
     free(counts);
     s->last_samples = total;
-    return cdvr_cl_check(code, "read image", err);
+    return cdvr_cl_check(code, what, err);
 }
 
 static cdvr_status check_render_args(const cdvr_cl_stream *s, size_t frame,
@@ -443,9 +455,7 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
         return st;
     if (set_raycast_args(s, frame, rp, &cam, spacing, origin))
         return cdvr_cl_check(CL_INVALID_KERNEL_ARGS, "raycast arguments", err);
-    st = run_kernel(s->cl, s->cl->k_raycast, 2, global, local, "raycast kernel", err);
-    if (!st)
-        st = read_results(s, img, pixels, global[0] * global[1], err);
+    st = cast_and_read(s, global, local, img, pixels, err);
     if (st)
         return st;
     memcpy(img->background, opts->background, sizeof img->background);
