@@ -131,7 +131,8 @@ static vfloat lerp_pairs(ushort8 w, vfloat fx)
 #endif
 
 /* render.h step 3 at grid position g (clamped here). */
-static vfloat trilinear(const volume_geo *v, vec3x8 g)
+/* always inlined: as a call (two callers) its vector arguments and result go through memory */
+__attribute__((always_inline)) static inline vfloat trilinear(const volume_geo *v, vec3x8 g)
 {
     vfloat fx, fy, fz;
     vint x0 = corner(g.x, v->top.x, v->base_max.x, &fx);
@@ -324,7 +325,7 @@ static void last_segment(const packet *p, vint n, vint last, float step, float u
     if (any(partial))
         a = select(a, 1.0f - pow(1.0f - a, ds / unit), partial);
     c.a = select(a, c.a, ds >= step);
-    c.a = select((vfloat)(0.0f), c.a, last & c.a > 0.0f);
+    c.a = select((vfloat)(0.0f), c.a, last & (c.a > 0.0f));
     composite(acc, c);
     *taken -= last;
 }
