@@ -303,7 +303,7 @@ static cl_int brick_shift(void)
 
 static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_params rp,
                                     const cam_params *cam, const double spacing[3],
-                                    const double origin[3])
+                                    const double origin[3], cl_mem image)
 {
     cl_kernel k = s->cl->k_raycast;
     cl_ulong offset = (cl_ulong)(frame * s->voxels);
@@ -338,7 +338,7 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
         code |= clSetKernelArg(k, a++, sizeof(cl_float), &s->visible_lo[i]);
     for (int i = 0; i < 3; i++)
         code |= clSetKernelArg(k, a++, sizeof(cl_float), &s->visible_hi[i]);
-    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->image);
+    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &image);
     code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->samples);
     return code == CL_SUCCESS ? CDVR_OK : CDVR_ERR_DEVICE;
 }
@@ -368,12 +368,46 @@ static cdvr_status ensure_image(cdvr_cl_stream *s, size_t pixels, size_t items, 
     return CDVR_OK;
 }
 
-/* Runs the ray caster and reads the image and the sample counters back, with one wait for
- * all three commands (the in-order queue keeps the reads behind the kernel). */
-static cdvr_status cast_and_read(cdvr_cl_stream *s, const size_t global[2], const size_t local[2],
-                                 cdvr_image *img, size_t pixels, cdvr_error *err)
+/* On a device that shares host memory, a buffer over the image's own pixels: the kernel then
+ * writes them in place and no copy of the frame is needed. NULL elsewhere, or on failure (the
+ * stream's device image is used then). */
+static cl_mem wrap_host_image(cdvr_cl *cl, cdvr_image *img, size_t pixels)
 {
-    size_t items = global[0] * global[1];
+    cl_bool unified = CL_FALSE;
+    if (clGetDeviceInfo(cl->device, CL_DEVICE_HOST_UNIFIED_MEMORY, sizeof unified, &unified,
+                        NULL) != CL_SUCCESS || !unified)
+        return NULL;
+    cl_int code;
+    cl_mem mem = clCreateBuffer(cl->context, CL_MEM_WRITE_ONLY | CL_MEM_USE_HOST_PTR,
+                                pixels * 4 * sizeof(float), img->rgba, &code);
+    return code == CL_SUCCESS ? mem : NULL;
+}
+
+/* Makes img hold the pixels of the host image buffer after the queued kernel: a map, which
+ * on unified memory gives img's own pixels without a copy. Waits for everything queued. */
+static cl_int sync_host_image(cl_command_queue q, cl_mem host_image, cdvr_image *img,
+                              size_t bytes)
+{
+    cl_int code;
+    void *mapped = clEnqueueMapBuffer(q, host_image, CL_TRUE, CL_MAP_READ, 0, bytes, 0, NULL,
+                                      NULL, &code);
+    if (code != CL_SUCCESS)
+        return code;
+    if (mapped != (void *)img->rgba)
+        memcpy(img->rgba, mapped, bytes);
+    code = clEnqueueUnmapMemObject(q, host_image, mapped, 0, NULL, NULL);
+    cl_int finish_code = clFinish(q); /* the buffer must not touch img once we return */
+    return code ? code : finish_code;
+}
+
+/* Runs the ray caster and reads the image (from host_image, or the stream's device image if
+ * NULL) and the sample counters back, with one wait for the kernel and the reads (the
+ * in-order queue keeps the reads behind the kernel). */
+static cdvr_status cast_and_read(cdvr_cl_stream *s, const size_t global[2], const size_t local[2],
+                                 cl_mem host_image, cdvr_image *img, size_t pixels,
+                                 cdvr_error *err)
+{
+    size_t items = global[0] * global[1], image_bytes = pixels * 4 * sizeof(float);
     cl_uint *counts = malloc(items * sizeof *counts);
     if (!counts)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL render: out of memory");
@@ -382,13 +416,15 @@ static cdvr_status cast_and_read(cdvr_cl_stream *s, const size_t global[2], cons
     const char *what = "raycast kernel";
     if (!code) {
         what = "read image";
-        code = clEnqueueReadBuffer(q, s->image, CL_FALSE, 0, pixels * 4 * sizeof(float),
-                                   img->rgba, 0, NULL, NULL);
+        code = host_image ? CL_SUCCESS
+                          : clEnqueueReadBuffer(q, s->image, CL_FALSE, 0, image_bytes, img->rgba,
+                                                0, NULL, NULL);
         cl_int sample_code = code ? code : clEnqueueReadBuffer(q, s->samples, CL_FALSE, 0,
                                                                items * sizeof *counts, counts,
                                                                0, NULL, NULL);
         /* wait even if a read failed to enqueue: the other may still write into our memory */
-        cl_int finish_code = clFinish(q);
+        cl_int finish_code = host_image ? sync_host_image(q, host_image, img, image_bytes)
+                                        : clFinish(q);
         code = code ? code : sample_code ? sample_code : finish_code;
     }
     uint64_t total = 0;
@@ -453,9 +489,12 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
         st = upload_tables(s, rp, err);
     if (st)
         return st;
-    if (set_raycast_args(s, frame, rp, &cam, spacing, origin))
-        return cdvr_cl_check(CL_INVALID_KERNEL_ARGS, "raycast arguments", err);
-    st = cast_and_read(s, global, local, img, pixels, err);
+    cl_mem host_image = wrap_host_image(s->cl, img, pixels);
+    if (set_raycast_args(s, frame, rp, &cam, spacing, origin, host_image ? host_image : s->image))
+        st = cdvr_cl_check(CL_INVALID_KERNEL_ARGS, "raycast arguments", err);
+    else
+        st = cast_and_read(s, global, local, host_image, img, pixels, err);
+    cdvr_cl_release(&host_image);
     if (st)
         return st;
     memcpy(img->background, opts->background, sizeof img->background);
