@@ -43,4 +43,6 @@ for _, entry in ipairs(HELP) do
   cdvr.help_add(entry[1], entry[2])
 end
 
-return cdvr
+-- true, not the cdvr table: tracebacks then name functions "cdvr.render", not
+-- "cdvr.prelude.render" (Lua names a function after the first loaded module holding it).
+return true
