@@ -8,6 +8,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "cdvr/timing.h"
 #include "cl_internal.h"
 
 #define MAX_PLATFORMS 16
@@ -433,16 +434,9 @@ static cl_program program_from_binary(cdvr_cl *cl, const unsigned char *bin, siz
     return prog;
 }
 
-static double now_seconds(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 static cdvr_status build_program(cdvr_cl *cl, cdvr_error *err)
 {
-    double start = now_seconds();
+    double start = cdvr_now_ms();
     char *source = NULL;
     cdvr_status st = load_sources(&source, err);
     if (st)
@@ -479,7 +473,7 @@ static cdvr_status build_program(cdvr_cl *cl, cdvr_error *err)
         free(bin);
     }
     free(source);
-    cl->info.build_seconds = now_seconds() - start;
+    cl->info.build_seconds = (cdvr_now_ms() - start) / 1e3;
     return CDVR_OK;
 }
 

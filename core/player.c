@@ -6,6 +6,7 @@
  * its predicate and on `abort`.
  */
 #include "cdvr/player.h"
+#include "cdvr/timing.h"
 
 #include <pthread.h>
 #include <stddef.h>
@@ -71,13 +72,6 @@ struct cdvr_player {
     cdvr_cl_stream *stream;
 #endif
 };
-
-static double now_ms(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec * 1e3 + ts.tv_nsec / 1e6;
-}
 
 static void sleep_ms(double ms)
 {
@@ -228,11 +222,11 @@ static int plan_and_read(cdvr_player *p, chunk_item *it, int threaded, cdvr_erro
     }
     if (p->opts.cold)
         cdvr_store_drop_cache(st, (size_t)it->variant, it->chunk);
-    double t0 = now_ms();
+    double t0 = cdvr_now_ms();
     cdvr_store_read_chunk(st, (size_t)it->variant, it->chunk, it->stored, &it->err);
     if (p->opts.read_mbps > 0)
-        sleep_ms(ch->stored_bytes / (p->opts.read_mbps * 1e3) - (now_ms() - t0));
-    it->read_ms = now_ms() - t0;
+        sleep_ms(ch->stored_bytes / (p->opts.read_mbps * 1e3) - (cdvr_now_ms() - t0));
+    it->read_ms = cdvr_now_ms() - t0;
     if (p->opts.cold)
         cdvr_store_drop_cache(st, (size_t)it->variant, it->chunk);
     return 1;
@@ -248,9 +242,9 @@ static void unzip(cdvr_player *p, chunk_item *it)
                        cdvr_store_path(p->opts.store), it->chunk + 1, (unsigned long long)ch->payload_bytes);
         return;
     }
-    double t0 = now_ms();
+    double t0 = cdvr_now_ms();
     cdvr_store_unpack_chunk(p->opts.store, (size_t)it->variant, it->chunk, it->stored, it->payload, &it->err);
-    it->unzip_ms = now_ms() - t0;
+    it->unzip_ms = cdvr_now_ms() - t0;
 }
 
 /* ---- device (calling thread) ------------------------------------------------------------ */
@@ -292,13 +286,13 @@ static cdvr_status upload_decode(cdvr_player *p, chunk_item *it, double *upload_
     *upload_ms = *decode_ms = 0;
 #if CDVR_HAVE_OPENCL
     if (p->opts.device == CDVR_DEVICE_CL) {
-        double t0 = now_ms();
+        double t0 = cdvr_now_ms();
         if (cdvr_cl_upload(p->stream, it->payload, (size_t)ch->payload_bytes, err) != CDVR_OK)
             return err->status;
-        double t1 = now_ms();
+        double t1 = cdvr_now_ms();
         cdvr_status s = cdvr_cl_decode(p->stream, var->codec, &ch->pvtc, ch->count, err);
         *upload_ms = t1 - t0;
-        *decode_ms = now_ms() - t1;
+        *decode_ms = cdvr_now_ms() - t1;
         return s;
     }
 #endif
@@ -311,9 +305,9 @@ static cdvr_status upload_decode(cdvr_player *p, chunk_item *it, double *upload_
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: chunk %zu: %zu timesteps", cdvr_store_path(st), it->chunk + 1, ch->count);
     for (size_t i = 0; i < ch->count; i++)
         frames[i] = p->host_frames + i * p->voxels;
-    double t0 = now_ms();
+    double t0 = cdvr_now_ms();
     cdvr_status s = cdvr_store_decode_chunk(st, (size_t)it->variant, it->chunk, it->payload, frames, err);
-    *decode_ms = now_ms() - t0;
+    *decode_ms = cdvr_now_ms() - t0;
     return s;
 }
 
@@ -330,15 +324,15 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
     *setup_ms = *render_ms = 0;
 #if CDVR_HAVE_OPENCL
     if (p->opts.device == CDVR_DEVICE_CL) {
-        double t0 = now_ms();
+        double t0 = cdvr_now_ms();
         if (cdvr_cl_setup(p->stream, f, p->opts.tf, err) != CDVR_OK)
             return err->status;
-        double t1 = now_ms();
+        double t1 = cdvr_now_ms();
         cdvr_status s = cdvr_image_create(cam->width, cam->height, img, err);
         if (s == CDVR_OK)
             s = cdvr_cl_render(p->stream, f, &ro, info->spacing, info->origin, *img, err);
         *setup_ms = t1 - t0;
-        *render_ms = now_ms() - t1;
+        *render_ms = cdvr_now_ms() - t1;
         return s;
     }
 #endif
@@ -349,9 +343,9 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
     frame.timesteps = 1;
     frame.type = CDVR_TYPE_U8;
     frame.data = p->host_frames + f * p->voxels;
-    double t0 = now_ms();
+    double t0 = cdvr_now_ms();
     cdvr_status s = cdvr_render_cpu(&frame, 0, &ro, img, err);
-    *render_ms = now_ms() - t0;
+    *render_ms = cdvr_now_ms() - t0;
     return s;
 }
 
@@ -375,7 +369,7 @@ static void fill_row(cdvr_frame_row *row, const chunk_item *it, const cdvr_chunk
  * period late restarts the schedule) and records its display interval. */
 static void pace_and_show(cdvr_player *p, cdvr_frame_row *row)
 {
-    double now = now_ms();
+    double now = cdvr_now_ms();
     if (p->opts.pace_fps > 0) {
         double period = 1e3 / p->opts.pace_fps;
         double deadline = p->t_deadline + period;
@@ -383,7 +377,7 @@ static void pace_and_show(cdvr_player *p, cdvr_frame_row *row)
             deadline = now;
         sleep_ms(deadline - now);
         p->t_deadline = deadline;
-        now = now_ms();
+        now = cdvr_now_ms();
     }
     row->interval_ms = now - p->t_last_frame;
     p->t_last_frame = now;
@@ -424,7 +418,7 @@ static cdvr_status consume(cdvr_player *p, chunk_item *it, cdvr_error *err)
         if (ferr.status == CDVR_OK && p->opts.frame_fn)
             cb = p->opts.frame_fn(p->opts.frame_ud, row, img, err);
         cdvr_image_free(img);
-        work_ms += now_ms() - work_start;
+        work_ms += cdvr_now_ms() - work_start;
         pace_and_show(p, row);
         work_start = p->t_last_frame;
     }
@@ -683,7 +677,7 @@ cdvr_status cdvr_player_run(cdvr_player *p, size_t first, size_t frames, cdvr_er
     memset(&p->unzip_q, 0, sizeof p->unzip_q);
     for (size_t i = 0; i < p->nitems; i++)
         queue_push(&p->free_items, &p->items[i]);
-    p->t_start = p->t_last_frame = p->t_deadline = now_ms();
+    p->t_start = p->t_last_frame = p->t_deadline = cdvr_now_ms();
     cdvr_error_clear(err);
     return p->opts.pipelined ? run_pipelined(p, err) : run_serial(p, err);
 }
@@ -694,25 +688,16 @@ const cdvr_frame_row *cdvr_player_rows(const cdvr_player *p, size_t *count)
     return p->rows;
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 double cdvr_player_fps(const cdvr_player *p)
 {
     double *ms = malloc((p->nrows ? p->nrows : 1) * sizeof *ms);
+    if (!ms)
+        return 0;
     size_t n = 0;
-    for (size_t i = 0; ms && i < p->nrows; i++)
+    for (size_t i = 0; i < p->nrows; i++)
         if (p->rows[i].status == CDVR_OK)
             ms[n++] = p->rows[i].interval_ms;
-    double fps = 0;
-    if (n) {
-        qsort(ms, n, sizeof *ms, cmp_double);
-        double med = n % 2 ? ms[n / 2] : 0.5 * (ms[n / 2 - 1] + ms[n / 2]);
-        fps = med > 0 ? 1000.0 / med : 0;
-    }
+    double med = cdvr_median(ms, n);
     free(ms);
-    return fps;
+    return med > 0 ? 1000.0 / med : 0;
 }

@@ -6,6 +6,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "cdvr/timing.h"
 #include "lcdvr.h"
 
 #if CDVR_HAVE_OPENCL
@@ -102,13 +103,6 @@ static cdvr_cl_stream *device_stream(lua_State *L, ldevice *d, const size_t dims
     return d->stream;
 }
 
-static double now_ms(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
-}
-
 /* Makes the stream's frame 0 hold frame t of vol, uploading only if it changed: a volume may
  * be edited in place (v:set) between renders, so the voxels are compared with a host copy of
  * what was uploaded (memcmp is exact and faster than hashing the frame). */
@@ -147,7 +141,7 @@ int lcdvr_render_cl(lua_State *L, const cdvr_volume *vol, size_t t, void *render
     if (cdvr_image_create(opts->camera->width, opts->camera->height, &img, &err) != CDVR_OK)
         return lcdvr_raise(L, &err);
     lcdvr_pushimage(L, img); /* owned by Lua from here, so an error cannot leak it */
-    double start = now_ms();
+    double start = cdvr_now_ms();
     cdvr_cl_set_skipping(s, skipping);
     cdvr_status st = upload_frame(d, s, vol, t, &err);
     if (!st)
@@ -156,7 +150,7 @@ int lcdvr_render_cl(lua_State *L, const cdvr_volume *vol, size_t t, void *render
         st = cdvr_cl_render(s, 0, opts, vol->spacing, vol->origin, img, &err);
     if (st)
         return lcdvr_raise(L, &err);
-    double ms = now_ms() - start;
+    double ms = cdvr_now_ms() - start;
     lua_createtable(L, 0, 4);
     lua_pushinteger(L, (lua_Integer)cdvr_cl_last_samples(s));
     lua_setfield(L, -2, "samples");

@@ -10,6 +10,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "cdvr/timing.h"
 #include "cdvr/player.h"
 #include "lcdvr.h"
 
@@ -451,19 +452,6 @@ static int l_player(lua_State *L)
     return 1;
 }
 
-static double median(double *v, size_t n)
-{
-    if (!n)
-        return 0;
-    for (size_t i = 1; i < n; i++)  /* insertion sort: n is a frame count */
-        for (size_t j = i; j > 0 && v[j - 1] > v[j]; j--) {
-            double tmp = v[j];
-            v[j] = v[j - 1];
-            v[j - 1] = tmp;
-        }
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 /* Pushes {read_ms=, ..., frame_ms=, serial_ms=} medians over frames without error. */
 static void push_stage_medians(lua_State *L, const cdvr_frame_row *rows, size_t n)
 {
@@ -481,7 +469,7 @@ static void push_stage_medians(lua_State *L, const cdvr_frame_row *rows, size_t 
                                r->interval_ms};
             vals[m++] = stage[k];
         }
-        setnum(L, names[k], median(vals, m));
+        setnum(L, names[k], cdvr_median(vals, m));
     }
     lua_remove(L, -2);                                                    /* medians */
 }

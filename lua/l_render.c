@@ -1,17 +1,11 @@
 /* lua/l_render.c - cdvr.render(volume, {...}): the CPU reference ray caster, or the OpenCL
  * renderer with device="cl". */
+#include "cdvr/timing.h"
 #include "cdvr/render.h"
 #include "lcdvr.h"
 
 #include <string.h>
 #include <time.h>
-
-static double now_ms(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
-}
 
 /* Frame t (from 0) of vol as a u8 volume: vol itself when it is u8, else that frame quantized
  * over the whole series' range (pushed as a Lua volume so an error cannot leak it). */
@@ -146,12 +140,12 @@ static int l_render(lua_State *L)
     const cdvr_volume *u8 = u8_frame(L, vol, &frame);
     if (device == 1)
         return lcdvr_render_cl(L, u8, frame, &o);
-    double start = now_ms();
+    double start = cdvr_now_ms();
     cdvr_image *img;
     cdvr_error err;
     if (cdvr_render_cpu(u8, frame, &o, &img, &err) != CDVR_OK)
         return lcdvr_raise(L, &err);
-    double ms = now_ms() - start;
+    double ms = cdvr_now_ms() - start;
     lcdvr_pushimage(L, img);
     push_stats(L, &o, ms);
     return 2;

@@ -1,6 +1,7 @@
 /* lua/l_store.c - cdvr.Store: cdvr.encode, cdvr.open, st:info(), st:decode(), st:chunk(), and
  * the timing helpers the codec benchmark needs (st:bench_decode, st:bench_unpack,
  * cdvr.bench_memcpy, cdvr.clock). */
+#include "cdvr/timing.h"
 #include "lcdvr.h"
 
 #include <math.h>
@@ -486,28 +487,9 @@ static int store_tostring(lua_State *L)
 
 /* ---- timing helpers --------------------------------------------------------------------- */
 
-static double now_seconds(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-static double median(double *v, size_t n)
-{
-    qsort(v, n, sizeof *v, cmp_double);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 static int l_clock(lua_State *L)
 {
-    lua_pushnumber(L, now_seconds());
+    lua_pushnumber(L, cdvr_now_ms() / 1e3);
     return 1;
 }
 
@@ -536,15 +518,15 @@ static int l_bench_memcpy(lua_State *L)
     memset(dst, 0, piece); /* fault the pages in before timing, as the decoders' outputs are */
     for (size_t r = 0; r < repeats; r++) {
         src[r % n] = (uint8_t)r;
-        double t0 = now_seconds();
+        double t0 = cdvr_now_ms();
         for (size_t off = 0; off < n; off += piece)
             memcpy(dst, src + off, n - off < piece ? n - off : piece);
-        double dt = now_seconds() - t0;
+        double dt = (cdvr_now_ms() - t0) / 1e3;
         mbps[r] = dt > 0 ? (double)n / dt / 1e6 : HUGE_VAL;
     }
     volatile uint8_t sink = dst[(repeats - 1) % piece]; /* the copies are observable */
     (void)sink;
-    lua_pushnumber(L, median(mbps, repeats));
+    lua_pushnumber(L, cdvr_median(mbps, repeats));
     return 1;
 }
 
@@ -585,16 +567,16 @@ static int store_bench_decode(lua_State *L)
     double *mbps = lua_newuserdatauv(L, repeats * sizeof *mbps, 0);
     uint8_t *frames[3] = {out, out + voxels, out + 2 * voxels};
     for (size_t r = 0; r < repeats; r++) {
-        double t0 = now_seconds();
+        double t0 = cdvr_now_ms();
         for (size_t c = 0; c < vi->nchunks; c++) {
             cdvr_error err;
             if (cdvr_store_decode_chunk(st, v, c, payloads[c], frames, &err) != CDVR_OK)
                 return lcdvr_raise(L, &err);
         }
-        double dt = now_seconds() - t0;
+        double dt = (cdvr_now_ms() - t0) / 1e3;
         mbps[r] = dt > 0 ? (double)cdvr_store_get_info(st)->raw_bytes / dt / 1e6 : HUGE_VAL;
     }
-    lua_pushnumber(L, median(mbps, repeats));
+    lua_pushnumber(L, cdvr_median(mbps, repeats));
     return 1;
 }
 
@@ -612,16 +594,16 @@ static int store_bench_unpack(lua_State *L)
     memset(out, 0, max_payload);
     double *mbps = lua_newuserdatauv(L, repeats * sizeof *mbps, 0);
     for (size_t r = 0; r < repeats; r++) {
-        double t0 = now_seconds();
+        double t0 = cdvr_now_ms();
         for (size_t c = 0; c < vi->nchunks; c++) {
             cdvr_error err;
             if (cdvr_store_unpack_chunk(st, v, c, stored[c], out, &err) != CDVR_OK)
                 return lcdvr_raise(L, &err);
         }
-        double dt = now_seconds() - t0;
+        double dt = (cdvr_now_ms() - t0) / 1e3;
         mbps[r] = dt > 0 ? (double)vi->payload_bytes / dt / 1e6 : HUGE_VAL;
     }
-    lua_pushnumber(L, median(mbps, repeats));
+    lua_pushnumber(L, cdvr_median(mbps, repeats));
     return 1;
 }
 
