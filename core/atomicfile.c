@@ -2,6 +2,8 @@
 #include "cdvr/atomicfile.h"
 
 #include <errno.h>
+#include <fcntl.h>
+#include <libgen.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -34,6 +36,20 @@ cdvr_status cdvr_atomic_open(cdvr_atomic_file *af, const char *path, cdvr_error 
     return CDVR_OK;
 }
 
+/* fsync the directory so that the rename itself is durable. */
+static void sync_parent_dir(const char *path)
+{
+    char *copy = strdup(path);
+    if (!copy)
+        return;
+    int fd = open(dirname(copy), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (fd >= 0) {
+        (void)fsync(fd);
+        close(fd);
+    }
+    free(copy);
+}
+
 cdvr_status cdvr_atomic_commit(cdvr_atomic_file *af, int failed, cdvr_error *err)
 {
     int saved = failed ? errno : 0;
@@ -51,6 +67,8 @@ cdvr_status cdvr_atomic_commit(cdvr_atomic_file *af, int failed, cdvr_error *err
     }
     if (failed)
         unlink(af->tmp_path);
+    else
+        sync_parent_dir(af->path);
     free(af->tmp_path);
     af->tmp_path = NULL;
     af->f = NULL;

@@ -6,15 +6,14 @@
  * pays, writes the stored bytes after the metadata, decodes the payload again to measure the
  * variant's volume PSNR and max error (peak 255, as cdvr_compare), and reports progress.
  * Finally the metadata goes to offset 0, the file is fsync'ed and renamed over the final name.
- * The file is written under path.tmp.<pid>; on any failure it is removed.
+ * The file is written under a temporary name (cdvr_atomic_file); on any failure it is removed.
  */
+#include "cdvr/atomicfile.h"
 #include "store_format.h"
 
 #include "stage2.h"
 
 #include <errno.h>
-#include <fcntl.h>
-#include <libgen.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -331,36 +330,6 @@ static cdvr_status write_meta(cdvr_store *st, const char *tmp, cdvr_error *err)
     return s;
 }
 
-/* fsync the directory so that the rename itself is durable. */
-static void sync_parent_dir(const char *path)
-{
-    char *copy = strdup(path);
-    if (!copy)
-        return;
-    int fd = open(dirname(copy), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-    if (fd >= 0) {
-        (void)fsync(fd);
-        close(fd);
-    }
-    free(copy);
-}
-
-static cdvr_status finish_file(cdvr_store *st, const char *tmp, const char *path,
-                               cdvr_error *err)
-{
-    if (fsync(st->fd) != 0)
-        return cdvr_error_set(err, CDVR_ERR_IO, "%s: fsync failed: %s", tmp, strerror(errno));
-    int rc = close(st->fd);
-    st->fd = -1;
-    if (rc != 0)
-        return cdvr_error_set(err, CDVR_ERR_IO, "%s: close failed: %s", tmp, strerror(errno));
-    if (rename(tmp, path) != 0)
-        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot rename %s to it: %s", path, tmp,
-                              strerror(errno));
-    sync_parent_dir(path);
-    return CDVR_OK;
-}
-
 static void fill_header(cdvr_store *st, const cdvr_volume *u8, const cdvr_encode_opts *opts)
 {
     cdvr_store_info *in = &st->info;
@@ -386,26 +355,27 @@ cdvr_status cdvr_store_encode(const cdvr_volume *u8, const cdvr_encode_opts *opt
     if (s != CDVR_OK)
         return s;
     fill_header(st, u8, opts);
-    char tmp[4096];
-    if (snprintf(tmp, sizeof tmp, "%s.tmp.%ld", path, (long)getpid()) >= (int)sizeof tmp) {
-        cdvr_store_close(st);
-        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: path too long", path);
-    }
-    st->fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-    if (st->fd < 0) {
-        s = cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot create: %s", tmp, strerror(errno));
+    cdvr_atomic_file af;
+    s = cdvr_atomic_open(&af, path, err);
+    if (s != CDVR_OK) {
         cdvr_store_close(st);
         return s;
     }
+    const char *tmp = af.tmp_path;
+    st->fd = fileno(af.f); /* written with pwrite only: the FILE buffers nothing */
     uint64_t meta = cdvr_store_meta_bytes(st->info.nvariants, st->nchunks_total);
     s = meta ? write_chunks(u8, opts, st, meta + 4, tmp, err)
              : cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: index too large", path);
     if (s == CDVR_OK)
         s = write_meta(st, tmp, err);
-    if (s == CDVR_OK)
-        s = finish_file(st, tmp, path, err);
-    if (s != CDVR_OK)
-        unlink(tmp);
+    st->fd = -1; /* closed by the commit */
+    cdvr_error commit_err;
+    cdvr_status c = cdvr_atomic_commit(&af, s != CDVR_OK, &commit_err);
+    if (s == CDVR_OK && c != CDVR_OK) {
+        s = c;
+        if (err)
+            *err = commit_err;
+    }
     cdvr_store_close(st);
     return s;
 }

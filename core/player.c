@@ -47,7 +47,7 @@ struct cdvr_player {
     size_t first, frames;
     cdvr_frame_row *rows;
     size_t nrows, rows_cap;
-    double t_start, t_last_frame, t_deadline;
+    double t_last_frame, t_deadline;
 
     /* pipeline */
     pthread_mutex_t mu;
@@ -677,7 +677,7 @@ cdvr_status cdvr_player_run(cdvr_player *p, size_t first, size_t frames, cdvr_er
     memset(&p->unzip_q, 0, sizeof p->unzip_q);
     for (size_t i = 0; i < p->nitems; i++)
         queue_push(&p->free_items, &p->items[i]);
-    p->t_start = p->t_last_frame = p->t_deadline = cdvr_now_ms();
+    p->t_last_frame = p->t_deadline = cdvr_now_ms();
     cdvr_error_clear(err);
     return p->opts.pipelined ? run_pipelined(p, err) : run_serial(p, err);
 }

@@ -6,7 +6,8 @@
  *   return cdvr_atomic_commit(&af, failed, err);
  *
  * The data goes to a temporary file beside `path` ("path.tmpXXXXXX", mode 0644); commit
- * flushes, fsyncs, closes and renames it onto path, or removes it when anything failed.
+ * flushes, fsyncs, closes and renames it onto path (then fsyncs the directory so the rename is
+ * durable), or removes it when anything failed.
  */
 #ifndef CDVR_ATOMICFILE_H
 #define CDVR_ATOMICFILE_H
