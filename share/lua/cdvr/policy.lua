@@ -281,6 +281,21 @@ local function check_opts(opts, fname)
   return opts
 end
 
+-- What every adaptive policy does first: validate stats, apply the quality floor, answer
+-- capture and no-target requests. Returns name, reason when that settles the choice, else
+-- nil, {by_name=, allowed=, fps=, source=} for the policy's own rule.
+local function settle_or_context(kind, stats, opts)
+  local by_quality, by_name = check_stats(stats, kind)
+  local floor, source = quality_floor(stats, opts, by_name)
+  if stats.capture then return capture_choice(kind, by_quality, floor, source) end
+  local allowed = allowed_variants(by_quality, floor)
+  local fps = target_fps(opts, stats)
+  if fps == nil then
+    return allowed[1].name, kind .. ": no target, best quality " .. allowed[1].name
+  end
+  return nil, {by_name = by_name, allowed = allowed, fps = fps, source = source}
+end
+
 function policy.open_loop(opts)
   opts = check_opts(opts, "open_loop")
   local margin = opts.margin or 0.9
@@ -288,14 +303,9 @@ function policy.open_loop(opts)
     error(string.format("open_loop: margin must be a positive number, got %s", tostring(margin)), 2)
   end
   return function(stats)
-    local by_quality, by_name = check_stats(stats, "open_loop")
-    local floor, source = quality_floor(stats, opts, by_name)
-    if stats.capture then return capture_choice("open_loop", by_quality, floor, source) end
-    local allowed = allowed_variants(by_quality, floor)
-    local fps = target_fps(opts, stats)
-    if fps == nil then
-      return allowed[1].name, "open_loop: no target, best quality " .. allowed[1].name
-    end
+    local name, ctx = settle_or_context("open_loop", stats, opts)
+    if name then return name, ctx end
+    local allowed, fps = ctx.allowed, ctx.fps
     local m = policy.measure(stats.frames)
     if m == nil then
       return allowed[1].name, "open_loop: no measurements yet, best quality " .. allowed[1].name
@@ -447,14 +457,9 @@ function policy.closed_loop(opts)
     error(string.format("closed_loop: up_after must be a positive integer, got %s", tostring(state.up_after)), 2)
   end
   return function(stats)
-    local by_quality, by_name = check_stats(stats, "closed_loop")
-    local floor, source = quality_floor(stats, opts, by_name)
-    if stats.capture then return capture_choice("closed_loop", by_quality, floor, source) end
-    local allowed = allowed_variants(by_quality, floor)
-    local fps = target_fps(opts, stats)
-    if fps == nil then
-      return allowed[1].name, "closed_loop: no target, best quality " .. allowed[1].name
-    end
+    local name, ctx = settle_or_context("closed_loop", stats, opts)
+    if name then return name, ctx end
+    local by_name, allowed, fps, source = ctx.by_name, ctx.allowed, ctx.fps, ctx.source
     local cur = by_name[stats.current or false]
     if cur == nil then
       local start = by_name[opts.variant or false] or allowed[1]
