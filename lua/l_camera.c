@@ -1,6 +1,5 @@
 /* lua/l_camera.c - cdvr.Camera: cdvr.camera{...}, cdvr.orbit_camera(volume, {...}),
  * cam:get(), cam:set{...}; fields readable as cam.eye, cam.fov, ... */
-#include "cdvr/atomicfile.h"
 #include "lcdvr.h"
 
 #include <errno.h>
@@ -165,8 +164,9 @@ static void write_vec3(FILE *f, const char *key, const double v[3])
 }
 
 /* Writes the camera as a Lua file returning its fields; returns 0 or -1 (errno set). */
-static int write_camera(FILE *f, const cdvr_camera *cam)
+static int write_camera(FILE *f, const void *obj)
 {
+    const cdvr_camera *cam = obj;
     fprintf(f, "-- cdvr camera: cdvr.camera(dofile(path)) or cdvr.camera(path)\nreturn {\n");
     write_vec3(f, "eye", cam->eye);
     write_vec3(f, "center", cam->center);
@@ -181,14 +181,7 @@ static int write_camera(FILE *f, const cdvr_camera *cam)
 static int camera_save(lua_State *L)
 {
     const cdvr_camera *cam = lcdvr_checkcamera(L, 1);
-    const char *path = luaL_checkstring(L, 2);
-    cdvr_atomic_file af;
-    cdvr_error err;
-    if (cdvr_atomic_open(&af, path, &err) != CDVR_OK ||
-        cdvr_atomic_commit(&af, write_camera(af.f, cam) != 0, &err) != CDVR_OK)
-        return lcdvr_fail(L, &err);
-    lua_pushboolean(L, 1);
-    return 1;
+    return lcdvr_save_file(L, luaL_checkstring(L, 2), write_camera, cam);
 }
 
 /* __index: methods first, then the camera's fields. */

@@ -1,6 +1,5 @@
 /* lua/l_tf.c - cdvr.TF: transfer functions in Lua (cdvr.tf, presets in share/tf, save/load as
  * plain Lua files). */
-#include "cdvr/atomicfile.h"
 #include "lcdvr.h"
 
 #include <errno.h>
@@ -164,8 +163,9 @@ static int tf_unit(lua_State *L)
 }
 
 /* Writes the TF as a Lua file returning its points table; returns 0 or -1 (errno set). */
-static int write_tf(FILE *f, const cdvr_tf *tf)
+static int write_tf(FILE *f, const void *obj)
 {
+    const cdvr_tf *tf = obj;
     fprintf(f, "-- cdvr transfer function: {value, r, g, b, alpha per unit}\nreturn {\n");
     fprintf(f, "  unit = %.17g,\n", tf->unit);
     for (size_t i = 0; i < tf->npoints; i++) {
@@ -179,14 +179,7 @@ static int write_tf(FILE *f, const cdvr_tf *tf)
 static int tf_save(lua_State *L)
 {
     const cdvr_tf *tf = lcdvr_checktf(L, 1);
-    const char *path = luaL_checkstring(L, 2);
-    cdvr_atomic_file af;
-    cdvr_error err;
-    if (cdvr_atomic_open(&af, path, &err) != CDVR_OK ||
-        cdvr_atomic_commit(&af, write_tf(af.f, tf) != 0, &err) != CDVR_OK)
-        return lcdvr_fail(L, &err);
-    lua_pushboolean(L, 1);
-    return 1;
+    return lcdvr_save_file(L, luaL_checkstring(L, 2), write_tf, tf);
 }
 
 static int tf_tostring(lua_State *L)

@@ -1,4 +1,5 @@
 /* lua/lcdvr.c - helpers shared by the binding files (see lcdvr.h). */
+#include "cdvr/atomicfile.h"
 #include "lcdvr.h"
 
 int lcdvr_raise(lua_State *L, const cdvr_error *err)
@@ -11,6 +12,18 @@ int lcdvr_fail(lua_State *L, const cdvr_error *err)
     luaL_pushfail(L);
     lua_pushstring(L, err->msg[0] ? err->msg : cdvr_status_name(err->status));
     return 2;
+}
+
+int lcdvr_save_file(lua_State *L, const char *path, int (*write)(FILE *f, const void *obj),
+                    const void *obj)
+{
+    cdvr_atomic_file af;
+    cdvr_error err;
+    if (cdvr_atomic_open(&af, path, &err) != CDVR_OK ||
+        cdvr_atomic_commit(&af, write(af.f, obj) != 0, &err) != CDVR_OK)
+        return lcdvr_fail(L, &err);
+    lua_pushboolean(L, 1);
+    return 1;
 }
 
 void lcdvr_newclass(lua_State *L, const char *name, const luaL_Reg *methods, const luaL_Reg *meta)

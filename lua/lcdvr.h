@@ -12,6 +12,8 @@
 #ifndef CDVR_LCDVR_H
 #define CDVR_LCDVR_H
 
+#include <stdio.h>
+
 #include <lauxlib.h>
 #include <lua.h>
 #include <lualib.h>
@@ -34,6 +36,11 @@
 int lcdvr_raise(lua_State *L, const cdvr_error *err);
 /* Pushes nil and the message; returns 2 (for `return lcdvr_fail(L, &err);`). */
 int lcdvr_fail(lua_State *L, const cdvr_error *err);
+
+/* Writes path through a temporary file (cdvr_atomic_file) with write(f, obj), which returns
+ * nonzero on failure; pushes true, or nil and a message naming path. Returns the count. */
+int lcdvr_save_file(lua_State *L, const char *path, int (*write)(FILE *f, const void *obj),
+                    const void *obj);
 
 /* Creates metatable `name` with __name, __index = methods table; `meta` adds metamethods
  * (__gc, __close, __tostring, ...). Leaves the stack unchanged. */
