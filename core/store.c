@@ -752,12 +752,17 @@ cdvr_status cdvr_store_decode_chunk(const cdvr_store *st, size_t v, size_t c,
 }
 
 /* Reads and unpacks chunk c; *payload is malloc'd (payload_bytes). */
-static cdvr_status load_payload(const cdvr_store *st, size_t v, size_t c, uint8_t **payload,
-                                cdvr_error *err)
+cdvr_status cdvr_store_load_payload(const cdvr_store *st, size_t v, size_t c, uint8_t **payload,
+                                    cdvr_error *err)
 {
+    *payload = NULL;
     const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, c);
-    uint8_t *stored = malloc((size_t)ci->stored_bytes);
-    *payload = malloc((size_t)ci->payload_bytes);
+    if (!ci)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: no chunk %zu in variant %zu", st->path, c + 1, v + 1);
+    if (ci->stored_bytes > SIZE_MAX || ci->payload_bytes > SIZE_MAX)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: chunk %zu too large", st->path, c + 1);
+    uint8_t *stored = malloc(ci->stored_bytes ? (size_t)ci->stored_bytes : 1);
+    *payload = malloc(ci->payload_bytes ? (size_t)ci->payload_bytes : 1);
     cdvr_status s = (!stored || !*payload)
                         ? cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for chunk %zu",
                                          st->path, c + 1)
@@ -786,7 +791,7 @@ cdvr_status cdvr_store_decode(const cdvr_store *st, size_t v, size_t t, cdvr_vol
     uint8_t *payload = NULL, *scratch = NULL;
     uint8_t *frames[8];
     cdvr_volume *vol = NULL;
-    cdvr_status s = load_payload(st, v, c, &payload, err);
+    cdvr_status s = cdvr_store_load_payload(st, v, c, &payload, err);
     if (s == CDVR_OK)
         s = cdvr_volume_create(st->info.dims, 1, CDVR_TYPE_U8, &vol, err);
     if (s == CDVR_OK && (!cdvr_size_mul(voxels, ci->count, &scratch_n) ||

@@ -166,27 +166,6 @@ int lcdvr_render_cl(lua_State *L, const cdvr_volume *vol, size_t t, void *render
 }
 
 /* Reads and unpacks chunk c of variant v into a new buffer (freed by the caller). */
-static uint8_t *read_payload(lua_State *L, const cdvr_store *st, size_t v, size_t c,
-                             const cdvr_chunk_info *chunk)
-{
-    cdvr_error err;
-    if (chunk->stored_bytes > SIZE_MAX || chunk->payload_bytes > SIZE_MAX)
-        luaL_error(L, "%s: variant %d chunk %d too large", cdvr_store_path(st), (int)v + 1, (int)c + 1);
-    uint8_t *stored = malloc(chunk->stored_bytes ? (size_t)chunk->stored_bytes : 1);
-    uint8_t *payload = malloc(chunk->payload_bytes ? (size_t)chunk->payload_bytes : 1);
-    cdvr_status status = (!stored || !payload)
-                             ? cdvr_error_set(&err, CDVR_ERR_NOMEM, "%s: out of memory", cdvr_store_path(st))
-                             : cdvr_store_read_chunk(st, v, c, stored, &err);
-    if (!status)
-        status = cdvr_store_unpack_chunk(st, v, c, stored, payload, &err);
-    free(stored);
-    if (status) {
-        free(payload);
-        lcdvr_raise(L, &err);
-    }
-    return payload;
-}
-
 int lcdvr_decode_cl(lua_State *L, const cdvr_store *st, size_t v, size_t t)
 {
     const cdvr_variant_info *var = cdvr_store_variant(st, v);
@@ -208,7 +187,9 @@ int lcdvr_decode_cl(lua_State *L, const cdvr_store *st, size_t v, size_t t)
     memcpy(vol->origin, info->origin, sizeof vol->origin);
     lcdvr_pushvolume(L, vol); /* owned by Lua from here */
     forget_frame(d);         /* the stream's frames are about to be replaced */
-    uint8_t *payload = read_payload(L, st, v, c, chunk);
+    uint8_t *payload;
+    if (cdvr_store_load_payload(st, v, c, &payload, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
     cdvr_status status = cdvr_cl_upload(s, payload, (size_t)chunk->payload_bytes, &err);
     free(payload);
     if (!status)

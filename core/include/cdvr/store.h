@@ -120,6 +120,10 @@ void cdvr_store_drop_cache(const cdvr_store *st, size_t v, size_t c);
 /* b1': undoes stage 2: out holds payload_bytes. Copies if the chunk has no stage 2. */
 cdvr_status cdvr_store_unpack_chunk(const cdvr_store *st, size_t v, size_t c,
                                     const uint8_t *stored, uint8_t *out, cdvr_error *err);
+/* b1 + b1' in one call: a new malloc'ed buffer (*payload, freed by the caller) holding chunk c's
+ * payload_bytes after the CRC check and stage 2. */
+cdvr_status cdvr_store_load_payload(const cdvr_store *st, size_t v, size_t c, uint8_t **payload,
+                                    cdvr_error *err);
 /* Decodes a chunk payload into its `count` u8 frames of dims (frames[i] for t0+i). */
 cdvr_status cdvr_store_decode_chunk(const cdvr_store *st, size_t v, size_t c,
                                     const uint8_t *payload, uint8_t *const *frames,
