@@ -415,16 +415,12 @@ static int store_decode(lua_State *L)
 /* Reads and unpacks chunk c into a Lua string (pushed), or raises. */
 static void push_payload(lua_State *L, const cdvr_store *st, size_t v, size_t c)
 {
-    const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, c);
-    uint8_t *stored = lua_newuserdatauv(L, (size_t)ci->stored_bytes, 0);
-    luaL_Buffer b;
-    uint8_t *payload = (uint8_t *)luaL_buffinitsize(L, &b, (size_t)ci->payload_bytes);
+    uint8_t *payload;
     cdvr_error err;
-    if (cdvr_store_read_chunk(st, v, c, stored, &err) != CDVR_OK ||
-        cdvr_store_unpack_chunk(st, v, c, stored, payload, &err) != CDVR_OK)
+    if (cdvr_store_load_payload(st, v, c, &payload, &err) != CDVR_OK)
         lcdvr_raise(L, &err);
-    luaL_pushresultsize(&b, (size_t)ci->payload_bytes);
-    lua_remove(L, -2); /* the stored bytes */
+    lua_pushlstring(L, (const char *)payload, (size_t)cdvr_store_chunk(st, v, c)->payload_bytes);
+    free(payload);
 }
 
 static int store_chunk(lua_State *L)
