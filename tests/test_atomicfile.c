@@ -1,4 +1,4 @@
-/* core/atomicfile.c: complete file or nothing under the final name, no temporary left. */
+/* core/base/atomicfile.c: complete file or nothing under the final name, no temporary left. */
 #include <dirent.h>
 #include <string.h>
 #include <sys/stat.h>

@@ -118,17 +118,17 @@ static void cache_and_build(const char *src_kernels, const char *work)
     char kdir[700], cdir[700], path[800], from[800], cache_path[512] = "";
     snprintf(kdir, sizeof kdir, "%s/kernels", work);
     snprintf(cdir, sizeof cdir, "%s/cache", work);
-    char cmd[1400];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s'", work, kdir);
+    char cmd[2400];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s/codec' '%s/render'", work, kdir, kdir);
     CHECK(system(cmd) == 0, "%s", cmd);
-    const char *files[] = {"pvtc_decode.cl", "bricks.cl", "raycast.cl"};
+    const char *files[] = {"codec/pvtc_decode.cl", "render/bricks.cl", "render/raycast.cl"};
     for (int i = 0; i < 3; i++) {
         snprintf(from, sizeof from, "%s/%s", src_kernels, files[i]);
         snprintf(path, sizeof path, "%s/%s", kdir, files[i]);
         copy_file(from, path);
     }
     /* a unique comment makes the source (and so the cache key) new to every run */
-    snprintf(path, sizeof path, "%s/raycast.cl", kdir);
+    snprintf(path, sizeof path, "%s/render/raycast.cl", kdir);
     char stamp[64];
     snprintf(stamp, sizeof stamp, "\n/* test stamp %ld */\n", (long)getpid());
     write_text(path, "a", stamp);
@@ -158,7 +158,7 @@ static void cache_and_build(const char *src_kernels, const char *work)
           "build failure message: %s", err.msg);
     printf("build failure: %.160s...\n", err.msg);
     /* a missing kernel file is named */
-    snprintf(path, sizeof path, "%s/bricks.cl", kdir);
+    snprintf(path, sizeof path, "%s/render/bricks.cl", kdir);
     remove(path);
     st = cdvr_cl_open(&cl, &err);
     CHECK(st == CDVR_ERR_IO && strstr(err.msg, "bricks.cl"), "missing kernel: %s", err.msg);

@@ -1,7 +1,7 @@
 /* tests/test_crc32c.c - CRC-32C known vectors, incremental use, hardware == portable path. */
 #include "check.h"
 
-#include "../core/crc32c.h"
+#include "base/crc32c.h"
 #include "cdvr/store.h"
 
 #include <stdint.h>

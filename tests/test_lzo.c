@@ -1,7 +1,7 @@
 /* tests/test_lzo.c - stage 2: LZO1X round trips, corrupt input, the keep rule. */
 #include "check.h"
 
-#include "../core/stage2.h"
+#include "codec/stage2/stage2.h"
 
 #include <stdint.h>
 #include <string.h>

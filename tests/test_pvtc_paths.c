@@ -5,7 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../core/pvtc_internal.h"
+#include "codec/pvtc/pvtc_internal.h"
 #include "cdvr/pvtc.h"
 #include "check.h"
 

@@ -1,4 +1,4 @@
-/* tests/test_quantize.c - core/quantize.c: the window rule of volume.h, NaN/Inf policy,
+/* tests/test_quantize.c - core/io/quantize.c: the window rule of volume.h, NaN/Inf policy,
  * denormals, huge ranges, lo == hi, 16-bit input, and the reported counts. */
 #include "check.h"
 #include "cdvr/volume.h"

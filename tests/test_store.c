@@ -2,7 +2,7 @@
  * several variants per store, schedules, stage-2 decisions, every corruption, failed writes. */
 #include "check.h"
 
-#include "../core/store_format.h"
+#include "store/store_format.h"
 
 #include <dirent.h>
 #include <fcntl.h>

@@ -1,4 +1,4 @@
-/* core/timing.c: median definition and a monotonic clock. */
+/* core/base/timing.c: median definition and a monotonic clock. */
 #include "cdvr/timing.h"
 #include "check.h"
 

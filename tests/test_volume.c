@@ -1,5 +1,5 @@
-/* tests/test_volume.c - core/volume.c (create, get, range, slice_time, types) and
- * core/generate.c (box, sphere, Marschner-Lobb, ramp). */
+/* tests/test_volume.c - core/io/volume.c (create, get, range, slice_time, types) and
+ * core/io/generate.c (box, sphere, Marschner-Lobb, ramp). */
 #include "check.h"
 #include "cdvr/volume.h"
 

@@ -1,4 +1,4 @@
-/* tests/fuzz/fuzz_load.c - libFuzzer target for the volume loaders (core/io_raw.c, io_nrrd.c
+/* tests/fuzz/fuzz_load.c - libFuzzer target for the volume loaders (core/io/io_raw.c, io_nrrd.c
  * through teem, io_nifti.c through niftilib): bytes -> temporary file -> cdvr_volume_load by
  * extension; errors are tolerated, crashes are not. How to run: README.
  *

@@ -1,4 +1,4 @@
-/* tests/fuzz/fuzz_lzo.c - libFuzzer target for stage 2 (core/stage2.h). How to run: README.
+/* tests/fuzz/fuzz_lzo.c - libFuzzer target for stage 2 (core/codec/stage2/stage2.h). How to run: README.
  *
  * Input: 2 bytes expected payload size (little endian, 0..65535), then LZO1X data. The data
  * is decompressed into a buffer of exactly that size (ASan sees any overrun). Then the same
@@ -7,7 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../core/stage2.h"
+#include "codec/stage2/stage2.h"
 #include "fuzz_common.h"
 
 static void lzo_round_trip(const uint8_t *data, size_t size)

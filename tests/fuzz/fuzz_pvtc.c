@@ -1,4 +1,4 @@
-/* tests/fuzz/fuzz_pvtc.c - libFuzzer target for the PVTC chunk decoder (core/pvtc.c and its
+/* tests/fuzz/fuzz_pvtc.c - libFuzzer target for the PVTC chunk decoder (core/codec/pvtc/pvtc.c and its
  * SSSE3/AVX2 paths). How to run: README.
  *
  * Input: 5 header bytes, then the chunk.
@@ -13,7 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../core/pvtc_internal.h"
+#include "codec/pvtc/pvtc_internal.h"
 #include "cdvr/pvtc.h"
 #include "fuzz_common.h"
 

@@ -1,4 +1,4 @@
-/* tests/fuzz/fuzz_store.c - libFuzzer target for the .cdv store reader (core/store.c): open,
+/* tests/fuzz/fuzz_store.c - libFuzzer target for the .cdv store reader (core/store/store.c): open,
  * then read, unpack and decode every chunk of every variant, and decode every timestep through
  * cdvr_store_decode; every error is tolerated, no input may crash. How to run: README.
  *

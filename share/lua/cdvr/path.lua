@@ -13,7 +13,7 @@
 --   The eye turns once around `center` every `period`, counter-clockwise about `up` (right-hand
 --   rule), at `elevation` degrees above the plane orthogonal to up; azimuth start + 360 t/period.
 --   Azimuth 0 is the world axis least aligned with up, made orthogonal to it (x for up = z),
---   the same convention as cdvr_camera_orbit in core/camera.c.
+--   the same convention as cdvr_camera_orbit in core/render/camera.c.
 --
 -- keyframes{ {time=, eye=, center=, up=, fov=}, ..., loop=false, spline="centripetal",
 --            period= }
@@ -150,7 +150,7 @@ function methods.totable(self)
 end
 
 -- ---- orbit --------------------------------------------------------------------------------
--- The world axis least aligned with n, made orthogonal to it (core/camera.c's convention).
+-- The world axis least aligned with n, made orthogonal to it (core/render/camera.c's convention).
 local function perpendicular(n)
   local axis = 1
   for i = 2, 3 do

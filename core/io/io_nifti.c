@@ -1,0 +1,231 @@
+/* core/io/io_nifti.c - NIfTI-1 (.nii, .nii.gz, .hdr/.img pairs) through niftilib. */
+#include "cdvr/volume.h"
+#include "volume_io.h"
+
+#include <math.h>
+#include <errno.h>
+#include <sys/stat.h>
+#include <stdint.h>
+#include <nifti1_io.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static double read_u8(const void *p, size_t i) { return ((const uint8_t *)p)[i]; }
+static double read_i8(const void *p, size_t i) { return ((const int8_t *)p)[i]; }
+static double read_u16(const void *p, size_t i) { return ((const uint16_t *)p)[i]; }
+static double read_i16(const void *p, size_t i) { return ((const int16_t *)p)[i]; }
+static double read_u32(const void *p, size_t i) { return ((const uint32_t *)p)[i]; }
+static double read_i32(const void *p, size_t i) { return ((const int32_t *)p)[i]; }
+static double read_u64(const void *p, size_t i) { return (double)((const uint64_t *)p)[i]; }
+static double read_i64(const void *p, size_t i) { return (double)((const int64_t *)p)[i]; }
+static double read_f32(const void *p, size_t i) { return ((const float *)p)[i]; }
+static double read_f64(const void *p, size_t i) { return ((const double *)p)[i]; }
+
+/* Reader for a NIfTI datatype and the type it keeps when no conversion is needed
+ * (*native = 0 for the types that become f32). NULL for unsupported datatypes. */
+static cdvr_value_reader nifti_reader(int datatype, cdvr_type *type, int *native)
+{
+    *native = 1;
+    switch (datatype) {
+    case DT_UINT8: *type = CDVR_TYPE_U8; return read_u8;
+    case DT_UINT16: *type = CDVR_TYPE_U16; return read_u16;
+    case DT_INT16: *type = CDVR_TYPE_I16; return read_i16;
+    case DT_FLOAT32: *type = CDVR_TYPE_F32; return read_f32;
+    default: break;
+    }
+    *native = 0;
+    *type = CDVR_TYPE_F32;
+    switch (datatype) {
+    case DT_INT8: return read_i8;
+    case DT_UINT32: return read_u32;
+    case DT_INT32: return read_i32;
+    case DT_UINT64: return read_u64;
+    case DT_INT64: return read_i64;
+    case DT_FLOAT64: return read_f64;
+    default: return NULL;
+    }
+}
+
+/* slope/intercept to apply, or 0 when the header sets none (slope 0 or identity). */
+static int nifti_scaling(const nifti_image *nim, double *slope, double *inter)
+{
+    *slope = nim->scl_slope;
+    *inter = nim->scl_inter;
+    if (!isfinite(*slope) || *slope == 0.0)
+        return 0;
+    if (!isfinite(*inter))
+        *inter = 0.0;
+    return !(*slope == 1.0 && *inter == 0.0);
+}
+
+static cdvr_status nifti_shape(const char *path, const nifti_image *nim, size_t dims[3],
+                               size_t *timesteps, cdvr_error *err)
+{
+    if (nim->ndim > 4 || nim->nu > 1 || nim->nv > 1 || nim->nw > 1)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                              "%s: NIfTI has %d dimensions (dim[5..7] = %d %d %d): only 3D volumes "
+                              "and 4D time series are supported",
+                              path, nim->ndim, nim->nu, nim->nv, nim->nw);
+    int n[4] = {nim->nx, nim->ny, nim->nz, nim->nt};
+    for (int i = 0; i < 4; i++)
+        if (n[i] < 1)
+            return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI dim[%d] = %d is not positive",
+                                  path, i + 1, n[i]);
+    for (int i = 0; i < 3; i++)
+        dims[i] = (size_t)n[i];
+    *timesteps = (size_t)n[3];
+    return CDVR_OK;
+}
+
+/* Spacing from pixdim (absolute values; 0 or non-finite -> 1); origin from the qform offset,
+ * else the sform translation. Axis flips and rotations are not applied: cdvr renders in
+ * index order. */
+static void nifti_geometry(const nifti_image *nim, cdvr_volume *vol)
+{
+    double pix[3] = {nim->dx, nim->dy, nim->dz};
+    for (int i = 0; i < 3; i++)
+        if (isfinite(pix[i]) && pix[i] != 0.0)
+            vol->spacing[i] = fabs(pix[i]);
+    double origin[3] = {0, 0, 0};
+    if (nim->qform_code > 0) {
+        origin[0] = nim->qoffset_x;
+        origin[1] = nim->qoffset_y;
+        origin[2] = nim->qoffset_z;
+    } else if (nim->sform_code > 0) {
+        for (int i = 0; i < 3; i++)
+            origin[i] = nim->sto_xyz.m[i][3];
+    }
+    for (int i = 0; i < 3; i++)
+        if (isfinite(origin[i]))
+            vol->origin[i] = origin[i];
+}
+
+/* Reads the voxel bytes itself: niftilib pads a short data section with zeros and reports
+ * success, and a truncated file must be an error here. */
+static cdvr_status read_nifti_data(const char *path, const nifti_image *nim, void *buf, size_t bytes,
+                                   cdvr_error *err)
+{
+    znzFile fp = znzopen(nim->iname, "rb", nifti_is_gzfile(nim->iname));
+    if (znz_isnull(fp))
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot open NIfTI data file %s", path, nim->iname);
+    size_t got = 0;
+    if (znzseek(fp, (long)nim->iname_offset, SEEK_SET) >= 0)
+        got = znzread(buf, 1, bytes, fp);
+    znzclose(fp);
+    if (got != bytes)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                              "%s: NIfTI data truncated: %dx%dx%dx%d %s need %zu bytes from offset %d, got %zu",
+                              path, nim->nx, nim->ny, nim->nz, nim->nt, nifti_datatype_string(nim->datatype),
+                              bytes, nim->iname_offset, got);
+    if (nim->swapsize > 1 && nim->byteorder != nifti_short_order())
+        nifti_swap_Nbytes(bytes / (size_t)nim->swapsize, nim->swapsize, buf);
+    return CDVR_OK;
+}
+
+/* Fills vol from the file: straight into vol->data when the type is kept, else through a
+ * buffer of file values converted (and scaled) to f32. */
+static cdvr_status load_voxels(const char *path, const nifti_image *nim, cdvr_volume *vol,
+                               cdvr_value_reader reader, int native, int scaled, double slope,
+                               double inter, cdvr_error *err)
+{
+    size_t count = cdvr_volume_voxels(vol) * vol->timesteps, bytes;
+    if (nim->nbyper <= 0 || !cdvr_size_mul(count, (size_t)nim->nbyper, &bytes))
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI data size overflows", path);
+    if (native && !scaled)
+        return read_nifti_data(path, nim, vol->data, bytes, err);
+    void *buf = malloc(bytes ? bytes : 1);
+    if (!buf)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: cannot allocate %zu bytes", path, bytes);
+    cdvr_status st = read_nifti_data(path, nim, buf, bytes, err);
+    float *dst = vol->data;
+    for (size_t i = 0; st == CDVR_OK && i < count; i++) {
+        double v = reader(buf, i);
+        dst[i] = cdvr_double_to_f32(scaled ? v * slope + inter : v);
+    }
+    free(buf);
+    return st;
+}
+
+/* Refuses headers that claim more voxel data than the file can hold, before anything is
+ * allocated: a plain file must hold offset + bytes; a gzip file of n bytes inflates to at most
+ * 1032 n (deflate's maximum ratio). */
+static cdvr_status check_data_size(const char *path, const nifti_image *nim, cdvr_error *err)
+{
+    size_t need;
+    if (nim->nbyper <= 0 || nim->iname_offset < 0 || !cdvr_size_mul(nim->nvox, (size_t)nim->nbyper, &need) ||
+        !cdvr_size_add(need, (size_t)nim->iname_offset, &need))
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI data size overflows", path);
+    struct stat sb;
+    if (stat(nim->iname, &sb) != 0)
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot open NIfTI data file %s: %s", path, nim->iname,
+                              strerror(errno));
+    size_t have = (size_t)sb.st_size;
+    if (nifti_is_gzfile(nim->iname)) {
+        if (have > SIZE_MAX / 1032 || need / 1032 <= have)
+            return CDVR_OK;
+        return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                              "%s: NIfTI header claims %zu bytes of voxel data (%dx%dx%dx%d %s), more than a %zu-byte gzip "
+                              "file can hold",
+                              path, need, nim->nx, nim->ny, nim->nz, nim->nt, nifti_datatype_string(nim->datatype), have);
+    }
+    if (need <= have)
+        return CDVR_OK;
+    return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                          "%s: NIfTI data truncated: header claims %dx%dx%dx%d %s = %zu bytes with the header, file has %zu",
+                          path, nim->nx, nim->ny, nim->nz, nim->nt, nifti_datatype_string(nim->datatype), need, have);
+}
+
+static cdvr_status nifti_to_volume(const char *path, const nifti_image *nim, cdvr_volume **out,
+                                   cdvr_error *err)
+{
+    cdvr_type type;
+    int native;
+    cdvr_value_reader reader = nifti_reader(nim->datatype, &type, &native);
+    if (!reader)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI datatype %s (%d) is not supported",
+                              path, nifti_datatype_string(nim->datatype), nim->datatype);
+    double slope, inter;
+    int scaled = nifti_scaling(nim, &slope, &inter);
+    if (scaled)
+        type = CDVR_TYPE_F32;
+    size_t dims[3] = {0, 0, 0}, timesteps = 0;
+    cdvr_status st = nifti_shape(path, nim, dims, &timesteps, err);
+    if (st == CDVR_OK)
+        st = check_data_size(path, nim, err);
+    if (st == CDVR_OK)
+        st = cdvr_volume_create(dims, timesteps, type, out, err);
+    if (st != CDVR_OK)
+        return st;
+    if (nim->nvox != cdvr_volume_voxels(*out) * timesteps) {
+        cdvr_volume_free(*out);
+        *out = NULL;
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI voxel count %zu does not match its dims",
+                              path, nim->nvox);
+    }
+    st = load_voxels(path, nim, *out, reader, native, scaled, slope, inter, err);
+    if (st != CDVR_OK) {
+        cdvr_volume_free(*out);
+        *out = NULL;
+        return st;
+    }
+    nifti_geometry(nim, *out);
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_volume_load_nifti(const char *path, cdvr_volume **out, cdvr_error *err)
+{
+    *out = NULL;
+    cdvr_status st = cdvr_check_readable(path, err);
+    if (st != CDVR_OK)
+        return st;
+    nifti_image *nim = nifti_image_read(path, 0); /* header only */
+    if (!nim)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                              "%s: cannot read NIfTI header: not a NIfTI-1 file or corrupt "
+                              "(niftilib's reason is on stderr)",
+                              path);
+    st = nifti_to_volume(path, nim, out, err);
+    nifti_image_free(nim);
+    return st;
+}

@@ -1,0 +1,140 @@
+/* core/io/io_nrrd.c - NRRD (.nrrd, .nhdr with detached data) through teem. */
+#include "cdvr/volume.h"
+#include "volume_io.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <teem/nrrd.h>
+
+static double read_i8(const void *p, size_t i) { return ((const signed char *)p)[i]; }
+static double read_i32(const void *p, size_t i) { return ((const int32_t *)p)[i]; }
+static double read_u32(const void *p, size_t i) { return ((const uint32_t *)p)[i]; }
+static double read_i64(const void *p, size_t i) { return (double)((const int64_t *)p)[i]; }
+static double read_u64(const void *p, size_t i) { return (double)((const uint64_t *)p)[i]; }
+static double read_f64(const void *p, size_t i) { return ((const double *)p)[i]; }
+
+/* Our type for a teem type; *reader is set when the values must be converted to f32. */
+static int map_type(int nrrd_type, cdvr_type *type, cdvr_value_reader *reader)
+{
+    *reader = NULL;
+    *type = CDVR_TYPE_F32;
+    switch (nrrd_type) {
+    case nrrdTypeUChar: *type = CDVR_TYPE_U8; return 1;
+    case nrrdTypeUShort: *type = CDVR_TYPE_U16; return 1;
+    case nrrdTypeShort: *type = CDVR_TYPE_I16; return 1;
+    case nrrdTypeFloat: return 1;
+    case nrrdTypeChar: *reader = read_i8; return 1;
+    case nrrdTypeInt: *reader = read_i32; return 1;
+    case nrrdTypeUInt: *reader = read_u32; return 1;
+    case nrrdTypeLLong: *reader = read_i64; return 1;
+    case nrrdTypeULLong: *reader = read_u64; return 1;
+    case nrrdTypeDouble: *reader = read_f64; return 1;
+    default: return 0;
+    }
+}
+
+static int scalar_axis_kind(int kind, int allow_list)
+{
+    switch (kind) {
+    case nrrdKindUnknown:
+    case nrrdKindDomain:
+    case nrrdKindSpace:
+    case nrrdKindTime:
+    case nrrdKindStub:
+    case nrrdKindScalar: return 1;
+    case nrrdKindList: return allow_list;
+    default: return 0;
+    }
+}
+
+/* Dims and timesteps of a 2D, 3D or 4D scalar nrrd (a 2D image is one slice). */
+static cdvr_status nrrd_shape(const char *path, const Nrrd *nrrd, size_t dims[3], size_t *timesteps,
+                              cdvr_error *err)
+{
+    if (nrrd->dim < 2 || nrrd->dim > 4)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                              "%s: NRRD has dimension %u; cdvr reads 3D volumes (2D and 4D = 3D + time too)",
+                              path, nrrd->dim);
+    dims[2] = *timesteps = 1;
+    for (unsigned ax = 0; ax < nrrd->dim; ax++) {
+        if (!scalar_axis_kind(nrrd->axis[ax].kind, ax == 3))
+            return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                                  "%s: NRRD axis %u has kind '%s': only scalar volumes are supported",
+                                  path, ax, airEnumStr(nrrdKind, nrrd->axis[ax].kind));
+        if (ax < 3)
+            dims[ax] = nrrd->axis[ax].size;
+        else
+            *timesteps = nrrd->axis[ax].size;
+    }
+    return CDVR_OK;
+}
+
+/* Spacing per axis from "spacings" or the length of "space directions"; origin from
+ * "space origin". Missing or non-finite values keep the defaults (1 and 0). */
+static void nrrd_geometry(const Nrrd *nrrd, cdvr_volume *vol)
+{
+    unsigned n = nrrd->dim < 3 ? nrrd->dim : 3;
+    for (unsigned ax = 0; ax < n; ax++) {
+        double spacing = AIR_NAN, direction[NRRD_SPACE_DIM_MAX];
+        int status = nrrdSpacingCalculate(nrrd, ax, &spacing, direction);
+        if ((status == nrrdSpacingStatusScalarNoSpace || status == nrrdSpacingStatusScalarWithSpace ||
+             status == nrrdSpacingStatusDirection) && isfinite(spacing) && spacing != 0)
+            vol->spacing[ax] = fabs(spacing);
+    }
+    for (unsigned i = 0; i < nrrd->spaceDim && i < 3; i++)
+        if (isfinite(nrrd->spaceOrigin[i]))
+            vol->origin[i] = nrrd->spaceOrigin[i];
+}
+
+static cdvr_status nrrd_to_volume(const char *path, const Nrrd *nrrd, cdvr_volume **out,
+                                  cdvr_error *err)
+{
+    cdvr_type type;
+    cdvr_value_reader reader;
+    if (!map_type(nrrd->type, &type, &reader))
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD type '%s' is not supported", path,
+                              airEnumStr(nrrdType, nrrd->type));
+    size_t dims[3] = {0, 0, 0}, timesteps = 0;
+    cdvr_status st = nrrd_shape(path, nrrd, dims, &timesteps, err);
+    if (st == CDVR_OK)
+        st = cdvr_volume_create(dims, timesteps, type, out, err);
+    if (st != CDVR_OK)
+        return st;
+    size_t count = cdvr_volume_voxels(*out) * timesteps;
+    if (reader)
+        cdvr_convert_to_f32((*out)->data, nrrd->data, count, reader);
+    else
+        memcpy((*out)->data, nrrd->data, count * cdvr_type_size(type));
+    nrrd_geometry(nrrd, *out);
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_volume_load_nrrd(const char *path, cdvr_volume **out, cdvr_error *err)
+{
+    *out = NULL;
+    cdvr_status st = cdvr_check_readable(path, err);
+    if (st != CDVR_OK)
+        return st;
+    Nrrd *nrrd = nrrdNew();
+    if (!nrrd)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
+    if (nrrdLoad(nrrd, path, NULL)) {
+        char *msg = biffGetDone(NRRD);
+        /* teem's message is several lines, innermost reason last; keep it on one line */
+        for (char *c = msg; c && *c; c++)
+            if (*c == '\n')
+                *c = ' ';
+        size_t len = msg ? strlen(msg) : 0;
+        while (len > 0 && msg[len - 1] == ' ')
+            msg[--len] = '\0';
+        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: cannot read NRRD: %s", path,
+                                        msg ? msg : "unknown teem error");
+        free(msg);
+        nrrdNuke(nrrd);
+        return st;
+    }
+    st = nrrd_to_volume(path, nrrd, out, err);
+    nrrdNuke(nrrd);
+    return st;
+}

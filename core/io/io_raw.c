@@ -1,0 +1,130 @@
+/* core/io/io_raw.c - headerless raw volumes: cdvr_volume_load_raw and cdvr_volume_save_raw. */
+#include "cdvr/atomicfile.h"
+#include "cdvr/volume.h"
+#include "volume_io.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+static cdvr_status check_raw_opts(const char *path, const cdvr_raw_opts *opts, size_t timesteps,
+                                  size_t *data_bytes, cdvr_error *err)
+{
+    if (cdvr_type_size(opts->type) == 0)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: unknown voxel type %d (u8, u16, i16, f32)",
+                              path, (int)opts->type);
+    if (opts->dims[0] == 0 || opts->dims[1] == 0 || opts->dims[2] == 0)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: dims %zux%zux%zu: every dim must be positive",
+                              path, opts->dims[0], opts->dims[1], opts->dims[2]);
+    size_t total;
+    if (!cdvr_volume_bytes_for(opts->dims, timesteps, opts->type, data_bytes) ||
+        !cdvr_size_add(*data_bytes, opts->header_bytes, &total))
+        return cdvr_error_set(err, CDVR_ERR_ARG,
+                              "%s: dims %zux%zux%zu x %zu timesteps of %s overflow the address space",
+                              path, opts->dims[0], opts->dims[1], opts->dims[2], timesteps,
+                              cdvr_type_name(opts->type));
+    return CDVR_OK;
+}
+
+/* Opens path and checks that it is a regular file of exactly header + data_bytes bytes. */
+static cdvr_status open_raw(const char *path, const cdvr_raw_opts *opts, size_t timesteps,
+                            size_t data_bytes, FILE **out, cdvr_error *err)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    struct stat sb;
+    if (fstat(fileno(f), &sb) != 0 || !S_ISREG(sb.st_mode)) {
+        fclose(f);
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: not a regular file", path);
+    }
+    size_t expected = data_bytes + opts->header_bytes; /* overflow checked by check_raw_opts */
+    unsigned long long actual = (unsigned long long)sb.st_size;
+    if (actual != expected) {
+        fclose(f);
+        return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                              "%s: %s: dims %zux%zux%zu x %zu timesteps of %s + %zu header bytes "
+                              "need %zu bytes, file has %llu",
+                              path, actual < expected ? "file is truncated" : "dims do not match file size",
+                              opts->dims[0], opts->dims[1], opts->dims[2], timesteps,
+                              cdvr_type_name(opts->type), opts->header_bytes, expected, actual);
+    }
+    *out = f;
+    return CDVR_OK;
+}
+
+static void apply_spacing(cdvr_volume *vol, const double spacing[3])
+{
+    for (int i = 0; i < 3; i++)
+        if (spacing[i] > 0)
+            vol->spacing[i] = spacing[i];
+}
+
+cdvr_status cdvr_volume_load_raw(const char *path, const cdvr_raw_opts *opts, cdvr_volume **out,
+                                 cdvr_error *err)
+{
+    *out = NULL;
+    size_t timesteps = opts->timesteps ? opts->timesteps : 1;
+    size_t data_bytes;
+    cdvr_status st = check_raw_opts(path, opts, timesteps, &data_bytes, err);
+    FILE *f = NULL;
+    if (st == CDVR_OK)
+        st = open_raw(path, opts, timesteps, data_bytes, &f, err);
+    if (st != CDVR_OK)
+        return st;
+    cdvr_volume *vol;
+    st = cdvr_volume_create(opts->dims, timesteps, opts->type, &vol, err);
+    if (st != CDVR_OK) {
+        fclose(f);
+        return st;
+    }
+    int ok = fseeko(f, (off_t)opts->header_bytes, SEEK_SET) == 0 &&
+             fread(vol->data, 1, data_bytes, f) == data_bytes;
+    fclose(f);
+    if (!ok) {
+        cdvr_volume_free(vol);
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: file is truncated: short read of %zu data bytes",
+                              path, data_bytes);
+    }
+    size_t elem = cdvr_type_size(opts->type);
+    if (elem > 1 && (opts->big_endian ? 1 : 0) == cdvr_host_is_little_endian())
+        cdvr_swap_bytes(vol->data, data_bytes / elem, elem);
+    apply_spacing(vol, opts->spacing);
+    *out = vol;
+    return CDVR_OK;
+}
+
+/* Writes data (bytes long) to f, byte-swapped when swap, through a bounded buffer. */
+static int write_data(FILE *f, const unsigned char *data, size_t bytes, size_t elem, int swap)
+{
+    if (!swap)
+        return fwrite(data, 1, bytes, f) == bytes;
+    unsigned char buf[1 << 16];
+    for (size_t done = 0; done < bytes;) {
+        size_t n = bytes - done < sizeof buf ? bytes - done : sizeof buf;
+        memcpy(buf, data + done, n);
+        cdvr_swap_bytes(buf, n / elem, elem);
+        if (fwrite(buf, 1, n, f) != n)
+            return 0;
+        done += n;
+    }
+    return 1;
+}
+
+cdvr_status cdvr_volume_save_raw(const cdvr_volume *vol, const char *path, int big_endian,
+                                 cdvr_error *err)
+{
+    size_t bytes;
+    if (!cdvr_volume_bytes_for(vol->dims, vol->timesteps, vol->type, &bytes))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: volume size overflows", path);
+    cdvr_atomic_file af;
+    cdvr_status st = cdvr_atomic_open(&af, path, err);
+    if (st != CDVR_OK)
+        return st;
+    size_t elem = cdvr_type_size(vol->type);
+    int swap = elem > 1 && (big_endian ? 1 : 0) == cdvr_host_is_little_endian();
+    return cdvr_atomic_commit(&af, !write_data(af.f, vol->data, bytes, elem, swap), err);
+}

@@ -1,0 +1,216 @@
+/* core/io/volume.c - cdvr_volume allocation, access and type helpers. */
+#include "cdvr/volume.h"
+#include "volume_io.h"
+
+#include <errno.h>
+#include <float.h>
+#include <stdio.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+size_t cdvr_type_size(cdvr_type type)
+{
+    switch (type) {
+    case CDVR_TYPE_U8: return 1;
+    case CDVR_TYPE_U16:
+    case CDVR_TYPE_I16: return 2;
+    case CDVR_TYPE_F32: return 4;
+    }
+    return 0;
+}
+
+const char *cdvr_type_name(cdvr_type type)
+{
+    switch (type) {
+    case CDVR_TYPE_U8: return "u8";
+    case CDVR_TYPE_U16: return "u16";
+    case CDVR_TYPE_I16: return "i16";
+    case CDVR_TYPE_F32: return "f32";
+    }
+    return "unknown";
+}
+
+int cdvr_type_parse(const char *name, cdvr_type *type)
+{
+    static const struct { const char *name; cdvr_type type; } names[] = {
+        {"u8", CDVR_TYPE_U8},   {"uint8", CDVR_TYPE_U8},    {"uchar", CDVR_TYPE_U8},
+        {"u16", CDVR_TYPE_U16}, {"uint16", CDVR_TYPE_U16},  {"ushort", CDVR_TYPE_U16},
+        {"i16", CDVR_TYPE_I16}, {"int16", CDVR_TYPE_I16},   {"short", CDVR_TYPE_I16},
+        {"f32", CDVR_TYPE_F32}, {"float32", CDVR_TYPE_F32}, {"float", CDVR_TYPE_F32},
+    };
+    for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
+        if (strcmp(name, names[i].name) == 0) {
+            *type = names[i].type;
+            return 1;
+        }
+    }
+    return 0;
+}
+
+cdvr_status cdvr_volume_create(const size_t dims[3], size_t timesteps, cdvr_type type,
+                               cdvr_volume **out, cdvr_error *err)
+{
+    *out = NULL;
+    if (dims[0] == 0 || dims[1] == 0 || dims[2] == 0 || timesteps == 0)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "volume %zux%zux%zu with %zu timesteps: dims and timesteps must be positive",
+                              dims[0], dims[1], dims[2], timesteps);
+    size_t bytes = cdvr_type_size(type);
+    if (bytes == 0)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "volume: unknown voxel type %d", (int)type);
+    if (!cdvr_size_mul(bytes, dims[0], &bytes) || !cdvr_size_mul(bytes, dims[1], &bytes) ||
+        !cdvr_size_mul(bytes, dims[2], &bytes) || !cdvr_size_mul(bytes, timesteps, &bytes))
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "volume %zux%zux%zu x %zu timesteps of %s: size overflows",
+                              dims[0], dims[1], dims[2], timesteps, cdvr_type_name(type));
+    cdvr_volume *vol = calloc(1, sizeof *vol);
+    void *data = vol ? calloc(1, bytes ? bytes : 1) : NULL;
+    if (!data) {
+        free(vol);
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "volume %zux%zux%zu x %zu timesteps: cannot allocate %zu bytes",
+                              dims[0], dims[1], dims[2], timesteps, bytes);
+    }
+    memcpy(vol->dims, dims, sizeof vol->dims);
+    vol->timesteps = timesteps;
+    vol->type = type;
+    vol->spacing[0] = vol->spacing[1] = vol->spacing[2] = 1.0;
+    vol->data = data;
+    *out = vol;
+    return CDVR_OK;
+}
+
+void cdvr_volume_free(cdvr_volume *vol)
+{
+    if (vol) {
+        free(vol->data);
+        free(vol);
+    }
+}
+
+size_t cdvr_volume_voxels(const cdvr_volume *vol)
+{
+    return vol->dims[0] * vol->dims[1] * vol->dims[2];
+}
+
+size_t cdvr_volume_frame_bytes(const cdvr_volume *vol)
+{
+    return cdvr_volume_voxels(vol) * cdvr_type_size(vol->type);
+}
+
+void *cdvr_volume_frame(const cdvr_volume *vol, size_t t)
+{
+    if (t >= vol->timesteps)
+        return NULL;
+    return (unsigned char *)vol->data + t * cdvr_volume_frame_bytes(vol);
+}
+
+static double value_at(const cdvr_volume *vol, size_t i)
+{
+    switch (vol->type) {
+    case CDVR_TYPE_U8: return ((const uint8_t *)vol->data)[i];
+    case CDVR_TYPE_U16: return ((const uint16_t *)vol->data)[i];
+    case CDVR_TYPE_I16: return ((const int16_t *)vol->data)[i];
+    case CDVR_TYPE_F32: return ((const float *)vol->data)[i];
+    }
+    return 0.0;
+}
+
+double cdvr_volume_get(const cdvr_volume *vol, size_t x, size_t y, size_t z, size_t t)
+{
+    size_t i = x + vol->dims[0] * (y + vol->dims[1] * (z + vol->dims[2] * t));
+    return value_at(vol, i);
+}
+
+void cdvr_volume_range(const cdvr_volume *vol, double *lo, double *hi)
+{
+    size_t n = cdvr_volume_voxels(vol) * vol->timesteps;
+    double mn = HUGE_VAL, mx = -HUGE_VAL;
+    for (size_t i = 0; i < n; i++) {
+        double v = value_at(vol, i);
+        if (!isfinite(v))
+            continue;
+        if (v < mn)
+            mn = v;
+        if (v > mx)
+            mx = v;
+    }
+    if (mn > mx)
+        mn = mx = 0.0;
+    *lo = mn;
+    *hi = mx;
+}
+
+cdvr_status cdvr_volume_slice_time(const cdvr_volume *vol, size_t t0, size_t count,
+                                   cdvr_volume **out, cdvr_error *err)
+{
+    *out = NULL;
+    if (count == 0 || t0 >= vol->timesteps || count > vol->timesteps - t0)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "volume: timesteps %zu..%zu out of range 1..%zu",
+                              t0 + 1, t0 + count, vol->timesteps);
+    cdvr_status st = cdvr_volume_create(vol->dims, count, vol->type, out, err);
+    if (st != CDVR_OK)
+        return st;
+    memcpy((*out)->spacing, vol->spacing, sizeof vol->spacing);
+    memcpy((*out)->origin, vol->origin, sizeof vol->origin);
+    memcpy((*out)->data, cdvr_volume_frame(vol, t0), count * cdvr_volume_frame_bytes(vol));
+    return CDVR_OK;
+}
+
+/* ---- helpers for the loaders (core/io/volume_io.h) ------------------------------------------- */
+
+int cdvr_volume_bytes_for(const size_t dims[3], size_t timesteps, cdvr_type type, size_t *bytes)
+{
+    size_t n = cdvr_type_size(type);
+    return cdvr_size_mul(n, dims[0], &n) && cdvr_size_mul(n, dims[1], &n) &&
+           cdvr_size_mul(n, dims[2], &n) && cdvr_size_mul(n, timesteps, bytes);
+}
+
+void cdvr_swap_bytes(void *data, size_t count, size_t elem_size)
+{
+    unsigned char *p = data;
+    for (size_t i = 0; i < count; i++, p += elem_size) {
+        for (size_t a = 0, b = elem_size - 1; a < b; a++, b--) {
+            unsigned char tmp = p[a];
+            p[a] = p[b];
+            p[b] = tmp;
+        }
+    }
+}
+
+int cdvr_host_is_little_endian(void)
+{
+    const uint16_t probe = 1;
+    unsigned char first;
+    memcpy(&first, &probe, 1);
+    return first == 1;
+}
+
+float cdvr_double_to_f32(double v)
+{
+    /* a double outside float's range has no defined conversion in C; saturate to +-Inf */
+    if (v > FLT_MAX)
+        return INFINITY;
+    if (v < -FLT_MAX)
+        return -INFINITY;
+    return (float)v;
+}
+
+void cdvr_convert_to_f32(float *dst, const void *src, size_t count, cdvr_value_reader read)
+{
+    for (size_t i = 0; i < count; i++)
+        dst[i] = cdvr_double_to_f32(read(src, i));
+}
+
+cdvr_status cdvr_check_readable(const char *path, cdvr_error *err)
+{
+    struct stat sb;
+    if (stat(path, &sb) != 0)
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    if (!S_ISREG(sb.st_mode))
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: not a regular file", path);
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    fclose(f);
+    return CDVR_OK;
+}

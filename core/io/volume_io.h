@@ -1,0 +1,28 @@
+/* core/io/volume_io.h - helpers shared by the volume loaders (io_raw.c, io_nrrd.c, io_nifti.c,
+ * io_series.c). Internal to libcdvr; not a public header. */
+#ifndef CDVR_VOLUME_IO_H
+#define CDVR_VOLUME_IO_H
+
+#include "cdvr/volume.h"
+
+/* Byte count of dims[0]*dims[1]*dims[2]*timesteps voxels of `type`; 0 on overflow. */
+int cdvr_volume_bytes_for(const size_t dims[3], size_t timesteps, cdvr_type type, size_t *bytes);
+
+/* Reverses the byte order of `count` elements of `elem_size` bytes (2 or 4) in place. */
+void cdvr_swap_bytes(void *data, size_t count, size_t elem_size);
+
+/* 1 when the host stores multi-byte numbers little endian. */
+int cdvr_host_is_little_endian(void);
+
+/* v as f32: values beyond float's range become +-Inf, NaN stays NaN, the rest round to
+ * nearest. This is the rule for every type converted to f32 on load (i8, u32, i32, f64, ...). */
+float cdvr_double_to_f32(double v);
+
+/* Converts `count` values from a source array (read through `read`) to f32 in dst. */
+typedef double (*cdvr_value_reader)(const void *src, size_t i);
+void cdvr_convert_to_f32(float *dst, const void *src, size_t count, cdvr_value_reader read);
+
+/* CDVR_OK when path names a readable regular file, else CDVR_ERR_IO naming path and reason. */
+cdvr_status cdvr_check_readable(const char *path, cdvr_error *err);
+
+#endif

@@ -1,0 +1,575 @@
+/* core/render/cl/cl_device.c - OpenCL device choice, program build with an on-disk binary cache. */
+#include <ctype.h>
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "cdvr/timing.h"
+#include "cl_internal.h"
+
+#define MAX_PLATFORMS 16
+#define MAX_DEVICES 32
+#define BUILD_OPTIONS "-cl-std=CL1.2"
+#define CACHE_MAGIC "CDVRCLB1"
+
+static const char *const kernel_files[] = {"codec/pvtc_decode.cl", "render/bricks.cl",
+                                           "render/raycast.cl"};
+
+const char *cdvr_cl_error_name(cl_int code)
+{
+    switch (code) {
+#define NAME(c) case c: return #c
+    NAME(CL_SUCCESS); NAME(CL_DEVICE_NOT_FOUND); NAME(CL_DEVICE_NOT_AVAILABLE);
+    NAME(CL_COMPILER_NOT_AVAILABLE); NAME(CL_MEM_OBJECT_ALLOCATION_FAILURE);
+    NAME(CL_OUT_OF_RESOURCES); NAME(CL_OUT_OF_HOST_MEMORY);
+    NAME(CL_PROFILING_INFO_NOT_AVAILABLE); NAME(CL_MEM_COPY_OVERLAP);
+    NAME(CL_IMAGE_FORMAT_MISMATCH); NAME(CL_IMAGE_FORMAT_NOT_SUPPORTED);
+    NAME(CL_BUILD_PROGRAM_FAILURE); NAME(CL_MAP_FAILURE); NAME(CL_MISALIGNED_SUB_BUFFER_OFFSET);
+    NAME(CL_EXEC_STATUS_ERROR_FOR_EVENTS_IN_WAIT_LIST); NAME(CL_COMPILE_PROGRAM_FAILURE);
+    NAME(CL_LINKER_NOT_AVAILABLE); NAME(CL_LINK_PROGRAM_FAILURE);
+    NAME(CL_DEVICE_PARTITION_FAILED); NAME(CL_KERNEL_ARG_INFO_NOT_AVAILABLE);
+    NAME(CL_INVALID_VALUE); NAME(CL_INVALID_DEVICE_TYPE); NAME(CL_INVALID_PLATFORM);
+    NAME(CL_INVALID_DEVICE); NAME(CL_INVALID_CONTEXT); NAME(CL_INVALID_QUEUE_PROPERTIES);
+    NAME(CL_INVALID_COMMAND_QUEUE); NAME(CL_INVALID_HOST_PTR); NAME(CL_INVALID_MEM_OBJECT);
+    NAME(CL_INVALID_IMAGE_FORMAT_DESCRIPTOR); NAME(CL_INVALID_IMAGE_SIZE);
+    NAME(CL_INVALID_SAMPLER); NAME(CL_INVALID_BINARY); NAME(CL_INVALID_BUILD_OPTIONS);
+    NAME(CL_INVALID_PROGRAM); NAME(CL_INVALID_PROGRAM_EXECUTABLE);
+    NAME(CL_INVALID_KERNEL_NAME); NAME(CL_INVALID_KERNEL_DEFINITION); NAME(CL_INVALID_KERNEL);
+    NAME(CL_INVALID_ARG_INDEX); NAME(CL_INVALID_ARG_VALUE); NAME(CL_INVALID_ARG_SIZE);
+    NAME(CL_INVALID_KERNEL_ARGS); NAME(CL_INVALID_WORK_DIMENSION);
+    NAME(CL_INVALID_WORK_GROUP_SIZE); NAME(CL_INVALID_WORK_ITEM_SIZE);
+    NAME(CL_INVALID_GLOBAL_OFFSET); NAME(CL_INVALID_EVENT_WAIT_LIST); NAME(CL_INVALID_EVENT);
+    NAME(CL_INVALID_OPERATION); NAME(CL_INVALID_GL_OBJECT); NAME(CL_INVALID_BUFFER_SIZE);
+    NAME(CL_INVALID_MIP_LEVEL); NAME(CL_INVALID_GLOBAL_WORK_SIZE); NAME(CL_INVALID_PROPERTY);
+    NAME(CL_INVALID_IMAGE_DESCRIPTOR); NAME(CL_INVALID_COMPILER_OPTIONS);
+    NAME(CL_INVALID_LINKER_OPTIONS); NAME(CL_INVALID_DEVICE_PARTITION_COUNT);
+#undef NAME
+    case -1001: return "CL_PLATFORM_NOT_FOUND_KHR";
+    default: return "unknown OpenCL error";
+    }
+}
+
+cdvr_status cdvr_cl_check(cl_int code, const char *what, cdvr_error *err)
+{
+    if (code == CL_SUCCESS)
+        return CDVR_OK;
+    return cdvr_error_set(err, CDVR_ERR_DEVICE, "OpenCL: %s: %s (%d)", what,
+                          cdvr_cl_error_name(code), (int)code);
+}
+
+void cdvr_cl_release(cl_mem *mem)
+{
+    if (*mem)
+        clReleaseMemObject(*mem);
+    *mem = NULL;
+}
+
+cdvr_status cdvr_cl_ensure_buffer(cdvr_cl *cl, cl_mem *mem, size_t *capacity, size_t bytes,
+                                  cl_mem_flags flags, const char *what, cdvr_error *err)
+{
+    if (*mem && *capacity >= bytes)
+        return CDVR_OK;
+    cdvr_cl_release(mem);
+    *capacity = 0;
+    if (bytes > cl->info.max_alloc_bytes)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM,
+                              "OpenCL: %s: %zu bytes exceed the device's largest buffer (%llu) on %s",
+                              what, bytes, (unsigned long long)cl->info.max_alloc_bytes,
+                              cl->info.device);
+    cl_int code;
+    *mem = clCreateBuffer(cl->context, flags, bytes ? bytes : 1, NULL, &code);
+    if (code != CL_SUCCESS) {
+        *mem = NULL;
+        return cdvr_cl_check(code, what, err);
+    }
+    *capacity = bytes;
+    return CDVR_OK;
+}
+
+/* ---- device choice ---------------------------------------------------------------------- */
+
+typedef struct device_list {
+    cl_platform_id platforms[MAX_PLATFORMS];
+    cl_uint nplatforms;
+    cl_device_id devices[MAX_PLATFORMS][MAX_DEVICES];
+    cl_uint ndevices[MAX_PLATFORMS];
+} device_list;
+
+static cdvr_status list_devices(device_list *list, cdvr_error *err)
+{
+    cl_int code = clGetPlatformIDs(MAX_PLATFORMS, list->platforms, &list->nplatforms);
+    if (code == -1001 || (code == CL_SUCCESS && list->nplatforms == 0))
+        return cdvr_error_set(err, CDVR_ERR_DEVICE,
+                              "OpenCL: no platform found (no ICD installed?); use device=\"cpu\"");
+    if (cdvr_cl_check(code, "clGetPlatformIDs", err))
+        return CDVR_ERR_DEVICE;
+    if (list->nplatforms > MAX_PLATFORMS)
+        list->nplatforms = MAX_PLATFORMS;
+    for (cl_uint p = 0; p < list->nplatforms; p++) {
+        code = clGetDeviceIDs(list->platforms[p], CL_DEVICE_TYPE_ALL, MAX_DEVICES,
+                              list->devices[p], &list->ndevices[p]);
+        if (code != CL_SUCCESS)
+            list->ndevices[p] = 0;
+        if (list->ndevices[p] > MAX_DEVICES)
+            list->ndevices[p] = MAX_DEVICES;
+    }
+    return CDVR_OK;
+}
+
+static cl_device_type device_type(cl_device_id dev)
+{
+    cl_device_type type = 0;
+    clGetDeviceInfo(dev, CL_DEVICE_TYPE, sizeof type, &type, NULL);
+    return type;
+}
+
+static int contains_nocase(const char *hay, const char *needle)
+{
+    size_t n = strlen(needle);
+    for (; *hay; hay++) {
+        size_t i = 0;
+        while (i < n && hay[i] && tolower((unsigned char)hay[i]) == tolower((unsigned char)needle[i]))
+            i++;
+        if (i == n)
+            return 1;
+    }
+    return n == 0;
+}
+
+/* Finds the first device of `type` (0 = any) whose name contains `name` (NULL = any). */
+static int find_device(const device_list *list, cl_device_type type, const char *name, int *pi,
+                       int *di)
+{
+    for (cl_uint p = 0; p < list->nplatforms; p++)
+        for (cl_uint d = 0; d < list->ndevices[p]; d++) {
+            cl_device_id dev = list->devices[p][d];
+            if (type && !(device_type(dev) & type))
+                continue;
+            if (name) {
+                char devname[256] = "";
+                clGetDeviceInfo(dev, CL_DEVICE_NAME, sizeof devname - 1, devname, NULL);
+                if (!contains_nocase(devname, name))
+                    continue;
+            }
+            *pi = (int)p;
+            *di = (int)d;
+            return 1;
+        }
+    return 0;
+}
+
+static cdvr_status choose_device(const device_list *list, const char *want, int *pi, int *di,
+                                 cdvr_error *err)
+{
+    int p, d;
+    char extra;
+    if (!want || !*want) {
+        if (find_device(list, CL_DEVICE_TYPE_GPU, NULL, pi, di) ||
+            find_device(list, CL_DEVICE_TYPE_CPU, NULL, pi, di) || find_device(list, 0, NULL, pi, di))
+            return CDVR_OK;
+        return cdvr_error_set(err, CDVR_ERR_DEVICE, "OpenCL: no device on %u platform(s)",
+                              (unsigned)list->nplatforms);
+    }
+    if (sscanf(want, "%d:%d%c", &p, &d, &extra) == 2) {
+        if (p < 0 || (cl_uint)p >= list->nplatforms || d < 0 || (cl_uint)d >= list->ndevices[p])
+            return cdvr_error_set(err, CDVR_ERR_DEVICE,
+                                  "OpenCL: CDVR_CL_DEVICE=%s: no such platform:device (see clinfo -l)",
+                                  want);
+        *pi = p;
+        *di = d;
+        return CDVR_OK;
+    }
+    int found;
+    if (!strcmp(want, "gpu"))
+        found = find_device(list, CL_DEVICE_TYPE_GPU, NULL, pi, di);
+    else if (!strcmp(want, "cpu"))
+        found = find_device(list, CL_DEVICE_TYPE_CPU, NULL, pi, di);
+    else
+        found = find_device(list, 0, want, pi, di);
+    if (!found)
+        return cdvr_error_set(err, CDVR_ERR_DEVICE, "OpenCL: CDVR_CL_DEVICE=%s: no matching device",
+                              want);
+    return CDVR_OK;
+}
+
+static void fill_info(cdvr_cl *cl, int pi, int di)
+{
+    cdvr_cl_info *info = &cl->info;
+    cl_uint units = 0;
+    cl_ulong mem = 0, alloc = 0;
+    clGetPlatformInfo(cl->platform, CL_PLATFORM_NAME, sizeof info->platform - 1, info->platform, NULL);
+    clGetDeviceInfo(cl->device, CL_DEVICE_NAME, sizeof info->device - 1, info->device, NULL);
+    clGetDeviceInfo(cl->device, CL_DEVICE_VERSION, sizeof info->device_version - 1,
+                    info->device_version, NULL);
+    clGetDeviceInfo(cl->device, CL_DRIVER_VERSION, sizeof info->driver_version - 1,
+                    info->driver_version, NULL);
+    clGetDeviceInfo(cl->device, CL_DEVICE_MAX_COMPUTE_UNITS, sizeof units, &units, NULL);
+    clGetDeviceInfo(cl->device, CL_DEVICE_GLOBAL_MEM_SIZE, sizeof mem, &mem, NULL);
+    clGetDeviceInfo(cl->device, CL_DEVICE_MAX_MEM_ALLOC_SIZE, sizeof alloc, &alloc, NULL);
+    info->is_gpu = (device_type(cl->device) & CL_DEVICE_TYPE_GPU) != 0;
+    info->compute_units = units;
+    info->global_mem_bytes = mem;
+    info->max_alloc_bytes = alloc;
+    info->platform_index = pi;
+    info->device_index = di;
+}
+
+/* ---- kernel sources and the binary cache ------------------------------------------------ */
+
+static cdvr_status read_file(const char *path, char **text, size_t *len, cdvr_error *err)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot open kernel source: %s", path,
+                              strerror(errno));
+    char *buf = NULL;
+    size_t used = 0, cap = 0, got;
+    char chunk[8192];
+    while ((got = fread(chunk, 1, sizeof chunk, f)) > 0) {
+        if (used + got + 1 > cap) {
+            cap = (used + got + 1) * 2;
+            char *grown = realloc(buf, cap);
+            if (!grown) {
+                free(buf);
+                fclose(f);
+                return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
+            }
+            buf = grown;
+        }
+        memcpy(buf + used, chunk, got);
+        used += got;
+    }
+    int failed = ferror(f);
+    fclose(f);
+    if (failed || !buf) {
+        free(buf);
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot read kernel source", path);
+    }
+    buf[used] = '\0';
+    *text = buf;
+    *len = used;
+    return CDVR_OK;
+}
+
+/* All kernel files concatenated into one program source. */
+static cdvr_status load_sources(char **out, cdvr_error *err)
+{
+    const char *dir = getenv("CDVR_KERNELS");
+    if (!dir || !*dir)
+        dir = CDVR_KERNEL_DIR;
+    char *all = NULL;
+    size_t total = 0;
+    for (size_t i = 0; i < sizeof kernel_files / sizeof *kernel_files; i++) {
+        char path[1024];
+        char *text = NULL;
+        size_t len = 0;
+        snprintf(path, sizeof path, "%s/%s", dir, kernel_files[i]);
+        cdvr_status st = read_file(path, &text, &len, err);
+        if (st) {
+            free(all);
+            return st;
+        }
+        char *grown = realloc(all, total + len + 2);
+        if (!grown) {
+            free(text);
+            free(all);
+            return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
+        }
+        all = grown;
+        memcpy(all + total, text, len);
+        total += len;
+        all[total++] = '\n';
+        all[total] = '\0';
+        free(text);
+    }
+    *out = all;
+    return CDVR_OK;
+}
+
+static uint64_t fnv1a(uint64_t h, const void *data, size_t n)
+{
+    const unsigned char *p = data;
+    for (size_t i = 0; i < n; i++) {
+        h ^= p[i];
+        h *= 1099511628211ULL;
+    }
+    return h;
+}
+
+static uint64_t hash_str(uint64_t h, const char *s)
+{
+    return fnv1a(h, s, strlen(s) + 1);
+}
+
+/* 128-bit key (two FNV-1a streams with different seeds) as 32 hex digits. */
+static void cache_key(const cdvr_cl *cl, const char *source, char key[33])
+{
+    const char *parts[] = {source, BUILD_OPTIONS, cl->info.device, cl->info.driver_version,
+                           cl->info.platform, cl->info.device_version};
+    uint64_t h1 = 14695981039346656037ULL, h2 = 0x9e3779b97f4a7c15ULL;
+    for (size_t i = 0; i < sizeof parts / sizeof *parts; i++) {
+        h1 = hash_str(h1, parts[i]);
+        h2 = hash_str(h2 ^ (uint64_t)(i + 1), parts[i]);
+    }
+    snprintf(key, 33, "%016llx%016llx", (unsigned long long)h1, (unsigned long long)h2);
+}
+
+static int mkdir_p(const char *dir)
+{
+    char path[512];
+    snprintf(path, sizeof path, "%s", dir);
+    for (char *p = path + 1; *p; p++) {
+        if (*p != '/')
+            continue;
+        *p = '\0';
+        if (mkdir(path, 0755) && errno != EEXIST)
+            return -1;
+        *p = '/';
+    }
+    return (mkdir(path, 0755) && errno != EEXIST) ? -1 : 0;
+}
+
+static int cache_dir(char *dir, size_t n)
+{
+    const char *env = getenv("CDVR_CACHE_DIR");
+    const char *xdg = getenv("XDG_CACHE_HOME");
+    const char *home = getenv("HOME");
+    if (env && *env)
+        snprintf(dir, n, "%s", env);
+    else if (xdg && *xdg)
+        snprintf(dir, n, "%s/cdvr", xdg);
+    else if (home && *home)
+        snprintf(dir, n, "%s/.cache/cdvr", home);
+    else
+        return -1;
+    return mkdir_p(dir);
+}
+
+/* Cache file: magic, key (32 hex), binary size (u64), FNV-1a of the binary (u64), binary. */
+static unsigned char *cache_load(const char *path, const char *key, size_t *size)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return NULL;
+    char magic[8], stored_key[32];
+    uint64_t len = 0, sum = 0;
+    unsigned char *bin = NULL;
+    if (fread(magic, 1, 8, f) == 8 && !memcmp(magic, CACHE_MAGIC, 8) &&
+        fread(stored_key, 1, 32, f) == 32 && !memcmp(stored_key, key, 32) &&
+        fread(&len, sizeof len, 1, f) == 1 && fread(&sum, sizeof sum, 1, f) == 1 && len > 0 &&
+        len < ((uint64_t)1 << 31) && (bin = malloc((size_t)len)) != NULL) {
+        if (fread(bin, 1, (size_t)len, f) != len || fgetc(f) != EOF ||
+            fnv1a(14695981039346656037ULL, bin, (size_t)len) != sum) {
+            free(bin);
+            bin = NULL;
+        }
+    }
+    fclose(f);
+    *size = (size_t)len;
+    return bin;
+}
+
+static void cache_store(const char *path, const char *key, const unsigned char *bin, size_t size)
+{
+    char tmp[600];
+    snprintf(tmp, sizeof tmp, "%s.%ld.tmp", path, (long)getpid());
+    FILE *f = fopen(tmp, "wb");
+    if (!f)
+        return;
+    uint64_t len = size, sum = fnv1a(14695981039346656037ULL, bin, size);
+    int ok = fwrite(CACHE_MAGIC, 1, 8, f) == 8 && fwrite(key, 1, 32, f) == 32 &&
+             fwrite(&len, sizeof len, 1, f) == 1 && fwrite(&sum, sizeof sum, 1, f) == 1 &&
+             fwrite(bin, 1, size, f) == size;
+    ok = (fclose(f) == 0) && ok;
+    if (!ok || rename(tmp, path))
+        remove(tmp);
+}
+
+static unsigned char *program_binary(cl_program prog, cl_device_id dev, size_t *size)
+{
+    cl_uint ndev = 0;
+    if (clGetProgramInfo(prog, CL_PROGRAM_NUM_DEVICES, sizeof ndev, &ndev, NULL) || ndev != 1)
+        return NULL;
+    (void)dev;
+    if (clGetProgramInfo(prog, CL_PROGRAM_BINARY_SIZES, sizeof *size, size, NULL) || *size == 0)
+        return NULL;
+    unsigned char *bin = malloc(*size);
+    if (bin && clGetProgramInfo(prog, CL_PROGRAM_BINARIES, sizeof bin, &bin, NULL)) {
+        free(bin);
+        bin = NULL;
+    }
+    return bin;
+}
+
+static cdvr_status build_error(cdvr_cl *cl, cl_program prog, cl_int code, cdvr_error *err)
+{
+    char log[CDVR_ERRMSG_MAX] = "";
+    size_t len = 0;
+    clGetProgramBuildInfo(prog, cl->device, CL_PROGRAM_BUILD_LOG, sizeof log - 1, log, &len);
+    if (len == 0 || len > sizeof log - 1) {
+        /* the log is longer than a message: keep its start */
+        char *full = len ? malloc(len + 1) : NULL;
+        if (full && !clGetProgramBuildInfo(prog, cl->device, CL_PROGRAM_BUILD_LOG, len, full, NULL))
+            snprintf(log, sizeof log, "%s", full);
+        free(full);
+    }
+    return cdvr_error_set(err, CDVR_ERR_DEVICE, "OpenCL: building kernels for %s: %s (%d): %s",
+                          cl->info.device, cdvr_cl_error_name(code), (int)code, log);
+}
+
+static cl_program program_from_binary(cdvr_cl *cl, const unsigned char *bin, size_t size)
+{
+    cl_int status = CL_SUCCESS, code;
+    cl_program prog = clCreateProgramWithBinary(cl->context, 1, &cl->device, &size, &bin,
+                                                &status, &code);
+    if (code != CL_SUCCESS || status != CL_SUCCESS)
+        return NULL;
+    if (clBuildProgram(prog, 1, &cl->device, BUILD_OPTIONS, NULL, NULL) != CL_SUCCESS) {
+        clReleaseProgram(prog);
+        return NULL;
+    }
+    return prog;
+}
+
+static cdvr_status build_program(cdvr_cl *cl, cdvr_error *err)
+{
+    double start = cdvr_now_ms();
+    char *source = NULL;
+    cdvr_status st = load_sources(&source, err);
+    if (st)
+        return st;
+    char key[33], dir[400];
+    cache_key(cl, source, key);
+    cl->info.cache_path[0] = '\0';
+    if (cache_dir(dir, sizeof dir) == 0)
+        snprintf(cl->info.cache_path, sizeof cl->info.cache_path, "%s/%s.clbin", dir, key);
+    size_t size = 0;
+    unsigned char *bin = cl->info.cache_path[0] ? cache_load(cl->info.cache_path, key, &size) : NULL;
+    if (bin) {
+        cl->program = program_from_binary(cl, bin, size);
+        free(bin);
+    }
+    cl->info.from_cache = cl->program != NULL;
+    if (!cl->program) {
+        cl_int code;
+        const char *src = source;
+        cl->program = clCreateProgramWithSource(cl->context, 1, &src, NULL, &code);
+        if (code != CL_SUCCESS) {
+            cl->program = NULL;
+            free(source);
+            return cdvr_cl_check(code, "clCreateProgramWithSource", err);
+        }
+        code = clBuildProgram(cl->program, 1, &cl->device, BUILD_OPTIONS, NULL, NULL);
+        if (code != CL_SUCCESS) {
+            free(source);
+            return build_error(cl, cl->program, code, err);
+        }
+        bin = cl->info.cache_path[0] ? program_binary(cl->program, cl->device, &size) : NULL;
+        if (bin)
+            cache_store(cl->info.cache_path, key, bin, size);
+        free(bin);
+    }
+    free(source);
+    cl->info.build_seconds = (cdvr_now_ms() - start) / 1e3;
+    return CDVR_OK;
+}
+
+static cdvr_status create_kernel(cdvr_cl *cl, const char *name, cl_kernel *out, cdvr_error *err)
+{
+    cl_int code;
+    *out = clCreateKernel(cl->program, name, &code);
+    if (code != CL_SUCCESS) {
+        *out = NULL;
+        char what[96];
+        snprintf(what, sizeof what, "clCreateKernel(%s)", name);
+        return cdvr_cl_check(code, what, err);
+    }
+    return CDVR_OK;
+}
+
+static cdvr_status create_context(cdvr_cl *cl, cdvr_error *err)
+{
+    cl_int code;
+    cl_context_properties props[] = {CL_CONTEXT_PLATFORM, (cl_context_properties)cl->platform, 0};
+    cl->context = clCreateContext(props, 1, &cl->device, NULL, NULL, &code);
+    if (code != CL_SUCCESS) {
+        cl->context = NULL;
+        return cdvr_cl_check(code, "clCreateContext", err);
+    }
+    cl->queue = clCreateCommandQueue(cl->context, cl->device, 0, &code);
+    if (code != CL_SUCCESS) {
+        cl->queue = NULL;
+        return cdvr_cl_check(code, "clCreateCommandQueue", err);
+    }
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_cl_open(cdvr_cl **out, cdvr_error *err)
+{
+    *out = NULL;
+    const char *want = getenv("CDVR_CL_DEVICE");
+    if (want && !strcmp(want, "none"))
+        return cdvr_error_set(err, CDVR_ERR_DEVICE,
+                              "OpenCL: disabled by CDVR_CL_DEVICE=none; use device=\"cpu\"");
+    device_list *list = calloc(1, sizeof *list);
+    cdvr_cl *cl = calloc(1, sizeof *cl);
+    int pi = 0, di = 0;
+    cdvr_status st = (!list || !cl) ? cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL: out of memory")
+                                    : list_devices(list, err);
+    if (!st)
+        st = choose_device(list, want, &pi, &di, err);
+    if (!st) {
+        cl->platform = list->platforms[pi];
+        cl->device = list->devices[pi][di];
+        fill_info(cl, pi, di);
+        st = create_context(cl, err);
+    }
+    free(list);
+    if (!st)
+        st = build_program(cl, err);
+    if (!st)
+        st = create_kernel(cl, "pvtc_decode", &cl->k_decode, err);
+    if (!st)
+        st = create_kernel(cl, "brick_minmax", &cl->k_bricks, err);
+    if (!st)
+        st = create_kernel(cl, "raycast", &cl->k_raycast, err);
+    if (st) {
+        cdvr_cl_close(cl);
+        return st;
+    }
+    *out = cl;
+    return CDVR_OK;
+}
+
+void cdvr_cl_close(cdvr_cl *cl)
+{
+    if (!cl)
+        return;
+    if (cl->k_decode)
+        clReleaseKernel(cl->k_decode);
+    if (cl->k_bricks)
+        clReleaseKernel(cl->k_bricks);
+    if (cl->k_raycast)
+        clReleaseKernel(cl->k_raycast);
+    if (cl->program)
+        clReleaseProgram(cl->program);
+    if (cl->queue)
+        clReleaseCommandQueue(cl->queue);
+    if (cl->context)
+        clReleaseContext(cl->context);
+    free(cl);
+}
+
+const char *cdvr_cl_device_name(const cdvr_cl *cl)
+{
+    return cl->info.device;
+}
+
+const cdvr_cl_info *cdvr_cl_get_info(const cdvr_cl *cl)
+{
+    return &cl->info;
+}

@@ -1,0 +1,65 @@
+/* core/render/cl/cl_internal.h - what cl_device.c, cl_pvtc.c and cl_render.c share (not installed). */
+#ifndef CDVR_CL_INTERNAL_H
+#define CDVR_CL_INTERNAL_H
+
+#ifdef __APPLE__
+#include <OpenCL/cl.h>
+#else
+#include <CL/cl.h>
+#endif
+
+#include "cdvr/device.h"
+
+struct cdvr_cl {
+    cl_platform_id platform;
+    cl_device_id device;
+    cl_context context;
+    cl_command_queue queue;
+    cl_program program;
+    cl_kernel k_decode, k_bricks, k_raycast;
+    cdvr_cl_info info;
+};
+
+struct cdvr_cl_stream {
+    cdvr_cl *cl;
+    size_t dims[3];
+    size_t voxels;               /* dims product */
+    size_t brick_dims[3];
+    size_t nbricks;
+    cl_mem payload;              /* uploaded chunk */
+    size_t payload_capacity, payload_bytes;
+    cl_mem frames;               /* decoded u8 frames, contiguous */
+    size_t frame_capacity, frames_valid;
+    cl_mem table;                /* 256 float4: rgb + step-corrected alpha (per render) */
+    cl_mem alpha_unit;           /* 256 floats: alpha per unit length (shorter last segment) */
+    cl_mem brick_minmax;         /* nbricks uchar2: value range per brick incl. apron */
+    cl_mem brick_visible;        /* nbricks uchar flags */
+    cl_mem image;                /* width*height float4 */
+    cl_mem samples;              /* uint sample counter per ray-cast work-item */
+    size_t image_pixels, sample_slots;
+    unsigned char *minmax_host;  /* copy of brick_minmax for minmax_frame */
+    unsigned char *flags_host;   /* nbricks flags as last uploaded */
+    size_t minmax_frame;         /* frame the min/max grid belongs to, (size_t)-1 for none */
+    int flags_valid;             /* brick_visible matches minmax_host and tf_visible */
+    unsigned char tf_visible[256]; /* alpha > 0 per TF entry, as the flags were built */
+    cdvr_tf tf;                  /* TF of the last setup */
+    size_t setup_frame;          /* frame of the last setup, (size_t)-1 for none */
+    size_t bricks_visible;
+    cl_float visible_lo[3];      /* grid box holding every visible brick (lower corner of its */
+    cl_float visible_hi[3];      /* bricks, +-inf at the grid's faces); lo > hi: none visible */
+    int skipping;
+    uint64_t last_samples;
+};
+
+/* "CL_OUT_OF_RESOURCES" etc. for an OpenCL error code. */
+const char *cdvr_cl_error_name(cl_int code);
+/* If code is not CL_SUCCESS fills err with "OpenCL: what: NAME (code)" and returns
+ * CDVR_ERR_DEVICE; otherwise returns CDVR_OK. */
+cdvr_status cdvr_cl_check(cl_int code, const char *what, cdvr_error *err);
+/* (Re)allocates *mem to hold at least bytes (contents are lost on growth). */
+cdvr_status cdvr_cl_ensure_buffer(cdvr_cl *cl, cl_mem *mem, size_t *capacity, size_t bytes,
+                                  cl_mem_flags flags, const char *what, cdvr_error *err);
+/* Releases a buffer if set and clears the handle. */
+void cdvr_cl_release(cl_mem *mem);
+
+#endif

@@ -1,0 +1,502 @@
+/* core/render/cl/cl_render.c - per-frame setup (b4: TF, brick visibility) and ray casting (b5). */
+#include <limits.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cl_internal.h"
+
+/* Mirrors the kernel's cam_params struct (all 4-byte members, no padding). */
+typedef struct cam_params {
+    cl_float eye[3], f[3], u[3], r[3];
+    cl_float tan_half, aspect, ortho_half_height;
+    cl_int orthographic, width, height;
+} cam_params;
+
+static cdvr_status run_kernel(cdvr_cl *cl, cl_kernel k, cl_uint ndim, const size_t *global,
+                              const size_t *local, const char *what, cdvr_error *err)
+{
+    cl_int code = clEnqueueNDRangeKernel(cl->queue, k, ndim, NULL, global, local, 0, NULL, NULL);
+    if (!code)
+        code = clFinish(cl->queue);
+    return cdvr_cl_check(code, what, err);
+}
+
+static cdvr_status write_buffer(cdvr_cl *cl, cl_mem mem, const void *data, size_t bytes,
+                                const char *what, cdvr_error *err)
+{
+    cl_int code = clEnqueueWriteBuffer(cl->queue, mem, CL_TRUE, 0, bytes, data, 0, NULL, NULL);
+    return cdvr_cl_check(code, what, err);
+}
+
+/* Min/max of every brick of device frame `frame`, copied to s->minmax_host. */
+static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *err)
+{
+    cl_kernel k = s->cl->k_bricks;
+    cl_ulong offset = (cl_ulong)(frame * s->voxels);
+    cl_uint args[7] = {(cl_uint)s->dims[0], (cl_uint)s->dims[1], (cl_uint)s->dims[2],
+                       CDVR_CL_BRICK, (cl_uint)s->brick_dims[0], (cl_uint)s->brick_dims[1],
+                       (cl_uint)s->brick_dims[2]};
+    cl_int code = clSetKernelArg(k, 0, sizeof(cl_mem), &s->frames);
+    code |= clSetKernelArg(k, 1, sizeof offset, &offset);
+    for (cl_uint i = 0; i < 7; i++)
+        code |= clSetKernelArg(k, 2 + i, sizeof(cl_uint), &args[i]);
+    code |= clSetKernelArg(k, 9, sizeof(cl_mem), &s->brick_minmax);
+    if (code != CL_SUCCESS)
+        return cdvr_cl_check(CL_INVALID_KERNEL_ARGS, "brick_minmax arguments", err);
+    cdvr_status st = run_kernel(s->cl, k, 1, &s->nbricks, NULL, "brick_minmax kernel", err);
+    if (st)
+        return st;
+    code = clEnqueueReadBuffer(s->cl->queue, s->brick_minmax, CL_TRUE, 0, 2 * s->nbricks,
+                               s->minmax_host, 0, NULL, NULL);
+    return cdvr_cl_check(code, "read brick min/max grid", err);
+}
+
+/* One chamfer pass of the chessboard distance transform: each brick takes the minimum over
+ * its 13 neighbours already visited in the scan direction (dir = +1 forward, -1 backward)
+ * plus one. Two passes give the exact L-infinity distance to the nearest visible brick. */
+static void chessboard_pass(unsigned char *dist, const size_t n[3], int dir)
+{
+    long nx = (long)n[0], ny = (long)n[1], nz = (long)n[2];
+    for (long k = 0; k < nx * ny * nz; k++) {
+        long idx = dir > 0 ? k : nx * ny * nz - 1 - k;
+        long x = idx % nx, y = (idx / nx) % ny, z = idx / (nx * ny);
+        int best = dist[idx];
+        for (long dz = -1; dz <= 0; dz++)
+            for (long dy = -1; dy <= 1; dy++)
+                for (long dx = -1; dx <= 1; dx++) {
+                    if ((dz < 0 || dy < 0 || (dy == 0 && dx < 0)) == 0)
+                        continue; /* only neighbours before idx in forward order */
+                    long qx = x + dir * dx, qy = y + dir * dy, qz = z + dir * dz;
+                    if (qx < 0 || qy < 0 || qz < 0 || qx >= nx || qy >= ny || qz >= nz)
+                        continue;
+                    int cand = dist[qx + nx * (qy + ny * qz)] + 1;
+                    if (cand < best)
+                        best = cand;
+                }
+        dist[idx] = (unsigned char)best;
+    }
+}
+
+/* Chessboard distance (in bricks, 1 .. BRICK_REACH_MAX) from each brick with seed[b] == 0 to
+ * the nearest brick with seed[b] != 0, into dist; bricks outside the grid are never seeds. */
+#define BRICK_REACH_MAX 127
+static void chessboard_distance(const unsigned char *seed, unsigned char *dist, const size_t n[3],
+                                size_t count)
+{
+    for (size_t b = 0; b < count; b++)
+        dist[b] = seed[b] ? 0 : 255;
+    chessboard_pass(dist, n, 1);
+    chessboard_pass(dist, n, -1);
+}
+
+/* Grid-coordinate box around the visible bricks: samples outside it lie in invisible bricks.
+ * A face on the grid's border is moved to infinity, since samples beyond the volume are
+ * clamped into the border bricks. */
+static void visible_box(cdvr_cl_stream *s, const unsigned char *visible)
+{
+    size_t lo[3] = {SIZE_MAX, SIZE_MAX, SIZE_MAX}, hi[3] = {0, 0, 0};
+    const size_t *n = s->brick_dims;
+    for (size_t b = 0; b < s->nbricks; b++) {
+        if (!visible[b])
+            continue;
+        size_t at[3] = {b % n[0], b / n[0] % n[1], b / (n[0] * n[1])};
+        for (int a = 0; a < 3; a++) {
+            lo[a] = at[a] < lo[a] ? at[a] : lo[a];
+            hi[a] = at[a] > hi[a] ? at[a] : hi[a];
+        }
+    }
+    for (int a = 0; a < 3; a++) {
+        if (lo[a] == SIZE_MAX) { /* nothing visible: an empty box */
+            s->visible_lo[a] = INFINITY;
+            s->visible_hi[a] = -INFINITY;
+            continue;
+        }
+        s->visible_lo[a] = lo[a] == 0 ? -INFINITY : (cl_float)(lo[a] * CDVR_CL_BRICK);
+        s->visible_hi[a] = hi[a] + 1 == n[a] ? INFINITY : (cl_float)((hi[a] + 1) * CDVR_CL_BRICK);
+    }
+}
+
+/* Per brick, one byte for the ray caster's walk: invisible bricks (no value of [min, max] has
+ * alpha > 0) store their distance d to the nearest visible brick (the cube of bricks within
+ * d - 1 is empty and is jumped in one step); visible bricks store 128 + d, d the distance to
+ * the nearest invisible brick (the cube within d - 1 is all visible and is sampled without
+ * further look-ups). Distances are capped at BRICK_REACH_MAX. */
+static cdvr_status upload_flags(cdvr_cl_stream *s, const int prefix[257], cdvr_error *err)
+{
+    unsigned char *visible = malloc(2 * s->nbricks);
+    if (!visible)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL setup: out of memory");
+    unsigned char *hidden = visible + s->nbricks;
+    s->bricks_visible = 0;
+    for (size_t b = 0; b < s->nbricks; b++) {
+        int lo = s->minmax_host[2 * b], hi = s->minmax_host[2 * b + 1];
+        visible[b] = prefix[hi + 1] - prefix[lo] > 0;
+        hidden[b] = !visible[b];
+        s->bricks_visible += visible[b];
+    }
+    visible_box(s, visible);
+    unsigned char *to_visible = s->flags_host;
+    chessboard_distance(visible, to_visible, s->brick_dims, s->nbricks);
+    chessboard_distance(hidden, hidden, s->brick_dims, s->nbricks);
+    for (size_t b = 0; b < s->nbricks; b++) {
+        int d = visible[b] ? hidden[b] : to_visible[b];
+        d = d > BRICK_REACH_MAX ? BRICK_REACH_MAX : d;
+        s->flags_host[b] = (unsigned char)(visible[b] ? 128 + d : d);
+    }
+    free(visible);
+    return write_buffer(s->cl, s->brick_visible, s->flags_host, s->nbricks, "upload brick flags",
+                        err);
+}
+
+/* The min/max grid is computed once per decoded frame; the flags again only when the set of
+ * TF entries with alpha > 0 changes. */
+cdvr_status cdvr_cl_setup(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf, cdvr_error *err)
+{
+    s->setup_frame = (size_t)-1;
+    if (!tf)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL setup: no transfer function");
+    if (frame >= s->frames_valid)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL setup: frame %zu not decoded (%zu frames)",
+                              frame, s->frames_valid);
+    s->tf = *tf;
+    unsigned char visible[256];
+    int prefix[257];
+    prefix[0] = 0;
+    for (int i = 0; i < 256; i++) {
+        visible[i] = tf->table[i][3] > 0.0f;
+        prefix[i + 1] = prefix[i] + visible[i];
+    }
+    cdvr_status st = CDVR_OK;
+    if (s->minmax_frame != frame) {
+        s->flags_valid = 0;
+        st = compute_minmax(s, frame, err);
+        if (st)
+            return st;
+        s->minmax_frame = frame;
+    }
+    if (!s->flags_valid || memcmp(visible, s->tf_visible, sizeof visible)) {
+        s->flags_valid = 0;
+        st = upload_flags(s, prefix, err);
+        if (st)
+            return st;
+        memcpy(s->tf_visible, visible, sizeof visible);
+        s->flags_valid = 1;
+    }
+    s->setup_frame = frame;
+    return CDVR_OK;
+}
+
+void cdvr_cl_set_skipping(cdvr_cl_stream *s, int enabled)
+{
+    s->skipping = enabled != 0;
+}
+
+uint64_t cdvr_cl_last_samples(const cdvr_cl_stream *s)
+{
+    return s->last_samples;
+}
+
+void cdvr_cl_brick_counts(const cdvr_cl_stream *s, size_t *visible, size_t *total)
+{
+    if (visible)
+        *visible = s->bricks_visible;
+    if (total)
+        *total = s->nbricks;
+}
+
+/* camera.h's basis: f = normalize(center - eye), u = up orthogonalised to f, r = f x u. */
+static cdvr_status camera_params(const cdvr_camera *cam, cam_params *out, cdvr_error *err)
+{
+    double f[3], u[3], r[3], fl = 0, dot = 0, ul = 0;
+    for (int i = 0; i < 3; i++) {
+        f[i] = cam->center[i] - cam->eye[i];
+        fl += f[i] * f[i];
+    }
+    if (!(cam->width > 0 && cam->height > 0 && cam->fov > 0 && cam->fov < 180 && fl > 0))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: invalid camera (size %dx%d, fov %g)",
+                              cam->width, cam->height, cam->fov);
+    for (int i = 0; i < 3; i++)
+        f[i] /= sqrt(fl);
+    for (int i = 0; i < 3; i++)
+        dot += cam->up[i] * f[i];
+    for (int i = 0; i < 3; i++) {
+        u[i] = cam->up[i] - dot * f[i];
+        ul += u[i] * u[i];
+    }
+    if (!(ul > 1e-24))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: camera up is parallel to the view");
+    for (int i = 0; i < 3; i++)
+        u[i] /= sqrt(ul);
+    r[0] = f[1] * u[2] - f[2] * u[1];
+    r[1] = f[2] * u[0] - f[0] * u[2];
+    r[2] = f[0] * u[1] - f[1] * u[0];
+    for (int i = 0; i < 3; i++) {
+        out->eye[i] = (cl_float)cam->eye[i];
+        out->f[i] = (cl_float)f[i];
+        out->u[i] = (cl_float)u[i];
+        out->r[i] = (cl_float)r[i];
+    }
+    out->tan_half = (cl_float)tan(cam->fov * M_PI / 360.0);
+    out->aspect = (cl_float)((double)cam->width / cam->height);
+    out->ortho_half_height = (cl_float)(cam->ortho_height / 2);
+    out->orthographic = cam->orthographic != 0;
+    out->width = cam->width;
+    out->height = cam->height;
+    return CDVR_OK;
+}
+
+/* Pixels per work-item (kernels/render/raycast.cl marches a packet of PACKET_W x PACKET_H
+ * neighbouring rays in lock-step) and the work-group in work-items: neighbouring rays share
+ * voxels and bricks in cache. */
+#define PACKET_W 4
+#define PACKET_H 2
+#define RAY_GROUP_W 8
+#define RAY_GROUP_H 8
+
+static size_t round_up(size_t n, size_t m)
+{
+    return (n + m - 1) / m * m;
+}
+
+typedef struct render_params {
+    double step, unit, term_alpha;
+} render_params;
+
+/* render.h defaults: step 0.5 min(spacing), unit from opts, TF or min(spacing), term 0.99. */
+static render_params resolve(const cdvr_render_opts *opts, const cdvr_tf *tf, const double spacing[3])
+{
+    double min_spacing = fmin(spacing[0], fmin(spacing[1], spacing[2]));
+    const cdvr_tf *unit_tf = opts->tf ? opts->tf : tf;
+    render_params rp;
+    rp.step = opts->step > 0 ? opts->step : 0.5 * min_spacing;
+    rp.unit = opts->unit > 0 ? opts->unit : unit_tf->unit > 0 ? unit_tf->unit : min_spacing;
+    rp.term_alpha = opts->term_alpha > 0 ? opts->term_alpha : 0.99;
+    return rp;
+}
+
+/* rgb + step-corrected alpha (full segments) and alpha per unit (the shorter last one). */
+static cdvr_status upload_tables(cdvr_cl_stream *s, render_params rp, cdvr_error *err)
+{
+    cl_float table[256][4], alpha[256];
+    for (int i = 0; i < 256; i++) {
+        for (int c = 0; c < 3; c++)
+            table[i][c] = s->tf.table[i][c];
+        alpha[i] = s->tf.table[i][3];
+        table[i][3] = (cl_float)(1.0 - pow(1.0 - s->tf.table[i][3], rp.step / rp.unit));
+    }
+    cdvr_status st = write_buffer(s->cl, s->table, table, sizeof table, "upload TF table", err);
+    if (!st)
+        st = write_buffer(s->cl, s->alpha_unit, alpha, sizeof alpha, "upload alpha table", err);
+    return st;
+}
+
+/* log2 of CDVR_CL_BRICK (a power of two) for the kernel's shifts */
+static cl_int brick_shift(void)
+{
+    cl_int shift = 0;
+    while ((1 << shift) < CDVR_CL_BRICK)
+        shift++;
+    return shift;
+}
+
+static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_params rp,
+                                    const cam_params *cam, const double spacing[3],
+                                    const double origin[3], cl_mem image)
+{
+    cl_kernel k = s->cl->k_raycast;
+    cl_ulong offset = (cl_ulong)(frame * s->voxels);
+    cl_int ints[3] = {(cl_int)s->dims[0], (cl_int)s->dims[1], (cl_int)s->dims[2]};
+    cl_float geo[9];
+    for (int i = 0; i < 3; i++) {
+        geo[i] = (cl_float)origin[i];
+        geo[3 + i] = (cl_float)(1.0 / spacing[i]);
+        geo[6 + i] = (cl_float)(origin[i] + (double)(s->dims[i] - 1) * spacing[i]);
+    }
+    cl_int bricks[5] = {brick_shift(), (cl_int)s->brick_dims[0], (cl_int)s->brick_dims[1],
+                        (cl_int)s->brick_dims[2], s->skipping};
+    cl_uint a = 0;
+    cl_int code = clSetKernelArg(k, a++, sizeof(cl_mem), &s->frames);
+    code |= clSetKernelArg(k, a++, sizeof offset, &offset);
+    for (int i = 0; i < 3; i++)
+        code |= clSetKernelArg(k, a++, sizeof(cl_int), &ints[i]);
+    for (int i = 0; i < 9; i++)
+        code |= clSetKernelArg(k, a++, sizeof(cl_float), &geo[i]);
+    cl_float step = (cl_float)rp.step, term_alpha = (cl_float)rp.term_alpha;
+    cl_float unit = (cl_float)rp.unit;
+    code |= clSetKernelArg(k, a++, sizeof step, &step);
+    code |= clSetKernelArg(k, a++, sizeof term_alpha, &term_alpha);
+    code |= clSetKernelArg(k, a++, sizeof *cam, cam);
+    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->table);
+    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->alpha_unit);
+    code |= clSetKernelArg(k, a++, sizeof unit, &unit);
+    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->brick_visible);
+    for (int i = 0; i < 5; i++)
+        code |= clSetKernelArg(k, a++, sizeof(cl_int), &bricks[i]);
+    for (int i = 0; i < 3; i++)
+        code |= clSetKernelArg(k, a++, sizeof(cl_float), &s->visible_lo[i]);
+    for (int i = 0; i < 3; i++)
+        code |= clSetKernelArg(k, a++, sizeof(cl_float), &s->visible_hi[i]);
+    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &image);
+    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->samples);
+    return code == CL_SUCCESS ? CDVR_OK : CDVR_ERR_DEVICE;
+}
+
+/* Device image of `pixels` and one sample counter per work-item (`items`). */
+static cdvr_status ensure_image(cdvr_cl_stream *s, size_t pixels, size_t items, cdvr_error *err)
+{
+    if (s->image && s->image_pixels >= pixels && s->sample_slots >= items)
+        return CDVR_OK;
+    size_t cap_img = 0, cap_samples = 0;
+    cdvr_cl_release(&s->samples);
+    s->image_pixels = 0;
+    s->sample_slots = 0;
+    size_t img_bytes, sample_bytes;
+    if (!cdvr_size_mul(pixels, 4 * sizeof(cl_float), &img_bytes) ||
+        !cdvr_size_mul(items, sizeof(cl_uint), &sample_bytes))
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL render: image of %zu pixels overflows", pixels);
+    cdvr_status st = cdvr_cl_ensure_buffer(s->cl, &s->image, &cap_img, img_bytes,
+                                           CL_MEM_WRITE_ONLY, "image", err);
+    if (!st)
+        st = cdvr_cl_ensure_buffer(s->cl, &s->samples, &cap_samples, sample_bytes,
+                                   CL_MEM_WRITE_ONLY, "sample counters", err);
+    if (st)
+        return st;
+    s->image_pixels = pixels;
+    s->sample_slots = items;
+    return CDVR_OK;
+}
+
+/* On a device that shares host memory, a buffer over the image's own pixels: the kernel then
+ * writes them in place and no copy of the frame is needed. NULL elsewhere, or on failure (the
+ * stream's device image is used then). */
+static cl_mem wrap_host_image(cdvr_cl *cl, cdvr_image *img, size_t pixels)
+{
+    cl_bool unified = CL_FALSE;
+    if (clGetDeviceInfo(cl->device, CL_DEVICE_HOST_UNIFIED_MEMORY, sizeof unified, &unified,
+                        NULL) != CL_SUCCESS || !unified)
+        return NULL;
+    cl_int code;
+    cl_mem mem = clCreateBuffer(cl->context, CL_MEM_WRITE_ONLY | CL_MEM_USE_HOST_PTR,
+                                pixels * 4 * sizeof(float), img->rgba, &code);
+    return code == CL_SUCCESS ? mem : NULL;
+}
+
+/* Makes img hold the pixels of the host image buffer after the queued kernel: a map, which
+ * on unified memory gives img's own pixels without a copy. Waits for everything queued. */
+static cl_int sync_host_image(cl_command_queue q, cl_mem host_image, cdvr_image *img,
+                              size_t bytes)
+{
+    cl_int code;
+    void *mapped = clEnqueueMapBuffer(q, host_image, CL_TRUE, CL_MAP_READ, 0, bytes, 0, NULL,
+                                      NULL, &code);
+    if (code != CL_SUCCESS)
+        return code;
+    if (mapped != (void *)img->rgba)
+        memcpy(img->rgba, mapped, bytes);
+    code = clEnqueueUnmapMemObject(q, host_image, mapped, 0, NULL, NULL);
+    cl_int finish_code = clFinish(q); /* the buffer must not touch img once we return */
+    return code ? code : finish_code;
+}
+
+/* Runs the ray caster and reads the image (from host_image, or the stream's device image if
+ * NULL) and the sample counters back, with one wait for the kernel and the reads (the
+ * in-order queue keeps the reads behind the kernel). */
+static cdvr_status cast_and_read(cdvr_cl_stream *s, const size_t global[2], const size_t local[2],
+                                 cl_mem host_image, cdvr_image *img, size_t pixels,
+                                 cdvr_error *err)
+{
+    size_t items = global[0] * global[1], image_bytes = pixels * 4 * sizeof(float);
+    cl_uint *counts = malloc(items * sizeof *counts);
+    if (!counts)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL render: out of memory");
+    cl_command_queue q = s->cl->queue;
+    cl_int code = clEnqueueNDRangeKernel(q, s->cl->k_raycast, 2, NULL, global, local, 0, NULL, NULL);
+    const char *what = "raycast kernel";
+    if (!code) {
+        what = "read image";
+        code = host_image ? CL_SUCCESS
+                          : clEnqueueReadBuffer(q, s->image, CL_FALSE, 0, image_bytes, img->rgba,
+                                                0, NULL, NULL);
+        cl_int sample_code = code ? code : clEnqueueReadBuffer(q, s->samples, CL_FALSE, 0,
+                                                               items * sizeof *counts, counts,
+                                                               0, NULL, NULL);
+        /* wait even if a read failed to enqueue: the other may still write into our memory */
+        cl_int finish_code = host_image ? sync_host_image(q, host_image, img, image_bytes)
+                                        : clFinish(q);
+        code = code ? code : sample_code ? sample_code : finish_code;
+    }
+    uint64_t total = 0;
+    for (size_t i = 0; code == CL_SUCCESS && i < items; i++)
+        total += counts[i];
+    free(counts);
+    s->last_samples = total;
+    return cdvr_cl_check(code, what, err);
+}
+
+static cdvr_status check_render_args(const cdvr_cl_stream *s, size_t frame,
+                                     const cdvr_render_opts *opts, const double spacing[3],
+                                     const double origin[3], const cdvr_image *img,
+                                     cdvr_error *err)
+{
+    if (!opts || !opts->camera || !img)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: camera and image are required");
+    if (s->setup_frame != frame)
+        return cdvr_error_set(err, CDVR_ERR_ARG,
+                              "OpenCL render: frame %zu has no setup (call cdvr_cl_setup first)", frame);
+    for (int i = 0; i < 3; i++)
+        if (!(spacing[i] > 0) || !isfinite(spacing[i]) || !isfinite(origin[i]))
+            return cdvr_error_set(err, CDVR_ERR_ARG,
+                                  "OpenCL render: spacing %g and origin %g (axis %d) must be finite, "
+                                  "spacing positive", spacing[i], origin[i], i);
+    if (img->width != opts->camera->width || img->height != opts->camera->height)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: image %dx%d, camera %dx%d",
+                              img->width, img->height, opts->camera->width, opts->camera->height);
+    if (!(opts->step >= 0) || !(opts->unit >= 0))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: step and unit must be >= 0");
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_opts *opts,
+                           const double spacing[3], const double origin[3], cdvr_image *img,
+                           cdvr_error *err)
+{
+    cam_params cam;
+    cdvr_status st = check_render_args(s, frame, opts, spacing, origin, img, err);
+    if (!st)
+        st = camera_params(opts->camera, &cam, err);
+    if (st)
+        return st;
+    render_params rp = resolve(opts, &s->tf, spacing);
+    if (!(rp.step > 0) || !(rp.unit > 0))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: step %g and unit %g must be > 0",
+                              rp.step, rp.unit);
+    double diagonal = 0;
+    for (int a = 0; a < 3; a++)
+        diagonal += pow((double)(s->dims[a] - 1) * spacing[a], 2);
+    /* segment counts are ints, and a work-item sums its packet's counts in 32 bits */
+    if (sqrt(diagonal) / rp.step > (double)UINT32_MAX / (PACKET_W * PACKET_H))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: step %g too small for a box of "
+                              "diagonal %g", rp.step, sqrt(diagonal));
+    size_t pixels = (size_t)img->width * (size_t)img->height;
+    size_t local[2] = {RAY_GROUP_W, RAY_GROUP_H};
+    size_t packets_x = ((size_t)img->width + PACKET_W - 1) / PACKET_W;
+    size_t packets_y = ((size_t)img->height + PACKET_H - 1) / PACKET_H;
+    size_t global[2] = {round_up(packets_x, local[0]), round_up(packets_y, local[1])};
+    st = ensure_image(s, pixels, global[0] * global[1], err);
+    if (!st)
+        st = upload_tables(s, rp, err);
+    if (st)
+        return st;
+    cl_mem host_image = wrap_host_image(s->cl, img, pixels);
+    if (set_raycast_args(s, frame, rp, &cam, spacing, origin, host_image ? host_image : s->image))
+        st = cdvr_cl_check(CL_INVALID_KERNEL_ARGS, "raycast arguments", err);
+    else
+        st = cast_and_read(s, global, local, host_image, img, pixels, err);
+    cdvr_cl_release(&host_image);
+    if (st)
+        return st;
+    memcpy(img->background, opts->background, sizeof img->background);
+    return CDVR_OK;
+}

@@ -1,0 +1,326 @@
+/* core/render/cpu/render_cpu.c - the multithreaded CPU reference ray caster (cdvr/render.h). Every step
+ * below follows the numbered algorithm in render.h; the OpenCL kernel copies it. */
+#include "cdvr/render.h"
+
+#include <limits.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <unistd.h>
+
+#define MAX_THREADS 256
+
+typedef struct render_job {
+    const uint8_t *voxels;
+    int dims[3];
+    size_t stride_y, stride_z;
+    float origin[3], inv_spacing[3], box_hi[3];
+    float step, unit, term_alpha;
+    const cdvr_tf *tf;
+    float alpha_step[256]; /* a_c[i] = 1 - (1 - a[i])^(step/unit) */
+    const cdvr_camera *camera;
+    cdvr_image *img;
+    atomic_int next_row;
+    atomic_uint_fast64_t samples;
+} render_job;
+
+static double min_spacing(const cdvr_volume *vol)
+{
+    return fmin(vol->spacing[0], fmin(vol->spacing[1], vol->spacing[2]));
+}
+
+void cdvr_render_resolve(const cdvr_volume *vol, const cdvr_render_opts *opts, double *step,
+                         double *unit, double *term_alpha)
+{
+    double spacing = min_spacing(vol);
+    *step = opts->step > 0.0 ? opts->step : 0.5 * spacing;
+    if (opts->unit > 0.0)
+        *unit = opts->unit;
+    else if (opts->tf && opts->tf->unit > 0.0)
+        *unit = opts->tf->unit;
+    else
+        *unit = spacing;
+    *term_alpha = opts->term_alpha > 0.0 ? opts->term_alpha : 0.99;
+}
+
+/* Step 1: slab intersection in float; returns 1 and [t_near, t_far) on a hit. */
+static int intersect_box(const render_job *job, const float o[3], const float d[3],
+                         float *t_near, float *t_far)
+{
+    float t_enter = -INFINITY, t_exit = INFINITY;
+    for (int a = 0; a < 3; a++) {
+        float lo = job->origin[a], hi = job->box_hi[a];
+        if (fabsf(d[a]) < 1e-12f) {
+            if (o[a] < lo || o[a] > hi)
+                return 0;
+            continue;
+        }
+        float t0 = (lo - o[a]) / d[a], t1 = (hi - o[a]) / d[a];
+        if (t0 > t1) {
+            float swap = t0;
+            t0 = t1;
+            t1 = swap;
+        }
+        t_enter = fmaxf(t_enter, t0);
+        t_exit = fminf(t_exit, t1);
+    }
+    *t_near = fmaxf(t_enter, 0.0f);
+    *t_far = t_exit;
+    return *t_far > *t_near;
+}
+
+static float lerpf(float a, float b, float f)
+{
+    return a + f * (b - a);
+}
+
+/* Step 3: trilinear interpolation at world position p (grid coordinates clamped). */
+static float sample_volume(const render_job *job, const float p[3])
+{
+    size_t lo[3], hi[3];
+    float f[3];
+    for (int a = 0; a < 3; a++) {
+        float g = (p[a] - job->origin[a]) * job->inv_spacing[a];
+        float top = (float)(job->dims[a] - 1);
+        g = fminf(fmaxf(g, 0.0f), top);
+        int i0 = (int)g;
+        lo[a] = (size_t)i0;
+        hi[a] = (size_t)(i0 + 1 < job->dims[a] ? i0 + 1 : i0);
+        f[a] = g - (float)i0;
+    }
+    const uint8_t *v = job->voxels;
+    size_t y0 = lo[1] * job->stride_y, y1 = hi[1] * job->stride_y;
+    size_t z0 = lo[2] * job->stride_z, z1 = hi[2] * job->stride_z;
+    float c00 = lerpf(v[lo[0] + y0 + z0], v[hi[0] + y0 + z0], f[0]);
+    float c10 = lerpf(v[lo[0] + y1 + z0], v[hi[0] + y1 + z0], f[0]);
+    float c01 = lerpf(v[lo[0] + y0 + z1], v[hi[0] + y0 + z1], f[0]);
+    float c11 = lerpf(v[lo[0] + y1 + z1], v[hi[0] + y1 + z1], f[0]);
+    return lerpf(lerpf(c00, c10, f[1]), lerpf(c01, c11, f[1]), f[2]);
+}
+
+/* Step 4: post-classification of value s for a segment of length ds (full: ds == step). */
+static void classify(const render_job *job, float s, float ds, int full, float rgba[4])
+{
+    int i0 = (int)s;
+    if (i0 > 254)
+        i0 = 254;
+    float f = s - (float)i0;
+    const float *lo = job->tf->table[i0], *hi = job->tf->table[i0 + 1];
+    if (full) {
+        rgba[3] = lerpf(job->alpha_step[i0], job->alpha_step[i0 + 1], f);
+    } else {
+        float a = lerpf(lo[3], hi[3], f);
+        rgba[3] = 1.0f - powf(1.0f - a, ds / job->unit);
+    }
+    if (rgba[3] > 0.0f)
+        for (int c = 0; c < 3; c++)
+            rgba[c] = lerpf(lo[c], hi[c], f);
+}
+
+/* Steps 2 and 5 for one ray; returns the number of samples taken. */
+static uint64_t march_ray(const render_job *job, const float o[3], const float d[3],
+                          float out[4])
+{
+    float t_near, t_far;
+    out[0] = out[1] = out[2] = out[3] = 0.0f;
+    if (!intersect_box(job, o, d, &t_near, &t_far))
+        return 0;
+    float length = t_far - t_near, step = job->step;
+    long n = (long)ceilf(length / step);
+    if (n < 1)
+        n = 1;
+    float C[3] = {0.0f, 0.0f, 0.0f}, A = 0.0f;
+    long i;
+    for (i = 0; i < n; i++) {
+        float ts = t_near + (float)i * step;
+        float ds = i < n - 1 ? step : t_far - ts;
+        if (ds <= 0.0f)
+            break;
+        float tm = ts + 0.5f * ds, p[3], rgba[4];
+        for (int a = 0; a < 3; a++)
+            p[a] = o[a] + tm * d[a];
+        classify(job, sample_volume(job, p), ds, ds >= step, rgba);
+        if (rgba[3] > 0.0f) {
+            float w = (1.0f - A) * rgba[3];
+            for (int c = 0; c < 3; c++)
+                C[c] += w * rgba[c];
+            A += w;
+            if (A >= job->term_alpha || A >= 1.0f) {
+                i++;
+                break;
+            }
+        }
+    }
+    out[0] = C[0];
+    out[1] = C[1];
+    out[2] = C[2];
+    out[3] = A;
+    return (uint64_t)i;
+}
+
+static uint64_t render_row(const render_job *job, int y)
+{
+    uint64_t samples = 0;
+    for (int x = 0; x < job->img->width; x++) {
+        double od[3], dd[3];
+        cdvr_camera_ray(job->camera, x, y, od, dd);
+        float o[3] = {(float)od[0], (float)od[1], (float)od[2]};
+        float d[3] = {(float)dd[0], (float)dd[1], (float)dd[2]};
+        samples += march_ray(job, o, d, cdvr_image_pixel(job->img, x, y));
+    }
+    return samples;
+}
+
+static void *render_worker(void *arg)
+{
+    render_job *job = arg;
+    uint64_t samples = 0;
+    for (;;) {
+        int y = atomic_fetch_add(&job->next_row, 1);
+        if (y >= job->img->height)
+            break;
+        samples += render_row(job, y);
+    }
+    atomic_fetch_add(&job->samples, samples);
+    return NULL;
+}
+
+static int thread_count(const cdvr_render_opts *opts, int rows)
+{
+    long n = opts->threads > 0 ? opts->threads : sysconf(_SC_NPROCESSORS_ONLN);
+    if (n < 1)
+        n = 1;
+    if (n > MAX_THREADS)
+        n = MAX_THREADS;
+    return n > rows ? rows : (int)n;
+}
+
+/* Runs the workers; the calling thread is one of them. Threads that fail to start are
+ * simply not used: the rows are shared by whoever runs. */
+static void run_workers(render_job *job, int nthreads)
+{
+    pthread_t threads[MAX_THREADS];
+    int started = 0;
+    for (int i = 1; i < nthreads; i++) {
+        if (pthread_create(&threads[started], NULL, render_worker, job) != 0)
+            break;
+        started++;
+    }
+    render_worker(job);
+    for (int i = 0; i < started; i++)
+        pthread_join(threads[i], NULL);
+}
+
+static cdvr_status check_volume(const cdvr_volume *vol, size_t t, cdvr_error *err)
+{
+    if (vol->type != CDVR_TYPE_U8)
+        return cdvr_error_set(err, CDVR_ERR_ARG,
+                              "render: volume type %s is not u8 (quantize it first)",
+                              cdvr_type_name(vol->type));
+    if (t >= vol->timesteps)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "render: timestep %zu outside 0..%zu", t,
+                              vol->timesteps - 1);
+    for (int a = 0; a < 3; a++) {
+        if (vol->dims[a] > INT_MAX)
+            return cdvr_error_set(err, CDVR_ERR_ARG, "render: dim %zu too large",
+                                  vol->dims[a]);
+        if (!isfinite(vol->spacing[a]) || vol->spacing[a] <= 0.0 ||
+            !isfinite(vol->origin[a]))
+            return cdvr_error_set(err, CDVR_ERR_ARG,
+                                  "render: volume spacing %g and origin %g (axis %d) must be "
+                                  "finite, spacing positive",
+                                  vol->spacing[a], vol->origin[a], a);
+    }
+    return CDVR_OK;
+}
+
+static double box_diagonal(const cdvr_volume *vol)
+{
+    double sum = 0.0;
+    for (int a = 0; a < 3; a++) {
+        double extent = (double)(vol->dims[a] - 1) * vol->spacing[a];
+        sum += extent * extent;
+    }
+    return sqrt(sum);
+}
+
+static cdvr_status check_opts(const cdvr_volume *vol, const cdvr_render_opts *opts,
+                              double step, double unit, double term, cdvr_error *err)
+{
+    if (!opts->tf || !opts->camera)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "render: transfer function and camera needed");
+    cdvr_status st = cdvr_camera_validate(opts->camera, err);
+    if (st != CDVR_OK)
+        return st;
+    if (!isfinite(opts->step) || opts->step < 0.0 || !isfinite(opts->unit) || opts->unit < 0.0)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "render: step %g and unit %g must be >= 0",
+                              opts->step, opts->unit);
+    if (!(term >= 0.0))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "render: term_alpha %g must be >= 0",
+                              opts->term_alpha);
+    if (box_diagonal(vol) / step > (double)INT_MAX)
+        return cdvr_error_set(err, CDVR_ERR_ARG,
+                              "render: step %g too small for a box of diagonal %g", step,
+                              box_diagonal(vol));
+    (void)unit;
+    return CDVR_OK;
+}
+
+static void setup_job(render_job *job, const cdvr_volume *vol, size_t t,
+                      const cdvr_render_opts *opts, double step, double unit, double term,
+                      cdvr_image *img)
+{
+    job->voxels = cdvr_volume_frame(vol, t);
+    job->stride_y = vol->dims[0];
+    job->stride_z = vol->dims[0] * vol->dims[1];
+    for (int a = 0; a < 3; a++) {
+        job->dims[a] = (int)vol->dims[a];
+        job->origin[a] = (float)vol->origin[a];
+        job->inv_spacing[a] = (float)(1.0 / vol->spacing[a]);
+        job->box_hi[a] = (float)(vol->origin[a] + (double)(vol->dims[a] - 1) * vol->spacing[a]);
+    }
+    job->step = (float)step;
+    job->unit = (float)unit;
+    job->term_alpha = (float)term;
+    job->tf = opts->tf;
+    for (int i = 0; i < 256; i++)
+        job->alpha_step[i] = (float)(1.0 - pow(1.0 - opts->tf->table[i][3], step / unit));
+    job->camera = opts->camera;
+    job->img = img;
+    atomic_init(&job->next_row, 0);
+    atomic_init(&job->samples, 0);
+}
+
+cdvr_status cdvr_render_cpu(const cdvr_volume *vol, size_t t, cdvr_render_opts *opts,
+                            cdvr_image **out, cdvr_error *err)
+{
+    *out = NULL;
+    if (!vol || !opts)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "render: NULL volume or options");
+    cdvr_status st = check_volume(vol, t, err);
+    if (st != CDVR_OK)
+        return st;
+    double step, unit, term;
+    cdvr_render_resolve(vol, opts, &step, &unit, &term);
+    st = check_opts(vol, opts, step, unit, term, err);
+    if (st != CDVR_OK)
+        return st;
+    cdvr_image *img;
+    st = cdvr_image_create(opts->camera->width, opts->camera->height, &img, err);
+    if (st != CDVR_OK)
+        return st;
+    for (int c = 0; c < 4; c++)
+        img->background[c] = opts->background[c];
+    render_job *job = malloc(sizeof *job);
+    if (!job) {
+        cdvr_image_free(img);
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "render: no memory for the job");
+    }
+    setup_job(job, vol, t, opts, step, unit, term, img);
+    run_workers(job, thread_count(opts, img->height));
+    opts->samples = (uint64_t)atomic_load(&job->samples);
+    free(job);
+    *out = img;
+    return CDVR_OK;
+}

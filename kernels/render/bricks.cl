@@ -1,0 +1,25 @@
+/* kernels/render/bricks.cl - the brick min/max grid for empty-space skipping. One work-item per
+ * brick of B^3 voxels: min and max over the brick plus the one-voxel upper apron that
+ * trilinear interpolation reads (voxels B*b .. B*b + B, clamped to the volume). The host
+ * turns the grid into per-brick visibility flags for each transfer function. */
+__kernel void brick_minmax(__global const uchar *frames, ulong offset, uint X, uint Y, uint Z,
+                           uint B, uint nbx, uint nby, uint nbz, __global uchar2 *minmax)
+{
+    uint b = get_global_id(0);
+    __global const uchar *frame = frames + offset;
+    if (b >= nbx * nby * nbz)
+        return;
+    uint x0 = (b % nbx) * B, y0 = ((b / nbx) % nby) * B, z0 = (b / (nbx * nby)) * B;
+    uint x1 = min(x0 + B, X - 1), y1 = min(y0 + B, Y - 1), z1 = min(z0 + B, Z - 1);
+    uint lo = 255, hi = 0;
+    for (uint z = z0; z <= z1; z++)
+        for (uint y = y0; y <= y1; y++) {
+            __global const uchar *row = frame + (ulong)X * ((ulong)Y * z + y);
+            for (uint x = x0; x <= x1; x++) {
+                uint v = row[x];
+                lo = min(lo, v);
+                hi = max(hi, v);
+            }
+        }
+    minmax[b] = (uchar2)((uchar)lo, (uchar)hi);
+}

@@ -1,0 +1,476 @@
+/* kernels/render/raycast.cl - ray casting as defined in core/include/cdvr/render.h, in float:
+ * slab test, segments of length `step` from t_near with a partial last one, midpoint
+ * samples, trilinear interpolation, post-classification with the step-corrected table,
+ * front-to-back compositing and early termination.
+ *
+ * Each work-item marches a packet of RAY_PACKET horizontally neighbouring rays in lock-step
+ * on float8 lanes, so the CPU device's compiler emits vector code (PoCL does not vectorise
+ * across work-items: the march loop is data dependent). Every lane keeps its own sample index
+ * on its own segment grid; lane masks (-1 true, as vector comparisons give) say which lanes
+ * sample, which look up bricks and which are still running.
+ *
+ * Rays are carried in grid (voxel) coordinates: sample i of the full segments sits at
+ * g0 + i*dg. Empty-space skipping walks the brick grid: for the brick holding a lane's current
+ * sample it computes, in sample units, where the ray leaves the cube of like bricks around
+ * it; an invisible cube is jumped in one step (conservatively, so a skipped sample is always
+ * inside it), a visible cube's samples need no further look-ups. Skipped samples are exactly
+ * those whose value range has zero opacity under the TF. */
+
+#define RAY_PACKET 8 /* a packet is PACKET_W x PACKET_H pixels (lanes row by row) */
+#define PACKET_W 4
+#define PACKET_H 2
+typedef float8 vfloat;
+typedef int8 vint;
+typedef long8 vlong;
+
+/* Per lane of a packet: one coordinate per axis. */
+typedef struct vec3x8 {
+    vfloat x, y, z;
+} vec3x8;
+
+typedef struct cam_params {
+    float eye[3], f[3], u[3], r[3];
+    float tan_half, aspect, ortho_half_height;
+    int orthographic, width, height;
+} cam_params;
+
+typedef struct volume_geo {
+    __global const uchar *vol;
+    int3 dims;
+    int3 base_max;  /* largest lower trilinear corner per axis: max(dims - 2, 0) */
+    long3 stride;   /* index step to the upper corner per axis; 0 where dims is 1 */
+    float3 top;     /* dims - 1 */
+} volume_geo;
+
+/* Per-lane rays of the packet and their clipped segments. */
+typedef struct packet {
+    vec3x8 o, d;
+    vfloat t_near, t_far;
+    vint hit;
+} packet;
+
+static void camera_rays(const cam_params *cam, vint px, vint py, packet *p)
+{
+    vfloat sxn = 2.0f * (convert_float8(px) + 0.5f) / (float)cam->width - 1.0f;
+    vfloat syn = 2.0f * (convert_float8(py) + 0.5f) / (float)cam->height - 1.0f;
+    vfloat sx = sxn * cam->aspect;
+    vfloat side[3];
+    for (int a = 0; a < 3; a++)
+        side[a] = sx * cam->r[a] - syn * cam->u[a];
+    if (cam->orthographic) {
+        float h = cam->ortho_half_height;
+        p->o = (vec3x8){cam->eye[0] + side[0] * h, cam->eye[1] + side[1] * h,
+                        cam->eye[2] + side[2] * h};
+        p->d = (vec3x8){(vfloat)cam->f[0], (vfloat)cam->f[1], (vfloat)cam->f[2]};
+        return;
+    }
+    p->o = (vec3x8){(vfloat)cam->eye[0], (vfloat)cam->eye[1], (vfloat)cam->eye[2]};
+    vfloat dx = cam->f[0] + side[0] * cam->tan_half, dy = cam->f[1] + side[1] * cam->tan_half;
+    vfloat dz = cam->f[2] + side[2] * cam->tan_half;
+    vfloat inv_len = 1.0f / sqrt(dx * dx + dy * dy + dz * dz);
+    p->d = (vec3x8){dx * inv_len, dy * inv_len, dz * inv_len};
+}
+
+/* One slab of render.h step 1; a ray parallel to the faces misses if it lies outside. */
+static void slab(vfloat o, vfloat d, float lo, float hi, vfloat *t_enter, vfloat *t_exit,
+                 vint *miss)
+{
+    vint parallel = fabs(d) < 1e-12f;
+    *miss |= parallel & (o < lo | o > hi);
+    vfloat t0 = (lo - o) / d, t1 = (hi - o) / d;
+    *t_enter = select(fmax(*t_enter, fmin(t0, t1)), *t_enter, parallel);
+    *t_exit = select(fmin(*t_exit, fmax(t0, t1)), *t_exit, parallel);
+}
+
+static void intersect_box(packet *p, float3 lo, float3 hi)
+{
+    vfloat t_enter = (vfloat)(-INFINITY), t_exit = (vfloat)(INFINITY);
+    vint miss = (vint)(0);
+    slab(p->o.x, p->d.x, lo.x, hi.x, &t_enter, &t_exit, &miss);
+    slab(p->o.y, p->d.y, lo.y, hi.y, &t_enter, &t_exit, &miss);
+    slab(p->o.z, p->d.z, lo.z, hi.z, &t_enter, &t_exit, &miss);
+    p->t_near = fmax(t_enter, 0.0f);
+    p->t_far = t_exit;
+    p->hit &= ~miss & (p->t_far > p->t_near);
+}
+
+/* Byte of each lane at p[idx]; lanes are independent scalar loads. */
+static vfloat gather8(__global const uchar *p, vlong idx)
+{
+    return convert_float8((uchar8)(p[idx.s0], p[idx.s1], p[idx.s2], p[idx.s3], p[idx.s4],
+                                   p[idx.s5], p[idx.s6], p[idx.s7]));
+}
+
+/* Clamped grid position -> lower trilinear corner, at most dims - 2 so the upper corner is
+ * always inside (at g == dims - 1 the upper voxel gets weight 1: the clamped index of
+ * render.h); *frac gets the weight of the upper corner. */
+static vint corner(vfloat g, float top, int base_max, vfloat *frac)
+{
+    g = clamp(g, 0.0f, top);
+    vint i0 = min(convert_int8(g), base_max);
+    *frac = g - convert_float8(i0);
+    return i0;
+}
+
+#ifdef __ENDIAN_LITTLE__
+/* Voxels x0 and x0 + 1 of a row in one 16-bit load: low byte x0. */
+static ushort pair_at(__global const uchar *q)
+{
+    return as_ushort(vload2(0, q));
+}
+
+#define PAIRS8(p, base, off)                                                                   \
+    (ushort8)(pair_at(p + base.s0 + off), pair_at(p + base.s1 + off), pair_at(p + base.s2 + off), \
+              pair_at(p + base.s3 + off), pair_at(p + base.s4 + off), pair_at(p + base.s5 + off), \
+              pair_at(p + base.s6 + off), pair_at(p + base.s7 + off))
+
+static vfloat lerp_pairs(ushort8 w, vfloat fx)
+{
+    return mix(convert_float8(w & (ushort)0xff), convert_float8(w >> (ushort)8), fx);
+}
+#endif
+
+/* render.h step 3 at grid position g (clamped here). */
+/* always inlined: as a call (two callers) its vector arguments and result go through memory */
+__attribute__((always_inline)) static inline vfloat trilinear(const volume_geo *v, vec3x8 g)
+{
+    vfloat fx, fy, fz;
+    vint x0 = corner(g.x, v->top.x, v->base_max.x, &fx);
+    vint y0 = corner(g.y, v->top.y, v->base_max.y, &fy);
+    vint z0 = corner(g.z, v->top.z, v->base_max.z, &fz);
+    vlong base = convert_long8(x0) + v->stride.y * convert_long8(y0) +
+                 v->stride.z * convert_long8(z0);
+    long sx = v->stride.x, sy = v->stride.y, sz = v->stride.z;
+    __global const uchar *p = v->vol;
+    vfloat c00, c10, c01, c11;
+#ifdef __ENDIAN_LITTLE__
+    if (sx == 1) {
+        c00 = lerp_pairs(PAIRS8(p, base, 0), fx);
+        c10 = lerp_pairs(PAIRS8(p, base, sy), fx);
+        c01 = lerp_pairs(PAIRS8(p, base, sz), fx);
+        c11 = lerp_pairs(PAIRS8(p, base, sz + sy), fx);
+        return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
+    }
+#endif
+    c00 = mix(gather8(p, base), gather8(p, base + sx), fx);
+    c10 = mix(gather8(p, base + sy), gather8(p, base + sy + sx), fx);
+    c01 = mix(gather8(p, base + sz), gather8(p, base + sz + sx), fx);
+    c11 = mix(gather8(p, base + sz + sy), gather8(p, base + sz + sy + sx), fx);
+    return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
+}
+
+/* Classified sample per lane: rgb lerped from the table, alpha per the caller. */
+typedef struct rgba8 {
+    vfloat r, g, b, a;
+} rgba8;
+
+#define TABLE_LANE(k)                                                                          \
+    do {                                                                                       \
+        float4 lo = table[i0.s##k], hi = table[i0.s##k + 1];                                   \
+        c0.r.s##k = lo.x; c0.g.s##k = lo.y; c0.b.s##k = lo.z; c0.a.s##k = lo.w;                \
+        c1.r.s##k = hi.x; c1.g.s##k = hi.y; c1.b.s##k = hi.z; c1.a.s##k = hi.w;                \
+    } while (0)
+
+/* render.h step 4 for full segments: lerp of rgb and of the step-corrected alpha. *i0_out and
+ * *fr_out give the table position for the shorter last segment's alpha. */
+static rgba8 classify(vfloat s, __global const float4 *table, vint *i0_out, vfloat *fr_out)
+{
+    vint i0 = min(convert_int8(s), 254);
+    vfloat fr = s - convert_float8(i0);
+    rgba8 c0, c1;
+    TABLE_LANE(0); TABLE_LANE(1); TABLE_LANE(2); TABLE_LANE(3);
+    TABLE_LANE(4); TABLE_LANE(5); TABLE_LANE(6); TABLE_LANE(7);
+    *i0_out = i0;
+    *fr_out = fr;
+    return (rgba8){mix(c0.r, c1.r, fr), mix(c0.g, c1.g, fr), mix(c0.b, c1.b, fr),
+                   mix(c0.a, c1.a, fr)};
+}
+
+/* render.h step 5 on the lanes whose alpha is given (others pass 0 and change nothing). */
+static void composite(rgba8 *acc, rgba8 c)
+{
+    vfloat w = (1.0f - acc->a) * c.a;
+    acc->r += w * c.r;
+    acc->g += w * c.g;
+    acc->b += w * c.b;
+    acc->a += w;
+}
+
+typedef struct bricks {
+    __global const uchar *dist; /* per brick: d if invisible, 128 + d if visible (see host) */
+    int shift, nbx, nby, nbz;   /* brick edge 1 << shift */
+    vec3x8 inv_dg;              /* 1 / dg per axis, +inf where dg is 0 */
+    vint fwd_x, fwd_y, fwd_z;   /* -1 where dg >= 0: the ray leaves by the upper face */
+} bricks;
+
+/* Per lane, the parameter of the face where the ray leaves the cube of like bricks around
+ * the brick holding grid point g. Code d (invisible) or 128 + d (visible) from the host says
+ * that all bricks within chessboard distance d - 1 share its state. */
+static vfloat brick_exit(const bricks *b, const volume_geo *v, vec3x8 g0, vec3x8 g,
+                         vint *visible)
+{
+    vint bx = min(convert_int8(clamp(g.x, 0.0f, v->top.x)) >> b->shift, b->nbx - 1);
+    vint by = min(convert_int8(clamp(g.y, 0.0f, v->top.y)) >> b->shift, b->nby - 1);
+    vint bz = min(convert_int8(clamp(g.z, 0.0f, v->top.z)) >> b->shift, b->nbz - 1);
+    vint idx = bx + b->nbx * (by + b->nby * bz);
+    __global const uchar *d = b->dist;
+    vint code = convert_int8((uchar8)(d[idx.s0], d[idx.s1], d[idx.s2], d[idx.s3], d[idx.s4],
+                                      d[idx.s5], d[idx.s6], d[idx.s7]));
+    *visible = code >= 128;
+    vint reach = max(code & 127, 1) - 1; /* bricks on each side that are alike */
+    vint fx = select(bx - reach, bx + reach + 1, b->fwd_x);
+    vint fy = select(by - reach, by + reach + 1, b->fwd_y);
+    vint fz = select(bz - reach, bz + reach + 1, b->fwd_z);
+    vfloat tx = (convert_float8(fx << b->shift) - g0.x) * b->inv_dg.x;
+    vfloat ty = (convert_float8(fy << b->shift) - g0.y) * b->inv_dg.y;
+    vfloat tz = (convert_float8(fz << b->shift) - g0.z) * b->inv_dg.z;
+    return fmin(tx, fmin(ty, tz));
+}
+
+/* Tolerance (in samples) that keeps a skip short of the computed brick exit, so rounding
+ * never skips a sample that lies past the brick's face. */
+#define SKIP_MARGIN 0.01f
+
+/* March state of a packet over its full segments. */
+typedef struct march {
+    vint i, end, n_full, active, done, taken;
+} march;
+
+static vec3x8 at(vec3x8 g0, vec3x8 dg, vint i)
+{
+    vfloat fi = convert_float8(i);
+    return (vec3x8){g0.x + fi * dg.x, g0.y + fi * dg.y, g0.z + fi * dg.z};
+}
+
+/* Lanes whose visible run is used up look up their brick: an invisible cube moves the lane's
+ * index past it, a visible one sets the end of the lane's next run. */
+static void brick_step(march *m, vint need, const bricks *b, const volume_geo *v, vec3x8 g0,
+                       vec3x8 dg)
+{
+    vint visible;
+    vfloat t_exit = fmin(brick_exit(b, v, g0, at(g0, dg, m->i), &visible),
+                         convert_float8(m->n_full));
+    vint skip_to = max(m->i + 1, convert_int8(ceil(t_exit - SKIP_MARGIN)));
+    vint run_end = clamp(convert_int8(ceil(t_exit)), m->i + 1, m->n_full);
+    m->i = select(m->i, select(skip_to, m->i, visible), need);
+    m->end = select(m->end, select(m->end, run_end, visible), need);
+}
+
+/* Samples the lanes inside a visible run (all lanes run when skipping is off). */
+static void sample_step(march *m, vint run, const volume_geo *v, vec3x8 g0, vec3x8 dg,
+                        __global const float4 *table, float term_alpha, rgba8 *acc)
+{
+    vint i0;
+    vfloat fr;
+    rgba8 c = classify(trilinear(v, at(g0, dg, m->i)), table, &i0, &fr);
+    c.a = select((vfloat)(0.0f), c.a, run);
+    composite(acc, c);
+    m->i -= run;
+    m->taken -= run;
+    /* Termination changes the lanes only behind a branch: as a data dependency it would chain
+     * each step's sample addresses to the previous step's compositing, while the branch
+     * (rarely taken) lets the CPU start the next step's loads early. */
+    vint stop = run & (acc->a >= term_alpha | acc->a >= 1.0f);
+    if (any(stop)) {
+        m->done |= stop;
+        m->active &= ~stop;
+    }
+    m->active &= m->i < m->n_full;
+}
+
+static void march_full(march *m, int skipping, const bricks *b, const volume_geo *v,
+                       vec3x8 g0, vec3x8 dg, __global const float4 *table, float term_alpha,
+                       rgba8 *acc)
+{
+    while (any(m->active)) {
+        if (skipping) {
+            vint need = m->active & (m->i >= m->end);
+            if (any(need)) {
+                brick_step(m, need, b, v, g0, dg);
+                m->active &= m->i < m->n_full;
+            }
+        }
+        vint run = m->active & (m->i < m->end);
+        if (any(run))
+            sample_step(m, run, v, g0, dg, table, term_alpha, acc);
+    }
+}
+
+/* The last segment, shorter than step unless L is a multiple of it, on lanes `last`. */
+static void last_segment(const packet *p, vint n, vint last, float step, float unit,
+                         const volume_geo *v, float3 origin, float3 inv_spacing,
+                         __global const float4 *table, __global const float *alpha,
+                         rgba8 *acc, vint *taken)
+{
+    vfloat ts = p->t_near + convert_float8(n - 1) * step;
+    vfloat ds = p->t_far - ts;
+    last &= ds > 0.0f;
+    if (!any(last))
+        return;
+    vfloat tm = ts + 0.5f * ds;
+    vec3x8 g = {(p->o.x + tm * p->d.x - origin.x) * inv_spacing.x,
+                (p->o.y + tm * p->d.y - origin.y) * inv_spacing.y,
+                (p->o.z + tm * p->d.z - origin.z) * inv_spacing.z};
+    vint i0;
+    vfloat fr;
+    rgba8 c = classify(trilinear(v, g), table, &i0, &fr);
+    vint i1 = i0 + 1;
+    vfloat a0 = (vfloat)(alpha[i0.s0], alpha[i0.s1], alpha[i0.s2], alpha[i0.s3],
+                         alpha[i0.s4], alpha[i0.s5], alpha[i0.s6], alpha[i0.s7]);
+    vfloat a1 = (vfloat)(alpha[i1.s0], alpha[i1.s1], alpha[i1.s2], alpha[i1.s3],
+                         alpha[i1.s4], alpha[i1.s5], alpha[i1.s6], alpha[i1.s7]);
+    vfloat a = mix(a0, a1, fr);
+    /* 1 - pow(1, x) is exactly 0: most last segments lie in empty space */
+    vint partial = ds < step & a > 0.0f;
+    if (any(partial))
+        a = select(a, 1.0f - pow(1.0f - a, ds / unit), partial);
+    c.a = select(a, c.a, ds >= step);
+    c.a = select((vfloat)(0.0f), c.a, last & (c.a > 0.0f));
+    composite(acc, c);
+    *taken -= last;
+}
+
+static volume_geo make_geo(__global const uchar *vol, int X, int Y, int Z)
+{
+    volume_geo v;
+    v.vol = vol;
+    v.dims = (int3)(X, Y, Z);
+    v.base_max = max(v.dims - 2, 0);
+    v.stride = (long3)(X > 1 ? 1 : 0, Y > 1 ? (long)X : 0, Z > 1 ? (long)X * (long)Y : 0);
+    v.top = convert_float3(v.dims - 1);
+    return v;
+}
+
+static bricks make_bricks(__global const uchar *dist, int shift, int nbx, int nby, int nbz,
+                          vec3x8 dg)
+{
+    bricks b;
+    b.dist = dist;
+    b.shift = shift;
+    b.nbx = nbx;
+    b.nby = nby;
+    b.nbz = nbz;
+    b.inv_dg = (vec3x8){select((vfloat)(INFINITY), 1.0f / dg.x, dg.x != 0.0f),
+                        select((vfloat)(INFINITY), 1.0f / dg.y, dg.y != 0.0f),
+                        select((vfloat)(INFINITY), 1.0f / dg.z, dg.z != 0.0f)};
+    b.fwd_x = dg.x >= 0.0f;
+    b.fwd_y = dg.y >= 0.0f;
+    b.fwd_z = dg.z >= 0.0f;
+    return b;
+}
+
+static void store_pixels(__global float4 *image, vint px, vint py, int width, int height,
+                         rgba8 acc)
+{
+    float r[8], g[8], b[8], a[8];
+    int px_[8], py_[8];
+    vstore8(acc.r, 0, r);
+    vstore8(acc.g, 0, g);
+    vstore8(acc.b, 0, b);
+    vstore8(acc.a, 0, a);
+    vstore8(px, 0, px_);
+    vstore8(py, 0, py_);
+    for (int k = 0; k < RAY_PACKET; k++)
+        if (px_[k] < width && py_[k] < height)
+            image[py_[k] * width + px_[k]] = (float4)(r[k], g[k], b[k], a[k]);
+}
+
+/* Per lane, the parameter range [*enter, *exit) (in samples) where g0 + i*dg lies in the
+ * grid slab [lo, hi) of one axis; a ray parallel to it is inside or outside throughout. */
+static void visible_slab(vfloat g0, vfloat dg, float lo, float hi, vfloat *enter,
+                         vfloat *exit)
+{
+    vfloat t0 = (lo - g0) / dg, t1 = (hi - g0) / dg;
+    vint parallel = dg == 0.0f;
+    vint inside = g0 >= lo & g0 < hi;
+    vfloat flat_enter = select((vfloat)(INFINITY), (vfloat)(-INFINITY), inside);
+    *enter = fmax(*enter, select(fmin(t0, t1), flat_enter, parallel));
+    *exit = fmin(*exit, select(fmax(t0, t1), -flat_enter, parallel));
+}
+
+/* Sample indices [*first, *stop) of the full segments that can lie in visible bricks: the
+ * others are in invisible bricks outside the visible box, which the host sized in grid
+ * coordinates. One sample of margin on each side absorbs rounding. */
+static void visible_range(vec3x8 g0, vec3x8 dg, float3 lo, float3 hi, vint n_full,
+                          vint *first, vint *stop)
+{
+    if (any(lo > hi)) { /* no visible brick */
+        *first = *stop = (vint)(0);
+        return;
+    }
+    vfloat enter = (vfloat)(-INFINITY), exit = (vfloat)(INFINITY);
+    visible_slab(g0.x, dg.x, lo.x, hi.x, &enter, &exit);
+    visible_slab(g0.y, dg.y, lo.y, hi.y, &enter, &exit);
+    visible_slab(g0.z, dg.z, lo.z, hi.z, &enter, &exit);
+    vfloat limit = convert_float8(n_full) + 1.0f;
+    enter = clamp(floor(enter) - 1.0f, 0.0f, limit);
+    exit = clamp(ceil(exit) + 1.0f, 0.0f, limit);
+    *first = convert_int8(enter);
+    *stop = min(convert_int8(exit), n_full);
+}
+
+/* Geometry as render_cpu.c holds it: origin, 1/spacing and the box's upper corner (computed
+ * in double on the host). table: rgb + step-corrected alpha; alpha: alpha per unit (for the
+ * shorter last segment). Bricks: edge 1 << brick_shift, counts nbx, nby, nbz, skipping on/off.
+ * Work-item (gx, gy) renders the PACKET_W x PACKET_H pixels from (PACKET_W gx, PACKET_H gy). */
+__kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, int Z,
+                      float ox, float oy, float oz, float isx, float isy, float isz,
+                      float hx, float hy, float hz,
+                      float step, float term_alpha, cam_params cam,
+                      __global const float4 *table, __global const float *alpha,
+                      float unit, __global const uchar *brick_visible, int brick_shift,
+                      int nbx, int nby, int nbz, int skipping, float vlx, float vly,
+                      float vlz, float vhx, float vhy, float vhz, __global float4 *image,
+                      __global uint *samples) /* per work-item */
+{
+    int px0 = get_global_id(0) * PACKET_W, py0 = get_global_id(1) * PACKET_H;
+    size_t slot = get_global_id(1) * get_global_size(0) + get_global_id(0);
+    if (px0 >= cam.width || py0 >= cam.height) {
+        samples[slot] = 0;
+        return;
+    }
+    vint px = px0 + (vint)(0, 1, 2, 3, 0, 1, 2, 3), py = py0 + (vint)(0, 0, 0, 0, 1, 1, 1, 1);
+    packet p;
+    camera_rays(&cam, px, py, &p);
+    p.hit = px < cam.width & py < cam.height;
+    float3 origin = (float3)(ox, oy, oz), inv_spacing = (float3)(isx, isy, isz);
+    intersect_box(&p, origin, (float3)(hx, hy, hz));
+    /* lanes that miss get an empty, well-defined segment (their t values may be inf/NaN) */
+    p.t_near = select((vfloat)(0.0f), p.t_near, p.hit);
+    p.t_far = select((vfloat)(0.0f), p.t_far, p.hit);
+    vint n = max(convert_int8(ceil((p.t_far - p.t_near) / step)), 1);
+    vfloat t0 = p.t_near + 0.5f * step;
+    vec3x8 g0 = {(p.o.x + t0 * p.d.x - origin.x) * inv_spacing.x,
+                 (p.o.y + t0 * p.d.y - origin.y) * inv_spacing.y,
+                 (p.o.z + t0 * p.d.z - origin.z) * inv_spacing.z};
+    g0.x = select((vfloat)(0.0f), g0.x, p.hit);
+    g0.y = select((vfloat)(0.0f), g0.y, p.hit);
+    g0.z = select((vfloat)(0.0f), g0.z, p.hit);
+    vec3x8 dg = {select((vfloat)(0.0f), p.d.x * step * inv_spacing.x, p.hit),
+                 select((vfloat)(0.0f), p.d.y * step * inv_spacing.y, p.hit),
+                 select((vfloat)(0.0f), p.d.z * step * inv_spacing.z, p.hit)};
+    volume_geo v = make_geo(frames + offset, X, Y, Z);
+    bricks b = make_bricks(brick_visible, brick_shift, nbx, nby, nbz, dg);
+    march m;
+    m.i = (vint)(0);
+    m.n_full = select((vint)(0), n - 1, p.hit);
+    vint last = p.hit;
+    if (skipping) {
+        float3 vis_lo = (float3)(vlx, vly, vlz), vis_hi = (float3)(vhx, vhy, vhz);
+        vint stop;
+        visible_range(g0, dg, vis_lo, vis_hi, m.n_full, &m.i, &stop);
+        last &= stop >= m.n_full; /* the last segment lies beyond the full ones */
+        m.n_full = stop;
+    }
+    m.end = skipping ? (vint)(0) : m.n_full;
+    m.active = p.hit & (m.i < m.n_full);
+    m.done = (vint)(0);
+    m.taken = (vint)(0);
+    rgba8 acc = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
+    march_full(&m, skipping, &b, &v, g0, dg, table, term_alpha, &acc);
+    last_segment(&p, n, last & ~m.done, step, unit, &v, origin, inv_spacing, table, alpha,
+                 &acc, &m.taken);
+    store_pixels(image, px, py, cam.width, cam.height, acc);
+    int8 t = m.taken;
+    samples[slot] = (uint)(t.s0 + t.s1 + t.s2 + t.s3 + t.s4 + t.s5 + t.s6 + t.s7);
+}

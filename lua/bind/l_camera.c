@@ -1,0 +1,314 @@
+/* lua/bind/l_camera.c - cdvr.Camera: cdvr.camera{...}, cdvr.orbit_camera(volume, {...}),
+ * cam:get(), cam:set{...}; fields readable as cam.eye, cam.fov, ... */
+#include "lcdvr.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <string.h>
+
+static const double kPi = 3.14159265358979323846;
+
+cdvr_camera *lcdvr_checkcamera(lua_State *L, int idx)
+{
+    return (cdvr_camera *)luaL_checkudata(L, idx, LCDVR_CAMERA);
+}
+
+cdvr_camera *lcdvr_pushcamera(lua_State *L, const cdvr_camera *cam)
+{
+    cdvr_camera *ud = (cdvr_camera *)lua_newuserdatauv(L, sizeof *ud, 0);
+    *ud = *cam;
+    luaL_setmetatable(L, LCDVR_CAMERA);
+    return ud;
+}
+
+static int size_field(lua_State *L, int idx, const char *key, int def)
+{
+    lua_Integer n = lcdvr_optintegerfield(L, idx, key, def);
+    if (n < 1 || n > 65536)
+        luaL_error(L, "camera: %s must be 1..65536, got %I", key, (LUAI_UACINT)n);
+    return (int)n;
+}
+
+/* Copies the fields present in the table at idx into cam (absent fields keep their value). */
+static void apply_fields(lua_State *L, int idx, cdvr_camera *cam)
+{
+    lcdvr_numberarrayfield(L, idx, "eye", cam->eye, 3);
+    lcdvr_numberarrayfield(L, idx, "center", cam->center, 3);
+    lcdvr_numberarrayfield(L, idx, "up", cam->up, 3);
+    cam->fov = lcdvr_optnumberfield(L, idx, "fov", cam->fov);
+    cam->width = size_field(L, idx, "width", cam->width);
+    cam->height = size_field(L, idx, "height", cam->height);
+    cam->orthographic = lcdvr_optbooleanfield(L, idx, "orthographic", cam->orthographic);
+    cam->ortho_height = lcdvr_optnumberfield(L, idx, "ortho_height", cam->ortho_height);
+}
+
+static void check_valid(lua_State *L, const cdvr_camera *cam)
+{
+    cdvr_error err;
+    if (cdvr_camera_validate(cam, &err) != CDVR_OK)
+        lcdvr_raise(L, &err);
+}
+
+static cdvr_camera default_camera(void)
+{
+    cdvr_camera cam = {{0, 0, 0}, {0, 0, 0}, {0, 0, 1}, 30.0, 512, 512, 0, 0.0};
+    return cam;
+}
+
+/* cdvr.camera(path.lua): runs the file (it returns the field table) and builds from that;
+ * an unreadable file returns nil, message. */
+static int camera_from_file(lua_State *L, const char *path)
+{
+    if (luaL_loadfilex(L, path, "t") != LUA_OK) {
+        luaL_pushfail(L);
+        lua_insert(L, -2);
+        return 2;
+    }
+    lua_call(L, 0, 1);
+    if (!lua_istable(L, -1))
+        return luaL_error(L, "%s: camera file must return a table, got %s", path,
+                          luaL_typename(L, -1));
+    lua_replace(L, 1);
+    lua_settop(L, 1);
+    return -1;
+}
+
+static int l_camera(lua_State *L)
+{
+    if (lua_type(L, 1) == LUA_TSTRING) {
+        int pushed = camera_from_file(L, lua_tostring(L, 1));
+        if (pushed >= 0)
+            return pushed;
+    }
+    luaL_checktype(L, 1, LUA_TTABLE);
+    cdvr_camera cam = default_camera();
+    lua_getfield(L, 1, "eye");
+    if (lua_isnil(L, -1))
+        return luaL_error(L, "cdvr.camera: eye={x, y, z} is required");
+    lua_pop(L, 1);
+    apply_fields(L, 1, &cam);
+    if (cam.orthographic && cam.ortho_height == 0.0)
+        return luaL_error(L, "cdvr.camera: orthographic needs ortho_height (world units)");
+    check_valid(L, &cam);
+    lcdvr_pushcamera(L, &cam);
+    return 1;
+}
+
+static void push_vec3(lua_State *L, const double v[3])
+{
+    lua_createtable(L, 3, 0);
+    for (int i = 0; i < 3; i++) {
+        lua_pushnumber(L, v[i]);
+        lua_rawseti(L, -2, i + 1);
+    }
+}
+
+/* Pushes field `key` of cam; returns 0 if there is no such field. */
+static int push_field(lua_State *L, const cdvr_camera *cam, const char *key)
+{
+    if (strcmp(key, "eye") == 0)
+        push_vec3(L, cam->eye);
+    else if (strcmp(key, "center") == 0)
+        push_vec3(L, cam->center);
+    else if (strcmp(key, "up") == 0)
+        push_vec3(L, cam->up);
+    else if (strcmp(key, "fov") == 0)
+        lua_pushnumber(L, cam->fov);
+    else if (strcmp(key, "width") == 0)
+        lua_pushinteger(L, cam->width);
+    else if (strcmp(key, "height") == 0)
+        lua_pushinteger(L, cam->height);
+    else if (strcmp(key, "orthographic") == 0)
+        lua_pushboolean(L, cam->orthographic);
+    else if (strcmp(key, "ortho_height") == 0)
+        lua_pushnumber(L, cam->ortho_height);
+    else
+        return 0;
+    return 1;
+}
+
+static const char *const camera_fields[] = {"eye",    "center",       "up",           "fov",
+                                            "width",  "height",       "orthographic", "ortho_height",
+                                            NULL};
+
+static int camera_get(lua_State *L)
+{
+    const cdvr_camera *cam = lcdvr_checkcamera(L, 1);
+    lua_createtable(L, 0, 8);
+    for (int i = 0; camera_fields[i]; i++) {
+        push_field(L, cam, camera_fields[i]);
+        lua_setfield(L, -2, camera_fields[i]);
+    }
+    return 1;
+}
+
+static int camera_set(lua_State *L)
+{
+    cdvr_camera *cam = lcdvr_checkcamera(L, 1);
+    luaL_checktype(L, 2, LUA_TTABLE);
+    cdvr_camera changed = *cam;
+    apply_fields(L, 2, &changed);
+    check_valid(L, &changed);
+    *cam = changed;
+    lua_settop(L, 1);
+    return 1;
+}
+
+static void write_vec3(FILE *f, const char *key, const double v[3])
+{
+    fprintf(f, "  %s = {%.17g, %.17g, %.17g},\n", key, v[0], v[1], v[2]);
+}
+
+/* Writes the camera as a Lua file returning its fields; returns 0 or -1 (errno set). */
+static int write_camera(FILE *f, const void *obj)
+{
+    const cdvr_camera *cam = obj;
+    fprintf(f, "-- cdvr camera: cdvr.camera(dofile(path)) or cdvr.camera(path)\nreturn {\n");
+    write_vec3(f, "eye", cam->eye);
+    write_vec3(f, "center", cam->center);
+    write_vec3(f, "up", cam->up);
+    fprintf(f, "  fov = %.17g, width = %d, height = %d,\n", cam->fov, cam->width, cam->height);
+    fprintf(f, "  orthographic = %s, ortho_height = %.17g,\n}\n",
+            cam->orthographic ? "true" : "false", cam->ortho_height);
+    return ferror(f) ? -1 : 0;
+}
+
+/* cam:save(path): temporary file then rename; true or nil, message. */
+static int camera_save(lua_State *L)
+{
+    const cdvr_camera *cam = lcdvr_checkcamera(L, 1);
+    return lcdvr_save_file(L, luaL_checkstring(L, 2), write_camera, cam);
+}
+
+/* __index: methods first, then the camera's fields. */
+static int camera_index(lua_State *L)
+{
+    const cdvr_camera *cam = lcdvr_checkcamera(L, 1);
+    lua_pushvalue(L, 2);
+    if (lua_rawget(L, lua_upvalueindex(1)) != LUA_TNIL)
+        return 1;
+    const char *key = lua_tostring(L, 2);
+    if (key && push_field(L, cam, key))
+        return 1;
+    lua_pushnil(L);
+    return 1;
+}
+
+static int camera_tostring(lua_State *L)
+{
+    const cdvr_camera *cam = lcdvr_checkcamera(L, 1);
+    lua_pushfstring(L, "cdvr.Camera %dx%d eye (%f, %f, %f) center (%f, %f, %f) (%p)",
+                    cam->width, cam->height, cam->eye[0], cam->eye[1], cam->eye[2],
+                    cam->center[0], cam->center[1], cam->center[2], (const void *)cam);
+    return 1;
+}
+
+static int camera_gc(lua_State *L)
+{
+    (void)lcdvr_checkcamera(L, 1); /* plain data inside the userdata: nothing to free */
+    return 0;
+}
+
+/* Box of the first argument: a volume, {x, y, z} dims, or {dims=, spacing=, origin=}. */
+static void read_box(lua_State *L, double lo[3], double hi[3])
+{
+    double dims[3], spacing[3] = {1, 1, 1}, origin[3] = {0, 0, 0};
+    if (luaL_testudata(L, 1, LCDVR_VOLUME)) {
+        const cdvr_volume *v = lcdvr_checkvolume(L, 1);
+        for (int a = 0; a < 3; a++)
+            dims[a] = (double)v->dims[a], spacing[a] = v->spacing[a], origin[a] = v->origin[a];
+    } else {
+        luaL_argexpected(L, lua_istable(L, 1), 1, "cdvr.Volume or dims table");
+        if (!lcdvr_numberarrayfield(L, 1, "dims", dims, 3)) {
+            if (luaL_len(L, 1) != 3)
+                luaL_argerror(L, 1, "dims {x, y, z} expected");
+            for (int a = 0; a < 3; a++) {
+                lua_geti(L, 1, a + 1);
+                dims[a] = luaL_checknumber(L, -1);
+                lua_pop(L, 1);
+            }
+        }
+        lcdvr_numberarrayfield(L, 1, "spacing", spacing, 3);
+        lcdvr_numberarrayfield(L, 1, "origin", origin, 3);
+    }
+    for (int a = 0; a < 3; a++) {
+        if (!(dims[a] >= 1) || !isfinite(spacing[a]) || !isfinite(origin[a]))
+            luaL_argerror(L, 1, "dims must be >= 1, spacing and origin finite");
+        lo[a] = origin[a];
+        hi[a] = origin[a] + (dims[a] - 1) * spacing[a];
+    }
+}
+
+/* Distance at which a sphere of radius r fills the narrower of the two view angles. */
+static double fit_distance(double r, double fov_deg, double aspect)
+{
+    double half_v = 0.5 * fov_deg * kPi / 180.0;
+    double half_h = atan(aspect * tan(half_v));
+    return r / sin(fmin(half_v, half_h));
+}
+
+static int l_orbit_camera(lua_State *L)
+{
+    double lo[3], hi[3], center[3], radius2 = 0.0;
+    read_box(L, lo, hi);
+    lua_settop(L, 2);
+    if (lua_isnil(L, 2)) {
+        lua_newtable(L);
+        lua_replace(L, 2);
+    }
+    luaL_checktype(L, 2, LUA_TTABLE);
+    for (int a = 0; a < 3; a++) {
+        center[a] = 0.5 * (lo[a] + hi[a]);
+        radius2 += 0.25 * (hi[a] - lo[a]) * (hi[a] - lo[a]);
+    }
+    double radius = fmax(sqrt(radius2), 0.5);
+    cdvr_camera cam = default_camera();
+    apply_fields(L, 2, &cam);
+    double aspect = (double)cam.width / cam.height;
+    if (!(cam.fov > 0.0 && cam.fov < 180.0))
+        return luaL_error(L, "cdvr.orbit_camera: fov %f outside (0, 180)", cam.fov);
+    double distance = lcdvr_optnumberfield(L, 2, "distance", fit_distance(radius, cam.fov, aspect));
+    if (!(distance > 0.0) || !isfinite(distance))
+        return luaL_error(L, "cdvr.orbit_camera: distance %f must be positive", distance);
+    if (cam.orthographic && cam.ortho_height == 0.0)
+        cam.ortho_height = 2.0 * radius / fmin(1.0, aspect);
+    cdvr_camera_orbit(&cam, center, cam.up, distance, lcdvr_optnumberfield(L, 2, "azimuth", 0.0),
+                      lcdvr_optnumberfield(L, 2, "elevation", 0.0));
+    check_valid(L, &cam);
+    lcdvr_pushcamera(L, &cam);
+    return 1;
+}
+
+static const luaL_Reg camera_methods[] = {
+    {"get", camera_get}, {"set", camera_set}, {"save", camera_save}, {NULL, NULL}};
+
+static const luaL_Reg camera_meta[] = {
+    {"__gc", camera_gc}, {"__close", camera_gc}, {"__tostring", camera_tostring}, {NULL, NULL}};
+
+static const luaL_Reg camera_funcs[] = {
+    {"camera", l_camera}, {"orbit_camera", l_orbit_camera}, {NULL, NULL}};
+
+int lcdvr_open_camera(lua_State *L)
+{
+    lcdvr_newclass(L, LCDVR_CAMERA, camera_methods, camera_meta);
+    luaL_getmetatable(L, LCDVR_CAMERA);  /* mt */
+    lua_getfield(L, -1, "__index");      /* mt, methods */
+    lua_pushcclosure(L, camera_index, 1); /* mt, index */
+    lua_setfield(L, -2, "__index");
+    lua_pop(L, 1);
+    lcdvr_setfuncs(L, camera_funcs);
+    lcdvr_help_add(L, "cdvr.camera{eye=, center=, up=, fov=, width=, height=, orthographic=, ortho_height=}",
+                   "pinhole camera (defaults center {0,0,0}, up {0,0,1}, fov 30, 512x512)");
+    lcdvr_help_add(L, "cdvr.orbit_camera(volume | dims, {azimuth=, elevation=, distance=, fov=, width=, height=, up=})",
+                   "camera around the box centre looking at it; azimuth 0 = +x side for up z; "
+                   "default distance fits the box");
+    lcdvr_help_add(L, "cam:get()", "table of the camera's fields (also readable as cam.eye, cam.fov, ...)");
+    lcdvr_help_add(L, "cdvr.camera(path.lua)", "camera saved by cam:save (nil, msg if unreadable)");
+    lcdvr_help_add(L, "cam:save(path)", "write a Lua file cdvr.camera(path) reads back; true or nil, msg");
+    lcdvr_help_add(L, "cam:set{...}", "change fields (validated; the camera is unchanged on error)");
+    return 0;
+}

@@ -1,0 +1,553 @@
+/* lua/bind/l_player.c - cdvr.player{...} and p:run{...}: playback of a store with per-stage
+ * timings, Lua rate-control policies and camera paths (DESIGN.md §3, §7).
+ *
+ * Callbacks (policy, camera) run on the calling thread under an instruction budget
+ * (`callback_limit`, default 5e7 VM instructions): a callback that runs too long or raises
+ * stops playback with its traceback instead of stalling it.
+ */
+#include <errno.h>
+#include <math.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "cdvr/timing.h"
+#include "cdvr/player.h"
+#include "lcdvr.h"
+
+typedef struct lplayer {
+    cdvr_player *player;
+    cdvr_player_opts opts;
+    lua_State *L;        /* the running state, during p:run only */
+    int capture;         /* out= set: quality never adapts, frames are deterministic */
+    int callback_limit;
+    char out_pattern[1024];
+} lplayer;
+
+/* Uservalue slots of the player userdata. */
+enum { UV_OPTS = 1, UV_POLICY, UV_CAMERA, UV_STORE, UV_TF, UV_COUNT = UV_TF };
+
+static lplayer *checkplayer(lua_State *L, int idx)
+{
+    lplayer *lp = (lplayer *)luaL_checkudata(L, idx, LCDVR_PLAYER);
+    if (!lp->player)
+        luaL_error(L, "attempt to use a closed player");
+    return lp;
+}
+
+/* ---- callbacks ---------------------------------------------------------------------------- */
+
+static void budget_hook(lua_State *L, lua_Debug *ar)
+{
+    (void)ar;
+    luaL_error(L, "callback exceeded its instruction budget (callback_limit)");
+}
+
+static int traceback_handler(lua_State *L)
+{
+    const char *msg = lua_tostring(L, 1);
+    luaL_traceback(L, L, msg ? msg : "(error object is not a string)", 1);
+    return 1;
+}
+
+/* Calls the function below its nargs arguments with the budget hook; leaves nres results or
+ * fills err with the message and traceback. */
+static cdvr_status call_budgeted(lplayer *lp, int nargs, int nres, const char *what, cdvr_error *err)
+{
+    lua_State *L = lp->L;
+    int base = lua_gettop(L) - nargs;
+    lua_pushcfunction(L, traceback_handler);
+    lua_insert(L, base);
+    lua_sethook(L, budget_hook, LUA_MASKCOUNT, lp->callback_limit);
+    int status = lua_pcall(L, nargs, nres, base);
+    lua_sethook(L, NULL, 0, 0);
+    lua_remove(L, base);
+    if (status != LUA_OK) {
+        cdvr_error_set(err, CDVR_ERR_ARG, "%s: %s", what, lua_tostring(L, -1));
+        lua_pop(L, 1);
+        return CDVR_ERR_ARG;
+    }
+    return CDVR_OK;
+}
+
+static void setnum(lua_State *L, const char *key, double v)
+{
+    lua_pushnumber(L, v);
+    lua_setfield(L, -2, key);
+}
+
+/* Pushes one frame row as a table. */
+static void push_row(lua_State *L, const cdvr_store *st, const cdvr_frame_row *r)
+{
+    lua_createtable(L, 0, 14);
+    lua_pushinteger(L, (lua_Integer)r->frame + 1);
+    lua_setfield(L, -2, "frame");
+    lua_pushinteger(L, (lua_Integer)r->t + 1);
+    lua_setfield(L, -2, "t");
+    lua_pushstring(L, cdvr_store_variant(st, (size_t)r->variant)->name);
+    lua_setfield(L, -2, "variant");
+    setnum(L, "read_ms", r->read_ms);
+    setnum(L, "unzip_ms", r->unzip_ms);
+    setnum(L, "upload_ms", r->upload_ms);
+    setnum(L, "decode_ms", r->decode_ms);
+    setnum(L, "setup_ms", r->setup_ms);
+    setnum(L, "render_ms", r->render_ms);
+    setnum(L, "frame_ms", r->frame_ms);
+    setnum(L, "interval_ms", r->interval_ms);
+    setnum(L, "bytes", (double)r->bytes);
+    setnum(L, "payload_bytes", (double)r->payload_bytes);
+    if (r->group_start) {
+        lua_pushstring(L, r->reason);
+        lua_setfield(L, -2, "reason");
+    }
+    if (r->status != CDVR_OK) {
+        lua_pushstring(L, r->error);
+        lua_setfield(L, -2, "error");
+    }
+}
+
+static void push_variants(lua_State *L, const cdvr_store *st)
+{
+    const cdvr_store_info *info = cdvr_store_get_info(st);
+    lua_createtable(L, (int)info->nvariants, 0);
+    for (size_t v = 0; v < info->nvariants; v++) {
+        const cdvr_variant_info *var = cdvr_store_variant(st, v);
+        const cdvr_chunk_info *ch0 = cdvr_store_chunk(st, v, 0);
+        lua_createtable(L, 0, 10);
+        lua_pushstring(L, var->name);
+        lua_setfield(L, -2, "name");
+        lua_pushstring(L, var->codec_name);
+        lua_setfield(L, -2, "codec");
+        lua_pushinteger(L, var->pvtc.S);
+        lua_setfield(L, -2, "S");
+        lua_pushinteger(L, var->pvtc.T);
+        lua_setfield(L, -2, "T");
+        lua_pushstring(L, var->pvtc.pack == CDVR_PACK_SPACE ? "space" : "time");
+        lua_setfield(L, -2, "pack");
+        lua_pushstring(L, var->stage2 == CDVR_STAGE2_LZO ? "lzo" : "none");
+        lua_setfield(L, -2, "stage2");
+        setnum(L, "bytes_per_timestep", (double)var->bytes / (double)info->timesteps);
+        setnum(L, "payload_bytes_per_timestep", (double)var->payload_bytes / (double)info->timesteps);
+        setnum(L, "psnr", var->psnr);
+        lua_pushinteger(L, ch0 ? (lua_Integer)ch0->count : 1);
+        lua_setfield(L, -2, "group");
+        lua_rawseti(L, -2, (lua_Integer)v + 1);
+    }
+}
+
+/* Capture floor: the user's `variant` (0-based) or, with min_psnr, the cheapest variant
+ * meeting it; the player never reads below it while capturing. */
+static cdvr_status decide_cb(void *ud, cdvr_player *player, size_t t, size_t group, int *variant,
+                             char *reason, size_t reason_size, cdvr_error *err)
+{
+    lplayer *lp = ud;
+    lua_State *L = lp->L;
+    const cdvr_store *st = lp->opts.store;
+    if (lp->capture) {
+        *variant = lp->opts.variant;
+        snprintf(reason, reason_size, "capture: %s (quality set by the user; capture waits for data, never adapts)",
+                 cdvr_store_variant(st, (size_t)*variant)->name);
+        return CDVR_OK;
+    }
+    lua_getiuservalue(L, 1, UV_POLICY);           /* policy */
+    lua_createtable(L, 0, 10);                    /* policy, stats */
+    lua_getiuservalue(L, 1, UV_OPTS);             /* policy, stats, opts */
+    lua_getfield(L, -1, "target_fps");
+    lua_setfield(L, -3, "target_fps");
+    lua_getfield(L, -1, "min_psnr");
+    lua_setfield(L, -3, "min_psnr");
+    lua_pop(L, 1);                                /* policy, stats */
+    lua_pushinteger(L, (lua_Integer)t + 1);
+    lua_setfield(L, -2, "t");
+    lua_pushinteger(L, (lua_Integer)group + 1);
+    lua_setfield(L, -2, "group");
+    lua_pushboolean(L, lp->opts.pipelined);
+    lua_setfield(L, -2, "pipelined");
+    lua_pushboolean(L, 0);
+    lua_setfield(L, -2, "capture");
+    size_t nrows;
+    const cdvr_frame_row *rows = cdvr_player_rows(player, &nrows);
+    if (nrows) {
+        lua_pushstring(L, cdvr_store_variant(st, (size_t)rows[nrows - 1].variant)->name);
+        lua_setfield(L, -2, "current");
+    }
+    size_t first = nrows > 16 ? nrows - 16 : 0;
+    lua_createtable(L, (int)(nrows - first), 0);  /* policy, stats, frames */
+    for (size_t i = first; i < nrows; i++) {
+        push_row(L, st, &rows[i]);
+        lua_rawseti(L, -2, (lua_Integer)(i - first + 1));
+    }
+    lua_setfield(L, -2, "frames");
+    push_variants(L, st);
+    lua_setfield(L, -2, "variants");              /* policy, stats */
+    if (call_budgeted(lp, 1, 2, "policy", err) != CDVR_OK)
+        return err->status;
+    /* name [, reason] */
+    const char *name = lua_tostring(L, -2);
+    int v = name ? cdvr_store_find_variant(st, name) : -1;
+    if (v < 0) {
+        cdvr_error_set(err, CDVR_ERR_ARG, "policy returned %s, not a variant of %s",
+                       name ? name : luaL_typename(L, -2), cdvr_store_path(st));
+        lua_pop(L, 2);
+        return CDVR_ERR_ARG;
+    }
+    *variant = v;
+    snprintf(reason, reason_size, "%s", lua_isstring(L, -1) ? lua_tostring(L, -1) : "policy");
+    lua_pop(L, 2);
+    return CDVR_OK;
+}
+
+static int read_vec3(lua_State *L, int idx, const char *key, double out[3])
+{
+    return lcdvr_numberarrayfield(L, idx, key, out, 3);
+}
+
+static cdvr_status camera_cb(void *ud, size_t t, size_t frame, cdvr_camera *cam, cdvr_error *err)
+{
+    lplayer *lp = ud;
+    lua_State *L = lp->L;
+    lua_getiuservalue(L, 1, UV_CAMERA);           /* camera function */
+    lua_pushinteger(L, (lua_Integer)frame + 1);
+    lua_pushinteger(L, (lua_Integer)t + 1);
+    if (call_budgeted(lp, 2, 1, "camera", err) != CDVR_OK)
+        return err->status;
+    cdvr_camera *ucam = luaL_testudata(L, -1, LCDVR_CAMERA);
+    if (ucam) {
+        int w = cam->width, h = cam->height;
+        *cam = *ucam;
+        cam->width = w;
+        cam->height = h;
+    } else if (lua_istable(L, -1)) {
+        read_vec3(L, -1, "eye", cam->eye);
+        read_vec3(L, -1, "center", cam->center);
+        read_vec3(L, -1, "up", cam->up);
+        cam->fov = lcdvr_optnumberfield(L, -1, "fov", cam->fov);
+    } else {
+        cdvr_error_set(err, CDVR_ERR_ARG, "camera function returned %s (cdvr.Camera or {eye=,center=,up=,fov=} expected)",
+                       luaL_typename(L, -1));
+        lua_pop(L, 1);
+        return CDVR_ERR_ARG;
+    }
+    lua_pop(L, 1);
+    return cdvr_camera_validate(cam, err);
+}
+
+static int make_parent_dirs(char *path)
+{
+    for (char *s = strchr(path + 1, '/'); s; s = strchr(s + 1, '/')) {
+        *s = '\0';
+        int ok = mkdir(path, 0777) == 0 || errno == EEXIST;
+        *s = '/';
+        if (!ok)
+            return 0;
+    }
+    return 1;
+}
+
+static cdvr_status frame_cb(void *ud, const cdvr_frame_row *row, const cdvr_image *img, cdvr_error *err)
+{
+    lplayer *lp = ud;
+    char path[1100];
+    snprintf(path, sizeof path, lp->out_pattern, (int)row->frame + 1);
+    if (!make_parent_dirs(path))
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot create its directory: %s", path, strerror(errno));
+    return cdvr_image_save_png(img, path, err);
+}
+
+/* ---- cdvr.player ------------------------------------------------------------------------ */
+
+static int is_callable(lua_State *L, int idx)
+{
+    if (lua_isfunction(L, idx))
+        return 1;
+    if (luaL_getmetafield(L, idx, "__call") != LUA_TNIL) {
+        lua_pop(L, 1);
+        return 1;
+    }
+    return 0;
+}
+
+static int variant_option(lua_State *L, const cdvr_store *st)
+{
+    int t = lua_getfield(L, 1, "variant");
+    int v = 0;
+    if (t == LUA_TNUMBER) {
+        v = (int)lua_tointeger(L, -1) - 1;
+    } else if (t == LUA_TSTRING) {
+        v = cdvr_store_find_variant(st, lua_tostring(L, -1));
+        if (v < 0)
+            luaL_error(L, "cdvr.player: store %s has no variant '%s'", cdvr_store_path(st), lua_tostring(L, -1));
+    } else if (t != LUA_TNIL) {
+        luaL_error(L, "cdvr.player: option 'variant': name or index expected");
+    }
+    lua_pop(L, 1);
+    if (v < 0 || (size_t)v >= cdvr_store_get_info(st)->nvariants)
+        luaL_error(L, "cdvr.player: variant %d out of range", v + 1);
+    return v;
+}
+
+/* Cheapest variant whose encode-time PSNR is at least min_psnr (capture floor). */
+static int variant_for_psnr(const cdvr_store *st, double min_psnr)
+{
+    const cdvr_store_info *info = cdvr_store_get_info(st);
+    int best = -1;
+    for (size_t v = 0; v < info->nvariants; v++) {
+        const cdvr_variant_info *var = cdvr_store_variant(st, v);
+        if (var->psnr >= min_psnr && (best < 0 || var->bytes < cdvr_store_variant(st, (size_t)best)->bytes))
+            best = (int)v;
+    }
+    return best;
+}
+
+/* Resolves policy= (function, callable, or a name for cdvr.policy.get) into UV_POLICY. */
+static int resolve_policy(lua_State *L, int ud)
+{
+    int t = lua_getfield(L, 1, "policy");         /* policy */
+    if (t == LUA_TNIL) {
+        lua_pop(L, 1);
+        return 0;
+    }
+    if (t == LUA_TSTRING) {
+        lua_getglobal(L, "require");
+        lua_pushliteral(L, "cdvr.policy");
+        lua_call(L, 1, 1);                        /* name, policy module */
+        lua_getfield(L, -1, "get");
+        lua_pushvalue(L, -3);
+        lua_pushvalue(L, 1);
+        lua_call(L, 2, 1);                        /* name, module, policy fn */
+        lua_replace(L, -3);
+        lua_pop(L, 1);                            /* policy fn */
+    }
+    if (!is_callable(L, -1))
+        luaL_error(L, "cdvr.player: option 'policy': function or policy name expected, got %s", luaL_typename(L, -1));
+    lua_setiuservalue(L, ud, UV_POLICY);
+    return 1;
+}
+
+static void camera_option(lua_State *L, int ud, lplayer *lp, const cdvr_store_info *info)
+{
+    int width = (int)lcdvr_optintegerfield(L, 1, "width", 512);
+    int height = (int)lcdvr_optintegerfield(L, 1, "height", 512);
+    cdvr_camera *cam = NULL;
+    lua_getfield(L, 1, "camera");                 /* camera option */
+    if ((cam = luaL_testudata(L, -1, LCDVR_CAMERA)) != NULL) {
+        lp->opts.camera = *cam;
+        if (lua_getfield(L, 1, "width") == LUA_TNIL)
+            width = cam->width;
+        if (lua_getfield(L, 1, "height") == LUA_TNIL)
+            height = cam->height;
+        lua_pop(L, 2);
+    } else {
+        /* default view: the whole box from the -y side, z up */
+        double c[3], ext = 0;
+        for (int i = 0; i < 3; i++) {
+            double len = (info->dims[i] - 1) * info->spacing[i];
+            c[i] = info->origin[i] + 0.5 * len;
+            ext = len > ext ? len : ext;
+        }
+        cdvr_camera def = {{c[0], c[1] - 2.2 * ext - 1, c[2] + 0.6 * ext}, {c[0], c[1], c[2]}, {0, 0, 1}, 30, width, height, 0, 0};
+        lp->opts.camera = def;
+        if (!lua_isnil(L, -1)) {
+            if (!is_callable(L, -1))
+                luaL_error(L, "cdvr.player: option 'camera': cdvr.Camera, function or path expected");
+            lua_pushvalue(L, -1);
+            lua_setiuservalue(L, ud, UV_CAMERA);
+            lp->opts.camera_fn = camera_cb;
+            lp->opts.camera_ud = lp;
+        }
+    }
+    lua_pop(L, 1);
+    lp->opts.camera.width = width;
+    lp->opts.camera.height = height;
+}
+
+static int l_player(lua_State *L)
+{
+    luaL_checktype(L, 1, LUA_TTABLE);
+    lplayer *lp = (lplayer *)lua_newuserdatauv(L, sizeof *lp, UV_COUNT); /* ud */
+    memset(lp, 0, sizeof *lp);
+    int ud = lua_gettop(L);
+    luaL_setmetatable(L, LCDVR_PLAYER);
+    lua_pushvalue(L, 1);
+    lua_setiuservalue(L, ud, UV_OPTS);
+
+    lua_getfield(L, 1, "store");
+    cdvr_store *st = lcdvr_checkstore(L, -1);
+    lua_setiuservalue(L, ud, UV_STORE);
+    lua_getfield(L, 1, "tf");
+    cdvr_tf *tf = lcdvr_checktf(L, -1);
+    lua_setiuservalue(L, ud, UV_TF);
+    const cdvr_store_info *info = cdvr_store_get_info(st);
+
+    lp->opts.store = st;
+    lp->opts.tf = tf;
+    static const char *const devices[] = {"cpu", "cl", "auto", NULL};
+    const char *dev = lcdvr_optstringfield(L, 1, "device", "auto");
+    int devi = -1;
+    for (int i = 0; devices[i]; i++)
+        if (strcmp(dev, devices[i]) == 0)
+            devi = i;
+    if (devi < 0)
+        luaL_error(L, "cdvr.player: invalid device '%s' (cpu, cl, auto)", dev);
+    lp->opts.device = devi == 1 || (devi == 2 && CDVR_HAVE_OPENCL) ? CDVR_DEVICE_CL : CDVR_DEVICE_CPU;
+    lp->opts.step = lcdvr_optnumberfield(L, 1, "step", 0);
+    lp->opts.unit = lcdvr_optnumberfield(L, 1, "unit", 0);
+    lp->opts.term_alpha = lcdvr_optnumberfield(L, 1, "term", 0);
+    double bg[4] = {0, 0, 0, 1};
+    if (lua_getfield(L, 1, "background") == LUA_TTABLE) {
+        for (int i = 0; i < 4; i++) {
+            lua_geti(L, -1, i + 1);
+            if (lua_isnumber(L, -1))
+                bg[i] = lua_tonumber(L, -1);
+            lua_pop(L, 1);
+        }
+    }
+    lua_pop(L, 1);
+    for (int i = 0; i < 4; i++)
+        lp->opts.background[i] = (float)bg[i];
+    lp->opts.threads = (int)lcdvr_optintegerfield(L, 1, "threads", 0);
+    lp->opts.pipelined = lcdvr_optbooleanfield(L, 1, "pipeline", 1);
+    lp->opts.ring = (int)lcdvr_optintegerfield(L, 1, "ring", 3);
+    lp->opts.cold = lcdvr_optbooleanfield(L, 1, "cold", 0);
+    lp->opts.read_mbps = lcdvr_optnumberfield(L, 1, "read_mbps", 0);
+    lp->opts.empty_skip = lcdvr_optbooleanfield(L, 1, "empty_skip", 1);
+    lp->callback_limit = (int)lcdvr_optintegerfield(L, 1, "callback_limit", 50000000);
+    luaL_argcheck(L, lp->callback_limit > 0, 1, "callback_limit must be positive");
+    lp->opts.variant = variant_option(L, st);
+
+    const char *out = lcdvr_optstringfield(L, 1, "out", NULL);
+    if (out) {
+        if (strlen(out) >= sizeof lp->out_pattern)
+            luaL_error(L, "cdvr.player: option 'out' is too long");
+        const char *pct = strchr(out, '%');
+        if (!pct || strchr(pct + 1, '%'))
+            luaL_error(L, "cdvr.player: option 'out' needs exactly one integer conversion, like 'frames/%%04d.png'");
+        strcpy(lp->out_pattern, out);
+        lp->capture = 1;
+        lp->opts.frame_fn = frame_cb;
+        lp->opts.frame_ud = lp;
+        double min_psnr = lcdvr_optnumberfield(L, 1, "min_psnr", -HUGE_VAL);
+        lua_getfield(L, 1, "variant");
+        int user_variant = !lua_isnil(L, -1);
+        lua_pop(L, 1);
+        if (!user_variant && min_psnr > -HUGE_VAL) {
+            int v = variant_for_psnr(st, min_psnr);
+            if (v < 0)
+                luaL_error(L, "cdvr.player: no variant of %s reaches min_psnr %f", cdvr_store_path(st), min_psnr);
+            lp->opts.variant = v;
+        }
+    }
+    if (!lp->capture && lcdvr_optbooleanfield(L, 1, "pace", 1))
+        lp->opts.pace_fps = lcdvr_optnumberfield(L, 1, "target_fps", 0);
+    if (resolve_policy(L, ud) && !lp->capture) {
+        lp->opts.decide = decide_cb;
+        lp->opts.decide_ud = lp;
+    }
+    camera_option(L, ud, lp, info);
+
+    cdvr_error err;
+    cdvr_error_clear(&err);
+    if (cdvr_player_create(&lp->opts, &lp->player, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    lua_settop(L, ud);
+    return 1;
+}
+
+/* Pushes {read_ms=, ..., frame_ms=, serial_ms=} medians over frames without error. */
+static void push_stage_medians(lua_State *L, const cdvr_frame_row *rows, size_t n)
+{
+    static const char *const names[] = {"read_ms", "unzip_ms", "upload_ms", "decode_ms", "setup_ms", "render_ms", "frame_ms", "serial_ms", "interval_ms"};
+    double *vals = lua_newuserdatauv(L, (n ? n : 1) * sizeof(double), 0); /* scratch */
+    lua_createtable(L, 0, 9);                                             /* scratch, medians */
+    for (int k = 0; k < 9; k++) {
+        size_t m = 0;
+        for (size_t i = 0; i < n; i++) {
+            const cdvr_frame_row *r = &rows[i];
+            if (r->status != CDVR_OK)
+                continue;
+            double stage[9] = {r->read_ms, r->unzip_ms, r->upload_ms, r->decode_ms, r->setup_ms, r->render_ms, r->frame_ms,
+                               r->read_ms + r->unzip_ms + r->upload_ms + r->decode_ms + r->setup_ms + r->render_ms,
+                               r->interval_ms};
+            vals[m++] = stage[k];
+        }
+        setnum(L, names[k], cdvr_median(vals, m));
+    }
+    lua_remove(L, -2);                                                    /* medians */
+}
+
+static int player_run(lua_State *L)
+{
+    lplayer *lp = checkplayer(L, 1);
+    const cdvr_store_info *info = cdvr_store_get_info(lp->opts.store);
+    lua_Integer frames = (lua_Integer)info->timesteps, first = 1;
+    if (!lua_isnoneornil(L, 2)) {
+        luaL_checktype(L, 2, LUA_TTABLE);
+        frames = lcdvr_optintegerfield(L, 2, "frames", frames);
+        first = lcdvr_optintegerfield(L, 2, "first", 1);
+    }
+    luaL_argcheck(L, frames >= 1, 2, "frames must be at least 1");
+    luaL_argcheck(L, first >= 1 && (size_t)first <= info->timesteps, 2, "first timestep out of range");
+    lua_settop(L, 1);
+    lp->L = L;
+    cdvr_error err;
+    cdvr_status status = cdvr_player_run(lp->player, (size_t)first - 1, (size_t)frames, &err);
+    lp->L = NULL;
+    if (status != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    size_t n;
+    const cdvr_frame_row *rows = cdvr_player_rows(lp->player, &n);
+    lua_createtable(L, 0, 6);                     /* report */
+    setnum(L, "fps", cdvr_player_fps(lp->player));
+    lua_createtable(L, (int)n, 0);
+    for (size_t i = 0; i < n; i++) {
+        push_row(L, lp->opts.store, &rows[i]);
+        lua_rawseti(L, -2, (lua_Integer)i + 1);
+    }
+    lua_setfield(L, -2, "frames");
+    push_stage_medians(L, rows, n);
+    lua_setfield(L, -2, "median");
+    lua_pushboolean(L, lp->opts.pipelined);
+    lua_setfield(L, -2, "pipelined");
+    lua_pushstring(L, lp->opts.device == CDVR_DEVICE_CL ? "cl" : "cpu");
+    lua_setfield(L, -2, "device");
+    lua_pushinteger(L, (lua_Integer)cdvr_player_group_length(lp->opts.store));
+    lua_setfield(L, -2, "group_length");
+    return 1;
+}
+
+static int player_gc(lua_State *L)
+{
+    lplayer *lp = (lplayer *)luaL_checkudata(L, 1, LCDVR_PLAYER);
+    cdvr_player_free(lp->player);
+    lp->player = NULL;
+    return 0;
+}
+
+static int player_tostring(lua_State *L)
+{
+    lplayer *lp = (lplayer *)luaL_checkudata(L, 1, LCDVR_PLAYER);
+    if (!lp->player)
+        lua_pushliteral(L, "cdvr.Player (closed)");
+    else
+        lua_pushfstring(L, "cdvr.Player %s on %s (%p)", cdvr_store_path(lp->opts.store),
+                        lp->opts.device == CDVR_DEVICE_CL ? "cl" : "cpu", (void *)lp);
+    return 1;
+}
+
+static const luaL_Reg player_methods[] = {{"run", player_run}, {"close", player_gc}, {NULL, NULL}};
+static const luaL_Reg player_meta[] = {
+    {"__gc", player_gc}, {"__close", player_gc}, {"__tostring", player_tostring}, {NULL, NULL}};
+static const luaL_Reg player_funcs[] = {{"player", l_player}, {NULL, NULL}};
+
+int lcdvr_open_player(lua_State *L)
+{
+    lcdvr_newclass(L, LCDVR_PLAYER, player_methods, player_meta);
+    lcdvr_setfuncs(L, player_funcs);
+    lcdvr_help_add(L, "cdvr.player{store=, tf=, camera=, policy=, ...}",
+                   "playback of a store: reader, stage-2 and device threads; camera = cdvr.Camera, path or function(frame, t); "
+                   "policy = function(stats) or 'fixed'|'open_loop'|'closed_loop'; target_fps, variant, pipeline, cold, read_mbps, "
+                   "out='frames/%04d.png' (capture: deterministic), device='cl'|'cpu', pace (default true with target_fps)");
+    lcdvr_help_add(L, "p:run{frames=N, first=1}",
+                   "plays N frames -> {fps=, frames={rows: t, variant, read_ms .. render_ms, frame_ms, reason, error}, median={...}}");
+    lcdvr_help_add(L, "p:close()", "release the player's buffers and its OpenCL stream");
+    return 0;
+}

@@ -1,0 +1,164 @@
+/* lua/bind/l_render.c - cdvr.render(volume, {...}): the CPU reference ray caster, or the OpenCL
+ * renderer with device="cl". */
+#include "cdvr/timing.h"
+#include "cdvr/render.h"
+#include "lcdvr.h"
+
+#include <string.h>
+#include <time.h>
+
+/* Frame t (from 0) of vol as a u8 volume: vol itself when it is u8, else that frame quantized
+ * over the whole series' range (pushed as a Lua volume so an error cannot leak it). */
+static const cdvr_volume *u8_frame(lua_State *L, const cdvr_volume *vol, size_t *t)
+{
+    if (vol->type == CDVR_TYPE_U8)
+        return vol;
+    double lo, hi;
+    cdvr_volume_range(vol, &lo, &hi);
+    cdvr_volume *frame = NULL, *q = NULL;
+    cdvr_error err;
+    if (cdvr_volume_slice_time(vol, *t, 1, &frame, &err) != CDVR_OK)
+        lcdvr_raise(L, &err);
+    cdvr_status st = cdvr_volume_quantize(frame, lo, hi, &q, NULL, &err);
+    cdvr_volume_free(frame);
+    if (st != CDVR_OK)
+        lcdvr_raise(L, &err);
+    lcdvr_pushvolume(L, q);
+    *t = 0;
+    return q;
+}
+
+static void read_background(lua_State *L, int idx, float bg[4])
+{
+    bg[0] = bg[1] = bg[2] = 0.0f;
+    bg[3] = 1.0f;
+    if (lua_getfield(L, idx, "background") == LUA_TNIL) {
+        lua_pop(L, 1);
+        return;
+    }
+    luaL_argcheck(L, lua_istable(L, -1), idx, "background must be {r, g, b [, a]}");
+    lua_Integer n = luaL_len(L, -1);
+    luaL_argcheck(L, n == 3 || n == 4, idx, "background must be {r, g, b [, a]}");
+    for (lua_Integer i = 1; i <= n; i++) {
+        lua_geti(L, -1, i);
+        int ok;
+        lua_Number c = lua_tonumberx(L, -1, &ok);
+        luaL_argcheck(L, ok && c >= 0.0 && c <= 1.0, idx, "background entries must be in [0, 1]");
+        bg[i - 1] = (float)c;
+        lua_pop(L, 1);
+    }
+    lua_pop(L, 1);
+}
+
+/* A TF from opts.tf: a cdvr.TF, a preset name or a points table. */
+static const cdvr_tf *read_tf(lua_State *L, int idx)
+{
+    int type = lua_getfield(L, idx, "tf");
+    if (type == LUA_TNIL)
+        luaL_error(L, "cdvr.render: option 'tf' (a cdvr.TF) is required");
+    if (type == LUA_TSTRING || type == LUA_TTABLE) {
+        lua_getfield(L, lua_upvalueindex(1), "tf");
+        lua_insert(L, -2);
+        lua_call(L, 1, 1);
+        if (lua_isnil(L, -1))
+            luaL_error(L, "cdvr.render: option 'tf': cannot load transfer function");
+    }
+    const cdvr_tf *tf = lcdvr_checktf(L, -1);
+    lua_replace(L, idx + 1); /* keep it referenced in a stack slot reserved by the caller */
+    return tf;
+}
+
+static const cdvr_camera *read_camera(lua_State *L, int idx)
+{
+    if (lua_getfield(L, idx, "camera") == LUA_TNIL) {
+        lua_pop(L, 1);
+        lua_getfield(L, lua_upvalueindex(1), "orbit_camera");
+        lua_pushvalue(L, 1);
+        lua_call(L, 1, 1);
+    }
+    const cdvr_camera *cam = lcdvr_checkcamera(L, -1);
+    lua_replace(L, idx + 2);
+    return cam;
+}
+
+static void read_options(lua_State *L, cdvr_render_opts *o)
+{
+    o->tf = read_tf(L, 2);
+    o->camera = read_camera(L, 2);
+    o->step = lcdvr_optnumberfield(L, 2, "step", 0.0);
+    o->unit = lcdvr_optnumberfield(L, 2, "unit", 0.0);
+    o->term_alpha = lcdvr_optnumberfield(L, 2, "term", 0.0);
+    lua_Integer threads = lcdvr_optintegerfield(L, 2, "threads", 0);
+    if (threads < 0 || threads > 256)
+        luaL_error(L, "cdvr.render: threads must be 0..256 (0 = all cores), got %I",
+                   (LUAI_UACINT)threads);
+    o->threads = (int)threads;
+    if (!(o->step >= 0.0) || !(o->unit >= 0.0) || !(o->term_alpha >= 0.0))
+        luaL_error(L, "cdvr.render: step, unit and term must be >= 0");
+    read_background(L, 2, o->background);
+}
+
+static void push_stats(lua_State *L, const cdvr_render_opts *o, double ms)
+{
+    lua_createtable(L, 0, 2);
+    lua_pushinteger(L, (lua_Integer)o->samples);
+    lua_setfield(L, -2, "samples");
+    lua_pushnumber(L, ms);
+    lua_setfield(L, -2, "ms");
+}
+
+/* Index of string option `key` of the options table (argument 2) in list; raises if unknown. */
+static int option_index(lua_State *L, const char *key, const char *def,
+                        const char *const list[])
+{
+    const char *value = lcdvr_optstringfield(L, 2, key, def);
+    for (int i = 0; list[i]; i++)
+        if (strcmp(list[i], value) == 0)
+            return i;
+    return luaL_error(L, "cdvr.render: option '%s': invalid value '%s'", key, value);
+}
+
+static int l_render(lua_State *L)
+{
+    const cdvr_volume *vol = lcdvr_checkvolume(L, 1);
+    luaL_checktype(L, 2, LUA_TTABLE);
+    lua_settop(L, 4); /* slots 3, 4 hold the TF and camera while rendering */
+    static const char *const devices[] = {"cpu", "cl", NULL};
+    static const char *const methods[] = {"raycast", "slice", "splat", NULL};
+    int device = option_index(L, "device", "cpu", devices);
+    int method = option_index(L, "method", "raycast", methods);
+    if (method != 0)
+        return luaL_error(L, "cdvr.render: method '%s' is not available here (use raycast)",
+                          methods[method]);
+    lua_Integer t = lcdvr_optintegerfield(L, 2, "t", 1);
+    if (t < 1 || (size_t)t > vol->timesteps)
+        return luaL_error(L, "cdvr.render: t = %I outside 1..%I", (LUAI_UACINT)t,
+                          (LUAI_UACINT)vol->timesteps);
+    cdvr_render_opts o = {0};
+    read_options(L, &o);
+    size_t frame = (size_t)t - 1;
+    const cdvr_volume *u8 = u8_frame(L, vol, &frame);
+    if (device == 1)
+        return lcdvr_render_cl(L, u8, frame, &o);
+    double start = cdvr_now_ms();
+    cdvr_image *img;
+    cdvr_error err;
+    if (cdvr_render_cpu(u8, frame, &o, &img, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    double ms = cdvr_now_ms() - start;
+    lcdvr_pushimage(L, img);
+    push_stats(L, &o, ms);
+    return 2;
+}
+
+int lcdvr_open_render(lua_State *L)
+{
+    lua_pushvalue(L, -1); /* the cdvr table: cdvr.tf and cdvr.orbit_camera for defaults */
+    lua_pushcclosure(L, l_render, 1);
+    lua_setfield(L, -2, "render");
+    lcdvr_help_add(L, "cdvr.render(volume, {tf=, camera=, step=, unit=, device=, t=, threads=, background=, term=})",
+                   "ray-cast image and stats {samples=, ms=}; device \"cpu\" (default) or \"cl\"; "
+                   "camera defaults to cdvr.orbit_camera(volume); non-u8 volumes are quantized "
+                   "over their range first; term = early-termination alpha (0.99, >= 1 off)");
+    return 0;
+}

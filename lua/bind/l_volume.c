@@ -1,0 +1,558 @@
+/* lua/bind/l_volume.c - cdvr.Volume: volumes and series in Lua (cdvr.load, v:dims(), ...). */
+#include "lcdvr.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include <unistd.h>
+
+typedef struct lvolume {
+    cdvr_volume *vol; /* NULL once closed */
+} lvolume;
+
+static lvolume *tolvolume(lua_State *L, int idx)
+{
+    return (lvolume *)luaL_checkudata(L, idx, LCDVR_VOLUME);
+}
+
+cdvr_volume *lcdvr_checkvolume(lua_State *L, int idx)
+{
+    lvolume *ud = tolvolume(L, idx);
+    if (!ud->vol)
+        luaL_error(L, "attempt to use a closed volume");
+    return ud->vol;
+}
+
+void lcdvr_pushvolume(lua_State *L, cdvr_volume *vol)
+{
+    lvolume *ud = (lvolume *)lua_newuserdatauv(L, sizeof *ud, 0);
+    ud->vol = vol;
+    luaL_setmetatable(L, LCDVR_VOLUME);
+}
+
+static int volume_gc(lua_State *L)
+{
+    lvolume *ud = tolvolume(L, 1);
+    cdvr_volume_free(ud->vol);
+    ud->vol = NULL;
+    return 0;
+}
+
+static int volume_tostring(lua_State *L)
+{
+    lvolume *ud = tolvolume(L, 1);
+    if (!ud->vol) {
+        lua_pushliteral(L, "cdvr.Volume (closed)");
+        return 1;
+    }
+    const cdvr_volume *v = ud->vol;
+    lua_pushfstring(L, "cdvr.Volume %dx%dx%d x %d %s (%p)", (int)v->dims[0], (int)v->dims[1],
+                    (int)v->dims[2], (int)v->timesteps, cdvr_type_name(v->type), (void *)ud);
+    return 1;
+}
+
+static int volume_dims(lua_State *L)
+{
+    const cdvr_volume *v = lcdvr_checkvolume(L, 1);
+    for (int i = 0; i < 3; i++)
+        lua_pushinteger(L, (lua_Integer)v->dims[i]);
+    return 3;
+}
+
+static int volume_type(lua_State *L)
+{
+    lua_pushstring(L, cdvr_type_name(lcdvr_checkvolume(L, 1)->type));
+    return 1;
+}
+
+static int volume_timesteps(lua_State *L)
+{
+    lua_pushinteger(L, (lua_Integer)lcdvr_checkvolume(L, 1)->timesteps);
+    return 1;
+}
+
+static int volume_range(lua_State *L)
+{
+    double lo, hi;
+    cdvr_volume_range(lcdvr_checkvolume(L, 1), &lo, &hi);
+    lua_pushnumber(L, lo);
+    lua_pushnumber(L, hi);
+    return 2;
+}
+
+static int volume_get(lua_State *L)
+{
+    const cdvr_volume *v = lcdvr_checkvolume(L, 1);
+    lua_Integer c[4];
+    for (int i = 0; i < 3; i++) {
+        c[i] = luaL_checkinteger(L, i + 2);
+        luaL_argcheck(L, c[i] >= 0 && (size_t)c[i] < v->dims[i], i + 2, "voxel coordinate out of range");
+    }
+    c[3] = luaL_optinteger(L, 5, 1);
+    luaL_argcheck(L, c[3] >= 1 && (size_t)c[3] <= v->timesteps, 5, "timestep out of range");
+    lua_pushnumber(L, cdvr_volume_get(v, (size_t)c[0], (size_t)c[1], (size_t)c[2], (size_t)c[3] - 1));
+    return 1;
+}
+
+static int volume_len(lua_State *L)
+{
+    return volume_timesteps(L);
+}
+
+static int push_triple(lua_State *L, const double v[3])
+{
+    for (int i = 0; i < 3; i++)
+        lua_pushnumber(L, v[i]);
+    return 3;
+}
+
+static int volume_spacing(lua_State *L)
+{
+    return push_triple(L, lcdvr_checkvolume(L, 1)->spacing);
+}
+
+static int volume_origin(lua_State *L)
+{
+    return push_triple(L, lcdvr_checkvolume(L, 1)->origin);
+}
+
+static int volume_bytes(lua_State *L)
+{
+    const cdvr_volume *v = lcdvr_checkvolume(L, 1);
+    lua_pushinteger(L, (lua_Integer)(cdvr_volume_frame_bytes(v) * v->timesteps));
+    return 1;
+}
+
+static size_t check_timestep(lua_State *L, const cdvr_volume *v, int arg)
+{
+    lua_Integer t = luaL_checkinteger(L, arg);
+    luaL_argcheck(L, t >= 1 && (lua_Unsigned)t <= v->timesteps, arg, "timestep out of range");
+    return (size_t)t - 1;
+}
+
+static int volume_frame(lua_State *L)
+{
+    const cdvr_volume *v = lcdvr_checkvolume(L, 1);
+    size_t t = check_timestep(L, v, 2);
+    lua_Integer count = luaL_optinteger(L, 3, 1);
+    luaL_argcheck(L, count >= 1 && (lua_Unsigned)count <= v->timesteps - t, 3, "timestep count out of range");
+    cdvr_volume *frame;
+    cdvr_error err;
+    if (cdvr_volume_slice_time(v, t, (size_t)count, &frame, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    lcdvr_pushvolume(L, frame);
+    return 1;
+}
+
+static void voxel_coords(lua_State *L, const cdvr_volume *v, size_t c[3])
+{
+    for (int i = 0; i < 3; i++) {
+        lua_Integer x = luaL_checkinteger(L, i + 2);
+        luaL_argcheck(L, x >= 0 && (lua_Unsigned)x < v->dims[i], i + 2, "voxel coordinate out of range");
+        c[i] = (size_t)x;
+    }
+}
+
+/* Stores value at element i; integer types take integers in their range, f32 any number. */
+static void set_value(lua_State *L, cdvr_volume *v, size_t i, int arg)
+{
+    if (v->type == CDVR_TYPE_F32) {
+        ((float *)v->data)[i] = (float)luaL_checknumber(L, arg);
+        return;
+    }
+    static const lua_Integer lo[] = {0, 0, -32768}, hi[] = {255, 65535, 32767};
+    lua_Integer x = luaL_checkinteger(L, arg);
+    if (x < lo[v->type] || x > hi[v->type])
+        luaL_argerror(L, arg, lua_pushfstring(L, "value %I out of range for %s", x, cdvr_type_name(v->type)));
+    if (v->type == CDVR_TYPE_U8)
+        ((uint8_t *)v->data)[i] = (uint8_t)x;
+    else if (v->type == CDVR_TYPE_U16)
+        ((uint16_t *)v->data)[i] = (uint16_t)x;
+    else
+        ((int16_t *)v->data)[i] = (int16_t)x;
+}
+
+static int volume_set(lua_State *L)
+{
+    cdvr_volume *v = lcdvr_checkvolume(L, 1);
+    size_t c[3], t = 0;
+    voxel_coords(L, v, c);
+    int value_arg = 5;
+    if (lua_gettop(L) >= 6) {
+        t = check_timestep(L, v, 5);
+        value_arg = 6;
+    }
+    size_t i = c[0] + v->dims[0] * (c[1] + v->dims[1] * (c[2] + v->dims[2] * t));
+    set_value(L, v, i, value_arg);
+    return 0;
+}
+
+static void push_report(lua_State *L, const cdvr_quantize_report *r)
+{
+    lua_createtable(L, 0, 5);
+    lua_pushinteger(L, (lua_Integer)(r->clipped_low + r->clipped_high));
+    lua_setfield(L, -2, "clipped");
+    lua_pushinteger(L, (lua_Integer)r->clipped_low);
+    lua_setfield(L, -2, "clipped_low");
+    lua_pushinteger(L, (lua_Integer)r->clipped_high);
+    lua_setfield(L, -2, "clipped_high");
+    lua_pushinteger(L, (lua_Integer)r->nan_count);
+    lua_setfield(L, -2, "nan");
+    lua_pushinteger(L, (lua_Integer)r->inf_count);
+    lua_setfield(L, -2, "inf");
+}
+
+static int volume_quantize(lua_State *L)
+{
+    const cdvr_volume *v = lcdvr_checkvolume(L, 1);
+    double lo, hi;
+    cdvr_volume_range(v, &lo, &hi);
+    if (!lua_isnoneornil(L, 2)) {
+        luaL_checktype(L, 2, LUA_TTABLE);
+        lo = lcdvr_optnumberfield(L, 2, "lo", lo);
+        hi = lcdvr_optnumberfield(L, 2, "hi", hi);
+    }
+    cdvr_volume *q;
+    cdvr_quantize_report report;
+    cdvr_error err;
+    if (cdvr_volume_quantize(v, lo, hi, &q, &report, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    lcdvr_pushvolume(L, q);
+    push_report(L, &report);
+    return 2;
+}
+
+static int check_endian(lua_State *L, int idx)
+{
+    static const char *const names[] = {"little", "big", NULL};
+    const char *e = lcdvr_optstringfield(L, idx, "endian", "little");
+    for (int i = 0; names[i]; i++)
+        if (strcmp(e, names[i]) == 0)
+            return i;
+    return luaL_error(L, "option 'endian': \"little\" or \"big\" expected, got \"%s\"", e);
+}
+
+static int volume_save_raw(lua_State *L)
+{
+    const cdvr_volume *v = lcdvr_checkvolume(L, 1);
+    const char *path = luaL_checkstring(L, 2);
+    int big_endian = 0;
+    if (!lua_isnoneornil(L, 3)) {
+        luaL_checktype(L, 3, LUA_TTABLE);
+        big_endian = check_endian(L, 3);
+    }
+    cdvr_error err;
+    if (cdvr_volume_save_raw(v, path, big_endian, &err) != CDVR_OK)
+        return lcdvr_fail(L, &err);
+    lua_pushboolean(L, 1);
+    return 1;
+}
+
+/* ---- constructors and loaders -------------------------------------------------------------- */
+
+/* dims={x,y,z} as positive integers; returns 0 if absent. */
+static int dims_field(lua_State *L, int idx, size_t dims[3])
+{
+    double d[3];
+    if (!lcdvr_numberarrayfield(L, idx, "dims", d, 3))
+        return 0;
+    for (int i = 0; i < 3; i++) {
+        if (!(d[i] >= 1 && d[i] <= 9007199254740992.0 && d[i] == floor(d[i])))
+            luaL_error(L, "option 'dims'[%d]: positive integer expected, got %f", i + 1, d[i]);
+        dims[i] = (size_t)d[i];
+    }
+    return 1;
+}
+
+static cdvr_type type_field(lua_State *L, int idx, const char *def)
+{
+    const char *name = lcdvr_optstringfield(L, idx, "type", def);
+    cdvr_type type;
+    if (!name)
+        luaL_error(L, "option 'type' is required (u8, u16, i16, f32)");
+    if (!cdvr_type_parse(name, &type))
+        luaL_error(L, "option 'type': unknown voxel type '%s' (u8, u16, i16, f32)", name);
+    return type;
+}
+
+static size_t count_field(lua_State *L, int idx, const char *key, lua_Integer def, lua_Integer min)
+{
+    lua_Integer n = lcdvr_optintegerfield(L, idx, key, def);
+    if (n < min)
+        luaL_error(L, "option '%s': must be >= %d, got %d", key, (int)min, (int)n);
+    return (size_t)n;
+}
+
+/* spacing={sx,sy,sz} (positive) into out; leaves out as is when absent. */
+static void spacing_field(lua_State *L, int idx, double out[3])
+{
+    double s[3];
+    if (!lcdvr_numberarrayfield(L, idx, "spacing", s, 3))
+        return;
+    for (int i = 0; i < 3; i++) {
+        if (!(s[i] > 0 && isfinite(s[i])))
+            luaL_error(L, "option 'spacing'[%d]: positive number expected", i + 1);
+        out[i] = s[i];
+    }
+}
+
+/* Reads the raw/loader options of table idx (may be none). Returns 1 when raw dims and type
+ * were given (both are then required), 0 otherwise; spacing is filled either way. */
+static int raw_opts(lua_State *L, int idx, cdvr_raw_opts *raw)
+{
+    memset(raw, 0, sizeof *raw);
+    if (lua_isnoneornil(L, idx))
+        return 0;
+    luaL_checktype(L, idx, LUA_TTABLE);
+    spacing_field(L, idx, raw->spacing);
+    int has_dims = dims_field(L, idx, raw->dims);
+    lua_getfield(L, idx, "type");
+    int has_type = !lua_isnil(L, -1);
+    lua_pop(L, 1);
+    if (!has_dims && !has_type)
+        return 0;
+    if (!has_dims)
+        luaL_error(L, "option 'dims' is required for a raw file");
+    raw->type = type_field(L, idx, NULL);
+    raw->big_endian = check_endian(L, idx);
+    raw->header_bytes = count_field(L, idx, "header", 0, 0);
+    raw->timesteps = count_field(L, idx, "timesteps", 1, 1);
+    return 1;
+}
+
+/* Pushes the loaded volume, or nil, message for file problems; raises for misuse. */
+static int push_load_result(lua_State *L, cdvr_status st, cdvr_volume *vol, const cdvr_error *err)
+{
+    if (st == CDVR_ERR_ARG)
+        return lcdvr_raise(L, err);
+    if (st != CDVR_OK)
+        return lcdvr_fail(L, err);
+    lcdvr_pushvolume(L, vol);
+    return 1;
+}
+
+static int l_load(lua_State *L)
+{
+    const char *path = luaL_checkstring(L, 1);
+    cdvr_raw_opts raw;
+    int has_raw = raw_opts(L, 2, &raw);
+    cdvr_volume *vol = NULL;
+    cdvr_error err;
+    cdvr_status st = cdvr_volume_load(path, has_raw ? &raw : NULL, &vol, &err);
+    if (st == CDVR_OK && !has_raw)
+        for (int i = 0; i < 3; i++)
+            if (raw.spacing[i] > 0)
+                vol->spacing[i] = raw.spacing[i];
+    return push_load_result(L, st, vol, &err);
+}
+
+/* A series pattern: prefix, one integer conversion (%d, %i or %u with optional 0 flag and
+ * width), suffix; "%%" is a literal percent. */
+typedef struct series_pattern {
+    const char *text;
+    size_t conv_start, conv_end; /* the conversion is text[conv_start, conv_end) */
+    int zero_pad, width;
+} series_pattern;
+
+static void parse_pattern(lua_State *L, const char *text, series_pattern *p)
+{
+    int found = 0;
+    memset(p, 0, sizeof *p);
+    p->text = text;
+    for (size_t i = 0; text[i]; i++) {
+        if (text[i] != '%')
+            continue;
+        if (text[i + 1] == '%') {
+            i++;
+            continue;
+        }
+        size_t j = i + 1;
+        p->zero_pad = text[j] == '0';
+        j += (size_t)p->zero_pad;
+        p->width = 0;
+        while (text[j] >= '0' && text[j] <= '9' && p->width < 100)
+            p->width = p->width * 10 + (text[j++] - '0');
+        if (found || !strchr("diu", text[j]) || text[j] == '\0' || p->width >= 100)
+            luaL_error(L, "series pattern '%s': exactly one integer conversion (%%d, %%03d, ...) expected",
+                       text);
+        found = 1;
+        p->conv_start = i;
+        p->conv_end = j + 1;
+        i = j;
+    }
+    if (!found)
+        luaL_error(L, "series pattern '%s': no integer conversion (%%d, %%03d, ...)", text);
+}
+
+static void add_literal(luaL_Buffer *b, const char *s, size_t n)
+{
+    for (size_t i = 0; i < n; i++) {
+        luaL_addchar(b, s[i]);
+        if (s[i] == '%' && i + 1 < n && s[i + 1] == '%')
+            i++;
+    }
+}
+
+static void push_series_name(lua_State *L, const series_pattern *p, lua_Integer n)
+{
+    char number[64];
+    snprintf(number, sizeof number, p->zero_pad ? "%0*lld" : "%*lld", p->width, (long long)n);
+    luaL_Buffer b;
+    luaL_buffinit(L, &b);
+    add_literal(&b, p->text, p->conv_start);
+    luaL_addstring(&b, number);
+    add_literal(&b, p->text + p->conv_end, strlen(p->text + p->conv_end));
+    luaL_pushresult(&b);
+}
+
+/* Pushes a list of file names from a pattern and opts first/count/last and returns 1. Without
+ * count or last, takes files from `first` while they exist; when there is none, pushes a
+ * message instead and returns 0. */
+static int series_names_from_pattern(lua_State *L, const char *pattern, int opts)
+{
+    series_pattern p;
+    parse_pattern(L, pattern, &p);
+    int has_opts = lua_istable(L, opts);
+    lua_Integer first = has_opts ? lcdvr_optintegerfield(L, opts, "first", 0) : 0;
+    lua_Integer count = has_opts ? lcdvr_optintegerfield(L, opts, "count", -1) : -1;
+    lua_Integer last = has_opts ? lcdvr_optintegerfield(L, opts, "last", first - 1) : first - 1;
+    if (count < 0 && last >= first)
+        count = last - first + 1;
+    if (count == 0 || count > 1000000 || (has_opts && count < 0 && last < first - 1))
+        luaL_error(L, "series '%s': count must be 1..1000000 (got first=%d count=%d last=%d)", pattern,
+                   (int)first, (int)count, (int)last);
+    lua_newtable(L);
+    for (lua_Integer i = 0; count < 0 || i < count; i++) {
+        push_series_name(L, &p, first + i);
+        if (count < 0 && access(lua_tostring(L, -1), F_OK) != 0) {
+            if (i > 0) {
+                lua_pop(L, 1);
+                break;
+            }
+            lua_pushfstring(L, "%s: no such file (series pattern %s, first=%d)", lua_tostring(L, -1),
+                            pattern, (int)first);
+            return 0;
+        }
+        lua_seti(L, -2, i + 1);
+    }
+    return 1;
+}
+
+static int l_load_series(lua_State *L)
+{
+    cdvr_raw_opts raw;
+    int has_raw = raw_opts(L, 2, &raw);
+    if (lua_type(L, 1) == LUA_TSTRING) {
+        if (!series_names_from_pattern(L, lua_tostring(L, 1), 2)) {
+            luaL_pushfail(L);
+            lua_insert(L, -2);
+            return 2;
+        }
+    } else {
+        luaL_checktype(L, 1, LUA_TTABLE);
+        lua_pushvalue(L, 1);
+    }
+    int list = lua_gettop(L);
+    lua_Integer n = luaL_len(L, list);
+    luaL_argcheck(L, n >= 1, 1, "empty list of files");
+    const char **paths = (const char **)lua_newuserdatauv(L, (size_t)n * sizeof *paths, 0);
+    for (lua_Integer i = 0; i < n; i++) {
+        lua_geti(L, list, i + 1);
+        if (lua_type(L, -1) != LUA_TSTRING)
+            luaL_error(L, "series file %d: string expected, got %s", (int)(i + 1), luaL_typename(L, -1));
+        paths[i] = lua_tostring(L, -1); /* stays alive: the list holds it */
+        lua_pop(L, 1);
+    }
+    cdvr_volume *vol = NULL;
+    cdvr_error err;
+    cdvr_status st = cdvr_volume_load_series(paths, (size_t)n, has_raw ? &raw : NULL, &vol, &err);
+    if (st == CDVR_OK && !has_raw)
+        for (int i = 0; i < 3; i++)
+            if (raw.spacing[i] > 0)
+                vol->spacing[i] = raw.spacing[i];
+    return push_load_result(L, st, vol, &err);
+}
+
+static int l_volume_new(lua_State *L)
+{
+    luaL_checktype(L, 1, LUA_TTABLE);
+    size_t dims[3];
+    if (!dims_field(L, 1, dims))
+        return luaL_error(L, "option 'dims' is required");
+    cdvr_type type = type_field(L, 1, "u8");
+    size_t timesteps = count_field(L, 1, "timesteps", 1, 1);
+    cdvr_volume *vol;
+    cdvr_error err;
+    if (cdvr_volume_create(dims, timesteps, type, &vol, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    spacing_field(L, 1, vol->spacing);
+    lcdvr_pushvolume(L, vol);
+    return 1;
+}
+
+static int l_generate(lua_State *L)
+{
+    static const char *const names[] = {"box", "sphere", "ml", "ramp", NULL};
+    const char *name = names[luaL_checkoption(L, 1, NULL, names)];
+    cdvr_generate_opts o;
+    memset(&o, 0, sizeof o);
+    if (!lua_isnoneornil(L, 2)) {
+        luaL_checktype(L, 2, LUA_TTABLE);
+        dims_field(L, 2, o.dims);
+        o.timesteps = count_field(L, 2, "timesteps", 1, 1);
+        o.type = type_field(L, 2, "u8");
+        o.value = lcdvr_optnumberfield(L, 2, "value", 0.0);
+        o.radius = lcdvr_optnumberfield(L, 2, "radius", 0.0);
+        o.fM = lcdvr_optnumberfield(L, 2, "fM", 0.0);
+        o.alpha = lcdvr_optnumberfield(L, 2, "alpha", 0.0);
+    }
+    cdvr_volume *vol;
+    cdvr_error err;
+    if (cdvr_volume_generate(name, &o, &vol, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    lcdvr_pushvolume(L, vol);
+    return 1;
+}
+
+static const luaL_Reg volume_funcs[] = {
+    {"load", l_load},         {"load_series", l_load_series}, {"volume", l_volume_new},
+    {"generate", l_generate}, {NULL, NULL}};
+
+static const luaL_Reg volume_methods[] = {
+    {"dims", volume_dims},   {"type", volume_type}, {"timesteps", volume_timesteps},
+    {"range", volume_range}, {"get", volume_get},   {"set", volume_set},
+    {"spacing", volume_spacing}, {"origin", volume_origin}, {"frame", volume_frame},
+    {"bytes", volume_bytes}, {"quantize", volume_quantize}, {"save_raw", volume_save_raw},
+    {NULL, NULL}};
+
+static const luaL_Reg volume_meta[] = {
+    {"__gc", volume_gc}, {"__close", volume_gc}, {"__tostring", volume_tostring},
+    {"__len", volume_len}, {NULL, NULL}};
+
+int lcdvr_open_volume(lua_State *L)
+{
+    lcdvr_newclass(L, LCDVR_VOLUME, volume_methods, volume_meta);
+    lcdvr_setfuncs(L, volume_funcs);
+    lcdvr_help_add(L, "cdvr.load(path [, opts])",
+                   "load .nrrd .nhdr .nii .nii.gz, or raw with opts {dims=, type=, endian=, header=, timesteps=, spacing=}; nil, msg on file errors");
+    lcdvr_help_add(L, "cdvr.load_series(pattern_or_list [, opts])",
+                   "load files as one series: printf pattern (\"vf_t%03d.nrrd\", opts first=, count= or last=) or a list of names");
+    lcdvr_help_add(L, "cdvr.volume{dims=, type=, timesteps=}", "new zero-filled volume");
+    lcdvr_help_add(L, "cdvr.generate(name [, opts])",
+                   "test field \"box\", \"sphere\", \"ml\" (Marschner-Lobb) or \"ramp\"; opts dims=, timesteps=, type=, value=, radius=, fM=, alpha=");
+    lcdvr_help_add(L, "v:set(x, y, z [, t], value)", "set a voxel (x, y, z from 0; t from 1)");
+    lcdvr_help_add(L, "v:spacing()", "voxel spacing sx, sy, sz");
+    lcdvr_help_add(L, "v:origin()", "world position of voxel (0,0,0)");
+    lcdvr_help_add(L, "v:frame(t [, count])", "new volume holding timesteps t .. t+count-1 (t from 1, count default 1)");
+    lcdvr_help_add(L, "v:bytes()", "size of the voxel data in bytes (all timesteps)");
+    lcdvr_help_add(L, "v:quantize{lo=, hi=}",
+                   "u8 volume over window [lo, hi] (default: range) and report {clipped=, clipped_low=, clipped_high=, nan=, inf=}");
+    lcdvr_help_add(L, "v:save_raw(path [, {endian=}])", "write the voxels as raw (little endian by default); true or nil, msg");
+    lcdvr_help_add(L, "#v", "number of timesteps");
+    lcdvr_help_add(L, "v:dims()", "x, y, z dimensions of a volume");
+    lcdvr_help_add(L, "v:type()", "voxel type: u8, u16, i16 or f32");
+    lcdvr_help_add(L, "v:timesteps()", "number of timesteps");
+    lcdvr_help_add(L, "v:range()", "min, max over finite values");
+    lcdvr_help_add(L, "v:get(x, y, z [, t])", "voxel value (x, y, z from 0; t from 1)");
+    return 0;
+}

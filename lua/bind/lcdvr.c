@@ -1,0 +1,194 @@
+/* lua/bind/lcdvr.c - helpers shared by the binding files (see lcdvr.h). */
+#include "cdvr/atomicfile.h"
+#include "lcdvr.h"
+
+#include <string.h>
+
+int lcdvr_raise(lua_State *L, const cdvr_error *err)
+{
+    return luaL_error(L, "%s", err->msg[0] ? err->msg : cdvr_status_name(err->status));
+}
+
+int lcdvr_fail(lua_State *L, const cdvr_error *err)
+{
+    luaL_pushfail(L);
+    lua_pushstring(L, err->msg[0] ? err->msg : cdvr_status_name(err->status));
+    return 2;
+}
+
+int lcdvr_save_file(lua_State *L, const char *path, int (*write)(FILE *f, const void *obj),
+                    const void *obj)
+{
+    cdvr_atomic_file af;
+    cdvr_error err;
+    if (cdvr_atomic_open(&af, path, &err) != CDVR_OK ||
+        cdvr_atomic_commit(&af, write(af.f, obj) != 0, &err) != CDVR_OK)
+        return lcdvr_fail(L, &err);
+    lua_pushboolean(L, 1);
+    return 1;
+}
+
+void lcdvr_newclass(lua_State *L, const char *name, const luaL_Reg *methods, const luaL_Reg *meta)
+{
+    luaL_newmetatable(L, name);  /* mt (sets __name) */
+    if (meta)
+        luaL_setfuncs(L, meta, 0);
+    lua_newtable(L);             /* mt, methods */
+    if (methods)
+        luaL_setfuncs(L, methods, 0);
+    lua_setfield(L, -2, "__index"); /* mt */
+    lua_pop(L, 1);
+}
+
+void lcdvr_setfuncs(lua_State *L, const luaL_Reg *funcs)
+{
+    luaL_setfuncs(L, funcs, 0);
+}
+
+void lcdvr_help_add(lua_State *L, const char *name, const char *description)
+{
+    lua_getfield(L, LUA_REGISTRYINDEX, "cdvr.help");  /* help */
+    if (!lua_istable(L, -1)) {
+        lua_pop(L, 1);
+        lua_newtable(L);
+        lua_pushvalue(L, -1);
+        lua_setfield(L, LUA_REGISTRYINDEX, "cdvr.help");
+    }
+    lua_pushstring(L, description);                   /* help, description */
+    lua_setfield(L, -2, name);
+    lua_pop(L, 1);
+}
+
+static int field_present(lua_State *L, int idx, const char *key, int type, const char *tname)
+{
+    int t = lua_getfield(L, idx, key);
+    if (t == LUA_TNIL) {
+        lua_pop(L, 1);
+        return 0;
+    }
+    if (t != type && !(type == LUA_TNUMBER && lua_isnumber(L, -1)))
+        luaL_error(L, "option '%s': %s expected, got %s", key, tname, luaL_typename(L, -1));
+    return 1; /* value left on the stack */
+}
+
+lua_Number lcdvr_optnumberfield(lua_State *L, int idx, const char *key, lua_Number def)
+{
+    idx = lua_absindex(L, idx);
+    if (!field_present(L, idx, key, LUA_TNUMBER, "number"))
+        return def;
+    lua_Number n = lua_tonumber(L, -1);
+    lua_pop(L, 1);
+    return n;
+}
+
+lua_Integer lcdvr_optintegerfield(lua_State *L, int idx, const char *key, lua_Integer def)
+{
+    idx = lua_absindex(L, idx);
+    if (!field_present(L, idx, key, LUA_TNUMBER, "integer"))
+        return def;
+    int isint = 0;
+    lua_Integer n = lua_tointegerx(L, -1, &isint);
+    if (!isint)
+        luaL_error(L, "option '%s': integer expected, got %s", key, lua_tostring(L, -1));
+    lua_pop(L, 1);
+    return n;
+}
+
+const char *lcdvr_optstringfield(lua_State *L, int idx, const char *key, const char *def)
+{
+    idx = lua_absindex(L, idx);
+    if (!field_present(L, idx, key, LUA_TSTRING, "string"))
+        return def;
+    /* the string stays alive while the options table holds it */
+    const char *s = lua_tostring(L, -1);
+    lua_pop(L, 1);
+    return s;
+}
+
+int lcdvr_optbooleanfield(lua_State *L, int idx, const char *key, int def)
+{
+    idx = lua_absindex(L, idx);
+    if (!field_present(L, idx, key, LUA_TBOOLEAN, "boolean"))
+        return def;
+    int b = lua_toboolean(L, -1);
+    lua_pop(L, 1);
+    return b;
+}
+
+int lcdvr_numberarrayfield(lua_State *L, int idx, const char *key, double *out, int n)
+{
+    idx = lua_absindex(L, idx);
+    if (!field_present(L, idx, key, LUA_TTABLE, "table"))
+        return 0;
+    if ((int)luaL_len(L, -1) != n)
+        luaL_error(L, "option '%s': %d numbers expected, got %d", key, n, (int)luaL_len(L, -1));
+    for (int i = 0; i < n; i++) {
+        lua_geti(L, -1, i + 1);
+        if (!lua_isnumber(L, -1))
+            luaL_error(L, "option '%s'[%d]: number expected, got %s", key, i + 1, luaL_typename(L, -1));
+        out[i] = lua_tonumber(L, -1);
+        lua_pop(L, 1);
+    }
+    lua_pop(L, 1);
+    return 1;
+}
+
+/* Levenshtein distance of a and b, or a value above limit once it is certain to exceed it
+ * (option names are short: strings longer than 63 bytes count as far apart). */
+static int edit_distance(const char *a, const char *b, int limit)
+{
+    size_t na = strlen(a), nb = strlen(b);
+    if (na > 63 || nb > 63)
+        return limit + 1;
+    int row[64];
+    for (size_t j = 0; j <= nb; j++)
+        row[j] = (int)j;
+    for (size_t i = 1; i <= na; i++) {
+        int diag = row[0];
+        row[0] = (int)i;
+        for (size_t j = 1; j <= nb; j++) {
+            int up = row[j];
+            int best = diag + (a[i - 1] != b[j - 1]);
+            if (up + 1 < best)
+                best = up + 1;
+            if (row[j - 1] + 1 < best)
+                best = row[j - 1] + 1;
+            row[j] = best;
+            diag = up;
+        }
+    }
+    return row[nb];
+}
+
+void lcdvr_checkoptions(lua_State *L, int idx, const char *what, const char *const keys[])
+{
+    idx = lua_absindex(L, idx);
+    if (!lua_istable(L, idx))
+        return;
+    lua_pushnil(L); /* key */
+    while (lua_next(L, idx)) { /* key, value */
+        lua_pop(L, 1);         /* key */
+        if (lua_type(L, -1) != LUA_TSTRING) {
+            luaL_error(L, "%s: option keys must be names, got a %s key", what,
+                       luaL_typename(L, -1));
+            return;
+        }
+        const char *key = lua_tostring(L, -1);
+        const char *best = NULL;
+        int best_d = 3, known = 0;
+        for (int i = 0; keys[i] && !known; i++) {
+            known = strcmp(keys[i], key) == 0;
+            int d = known ? 0 : edit_distance(key, keys[i], best_d);
+            if (!known && d < best_d) {
+                best_d = d;
+                best = keys[i];
+            }
+        }
+        if (known)
+            continue;
+        if (best && best_d <= (strlen(key) > 3 ? 2 : 1))
+            luaL_error(L, "%s: unknown option '%s' (did you mean '%s'?)", what, key, best);
+        else
+            luaL_error(L, "%s: unknown option '%s'", what, key);
+    }
+}

@@ -1,0 +1,97 @@
+/* lua/bind/lcdvr.h - what the Lua binding files share.
+ *
+ * One binding file per core module (l_volume.c, l_tf.c, ...). Each exports
+ * lcdvr_open_<module>(L), called by the host with the `cdvr` table on top of the stack; it
+ * registers its functions in that table, creates its metatables (one named metatable per
+ * type, liolib.c style: __gc, __close, __tostring, __name, methods behind __index) and adds
+ * one-line help entries with lcdvr_help_add. It leaves the stack as it found it.
+ *
+ * Errors: misuse (bad argument types or values) raises; I/O failures of loaders return
+ * nil, message (lcdvr_fail); other core failures raise with the core's message (lcdvr_raise).
+ */
+#ifndef CDVR_LCDVR_H
+#define CDVR_LCDVR_H
+
+#include <stdio.h>
+
+#include <lauxlib.h>
+#include <lua.h>
+#include <lualib.h>
+
+#include "cdvr/camera.h"
+#include "cdvr/error.h"
+#include "cdvr/image.h"
+#include "cdvr/store.h"
+#include "cdvr/tf.h"
+#include "cdvr/volume.h"
+
+#define LCDVR_VOLUME "cdvr.Volume"
+#define LCDVR_IMAGE "cdvr.Image"
+#define LCDVR_TF "cdvr.TF"
+#define LCDVR_CAMERA "cdvr.Camera"
+#define LCDVR_STORE "cdvr.Store"
+#define LCDVR_PLAYER "cdvr.Player"
+
+/* Raises a Lua error with the core's message. Never returns. */
+int lcdvr_raise(lua_State *L, const cdvr_error *err);
+/* Pushes nil and the message; returns 2 (for `return lcdvr_fail(L, &err);`). */
+int lcdvr_fail(lua_State *L, const cdvr_error *err);
+
+/* Writes path through a temporary file (cdvr_atomic_file) with write(f, obj), which returns
+ * nonzero on failure; pushes true, or nil and a message naming path. Returns the count. */
+int lcdvr_save_file(lua_State *L, const char *path, int (*write)(FILE *f, const void *obj),
+                    const void *obj);
+
+/* Creates metatable `name` with __name, __index = methods table; `meta` adds metamethods
+ * (__gc, __close, __tostring, ...). Leaves the stack unchanged. */
+void lcdvr_newclass(lua_State *L, const char *name, const luaL_Reg *methods, const luaL_Reg *meta);
+/* Registers funcs into the table on top of the stack (the cdvr table). */
+void lcdvr_setfuncs(lua_State *L, const luaL_Reg *funcs);
+/* Adds a help line for `name` (e.g. "cdvr.load(path [, opts])") to cdvr.help(). */
+void lcdvr_help_add(lua_State *L, const char *name, const char *description);
+
+/* Optional table fields (table at index idx): return the default when absent or nil,
+ * raise when present with the wrong type. */
+lua_Number lcdvr_optnumberfield(lua_State *L, int idx, const char *key, lua_Number def);
+lua_Integer lcdvr_optintegerfield(lua_State *L, int idx, const char *key, lua_Integer def);
+const char *lcdvr_optstringfield(lua_State *L, int idx, const char *key, const char *def);
+int lcdvr_optbooleanfield(lua_State *L, int idx, const char *key, int def);
+/* Reads an array field of n numbers (e.g. dims={64,64,64}); returns 0 if absent, raises if
+ * present with the wrong length or types. */
+int lcdvr_numberarrayfield(lua_State *L, int idx, const char *key, double *out, int n);
+
+/* Raises "what: unknown option 'devcie' (did you mean 'device'?)" for any key of the options
+ * table at idx that is not in keys (NULL-terminated); non-string keys are errors too. Does
+ * nothing when idx is not a table. Every function taking an options table calls it first. */
+void lcdvr_checkoptions(lua_State *L, int idx, const char *what, const char *const keys[]);
+
+/* Per-type accessors, implemented in the type's binding file. push* takes ownership. */
+cdvr_volume *lcdvr_checkvolume(lua_State *L, int idx);
+void lcdvr_pushvolume(lua_State *L, cdvr_volume *vol);
+cdvr_image *lcdvr_checkimage(lua_State *L, int idx);
+void lcdvr_pushimage(lua_State *L, cdvr_image *img);
+cdvr_tf *lcdvr_checktf(lua_State *L, int idx);
+cdvr_tf *lcdvr_pushtf(lua_State *L, const cdvr_tf *tf);      /* copies */
+cdvr_camera *lcdvr_checkcamera(lua_State *L, int idx);
+cdvr_camera *lcdvr_pushcamera(lua_State *L, const cdvr_camera *cam); /* copies */
+cdvr_store *lcdvr_checkstore(lua_State *L, int idx);
+
+/* OpenCL rendering for cdvr.render{device="cl"} (l_device.c). Pushes the image or raises. */
+int lcdvr_render_cl(lua_State *L, const cdvr_volume *vol, size_t t, void *render_opts);
+
+/* OpenCL decode for st:decode(t, variant, {device="cl"}) (l_device.c): decodes timestep t
+ * (from 0) of variant v with the decode kernel and pushes a new u8 volume, or raises. */
+int lcdvr_decode_cl(lua_State *L, const cdvr_store *st, size_t v, size_t t);
+
+/* Module openers (the host calls each, in this order). */
+int lcdvr_open_volume(lua_State *L);
+int lcdvr_open_image(lua_State *L);
+int lcdvr_open_tf(lua_State *L);
+int lcdvr_open_camera(lua_State *L);
+int lcdvr_open_render(lua_State *L);
+int lcdvr_open_compare(lua_State *L);
+int lcdvr_open_store(lua_State *L);
+int lcdvr_open_device(lua_State *L);
+int lcdvr_open_player(lua_State *L);
+
+#endif
