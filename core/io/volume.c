@@ -74,6 +74,7 @@ cdvr_status cdvr_volume_create(const size_t dims[3], size_t timesteps, cdvr_type
     vol->timesteps = timesteps;
     vol->type = type;
     vol->spacing[0] = vol->spacing[1] = vol->spacing[2] = 1.0;
+    vol->direction[0] = vol->direction[4] = vol->direction[8] = 1.0;
     vol->data = data;
     *out = vol;
     return CDVR_OK;
@@ -152,6 +153,7 @@ cdvr_status cdvr_volume_slice_time(const cdvr_volume *vol, size_t t0, size_t cou
         return st;
     memcpy((*out)->spacing, vol->spacing, sizeof vol->spacing);
     memcpy((*out)->origin, vol->origin, sizeof vol->origin);
+    memcpy((*out)->direction, vol->direction, sizeof vol->direction);
     memcpy((*out)->data, cdvr_volume_frame(vol, t0), count * cdvr_volume_frame_bytes(vol));
     return CDVR_OK;
 }

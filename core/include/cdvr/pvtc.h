@@ -25,6 +25,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "cdvr/codec.h"
 #include "cdvr/error.h"
 
 typedef enum cdvr_pack { CDVR_PACK_TIME = 0, CDVR_PACK_SPACE = 1 } cdvr_pack;
@@ -63,5 +64,11 @@ cdvr_status cdvr_pvtc_encode_chunk(const cdvr_pvtc_params *params, cdvr_pvtc_enc
 cdvr_status cdvr_pvtc_decode_chunk(const cdvr_pvtc_params *params, const size_t dims[3],
                                    const uint8_t *in, size_t in_bytes, uint8_t *const *frames,
                                    size_t nframes, cdvr_error *err);
+
+/* The codec table's parameter blob (core/codec/pvtc/pvtc_codec.c documents its layout). */
+void cdvr_pvtc_params_to_blob(const cdvr_pvtc_params *p, cdvr_pvtc_encoder encoder,
+                              cdvr_codec_params *blob);
+void cdvr_pvtc_params_from_blob(const cdvr_codec_params *blob, cdvr_pvtc_params *p,
+                                cdvr_pvtc_encoder *encoder);
 
 #endif

@@ -2,8 +2,11 @@
  *
  * A cdvr_volume holds `timesteps` frames of dims[0] x dims[1] x dims[2] voxels of
  * one scalar type, contiguous: voxel (x,y,z) of frame t (all from 0) is element
- * x + X*(y + Y*(z + Z*t)). World position of voxel (i,j,k) is origin + (i,j,k)*spacing
- * (VTK image-data convention, DESIGN.md section 6).
+ * x + X*(y + Y*(z + Z*t)). World position of voxel (i,j,k) is
+ *     origin + D * (i*spacing[0], j*spacing[1], k*spacing[2])
+ * with D the 3x3 direction matrix (row-major: direction[3*r + c]; column c is the world
+ * direction of index axis c), VTK image data's index-to-world convention (DESIGN.md
+ * section 6). Volumes are created with D = identity.
  */
 #ifndef CDVR_VOLUME_H
 #define CDVR_VOLUME_H
@@ -26,6 +29,7 @@ typedef struct cdvr_volume {
     cdvr_type type;
     double spacing[3];
     double origin[3];
+    double direction[9]; /* row-major; column c = world direction of index axis c */
     void *data;
 } cdvr_volume;
 

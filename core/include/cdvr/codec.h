@@ -1,0 +1,200 @@
+/* cdvr/codec.h - one interface for every codec (DESIGN.md section 4.0) and the registry.
+ *
+ * A codec turns the u8 frames of one chunk (a few consecutive timesteps of one brick of a
+ * series) into a payload and back. The store, the encoder, schedules, the player, the
+ * renderers and the Lua layer only ever go through a `cdvr_codec` table; none of them names a
+ * codec or its parameters. Built-in codecs: "raw" (id 0), "pvtc" (id 1), "hvq" (id 2);
+ * plugins (cdvr/plugin.h) add more at run time.
+ *
+ * Parameters. Each codec keeps its parameters in a `cdvr_codec_params` blob of at most
+ * CDVR_CODEC_PARAMS_MAX bytes whose layout the codec alone defines. The blob is stored as it
+ * is in the store (per variant and per chunk), so its layout must be byte-exact and
+ * independent of the host: fixed-width little-endian fields at fixed offsets, unused bytes 0.
+ * The codec parses it from key/value text (what Lua gives: `S=4`, `pack="space"`,
+ * `rate=0.5`), renders it back for reports, validates a blob read from a file, and names a
+ * variant after it ("S4T3s", "zfp2", "raw").
+ *
+ * Chunks. For the dims of a brick, `shape` gives the timesteps one chunk holds, the exact
+ * payload size when it is fixed by the parameters (PVTC, raw) and a worst-case bound (any
+ * codec; what the encoder allocates). `encode` gets exactly shape.timesteps frame pointers:
+ * the encoder repeats the last real timestep past the end of the series, and `count` says
+ * how many are real. `decode` writes `count` (1 .. shape.timesteps) frames. The C decoder is
+ * the definition of the codec: every other path (SIMD, OpenCL) must be bit-exact with it.
+ * Decoders must never read or write out of bounds, whatever the payload holds (they are
+ * fuzzed): a payload that does not fit gives CDVR_ERR_CORRUPT.
+ *
+ * OpenCL, optional (cl_mode):
+ *  - CDVR_CODEC_CL_NONE: the chunk is decoded on the CPU and its frames are uploaded.
+ *  - CDVR_CODEC_CL_DECODE: a decode kernel writes the chunk's dense u8 frames on the device
+ *    before the ray cast. Its signature is fixed:
+ *        __kernel void NAME(__global const uchar *payload, ulong payload_bytes,
+ *                           __constant uchar *params, uint X, uint Y, uint Z, uint nframes,
+ *                           __global uchar *frames)
+ *    frames holds nframes frames of X*Y*Z voxels, frame f at offset f*X*Y*Z; the host runs
+ *    cl_work_items(params, dims) work-items (1-D, no local size).
+ *  - CDVR_CODEC_CL_FETCH: no dense volume on the device. The ray-cast kernel (and the brick
+ *    min/max kernel) read every voxel through the codec's fetch function:
+ *        uchar NAME(__global const uchar *payload, __constant uchar *params, int4 dims,
+ *                   int x, int y, int z)
+ *    dims = (X, Y, Z, frame within the chunk); 0 <= x < X, 0 <= y < Y, 0 <= z < Z. The
+ *    function must return exactly what the C decoder gives for that voxel.
+ *  The source is cl_source (text; what plugins use) or cl_file (a path under the kernel
+ *  directory, e.g. "codec/pvtc_decode.cl"). The params buffer holds the chunk's blob
+ *  (CDVR_CODEC_PARAMS_MAX bytes).
+ *
+ * Threads: every function of a codec table must be safe to call from several threads at
+ * once on different chunks (the encoder runs chunks in parallel).
+ */
+#ifndef CDVR_CODEC_H
+#define CDVR_CODEC_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+
+#include "cdvr/error.h"
+
+#define CDVR_CODEC_PARAMS_MAX 48  /* bytes of a parameter blob */
+#define CDVR_CODEC_NAME_MAX 16    /* codec names: 1..15 bytes of [a-z0-9_] */
+#define CDVR_VARIANT_NAME_MAX 32  /* variant names, NUL included */
+
+/* Built-in codec ids. Plugin codecs choose any other id below 2^31 (the store records it);
+ * a clash with a loaded codec is refused at registration. */
+#define CDVR_CODEC_ID_RAW 0u
+#define CDVR_CODEC_ID_PVTC 1u
+#define CDVR_CODEC_ID_HVQ 2u
+
+typedef struct cdvr_codec_params {
+    uint8_t bytes[CDVR_CODEC_PARAMS_MAX];
+} cdvr_codec_params;
+
+/* One parameter a codec accepts, for cdvr.codecs() and error messages. */
+typedef struct cdvr_codec_param_doc {
+    const char *key;          /* "S" */
+    const char *def;          /* default value as text: "4" */
+    const char *description;  /* "block depth: 1 or 4" */
+} cdvr_codec_param_doc;
+
+typedef struct cdvr_codec_shape {
+    size_t timesteps;         /* timesteps per chunk (>= 1) */
+    size_t payload_bytes;     /* exact payload bytes when fixed by the parameters, else 0 */
+    size_t bound_bytes;       /* worst-case payload bytes (>= payload_bytes) */
+} cdvr_codec_shape;
+
+typedef enum cdvr_codec_cl_mode {
+    CDVR_CODEC_CL_NONE = 0,
+    CDVR_CODEC_CL_DECODE = 1,
+    CDVR_CODEC_CL_FETCH = 2
+} cdvr_codec_cl_mode;
+
+typedef struct cdvr_codec cdvr_codec;
+
+struct cdvr_codec {
+    const char *name;                     /* registry key, e.g. "pvtc" */
+    uint32_t id;                          /* recorded in stores */
+    const char *description;              /* one line for cdvr.codecs() */
+    const cdvr_codec_param_doc *params;   /* accepted keys, terminated by {NULL} */
+
+    /* Fills p with the defaults (unused bytes 0). */
+    void (*params_default)(cdvr_codec_params *p);
+    /* Sets one parameter from text. Unknown key or bad value: CDVR_ERR_ARG with a message
+     * naming the key, the value and what is accepted. */
+    cdvr_status (*params_set)(cdvr_codec_params *p, const char *key, const char *value,
+                              cdvr_error *err);
+    /* Writes parameter `key` as text into out (n bytes); 0 on success, -1 for an unknown
+     * key. Numbers are written so that params_set reads them back unchanged. */
+    int (*params_get)(const cdvr_codec_params *p, const char *key, char *out, size_t n);
+    /* Validates a whole blob (from the user or from a file): CDVR_ERR_ARG naming the reason. */
+    cdvr_status (*params_check)(const cdvr_codec_params *p, cdvr_error *err);
+    /* Default variant name for these parameters ("S4T3s", "zfp2"), at most n-1 bytes. */
+    void (*variant_name)(const cdvr_codec_params *p, char *name, size_t n);
+
+    /* Chunk shape for frames of dims (each >= 1); CDVR_ERR_ARG / CDVR_ERR_NOMEM on bad
+     * parameters or sizes that overflow. */
+    cdvr_status (*shape)(const cdvr_codec_params *p, const size_t dims[3],
+                         cdvr_codec_shape *out, cdvr_error *err);
+    /* Encodes one chunk: frames[0 .. shape.timesteps) (count of them real) into out
+     * (out_cap >= shape.bound_bytes); *out_bytes = payload size (== shape.payload_bytes
+     * when that is fixed). */
+    cdvr_status (*encode)(const cdvr_codec_params *p, const size_t dims[3],
+                          const uint8_t *const *frames, size_t count, uint8_t *out,
+                          size_t out_cap, size_t *out_bytes, cdvr_error *err);
+    /* Decodes count frames (1 .. shape.timesteps) of a payload of in_bytes. */
+    cdvr_status (*decode)(const cdvr_codec_params *p, const size_t dims[3], const uint8_t *in,
+                          size_t in_bytes, uint8_t *const *frames, size_t count,
+                          cdvr_error *err);
+
+    /* OpenCL (see the top of this file); cl_mode CDVR_CODEC_CL_NONE leaves the rest NULL. */
+    cdvr_codec_cl_mode cl_mode;
+    const char *cl_source;                /* OpenCL C text, or NULL */
+    const char *cl_file;                  /* or a file under the kernel directory */
+    const char *cl_function;              /* decode kernel or fetch function name */
+    /* Decode mode: work-items to launch for a chunk of dims. */
+    size_t (*cl_work_items)(const cdvr_codec_params *p, const size_t dims[3]);
+};
+
+/* ---- registry ------------------------------------------------------------------------------
+ * One process-wide table of codecs (the codec registry context), guarded by a mutex: the
+ * built-ins are present from the start; plugins add theirs. Registered tables must stay
+ * valid until the process ends (plugins are never unloaded). */
+
+/* The codec called name, or NULL. */
+const cdvr_codec *cdvr_codec_find(const char *name);
+/* The codec with this id, or NULL. */
+const cdvr_codec *cdvr_codec_by_id(uint32_t id);
+/* Number of registered codecs, and the i-th (registration order, built-ins first). */
+size_t cdvr_codec_count(void);
+const cdvr_codec *cdvr_codec_at(size_t i);
+/* Adds a codec. Refused (CDVR_ERR_ARG) when the table lacks a required function, its name
+ * is not 1..15 bytes of [a-z0-9_], or its name or id is already registered (the message
+ * names the codec it clashes with). */
+cdvr_status cdvr_codec_register(const cdvr_codec *codec, cdvr_error *err);
+
+/* ---- helpers over a codec table ------------------------------------------------------------ */
+
+/* Defaults, then each key/value pair in order (keys[i] = values[i]); the result is checked. */
+cdvr_status cdvr_codec_params_parse(const cdvr_codec *codec, const char *const *keys,
+                                    const char *const *values, size_t n, cdvr_codec_params *out,
+                                    cdvr_error *err);
+/* 1 if the codec accepts key. */
+int cdvr_codec_has_param(const cdvr_codec *codec, const char *key);
+/* Shape, after params_check; errors are prefixed with the codec's name. */
+cdvr_status cdvr_codec_shape_of(const cdvr_codec *codec, const cdvr_codec_params *p,
+                                const size_t dims[3], cdvr_codec_shape *out, cdvr_error *err);
+
+/* Little-endian fields inside a parameter blob, for codec implementations (inline, so a
+ * plugin needs no symbol from libcdvr for them). Fields past the blob read 0 and are not
+ * written. */
+static inline uint32_t cdvr_params_get_u32(const cdvr_codec_params *p, size_t offset)
+{
+    uint32_t v = 0;
+    for (size_t i = 0; i < 4 && offset + i < CDVR_CODEC_PARAMS_MAX; i++)
+        v |= (uint32_t)p->bytes[offset + i] << (8 * i);
+    return v;
+}
+
+static inline void cdvr_params_set_u32(cdvr_codec_params *p, size_t offset, uint32_t v)
+{
+    for (size_t i = 0; i < 4 && offset + i < CDVR_CODEC_PARAMS_MAX; i++)
+        p->bytes[offset + i] = (uint8_t)(v >> (8 * i));
+}
+
+static inline double cdvr_params_get_f64(const cdvr_codec_params *p, size_t offset)
+{
+    uint64_t v = 0;
+    for (size_t i = 0; i < 8 && offset + i < CDVR_CODEC_PARAMS_MAX; i++)
+        v |= (uint64_t)p->bytes[offset + i] << (8 * i);
+    double d;
+    memcpy(&d, &v, sizeof d);
+    return d;
+}
+
+static inline void cdvr_params_set_f64(cdvr_codec_params *p, size_t offset, double d)
+{
+    uint64_t v;
+    memcpy(&v, &d, sizeof v);
+    for (size_t i = 0; i < 8 && offset + i < CDVR_CODEC_PARAMS_MAX; i++)
+        p->bytes[offset + i] = (uint8_t)(v >> (8 * i));
+}
+
+#endif
