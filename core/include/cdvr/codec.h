@@ -124,6 +124,15 @@ struct cdvr_codec {
                           size_t in_bytes, uint8_t *const *frames, size_t count,
                           cdvr_error *err);
 
+    /* Optional (may be NULL): figures about one stored payload for reports, e.g. the bytes of
+     * each part of an hvq chunk ("means", "codebook1", ...), "zero_blocks". st:info() sums
+     * them over a variant's chunks. Calls emit(ud, key, value) once per figure; keys are
+     * identifiers. Returns CDVR_OK, or an error for a payload it cannot read. */
+    cdvr_status (*describe)(const cdvr_codec_params *p, const size_t dims[3],
+                            const uint8_t *payload, size_t bytes,
+                            void (*emit)(void *ud, const char *key, double value), void *ud,
+                            cdvr_error *err);
+
     /* OpenCL (see the top of this file); cl_mode CDVR_CODEC_CL_NONE leaves the rest NULL. */
     cdvr_codec_cl_mode cl_mode;
     const char *cl_source;                /* OpenCL C text, or NULL */
