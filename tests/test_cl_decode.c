@@ -1,5 +1,6 @@
-/* tests/test_cl_decode.c - the PVTC decode kernel is bit-exact with cdvr_pvtc_decode_chunk on
- * every variant, odd dims, random chunks and encoded real data; raw chunks; bad arguments. */
+/* tests/test_cl_decode.c - codec decode kernels through the codec table (cdvr_cl_decode): the
+ * PVTC kernel is bit-exact with cdvr_pvtc_decode_chunk on every variant, odd dims, random chunks
+ * and encoded real data; raw chunks; host-decoded frames; bad arguments. */
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -36,7 +37,9 @@ static void compare_decoders(cdvr_cl_stream *s, const cdvr_pvtc_params *p, const
     CHECK_OK(st, err);
     st = cdvr_cl_upload(s, chunk, bytes, &err);
     CHECK_OK(st, err);
-    st = cdvr_cl_decode(s, CDVR_CODEC_PVTC, p, nframes, &err);
+    cdvr_codec_params blob;
+    cdvr_pvtc_params_to_blob(p, CDVR_ENCODER_LSQ, &blob);
+    st = cdvr_cl_decode(s, cdvr_codec_find("pvtc"), &blob, nframes, &err);
     CHECK_OK(st, err);
     for (size_t f = 0; f < nframes && st == CDVR_OK; f++) {
         memset(got, 0xA5, voxels);
@@ -116,26 +119,50 @@ static void raw_chunks(cdvr_cl *cl)
     CHECK_OK(st, err);
     if (st)
         return;
-    st = cdvr_cl_upload(s, payload, sizeof payload, &err);
+    const cdvr_codec *raw = cdvr_codec_find("raw"), *pvtc = cdvr_codec_find("pvtc");
+    cdvr_codec_params none;
+    raw->params_default(&none);
+    st = cdvr_cl_upload(s, payload, voxels, &err);
     CHECK_OK(st, err);
-    st = cdvr_cl_decode(s, CDVR_CODEC_RAW, NULL, 2, &err);
+    st = cdvr_cl_decode(s, raw, &none, 1, &err);
+    CHECK_OK(st, err);
+    st = cdvr_cl_download(s, 0, got, &err);
+    CHECK_OK(st, err);
+    CHECK(memcmp(got, payload, voxels) == 0, "raw frame differs");
+    /* frames decoded on the host */
+    st = cdvr_cl_upload_frames(s, payload, 2, &err);
     CHECK_OK(st, err);
     for (size_t f = 0; f < 2; f++) {
         st = cdvr_cl_download(s, f, got, &err);
         CHECK_OK(st, err);
-        CHECK(memcmp(got, payload + f * voxels, voxels) == 0, "raw frame %zu differs", f);
+        CHECK(memcmp(got, payload + f * voxels, voxels) == 0, "uploaded frame %zu differs", f);
     }
+    CHECK(cdvr_cl_volume_bytes(s) == 2 * voxels, "volume bytes %llu",
+          (unsigned long long)cdvr_cl_volume_bytes(s));
     /* misuse: wrong sizes, counts, codecs and frames give errors, not crashes */
-    st = cdvr_cl_decode(s, CDVR_CODEC_RAW, NULL, 3, &err);
+    st = cdvr_cl_upload(s, payload, sizeof payload, &err);
+    CHECK_OK(st, err);
+    st = cdvr_cl_decode(s, raw, &none, 2, &err);
     CHECK(st == CDVR_ERR_ARG, "raw count mismatch: status %d", (int)st);
+    st = cdvr_cl_decode(s, raw, &none, 1, &err);
+    CHECK(st == CDVR_ERR_ARG && strstr(err.msg, "bytes"), "raw size mismatch: %s", err.msg);
     cdvr_pvtc_params p = {4, 3, CDVR_PACK_TIME};
-    st = cdvr_cl_decode(s, CDVR_CODEC_PVTC, &p, 1, &err);
+    cdvr_codec_params blob;
+    cdvr_pvtc_params_to_blob(&p, CDVR_ENCODER_LSQ, &blob);
+    st = cdvr_cl_decode(s, pvtc, &blob, 1, &err);
     CHECK(st == CDVR_ERR_ARG && strstr(err.msg, "bytes"), "pvtc size mismatch: %s", err.msg);
     p.S = 2;
-    st = cdvr_cl_decode(s, CDVR_CODEC_PVTC, &p, 1, &err);
+    cdvr_pvtc_params_to_blob(&p, CDVR_ENCODER_LSQ, &blob);
+    st = cdvr_cl_decode(s, pvtc, &blob, 1, &err);
     CHECK(st == CDVR_ERR_ARG, "bad S: status %d", (int)st);
-    st = cdvr_cl_decode(s, CDVR_CODEC_PLUGIN, NULL, 1, &err);
-    CHECK(st == CDVR_ERR_UNSUPPORTED, "plugin codec: status %d", (int)st);
+    static cdvr_codec cpu_only;
+    cpu_only = *raw;
+    cpu_only.name = "cpu_only_test";
+    cpu_only.cl_mode = CDVR_CODEC_CL_NONE;
+    st = cdvr_cl_upload(s, payload, voxels, &err);
+    CHECK_OK(st, err);
+    st = cdvr_cl_decode(s, &cpu_only, &none, 1, &err);
+    CHECK(st == CDVR_ERR_UNSUPPORTED, "codec without device code: status %d", (int)st);
     st = cdvr_cl_download(s, 0, got, &err);
     CHECK(st == CDVR_ERR_ARG, "download after failed decode: status %d", (int)st);
     st = cdvr_cl_upload(s, payload, 0, &err);

@@ -119,9 +119,9 @@ static void cache_and_build(const char *src_kernels, const char *work)
     snprintf(kdir, sizeof kdir, "%s/kernels", work);
     snprintf(cdir, sizeof cdir, "%s/cache", work);
     char cmd[2400];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s/codec' '%s/render'", work, kdir, kdir);
+    snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s/common' '%s/render'", work, kdir, kdir);
     CHECK(system(cmd) == 0, "%s", cmd);
-    const char *files[] = {"codec/pvtc_decode.cl", "render/bricks.cl", "render/raycast.cl"};
+    const char *files[] = {"common/cl_shared.h", "render/bricks.cl", "render/raycast.cl"};
     for (int i = 0; i < 3; i++) {
         snprintf(from, sizeof from, "%s/%s", src_kernels, files[i]);
         snprintf(path, sizeof path, "%s/%s", kdir, files[i]);

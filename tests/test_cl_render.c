@@ -45,9 +45,7 @@ static cdvr_status upload_volume(cdvr_cl *cl, const cdvr_volume *vol, cdvr_cl_st
 {
     cdvr_status st = cdvr_cl_stream_create(cl, vol->dims, out, err);
     if (!st)
-        st = cdvr_cl_upload(*out, vol->data, cdvr_volume_voxels(vol), err);
-    if (!st)
-        st = cdvr_cl_decode(*out, CDVR_CODEC_RAW, NULL, 1, err);
+        st = cdvr_cl_upload_frames(*out, vol->data, 1, err);
     return st;
 }
 
@@ -218,8 +216,8 @@ static void synthetic_scenes(cdvr_cl *cl)
     CHECK(check_scene(&sc) == 0.0, "zero opacity TF shows something");
     size_t visible = 1, total = 0;
     cdvr_cl_brick_counts(sc.stream, &visible, &total);
-    size_t expect = ((40 + CDVR_CL_BRICK - 1) / CDVR_CL_BRICK) * ((33 + CDVR_CL_BRICK - 1) / CDVR_CL_BRICK) *
-                    ((27 + CDVR_CL_BRICK - 1) / CDVR_CL_BRICK);
+    size_t B = cdvr_cl_brick_edge();
+    size_t expect = ((40 + B - 1) / B) * ((33 + B - 1) / B) * ((27 + B - 1) / B);
     CHECK(visible == 0 && total == expect, "zero opacity: %zu of %zu bricks visible (grid %zu)",
           visible, total, expect);
     const cdvr_tf_point opaque[] = {{0, .5, .5, .5, 1}, {255, 1, 1, 1, 1}};
@@ -333,9 +331,7 @@ static void misuse(cdvr_cl *cl)
     st = cdvr_cl_render(s, 0, &opts, spacing, origin, img, &err);
     CHECK(st == CDVR_ERR_ARG && strstr(err.msg, "setup"), "render before setup: %s", err.msg);
     uint8_t zeros[512] = {0};
-    st = cdvr_cl_upload(s, zeros, sizeof zeros, &err);
-    if (!st)
-        st = cdvr_cl_decode(s, CDVR_CODEC_RAW, NULL, 1, &err);
+    st = cdvr_cl_upload_frames(s, zeros, 1, &err);
     if (!st)
         st = cdvr_cl_setup(s, 0, &tf, &err);
     CHECK_OK(st, err);

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "check.h"
+#include "spec.h"
 #include "cdvr/pvtc.h"
 #include "cdvr/store.h"
 #include "cdvr/volume.h"
@@ -153,14 +154,10 @@ static int make_store_seed(bytes *seed, uint8_t mode)
 {
     cdvr_variant_spec specs[4];
     memset(specs, 0, sizeof specs);
-    specs[0] = (cdvr_variant_spec){"", CDVR_CODEC_PVTC, {1, 3, CDVR_PACK_TIME}, CDVR_ENCODER_BBOX,
-                                   CDVR_STAGE2_LZO, 0.0};
-    specs[1] = (cdvr_variant_spec){"", CDVR_CODEC_PVTC, {4, 2, CDVR_PACK_SPACE},
-                                   CDVR_ENCODER_BBOX, CDVR_STAGE2_LZO, 0.0};
-    specs[2] = (cdvr_variant_spec){"", CDVR_CODEC_RAW, {0, 0, CDVR_PACK_TIME}, CDVR_ENCODER_LSQ,
-                                   CDVR_STAGE2_LZO, 0.0};
-    specs[3] = (cdvr_variant_spec){"", CDVR_CODEC_PVTC, {4, 3, CDVR_PACK_TIME},
-                                   CDVR_ENCODER_BBOX, CDVR_STAGE2_NONE, -1.0};
+    specs[0] = spec_pvtc(1, 3, CDVR_PACK_TIME, CDVR_ENCODER_BBOX, CDVR_STAGE2_LZO, 0.0);
+    specs[1] = spec_pvtc(4, 2, CDVR_PACK_SPACE, CDVR_ENCODER_BBOX, CDVR_STAGE2_LZO, 0.0);
+    specs[2] = spec_codec("raw", CDVR_STAGE2_LZO, 0.0);
+    specs[3] = spec_pvtc(4, 3, CDVR_PACK_TIME, CDVR_ENCODER_BBOX, CDVR_STAGE2_NONE, -1.0);
     cdvr_encode_opts opts = {.variants = specs, .nvariants = 4, .qlo = 0, .qhi = 1,
                              .source_type = CDVR_TYPE_U8};
     cdvr_volume *vol = make_series();

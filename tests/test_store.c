@@ -2,6 +2,7 @@
  * several variants per store, schedules, stage-2 decisions, every corruption, failed writes. */
 #include "check.h"
 
+#include "cdvr/pvtc.h"
 #include "store/store_format.h"
 
 #include <dirent.h>
@@ -70,13 +71,25 @@ static cdvr_volume *make_series(size_t x, size_t y, size_t z, size_t t)
     return v;
 }
 
+enum { RAW, PVTC };
+
+static cdvr_pvtc_params pvtc_of(const cdvr_codec_params *blob, cdvr_pvtc_encoder *enc)
+{
+    cdvr_pvtc_params p;
+    cdvr_pvtc_params_from_blob(blob, &p, enc);
+    return p;
+}
+
 /* Direct reference: encode the group holding t with the pvtc codec and decode frame t. */
-static int reference_frame(const cdvr_volume *u8, const cdvr_chunk_info *ci,
-                           cdvr_pvtc_encoder enc, size_t t, uint8_t *out)
+static int reference_frame(const cdvr_volume *u8, const cdvr_chunk_info *ci, size_t t,
+                           uint8_t *out)
 {
     cdvr_pvtc_geometry g;
     cdvr_error err;
-    if (cdvr_pvtc_geometry_get(&ci->pvtc, u8->dims, &g, &err) != CDVR_OK)
+    cdvr_pvtc_encoder enc;
+    cdvr_pvtc_params pp = pvtc_of(&ci->params, &enc);
+    const cdvr_pvtc_params *p = &pp;
+    if (cdvr_pvtc_geometry_get(p, u8->dims, &g, &err) != CDVR_OK)
         return 0;
     const uint8_t *in[3];
     for (size_t i = 0; i < g.frames; i++)
@@ -86,19 +99,25 @@ static int reference_frame(const cdvr_volume *u8, const cdvr_chunk_info *ci,
     uint8_t *scratch = malloc(voxels * 3), *frames[3];
     for (size_t i = 0; i < ci->count; i++)
         frames[i] = i == t - ci->t0 ? out : scratch + i * voxels;
-    int ok = cdvr_pvtc_encode_chunk(&ci->pvtc, enc, u8->dims, in, bytes, &err) == CDVR_OK &&
-             cdvr_pvtc_decode_chunk(&ci->pvtc, u8->dims, bytes, g.chunk_bytes, frames, ci->count,
+    int ok = cdvr_pvtc_encode_chunk(p, enc, u8->dims, in, bytes, &err) == CDVR_OK &&
+             cdvr_pvtc_decode_chunk(p, u8->dims, bytes, g.chunk_bytes, frames, ci->count,
                                     &err) == CDVR_OK;
     free(bytes);
     free(scratch);
     return ok;
 }
 
-static cdvr_variant_spec spec(const char *name, cdvr_codec_id codec, int S, int T, cdvr_pack pack,
+static cdvr_variant_spec spec(const char *name, int codec, int S, int T, cdvr_pack pack,
                               cdvr_pvtc_encoder enc, cdvr_stage2 stage2)
 {
-    cdvr_variant_spec s = {.codec = codec, .pvtc = {S, T, pack}, .encoder = enc,
+    cdvr_variant_spec s = {.codec = cdvr_codec_find(codec == RAW ? "raw" : "pvtc"),
                            .stage2 = stage2, .lzo_min_saving = -1};
+    if (codec == RAW) {
+        s.codec->params_default(&s.params);
+    } else {
+        cdvr_pvtc_params p = {S, T, pack};
+        cdvr_pvtc_params_to_blob(&p, enc, &s.params);
+    }
     snprintf(s.name, sizeof s.name, "%s", name);
     return s;
 }
@@ -130,10 +149,10 @@ static void check_store_against_codec(const cdvr_store *st, const cdvr_volume *u
                 continue;
             const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, cdvr_store_chunk_for_time(st, v, t));
             const uint8_t *orig = cdvr_volume_frame(u8, t);
-            if (vi->codec == CDVR_CODEC_RAW)
+            if (strcmp(vi->codec_name, "raw") == 0)
                 memcpy(ref, orig, voxels);
             else
-                CHECK(reference_frame(u8, ci, vi->encoder, t, ref), "%s: reference", what);
+                CHECK(reference_frame(u8, ci, t, ref), "%s: reference", what);
             same &= memcmp(ref, d->data, voxels) == 0;
             for (size_t k = 0; k < voxels; k++) {
                 double e = (double)orig[k] - ((uint8_t *)d->data)[k];
@@ -158,8 +177,9 @@ static void check_chunk_layout(const cdvr_store *st, size_t v, size_t timesteps)
     size_t next = 0;
     for (size_t c = 0; c < vi->nchunks; c++) {
         const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, c);
-        size_t group = vi->codec == CDVR_CODEC_PVTC && ci->pvtc.pack == CDVR_PACK_TIME
-                           ? (size_t)ci->pvtc.T : 1;
+        cdvr_codec_shape shape;
+        size_t group = cdvr_codec_shape_of(ci->codec, &ci->params, cdvr_store_get_info(st)->dims,
+                                           &shape, NULL) == CDVR_OK ? shape.timesteps : 0;
         size_t want = timesteps - next < group ? timesteps - next : group;
         CHECK(ci->t0 == next && ci->count == want, "%s chunk %zu: t0 %zu count %zu", vi->name,
               c + 1, ci->t0, ci->count);
@@ -175,12 +195,12 @@ static void test_hard_case_round_trips(void)
     const size_t dims[][3] = {{1, 1, 1}, {5, 3, 7}, {8, 4, 9}};
     const size_t steps[] = {1, 2, 4, 5};
     cdvr_variant_spec vs[] = {
-        spec("", CDVR_CODEC_PVTC, 4, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO),
-        spec("", CDVR_CODEC_PVTC, 1, 2, CDVR_PACK_TIME, CDVR_ENCODER_BBOX, CDVR_STAGE2_NONE),
-        spec("", CDVR_CODEC_PVTC, 1, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE),
-        spec("", CDVR_CODEC_PVTC, 4, 2, CDVR_PACK_SPACE, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO),
-        spec("", CDVR_CODEC_PVTC, 1, 3, CDVR_PACK_SPACE, CDVR_ENCODER_BBOX, CDVR_STAGE2_LZO),
-        spec("", CDVR_CODEC_RAW, 0, 0, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO),
+        spec("", PVTC, 4, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO),
+        spec("", PVTC, 1, 2, CDVR_PACK_TIME, CDVR_ENCODER_BBOX, CDVR_STAGE2_NONE),
+        spec("", PVTC, 1, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE),
+        spec("", PVTC, 4, 2, CDVR_PACK_SPACE, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO),
+        spec("", PVTC, 1, 3, CDVR_PACK_SPACE, CDVR_ENCODER_BBOX, CDVR_STAGE2_LZO),
+        spec("", RAW, 0, 0, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO),
     };
     const char *names[] = {"S4T3", "S1T2", "S1T3", "S4T2s", "S1T3s", "raw"};
     size_t nv = sizeof vs / sizeof *vs;
@@ -220,23 +240,26 @@ typedef struct sched_log {
     size_t t0s[64];
 } sched_log;
 
-static cdvr_status alternate_T(void *ud, size_t variant, size_t t0, cdvr_pvtc_params *p,
+static cdvr_status alternate_T(void *ud, size_t variant, size_t t0, cdvr_codec_params *blob,
                                cdvr_error *err)
 {
     (void)err;
     sched_log *log = ud;
     if (variant == 0 && log->calls < 64)
         log->t0s[log->calls++] = t0;
-    p->T = (t0 / 5) % 2 ? 2 : 3; /* groups at t0 = 0 (T3), 3 (T3), 6 (T2), 8 (T2), 10 (T3) */
+    cdvr_pvtc_encoder enc;
+    cdvr_pvtc_params p = pvtc_of(blob, &enc);
+    p.T = (t0 / 5) % 2 ? 2 : 3; /* groups at t0 = 0 (T3), 3 (T3), 6 (T2), 8 (T2), 10 (T3) */
     if (t0 >= 12)
-        p->S = 1;
+        p.S = 1;
+    cdvr_pvtc_params_to_blob(&p, enc, blob);
     return CDVR_OK;
 }
 
 static void test_schedule(void)
 {
     cdvr_variant_spec vs[] = {
-        spec("sched", CDVR_CODEC_PVTC, 4, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO)};
+        spec("sched", PVTC, 4, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO)};
     cdvr_encode_opts o = opts_for(vs, 1);
     sched_log log = {0};
     o.schedule = alternate_T;
@@ -255,9 +278,10 @@ static void test_schedule(void)
               cdvr_store_variant(st, 0)->nchunks);
         for (size_t c = 0; c < 6 && c < cdvr_store_variant(st, 0)->nchunks; c++) {
             const cdvr_chunk_info *ci = cdvr_store_chunk(st, 0, c);
-            CHECK(ci->t0 == want_t0[c] && ci->pvtc.T == want_T[c] && ci->pvtc.S == want_S[c] &&
-                  log.t0s[c] == want_t0[c], "chunk %zu: t0 %zu S%d T%d", c + 1, ci->t0,
-                  ci->pvtc.S, ci->pvtc.T);
+            cdvr_pvtc_params p = pvtc_of(&ci->params, NULL);
+            CHECK(ci->t0 == want_t0[c] && p.T == want_T[c] && p.S == want_S[c] &&
+                  log.t0s[c] == want_t0[c], "chunk %zu: t0 %zu S%d T%d", c + 1, ci->t0, p.S,
+                  p.T);
         }
         CHECK(cdvr_store_chunk(st, 0, 5)->count == 1, "last group padded");
         check_store_against_codec(st, u8, "schedule");
@@ -279,9 +303,9 @@ static void test_stage2_decisions(void)
         noisy[i] = (uint8_t)(seed >> 24);
     }
     cdvr_variant_spec vs[] = {
-        spec("lzo", CDVR_CODEC_RAW, 0, 0, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO),
-        spec("never", CDVR_CODEC_RAW, 0, 0, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO),
-        spec("none", CDVR_CODEC_PVTC, 1, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE)};
+        spec("lzo", RAW, 0, 0, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO),
+        spec("never", RAW, 0, 0, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO),
+        spec("none", PVTC, 1, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE)};
     vs[1].lzo_min_saving = 1.0;
     cdvr_encode_opts o = opts_for(vs, 3);
     const cdvr_volume *inputs[] = {flat, noise};
@@ -321,19 +345,19 @@ static void test_bad_requests(void)
     cdvr_volume *u8 = make_series(4, 4, 4, 3);
     cdvr_error err;
     cdvr_variant_spec dup[] = {
-        spec("a", CDVR_CODEC_PVTC, 4, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE),
-        spec("a", CDVR_CODEC_RAW, 0, 0, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE)};
+        spec("a", PVTC, 4, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE),
+        spec("a", RAW, 0, 0, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE)};
     cdvr_encode_opts o = opts_for(dup, 2);
     const char *path = tmp_path("bad.cdv");
     CHECK(cdvr_store_encode(u8, &o, path, &err) == CDVR_ERR_ARG && strstr(err.msg, "a"),
           "duplicate names: %s", err.msg);
-    dup[1] = spec("", CDVR_CODEC_PVTC, 3, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE);
+    dup[1] = spec("", PVTC, 3, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE);
     CHECK(cdvr_store_encode(u8, &o, path, &err) != CDVR_OK, "S=3 accepted");
-    dup[1] = spec("", CDVR_CODEC_PVTC, 4, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE);
+    dup[1] = spec("", PVTC, 4, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE);
     CHECK(cdvr_store_encode(u8, &o, path, &err) == CDVR_OK, "S4T3 + a: %s", err.msg);
     o.progress = count_progress;
     progress_calls = 0;
-    dup[1] = spec("", CDVR_CODEC_RAW, 0, 0, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE);
+    dup[1] = spec("", RAW, 0, 0, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE);
     CHECK_OK(cdvr_store_encode(u8, &o, path, &err), err);
     CHECK(progress_calls == 4 && progress_total == 4, "progress %zu of %zu", progress_calls,
           progress_total);
@@ -347,7 +371,7 @@ static void test_bad_requests(void)
     unlink(path);
 }
 
-static cdvr_status fail_late(void *ud, size_t variant, size_t t0, cdvr_pvtc_params *p,
+static cdvr_status fail_late(void *ud, size_t variant, size_t t0, cdvr_codec_params *p,
                              cdvr_error *err)
 {
     (void)ud;
@@ -371,8 +395,8 @@ static void test_failed_writes(void)
     cdvr_volume *u8 = make_series(6, 5, 4, 6);
     cdvr_error err;
     cdvr_variant_spec vs[] = {
-        spec("", CDVR_CODEC_PVTC, 1, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO),
-        spec("", CDVR_CODEC_PVTC, 4, 2, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO)};
+        spec("", PVTC, 1, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO),
+        spec("", PVTC, 4, 2, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO)};
     cdvr_encode_opts o = opts_for(vs, 2);
     /* missing directory */
     CHECK(cdvr_store_encode(u8, &o, tmp_path("no/such/dir.cdv"), &err) == CDVR_ERR_IO,
@@ -462,9 +486,9 @@ static void test_corruption(void)
     cdvr_volume *u8 = make_series(16, 8, 7, 4);
     cdvr_error err;
     cdvr_variant_spec vs[] = {
-        spec("", CDVR_CODEC_PVTC, 1, 2, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO),
-        spec("", CDVR_CODEC_PVTC, 4, 3, CDVR_PACK_SPACE, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE),
-        spec("", CDVR_CODEC_RAW, 0, 0, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO)};
+        spec("", PVTC, 1, 2, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO),
+        spec("", PVTC, 4, 3, CDVR_PACK_SPACE, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE),
+        spec("", RAW, 0, 0, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO)};
     vs[0].lzo_min_saving = 0.0;
     vs[2].lzo_min_saving = 0.0;
     cdvr_encode_opts o = opts_for(vs, 3);
@@ -514,9 +538,9 @@ static void test_forged_metadata(void)
     cdvr_volume *u8 = make_series(6, 5, 9, 5);
     cdvr_error err;
     cdvr_variant_spec vs[] = {
-        spec("", CDVR_CODEC_PVTC, 4, 3, CDVR_PACK_TIME, CDVR_ENCODER_BBOX, CDVR_STAGE2_LZO),
-        spec("", CDVR_CODEC_PVTC, 1, 2, CDVR_PACK_SPACE, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO),
-        spec("", CDVR_CODEC_RAW, 0, 0, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE)};
+        spec("", PVTC, 4, 3, CDVR_PACK_TIME, CDVR_ENCODER_BBOX, CDVR_STAGE2_LZO),
+        spec("", PVTC, 1, 2, CDVR_PACK_SPACE, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO),
+        spec("", RAW, 0, 0, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE)};
     vs[0].lzo_min_saving = 0.0;
     cdvr_encode_opts o = opts_for(vs, 3);
     const char *good = tmp_path("forge.cdv"), *bad = tmp_path("forged.cdv");
@@ -554,6 +578,188 @@ static void test_forged_metadata(void)
     unlink(good);
 }
 
+/* ---- format version 1, bricks, codecs that are not loaded -------------------------------- */
+
+/* tests/data/v1_store.cdv was written by the format-version-1 cdvr (commit fc44fca), with the
+ * decoded timesteps of each variant beside it (v1_store_<variant>.u8): it must still open and
+ * decode bit for bit. */
+static void test_version1(void)
+{
+    const char *src = getenv("CDVR_SOURCE_DIR");
+    char path[1024];
+    snprintf(path, sizeof path, "%s/tests/data/v1_store.cdv", src ? src : "..");
+    cdvr_store *st = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_store_open(path, &st, &err), err);
+    if (!st)
+        return;
+    const cdvr_store_info *in = cdvr_store_get_info(st);
+    CHECK(in->version == 1 && in->dims[0] == 9 && in->dims[1] == 7 && in->dims[2] == 5 &&
+              in->timesteps == 5 && in->nvariants == 4 && in->nbricks == 1 &&
+              in->direction[0] == 1 && in->direction[4] == 1 && in->direction[8] == 1,
+          "v1 header");
+    const char *names[] = {"S4T3", "S1T2s", "raw", "S1T3"};
+    const double psnr[] = {24.47592375977, 35.761913662352, HUGE_VAL, 36.828793775913};
+    for (size_t v = 0; v < 4; v++) {
+        const cdvr_variant_info *vi = cdvr_store_variant(st, v);
+        CHECK(strcmp(vi->name, names[v]) == 0 && vi->codec != NULL, "v1 variant %zu: %s", v,
+              vi->name);
+        CHECK(isinf(psnr[v]) ? isinf(vi->psnr) : fabs(vi->psnr - psnr[v]) < 1e-9,
+              "v1 %s psnr %g", vi->name, vi->psnr);
+        char ref_path[1100];
+        snprintf(ref_path, sizeof ref_path, "%s/tests/data/v1_store_%s.u8", src ? src : "..",
+                 names[v]);
+        FILE *f = fopen(ref_path, "rb");
+        CHECK(f != NULL, "%s", ref_path);
+        uint8_t ref[9 * 7 * 5];
+        for (size_t t = 0; f && t < 5; t++) {
+            cdvr_volume *d = NULL;
+            CHECK(fread(ref, 1, sizeof ref, f) == sizeof ref, "%s short", ref_path);
+            CHECK_OK(cdvr_store_decode(st, v, t, &d, &err), err);
+            CHECK(d && memcmp(d->data, ref, sizeof ref) == 0, "v1 %s t=%zu differs", names[v],
+                  t + 1);
+            cdvr_volume_free(d);
+        }
+        if (f)
+            fclose(f);
+    }
+    cdvr_store_close(st);
+}
+
+/* Bricked stores: every brick encoded on its own (with the shared boundary voxel), assembled
+ * on decode; raw bricks give back the volume exactly; the recorded PSNR is that of the
+ * assembled volumes; reading one brick reads only its chunk. */
+static void test_bricks(void)
+{
+    cdvr_volume *u8 = make_series(13, 9, 11, 5);
+    for (size_t i = 0; i < 9; i++)
+        u8->direction[i] = i == 1 ? -1 : i == 3 ? 1 : i == 8 ? 1 : 0; /* x->y, y->-x */
+    u8->origin[0] = 3.5;
+    u8->spacing[2] = 2.25;
+    cdvr_variant_spec vs[] = {
+        spec("", PVTC, 1, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO),
+        spec("", RAW, 0, 0, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE),
+        spec("", PVTC, 4, 2, CDVR_PACK_SPACE, CDVR_ENCODER_BBOX, CDVR_STAGE2_NONE)};
+    cdvr_encode_opts o = opts_for(vs, 3);
+    o.bricks[0] = 3;
+    o.bricks[1] = 2;
+    o.bricks[2] = 2;
+    cdvr_error err;
+    const char *path = tmp_path("bricks.cdv");
+    cdvr_store *st = NULL;
+    CHECK_OK(cdvr_store_encode(u8, &o, path, &err), err);
+    CHECK_OK(cdvr_store_open(path, &st, &err), err);
+    if (st) {
+        const cdvr_store_info *in = cdvr_store_get_info(st);
+        CHECK(in->nbricks == 12 && in->bricks[0] == 3 && in->direction[1] == -1 &&
+              in->origin[0] == 3.5 && in->spacing[2] == 2.25, "bricked header");
+        size_t lo[3], bd[3];
+        cdvr_store_brick_box(in, 2, lo, bd); /* along x: cells 12 / 3 -> 0, 4, 8, 12 */
+        CHECK(lo[0] == 8 && bd[0] == 5 && lo[1] == 0 && bd[1] == 5, "brick 3 box %zu+%zu",
+              lo[0], bd[0]);
+        CHECK(cdvr_store_variant(st, 0)->nchunks == 2 * 12 &&
+              cdvr_store_variant(st, 1)->nchunks == 5 * 12, "chunks per variant");
+        for (size_t c = 0; c < cdvr_store_variant(st, 1)->nchunks; c++) {
+            const cdvr_chunk_info *ci = cdvr_store_chunk(st, 1, c);
+            cdvr_store_brick_box(in, ci->brick, lo, bd);
+            CHECK(ci->brick == c % 12 && ci->payload_bytes == bd[0] * bd[1] * bd[2],
+                  "raw brick chunk %zu", c);
+            CHECK(cdvr_store_chunk_for(st, 1, ci->t0, ci->brick) == c, "chunk_for");
+        }
+        for (size_t v = 0; v < 3; v++) {
+            double sse = 0;
+            for (size_t t = 0; t < 5; t++) {
+                cdvr_volume *d = NULL;
+                CHECK_OK(cdvr_store_decode(st, v, t, &d, &err), err);
+                if (!d)
+                    continue;
+                CHECK(d->direction[1] == -1 && d->origin[0] == 3.5, "decoded geometry");
+                const uint8_t *orig = cdvr_volume_frame(u8, t), *got = d->data;
+                for (size_t k = 0; k < cdvr_volume_voxels(u8); k++)
+                    sse += ((double)orig[k] - got[k]) * ((double)orig[k] - got[k]);
+                cdvr_volume_free(d);
+            }
+            double mse = sse / (double)in->raw_bytes;
+            double psnr = mse > 0 ? 10 * log10(255.0 * 255.0 / mse) : HUGE_VAL;
+            const cdvr_variant_info *vi = cdvr_store_variant(st, v);
+            CHECK(v == 1 ? (isinf(vi->psnr) && sse == 0) : fabs(psnr - vi->psnr) < 1e-9,
+                  "bricked %s: psnr %g recorded %g", vi->name, psnr, vi->psnr);
+        }
+        cdvr_store_close(st);
+    }
+    o.bricks[0] = 13; /* more bricks than cells */
+    CHECK(cdvr_store_encode(u8, &o, path, &err) == CDVR_ERR_ARG && strstr(err.msg, "bricks"),
+          "too many bricks: %s", err.msg);
+    cdvr_volume_free(u8);
+    unlink(path);
+}
+
+/* A store naming a codec that is not loaded opens, lists it, and fails to decode only that
+ * variant, with the message users act on. */
+static void test_codec_not_loaded(void)
+{
+    static cdvr_codec fake;
+    fake = *cdvr_codec_find("raw");
+    fake.name = "fakeplug";
+    fake.id = 4242;
+    cdvr_error err;
+    CHECK_OK(cdvr_codec_register(&fake, &err), err);
+    cdvr_volume *u8 = make_series(6, 5, 4, 3);
+    cdvr_variant_spec vs[] = {
+        spec("", PVTC, 1, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE),
+        spec("plug", RAW, 0, 0, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE)};
+    vs[1].codec = &fake;
+    cdvr_encode_opts o = opts_for(vs, 2);
+    const char *path = tmp_path("plug.cdv");
+    CHECK_OK(cdvr_store_encode(u8, &o, path, &err), err);
+    /* rename the codec in the file (id and name), as if written with a plugin not loaded here */
+    size_t n;
+    uint8_t *bytes = read_file(path, &n);
+    cdvr_store *st = NULL;
+    CHECK_OK(cdvr_store_open(path, &st, &err), err);
+    size_t meta = st ? (size_t)cdvr_store_meta_bytes(2, st->nchunks_total) : 0;
+    size_t first_chunk = st ? st->chunk_first[1] : 0, nchunks = st ? st->variants[1].nchunks : 0;
+    cdvr_store_close(st);
+    uint8_t *var = bytes + CDVR_STORE_HEADER_BYTES + CDVR_STORE_VARIANT_BYTES;
+    memset(var + 32, 0, 16);
+    memcpy(var + 32, "zfpx", 4);
+    uint32_t id = 31337;
+    for (int b = 0; b < 4; b++)
+        var[48 + b] = (uint8_t)(id >> (8 * b));
+    for (size_t c = 0; c < nchunks; c++) {
+        uint8_t *rec = bytes + CDVR_STORE_HEADER_BYTES + 2 * CDVR_STORE_VARIANT_BYTES +
+                       (first_chunk + c) * CDVR_STORE_CHUNK_BYTES;
+        for (int b = 0; b < 4; b++)
+            rec[20 + b] = (uint8_t)(id >> (8 * b));
+    }
+    uint32_t crc = cdvr_crc32c(0, bytes, meta);
+    for (int b = 0; b < 4; b++)
+        bytes[meta + b] = (uint8_t)(crc >> (8 * b));
+    const char *renamed = tmp_path("plug2.cdv");
+    write_file(renamed, bytes, n);
+    CHECK_OK(cdvr_store_open(renamed, &st, &err), err);
+    if (st) {
+        const cdvr_variant_info *vi = cdvr_store_variant(st, 1);
+        CHECK(vi->codec == NULL && strcmp(vi->codec_name, "zfpx") == 0, "listed, not loaded");
+        cdvr_volume *d = NULL;
+        CHECK_OK(cdvr_store_decode(st, 0, 1, &d, &err), err);
+        cdvr_volume_free(d);
+        d = NULL;
+        CHECK(cdvr_store_decode(st, 1, 1, &d, &err) == CDVR_ERR_UNSUPPORTED && !d &&
+                  strstr(err.msg, "codec 'zfpx'") &&
+                  strstr(err.msg, "is not loaded (load its plugin: cdvr.plugin.load)") &&
+                  strstr(err.msg, renamed),
+              "not loaded: %s", err.msg);
+        const cdvr_codec *c;
+        CHECK(cdvr_store_variant_codec(st, 1, &c, &err) == CDVR_ERR_UNSUPPORTED, "variant codec");
+        cdvr_store_close(st);
+    }
+    free(bytes);
+    cdvr_volume_free(u8);
+    unlink(path);
+    unlink(renamed);
+}
+
 int main(void)
 {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/cdvr_test_store_XXXXXX");
@@ -568,6 +774,9 @@ int main(void)
     test_failed_writes();
     test_corruption();
     test_forged_metadata();
+    test_version1();
+    test_bricks();
+    test_codec_not_loaded();
     rmdir(tmpdir);
     return check_finish();
 }

@@ -73,6 +73,7 @@ cdvr_status cdvr_volume_quantize(const cdvr_volume *in, double lo, double hi, cd
         return st;
     memcpy((*out)->spacing, in->spacing, sizeof in->spacing);
     memcpy((*out)->origin, in->origin, sizeof in->origin);
+    memcpy((*out)->direction, in->direction, sizeof in->direction);
     window w = make_window(lo, hi);
     uint8_t *dst = (*out)->data;
     size_t count = cdvr_volume_voxels(in) * in->timesteps;

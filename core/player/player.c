@@ -19,18 +19,26 @@
 #include "cdvr/device.h"
 #endif
 
+/* One chunk of a group: the group's chunk of one brick. */
+typedef struct chunk_part {
+    size_t chunk;
+    uint8_t *stored, *payload;
+    size_t stored_cap, payload_cap;
+} chunk_part;
+
+/* A chunk group in flight: the chunks of every brick for the same timesteps. */
 typedef struct chunk_item {
     int variant;
-    size_t chunk;
-    size_t t_begin, t_end;   /* timesteps of this chunk to render */
+    size_t chunk;            /* chunk index of brick 0 of the group */
+    size_t t_begin, t_end;   /* timesteps of this group to render */
     size_t frame0;           /* frame number of t_begin */
     int group_start;
     char reason[160];
-    uint8_t *stored, *payload;
-    size_t stored_cap, payload_cap;
     double read_ms, unzip_ms;
-    cdvr_error err;          /* status != OK: the chunk failed (rows get the error) */
+    uint64_t stored_bytes, payload_bytes;
+    cdvr_error err;          /* status != OK: the group failed (rows get the error) */
     struct chunk_item *next;
+    chunk_part *parts;       /* nbricks */
 } chunk_item;
 
 typedef struct item_queue {
@@ -42,6 +50,8 @@ struct cdvr_player {
     cdvr_player_opts opts;
     size_t group_len;
     size_t voxels;           /* per frame */
+    size_t nbricks;
+    size_t stopped_early;    /* frames of the last run not played (end of series, no loop) */
 
     /* run state */
     size_t first, frames;
@@ -65,8 +75,10 @@ struct cdvr_player {
     int current_variant;
 
     /* device */
-    uint8_t *host_frames;    /* cpu device: decoded frames of one chunk */
+    uint8_t *host_frames;    /* decoded frames of one group (cpu device, host decode) */
     size_t host_frames_cap;
+    uint8_t *brick_frames;   /* scratch: decoded frames of one brick */
+    size_t brick_frames_cap;
 #if CDVR_HAVE_OPENCL
     cdvr_cl *cl;
     cdvr_cl_stream *stream;
@@ -92,15 +104,27 @@ static size_t gcd(size_t a, size_t b)
     return a;
 }
 
+/* Timesteps per chunk of variant v: its codec's chunk shape for brick 0 (the recorded count
+ * when the codec is not loaded). */
+static size_t chunk_timesteps(const cdvr_store *st, size_t v)
+{
+    const cdvr_chunk_info *ch = cdvr_store_chunk(st, v, 0);
+    if (!ch)
+        return 1;
+    size_t lo[3], dims[3];
+    cdvr_codec_shape shape;
+    cdvr_store_brick_box(cdvr_store_get_info(st), 0, lo, dims);
+    if (ch->codec && cdvr_codec_shape_of(ch->codec, &ch->params, dims, &shape, NULL) == CDVR_OK)
+        return shape.timesteps;
+    return ch->count ? ch->count : 1;
+}
+
 size_t cdvr_player_group_length(const cdvr_store *st)
 {
     size_t len = 1;
     size_t nvar = cdvr_store_get_info(st)->nvariants;
     for (size_t v = 0; v < nvar; v++) {
-        const cdvr_chunk_info *ch = cdvr_store_chunk(st, v, 0);
-        size_t n = ch && ch->count ? ch->count : 1;
-        if (ch && cdvr_store_variant(st, v)->codec == CDVR_CODEC_PVTC && ch->pvtc.pack == CDVR_PACK_TIME)
-            n = (size_t)ch->pvtc.T;
+        size_t n = chunk_timesteps(st, v);
         len = len / gcd(len, n) * n;
     }
     return len;
@@ -189,9 +213,8 @@ static int plan_and_read(cdvr_player *p, chunk_item *it, int threaded, cdvr_erro
         return 0;
     size_t frame = p->planned;
     size_t t = (p->first + frame) % info->timesteps;
-    memset(it, 0, offsetof(chunk_item, stored));
+    memset(it, 0, offsetof(chunk_item, parts));
     cdvr_error_clear(&it->err);
-    it->read_ms = it->unzip_ms = 0;
     if (frame == 0 || t % p->group_len == 0) {
         int v;
         if (decide(p, t, t / p->group_len, threaded, &v, it->reason, err) != CDVR_OK)
@@ -204,7 +227,7 @@ static int plan_and_read(cdvr_player *p, chunk_item *it, int threaded, cdvr_erro
         it->group_start = 1;
     }
     it->variant = p->current_variant;
-    it->chunk = cdvr_store_chunk_for_time(st, (size_t)it->variant, t);
+    it->chunk = cdvr_store_chunk_for(st, (size_t)it->variant, t, 0);
     const cdvr_chunk_info *ch = cdvr_store_chunk(st, (size_t)it->variant, it->chunk);
     size_t end = ch->t0 + ch->count;
     size_t left = p->frames - frame;
@@ -215,20 +238,28 @@ static int plan_and_read(cdvr_player *p, chunk_item *it, int threaded, cdvr_erro
     it->frame0 = frame;
     p->planned += end - t;
 
-    if (!grow(&it->stored, &it->stored_cap, ch->stored_bytes)) {
-        cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate %llu bytes", cdvr_store_path(st),
-                       it->chunk + 1, (unsigned long long)ch->stored_bytes);
-        return 1;
-    }
-    if (p->opts.cold)
-        cdvr_store_drop_cache(st, (size_t)it->variant, it->chunk);
     double t0 = cdvr_now_ms();
-    cdvr_store_read_chunk(st, (size_t)it->variant, it->chunk, it->stored, &it->err);
+    for (size_t b = 0; b < p->nbricks && it->err.status == CDVR_OK; b++) {
+        chunk_part *part = &it->parts[b];
+        part->chunk = it->chunk + b;
+        const cdvr_chunk_info *pc = cdvr_store_chunk(st, (size_t)it->variant, part->chunk);
+        it->stored_bytes += pc->stored_bytes;
+        it->payload_bytes += pc->payload_bytes;
+        if (!grow(&part->stored, &part->stored_cap, pc->stored_bytes)) {
+            cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate %llu bytes",
+                           cdvr_store_path(st), part->chunk + 1,
+                           (unsigned long long)pc->stored_bytes);
+            break;
+        }
+        if (p->opts.cold)
+            cdvr_store_drop_cache(st, (size_t)it->variant, part->chunk);
+        cdvr_store_read_chunk(st, (size_t)it->variant, part->chunk, part->stored, &it->err);
+        if (p->opts.cold)
+            cdvr_store_drop_cache(st, (size_t)it->variant, part->chunk);
+    }
     if (p->opts.read_mbps > 0)
-        sleep_ms(ch->stored_bytes / (p->opts.read_mbps * 1e3) - (cdvr_now_ms() - t0));
+        sleep_ms(it->stored_bytes / (p->opts.read_mbps * 1e3) - (cdvr_now_ms() - t0));
     it->read_ms = cdvr_now_ms() - t0;
-    if (p->opts.cold)
-        cdvr_store_drop_cache(st, (size_t)it->variant, it->chunk);
     return 1;
 }
 
@@ -236,14 +267,20 @@ static void unzip(cdvr_player *p, chunk_item *it)
 {
     if (it->err.status != CDVR_OK)
         return;
-    const cdvr_chunk_info *ch = cdvr_store_chunk(p->opts.store, (size_t)it->variant, it->chunk);
-    if (!grow(&it->payload, &it->payload_cap, ch->payload_bytes)) {
-        cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate %llu bytes",
-                       cdvr_store_path(p->opts.store), it->chunk + 1, (unsigned long long)ch->payload_bytes);
-        return;
-    }
+    const cdvr_store *st = p->opts.store;
     double t0 = cdvr_now_ms();
-    cdvr_store_unpack_chunk(p->opts.store, (size_t)it->variant, it->chunk, it->stored, it->payload, &it->err);
+    for (size_t b = 0; b < p->nbricks && it->err.status == CDVR_OK; b++) {
+        chunk_part *part = &it->parts[b];
+        const cdvr_chunk_info *ch = cdvr_store_chunk(st, (size_t)it->variant, part->chunk);
+        if (!grow(&part->payload, &part->payload_cap, ch->payload_bytes)) {
+            cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate %llu bytes",
+                           cdvr_store_path(st), part->chunk + 1,
+                           (unsigned long long)ch->payload_bytes);
+            break;
+        }
+        cdvr_store_unpack_chunk(st, (size_t)it->variant, part->chunk, part->stored,
+                                part->payload, &it->err);
+    }
     it->unzip_ms = cdvr_now_ms() - t0;
 }
 
@@ -276,38 +313,75 @@ static void render_opts_for(const cdvr_player *p, const cdvr_camera *cam, cdvr_r
     ro->threads = p->opts.threads;
 }
 
-/* b2 + b3 for one chunk. */
+/* Decodes the group's chunks on the CPU into p->host_frames (count full frames). */
+static cdvr_status decode_host(cdvr_player *p, chunk_item *it, size_t count, cdvr_error *err)
+{
+    const cdvr_store *st = p->opts.store;
+    const cdvr_store_info *info = cdvr_store_get_info(st);
+    size_t need;
+    if (count > 64 || !cdvr_size_mul(p->voxels, count, &need) ||
+        !grow(&p->host_frames, &p->host_frames_cap, need))
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate %zu frames",
+                              cdvr_store_path(st), it->chunk + 1, count);
+    uint8_t *frames[64];
+    for (size_t b = p->nbricks; b-- > 0;) { /* the lower brick owns a shared voxel (store.h) */
+        size_t lo[3], bd[3], bvox;
+        cdvr_store_brick_box(info, b, lo, bd);
+        bvox = bd[0] * bd[1] * bd[2];
+        uint8_t *base = p->host_frames;
+        if (p->nbricks > 1) {
+            if (!grow(&p->brick_frames, &p->brick_frames_cap, (uint64_t)bvox * count))
+                return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: cannot allocate a brick",
+                                      cdvr_store_path(st));
+            base = p->brick_frames;
+        }
+        for (size_t i = 0; i < count; i++)
+            frames[i] = base + i * bvox;
+        cdvr_status s = cdvr_store_decode_chunk(st, (size_t)it->variant, it->parts[b].chunk,
+                                                it->parts[b].payload, frames, err);
+        if (s != CDVR_OK)
+            return s;
+        for (size_t i = 0; p->nbricks > 1 && i < count; i++)
+            for (size_t z = 0; z < bd[2]; z++)
+                for (size_t y = 0; y < bd[1]; y++)
+                    memcpy(p->host_frames + i * p->voxels + lo[0] +
+                               info->dims[0] * ((lo[1] + y) + info->dims[1] * (lo[2] + z)),
+                           frames[i] + bd[0] * (y + bd[1] * z), bd[0]);
+    }
+    return CDVR_OK;
+}
+
+/* b2 + b3 for one chunk group. */
 static cdvr_status upload_decode(cdvr_player *p, chunk_item *it, double *upload_ms, double *decode_ms,
                                  cdvr_error *err)
 {
     const cdvr_store *st = p->opts.store;
     const cdvr_chunk_info *ch = cdvr_store_chunk(st, (size_t)it->variant, it->chunk);
-    const cdvr_variant_info *var = cdvr_store_variant(st, (size_t)it->variant);
     *upload_ms = *decode_ms = 0;
 #if CDVR_HAVE_OPENCL
-    if (p->opts.device == CDVR_DEVICE_CL) {
+    int device_codec = ch->codec && ch->codec->cl_mode != CDVR_CODEC_CL_NONE && p->nbricks == 1;
+    if (p->opts.device == CDVR_DEVICE_CL && device_codec) {
         double t0 = cdvr_now_ms();
-        if (cdvr_cl_upload(p->stream, it->payload, (size_t)ch->payload_bytes, err) != CDVR_OK)
-            return err->status;
+        cdvr_status s = cdvr_cl_upload(p->stream, it->parts[0].payload,
+                                       (size_t)ch->payload_bytes, err);
         double t1 = cdvr_now_ms();
-        cdvr_status s = cdvr_cl_decode(p->stream, var->codec, &ch->pvtc, ch->count, err);
+        if (s == CDVR_OK)
+            s = cdvr_cl_decode(p->stream, ch->codec, &ch->params, ch->count, err);
         *upload_ms = t1 - t0;
         *decode_ms = cdvr_now_ms() - t1;
         return s;
     }
 #endif
-    (void)var;
-    size_t need;
-    if (!cdvr_size_mul(p->voxels, ch->count, &need) || !grow(&p->host_frames, &p->host_frames_cap, need))
-        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate frames", cdvr_store_path(st), it->chunk + 1);
-    uint8_t *frames[64];
-    if (ch->count > 64)
-        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: chunk %zu: %zu timesteps", cdvr_store_path(st), it->chunk + 1, ch->count);
-    for (size_t i = 0; i < ch->count; i++)
-        frames[i] = p->host_frames + i * p->voxels;
     double t0 = cdvr_now_ms();
-    cdvr_status s = cdvr_store_decode_chunk(st, (size_t)it->variant, it->chunk, it->payload, frames, err);
+    cdvr_status s = decode_host(p, it, ch->count, err);
     *decode_ms = cdvr_now_ms() - t0;
+#if CDVR_HAVE_OPENCL
+    if (s == CDVR_OK && p->opts.device == CDVR_DEVICE_CL) {
+        double t1 = cdvr_now_ms();
+        s = cdvr_cl_upload_frames(p->stream, p->host_frames, ch->count, err);
+        *upload_ms = cdvr_now_ms() - t1;
+    }
+#endif
     return s;
 }
 
@@ -318,17 +392,17 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
     const cdvr_store *st = p->opts.store;
     const cdvr_store_info *info = cdvr_store_get_info(st);
     const cdvr_chunk_info *ch = cdvr_store_chunk(st, (size_t)it->variant, it->chunk);
-    size_t f = t - ch->t0;
+    size_t f = t - ch->t0; /* frame within the group */
     cdvr_render_opts ro;
     render_opts_for(p, cam, &ro);
     *setup_ms = *render_ms = 0;
 #if CDVR_HAVE_OPENCL
     if (p->opts.device == CDVR_DEVICE_CL) {
         double t0 = cdvr_now_ms();
-        if (cdvr_cl_setup(p->stream, f, p->opts.tf, err) != CDVR_OK)
-            return err->status;
+        cdvr_status s = cdvr_cl_setup(p->stream, f, p->opts.tf, err);
         double t1 = cdvr_now_ms();
-        cdvr_status s = cdvr_image_create(cam->width, cam->height, img, err);
+        if (s == CDVR_OK)
+            s = cdvr_image_create(cam->width, cam->height, img, err);
         if (s == CDVR_OK)
             s = cdvr_cl_render(p->stream, f, &ro, info->spacing, info->origin, *img, err);
         *setup_ms = t1 - t0;
@@ -340,6 +414,7 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
     memcpy(frame.dims, info->dims, sizeof frame.dims);
     memcpy(frame.spacing, info->spacing, sizeof frame.spacing);
     memcpy(frame.origin, info->origin, sizeof frame.origin);
+    memcpy(frame.direction, info->direction, sizeof frame.direction);
     frame.timesteps = 1;
     frame.type = CDVR_TYPE_U8;
     frame.data = p->host_frames + f * p->voxels;
@@ -349,15 +424,15 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
     return s;
 }
 
-static void fill_row(cdvr_frame_row *row, const chunk_item *it, const cdvr_chunk_info *ch, size_t t, size_t n)
+static void fill_row(cdvr_frame_row *row, const chunk_item *it, size_t t, size_t n)
 {
     row->frame = it->frame0 + (t - it->t_begin);
     row->t = t;
     row->variant = it->variant;
     row->read_ms = it->read_ms / n;
     row->unzip_ms = it->unzip_ms / n;
-    row->bytes = ch->stored_bytes / n;
-    row->payload_bytes = ch->payload_bytes / n;
+    row->bytes = it->stored_bytes / n;
+    row->payload_bytes = it->payload_bytes / n;
     if (t == it->t_begin && it->group_start) {
         row->group_start = 1;
         memcpy(row->reason, it->reason, sizeof row->reason);
@@ -388,7 +463,6 @@ static void pace_and_show(cdvr_player *p, cdvr_frame_row *row)
  * chunk's last frame, pacing waits excluded, shared equally by the chunk's frames. */
 static cdvr_status consume(cdvr_player *p, chunk_item *it, cdvr_error *err)
 {
-    const cdvr_chunk_info *ch = cdvr_store_chunk(p->opts.store, (size_t)it->variant, it->chunk);
     size_t n = it->t_end - it->t_begin;
     size_t first_row = p->nrows;
     double work_start = p->t_last_frame, work_ms = 0;
@@ -401,17 +475,27 @@ static cdvr_status consume(cdvr_player *p, chunk_item *it, cdvr_error *err)
         cdvr_frame_row *row = add_row(p);
         if (!row)
             return cdvr_error_set(err, CDVR_ERR_NOMEM, "player: cannot grow the frame table");
-        fill_row(row, it, ch, t, n);
+        fill_row(row, it, t, n);
         row->upload_ms = upload_ms / n;
         row->decode_ms = decode_ms / n;
         cdvr_image *img = NULL;
         cdvr_error ferr = frame_err;
         if (ferr.status == CDVR_OK) {
             cdvr_camera cam = p->opts.camera;
-            if (p->opts.camera_fn && p->opts.camera_fn(p->opts.camera_ud, t, row->frame, &cam, err) != CDVR_OK)
-                return err->status;
+            cdvr_error cerr;
+            cdvr_error_clear(&cerr);
+            if (p->opts.camera_fn &&
+                p->opts.camera_fn(p->opts.camera_ud, t, row->frame, &cam, &cerr) != CDVR_OK) {
+                if (err)
+                    *err = cerr;
+                return cerr.status != CDVR_OK ? cerr.status : CDVR_ERR_ARG;
+            }
             setup_render(p, it, t, &cam, &img, &row->setup_ms, &row->render_ms, &ferr);
         }
+#if CDVR_HAVE_OPENCL
+        if (p->stream)
+            row->device_bytes = cdvr_cl_stream_bytes(p->stream);
+#endif
         row->status = ferr.status;
         if (ferr.status != CDVR_OK)
             snprintf(row->error, sizeof row->error, "%s", ferr.msg);
@@ -612,11 +696,15 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
         p->opts.ring = 3;
     p->group_len = cdvr_player_group_length(opts->store);
     p->voxels = info->dims[0] * info->dims[1] * info->dims[2];
+    p->nbricks = info->nbricks;
     p->nitems = (size_t)p->opts.ring * 2 + 1;
     p->items = calloc(p->nitems, sizeof *p->items);
+    for (size_t i = 0; p->items && i < p->nitems; i++)
+        if (!(p->items[i].parts = calloc(p->nbricks, sizeof *p->items[i].parts)))
+            p->nitems = i; /* free what was made, then fail below */
     pthread_mutex_init(&p->mu, NULL);
     pthread_cond_init(&p->cv, NULL);
-    if (!p->items) {
+    if (!p->items || p->nitems != (size_t)p->opts.ring * 2 + 1) {
         cdvr_player_free(p);
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "player: out of memory");
     }
@@ -645,12 +733,16 @@ void cdvr_player_free(cdvr_player *p)
     if (!p)
         return;
     for (size_t i = 0; p->items && i < p->nitems; i++) {
-        free(p->items[i].stored);
-        free(p->items[i].payload);
+        for (size_t b = 0; p->items[i].parts && b < p->nbricks; b++) {
+            free(p->items[i].parts[b].stored);
+            free(p->items[i].parts[b].payload);
+        }
+        free(p->items[i].parts);
     }
     free(p->items);
     free(p->rows);
     free(p->host_frames);
+    free(p->brick_frames);
 #if CDVR_HAVE_OPENCL
     cdvr_cl_stream_free(p->stream);
     cdvr_cl_close(p->cl);
@@ -665,8 +757,10 @@ cdvr_status cdvr_player_run(cdvr_player *p, size_t first, size_t frames, cdvr_er
     const cdvr_store_info *info = cdvr_store_get_info(p->opts.store);
     if (first >= info->timesteps)
         return cdvr_error_set(err, CDVR_ERR_ARG, "player: first timestep %zu out of range 1..%zu", first + 1, info->timesteps);
+    size_t left = info->timesteps - first;
+    p->stopped_early = !p->opts.loop && frames > left ? frames - left : 0;
     p->first = first;
-    p->frames = frames;
+    p->frames = frames - p->stopped_early;
     p->nrows = 0;
     p->planned = 0;
     p->current_variant = p->opts.variant;
@@ -678,8 +772,17 @@ cdvr_status cdvr_player_run(cdvr_player *p, size_t first, size_t frames, cdvr_er
     for (size_t i = 0; i < p->nitems; i++)
         queue_push(&p->free_items, &p->items[i]);
     p->t_last_frame = p->t_deadline = cdvr_now_ms();
-    cdvr_error_clear(err);
-    return p->opts.pipelined ? run_pipelined(p, err) : run_serial(p, err);
+    cdvr_error e; /* err may be NULL (error.h): the stages always get a real one */
+    cdvr_error_clear(&e);
+    cdvr_status s = p->opts.pipelined ? run_pipelined(p, &e) : run_serial(p, &e);
+    if (err)
+        *err = e;
+    return s;
+}
+
+size_t cdvr_player_stopped_early(const cdvr_player *p)
+{
+    return p->stopped_early;
 }
 
 const cdvr_frame_row *cdvr_player_rows(const cdvr_player *p, size_t *count)

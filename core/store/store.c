@@ -1,54 +1,63 @@
 /* core/store/store.c - the .cdv store: format, reader, and the metadata writer used by encode.c.
  *
- * Layout, format version 1. All integers little endian, fixed width; f64 = IEEE-754 binary64
- * little endian. Every field is written and read one by one (no struct dumps).
+ * Layout, format version 2 (written; version 1 is still read, see parse_v1 below). All
+ * integers little endian, fixed width; f64 = IEEE-754 binary64 little endian. Every field is
+ * written and read one by one (no struct dumps).
  *
- *  HEADER (152 bytes, at offset 0)
- *     0  u8[8] magic "CDVR\0STR"
- *     8  u32   format version (1)
- *    12  u32   header bytes (152)
- *    16  u64   meta bytes M = 152 + 96 * nvariants + 64 * total chunks
+ *  HEADER (256 bytes, at offset 0)
+ *     0  u8[8]  magic "CDVR\0STR"
+ *     8  u32    format version (2)
+ *    12  u32    header bytes (256)
+ *    16  u64    meta bytes M = 256 + 160 * nvariants + 128 * total chunks
  *    24  u64[3] dims x, y, z (each >= 1)
- *    48  u64   timesteps (>= 1)
- *    56  f64[3] spacing
+ *    48  u64    timesteps (>= 1)
+ *    56  f64[3] spacing (> 0)
  *    80  f64[3] origin
- *   104  f64   quantisation window lo
- *   112  f64   quantisation window hi (>= lo)
- *   120  u32   source type (cdvr_type before quantisation)
- *   124  u32   nvariants (1 .. 256)
- *   128  u64   total chunks (all variants)
- *   136  u64   data offset (M + 4: first byte after the metadata CRC)
- *   144  u64   file bytes (size of the whole file)
- *  VARIANT TABLE (nvariants records of 96 bytes, from offset 152)
+ *   104  f64[9] direction, row-major (column c = world direction of index axis c)
+ *   176  f64    value window lo (u8 0 stands for lo)
+ *   184  f64    value window hi (>= lo; u8 255 stands for hi)
+ *   192  u32    source type (cdvr_type before quantisation)
+ *   196  u32    nvariants (1 .. 256)
+ *   200  u64    total chunks (all variants)
+ *   208  u64    data offset (M + 4: first byte after the metadata CRC)
+ *   216  u64    file bytes (size of the whole file)
+ *   224  u32[3] brick grid bx, by, bz (each >= 1, product <= 4096; cdvr_brick_box)
+ *   236  u32[5] reserved, 0
+ *  VARIANT TABLE (nvariants records of 160 bytes, from offset 256)
  *     0  u8[32] name, NUL padded (non-empty, NUL-terminated, unique in the store)
- *    32  u32   codec id (0 raw, 1 pvtc)
- *    36  u32   encoder (0 lsq, 1 bbox)
- *    40  u32   stage 2 (0 none, 1 lzo)
- *    44  u32   reserved, 0
- *    48  u32   S, u32 T, u32 pack (default parameters; raw: 0 0 0)
- *    60  u32   reserved, 0
- *    64  u64   nchunks (>= 1)
- *    72  f64   lzo_min_saving used at encode time
- *    80  f64   psnr (volume PSNR at encode time, peak 255; +Inf if lossless)
- *    88  f64   maxerr
- *  CHUNK INDEX (64 bytes per chunk; variant 1's chunks, then variant 2's, ...)
- *     0  u64   t0 (first timestep, from 0)
- *     8  u64   count (timesteps covered; pack time: 1..T, else 1)
- *    16  u32   S, u32 T, u32 pack (this chunk's parameters; raw: 0 0 0)
- *    28  u32   stage-2 flag (1: stored bytes are LZO1X of the payload)
- *    32  u64   offset of the stored bytes
- *    40  u64   stored bytes
- *    48  u64   payload bytes (= PVTC geometry chunk_bytes, or X*Y*Z for raw)
- *    56  u32   CRC-32C of the stored bytes
- *    60  u32   reserved, 0
+ *    32  u8[16] codec name, NUL padded ([a-z0-9_], 1..15 bytes)
+ *    48  u32    codec id
+ *    52  u32    stage 2 (0 none, 1 lzo)
+ *    56  u64    nchunks (>= 1, a multiple of the bricks per timestep)
+ *    64  f64    lzo_min_saving used at encode time
+ *    72  f64    psnr (volume PSNR at encode time, peak 255; +Inf if lossless)
+ *    80  f64    maxerr
+ *    88  u8[48] codec parameter blob given at encode time (cdvr/codec.h)
+ *   136  u8[24] reserved, 0
+ *  CHUNK INDEX (128 bytes per chunk; variant 1's chunks, then variant 2's, ...; within a
+ *  variant by time group, and within a group by brick)
+ *     0  u64    t0 (first timestep, from 0)
+ *     8  u64    count (timesteps covered, 1 .. the codec's timesteps per chunk)
+ *    16  u32    brick index (from 0, x fastest)
+ *    20  u32    codec id
+ *    24  u8[48] codec parameter blob of this chunk
+ *    72  u32    stage-2 flag (1: stored bytes are LZO1X of the payload)
+ *    76  u32    CRC-32C of the stored bytes
+ *    80  u64    offset of the stored bytes
+ *    88  u64    stored bytes
+ *    96  u64    payload bytes (the codec's fixed chunk size, or at most its bound)
+ *   104  u8     min, u8 max of the decoded voxels of the chunk's timesteps
+ *   106  u8[22] reserved, 0 (room for per-brick value ranges)
  *  u32 CRC-32C of bytes [0, M)  (at offset M)
- *  CHUNK DATA from the data offset, in index order, non-overlapping, up to file bytes.
+ *  CHUNK DATA from the data offset to file bytes; chunks never overlap (any order).
  *
- * The chunks of a variant cover timesteps 0 .. timesteps-1 in order without gaps.
+ * The groups of a variant cover timesteps 0 .. timesteps-1 in order without gaps; all chunks
+ * of a group share t0 and count.
  */
 #include "store_format.h"
 
 #include "codec/stage2/stage2.h"
+#include "cdvr/pvtc.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -119,6 +128,17 @@ static double get_f64(rcursor *r)
     return d;
 }
 
+static void get_bytes(rcursor *r, void *dst, size_t n)
+{
+    if ((size_t)(r->end - r->p) < n) {
+        memset(dst, 0, n);
+        r->p = r->end;
+        return;
+    }
+    memcpy(dst, r->p, n);
+    r->p += n;
+}
+
 /* ---- shared helpers --------------------------------------------------------------------- */
 
 uint64_t cdvr_store_meta_bytes(size_t nvariants, size_t nchunks)
@@ -131,6 +151,16 @@ uint64_t cdvr_store_meta_bytes(size_t nvariants, size_t nchunks)
     return (uint64_t)sum;
 }
 
+static uint64_t meta_bytes_v1(size_t nvariants, size_t nchunks)
+{
+    size_t v, c, sum;
+    if (!cdvr_size_mul(nvariants, CDVR_STORE_V1_VARIANT_BYTES, &v) ||
+        !cdvr_size_mul(nchunks, CDVR_STORE_V1_CHUNK_BYTES, &c) || !cdvr_size_add(v, c, &sum) ||
+        !cdvr_size_add(sum, CDVR_STORE_V1_HEADER_BYTES, &sum) || sum > SIZE_MAX - 4)
+        return 0;
+    return (uint64_t)sum;
+}
+
 cdvr_status cdvr_store_alloc(size_t nvariants, size_t nchunks, const char *path,
                              cdvr_store **out, cdvr_error *err)
 {
@@ -139,12 +169,10 @@ cdvr_status cdvr_store_alloc(size_t nvariants, size_t nchunks, const char *path,
         st->fd = -1;
         st->path = strdup(path);
         st->variants = calloc(nvariants ? nvariants : 1, sizeof *st->variants);
-        st->lzo_min_saving = calloc(nvariants ? nvariants : 1, sizeof *st->lzo_min_saving);
         st->chunk_first = calloc(nvariants ? nvariants : 1, sizeof *st->chunk_first);
         st->chunks = calloc(nchunks ? nchunks : 1, sizeof *st->chunks);
     }
-    if (!st || !st->path || !st->variants || !st->lzo_min_saving || !st->chunk_first ||
-        !st->chunks) {
+    if (!st || !st->path || !st->variants || !st->chunk_first || !st->chunks) {
         cdvr_store_close(st);
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for %zu variants, %zu chunks",
                               path, nvariants, nchunks);
@@ -155,71 +183,55 @@ cdvr_status cdvr_store_alloc(size_t nvariants, size_t nchunks, const char *path,
     return CDVR_OK;
 }
 
-void cdvr_store_default_name(cdvr_codec_id codec, const cdvr_pvtc_params *p,
-                             char name[CDVR_NAME_MAX])
+int cdvr_brick_box(const size_t vol_dims[3], const size_t bricks[3], size_t b, size_t lo[3],
+                   size_t dims[3])
 {
-    if (codec == CDVR_CODEC_PVTC)
-        snprintf(name, CDVR_NAME_MAX, "S%dT%d%s", p->S, p->T, p->pack == CDVR_PACK_SPACE ? "s" : "");
-    else
-        snprintf(name, CDVR_NAME_MAX, "%s", codec == CDVR_CODEC_RAW ? "raw" : "plugin");
-}
-
-cdvr_status cdvr_store_payload_bytes(cdvr_codec_id codec, const cdvr_pvtc_params *params,
-                                     const size_t dims[3], size_t *bytes, cdvr_error *err)
-{
-    if (codec == CDVR_CODEC_RAW) {
-        size_t xy;
-        if (!cdvr_size_mul(dims[0], dims[1], &xy) || !cdvr_size_mul(xy, dims[2], bytes))
-            return cdvr_error_set(err, CDVR_ERR_NOMEM, "dims overflow size_t");
-        return CDVR_OK;
+    size_t idx = b;
+    for (int a = 0; a < 3; a++) {
+        size_t n = bricks[a], N = vol_dims[a];
+        if (n == 0 || N == 0 || (N > 1 && n > N - 1) || (N == 1 && n != 1))
+            return 0;
+        size_t i = idx % n;
+        idx /= n;
+        if (N == 1) {
+            lo[a] = 0;
+            dims[a] = 1;
+            continue;
+        }
+        /* c_i = floor(i (N-1) / n) = i q + floor(i r / n) with N-1 = q n + r: exact, and
+         * i r < n^2 cannot overflow (n <= cells; callers bound the brick count) */
+        size_t cells = N - 1, q = cells / n, r = cells % n;
+        size_t c0 = i * q + i * r / n, c1 = (i + 1) * q + (i + 1) * r / n;
+        lo[a] = c0;
+        dims[a] = c1 - c0 + 1;
     }
-    if (codec != CDVR_CODEC_PVTC)
-        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "codec id %d is not supported",
-                              (int)codec);
-    if (params->pack != CDVR_PACK_TIME && params->pack != CDVR_PACK_SPACE)
-        return cdvr_error_set(err, CDVR_ERR_ARG, "pack %d is not time (0) or space (1)",
-                              (int)params->pack);
-    cdvr_pvtc_geometry geom;
-    cdvr_status s = cdvr_pvtc_geometry_get(params, dims, &geom, err);
-    if (s == CDVR_OK)
-        *bytes = geom.chunk_bytes;
-    return s;
+    return idx == 0;
 }
 
-cdvr_status cdvr_store_decode_payload(cdvr_codec_id codec, const cdvr_pvtc_params *params,
-                                      const size_t dims[3], const uint8_t *payload,
-                                      size_t payload_bytes, uint8_t *const *frames,
-                                      size_t count, cdvr_error *err)
+void cdvr_store_brick_box(const cdvr_store_info *info, size_t b, size_t lo[3], size_t dims[3])
 {
-    if (codec == CDVR_CODEC_PVTC)
-        return cdvr_pvtc_decode_chunk(params, dims, payload, payload_bytes, frames, count, err);
-    size_t need;
-    cdvr_status s = cdvr_store_payload_bytes(codec, params, dims, &need, err);
-    if (s != CDVR_OK)
-        return s;
-    if (count != 1 || need != payload_bytes)
-        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "raw chunk of %zu bytes, %zu frames: "
-                              "expected %zu bytes, 1 frame", payload_bytes, count, need);
-    memcpy(frames[0], payload, need);
-    return CDVR_OK;
+    if (!cdvr_brick_box(info->dims, info->bricks, b, lo, dims)) {
+        for (int a = 0; a < 3; a++) {
+            lo[a] = 0;
+            dims[a] = info->dims[a];
+        }
+    }
 }
 
 /* ---- metadata writer -------------------------------------------------------------------- */
 
-static void put_name(wcursor *w, const char *name)
+static void put_name(wcursor *w, const char *name, size_t field)
 {
     char padded[CDVR_NAME_MAX] = {0};
-    size_t n = strnlen(name, CDVR_NAME_MAX - 1);
+    size_t n = strnlen(name, field - 1);
     memcpy(padded, name, n);
-    put_bytes(w, padded, sizeof padded);
+    put_bytes(w, padded, field);
 }
 
-static void put_params(wcursor *w, cdvr_codec_id codec, const cdvr_pvtc_params *p)
+static void put_zeros(wcursor *w, size_t n)
 {
-    int pvtc = codec == CDVR_CODEC_PVTC;
-    put_u32(w, pvtc ? (uint32_t)p->S : 0);
-    put_u32(w, pvtc ? (uint32_t)p->T : 0);
-    put_u32(w, pvtc ? (uint32_t)p->pack : 0);
+    memset(w->p, 0, n);
+    w->p += n;
 }
 
 static void put_header(wcursor *w, const cdvr_store *st, uint64_t meta)
@@ -236,6 +248,8 @@ static void put_header(wcursor *w, const cdvr_store *st, uint64_t meta)
         put_f64(w, in->spacing[i]);
     for (int i = 0; i < 3; i++)
         put_f64(w, in->origin[i]);
+    for (int i = 0; i < 9; i++)
+        put_f64(w, in->direction[i]);
     put_f64(w, in->qlo);
     put_f64(w, in->qhi);
     put_u32(w, (uint32_t)in->source_type);
@@ -243,34 +257,40 @@ static void put_header(wcursor *w, const cdvr_store *st, uint64_t meta)
     put_u64(w, st->nchunks_total);
     put_u64(w, meta + 4);
     put_u64(w, in->file_bytes);
+    for (int i = 0; i < 3; i++)
+        put_u32(w, (uint32_t)in->bricks[i]);
+    put_zeros(w, 20);
 }
 
-static void put_variant(wcursor *w, const cdvr_variant_info *v, double lzo_min_saving)
+static void put_variant(wcursor *w, const cdvr_variant_info *v)
 {
-    put_name(w, v->name);
-    put_u32(w, (uint32_t)v->codec);
-    put_u32(w, (uint32_t)v->encoder);
+    put_name(w, v->name, CDVR_NAME_MAX);
+    put_name(w, v->codec_name, CDVR_CODEC_NAME_MAX);
+    put_u32(w, v->codec_id);
     put_u32(w, (uint32_t)v->stage2);
-    put_u32(w, 0);
-    put_params(w, v->codec, &v->pvtc);
-    put_u32(w, 0);
     put_u64(w, v->nchunks);
-    put_f64(w, lzo_min_saving);
+    put_f64(w, v->lzo_min_saving);
     put_f64(w, v->psnr);
     put_f64(w, v->maxerr);
+    put_bytes(w, v->params.bytes, CDVR_CODEC_PARAMS_MAX);
+    put_zeros(w, 24);
 }
 
-static void put_chunk(wcursor *w, cdvr_codec_id codec, const cdvr_chunk_info *c)
+static void put_chunk(wcursor *w, const cdvr_chunk_info *c)
 {
     put_u64(w, c->t0);
     put_u64(w, c->count);
-    put_params(w, codec, &c->pvtc);
+    put_u32(w, (uint32_t)c->brick);
+    put_u32(w, c->codec_id);
+    put_bytes(w, c->params.bytes, CDVR_CODEC_PARAMS_MAX);
     put_u32(w, c->stage2 ? 1u : 0u);
+    put_u32(w, c->crc32c);
     put_u64(w, c->offset);
     put_u64(w, c->stored_bytes);
     put_u64(w, c->payload_bytes);
-    put_u32(w, c->crc32c);
-    put_u32(w, 0);
+    *w->p++ = c->value_min;
+    *w->p++ = c->value_max;
+    put_zeros(w, 22);
 }
 
 void cdvr_store_serialize_meta(const cdvr_store *st, uint8_t *buf)
@@ -279,15 +299,14 @@ void cdvr_store_serialize_meta(const cdvr_store *st, uint8_t *buf)
     wcursor w = {buf};
     put_header(&w, st, meta);
     for (size_t v = 0; v < st->info.nvariants; v++)
-        put_variant(&w, &st->variants[v], st->lzo_min_saving[v]);
-    for (size_t v = 0; v < st->info.nvariants; v++)
-        for (size_t c = 0; c < st->variants[v].nchunks; c++)
-            put_chunk(&w, st->variants[v].codec, &st->chunks[st->chunk_first[v] + c]);
+        put_variant(&w, &st->variants[v]);
+    for (size_t c = 0; c < st->nchunks_total; c++)
+        put_chunk(&w, &st->chunks[c]);
     wcursor crc = {buf + meta};
     put_u32(&crc, cdvr_crc32c(0, buf, (size_t)meta));
 }
 
-/* ---- reader: open and validate ---------------------------------------------------------- */
+/* ---- reader: header --------------------------------------------------------------------- */
 
 static cdvr_status read_at(int fd, uint8_t *buf, size_t n, uint64_t offset, size_t *got)
 {
@@ -307,14 +326,16 @@ static cdvr_status read_at(int fd, uint8_t *buf, size_t n, uint64_t offset, size
 }
 
 typedef struct header_fields {
-    uint64_t meta, dims[3], timesteps, nchunks, data_offset, file_bytes;
     uint32_t version, header_bytes, source_type, nvariants;
-    double spacing[3], origin[3], qlo, qhi;
+    uint64_t meta, dims[3], timesteps, nchunks, data_offset, file_bytes;
+    double spacing[3], origin[3], direction[9], qlo, qhi;
+    uint32_t bricks[3], reserved;
 } header_fields;
 
-static void parse_header(const uint8_t *buf, header_fields *h)
+/* Versions 1 and 2 share the first 16 bytes (magic, version, header bytes, meta bytes). */
+static void parse_header(const uint8_t *buf, size_t n, header_fields *h)
 {
-    rcursor r = {buf + 8, buf + CDVR_STORE_HEADER_BYTES};
+    rcursor r = {buf + 8, buf + n};
     h->version = get_u32(&r);
     h->header_bytes = get_u32(&r);
     h->meta = get_u64(&r);
@@ -325,6 +346,11 @@ static void parse_header(const uint8_t *buf, header_fields *h)
         h->spacing[i] = get_f64(&r);
     for (int i = 0; i < 3; i++)
         h->origin[i] = get_f64(&r);
+    memset(h->direction, 0, sizeof h->direction);
+    h->direction[0] = h->direction[4] = h->direction[8] = 1;
+    if (h->version >= 2)
+        for (int i = 0; i < 9; i++)
+            h->direction[i] = get_f64(&r);
     h->qlo = get_f64(&r);
     h->qhi = get_f64(&r);
     h->source_type = get_u32(&r);
@@ -332,22 +358,37 @@ static void parse_header(const uint8_t *buf, header_fields *h)
     h->nchunks = get_u64(&r);
     h->data_offset = get_u64(&r);
     h->file_bytes = get_u64(&r);
+    h->bricks[0] = h->bricks[1] = h->bricks[2] = 1;
+    h->reserved = 0;
+    if (h->version >= 2) {
+        for (int i = 0; i < 3; i++)
+            h->bricks[i] = get_u32(&r);
+        for (int i = 0; i < 5; i++)
+            h->reserved |= get_u32(&r);
+    }
+}
+
+static size_t header_bytes_of(uint32_t version)
+{
+    return version == 1 ? CDVR_STORE_V1_HEADER_BYTES : CDVR_STORE_HEADER_BYTES;
 }
 
 static cdvr_status check_header_sizes(const char *path, const header_fields *h,
                                       uint64_t file_size, cdvr_error *err)
 {
-    if (h->version != CDVR_STORE_VERSION)
+    if (h->version != 1 && h->version != CDVR_STORE_VERSION)
         return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: store format version %u, this cdvr "
-                              "reads version %u", path, h->version, CDVR_STORE_VERSION);
-    if (h->header_bytes != CDVR_STORE_HEADER_BYTES)
-        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: header size %u, expected %u", path,
-                              h->header_bytes, CDVR_STORE_HEADER_BYTES);
+                              "reads versions 1 and %u", path, h->version, CDVR_STORE_VERSION);
+    if (h->header_bytes != header_bytes_of(h->version))
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: header size %u, expected %zu", path,
+                              h->header_bytes, header_bytes_of(h->version));
     if (h->nvariants < 1 || h->nvariants > CDVR_STORE_MAX_VARIANTS)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: %u variants (must be 1..%u)", path,
                               h->nvariants, CDVR_STORE_MAX_VARIANTS);
-    uint64_t meta = h->nchunks > file_size ? 0 : cdvr_store_meta_bytes(h->nvariants,
-                                                                       (size_t)h->nchunks);
+    uint64_t meta = 0;
+    if (h->nchunks <= file_size)
+        meta = h->version == 1 ? meta_bytes_v1(h->nvariants, (size_t)h->nchunks)
+                               : cdvr_store_meta_bytes(h->nvariants, (size_t)h->nchunks);
     if (meta == 0 || meta != h->meta || h->data_offset != meta + 4)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: header sizes disagree (%u variants, "
                               "%llu chunks, meta %llu bytes, data at %llu)", path, h->nvariants,
@@ -364,9 +405,12 @@ static cdvr_status check_header_sizes(const char *path, const header_fields *h,
     return CDVR_OK;
 }
 
-static int finite3(const double *a)
+static int all_finite(const double *a, int n)
 {
-    return isfinite(a[0]) && isfinite(a[1]) && isfinite(a[2]);
+    for (int i = 0; i < n; i++)
+        if (!isfinite(a[i]))
+            return 0;
+    return 1;
 }
 
 static cdvr_status check_header_values(const char *path, const header_fields *h,
@@ -383,18 +427,34 @@ static cdvr_status check_header_values(const char *path, const header_fields *h,
         !cdvr_size_mul(voxels, (size_t)h->timesteps, &raw))
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: bad timestep count %llu", path,
                               (unsigned long long)h->timesteps);
-    if (!finite3(h->spacing) || !finite3(h->origin) || !isfinite(h->qlo) || !isfinite(h->qhi) ||
+    if (!all_finite(h->spacing, 3) || !all_finite(h->origin, 3) ||
+        !all_finite(h->direction, 9) || !isfinite(h->qlo) || !isfinite(h->qhi) ||
         h->qhi < h->qlo)
-        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: spacing, origin or window not finite "
-                              "(or window hi < lo)", path);
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: spacing, origin, direction or window "
+                              "not finite (or window hi < lo)", path);
     if (h->source_type > CDVR_TYPE_F32)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: unknown source type %u", path,
                               h->source_type);
+    size_t bricks[3] = {h->bricks[0], h->bricks[1], h->bricks[2]}, lo[3], bd[3];
+    size_t dims[3] = {(size_t)h->dims[0], (size_t)h->dims[1], (size_t)h->dims[2]};
+    int small = h->bricks[0] <= CDVR_STORE_MAX_BRICKS && h->bricks[1] <= CDVR_STORE_MAX_BRICKS &&
+                h->bricks[2] <= CDVR_STORE_MAX_BRICKS;
+    size_t nbricks = small ? bricks[0] * bricks[1] * bricks[2] : 0;
+    if (h->reserved || nbricks == 0 || nbricks > CDVR_STORE_MAX_BRICKS ||
+        !cdvr_brick_box(dims, bricks, 0, lo, bd))
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: bad brick grid %ux%ux%u for dims "
+                              "%llux%llux%llu (or reserved header bits set)", path, h->bricks[0],
+                              h->bricks[1], h->bricks[2], (unsigned long long)h->dims[0],
+                              (unsigned long long)h->dims[1], (unsigned long long)h->dims[2]);
+    info->version = h->version;
     for (int i = 0; i < 3; i++) {
         info->dims[i] = (size_t)h->dims[i];
         info->spacing[i] = h->spacing[i];
         info->origin[i] = h->origin[i];
+        info->bricks[i] = bricks[i];
     }
+    memcpy(info->direction, h->direction, sizeof info->direction);
+    info->nbricks = nbricks;
     info->timesteps = (size_t)h->timesteps;
     info->qlo = h->qlo;
     info->qhi = h->qhi;
@@ -405,65 +465,222 @@ static cdvr_status check_header_values(const char *path, const header_fields *h,
     return CDVR_OK;
 }
 
-static cdvr_status parse_variant(const cdvr_store *st, rcursor *r, size_t v, uint64_t *nchunks,
+/* ---- reader: variant and chunk records ---------------------------------------------------- */
+
+static int valid_codec_name(const char *name)
+{
+    size_t n = strnlen(name, CDVR_CODEC_NAME_MAX);
+    if (n == 0 || n == CDVR_CODEC_NAME_MAX)
+        return 0;
+    for (size_t i = 0; i < n; i++)
+        if (!((name[i] >= 'a' && name[i] <= 'z') || (name[i] >= '0' && name[i] <= '9') ||
+              name[i] == '_'))
+            return 0;
+    return 1;
+}
+
+/* Resolves a codec id recorded for a variant or chunk: the loaded codec, or NULL when none
+ * has that id; a loaded codec whose name differs from the recorded one is corruption (or a
+ * different plugin that took the id). */
+static cdvr_status resolve_codec(const cdvr_store *st, const char *what, uint32_t id,
+                                 const char *recorded_name, const cdvr_codec **out,
                                  cdvr_error *err)
 {
+    *out = cdvr_codec_by_id(id);
+    if (*out && recorded_name && strcmp((*out)->name, recorded_name) != 0)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: %s: codec id %u is '%s' here, the "
+                              "store says '%s'", st->path, what, id, (*out)->name, recorded_name);
+    return CDVR_OK;
+}
+
+static cdvr_status check_variant_common(const cdvr_store *st, size_t v, uint64_t nchunks,
+                                        uint32_t stage2, cdvr_error *err)
+{
     cdvr_variant_info *vi = &st->variants[v];
-    memcpy(vi->name, r->p, CDVR_NAME_MAX);
-    r->p += CDVR_NAME_MAX;
-    uint32_t codec = get_u32(r), encoder = get_u32(r), stage2 = get_u32(r), res1 = get_u32(r);
-    uint32_t S = get_u32(r), T = get_u32(r), pack = get_u32(r), res2 = get_u32(r);
-    *nchunks = get_u64(r);
-    st->lzo_min_saving[v] = get_f64(r);
-    vi->psnr = get_f64(r);
-    vi->maxerr = get_f64(r);
     if (memchr(vi->name, 0, CDVR_NAME_MAX) == NULL || vi->name[0] == '\0')
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %zu: bad name", st->path, v + 1);
-    if ((codec != CDVR_CODEC_RAW && codec != CDVR_CODEC_PVTC) || encoder > CDVR_ENCODER_BBOX ||
-        stage2 > CDVR_STAGE2_LZO || res1 || res2 || pack > CDVR_PACK_SPACE || S > 8 || T > 8)
-        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s: bad codec %u, encoder %u, "
-                              "stage2 %u or parameters S%u T%u pack %u", st->path, vi->name,
-                              codec, encoder, stage2, S, T, pack);
-    if (*nchunks == 0 || isnan(vi->psnr) || vi->psnr < 0 || !(vi->maxerr >= 0 && vi->maxerr <= 255))
-        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s: bad chunk count, psnr or "
-                              "maxerr", st->path, vi->name);
+    if (stage2 > CDVR_STAGE2_LZO)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s: bad stage 2 %u", st->path,
+                              vi->name, stage2);
+    if (nchunks == 0 || nchunks % st->info.nbricks || nchunks > st->nchunks_total ||
+        isnan(vi->psnr) || vi->psnr < 0 || !(vi->maxerr >= 0 && vi->maxerr <= 255) ||
+        !(vi->lzo_min_saving <= 1))
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s: bad chunk count, psnr, "
+                              "maxerr or lzo saving", st->path, vi->name);
     for (size_t i = 0; i < v; i++)
         if (strcmp(st->variants[i].name, vi->name) == 0)
             return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant name %s appears twice",
                                   st->path, vi->name);
-    vi->codec = (cdvr_codec_id)codec;
-    snprintf(vi->codec_name, sizeof vi->codec_name, "%s", codec == CDVR_CODEC_RAW ? "raw" : "pvtc");
-    vi->encoder = (cdvr_pvtc_encoder)encoder;
     vi->stage2 = (cdvr_stage2)stage2;
-    vi->pvtc = (cdvr_pvtc_params){(int)S, (int)T, (cdvr_pack)pack};
-    vi->nchunks = (size_t)*nchunks;
+    vi->nchunks = (size_t)nchunks;
+    vi->ngroups = vi->nchunks / st->info.nbricks;
+    if (vi->codec) {
+        cdvr_error perr;
+        if (vi->codec->params_check(&vi->params, &perr) != CDVR_OK)
+            return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s: %s", st->path,
+                                  vi->name, perr.msg);
+    }
     return CDVR_OK;
 }
 
-/* Checks one chunk record against the variant, the time coverage and the file layout. */
+static cdvr_status parse_variant_v2(const cdvr_store *st, rcursor *r, size_t v, cdvr_error *err)
+{
+    cdvr_variant_info *vi = &st->variants[v];
+    uint8_t reserved[24];
+    get_bytes(r, vi->name, CDVR_NAME_MAX);
+    get_bytes(r, vi->codec_name, CDVR_CODEC_NAME_MAX);
+    vi->codec_id = get_u32(r);
+    uint32_t stage2 = get_u32(r);
+    uint64_t nchunks = get_u64(r);
+    vi->lzo_min_saving = get_f64(r);
+    vi->psnr = get_f64(r);
+    vi->maxerr = get_f64(r);
+    get_bytes(r, vi->params.bytes, CDVR_CODEC_PARAMS_MAX);
+    get_bytes(r, reserved, sizeof reserved);
+    for (size_t i = 0; i < sizeof reserved; i++)
+        if (reserved[i])
+            return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %zu: reserved bytes set",
+                                  st->path, v + 1);
+    if (!valid_codec_name(vi->codec_name) || memchr(vi->name, 0, CDVR_NAME_MAX) == NULL)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %zu: bad name or codec name",
+                              st->path, v + 1);
+    char what[CDVR_NAME_MAX + 16];
+    snprintf(what, sizeof what, "variant %s", vi->name);
+    cdvr_status s = resolve_codec(st, what, vi->codec_id, vi->codec_name, &vi->codec, err);
+    return s == CDVR_OK ? check_variant_common(st, v, nchunks, stage2, err) : s;
+}
+
+static cdvr_status parse_chunk_v2(const cdvr_store *st, rcursor *r, size_t v,
+                                  cdvr_chunk_info *ci, cdvr_error *err)
+{
+    ci->t0 = (size_t)get_u64(r);
+    ci->count = (size_t)get_u64(r);
+    ci->brick = get_u32(r);
+    ci->codec_id = get_u32(r);
+    get_bytes(r, ci->params.bytes, CDVR_CODEC_PARAMS_MAX);
+    uint32_t flag = get_u32(r);
+    ci->crc32c = get_u32(r);
+    ci->offset = get_u64(r);
+    ci->stored_bytes = get_u64(r);
+    ci->payload_bytes = get_u64(r);
+    uint8_t tail[24];
+    get_bytes(r, tail, sizeof tail);
+    ci->value_min = tail[0];
+    ci->value_max = tail[1];
+    int reserved = flag > 1;
+    for (size_t i = 2; i < sizeof tail; i++)
+        reserved |= tail[i] != 0;
+    ci->stage2 = (int)(flag & 1);
+    if (reserved)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s: a chunk has reserved "
+                              "bits set", st->path, st->variants[v].name);
+    const cdvr_variant_info *vi = &st->variants[v];
+    if (ci->codec_id != vi->codec_id) /* room in the format; a variant has one codec today */
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s: a chunk has codec id %u, "
+                              "the variant %u", st->path, vi->name, ci->codec_id, vi->codec_id);
+    ci->codec = vi->codec;
+    return CDVR_OK;
+}
+
+/* Version 1: codec 0 raw, 1 pvtc with S, T, pack and the variant's encoder as fields. */
+static void v1_params(uint32_t codec, uint32_t S, uint32_t T, uint32_t pack, uint32_t encoder,
+                      cdvr_codec_params *p)
+{
+    memset(p, 0, sizeof *p);
+    if (codec == CDVR_CODEC_ID_PVTC) {
+        cdvr_pvtc_params q = {(int)S, (int)T, (cdvr_pack)(pack & 1)};
+        cdvr_pvtc_params_to_blob(&q, (cdvr_pvtc_encoder)(encoder & 1), p);
+    }
+}
+
+static cdvr_status parse_variant_v1(const cdvr_store *st, rcursor *r, size_t v,
+                                    uint32_t *encoder, cdvr_error *err)
+{
+    cdvr_variant_info *vi = &st->variants[v];
+    get_bytes(r, vi->name, CDVR_NAME_MAX);
+    uint32_t codec = get_u32(r);
+    *encoder = get_u32(r);
+    uint32_t stage2 = get_u32(r), res1 = get_u32(r);
+    uint32_t S = get_u32(r), T = get_u32(r), pack = get_u32(r), res2 = get_u32(r);
+    uint64_t nchunks = get_u64(r);
+    vi->lzo_min_saving = get_f64(r);
+    vi->psnr = get_f64(r);
+    vi->maxerr = get_f64(r);
+    if ((codec != CDVR_CODEC_ID_RAW && codec != CDVR_CODEC_ID_PVTC) || *encoder > 1 || res1 ||
+        res2 || pack > 1 || S > 8 || T > 8)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %zu: bad codec %u, encoder %u "
+                              "or parameters S%u T%u pack %u", st->path, v + 1, codec, *encoder,
+                              S, T, pack);
+    vi->codec_id = codec;
+    vi->codec = cdvr_codec_by_id(codec);
+    snprintf(vi->codec_name, sizeof vi->codec_name, "%s", vi->codec->name);
+    v1_params(codec, S, T, pack, *encoder, &vi->params);
+    return check_variant_common(st, v, nchunks, stage2, err);
+}
+
+static cdvr_status parse_chunk_v1(const cdvr_store *st, rcursor *r, size_t v,
+                                  uint32_t encoder, cdvr_chunk_info *ci, cdvr_error *err)
+{
+    ci->t0 = (size_t)get_u64(r);
+    ci->count = (size_t)get_u64(r);
+    uint32_t S = get_u32(r), T = get_u32(r), pack = get_u32(r), flag = get_u32(r);
+    ci->offset = get_u64(r);
+    ci->stored_bytes = get_u64(r);
+    ci->payload_bytes = get_u64(r);
+    ci->crc32c = get_u32(r);
+    uint32_t reserved = get_u32(r) | (S | T) >> 8 | (pack >> 1) | (flag >> 1);
+    if (reserved)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s: a chunk has reserved "
+                              "bits set", st->path, st->variants[v].name);
+    ci->stage2 = (int)(flag & 1);
+    ci->brick = 0;
+    ci->codec_id = st->variants[v].codec_id;
+    ci->codec = st->variants[v].codec;
+    v1_params(ci->codec_id, S, T, pack, encoder, &ci->params);
+    ci->value_min = 0; /* not recorded in version 1: the full range */
+    ci->value_max = 255;
+    return CDVR_OK;
+}
+
+/* Checks chunk c of variant v: time coverage, brick order, codec parameters and payload size
+ * against the codec's shape of the brick (when the codec is loaded), stage 2 and the file. */
 static cdvr_status check_chunk(const cdvr_store *st, size_t v, size_t c, size_t next_t0,
-                               uint64_t data_start, cdvr_error *err)
+                               const cdvr_chunk_info *group_first, cdvr_error *err)
 {
     const cdvr_variant_info *vi = &st->variants[v];
     const cdvr_chunk_info *ci = &st->chunks[st->chunk_first[v] + c];
     char pre[CDVR_ERRMSG_MAX / 2];
     snprintf(pre, sizeof pre, "%s: variant %s chunk %zu", st->path, vi->name, c + 1);
+    size_t brick = c % st->info.nbricks;
+    if (ci->brick != brick || (group_first && (ci->t0 != group_first->t0 ||
+                                               ci->count != group_first->count)))
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: brick %zu covering timesteps %zu+%zu "
+                              "breaks its group (expected brick %zu)", pre, ci->brick + 1,
+                              ci->t0 + 1, ci->count, brick + 1);
     if (ci->t0 != next_t0 || ci->count == 0 || ci->count > st->info.timesteps - ci->t0)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: covers timesteps %zu+%zu, expected "
                               "to start at %zu of %zu", pre, ci->t0 + 1, ci->count, next_t0 + 1,
                               st->info.timesteps);
-    size_t payload;
-    cdvr_error perr;
-    if (cdvr_store_payload_bytes(vi->codec, &ci->pvtc, st->info.dims, &payload, &perr) != CDVR_OK)
-        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: %s", pre, perr.msg);
-    size_t max_count = vi->codec == CDVR_CODEC_PVTC && ci->pvtc.pack == CDVR_PACK_TIME
-                           ? (size_t)ci->pvtc.T : 1;
-    if (ci->count > max_count)
-        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: %zu timesteps, at most %zu fit",
-                              pre, ci->count, max_count);
-    if (ci->payload_bytes != payload)
-        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: payload %llu bytes, parameters give "
-                              "%zu", pre, (unsigned long long)ci->payload_bytes, payload);
+    if (ci->codec) {
+        size_t lo[3], dims[3];
+        cdvr_store_brick_box(&st->info, brick, lo, dims);
+        cdvr_codec_shape shape;
+        cdvr_error perr;
+        if (cdvr_codec_shape_of(ci->codec, &ci->params, dims, &shape, &perr) != CDVR_OK)
+            return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: %s", pre, perr.msg);
+        if (ci->count > shape.timesteps)
+            return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: %zu timesteps, at most %zu fit",
+                                  pre, ci->count, shape.timesteps);
+        if (shape.payload_bytes ? ci->payload_bytes != shape.payload_bytes
+                                : (ci->payload_bytes == 0 || ci->payload_bytes > shape.bound_bytes))
+            return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: payload %llu bytes, parameters "
+                                  "give %zu (bound %zu)", pre,
+                                  (unsigned long long)ci->payload_bytes, shape.payload_bytes,
+                                  shape.bound_bytes);
+    } else if (ci->payload_bytes == 0 || ci->payload_bytes > SIZE_MAX) {
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: payload of %llu bytes", pre,
+                              (unsigned long long)ci->payload_bytes);
+    }
     if (ci->stage2 ? (vi->stage2 != CDVR_STAGE2_LZO || ci->stored_bytes >= ci->payload_bytes ||
                       ci->stored_bytes == 0)
                    : ci->stored_bytes != ci->payload_bytes)
@@ -471,79 +688,111 @@ static cdvr_status check_chunk(const cdvr_store *st, size_t v, size_t c, size_t 
                               "%d does not fit payload %llu", pre,
                               (unsigned long long)ci->stored_bytes, ci->stage2,
                               (unsigned long long)ci->payload_bytes);
-    if (ci->offset < data_start || ci->offset > st->info.file_bytes ||
-        ci->stored_bytes > st->info.file_bytes - ci->offset)
-        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: bytes %llu..%llu overlap another chunk "
-                              "or lie outside the data (%llu..%llu)", pre,
-                              (unsigned long long)ci->offset,
-                              (unsigned long long)(ci->offset + ci->stored_bytes),
-                              (unsigned long long)data_start,
-                              (unsigned long long)st->info.file_bytes);
+    if (ci->value_min > ci->value_max)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: value range %u..%u", pre,
+                              ci->value_min, ci->value_max);
     return CDVR_OK;
 }
 
-static void parse_chunk(rcursor *r, cdvr_chunk_info *ci, uint32_t *reserved)
+typedef struct extent {
+    uint64_t offset, bytes;
+    size_t chunk;
+} extent;
+
+static int compare_extents(const void *a, const void *b)
 {
-    ci->t0 = (size_t)get_u64(r);
-    ci->count = (size_t)get_u64(r);
-    uint32_t S = get_u32(r), T = get_u32(r), pack = get_u32(r), flag = get_u32(r);
-    ci->pvtc = (cdvr_pvtc_params){(int)(S & 0xff), (int)(T & 0xff), (cdvr_pack)(pack & 1)};
-    *reserved = (S | T) >> 8 | (pack >> 1) | (flag >> 1);
-    ci->stage2 = (int)(flag & 1);
-    ci->offset = get_u64(r);
-    ci->stored_bytes = get_u64(r);
-    ci->payload_bytes = get_u64(r);
-    ci->crc32c = get_u32(r);
-    *reserved |= get_u32(r);
+    const extent *x = a, *y = b;
+    return x->offset < y->offset ? -1 : x->offset > y->offset;
+}
+
+/* Every chunk's bytes lie in [data_start, file_bytes) and no two overlap. */
+static cdvr_status check_extents(const cdvr_store *st, uint64_t data_start, cdvr_error *err)
+{
+    size_t n = st->nchunks_total;
+    extent *ex = malloc((n ? n : 1) * sizeof *ex);
+    if (!ex)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory to check %zu chunks",
+                              st->path, n);
+    for (size_t c = 0; c < n; c++)
+        ex[c] = (extent){st->chunks[c].offset, st->chunks[c].stored_bytes, c};
+    qsort(ex, n, sizeof *ex, compare_extents);
+    cdvr_status s = CDVR_OK;
+    uint64_t end = data_start;
+    for (size_t i = 0; i < n && s == CDVR_OK; i++) {
+        const extent *e = &ex[i];
+        if (e->offset < end || e->offset > st->info.file_bytes ||
+            e->bytes > st->info.file_bytes - e->offset) {
+            size_t v = 0;
+            while (v + 1 < st->info.nvariants && st->chunk_first[v + 1] <= e->chunk)
+                v++;
+            s = cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s chunk %zu: bytes "
+                               "%llu..%llu overlap another chunk or lie outside the data "
+                               "(%llu..%llu)", st->path, st->variants[v].name,
+                               e->chunk - st->chunk_first[v] + 1,
+                               (unsigned long long)e->offset,
+                               (unsigned long long)(e->offset + e->bytes),
+                               (unsigned long long)data_start,
+                               (unsigned long long)st->info.file_bytes);
+        }
+        end = e->offset + e->bytes;
+    }
+    free(ex);
+    return s;
 }
 
 static cdvr_status parse_tables(cdvr_store *st, const uint8_t *meta, size_t meta_bytes,
                                 cdvr_error *err)
 {
-    rcursor r = {meta + CDVR_STORE_HEADER_BYTES, meta + meta_bytes};
+    int v1 = st->info.version == 1;
+    rcursor r = {meta + header_bytes_of(st->info.version), meta + meta_bytes};
+    uint32_t *encoders = calloc(st->info.nvariants, sizeof *encoders);
+    if (!encoders)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory", st->path);
     size_t first = 0;
-    for (size_t v = 0; v < st->info.nvariants; v++) {
-        uint64_t n;
-        cdvr_status s = parse_variant(st, &r, v, &n, err);
-        if (s != CDVR_OK)
-            return s;
-        if (n > st->nchunks_total - first)
-            return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s: %llu chunks, more than "
-                                  "the header's total", st->path, st->variants[v].name,
-                                  (unsigned long long)n);
+    cdvr_status s = CDVR_OK;
+    for (size_t v = 0; s == CDVR_OK && v < st->info.nvariants; v++) {
+        s = v1 ? parse_variant_v1(st, &r, v, &encoders[v], err) : parse_variant_v2(st, &r, v, err);
+        if (s == CDVR_OK && st->variants[v].nchunks > st->nchunks_total - first)
+            s = cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s: %zu chunks, more than the "
+                               "header's total", st->path, st->variants[v].name,
+                               st->variants[v].nchunks);
         st->chunk_first[v] = first;
-        first += (size_t)n;
+        first += s == CDVR_OK ? st->variants[v].nchunks : 0;
     }
-    if (first != st->nchunks_total)
-        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variants hold %zu chunks, header says "
-                              "%zu", st->path, first, st->nchunks_total);
-    uint64_t data_end = meta_bytes + 4;
-    for (size_t v = 0; v < st->info.nvariants; v++) {
+    if (s == CDVR_OK && first != st->nchunks_total)
+        s = cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variants hold %zu chunks, header says "
+                           "%zu", st->path, first, st->nchunks_total);
+    for (size_t v = 0; s == CDVR_OK && v < st->info.nvariants; v++) {
         cdvr_variant_info *vi = &st->variants[v];
         size_t next_t0 = 0;
-        for (size_t c = 0; c < vi->nchunks; c++) {
+        const cdvr_chunk_info *group_first = NULL;
+        for (size_t c = 0; s == CDVR_OK && c < vi->nchunks; c++) {
             cdvr_chunk_info *ci = &st->chunks[st->chunk_first[v] + c];
-            uint32_t reserved;
-            parse_chunk(&r, ci, &reserved);
-            if (reserved)
-                return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s chunk %zu: reserved "
-                                      "bits set", st->path, vi->name, c + 1);
-            cdvr_status s = check_chunk(st, v, c, next_t0, data_end, err);
+            s = v1 ? parse_chunk_v1(st, &r, v, encoders[v], ci, err)
+                   : parse_chunk_v2(st, &r, v, ci, err);
+            if (s == CDVR_OK)
+                s = check_chunk(st, v, c, next_t0, group_first, err);
             if (s != CDVR_OK)
-                return s;
-            next_t0 = ci->t0 + ci->count;
-            data_end = ci->offset + ci->stored_bytes;
+                break;
+            group_first = c % st->info.nbricks == 0 ? ci : group_first;
+            if ((c + 1) % st->info.nbricks == 0) {
+                next_t0 = ci->t0 + ci->count;
+                group_first = NULL;
+            }
             vi->bytes += ci->stored_bytes;
             vi->payload_bytes += ci->payload_bytes;
         }
-        if (next_t0 != st->info.timesteps)
-            return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s covers %zu of %zu "
-                                  "timesteps", st->path, vi->name, next_t0, st->info.timesteps);
-        if (vi->codec == CDVR_CODEC_PVTC)
-            vi->pvtc = st->chunks[st->chunk_first[v]].pvtc;
+        if (s == CDVR_OK && next_t0 != st->info.timesteps)
+            s = cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s covers %zu of %zu "
+                               "timesteps", st->path, vi->name, next_t0, st->info.timesteps);
     }
-    return CDVR_OK;
+    free(encoders);
+    if (s == CDVR_OK)
+        s = check_extents(st, meta_bytes + 4, err);
+    return s;
 }
+
+/* ---- reader: open ----------------------------------------------------------------------- */
 
 static cdvr_status open_header(cdvr_store *st, uint64_t file_size, header_fields *h,
                                cdvr_error *err)
@@ -554,10 +803,14 @@ static cdvr_status open_header(cdvr_store *st, uint64_t file_size, header_fields
         return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot read: %s", st->path, strerror(errno));
     if (got < 8 || memcmp(hdr, CDVR_STORE_MAGIC, 8) != 0)
         return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: not a cdvr store (bad magic)", st->path);
-    if (got < sizeof hdr)
-        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: truncated header (%zu of %u bytes)",
-                              st->path, got, CDVR_STORE_HEADER_BYTES);
-    parse_header(hdr, h);
+    uint32_t version = got >= 12 ? (uint32_t)hdr[8] | (uint32_t)hdr[9] << 8 |
+                                       (uint32_t)hdr[10] << 16 | (uint32_t)hdr[11] << 24
+                                 : 0;
+    size_t need = version == 1 ? CDVR_STORE_V1_HEADER_BYTES : CDVR_STORE_HEADER_BYTES;
+    if (got < need && (version == 1 || version == CDVR_STORE_VERSION))
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: truncated header (%zu of %zu bytes)",
+                              st->path, got, need);
+    parse_header(hdr, got < need ? got : need, h);
     return check_header_sizes(st->path, h, file_size, err);
 }
 
@@ -588,7 +841,8 @@ static cdvr_status open_tables(cdvr_store *st, const header_fields *h, cdvr_erro
 cdvr_status cdvr_store_open(const char *path, cdvr_store **out, cdvr_error *err)
 {
     *out = NULL;
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    /* O_NONBLOCK: opening a FIFO must not wait for a writer; regular files ignore it */
+    int fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK);
     if (fd < 0)
         return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
     struct stat sb;
@@ -596,6 +850,9 @@ cdvr_status cdvr_store_open(const char *path, cdvr_store **out, cdvr_error *err)
         close(fd);
         return cdvr_error_set(err, CDVR_ERR_IO, "%s: not a regular file", path);
     }
+    int flags = fcntl(fd, F_GETFL);
+    if (flags >= 0)
+        (void)fcntl(fd, F_SETFL, flags & ~O_NONBLOCK);
     header_fields h = {0};
     cdvr_store probe = {.path = (char *)path, .fd = fd};
     cdvr_status s = open_header(&probe, (uint64_t)sb.st_size, &h, err);
@@ -607,6 +864,9 @@ cdvr_status cdvr_store_open(const char *path, cdvr_store **out, cdvr_error *err)
         return s;
     }
     st->fd = fd;
+    st->info.version = h.version;
+    st->info.file_bytes = h.file_bytes;
+    st->info.nbricks = 1; /* until the header values are checked */
     s = open_tables(st, &h, err);
     if (s != CDVR_OK) {
         cdvr_store_close(st);
@@ -624,7 +884,6 @@ void cdvr_store_close(cdvr_store *st)
         close(st->fd);
     free(st->path);
     free(st->variants);
-    free(st->lzo_min_saving);
     free(st->chunk_first);
     free(st->chunks);
     free(st);
@@ -656,20 +915,47 @@ const cdvr_chunk_info *cdvr_store_chunk(const cdvr_store *st, size_t v, size_t c
     return &st->chunks[st->chunk_first[v] + c];
 }
 
-size_t cdvr_store_chunk_for_time(const cdvr_store *st, size_t v, size_t t)
+size_t cdvr_store_chunk_for(const cdvr_store *st, size_t v, size_t t, size_t b)
 {
-    if (v >= st->info.nvariants || t >= st->info.timesteps)
+    size_t nb = st->info.nbricks;
+    if (v >= st->info.nvariants || t >= st->info.timesteps || b >= nb)
         return (size_t)-1;
     const cdvr_chunk_info *ch = &st->chunks[st->chunk_first[v]];
-    size_t lo = 0, hi = st->variants[v].nchunks; /* chunks are sorted by t0 and contiguous */
+    size_t lo = 0, hi = st->variants[v].ngroups; /* groups are sorted by t0 and contiguous */
     while (hi - lo > 1) {
         size_t mid = lo + (hi - lo) / 2;
-        if (ch[mid].t0 <= t)
+        if (ch[mid * nb].t0 <= t)
             lo = mid;
         else
             hi = mid;
     }
-    return lo;
+    return lo * nb + b;
+}
+
+size_t cdvr_store_chunk_for_time(const cdvr_store *st, size_t v, size_t t)
+{
+    return cdvr_store_chunk_for(st, v, t, 0);
+}
+
+static cdvr_status codec_missing(const cdvr_store *st, const char *variant, const char *name,
+                                 uint32_t id, cdvr_error *err)
+{
+    return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "%s: variant %s: codec '%s' (id %u) is not "
+                          "loaded (load its plugin: cdvr.plugin.load)", st->path, variant, name,
+                          id);
+}
+
+cdvr_status cdvr_store_variant_codec(const cdvr_store *st, size_t v, const cdvr_codec **out,
+                                     cdvr_error *err)
+{
+    *out = NULL;
+    if (v >= st->info.nvariants)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: no variant %zu", st->path, v + 1);
+    const cdvr_variant_info *vi = &st->variants[v];
+    if (!vi->codec)
+        return codec_missing(st, vi->name, vi->codec_name, vi->codec_id, err);
+    *out = vi->codec;
+    return CDVR_OK;
 }
 
 /* ---- reading chunks --------------------------------------------------------------------- */
@@ -743,11 +1029,19 @@ cdvr_status cdvr_store_decode_chunk(const cdvr_store *st, size_t v, size_t c,
     cdvr_status s = chunk_lookup(st, v, c, &ci, err);
     if (s != CDVR_OK)
         return s;
+    const cdvr_variant_info *vi = &st->variants[v];
+    if (!ci->codec) {
+        cdvr_error merr;
+        codec_missing(st, vi->name, vi->codec_name, ci->codec_id, &merr);
+        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "%s (chunk %zu)", merr.msg, c + 1);
+    }
+    size_t lo[3], dims[3];
+    cdvr_store_brick_box(&st->info, ci->brick, lo, dims);
     cdvr_error derr;
-    if (cdvr_store_decode_payload(st->variants[v].codec, &ci->pvtc, st->info.dims, payload,
-                                  (size_t)ci->payload_bytes, frames, ci->count, &derr) != CDVR_OK)
+    if (ci->codec->decode(&ci->params, dims, payload, (size_t)ci->payload_bytes, frames,
+                          ci->count, &derr) != CDVR_OK)
         return cdvr_error_set(err, derr.status, "%s: variant %s chunk %zu: %s", st->path,
-                              st->variants[v].name, c + 1, derr.msg);
+                              vi->name, c + 1, derr.msg);
     return CDVR_OK;
 }
 
@@ -756,17 +1050,17 @@ cdvr_status cdvr_store_load_payload(const cdvr_store *st, size_t v, size_t c, ui
                                     cdvr_error *err)
 {
     *payload = NULL;
-    const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, c);
-    if (!ci)
-        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: no chunk %zu in variant %zu", st->path, c + 1, v + 1);
+    const cdvr_chunk_info *ci;
+    cdvr_status s = chunk_lookup(st, v, c, &ci, err);
+    if (s != CDVR_OK)
+        return s;
     if (ci->stored_bytes > SIZE_MAX || ci->payload_bytes > SIZE_MAX)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: chunk %zu too large", st->path, c + 1);
     uint8_t *stored = malloc(ci->stored_bytes ? (size_t)ci->stored_bytes : 1);
     *payload = malloc(ci->payload_bytes ? (size_t)ci->payload_bytes : 1);
-    cdvr_status s = (!stored || !*payload)
-                        ? cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for chunk %zu",
-                                         st->path, c + 1)
-                        : cdvr_store_read_chunk(st, v, c, stored, err);
+    s = (!stored || !*payload) ? cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for chunk "
+                                                "%zu", st->path, c + 1)
+                               : cdvr_store_read_chunk(st, v, c, stored, err);
     if (s == CDVR_OK)
         s = cdvr_store_unpack_chunk(st, v, c, stored, *payload, err);
     free(stored);
@@ -777,41 +1071,67 @@ cdvr_status cdvr_store_load_payload(const cdvr_store *st, size_t v, size_t c, ui
     return s;
 }
 
+/* Copies frame k of a decoded brick (brick dims bd, first voxel lo) into the full volume. */
+static void place_brick(uint8_t *vol, const size_t vd[3], const uint8_t *brick,
+                        const size_t lo[3], const size_t bd[3])
+{
+    for (size_t z = 0; z < bd[2]; z++)
+        for (size_t y = 0; y < bd[1]; y++)
+            memcpy(vol + lo[0] + vd[0] * ((lo[1] + y) + vd[1] * (lo[2] + z)),
+                   brick + bd[0] * (y + bd[1] * z), bd[0]);
+}
+
+/* Decodes brick chunk c (timestep t inside it) into the volume. */
+static cdvr_status decode_brick_into(const cdvr_store *st, size_t v, size_t c, size_t t,
+                                     uint8_t *vol, cdvr_error *err)
+{
+    const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, c);
+    size_t lo[3], bd[3], voxels, scratch_n;
+    cdvr_store_brick_box(&st->info, ci->brick, lo, bd);
+    voxels = bd[0] * bd[1] * bd[2];
+    uint8_t *payload = NULL, *scratch = NULL;
+    uint8_t *frames[64];
+    if (ci->count > 64)
+        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "%s: chunk %zu holds %zu timesteps "
+                              "(at most 64 are supported)", st->path, c + 1, ci->count);
+    cdvr_status s = cdvr_store_load_payload(st, v, c, &payload, err);
+    if (s == CDVR_OK && (!cdvr_size_mul(voxels, ci->count, &scratch_n) ||
+                         !(scratch = malloc(scratch_n ? scratch_n : 1))))
+        s = cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory to decode", st->path);
+    if (s == CDVR_OK) {
+        for (size_t i = 0; i < ci->count; i++)
+            frames[i] = scratch + i * voxels;
+        s = cdvr_store_decode_chunk(st, v, c, payload, frames, err);
+    }
+    if (s == CDVR_OK)
+        place_brick(vol, st->info.dims, frames[t - ci->t0], lo, bd);
+    free(payload);
+    free(scratch);
+    return s;
+}
+
 cdvr_status cdvr_store_decode(const cdvr_store *st, size_t v, size_t t, cdvr_volume **out,
                               cdvr_error *err)
 {
     *out = NULL;
-    size_t c = cdvr_store_chunk_for_time(st, v, t);
-    if (c == (size_t)-1)
+    size_t c0 = cdvr_store_chunk_for(st, v, t, 0);
+    if (c0 == (size_t)-1)
         return cdvr_error_set(err, CDVR_ERR_ARG, "%s: no timestep %zu in variant %zu (%zu "
                               "timesteps, %zu variants)", st->path, t + 1, v + 1,
                               st->info.timesteps, st->info.nvariants);
-    const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, c);
-    size_t k = t - ci->t0, voxels = (size_t)(st->info.raw_bytes / st->info.timesteps), scratch_n;
-    uint8_t *payload = NULL, *scratch = NULL;
-    uint8_t *frames[8];
     cdvr_volume *vol = NULL;
-    cdvr_status s = cdvr_store_load_payload(st, v, c, &payload, err);
-    if (s == CDVR_OK)
-        s = cdvr_volume_create(st->info.dims, 1, CDVR_TYPE_U8, &vol, err);
-    if (s == CDVR_OK && (!cdvr_size_mul(voxels, ci->count, &scratch_n) ||
-                         !(scratch = malloc(scratch_n))))
-        s = cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory to decode", st->path);
-    if (s == CDVR_OK) {
-        for (size_t i = 0; i < ci->count; i++)
-            frames[i] = i == k ? (uint8_t *)vol->data : scratch + i * voxels;
-        s = cdvr_store_decode_chunk(st, v, c, payload, frames, err);
-    }
-    free(payload);
-    free(scratch);
+    cdvr_status s = cdvr_volume_create(st->info.dims, 1, CDVR_TYPE_U8, &vol, err);
+    /* last brick first: a voxel two bricks share keeps the value of the lower brick, which
+     * owns it (the encoder measures each voxel in its owner) */
+    for (size_t b = st->info.nbricks; s == CDVR_OK && b-- > 0;)
+        s = decode_brick_into(st, v, c0 + b, t, (uint8_t *)vol->data, err);
     if (s != CDVR_OK) {
         cdvr_volume_free(vol);
         return s;
     }
-    for (int i = 0; i < 3; i++) {
-        vol->spacing[i] = st->info.spacing[i];
-        vol->origin[i] = st->info.origin[i];
-    }
+    memcpy(vol->spacing, st->info.spacing, sizeof vol->spacing);
+    memcpy(vol->origin, st->info.origin, sizeof vol->origin);
+    memcpy(vol->direction, st->info.direction, sizeof vol->direction);
     *out = vol;
     return CDVR_OK;
 }

@@ -7,20 +7,23 @@
 #include "cdvr/store.h"
 
 #define CDVR_STORE_MAGIC "CDVR\0STR"
-#define CDVR_STORE_VERSION 1u
-#define CDVR_STORE_HEADER_BYTES 152u
-#define CDVR_STORE_VARIANT_BYTES 96u
-#define CDVR_STORE_CHUNK_BYTES 64u
+#define CDVR_STORE_VERSION 2u
+#define CDVR_STORE_HEADER_BYTES 256u
+#define CDVR_STORE_VARIANT_BYTES 160u
+#define CDVR_STORE_CHUNK_BYTES 128u
 #define CDVR_STORE_MAX_VARIANTS 256u
+/* format version 1 (read only) */
+#define CDVR_STORE_V1_HEADER_BYTES 152u
+#define CDVR_STORE_V1_VARIANT_BYTES 96u
+#define CDVR_STORE_V1_CHUNK_BYTES 64u
 
 struct cdvr_store {
     char *path;                 /* as given to open/encode */
     int fd;                     /* -1 while encoding */
     cdvr_store_info info;
     cdvr_variant_info *variants; /* info.nvariants */
-    double *lzo_min_saving;     /* per variant, as recorded */
     size_t *chunk_first;        /* per variant: index of its first chunk in chunks */
-    cdvr_chunk_info *chunks;    /* all chunks, variant-major, in file order */
+    cdvr_chunk_info *chunks;    /* all chunks, variant-major, then group, then brick */
     size_t nchunks_total;
 };
 
@@ -28,25 +31,11 @@ struct cdvr_store {
 cdvr_status cdvr_store_alloc(size_t nvariants, size_t nchunks, const char *path,
                              cdvr_store **out, cdvr_error *err);
 
-/* Bytes of header + variant table + chunk index (the metadata CRC follows them);
- * 0 on overflow. */
+/* Bytes of header + variant table + chunk index of format version 2 (the metadata CRC
+ * follows them); 0 on overflow. */
 uint64_t cdvr_store_meta_bytes(size_t nvariants, size_t nchunks);
 
-/* Serialises the metadata and its CRC-32C into buf (cdvr_store_meta_bytes + 4 bytes). */
+/* Serialises the metadata (version 2) and its CRC-32C into buf (cdvr_store_meta_bytes + 4). */
 void cdvr_store_serialize_meta(const cdvr_store *st, uint8_t *buf);
-
-/* Default variant name: "S4T3", "S1T2s" (space packing), "raw". */
-void cdvr_store_default_name(cdvr_codec_id codec, const cdvr_pvtc_params *p,
-                             char name[CDVR_NAME_MAX]);
-
-/* Decodes one payload of `codec` with params into count frames (no store needed). */
-cdvr_status cdvr_store_decode_payload(cdvr_codec_id codec, const cdvr_pvtc_params *params,
-                                      const size_t dims[3], const uint8_t *payload,
-                                      size_t payload_bytes, uint8_t *const *frames,
-                                      size_t count, cdvr_error *err);
-
-/* Payload bytes of one chunk of codec/params for dims (validates params); 0 + err on error. */
-cdvr_status cdvr_store_payload_bytes(cdvr_codec_id codec, const cdvr_pvtc_params *params,
-                                     const size_t dims[3], size_t *bytes, cdvr_error *err);
 
 #endif

@@ -32,17 +32,30 @@ static void endpoints(uint word, int T, int c, uint *a, uint *b)
     }
 }
 
-/* dims: X, Y, Z of a frame; blocks: blocks along x, y, z; space: 1 for pack = space.
- * Time packing writes channel c to frame c (c < nframes); space packing writes channel c of
- * packed position z to slice T*z + c of frame 0. Positions past the dims are cropped. */
-__kernel void pvtc_decode(__global const uchar *chunk, __global uchar *frames, uint X, uint Y,
-                          uint Z, uint bx, uint by, uint bz, int S, int T, int space,
-                          uint nframes)
+static uint param_u32(__constant uchar *params, int offset)
 {
+    return (uint)params[offset] | ((uint)params[offset + 1] << 8) |
+           ((uint)params[offset + 2] << 16) | ((uint)params[offset + 3] << 24);
+}
+
+/* The codec decode kernel of cdvr/codec.h. params: the PVTC blob (u32 S at 0, T at 4, pack at 8;
+ * core/codec/pvtc/pvtc_codec.c). One work-item per block (cl_work_items = block count).
+ * Time packing writes channel c to frame c (c < nframes); space packing writes channel c of
+ * packed position z to slice T*z + c of frame 0. Positions past the dims are cropped. The
+ * host checked payload_bytes against the chunk size. */
+__kernel void pvtc_decode(__global const uchar *chunk, ulong payload_bytes,
+                          __constant uchar *params, uint X, uint Y, uint Z, uint nframes,
+                          __global uchar *frames)
+{
+    int S = (int)param_u32(params, 0), T = (int)param_u32(params, 4);
+    int space = param_u32(params, 8) == 1u;
+    uint zdepth = (uint)S * (space ? (uint)T : 1u);
+    uint bx = (X + 3) / 4, by = (Y + 3) / 4, bz = (Z + zdepth - 1) / zdepth;
     uint blk = get_global_id(0);
     uint nblocks = bx * by * bz;
     if (blk >= nblocks)
         return;
+    (void)payload_bytes;
     uint ix = blk % bx, iy = (blk / bx) % by, iz = blk / (bx * by);
     uint ends = load_le32(chunk + 4 * (size_t)blk);
     __global const uchar *index_words = chunk + 4 * (size_t)nblocks + 4 * (size_t)S * blk;

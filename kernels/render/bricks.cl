@@ -1,12 +1,17 @@
 /* kernels/render/bricks.cl - the brick min/max grid for empty-space skipping. One work-item per
  * brick of B^3 voxels: min and max over the brick plus the one-voxel upper apron that
  * trilinear interpolation reads (voxels B*b .. B*b + B, clamped to the volume). The host
- * turns the grid into per-brick visibility flags for each transfer function. */
-__kernel void brick_minmax(__global const uchar *frames, ulong offset, uint X, uint Y, uint Z,
-                           uint B, uint nbx, uint nby, uint nbz, __global uchar2 *minmax)
+ * turns the grid into per-brick visibility flags for each transfer function.
+ * frames/params/offset as in raycast.cl: a dense frame at frames + offset, or with
+ * -DCDVR_FETCH the chunk payload, its parameter blob and the frame within the chunk. */
+__kernel void brick_minmax(__global const uchar *frames, __constant uchar *params, ulong offset,
+                           uint X, uint Y, uint Z, uint B, uint nbx, uint nby, uint nbz,
+                           __global uchar2 *minmax)
 {
     uint b = get_global_id(0);
+#ifndef CDVR_FETCH
     __global const uchar *frame = frames + offset;
+#endif
     if (b >= nbx * nby * nbz)
         return;
     uint x0 = (b % nbx) * B, y0 = ((b / nbx) % nby) * B, z0 = (b / (nbx * nby)) * B;
@@ -14,9 +19,17 @@ __kernel void brick_minmax(__global const uchar *frames, ulong offset, uint X, u
     uint lo = 255, hi = 0;
     for (uint z = z0; z <= z1; z++)
         for (uint y = y0; y <= y1; y++) {
+#ifdef CDVR_FETCH
+            int4 dims = (int4)((int)X, (int)Y, (int)Z, (int)offset);
+#else
             __global const uchar *row = frame + (ulong)X * ((ulong)Y * z + y);
+#endif
             for (uint x = x0; x <= x1; x++) {
+#ifdef CDVR_FETCH
+                uint v = CDVR_FETCH(frames, params, dims, (int)x, (int)y, (int)z);
+#else
                 uint v = row[x];
+#endif
                 lo = min(lo, v);
                 hi = max(hi, v);
             }

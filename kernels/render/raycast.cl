@@ -17,8 +17,8 @@
  * those whose value range has zero opacity under the TF. */
 
 #define RAY_PACKET 8 /* a packet is PACKET_W x PACKET_H pixels (lanes row by row) */
-#define PACKET_W 4
-#define PACKET_H 2
+#define PACKET_W CDVR_CL_PACKET_W
+#define PACKET_H CDVR_CL_PACKET_H
 typedef float8 vfloat;
 typedef int8 vint;
 typedef long8 vlong;
@@ -28,14 +28,15 @@ typedef struct vec3x8 {
     vfloat x, y, z;
 } vec3x8;
 
-typedef struct cam_params {
-    float eye[3], f[3], u[3], r[3];
-    float tan_half, aspect, ortho_half_height;
-    int orthographic, width, height;
-} cam_params;
+typedef cdvr_cl_camera cam_params; /* kernels/common/cl_shared.h */
 
+/* Voxels are read from a dense u8 frame, or, when the program is built with
+ * -DCDVR_FETCH=name, through a codec's per-sample fetch function (cdvr/codec.h): vol is then
+ * the chunk's payload, params its parameter blob and frame the timestep within the chunk. */
 typedef struct volume_geo {
     __global const uchar *vol;
+    __constant uchar *params;
+    int frame;
     int3 dims;
     int3 base_max;  /* largest lower trilinear corner per axis: max(dims - 2, 0) */
     long3 stride;   /* index step to the upper corner per axis; 0 where dims is 1 */
@@ -130,6 +131,22 @@ static vfloat lerp_pairs(ushort8 w, vfloat fx)
 }
 #endif
 
+#ifdef CDVR_FETCH
+/* Voxel (x, y, z) of each lane through the codec's fetch function. */
+static vfloat fetch8(const volume_geo *v, vint x, vint y, vint z)
+{
+    int xs[8], ys[8], zs[8];
+    float out[8];
+    vstore8(x, 0, xs);
+    vstore8(y, 0, ys);
+    vstore8(z, 0, zs);
+    int4 dims = (int4)(v->dims.x, v->dims.y, v->dims.z, v->frame);
+    for (int k = 0; k < 8; k++)
+        out[k] = (float)CDVR_FETCH(v->vol, v->params, dims, xs[k], ys[k], zs[k]);
+    return vload8(0, out);
+}
+#endif
+
 /* render.h step 3 at grid position g (clamped here). */
 /* always inlined: as a call (two callers) its vector arguments and result go through memory */
 __attribute__((always_inline)) static inline vfloat trilinear(const volume_geo *v, vec3x8 g)
@@ -138,6 +155,14 @@ __attribute__((always_inline)) static inline vfloat trilinear(const volume_geo *
     vint x0 = corner(g.x, v->top.x, v->base_max.x, &fx);
     vint y0 = corner(g.y, v->top.y, v->base_max.y, &fy);
     vint z0 = corner(g.z, v->top.z, v->base_max.z, &fz);
+#ifdef CDVR_FETCH
+    vint x1 = x0 + (v->stride.x != 0), y1 = y0 + (v->stride.y != 0), z1 = z0 + (v->stride.z != 0);
+    return mix(mix(mix(fetch8(v, x0, y0, z0), fetch8(v, x1, y0, z0), fx),
+                   mix(fetch8(v, x0, y1, z0), fetch8(v, x1, y1, z0), fx), fy),
+               mix(mix(fetch8(v, x0, y0, z1), fetch8(v, x1, y0, z1), fx),
+                   mix(fetch8(v, x0, y1, z1), fetch8(v, x1, y1, z1), fx), fy),
+               fz);
+#else
     vlong base = convert_long8(x0) + v->stride.y * convert_long8(y0) +
                  v->stride.z * convert_long8(z0);
     long sx = v->stride.x, sy = v->stride.y, sz = v->stride.z;
@@ -157,6 +182,7 @@ __attribute__((always_inline)) static inline vfloat trilinear(const volume_geo *
     c01 = mix(gather8(p, base + sz), gather8(p, base + sz + sx), fx);
     c11 = mix(gather8(p, base + sz + sy), gather8(p, base + sz + sy + sx), fx);
     return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
+#endif
 }
 
 /* Classified sample per lane: rgb lerped from the table, alpha per the caller. */
@@ -330,10 +356,13 @@ static void last_segment(const packet *p, vint n, vint last, float step, float u
     *taken -= last;
 }
 
-static volume_geo make_geo(__global const uchar *vol, int X, int Y, int Z)
+static volume_geo make_geo(__global const uchar *vol, __constant uchar *params, int frame,
+                           int X, int Y, int Z)
 {
     volume_geo v;
     v.vol = vol;
+    v.params = params;
+    v.frame = frame;
     v.dims = (int3)(X, Y, Z);
     v.base_max = max(v.dims - 2, 0);
     v.stride = (long3)(X > 1 ? 1 : 0, Y > 1 ? (long)X : 0, Z > 1 ? (long)X * (long)Y : 0);
@@ -409,11 +438,14 @@ static void visible_range(vec3x8 g0, vec3x8 dg, float3 lo, float3 hi, vint n_ful
     *stop = min(convert_int8(exit), n_full);
 }
 
-/* Geometry as render_cpu.c holds it: origin, 1/spacing and the box's upper corner (computed
+/* frames/params/offset: a dense frame at frames + offset (params unused), or, with
+ * CDVR_FETCH, the chunk payload, its parameter blob and the frame index within the chunk.
+ * Geometry as render_cpu.c holds it: origin, 1/spacing and the box's upper corner (computed
  * in double on the host). table: rgb + step-corrected alpha; alpha: alpha per unit (for the
  * shorter last segment). Bricks: edge 1 << brick_shift, counts nbx, nby, nbz, skipping on/off.
  * Work-item (gx, gy) renders the PACKET_W x PACKET_H pixels from (PACKET_W gx, PACKET_H gy). */
-__kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, int Z,
+__kernel void raycast(__global const uchar *frames, __constant uchar *params, ulong offset,
+                      int X, int Y, int Z,
                       float ox, float oy, float oz, float isx, float isy, float isz,
                       float hx, float hy, float hz,
                       float step, float term_alpha, cam_params cam,
@@ -449,7 +481,11 @@ __kernel void raycast(__global const uchar *frames, ulong offset, int X, int Y, 
     vec3x8 dg = {select((vfloat)(0.0f), p.d.x * step * inv_spacing.x, p.hit),
                  select((vfloat)(0.0f), p.d.y * step * inv_spacing.y, p.hit),
                  select((vfloat)(0.0f), p.d.z * step * inv_spacing.z, p.hit)};
-    volume_geo v = make_geo(frames + offset, X, Y, Z);
+#ifdef CDVR_FETCH
+    volume_geo v = make_geo(frames, params, (int)offset, X, Y, Z);
+#else
+    volume_geo v = make_geo(frames + offset, params, 0, X, Y, Z);
+#endif
     bricks b = make_bricks(brick_visible, brick_shift, nbx, nby, nbz, dg);
     march m;
     m.i = (vint)(0);

@@ -114,9 +114,7 @@ static cdvr_status upload_frame(ldevice *d, cdvr_cl_stream *s, const cdvr_volume
     if (d->frame_copy && d->frame_bytes == bytes && !memcmp(d->frame_copy, voxels, bytes))
         return CDVR_OK;
     forget_frame(d);
-    cdvr_status st = cdvr_cl_upload(s, voxels, bytes, err);
-    if (!st)
-        st = cdvr_cl_decode(s, CDVR_CODEC_RAW, NULL, 1, err);
+    cdvr_status st = cdvr_cl_upload_frames(s, voxels, 1, err);
     if (st)
         return st;
     d->frame_copy = malloc(bytes ? bytes : 1);
@@ -125,6 +123,45 @@ static cdvr_status upload_frame(ldevice *d, cdvr_cl_stream *s, const cdvr_volume
         d->frame_bytes = bytes;
     }
     return CDVR_OK;
+}
+
+/* Pushes the stats table of a device render. */
+static void push_cl_stats(lua_State *L, ldevice *d, cdvr_cl_stream *s, double ms)
+{
+    lua_createtable(L, 0, 6);
+    lua_pushinteger(L, (lua_Integer)cdvr_cl_last_samples(s));
+    lua_setfield(L, -2, "samples");
+    lua_pushnumber(L, ms);
+    lua_setfield(L, -2, "ms");
+    lua_pushstring(L, cdvr_cl_device_name(d->cl));
+    lua_setfield(L, -2, "device");
+    size_t visible, total;
+    cdvr_cl_brick_counts(s, &visible, &total);
+    lua_pushnumber(L, total ? (double)visible / (double)total : 0.0);
+    lua_setfield(L, -2, "bricks_visible");
+    lua_pushinteger(L, (lua_Integer)cdvr_cl_stream_bytes(s));
+    lua_setfield(L, -2, "device_bytes");
+    lua_pushinteger(L, (lua_Integer)cdvr_cl_volume_bytes(s));
+    lua_setfield(L, -2, "volume_bytes");
+}
+
+/* Setup and ray cast of the stream's frame `frame`; pushes image and stats. */
+static int render_frame(lua_State *L, ldevice *d, cdvr_cl_stream *s, size_t frame,
+                        const cdvr_render_opts *opts, const double spacing[3],
+                        const double origin[3], double start)
+{
+    cdvr_image *img;
+    cdvr_error err;
+    if (cdvr_image_create(opts->camera->width, opts->camera->height, &img, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    lcdvr_pushimage(L, img); /* owned by Lua from here, so an error cannot leak it */
+    cdvr_status st = cdvr_cl_setup(s, frame, opts->tf, &err);
+    if (!st)
+        st = cdvr_cl_render(s, frame, opts, spacing, origin, img, &err);
+    if (st)
+        return lcdvr_raise(L, &err);
+    push_cl_stats(L, d, s, cdvr_now_ms() - start);
+    return 2;
 }
 
 int lcdvr_render_cl(lua_State *L, const cdvr_volume *vol, size_t t, void *render_opts)
@@ -136,46 +173,72 @@ int lcdvr_render_cl(lua_State *L, const cdvr_volume *vol, size_t t, void *render
         return luaL_error(L, "cdvr.render{device=\"cl\"}: needs frame of a u8 volume");
     ldevice *d = check_device(L, "cdvr.render{device=\"cl\"}");
     cdvr_cl_stream *s = device_stream(L, d, vol->dims);
-    cdvr_image *img;
-    cdvr_error err;
-    if (cdvr_image_create(opts->camera->width, opts->camera->height, &img, &err) != CDVR_OK)
-        return lcdvr_raise(L, &err);
-    lcdvr_pushimage(L, img); /* owned by Lua from here, so an error cannot leak it */
     double start = cdvr_now_ms();
     cdvr_cl_set_skipping(s, skipping);
-    cdvr_status st = upload_frame(d, s, vol, t, &err);
-    if (!st)
-        st = cdvr_cl_setup(s, 0, opts->tf, &err);
-    if (!st)
-        st = cdvr_cl_render(s, 0, opts, vol->spacing, vol->origin, img, &err);
-    if (st)
+    cdvr_error err;
+    if (upload_frame(d, s, vol, t, &err) != CDVR_OK)
         return lcdvr_raise(L, &err);
-    double ms = cdvr_now_ms() - start;
-    lua_createtable(L, 0, 4);
-    lua_pushinteger(L, (lua_Integer)cdvr_cl_last_samples(s));
-    lua_setfield(L, -2, "samples");
-    lua_pushnumber(L, ms);
-    lua_setfield(L, -2, "ms");
-    lua_pushstring(L, cdvr_cl_device_name(d->cl));
-    lua_setfield(L, -2, "device");
-    size_t visible, total;
-    cdvr_cl_brick_counts(s, &visible, &total);
-    lua_pushnumber(L, total ? (double)visible / (double)total : 0.0);
-    lua_setfield(L, -2, "bricks_visible");
-    return 2;
+    return render_frame(L, d, s, 0, opts, vol->spacing, vol->origin, start);
 }
 
-/* Reads and unpacks chunk c of variant v into a new buffer (freed by the caller). */
+/* Uploads chunk c of variant v and makes the stream's frames from it: the codec's decode
+ * kernel, its fetch mode (frames stay compressed), or a host decode + upload for codecs
+ * without device code and for bricked stores. Returns the frame of timestep t. */
+static size_t load_chunk(lua_State *L, cdvr_cl_stream *s, const cdvr_store *st, size_t v,
+                         size_t t)
+{
+    const cdvr_store_info *info = cdvr_store_get_info(st);
+    size_t c = cdvr_store_chunk_for_time(st, v, t);
+    const cdvr_chunk_info *chunk = c != (size_t)-1 ? cdvr_store_chunk(st, v, c) : NULL;
+    if (!chunk)
+        luaL_error(L, "%s: no variant %d timestep %d", cdvr_store_path(st), (int)v + 1, (int)t + 1);
+    const cdvr_codec *codec;
+    cdvr_error err;
+    if (cdvr_store_variant_codec(st, v, &codec, &err) != CDVR_OK)
+        lcdvr_raise(L, &err);
+    cdvr_status status;
+    if (info->nbricks > 1 || codec->cl_mode == CDVR_CODEC_CL_NONE) {
+        cdvr_volume *vol;
+        if (cdvr_store_decode(st, v, t, &vol, &err) != CDVR_OK)
+            lcdvr_raise(L, &err);
+        status = cdvr_cl_upload_frames(s, vol->data, 1, &err);
+        cdvr_volume_free(vol);
+        if (status)
+            lcdvr_raise(L, &err);
+        return 0;
+    }
+    uint8_t *payload;
+    if (cdvr_store_load_payload(st, v, c, &payload, &err) != CDVR_OK)
+        lcdvr_raise(L, &err);
+    status = cdvr_cl_upload(s, payload, (size_t)chunk->payload_bytes, &err);
+    free(payload);
+    if (!status)
+        status = cdvr_cl_decode(s, chunk->codec, &chunk->params, chunk->count, &err);
+    if (status)
+        luaL_error(L, "%s: variant %s chunk %d: %s", cdvr_store_path(st),
+                   cdvr_store_variant(st, v)->name, (int)c + 1, err.msg);
+    return t - chunk->t0;
+}
+
+int lcdvr_render_cl_store(lua_State *L, const cdvr_store *st, size_t v, size_t t,
+                          void *render_opts)
+{
+    const cdvr_render_opts *opts = render_opts;
+    int skipping = lua_istable(L, 2) ? lcdvr_optbooleanfield(L, 2, "skip", 1) : 1;
+    ldevice *d = check_device(L, "cdvr.render{device=\"cl\"}");
+    const cdvr_store_info *info = cdvr_store_get_info(st);
+    cdvr_cl_stream *s = device_stream(L, d, info->dims);
+    forget_frame(d); /* the stream's frames are about to be replaced */
+    double start = cdvr_now_ms();
+    cdvr_cl_set_skipping(s, skipping);
+    size_t frame = load_chunk(L, s, st, v, t);
+    return render_frame(L, d, s, frame, opts, info->spacing, info->origin, start);
+}
+
 int lcdvr_decode_cl(lua_State *L, const cdvr_store *st, size_t v, size_t t)
 {
-    const cdvr_variant_info *var = cdvr_store_variant(st, v);
-    size_t c = cdvr_store_chunk_for_time(st, v, t);
-    const cdvr_chunk_info *chunk = var && c != (size_t)-1 ? cdvr_store_chunk(st, v, c) : NULL;
-    if (!chunk)
-        return luaL_error(L, "%s: no variant %d timestep %d", cdvr_store_path(st), (int)v + 1, (int)t + 1);
-    if (var->codec != CDVR_CODEC_RAW && var->codec != CDVR_CODEC_PVTC)
-        return luaL_error(L, "%s: variant %s: codec %s has no OpenCL decoder (use device=\"cpu\")",
-                          cdvr_store_path(st), var->name, var->codec_name);
+    if (!cdvr_store_variant(st, v))
+        return luaL_error(L, "%s: no variant %d", cdvr_store_path(st), (int)v + 1);
     ldevice *d = check_device(L, "st:decode{device=\"cl\"}");
     const cdvr_store_info *info = cdvr_store_get_info(st);
     cdvr_cl_stream *s = device_stream(L, d, info->dims);
@@ -185,20 +248,13 @@ int lcdvr_decode_cl(lua_State *L, const cdvr_store *st, size_t v, size_t t)
         return lcdvr_raise(L, &err);
     memcpy(vol->spacing, info->spacing, sizeof vol->spacing);
     memcpy(vol->origin, info->origin, sizeof vol->origin);
+    memcpy(vol->direction, info->direction, sizeof vol->direction);
     lcdvr_pushvolume(L, vol); /* owned by Lua from here */
     forget_frame(d);         /* the stream's frames are about to be replaced */
-    uint8_t *payload;
-    if (cdvr_store_load_payload(st, v, c, &payload, &err) != CDVR_OK)
-        return lcdvr_raise(L, &err);
-    cdvr_status status = cdvr_cl_upload(s, payload, (size_t)chunk->payload_bytes, &err);
-    free(payload);
-    if (!status)
-        status = cdvr_cl_decode(s, var->codec, &chunk->pvtc, chunk->count, &err);
-    if (!status)
-        status = cdvr_cl_download(s, t - chunk->t0, vol->data, &err);
-    if (status)
-        return luaL_error(L, "%s: variant %s chunk %d: %s", cdvr_store_path(st), var->name,
-                          (int)c + 1, err.msg);
+    size_t frame = load_chunk(L, s, st, v, t);
+    if (cdvr_cl_download(s, frame, vol->data, &err) != CDVR_OK)
+        return luaL_error(L, "%s: variant %s: %s", cdvr_store_path(st),
+                          cdvr_store_variant(st, v)->name, err.msg);
     return 1;
 }
 
@@ -255,7 +311,9 @@ int lcdvr_open_device(lua_State *L)
                    "ray cast on the OpenCL device (same image as the CPU within 50 dB PSNR); "
                    "skip=false turns empty-space skipping off; stats add device=, bricks_visible=");
     lcdvr_help_add(L, "st:decode(t, variant, {device=\"cl\"})",
-                   "decode timestep t with the OpenCL decode kernel (bit-exact with the CPU)");
+                   "decode timestep t with the codec's OpenCL decode kernel (bit-exact with the "
+                   "CPU); codecs without one decode on the CPU; fetch-mode codecs (hvq) stay "
+                   "compressed on the device and raise");
     return 0;
 }
 
@@ -285,6 +343,13 @@ int lcdvr_render_cl(lua_State *L, const cdvr_volume *vol, size_t t, void *render
 int lcdvr_decode_cl(lua_State *L, const cdvr_store *st, size_t v, size_t t)
 {
     (void)st; (void)v; (void)t;
+    return luaL_error(L, "device='cl': OpenCL support is not built into this cdvr");
+}
+
+int lcdvr_render_cl_store(lua_State *L, const cdvr_store *st, size_t v, size_t t,
+                          void *render_opts)
+{
+    (void)st; (void)v; (void)t; (void)render_opts;
     return luaL_error(L, "device='cl': OpenCL support is not built into this cdvr");
 }
 

@@ -95,6 +95,7 @@ static void push_row(lua_State *L, const cdvr_store *st, const cdvr_frame_row *r
     setnum(L, "interval_ms", r->interval_ms);
     setnum(L, "bytes", (double)r->bytes);
     setnum(L, "payload_bytes", (double)r->payload_bytes);
+    setnum(L, "device_bytes", (double)r->device_bytes);
     if (r->group_start) {
         lua_pushstring(L, r->reason);
         lua_setfield(L, -2, "reason");
@@ -117,18 +118,14 @@ static void push_variants(lua_State *L, const cdvr_store *st)
         lua_setfield(L, -2, "name");
         lua_pushstring(L, var->codec_name);
         lua_setfield(L, -2, "codec");
-        lua_pushinteger(L, var->pvtc.S);
-        lua_setfield(L, -2, "S");
-        lua_pushinteger(L, var->pvtc.T);
-        lua_setfield(L, -2, "T");
-        lua_pushstring(L, var->pvtc.pack == CDVR_PACK_SPACE ? "space" : "time");
-        lua_setfield(L, -2, "pack");
+        if (var->codec)
+            lcdvr_push_params(L, var->codec, &ch0->params);
         lua_pushstring(L, var->stage2 == CDVR_STAGE2_LZO ? "lzo" : "none");
         lua_setfield(L, -2, "stage2");
         setnum(L, "bytes_per_timestep", (double)var->bytes / (double)info->timesteps);
         setnum(L, "payload_bytes_per_timestep", (double)var->payload_bytes / (double)info->timesteps);
         setnum(L, "psnr", var->psnr);
-        lua_pushinteger(L, ch0 ? (lua_Integer)ch0->count : 1);
+        lua_pushinteger(L, (lua_Integer)lcdvr_chunk_timesteps(st, v));
         lua_setfield(L, -2, "group");
         lua_rawseti(L, -2, (lua_Integer)v + 1);
     }
@@ -438,6 +435,7 @@ static int l_player(lua_State *L)
     }
     if (!lp->capture && lcdvr_optbooleanfield(L, 1, "pace", 1))
         lp->opts.pace_fps = lcdvr_optnumberfield(L, 1, "target_fps", 0);
+    lp->opts.loop = lcdvr_optbooleanfield(L, 1, "loop", 0);
     if (resolve_policy(L, ud) && !lp->capture) {
         lp->opts.decide = decide_cb;
         lp->opts.decide_ud = lp;

@@ -68,12 +68,14 @@ static const cdvr_tf *read_tf(lua_State *L, int idx)
     return tf;
 }
 
-static const cdvr_camera *read_camera(lua_State *L, int idx)
+/* opts.camera, or cdvr.orbit_camera(box) with box the value at stack index `box` (a volume
+ * or a table with dims, spacing and origin). */
+static const cdvr_camera *read_camera(lua_State *L, int idx, int box)
 {
     if (lua_getfield(L, idx, "camera") == LUA_TNIL) {
         lua_pop(L, 1);
         lua_getfield(L, lua_upvalueindex(1), "orbit_camera");
-        lua_pushvalue(L, 1);
+        lua_pushvalue(L, box);
         lua_call(L, 1, 1);
     }
     const cdvr_camera *cam = lcdvr_checkcamera(L, -1);
@@ -81,10 +83,10 @@ static const cdvr_camera *read_camera(lua_State *L, int idx)
     return cam;
 }
 
-static void read_options(lua_State *L, cdvr_render_opts *o)
+static void read_options(lua_State *L, cdvr_render_opts *o, int box)
 {
     o->tf = read_tf(L, 2);
-    o->camera = read_camera(L, 2);
+    o->camera = read_camera(L, 2, box);
     o->step = lcdvr_optnumberfield(L, 2, "step", 0.0);
     o->unit = lcdvr_optnumberfield(L, 2, "unit", 0.0);
     o->term_alpha = lcdvr_optnumberfield(L, 2, "term", 0.0);
@@ -118,11 +120,46 @@ static int option_index(lua_State *L, const char *key, const char *def,
     return luaL_error(L, "cdvr.render: option '%s': invalid value '%s'", key, value);
 }
 
+/* cdvr.render(st, {t=, variant=, ...}) on the cl device: the chunk goes to the device as it
+ * is (decode kernel, or the compressed domain for fetch-mode codecs). Stack: st, opts. */
+static int render_store_cl(lua_State *L, const cdvr_store *st, size_t v, size_t t)
+{
+    lua_settop(L, 4);           /* st, opts, (tf), (camera) */
+    lua_getfield(L, 1, "info"); /* st:info(): the box of the default camera */
+    lua_pushvalue(L, 1);
+    lua_call(L, 1, 1);          /* st, opts, tf, camera, info */
+    cdvr_render_opts o = {0};
+    read_options(L, &o, 5);
+    return lcdvr_render_cl_store(L, st, v, t, &o);
+}
+
+/* Variant of opts.variant (name or 1-based index; default the first). */
+static size_t store_variant(lua_State *L, const cdvr_store *st)
+{
+    size_t n = cdvr_store_get_info(st)->nvariants;
+    int type = lua_getfield(L, 2, "variant");
+    size_t v = 0;
+    if (type == LUA_TSTRING) {
+        int found = cdvr_store_find_variant(st, lua_tostring(L, -1));
+        if (found < 0)
+            luaL_error(L, "cdvr.render: %s has no variant '%s'", cdvr_store_path(st),
+                       lua_tostring(L, -1));
+        v = (size_t)found;
+    } else if (type != LUA_TNIL) {
+        lua_Integer i = lua_tointeger(L, -1);
+        if (!lua_isinteger(L, -1) || i < 1 || (size_t)i > n)
+            luaL_error(L, "cdvr.render: option 'variant': a name or 1..%d expected", (int)n);
+        v = (size_t)i - 1;
+    }
+    lua_pop(L, 1);
+    return v;
+}
+
 static int l_render(lua_State *L)
 {
-    const cdvr_volume *vol = lcdvr_checkvolume(L, 1);
+    const cdvr_store *st = luaL_testudata(L, 1, LCDVR_STORE) ? lcdvr_checkstore(L, 1) : NULL;
+    const cdvr_volume *vol = st ? NULL : lcdvr_checkvolume(L, 1);
     luaL_checktype(L, 2, LUA_TTABLE);
-    lua_settop(L, 4); /* slots 3, 4 hold the TF and camera while rendering */
     static const char *const devices[] = {"cpu", "cl", NULL};
     static const char *const methods[] = {"raycast", "slice", "splat", NULL};
     int device = option_index(L, "device", "cpu", devices);
@@ -130,13 +167,28 @@ static int l_render(lua_State *L)
     if (method != 0)
         return luaL_error(L, "cdvr.render: method '%s' is not available here (use raycast)",
                           methods[method]);
+    size_t timesteps = st ? cdvr_store_get_info(st)->timesteps : vol->timesteps;
     lua_Integer t = lcdvr_optintegerfield(L, 2, "t", 1);
-    if (t < 1 || (size_t)t > vol->timesteps)
+    if (t < 1 || (size_t)t > timesteps)
         return luaL_error(L, "cdvr.render: t = %I outside 1..%I", (LUAI_UACINT)t,
-                          (LUAI_UACINT)vol->timesteps);
-    cdvr_render_opts o = {0};
-    read_options(L, &o);
+                          (LUAI_UACINT)timesteps);
     size_t frame = (size_t)t - 1;
+    if (st) {
+        size_t v = store_variant(L, st);
+        if (device == 1)
+            return render_store_cl(L, st, v, frame);
+        cdvr_volume *decoded; /* the cpu decodes the timestep, then renders it as a volume */
+        cdvr_error err;
+        if (cdvr_store_decode(st, v, frame, &decoded, &err) != CDVR_OK)
+            return lcdvr_raise(L, &err);
+        lcdvr_pushvolume(L, decoded);
+        lua_replace(L, 1);
+        vol = decoded;
+        frame = 0;
+    }
+    lua_settop(L, 4); /* slots 3, 4 hold the TF and camera while rendering */
+    cdvr_render_opts o = {0};
+    read_options(L, &o, 1);
     const cdvr_volume *u8 = u8_frame(L, vol, &frame);
     if (device == 1)
         return lcdvr_render_cl(L, u8, frame, &o);
@@ -160,5 +212,9 @@ int lcdvr_open_render(lua_State *L)
                    "ray-cast image and stats {samples=, ms=}; device \"cpu\" (default) or \"cl\"; "
                    "camera defaults to cdvr.orbit_camera(volume); non-u8 volumes are quantized "
                    "over their range first; term = early-termination alpha (0.99, >= 1 off)");
+    lcdvr_help_add(L, "cdvr.render(store, {t=, variant=, device=, ...})",
+                   "render timestep t of a store variant: device \"cl\" renders the chunk on the "
+                   "device (in the compressed domain for fetch-mode codecs such as hvq), \"cpu\" "
+                   "decodes it first; stats add device_bytes= and volume_bytes= on the device");
     return 0;
 }

@@ -37,10 +37,20 @@ static void pushstore(lua_State *L, cdvr_store *st)
 
 /* ---- option parsing (cdvr.encode) ------------------------------------------------------- */
 
-static const char *const codec_names[] = {"raw", "pvtc", NULL};
-static const char *const pack_names[] = {"time", "space", NULL};
-static const char *const encoder_names[] = {"lsq", "bbox", NULL};
 static const char *const stage2_names[] = {"none", "lzo", NULL};
+
+/* Keys of a variant table that are not codec parameters. */
+static const char *const variant_keys[] = {"codec", "name", "stage2", "lzo_min_saving", NULL};
+/* Keys only the top-level options table takes. */
+static const char *const top_keys[] = {"path", "schedule", "progress", "variants", "bricks", NULL};
+
+static int in_list(const char *const list[], const char *key)
+{
+    for (int i = 0; list[i]; i++)
+        if (strcmp(list[i], key) == 0)
+            return 1;
+    return 0;
+}
 
 /* Like luaL_checkoption for a table field: index into names, def when absent; raises listing
  * the valid values. */
@@ -63,43 +73,154 @@ static int optionfield(lua_State *L, int idx, const char *key, const char *const
                       lua_tostring(L, -1));
 }
 
-static int paramfield(lua_State *L, int idx, const char *key, int def, int a, int b)
+/* The codec named by field "codec" of the table at idx (def when absent); raises listing the
+ * registered codecs when unknown. */
+static const cdvr_codec *codecfield(lua_State *L, int idx, const cdvr_codec *def)
 {
-    lua_Integer v = lcdvr_optintegerfield(L, idx, key, def);
-    if (v != a && v != b)
-        luaL_error(L, "option '%s': invalid value %d (expected %d or %d)", key, (int)v, a, b);
-    return (int)v;
+    const char *name = lcdvr_optstringfield(L, idx, "codec", NULL);
+    if (!name)
+        return def;
+    const cdvr_codec *c = cdvr_codec_find(name);
+    if (c)
+        return c;
+    luaL_Buffer b;
+    luaL_buffinit(L, &b);
+    for (size_t i = 0; i < cdvr_codec_count(); i++) {
+        luaL_addstring(&b, i ? ", " : "");
+        luaL_addstring(&b, cdvr_codec_at(i)->name);
+    }
+    luaL_pushresult(&b);
+    return (const cdvr_codec *)(intptr_t)luaL_error(
+        L, "option 'codec': unknown codec '%s' (loaded: %s; plugins load with "
+           "cdvr.plugin.load)", name, lua_tostring(L, -1));
 }
 
-/* Fills *out from the table at idx, with base as defaults (the name is never inherited). */
-static void parse_spec(lua_State *L, int idx, const cdvr_variant_spec *base, cdvr_variant_spec *out)
+/* The value at the top of the stack as text for a codec's params_set (pushed, kept on the
+ * stack until the caller pops it). Integers print without a decimal point, other numbers
+ * with 17 significant digits. */
+static const char *param_text(lua_State *L, const char *key)
 {
-    *out = *base;
-    out->codec = (cdvr_codec_id)optionfield(L, idx, "codec", codec_names, (int)base->codec);
-    out->pvtc.S = paramfield(L, idx, "S", base->pvtc.S, 1, 4);
-    out->pvtc.T = paramfield(L, idx, "T", base->pvtc.T, 2, 3);
-    out->pvtc.pack = (cdvr_pack)optionfield(L, idx, "pack", pack_names, (int)base->pvtc.pack);
-    out->encoder = (cdvr_pvtc_encoder)optionfield(L, idx, "encoder", encoder_names,
-                                                  (int)base->encoder);
-    out->stage2 = (cdvr_stage2)optionfield(L, idx, "stage2", stage2_names, (int)base->stage2);
-    out->lzo_min_saving = lcdvr_optnumberfield(L, idx, "lzo_min_saving", base->lzo_min_saving);
+    switch (lua_type(L, -1)) {
+    case LUA_TNUMBER:
+        if (lua_isinteger(L, -1))
+            return lua_pushfstring(L, "%I", (LUAI_UACINT)lua_tointeger(L, -1));
+        {
+            char buf[64];
+            snprintf(buf, sizeof buf, "%.17g", (double)lua_tonumber(L, -1));
+            return lua_pushstring(L, buf);
+        }
+    case LUA_TSTRING:
+        return lua_pushstring(L, lua_tostring(L, -1));
+    case LUA_TBOOLEAN:
+        return lua_pushstring(L, lua_toboolean(L, -1) ? "true" : "false");
+    default:
+        return (const char *)(intptr_t)luaL_error(L, "option '%s': a number, string or boolean "
+                                                     "expected, got %s", key,
+                                                  luaL_typename(L, -1));
+    }
+}
+
+/* Applies every key of the table at idx that `codec` takes as a parameter to *params. With
+ * `strict`, any other key that is not in `allowed` is an error naming it (with a suggestion). */
+static void apply_params(lua_State *L, int idx, const cdvr_codec *codec, cdvr_codec_params *params,
+                         const char *const allowed[], const char *what)
+{
+    idx = lua_absindex(L, idx);
+    lua_pushnil(L); /* key */
+    while (lua_next(L, idx)) { /* key, value */
+        const char *key = lua_type(L, -2) == LUA_TSTRING ? lua_tostring(L, -2) : NULL;
+        if (key && cdvr_codec_has_param(codec, key)) {
+            const char *text = param_text(L, key); /* key, value, text */
+            cdvr_error err;
+            if (codec->params_set(params, key, text, &err) != CDVR_OK)
+                lcdvr_raise(L, &err);
+            lua_pop(L, 1);
+        } else if (allowed && (!key || !in_list(allowed, key))) {
+            /* an unknown key: let lcdvr_checkoptions word the error with a suggestion */
+            const char *keys[64];
+            int n = 0;
+            for (int i = 0; allowed[i] && n < 48; i++)
+                keys[n++] = allowed[i];
+            for (const cdvr_codec_param_doc *d = codec->params; d && d->key && n < 63; d++)
+                keys[n++] = d->key;
+            keys[n] = NULL;
+            lcdvr_checkoptions(L, idx, what, keys);
+        }
+        lua_pop(L, 1); /* key */
+    }
+}
+
+typedef struct top_defaults {
+    int idx;                    /* the options table */
+    const cdvr_codec *codec;    /* codec= at the top, or the default */
+    cdvr_stage2 stage2;
+    double lzo_min_saving;
+} top_defaults;
+
+/* Fills *out from the variant table at idx (0: the top-level table is the only variant):
+ * codec defaults, then the top-level keys the codec takes, then the variant's own keys. */
+static void parse_spec(lua_State *L, int idx, const top_defaults *top, cdvr_variant_spec *out)
+{
+    int from = idx ? idx : top->idx;
+    memset(out, 0, sizeof *out);
+    out->codec = idx ? codecfield(L, idx, top->codec) : top->codec;
+    out->codec->params_default(&out->params);
+    apply_params(L, top->idx, out->codec, &out->params, NULL, NULL);
+    if (idx) {
+        const char *const *allowed = variant_keys;
+        apply_params(L, idx, out->codec, &out->params, allowed, "cdvr.encode: variant");
+    }
+    cdvr_error err;
+    if (out->codec->params_check(&out->params, &err) != CDVR_OK)
+        lcdvr_raise(L, &err);
+    out->stage2 = (cdvr_stage2)optionfield(L, from, "stage2", stage2_names, (int)top->stage2);
+    out->lzo_min_saving = lcdvr_optnumberfield(L, from, "lzo_min_saving", top->lzo_min_saving);
     if (!(out->lzo_min_saving >= 0 && out->lzo_min_saving <= 1))
         luaL_error(L, "option 'lzo_min_saving': %f is not in [0, 1]", out->lzo_min_saving);
-    const char *name = lcdvr_optstringfield(L, idx, "name", "");
+    const char *name = idx ? lcdvr_optstringfield(L, idx, "name", "") : "";
+    if (!idx)
+        name = lcdvr_optstringfield(L, top->idx, "name", "");
     if (strlen(name) >= CDVR_NAME_MAX)
         luaL_error(L, "option 'name': '%s' is longer than %d bytes", name, CDVR_NAME_MAX - 1);
-    memset(out->name, 0, sizeof out->name);
     memcpy(out->name, name, strlen(name));
+    if (!out->name[0]) /* the core's default name, known here for progress */
+        out->codec->variant_name(&out->params, out->name, sizeof out->name);
+}
+
+/* Raises for a top-level key that is neither an option nor a parameter of any codec in use. */
+static void check_top_keys(lua_State *L, int idx, const cdvr_variant_spec *specs, size_t n,
+                           const cdvr_codec *top_codec)
+{
+    const char *keys[128];
+    int k = 0;
+    for (int i = 0; top_keys[i]; i++)
+        keys[k++] = top_keys[i];
+    for (int i = 0; variant_keys[i]; i++)
+        keys[k++] = variant_keys[i];
+    const cdvr_codec *used[257];
+    size_t nused = 0;
+    used[nused++] = top_codec;
+    for (size_t i = 0; i < n; i++)
+        used[nused++] = specs[i].codec;
+    for (size_t u = 0; u < nused; u++) {
+        int seen = 0;
+        for (size_t w = 0; w < u; w++)
+            seen |= used[w] == used[u];
+        for (const cdvr_codec_param_doc *d = used[u]->params; !seen && d && d->key && k < 127; d++)
+            keys[k++] = d->key;
+    }
+    keys[k] = NULL;
+    lcdvr_checkoptions(L, idx, "cdvr.encode", keys);
 }
 
 /* Parses opts (at idx) into a userdata array of specs left on the stack; returns it. */
 static cdvr_variant_spec *parse_variants(lua_State *L, int idx, size_t *n)
 {
-    cdvr_variant_spec base = {.codec = CDVR_CODEC_PVTC, .pvtc = {4, 3, CDVR_PACK_TIME},
-                              .encoder = CDVR_ENCODER_LSQ, .stage2 = CDVR_STAGE2_LZO,
-                              .lzo_min_saving = CDVR_LZO_MIN_SAVING};
-    cdvr_variant_spec top;
-    parse_spec(L, idx, &base, &top);
+    top_defaults top = {.idx = idx, .stage2 = CDVR_STAGE2_LZO,
+                        .lzo_min_saving = CDVR_LZO_MIN_SAVING};
+    top.codec = codecfield(L, idx, cdvr_codec_find(CDVR_CODEC_DEFAULT));
+    top.stage2 = (cdvr_stage2)optionfield(L, idx, "stage2", stage2_names, (int)top.stage2);
+    top.lzo_min_saving = lcdvr_optnumberfield(L, idx, "lzo_min_saving", top.lzo_min_saving);
     int t = lua_getfield(L, idx, "variants");
     if (t != LUA_TNIL && t != LUA_TTABLE)
         luaL_error(L, "option 'variants': table expected, got %s", luaL_typename(L, -1));
@@ -108,19 +229,14 @@ static cdvr_variant_spec *parse_variants(lua_State *L, int idx, size_t *n)
         luaL_error(L, "option 'variants': %d entries (expected 1..256)", (int)*n);
     cdvr_variant_spec *specs = lua_newuserdatauv(L, *n * sizeof *specs, 0);
     if (t != LUA_TTABLE)
-        specs[0] = top;
+        parse_spec(L, 0, &top, &specs[0]);
     for (size_t i = 0; t == LUA_TTABLE && i < *n; i++) {
         if (lua_geti(L, -2, (lua_Integer)i + 1) != LUA_TTABLE)
             luaL_error(L, "option 'variants': entry %d is not a table", (int)i + 1);
         parse_spec(L, lua_gettop(L), &top, &specs[i]);
         lua_pop(L, 1);
     }
-    for (size_t i = 0; i < *n; i++) /* the core's default names, known here for progress */
-        if (specs[i].name[0] == '\0' && specs[i].codec == CDVR_CODEC_PVTC)
-            snprintf(specs[i].name, sizeof specs[i].name, "S%dT%d%s", specs[i].pvtc.S,
-                     specs[i].pvtc.T, specs[i].pvtc.pack == CDVR_PACK_SPACE ? "s" : "");
-        else if (specs[i].name[0] == '\0')
-            snprintf(specs[i].name, sizeof specs[i].name, "raw");
+    check_top_keys(L, idx, specs, *n, top.codec);
     lua_remove(L, -2); /* the variants table (or nil); the specs stay */
     return specs;
 }
@@ -133,69 +249,73 @@ typedef struct encode_ctx {
     const cdvr_variant_spec *specs;
     size_t nvariants;
     size_t *chunks;              /* chunks per variant, counted during planning */
+    size_t nbricks;
     int show_progress;
     int lua_failed;              /* the schedule raised or returned something invalid */
 } encode_ctx;
 
-static cdvr_status schedule_fail(encode_ctx *ctx, cdvr_error *err, const char *fmt, const char *a)
-{
-    ctx->lua_failed = 1;
-    return cdvr_error_set(err, CDVR_ERR_ARG, fmt, a);
-}
-
-/* Reads {S=, T=, pack=} from the schedule's result without raising (we are inside the core). */
-static cdvr_status schedule_result(encode_ctx *ctx, cdvr_pvtc_params *p, cdvr_error *err)
+/* Applies the schedule's result table (top of the stack) to *p without raising (we are inside
+ * the core): every key must be a parameter of the variant's codec. */
+static cdvr_status schedule_result(encode_ctx *ctx, const cdvr_codec *codec, cdvr_codec_params *p,
+                                   cdvr_error *err)
 {
     lua_State *L = ctx->L;
-    const char *keys[] = {"S", "T"};
-    int *slots[] = {&p->S, &p->T};
-    for (int k = 0; k < 2; k++) {
-        int t = lua_getfield(L, -1, keys[k]);
-        if (t != LUA_TNIL && !lua_isinteger(L, -1)) {
-            lua_pop(L, 1);
-            return schedule_fail(ctx, err, "schedule: field '%s' must be an integer", keys[k]);
+    int tbl = lua_gettop(L);
+    lua_pushnil(L);
+    while (lua_next(L, tbl)) { /* key, value */
+        const char *key = lua_type(L, -2) == LUA_TSTRING ? lua_tostring(L, -2) : NULL;
+        char text[64];
+        int ok = key && cdvr_codec_has_param(codec, key);
+        if (ok && lua_isinteger(L, -1))
+            snprintf(text, sizeof text, "%lld", (long long)lua_tointeger(L, -1));
+        else if (ok && lua_type(L, -1) == LUA_TNUMBER)
+            snprintf(text, sizeof text, "%.17g", (double)lua_tonumber(L, -1));
+        else if (ok && lua_type(L, -1) == LUA_TSTRING)
+            snprintf(text, sizeof text, "%s", lua_tostring(L, -1));
+        else
+            ok = 0;
+        cdvr_error perr;
+        cdvr_status s = ok ? codec->params_set(p, key, text, &perr)
+                           : cdvr_error_set(&perr, CDVR_ERR_ARG, "'%s' is not a parameter of "
+                                            "codec %s (a number or string)",
+                                            key ? key : "(non-string key)", codec->name);
+        if (s != CDVR_OK) {
+            lua_pop(L, 2);
+            ctx->lua_failed = 1;
+            return cdvr_error_set(err, s, "schedule: %s", perr.msg);
         }
-        if (t != LUA_TNIL)
-            *slots[k] = (int)lua_tointeger(L, -1);
         lua_pop(L, 1);
     }
-    int t = lua_getfield(L, -1, "pack");
-    const char *pack = t == LUA_TSTRING ? lua_tostring(L, -1) : "";
-    if (t != LUA_TNIL && strcmp(pack, "time") && strcmp(pack, "space")) {
-        lua_pop(L, 1);
-        return schedule_fail(ctx, err, "schedule: field 'pack' must be %s", "\"time\" or \"space\"");
-    }
-    if (t != LUA_TNIL)
-        p->pack = strcmp(pack, "space") == 0 ? CDVR_PACK_SPACE : CDVR_PACK_TIME;
-    lua_pop(L, 1);
-    if ((p->S != 1 && p->S != 4) || (p->T != 2 && p->T != 3))
-        return schedule_fail(ctx, err, "schedule: %s", "S must be 1 or 4 and T 2 or 3");
     return CDVR_OK;
 }
 
-static cdvr_status lua_schedule(void *ud, size_t variant, size_t t0, cdvr_pvtc_params *p,
+static cdvr_status lua_schedule(void *ud, size_t variant, size_t t0, cdvr_codec_params *p,
                                 cdvr_error *err)
 {
     encode_ctx *ctx = ud;
-    ctx->chunks[variant]++;
-    if (!ctx->schedule_idx || ctx->specs[variant].codec != CDVR_CODEC_PVTC)
+    ctx->chunks[variant] += ctx->nbricks;
+    if (!ctx->schedule_idx)
         return CDVR_OK;
     lua_State *L = ctx->L;
     lua_pushvalue(L, ctx->schedule_idx);
     lua_pushinteger(L, (lua_Integer)t0 + 1);
     lua_pushinteger(L, (lua_Integer)variant + 1);
     if (lua_pcall(L, 2, 1, 0) != LUA_OK) {
-        cdvr_status s = schedule_fail(ctx, err, "schedule: %s",
-                                      lua_isstring(L, -1) ? lua_tostring(L, -1) : "error");
+        ctx->lua_failed = 1;
+        cdvr_status s = cdvr_error_set(err, CDVR_ERR_ARG, "schedule: %s",
+                                       lua_isstring(L, -1) ? lua_tostring(L, -1) : "error");
         lua_pop(L, 1);
         return s;
     }
     cdvr_status s = CDVR_OK;
     if (lua_istable(L, -1))
-        s = schedule_result(ctx, p, err);
-    else if (!lua_isnil(L, -1))
-        s = schedule_fail(ctx, err, "schedule: returned a %s (expected a table or nil)",
-                          luaL_typename(L, -1));
+        s = schedule_result(ctx, ctx->specs[variant].codec, p, err);
+    else if (!lua_isnil(L, -1)) {
+        ctx->lua_failed = 1;
+        s = cdvr_error_set(err, CDVR_ERR_ARG, "schedule: returned a %s (expected a table of "
+                           "%s parameters, or nil)", luaL_typename(L, -1),
+                           ctx->specs[variant].codec->name);
+    }
     lua_pop(L, 1);
     return s;
 }
@@ -258,6 +378,15 @@ static int l_encode(lua_State *L)
     cdvr_encode_opts o = {.variants = ctx.specs, .nvariants = ctx.nvariants,
                           .schedule = lua_schedule, .schedule_ud = &ctx,
                           .progress = lua_progress, .progress_ud = &ctx};
+    double bricks[3] = {1, 1, 1};
+    lcdvr_numberarrayfield(L, 2, "bricks", bricks, 3);
+    for (int i = 0; i < 3; i++) {
+        if (!(bricks[i] >= 1 && bricks[i] <= CDVR_STORE_MAX_BRICKS) || bricks[i] != floor(bricks[i]))
+            return luaL_error(L, "cdvr.encode: option 'bricks': {bx, by, bz} of integers 1..%d "
+                              "expected", CDVR_STORE_MAX_BRICKS);
+        o.bricks[i] = (size_t)bricks[i];
+    }
+    ctx.nbricks = o.bricks[0] * o.bricks[1] * o.bricks[2];
     const cdvr_volume *u8 = encode_input(L, vol, &o);
     cdvr_error err;
     cdvr_status s = cdvr_store_encode(u8, &o, path, &err);
@@ -333,17 +462,88 @@ static void push_triple(lua_State *L, const char *k, double a, double b, double 
     lua_setfield(L, -2, k);
 }
 
-static void push_variant_info(lua_State *L, const cdvr_store_info *in, const cdvr_variant_info *vi)
+/* The codec parameters of p as fields of the table on top (numbers as numbers), and the same
+ * in a `params` subtable. */
+void lcdvr_push_params(lua_State *L, const cdvr_codec *codec, const cdvr_codec_params *p)
 {
-    lua_createtable(L, 0, 14);
+    lua_newtable(L); /* info, params */
+    for (const cdvr_codec_param_doc *d = codec->params; d && d->key; d++) {
+        char text[64];
+        if (codec->params_get(p, d->key, text, sizeof text) != 0)
+            continue;
+        if (!lua_stringtonumber(L, text))
+            lua_pushstring(L, text);
+        lua_pushvalue(L, -1);
+        lua_setfield(L, -3, d->key);  /* params[key] */
+        lua_setfield(L, -3, d->key);  /* info[key] */
+    }
+    lua_setfield(L, -2, "params");
+}
+
+size_t lcdvr_chunk_timesteps(const cdvr_store *st, size_t v)
+{
+    const cdvr_chunk_info *ch = cdvr_store_chunk(st, v, 0);
+    size_t lo[3], dims[3];
+    cdvr_codec_shape shape;
+    cdvr_store_brick_box(cdvr_store_get_info(st), 0, lo, dims);
+    if (ch && ch->codec && cdvr_codec_shape_of(ch->codec, &ch->params, dims, &shape, NULL) == CDVR_OK)
+        return shape.timesteps;
+    return ch && ch->count ? ch->count : 1;
+}
+
+/* Adds emitted figures into the table on top (sums over chunks). */
+static void add_figure(void *ud, const char *key, double value)
+{
+    lua_State *L = ud;
+    lua_getfield(L, -1, key);
+    double sum = lua_tonumber(L, -1) + value;
+    lua_pop(L, 1);
+    lua_pushnumber(L, sum);
+    lua_setfield(L, -2, key);
+}
+
+/* The codec's describe figures summed over the variant's chunks, in table `details` of the
+ * table on top (reads every chunk: only for codecs that describe their payloads). */
+static void push_details(lua_State *L, const cdvr_store *st, size_t v)
+{
+    const cdvr_variant_info *vi = cdvr_store_variant(st, v);
+    if (!vi->codec || !vi->codec->describe)
+        return;
+    lua_newtable(L); /* info, details */
+    for (size_t c = 0; c < vi->nchunks; c++) {
+        const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, c);
+        uint8_t *payload;
+        cdvr_error err;
+        if (!ci->codec || !ci->codec->describe ||
+            cdvr_store_load_payload(st, v, c, &payload, &err) != CDVR_OK)
+            continue;
+        size_t lo[3], dims[3];
+        cdvr_store_brick_box(cdvr_store_get_info(st), ci->brick, lo, dims);
+        ci->codec->describe(&ci->params, dims, payload, (size_t)ci->payload_bytes, add_figure,
+                            L, &err);
+        free(payload);
+    }
+    /* the figures also as fields of the row, for reports */
+    lua_pushnil(L);
+    while (lua_next(L, -2)) { /* info, details, key, value */
+        lua_pushvalue(L, -2);
+        lua_insert(L, -2);    /* info, details, key, key, value */
+        lua_settable(L, -5);  /* info[key] = value */
+    }
+    lua_setfield(L, -2, "details");
+}
+
+static void push_variant_info(lua_State *L, const cdvr_store *st, size_t v)
+{
+    const cdvr_store_info *in = cdvr_store_get_info(st);
+    const cdvr_variant_info *vi = cdvr_store_variant(st, v);
+    lua_createtable(L, 0, 16);
     setstr(L, "name", vi->name);
     setstr(L, "codec", vi->codec_name);
-    if (vi->codec == CDVR_CODEC_PVTC) {
-        setint(L, "S", vi->pvtc.S);
-        setint(L, "T", vi->pvtc.T);
-        setstr(L, "pack", pack_names[vi->pvtc.pack]);
-        setstr(L, "encoder", encoder_names[vi->encoder]);
-    }
+    lua_pushboolean(L, vi->codec != NULL);
+    lua_setfield(L, -2, "codec_loaded");
+    if (vi->codec)
+        lcdvr_push_params(L, vi->codec, &vi->params);
     setstr(L, "stage2", stage2_names[vi->stage2]);
     setint(L, "bytes", (lua_Integer)vi->bytes);
     setint(L, "payload_bytes", (lua_Integer)vi->payload_bytes);
@@ -352,14 +552,37 @@ static void push_variant_info(lua_State *L, const cdvr_store_info *in, const cdv
     setnum(L, "psnr", vi->psnr);
     setnum(L, "maxerr", vi->maxerr);
     setint(L, "chunks", (lua_Integer)vi->nchunks);
+    setint(L, "groups", (lua_Integer)vi->ngroups);
+    push_details(L, st, v);
+}
+
+static void push_bricks(lua_State *L, const cdvr_store_info *in)
+{
+    lua_createtable(L, 3, 0);
+    for (int i = 0; i < 3; i++) {
+        lua_pushinteger(L, (lua_Integer)in->bricks[i]);
+        lua_rawseti(L, -2, i + 1);
+    }
+    lua_setfield(L, -2, "brick_grid");
+    lua_createtable(L, (int)in->nbricks, 0);
+    for (size_t b = 0; b < in->nbricks; b++) {
+        size_t lo[3], dims[3];
+        cdvr_store_brick_box(in, b, lo, dims);
+        lua_createtable(L, 0, 2);
+        push_triple(L, "lo", (double)lo[0], (double)lo[1], (double)lo[2]);
+        push_triple(L, "dims", (double)dims[0], (double)dims[1], (double)dims[2]);
+        lua_rawseti(L, -2, (lua_Integer)b + 1);
+    }
+    lua_setfield(L, -2, "bricks");
 }
 
 static int store_info(lua_State *L)
 {
     const cdvr_store *st = lcdvr_checkstore(L, 1);
     const cdvr_store_info *in = cdvr_store_get_info(st);
-    lua_createtable(L, 0, 10);
+    lua_createtable(L, 0, 16);
     setstr(L, "path", cdvr_store_path(st));
+    setint(L, "version", (lua_Integer)in->version);
     lua_createtable(L, 3, 0);
     for (int i = 0; i < 3; i++) {
         lua_pushinteger(L, (lua_Integer)in->dims[i]);
@@ -371,6 +594,12 @@ static int store_info(lua_State *L)
     setint(L, "file_bytes", (lua_Integer)in->file_bytes);
     push_triple(L, "spacing", in->spacing[0], in->spacing[1], in->spacing[2]);
     push_triple(L, "origin", in->origin[0], in->origin[1], in->origin[2]);
+    lua_createtable(L, 9, 0);
+    for (int i = 0; i < 9; i++) {
+        lua_pushnumber(L, in->direction[i]);
+        lua_rawseti(L, -2, i + 1);
+    }
+    lua_setfield(L, -2, "direction");
     lua_createtable(L, 2, 0);
     lua_pushnumber(L, in->qlo);
     lua_rawseti(L, -2, 1);
@@ -378,12 +607,12 @@ static int store_info(lua_State *L)
     lua_rawseti(L, -2, 2);
     lua_setfield(L, -2, "window");
     setstr(L, "source_type", cdvr_type_name(in->source_type));
+    push_bricks(L, in);
     uint64_t bytes = 0;
     lua_createtable(L, (int)in->nvariants, 0);
     for (size_t v = 0; v < in->nvariants; v++) {
-        const cdvr_variant_info *vi = cdvr_store_variant(st, v);
-        bytes += vi->bytes;
-        push_variant_info(L, in, vi);
+        bytes += cdvr_store_variant(st, v)->bytes;
+        push_variant_info(L, st, v);
         lua_rawseti(L, -2, (lua_Integer)v + 1);
     }
     lua_setfield(L, -2, "variants");
@@ -432,14 +661,15 @@ static int store_chunk(lua_State *L)
     luaL_argcheck(L, i >= 1 && (size_t)i <= vi->nchunks, 2, "chunk index out of range");
     const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, (size_t)i - 1);
     push_payload(L, st, v, (size_t)i - 1);
-    lua_createtable(L, 0, 8);
+    lua_createtable(L, 0, 12);
     setint(L, "t0", (lua_Integer)ci->t0 + 1);
     setint(L, "timesteps", (lua_Integer)ci->count);
-    if (vi->codec == CDVR_CODEC_PVTC) {
-        setint(L, "S", ci->pvtc.S);
-        setint(L, "T", ci->pvtc.T);
-        setstr(L, "pack", pack_names[ci->pvtc.pack]);
-    }
+    setint(L, "brick", (lua_Integer)ci->brick + 1);
+    setstr(L, "codec", ci->codec ? ci->codec->name : vi->codec_name);
+    if (ci->codec)
+        lcdvr_push_params(L, ci->codec, &ci->params);
+    setint(L, "value_min", ci->value_min);
+    setint(L, "value_max", ci->value_max);
     setint(L, "stored_bytes", (lua_Integer)ci->stored_bytes);
     setint(L, "payload_bytes", (lua_Integer)ci->payload_bytes);
     lua_pushboolean(L, ci->stage2);

@@ -75,9 +75,20 @@ cdvr_tf *lcdvr_pushtf(lua_State *L, const cdvr_tf *tf);      /* copies */
 cdvr_camera *lcdvr_checkcamera(lua_State *L, int idx);
 cdvr_camera *lcdvr_pushcamera(lua_State *L, const cdvr_camera *cam); /* copies */
 cdvr_store *lcdvr_checkstore(lua_State *L, int idx);
+/* Sets each parameter of a codec blob as a field of the table on top (numbers as numbers),
+ * and the same in its subtable `params` (l_store.c). */
+void lcdvr_push_params(lua_State *L, const cdvr_codec *codec, const cdvr_codec_params *p);
+/* Timesteps per chunk of variant v (its codec's chunk shape). */
+size_t lcdvr_chunk_timesteps(const cdvr_store *st, size_t v);
 
 /* OpenCL rendering for cdvr.render{device="cl"} (l_device.c). Pushes the image or raises. */
 int lcdvr_render_cl(lua_State *L, const cdvr_volume *vol, size_t t, void *render_opts);
+
+/* OpenCL render of timestep t (from 0) of variant v of a store (l_device.c): the chunk goes
+ * to the device and is decoded there, or rendered in the compressed domain by a fetch-mode
+ * codec. Pushes image and stats, or raises. */
+int lcdvr_render_cl_store(lua_State *L, const cdvr_store *st, size_t v, size_t t,
+                          void *render_opts);
 
 /* OpenCL decode for st:decode(t, variant, {device="cl"}) (l_device.c): decodes timestep t
  * (from 0) of variant v with the decode kernel and pushes a new u8 volume, or raises. */

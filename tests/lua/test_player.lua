@@ -35,7 +35,7 @@ end
 for _, dev in ipairs(devices) do
   for _, pipe in ipairs{false, true} do
     for _, var in ipairs(st:variants()) do
-      local p = cdvr.player{store = st, tf = tf, camera = cam, device = dev, pipeline = pipe, variant = var}
+      local p = cdvr.player{store = st, tf = tf, camera = cam, device = dev, pipeline = pipe, variant = var, loop = true}
       local r = p:run{frames = 11, first = 3}
       check_rows(r, 11, 3, 8)
       assert(r.device == dev and r.pipelined == pipe)

@@ -117,13 +117,13 @@ s3:close()
 raises("boom", cdvr.encode, src, {path = tmp("boom.cdv"), progress = false,
   schedule = function(t) if t > 1 then error("boom") end end})
 check(not exists(tmp("boom.cdv")), "no file after a schedule error")
-raises("S must be 1 or 4", cdvr.encode, src, {path = tmp("boom.cdv"), schedule = function() return {S = 2} end})
+raises("S = '2', must be 1 or 4", cdvr.encode, src, {path = tmp("boom.cdv"), schedule = function() return {S = 2} end})
 
 -- bad options raise; write failures return nil, msg
-raises("invalid value 'zip' (expected raw, pvtc)", cdvr.encode, src, {path = tmp("x.cdv"), codec = "zip"})
-raises("option 'S': invalid value 3", cdvr.encode, src, {path = tmp("x.cdv"), S = 3})
-raises("option 'pack'", cdvr.encode, src, {path = tmp("x.cdv"), pack = "diagonal"})
-raises("option 'encoder'", cdvr.encode, src, {path = tmp("x.cdv"), encoder = "magic"})
+raises("unknown codec 'zip' (loaded: raw, pvtc", cdvr.encode, src, {path = tmp("x.cdv"), codec = "zip"})
+raises("S = '3', must be 1 or 4", cdvr.encode, src, {path = tmp("x.cdv"), S = 3})
+raises("pack = 'diagonal', must be \"time\" or \"space\"", cdvr.encode, src, {path = tmp("x.cdv"), pack = "diagonal"})
+raises("encoder = 'magic'", cdvr.encode, src, {path = tmp("x.cdv"), encoder = "magic"})
 raises("option 'stage2'", cdvr.encode, src, {path = tmp("x.cdv"), stage2 = "zstd"})
 raises("lzo_min_saving", cdvr.encode, src, {path = tmp("x.cdv"), lzo_min_saving = 2})
 raises("'path' is required", cdvr.encode, src, {})

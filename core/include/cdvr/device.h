@@ -28,7 +28,7 @@
 
 #include "cdvr/error.h"
 #include "cdvr/image.h"
-#include "cdvr/pvtc.h"
+#include "cdvr/codec.h"
 #include "cdvr/render.h"
 #include "cdvr/tf.h"
 
@@ -62,8 +62,9 @@ const char *cdvr_cl_device_name(const cdvr_cl *cl);
 /* Platform, device and build details. */
 const cdvr_cl_info *cdvr_cl_get_info(const cdvr_cl *cl);
 
-/* Brick edge (voxels) of the min/max grid used for empty-space skipping. */
-#define CDVR_CL_BRICK 4
+/* Edge (voxels) of the bricks of the min/max grid used for empty-space skipping (one
+ * definition, kernels/common/cl_shared.h). */
+size_t cdvr_cl_brick_edge(void);
 
 /* Device buffers for frames of dims (u8), the chunk payload, the TF and the brick grid.
  * Buffers grow on demand (larger payloads, more frames per chunk). */
@@ -72,19 +73,34 @@ cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_str
 /* Releases the stream's buffers; NULL is allowed. */
 void cdvr_cl_stream_free(cdvr_cl_stream *s);
 
-/* b2: copies a chunk payload (PVTC bytes, or `count` raw u8 frames) to the device. */
+/* b2: copies a chunk payload to the device. */
 cdvr_status cdvr_cl_upload(cdvr_cl_stream *s, const void *payload, size_t bytes,
                            cdvr_error *err);
 
-/* b3: decodes the uploaded chunk into device frames 0 .. count-1. codec CDVR_CODEC_RAW: the
- * payload must be exactly count frames (it is copied on the device); CDVR_CODEC_PVTC (p
- * required): the payload must be the chunk size of p for the stream's dims, count <= T for
- * time packing and count == 1 for space packing. Bit-exact with cdvr_pvtc_decode_chunk. */
-cdvr_status cdvr_cl_decode(cdvr_cl_stream *s, int codec, const cdvr_pvtc_params *p,
-                           size_t count, cdvr_error *err);
+/* b3: makes device frames 0 .. count-1 of the stream's dims from the uploaded payload of a
+ * chunk of `codec` with `params` (cdvr/codec.h), count <= the codec's timesteps per chunk:
+ *  - decode mode: runs the codec's decode kernel into dense frames, bit-exact with the codec's
+ *    C decoder;
+ *  - fetch mode: keeps the payload as it is; cdvr_cl_setup and cdvr_cl_render read every
+ *    voxel through the codec's fetch function (rendering in the compressed domain);
+ *  - codecs without OpenCL source: CDVR_ERR_UNSUPPORTED (decode on the CPU and use
+ *    cdvr_cl_upload_frames).
+ * The codec's program is built (or loaded from the binary cache) on first use. */
+cdvr_status cdvr_cl_decode(cdvr_cl_stream *s, const cdvr_codec *codec,
+                           const cdvr_codec_params *params, size_t count, cdvr_error *err);
+
+/* b2 for frames decoded on the host: uploads count dense u8 frames (count * dims product
+ * bytes) as device frames 0 .. count-1. */
+cdvr_status cdvr_cl_upload_frames(cdvr_cl_stream *s, const uint8_t *frames, size_t count,
+                                  cdvr_error *err);
+
+/* Device memory the stream holds now (all its buffers), and the part that holds the volume
+ * data of the current frames (dense frames, or payload + parameters in fetch mode). */
+uint64_t cdvr_cl_stream_bytes(const cdvr_cl_stream *s);
+uint64_t cdvr_cl_volume_bytes(const cdvr_cl_stream *s);
 
 /* b4: per-frame setup for device frame `frame` (from 0, < count of the last decode): uploads
- * the TF table, computes the brick min/max grid (bricks of CDVR_CL_BRICK^3 voxels, each range
+ * the TF table, computes the brick min/max grid (bricks of cdvr_cl_brick_edge()^3 voxels, each range
  * including the upper one-voxel apron that trilinear interpolation reads) and the per-brick
  * flag "some value in [min, max] has alpha > 0 under this TF". */
 cdvr_status cdvr_cl_setup(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf, cdvr_error *err);
@@ -105,7 +121,8 @@ uint64_t cdvr_cl_last_samples(const cdvr_cl_stream *s);
 /* Bricks flagged visible / total by the last cdvr_cl_setup. */
 void cdvr_cl_brick_counts(const cdvr_cl_stream *s, size_t *visible, size_t *total);
 
-/* Copies device frame `frame` (from 0) to out (dims product bytes). */
+/* Copies device frame `frame` (from 0) to out (dims product bytes). Dense frames only: in
+ * fetch mode the frames stay compressed (CDVR_ERR_UNSUPPORTED). */
 cdvr_status cdvr_cl_download(cdvr_cl_stream *s, size_t frame, uint8_t *out, cdvr_error *err);
 
 #endif

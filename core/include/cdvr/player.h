@@ -11,8 +11,13 @@
  * calling (device) thread by bounded queues of `ring` buffers, so stages overlap. Callbacks
  * (decide, camera) always run on the calling thread: a Lua state is never touched elsewhere.
  *
- * Chunk-level costs (b1, b1', b2, b3) are shared equally by the frames of the chunk (a PVTC
- * chunk with time packing holds T timesteps), so per-frame rows add up to the total work.
+ * A store split into bricks is read one chunk group at a time (all bricks of the group's
+ * timesteps). On the cl device a chunk is decoded by its codec's kernel (decode mode) or kept
+ * compressed and rendered through its fetch function (fetch mode); codecs without OpenCL
+ * code, and bricked stores, are decoded on the CPU and the frames uploaded.
+ *
+ * Chunk-level costs (b1, b1', b2, b3) are shared equally by the frames of the chunk group (a
+ * chunk may hold several timesteps), so per-frame rows add up to the total work.
  * frame_ms is the calling thread's wall time for the frame's chunk (waiting for data, b2..b5,
  * callbacks, from the end of the previous chunk's last frame), shared equally by the chunk's
  * frames, pacing waits excluded: the sustained cost of a frame. With pace_fps > 0
@@ -41,6 +46,8 @@ typedef struct cdvr_frame_row {
     double interval_ms;      /* frame_ms plus the pacing wait */
     uint64_t bytes;          /* stored bytes read, this frame's share */
     uint64_t payload_bytes;  /* bytes after stage 2, this frame's share */
+    uint64_t device_bytes;   /* cl device: memory the device stream holds for this frame
+                                (compressed payload in fetch mode); 0 on the cpu device */
     int group_start;         /* 1 if a policy decision was made for this frame's group */
     char reason[160];        /* the decision's one-line reason (group_start only) */
     cdvr_status status;      /* CDVR_OK, or the failure of this frame */
@@ -79,6 +86,7 @@ typedef struct cdvr_player_opts {
     double read_mbps;            /* > 0: cap read bandwidth (MB/s, 1e6 bytes) */
     int empty_skip;              /* 1 (default): empty-space skipping on the cl device */
     double pace_fps;             /* > 0: show frames no faster than this (interactive pacing) */
+    int loop;                    /* 1: wrap around after the last timestep; 0: stop there */
     cdvr_decide_fn decide;       /* NULL: always `variant` */
     void *decide_ud;
     cdvr_camera_fn camera_fn;
@@ -87,15 +95,20 @@ typedef struct cdvr_player_opts {
     void *frame_ud;
 } cdvr_player_opts;
 
-/* Lowest common multiple of the variants' timesteps per chunk (the group length). */
+/* Lowest common multiple of the variants' timesteps per chunk (the group length: policies
+ * switch variants only at its multiples). */
 size_t cdvr_player_group_length(const cdvr_store *st);
 
 cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, cdvr_error *err);
 void cdvr_player_free(cdvr_player *p);
-/* Plays `frames` frames starting at timestep `first` (0-based), wrapping around at the end of
- * the series. A failed frame (corrupt chunk, ...) gets a row with its status and the run goes
- * on; a failing callback stops the run and returns its error (rows so far are kept). */
+/* Plays `frames` frames starting at timestep `first` (0-based). Past the last timestep the run
+ * wraps around to timestep 0 when opts.loop is set, and stops there otherwise
+ * (cdvr_player_stopped_early tells). A failed frame (corrupt chunk, ...) gets a row with its
+ * status and the run goes on; a failing callback stops the run and returns its error (rows so
+ * far are kept). */
 cdvr_status cdvr_player_run(cdvr_player *p, size_t first, size_t frames, cdvr_error *err);
+/* Frames the last run did not play because it reached the last timestep without loop. */
+size_t cdvr_player_stopped_early(const cdvr_player *p);
 /* Rows of the last run (valid until the next run or free). */
 const cdvr_frame_row *cdvr_player_rows(const cdvr_player *p, size_t *count);
 /* Achieved frame rate of the last run: 1000 / median(interval_ms) over frames without error. */

@@ -1,17 +1,22 @@
 /* cdvr/store.h - the .cdv store (DESIGN.md section 5) and the encode driver.
  *
- * A store holds one u8 series (dims, spacing, timesteps, quantisation window) in one or more
- * variants. A variant is a sequence of chunks; each chunk covers timesteps [t0, t0+count)
- * and records its own codec parameters (so a schedule may change them per group), its file
- * offset, stored size, payload size (after undoing stage 2), CRC-32C of the stored bytes and
- * the stage-2 flag. Readers check bounds and CRC before decoding; every error names the
- * file, the variant, the chunk and the reason.
+ * A store holds one u8 series (dims, index-to-world matrix, timesteps, quantisation window)
+ * in one or more variants. Every timestep may be split into bricks (a bx x by x bz grid with
+ * the one-voxel overlap trilinear sampling needs; cdvr_store_brick_box). A variant is a
+ * sequence of chunk groups in time order; a group covers timesteps [t0, t0+count) and holds
+ * one chunk per brick. Each chunk records its own codec id and parameter blob (so a
+ * schedule may change the parameters per group; cdvr/codec.h), its file offset, stored size,
+ * payload size (after undoing stage 2), CRC-32C of the stored bytes, the stage-2 flag and the
+ * range of its decoded values. Readers check bounds and CRC before decoding; every error names
+ * the file, the variant, the chunk and the reason. A store written with a codec that is not
+ * loaded (a plugin) opens and lists it; reading that variant fails with "codec 'zfp' is not
+ * loaded (load its plugin: cdvr.plugin.load)".
  *
  * Playback uses the three steps separately (b1, b1', decode), which are safe to call from
  * different threads on one open store:
- *   cdvr_store_read_chunk   -> stored bytes (pread + CRC check)          (b1)
+ *   cdvr_store_read_chunk   -> stored bytes (pread + CRC check)            (b1)
  *   cdvr_store_unpack_chunk -> codec payload (LZO1X decompress if flagged) (b1')
- *   cdvr_store_decode_chunk -> u8 frames (C decoder)                     (b3 on the CPU)
+ *   cdvr_store_decode_chunk -> u8 frames of the chunk's brick (C decoder)  (b3 on the CPU)
  */
 #ifndef CDVR_STORE_H
 #define CDVR_STORE_H
@@ -19,35 +24,40 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "cdvr/codec.h"
 #include "cdvr/error.h"
-#include "cdvr/pvtc.h"
 #include "cdvr/volume.h"
 
-#define CDVR_NAME_MAX 32
+#define CDVR_NAME_MAX CDVR_VARIANT_NAME_MAX
 
-typedef enum cdvr_codec_id { CDVR_CODEC_RAW = 0, CDVR_CODEC_PVTC = 1, CDVR_CODEC_PLUGIN = 2 } cdvr_codec_id;
 typedef enum cdvr_stage2 { CDVR_STAGE2_NONE = 0, CDVR_STAGE2_LZO = 1 } cdvr_stage2;
+
+/* The codec a variant uses when none is named. */
+#define CDVR_CODEC_DEFAULT "pvtc"
 
 /* What to encode, per variant. */
 typedef struct cdvr_variant_spec {
-    char name[CDVR_NAME_MAX];      /* "" -> default name: "S4T3", "S1T2s", "raw" */
-    cdvr_codec_id codec;
-    cdvr_pvtc_params pvtc;         /* default parameters (a schedule may override per group) */
-    cdvr_pvtc_encoder encoder;
+    char name[CDVR_NAME_MAX];      /* "" -> the codec's default name ("S4T3", "zfp2", "raw") */
+    const cdvr_codec *codec;
+    cdvr_codec_params params;      /* default parameters (a schedule may change them per group) */
     cdvr_stage2 stage2;
     double lzo_min_saving;         /* stage 2 kept only if it saves at least this fraction of
                                       the chunk (default CDVR_LZO_MIN_SAVING); <0 -> default */
 } cdvr_variant_spec;
 
 #define CDVR_LZO_MIN_SAVING 0.10
+#define CDVR_STORE_MAX_BRICKS 4096 /* bricks per timestep */
 
-/* Per-group schedule: called at the start of each chunk of variant `variant` (from 0) whose
- * first timestep is t0 (from 0); may change *params (S, T, pack). Nonzero return = error
- * (err filled). */
+/* Per-group schedule: called once per chunk group of variant `variant` (from 0) whose first
+ * timestep is t0 (from 0), with *params preset to the variant's parameters; may change them
+ * (same codec). Nonzero return = error (err filled). */
 typedef cdvr_status (*cdvr_schedule_fn)(void *ud, size_t variant, size_t t0,
-                                        cdvr_pvtc_params *params, cdvr_error *err);
+                                        cdvr_codec_params *params, cdvr_error *err);
 /* Progress: done out of total chunks. */
 typedef void (*cdvr_progress_fn)(void *ud, size_t done, size_t total);
+/* Frame source: writes the dims-product u8 voxels of timestep t (from 0) into out. Called in
+ * increasing t order, each t at most once per encode (the encoder keeps what it still needs). */
+typedef cdvr_status (*cdvr_source_frame_fn)(void *ud, size_t t, uint8_t *out, cdvr_error *err);
 
 typedef struct cdvr_encode_opts {
     const cdvr_variant_spec *variants;
@@ -58,47 +68,70 @@ typedef struct cdvr_encode_opts {
     void *progress_ud;
     double qlo, qhi;               /* quantisation window recorded in the header */
     cdvr_type source_type;         /* type before quantisation, recorded */
+    size_t bricks[3];              /* brick grid; 0 -> 1 */
 } cdvr_encode_opts;
+
+/* A series to encode, read one timestep at a time (out of core). */
+typedef struct cdvr_encode_source {
+    size_t dims[3];
+    size_t timesteps;
+    double spacing[3], origin[3], direction[9];  /* as cdvr_volume */
+    cdvr_source_frame_fn frame;
+    void *frame_ud;
+} cdvr_encode_source;
 
 typedef struct cdvr_store cdvr_store;
 
 typedef struct cdvr_chunk_info {
     size_t t0, count;              /* timesteps covered (from 0) */
-    cdvr_pvtc_params pvtc;         /* parameters of this chunk (pvtc codec) */
+    size_t brick;                  /* brick index (from 0, x fastest) */
+    uint32_t codec_id;
+    const cdvr_codec *codec;       /* NULL when that codec is not loaded */
+    cdvr_codec_params params;      /* this chunk's parameters */
     uint64_t offset;               /* file offset of the stored bytes */
     uint64_t stored_bytes;         /* bytes on disk */
     uint64_t payload_bytes;        /* bytes after undoing stage 2 */
     uint32_t crc32c;               /* of the stored bytes */
     int stage2;                    /* 1 if LZO applies to this chunk */
+    uint8_t value_min, value_max;  /* range of the decoded voxels of the chunk's timesteps */
 } cdvr_chunk_info;
 
 typedef struct cdvr_variant_info {
     char name[CDVR_NAME_MAX];
-    cdvr_codec_id codec;
-    char codec_name[CDVR_NAME_MAX];/* "raw", "pvtc", or the plugin's name */
-    cdvr_pvtc_params pvtc;         /* parameters of the first chunk */
-    cdvr_pvtc_encoder encoder;
+    uint32_t codec_id;
+    const cdvr_codec *codec;       /* NULL when not loaded */
+    char codec_name[CDVR_CODEC_NAME_MAX]; /* as recorded ("raw", "pvtc", "zfp", ...) */
+    cdvr_codec_params params;      /* parameters given at encode time (first group's) */
     cdvr_stage2 stage2;
-    size_t nchunks;
+    size_t nchunks;                /* groups x bricks */
+    size_t ngroups;
     uint64_t bytes;                /* stored bytes of all chunks */
     uint64_t payload_bytes;        /* bytes before stage 2 */
     double psnr, maxerr;           /* volume PSNR / max error measured at encode time */
+    double lzo_min_saving;
 } cdvr_variant_info;
 
 typedef struct cdvr_store_info {
+    unsigned version;              /* format version of the file (1 or 2) */
     size_t dims[3];
     size_t timesteps;
-    double spacing[3], origin[3];
-    double qlo, qhi;
+    double spacing[3], origin[3], direction[9];
+    double qlo, qhi;               /* value window: u8 0..255 stands for [qlo, qhi] */
     cdvr_type source_type;
     size_t nvariants;
+    size_t bricks[3], nbricks;     /* brick grid (1 1 1 for unbricked stores) */
     uint64_t raw_bytes;            /* dims product * timesteps (u8) */
     uint64_t file_bytes;
 } cdvr_store_info;
 
-/* Encodes a u8 volume/series into a new store at path (temporary name, fsync, rename). */
+/* Encodes a u8 volume/series into a new store at path (temporary name, fsync, rename). The
+ * volume's spacing, origin and direction are recorded. */
 cdvr_status cdvr_store_encode(const cdvr_volume *u8, const cdvr_encode_opts *opts,
                               const char *path, cdvr_error *err);
+/* The same from a frame source: only the frames of the chunk groups in flight are held. */
+cdvr_status cdvr_store_encode_source(const cdvr_encode_source *src,
+                                     const cdvr_encode_opts *opts, const char *path,
+                                     cdvr_error *err);
 
 cdvr_status cdvr_store_open(const char *path, cdvr_store **out, cdvr_error *err);
 void cdvr_store_close(cdvr_store *st);
@@ -108,9 +141,27 @@ const cdvr_store_info *cdvr_store_get_info(const cdvr_store *st);
 const cdvr_variant_info *cdvr_store_variant(const cdvr_store *st, size_t v);
 /* Index of the variant called name, or -1. */
 int cdvr_store_find_variant(const cdvr_store *st, const char *name);
+/* Chunk c (from 0) of variant v: chunk c belongs to group c / nbricks and brick c % nbricks. */
 const cdvr_chunk_info *cdvr_store_chunk(const cdvr_store *st, size_t v, size_t c);
-/* Chunk of variant v holding timestep t (from 0); (size_t)-1 if out of range. */
+/* Chunk of variant v holding timestep t (from 0) in brick 0; (size_t)-1 if out of range. */
 size_t cdvr_store_chunk_for_time(const cdvr_store *st, size_t v, size_t t);
+/* Chunk of variant v holding timestep t in brick b; (size_t)-1 if out of range. */
+size_t cdvr_store_chunk_for(const cdvr_store *st, size_t v, size_t t, size_t b);
+/* Voxel box of brick b: first voxel lo[3] and dims[3]. Along an axis of N voxels split into n
+ * bricks, brick i owns the cells [c_i, c_{i+1}) with c_i = floor(i (N-1) / n) and holds the
+ * voxels c_i .. c_{i+1} (neighbours share their boundary voxel, which the lower brick owns:
+ * assembled volumes take its value there, and encode-time errors count it there); N = 1
+ * gives one voxel. */
+void cdvr_store_brick_box(const cdvr_store_info *info, size_t b, size_t lo[3], size_t dims[3]);
+/* The same rule for any grid (the encoder and readers share it); 0 if the grid is invalid
+ * (a count of 0, or more bricks than cells along an axis with more than one voxel). */
+int cdvr_brick_box(const size_t vol_dims[3], const size_t bricks[3], size_t b, size_t lo[3],
+                   size_t dims[3]);
+
+/* The codec of variant v, or CDVR_ERR_UNSUPPORTED "codec 'zfp' is not loaded (load its
+ * plugin: cdvr.plugin.load)" naming the file and variant. */
+cdvr_status cdvr_store_variant_codec(const cdvr_store *st, size_t v, const cdvr_codec **out,
+                                     cdvr_error *err);
 
 /* b1: reads chunk c of variant v into buf (stored_bytes) and checks its CRC-32C. */
 cdvr_status cdvr_store_read_chunk(const cdvr_store *st, size_t v, size_t c, uint8_t *buf,
@@ -124,11 +175,13 @@ cdvr_status cdvr_store_unpack_chunk(const cdvr_store *st, size_t v, size_t c,
  * payload_bytes after the CRC check and stage 2. */
 cdvr_status cdvr_store_load_payload(const cdvr_store *st, size_t v, size_t c, uint8_t **payload,
                                     cdvr_error *err);
-/* Decodes a chunk payload into its `count` u8 frames of dims (frames[i] for t0+i). */
+/* Decodes a chunk payload into its `count` u8 frames of the chunk's brick dims (frames[i] for
+ * t0+i) with the chunk's codec. */
 cdvr_status cdvr_store_decode_chunk(const cdvr_store *st, size_t v, size_t c,
                                     const uint8_t *payload, uint8_t *const *frames,
                                     cdvr_error *err);
-/* Convenience: read + unpack + decode timestep t of variant v into a new u8 volume. */
+/* Convenience: read + unpack + decode timestep t of variant v (all bricks, assembled) into a
+ * new u8 volume carrying the store's spacing, origin and direction. */
 cdvr_status cdvr_store_decode(const cdvr_store *st, size_t v, size_t t, cdvr_volume **out,
                               cdvr_error *err);
 

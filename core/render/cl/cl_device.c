@@ -16,8 +16,10 @@
 #define BUILD_OPTIONS "-cl-std=CL1.2"
 #define CACHE_MAGIC "CDVRCLB1"
 
-static const char *const kernel_files[] = {"codec/pvtc_decode.cl", "render/bricks.cl",
-                                           "render/raycast.cl"};
+/* The render kernels (after kernels/common/cl_shared.h and, for a fetch-mode codec, its
+ * source). */
+static const char *const render_files[] = {"render/bricks.cl", "render/raycast.cl"};
+#define NRENDER_FILES (sizeof render_files / sizeof *render_files)
 
 const char *cdvr_cl_error_name(cl_int code)
 {
@@ -255,36 +257,58 @@ static cdvr_status read_file(const char *path, char **text, size_t *len, cdvr_er
     return CDVR_OK;
 }
 
-/* All kernel files concatenated into one program source. */
-static cdvr_status load_sources(char **out, cdvr_error *err)
+static const char *kernel_dir(void)
 {
     const char *dir = getenv("CDVR_KERNELS");
-    if (!dir || !*dir)
-        dir = CDVR_KERNEL_DIR;
+    return dir && *dir ? dir : CDVR_KERNEL_DIR;
+}
+
+/* Appends text (len bytes) and a newline to *all (*total bytes so far). */
+static cdvr_status append_text(char **all, size_t *total, const char *text, size_t len,
+                               const char *what, cdvr_error *err)
+{
+    char *grown = realloc(*all, *total + len + 2);
+    if (!grown)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", what);
+    *all = grown;
+    memcpy(*all + *total, text, len);
+    *total += len;
+    (*all)[(*total)++] = '\n';
+    (*all)[*total] = '\0';
+    return CDVR_OK;
+}
+
+static cdvr_status append_file(char **all, size_t *total, const char *name, cdvr_error *err)
+{
+    char path[1024];
+    char *text = NULL;
+    size_t len = 0;
+    snprintf(path, sizeof path, "%s/%s", kernel_dir(), name);
+    cdvr_status st = read_file(path, &text, &len, err);
+    if (!st)
+        st = append_text(all, total, text, len, path, err);
+    free(text);
+    return st;
+}
+
+/* Program source: the shared header, then (optionally) a codec's source, then the given
+ * render files. */
+static cdvr_status load_sources(const cdvr_codec *codec, const char *const *files, size_t nfiles,
+                                char **out, cdvr_error *err)
+{
     char *all = NULL;
     size_t total = 0;
-    for (size_t i = 0; i < sizeof kernel_files / sizeof *kernel_files; i++) {
-        char path[1024];
-        char *text = NULL;
-        size_t len = 0;
-        snprintf(path, sizeof path, "%s/%s", dir, kernel_files[i]);
-        cdvr_status st = read_file(path, &text, &len, err);
-        if (st) {
-            free(all);
-            return st;
-        }
-        char *grown = realloc(all, total + len + 2);
-        if (!grown) {
-            free(text);
-            free(all);
-            return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
-        }
-        all = grown;
-        memcpy(all + total, text, len);
-        total += len;
-        all[total++] = '\n';
-        all[total] = '\0';
-        free(text);
+    cdvr_status st = append_file(&all, &total, "common/cl_shared.h", err);
+    if (!st && codec && codec->cl_source)
+        st = append_text(&all, &total, codec->cl_source, strlen(codec->cl_source),
+                         codec->name, err);
+    else if (!st && codec)
+        st = append_file(&all, &total, codec->cl_file, err);
+    for (size_t i = 0; !st && i < nfiles; i++)
+        st = append_file(&all, &total, files[i], err);
+    if (st) {
+        free(all);
+        return st;
     }
     *out = all;
     return CDVR_OK;
@@ -306,9 +330,9 @@ static uint64_t hash_str(uint64_t h, const char *s)
 }
 
 /* 128-bit key (two FNV-1a streams with different seeds) as 32 hex digits. */
-static void cache_key(const cdvr_cl *cl, const char *source, char key[33])
+static void cache_key(const cdvr_cl *cl, const char *source, const char *options, char key[33])
 {
-    const char *parts[] = {source, BUILD_OPTIONS, cl->info.device, cl->info.driver_version,
+    const char *parts[] = {source, options, cl->info.device, cl->info.driver_version,
                            cl->info.platform, cl->info.device_version};
     uint64_t h1 = 14695981039346656037ULL, h2 = 0x9e3779b97f4a7c15ULL;
     for (size_t i = 0; i < sizeof parts / sizeof *parts; i++) {
@@ -405,83 +429,98 @@ static unsigned char *program_binary(cl_program prog, cl_device_id dev, size_t *
     return bin;
 }
 
-static cdvr_status build_error(cdvr_cl *cl, cl_program prog, cl_int code, cdvr_error *err)
+static cdvr_status build_error(cdvr_cl *cl, cl_program prog, cl_int code, const char *what,
+                               cdvr_error *err)
 {
-    char log[CDVR_ERRMSG_MAX] = "";
+    /* the whole build log, cut only where the message itself ends */
     size_t len = 0;
-    clGetProgramBuildInfo(prog, cl->device, CL_PROGRAM_BUILD_LOG, sizeof log - 1, log, &len);
-    if (len == 0 || len > sizeof log - 1) {
-        /* the log is longer than a message: keep its start */
-        char *full = len ? malloc(len + 1) : NULL;
-        if (full && !clGetProgramBuildInfo(prog, cl->device, CL_PROGRAM_BUILD_LOG, len, full, NULL))
-            snprintf(log, sizeof log, "%s", full);
-        free(full);
-    }
-    return cdvr_error_set(err, CDVR_ERR_DEVICE, "OpenCL: building kernels for %s: %s (%d): %s",
-                          cl->info.device, cdvr_cl_error_name(code), (int)code, log);
+    clGetProgramBuildInfo(prog, cl->device, CL_PROGRAM_BUILD_LOG, 0, NULL, &len);
+    char *log = len ? malloc(len + 1) : NULL;
+    if (log && clGetProgramBuildInfo(prog, cl->device, CL_PROGRAM_BUILD_LOG, len, log, NULL))
+        log[0] = '\0';
+    if (log)
+        log[len] = '\0';
+    cdvr_status st = cdvr_error_set(err, CDVR_ERR_DEVICE, "OpenCL: building %s for %s: %s (%d): "
+                                    "%s", what, cl->info.device, cdvr_cl_error_name(code),
+                                    (int)code, log ? log : "(no build log)");
+    if (log && (!err || strlen(log) > sizeof err->msg / 2))
+        fprintf(stderr, "cdvr: OpenCL build log of %s:\n%s\n", what, log);
+    free(log);
+    return st;
 }
 
-static cl_program program_from_binary(cdvr_cl *cl, const unsigned char *bin, size_t size)
+static cl_program program_from_binary(cdvr_cl *cl, const unsigned char *bin, size_t size,
+                                      const char *options)
 {
     cl_int status = CL_SUCCESS, code;
     cl_program prog = clCreateProgramWithBinary(cl->context, 1, &cl->device, &size, &bin,
                                                 &status, &code);
     if (code != CL_SUCCESS || status != CL_SUCCESS)
         return NULL;
-    if (clBuildProgram(prog, 1, &cl->device, BUILD_OPTIONS, NULL, NULL) != CL_SUCCESS) {
+    if (clBuildProgram(prog, 1, &cl->device, options, NULL, NULL) != CL_SUCCESS) {
         clReleaseProgram(prog);
         return NULL;
     }
     return prog;
 }
 
+/* Builds source with options, from the on-disk binary cache when it holds it. */
+static cdvr_status build_cached(cdvr_cl *cl, const char *source, const char *options,
+                                const char *what, cl_program *out, int *from_cache,
+                                char *cache_path, size_t cache_path_size, cdvr_error *err)
+{
+    char key[33], dir[400];
+    cache_key(cl, source, options, key);
+    cache_path[0] = '\0';
+    if (cache_dir(dir, sizeof dir) == 0)
+        snprintf(cache_path, cache_path_size, "%s/%s.clbin", dir, key);
+    size_t size = 0;
+    unsigned char *bin = cache_path[0] ? cache_load(cache_path, key, &size) : NULL;
+    *out = NULL;
+    if (bin) {
+        *out = program_from_binary(cl, bin, size, options);
+        free(bin);
+    }
+    *from_cache = *out != NULL;
+    if (*out)
+        return CDVR_OK;
+    cl_int code;
+    cl_program prog = clCreateProgramWithSource(cl->context, 1, &source, NULL, &code);
+    if (code != CL_SUCCESS)
+        return cdvr_cl_check(code, "clCreateProgramWithSource", err);
+    code = clBuildProgram(prog, 1, &cl->device, options, NULL, NULL);
+    if (code != CL_SUCCESS) {
+        cdvr_status st = build_error(cl, prog, code, what, err);
+        clReleaseProgram(prog);
+        return st;
+    }
+    bin = cache_path[0] ? program_binary(prog, cl->device, &size) : NULL;
+    if (bin)
+        cache_store(cache_path, key, bin, size);
+    free(bin);
+    *out = prog;
+    return CDVR_OK;
+}
+
 static cdvr_status build_program(cdvr_cl *cl, cdvr_error *err)
 {
     double start = cdvr_now_ms();
     char *source = NULL;
-    cdvr_status st = load_sources(&source, err);
+    cdvr_status st = load_sources(NULL, render_files, NRENDER_FILES, &source, err);
     if (st)
         return st;
-    char key[33], dir[400];
-    cache_key(cl, source, key);
-    cl->info.cache_path[0] = '\0';
-    if (cache_dir(dir, sizeof dir) == 0)
-        snprintf(cl->info.cache_path, sizeof cl->info.cache_path, "%s/%s.clbin", dir, key);
-    size_t size = 0;
-    unsigned char *bin = cl->info.cache_path[0] ? cache_load(cl->info.cache_path, key, &size) : NULL;
-    if (bin) {
-        cl->program = program_from_binary(cl, bin, size);
-        free(bin);
-    }
-    cl->info.from_cache = cl->program != NULL;
-    if (!cl->program) {
-        cl_int code;
-        const char *src = source;
-        cl->program = clCreateProgramWithSource(cl->context, 1, &src, NULL, &code);
-        if (code != CL_SUCCESS) {
-            cl->program = NULL;
-            free(source);
-            return cdvr_cl_check(code, "clCreateProgramWithSource", err);
-        }
-        code = clBuildProgram(cl->program, 1, &cl->device, BUILD_OPTIONS, NULL, NULL);
-        if (code != CL_SUCCESS) {
-            free(source);
-            return build_error(cl, cl->program, code, err);
-        }
-        bin = cl->info.cache_path[0] ? program_binary(cl->program, cl->device, &size) : NULL;
-        if (bin)
-            cache_store(cl->info.cache_path, key, bin, size);
-        free(bin);
-    }
+    st = build_cached(cl, source, BUILD_OPTIONS, "the render kernels", &cl->program,
+                      &cl->info.from_cache, cl->info.cache_path, sizeof cl->info.cache_path, err);
     free(source);
     cl->info.build_seconds = (cdvr_now_ms() - start) / 1e3;
-    return CDVR_OK;
+    return st;
 }
 
-static cdvr_status create_kernel(cdvr_cl *cl, const char *name, cl_kernel *out, cdvr_error *err)
+static cdvr_status create_kernel(cl_program program, const char *name, cl_kernel *out,
+                                cdvr_error *err)
 {
     cl_int code;
-    *out = clCreateKernel(cl->program, name, &code);
+    *out = clCreateKernel(program, name, &code);
     if (code != CL_SUCCESS) {
         *out = NULL;
         char what[96];
@@ -532,11 +571,9 @@ cdvr_status cdvr_cl_open(cdvr_cl **out, cdvr_error *err)
     if (!st)
         st = build_program(cl, err);
     if (!st)
-        st = create_kernel(cl, "pvtc_decode", &cl->k_decode, err);
+        st = create_kernel(cl->program, "brick_minmax", &cl->k_bricks, err);
     if (!st)
-        st = create_kernel(cl, "brick_minmax", &cl->k_bricks, err);
-    if (!st)
-        st = create_kernel(cl, "raycast", &cl->k_raycast, err);
+        st = create_kernel(cl->program, "raycast", &cl->k_raycast, err);
     if (st) {
         cdvr_cl_close(cl);
         return st;
@@ -545,12 +582,86 @@ cdvr_status cdvr_cl_open(cdvr_cl **out, cdvr_error *err)
     return CDVR_OK;
 }
 
+static void release_codec_program(cdvr_cl_codec_program *cp)
+{
+    cl_kernel *kernels[] = {&cp->k_decode, &cp->k_bricks, &cp->k_raycast};
+    for (size_t i = 0; i < 3; i++)
+        if (*kernels[i])
+            clReleaseKernel(*kernels[i]);
+    if (cp->program)
+        clReleaseProgram(cp->program);
+    memset(cp, 0, sizeof *cp);
+}
+
+/* Builds the program of a codec: its decode kernel, or the render kernels over its fetch
+ * function (-DCDVR_FETCH=name). */
+static cdvr_status build_codec_program(cdvr_cl *cl, const cdvr_codec *codec,
+                                       cdvr_cl_codec_program *cp, cdvr_error *err)
+{
+    int fetch = codec->cl_mode == CDVR_CODEC_CL_FETCH;
+    char *source = NULL, options[256], what[96], cache_path[512];
+    cdvr_status st = load_sources(codec, render_files, fetch ? NRENDER_FILES : 0, &source, err);
+    if (st)
+        return st;
+    snprintf(options, sizeof options, "%s%s%s", BUILD_OPTIONS, fetch ? " -DCDVR_FETCH=" : "",
+             fetch ? codec->cl_function : "");
+    snprintf(what, sizeof what, "the %s kernels of codec %s", fetch ? "fetch" : "decode",
+             codec->name);
+    int from_cache;
+    memset(cp, 0, sizeof *cp);
+    cp->codec = codec;
+    st = build_cached(cl, source, options, what, &cp->program, &from_cache, cache_path,
+                      sizeof cache_path, err);
+    free(source);
+    if (!st && fetch)
+        st = create_kernel(cp->program, "brick_minmax", &cp->k_bricks, err);
+    if (!st && fetch)
+        st = create_kernel(cp->program, "raycast", &cp->k_raycast, err);
+    if (!st && !fetch)
+        st = create_kernel(cp->program, codec->cl_function, &cp->k_decode, err);
+    if (st)
+        release_codec_program(cp);
+    return st;
+}
+
+cdvr_status cdvr_cl_get_codec_program(cdvr_cl *cl, const cdvr_codec *codec,
+                                  const cdvr_cl_codec_program **out, cdvr_error *err)
+{
+    *out = NULL;
+    if (codec->cl_mode == CDVR_CODEC_CL_NONE)
+        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "OpenCL: codec %s has no device code "
+                              "(decode on the CPU, then upload)", codec->name);
+    for (size_t i = 0; i < cl->ncodecs; i++)
+        if (cl->codecs[i].codec == codec) {
+            *out = &cl->codecs[i];
+            return CDVR_OK;
+        }
+    if (cl->ncodecs == CDVR_CL_MAX_CODEC_PROGRAMS)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL: more than %d codec programs",
+                              CDVR_CL_MAX_CODEC_PROGRAMS);
+    cdvr_status st = build_codec_program(cl, codec, &cl->codecs[cl->ncodecs], err);
+    if (st)
+        return st;
+    *out = &cl->codecs[cl->ncodecs++];
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_cl_arg(cl_kernel k, const char *name, cl_uint index, size_t size,
+                        const void *value, cdvr_error *err)
+{
+    cl_int code = clSetKernelArg(k, index, size, value);
+    if (code == CL_SUCCESS)
+        return CDVR_OK;
+    return cdvr_error_set(err, CDVR_ERR_DEVICE, "OpenCL: %s argument %u: %s (%d)", name,
+                          (unsigned)index, cdvr_cl_error_name(code), (int)code);
+}
+
 void cdvr_cl_close(cdvr_cl *cl)
 {
     if (!cl)
         return;
-    if (cl->k_decode)
-        clReleaseKernel(cl->k_decode);
+    for (size_t i = 0; i < cl->ncodecs; i++)
+        release_codec_program(&cl->codecs[i]);
     if (cl->k_bricks)
         clReleaseKernel(cl->k_bricks);
     if (cl->k_raycast)

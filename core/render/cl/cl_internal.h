@@ -8,17 +8,40 @@
 #include <CL/cl.h>
 #endif
 
+#include "cdvr/codec.h"
 #include "cdvr/device.h"
+#include "common/cl_shared.h"
+
+/* The program of one codec: its decode kernel (decode mode), or the brick min/max and
+ * ray-cast kernels built over its fetch function (fetch mode). */
+typedef struct cdvr_cl_codec_program {
+    const cdvr_codec *codec;
+    cl_program program;
+    cl_kernel k_decode;
+    cl_kernel k_bricks, k_raycast;
+} cdvr_cl_codec_program;
+
+#define CDVR_CL_MAX_CODEC_PROGRAMS 32
+#define CDVR_CL_BRICK (1u << CDVR_CL_BRICK_SHIFT) /* edge of the skipping bricks, voxels */
 
 struct cdvr_cl {
     cl_platform_id platform;
     cl_device_id device;
     cl_context context;
     cl_command_queue queue;
-    cl_program program;
-    cl_kernel k_decode, k_bricks, k_raycast;
+    cl_program program;              /* dense brick min/max and ray cast */
+    cl_kernel k_bricks, k_raycast;
+    cdvr_cl_codec_program codecs[CDVR_CL_MAX_CODEC_PROGRAMS]; /* built on first use */
+    size_t ncodecs;
     cdvr_cl_info info;
 };
+
+/* The program of codec (built, or loaded from the binary cache, on first use). */
+cdvr_status cdvr_cl_get_codec_program(cdvr_cl *cl, const cdvr_codec *codec,
+                                  const cdvr_cl_codec_program **out, cdvr_error *err);
+/* Sets argument `index` of kernel `name`; on failure fills err naming both. */
+cdvr_status cdvr_cl_arg(cl_kernel k, const char *name, cl_uint index, size_t size,
+                        const void *value, cdvr_error *err);
 
 struct cdvr_cl_stream {
     cdvr_cl *cl;
@@ -28,8 +51,11 @@ struct cdvr_cl_stream {
     size_t nbricks;
     cl_mem payload;              /* uploaded chunk */
     size_t payload_capacity, payload_bytes;
+    cl_mem params;               /* the chunk's codec parameter blob (CDVR_CL_PARAMS_BYTES) */
     cl_mem frames;               /* decoded u8 frames, contiguous */
     size_t frame_capacity, frames_valid;
+    const cdvr_cl_codec_program *fetch; /* frames stay compressed: read through this codec's
+                                           fetch kernels (NULL: dense frames) */
     cl_mem table;                /* 256 float4: rgb + step-corrected alpha (per render) */
     cl_mem alpha_unit;           /* 256 floats: alpha per unit length (shorter last segment) */
     cl_mem brick_minmax;         /* nbricks uchar2: value range per brick incl. apron */

@@ -7,12 +7,7 @@
 
 #include "cl_internal.h"
 
-/* Mirrors the kernel's cam_params struct (all 4-byte members, no padding). */
-typedef struct cam_params {
-    cl_float eye[3], f[3], u[3], r[3];
-    cl_float tan_half, aspect, ortho_half_height;
-    cl_int orthographic, width, height;
-} cam_params;
+typedef cdvr_cl_camera cam_params; /* kernels/common/cl_shared.h */
 
 static cdvr_status run_kernel(cdvr_cl *cl, cl_kernel k, cl_uint ndim, const size_t *global,
                               const size_t *local, const char *what, cdvr_error *err)
@@ -30,26 +25,58 @@ static cdvr_status write_buffer(cdvr_cl *cl, cl_mem mem, const void *data, size_
     return cdvr_cl_check(code, what, err);
 }
 
+/* The voxel source of device frame `frame` for the brick and ray-cast kernels (their first
+ * three arguments): dense frames at an offset, or the payload, the parameter blob and the
+ * frame index through the fetch-mode codec's kernels. */
+typedef struct voxel_source {
+    cl_kernel k_bricks, k_raycast;
+    cl_mem vol, params;
+    cl_ulong offset;
+} voxel_source;
+
+static voxel_source source_of(const cdvr_cl_stream *s, size_t frame)
+{
+    voxel_source v;
+    if (s->fetch) {
+        v = (voxel_source){s->fetch->k_bricks, s->fetch->k_raycast, s->payload, s->params,
+                           (cl_ulong)frame};
+    } else {
+        v = (voxel_source){s->cl->k_bricks, s->cl->k_raycast, s->frames, s->params,
+                           (cl_ulong)(frame * s->voxels)};
+    }
+    return v;
+}
+
+static cdvr_status set_source_args(cl_kernel k, const char *name, const voxel_source *v,
+                                   cdvr_error *err)
+{
+    cdvr_status st = cdvr_cl_arg(k, name, 0, sizeof(cl_mem), &v->vol, err);
+    if (!st)
+        st = cdvr_cl_arg(k, name, 1, sizeof(cl_mem), &v->params, err);
+    if (!st)
+        st = cdvr_cl_arg(k, name, 2, sizeof v->offset, &v->offset, err);
+    return st;
+}
+
 /* Min/max of every brick of device frame `frame`, copied to s->minmax_host. */
 static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *err)
 {
-    cl_kernel k = s->cl->k_bricks;
-    cl_ulong offset = (cl_ulong)(frame * s->voxels);
+    voxel_source src = source_of(s, frame);
+    cl_kernel k = src.k_bricks;
     cl_uint args[7] = {(cl_uint)s->dims[0], (cl_uint)s->dims[1], (cl_uint)s->dims[2],
                        CDVR_CL_BRICK, (cl_uint)s->brick_dims[0], (cl_uint)s->brick_dims[1],
                        (cl_uint)s->brick_dims[2]};
-    cl_int code = clSetKernelArg(k, 0, sizeof(cl_mem), &s->frames);
-    code |= clSetKernelArg(k, 1, sizeof offset, &offset);
-    for (cl_uint i = 0; i < 7; i++)
-        code |= clSetKernelArg(k, 2 + i, sizeof(cl_uint), &args[i]);
-    code |= clSetKernelArg(k, 9, sizeof(cl_mem), &s->brick_minmax);
-    if (code != CL_SUCCESS)
-        return cdvr_cl_check(CL_INVALID_KERNEL_ARGS, "brick_minmax arguments", err);
-    cdvr_status st = run_kernel(s->cl, k, 1, &s->nbricks, NULL, "brick_minmax kernel", err);
+    cdvr_status st = set_source_args(k, "brick_minmax", &src, err);
+    for (cl_uint i = 0; !st && i < 7; i++)
+        st = cdvr_cl_arg(k, "brick_minmax", 3 + i, sizeof(cl_uint), &args[i], err);
+    if (!st)
+        st = cdvr_cl_arg(k, "brick_minmax", 10, sizeof(cl_mem), &s->brick_minmax, err);
+    if (!st)
+        st = run_kernel(s->cl, k, 1, &s->nbricks, NULL, "brick_minmax kernel", err);
     if (st)
         return st;
-    code = clEnqueueReadBuffer(s->cl->queue, s->brick_minmax, CL_TRUE, 0, 2 * s->nbricks,
-                               s->minmax_host, 0, NULL, NULL);
+    cl_int code = clEnqueueReadBuffer(s->cl->queue, s->brick_minmax, CL_TRUE, 0, 2 * s->nbricks,
+                                      s->minmax_host, 0, NULL, NULL);
     return cdvr_cl_check(code, "read brick min/max grid", err);
 }
 
@@ -250,8 +277,8 @@ static cdvr_status camera_params(const cdvr_camera *cam, cam_params *out, cdvr_e
 /* Pixels per work-item (kernels/render/raycast.cl marches a packet of PACKET_W x PACKET_H
  * neighbouring rays in lock-step) and the work-group in work-items: neighbouring rays share
  * voxels and bricks in cache. */
-#define PACKET_W 4
-#define PACKET_H 2
+#define PACKET_W CDVR_CL_PACKET_W
+#define PACKET_H CDVR_CL_PACKET_H
 #define RAY_GROUP_W 8
 #define RAY_GROUP_H 8
 
@@ -292,21 +319,14 @@ static cdvr_status upload_tables(cdvr_cl_stream *s, render_params rp, cdvr_error
     return st;
 }
 
-/* log2 of CDVR_CL_BRICK (a power of two) for the kernel's shifts */
-static cl_int brick_shift(void)
-{
-    cl_int shift = 0;
-    while ((1 << shift) < CDVR_CL_BRICK)
-        shift++;
-    return shift;
-}
-
+/* Sets the ray-cast kernel's arguments (in the order of kernels/render/raycast.cl). */
 static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_params rp,
                                     const cam_params *cam, const double spacing[3],
-                                    const double origin[3], cl_mem image)
+                                    const double origin[3], cl_mem image, cl_kernel *kernel,
+                                    cdvr_error *err)
 {
-    cl_kernel k = s->cl->k_raycast;
-    cl_ulong offset = (cl_ulong)(frame * s->voxels);
+    voxel_source src = source_of(s, frame);
+    cl_kernel k = *kernel = src.k_raycast;
     cl_int ints[3] = {(cl_int)s->dims[0], (cl_int)s->dims[1], (cl_int)s->dims[2]};
     cl_float geo[9];
     for (int i = 0; i < 3; i++) {
@@ -314,33 +334,34 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
         geo[3 + i] = (cl_float)(1.0 / spacing[i]);
         geo[6 + i] = (cl_float)(origin[i] + (double)(s->dims[i] - 1) * spacing[i]);
     }
-    cl_int bricks[5] = {brick_shift(), (cl_int)s->brick_dims[0], (cl_int)s->brick_dims[1],
+    cl_int bricks[5] = {CDVR_CL_BRICK_SHIFT, (cl_int)s->brick_dims[0], (cl_int)s->brick_dims[1],
                         (cl_int)s->brick_dims[2], s->skipping};
-    cl_uint a = 0;
-    cl_int code = clSetKernelArg(k, a++, sizeof(cl_mem), &s->frames);
-    code |= clSetKernelArg(k, a++, sizeof offset, &offset);
-    for (int i = 0; i < 3; i++)
-        code |= clSetKernelArg(k, a++, sizeof(cl_int), &ints[i]);
-    for (int i = 0; i < 9; i++)
-        code |= clSetKernelArg(k, a++, sizeof(cl_float), &geo[i]);
     cl_float step = (cl_float)rp.step, term_alpha = (cl_float)rp.term_alpha;
     cl_float unit = (cl_float)rp.unit;
-    code |= clSetKernelArg(k, a++, sizeof step, &step);
-    code |= clSetKernelArg(k, a++, sizeof term_alpha, &term_alpha);
-    code |= clSetKernelArg(k, a++, sizeof *cam, cam);
-    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->table);
-    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->alpha_unit);
-    code |= clSetKernelArg(k, a++, sizeof unit, &unit);
-    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->brick_visible);
-    for (int i = 0; i < 5; i++)
-        code |= clSetKernelArg(k, a++, sizeof(cl_int), &bricks[i]);
-    for (int i = 0; i < 3; i++)
-        code |= clSetKernelArg(k, a++, sizeof(cl_float), &s->visible_lo[i]);
-    for (int i = 0; i < 3; i++)
-        code |= clSetKernelArg(k, a++, sizeof(cl_float), &s->visible_hi[i]);
-    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &image);
-    code |= clSetKernelArg(k, a++, sizeof(cl_mem), &s->samples);
-    return code == CL_SUCCESS ? CDVR_OK : CDVR_ERR_DEVICE;
+    /* (size, value) of arguments 3.. in kernel order */
+    struct {
+        size_t size;
+        const void *value;
+    } args[] = {{sizeof(cl_int), &ints[0]},   {sizeof(cl_int), &ints[1]},
+                {sizeof(cl_int), &ints[2]},   {sizeof(cl_float), &geo[0]},
+                {sizeof(cl_float), &geo[1]},  {sizeof(cl_float), &geo[2]},
+                {sizeof(cl_float), &geo[3]},  {sizeof(cl_float), &geo[4]},
+                {sizeof(cl_float), &geo[5]},  {sizeof(cl_float), &geo[6]},
+                {sizeof(cl_float), &geo[7]},  {sizeof(cl_float), &geo[8]},
+                {sizeof step, &step},         {sizeof term_alpha, &term_alpha},
+                {sizeof *cam, cam},           {sizeof(cl_mem), &s->table},
+                {sizeof(cl_mem), &s->alpha_unit}, {sizeof unit, &unit},
+                {sizeof(cl_mem), &s->brick_visible}, {sizeof(cl_int), &bricks[0]},
+                {sizeof(cl_int), &bricks[1]}, {sizeof(cl_int), &bricks[2]},
+                {sizeof(cl_int), &bricks[3]}, {sizeof(cl_int), &bricks[4]},
+                {sizeof(cl_float), &s->visible_lo[0]}, {sizeof(cl_float), &s->visible_lo[1]},
+                {sizeof(cl_float), &s->visible_lo[2]}, {sizeof(cl_float), &s->visible_hi[0]},
+                {sizeof(cl_float), &s->visible_hi[1]}, {sizeof(cl_float), &s->visible_hi[2]},
+                {sizeof(cl_mem), &image},     {sizeof(cl_mem), &s->samples}};
+    cdvr_status st = set_source_args(k, "raycast", &src, err);
+    for (cl_uint i = 0; !st && i < sizeof args / sizeof *args; i++)
+        st = cdvr_cl_arg(k, "raycast", 3 + i, args[i].size, args[i].value, err);
+    return st;
 }
 
 /* Device image of `pixels` and one sample counter per work-item (`items`). */
@@ -403,16 +424,16 @@ static cl_int sync_host_image(cl_command_queue q, cl_mem host_image, cdvr_image 
 /* Runs the ray caster and reads the image (from host_image, or the stream's device image if
  * NULL) and the sample counters back, with one wait for the kernel and the reads (the
  * in-order queue keeps the reads behind the kernel). */
-static cdvr_status cast_and_read(cdvr_cl_stream *s, const size_t global[2], const size_t local[2],
-                                 cl_mem host_image, cdvr_image *img, size_t pixels,
-                                 cdvr_error *err)
+static cdvr_status cast_and_read(cdvr_cl_stream *s, cl_kernel kernel, const size_t global[2],
+                                 const size_t local[2], cl_mem host_image, cdvr_image *img,
+                                 size_t pixels, cdvr_error *err)
 {
     size_t items = global[0] * global[1], image_bytes = pixels * 4 * sizeof(float);
     cl_uint *counts = malloc(items * sizeof *counts);
     if (!counts)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL render: out of memory");
     cl_command_queue q = s->cl->queue;
-    cl_int code = clEnqueueNDRangeKernel(q, s->cl->k_raycast, 2, NULL, global, local, 0, NULL, NULL);
+    cl_int code = clEnqueueNDRangeKernel(q, kernel, 2, NULL, global, local, 0, NULL, NULL);
     const char *what = "raycast kernel";
     if (!code) {
         what = "read image";
@@ -490,10 +511,11 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     if (st)
         return st;
     cl_mem host_image = wrap_host_image(s->cl, img, pixels);
-    if (set_raycast_args(s, frame, rp, &cam, spacing, origin, host_image ? host_image : s->image))
-        st = cdvr_cl_check(CL_INVALID_KERNEL_ARGS, "raycast arguments", err);
-    else
-        st = cast_and_read(s, global, local, host_image, img, pixels, err);
+    cl_kernel kernel;
+    st = set_raycast_args(s, frame, rp, &cam, spacing, origin, host_image ? host_image : s->image,
+                          &kernel, err);
+    if (!st)
+        st = cast_and_read(s, kernel, global, local, host_image, img, pixels, err);
     cdvr_cl_release(&host_image);
     if (st)
         return st;

@@ -1,0 +1,252 @@
+/* core/render/cl/cl_stream.c - device streams: upload (b2), decode (b3) through the codec table
+ * (cdvr/codec.h) and download of u8 frames. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cl_internal.h"
+
+size_t cdvr_cl_brick_edge(void)
+{
+    return CDVR_CL_BRICK;
+}
+
+static size_t ceil_div(size_t a, size_t b)
+{
+    return a / b + (a % b != 0);
+}
+
+cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_stream **out,
+                                  cdvr_error *err)
+{
+    *out = NULL;
+    size_t voxels = 1;
+    for (int i = 0; i < 3; i++) {
+        if (dims[i] == 0 || dims[i] > 0x7fffffff)
+            return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL stream: dims %zux%zux%zu out of range",
+                                  dims[0], dims[1], dims[2]);
+        if (!cdvr_size_mul(voxels, dims[i], &voxels))
+            return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL stream: dims %zux%zux%zu overflow",
+                                  dims[0], dims[1], dims[2]);
+    }
+    cdvr_cl_stream *s = calloc(1, sizeof *s);
+    if (!s)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL stream: out of memory");
+    s->cl = cl;
+    s->voxels = voxels;
+    s->nbricks = 1;
+    for (int i = 0; i < 3; i++) {
+        s->dims[i] = dims[i];
+        s->brick_dims[i] = ceil_div(dims[i], CDVR_CL_BRICK);
+        s->nbricks *= s->brick_dims[i];
+    }
+    s->skipping = 1;
+    s->setup_frame = (size_t)-1;
+    s->minmax_frame = (size_t)-1;
+    size_t cap = 0, minmax_bytes = 2 * s->nbricks; /* nbricks < voxels: no overflow */
+    cdvr_status st = cdvr_cl_ensure_buffer(cl, &s->table, &cap, 256 * 4 * sizeof(float),
+                                           CL_MEM_READ_ONLY, "TF table", err);
+    if (!st)
+        st = cdvr_cl_ensure_buffer(cl, &s->alpha_unit, &cap, 256 * sizeof(float),
+                                   CL_MEM_READ_ONLY, "alpha table", err);
+    if (!st) /* zeros: dense frames read no parameters, but the argument must be a buffer */
+        st = cdvr_cl_ensure_buffer(cl, &s->params, &cap, CDVR_CL_PARAMS_BYTES, CL_MEM_READ_ONLY,
+                                   "codec parameters", err);
+    if (!st) {
+        static const unsigned char zeros[CDVR_CL_PARAMS_BYTES];
+        st = cdvr_cl_check(clEnqueueWriteBuffer(cl->queue, s->params, CL_TRUE, 0, sizeof zeros,
+                                                zeros, 0, NULL, NULL),
+                           "clear codec parameters", err);
+    }
+    if (!st)
+        st = cdvr_cl_ensure_buffer(cl, &s->brick_minmax, &cap, minmax_bytes, CL_MEM_READ_WRITE,
+                                   "brick min/max grid", err);
+    if (!st)
+        st = cdvr_cl_ensure_buffer(cl, &s->brick_visible, &cap, s->nbricks, CL_MEM_READ_ONLY,
+                                   "brick flags", err);
+    if (!st) { /* host copies only once the device has accepted the sizes */
+        s->minmax_host = malloc(minmax_bytes);
+        s->flags_host = malloc(s->nbricks);
+        if (!s->minmax_host || !s->flags_host)
+            st = cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL stream: out of memory");
+    }
+    if (st) {
+        cdvr_cl_stream_free(s);
+        return st;
+    }
+    *out = s;
+    return CDVR_OK;
+}
+
+void cdvr_cl_stream_free(cdvr_cl_stream *s)
+{
+    if (!s)
+        return;
+    cl_mem *mems[] = {&s->payload, &s->params, &s->frames, &s->table, &s->alpha_unit,
+                      &s->brick_minmax, &s->brick_visible, &s->image, &s->samples};
+    for (size_t i = 0; i < sizeof mems / sizeof *mems; i++)
+        cdvr_cl_release(mems[i]);
+    free(s->minmax_host);
+    free(s->flags_host);
+    free(s);
+}
+
+static void invalidate_frames(cdvr_cl_stream *s)
+{
+    s->frames_valid = 0;
+    s->fetch = NULL;
+    s->setup_frame = (size_t)-1;
+    s->minmax_frame = (size_t)-1;
+}
+
+cdvr_status cdvr_cl_upload(cdvr_cl_stream *s, const void *payload, size_t bytes, cdvr_error *err)
+{
+    if (!payload || bytes == 0)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL upload: empty payload");
+    if (s->fetch) /* the frames were the old payload */
+        invalidate_frames(s);
+    s->payload_bytes = 0;
+    cdvr_status st = cdvr_cl_ensure_buffer(s->cl, &s->payload, &s->payload_capacity, bytes,
+                                           CL_MEM_READ_ONLY, "chunk payload", err);
+    if (st)
+        return st;
+    cl_int code = clEnqueueWriteBuffer(s->cl->queue, s->payload, CL_TRUE, 0, bytes, payload, 0,
+                                       NULL, NULL);
+    if (cdvr_cl_check(code, "upload chunk payload", err))
+        return CDVR_ERR_DEVICE;
+    s->payload_bytes = bytes;
+    return CDVR_OK;
+}
+
+static cdvr_status ensure_frames(cdvr_cl_stream *s, size_t count, cdvr_error *err)
+{
+    size_t bytes;
+    if (!cdvr_size_mul(s->voxels, count, &bytes))
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL decode: %zu frames of %zu voxels overflow",
+                              count, s->voxels);
+    if (s->frames && s->frame_capacity >= bytes)
+        return CDVR_OK;
+    return cdvr_cl_ensure_buffer(s->cl, &s->frames, &s->frame_capacity, bytes, CL_MEM_READ_WRITE,
+                                 "decoded frames", err);
+}
+
+/* Runs the codec's decode kernel over the uploaded payload into frames 0 .. count-1. */
+static cdvr_status run_decode_kernel(cdvr_cl_stream *s, const cdvr_cl_codec_program *cp,
+                                     const cdvr_codec_params *params, size_t count,
+                                     cdvr_error *err)
+{
+    cl_kernel k = cp->k_decode;
+    const char *name = cp->codec->cl_function;
+    size_t global = cp->codec->cl_work_items(params, s->dims);
+    if (global == 0)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL decode: codec %s gives no work-items",
+                              cp->codec->name);
+    cl_ulong bytes = s->payload_bytes;
+    cl_uint dims[3] = {(cl_uint)s->dims[0], (cl_uint)s->dims[1], (cl_uint)s->dims[2]};
+    cl_uint nframes = (cl_uint)count;
+    cdvr_status st = cdvr_cl_arg(k, name, 0, sizeof(cl_mem), &s->payload, err);
+    if (!st)
+        st = cdvr_cl_arg(k, name, 1, sizeof bytes, &bytes, err);
+    if (!st)
+        st = cdvr_cl_arg(k, name, 2, sizeof(cl_mem), &s->params, err);
+    for (cl_uint i = 0; !st && i < 3; i++)
+        st = cdvr_cl_arg(k, name, 3 + i, sizeof(cl_uint), &dims[i], err);
+    if (!st)
+        st = cdvr_cl_arg(k, name, 6, sizeof nframes, &nframes, err);
+    if (!st)
+        st = cdvr_cl_arg(k, name, 7, sizeof(cl_mem), &s->frames, err);
+    if (st)
+        return st;
+    cl_int code = clEnqueueNDRangeKernel(s->cl->queue, k, 1, NULL, &global, NULL, 0, NULL, NULL);
+    if (!code)
+        code = clFinish(s->cl->queue);
+    char what[96];
+    snprintf(what, sizeof what, "%s kernel", name);
+    return cdvr_cl_check(code, what, err);
+}
+
+cdvr_status cdvr_cl_decode(cdvr_cl_stream *s, const cdvr_codec *codec,
+                           const cdvr_codec_params *params, size_t count, cdvr_error *err)
+{
+    invalidate_frames(s);
+    if (!codec || !params)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL decode: no codec or parameters");
+    if (!s->payload_bytes)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL decode: no chunk uploaded");
+    cdvr_codec_shape shape;
+    cdvr_status st = cdvr_codec_shape_of(codec, params, s->dims, &shape, err);
+    if (st)
+        return st;
+    if (count == 0 || count > shape.timesteps)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL decode: %zu frames requested, a %s "
+                              "chunk holds %zu", count, codec->name, shape.timesteps);
+    if (shape.payload_bytes ? s->payload_bytes != shape.payload_bytes
+                            : s->payload_bytes > shape.bound_bytes)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL decode: %s chunk of %zux%zux%zu needs "
+                              "%zu bytes, got %zu", codec->name, s->dims[0], s->dims[1],
+                              s->dims[2], shape.payload_bytes, s->payload_bytes);
+    const cdvr_cl_codec_program *cp;
+    st = cdvr_cl_get_codec_program(s->cl, codec, &cp, err);
+    if (!st)
+        st = cdvr_cl_check(clEnqueueWriteBuffer(s->cl->queue, s->params, CL_TRUE, 0,
+                                                CDVR_CL_PARAMS_BYTES, params->bytes, 0, NULL,
+                                                NULL),
+                           "upload codec parameters", err);
+    if (!st && codec->cl_mode == CDVR_CODEC_CL_DECODE) {
+        st = ensure_frames(s, count, err);
+        if (!st)
+            st = run_decode_kernel(s, cp, params, count, err);
+    }
+    if (st)
+        return st;
+    s->fetch = codec->cl_mode == CDVR_CODEC_CL_FETCH ? cp : NULL;
+    s->frames_valid = count;
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_cl_upload_frames(cdvr_cl_stream *s, const uint8_t *frames, size_t count,
+                                  cdvr_error *err)
+{
+    invalidate_frames(s);
+    size_t bytes;
+    if (!frames || count == 0 || !cdvr_size_mul(s->voxels, count, &bytes))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL upload: %zu frames", count);
+    cdvr_status st = ensure_frames(s, count, err);
+    if (!st)
+        st = cdvr_cl_check(clEnqueueWriteBuffer(s->cl->queue, s->frames, CL_TRUE, 0, bytes,
+                                                frames, 0, NULL, NULL),
+                           "upload frames", err);
+    if (!st)
+        s->frames_valid = count;
+    return st;
+}
+
+uint64_t cdvr_cl_stream_bytes(const cdvr_cl_stream *s)
+{
+    uint64_t b = (uint64_t)s->payload_capacity + s->frame_capacity + CDVR_CL_PARAMS_BYTES;
+    b += 256 * 4 * sizeof(float) + 256 * sizeof(float); /* TF tables */
+    b += 3 * (uint64_t)s->nbricks;                       /* brick min/max + flags */
+    b += (uint64_t)s->image_pixels * 4 * sizeof(float) + s->sample_slots * sizeof(cl_uint);
+    return b;
+}
+
+uint64_t cdvr_cl_volume_bytes(const cdvr_cl_stream *s)
+{
+    if (s->fetch)
+        return (uint64_t)s->payload_bytes + CDVR_CL_PARAMS_BYTES;
+    return (uint64_t)s->frames_valid * s->voxels;
+}
+
+cdvr_status cdvr_cl_download(cdvr_cl_stream *s, size_t frame, uint8_t *out, cdvr_error *err)
+{
+    if (s->fetch)
+        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "OpenCL download: frames of codec %s "
+                              "stay compressed on the device (decode on the CPU instead)",
+                              s->fetch->codec->name);
+    if (frame >= s->frames_valid)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL download: frame %zu not decoded (%zu frames)",
+                              frame, s->frames_valid);
+    cl_int code = clEnqueueReadBuffer(s->cl->queue, s->frames, CL_TRUE, frame * s->voxels,
+                                      s->voxels, out, 0, NULL, NULL);
+    return cdvr_cl_check(code, "download frame", err);
+}

@@ -1,0 +1,34 @@
+/* kernels/common/cl_shared.h - the one definition of what the OpenCL kernels and the host code
+ * (core/render/cl/) share: constants and argument structs. The host includes this file; the
+ * program builder puts its text in front of every kernel program, so both sides always agree.
+ * Plain C that both C11 and OpenCL C accept; structs hold 4-byte members only (no padding). */
+#ifndef CDVR_CL_SHARED_H
+#define CDVR_CL_SHARED_H
+
+#ifdef __OPENCL_VERSION__
+typedef float cdvr_cl_f32;
+typedef int cdvr_cl_i32;
+#else
+#include <stdint.h>
+typedef float cdvr_cl_f32;
+typedef int32_t cdvr_cl_i32;
+#endif
+
+/* Rays per ray-cast work-item: a packet of PACKET_W x PACKET_H neighbouring pixels marched
+ * in lock-step on 8-wide vectors (lanes row by row). */
+#define CDVR_CL_PACKET_W 4
+#define CDVR_CL_PACKET_H 2
+/* Edge of the min/max bricks for empty-space skipping: 1 << CDVR_CL_BRICK_SHIFT voxels. */
+#define CDVR_CL_BRICK_SHIFT 2
+/* Bytes of the codec parameter blob handed to decode kernels and fetch functions
+ * (CDVR_CODEC_PARAMS_MAX in cdvr/codec.h). */
+#define CDVR_CL_PARAMS_BYTES 48
+
+/* The camera of render.h, in float (cdvr_cl_render converts it). */
+typedef struct cdvr_cl_camera {
+    cdvr_cl_f32 eye[3], f[3], u[3], r[3];
+    cdvr_cl_f32 tan_half, aspect, ortho_half_height;
+    cdvr_cl_i32 orthographic, width, height;
+} cdvr_cl_camera;
+
+#endif
