@@ -21,9 +21,9 @@ static struct {
     size_t count;
 } registry = {PTHREAD_MUTEX_INITIALIZER, PTHREAD_ONCE_INIT, {NULL}, 0};
 
-static int valid_name(const char *name)
+int cdvr_codec_name_valid(const char *name)
 {
-    size_t n = name ? strlen(name) : 0;
+    size_t n = name ? strnlen(name, CDVR_CODEC_NAME_MAX) : 0;
     if (n == 0 || n >= CDVR_CODEC_NAME_MAX)
         return 0;
     for (size_t i = 0; i < n; i++)
@@ -37,7 +37,7 @@ static cdvr_status check_table(const cdvr_codec *c, cdvr_error *err)
 {
     if (!c)
         return cdvr_error_set(err, CDVR_ERR_ARG, "codec table is NULL");
-    if (!valid_name(c->name))
+    if (!cdvr_codec_name_valid(c->name))
         return cdvr_error_set(err, CDVR_ERR_ARG, "codec name '%s' is not 1..%d characters of "
                               "[a-z0-9_]", c->name ? c->name : "(null)", CDVR_CODEC_NAME_MAX - 1);
     if (c->id >= 0x80000000u)

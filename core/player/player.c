@@ -342,11 +342,7 @@ static cdvr_status decode_host(cdvr_player *p, chunk_item *it, size_t count, cdv
         if (s != CDVR_OK)
             return s;
         for (size_t i = 0; p->nbricks > 1 && i < count; i++)
-            for (size_t z = 0; z < bd[2]; z++)
-                for (size_t y = 0; y < bd[1]; y++)
-                    memcpy(p->host_frames + i * p->voxels + lo[0] +
-                               info->dims[0] * ((lo[1] + y) + info->dims[1] * (lo[2] + z)),
-                           frames[i] + bd[0] * (y + bd[1] * z), bd[0]);
+            cdvr_brick_place(p->host_frames + i * p->voxels, info->dims, frames[i], lo, bd);
     }
     return CDVR_OK;
 }

@@ -320,15 +320,6 @@ static void measure_frame(const uint8_t *ref, const uint8_t *dec, const size_t l
     }
 }
 
-static void copy_brick(const uint8_t *frame, const size_t vd[3], const size_t lo[3],
-                       const size_t bd[3], uint8_t *out)
-{
-    for (size_t z = 0; z < bd[2]; z++)
-        for (size_t y = 0; y < bd[1]; y++)
-            memcpy(out + bd[0] * (y + bd[1] * z),
-                   frame + lo[0] + vd[0] * ((lo[1] + y) + vd[1] * (lo[2] + z)), bd[0]);
-}
-
 typedef struct write_ctx {
     cdvr_store *st;
     const cdvr_encode_source *src;
@@ -373,7 +364,7 @@ static cdvr_status brick_frames(write_ctx *wc, const frame_window *win, const cd
             frames[i] = full;
         } else {
             if (i < ci->count)
-                copy_brick(full, in->dims, lo, bd, wc->work.bricks + k * voxels);
+                cdvr_brick_extract(full, in->dims, lo, bd, wc->work.bricks + k * voxels);
             frames[i] = wc->work.bricks + k * voxels;
         }
     }

@@ -467,18 +467,6 @@ static cdvr_status check_header_values(const char *path, const header_fields *h,
 
 /* ---- reader: variant and chunk records ---------------------------------------------------- */
 
-static int valid_codec_name(const char *name)
-{
-    size_t n = strnlen(name, CDVR_CODEC_NAME_MAX);
-    if (n == 0 || n == CDVR_CODEC_NAME_MAX)
-        return 0;
-    for (size_t i = 0; i < n; i++)
-        if (!((name[i] >= 'a' && name[i] <= 'z') || (name[i] >= '0' && name[i] <= '9') ||
-              name[i] == '_'))
-            return 0;
-    return 1;
-}
-
 /* Resolves a codec id recorded for a variant or chunk: the loaded codec, or NULL when none
  * has that id; a loaded codec whose name differs from the recorded one is corruption (or a
  * different plugin that took the id). */
@@ -541,7 +529,8 @@ static cdvr_status parse_variant_v2(const cdvr_store *st, rcursor *r, size_t v, 
         if (reserved[i])
             return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %zu: reserved bytes set",
                                   st->path, v + 1);
-    if (!valid_codec_name(vi->codec_name) || memchr(vi->name, 0, CDVR_NAME_MAX) == NULL)
+    if (!memchr(vi->codec_name, 0, CDVR_CODEC_NAME_MAX) ||
+        !cdvr_codec_name_valid(vi->codec_name) || memchr(vi->name, 0, CDVR_NAME_MAX) == NULL)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %zu: bad name or codec name",
                               st->path, v + 1);
     char what[CDVR_NAME_MAX + 16];
@@ -1071,14 +1060,24 @@ cdvr_status cdvr_store_load_payload(const cdvr_store *st, size_t v, size_t c, ui
     return s;
 }
 
-/* Copies frame k of a decoded brick (brick dims bd, first voxel lo) into the full volume. */
-static void place_brick(uint8_t *vol, const size_t vd[3], const uint8_t *brick,
-                        const size_t lo[3], const size_t bd[3])
+void cdvr_brick_place(uint8_t *frame, const size_t vol_dims[3], const uint8_t *brick,
+                      const size_t lo[3], const size_t dims[3])
 {
-    for (size_t z = 0; z < bd[2]; z++)
-        for (size_t y = 0; y < bd[1]; y++)
-            memcpy(vol + lo[0] + vd[0] * ((lo[1] + y) + vd[1] * (lo[2] + z)),
-                   brick + bd[0] * (y + bd[1] * z), bd[0]);
+    const size_t *vd = vol_dims;
+    for (size_t z = 0; z < dims[2]; z++)
+        for (size_t y = 0; y < dims[1]; y++)
+            memcpy(frame + lo[0] + vd[0] * ((lo[1] + y) + vd[1] * (lo[2] + z)),
+                   brick + dims[0] * (y + dims[1] * z), dims[0]);
+}
+
+void cdvr_brick_extract(const uint8_t *frame, const size_t vol_dims[3], const size_t lo[3],
+                        const size_t dims[3], uint8_t *brick)
+{
+    const size_t *vd = vol_dims;
+    for (size_t z = 0; z < dims[2]; z++)
+        for (size_t y = 0; y < dims[1]; y++)
+            memcpy(brick + dims[0] * (y + dims[1] * z),
+                   frame + lo[0] + vd[0] * ((lo[1] + y) + vd[1] * (lo[2] + z)), dims[0]);
 }
 
 /* Decodes brick chunk c (timestep t inside it) into the volume. */
@@ -1104,7 +1103,7 @@ static cdvr_status decode_brick_into(const cdvr_store *st, size_t v, size_t c, s
         s = cdvr_store_decode_chunk(st, v, c, payload, frames, err);
     }
     if (s == CDVR_OK)
-        place_brick(vol, st->info.dims, frames[t - ci->t0], lo, bd);
+        cdvr_brick_place(vol, st->info.dims, frames[t - ci->t0], lo, bd);
     free(payload);
     free(scratch);
     return s;

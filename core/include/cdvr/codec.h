@@ -165,6 +165,8 @@ cdvr_status cdvr_codec_register(const cdvr_codec *codec, cdvr_error *err);
 cdvr_status cdvr_codec_params_parse(const cdvr_codec *codec, const char *const *keys,
                                     const char *const *values, size_t n, cdvr_codec_params *out,
                                     cdvr_error *err);
+/* 1 if name is a valid codec name: 1..15 bytes of [a-z0-9_]. */
+int cdvr_codec_name_valid(const char *name);
 /* 1 if the codec accepts key. */
 int cdvr_codec_has_param(const cdvr_codec *codec, const char *key);
 /* Shape, after params_check; errors are prefixed with the codec's name. */

@@ -158,6 +158,12 @@ void cdvr_store_brick_box(const cdvr_store_info *info, size_t b, size_t lo[3], s
 int cdvr_brick_box(const size_t vol_dims[3], const size_t bricks[3], size_t b, size_t lo[3],
                    size_t dims[3]);
 
+/* Copies a brick's voxels (dims, first voxel lo) into / out of a u8 frame of vol_dims. */
+void cdvr_brick_place(uint8_t *frame, const size_t vol_dims[3], const uint8_t *brick,
+                      const size_t lo[3], const size_t dims[3]);
+void cdvr_brick_extract(const uint8_t *frame, const size_t vol_dims[3], const size_t lo[3],
+                        const size_t dims[3], uint8_t *brick);
+
 /* The codec of variant v, or CDVR_ERR_UNSUPPORTED "codec 'zfp' is not loaded (load its
  * plugin: cdvr.plugin.load)" naming the file and variant. */
 cdvr_status cdvr_store_variant_codec(const cdvr_store *st, size_t v, const cdvr_codec **out,
