@@ -164,7 +164,7 @@ static int l_render(lua_State *L)
     static const char *const methods[] = {"raycast", "slice", "splat", NULL};
     int device = option_index(L, "device", "cpu", devices);
     int method = option_index(L, "method", "raycast", methods);
-    if (method != 0)
+    if (method == 1)
         return luaL_error(L, "cdvr.render: method '%s' is not available here (use raycast)",
                           methods[method]);
     size_t timesteps = st ? cdvr_store_get_info(st)->timesteps : vol->timesteps;
@@ -190,6 +190,8 @@ static int l_render(lua_State *L)
     cdvr_render_opts o = {0};
     read_options(L, &o, 1);
     const cdvr_volume *u8 = u8_frame(L, vol, &frame);
+    if (method == 2)
+        return lcdvr_render_splat(L, u8, frame, &o, device);
     if (device == 1)
         return lcdvr_render_cl(L, u8, frame, &o);
     double start = cdvr_now_ms();

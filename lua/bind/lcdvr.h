@@ -90,6 +90,11 @@ int lcdvr_render_cl(lua_State *L, const cdvr_volume *vol, size_t t, void *render
 int lcdvr_render_cl_store(lua_State *L, const cdvr_store *st, size_t v, size_t t,
                           void *render_opts);
 
+/* cdvr.render{method="splat"} (l_splat.c): reads the splat options of the table at index 2
+ * beside the common ones in render_opts (a cdvr_render_opts); pushes the image and stats. */
+int lcdvr_render_splat(lua_State *L, const cdvr_volume *vol, size_t t, const void *render_opts,
+                       int device);
+
 /* OpenCL decode for st:decode(t, variant, {device="cl"}) (l_device.c): decodes timestep t
  * (from 0) of variant v with the decode kernel and pushes a new u8 volume, or raises. */
 int lcdvr_decode_cl(lua_State *L, const cdvr_store *st, size_t v, size_t t);
@@ -104,5 +109,6 @@ int lcdvr_open_compare(lua_State *L);
 int lcdvr_open_store(lua_State *L);
 int lcdvr_open_device(lua_State *L);
 int lcdvr_open_player(lua_State *L);
+int lcdvr_open_splat(lua_State *L);
 
 #endif

@@ -169,6 +169,7 @@ static int open_cdvr(lua_State *L)
     lcdvr_open_store(L);
     lcdvr_open_device(L);
     lcdvr_open_player(L);
+    lcdvr_open_splat(L);
 
     lua_pushvalue(L, -1);
     lua_setglobal(L, "cdvr");

@@ -153,16 +153,19 @@ cdvr_status cdvr_splat_order_quality(const cdvr_splat_order *order, const double
  * 256-entry table the ray caster reads) and carries the extinction
  *     tau = -ln(1 - a) / unit   (a = 1: tau = 1e30),  unit as in cdvr_render_resolve,
  * spread by the kernel w(x) = exp(-|M^-1 (x - c)|^2 / (2 sigma^2)) / ((2 pi)^(3/2) sigma^3)
- * (M = direction * diag(spacing), c the voxel's world position), whose sum over the grid is 1
- * (within 2e-3 for sigma >= 0.6), so that a constant field keeps its optical depth.
+ * (M = direction * diag(spacing), c the voxel's world position), whose sum over the grid is
+ * close to 1 (see the defaults below), so that a constant field keeps its optical depth.
  * Footprint. For the pixel ray o + s d of cdvr_camera_ray (unit d), with index-space origin
  * o' = M^-1 (o - origin), direction g e = M^-1 d (|e| = 1), the kernel integrated over the
  * whole line is
  *     F = exp(-p^2 / (2 sigma^2)) / (2 pi sigma^2 g (1 - exp(-radius^2 / (2 sigma^2)))),
  * p = |(o' - c') x e| the index-space distance of the ray from the voxel centre c'; F = 0 when
  * p > radius (footprint cut at `radius` voxel spacings, renormalised to keep its mass).
- * The exact line integral is used in both projections (no affine approximation).
- * Compositing: alpha = 1 - exp(-tau F), back to front in the chosen order with the over
+ * The exact line integral is used in both projections (no affine approximation); the factor
+ * exp(-p^2 / (2 sigma^2)) is interpolated linearly in p^2 from a table of 4096 intervals over
+ * [0, radius^2] (relative error below 1e-6 for the defaults).
+ * Compositing: alpha = 1 - exp(-tau F) (for tau F < 2^-10 the series tau F (1 - tau F/2 +
+ * (tau F)^2/6)), back to front in the chosen order with the over
  * operator on premultiplied colour: C = rgb alpha + (1 - alpha) C, A = alpha + (1 - alpha) A,
  * from C = A = 0. The image stores premultiplied (C, A) and the background beside it, like the
  * ray caster's (image.h), computed in float.
@@ -179,8 +182,8 @@ typedef struct cdvr_splat_opts {
     cdvr_splat_how order;    /* default (0) DDA */
     int has_threshold;
     double threshold;        /* raw 8-bit value: voxels with v <= threshold are skipped */
-    double radius;           /* footprint cut-off in voxel spacings; 0 -> 1.6 */
-    double sigma;            /* Gaussian standard deviation in voxel spacings; 0 -> 0.65 */
+    double radius;           /* footprint cut-off in voxel spacings; 0 -> 2.0 */
+    double sigma;            /* Gaussian standard deviation in voxel spacings; 0 -> 0.6 */
     double unit;             /* 0 -> tf->unit, or the smallest spacing */
     float background[4];     /* straight RGBA stored into the image */
     int threads;             /* 0 -> number of online CPUs */
@@ -190,8 +193,11 @@ typedef struct cdvr_splat_opts {
     double order_ms;         /* time to build the order */
 } cdvr_splat_opts;
 
-#define CDVR_SPLAT_DEFAULT_RADIUS 1.6
-#define CDVR_SPLAT_DEFAULT_SIGMA 0.65
+/* Defaults, chosen by measurement: along an axis a constant box's optical depth varies by
+ * 0.5% peak to peak across pixels with these (1.3% at radius 1.8, 4.6% at 1.6; sigma 0.65 and
+ * radius 2.5: 0.3%), and a smooth volume matches the ray caster within 54 dB PSNR. */
+#define CDVR_SPLAT_DEFAULT_RADIUS 2.0
+#define CDVR_SPLAT_DEFAULT_SIGMA 0.6
 
 /* Renders frame t of a u8 volume with splats. Errors: non-u8 volume, t out of range, bad
  * camera, radius or sigma not positive and finite, radius > 16, sigma > 8, threshold NaN. */
