@@ -43,6 +43,7 @@ typedef struct splat_job {
     const cdvr_camera *camera;
     double eye[3], f[3], u[3], r[3];
     int orthographic, width, height;
+    double aspect, tan_half;        /* width / height; tan(fov / 2) */
     double pixel_scale;             /* ortho: pixels per world unit; persp: H / (2 tan(fov/2)) */
     double half_r, half_u, half_f;  /* world half-extents of a splat's support along r, u, f */
     float rgb[256][3], ka[256];
@@ -406,6 +407,31 @@ static void classify_table(splat_job *job, const cdvr_tf *tf, double unit, doubl
     }
 }
 
+/* The ray of pixel (x, y): cdvr_camera_ray's formula (camera.h) with the basis, aspect and
+ * tan(fov/2) computed once per frame instead of per pixel (the same double operations). */
+static void pixel_ray_world(const splat_job *job, int x, int y, double origin[3], double dir[3])
+{
+    double sx = (2.0 * (x + 0.5) / job->width - 1.0) * job->aspect;
+    double sy = -(2.0 * (y + 0.5) / job->height - 1.0);
+    if (job->orthographic) {
+        double half = 0.5 * job->camera->ortho_height;
+        for (int i = 0; i < 3; i++) {
+            origin[i] = job->eye[i] + (sx * job->r[i] + sy * job->u[i]) * half;
+            dir[i] = job->f[i];
+        }
+        return;
+    }
+    double len2 = 0.0;
+    for (int i = 0; i < 3; i++) {
+        origin[i] = job->eye[i];
+        dir[i] = job->f[i] + (sx * job->r[i] + sy * job->u[i]) * job->tan_half;
+        len2 += dir[i] * dir[i];
+    }
+    double len = sqrt(len2);
+    for (int i = 0; i < 3; i++)
+        dir[i] /= len;
+}
+
 /* Per-pixel rays in index space, each origin moved along its ray to the point nearest the
  * box centre (keeps the float differences small; the footprint depends on the line only).
  * Rows are shared among the threads. */
@@ -417,7 +443,7 @@ static void fill_rays(splat_job *job, int index)
     for (int y = index; y < job->height; y += job->nthreads)
         for (int x = 0; x < job->width; x++) {
             double o[3], d[3], rel[3], oi[3], di[3];
-            cdvr_camera_ray(job->camera, x, y, o, d);
+            pixel_ray_world(job, x, y, o, d);
             for (int a = 0; a < 3; a++)
                 rel[a] = o[a] - job->origin[a];
             mat_vec(job->minv, rel, oi);
@@ -443,6 +469,8 @@ static void setup_view(splat_job *job, const cdvr_camera *cam, double radius)
     job->orthographic = cam->orthographic;
     job->width = cam->width;
     job->height = cam->height;
+    job->aspect = (double)cam->width / (double)cam->height;
+    job->tan_half = tan(0.5 * cam->fov * 3.14159265358979323846 / 180.0);
     if (cam->orthographic)
         job->pixel_scale = (double)cam->height / cam->ortho_height;
     else
