@@ -175,7 +175,7 @@ static int l_render(lua_State *L)
     size_t frame = (size_t)t - 1;
     if (st) {
         size_t v = store_variant(L, st);
-        if (device == 1)
+        if (device == 1 && method == 0)
             return render_store_cl(L, st, v, frame);
         cdvr_volume *decoded; /* the cpu decodes the timestep, then renders it as a volume */
         cdvr_error err;

@@ -264,9 +264,9 @@ static int l_splat_order_quality(lua_State *L)
 int lcdvr_render_splat(lua_State *L, const cdvr_volume *vol, size_t t, const void *render_opts,
                        int device)
 {
-    static const char *const keys[] = {"method", "device", "t", "tf", "camera", "unit",
-                                       "threads", "background", "order", "threshold", "radius",
-                                       "sigma", NULL};
+    static const char *const keys[] = {"method", "device", "t", "variant", "tf", "camera",
+                                       "unit", "threads", "background", "order", "threshold",
+                                       "radius", "sigma", NULL};
     lcdvr_checkoptions(L, 2, "cdvr.render{method=\"splat\"}", keys);
     if (device != 0)
         return luaL_error(L, "cdvr.render: method 'splat' runs on the CPU only (device 'cl' is "

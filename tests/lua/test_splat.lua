@@ -137,6 +137,19 @@ check(cdvr.compare(ref, img).psnr > 18, "splat vs ray cast on a sphere: " .. cdv
 local fimg = cdvr.render(cdvr.generate("sphere", {dims = {12, 12, 12}, type = "f32"}),
                          {method = "splat", tf = tf})
 check(fimg:size() > 0, "float volumes are quantized first")
+-- a store renders through the CPU decode, the same as its volume
+local store_path = (os.getenv("CDVR_BINARY_DIR") or ".") .. "/test_splat_store.cdv"
+local series = cdvr.generate("sphere", {dims = {13, 11, 9}, timesteps = 2})
+local st_raw = assert(cdvr.encode(series, {path = store_path, progress = false,
+                                           variants = {{codec = "raw"}}}))
+local scam = cdvr.orbit_camera(series, {azimuth = 50, elevation = 30, width = 32, height = 32})
+local from_store = cdvr.render(st_raw, {method = "splat", tf = tf, camera = scam, t = 2, variant = "raw"})
+local from_volume = cdvr.render(series, {method = "splat", tf = tf, camera = scam, t = 2})
+check(cdvr.compare(from_store, from_volume).psnr == math.huge, "store and volume give the same splat image")
+raises(function() cdvr.render(st_raw, {method = "splat", tf = tf, device = "cl"}) end, "CPU only",
+       "store splat on OpenCL")
+st_raw:close()
+os.remove(store_path)
 raises(function() cdvr.render(blob, {method = "splat", tf = tf, step = 0.5}) end,
        "unknown option 'step'", "ray-casting option with splat")
 raises(function() cdvr.render(blob, {method = "splat", tf = tf, radus = 1}) end,
