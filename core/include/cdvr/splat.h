@@ -55,15 +55,16 @@
  *
  * Perspective. AXIS: the major axis is that of v = G (box centre - e); every axis runs by
  * decreasing |index - e_a|. SORT, QUICKSORT: phi is the squared world distance to the eye.
- * DDA: the index box is split by the three planes through the eye (index i goes to the far
- * side when i >= e_a... precisely: i < e_a is the low part, run ascending; i >= e_a the high
- * part, run descending) into up to 8 octant boxes, drawn in decreasing distance of their
- * centres from the eye; each is ordered by the orthographic DDA for v = G (its centre - e),
- * whose signs match every voxel of the octant. A ray from the eye stays in one octant, so only
- * footprints straddling the dividing planes can meet voxels of another octant. Inside an
- * octant the dominance guarantee holds exactly (q farther from the eye along every axis is
- * drawn first), and the 2 |v_n| bound holds for the linear depth along the octant's central
- * direction, not for the distance to the eye: wrong-order pairs grow with the field of view.
+ * DDA: the index box is split by the three planes through the eye into up to 8 octant
+ * boxes (per axis, indices i < e_a form the low part, run ascending, and i >= e_a the high
+ * part, run descending: far to near), drawn in decreasing distance of their centres from the
+ * eye; each is ordered by the orthographic DDA with the magnitudes |v_a| of
+ * v = G (its centre - e) and the octant's traversal directions. A ray from the eye stays in one
+ * octant, so only footprints straddling the dividing planes can meet voxels of another octant.
+ * Guarantees: every voxel once; inside an octant, a voxel at least as far from the eye along
+ * every axis (|q_a - e_a| >= |p_a - e_a|) is drawn first (exact); the 2 |v_n| bound holds for
+ * the linear depth along the octant's central direction, not for the distance to the eye, so
+ * wrong-order pairs grow with the field of view (and with the octant's size).
  *
  * Filtering: a filter lists only the voxels with keep[voxels[index]] != 0 (the seed's
  * threshold test, done at drawing time in the DDA and axis orders, before sorting in the
