@@ -175,9 +175,11 @@ static int l_splat_order(lua_State *L)
     if (lua_istable(L, 4)) {
         int has_thr = lua_getfield(L, 4, "threshold") != LUA_TNIL;
         int has_vol = lua_getfield(L, 4, "volume") != LUA_TNIL;
-        lua_pop(L, 2);
-        if (has_thr != has_vol)
-            return luaL_error(L, "cdvr.splat_order: options 'threshold' and 'volume' go together");
+        int has_t = lua_getfield(L, 4, "t") != LUA_TNIL;
+        lua_pop(L, 3);
+        if (has_thr != has_vol || (has_t && !has_vol))
+            return luaL_error(L, "cdvr.splat_order: options 'threshold' and 'volume' go together "
+                                 "('t' picks the volume's frame)");
         if (has_vol) {
             double threshold = lcdvr_optnumberfield(L, 4, "threshold", 0.0);
             if (isnan(threshold))

@@ -85,6 +85,8 @@ raises(function() cdvr.splat_order(dims, {1, 0, 0}, "dda", {treshold = 3}) end,
        "unknown option 'treshold' (did you mean 'threshold'?)", "misspelt option")
 raises(function() cdvr.splat_order(dims, {1, 0, 0}, "dda", {threshold = 3}) end,
        "'threshold' and 'volume' go together", "threshold without volume")
+raises(function() cdvr.splat_order(dims, {1, 0, 0}, "dda", {t = 1}) end,
+       "'threshold' and 'volume' go together", "t without volume")
 raises(function() cdvr.splat_order(dims, {1, 0, 0}, "dda", {threshold = 3, volume = v}) end,
        "volume is 8x4x3", "volume of other dims")
 raises(function() cdvr.splat_order({8, 4, 3}, {1, 0, 0}, "dda", {threshold = 3, volume = v, t = 2}) end,
