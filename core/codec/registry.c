@@ -43,8 +43,9 @@ static cdvr_status check_table(const cdvr_codec *c, cdvr_error *err)
     if (c->id >= 0x80000000u)
         return cdvr_error_set(err, CDVR_ERR_ARG, "codec '%s': id %u is not below 2^31", c->name,
                               c->id);
-    const char *missing = !c->params ? "params" : !c->params_default ? "params_default"
-                        : !c->params_set ? "params_set" : !c->params_get ? "params_get"
+    const char *missing = !c->description ? "description" : !c->params ? "params"
+                        : !c->params_default ? "params_default" : !c->params_set ? "params_set"
+                        : !c->params_get ? "params_get"
                         : !c->params_check ? "params_check" : !c->variant_name ? "variant_name"
                         : !c->shape ? "shape" : !c->encode ? "encode" : !c->decode ? "decode"
                         : NULL;

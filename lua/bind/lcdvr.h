@@ -110,5 +110,6 @@ int lcdvr_open_store(lua_State *L);
 int lcdvr_open_device(lua_State *L);
 int lcdvr_open_player(lua_State *L);
 int lcdvr_open_splat(lua_State *L);
+int lcdvr_open_codec(lua_State *L);
 
 #endif

@@ -19,6 +19,7 @@
 #include <readline/readline.h>
 #endif
 
+#include "cdvr/plugin.h"
 #include "lcdvr.h"
 
 #ifndef CDVR_SHARE_DIR
@@ -33,7 +34,9 @@ static const char *usage_text =
     "  -                  read the script from standard input\n"
     "  --help             this text\n"
     "  --version          print the version\n"
-    "Environment: CDVR_SHARE (share directory), CDVR_CL_DEVICE (OpenCL device choice).\n"
+    "Environment: CDVR_SHARE (share directory), CDVR_CL_DEVICE (OpenCL device choice),\n"
+    "  CDVR_PLUGIN_PATH (colon-separated directories whose *.so codec plugins load at start;\n"
+    "  unset: the plugins directory beside the executable; empty: none).\n"
     "In Lua, cdvr.help() lists every function.\n";
 
 static int is_dir(const char *path)
@@ -65,6 +68,34 @@ static void find_share_dir(char *out, size_t n)
         return;
     }
     snprintf(out, n, "share");
+}
+
+static void warn_plugin(void *ud, const char *message)
+{
+    (void)ud;
+    fprintf(stderr, "cdvr: warning: %s\n", message);
+}
+
+/* Codec plugins at start-up: every *.so in $CDVR_PLUGIN_PATH, or, when it is unset, in the
+ * plugins directory beside the executable (build/plugins). Failures are one warning each. */
+static void load_plugins(void)
+{
+    const char *env = getenv("CDVR_PLUGIN_PATH");
+    if (env) {
+        cdvr_plugin_load_dirs(env, warn_plugin, NULL);
+        return;
+    }
+    char exe[4096];
+    ssize_t len = readlink("/proc/self/exe", exe, sizeof exe - 1);
+    if (len <= 0)
+        return;
+    exe[len] = '\0';
+    char *slash = strrchr(exe, '/');
+    if (!slash)
+        return;
+    snprintf(slash, sizeof exe - (size_t)(slash - exe), "/plugins");
+    if (is_dir(exe))
+        cdvr_plugin_load_dirs(exe, warn_plugin, NULL);
 }
 
 static int l_help(lua_State *L)
@@ -170,6 +201,7 @@ static int open_cdvr(lua_State *L)
     lcdvr_open_device(L);
     lcdvr_open_player(L);
     lcdvr_open_splat(L);
+    lcdvr_open_codec(L);
 
     lua_pushvalue(L, -1);
     lua_setglobal(L, "cdvr");
@@ -371,6 +403,7 @@ int main(int argc, char **argv)
         }
     }
 
+    load_plugins();
     lua_State *L = luaL_newstate();
     if (!L) {
         fprintf(stderr, "cdvr: cannot create Lua state: not enough memory\n");

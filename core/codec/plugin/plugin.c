@@ -3,67 +3,158 @@
 
 #include <dirent.h>
 #include <dlfcn.h>
+#include <errno.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 
-cdvr_status cdvr_plugin_load(const char *path, const cdvr_codec **out, cdvr_error *err)
+/* The plugins loaded so far (the loader context): which file each registered codec came from,
+ * for clash messages and cdvr_plugin_file. The mutex also makes each load atomic, so that
+ * two threads loading the same file do not both register it. Never freed: plugins stay. */
+typedef struct loaded_plugin {
+    const cdvr_codec *codec;
+    char *path;
+} loaded_plugin;
+
+static struct {
+    pthread_mutex_t mu;
+    loaded_plugin *items;
+    size_t count, cap;
+} loader = {PTHREAD_MUTEX_INITIALIZER, NULL, 0, 0};
+
+/* Caller holds loader.mu. */
+static const char *file_of_locked(const cdvr_codec *codec)
 {
-    if (out)
-        *out = NULL;
-    if (!path || !*path)
-        return cdvr_error_set(err, CDVR_ERR_ARG, "plugin: empty path");
-    struct stat sb;
-    if (stat(path, &sb) != 0 || !S_ISREG(sb.st_mode))
-        return cdvr_error_set(err, CDVR_ERR_IO, "%s: plugin is not a readable regular file",
-                              path);
-    /* A path without '/' would make dlopen search the library path instead of this file. */
-    char local[4096];
-    if (!strchr(path, '/') && snprintf(local, sizeof local, "./%s", path) < (int)sizeof local)
-        path = local;
+    for (size_t i = 0; codec && i < loader.count; i++)
+        if (loader.items[i].codec == codec)
+            return loader.items[i].path;
+    return NULL;
+}
+
+/* Caller holds loader.mu. 0 when out of memory (the codec stays registered, unnamed). */
+static int remember_locked(const cdvr_codec *codec, const char *path)
+{
+    if (loader.count == loader.cap) {
+        size_t cap = loader.cap ? 2 * loader.cap : 8;
+        loaded_plugin *items = realloc(loader.items, cap * sizeof *items);
+        if (!items)
+            return 0;
+        loader.items = items;
+        loader.cap = cap;
+    }
+    char *copy = strdup(path);
+    if (!copy)
+        return 0;
+    loader.items[loader.count++] = (loaded_plugin){codec, copy};
+    return 1;
+}
+
+const char *cdvr_plugin_file(const cdvr_codec *codec)
+{
+    pthread_mutex_lock(&loader.mu);
+    const char *path = file_of_locked(codec);
+    pthread_mutex_unlock(&loader.mu);
+    return path;
+}
+
+/* Checks what cdvr_plugin_v1 returned, before anything reads the codec table. */
+static cdvr_status check_info(const char *path, const cdvr_plugin_info *info, cdvr_error *err)
+{
+    if (!info)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: %s returned NULL", path,
+                              CDVR_PLUGIN_SYMBOL);
+    if (info->abi != CDVR_PLUGIN_ABI)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: plugin built for ABI version %u, this "
+                              "cdvr has version %u (rebuild the plugin against this cdvr's "
+                              "cdvr/plugin.h)", path, info->abi, CDVR_PLUGIN_ABI);
+    if (!info->codec)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: %s returned no codec", path,
+                              CDVR_PLUGIN_SYMBOL);
+    return CDVR_OK;
+}
+
+/* Registers codec; on a refusal the message names the file and, for a clash with a plugin
+ * codec, the file that one came from. Caller holds loader.mu. */
+static cdvr_status register_locked(const char *path, const cdvr_codec *codec, cdvr_error *err)
+{
+    cdvr_error rerr;
+    cdvr_status s = cdvr_codec_register(codec, &rerr);
+    if (s == CDVR_OK)
+        return CDVR_OK;
+    const cdvr_codec *other = codec->name ? cdvr_codec_find(codec->name) : NULL;
+    if (!other)
+        other = cdvr_codec_by_id(codec->id);
+    const char *other_file = file_of_locked(other);
+    if (other_file)
+        return cdvr_error_set(err, s, "%s: %s (codec '%s' was loaded from %s)", path, rerr.msg,
+                              other->name, other_file);
+    return cdvr_error_set(err, s, "%s: %s", path, rerr.msg);
+}
+
+/* dlopen + dlsym + checks + registration; caller holds loader.mu. */
+static cdvr_status load_locked(const char *path, const cdvr_codec **out, cdvr_error *err)
+{
     void *h = dlopen(path, RTLD_NOW | RTLD_LOCAL);
     if (!h) {
         const char *why = dlerror();
         return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: cannot load plugin: %s", path,
                               why ? why : "unknown reason");
     }
-    cdvr_plugin_entry_fn entry;
     void *sym = dlsym(h, CDVR_PLUGIN_SYMBOL);
-    memcpy(&entry, &sym, sizeof entry); /* object -> function pointer (POSIX guarantees it) */
     if (!sym) {
         dlclose(h);
         return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: not a cdvr plugin (no %s symbol)", path,
                               CDVR_PLUGIN_SYMBOL);
     }
+    cdvr_plugin_entry_fn entry;
+    memcpy(&entry, &sym, sizeof entry); /* object -> function pointer (POSIX guarantees it) */
     const cdvr_plugin_info *info = entry();
-    cdvr_status s = CDVR_OK;
-    if (!info || !info->codec)
-        s = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: %s returned no codec", path,
-                           CDVR_PLUGIN_SYMBOL);
-    else if (info->abi != CDVR_PLUGIN_ABI)
-        s = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: plugin built for ABI version %u, this cdvr "
-                           "has version %u (rebuild the plugin against this cdvr's "
-                           "cdvr/plugin.h)", path, info->abi, CDVR_PLUGIN_ABI);
-    if (s == CDVR_OK) {
-        const cdvr_codec *known = cdvr_codec_find(info->codec->name);
-        if (known == info->codec) { /* the same file loaded again */
-            if (out)
-                *out = known;
-            return CDVR_OK; /* keep the handle: dlopen counts references */
-        }
-        cdvr_error rerr;
-        s = cdvr_codec_register(info->codec, &rerr);
-        if (s != CDVR_OK)
-            cdvr_error_set(err, s, "%s: %s", path, rerr.msg);
+    cdvr_status s = check_info(path, info, err);
+    if (s == CDVR_OK && file_of_locked(info->codec)) {
+        *out = info->codec; /* the same file loaded again: dlopen gave the same handle */
+        dlclose(h);         /* drops the reference this call added; the first one stays */
+        return CDVR_OK;
     }
+    if (s == CDVR_OK)
+        s = register_locked(path, info->codec, err);
     if (s != CDVR_OK) {
         dlclose(h);
         return s;
     }
-    if (out)
-        *out = info->codec;
+    (void)remember_locked(info->codec, path);
+    *out = info->codec;
     return CDVR_OK; /* never dlclose'd: the registry keeps the table */
+}
+
+cdvr_status cdvr_plugin_load(const char *path, const cdvr_codec **out, cdvr_error *err)
+{
+    const cdvr_codec *codec = NULL;
+    if (out)
+        *out = NULL;
+    if (!path || !*path)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "plugin: empty path");
+    struct stat sb;
+    if (stat(path, &sb) != 0)
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot load plugin: %s", path,
+                              strerror(errno));
+    if (!S_ISREG(sb.st_mode))
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot load plugin: not a regular file",
+                              path);
+    /* A path without '/' would make dlopen search the library path instead of this file. */
+    char local[4096];
+    if (!strchr(path, '/')) {
+        if (snprintf(local, sizeof local, "./%s", path) >= (int)sizeof local)
+            return cdvr_error_set(err, CDVR_ERR_ARG, "plugin: path too long");
+        path = local;
+    }
+    pthread_mutex_lock(&loader.mu);
+    cdvr_status s = load_locked(path, &codec, err);
+    pthread_mutex_unlock(&loader.mu);
+    if (s == CDVR_OK && out)
+        *out = codec;
+    return s;
 }
 
 static int compare_names(const void *a, const void *b)

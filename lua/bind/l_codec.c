@@ -1,0 +1,108 @@
+/* lua/bind/l_codec.c - the codec registry and plugins in Lua (cdvr/codec.h, cdvr/plugin.h):
+ *
+ *   cdvr.codecs()            every registered codec: {name=, id=, description=, cl_mode=
+ *                            "decode"|"fetch"|"none", variant= (default variant name),
+ *                            plugin= (file, plugin codecs only), params={{key=, default=,
+ *                            description=}, ...}}, built-ins first, then in load order
+ *   cdvr.plugin.load(path)   loads and registers a codec plugin; returns its codec name
+ */
+#include <string.h>
+
+#include "cdvr/codec.h"
+#include "cdvr/plugin.h"
+#include "lcdvr.h"
+
+static const char *cl_mode_name(cdvr_codec_cl_mode mode)
+{
+    switch (mode) {
+    case CDVR_CODEC_CL_DECODE:
+        return "decode";
+    case CDVR_CODEC_CL_FETCH:
+        return "fetch";
+    default:
+        return "none";
+    }
+}
+
+static void set_string(lua_State *L, const char *key, const char *value)
+{
+    lua_pushstring(L, value ? value : "");
+    lua_setfield(L, -2, key);
+}
+
+/* Pushes {{key=, default=, description=}, ...} for the codec's documented parameters. */
+static void push_params(lua_State *L, const cdvr_codec *codec)
+{
+    lua_newtable(L);                                 /* params */
+    int n = 0;
+    for (const cdvr_codec_param_doc *d = codec->params; d && d->key; d++) {
+        lua_createtable(L, 0, 3);                    /* params, param */
+        set_string(L, "key", d->key);
+        set_string(L, "default", d->def);
+        set_string(L, "description", d->description);
+        lua_rawseti(L, -2, ++n);                     /* params */
+    }
+}
+
+static void push_codec(lua_State *L, const cdvr_codec *codec)
+{
+    lua_createtable(L, 0, 8);                        /* codec */
+    set_string(L, "name", codec->name);
+    lua_pushinteger(L, (lua_Integer)codec->id);
+    lua_setfield(L, -2, "id");
+    set_string(L, "description", codec->description);
+    set_string(L, "cl_mode", cl_mode_name(codec->cl_mode));
+    cdvr_codec_params defaults;
+    memset(&defaults, 0, sizeof defaults);
+    codec->params_default(&defaults);
+    char variant[CDVR_VARIANT_NAME_MAX] = "";
+    codec->variant_name(&defaults, variant, sizeof variant);
+    set_string(L, "variant", variant);
+    const char *file = cdvr_plugin_file(codec);
+    if (file)
+        set_string(L, "plugin", file);
+    push_params(L, codec);
+    lua_setfield(L, -2, "params");                   /* codec */
+}
+
+static int l_codecs(lua_State *L)
+{
+    size_t n = cdvr_codec_count();
+    lua_createtable(L, (int)n, 0);                   /* list */
+    for (size_t i = 0; i < n; i++) {
+        const cdvr_codec *codec = cdvr_codec_at(i);
+        if (!codec)
+            break;
+        push_codec(L, codec);
+        lua_rawseti(L, -2, (lua_Integer)i + 1);
+    }
+    return 1;
+}
+
+static int l_plugin_load(lua_State *L)
+{
+    const char *path = luaL_checkstring(L, 1);
+    const cdvr_codec *codec;
+    cdvr_error err;
+    if (cdvr_plugin_load(path, &codec, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    lua_pushstring(L, codec->name);
+    return 1;
+}
+
+int lcdvr_open_codec(lua_State *L)
+{
+    lua_pushcfunction(L, l_codecs);
+    lua_setfield(L, -2, "codecs");
+    lua_newtable(L);                                 /* cdvr, plugin */
+    lua_pushcfunction(L, l_plugin_load);
+    lua_setfield(L, -2, "load");
+    lua_setfield(L, -2, "plugin");                   /* cdvr */
+    lcdvr_help_add(L, "cdvr.codecs()",
+                   "list of registered codecs: {name, id, description, cl_mode, variant, plugin, "
+                   "params={{key, default, description}}}");
+    lcdvr_help_add(L, "cdvr.plugin.load(path)",
+                   "load a codec plugin (.so) and register its codec; returns the codec name "
+                   "(CDVR_PLUGIN_PATH: loaded at start-up)");
+    return 0;
+}

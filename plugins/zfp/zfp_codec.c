@@ -1,0 +1,412 @@
+/* plugins/zfp/zfp_codec.c - the "zfp" codec plugin: zfp 1.0 (LLNL; Debian libzfp-dev) in
+ * fixed-rate mode on u8 volumes, one timestep per chunk, decoded on the CPU (cl_mode NONE:
+ * the player uploads the decoded frame).
+ *
+ * Codec id 0x7A667000 = 2053533696 (the ASCII tag "zfp\0", below 2^31).
+ *
+ * Parameter: rate, bits per voxel, a multiple of 1/64 from 1/64 to 16 (zfp's fixed-rate step
+ * in 3-D is one bit per 4x4x4 block; rates that are not a multiple are refused with the two
+ * nearest). Default 2. Variant name "zfp" + rate printed with %.10g: zfp0.5, zfp1, zfp2, zfp4.
+ * Parameter blob (little endian, unused bytes 0):
+ *    0  u32  maxbits   bits per 4x4x4 block = 64 * rate, 1 .. 1024
+ *    4  u32  zfp_codec the zfp stream format version the payload was written with
+ *                      (zfp_codec_version, 5 for zfp 1.0); decode refuses another version
+ *
+ * Values (this is the definition; the C code below implements exactly it):
+ *    in:  each u8 voxel v becomes the int32 i = (v - 128) * 2^23 (zfp's own u8 promotion,
+ *         zfp_promote_uint8_to_int32), so the field spans [-2^30, 2^30) as zfp's integer
+ *         path expects. int32 rather than float: no per-block exponent to pay for (9 of the
+ *         32 bits of a block at rate 0.5), and zfp's integer path is pure integer arithmetic,
+ *         so the decode is the same on every machine.
+ *    out: the decoded int32 i gives v = clamp(floor((i + 2^22) / 2^23) + 128, 0, 255)
+ *         (round half up, then clamp; zfp's zfp_demote_int32_to_uint8 truncates instead,
+ *         which would bias every voxel by -1/2 on average).
+ * Payload: the field of dims X x Y x Z (x fastest) compressed as zfp_compress does in serial
+ * fixed-rate mode with zfp_stream_set_rate(rate, zfp_type_int32, 3, no alignment): 4x4x4
+ * blocks in x, then y, then z order, partial blocks padded by zfp, each block exactly maxbits
+ * bits, no zfp header. zfp's bit stream fills each byte from its least significant bit, so
+ * the payload is those nblocks * maxbits bits, LSB first, in ceil(nblocks * maxbits / 8)
+ * bytes (zero padding bits at the end): exactly what Debian's zfp (8-bit stream words)
+ * writes. A zfp built with wider stream words writes the same bytes on a little-endian host
+ * plus padding to its word; this plugin trims or pads it and swaps bytes on big-endian hosts,
+ * so stores are the same everywhere. The bound the encoder allocates is zfp's own
+ * zfp_stream_maximum_size for the field. Decode refuses a payload of any other size
+ * (CDVR_ERR_CORRUPT); any bits of the right size decode to some volume (zfp reads exactly
+ * nblocks * maxbits bits, values are clamped).
+ *
+ * Error behaviour: fixed rate, so the error depends on the data. A higher rate keeps a longer
+ * prefix of each block's embedded bit-plane code, so from rate 0.5 up the error shrinks as the
+ * rate grows (tests/test_codec.c checks 0.5 < 1 < 2 < 4). Below about 0.25 a block keeps only
+ * the top bit planes of its coefficients (negabinary), whose truncation can overshoot: there
+ * the error is not monotone in the rate (rate 1/64 decodes everything to 128, which may beat
+ * 1/32). Constant 4x4x4 blocks decode exactly at rate >= 0.5 (not below). Noise needs about
+ * 16 bits per voxel to come back exactly; nothing guarantees losslessness at any rate.
+ *
+ * Threads: every function works on its own zfp_stream and buffers; zfp's serial code keeps no
+ * global state, so chunks may be encoded and decoded in parallel.
+ */
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <zfp.h>
+
+#include "cdvr/plugin.h"
+
+#define ZFP_CODEC_ID 0x7A667000u
+#define MAXBITS_MAX 1024u /* rate 16 */
+#define SHIFT 23          /* i = (v - 128) << SHIFT */
+
+enum { OFF_MAXBITS = 0, OFF_ZFP_CODEC = 4, USED_BYTES = 8 };
+
+static const cdvr_codec_param_doc zfp_params[] = {
+    {"rate", "2", "bits per voxel, a multiple of 1/64 from 1/64 to 16 (zfp fixed-rate mode)"},
+    {NULL, NULL, NULL}};
+
+static void zfpc_default(cdvr_codec_params *p)
+{
+    memset(p, 0, sizeof *p);
+    cdvr_params_set_u32(p, OFF_MAXBITS, 2 * 64);
+    cdvr_params_set_u32(p, OFF_ZFP_CODEC, (uint32_t)zfp_codec_version);
+}
+
+static cdvr_status zfpc_set(cdvr_codec_params *p, const char *key, const char *value,
+                            cdvr_error *err)
+{
+    if (strcmp(key, "rate") != 0)
+        return cdvr_plugin_error(err, CDVR_ERR_ARG, "codec zfp: unknown parameter '%s' "
+                                 "(parameters: rate)", key);
+    char *end;
+    double rate = strtod(value, &end);
+    if (!*value || *end || !isfinite(rate) || rate < 1.0 / 64 || rate > MAXBITS_MAX / 64.0)
+        return cdvr_plugin_error(err, CDVR_ERR_ARG, "codec zfp: rate = '%s', must be a number "
+                                 "of bits per voxel from 1/64 (0.015625) to %g", value,
+                                 MAXBITS_MAX / 64.0);
+    double bits = rate * 64;
+    if (bits != floor(bits)) {
+        double lo = floor(bits) / 64, hi = ceil(bits) / 64;
+        return cdvr_plugin_error(err, CDVR_ERR_ARG, "codec zfp: rate = '%s' is not a multiple "
+                                 "of 1/64 (zfp's fixed-rate step in 3-D); nearest: %.10g or "
+                                 "%.10g", value, lo < 1.0 / 64 ? hi : lo, hi);
+    }
+    cdvr_params_set_u32(p, OFF_MAXBITS, (uint32_t)bits);
+    return CDVR_OK;
+}
+
+static int zfpc_get(const cdvr_codec_params *p, const char *key, char *out, size_t n)
+{
+    if (strcmp(key, "rate") != 0)
+        return -1;
+    snprintf(out, n, "%.10g", cdvr_params_get_u32(p, OFF_MAXBITS) / 64.0);
+    return 0;
+}
+
+static cdvr_status zfpc_check(const cdvr_codec_params *p, cdvr_error *err)
+{
+    uint32_t maxbits = cdvr_params_get_u32(p, OFF_MAXBITS);
+    uint32_t version = cdvr_params_get_u32(p, OFF_ZFP_CODEC);
+    if (maxbits < 1 || maxbits > MAXBITS_MAX)
+        return cdvr_plugin_error(err, CDVR_ERR_ARG, "codec zfp: %u bits per block (rate %g) is "
+                                 "outside 1..%u", maxbits, maxbits / 64.0, MAXBITS_MAX);
+    if (version != zfp_codec_version)
+        return cdvr_plugin_error(err, CDVR_ERR_ARG, "codec zfp: data written with zfp stream "
+                                 "format %u, this zfp (%s) reads format %u", version,
+                                 zfp_version_string, zfp_codec_version);
+    if (stream_word_bits != 8 && stream_word_bits != 16 && stream_word_bits != 32 &&
+        stream_word_bits != 64)
+        return cdvr_plugin_error(err, CDVR_ERR_UNSUPPORTED, "codec zfp: this zfp was built with "
+                                 "%zu-bit stream words (8, 16, 32 or 64 supported)",
+                                 stream_word_bits);
+    for (size_t i = USED_BYTES; i < CDVR_CODEC_PARAMS_MAX; i++)
+        if (p->bytes[i])
+            return cdvr_plugin_error(err, CDVR_ERR_ARG, "codec zfp: unused parameter byte %zu "
+                                     "is %u", i, p->bytes[i]);
+    return CDVR_OK;
+}
+
+static void zfpc_name(const cdvr_codec_params *p, char *name, size_t n)
+{
+    snprintf(name, n, "zfp%.10g", cdvr_params_get_u32(p, OFF_MAXBITS) / 64.0);
+}
+
+/* ---- geometry ------------------------------------------------------------------------------ */
+
+typedef struct zfpc_geometry {
+    size_t blocks[3];
+    size_t nblocks;
+    size_t payload_bytes;  /* ceil(nblocks * maxbits / 8) */
+    size_t stream_bytes;   /* what zfp reads or writes: payload rounded up to its word */
+    unsigned maxbits;
+} zfpc_geometry;
+
+static int mul_ok(size_t a, size_t b, size_t *out)
+{
+    if (a && b > SIZE_MAX / a)
+        return 0;
+    *out = a * b;
+    return 1;
+}
+
+static cdvr_status geometry(const cdvr_codec_params *p, const size_t dims[3], zfpc_geometry *g,
+                            cdvr_error *err)
+{
+    cdvr_status s = zfpc_check(p, err);
+    if (s != CDVR_OK)
+        return s;
+    g->maxbits = cdvr_params_get_u32(p, OFF_MAXBITS);
+    size_t n = 1, bits;
+    for (int a = 0; a < 3; a++) {
+        if (dims[a] < 1)
+            return cdvr_plugin_error(err, CDVR_ERR_ARG, "codec zfp: dims %zux%zux%zu", dims[0],
+                                     dims[1], dims[2]);
+        g->blocks[a] = dims[a] / 4 + (dims[a] % 4 != 0);
+        if (!mul_ok(n, g->blocks[a], &n))
+            n = SIZE_MAX; /* caught below */
+    }
+    /* With room for what zfp_stream_maximum_size adds: header bits, rounding to a word. */
+    if (n == SIZE_MAX || !mul_ok(n, g->maxbits, &bits) || bits > SIZE_MAX - 4096)
+        return cdvr_plugin_error(err, CDVR_ERR_NOMEM, "codec zfp: dims %zux%zux%zu overflow "
+                                 "size_t", dims[0], dims[1], dims[2]);
+    g->nblocks = n;
+    g->payload_bytes = (bits + 7) / 8;
+    g->stream_bytes = (bits + stream_word_bits - 1) / stream_word_bits * (stream_word_bits / 8);
+    return CDVR_OK;
+}
+
+/* A zfp stream in fixed-rate mode for int32 3-D blocks of maxbits bits, not yet attached to a
+ * bit stream; NULL when out of memory. */
+static zfp_stream *open_stream(unsigned maxbits)
+{
+    zfp_stream *zfp = zfp_stream_open(NULL);
+    if (!zfp)
+        return NULL;
+    double rate = zfp_stream_set_rate(zfp, maxbits / 64.0, zfp_type_int32, 3, zfp_false);
+    if (rate != maxbits / 64.0) { /* cannot happen for maxbits in 1..1024 */
+        zfp_stream_close(zfp);
+        return NULL;
+    }
+    return zfp;
+}
+
+static cdvr_status zfpc_shape(const cdvr_codec_params *p, const size_t dims[3],
+                              cdvr_codec_shape *out, cdvr_error *err)
+{
+    zfpc_geometry g;
+    cdvr_status s = geometry(p, dims, &g, err);
+    if (s != CDVR_OK)
+        return s;
+    zfp_stream *zfp = open_stream(g.maxbits);
+    zfp_field *field = zfp_field_3d(NULL, zfp_type_int32, dims[0], dims[1], dims[2]);
+    if (!zfp || !field) {
+        zfp_stream_close(zfp);
+        zfp_field_free(field);
+        return cdvr_plugin_error(err, CDVR_ERR_NOMEM, "codec zfp: out of memory");
+    }
+    out->timesteps = 1;
+    out->payload_bytes = g.payload_bytes;
+    out->bound_bytes = zfp_stream_maximum_size(zfp, field);
+    if (out->bound_bytes < g.payload_bytes) /* never with zfp 1.0: it adds the header bits */
+        out->bound_bytes = g.payload_bytes;
+    zfp_field_free(field);
+    zfp_stream_close(zfp);
+    return CDVR_OK;
+}
+
+/* ---- the payload against zfp's stream words -------------------------------------------------
+ * zfp reads and writes whole native words of stream_word_bits (8 on Debian). With wider words
+ * the payload goes through a copy: aligned, padded to a whole word, bytes swapped within each
+ * word on a big-endian host. */
+
+static int host_little_endian(void)
+{
+    const uint16_t one = 1;
+    uint8_t first;
+    memcpy(&first, &one, 1);
+    return first == 1;
+}
+
+static int needs_copy(const zfpc_geometry *g, const void *p)
+{
+    size_t word = stream_word_bits / 8;
+    return word > 1 && (g->stream_bytes != g->payload_bytes || (uintptr_t)p % word != 0 ||
+                        !host_little_endian());
+}
+
+/* Byte i of the payload is byte stream_index(i) of zfp's word buffer: the same on a
+ * little-endian host, mirrored inside its word on a big-endian one. */
+static size_t stream_index(size_t i)
+{
+    size_t word = stream_word_bits / 8;
+    return host_little_endian() ? i : i - i % word + (word - 1 - i % word);
+}
+
+/* ---- encode and decode --------------------------------------------------------------------- */
+
+/* Block extent along one axis: 4, or what is left at the edge. */
+static size_t extent(size_t dim, size_t block)
+{
+    size_t left = dim - 4 * block;
+    return left < 4 ? left : 4;
+}
+
+static void encode_blocks(zfp_stream *zfp, const zfpc_geometry *g, const size_t dims[3],
+                          const uint8_t *frame)
+{
+    const size_t X = dims[0], XY = dims[0] * dims[1];
+    int32_t blk[64];
+    for (size_t bz = 0; bz < g->blocks[2]; bz++)
+        for (size_t by = 0; by < g->blocks[1]; by++)
+            for (size_t bx = 0; bx < g->blocks[0]; bx++) {
+                size_t nx = extent(dims[0], bx), ny = extent(dims[1], by);
+                size_t nz = extent(dims[2], bz);
+                const uint8_t *src = frame + 4 * bx + X * 4 * by + XY * 4 * bz;
+                for (size_t z = 0; z < nz; z++)
+                    for (size_t y = 0; y < ny; y++)
+                        for (size_t x = 0; x < nx; x++)
+                            blk[x + 4 * y + 16 * z] =
+                                ((int32_t)src[x + X * y + XY * z] - 128) * (1 << SHIFT);
+                if (nx == 4 && ny == 4 && nz == 4)
+                    zfp_encode_block_int32_3(zfp, blk);
+                else
+                    zfp_encode_partial_block_strided_int32_3(zfp, blk, nx, ny, nz, 1, 4, 16);
+            }
+}
+
+/* The definition of the way back: clamp(floor((i + 2^22) / 2^23) + 128, 0, 255). The sum is
+ * offset by 2^31 so that the shift works on a non-negative number. */
+static uint8_t to_u8(int32_t i)
+{
+    uint64_t t = (uint64_t)((int64_t)i + (1 << (SHIFT - 1)) + ((int64_t)1 << 31));
+    int64_t v = (int64_t)(t >> SHIFT) - 256 + 128;
+    return (uint8_t)(v < 0 ? 0 : v > 255 ? 255 : v);
+}
+
+static void decode_blocks(zfp_stream *zfp, const zfpc_geometry *g, const size_t dims[3],
+                          uint8_t *frame)
+{
+    const size_t X = dims[0], XY = dims[0] * dims[1];
+    int32_t blk[64];
+    for (size_t bz = 0; bz < g->blocks[2]; bz++)
+        for (size_t by = 0; by < g->blocks[1]; by++)
+            for (size_t bx = 0; bx < g->blocks[0]; bx++) {
+                size_t nx = extent(dims[0], bx), ny = extent(dims[1], by);
+                size_t nz = extent(dims[2], bz);
+                if (nx == 4 && ny == 4 && nz == 4)
+                    zfp_decode_block_int32_3(zfp, blk);
+                else
+                    zfp_decode_partial_block_strided_int32_3(zfp, blk, nx, ny, nz, 1, 4, 16);
+                uint8_t *dst = frame + 4 * bx + X * 4 * by + XY * 4 * bz;
+                for (size_t z = 0; z < nz; z++)
+                    for (size_t y = 0; y < ny; y++)
+                        for (size_t x = 0; x < nx; x++)
+                            dst[x + X * y + XY * z] = to_u8(blk[x + 4 * y + 16 * z]);
+            }
+}
+
+/* Attaches a bit stream over buf (bytes, a multiple of 8) to a new fixed-rate zfp stream. */
+static zfp_stream *open_on(unsigned maxbits, void *buf, size_t bytes, bitstream **bs)
+{
+    zfp_stream *zfp = open_stream(maxbits);
+    *bs = zfp ? stream_open(buf, bytes) : NULL;
+    if (!*bs) {
+        zfp_stream_close(zfp);
+        return NULL;
+    }
+    zfp_stream_set_bit_stream(zfp, *bs);
+    zfp_stream_rewind(zfp);
+    return zfp;
+}
+
+static cdvr_status zfpc_encode(const cdvr_codec_params *p, const size_t dims[3],
+                               const uint8_t *const *frames, size_t count, uint8_t *out,
+                               size_t out_cap, size_t *out_bytes, cdvr_error *err)
+{
+    zfpc_geometry g;
+    cdvr_status s = geometry(p, dims, &g, err);
+    if (s != CDVR_OK)
+        return s;
+    if (count != 1 || out_cap < g.payload_bytes)
+        return cdvr_plugin_error(err, CDVR_ERR_ARG, "codec zfp: %zu frames into %zu bytes (1 "
+                                 "frame, %zu bytes expected)", count, out_cap, g.payload_bytes);
+    int copy = needs_copy(&g, out);
+    uint8_t *buf = copy ? malloc(g.stream_bytes) : out;
+    bitstream *bs = NULL;
+    zfp_stream *zfp = buf ? open_on(g.maxbits, buf, g.stream_bytes, &bs) : NULL;
+    if (!zfp) {
+        if (copy)
+            free(buf);
+        return cdvr_plugin_error(err, CDVR_ERR_NOMEM, "codec zfp: out of memory");
+    }
+    encode_blocks(zfp, &g, dims, frames[0]);
+    zfp_stream_flush(zfp);
+    size_t written = zfp_stream_compressed_size(zfp);
+    zfp_stream_close(zfp);
+    stream_close(bs);
+    if (copy) {
+        for (size_t i = 0; i < g.payload_bytes; i++)
+            out[i] = buf[stream_index(i)];
+        free(buf);
+    }
+    if (written != g.stream_bytes) /* zfp broke fixed-rate mode: never with zfp 1.0 */
+        return cdvr_plugin_error(err, CDVR_ERR_UNSUPPORTED, "codec zfp: zfp wrote %zu bytes, "
+                                 "fixed rate needs %zu", written, g.stream_bytes);
+    *out_bytes = g.payload_bytes;
+    return CDVR_OK;
+}
+
+static cdvr_status zfpc_decode(const cdvr_codec_params *p, const size_t dims[3],
+                               const uint8_t *in, size_t in_bytes, uint8_t *const *frames,
+                               size_t count, cdvr_error *err)
+{
+    zfpc_geometry g;
+    cdvr_status s = geometry(p, dims, &g, err);
+    if (s != CDVR_OK)
+        return s;
+    if (count != 1)
+        return cdvr_plugin_error(err, CDVR_ERR_ARG, "codec zfp: %zu frames asked of a chunk of "
+                                 "1", count);
+    if (in_bytes != g.payload_bytes)
+        return cdvr_plugin_error(err, CDVR_ERR_CORRUPT, "codec zfp: chunk of %zu bytes, rate %g "
+                                 "on %zux%zux%zu needs %zu", in_bytes, g.maxbits / 64.0,
+                                 dims[0], dims[1], dims[2], g.payload_bytes);
+    int copy = needs_copy(&g, in);
+    uint8_t *buf = copy ? calloc(1, g.stream_bytes) : (uint8_t *)(uintptr_t)in;
+    for (size_t i = 0; copy && buf && i < in_bytes; i++)
+        buf[stream_index(i)] = in[i];
+    bitstream *bs = NULL;
+    zfp_stream *zfp = buf ? open_on(g.maxbits, buf, g.stream_bytes, &bs) : NULL;
+    if (zfp)
+        decode_blocks(zfp, &g, dims, frames[0]);
+    zfp_stream_close(zfp);
+    stream_close(bs);
+    if (copy)
+        free(buf);
+    return zfp ? CDVR_OK : cdvr_plugin_error(err, CDVR_ERR_NOMEM, "codec zfp: out of memory");
+}
+
+static const cdvr_codec zfp_codec = {
+    .name = "zfp",
+    .id = ZFP_CODEC_ID,
+    .description = "zfp " ZFP_VERSION_STRING " fixed-rate (plugin): u8 as int32, 4x4x4 blocks of "
+                   "64*rate bits, one timestep per chunk, CPU decode",
+    .params = zfp_params,
+    .params_default = zfpc_default,
+    .params_set = zfpc_set,
+    .params_get = zfpc_get,
+    .params_check = zfpc_check,
+    .variant_name = zfpc_name,
+    .shape = zfpc_shape,
+    .encode = zfpc_encode,
+    .decode = zfpc_decode,
+    .cl_mode = CDVR_CODEC_CL_NONE,
+};
+
+static const cdvr_plugin_info zfp_plugin = {CDVR_PLUGIN_ABI, &zfp_codec};
+
+CDVR_PLUGIN_EXPORT const cdvr_plugin_info *cdvr_plugin_v1(void);
+CDVR_PLUGIN_EXPORT const cdvr_plugin_info *cdvr_plugin_v1(void)
+{
+    return &zfp_plugin;
+}

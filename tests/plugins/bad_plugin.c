@@ -1,0 +1,155 @@
+/* tests/plugins/bad_plugin.c - deliberately broken codec plugins for the loader's refusal
+ * tests (tests/test_plugin.c, tests/lua/test_codecs.lua). The top-level CMakeLists.txt builds
+ * one MODULE per case, build/tests/plugins/bad_<case>.so, with BAD_<CASE> defined:
+ *   BAD_ABI         valid codec, wrong ABI version
+ *   BAD_NOSYM       no cdvr_plugin_v1 symbol (exports cdvr_plugin_v0)
+ *   BAD_NULL_INFO   cdvr_plugin_v1 returns NULL
+ *   BAD_NULL_CODEC  info with a NULL codec
+ *   BAD_CLASH_NAME  a codec called "pvtc" (built-in name)
+ *   BAD_CLASH_ID    a codec with the built-in PVTC id
+ *   BAD_NO_DECODE   a table without decode
+ *   BAD_UNDEFINED   needs a symbol nothing defines (dlopen fails)
+ * The codec itself is raw-like and valid unless the case says otherwise. */
+#include <string.h>
+
+#include "cdvr/plugin.h"
+
+static const cdvr_codec_param_doc bad_params[] = {{NULL, NULL, NULL}};
+
+static void bad_default(cdvr_codec_params *p)
+{
+    memset(p, 0, sizeof *p);
+}
+
+static cdvr_status bad_set(cdvr_codec_params *p, const char *key, const char *value,
+                           cdvr_error *err)
+{
+    (void)p;
+    (void)value;
+    return cdvr_plugin_error(err, CDVR_ERR_ARG, "codec bad: unknown parameter '%s'", key);
+}
+
+static int bad_get(const cdvr_codec_params *p, const char *key, char *out, size_t n)
+{
+    (void)p;
+    (void)key;
+    (void)out;
+    (void)n;
+    return -1;
+}
+
+static cdvr_status bad_check(const cdvr_codec_params *p, cdvr_error *err)
+{
+    (void)p;
+    (void)err;
+    return CDVR_OK;
+}
+
+static void bad_name(const cdvr_codec_params *p, char *name, size_t n)
+{
+    (void)p;
+    strncpy(name, "bad", n);
+    name[n - 1] = '\0';
+}
+
+static cdvr_status bad_shape(const cdvr_codec_params *p, const size_t dims[3],
+                             cdvr_codec_shape *out, cdvr_error *err)
+{
+    (void)p;
+    (void)err;
+    out->timesteps = 1;
+    out->payload_bytes = out->bound_bytes = dims[0] * dims[1] * dims[2];
+    return CDVR_OK;
+}
+
+static cdvr_status bad_encode(const cdvr_codec_params *p, const size_t dims[3],
+                              const uint8_t *const *frames, size_t count, uint8_t *out,
+                              size_t out_cap, size_t *out_bytes, cdvr_error *err)
+{
+    (void)p;
+    (void)count;
+    (void)out_cap;
+    (void)err;
+    *out_bytes = dims[0] * dims[1] * dims[2];
+    memcpy(out, frames[0], *out_bytes);
+    return CDVR_OK;
+}
+
+#if defined(BAD_UNDEFINED)
+extern int cdvr_test_symbol_nobody_defines(void);
+#endif
+
+static cdvr_status bad_decode(const cdvr_codec_params *p, const size_t dims[3],
+                              const uint8_t *in, size_t in_bytes, uint8_t *const *frames,
+                              size_t count, cdvr_error *err)
+{
+    (void)p;
+    (void)count;
+#if defined(BAD_UNDEFINED)
+    if (cdvr_test_symbol_nobody_defines())
+        return CDVR_ERR_ARG;
+#endif
+    if (in_bytes != dims[0] * dims[1] * dims[2])
+        return cdvr_plugin_error(err, CDVR_ERR_CORRUPT, "codec bad: size");
+    memcpy(frames[0], in, in_bytes);
+    return CDVR_OK;
+}
+
+#if defined(BAD_CLASH_NAME)
+#define BAD_CODEC_NAME "pvtc"
+#else
+#define BAD_CODEC_NAME "bad"
+#endif
+#if defined(BAD_CLASH_ID)
+#define BAD_CODEC_ID CDVR_CODEC_ID_PVTC
+#else
+#define BAD_CODEC_ID 0x42414400u /* "BAD\0" */
+#endif
+
+static const cdvr_codec bad_codec = {
+    .name = BAD_CODEC_NAME,
+    .id = BAD_CODEC_ID,
+    .description = "a test plugin that must be refused",
+    .params = bad_params,
+    .params_default = bad_default,
+    .params_set = bad_set,
+    .params_get = bad_get,
+    .params_check = bad_check,
+    .variant_name = bad_name,
+    .shape = bad_shape,
+    .encode = bad_encode,
+#if !defined(BAD_NO_DECODE)
+    .decode = bad_decode,
+#endif
+    .cl_mode = CDVR_CODEC_CL_NONE,
+};
+
+#if defined(BAD_ABI)
+static const cdvr_plugin_info bad_info = {CDVR_PLUGIN_ABI + 41, &bad_codec};
+#elif defined(BAD_NULL_CODEC)
+static const cdvr_plugin_info bad_info = {CDVR_PLUGIN_ABI, NULL};
+static const cdvr_codec *const unused_codec = &bad_codec;
+#else
+static const cdvr_plugin_info bad_info = {CDVR_PLUGIN_ABI, &bad_codec};
+#endif
+
+#if defined(BAD_NOSYM)
+#define BAD_ENTRY cdvr_plugin_v0
+#else
+#define BAD_ENTRY cdvr_plugin_v1
+#endif
+
+CDVR_PLUGIN_EXPORT const cdvr_plugin_info *BAD_ENTRY(void);
+CDVR_PLUGIN_EXPORT const cdvr_plugin_info *BAD_ENTRY(void)
+{
+    (void)bad_decode;
+#if defined(BAD_NULL_CODEC)
+    (void)unused_codec;
+#endif
+#if defined(BAD_NULL_INFO)
+    (void)bad_info;
+    return NULL;
+#else
+    return &bad_info;
+#endif
+}
