@@ -1,5 +1,6 @@
 /* tests/test_fuzz_smoke.c - runs the libFuzzer targets of tests/fuzz/ (store reader, PVTC
- * chunk decoder, LZO stage 2, NRRD/NIfTI/raw loaders) without libFuzzer: a deterministic
+ * chunk decoder, codec-table decoders with the zfp and rle plugins, LZO stage 2, NRRD/NIfTI/raw
+ * loaders) without libFuzzer: a deterministic
  * corpus of valid inputs built here, then thousands of seeded mutations of each (bit flips,
  * byte sets, truncations, insertions, copies). In the sanitizer build any out-of-bounds access
  * fails the test; in every build a target's differential check (FUZZ_ASSERT) aborts it. */
@@ -24,6 +25,9 @@
 #undef LLVMFuzzerTestOneInput
 #define LLVMFuzzerTestOneInput fuzz_load_input
 #include "fuzz/fuzz_load.c"
+#undef LLVMFuzzerTestOneInput
+#define LLVMFuzzerTestOneInput fuzz_codec_input
+#include "fuzz/fuzz_codec.c"
 #undef LLVMFuzzerTestOneInput
 
 typedef int (*fuzz_target)(const uint8_t *data, size_t size);
@@ -220,6 +224,41 @@ static int make_pvtc_seed(bytes *seed, uint8_t param_bits, uint8_t path)
     return ok;
 }
 
+/* Codec seed: header for PRESETS[preset] on make_series' dims + a payload encoded through the
+ * codec table from its first frames. 0 when the preset's codec is not loaded. */
+static int make_codec_seed(bytes *seed, uint8_t preset)
+{
+    const codec_preset *pre = &PRESETS[preset];
+    const cdvr_codec *codec = cdvr_codec_find(pre->codec);
+    if (!codec)
+        return 0;
+    cdvr_volume *vol = make_series();
+    cdvr_codec_params params;
+    cdvr_codec_shape shape;
+    cdvr_error err;
+    const char *keys[1] = {pre->key}, *values[1] = {pre->value};
+    int ok = vol && cdvr_codec_params_parse(codec, keys, values, pre->key ? 1 : 0, &params,
+                                            &err) == CDVR_OK &&
+             cdvr_codec_shape_of(codec, &params, vol->dims, &shape, &err) == CDVR_OK &&
+             shape.timesteps <= 4;
+    uint8_t *payload = ok ? malloc(shape.bound_bytes) : NULL;
+    const uint8_t *frames[4];
+    for (size_t f = 0; payload && f < shape.timesteps; f++)
+        frames[f] = cdvr_volume_frame(vol, f);
+    size_t n = 0;
+    ok = payload && codec->encode(&params, vol->dims, frames, shape.timesteps, payload,
+                                  shape.bound_bytes, &n, &err) == CDVR_OK;
+    uint8_t head[5] = {preset, (uint8_t)(vol ? vol->dims[0] - 1 : 0),
+                       (uint8_t)(vol ? vol->dims[1] - 1 : 0), (uint8_t)(vol ? vol->dims[2] - 1 : 0),
+                       (uint8_t)(2 * preset)};
+    ok = ok && bytes_append(seed, head, 5) && bytes_append(seed, payload, n);
+    CHECK(ok, "codec seed %s %s=%s", pre->codec, pre->key ? pre->key : "",
+          pre->value ? pre->value : "");
+    free(payload);
+    cdvr_volume_free(vol);
+    return ok;
+}
+
 static int make_lzo_seed(bytes *seed)
 {
     cdvr_volume *vol = make_series();
@@ -314,6 +353,16 @@ int main(void)
         seed.n = 0;
         if (make_pvtc_seed(&seed, bits, (uint8_t)(bits % 5)))
             fuzz_seed("pvtc", fuzz_pvtc_input, &seed, 300, 1, 2000u + bits);
+    }
+    /* codec-table decoders; the plugins the build made must be there */
+    pthread_once(&fuzz_codec_plugins_once, fuzz_codec_load_plugins);
+    const char *built = getenv("CDVR_BUILT_PLUGINS");
+    CHECK(!built || !strstr(built, "zfp") || cdvr_codec_find("zfp"), "zfp plugin not loaded");
+    CHECK(!built || !strstr(built, "example") || cdvr_codec_find("rle"), "rle plugin not loaded");
+    for (uint8_t preset = 0; preset < NPRESETS; preset++) {
+        seed.n = 0;
+        if (make_codec_seed(&seed, preset))
+            fuzz_seed("codec", fuzz_codec_input, &seed, 300, 1, 7000u + preset);
     }
     seed.n = 0;
     if (make_lzo_seed(&seed))
