@@ -564,8 +564,7 @@ static int load_plugin(const char *file)
 int main(void)
 {
     int have_zfp = load_plugin("zfp");
-    int have_rle = load_plugin("example");
-    CHECK(have_rle, "the example plugin is always built");
+    int have_rle = load_plugin("example"); /* not with -DCDVR_WITH_PLUGINS=OFF */
     const cdvr_codec *codecs[NCASES];
     for (size_t c = 0; c < NCASES; c++) {
         int loaded = strcmp(CASES[c].codec, "zfp") == 0   ? have_zfp
