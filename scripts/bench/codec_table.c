@@ -1,9 +1,9 @@
 /* scripts/bench/codec_table.c - every codec through the codec table (cdvr/codec.h) on real
  * data, in one run: bits per voxel, volume PSNR, max error, encode and decode MB/s (single
- * thread, medians), and the decode time against two baselines measured in the same run:
- * memcpy of the same output and PVTC S4T3 (time packing where the data has timesteps, space
- * packing otherwise; time-packed variants are left out for a single volume). Built and run
- * by scripts/bench/codec_table.sh.
+ * thread, medians of REPS), and the decode time against two baselines timed in the same
+ * repetitions: memcpy of the same output and PVTC S4T3 (time packing where the data has
+ * timesteps, space packing otherwise; time-packed variants are left out for a single volume).
+ * Ratios are medians of per-repetition ratios. Built and run by scripts/bench/codec_table.sh.
  *
  *   codec_table PLUGIN_DIR DATA_DIR [REPS]
  *
@@ -147,108 +147,120 @@ static void error_of(const cdvr_volume *a, const cdvr_volume *b, double *psnr, i
     *psnr = sse == 0 ? INFINITY : 10 * log10(255.0 * 255.0 / (sse / (double)n));
 }
 
-/* Median seconds of reps whole-series decodes, or of memcpy of the same bytes (codec NULL). */
-static double time_decode(const cdvr_codec *codec, const cdvr_codec_params *p,
-                          const cdvr_volume *vol, const encoded *e, cdvr_volume *out, int reps)
+/* Seconds of one whole-series decode, or of memcpy of the same bytes (codec NULL). */
+static double time_once(const cdvr_codec *codec, const cdvr_codec_params *p,
+                        const cdvr_volume *vol, const encoded *e, cdvr_volume *out)
 {
-    double t[64];
-    size_t bytes = cdvr_volume_voxels(vol) * vol->timesteps;
-    for (int r = 0; r < reps; r++) {
-        double t0 = now_s();
-        if (codec)
-            decode_all(codec, p, vol, e, out);
-        else
-            memcpy(out->data, vol->data, bytes);
-        t[r] = now_s() - t0;
-    }
-    return median(t, reps);
+    double t0 = now_s();
+    if (codec)
+        decode_all(codec, p, vol, e, out);
+    else
+        memcpy(out->data, vol->data, cdvr_volume_voxels(vol) * vol->timesteps);
+    return now_s() - t0;
 }
 
+/* One variant, encoded and checked once, then timed. */
 typedef struct bench_row {
+    const bench_variant *bv;
+    const cdvr_codec *codec;
+    cdvr_codec_params params;
+    encoded enc;
     char variant[CDVR_VARIANT_NAME_MAX];
-    size_t T, nchunks;
-    double bpv, psnr, encode_s, decode_s;
-    int max_err, is_base;
+    double bpv, psnr, encode_s;
+    int max_err;
 } bench_row;
 
-/* Encodes (median of 3), decodes, measures; 0 when the codec is missing or fails. */
-static int measure(const bench_variant *bv, const cdvr_volume *vol, cdvr_volume *out, int reps,
+/* Encodes (median of 3 runs), decodes once for the error; 0 when the codec is missing or
+ * fails. */
+static int prepare(const bench_variant *bv, const cdvr_volume *vol, cdvr_volume *out,
                    bench_row *row)
 {
-    const cdvr_codec *codec = cdvr_codec_find(bv->codec);
-    cdvr_codec_params p;
     cdvr_error err;
-    if (!codec) {
+    row->bv = bv;
+    row->codec = cdvr_codec_find(bv->codec);
+    if (!row->codec) {
         fprintf(stderr, "codec %s not loaded, skipped\n", bv->codec);
         return 0;
     }
-    if (cdvr_codec_params_parse(codec, bv->keys, bv->values, bv->nkeys, &p, &err) != CDVR_OK) {
+    if (cdvr_codec_params_parse(row->codec, bv->keys, bv->values, bv->nkeys, &row->params,
+                                &err) != CDVR_OK) {
         fprintf(stderr, "%s\n", err.msg);
         return 0;
     }
-    codec->variant_name(&p, row->variant, sizeof row->variant);
-    progress("%s %s\n", "codec_table:", row->variant);
-    encoded e = {0};
+    row->codec->variant_name(&row->params, row->variant, sizeof row->variant);
+    progress("%s %s\n", "codec_table: encode", row->variant);
     double enc[3];
     int ok = 1;
     for (int r = 0; ok && r < 3; r++) {
-        encoded_free(&e);
-        memset(&e, 0, sizeof e);
-        ok = encode_all(codec, &p, vol, &e, &enc[r]);
+        encoded_free(&row->enc);
+        memset(&row->enc, 0, sizeof row->enc);
+        ok = encode_all(row->codec, &row->params, vol, &row->enc, &enc[r]);
     }
-    if (ok && decode_all(codec, &p, vol, &e, out)) {
-        error_of(vol, out, &row->psnr, &row->max_err);
-        row->decode_s = time_decode(codec, &p, vol, &e, out, reps);
-        row->encode_s = median(enc, 3);
-        row->T = e.shape.timesteps;
-        row->nchunks = e.nchunks;
-        row->bpv = 8.0 * (double)e.total_bytes / (double)(cdvr_volume_voxels(vol) * vol->timesteps);
-    } else {
-        ok = 0;
+    if (!ok || !decode_all(row->codec, &row->params, vol, &row->enc, out))
+        return 0;
+    error_of(vol, out, &row->psnr, &row->max_err);
+    row->encode_s = median(enc, 3);
+    row->bpv = 8.0 * (double)row->enc.total_bytes /
+               (double)(cdvr_volume_voxels(vol) * vol->timesteps);
+    return 1;
+}
+
+/* Decode timing paired with the baselines: each repetition decodes the variant, the PVTC
+ * S4T3 baseline and memcpy back to back, so that load from other processes hits all three
+ * alike; the ratios are medians of the per-repetition ratios. */
+static void time_row(const bench_row *row, const bench_row *base, const cdvr_volume *vol,
+                     cdvr_volume *out, int reps, const char *name)
+{
+    double t[64], vs_base[64], vs_mem[64];
+    for (int r = 0; r < reps; r++) {
+        double tb = base ? time_once(base->codec, &base->params, vol, &base->enc, out) : 0;
+        t[r] = time_once(row->codec, &row->params, vol, &row->enc, out);
+        double tm = time_once(NULL, NULL, vol, NULL, out);
+        vs_base[r] = base ? t[r] / tb : NAN;
+        vs_mem[r] = t[r] / tm;
     }
-    encoded_free(&e);
-    return ok;
+    double dec = median(t, reps), mb = (double)(cdvr_volume_voxels(vol) * vol->timesteps) / 1e6;
+    printf("%s,%s,%zu,%.4f,%.2f,%d,%.1f,%.1f,%.3f,%.3f,%.2f,%.2f\n", name, row->variant,
+           row->enc.shape.timesteps, row->bpv, row->psnr, row->max_err, mb / row->encode_s,
+           mb / dec, 1e3 * dec / (double)row->enc.nchunks, 1e3 * dec / (double)vol->timesteps,
+           median(vs_mem, reps), base ? median(vs_base, reps) : NAN);
 }
 
 static void run_dataset(const char *name, const cdvr_volume *vol, int reps)
 {
-    double mb = (double)(cdvr_volume_voxels(vol) * vol->timesteps) / 1e6;
     cdvr_volume *out = NULL;
     cdvr_error err;
     if (cdvr_volume_create(vol->dims, vol->timesteps, CDVR_TYPE_U8, &out, &err) != CDVR_OK) {
         fprintf(stderr, "%s\n", err.msg);
         return;
     }
-    double memcpy_s = time_decode(NULL, NULL, vol, NULL, out, reps);
     /* The PVTC S4T3 baseline: time packing when there is a group of timesteps. */
     const char *base_pack = vol->timesteps >= 3 ? "time" : "space";
     bench_row rows[NVARIANTS];
+    memset(rows, 0, sizeof rows);
     size_t nrows = 0;
-    double base_s = 0;
+    const bench_row *base = NULL;
     for (size_t v = 0; v < NVARIANTS; v++) {
         const bench_variant *bv = &VARIANTS[v];
-        memset(&rows[nrows], 0, sizeof rows[nrows]);
         if (strcmp(bv->codec, "pvtc") == 0 && strcmp(bv->values[1], "time") == 0 &&
             vol->timesteps < 3)
             continue; /* time packing of one volume would code three copies of it */
-        if (!measure(bv, vol, out, reps, &rows[nrows]))
+        if (!prepare(bv, vol, out, &rows[nrows])) {
+            encoded_free(&rows[nrows].enc);
+            memset(&rows[nrows], 0, sizeof rows[nrows]);
             continue;
+        }
         if (strcmp(bv->codec, "pvtc") == 0 && strcmp(bv->values[0], "4") == 0 &&
             strcmp(bv->values[1], base_pack) == 0)
-            base_s = rows[nrows].decode_s;
+            base = &rows[nrows];
         nrows++;
     }
     for (size_t r = 0; r < nrows; r++) {
-        const bench_row *row = &rows[r];
-        printf("%s,%s,%zu,%.4f,%.2f,%d,%.1f,%.1f,%.3f,%.3f,%.2f,%.2f\n", name, row->variant,
-               row->T, row->bpv, row->psnr, row->max_err, mb / row->encode_s, mb / row->decode_s,
-               1e3 * row->decode_s / (double)row->nchunks,
-               1e3 * row->decode_s / (double)vol->timesteps, row->decode_s / memcpy_s,
-               base_s > 0 ? row->decode_s / base_s : NAN);
+        progress("%s %s\n", "codec_table: decode", rows[r].variant);
+        time_row(&rows[r], base, vol, out, reps, name);
     }
-    printf("%s,memcpy,1,8,inf,0,,%.1f,%.3f,%.3f,1.00,%.2f\n", name, mb / memcpy_s,
-           1e3 * memcpy_s / (double)vol->timesteps, 1e3 * memcpy_s / (double)vol->timesteps,
-           base_s > 0 ? memcpy_s / base_s : NAN);
+    for (size_t r = 0; r < nrows; r++)
+        encoded_free(&rows[r].enc);
     cdvr_volume_free(out);
 }
 
@@ -280,7 +292,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "usage: codec_table PLUGIN_DIR DATA_DIR [REPS]\n");
         return 2;
     }
-    int reps = argc > 3 ? atoi(argv[3]) : 9;
+    int reps = argc > 3 ? atoi(argv[3]) : 15;
     if (reps < 1 || reps > 64)
         reps = 9;
     cdvr_plugin_load_dirs(argv[1], NULL, NULL);

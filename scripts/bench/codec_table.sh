@@ -4,11 +4,11 @@
 # time against memcpy and PVTC S4T3 measured in the same run (scripts/bench/codec_table.c).
 # Outside the CMake build: compiles against BUILD_DIR/libcdvr_core.a, loads BUILD_DIR/plugins.
 #
-#   scripts/bench/codec_table.sh [BUILD_DIR] [REPS]     (defaults: build, 9)   CSV on stdout
+#   scripts/bench/codec_table.sh [BUILD_DIR] [REPS]     (defaults: build, 15)   CSV on stdout
 set -euo pipefail
 src=$(cd "$(dirname "$0")/../.." && pwd)
 build=$(cd "${1:-$src/build}" && pwd)
-reps=${2:-9}
+reps=${2:-15}
 data=${CDVR_SHARED_DATA:-$src/../shared/data}
 out=$(mktemp -d); trap 'rm -rf "$out"' EXIT
 cl_libs=""

@@ -83,9 +83,12 @@ static cdvr_status register_locked(const char *path, const cdvr_codec *codec, cd
     cdvr_status s = cdvr_codec_register(codec, &rerr);
     if (s == CDVR_OK)
         return CDVR_OK;
-    const cdvr_codec *other = codec->name ? cdvr_codec_find(codec->name) : NULL;
-    if (!other)
-        other = cdvr_codec_by_id(codec->id);
+    const cdvr_codec *other = NULL;
+    if (strstr(rerr.msg, "already")) { /* a name or id clash, not a bad table */
+        other = codec->name ? cdvr_codec_find(codec->name) : NULL;
+        if (!other)
+            other = cdvr_codec_by_id(codec->id);
+    }
     const char *other_file = file_of_locked(other);
     if (other_file)
         return cdvr_error_set(err, s, "%s: %s (codec '%s' was loaded from %s)", path, rerr.msg,
