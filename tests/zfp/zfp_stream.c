@@ -1,0 +1,112 @@
+/* tests/zfp/zfp_stream.c - the zfp plugin's payload and values are what its header comment
+ * (plugins/zfp/zfp_codec.c) defines, checked against zfp's own high-level API: the payload is
+ * byte for byte zfp_compress's headerless fixed-rate stream of the int32 field
+ * (v - 128) * 2^23, trimmed to ceil(bits / 8) bytes, and decoding gives zfp_decompress's
+ * int32 values mapped by clamp(floor((i + 2^22) / 2^23) + 128, 0, 255). Built only with the
+ * zfp plugin (the top-level CMakeLists.txt links it to libzfp). */
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <zfp.h>
+
+#include "cdvr/codec.h"
+#include "cdvr/plugin.h"
+#include "check.h"
+
+static uint8_t reference_u8(int32_t i)
+{
+    int64_t v = ((int64_t)i + (1 << 22)) / (1 << 23); /* truncates toward zero ... */
+    if ((int64_t)i + (1 << 22) < 0 && ((int64_t)i + (1 << 22)) % (1 << 23) != 0)
+        v -= 1;                                         /* ... so step down to the floor */
+    v += 128;
+    return (uint8_t)(v < 0 ? 0 : v > 255 ? 255 : v);
+}
+
+static void check_one(const cdvr_codec *zfp, const char *rate, const size_t dims[3], int pattern)
+{
+    size_t n = dims[0] * dims[1] * dims[2];
+    uint8_t *v = malloc(n), *mine = malloc(n);
+    int32_t *field = malloc(n * sizeof *field), *back = malloc(n * sizeof *back);
+    uint32_t h = 12345u + (uint32_t)pattern;
+    for (size_t i = 0; i < n; i++) {
+        h ^= h << 13, h ^= h >> 17, h ^= h << 5;
+        v[i] = pattern == 0 ? (uint8_t)h : pattern == 1 ? (uint8_t)(i * 3 + i / dims[0]) : 0;
+        field[i] = ((int32_t)v[i] - 128) * (1 << 23);
+    }
+    /* zfp's way */
+    zfp_field *f = zfp_field_3d(field, zfp_type_int32, dims[0], dims[1], dims[2]);
+    zfp_field *g = zfp_field_3d(back, zfp_type_int32, dims[0], dims[1], dims[2]);
+    zfp_stream *zs = zfp_stream_open(NULL);
+    zfp_stream_set_rate(zs, atof(rate), zfp_type_int32, 3, zfp_false);
+    size_t cap = zfp_stream_maximum_size(zs, f);
+    uint8_t *ref = calloc(1, cap);
+    bitstream *bs = stream_open(ref, cap);
+    zfp_stream_set_bit_stream(zs, bs);
+    zfp_stream_rewind(zs);
+    size_t ref_bytes = zfp_compress(zs, f);
+    zfp_stream_rewind(zs);
+    size_t ok_dec = zfp_decompress(zs, g);
+    /* the plugin's way, through the codec table */
+    cdvr_codec_params p;
+    cdvr_codec_shape shape;
+    cdvr_error err;
+    const char *k[1] = {"rate"}, *val[1] = {rate};
+    CHECK_OK(cdvr_codec_params_parse(zfp, k, val, 1, &p, &err), err);
+    CHECK_OK(cdvr_codec_shape_of(zfp, &p, dims, &shape, &err), err);
+    uint8_t *payload = malloc(shape.bound_bytes);
+    size_t bytes = 0;
+    const uint8_t *in[1] = {v};
+    uint8_t *out[1] = {mine};
+    CHECK_OK(zfp->encode(&p, dims, in, 1, payload, shape.bound_bytes, &bytes, &err), err);
+    CHECK_OK(zfp->decode(&p, dims, payload, bytes, out, 1, &err), err);
+    CHECK(cap == shape.bound_bytes, "bound %zu, zfp_stream_maximum_size %zu", shape.bound_bytes,
+          cap);
+    CHECK(ok_dec && bytes <= ref_bytes && ref_bytes - bytes < stream_word_bits / 8 + 1 &&
+              memcmp(payload, ref, bytes) == 0,
+          "rate %s %zux%zux%zu pattern %d: payload (%zu bytes) is not zfp_compress's (%zu)", rate,
+          dims[0], dims[1], dims[2], pattern, bytes, ref_bytes);
+    for (size_t i = bytes; i < ref_bytes; i++)
+        CHECK(ref[i] == 0, "zfp padding byte %zu is %u", i, ref[i]);
+    size_t differ = 0;
+    for (size_t i = 0; i < n; i++)
+        differ += mine[i] != reference_u8(back[i]);
+    CHECK(differ == 0, "rate %s %zux%zux%zu pattern %d: %zu voxels differ from zfp_decompress + "
+          "the documented mapping", rate, dims[0], dims[1], dims[2], pattern, differ);
+    stream_close(bs);
+    zfp_stream_close(zs);
+    zfp_field_free(f);
+    zfp_field_free(g);
+    free(ref);
+    free(payload);
+    free(v);
+    free(mine);
+    free(field);
+    free(back);
+}
+
+int main(void)
+{
+    const char *bin = getenv("CDVR_BINARY_DIR");
+    char path[4096];
+    snprintf(path, sizeof path, "%s/plugins/cdvr_zfp.so", bin && *bin ? bin : ".");
+    const cdvr_codec *zfp = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_plugin_load(path, &zfp, &err), err);
+    if (!zfp)
+        return check_finish();
+    static const size_t dims[][3] = {{1, 1, 1}, {5, 3, 7}, {33, 17, 9}, {64, 8, 4}};
+    static const char *const rates[] = {"0.015625", "0.5", "1", "1.515625", "2", "4", "16"};
+    for (size_t d = 0; d < sizeof dims / sizeof dims[0]; d++)
+        for (size_t r = 0; r < sizeof rates / sizeof rates[0]; r++)
+            for (int pattern = 0; pattern < 3; pattern++)
+                check_one(zfp, rates[r], dims[d], pattern);
+    /* the mapping's rounding and clamping at its edges */
+    CHECK(reference_u8(0) == 128 && reference_u8((1 << 22) - 1) == 128 &&
+              reference_u8(1 << 22) == 129 && reference_u8(-(1 << 22)) == 128 &&
+              reference_u8(-(1 << 22) - 1) == 127 && reference_u8(INT32_MIN) == 0 &&
+              reference_u8(INT32_MAX) == 255,
+          "reference mapping");
+    return check_finish();
+}
