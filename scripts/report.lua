@@ -1,7 +1,10 @@
 -- scripts/report.lua DATASET... [--out DIR] [--frames N] [--width W] [--device cl|cpu|auto]
+--                               [--zfp RATES]
 -- Speed against error (DESIGN.md §8). For each dataset (a directory of NRRD files, a printf
 -- pattern, a 4D NIfTI or a single volume): encode every PVTC variant (S 1/4, T 2/3, time and
--- space packing) and raw, play each back along the same orbit path, and measure
+-- space packing), raw, and, when the zfp plugin is loaded, zfp at each rate of --zfp (bits per
+-- voxel, default 0.5,1,2,4; "none" leaves zfp out), play each back along the same orbit path,
+-- and measure
 --   fps / frame_ms : median over the played frames (pipelined player);
 --   image_psnr     : mean over the path's frames of the PSNR of the render of the decoded
 --                    variant against the render of the uncompressed data (same camera);
@@ -25,6 +28,18 @@ for _, pack in ipairs{"time", "space"} do
       configs[#configs + 1] = {S = S, T = T, pack = pack,
                                name = ("S%dT%d%s"):format(S, T, pack == "space" and "s" or "")}
     end
+  end
+end
+
+local function codec_loaded(name)
+  for _, c in ipairs(cdvr.codecs and cdvr.codecs() or {}) do
+    if c.name == name then return true end
+  end
+  return false
+end
+if (opt.zfp or "") ~= "none" and codec_loaded("zfp") then
+  for rate in (opt.zfp or "0.5,1,2,4"):gmatch("[^,]+") do
+    configs[#configs + 1] = {codec = "zfp", rate = assert(tonumber(rate), "--zfp: rates")}
   end
 end
 

@@ -12,7 +12,8 @@ cd "$src" || exit 1
   --width 48 --out "$tmp/report" >"$tmp/report.out" 2>"$tmp/report.err"
 check "report.lua exit 0" [ $? -eq 0 ]
 check "report.csv header" [ "$(head -1 "$tmp/report/report.csv")" = "dataset,config,codec,bpv,ratio,fps,frame_ms,image_psnr,volume_psnr,maxerr" ]
-check "report.csv rows (raw + 8 PVTC variants)" [ "$(tail -n +2 "$tmp/report/report.csv" | wc -l)" -eq 9 ]
+check "report.csv rows (raw + 8 PVTC variants + 4 zfp rates)" [ "$(tail -n +2 "$tmp/report/report.csv" | wc -l)" -eq 13 ]
+check "report.csv zfp2 row" grep -q '^mpld_asl_64x64x24x25_f32,zfp2,zfp,2.0000,0.2500,' "$tmp/report/report.csv"
 check "report.csv raw is lossless" grep -q '^mpld_asl_64x64x24x25_f32,raw,raw,8.0000,1.0000,.*,inf,inf,0.0000$' "$tmp/report/report.csv"
 check "report.csv S4T3 ratio 5/48" grep -q '^mpld_asl_64x64x24x25_f32,S4T3,pvtc,0.8333,0.1042,' "$tmp/report/report.csv"
 check "report.png is a PNG" [ "$(head -c 8 "$tmp/report/report.png" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ]

@@ -5,6 +5,10 @@
  *                            plugin= (file, plugin codecs only), params={{key=, default=,
  *                            description=}, ...}}, built-ins first, then in load order
  *   cdvr.plugin.load(path)   loads and registers a codec plugin; returns its codec name
+ *   cdvr.codec_chunk(codec, params [, dims])
+ *                            what one chunk of those parameters holds: {timesteps=,
+ *                            payload_bytes= (0 when data dependent), bound_bytes=, variant=}
+ *                            (dims default {4, 4, 4}); unknown or bad parameters raise
  */
 #include <string.h>
 
@@ -79,6 +83,43 @@ static int l_codecs(lua_State *L)
     return 1;
 }
 
+static int l_codec_chunk(lua_State *L)
+{
+    const char *name = luaL_checkstring(L, 1);
+    const cdvr_codec *codec = cdvr_codec_find(name);
+    if (!codec)
+        return luaL_error(L, "cdvr.codec_chunk: unknown codec '%s' (see cdvr.codecs())", name);
+    cdvr_codec_params params;
+    lcdvr_parse_params(L, 2, codec, &params, "cdvr.codec_chunk");
+    double d[3] = {4, 4, 4};
+    if (!lua_isnoneornil(L, 3)) {
+        luaL_checktype(L, 3, LUA_TTABLE);
+        for (int i = 0; i < 3; i++) {
+            lua_geti(L, 3, i + 1);
+            d[i] = luaL_checknumber(L, -1);
+            lua_pop(L, 1);
+            luaL_argcheck(L, d[i] >= 1 && d[i] <= 1e9 && d[i] == (double)(size_t)d[i], 3,
+                          "dims must be integers >= 1");
+        }
+    }
+    size_t dims[3] = {(size_t)d[0], (size_t)d[1], (size_t)d[2]};
+    cdvr_codec_shape shape;
+    cdvr_error err;
+    if (cdvr_codec_shape_of(codec, &params, dims, &shape, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    char variant[CDVR_VARIANT_NAME_MAX] = "";
+    codec->variant_name(&params, variant, sizeof variant);
+    lua_createtable(L, 0, 4);
+    lua_pushinteger(L, (lua_Integer)shape.timesteps);
+    lua_setfield(L, -2, "timesteps");
+    lua_pushinteger(L, (lua_Integer)shape.payload_bytes);
+    lua_setfield(L, -2, "payload_bytes");
+    lua_pushinteger(L, (lua_Integer)shape.bound_bytes);
+    lua_setfield(L, -2, "bound_bytes");
+    set_string(L, "variant", variant);
+    return 1;
+}
+
 static int l_plugin_load(lua_State *L)
 {
     const char *path = luaL_checkstring(L, 1);
@@ -94,6 +135,8 @@ int lcdvr_open_codec(lua_State *L)
 {
     lua_pushcfunction(L, l_codecs);
     lua_setfield(L, -2, "codecs");
+    lua_pushcfunction(L, l_codec_chunk);
+    lua_setfield(L, -2, "codec_chunk");
     lua_newtable(L);                                 /* cdvr, plugin */
     lua_pushcfunction(L, l_plugin_load);
     lua_setfield(L, -2, "load");
@@ -101,6 +144,9 @@ int lcdvr_open_codec(lua_State *L)
     lcdvr_help_add(L, "cdvr.codecs()",
                    "list of registered codecs: {name, id, description, cl_mode, variant, plugin, "
                    "params={{key, default, description}}}");
+    lcdvr_help_add(L, "cdvr.codec_chunk(codec, params [, dims])",
+                   "one chunk of a codec with these parameters: {timesteps=, payload_bytes=, "
+                   "bound_bytes=, variant=} (dims default {4, 4, 4})");
     lcdvr_help_add(L, "cdvr.plugin.load(path)",
                    "load a codec plugin (.so) and register its codec; returns the codec name "
                    "(CDVR_PLUGIN_PATH: loaded at start-up)");

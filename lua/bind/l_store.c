@@ -150,6 +150,21 @@ static void apply_params(lua_State *L, int idx, const cdvr_codec *codec, cdvr_co
     }
 }
 
+void lcdvr_parse_params(lua_State *L, int idx, const cdvr_codec *codec, cdvr_codec_params *out,
+                        const char *what)
+{
+    static const char *const none[] = {NULL};
+    memset(out, 0, sizeof *out);
+    codec->params_default(out);
+    if (!lua_isnoneornil(L, idx)) {
+        luaL_checktype(L, idx, LUA_TTABLE);
+        apply_params(L, idx, codec, out, none, what);
+    }
+    cdvr_error err;
+    if (codec->params_check(out, &err) != CDVR_OK)
+        lcdvr_raise(L, &err);
+}
+
 typedef struct top_defaults {
     int idx;                    /* the options table */
     const cdvr_codec *codec;    /* codec= at the top, or the default */

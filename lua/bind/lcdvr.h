@@ -78,6 +78,10 @@ cdvr_store *lcdvr_checkstore(lua_State *L, int idx);
 /* Sets each parameter of a codec blob as a field of the table on top (numbers as numbers),
  * and the same in its subtable `params` (l_store.c). */
 void lcdvr_push_params(lua_State *L, const cdvr_codec *codec, const cdvr_codec_params *p);
+/* Codec parameters from the table at idx (nil: the defaults); unknown keys and bad values
+ * raise, naming `what`. */
+void lcdvr_parse_params(lua_State *L, int idx, const cdvr_codec *codec, cdvr_codec_params *out,
+                        const char *what);
 /* Timesteps per chunk of variant v (its codec's chunk shape). */
 size_t lcdvr_chunk_timesteps(const cdvr_store *st, size_t v);
 

@@ -21,9 +21,9 @@ do
   end
   assert(s(1).S == 4)
   assert(math.type(schedule.fixed{ S = 4.0, T = 2 }(1).S) == "integer")
-  expect_error("S must be a positive integer", schedule.fixed, { S = 0, T = 3 })
-  expect_error("T must be a positive integer", schedule.fixed, { S = 1, T = 2.5 })
-  expect_error("table {S=, T=} expected", schedule.fixed, 4)
+  assert(schedule.fixed{ rate = 0.5 }(3).rate == 0.5, "any codec's parameters")
+  expect_error("table of codec parameters expected", schedule.fixed, 4)
+  expect_error("parameter names must be strings", schedule.fixed, { 4 })
   expect_error("timestep in 1..", s, 0)
   expect_error("timestep in 1..", s, 1.5)
 end
@@ -70,17 +70,27 @@ do
   for t = 1, 5 do assert(is(flat(t), SLOW)) end
   -- One timestep: no change at all.
   assert(is(schedule.from_changes({})(1), SLOW))
-  -- Custom parameter sets pass through, and the window follows their T.
-  local custom = schedule.from_changes({ 0, 0, 0, 9, 0, 0, 0 },
-    { fast = { S = 1, T = 1 }, slow = { S = 4, T = 4, pack = "time" }, quantile = 0.5 })
-  assert(is(custom(1), { S = 4, T = 4 }) and custom(1).pack == "time")
-  assert(is(custom(2), { S = 1, T = 1 }))             -- changes 2..4 include the 9
-  assert(is(custom(5), { S = 4, T = 4 }))
+  -- Custom parameter sets pass through, and the window follows their chunk length.
+  local custom, cinfo = schedule.from_changes({ 0, 0, 0, 9, 0, 0, 0 },
+    { fast = { S = 1, T = 2, pack = "space" }, slow = { S = 4, T = 3, pack = "time" }, quantile = 0.5 })
+  assert(cinfo.window == 3, "window: the longer chunk (T3 time; space packing holds 1)")
+  assert(is(custom(1), { S = 4, T = 3 }) and custom(1).pack == "time")
+  assert(is(custom(2), { S = 4, T = 3 }))             -- changes 2..3: no 9
+  assert(is(custom(3), { S = 1, T = 2 }) and custom(3).pack == "space") -- 3..4 include the 9
+  assert(is(custom(4), { S = 1, T = 2 }) and is(custom(5), { S = 4, T = 3 }))
+  local zfp_ok = pcall(cdvr.codec_chunk, "zfp", { rate = 1 })
+  if zfp_ok then                                     -- any codec: zfp holds 1 timestep per chunk
+    local z, zinfo = schedule.from_changes({ 0, 9, 0 }, { codec = "zfp", fast = { rate = 4 },
+                                                          slow = { rate = 1 } })
+    -- one timestep per group: each looks at the change leading into it
+    assert(zinfo.window == 1 and z(3).rate == 4 and z(2).rate == 1 and z(1).rate == 1)
+  end
 
   expect_error("changes[2] must be a non-negative number", schedule.from_changes, { 1, 0 / 0 })
   expect_error("changes[1] must be a non-negative number", schedule.from_changes, { -1 })
   expect_error("quantile must be in [0, 1]", schedule.from_changes, { 1 }, { quantile = 2 })
-  expect_error("fast: S must be a positive integer", schedule.from_changes, { 1 }, { fast = { T = 2 } })
+  expect_error("fast: codec pvtc: T = '5', must be 2 or 3", schedule.from_changes, { 1 }, { fast = { T = 5 } })
+  expect_error("slow: unknown option 'rate'", schedule.from_changes, { 1 }, { slow = { rate = 2 } })
 end
 
 -- ---- change_driven on a synthetic series ----

@@ -1,9 +1,11 @@
 -- cdvr.schedule: encode-time parameter schedules for cdvr.encode(q, {schedule=...}) (DESIGN.md
--- §7). A schedule is a function schedule(t) -> {S=, T=} called with t = the first timestep of
--- a group (1-based); the encoder packs the group's T timesteps with those parameters.
+-- §7). A schedule is a function schedule(t [, variant]) -> params called with t = the first
+-- timestep of a chunk group (1-based); params is a table of the variant's codec parameters
+-- (for PVTC {S=, T=, pack=}, for zfp {rate=}); the encoder packs the group with them. nil keeps
+-- the variant's own parameters.
 --
---   schedule.fixed{S=, T=}
---   schedule.from_changes(changes, {fast={S=1,T=2}, slow={S=4,T=3}, quantile=0.5})
+--   schedule.fixed(params)
+--   schedule.from_changes(changes, {fast={S=1,T=2}, slow={S=4,T=3}, quantile=0.5, codec="pvtc"})
 --       -> schedule, info
 --   schedule.change_driven(volume, opts)  -> schedule, info
 --       changes[t] = cdvr.compare(v:frame(t), v:frame(t+1)).mse, then from_changes.
@@ -11,26 +13,37 @@
 -- from_changes spends quality where the series changes fastest: changes[t] is the change
 -- from timestep t to t+1 (n timesteps -> n-1 values). The threshold is the `quantile` of all
 -- changes (linear interpolation between order statistics). The group starting at t covers up
--- to W = max(fast.T, slow.T) timesteps; it gets `fast` (smaller S and T: better quality) when
--- any change inside that window, changes[t .. t+W-2], exceeds the threshold, and `slow`
--- otherwise. A last group with no change inside it looks at the change that leads into it.
--- info = {threshold=, changes=, timesteps=}.
+-- to W timesteps, the longer chunk of `fast` and `slow` for the codec (`codec`, default pvtc:
+-- cdvr.codec_chunk tells; PVTC with pack="time" holds T timesteps per chunk); it gets `fast`
+-- (the better quality) when any change inside that window, changes[t .. t+W-2], exceeds the
+-- threshold, and `slow` otherwise. A last group with no change inside it looks at the change
+-- that leads into it. info = {threshold=, changes=, timesteps=, window=}.
 local schedule = {}
 
+-- A copy of a parameter table (numbers that are integers become integers). The encoder checks
+-- the values against the codec.
 local function check_params(params, what)
   if type(params) ~= "table" then
-    error(string.format("%s: table {S=, T=} expected, got %s", what, type(params)), 3)
+    error(string.format("%s: table of codec parameters expected, got %s", what, type(params)), 3)
   end
   local out = {}
-  for k, v in pairs(params) do out[k] = v end
-  for _, key in ipairs({ "S", "T" }) do
-    local value = math.tointeger(params[key])
-    if value == nil or value < 1 then
-      error(string.format("%s: %s must be a positive integer, got %s", what, key, tostring(params[key])), 3)
+  for k, v in pairs(params) do
+    if type(k) ~= "string" then
+      error(string.format("%s: parameter names must be strings, got a %s key", what, type(k)), 3)
     end
-    out[key] = value
+    out[k] = math.type(v) == "float" and math.tointeger(v) or v
   end
   return out
+end
+
+-- Timesteps one chunk of codec holds with params (the encoder's group length).
+local function chunk_length(codec, params, what)
+  local cdvr = require "cdvr"
+  local ok, chunk = pcall(cdvr.codec_chunk, codec, params)
+  if not ok then
+    error(string.format("%s: %s", what, tostring(chunk):gsub("^cdvr%.codec_chunk: ", "")), 3)
+  end
+  return chunk.timesteps
 end
 
 local function copy(params)
@@ -94,7 +107,9 @@ function schedule.from_changes(changes, opts)
   end
   local n = #changes + 1
   local threshold = schedule.quantile(changes, q)
-  local window = math.max(fast.T, slow.T)
+  local codec = opts.codec or "pvtc"
+  local window = math.max(chunk_length(codec, fast, "from_changes: fast"),
+                          chunk_length(codec, slow, "from_changes: slow"))
   local function busy(t)
     local last = math.min(t + window - 2, n - 1)
     local first = last < t and t - 1 or t    -- a last group: the change leading into it
@@ -103,7 +118,7 @@ function schedule.from_changes(changes, opts)
     end
     return false
   end
-  local info = { threshold = threshold, changes = changes, timesteps = n }
+  local info = { threshold = threshold, changes = changes, timesteps = n, window = window }
   return function(t)
     t = check_t(t, n)
     return copy(busy(t) and fast or slow)
