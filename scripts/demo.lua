@@ -26,12 +26,10 @@ local info = st:info()
 local tf = cdvr.tf{{0, 0, 0, 0, 0}, {40, 0.1, 0.2, 0.6, 0}, {80, 0.2, 0.6, 1.0, 0.12},
                    {115, 0.9, 0.9, 0.3, 0.35}, {160, 1.0, 0.35, 0.1, 0.8}, {255, 1, 1, 1, 1}}
 local frames = tonumber(opt.frames)
--- orbit around the centre of the volume's world box (spacing in mm)
-local sx, sy, sz = q:spacing()
-local ox, oy, oz = q:origin()
-local ext = {(nx - 1) * sx, (ny - 1) * sy, (nz - 1) * sz}
-local path = cdvr.path.orbit{center = {ox + ext[1] / 2, oy + ext[2] / 2, oz + ext[3] / 2},
-                             distance = 1.9 * math.max(ext[1], ext[2], ext[3]), elevation = 30,
+-- orbit around the centre of the volume's oriented box in world (patient, mm) coordinates
+local x0, x1, y0, y1, z0, z1 = st:decode(1):bounds()
+local path = cdvr.path.orbit{center = {(x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2},
+                             distance = 1.9 * math.max(x1 - x0, y1 - y0, z1 - z0), elevation = 30,
                              period = frames, fov = 30}
 local p = cdvr.player{store = st, tf = tf, camera = path, width = 256, height = 256,
                       policy = "closed_loop", target_fps = tonumber(opt["target-fps"]),

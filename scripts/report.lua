@@ -62,19 +62,18 @@ for _, spec in ipairs(datasets) do
   common.progress("%s: encoding %d configurations", name, #configs)
   local st = assert(cdvr.encode(q, {variants = configs, stage2 = "none", path = tmp}))
   local info = st:info()
-  local nx, ny, nz = q:dims()
-  local sx, sy, sz = q:spacing()
-  local ox, oy, oz = q:origin()
-  local ext = {(nx - 1) * sx, (ny - 1) * sy, (nz - 1) * sz}
-  local c = {ox + ext[1] / 2, oy + ext[2] / 2, oz + ext[3] / 2}
-  local path = cdvr.path.orbit{center = c, distance = 2.4 * math.max(ext[1], ext[2], ext[3]),
+  -- the oriented box in world coordinates, as the store gives it back
+  local x0, x1, y0, y1, z0, z1 = st:decode(1):bounds()
+  local c = {(x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2}
+  local path = cdvr.path.orbit{center = c, distance = 2.4 * math.max(x1 - x0, y1 - y0, z1 - z0),
                                up = {0, 0, 1}, elevation = 25, period = frames, fov = 30}
   local tf = cdvr.tf("hot")
-  -- reference renders of the uncompressed data along the path
+  -- reference renders of the uncompressed data (the lossless raw variant, so that the
+  -- reference has exactly the geometry and value window the store gives back) along the path
   local refs = {}
   for f = 1, frames do
     local t = (f - 1) % info.timesteps + 1
-    refs[f] = cdvr.render(q, {tf = tf, camera = path:camera(f, width, width), t = t, device = device})
+    refs[f] = cdvr.render(st:decode(t, "raw"), {tf = tf, camera = path:camera(f, width, width), device = device})
   end
   for vi, var in ipairs(info.variants) do
     common.progress("%s: %s (%d/%d)", name, var.name, vi, #info.variants)

@@ -75,7 +75,7 @@ static cdvr_image *render(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf,
     if (!st)
         st = cdvr_cl_setup(s, frame, tf, &err);
     if (!st)
-        st = cdvr_cl_render(s, frame, &o, vol->spacing, vol->origin, img, &err);
+        st = cdvr_cl_render(s, frame, &o, vol->spacing, vol->origin, vol->direction, img, &err);
     CHECK_OK(st, err);
     if (st) {
         cdvr_image_free(img);

@@ -4,7 +4,7 @@
  * by more than 0.5/255 and takes fewer samples (also over a sparse volume, where rays jump
  * over large empty regions, and over compact blobs, where rays start and stop at the box
  * around the visible bricks); without skipping the sample counts equal the CPU's; zero/full
- * opacity, tiny and huge steps; odd image sizes;
+ * opacity, tiny and huge steps; odd image sizes; oriented volumes (oblique, mirrored, sheared);
  * misuse errors. */
 #include <math.h>
 #include <stdio.h>
@@ -60,7 +60,7 @@ static cdvr_image *render_cl(const scene *sc, int skipping, uint64_t *samples)
     if (!st)
         st = cdvr_cl_setup(sc->stream, 0, &sc->tf, &err);
     if (!st)
-        st = cdvr_cl_render(sc->stream, 0, &opts, sc->vol->spacing, sc->vol->origin, img, &err);
+        st = cdvr_cl_render(sc->stream, 0, &opts, sc->vol->spacing, sc->vol->origin, sc->vol->direction, img, &err);
     CHECK(st == CDVR_OK, "%s: cl render: %s", sc->name, err.msg);
     if (st) {
         cdvr_image_free(img);
@@ -228,6 +228,53 @@ static void synthetic_scenes(cdvr_cl *cl)
     cdvr_volume_free(vol);
 }
 
+/* Oriented volumes (render.h step 0): an oblique, mirrored direction and a shear, perspective
+ * and orthographic, against the CPU reference. */
+static void oriented_scenes(cdvr_cl *cl)
+{
+    cdvr_generate_opts gen = {{37, 29, 21}, 1, CDVR_TYPE_U8, 0, 0, 0, 0};
+    cdvr_volume *vol;
+    cdvr_error err;
+    cdvr_status st = cdvr_volume_generate("ml", &gen, &vol, &err);
+    CHECK_OK(st, err);
+    if (st)
+        return;
+    const double c30 = cos(M_PI / 6), s30 = sin(M_PI / 6);
+    const double rotated[9] = {c30, -s30, 0, -s30, -c30, 0, 0, 0, 1}; /* rotation, y mirrored */
+    const double sheared[9] = {1, 0.4, 0, 0, 1, 0, 0.2, 0, -1};
+    vol->spacing[0] = 1.3;
+    vol->spacing[2] = 2.1;
+    vol->origin[0] = -40, vol->origin[1] = 17, vol->origin[2] = 5;
+    scene sc = {.vol = vol};
+    st = upload_volume(cl, vol, &sc.stream, &err);
+    CHECK_OK(st, err);
+    const cdvr_tf_point pts[] = {{0, 0, 0, 0, 0}, {110, 0, 0, 0, 0}, {170, .3, .8, 1, .25},
+                                 {255, 1, .4, .1, .8}};
+    make_tf(&sc.tf, pts, sizeof pts / sizeof *pts);
+    const double *dirs[2] = {rotated, sheared};
+    const char *names[2][2] = {{"oblique mirrored", "oblique mirrored ortho"},
+                               {"sheared", "sheared ortho"}};
+    for (int d = 0; d < 2 && !st; d++) {
+        memcpy(vol->direction, dirs[d], sizeof vol->direction);
+        double lo[3], hi[3], c[3], ext = 0, up[3] = {0, 0, 1};
+        cdvr_volume_bounds(vol, lo, hi);
+        for (int a = 0; a < 3; a++) {
+            c[a] = 0.5 * (lo[a] + hi[a]);
+            ext = fmax(ext, hi[a] - lo[a]);
+        }
+        for (int ortho = 0; ortho < 2; ortho++) {
+            look(&sc.cam, c, c, up);
+            cdvr_camera_orbit(&sc.cam, c, up, 2.2 * ext, 35 + 50 * ortho, 25);
+            sc.cam.orthographic = ortho;
+            sc.cam.ortho_height = 1.2 * ext;
+            sc.name = names[d][ortho];
+            CHECK(check_scene(&sc) > 0.02, "%s is empty", sc.name);
+        }
+    }
+    cdvr_cl_stream_free(sc.stream);
+    cdvr_volume_free(vol);
+}
+
 /* A few isolated bright voxels in an empty volume: rays jump over large empty cubes of bricks
  * (distance map) and must still land on every visible brick, from several directions. */
 static void sparse_scenes(cdvr_cl *cl)
@@ -328,7 +375,7 @@ static void misuse(cdvr_cl *cl)
     cdvr_image_create(16, 16, &img, &err);
     st = cdvr_cl_setup(s, 0, &tf, &err);
     CHECK(st == CDVR_ERR_ARG, "setup before decode: status %d", (int)st);
-    st = cdvr_cl_render(s, 0, &opts, spacing, origin, img, &err);
+    st = cdvr_cl_render(s, 0, &opts, spacing, origin, NULL, img, &err);
     CHECK(st == CDVR_ERR_ARG && strstr(err.msg, "setup"), "render before setup: %s", err.msg);
     uint8_t zeros[512] = {0};
     st = cdvr_cl_upload_frames(s, zeros, 1, &err);
@@ -336,15 +383,15 @@ static void misuse(cdvr_cl *cl)
         st = cdvr_cl_setup(s, 0, &tf, &err);
     CHECK_OK(st, err);
     cam.width = 17;
-    st = cdvr_cl_render(s, 0, &opts, spacing, origin, img, &err);
+    st = cdvr_cl_render(s, 0, &opts, spacing, origin, NULL, img, &err);
     CHECK(st == CDVR_ERR_ARG, "image/camera size mismatch: status %d", (int)st);
     cam.width = 16;
     spacing[1] = 0;
-    st = cdvr_cl_render(s, 0, &opts, spacing, origin, img, &err);
+    st = cdvr_cl_render(s, 0, &opts, spacing, origin, NULL, img, &err);
     CHECK(st == CDVR_ERR_ARG, "zero spacing: status %d", (int)st);
     spacing[1] = 1;
     memcpy(cam.center, cam.eye, sizeof cam.eye);
-    st = cdvr_cl_render(s, 0, &opts, spacing, origin, img, &err);
+    st = cdvr_cl_render(s, 0, &opts, spacing, origin, NULL, img, &err);
     CHECK(st == CDVR_ERR_ARG, "eye == center: status %d", (int)st);
     cdvr_image_free(img);
     cdvr_cl_stream_free(s);
@@ -362,6 +409,7 @@ int main(void)
     if (data)
         engine_scenes(cl, data);
     synthetic_scenes(cl);
+    oriented_scenes(cl);
     sparse_scenes(cl);
     blob_scenes(cl);
     misuse(cl);

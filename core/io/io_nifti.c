@@ -78,27 +78,50 @@ static cdvr_status nifti_shape(const char *path, const nifti_image *nim, size_t 
     return CDVR_OK;
 }
 
-/* Spacing from pixdim (absolute values; 0 or non-finite -> 1); origin from the qform offset,
- * else the sform translation. Axis flips and rotations are not applied: cdvr renders in
- * index order. */
+/* Splits the upper 3x3 of an index-to-world matrix into column lengths (spacing) and unit
+ * columns (direction); returns 0 when a column is zero, the matrix singular or not finite. */
+static int split_affine(const mat44 *m, double spacing[3], double direction[9])
+{
+    double M[9];
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 3; c++)
+            M[3 * r + c] = m->m[r][c];
+    double inv[9];
+    if (!cdvr_mat3_inverse(M, inv))
+        return 0;
+    for (int c = 0; c < 3; c++) {
+        spacing[c] = sqrt(M[c] * M[c] + M[3 + c] * M[3 + c] + M[6 + c] * M[6 + c]);
+        for (int r = 0; r < 3; r++)
+            direction[3 * r + c] = M[3 * r + c] / spacing[c];
+    }
+    for (int r = 0; r < 3; r++)
+        if (!isfinite(m->m[r][3]))
+            return 0;
+    return 1;
+}
+
+/* Index-to-world matrix as nibabel's get_best_affine chooses it: the sform when sform_code >
+ * 0, else the qform (quaternion, qoffset, pixdim and qfac = pixdim[0], niftilib's qto_xyz)
+ * when qform_code > 0, else "method 1": spacing |pixdim|, origin 0, no rotation. A transform
+ * that is singular or not finite is skipped for the next one. */
 static void nifti_geometry(const nifti_image *nim, cdvr_volume *vol)
 {
+    const mat44 *choices[2] = {nim->sform_code > 0 ? &nim->sto_xyz : NULL,
+                               nim->qform_code > 0 ? &nim->qto_xyz : NULL};
+    for (int i = 0; i < 2; i++) {
+        double spacing[3], direction[9];
+        if (!choices[i] || !split_affine(choices[i], spacing, direction))
+            continue;
+        memcpy(vol->spacing, spacing, sizeof spacing);
+        memcpy(vol->direction, direction, sizeof direction);
+        for (int r = 0; r < 3; r++)
+            vol->origin[r] = choices[i]->m[r][3];
+        return;
+    }
     double pix[3] = {nim->dx, nim->dy, nim->dz};
     for (int i = 0; i < 3; i++)
         if (isfinite(pix[i]) && pix[i] != 0.0)
             vol->spacing[i] = fabs(pix[i]);
-    double origin[3] = {0, 0, 0};
-    if (nim->qform_code > 0) {
-        origin[0] = nim->qoffset_x;
-        origin[1] = nim->qoffset_y;
-        origin[2] = nim->qoffset_z;
-    } else if (nim->sform_code > 0) {
-        for (int i = 0; i < 3; i++)
-            origin[i] = nim->sto_xyz.m[i][3];
-    }
-    for (int i = 0; i < 3; i++)
-        if (isfinite(origin[i]))
-            vol->origin[i] = origin[i];
 }
 
 /* Reads the voxel bytes itself: niftilib pads a short data section with zeros and reports

@@ -70,21 +70,64 @@ static cdvr_status nrrd_shape(const char *path, const Nrrd *nrrd, size_t dims[3]
     return CDVR_OK;
 }
 
-/* Spacing per axis from "spacings" or the length of "space directions"; origin from
- * "space origin". Missing or non-finite values keep the defaults (1 and 0). */
-static void nrrd_geometry(const Nrrd *nrrd, cdvr_volume *vol)
+static void cross3(const double a[3], const double b[3], double out[3])
+{
+    out[0] = a[1] * b[2] - a[2] * b[1];
+    out[1] = a[2] * b[0] - a[0] * b[2];
+    out[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+/* Geometry of the (up to 3) spatial axes. With a 3D "space" (space or space dimension
+ * field): spacing = length of each axis' "space directions" vector, direction column = that
+ * vector normalised (negative and oblique directions kept), origin = "space origin". Without
+ * a space: "spacings" (a negative spacing is the axis running backwards: direction -1), origin
+ * 0. A 2D image (dims[2] = 1) gets the cross product of its two directions as the third. Axes
+ * without a direction keep the identity column; missing or non-finite values keep the
+ * defaults (spacing 1, origin 0). A singular set of directions is an error. */
+static cdvr_status nrrd_geometry(const char *path, const Nrrd *nrrd, cdvr_volume *vol,
+                                 cdvr_error *err)
 {
     unsigned n = nrrd->dim < 3 ? nrrd->dim : 3;
+    int has_dir[3] = {0, 0, 0};
+    double cols[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
     for (unsigned ax = 0; ax < n; ax++) {
         double spacing = AIR_NAN, direction[NRRD_SPACE_DIM_MAX];
         int status = nrrdSpacingCalculate(nrrd, ax, &spacing, direction);
-        if ((status == nrrdSpacingStatusScalarNoSpace || status == nrrdSpacingStatusScalarWithSpace ||
-             status == nrrdSpacingStatusDirection) && isfinite(spacing) && spacing != 0)
+        if (!isfinite(spacing) || spacing == 0)
+            continue;
+        if (status == nrrdSpacingStatusDirection && nrrd->spaceDim == 3) {
+            vol->spacing[ax] = spacing; /* teem: the vector's length, direction its unit vector */
+            for (int r = 0; r < 3; r++)
+                cols[ax][r] = direction[r];
+            has_dir[ax] = 1;
+        } else if (status == nrrdSpacingStatusScalarNoSpace ||
+                   status == nrrdSpacingStatusScalarWithSpace ||
+                   status == nrrdSpacingStatusDirection) {
             vol->spacing[ax] = fabs(spacing);
+            if (spacing < 0 && status != nrrdSpacingStatusDirection)
+                cols[ax][ax] = -1.0;
+        }
     }
+    if (n == 2 && has_dir[0] && has_dir[1]) {
+        double c[3];
+        cross3(cols[0], cols[1], c);
+        double len = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        for (int r = 0; len > 0 && r < 3; r++)
+            cols[2][r] = c[r] / len;
+    }
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 3; c++)
+            vol->direction[3 * r + c] = cols[c][r];
+    double inv[9];
+    if (!cdvr_mat3_inverse(vol->direction, inv))
+        return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                              "%s: NRRD space directions are degenerate (the axes do not span "
+                              "3D space)",
+                              path);
     for (unsigned i = 0; i < nrrd->spaceDim && i < 3; i++)
         if (isfinite(nrrd->spaceOrigin[i]))
             vol->origin[i] = nrrd->spaceOrigin[i];
+    return CDVR_OK;
 }
 
 static cdvr_status nrrd_to_volume(const char *path, const Nrrd *nrrd, cdvr_volume **out,
@@ -106,8 +149,12 @@ static cdvr_status nrrd_to_volume(const char *path, const Nrrd *nrrd, cdvr_volum
         cdvr_convert_to_f32((*out)->data, nrrd->data, count, reader);
     else
         memcpy((*out)->data, nrrd->data, count * cdvr_type_size(type));
-    nrrd_geometry(nrrd, *out);
-    return CDVR_OK;
+    st = nrrd_geometry(path, nrrd, *out, err);
+    if (st != CDVR_OK) {
+        cdvr_volume_free(*out);
+        *out = NULL;
+    }
+    return st;
 }
 
 cdvr_status cdvr_volume_load_nrrd(const char *path, cdvr_volume **out, cdvr_error *err)

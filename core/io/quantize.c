@@ -74,6 +74,8 @@ cdvr_status cdvr_volume_quantize(const cdvr_volume *in, double lo, double hi, cd
     memcpy((*out)->spacing, in->spacing, sizeof in->spacing);
     memcpy((*out)->origin, in->origin, sizeof in->origin);
     memcpy((*out)->direction, in->direction, sizeof in->direction);
+    (*out)->window[0] = lo;
+    (*out)->window[1] = hi;
     window w = make_window(lo, hi);
     uint8_t *dst = (*out)->data;
     size_t count = cdvr_volume_voxels(in) * in->timesteps;

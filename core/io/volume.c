@@ -75,6 +75,8 @@ cdvr_status cdvr_volume_create(const size_t dims[3], size_t timesteps, cdvr_type
     vol->type = type;
     vol->spacing[0] = vol->spacing[1] = vol->spacing[2] = 1.0;
     vol->direction[0] = vol->direction[4] = vol->direction[8] = 1.0;
+    vol->window[0] = type == CDVR_TYPE_U8 ? 0.0 : NAN;
+    vol->window[1] = type == CDVR_TYPE_U8 ? 255.0 : NAN;
     vol->data = data;
     *out = vol;
     return CDVR_OK;
@@ -141,6 +143,101 @@ void cdvr_volume_range(const cdvr_volume *vol, double *lo, double *hi)
     *hi = mx;
 }
 
+void cdvr_volume_window_peek(const cdvr_volume *vol, double w[2])
+{
+    if (vol->type == CDVR_TYPE_U8 || (!isnan(vol->window[0]) && !isnan(vol->window[1]))) {
+        w[0] = vol->window[0];
+        w[1] = vol->window[1];
+        return;
+    }
+    cdvr_volume_range(vol, &w[0], &w[1]);
+}
+
+void cdvr_volume_window(cdvr_volume *vol, double w[2])
+{
+    cdvr_volume_window_peek(vol, w);
+    vol->window[0] = w[0];
+    vol->window[1] = w[1];
+}
+
+/* ---- geometry ---------------------------------------------------------------------------- */
+
+void cdvr_volume_direction(const cdvr_volume *vol, double D[9])
+{
+    int zero = 1;
+    for (int i = 0; i < 9; i++)
+        zero &= vol->direction[i] == 0.0;
+    for (int i = 0; i < 9; i++)
+        D[i] = zero ? (i % 4 == 0 ? 1.0 : 0.0) : vol->direction[i];
+}
+
+void cdvr_volume_index_to_world(const cdvr_volume *vol, const double ijk[3], double world[3])
+{
+    double D[9];
+    cdvr_volume_direction(vol, D);
+    for (int r = 0; r < 3; r++) {
+        world[r] = vol->origin[r];
+        for (int c = 0; c < 3; c++)
+            world[r] += D[3 * r + c] * ijk[c] * vol->spacing[c];
+    }
+}
+
+int cdvr_mat3_inverse(const double m[9], double inv[9])
+{
+    double cof[9];
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 3; c++) {
+            int r1 = (r + 1) % 3, r2 = (r + 2) % 3, c1 = (c + 1) % 3, c2 = (c + 2) % 3;
+            cof[3 * r + c] = m[3 * r1 + c1] * m[3 * r2 + c2] - m[3 * r1 + c2] * m[3 * r2 + c1];
+        }
+    double det = m[0] * cof[0] + m[1] * cof[1] + m[2] * cof[2];
+    double scale = 1.0;
+    for (int c = 0; c < 3; c++)
+        scale *= sqrt(m[c] * m[c] + m[3 + c] * m[3 + c] + m[6 + c] * m[6 + c]);
+    if (!isfinite(det) || !isfinite(scale) || !(fabs(det) > 1e-12 * scale))
+        return 0;
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 3; c++)
+            inv[3 * r + c] = cof[3 * c + r] / det; /* adjugate = transposed cofactors */
+    return 1;
+}
+
+void cdvr_volume_bounds(const cdvr_volume *vol, double lo[3], double hi[3])
+{
+    for (int a = 0; a < 3; a++) {
+        lo[a] = HUGE_VAL;
+        hi[a] = -HUGE_VAL;
+    }
+    for (int corner = 0; corner < 8; corner++) {
+        double ijk[3], world[3];
+        for (int a = 0; a < 3; a++)
+            ijk[a] = (corner >> a & 1) ? (double)(vol->dims[a] - 1) : 0.0;
+        cdvr_volume_index_to_world(vol, ijk, world);
+        for (int a = 0; a < 3; a++) {
+            lo[a] = fmin(lo[a], world[a]);
+            hi[a] = fmax(hi[a], world[a]);
+        }
+    }
+}
+
+cdvr_status cdvr_volume_check_geometry(const cdvr_volume *vol, const char *what, cdvr_error *err)
+{
+    for (int a = 0; a < 3; a++)
+        if (!isfinite(vol->spacing[a]) || vol->spacing[a] <= 0.0 || !isfinite(vol->origin[a]))
+            return cdvr_error_set(err, CDVR_ERR_ARG,
+                                  "%s: volume spacing %g and origin %g (axis %d) must be finite, "
+                                  "spacing positive",
+                                  what, vol->spacing[a], vol->origin[a], a);
+    double D[9], inv[9];
+    cdvr_volume_direction(vol, D);
+    if (!cdvr_mat3_inverse(D, inv))
+        return cdvr_error_set(err, CDVR_ERR_ARG,
+                              "%s: volume direction matrix [%g %g %g; %g %g %g; %g %g %g] is "
+                              "singular or not finite",
+                              what, D[0], D[1], D[2], D[3], D[4], D[5], D[6], D[7], D[8]);
+    return CDVR_OK;
+}
+
 cdvr_status cdvr_volume_slice_time(const cdvr_volume *vol, size_t t0, size_t count,
                                    cdvr_volume **out, cdvr_error *err)
 {
@@ -154,6 +251,7 @@ cdvr_status cdvr_volume_slice_time(const cdvr_volume *vol, size_t t0, size_t cou
     memcpy((*out)->spacing, vol->spacing, sizeof vol->spacing);
     memcpy((*out)->origin, vol->origin, sizeof vol->origin);
     memcpy((*out)->direction, vol->direction, sizeof vol->direction);
+    cdvr_volume_window_peek(vol, (*out)->window);
     memcpy((*out)->data, cdvr_volume_frame(vol, t0), count * cdvr_volume_frame_bytes(vol));
     return CDVR_OK;
 }

@@ -400,7 +400,7 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
         if (s == CDVR_OK)
             s = cdvr_image_create(cam->width, cam->height, img, err);
         if (s == CDVR_OK)
-            s = cdvr_cl_render(p->stream, f, &ro, info->spacing, info->origin, *img, err);
+            s = cdvr_cl_render(p->stream, f, &ro, info->spacing, info->origin, info->direction, *img, err);
         *setup_ms = t1 - t0;
         *render_ms = cdvr_now_ms() - t1;
         return s;

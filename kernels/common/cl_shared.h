@@ -31,4 +31,10 @@ typedef struct cdvr_cl_camera {
     cdvr_cl_i32 orthographic, width, height;
 } cdvr_cl_camera;
 
+/* The volume's box frame of render.h step 0: q = inv_dir * (world - origin), inv_dir = D^-1
+ * (row-major), in float (cdvr_cl_render computes D^-1 in double and rounds it). */
+typedef struct cdvr_cl_box_frame {
+    cdvr_cl_f32 origin[3], inv_dir[9];
+} cdvr_cl_box_frame;
+
 #endif

@@ -29,6 +29,7 @@ typedef struct vec3x8 {
 } vec3x8;
 
 typedef cdvr_cl_camera cam_params; /* kernels/common/cl_shared.h */
+typedef cdvr_cl_box_frame box_frame; /* render.h step 0, kernels/common/cl_shared.h */
 
 /* Voxels are read from a dense u8 frame, or, when the program is built with
  * -DCDVR_FETCH=name, through a codec's per-sample fetch function (cdvr/codec.h): vol is then
@@ -70,6 +71,21 @@ static void camera_rays(const cam_params *cam, vint px, vint py, packet *p)
     vfloat dz = cam->f[2] + side[2] * cam->tan_half;
     vfloat inv_len = 1.0f / sqrt(dx * dx + dy * dy + dz * dz);
     p->d = (vec3x8){dx * inv_len, dy * inv_len, dz * inv_len};
+}
+
+/* render.h step 0: the packet's world rays in the box frame q = inv_dir * (world - origin)
+ * (same t: the map is affine). */
+static void to_box_frame(const box_frame *bf, packet *p)
+{
+    const float *m = bf->inv_dir;
+    vfloat rx = p->o.x - bf->origin[0], ry = p->o.y - bf->origin[1], rz = p->o.z - bf->origin[2];
+    vec3x8 o = {m[0] * rx + m[1] * ry + m[2] * rz, m[3] * rx + m[4] * ry + m[5] * rz,
+                m[6] * rx + m[7] * ry + m[8] * rz};
+    vec3x8 d = {m[0] * p->d.x + m[1] * p->d.y + m[2] * p->d.z,
+                m[3] * p->d.x + m[4] * p->d.y + m[5] * p->d.z,
+                m[6] * p->d.x + m[7] * p->d.y + m[8] * p->d.z};
+    p->o = o;
+    p->d = d;
 }
 
 /* One slab of render.h step 1; a ray parallel to the faces misses if it lies outside. */
@@ -324,7 +340,7 @@ static void march_full(march *m, int skipping, const bricks *b, const volume_geo
 
 /* The last segment, shorter than step unless L is a multiple of it, on lanes `last`. */
 static void last_segment(const packet *p, vint n, vint last, float step, float unit,
-                         const volume_geo *v, float3 origin, float3 inv_spacing,
+                         const volume_geo *v, float3 inv_spacing,
                          __global const float4 *table, __global const float *alpha,
                          rgba8 *acc, vint *taken)
 {
@@ -334,9 +350,8 @@ static void last_segment(const packet *p, vint n, vint last, float step, float u
     if (!any(last))
         return;
     vfloat tm = ts + 0.5f * ds;
-    vec3x8 g = {(p->o.x + tm * p->d.x - origin.x) * inv_spacing.x,
-                (p->o.y + tm * p->d.y - origin.y) * inv_spacing.y,
-                (p->o.z + tm * p->d.z - origin.z) * inv_spacing.z};
+    vec3x8 g = {(p->o.x + tm * p->d.x) * inv_spacing.x, (p->o.y + tm * p->d.y) * inv_spacing.y,
+                (p->o.z + tm * p->d.z) * inv_spacing.z};
     vint i0;
     vfloat fr;
     rgba8 c = classify(trilinear(v, g), table, &i0, &fr);
@@ -440,13 +455,13 @@ static void visible_range(vec3x8 g0, vec3x8 dg, float3 lo, float3 hi, vint n_ful
 
 /* frames/params/offset: a dense frame at frames + offset (params unused), or, with
  * CDVR_FETCH, the chunk payload, its parameter blob and the frame index within the chunk.
- * Geometry as render_cpu.c holds it: origin, 1/spacing and the box's upper corner (computed
- * in double on the host). table: rgb + step-corrected alpha; alpha: alpha per unit (for the
+ * Geometry as render_cpu.c holds it: the box frame (origin, D^-1), 1/spacing and the box's
+ * upper corner (dims-1)*spacing in the box frame (computed in double on the host). table: rgb + step-corrected alpha; alpha: alpha per unit (for the
  * shorter last segment). Bricks: edge 1 << brick_shift, counts nbx, nby, nbz, skipping on/off.
  * Work-item (gx, gy) renders the PACKET_W x PACKET_H pixels from (PACKET_W gx, PACKET_H gy). */
 __kernel void raycast(__global const uchar *frames, __constant uchar *params, ulong offset,
                       int X, int Y, int Z,
-                      float ox, float oy, float oz, float isx, float isy, float isz,
+                      box_frame box, float isx, float isy, float isz,
                       float hx, float hy, float hz,
                       float step, float term_alpha, cam_params cam,
                       __global const float4 *table, __global const float *alpha,
@@ -465,16 +480,16 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     packet p;
     camera_rays(&cam, px, py, &p);
     p.hit = px < cam.width & py < cam.height;
-    float3 origin = (float3)(ox, oy, oz), inv_spacing = (float3)(isx, isy, isz);
-    intersect_box(&p, origin, (float3)(hx, hy, hz));
+    to_box_frame(&box, &p);
+    float3 inv_spacing = (float3)(isx, isy, isz);
+    intersect_box(&p, (float3)(0.0f), (float3)(hx, hy, hz));
     /* lanes that miss get an empty, well-defined segment (their t values may be inf/NaN) */
     p.t_near = select((vfloat)(0.0f), p.t_near, p.hit);
     p.t_far = select((vfloat)(0.0f), p.t_far, p.hit);
     vint n = max(convert_int8(ceil((p.t_far - p.t_near) / step)), 1);
     vfloat t0 = p.t_near + 0.5f * step;
-    vec3x8 g0 = {(p.o.x + t0 * p.d.x - origin.x) * inv_spacing.x,
-                 (p.o.y + t0 * p.d.y - origin.y) * inv_spacing.y,
-                 (p.o.z + t0 * p.d.z - origin.z) * inv_spacing.z};
+    vec3x8 g0 = {(p.o.x + t0 * p.d.x) * inv_spacing.x, (p.o.y + t0 * p.d.y) * inv_spacing.y,
+                 (p.o.z + t0 * p.d.z) * inv_spacing.z};
     g0.x = select((vfloat)(0.0f), g0.x, p.hit);
     g0.y = select((vfloat)(0.0f), g0.y, p.hit);
     g0.z = select((vfloat)(0.0f), g0.z, p.hit);
@@ -504,7 +519,7 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     m.taken = (vint)(0);
     rgba8 acc = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
     march_full(&m, skipping, &b, &v, g0, dg, table, term_alpha, &acc);
-    last_segment(&p, n, last & ~m.done, step, unit, &v, origin, inv_spacing, table, alpha,
+    last_segment(&p, n, last & ~m.done, step, unit, &v, inv_spacing, table, alpha,
                  &acc, &m.taken);
     store_pixels(image, px, py, cam.width, cam.height, acc);
     int8 t = m.taken;

@@ -213,14 +213,17 @@ static int camera_gc(lua_State *L)
     return 0;
 }
 
-/* Box of the first argument: a volume, {x, y, z} dims, or {dims=, spacing=, origin=}. */
+/* World bounds of the first argument: a volume (its oriented box), {x, y, z} dims, or
+ * {dims=, spacing=, origin=[, direction=]}. */
 static void read_box(lua_State *L, double lo[3], double hi[3])
 {
-    double dims[3], spacing[3] = {1, 1, 1}, origin[3] = {0, 0, 0};
+    cdvr_volume box = {.spacing = {1, 1, 1}, .direction = {1, 0, 0, 0, 1, 0, 0, 0, 1}};
+    double dims[3];
     if (luaL_testudata(L, 1, LCDVR_VOLUME)) {
         const cdvr_volume *v = lcdvr_checkvolume(L, 1);
+        box = *v;
         for (int a = 0; a < 3; a++)
-            dims[a] = (double)v->dims[a], spacing[a] = v->spacing[a], origin[a] = v->origin[a];
+            dims[a] = (double)v->dims[a];
     } else {
         luaL_argexpected(L, lua_istable(L, 1), 1, "cdvr.Volume or dims table");
         if (!lcdvr_numberarrayfield(L, 1, "dims", dims, 3)) {
@@ -232,15 +235,19 @@ static void read_box(lua_State *L, double lo[3], double hi[3])
                 lua_pop(L, 1);
             }
         }
-        lcdvr_numberarrayfield(L, 1, "spacing", spacing, 3);
-        lcdvr_numberarrayfield(L, 1, "origin", origin, 3);
+        lcdvr_numberarrayfield(L, 1, "spacing", box.spacing, 3);
+        lcdvr_numberarrayfield(L, 1, "origin", box.origin, 3);
+        lcdvr_numberarrayfield(L, 1, "direction", box.direction, 9);
     }
     for (int a = 0; a < 3; a++) {
-        if (!(dims[a] >= 1) || !isfinite(spacing[a]) || !isfinite(origin[a]))
+        if (!(dims[a] >= 1 && dims[a] <= 1e15) || !isfinite(box.spacing[a]) || !isfinite(box.origin[a]))
             luaL_argerror(L, 1, "dims must be >= 1, spacing and origin finite");
-        lo[a] = origin[a];
-        hi[a] = origin[a] + (dims[a] - 1) * spacing[a];
+        box.dims[a] = (size_t)dims[a];
     }
+    for (int i = 0; i < 9; i++)
+        if (!isfinite(box.direction[i]))
+            luaL_argerror(L, 1, "direction must be finite");
+    cdvr_volume_bounds(&box, lo, hi);
 }
 
 /* Distance at which a sphere of radius r fills the narrower of the two view angles. */

@@ -148,7 +148,7 @@ static void push_cl_stats(lua_State *L, ldevice *d, cdvr_cl_stream *s, double ms
 /* Setup and ray cast of the stream's frame `frame`; pushes image and stats. */
 static int render_frame(lua_State *L, ldevice *d, cdvr_cl_stream *s, size_t frame,
                         const cdvr_render_opts *opts, const double spacing[3],
-                        const double origin[3], double start)
+                        const double origin[3], const double direction[9], double start)
 {
     cdvr_image *img;
     cdvr_error err;
@@ -157,7 +157,7 @@ static int render_frame(lua_State *L, ldevice *d, cdvr_cl_stream *s, size_t fram
     lcdvr_pushimage(L, img); /* owned by Lua from here, so an error cannot leak it */
     cdvr_status st = cdvr_cl_setup(s, frame, opts->tf, &err);
     if (!st)
-        st = cdvr_cl_render(s, frame, opts, spacing, origin, img, &err);
+        st = cdvr_cl_render(s, frame, opts, spacing, origin, direction, img, &err);
     if (st)
         return lcdvr_raise(L, &err);
     push_cl_stats(L, d, s, cdvr_now_ms() - start);
@@ -178,7 +178,7 @@ int lcdvr_render_cl(lua_State *L, const cdvr_volume *vol, size_t t, void *render
     cdvr_error err;
     if (upload_frame(d, s, vol, t, &err) != CDVR_OK)
         return lcdvr_raise(L, &err);
-    return render_frame(L, d, s, 0, opts, vol->spacing, vol->origin, start);
+    return render_frame(L, d, s, 0, opts, vol->spacing, vol->origin, vol->direction, start);
 }
 
 /* Uploads chunk c of variant v and makes the stream's frames from it: the codec's decode
@@ -232,7 +232,7 @@ int lcdvr_render_cl_store(lua_State *L, const cdvr_store *st, size_t v, size_t t
     double start = cdvr_now_ms();
     cdvr_cl_set_skipping(s, skipping);
     size_t frame = load_chunk(L, s, st, v, t);
-    return render_frame(L, d, s, frame, opts, info->spacing, info->origin, start);
+    return render_frame(L, d, s, frame, opts, info->spacing, info->origin, info->direction, start);
 }
 
 int lcdvr_decode_cl(lua_State *L, const cdvr_store *st, size_t v, size_t t)

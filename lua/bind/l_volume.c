@@ -116,6 +116,47 @@ static int volume_origin(lua_State *L)
     return push_triple(L, lcdvr_checkvolume(L, 1)->origin);
 }
 
+static int volume_direction(lua_State *L)
+{
+    double D[9];
+    cdvr_volume_direction(lcdvr_checkvolume(L, 1), D);
+    for (int i = 0; i < 9; i++)
+        lua_pushnumber(L, D[i]);
+    return 9;
+}
+
+/* xmin, xmax, ymin, ymax, zmin, zmax of the oriented box (VTK's GetBounds order). */
+static int volume_bounds(lua_State *L)
+{
+    double lo[3], hi[3];
+    cdvr_volume_bounds(lcdvr_checkvolume(L, 1), lo, hi);
+    for (int a = 0; a < 3; a++) {
+        lua_pushnumber(L, lo[a]);
+        lua_pushnumber(L, hi[a]);
+    }
+    return 6;
+}
+
+/* World position of voxel (i, j, k) (from 0, fractional allowed). */
+static int volume_to_world(lua_State *L)
+{
+    const cdvr_volume *v = lcdvr_checkvolume(L, 1);
+    double ijk[3], xyz[3];
+    for (int a = 0; a < 3; a++)
+        ijk[a] = luaL_checknumber(L, a + 2);
+    cdvr_volume_index_to_world(v, ijk, xyz);
+    return push_triple(L, xyz);
+}
+
+static int volume_window(lua_State *L)
+{
+    double w[2];
+    cdvr_volume_window(lcdvr_checkvolume(L, 1), w);
+    lua_pushnumber(L, w[0]);
+    lua_pushnumber(L, w[1]);
+    return 2;
+}
+
 static int volume_bytes(lua_State *L)
 {
     const cdvr_volume *v = lcdvr_checkvolume(L, 1);
@@ -132,9 +173,11 @@ static size_t check_timestep(lua_State *L, const cdvr_volume *v, int arg)
 
 static int volume_frame(lua_State *L)
 {
-    const cdvr_volume *v = lcdvr_checkvolume(L, 1);
+    cdvr_volume *v = lcdvr_checkvolume(L, 1);
     size_t t = check_timestep(L, v, 2);
     lua_Integer count = luaL_optinteger(L, 3, 1);
+    double series_window[2];
+    cdvr_volume_window(v, series_window); /* cached: frames keep the series' window */
     luaL_argcheck(L, count >= 1 && (lua_Unsigned)count <= v->timesteps - t, 3, "timestep count out of range");
     cdvr_volume *frame;
     cdvr_error err;
@@ -184,6 +227,8 @@ static int volume_set(lua_State *L)
     }
     size_t i = c[0] + v->dims[0] * (c[1] + v->dims[1] * (c[2] + v->dims[2] * t));
     set_value(L, v, i, value_arg);
+    if (v->type != CDVR_TYPE_U8) /* the series range may have changed */
+        v->window[0] = v->window[1] = NAN;
     return 0;
 }
 
@@ -522,6 +567,8 @@ static const luaL_Reg volume_methods[] = {
     {"dims", volume_dims},   {"type", volume_type}, {"timesteps", volume_timesteps},
     {"range", volume_range}, {"get", volume_get},   {"set", volume_set},
     {"spacing", volume_spacing}, {"origin", volume_origin}, {"frame", volume_frame},
+    {"direction", volume_direction}, {"bounds", volume_bounds}, {"to_world", volume_to_world},
+    {"window", volume_window},
     {"bytes", volume_bytes}, {"quantize", volume_quantize}, {"save_raw", volume_save_raw},
     {NULL, NULL}};
 
@@ -543,6 +590,14 @@ int lcdvr_open_volume(lua_State *L)
     lcdvr_help_add(L, "v:set(x, y, z [, t], value)", "set a voxel (x, y, z from 0; t from 1)");
     lcdvr_help_add(L, "v:spacing()", "voxel spacing sx, sy, sz");
     lcdvr_help_add(L, "v:origin()", "world position of voxel (0,0,0)");
+    lcdvr_help_add(L, "v:direction()",
+                   "the 9 entries (row-major) of the direction matrix D: world = origin + D * (i*sx, j*sy, k*sz), "
+                   "column c = world direction of index axis c (from NIfTI sform/qform, NRRD space directions)");
+    lcdvr_help_add(L, "v:bounds()", "xmin, xmax, ymin, ymax, zmin, zmax of the oriented box in world coordinates");
+    lcdvr_help_add(L, "v:to_world(i, j, k)", "world position of voxel (i, j, k) (from 0; fractional allowed)");
+    lcdvr_help_add(L, "v:window()",
+                   "value window lo, hi (data units) that TFs are classified over: u8 codes 0..255 stand for lo..hi "
+                   "(quantize window, store window); other types: the range of the whole series");
     lcdvr_help_add(L, "v:frame(t [, count])", "new volume holding timesteps t .. t+count-1 (t from 1, count default 1)");
     lcdvr_help_add(L, "v:bytes()", "size of the voxel data in bytes (all timesteps)");
     lcdvr_help_add(L, "v:quantize{lo=, hi=}",

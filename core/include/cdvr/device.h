@@ -106,13 +106,15 @@ uint64_t cdvr_cl_volume_bytes(const cdvr_cl_stream *s);
 cdvr_status cdvr_cl_setup(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf, cdvr_error *err);
 
 /* b5: ray casts device frame `frame` with the TF of the last cdvr_cl_setup (which must have
- * been called for this frame) following render.h exactly, in float. opts->tf is used only
+ * been called for this frame) following render.h exactly, in float. The volume's geometry:
+ * spacing, origin and direction (volume.h: row-major 3x3, column c = world direction of index
+ * axis c; NULL or all zeros = identity; must be invertible). opts->tf is used only
  * for its unit when opts->unit is 0 (NULL: the TF of the setup); opts->threads and
  * opts->samples are ignored (see cdvr_cl_last_samples). img must have the camera's size;
  * its pixels are overwritten and its background set from opts->background. */
 cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_opts *opts,
-                           const double spacing[3], const double origin[3], cdvr_image *img,
-                           cdvr_error *err);
+                           const double spacing[3], const double origin[3],
+                           const double direction[9], cdvr_image *img, cdvr_error *err);
 
 /* Empty-space skipping on (default) or off. Results agree within rounding (0.5/255). */
 void cdvr_cl_set_skipping(cdvr_cl_stream *s, int enabled);

@@ -6,7 +6,22 @@
  *     origin + D * (i*spacing[0], j*spacing[1], k*spacing[2])
  * with D the 3x3 direction matrix (row-major: direction[3*r + c]; column c is the world
  * direction of index axis c), VTK image data's index-to-world convention (DESIGN.md
- * section 6). Volumes are created with D = identity.
+ * section 6). Volumes are created with D = identity. D must be invertible; it need not be
+ * orthonormal (an oblique NRRD may shear), though loaders normalise its columns (the length
+ * of each index step is in spacing). A D of all zeros (a zero-initialised struct) means the
+ * identity to every function here and to the renderers. World coordinates are those of the
+ * file: NIfTI's RAS+ (sform, else qform with its qfac), a NRRD's `space` (for example LPS for
+ * "left-posterior-superior"); cdvr does not convert between them.
+ *
+ * Value window: window[0..1] are the data values [lo, hi] that the 256 codes of the
+ * renderers' transfer-function table span (tf.h, render.h). For a u8 volume, code q stands
+ * for the data value lo + q * (hi - lo) / 255: [0, 255] for u8 files (code = value), the
+ * quantisation window for the output of cdvr_volume_quantize and for frames decoded from a
+ * store. For u16, i16 and f32 volumes the window is the range of the whole series (all
+ * timesteps), computed once by cdvr_volume_window and cached here; NAN means not computed
+ * yet (cdvr_volume_create), and code that changes voxels of such a volume sets it back to NAN.
+ * Every frame of a series is then classified over the same window, so a series does not
+ * flicker and frame(t) of a series renders like timestep t of it.
  */
 #ifndef CDVR_VOLUME_H
 #define CDVR_VOLUME_H
@@ -30,6 +45,7 @@ typedef struct cdvr_volume {
     double spacing[3];
     double origin[3];
     double direction[9]; /* row-major; column c = world direction of index axis c */
+    double window[2];    /* value window [lo, hi] in data units (see above) */
     void *data;
 } cdvr_volume;
 
@@ -41,7 +57,8 @@ const char *cdvr_type_name(cdvr_type type);
  * returns 1 on success. */
 int cdvr_type_parse(const char *name, cdvr_type *type);
 
-/* Allocates a zero-filled volume; spacing 1, origin 0. Fails with CDVR_ERR_NOMEM when the
+/* Allocates a zero-filled volume; spacing 1, origin 0, direction identity, window [0, 255]
+ * for u8 and NAN (not computed) for other types. Fails with CDVR_ERR_NOMEM when the
  * byte count overflows size_t, CDVR_ERR_ARG for a zero dim or zero timesteps. */
 cdvr_status cdvr_volume_create(const size_t dims[3], size_t timesteps, cdvr_type type,
                                cdvr_volume **out, cdvr_error *err);
@@ -56,7 +73,28 @@ void *cdvr_volume_frame(const cdvr_volume *vol, size_t t);
 double cdvr_volume_get(const cdvr_volume *vol, size_t x, size_t y, size_t z, size_t t);
 /* Minimum and maximum over all finite values (NaN and +-Inf ignored); both 0 if none. */
 void cdvr_volume_range(const cdvr_volume *vol, double *lo, double *hi);
-/* A new volume holding frames [t0, t0+count) of vol (copied). */
+/* The value window (see above) into w[0..1]: for u8 the stored one; for other types the
+ * cached one, computed as cdvr_volume_range over all timesteps (and cached) on first use. */
+void cdvr_volume_window(cdvr_volume *vol, double w[2]);
+/* The window without caching (a const volume whose window is not computed yet is scanned). */
+void cdvr_volume_window_peek(const cdvr_volume *vol, double w[2]);
+
+/* Geometry (see the top of this file). D is vol->direction, or the identity when that is all
+ * zeros. */
+void cdvr_volume_direction(const cdvr_volume *vol, double D[9]);
+/* world = origin + D * (ijk[0]*sx, ijk[1]*sy, ijk[2]*sz); ijk may be fractional. */
+void cdvr_volume_index_to_world(const cdvr_volume *vol, const double ijk[3], double world[3]);
+/* Inverse of a 3x3 row-major matrix by cofactors; returns 0 (inv untouched) when
+ * |det| <= 1e-12 * (product of the column lengths) or anything is not finite. */
+int cdvr_mat3_inverse(const double m[9], double inv[9]);
+/* Axis-aligned world bounds of the volume's box (its 8 corner voxel centres). */
+void cdvr_volume_bounds(const cdvr_volume *vol, double lo[3], double hi[3]);
+/* Checks that spacing is finite and positive, origin finite and D invertible; the error
+ * names `what` (e.g. "render") and the offending part. */
+cdvr_status cdvr_volume_check_geometry(const cdvr_volume *vol, const char *what, cdvr_error *err);
+
+/* A new volume holding frames [t0, t0+count) of vol (copied), with vol's geometry and value
+ * window (computed from all of vol's timesteps when not cached yet). */
 cdvr_status cdvr_volume_slice_time(const cdvr_volume *vol, size_t t0, size_t count,
                                    cdvr_volume **out, cdvr_error *err);
 
@@ -102,6 +140,7 @@ typedef struct cdvr_quantize_report {
     size_t clipped_low, clipped_high, nan_count, inf_count;
 } cdvr_quantize_report;
 
+/* The output keeps in's spacing, origin and direction; its value window is [lo, hi]. */
 cdvr_status cdvr_volume_quantize(const cdvr_volume *in, double lo, double hi, cdvr_volume **out,
                                  cdvr_quantize_report *report, cdvr_error *err);
 

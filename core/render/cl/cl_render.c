@@ -8,6 +8,7 @@
 #include "cl_internal.h"
 
 typedef cdvr_cl_camera cam_params; /* kernels/common/cl_shared.h */
+typedef cdvr_cl_box_frame box_frame; /* render.h step 0 */
 
 static cdvr_status run_kernel(cdvr_cl *cl, cl_kernel k, cl_uint ndim, const size_t *global,
                               const size_t *local, const char *what, cdvr_error *err)
@@ -319,20 +320,37 @@ static cdvr_status upload_tables(cdvr_cl_stream *s, render_params rp, cdvr_error
     return st;
 }
 
+/* render.h step 0: origin and D^-1 (computed in double, rounded to float); 0 if D is singular
+ * or not finite. NULL or all zeros: the identity. */
+static int make_box_frame(const double origin[3], const double direction[9], box_frame *out)
+{
+    static const double identity[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    int zero = 1;
+    for (int i = 0; direction && i < 9; i++)
+        zero &= direction[i] == 0.0;
+    double inv[9];
+    if (!cdvr_mat3_inverse(direction && !zero ? direction : identity, inv))
+        return 0;
+    for (int i = 0; i < 3; i++)
+        out->origin[i] = (cl_float)origin[i];
+    for (int i = 0; i < 9; i++)
+        out->inv_dir[i] = (cl_float)inv[i];
+    return 1;
+}
+
 /* Sets the ray-cast kernel's arguments (in the order of kernels/render/raycast.cl). */
 static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_params rp,
                                     const cam_params *cam, const double spacing[3],
-                                    const double origin[3], cl_mem image, cl_kernel *kernel,
+                                    const box_frame *box, cl_mem image, cl_kernel *kernel,
                                     cdvr_error *err)
 {
     voxel_source src = source_of(s, frame);
     cl_kernel k = *kernel = src.k_raycast;
     cl_int ints[3] = {(cl_int)s->dims[0], (cl_int)s->dims[1], (cl_int)s->dims[2]};
-    cl_float geo[9];
+    cl_float geo[6]; /* 1/spacing, then the box's upper corner in the box frame */
     for (int i = 0; i < 3; i++) {
-        geo[i] = (cl_float)origin[i];
-        geo[3 + i] = (cl_float)(1.0 / spacing[i]);
-        geo[6 + i] = (cl_float)(origin[i] + (double)(s->dims[i] - 1) * spacing[i]);
+        geo[i] = (cl_float)(1.0 / spacing[i]);
+        geo[3 + i] = (cl_float)((double)(s->dims[i] - 1) * spacing[i]);
     }
     cl_int bricks[5] = {CDVR_CL_BRICK_SHIFT, (cl_int)s->brick_dims[0], (cl_int)s->brick_dims[1],
                         (cl_int)s->brick_dims[2], s->skipping};
@@ -343,11 +361,10 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
         size_t size;
         const void *value;
     } args[] = {{sizeof(cl_int), &ints[0]},   {sizeof(cl_int), &ints[1]},
-                {sizeof(cl_int), &ints[2]},   {sizeof(cl_float), &geo[0]},
-                {sizeof(cl_float), &geo[1]},  {sizeof(cl_float), &geo[2]},
-                {sizeof(cl_float), &geo[3]},  {sizeof(cl_float), &geo[4]},
-                {sizeof(cl_float), &geo[5]},  {sizeof(cl_float), &geo[6]},
-                {sizeof(cl_float), &geo[7]},  {sizeof(cl_float), &geo[8]},
+                {sizeof(cl_int), &ints[2]},   {sizeof *box, box},
+                {sizeof(cl_float), &geo[0]},  {sizeof(cl_float), &geo[1]},
+                {sizeof(cl_float), &geo[2]},  {sizeof(cl_float), &geo[3]},
+                {sizeof(cl_float), &geo[4]},  {sizeof(cl_float), &geo[5]},
                 {sizeof step, &step},         {sizeof term_alpha, &term_alpha},
                 {sizeof *cam, cam},           {sizeof(cl_mem), &s->table},
                 {sizeof(cl_mem), &s->alpha_unit}, {sizeof unit, &unit},
@@ -480,15 +497,19 @@ static cdvr_status check_render_args(const cdvr_cl_stream *s, size_t frame,
 }
 
 cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_opts *opts,
-                           const double spacing[3], const double origin[3], cdvr_image *img,
-                           cdvr_error *err)
+                           const double spacing[3], const double origin[3],
+                           const double direction[9], cdvr_image *img, cdvr_error *err)
 {
     cam_params cam;
+    box_frame box;
     cdvr_status st = check_render_args(s, frame, opts, spacing, origin, img, err);
     if (!st)
         st = camera_params(opts->camera, &cam, err);
     if (st)
         return st;
+    if (!make_box_frame(origin, direction, &box))
+        return cdvr_error_set(err, CDVR_ERR_ARG,
+                              "OpenCL render: volume direction matrix is singular or not finite");
     render_params rp = resolve(opts, &s->tf, spacing);
     if (!(rp.step > 0) || !(rp.unit > 0))
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: step %g and unit %g must be > 0",
@@ -512,7 +533,7 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
         return st;
     cl_mem host_image = wrap_host_image(s->cl, img, pixels);
     cl_kernel kernel;
-    st = set_raycast_args(s, frame, rp, &cam, spacing, origin, host_image ? host_image : s->image,
+    st = set_raycast_args(s, frame, rp, &cam, spacing, &box, host_image ? host_image : s->image,
                           &kernel, err);
     if (!st)
         st = cast_and_read(s, kernel, global, local, host_image, img, pixels, err);

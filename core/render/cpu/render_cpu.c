@@ -15,7 +15,8 @@ typedef struct render_job {
     const uint8_t *voxels;
     int dims[3];
     size_t stride_y, stride_z;
-    float origin[3], inv_spacing[3], box_hi[3];
+    double origin[3], inv_dir[9];   /* step 0: box frame q = inv_dir * (world - origin) */
+    float inv_spacing[3], box_hi[3]; /* box [0, box_hi] in the box frame */
     float step, unit, term_alpha;
     const cdvr_tf *tf;
     float alpha_step[256]; /* a_c[i] = 1 - (1 - a[i])^(step/unit) */
@@ -44,13 +45,14 @@ void cdvr_render_resolve(const cdvr_volume *vol, const cdvr_render_opts *opts, d
     *term_alpha = opts->term_alpha > 0.0 ? opts->term_alpha : 0.99;
 }
 
-/* Step 1: slab intersection in float; returns 1 and [t_near, t_far) on a hit. */
+/* Step 1: slab intersection in float, in the box frame; returns 1 and [t_near, t_far) on a
+ * hit. */
 static int intersect_box(const render_job *job, const float o[3], const float d[3],
                          float *t_near, float *t_far)
 {
     float t_enter = -INFINITY, t_exit = INFINITY;
     for (int a = 0; a < 3; a++) {
-        float lo = job->origin[a], hi = job->box_hi[a];
+        float lo = 0.0f, hi = job->box_hi[a];
         if (fabsf(d[a]) < 1e-12f) {
             if (o[a] < lo || o[a] > hi)
                 return 0;
@@ -75,13 +77,13 @@ static float lerpf(float a, float b, float f)
     return a + f * (b - a);
 }
 
-/* Step 3: trilinear interpolation at world position p (grid coordinates clamped). */
+/* Step 3: trilinear interpolation at box-frame position p (grid coordinates clamped). */
 static float sample_volume(const render_job *job, const float p[3])
 {
     size_t lo[3], hi[3];
     float f[3];
     for (int a = 0; a < 3; a++) {
-        float g = (p[a] - job->origin[a]) * job->inv_spacing[a];
+        float g = p[a] * job->inv_spacing[a];
         float top = (float)(job->dims[a] - 1);
         g = fminf(fmaxf(g, 0.0f), top);
         int i0 = (int)g;
@@ -159,14 +161,26 @@ static uint64_t march_ray(const render_job *job, const float o[3], const float d
     return (uint64_t)i;
 }
 
+/* Step 0: the world ray (double) in the box frame, rounded to float. */
+static void to_box_frame(const render_job *job, const double od[3], const double dd[3],
+                         float o[3], float d[3])
+{
+    const double *m = job->inv_dir;
+    double rel[3] = {od[0] - job->origin[0], od[1] - job->origin[1], od[2] - job->origin[2]};
+    for (int r = 0; r < 3; r++) {
+        o[r] = (float)(m[3 * r] * rel[0] + m[3 * r + 1] * rel[1] + m[3 * r + 2] * rel[2]);
+        d[r] = (float)(m[3 * r] * dd[0] + m[3 * r + 1] * dd[1] + m[3 * r + 2] * dd[2]);
+    }
+}
+
 static uint64_t render_row(const render_job *job, int y)
 {
     uint64_t samples = 0;
     for (int x = 0; x < job->img->width; x++) {
         double od[3], dd[3];
+        float o[3], d[3];
         cdvr_camera_ray(job->camera, x, y, od, dd);
-        float o[3] = {(float)od[0], (float)od[1], (float)od[2]};
-        float d[3] = {(float)dd[0], (float)dd[1], (float)dd[2]};
+        to_box_frame(job, od, dd, o, d);
         samples += march_ray(job, o, d, cdvr_image_pixel(job->img, x, y));
     }
     return samples;
@@ -221,18 +235,11 @@ static cdvr_status check_volume(const cdvr_volume *vol, size_t t, cdvr_error *er
     if (t >= vol->timesteps)
         return cdvr_error_set(err, CDVR_ERR_ARG, "render: timestep %zu outside 0..%zu", t,
                               vol->timesteps - 1);
-    for (int a = 0; a < 3; a++) {
+    for (int a = 0; a < 3; a++)
         if (vol->dims[a] > INT_MAX)
             return cdvr_error_set(err, CDVR_ERR_ARG, "render: dim %zu too large",
                                   vol->dims[a]);
-        if (!isfinite(vol->spacing[a]) || vol->spacing[a] <= 0.0 ||
-            !isfinite(vol->origin[a]))
-            return cdvr_error_set(err, CDVR_ERR_ARG,
-                                  "render: volume spacing %g and origin %g (axis %d) must be "
-                                  "finite, spacing positive",
-                                  vol->spacing[a], vol->origin[a], a);
-    }
-    return CDVR_OK;
+    return cdvr_volume_check_geometry(vol, "render", err);
 }
 
 static double box_diagonal(const cdvr_volume *vol)
@@ -274,11 +281,14 @@ static void setup_job(render_job *job, const cdvr_volume *vol, size_t t,
     job->voxels = cdvr_volume_frame(vol, t);
     job->stride_y = vol->dims[0];
     job->stride_z = vol->dims[0] * vol->dims[1];
+    double D[9];
+    cdvr_volume_direction(vol, D);
+    cdvr_mat3_inverse(D, job->inv_dir); /* invertible: checked by check_volume */
     for (int a = 0; a < 3; a++) {
         job->dims[a] = (int)vol->dims[a];
-        job->origin[a] = (float)vol->origin[a];
+        job->origin[a] = vol->origin[a];
         job->inv_spacing[a] = (float)(1.0 / vol->spacing[a]);
-        job->box_hi[a] = (float)(vol->origin[a] + (double)(vol->dims[a] - 1) * vol->spacing[a]);
+        job->box_hi[a] = (float)((double)(vol->dims[a] - 1) * vol->spacing[a]);
     }
     job->step = (float)step;
     job->unit = (float)unit;
