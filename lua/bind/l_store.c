@@ -411,7 +411,7 @@ static int l_encode(lua_State *L)
         return lcdvr_raise(L, &err);
     cdvr_store *st = NULL;
     if (cdvr_store_open(path, &st, &err) != CDVR_OK)
-        return lcdvr_fail(L, &err);
+        return lcdvr_raise(L, &err);
     pushstore(L, st);
     return 1;
 }
@@ -422,7 +422,7 @@ static int l_open(lua_State *L)
     cdvr_store *st = NULL;
     cdvr_error err;
     if (cdvr_store_open(path, &st, &err) != CDVR_OK)
-        return lcdvr_fail(L, &err);
+        return lcdvr_raise(L, &err);
     pushstore(L, st);
     return 1;
 }
