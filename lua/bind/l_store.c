@@ -358,12 +358,12 @@ static const cdvr_volume *encode_input(lua_State *L, const cdvr_volume *vol,
                                        cdvr_encode_opts *o)
 {
     o->source_type = vol->type;
-    if (vol->type == CDVR_TYPE_U8) {
-        o->qlo = 0;
-        o->qhi = 255;
+    double window[2];
+    cdvr_volume_window_peek(vol, window); /* u8: what its codes stand for (quantize window) */
+    o->qlo = window[0];
+    o->qhi = window[1];
+    if (vol->type == CDVR_TYPE_U8)
         return vol;
-    }
-    cdvr_volume_range(vol, &o->qlo, &o->qhi);
     cdvr_volume *q = NULL;
     cdvr_error err;
     if (cdvr_volume_quantize(vol, o->qlo, o->qhi, &q, NULL, &err) != CDVR_OK)
@@ -646,13 +646,18 @@ static int store_decode(lua_State *L)
     size_t v = opts == 3 ? 0 : checkvariant(L, st, 3);
     static const char *const devices[] = {"cpu", "cl", NULL};
     int device = opts ? optionfield(L, opts, "device", devices, 0) : 0;
-    if (device == 1)
-        return lcdvr_decode_cl(L, st, v, (size_t)t - 1);
-    cdvr_volume *vol = NULL;
-    cdvr_error err;
-    if (cdvr_store_decode(st, v, (size_t)t - 1, &vol, &err) != CDVR_OK)
-        return lcdvr_raise(L, &err);
-    lcdvr_pushvolume(L, vol);
+    if (device == 1) {
+        lcdvr_decode_cl(L, st, v, (size_t)t - 1);
+    } else {
+        cdvr_volume *vol = NULL;
+        cdvr_error err;
+        if (cdvr_store_decode(st, v, (size_t)t - 1, &vol, &err) != CDVR_OK)
+            return lcdvr_raise(L, &err);
+        lcdvr_pushvolume(L, vol);
+    }
+    cdvr_volume *out = lcdvr_checkvolume(L, -1); /* codes span the store's window (volume.h) */
+    out->window[0] = cdvr_store_get_info(st)->qlo;
+    out->window[1] = cdvr_store_get_info(st)->qhi;
     return 1;
 }
 
