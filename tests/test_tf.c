@@ -60,11 +60,18 @@ static void test_bad_points(void)
 {
     cdvr_tf tf;
     cdvr_error err;
-    cdvr_tf_point high = {256, 0, 0, 0, 0};
-    CHECK(cdvr_tf_init(&tf, &high, 1, 1.0, &err) == CDVR_ERR_ARG, "value 256 accepted");
-    CHECK(strstr(err.msg, "256") != NULL, "message does not name the value: %s", err.msg);
-    cdvr_tf_point neg = {-1, 0, 0, 0, 0};
-    CHECK(cdvr_tf_init(&tf, &neg, 1, 1.0, &err) == CDVR_ERR_ARG, "value -1 accepted");
+    /* data units: any finite value (CT values, densities); normalised: [0, 1] */
+    cdvr_tf_point hu[] = {{-1000, 0, 0, 0, 0}, {3000, 1, 1, 1, 1}};
+    CHECK(cdvr_tf_init(&tf, hu, 2, 1.0, &err) == CDVR_OK, "CT values refused: %s", err.msg);
+    cdvr_tf_point high = {1.5, 0, 0, 0, 0};
+    CHECK(cdvr_tf_init_normalized(&tf, &high, 1, 1.0, &err) == CDVR_ERR_ARG,
+          "normalised value 1.5 accepted");
+    CHECK(strstr(err.msg, "1.5") != NULL, "message does not name the value: %s", err.msg);
+    cdvr_tf_point neg = {-0.1, 0, 0, 0, 0};
+    CHECK(cdvr_tf_init_normalized(&tf, &neg, 1, 1.0, &err) == CDVR_ERR_ARG,
+          "normalised value -0.1 accepted");
+    cdvr_tf_point inf = {INFINITY, 0, 0, 0, 0};
+    CHECK(cdvr_tf_init(&tf, &inf, 1, 1.0, &err) == CDVR_ERR_ARG, "infinite value accepted");
     cdvr_tf_point color = {10, 1.5, 0, 0, 0};
     CHECK(cdvr_tf_init(&tf, &color, 1, 1.0, &err) == CDVR_ERR_ARG, "r 1.5 accepted");
     cdvr_tf_point alpha = {10, 0, 0, 0, -0.1};
@@ -78,8 +85,62 @@ static void test_bad_points(void)
     CHECK(cdvr_tf_init(&tf, &ok, 1, -1.0, &err) == CDVR_ERR_ARG, "negative unit accepted");
 }
 
+/* tf.h: table[i] = TF(lo + (hi - lo) * i / 255), x_255 = hi; normalised: TF(i / 255). */
+static void test_windows(void)
+{
+    cdvr_tf tf;
+    cdvr_error err;
+    /* density 0.2 .. 0.7 (the combustor's range): opaque ramp from 0.45 to 0.7 */
+    cdvr_tf_point pts[] = {{0.2, 0, 0, 0, 0}, {0.45, 0, 0, 0, 0}, {0.7, 1, 1, 1, 1}};
+    CHECK_OK(cdvr_tf_init(&tf, pts, 3, 0, &err), err);
+    CHECK(tf.table[0][3] == 0.0f && tf.table[1][3] == 1.0f && tf.table[255][3] == 1.0f,
+          "window [0, 255]: code 0 below 0.2, the rest above 0.7");
+    CHECK_OK(cdvr_tf_set_window(&tf, 0.2, 0.7, &err), err);
+    CHECK(tf.window[0] == 0.2 && tf.window[1] == 0.7, "window recorded");
+    for (int i = 0; i < 256; i++) {
+        double x = i == 255 ? 0.7 : 0.2 + 0.5 * i / 255.0;
+        double a = x <= 0.45 ? 0 : (x - 0.45) / 0.25;
+        CHECK(near(tf.table[i][3], a, 1e-6), "entry %d (value %g): alpha %g, expected %g", i, x,
+              tf.table[i][3], a);
+    }
+    CHECK(tf.table[255][3] == 1.0f, "x_255 is hi exactly");
+    float out[4];
+    cdvr_tf_eval(&tf, 0.575, out);
+    CHECK(near(out[3], 0.5, 1e-6), "eval(0.575) = %g", out[3]);
+    /* a constant window: every entry is TF(lo) */
+    CHECK_OK(cdvr_tf_set_window(&tf, 0.6, 0.6, &err), err);
+    CHECK(near(tf.table[0][3], 0.6, 1e-6) && near(tf.table[255][3], 0.6, 1e-6), "window [0.6, 0.6]");
+    CHECK(cdvr_tf_set_window(&tf, 1, 0, &err) == CDVR_ERR_ARG, "hi < lo accepted");
+    CHECK(cdvr_tf_set_window(&tf, 0, NAN, &err) == CDVR_ERR_ARG, "NaN window accepted");
+    CHECK(cdvr_tf_rescale(&tf, 0, 1, &err) == CDVR_ERR_ARG, "rescale of a TF in data units");
+
+    /* normalised (presets): the table is the same over every window */
+    cdvr_tf_point frac[] = {{0, 0, 0, 0, 0}, {120 / 255.0, 0.5, 0, 0, 0}, {1, 1, 1, 1, 1}};
+    cdvr_tf norm, pinned;
+    CHECK_OK(cdvr_tf_init_normalized(&norm, frac, 3, 0, &err), err);
+    cdvr_tf_point codes[] = {{0, 0, 0, 0, 0}, {120, 0.5, 0, 0, 0}, {255, 1, 1, 1, 1}};
+    cdvr_tf byte;
+    CHECK_OK(cdvr_tf_init(&byte, codes, 3, 0, &err), err);
+    CHECK(memcmp(norm.table, byte.table, sizeof byte.table) == 0,
+          "normalised c/255 points give the 8-bit table exactly");
+    CHECK_OK(cdvr_tf_set_window(&norm, 0, 3926, &err), err);
+    CHECK(memcmp(norm.table, byte.table, sizeof byte.table) == 0,
+          "a normalised TF's table does not depend on the window");
+    /* pinned to data values (ParaView's rescale): point p -> lo + p (hi - lo) */
+    pinned = norm;
+    CHECK_OK(cdvr_tf_rescale(&pinned, 1000, 2020, &err), err);
+    CHECK(!pinned.normalized && near(pinned.points[1].value, 1480, 1e-9) &&
+              pinned.points[2].value == 2020,
+          "rescaled points %g %g", pinned.points[1].value, pinned.points[2].value);
+    CHECK_OK(cdvr_tf_set_window(&pinned, 0, 4080, &err), err);
+    /* entry i stands for 16 i: 1480 is entry 92.5 -> below it the red ramp up to 0.5 */
+    CHECK(pinned.table[62][0] == 0.0f && near(pinned.table[92][0], 0.5 * (1472 - 1000) / 480.0, 1e-6),
+          "pinned over [0, 4080]: r(62) %g r(92) %g", pinned.table[62][0], pinned.table[92][0]);
+}
+
 int main(void)
 {
+    test_windows();
     test_piecewise_linear();
     test_sorting_and_steps();
     test_bad_points();

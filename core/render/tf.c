@@ -8,12 +8,15 @@ static int in_unit_range(double x)
     return isfinite(x) && x >= 0.0 && x <= 1.0;
 }
 
-static cdvr_status check_point(const cdvr_tf_point *p, size_t index, cdvr_error *err)
+static cdvr_status check_point(const cdvr_tf_point *p, size_t index, int normalized,
+                               cdvr_error *err)
 {
-    if (!isfinite(p->value) || p->value < 0.0 || p->value > 255.0)
+    if (!isfinite(p->value) || (normalized && !in_unit_range(p->value)))
         return cdvr_error_set(err, CDVR_ERR_ARG,
-                              "transfer function: point %zu: value %g outside [0, 255]",
-                              index + 1, p->value);
+                              "transfer function: point %zu: value %g %s", index + 1, p->value,
+                              normalized ? "outside [0, 1] (a normalised TF: fractions of the "
+                                           "data's value window)"
+                                         : "is not finite");
     if (!in_unit_range(p->r) || !in_unit_range(p->g) || !in_unit_range(p->b) ||
         !in_unit_range(p->a))
         return cdvr_error_set(err, CDVR_ERR_ARG,
@@ -40,7 +43,7 @@ static void sort_points(cdvr_tf_point *pts, size_t n)
 
 /* Function value at v: constant outside the points, linear between them; at a repeated
  * value the later point wins (right-continuous). */
-static void evaluate(const cdvr_tf *tf, double v, float out[4])
+void cdvr_tf_eval(const cdvr_tf *tf, double v, float out[4])
 {
     const cdvr_tf_point *pts = tf->points;
     size_t n = tf->npoints;
@@ -63,8 +66,22 @@ static void evaluate(const cdvr_tf *tf, double v, float out[4])
     out[3] = (float)(p->a + f * (q->a - p->a));
 }
 
-cdvr_status cdvr_tf_init(cdvr_tf *tf, const cdvr_tf_point *points, size_t npoints, double unit,
-                         cdvr_error *err)
+static void build_table(cdvr_tf *tf, double lo, double hi)
+{
+    tf->window[0] = lo;
+    tf->window[1] = hi;
+    for (int i = 0; i < 256; i++) {
+        double x;
+        if (tf->normalized)
+            x = i / 255.0;
+        else
+            x = i == 255 ? hi : lo + (hi - lo) * i / 255.0;
+        cdvr_tf_eval(tf, x, tf->table[i]);
+    }
+}
+
+static cdvr_status init(cdvr_tf *tf, const cdvr_tf_point *points, size_t npoints, double unit,
+                        int normalized, cdvr_error *err)
 {
     if (!tf || (!points && npoints))
         return cdvr_error_set(err, CDVR_ERR_ARG, "transfer function: NULL argument");
@@ -76,7 +93,7 @@ cdvr_status cdvr_tf_init(cdvr_tf *tf, const cdvr_tf_point *points, size_t npoint
         return cdvr_error_set(err, CDVR_ERR_ARG,
                               "transfer function: unit %g must be >= 0 (0 = one voxel)", unit);
     for (size_t i = 0; i < npoints; i++) {
-        cdvr_status st = check_point(&points[i], i, err);
+        cdvr_status st = check_point(&points[i], i, normalized, err);
         if (st != CDVR_OK)
             return st;
     }
@@ -84,9 +101,54 @@ cdvr_status cdvr_tf_init(cdvr_tf *tf, const cdvr_tf_point *points, size_t npoint
         tf->points[i] = points[i];
     tf->npoints = npoints;
     tf->unit = unit;
+    tf->normalized = normalized;
     sort_points(tf->points, npoints);
-    for (int i = 0; i < 256; i++)
-        evaluate(tf, (double)i, tf->table[i]);
+    build_table(tf, 0.0, 255.0);
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_tf_init(cdvr_tf *tf, const cdvr_tf_point *points, size_t npoints, double unit,
+                         cdvr_error *err)
+{
+    return init(tf, points, npoints, unit, 0, err);
+}
+
+cdvr_status cdvr_tf_init_normalized(cdvr_tf *tf, const cdvr_tf_point *points, size_t npoints,
+                                    double unit, cdvr_error *err)
+{
+    return init(tf, points, npoints, unit, 1, err);
+}
+
+static cdvr_status check_window(double lo, double hi, const char *what, cdvr_error *err)
+{
+    if (!isfinite(lo) || !isfinite(hi) || hi < lo)
+        return cdvr_error_set(err, CDVR_ERR_ARG,
+                              "transfer function: %s [%g, %g] must be finite with lo <= hi",
+                              what, lo, hi);
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_tf_set_window(cdvr_tf *tf, double lo, double hi, cdvr_error *err)
+{
+    cdvr_status st = check_window(lo, hi, "value window", err);
+    if (st == CDVR_OK)
+        build_table(tf, lo, hi);
+    return st;
+}
+
+cdvr_status cdvr_tf_rescale(cdvr_tf *tf, double lo, double hi, cdvr_error *err)
+{
+    cdvr_status st = check_window(lo, hi, "range", err);
+    if (st != CDVR_OK)
+        return st;
+    if (!tf->normalized)
+        return cdvr_error_set(err, CDVR_ERR_ARG,
+                              "transfer function: range applies to a normalised TF (a preset); "
+                              "this one is in data units already");
+    for (size_t i = 0; i < tf->npoints; i++)
+        tf->points[i].value = lo + tf->points[i].value * (hi - lo);
+    tf->normalized = 0;
+    build_table(tf, lo, hi);
     return CDVR_OK;
 }
 

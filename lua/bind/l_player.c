@@ -370,10 +370,14 @@ static int l_player(lua_State *L)
     lua_getfield(L, 1, "store");
     cdvr_store *st = lcdvr_checkstore(L, -1);
     lua_setiuservalue(L, ud, UV_STORE);
-    lua_getfield(L, 1, "tf");
-    cdvr_tf *tf = lcdvr_checktf(L, -1);
-    lua_setiuservalue(L, ud, UV_TF);
     const cdvr_store_info *info = cdvr_store_get_info(st);
+    lua_getfield(L, 1, "tf");
+    cdvr_tf *tf = lcdvr_pushtf(L, lcdvr_checktf(L, -1)); /* tf, copy */
+    cdvr_error tf_err;
+    if (cdvr_tf_set_window(tf, info->qlo, info->qhi, &tf_err) != CDVR_OK) /* tf.h: data units */
+        lcdvr_raise(L, &tf_err);
+    lua_setiuservalue(L, ud, UV_TF);
+    lua_pop(L, 1);
 
     lp->opts.store = st;
     lp->opts.tf = tf;

@@ -7,25 +7,37 @@
 #include <string.h>
 #include <time.h>
 
-/* Frame t (from 0) of vol as a u8 volume: vol itself when it is u8, else that frame quantized
- * over the whole series' range (pushed as a Lua volume so an error cannot leak it). */
-static const cdvr_volume *u8_frame(lua_State *L, const cdvr_volume *vol, size_t *t)
+/* Frame t (from 0) of vol as a u8 volume, and the value window its codes span (volume.h):
+ * vol itself when it is u8, else that one frame quantized over the series' window, which is
+ * computed once and cached in vol (pushed as a Lua volume so an error cannot leak it). */
+static const cdvr_volume *u8_frame(lua_State *L, cdvr_volume *vol, size_t *t, double window[2])
 {
+    cdvr_volume_window(vol, window);
     if (vol->type == CDVR_TYPE_U8)
         return vol;
-    double lo, hi;
-    cdvr_volume_range(vol, &lo, &hi);
     cdvr_volume *frame = NULL, *q = NULL;
     cdvr_error err;
     if (cdvr_volume_slice_time(vol, *t, 1, &frame, &err) != CDVR_OK)
         lcdvr_raise(L, &err);
-    cdvr_status st = cdvr_volume_quantize(frame, lo, hi, &q, NULL, &err);
+    cdvr_status st = cdvr_volume_quantize(frame, window[0], window[1], &q, NULL, &err);
     cdvr_volume_free(frame);
     if (st != CDVR_OK)
         lcdvr_raise(L, &err);
     lcdvr_pushvolume(L, q);
     *t = 0;
     return q;
+}
+
+/* The TF in opts->tf with its table built over window (tf.h), pushed as a new cdvr.TF that
+ * replaces the caller's in stack slot `slot`. */
+static void window_tf(lua_State *L, cdvr_render_opts *o, const double window[2], int slot)
+{
+    cdvr_tf *tf = lcdvr_pushtf(L, o->tf);
+    cdvr_error err;
+    if (cdvr_tf_set_window(tf, window[0], window[1], &err) != CDVR_OK)
+        lcdvr_raise(L, &err);
+    lua_replace(L, slot);
+    o->tf = tf;
 }
 
 static void read_background(lua_State *L, int idx, float bg[4])
@@ -130,6 +142,8 @@ static int render_store_cl(lua_State *L, const cdvr_store *st, size_t v, size_t 
     lua_call(L, 1, 1);          /* st, opts, tf, camera, info */
     cdvr_render_opts o = {0};
     read_options(L, &o, 5);
+    const double window[2] = {cdvr_store_get_info(st)->qlo, cdvr_store_get_info(st)->qhi};
+    window_tf(L, &o, window, 3);
     return lcdvr_render_cl_store(L, st, v, t, &o);
 }
 
@@ -158,7 +172,7 @@ static size_t store_variant(lua_State *L, const cdvr_store *st)
 static int l_render(lua_State *L)
 {
     const cdvr_store *st = luaL_testudata(L, 1, LCDVR_STORE) ? lcdvr_checkstore(L, 1) : NULL;
-    const cdvr_volume *vol = st ? NULL : lcdvr_checkvolume(L, 1);
+    cdvr_volume *vol = st ? NULL : lcdvr_checkvolume(L, 1);
     luaL_checktype(L, 2, LUA_TTABLE);
     static const char *const devices[] = {"cpu", "cl", NULL};
     static const char *const methods[] = {"raycast", "slice", "splat", NULL};
@@ -181,6 +195,8 @@ static int l_render(lua_State *L)
         cdvr_error err;
         if (cdvr_store_decode(st, v, frame, &decoded, &err) != CDVR_OK)
             return lcdvr_raise(L, &err);
+        decoded->window[0] = cdvr_store_get_info(st)->qlo; /* its codes span the store window */
+        decoded->window[1] = cdvr_store_get_info(st)->qhi;
         lcdvr_pushvolume(L, decoded);
         lua_replace(L, 1);
         vol = decoded;
@@ -189,7 +205,9 @@ static int l_render(lua_State *L)
     lua_settop(L, 4); /* slots 3, 4 hold the TF and camera while rendering */
     cdvr_render_opts o = {0};
     read_options(L, &o, 1);
-    const cdvr_volume *u8 = u8_frame(L, vol, &frame);
+    double window[2];
+    const cdvr_volume *u8 = u8_frame(L, vol, &frame, window);
+    window_tf(L, &o, window, 3);
     if (method == 2)
         return lcdvr_render_splat(L, u8, frame, &o, device);
     if (device == 1)
@@ -212,11 +230,13 @@ int lcdvr_open_render(lua_State *L)
     lua_setfield(L, -2, "render");
     lcdvr_help_add(L, "cdvr.render(volume, {tf=, camera=, step=, unit=, device=, t=, threads=, background=, term=})",
                    "ray-cast image and stats {samples=, ms=}; device \"cpu\" (default) or \"cl\"; "
-                   "camera defaults to cdvr.orbit_camera(volume); non-u8 volumes are quantized "
-                   "over their range first; term = early-termination alpha (0.99, >= 1 off)");
+                   "camera defaults to cdvr.orbit_camera(volume); the TF is classified over the "
+                   "volume's value window (v:window(): the series' range, or the quantize/store window), "
+                   "non-u8 frames are quantized over it; term = early-termination alpha (0.99, >= 1 off)");
     lcdvr_help_add(L, "cdvr.render(store, {t=, variant=, device=, ...})",
                    "render timestep t of a store variant: device \"cl\" renders the chunk on the "
                    "device (in the compressed domain for fetch-mode codecs such as hvq), \"cpu\" "
-                   "decodes it first; stats add device_bytes= and volume_bytes= on the device");
+                   "decodes it first; stats add device_bytes= and volume_bytes= on the device; "
+                   "the TF is classified over the store's window");
     return 0;
 }

@@ -3,6 +3,7 @@
 #include "lcdvr.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -48,7 +49,8 @@ static void read_point(lua_State *L, int idx, lua_Integer i, cdvr_tf_point *p)
     p->value = v[0], p->r = v[1], p->g = v[2], p->b = v[3], p->a = v[4];
 }
 
-/* Builds a TF from the points table at idx and pushes it. */
+/* Builds a TF from the points table at idx ({value, r, g, b, a}, ..., unit=, normalized=)
+ * and pushes it. */
 static int push_tf_from_table(lua_State *L, int idx)
 {
     idx = lua_absindex(L, idx);
@@ -60,12 +62,34 @@ static int push_tf_from_table(lua_State *L, int idx)
     for (lua_Integer i = 1; i <= n; i++)
         read_point(L, idx, i, &pts[i - 1]);
     double unit = lcdvr_optnumberfield(L, idx, "unit", 0.0);
+    int normalized = lcdvr_optbooleanfield(L, idx, "normalized", 0);
     cdvr_tf tf;
     cdvr_error err;
-    if (cdvr_tf_init(&tf, pts, (size_t)n, unit, &err) != CDVR_OK)
+    cdvr_status st = normalized ? cdvr_tf_init_normalized(&tf, pts, (size_t)n, unit, &err)
+                                : cdvr_tf_init(&tf, pts, (size_t)n, unit, &err);
+    if (st != CDVR_OK)
         return lcdvr_raise(L, &err);
     lcdvr_pushtf(L, &tf);
     return 1;
+}
+
+/* Applies cdvr.tf's options table at opts (may be none) to the TF on top of the stack:
+ * range={lo, hi} pins a normalised TF to data values, unit= sets the opacity unit. */
+static void apply_tf_options(lua_State *L, int opts)
+{
+    if (lua_isnoneornil(L, opts))
+        return;
+    luaL_checktype(L, opts, LUA_TTABLE);
+    cdvr_tf *tf = lcdvr_checktf(L, -1);
+    double range[2];
+    cdvr_error err;
+    if (lcdvr_numberarrayfield(L, opts, "range", range, 2) &&
+        cdvr_tf_rescale(tf, range[0], range[1], &err) != CDVR_OK)
+        lcdvr_raise(L, &err);
+    double unit = lcdvr_optnumberfield(L, opts, "unit", tf->unit);
+    if (!(unit >= 0.0) || !isfinite(unit))
+        luaL_error(L, "cdvr.tf: option 'unit' must be >= 0 (0 = one voxel), got %f", unit);
+    tf->unit = unit;
 }
 
 static int ends_with(const char *s, const char *suffix)
@@ -115,12 +139,19 @@ static int load_preset(lua_State *L, const char *name)
 
 static int l_tf(lua_State *L)
 {
+    int n;
+    lua_settop(L, 2); /* source, options */
     if (lua_type(L, 1) == LUA_TSTRING) {
         const char *s = lua_tostring(L, 1);
-        return ends_with(s, ".lua") ? load_tf_file(L, s) : load_preset(L, s);
+        n = ends_with(s, ".lua") ? load_tf_file(L, s) : load_preset(L, s);
+        if (n != 1) /* nil, message */
+            return n;
+    } else {
+        luaL_checktype(L, 1, LUA_TTABLE);
+        push_tf_from_table(L, 1);
     }
-    luaL_checktype(L, 1, LUA_TTABLE);
-    return push_tf_from_table(L, 1);
+    apply_tf_options(L, 2);
+    return 1;
 }
 
 static void push_points(lua_State *L, const cdvr_tf *tf)
@@ -138,6 +169,10 @@ static void push_points(lua_State *L, const cdvr_tf *tf)
     }
     lua_pushnumber(L, tf->unit);
     lua_setfield(L, -2, "unit");
+    if (tf->normalized) {
+        lua_pushboolean(L, 1);
+        lua_setfield(L, -2, "normalized");
+    }
 }
 
 static int tf_points(lua_State *L)
@@ -150,7 +185,7 @@ static int tf_lookup(lua_State *L)
 {
     const cdvr_tf *tf = lcdvr_checktf(L, 1);
     float out[4];
-    cdvr_tf_lookup(tf, (float)luaL_checknumber(L, 2), out);
+    cdvr_tf_eval(tf, luaL_checknumber(L, 2), out);
     for (int c = 0; c < 4; c++)
         lua_pushnumber(L, out[c]);
     return 4;
@@ -162,12 +197,30 @@ static int tf_unit(lua_State *L)
     return 1;
 }
 
+static int tf_normalized(lua_State *L)
+{
+    lua_pushboolean(L, lcdvr_checktf(L, 1)->normalized);
+    return 1;
+}
+
+/* Values of the lowest and highest control points (fractions of the window when normalised). */
+static int tf_range(lua_State *L)
+{
+    const cdvr_tf *tf = lcdvr_checktf(L, 1);
+    lua_pushnumber(L, tf->points[0].value);
+    lua_pushnumber(L, tf->points[tf->npoints - 1].value);
+    return 2;
+}
+
 /* Writes the TF as a Lua file returning its points table; returns 0 or -1 (errno set). */
 static int write_tf(FILE *f, const void *obj)
 {
     const cdvr_tf *tf = obj;
-    fprintf(f, "-- cdvr transfer function: {value, r, g, b, alpha per unit}\nreturn {\n");
+    fprintf(f, "-- cdvr transfer function: {%s, r, g, b, alpha per unit}\nreturn {\n",
+            tf->normalized ? "fraction of the data's value window" : "data value");
     fprintf(f, "  unit = %.17g,\n", tf->unit);
+    if (tf->normalized)
+        fprintf(f, "  normalized = true,\n");
     for (size_t i = 0; i < tf->npoints; i++) {
         const cdvr_tf_point *p = &tf->points[i];
         fprintf(f, "  {%.17g, %.17g, %.17g, %.17g, %.17g},\n", p->value, p->r, p->g, p->b, p->a);
@@ -185,8 +238,8 @@ static int tf_save(lua_State *L)
 static int tf_tostring(lua_State *L)
 {
     const cdvr_tf *tf = lcdvr_checktf(L, 1);
-    lua_pushfstring(L, "cdvr.TF %d points, unit %f (%p)", (int)tf->npoints, tf->unit,
-                    lua_topointer(L, 1));
+    lua_pushfstring(L, "cdvr.TF %d points, %s, unit %f (%p)", (int)tf->npoints,
+                    tf->normalized ? "normalised" : "data units", tf->unit, lua_topointer(L, 1));
     return 1;
 }
 
@@ -198,6 +251,7 @@ static int tf_gc(lua_State *L)
 
 static const luaL_Reg tf_methods[] = {{"points", tf_points}, {"lookup", tf_lookup},
                                       {"save", tf_save},     {"unit", tf_unit},
+                                      {"normalized", tf_normalized}, {"range", tf_range},
                                       {NULL, NULL}};
 
 static const luaL_Reg tf_meta[] = {
@@ -209,11 +263,15 @@ int lcdvr_open_tf(lua_State *L)
     lua_pushvalue(L, -1); /* the cdvr table, for cdvr.share_dir at call time */
     lua_pushcclosure(L, l_tf, 1);
     lua_setfield(L, -2, "tf");
-    lcdvr_help_add(L, "cdvr.tf(points | preset | path.lua)",
-                   "transfer function from {{value, r,g,b, a}, ... [, unit=]}, a preset of "
-                   "share/tf (grayscale, ct_bone, ct_soft, hot, mri) or a saved .lua file");
-    lcdvr_help_add(L, "tf:points()", "the control points {{value, r,g,b, a}, ..., unit=}");
-    lcdvr_help_add(L, "tf:lookup(v)", "r, g, b, a at value v (0..255, interpolated)");
+    lcdvr_help_add(L, "cdvr.tf(points | preset | path.lua [, {range=, unit=}])",
+                   "transfer function from {{value, r,g,b, a}, ... [, unit=, normalized=]} with values in "
+                   "data units (or fractions of the data's window with normalized=true), a preset of "
+                   "share/tf (grayscale, ct_bone, ct_soft, hot, mri: normalised, they follow the data's "
+                   "window; range={lo, hi} pins them to data values) or a saved .lua file");
+    lcdvr_help_add(L, "tf:points()", "the control points {{value, r,g,b, a}, ..., unit=, normalized=}");
+    lcdvr_help_add(L, "tf:lookup(v)", "r, g, b, a at value v (data units; a fraction 0..1 if normalised)");
+    lcdvr_help_add(L, "tf:normalized()", "true for a TF whose values are fractions of the data's window (presets)");
+    lcdvr_help_add(L, "tf:range()", "values of the first and last control points");
     lcdvr_help_add(L, "tf:unit()", "opacity unit length (0 = one voxel spacing)");
     lcdvr_help_add(L, "tf:save(path)", "write a Lua file cdvr.tf(path) reads back; true or nil, msg");
     return 0;

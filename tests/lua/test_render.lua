@@ -42,12 +42,23 @@ for _, name in ipairs{"grayscale", "ct_bone", "ct_soft", "hot", "mri"} do
   check(p and #p:points() >= 2, "preset " .. name)
 end
 local bone = cdvr.tf("ct_bone")
-check(select(4, bone:lookup(250)) > 0.8 and select(4, bone:lookup(60)) == 0, "ct_bone: dense opaque, air clear")
+check(bone:normalized() and select(4, bone:lookup(250 / 255)) > 0.8 and select(4, bone:lookup(60 / 255)) == 0,
+      "ct_bone: normalised, dense opaque, air clear")
+local bone_hu = cdvr.tf("ct_bone", {range = {-1000, 3000}})
+check(not bone_hu:normalized() and select(4, bone_hu:lookup(2800)) > 0.8 and select(4, bone_hu:lookup(0)) == 0,
+      "ct_bone pinned to [-1000, 3000]")
+check(bone_hu:points()[2][1] == -1000 + 4000 * 120 / 255, "pinned point value")
+raises(function() cdvr.tf({{0, 0, 0, 0, 0}}, {range = {0, 1}}) end, "normalised", "range on a TF in data units")
+raises(function() cdvr.tf("hot", {range = {5, 1}}) end, "lo <= hi", "inverted range")
+local saved = tmpdir .. "/test_render_bone.lua"
+check(bone:save(saved) == true and cdvr.tf(saved):normalized(), "a normalised TF saves as normalised")
+os.remove(saved)
 raises(function() cdvr.tf("no_such_preset") end, "unknown preset", "unknown preset")
 raises(function() cdvr.tf("../../etc/passwd") end, "bad preset name", "preset path traversal")
 raises(function() cdvr.tf{} end, "control points", "empty TF")
 raises(function() cdvr.tf{ {0, 0, 0, 0} } end, "5 numbers", "short point")
-raises(function() cdvr.tf{ {300, 0, 0, 0, 0} } end, "300", "value out of range")
+check(cdvr.tf{ {1000, 0, 0, 0, 0}, {3000, 1, 1, 1, 1} }, "values in data units (CT) are accepted")
+raises(function() cdvr.tf{ {1.5, 0, 0, 0, 0}, normalized = true } end, "1.5", "normalised value out of range")
 raises(function() cdvr.tf{ {0, 0, 0, 0, 2} } end, "[0, 1]", "alpha out of range")
 raises(function() cdvr.tf(42) end, nil, "number argument")
 raises(function() tf:lookup("x") end, nil, "lookup of a string")
@@ -121,11 +132,12 @@ check(cdvr.compare(img1, img_bg).psnr < 40, "background is composited in compare
 raises(function() cdvr.compare(box, img1) end, nil, "volume against image")
 raises(function() cdvr.compare(box, cdvr.volume{dims = {2, 2, 2}}) end, "differ", "size mismatch")
 
--- float volumes are quantized over their range first
+-- float volumes: the TF is in their units, classified over their range
 local f = cdvr.volume{dims = {17, 17, 17}, type = "f32"}
 for z = 0, 16 do for y = 0, 16 do for x = 0, 16 do f:set(x, y, z, x < 8 and -3.5 or 7.25) end end end
--- seen from +y, screen right is -x: x < 8 (-3.5 -> 0) on the right, x >= 8 (7.25 -> 255) left
-local dense = cdvr.tf{ {200, 0, 0, 0, 0}, {255, 1, 1, 1, 0.5} }
+check(select(1, f:window()) == -3.5 and select(2, f:window()) == 7.25, "float window = range")
+-- seen from +y, screen right is -x: x < 8 (-3.5, clear) on the right, x >= 8 (7.25) left
+local dense = cdvr.tf{ {6, 0, 0, 0, 0}, {7.25, 1, 1, 1, 0.5} }
 local fi = cdvr.render(f, {tf = dense, camera = orbit})
 check(select(4, fi:pixel(10, 16)) > 0.5 and select(4, fi:pixel(22, 16)) == 0,
       "float volume quantized over its range: " .. select(4, fi:pixel(10, 16)) .. " " .. select(4, fi:pixel(22, 16)))
