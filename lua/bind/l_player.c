@@ -19,8 +19,10 @@ typedef struct lplayer {
     cdvr_player_opts opts;
     lua_State *L;        /* the running state, during p:run only */
     int capture;         /* out= set: quality never adapts, frames are deterministic */
+    int has_policy;      /* policy= given: it decides, also when capturing (stats.capture) */
     int callback_limit;
     char out_pattern[1024];
+    const char *variant_why; /* why opts.variant (a literal) */
 } lplayer;
 
 /* Uservalue slots of the player userdata. */
@@ -131,18 +133,20 @@ static void push_variants(lua_State *L, const cdvr_store *st)
     }
 }
 
-/* Capture floor: the user's `variant` (0-based) or, with min_psnr, the cheapest variant
- * meeting it; the player never reads below it while capturing. */
+/* Capture without a policy: the user's `variant` (0-based), or with min_psnr the cheapest
+ * variant meeting it, or else the best quality. With a policy, the policy decides with
+ * stats.capture = true: share/lua/cdvr/policy.lua's rule (deterministic: the fastest variant
+ * meeting the floor, the best quality when there is none); capture waits for data either way. */
 static cdvr_status decide_cb(void *ud, cdvr_player *player, size_t t, size_t group, int *variant,
                              char *reason, size_t reason_size, cdvr_error *err)
 {
     lplayer *lp = ud;
     lua_State *L = lp->L;
     const cdvr_store *st = lp->opts.store;
-    if (lp->capture) {
+    if (lp->capture && !lp->has_policy) {
         *variant = lp->opts.variant;
-        snprintf(reason, reason_size, "capture: %s (quality set by the user; capture waits for data, never adapts)",
-                 cdvr_store_variant(st, (size_t)*variant)->name);
+        snprintf(reason, reason_size, "capture: %s (%s; capture waits for data, never adapts)",
+                 cdvr_store_variant(st, (size_t)*variant)->name, lp->variant_why);
         return CDVR_OK;
     }
     lua_getiuservalue(L, 1, UV_POLICY);           /* policy */
@@ -159,7 +163,7 @@ static cdvr_status decide_cb(void *ud, cdvr_player *player, size_t t, size_t gro
     lua_setfield(L, -2, "group");
     lua_pushboolean(L, lp->opts.pipelined);
     lua_setfield(L, -2, "pipelined");
-    lua_pushboolean(L, 0);
+    lua_pushboolean(L, lp->capture);
     lua_setfield(L, -2, "capture");
     size_t nrows;
     const cdvr_frame_row *rows = cdvr_player_rows(player, &nrows);
@@ -263,10 +267,29 @@ static int is_callable(lua_State *L, int idx)
     return 0;
 }
 
+/* Best quality (policy.lua's order): highest encode-time PSNR (a raw variant counts as
+ * lossless), ties broken by more stored bytes. */
+static int best_variant(const cdvr_store *st)
+{
+    const cdvr_store_info *info = cdvr_store_get_info(st);
+    int best = 0;
+    double best_q = -HUGE_VAL;
+    for (size_t v = 0; v < info->nvariants; v++) {
+        const cdvr_variant_info *var = cdvr_store_variant(st, v);
+        double q = var->codec_id == CDVR_CODEC_ID_RAW ? HUGE_VAL : isnan(var->psnr) ? -HUGE_VAL : var->psnr;
+        if (q > best_q || (q == best_q && var->bytes > cdvr_store_variant(st, (size_t)best)->bytes)) {
+            best = (int)v;
+            best_q = q;
+        }
+    }
+    return best;
+}
+
+/* variant= (name or index, 0-based result); absent: the best quality. */
 static int variant_option(lua_State *L, const cdvr_store *st)
 {
     int t = lua_getfield(L, 1, "variant");
-    int v = 0;
+    int v = best_variant(st);
     if (t == LUA_TNUMBER) {
         v = (int)lua_tointeger(L, -1) - 1;
     } else if (t == LUA_TSTRING) {
@@ -414,6 +437,7 @@ static int l_player(lua_State *L)
     lp->callback_limit = (int)lcdvr_optintegerfield(L, 1, "callback_limit", 50000000);
     luaL_argcheck(L, lp->callback_limit > 0, 1, "callback_limit must be positive");
     lp->opts.variant = variant_option(L, st);
+    lp->variant_why = "best quality (no variant, policy or min_psnr given)";
 
     const char *out = lcdvr_optstringfield(L, 1, "out", NULL);
     if (out) {
@@ -430,17 +454,21 @@ static int l_player(lua_State *L)
         lua_getfield(L, 1, "variant");
         int user_variant = !lua_isnil(L, -1);
         lua_pop(L, 1);
+        if (user_variant)
+            lp->variant_why = "the variant set by the user";
         if (!user_variant && min_psnr > -HUGE_VAL) {
             int v = variant_for_psnr(st, min_psnr);
             if (v < 0)
                 luaL_error(L, "cdvr.player: no variant of %s reaches min_psnr %f", cdvr_store_path(st), min_psnr);
             lp->opts.variant = v;
+            lp->variant_why = "the cheapest variant meeting min_psnr";
         }
     }
     if (!lp->capture && lcdvr_optbooleanfield(L, 1, "pace", 1))
         lp->opts.pace_fps = lcdvr_optnumberfield(L, 1, "target_fps", 0);
     lp->opts.loop = lcdvr_optbooleanfield(L, 1, "loop", 0);
-    if (resolve_policy(L, ud) && !lp->capture) {
+    lp->has_policy = resolve_policy(L, ud);
+    if (lp->has_policy || lp->capture) {
         lp->opts.decide = decide_cb;
         lp->opts.decide_ud = lp;
     }
@@ -500,11 +528,18 @@ static int player_run(lua_State *L)
     lua_createtable(L, 0, 6);                     /* report */
     setnum(L, "fps", cdvr_player_fps(lp->player));
     lua_createtable(L, (int)n, 0);
+    const char *why = NULL; /* the decision in force: reason of the last group start */
     for (size_t i = 0; i < n; i++) {
         push_row(L, lp->opts.store, &rows[i]);
+        if (rows[i].group_start)
+            why = rows[i].reason;
+        lua_pushstring(L, why ? why : "");
+        lua_setfield(L, -2, "why");
         lua_rawseti(L, -2, (lua_Integer)i + 1);
     }
     lua_setfield(L, -2, "frames");
+    lua_pushboolean(L, lp->capture);
+    lua_setfield(L, -2, "capture");
     push_stage_medians(L, rows, n);
     lua_setfield(L, -2, "median");
     lua_pushboolean(L, lp->opts.pipelined);
@@ -547,9 +582,11 @@ int lcdvr_open_player(lua_State *L)
     lcdvr_help_add(L, "cdvr.player{store=, tf=, camera=, policy=, ...}",
                    "playback of a store: reader, stage-2 and device threads; camera = cdvr.Camera, path or function(frame, t); "
                    "policy = function(stats) or 'fixed'|'open_loop'|'closed_loop'; target_fps, variant, pipeline, cold, read_mbps, "
-                   "out='frames/%04d.png' (capture: deterministic), device='cl'|'cpu', pace (default true with target_fps)");
+                   "out='frames/%04d.png' (capture: deterministic, never adapts; with policy= the policy's capture rule, else variant=, "
+                   "min_psnr= or the best quality), device='cl'|'cpu', pace (default true with target_fps); variant default: best quality");
     lcdvr_help_add(L, "p:run{frames=N, first=1}",
-                   "plays N frames -> {fps=, frames={rows: t, variant, read_ms .. render_ms, frame_ms, reason, error}, median={...}}");
+                   "plays N frames -> {fps=, capture=, frames={rows: t, variant, why (the decision in force), read_ms .. render_ms, "
+                   "frame_ms, reason (at group starts), error}, median={...}}");
     lcdvr_help_add(L, "p:close()", "release the player's buffers and its OpenCL stream");
     return 0;
 }

@@ -170,6 +170,25 @@ do
   end
 end
 
+-- Render-bound (device="cpu"): rendering, the same for every variant, is the slowest stage;
+-- stepping down would give up quality for nothing, so closed_loop keeps it and says why.
+do
+  local p = policy.closed_loop{ target_fps = 20 }        -- 50 ms
+  local s = stats{ current = "raw" }
+  local slow_render = {}
+  for i = 1, 6 do slow_render[i] = { fixed_ms = 100, ms_per_byte = 1e-6 } end  -- read 0.4 ms
+  for _ = 1, 5 do
+    local name, reason = run_group(p, s, "raw", 6, slow_render)
+    assert(name == "raw", "render-bound closed_loop stepped down to " .. name .. ": " .. reason)
+    assert(reason:find("render-bound", 1, true) and reason:find("keep raw", 1, true), reason)
+  end
+  -- the same plant read-bound (read 40 ms of 50): stepping down pays and happens
+  p = policy.closed_loop{ target_fps = 40 }
+  s = stats{ current = "raw" }
+  local name, reason = run_group(p, s, "raw", 6)
+  assert(name == "S1T3" and reason:find("step down to S1T3 (predicted 30.0 ms)", 1, true), reason)
+end
+
 -- Noise of +-5 % around the target never makes it switch.
 do
   local target_ms = 30                    -- S1T3 runs at 30 ms

@@ -38,6 +38,7 @@
 --   decode = median decode_ms of that variant's frames (every variant outputs one timestep
 --            per frame), else of all frames
 --   setup, render = medians over all frames (they do not depend on the variant)
+-- (policy.stages(v, m) gives these per-stage predictions, policy.predict(v, m) their total.)
 -- Serial player: the sum. Pipelined player (cdvr/player.h: reader thread, unzip thread, and
 -- the device thread doing upload..render): max(read, unzip, upload+decode+setup+render).
 -- A stage never measured yet counts as 0 ms (the next group measures it).
@@ -46,8 +47,11 @@
 --   policy.open_loop{target_fps=, margin=0.9, pipelined=, variant=}
 --   policy.closed_loop{target_fps=, hysteresis=0.1, window=, up_after=2, memory=8, variant=}
 --     Feedback on the median frame_ms of the current variant's last `window` frames (default
---     the group length, at least 3, at most 16). Above target*(1+h): one step down, to the
---     best-quality variant with fewer stored bytes. Below target*(1-h): step up to the best
+--     the group length, at least 3, at most 16). Above target*(1+h): step down to the
+--     best-quality variant with fewer stored bytes whose predicted time (measured median times
+--     the timing model's ratio) saves at least the fraction h; when none does (the slowest
+--     stage, e.g. rendering on device="cpu", is the same for every variant) it keeps the
+--     quality and says so; without stage timings, one step down. Below target*(1-h): step up to the best
 --     variant whose predicted time (measured median times the timing model's ratio, or the
 --     stored-bytes ratio without stage timings; never less than what that variant measured
 --     in the last `memory` groups) fits the target, once that has held for `up_after`
@@ -235,21 +239,30 @@ local function uses_stage2(v)
     and stored_bytes(v) < payload_bytes(v)
 end
 
--- Predicted frame time (ms) of variant v from measurement m.
-function policy.predict(v, m, pipelined)
+-- Predicted time (ms) of each stage of variant v from measurement m.
+function policy.stages(v, m)
   local function per(bytes, rate) return rate and bytes / rate or 0 end
-  local read = per(stored_bytes(v), m.read)
-  local unzip = uses_stage2(v) and per(payload_bytes(v), m.unzip) or 0
-  local upload = per(payload_bytes(v), m.upload)
   if m.decode[v.name] == nil then
     m.decode[v.name] = field_median(m.frames, "decode_ms", v.name) or m.decode_all or false
   end
-  local decode = m.decode[v.name] or 0
-  local device = upload + decode + m.setup + m.render
+  return {
+    read = per(stored_bytes(v), m.read),
+    unzip = uses_stage2(v) and per(payload_bytes(v), m.unzip) or 0,
+    upload = per(payload_bytes(v), m.upload),
+    decode = m.decode[v.name] or 0,
+    setup = m.setup,
+    render = m.render,
+  }
+end
+
+-- Predicted frame time (ms) of variant v from measurement m.
+function policy.predict(v, m, pipelined)
+  local st = policy.stages(v, m)
+  local device = st.upload + st.decode + st.setup + st.render
   if pipelined then
-    return math.max(read, unzip, device)
+    return math.max(st.read, st.unzip, device)
   end
-  return read + unzip + device
+  return st.read + st.unzip + device
 end
 
 -- ---- fixed --------------------------------------------------------------------------------
@@ -350,12 +363,40 @@ local function recent_frame_times(frames, name, window)
   return times
 end
 
--- Among allowed, the best-quality variant faster than cur (the next step down).
-local function step_down(allowed, cur)
-  for _, v in ipairs(allowed) do
-    if stored_bytes(v) < stored_bytes(cur) then return v end
+-- The slowest stage of variant v under measurement m: name and predicted ms.
+local STAGES = { "read", "unzip", "upload", "decode", "setup", "render" }
+local function slowest_stage(v, m)
+  local st = policy.stages(v, m)
+  local name, ms = STAGES[1], st[STAGES[1]]
+  for _, k in ipairs(STAGES) do
+    if st[k] > ms then name, ms = k, st[k] end
   end
-  return nil
+  return name, ms
+end
+
+-- The step down from cur when it measures `measured` ms, too slow: the best-quality allowed
+-- variant with fewer stored bytes whose predicted time (measured times the timing model's
+-- ratio) saves at least the hysteresis fraction h of the frame time. Without stage timings
+-- (no model), the next faster variant. Returns the variant, or nil and why not: quality is
+-- never given up for a gain the model does not predict (e.g. when rendering, which no
+-- variant changes, is the slowest stage).
+local function step_down(state, stats, allowed, cur, measured, pipelined)
+  local m = policy.measure(stats.frames)
+  local cur_model = m and policy.predict(cur, m, pipelined) or 0
+  local best, best_ms
+  for _, v in ipairs(allowed) do
+    if stored_bytes(v) < stored_bytes(cur) then
+      if cur_model <= 0 then return v end
+      local predicted = measured * policy.predict(v, m, pipelined) / cur_model
+      if predicted <= measured * (1 - state.hysteresis) then return v, predicted end
+      if best == nil or predicted < best_ms then best, best_ms = v, predicted end
+    end
+  end
+  if best == nil then return nil, "already the fastest allowed" end
+  local stage, stage_ms = slowest_stage(cur, m)
+  return nil, string.format("%s-bound (%s %s), no faster variant saves %d%% (%s predicted %s): keep %s",
+                            stage, stage, fmt_ms(stage_ms), math.floor(state.hysteresis * 100 + 0.5),
+                            best.name, fmt_ms(best_ms), cur.name)
 end
 
 -- Time of `up` predicted from cur's measured median: the timing model's ratio when stage
@@ -403,20 +444,21 @@ local function closed_loop_step(state, stats, allowed, cur, fps)
   end
   state.memory[cur.name] = { ms = measured, group = stats.group or 0 }
   local what = string.format("closed_loop: %s median %s", cur.name, fmt_ms(measured))
+  local pipelined = stats.pipelined
+  if pipelined == nil then pipelined = state.pipelined end
   if measured > target * (1 + h) then
     state.up_streak = 0
-    local down = step_down(allowed, cur)
+    local down, detail = step_down(state, stats, allowed, cur, measured, pipelined)
     if not down then
-      return cur.name, string.format("%s > %s, already the fastest allowed", what, fmt_ms(target * (1 + h)))
+      return cur.name, string.format("%s > %s, %s", what, fmt_ms(target * (1 + h)), detail)
     end
-    return down.name, string.format("%s > %s, step down to %s", what, fmt_ms(target * (1 + h)), down.name)
+    return down.name, string.format("%s > %s, step down to %s%s", what, fmt_ms(target * (1 + h)), down.name,
+                                    detail and (" (predicted " .. fmt_ms(detail) .. ")") or "")
   end
   if measured >= target * (1 - h) then
     state.up_streak = 0
     return cur.name, string.format("%s within %s +-%d%%, stay", what, fmt_ms(target), math.floor(h * 100 + 0.5))
   end
-  local pipelined = stats.pipelined
-  if pipelined == nil then pipelined = state.pipelined end
   local up, predicted = step_up(state, stats, allowed, cur, measured, pipelined, target)
   if not up then
     state.up_streak = 0
