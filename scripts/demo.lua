@@ -33,14 +33,14 @@ local path = cdvr.path.orbit{center = {(x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) /
                              period = frames, fov = 30}
 local p = cdvr.player{store = st, tf = tf, camera = path, width = 256, height = 256,
                       policy = "closed_loop", target_fps = tonumber(opt["target-fps"]),
-                      read_mbps = tonumber(opt["read-mbps"])}
+                      read_mbps = tonumber(opt["read-mbps"]), loop = true}
 local run = p:run{frames = frames}
 p:close()
 
 -- Capture pass: deterministic frames at the best quality, written as PNG.
 local best = info.variants[1].name
 local cap = cdvr.player{store = st, tf = tf, camera = path, width = 256, height = 256,
-                        variant = best, out = opt.out .. "/%04d.png"}
+                        variant = best, out = opt.out .. "/%04d.png", loop = true}
 cap:run{frames = frames}
 cap:close()
 
@@ -49,7 +49,8 @@ local ref = cdvr.render(q, {tf = tf, camera = path:camera(1, 256, 256), t = 1})
 print()
 print(("%-8s %8s %8s %10s %10s %8s"):format("variant", "bpv", "ratio", "vol_psnr", "img_psnr", "fps"))
 for _, var in ipairs(info.variants) do
-  local fp = cdvr.player{store = st, tf = tf, camera = path, width = 256, height = 256, variant = var.name}
+  local fp = cdvr.player{store = st, tf = tf, camera = path, width = 256, height = 256, variant = var.name,
+                         loop = true}
   local r = fp:run{frames = math.min(frames, 12)}
   fp:close()
   local img = cdvr.render(st:decode(1, var.name), {tf = tf, camera = path:camera(1, 256, 256)})

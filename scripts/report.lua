@@ -78,7 +78,8 @@ for _, spec in ipairs(datasets) do
   for vi, var in ipairs(info.variants) do
     common.progress("%s: %s (%d/%d)", name, var.name, vi, #info.variants)
     local p = cdvr.player{store = st, tf = tf, camera = path, variant = var.name, width = width,
-                          height = width, device = device, read_mbps = tonumber(opt["read-mbps"])}
+                          height = width, device = device, read_mbps = tonumber(opt["read-mbps"]),
+                          loop = true}
     local r = p:run{frames = frames}
     p:close()
     local psnr_sum, nfinite = 0, 0

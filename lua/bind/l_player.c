@@ -525,7 +525,14 @@ static int player_run(lua_State *L)
         return lcdvr_raise(L, &err);
     size_t n;
     const cdvr_frame_row *rows = cdvr_player_rows(lp->player, &n);
-    lua_createtable(L, 0, 6);                     /* report */
+    lua_createtable(L, 0, 8);                     /* report */
+    if (cdvr_player_stopped_early(lp->player) > 0) { /* reached the last timestep, loop=false */
+        lua_pushfstring(L, "stopped at the last timestep %d of %s after %d of %d frames "
+                           "(cdvr.player{loop=true} plays on from timestep 1)",
+                        (int)info->timesteps, cdvr_store_path(lp->opts.store), (int)n, (int)frames);
+        lcdvr_warn(L, "%s", lua_tostring(L, -1));
+        lua_setfield(L, -2, "stopped");
+    }
     setnum(L, "fps", cdvr_player_fps(lp->player));
     lua_createtable(L, (int)n, 0);
     const char *why = NULL; /* the decision in force: reason of the last group start */
@@ -583,7 +590,8 @@ int lcdvr_open_player(lua_State *L)
                    "playback of a store: reader, stage-2 and device threads; camera = cdvr.Camera, path or function(frame, t); "
                    "policy = function(stats) or 'fixed'|'open_loop'|'closed_loop'; target_fps, variant, pipeline, cold, read_mbps, "
                    "out='frames/%04d.png' (capture: deterministic, never adapts; with policy= the policy's capture rule, else variant=, "
-                   "min_psnr= or the best quality), device='cl'|'cpu', pace (default true with target_fps); variant default: best quality");
+                   "min_psnr= or the best quality), device='cl'|'cpu', pace (default true with target_fps); variant default: best quality; "
+                   "loop=true wraps past the last timestep (default: playback stops there, report.stopped says so)");
     lcdvr_help_add(L, "p:run{frames=N, first=1}",
                    "plays N frames -> {fps=, capture=, frames={rows: t, variant, why (the decision in force), read_ms .. render_ms, "
                    "frame_ms, reason (at group starts), error}, median={...}}");

@@ -2,6 +2,7 @@
 #include "cdvr/atomicfile.h"
 #include "lcdvr.h"
 
+#include <stdarg.h>
 #include <string.h>
 
 int lcdvr_raise(lua_State *L, const cdvr_error *err)
@@ -14,6 +15,17 @@ int lcdvr_fail(lua_State *L, const cdvr_error *err)
     luaL_pushfail(L);
     lua_pushstring(L, err->msg[0] ? err->msg : cdvr_status_name(err->status));
     return 2;
+}
+
+void lcdvr_warn(lua_State *L, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    const char *msg = lua_pushvfstring(L, fmt, ap);
+    va_end(ap);
+    fprintf(stderr, "cdvr: warning: %s\n", msg);
+    fflush(stderr);
+    lua_pop(L, 1);
 }
 
 int lcdvr_save_file(lua_State *L, const char *path, int (*write)(FILE *f, const void *obj),

@@ -37,6 +37,11 @@ int lcdvr_raise(lua_State *L, const cdvr_error *err);
 /* Pushes nil and the message; returns 2 (for `return lcdvr_fail(L, &err);`). */
 int lcdvr_fail(lua_State *L, const cdvr_error *err);
 
+/* Writes one line "cdvr: warning: <message>" to stderr (lua_pushfstring formats): for results
+ * that are valid but probably not what the user meant (a camera that misses the volume,
+ * playback stopped at the last timestep). */
+void lcdvr_warn(lua_State *L, const char *fmt, ...);
+
 /* Writes path through a temporary file (cdvr_atomic_file) with write(f, obj), which returns
  * nonzero on failure; pushes true, or nil and a message naming path. Returns the count. */
 int lcdvr_save_file(lua_State *L, const char *path, int (*write)(FILE *f, const void *obj),

@@ -34,7 +34,7 @@ local cam = cdvr.orbit_camera(q, {azimuth = 30, elevation = 25, width = width, h
 
 local function play(variant, pipelined, cold, read_mbps)
   local p = cdvr.player{store = st, tf = tf, camera = cam, variant = variant, pipeline = pipelined,
-                        cold = cold, read_mbps = read_mbps, device = opt.device}
+                        cold = cold, read_mbps = read_mbps, device = opt.device, loop = true}
   local r = p:run{frames = frames}
   p:close()
   return r
