@@ -80,7 +80,7 @@ end
 
 -- render-bound playback (not a capture): closed_loop keeps the best quality
 local p = cdvr.player{store = st, tf = tf, camera = path, width = 128, height = 128, step = 0.15,
-                      device = "cpu", policy = "closed_loop", target_fps = 1000, pace = false}
+                      device = "cpu", policy = "closed_loop", target_fps = 1000, pace = false, loop = true}
 r = p:run{frames = 18}
 local counts, bound = {}, 0
 for _, row in ipairs(r.frames) do
