@@ -82,7 +82,7 @@ static void test_png(void)
     }
     int w = 0, h = 0, n = 0;
     unsigned char *pix = stbi_load(path, &w, &h, &n, 4);
-    CHECK(pix != NULL && w == 7 && h == 5, "read back %dx%d", w, h);
+    CHECK(pix != NULL && w == 7 && h == 5 && n == 3, "read back %dx%d, %d channels (RGB)", w, h, n);
     if (pix) {
         uint8_t want[7 * 5 * 4];
         cdvr_image_to_rgba8(img, want);
@@ -91,6 +91,21 @@ static void test_png(void)
               "top-left / bottom row orientation");
         stbi_image_free(pix);
     }
+    /* with alpha: RGBA, straight colour; a half-transparent pixel over a transparent
+     * background keeps its alpha, and RGB composites it over black */
+    img->background[3] = 0.0f;
+    set_pixel(img, 0, 0, 0.5f, 0.25f, 0.0f, 0.5f);
+    CHECK_OK(cdvr_image_save_png_rgba(img, path, &err), err);
+    pix = stbi_load(path, &w, &h, &n, 0);
+    CHECK(pix != NULL && n == 4 && pix[0] == 255 && pix[1] == 128 && pix[3] == 128,
+          "RGBA: %d channels, first pixel %d %d %d", n, pix ? pix[0] : -1, pix ? pix[1] : -1,
+          pix ? pix[3] : -1);
+    stbi_image_free(pix);
+    CHECK_OK(cdvr_image_save_png(img, path, &err), err);
+    pix = stbi_load(path, &w, &h, &n, 0);
+    CHECK(pix != NULL && n == 3 && pix[0] == 128 && pix[1] == 64,
+          "RGB over a transparent background: %d %d", pix ? pix[0] : -1, pix ? pix[1] : -1);
+    stbi_image_free(pix);
     unlink(path);
     /* an unwritable path: error naming it, no file left */
     CHECK(cdvr_image_save_png(img, "/nonexistent-dir/x.png", &err) == CDVR_ERR_IO,

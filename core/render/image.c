@@ -97,6 +97,19 @@ void cdvr_image_to_rgba8(const cdvr_image *img, uint8_t *buf)
         }
 }
 
+void cdvr_image_to_rgb8(const cdvr_image *img, uint8_t *buf)
+{
+    const float *bg = img->background;
+    for (int y = 0; y < img->height; y++)
+        for (int x = 0; x < img->width; x++) {
+            const float *c = cdvr_image_pixel(img, x, y);
+            float rest = (1.0f - c[3]) * bg[3];
+            uint8_t *dst = buf + 3 * ((size_t)y * (size_t)img->width + (size_t)x);
+            for (int i = 0; i < 3; i++)
+                dst[i] = to_byte(c[i] + rest * bg[i]);
+        }
+}
+
 typedef struct png_sink {
     FILE *file;
     int failed;
@@ -110,31 +123,44 @@ static void png_write(void *context, void *data, int size)
 }
 
 /* Writes the encoded PNG into the open temporary file; returns 0 on success. */
-static int write_png_file(FILE *file, const cdvr_image *img, const uint8_t *rgba8)
+static int write_png_file(FILE *file, const cdvr_image *img, const uint8_t *pixels, int channels)
 {
     png_sink sink = {file, 0};
-    if (!stbi_write_png_to_func(png_write, &sink, img->width, img->height, 4, rgba8,
-                                img->width * 4))
+    if (!stbi_write_png_to_func(png_write, &sink, img->width, img->height, channels, pixels,
+                                img->width * channels))
         return -1;
     return sink.failed ? -1 : 0;
 }
 
-cdvr_status cdvr_image_save_png(const cdvr_image *img, const char *path, cdvr_error *err)
+static cdvr_status save_png(const cdvr_image *img, const char *path, int channels, cdvr_error *err)
 {
     if (!img || !path || !*path)
         return cdvr_error_set(err, CDVR_ERR_ARG, "image: save_png needs an image and a path");
     if (img->width > (1 << 28) / img->height)
         return cdvr_error_set(err, CDVR_ERR_ARG, "%s: image %dx%d too large for PNG", path,
                               img->width, img->height);
-    size_t bytes = (size_t)img->width * (size_t)img->height * 4;
-    uint8_t *rgba8 = malloc(bytes);
-    if (!rgba8)
+    size_t bytes = (size_t)img->width * (size_t)img->height * (size_t)channels;
+    uint8_t *pixels = malloc(bytes);
+    if (!pixels)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for the PNG", path);
-    cdvr_image_to_rgba8(img, rgba8);
+    if (channels == 4)
+        cdvr_image_to_rgba8(img, pixels);
+    else
+        cdvr_image_to_rgb8(img, pixels);
     cdvr_atomic_file af;
     cdvr_status st = cdvr_atomic_open(&af, path, err);
     if (st == CDVR_OK)
-        st = cdvr_atomic_commit(&af, write_png_file(af.f, img, rgba8) != 0, err);
-    free(rgba8);
+        st = cdvr_atomic_commit(&af, write_png_file(af.f, img, pixels, channels) != 0, err);
+    free(pixels);
     return st;
+}
+
+cdvr_status cdvr_image_save_png(const cdvr_image *img, const char *path, cdvr_error *err)
+{
+    return save_png(img, path, 3, err);
+}
+
+cdvr_status cdvr_image_save_png_rgba(const cdvr_image *img, const char *path, cdvr_error *err)
+{
+    return save_png(img, path, 4, err);
 }

@@ -3,6 +3,8 @@
 
 #include "lcdvr.h"
 
+#include <string.h>
+
 typedef struct limage {
     cdvr_image *img; /* NULL once closed */
 } limage;
@@ -71,12 +73,28 @@ static int image_pixel(lua_State *L)
     return 4;
 }
 
+/* 1 if path ends in .png (any case). */
+static int png_extension(const char *path)
+{
+    size_t n = strlen(path);
+    return n >= 4 && path[n - 4] == '.' && (path[n - 3] | 32) == 'p' && (path[n - 2] | 32) == 'n' &&
+           (path[n - 1] | 32) == 'g';
+}
+
 static int image_save(lua_State *L)
 {
     const cdvr_image *img = lcdvr_checkimage(L, 1);
     const char *path = luaL_checkstring(L, 2);
+    int alpha = 0;
+    if (!lua_isnoneornil(L, 3)) {
+        luaL_checktype(L, 3, LUA_TTABLE);
+        alpha = lcdvr_optbooleanfield(L, 3, "alpha", 0);
+    }
+    if (!png_extension(path))
+        return luaL_error(L, "img:save: cannot write '%s': only PNG is written (name it .png)", path);
     cdvr_error err;
-    if (cdvr_image_save_png(img, path, &err) != CDVR_OK)
+    cdvr_status st = alpha ? cdvr_image_save_png_rgba(img, path, &err) : cdvr_image_save_png(img, path, &err);
+    if (st != CDVR_OK)
         return lcdvr_fail(L, &err);
     lua_pushboolean(L, 1);
     return 1;
@@ -94,6 +112,8 @@ int lcdvr_open_image(lua_State *L)
     lcdvr_help_add(L, "img:size()", "width, height of an image in pixels");
     lcdvr_help_add(L, "img:pixel(x, y)",
                    "r, g, b, a in [0,1], premultiplied, before the background (x, y from 0, y down)");
-    lcdvr_help_add(L, "img:save(path)", "write a PNG (composited over the background); true or nil, msg");
+    lcdvr_help_add(L, "img:save(path.png [, {alpha=true}])",
+                   "write an RGB PNG composited over the background (RGBA with alpha=true); other extensions "
+                   "are errors; true or nil, msg on I/O failure");
     return 0;
 }

@@ -208,6 +208,11 @@ static int l_render(lua_State *L)
     double window[2];
     const cdvr_volume *u8 = u8_frame(L, vol, &frame, window);
     window_tf(L, &o, window, 3);
+    if (!cdvr_render_view_hits(u8, o.camera))
+        lcdvr_warn(L, "cdvr.render: the camera's view misses the volume (eye %f %f %f, looking at %f %f %f): "
+                      "the image is only background",
+                   o.camera->eye[0], o.camera->eye[1], o.camera->eye[2], o.camera->center[0],
+                   o.camera->center[1], o.camera->center[2]);
     if (method == 2)
         return lcdvr_render_splat(L, u8, frame, &o, device);
     if (device == 1)

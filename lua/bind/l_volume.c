@@ -365,13 +365,12 @@ static int raw_opts(lua_State *L, int idx, cdvr_raw_opts *raw)
     return 1;
 }
 
-/* Pushes the loaded volume, or nil, message for file problems; raises for misuse. */
+/* Pushes the loaded volume, or raises with the loader's message (it names the file and the
+ * reason): a script never goes on with a nil volume. */
 static int push_load_result(lua_State *L, cdvr_status st, cdvr_volume *vol, const cdvr_error *err)
 {
-    if (st == CDVR_ERR_ARG)
-        return lcdvr_raise(L, err);
     if (st != CDVR_OK)
-        return lcdvr_fail(L, err);
+        return lcdvr_raise(L, err);
     lcdvr_pushvolume(L, vol);
     return 1;
 }
@@ -488,11 +487,8 @@ static int l_load_series(lua_State *L)
     cdvr_raw_opts raw;
     int has_raw = raw_opts(L, 2, &raw);
     if (lua_type(L, 1) == LUA_TSTRING) {
-        if (!series_names_from_pattern(L, lua_tostring(L, 1), 2)) {
-            luaL_pushfail(L);
-            lua_insert(L, -2);
-            return 2;
-        }
+        if (!series_names_from_pattern(L, lua_tostring(L, 1), 2))
+            return lua_error(L); /* the message names the first missing file */
     } else {
         luaL_checktype(L, 1, LUA_TTABLE);
         lua_pushvalue(L, 1);
@@ -581,7 +577,8 @@ int lcdvr_open_volume(lua_State *L)
     lcdvr_newclass(L, LCDVR_VOLUME, volume_methods, volume_meta);
     lcdvr_setfuncs(L, volume_funcs);
     lcdvr_help_add(L, "cdvr.load(path [, opts])",
-                   "load .nrrd .nhdr .nii .nii.gz, or raw with opts {dims=, type=, endian=, header=, timesteps=, spacing=}; nil, msg on file errors");
+                   "load .nrrd .nhdr .nii .nii.gz, or raw with opts {dims=, type=, endian=, header=, timesteps=, spacing=}; "
+                   "a file that cannot be read raises an error naming it and the reason");
     lcdvr_help_add(L, "cdvr.load_series(pattern_or_list [, opts])",
                    "load files as one series: printf pattern (\"vf_t%03d.nrrd\", opts first=, count= or last=) or a list of names");
     lcdvr_help_add(L, "cdvr.volume{dims=, type=, timesteps=}", "new zero-filled volume");

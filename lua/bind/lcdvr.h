@@ -6,8 +6,10 @@
  * type, liolib.c style: __gc, __close, __tostring, __name, methods behind __index) and adds
  * one-line help entries with lcdvr_help_add. It leaves the stack as it found it.
  *
- * Errors: misuse (bad argument types or values) raises; I/O failures of loaders return
- * nil, message (lcdvr_fail); other core failures raise with the core's message (lcdvr_raise).
+ * Errors: misuse (bad argument types or values) raises; so do loaders and openers whose file
+ * cannot be read (cdvr.load, cdvr.load_series, cdvr.open: the message names the file and the
+ * reason); savers return nil, message on I/O failure (lcdvr_fail); other core failures raise
+ * with the core's message (lcdvr_raise).
  */
 #ifndef CDVR_LCDVR_H
 #define CDVR_LCDVR_H

@@ -24,6 +24,14 @@ local function fails(part, what, v, msg)
         what .. ": message '" .. tostring(msg) .. "' lacks '" .. part .. "'")
 end
 
+-- loaders raise (never nil, message): the error names the file and the reason
+local function load_raises(part, what, file, f, ...)
+  local ok, msg = pcall(f, ...)
+  check(not ok, what .. ": expected an error")
+  check(not ok and tostring(msg):find(part, 1, true) and tostring(msg):find(file, 1, true),
+        what .. ": message '" .. tostring(msg) .. "' lacks '" .. part .. "' or the file " .. file)
+end
+
 local TMP = "test_volume_lua_tmp_"
 
 -- cdvr.volume, set/get, frames, #v, bytes
@@ -118,15 +126,15 @@ do
   end
   check(swapped:get(1, 0, 0) == 11265, "little-endian 300 read as big endian is 0x2c01")
 
-  fails("No such file", "missing file", cdvr.load(TMP .. "missing.raw", {dims={3, 2, 2}, type="u8"}))
-  fails("dims do not match", "size mismatch", cdvr.load(TMP .. "le.raw", {dims={3, 2, 2}, type="u8"}))
-  fails("truncated", "truncated", cdvr.load(TMP .. "le.raw", {dims={3, 2, 2}, type="f32", timesteps=3}))
-  fails("truncated", "header", cdvr.load(TMP .. "le.raw", {dims={3, 2, 2}, type="i16", timesteps=2, header=1}))
-  fails("No such file", "missing nrrd", cdvr.load(TMP .. "missing.nrrd"))
+  load_raises("No such file", "missing file", "missing.raw", cdvr.load, TMP .. "missing.raw", {dims={3, 2, 2}, type="u8"})
+  load_raises("dims do not match", "size mismatch", "le.raw", cdvr.load, TMP .. "le.raw", {dims={3, 2, 2}, type="u8"})
+  load_raises("truncated", "truncated", "le.raw", cdvr.load, TMP .. "le.raw", {dims={3, 2, 2}, type="f32", timesteps=3})
+  load_raises("truncated", "header", "le.raw", cdvr.load, TMP .. "le.raw", {dims={3, 2, 2}, type="i16", timesteps=2, header=1})
+  load_raises("No such file", "missing nrrd", "missing.nrrd", cdvr.load, TMP .. "missing.nrrd")
   local junk = assert(io.open(TMP .. "junk.nrrd", "w"))
   junk:write("not a nrrd\n")
   junk:close()
-  fails("cannot read NRRD", "corrupt header", cdvr.load(TMP .. "junk.nrrd"))
+  load_raises("cannot read NRRD", "corrupt header", "junk.nrrd", cdvr.load, TMP .. "junk.nrrd")
   fails("No such file", "save into a missing directory", v:save_raw("no_such_dir_lua/x.raw"))
 
   raises(function() cdvr.load(TMP .. "le.raw") end, "dims and type", "raw without dims")
@@ -154,9 +162,9 @@ do
   check(#open == 2 and open:get(1, 1, 0, 1) == 1002, "pattern without count takes existing files")
   local last = assert(cdvr.load_series(TMP .. "ser_%02d.raw", {first=1, last=2, dims={2, 2, 1}, type="u16"}))
   check(#last == 2, "pattern with last")
-  fails("no such file", "pattern without files", cdvr.load_series(TMP .. "none_%d.raw", {dims={2, 2, 1}, type="u8"}))
-  fails("No such file", "missing series file",
-        cdvr.load_series(TMP .. "ser_%02d.raw", {first=2, count=3, dims={2, 2, 1}, type="u16"}))
+  load_raises("no such file", "pattern without files", "none_0.raw", cdvr.load_series, TMP .. "none_%d.raw", {dims={2, 2, 1}, type="u8"})
+  load_raises("No such file", "missing series file", "ser_04.raw",
+              cdvr.load_series, TMP .. "ser_%02d.raw", {first=2, count=3, dims={2, 2, 1}, type="u16"})
   raises(function() cdvr.load_series(TMP .. "ser_%s.raw", {count=1}) end, "integer conversion", "%s pattern")
   raises(function() cdvr.load_series(TMP .. "%d_%d.raw", {count=1}) end, "exactly one", "two conversions")
   raises(function() cdvr.load_series(TMP .. "ser.raw", {count=1}) end, "no integer conversion", "no conversion")
@@ -195,7 +203,7 @@ if data and data ~= "" then
   check(#q == 3 and r.clipped_high > 0 and r.clipped_low == 0 and r.nan == 0, "series quantize report")
   local _, hi = vf:frame(3):range()
   check(math.abs(hi - 118.8508529663086) < 1e-9, "frame 3 max " .. hi)
-  fails("No such file", "missing shared file", cdvr.load(data .. "/ct/nothing.nrrd"))
+  load_raises("No such file", "missing shared file", "nothing.nrrd", cdvr.load, data .. "/ct/nothing.nrrd")
 end
 
 if failures > 0 then

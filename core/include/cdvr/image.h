@@ -27,8 +27,15 @@ void cdvr_image_composited(const cdvr_image *img, int x, int y, float out[4]);
 /* 8-bit RGBA of the composited image, row 0 first; each channel round(clamp(x,0,1)*255)
  * (round half up). buf holds width*height*4 bytes. */
 void cdvr_image_to_rgba8(const cdvr_image *img, uint8_t *buf);
-/* Writes a PNG (8-bit RGBA of cdvr_image_to_rgba8) through stb_image_write, to a temporary
- * name then renamed, so no partial file is left under path. */
+/* 8-bit RGB of the image over its background, row 0 first: each channel
+ * round(clamp(c + (1 - a) * bg_a * bg, 0, 1) * 255) of the premultiplied pixel (c, a) and the
+ * straight background (bg, bg_a); with an opaque background (the default) these are the RGB
+ * bytes of cdvr_image_to_rgba8. buf holds width*height*3 bytes. */
+void cdvr_image_to_rgb8(const cdvr_image *img, uint8_t *buf);
+/* Writes an 8-bit RGB PNG (cdvr_image_to_rgb8) through stb_image_write, to a temporary name
+ * then renamed, so no partial file is left under path. */
 cdvr_status cdvr_image_save_png(const cdvr_image *img, const char *path, cdvr_error *err);
+/* The same with an alpha channel: 8-bit RGBA of cdvr_image_to_rgba8 (straight colour). */
+cdvr_status cdvr_image_save_png_rgba(const cdvr_image *img, const char *path, cdvr_error *err);
 
 #endif

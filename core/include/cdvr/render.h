@@ -62,6 +62,12 @@ typedef struct cdvr_render_opts {
 void cdvr_render_resolve(const cdvr_volume *vol, const cdvr_render_opts *opts, double *step,
                          double *unit, double *term_alpha);
 
+/* 1 when the ray of at least one pixel hits the volume's box (steps 0 and 1 above, so exactly
+ * the rays the renderer marches), 0 when the camera's view misses the volume altogether (the
+ * image would be only background). Scans pixels coarse to fine and stops at the first hit.
+ * A volume with invalid geometry or an invalid camera gives 0. */
+int cdvr_render_view_hits(const cdvr_volume *vol, const cdvr_camera *cam);
+
 /* Renders frame t (from 0) of a u8 volume into a new image of the camera's size.
  * Non-u8 volumes are an error (quantize first). */
 cdvr_status cdvr_render_cpu(const cdvr_volume *vol, size_t t, cdvr_render_opts *opts,

@@ -302,6 +302,42 @@ static void setup_job(render_job *job, const cdvr_volume *vol, size_t t,
     atomic_init(&job->samples, 0);
 }
 
+/* Steps 0 and 1 for pixel (x, y). */
+static int pixel_hits(const render_job *job, const cdvr_camera *cam, int x, int y)
+{
+    double od[3], dd[3];
+    float o[3], d[3], t_near, t_far;
+    cdvr_camera_ray(cam, x, y, od, dd);
+    to_box_frame(job, od, dd, o, d);
+    return intersect_box(job, o, d, &t_near, &t_far);
+}
+
+int cdvr_render_view_hits(const cdvr_volume *vol, const cdvr_camera *cam)
+{
+    cdvr_error err;
+    if (!vol || !cam || cdvr_volume_check_geometry(vol, "render", &err) != CDVR_OK ||
+        cdvr_camera_validate(cam, &err) != CDVR_OK)
+        return 0;
+    render_job *job = calloc(1, sizeof *job);
+    if (!job)
+        return 1; /* cannot tell: do not claim a miss */
+    double D[9];
+    cdvr_volume_direction(vol, D);
+    cdvr_mat3_inverse(D, job->inv_dir);
+    for (int a = 0; a < 3; a++) {
+        job->origin[a] = vol->origin[a];
+        job->box_hi[a] = (float)((double)(vol->dims[a] - 1) * vol->spacing[a]);
+    }
+    int hit = pixel_hits(job, cam, cam->width / 2, cam->height / 2);
+    static const int strides[] = {16, 4, 1};
+    for (int s = 0; s < 3 && !hit; s++)
+        for (int y = 0; y < cam->height && !hit; y += strides[s])
+            for (int x = 0; x < cam->width && !hit; x += strides[s])
+                hit = pixel_hits(job, cam, x, y);
+    free(job);
+    return hit;
+}
+
 cdvr_status cdvr_render_cpu(const cdvr_volume *vol, size_t t, cdvr_render_opts *opts,
                             cdvr_image **out, cdvr_error *err)
 {
