@@ -34,7 +34,7 @@ run "$tmp/syntax.lua";    check "syntax error rc 1" [ $rc -eq 1 ]; check "syntax
 run "$tmp/missing.lua";   check "missing script rc 1" [ $rc -eq 1 ]; check "missing script message" grep -q "missing.lua" <<<"$err"
 run -e 'cdvr.load("x.raw", {dims="bad"})'; check "misuse raises rc 1" [ $rc -eq 1 ]
 run -e 'cdvr.load("/nonexistent.nrrd")'
-check "a missing file is an error naming it" [ $rc -eq 1 ]; check "missing file message" grep -q "/nonexistent.nrrd: No such file" <<<"$err"
+check "a missing file is an error naming it" [ $rc -eq 1 ]; check "missing file message" grep -q "/nonexistent.nrrd: cannot open: No such file" <<<"$err"
 
 # console: expressions print like the lua REPL, statements run, multi-line input continues,
 # errors are reported and the console goes on
