@@ -1,5 +1,5 @@
 -- scripts/report.lua DATASET... [--out DIR] [--frames N] [--width W] [--device cl|cpu|auto]
---                               [--zfp RATES]
+--                   [--zfp RATES] [--timesteps N] [--first I] [--count N] [--read-mbps M]
 -- Speed against error (DESIGN.md §8). For each dataset (a directory of NRRD files, a printf
 -- pattern, a 4D NIfTI or a single volume): encode every PVTC variant (S 1/4, T 2/3, time and
 -- space packing), raw, and, when the zfp plugin is loaded, zfp at each rate of --zfp (bits per
@@ -9,10 +9,14 @@
 --   image_psnr     : mean over the path's frames of the PSNR of the render of the decoded
 --                    variant against the render of the uncompressed data (same camera);
 --   volume_psnr, maxerr : measured at encode time over all timesteps.
--- --timesteps N keeps the first N timesteps of each dataset (for quick runs); --read-mbps M
--- plays through an emulated disk of M MB/s (the out-of-core case compression is for).
--- Writes DIR/report.csv and DIR/report.png (gnuplot: fps against image PSNR, one labelled
--- point per configuration).
+-- --timesteps N keeps the first N timesteps of each dataset (for quick runs); a printf
+-- pattern ("vf_t%03d.nrrd") starts at index --first (default 0) and takes --count files or as
+-- many as exist; --read-mbps M plays through an emulated disk of M MB/s (the out-of-core case
+-- compression is for).
+-- Writes DIR/report.csv and DIR/report.png (gnuplot: fps against image PSNR, one colour and
+-- legend entry per dataset, each point labelled with its configuration). A dataset that fails
+-- (missing files, unreadable data) is reported on stderr and in DIR/failed.txt, the others are
+-- still measured and written, and the exit status is 1.
 package.path = (arg[0]:match("^(.*)/[^/]*$") or ".") .. "/bench/?.lua;" .. package.path
 local common = require "common"
 
@@ -49,10 +53,9 @@ local function render_device()
 end
 local device = render_device()
 
-local rows, names = {}, {}
-for _, spec in ipairs(datasets) do
-  local vol, name = common.load_dataset(spec)
-  names[#names + 1] = name
+-- Measures one dataset under `name`; appends its rows. Raises on failure (caught by the caller).
+local function measure(spec, name, rows)
+  local vol = common.load_dataset(spec, {first = opt.first, count = opt.count})
   if opt.timesteps and tonumber(opt.timesteps) < vol:timesteps() then
     vol = vol:frame(1, tonumber(opt.timesteps))
   end
@@ -60,7 +63,7 @@ for _, spec in ipairs(datasets) do
   local q = vol:quantize{lo = lo, hi = hi}
   local tmp = os.tmpname()
   common.progress("%s: encoding %d configurations", name, #configs)
-  local st = assert(cdvr.encode(q, {variants = configs, stage2 = "none", path = tmp}))
+  local st = cdvr.encode(q, {variants = configs, stage2 = "none", path = tmp})
   local info = st:info()
   -- the oriented box in world coordinates, as the store gives it back
   local x0, x1, y0, y1, z0, z1 = st:decode(1):bounds()
@@ -99,6 +102,24 @@ for _, spec in ipairs(datasets) do
   st:close()
   os.remove(tmp)
 end
+
+local rows, names, failures = {}, {}, {}
+local taken = {}
+for _, spec in ipairs(datasets) do
+  local name = common.dataset_name(spec)
+  local n = 1
+  while taken[name .. (n > 1 and ("#" .. n) or "")] do n = n + 1 end
+  name = name .. (n > 1 and ("#" .. n) or "")
+  taken[name] = true
+  local ok, result = pcall(measure, spec, name, rows)
+  if ok then
+    names[#names + 1] = name
+  else
+    failures[#failures + 1] = ("%s: %s"):format(spec, tostring(result))
+    common.progress_done()
+    io.stderr:write(("report.lua: dataset %s failed: %s\n"):format(spec, tostring(result)))
+  end
+end
 common.progress_done()
 
 local csv = assert(io.open(opt.out .. "/report.csv", "w"))
@@ -111,35 +132,61 @@ end
 csv:close()
 io.write(io.open(opt.out .. "/report.csv"):read("a"))
 
--- Chart: lossless points (inf PSNR) are drawn at the right edge and labelled so.
+local failed_path = opt.out .. "/failed.txt"
+if #failures > 0 then
+  local f = assert(io.open(failed_path, "w"))
+  f:write(table.concat(failures, "\n"), "\n")
+  f:close()
+else
+  os.remove(failed_path)
+end
+if #rows == 0 then
+  io.stderr:write("report.lua: no dataset could be measured\n")
+  os.exit(1)
+end
+
+-- Chart: one data block (gnuplot index) per dataset, each with its colour and legend entry;
+-- lossless points (inf PSNR) are drawn at the right edge and labelled so.
 local maxfin = 0
 for _, r in ipairs(rows) do
   if r.image_psnr ~= math.huge then maxfin = math.max(maxfin, r.image_psnr) end
 end
 local lossless_x = maxfin + 6
+local COLOURS = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf"}
 local dat = assert(io.open(opt.out .. "/report.dat", "w"))
-for _, r in ipairs(rows) do
-  local x = r.image_psnr == math.huge and lossless_x or r.image_psnr
-  local label = r.config .. (r.image_psnr == math.huge and " (lossless)" or "")
-  if #datasets > 1 then label = r.dataset .. ":" .. label end
-  dat:write(("%.4f %.4f \"%s\"\n"):format(x, r.fps, label))
+for i, name in ipairs(names) do
+  if i > 1 then dat:write("\n\n") end
+  for _, r in ipairs(rows) do
+    if r.dataset == name then
+      local x = r.image_psnr == math.huge and lossless_x or r.image_psnr
+      local label = r.config .. (r.image_psnr == math.huge and " (lossless)" or "")
+      dat:write(("%.4f %.4f \"%s\"\n"):format(x, r.fps, label))
+    end
+  end
 end
 dat:close()
+local plots = {}
+for i, name in ipairs(names) do
+  local colour = COLOURS[(i - 1) % #COLOURS + 1]
+  plots[#plots + 1] = ('"%s/report.dat" index %d using 1:2 with points pt 7 ps 1.4 lc rgb "%s" title "%s"'):format(
+    opt.out, i - 1, colour, name:gsub('"', ""))
+  plots[#plots + 1] = ('"" index %d using 1:2:3 with labels offset char 0,0.9 font ",8" tc rgb "%s" notitle'):format(
+    i - 1, colour)
+end
 local gp = assert(io.open(opt.out .. "/report.gp", "w"))
 gp:write(([[
-set terminal pngcairo size 1000,700 font ",11" noenhanced
+set terminal pngcairo size 1100,750 font ",11" noenhanced
 set output "%s/report.png"
-set title "cdvr: playback speed against image quality (%s, %dx%d, device %s%s)"
-set xlabel "image PSNR against the uncompressed render (dB, higher is better)"
+set title "cdvr: playback speed against image quality (%dx%d, device %s%s)"
+set xlabel "image PSNR against the uncompressed render (dB, higher is better; lossless at the right edge)"
 set ylabel "frames per second (median, higher is better)"
 set grid
-set key off
-set offsets 1, 3, 2, 2
-plot "%s/report.dat" using 1:2 with points pt 7 ps 1.5 lc rgb "#1f77b4", \
-     "" using 1:2:3 with labels offset 0,1 font ",9"
-]]):format(opt.out, table.concat(names, ", "):gsub('"', ""):sub(1, 60), width, width,
-           device, opt["read-mbps"] and (", disk emulated at " .. opt["read-mbps"] .. " MB/s") or "",
-           opt.out))
+set key outside right top box Left reverse title "dataset"
+set offsets 1, 4, 2, 2
+plot %s
+]]):format(opt.out, width, width, device,
+           opt["read-mbps"] and (", disk emulated at " .. opt["read-mbps"] .. " MB/s") or "",
+           table.concat(plots, ", \\\n     ")))
 gp:close()
 local ok = os.execute(('gnuplot "%s/report.gp"'):format(opt.out))
 if not ok then
@@ -147,3 +194,7 @@ if not ok then
   os.exit(1)
 end
 io.stderr:write(("report.lua: wrote %s/report.csv and %s/report.png\n"):format(opt.out, opt.out))
+if #failures > 0 then
+  io.stderr:write(("report.lua: %d of %d datasets failed (listed in %s)\n"):format(#failures, #datasets, failed_path))
+  os.exit(1)
+end

@@ -18,6 +18,21 @@ check "report.csv raw is lossless" grep -q '^mpld_asl_64x64x24x25_f32,raw,raw,8.
 check "report.csv S4T3 ratio 5/48" grep -q '^mpld_asl_64x64x24x25_f32,S4T3,pvtc,0.8333,0.1042,' "$tmp/report/report.csv"
 check "report.png is a PNG" [ "$(head -c 8 "$tmp/report/report.png" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ]
 
+# several datasets: one chart, a colour and legend entry each; a printf pattern from --first;
+# a dataset that fails is reported and the others are still written (exit status 1)
+cp share/data/neghip_66x66x66_u8.nrrd "$tmp/ng_07.nrrd"; cp share/data/neghip_66x66x66_u8.nrrd "$tmp/ng_08.nrrd"
+"$cdvr" scripts/report.lua share/data/mpld_asl_64x64x24x25_f32.nii.gz "$tmp/ng_%02d.nrrd" "$tmp/missing_%d.nrrd" \
+  --first 7 --timesteps 3 --frames 3 --width 32 --zfp none --out "$tmp/multi" >"$tmp/multi.out" 2>"$tmp/multi.err"
+check "report.lua with a failing dataset exits 1" [ $? -eq 1 ]
+check "the failure is reported" grep -q "dataset $tmp/missing_%d.nrrd failed: .*missing_7.nrrd" "$tmp/multi.err"
+check "failed.txt names it" grep -q "missing_7.nrrd" "$tmp/multi/failed.txt"
+check "rows of both good datasets" [ "$(grep -c '^mpld_asl_64x64x24x25_f32,' "$tmp/multi/report.csv")" -eq 9 ] && \
+  [ "$(grep -c '^ng,' "$tmp/multi/report.csv")" -eq 9 ]
+check "the pattern started at --first (2 timesteps)" grep -q '^ng,raw,raw,8.0000,1.0000,' "$tmp/multi/report.csv"
+check "one legend entry per dataset" [ "$(grep -c 'with points.* title "' "$tmp/multi/report.gp")" -eq 2 ]
+check "a colour per dataset" [ "$(grep -o 'lc rgb "#[0-9a-f]*"' "$tmp/multi/report.gp" | sort -u | wc -l)" -eq 2 ]
+check "multi-dataset report.png is a PNG" [ "$(head -c 8 "$tmp/multi/report.png" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ]
+
 "$cdvr" scripts/regress.lua >"$tmp/regress.out" 2>"$tmp/regress.err"
 rc=$?
 check "regress.lua passes" [ $rc -eq 0 ]

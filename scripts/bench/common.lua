@@ -32,21 +32,32 @@ function M.exists(path)
   return false
 end
 
--- Loads a dataset given as a directory of NRRD files, a printf pattern, a 4D NIfTI or any
--- single volume; returns the volume and a short name.
-function M.load_dataset(spec)
-  local name = spec:gsub("/+$", ""):match("([^/]+)$"):gsub("%.nii%.gz$", ""):gsub("%.%w+$", "")
+-- A short readable name for a dataset spec: the file or directory name without extension;
+-- for a printf pattern, without its conversion ("vf_t%03d.nrrd" -> "vf_t").
+function M.dataset_name(spec)
+  local base = spec:gsub("/+$", ""):match("([^/]+)$") or spec
+  base = base:gsub("%.nii%.gz$", ""):gsub("%.%w+$", "")
+  local stripped = base:gsub("%%0?%d*[diu]", ""):gsub("[_%-]+$", "")
+  return stripped ~= "" and stripped or base
+end
+
+-- Loads a dataset given as a directory of NRRD files, a printf pattern (from index
+-- opts.first, default 0, and opts.count files or as many as exist), a 4D NIfTI or any single
+-- volume; returns the volume and a short name. Raises naming the dataset when it cannot.
+function M.load_dataset(spec, opts)
+  opts = opts or {}
+  local name = M.dataset_name(spec)
   if spec:find("%%") then
-    return assert(cdvr.load_series(spec, {})), name
+    return cdvr.load_series(spec, {first = tonumber(opts.first) or 0, count = tonumber(opts.count)}), name
   end
   local p = io.popen('ls "' .. spec .. '"/*.nrrd 2>/dev/null')
   local files = {}
   for line in p:lines() do files[#files + 1] = line end
   p:close()
   if #files > 0 then
-    return assert(cdvr.load_series(files, {})), name
+    return cdvr.load_series(files, {}), name
   end
-  return assert(cdvr.load(spec)), name
+  return cdvr.load(spec), name
 end
 
 function M.median(list)
