@@ -34,6 +34,8 @@ static int size_field(lua_State *L, int idx, const char *key, int def)
 }
 
 /* Copies the fields present in the table at idx into cam (absent fields keep their value). */
+#define CAMERA_KEYS "eye", "center", "up", "fov", "width", "height", "orthographic", "ortho_height"
+
 static void apply_fields(lua_State *L, int idx, cdvr_camera *cam)
 {
     lcdvr_numberarrayfield(L, idx, "eye", cam->eye, 3);
@@ -85,6 +87,8 @@ static int l_camera(lua_State *L)
             return pushed;
     }
     luaL_checktype(L, 1, LUA_TTABLE);
+    static const char *const keys[] = {CAMERA_KEYS, NULL};
+    lcdvr_checkoptions(L, 1, "cdvr.camera", keys);
     cdvr_camera cam = default_camera();
     lua_getfield(L, 1, "eye");
     if (lua_isnil(L, -1))
@@ -150,6 +154,8 @@ static int camera_set(lua_State *L)
 {
     cdvr_camera *cam = lcdvr_checkcamera(L, 1);
     luaL_checktype(L, 2, LUA_TTABLE);
+    static const char *const keys[] = {CAMERA_KEYS, NULL};
+    lcdvr_checkoptions(L, 2, "cam:set", keys);
     cdvr_camera changed = *cam;
     apply_fields(L, 2, &changed);
     check_valid(L, &changed);
@@ -268,6 +274,8 @@ static int l_orbit_camera(lua_State *L)
         lua_replace(L, 2);
     }
     luaL_checktype(L, 2, LUA_TTABLE);
+    static const char *const keys[] = {CAMERA_KEYS, "azimuth", "elevation", "distance", NULL};
+    lcdvr_checkoptions(L, 2, "cdvr.orbit_camera", keys);
     for (int a = 0; a < 3; a++) {
         center[a] = 0.5 * (lo[a] + hi[a]);
         radius2 += 0.25 * (hi[a] - lo[a]) * (hi[a] - lo[a]);

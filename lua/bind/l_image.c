@@ -87,7 +87,9 @@ static int image_save(lua_State *L)
     const char *path = luaL_checkstring(L, 2);
     int alpha = 0;
     if (!lua_isnoneornil(L, 3)) {
+        static const char *const keys[] = {"alpha", NULL};
         luaL_checktype(L, 3, LUA_TTABLE);
+        lcdvr_checkoptions(L, 3, "img:save", keys);
         alpha = lcdvr_optbooleanfield(L, 3, "alpha", 0);
     }
     if (!png_extension(path))

@@ -318,8 +318,24 @@ static int variant_for_psnr(const cdvr_store *st, double min_psnr)
     return best;
 }
 
+/* Pushes the options a named policy gets from the player's: target_fps and the variant
+ * (as its name: the capture floor of policy.lua). */
+static void push_policy_options(lua_State *L, const cdvr_store *st, int variant)
+{
+    lua_createtable(L, 0, 2);
+    lua_getfield(L, 1, "target_fps");
+    lua_setfield(L, -2, "target_fps");
+    lua_getfield(L, 1, "variant");
+    int given = !lua_isnil(L, -1);
+    lua_pop(L, 1);
+    if (given) {
+        lua_pushstring(L, cdvr_store_variant(st, (size_t)variant)->name);
+        lua_setfield(L, -2, "variant");
+    }
+}
+
 /* Resolves policy= (function, callable, or a name for cdvr.policy.get) into UV_POLICY. */
-static int resolve_policy(lua_State *L, int ud)
+static int resolve_policy(lua_State *L, int ud, const cdvr_store *st, int variant)
 {
     int t = lua_getfield(L, 1, "policy");         /* policy */
     if (t == LUA_TNIL) {
@@ -332,7 +348,7 @@ static int resolve_policy(lua_State *L, int ud)
         lua_call(L, 1, 1);                        /* name, policy module */
         lua_getfield(L, -1, "get");
         lua_pushvalue(L, -3);
-        lua_pushvalue(L, 1);
+        push_policy_options(L, st, variant);
         lua_call(L, 2, 1);                        /* name, module, policy fn */
         lua_replace(L, -3);
         lua_pop(L, 1);                            /* policy fn */
@@ -382,7 +398,13 @@ static void camera_option(lua_State *L, int ud, lplayer *lp, const cdvr_store_in
 
 static int l_player(lua_State *L)
 {
+    static const char *const keys[] = {"store", "tf", "camera", "policy", "target_fps", "min_psnr",
+                                       "variant", "device", "step", "unit", "term", "background",
+                                       "threads", "pipeline", "ring", "cold", "read_mbps",
+                                       "empty_skip", "callback_limit", "out", "pace", "width",
+                                       "height", "loop", NULL};
     luaL_checktype(L, 1, LUA_TTABLE);
+    lcdvr_checkoptions(L, 1, "cdvr.player", keys);
     lplayer *lp = (lplayer *)lua_newuserdatauv(L, sizeof *lp, UV_COUNT); /* ud */
     memset(lp, 0, sizeof *lp);
     int ud = lua_gettop(L);
@@ -467,7 +489,7 @@ static int l_player(lua_State *L)
     if (!lp->capture && lcdvr_optbooleanfield(L, 1, "pace", 1))
         lp->opts.pace_fps = lcdvr_optnumberfield(L, 1, "target_fps", 0);
     lp->opts.loop = lcdvr_optbooleanfield(L, 1, "loop", 0);
-    lp->has_policy = resolve_policy(L, ud);
+    lp->has_policy = resolve_policy(L, ud, st, lp->opts.variant);
     if (lp->has_policy || lp->capture) {
         lp->opts.decide = decide_cb;
         lp->opts.decide_ud = lp;
@@ -510,7 +532,9 @@ static int player_run(lua_State *L)
     const cdvr_store_info *info = cdvr_store_get_info(lp->opts.store);
     lua_Integer frames = (lua_Integer)info->timesteps, first = 1;
     if (!lua_isnoneornil(L, 2)) {
+        static const char *const keys[] = {"frames", "first", NULL};
         luaL_checktype(L, 2, LUA_TTABLE);
+        lcdvr_checkoptions(L, 2, "p:run", keys);
         frames = lcdvr_optintegerfield(L, 2, "frames", frames);
         first = lcdvr_optintegerfield(L, 2, "first", 1);
     }

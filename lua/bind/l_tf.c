@@ -53,7 +53,9 @@ static void read_point(lua_State *L, int idx, lua_Integer i, cdvr_tf_point *p)
  * and pushes it. */
 static int push_tf_from_table(lua_State *L, int idx)
 {
+    static const char *const keys[] = {"unit", "normalized", NULL};
     idx = lua_absindex(L, idx);
+    lcdvr_checkoptions_array(L, idx, "cdvr.tf", keys);
     lua_Integer n = luaL_len(L, idx);
     if (n < 1 || n > CDVR_TF_MAX_POINTS)
         return luaL_error(L, "cdvr.tf: 1 to %d control points expected, got %d",
@@ -77,9 +79,11 @@ static int push_tf_from_table(lua_State *L, int idx)
  * range={lo, hi} pins a normalised TF to data values, unit= sets the opacity unit. */
 static void apply_tf_options(lua_State *L, int opts)
 {
+    static const char *const keys[] = {"range", "unit", NULL};
     if (lua_isnoneornil(L, opts))
         return;
     luaL_checktype(L, opts, LUA_TTABLE);
+    lcdvr_checkoptions(L, opts, "cdvr.tf", keys);
     cdvr_tf *tf = lcdvr_checktf(L, -1);
     double range[2];
     cdvr_error err;

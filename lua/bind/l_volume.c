@@ -249,6 +249,8 @@ static void push_report(lua_State *L, const cdvr_quantize_report *r)
 
 static int volume_quantize(lua_State *L)
 {
+    static const char *const keys[] = {"lo", "hi", NULL};
+    lcdvr_checkoptions(L, 2, "v:quantize", keys);
     const cdvr_volume *v = lcdvr_checkvolume(L, 1);
     double lo, hi;
     cdvr_volume_range(v, &lo, &hi);
@@ -279,6 +281,8 @@ static int check_endian(lua_State *L, int idx)
 
 static int volume_save_raw(lua_State *L)
 {
+    static const char *const keys[] = {"endian", NULL};
+    lcdvr_checkoptions(L, 3, "v:save_raw", keys);
     const cdvr_volume *v = lcdvr_checkvolume(L, 1);
     const char *path = luaL_checkstring(L, 2);
     int big_endian = 0;
@@ -377,6 +381,8 @@ static int push_load_result(lua_State *L, cdvr_status st, cdvr_volume *vol, cons
 
 static int l_load(lua_State *L)
 {
+    static const char *const keys[] = {"dims", "type", "endian", "header", "timesteps", "spacing", NULL};
+    lcdvr_checkoptions(L, 2, "cdvr.load", keys);
     const char *path = luaL_checkstring(L, 1);
     cdvr_raw_opts raw;
     int has_raw = raw_opts(L, 2, &raw);
@@ -484,6 +490,9 @@ static int series_names_from_pattern(lua_State *L, const char *pattern, int opts
 
 static int l_load_series(lua_State *L)
 {
+    static const char *const keys[] = {"dims", "type", "endian", "header", "timesteps", "spacing",
+                                       "first", "count", "last", NULL};
+    lcdvr_checkoptions(L, 2, "cdvr.load_series", keys);
     cdvr_raw_opts raw;
     int has_raw = raw_opts(L, 2, &raw);
     if (lua_type(L, 1) == LUA_TSTRING) {
@@ -516,7 +525,9 @@ static int l_load_series(lua_State *L)
 
 static int l_volume_new(lua_State *L)
 {
+    static const char *const keys[] = {"dims", "type", "timesteps", "spacing", NULL};
     luaL_checktype(L, 1, LUA_TTABLE);
+    lcdvr_checkoptions(L, 1, "cdvr.volume", keys);
     size_t dims[3];
     if (!dims_field(L, 1, dims))
         return luaL_error(L, "option 'dims' is required");
@@ -537,6 +548,8 @@ static int l_generate(lua_State *L)
     const char *name = names[luaL_checkoption(L, 1, NULL, names)];
     cdvr_generate_opts o;
     memset(&o, 0, sizeof o);
+    static const char *const keys[] = {"dims", "timesteps", "type", "value", "radius", "fM", "alpha", NULL};
+    lcdvr_checkoptions(L, 2, "cdvr.generate", keys);
     if (!lua_isnoneornil(L, 2)) {
         luaL_checktype(L, 2, LUA_TTABLE);
         dims_field(L, 2, o.dims);

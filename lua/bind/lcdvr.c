@@ -172,14 +172,18 @@ static int edit_distance(const char *a, const char *b, int limit)
     return row[nb];
 }
 
-void lcdvr_checkoptions(lua_State *L, int idx, const char *what, const char *const keys[])
+static void check_options(lua_State *L, int idx, const char *what, const char *const keys[],
+                          int array)
 {
     idx = lua_absindex(L, idx);
     if (!lua_istable(L, idx))
         return;
+    lua_Integer n = array ? luaL_len(L, idx) : 0;
     lua_pushnil(L); /* key */
     while (lua_next(L, idx)) { /* key, value */
         lua_pop(L, 1);         /* key */
+        if (lua_isinteger(L, -1) && lua_tointeger(L, -1) >= 1 && lua_tointeger(L, -1) <= n)
+            continue; /* the array part */
         if (lua_type(L, -1) != LUA_TSTRING) {
             luaL_error(L, "%s: option keys must be names, got a %s key", what,
                        luaL_typename(L, -1));
@@ -203,4 +207,14 @@ void lcdvr_checkoptions(lua_State *L, int idx, const char *what, const char *con
         else
             luaL_error(L, "%s: unknown option '%s'", what, key);
     }
+}
+
+void lcdvr_checkoptions(lua_State *L, int idx, const char *what, const char *const keys[])
+{
+    check_options(L, idx, what, keys, 0);
+}
+
+void lcdvr_checkoptions_array(lua_State *L, int idx, const char *what, const char *const keys[])
+{
+    check_options(L, idx, what, keys, 1);
 }

@@ -71,6 +71,9 @@ int lcdvr_numberarrayfield(lua_State *L, int idx, const char *key, double *out, 
  * table at idx that is not in keys (NULL-terminated); non-string keys are errors too. Does
  * nothing when idx is not a table. Every function taking an options table calls it first. */
 void lcdvr_checkoptions(lua_State *L, int idx, const char *what, const char *const keys[]);
+/* The same for a table that also holds a list (cdvr.tf's points, a dims triple): its array
+ * part 1..#t is allowed. */
+void lcdvr_checkoptions_array(lua_State *L, int idx, const char *what, const char *const keys[]);
 
 /* Per-type accessors, implemented in the type's binding file. push* takes ownership. */
 cdvr_volume *lcdvr_checkvolume(lua_State *L, int idx);

@@ -33,6 +33,7 @@
 -- fn(function(t) return {eye=, center=, up=, fov=} end) wraps a Lua function (checked on
 --   each call; up and fov default to {0,0,1} and 30). It cannot be saved.
 local serialize = require "cdvr.serialize"
+local options = require "cdvr.options"
 
 local path = {}
 
@@ -179,6 +180,7 @@ function path.orbit(opts)
   if type(opts) ~= "table" then
     error(string.format("bad argument #1 to 'orbit' (table expected, got %s)", type(opts)), 2)
   end
+  options.check(opts, "cdvr.path.orbit", { "center", "distance", "up", "elevation", "start", "period", "fov" })
   local o = {
     center = check_vec3(opts.center, "orbit: center"),
     distance = check_number(opts.distance, "orbit: distance"),
@@ -212,6 +214,7 @@ local function check_keys(keys)
     if type(key) ~= "table" then
       error(string.format("%s: table expected, got %s", what, type(key)), 3)
     end
+    options.check(key, "cdvr.path." .. what, { "time", "eye", "center", "up", "fov" }, 3)
     local k = {
       time = check_number(key.time, what .. " time"),
       eye = check_vec3(key.eye, what .. " eye"),
@@ -331,6 +334,7 @@ function path.keyframes(opts)
   if type(opts) ~= "table" then
     error(string.format("bad argument #1 to 'keyframes' (table expected, got %s)", type(opts)), 2)
   end
+  options.check_array(opts, "cdvr.path.keyframes", { "loop", "spline", "period" })
   local spline = opts.spline or "centripetal"
   if not SPLINE_ALPHA[spline] then
     error(string.format("keyframes: spline must be 'centripetal' or 'uniform', got %s",
@@ -384,7 +388,11 @@ function path.from(tbl)
     error(string.format("bad argument #1 to 'from' (table expected, got %s)", type(tbl)), 2)
   end
   if tbl.kind == "orbit" then
-    return path.orbit(tbl)
+    local opts = {}
+    for k, v in pairs(tbl) do
+      if k ~= "kind" then opts[k] = v end
+    end
+    return path.orbit(opts)
   elseif tbl.kind == "keyframes" then
     if type(tbl.keys) ~= "table" then error("path.from: keyframes table without keys", 2) end
     local opts = { loop = tbl.loop, spline = tbl.spline, period = tbl.period }

@@ -57,6 +57,7 @@
 --     in the last `memory` groups) fits the target, once that has held for `up_after`
 --     consecutive groups. Otherwise stay. It starts at opts.variant or the best quality.
 --   policy.get(name_or_fn [, opts])
+local options = require "cdvr.options"
 local policy = {}
 
 local INF = math.huge
@@ -311,6 +312,7 @@ end
 
 function policy.open_loop(opts)
   opts = check_opts(opts, "open_loop")
+  options.check(opts, "cdvr.policy.open_loop", { "target_fps", "margin", "pipelined", "variant" })
   local margin = opts.margin or 0.9
   if not positive(margin) then
     error(string.format("open_loop: margin must be a positive number, got %s", tostring(margin)), 2)
@@ -480,6 +482,8 @@ end
 
 function policy.closed_loop(opts)
   opts = check_opts(opts, "closed_loop")
+  options.check(opts, "cdvr.policy.closed_loop", { "target_fps", "hysteresis", "window", "up_after", "memory",
+                                                   "variant", "pipelined" })
   local state = {
     hysteresis = opts.hysteresis or 0.1,
     window = opts.window,
@@ -517,7 +521,10 @@ end
 
 -- ---- lookup -------------------------------------------------------------------------------
 local BUILDERS = {
-  fixed = function(opts) return policy.fixed(opts.variant) end,
+  fixed = function(opts)
+    options.check(opts, "cdvr.policy.fixed", { "variant" }, 3)
+    return policy.fixed(opts.variant)
+  end,
   open_loop = policy.open_loop,
   closed_loop = policy.closed_loop,
 }

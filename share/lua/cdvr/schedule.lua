@@ -18,6 +18,7 @@
 -- (the better quality) when any change inside that window, changes[t .. t+W-2], exceeds the
 -- threshold, and `slow` otherwise. A last group with no change inside it looks at the change
 -- that leads into it. info = {threshold=, changes=, timesteps=, window=}.
+local options = require "cdvr.options"
 local schedule = {}
 
 -- A copy of a parameter table (numbers that are integers become integers). The encoder checks
@@ -99,6 +100,7 @@ end
 function schedule.from_changes(changes, opts)
   changes = check_changes(changes)
   opts = opts or {}
+  options.check(opts, "cdvr.schedule.from_changes", { "fast", "slow", "quantile", "codec" })
   local fast = check_params(opts.fast or { S = 1, T = 2 }, "from_changes: fast")
   local slow = check_params(opts.slow or { S = 4, T = 3 }, "from_changes: slow")
   local q = opts.quantile or 0.5
@@ -126,6 +128,7 @@ function schedule.from_changes(changes, opts)
 end
 
 function schedule.change_driven(volume, opts)
+  options.check(opts, "cdvr.schedule.change_driven", { "fast", "slow", "quantile", "codec" })
   local cdvr = require "cdvr"
   if type(cdvr.compare) ~= "function" then
     error("change_driven: cdvr.compare is not available in this build", 2)
