@@ -373,12 +373,17 @@ static void camera_option(lua_State *L, int ud, lplayer *lp, const cdvr_store_in
             height = cam->height;
         lua_pop(L, 2);
     } else {
-        /* default view: the whole box from the -y side, z up */
-        double c[3], ext = 0;
+        /* default view: the whole oriented box (world bounds) from the -y side, z up */
+        cdvr_volume box = {.timesteps = 1};
+        memcpy(box.dims, info->dims, sizeof box.dims);
+        memcpy(box.spacing, info->spacing, sizeof box.spacing);
+        memcpy(box.origin, info->origin, sizeof box.origin);
+        memcpy(box.direction, info->direction, sizeof box.direction);
+        double lo[3], hi[3], c[3], ext = 0;
+        cdvr_volume_bounds(&box, lo, hi);
         for (int i = 0; i < 3; i++) {
-            double len = (info->dims[i] - 1) * info->spacing[i];
-            c[i] = info->origin[i] + 0.5 * len;
-            ext = len > ext ? len : ext;
+            c[i] = 0.5 * (lo[i] + hi[i]);
+            ext = hi[i] - lo[i] > ext ? hi[i] - lo[i] : ext;
         }
         cdvr_camera def = {{c[0], c[1] - 2.2 * ext - 1, c[2] + 0.6 * ext}, {c[0], c[1], c[2]}, {0, 0, 1}, 30, width, height, 0, 0};
         lp->opts.camera = def;
