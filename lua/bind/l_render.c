@@ -174,14 +174,16 @@ static int l_render(lua_State *L)
     const cdvr_store *st = luaL_testudata(L, 1, LCDVR_STORE) ? lcdvr_checkstore(L, 1) : NULL;
     cdvr_volume *vol = st ? NULL : lcdvr_checkvolume(L, 1);
     luaL_checktype(L, 2, LUA_TTABLE);
-    static const char *const keys[] = {"tf", "camera", "step", "unit", "term", "threads",
-                                       "background", "device", "method", "t", "variant", "skip",
-                                       NULL};
-    lcdvr_checkoptions(L, 2, "cdvr.render", keys);
     static const char *const devices[] = {"cpu", "cl", NULL};
     static const char *const methods[] = {"raycast", "slice", "splat", NULL};
     int device = option_index(L, "device", "cpu", devices);
     int method = option_index(L, "method", "raycast", methods);
+    if (method == 0) { /* the other methods' bindings check their own options */
+        static const char *const keys[] = {"tf", "camera", "step", "unit", "term", "threads",
+                                           "background", "device", "method", "t", "variant",
+                                           "skip", NULL};
+        lcdvr_checkoptions(L, 2, "cdvr.render", keys);
+    }
     if (method == 1)
         return luaL_error(L, "cdvr.render: method '%s' is not available here (use raycast)",
                           methods[method]);
