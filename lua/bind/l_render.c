@@ -134,6 +134,16 @@ static int option_index(lua_State *L, const char *key, const char *def,
 
 /* cdvr.render(st, {t=, variant=, ...}) on the cl device: the chunk goes to the device as it
  * is (decode kernel, or the compressed domain for fetch-mode codecs). Stack: st, opts. */
+/* One warning line when no pixel's ray hits the box of vol (render.h). */
+static void warn_if_missed(lua_State *L, const cdvr_volume *vol, const cdvr_camera *cam)
+{
+    if (!cdvr_render_view_hits(vol, cam))
+        lcdvr_warn(L, "cdvr.render: the camera's view misses the volume (eye %f %f %f, looking at %f %f %f): "
+                      "the image is only background",
+                   cam->eye[0], cam->eye[1], cam->eye[2], cam->center[0], cam->center[1],
+                   cam->center[2]);
+}
+
 static int render_store_cl(lua_State *L, const cdvr_store *st, size_t v, size_t t)
 {
     lua_settop(L, 4);           /* st, opts, (tf), (camera) */
@@ -144,6 +154,13 @@ static int render_store_cl(lua_State *L, const cdvr_store *st, size_t v, size_t 
     read_options(L, &o, 5);
     const double window[2] = {cdvr_store_get_info(st)->qlo, cdvr_store_get_info(st)->qhi};
     window_tf(L, &o, window, 3);
+    const cdvr_store_info *info = cdvr_store_get_info(st);
+    cdvr_volume box = {.timesteps = 1}; /* the store's geometry, for the view check */
+    memcpy(box.dims, info->dims, sizeof box.dims);
+    memcpy(box.spacing, info->spacing, sizeof box.spacing);
+    memcpy(box.origin, info->origin, sizeof box.origin);
+    memcpy(box.direction, info->direction, sizeof box.direction);
+    warn_if_missed(L, &box, o.camera);
     return lcdvr_render_cl_store(L, st, v, t, &o);
 }
 
@@ -214,11 +231,7 @@ static int l_render(lua_State *L)
     double window[2];
     const cdvr_volume *u8 = u8_frame(L, vol, &frame, window);
     window_tf(L, &o, window, 3);
-    if (!cdvr_render_view_hits(u8, o.camera))
-        lcdvr_warn(L, "cdvr.render: the camera's view misses the volume (eye %f %f %f, looking at %f %f %f): "
-                      "the image is only background",
-                   o.camera->eye[0], o.camera->eye[1], o.camera->eye[2], o.camera->center[0],
-                   o.camera->center[1], o.camera->center[2]);
+    warn_if_missed(L, u8, o.camera);
     if (method == 2)
         return lcdvr_render_splat(L, u8, frame, &o, device);
     if (device == 1)
