@@ -84,6 +84,23 @@ local ml_tf = cdvr.tf{{mlo, 0, 0, 0, 0}, {(mlo + mhi) / 2, 0.2, 0.4, 1, 0.1}, {q
 local mcam = cdvr.orbit_camera(ml, {azimuth = 30, elevation = 20, width = W, height = W})
 same(cdvr.render(d2, {tf = ml_tf, camera = mcam}), cdvr.render(q, {tf = ml_tf, camera = mcam, t = 2}),
      "store frame vs quantized series")
+-- the player classifies over the store window too: its frame is cdvr.render's, byte for byte
+local pcam = cdvr.orbit_camera(ml, {azimuth = 30, elevation = 20, width = 40, height = 40})
+local player = cdvr.player{store = st, tf = ml_tf, camera = pcam, device = "cpu",
+                           out = tmpdir .. "/test_tf_units_%d.png"}
+player:run{frames = 2}
+player:close()
+cdvr.render(st:decode(2), {tf = ml_tf, camera = pcam, device = "cpu"}):save(tmpdir .. "/test_tf_units_ref.png")
+local function bytes(path)
+  local f = assert(io.open(path, "rb"))
+  local b = f:read("a")
+  f:close()
+  os.remove(path)
+  return b
+end
+check(bytes(tmpdir .. "/test_tf_units_2.png") == bytes(tmpdir .. "/test_tf_units_ref.png"),
+      "player frame 2 = cdvr.render(st:decode(2)) with a TF in data units")
+os.remove(tmpdir .. "/test_tf_units_1.png")
 st:close()
 local st2 = assert(cdvr.open(spath))
 check(st2:info().window[2] == qhi, "window read back from the file")
