@@ -1131,6 +1131,8 @@ cdvr_status cdvr_store_decode(const cdvr_store *st, size_t v, size_t t, cdvr_vol
     memcpy(vol->spacing, st->info.spacing, sizeof vol->spacing);
     memcpy(vol->origin, st->info.origin, sizeof vol->origin);
     memcpy(vol->direction, st->info.direction, sizeof vol->direction);
+    vol->window[0] = st->info.qlo; /* the codes 0..255 stand for the store's value window */
+    vol->window[1] = st->info.qhi;
     *out = vol;
     return CDVR_OK;
 }

@@ -644,6 +644,9 @@ static int store_decode(lua_State *L)
                   "timestep out of range");
     int opts = lua_istable(L, 3) ? 3 : (lua_istable(L, 4) ? 4 : 0);
     size_t v = opts == 3 ? 0 : checkvariant(L, st, 3);
+    static const char *const keys[] = {"device", NULL};
+    if (opts)
+        lcdvr_checkoptions(L, opts, "st:decode", keys);
     static const char *const devices[] = {"cpu", "cl", NULL};
     int device = opts ? optionfield(L, opts, "device", devices, 0) : 0;
     if (device == 1) {
@@ -656,7 +659,7 @@ static int store_decode(lua_State *L)
         lcdvr_pushvolume(L, vol);
     }
     cdvr_volume *out = lcdvr_checkvolume(L, -1); /* codes span the store's window (volume.h) */
-    out->window[0] = cdvr_store_get_info(st)->qlo;
+    out->window[0] = cdvr_store_get_info(st)->qlo; /* (the cl path builds its own volume) */
     out->window[1] = cdvr_store_get_info(st)->qhi;
     return 1;
 }

@@ -187,7 +187,7 @@ cdvr_status cdvr_store_decode_chunk(const cdvr_store *st, size_t v, size_t c,
                                     const uint8_t *payload, uint8_t *const *frames,
                                     cdvr_error *err);
 /* Convenience: read + unpack + decode timestep t of variant v (all bricks, assembled) into a
- * new u8 volume carrying the store's spacing, origin and direction. */
+ * new u8 volume carrying the store's spacing, origin, direction and value window. */
 cdvr_status cdvr_store_decode(const cdvr_store *st, size_t v, size_t t, cdvr_volume **out,
                               cdvr_error *err);
 
