@@ -6,6 +6,8 @@
  * stops playback with its traceback instead of stalling it.
  */
 #include <errno.h>
+#include <float.h>
+#include <limits.h>
 #include <math.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -14,15 +16,25 @@
 #include "cdvr/player.h"
 #include "lcdvr.h"
 
+/* out= pattern, parsed once: the name of frame n is prefix, n formatted by `conversion`,
+ * suffix. `conversion` is built here from a checked integer conversion of the user's text
+ * ("%" flags width precision "d"), so user text never reaches printf as a format. */
+typedef struct out_pattern {
+    char prefix[1024], suffix[1024];
+    char conversion[16];
+} out_pattern;
+
 typedef struct lplayer {
     cdvr_player *player;
     cdvr_player_opts opts;
     lua_State *L;        /* the running state, during p:run only */
+    int running;         /* p:run in progress: run and close are refused */
+    int holds_store;     /* the store (UV_STORE) is marked in use (lcdvr_use) */
     int capture;         /* out= set: quality never adapts, frames are deterministic */
     int has_policy;      /* policy= given: it decides, also when capturing (stats.capture) */
-    int callback_limit;
-    char out_pattern[1024];
     const char *variant_why; /* why opts.variant (a literal) */
+    lua_Integer callback_limit;
+    out_pattern out;
 } lplayer;
 
 /* Uservalue slots of the player userdata. */
@@ -36,34 +48,40 @@ static lplayer *checkplayer(lua_State *L, int idx)
     return lp;
 }
 
+/* A player inside p:run (its own callbacks are running) refuses run and close. */
+static lplayer *checkidleplayer(lua_State *L, int idx, const char *what)
+{
+    lplayer *lp = checkplayer(L, idx);
+    if (lp->running)
+        luaL_error(L, "p:%s: player is running (called from its own policy or camera callback?)", what);
+    return lp;
+}
+
 /* ---- callbacks ---------------------------------------------------------------------------- */
 
-static void budget_hook(lua_State *L, lua_Debug *ar)
+/* Calls the function below its nargs arguments under the callback budget; leaves nres results
+ * and returns CDVR_OK, or fills err with "what: message and traceback". */
+static cdvr_status call_budgeted(lplayer *lp, lua_State *L, int nargs, int nres, const char *what,
+                                 cdvr_error *err)
 {
-    (void)ar;
-    luaL_error(L, "callback exceeded its instruction budget (callback_limit)");
+    if (lcdvr_pcall_budget(L, nargs, nres, lp->callback_limit) != LUA_OK) {
+        cdvr_error_set(err, CDVR_ERR_ARG, "%s: %s", what, lua_tostring(L, -1));
+        lua_pop(L, 1);
+        return CDVR_ERR_ARG;
+    }
+    return CDVR_OK;
 }
 
-static int traceback_handler(lua_State *L)
-{
-    const char *msg = lua_tostring(L, 1);
-    luaL_traceback(L, L, msg ? msg : "(error object is not a string)", 1);
-    return 1;
-}
-
-/* Calls the function below its nargs arguments with the budget hook; leaves nres results or
- * fills err with the message and traceback. */
-static cdvr_status call_budgeted(lplayer *lp, int nargs, int nres, const char *what, cdvr_error *err)
+/* Runs fn(ctx, player) in protected mode on the running state, so that no Lua error (memory
+ * errors included) ever unwinds through the player's C code; fn reports through ctx. */
+static cdvr_status run_protected(lplayer *lp, lua_CFunction fn, void *ctx, const char *what,
+                                 cdvr_error *err)
 {
     lua_State *L = lp->L;
-    int base = lua_gettop(L) - nargs;
-    lua_pushcfunction(L, traceback_handler);
-    lua_insert(L, base);
-    lua_sethook(L, budget_hook, LUA_MASKCOUNT, lp->callback_limit);
-    int status = lua_pcall(L, nargs, nres, base);
-    lua_sethook(L, NULL, 0, 0);
-    lua_remove(L, base);
-    if (status != LUA_OK) {
+    lua_pushcfunction(L, fn);
+    lua_pushlightuserdata(L, ctx);
+    lua_pushvalue(L, 1);                          /* fn, ctx, player (index 1 of p:run) */
+    if (lua_pcall(L, 2, 0, 0) != LUA_OK) {
         cdvr_error_set(err, CDVR_ERR_ARG, "%s: %s", what, lua_tostring(L, -1));
         lua_pop(L, 1);
         return CDVR_ERR_ARG;
@@ -133,40 +151,41 @@ static void push_variants(lua_State *L, const cdvr_store *st)
     }
 }
 
-/* Capture without a policy: the user's `variant` (0-based), or with min_psnr the cheapest
- * variant meeting it, or else the best quality. With a policy, the policy decides with
- * stats.capture = true: share/lua/cdvr/policy.lua's rule (deterministic: the fastest variant
- * meeting the floor, the best quality when there is none); capture waits for data either way. */
-static cdvr_status decide_cb(void *ud, cdvr_player *player, size_t t, size_t group, int *variant,
-                             char *reason, size_t reason_size, cdvr_error *err)
+typedef struct decide_ctx {
+    lplayer *lp;
+    cdvr_player *player;
+    size_t t, group;
+    int variant;
+    char *reason;
+    size_t reason_size;
+    cdvr_error *err;
+    cdvr_status status;
+} decide_ctx;
+
+/* Protected part of decide_cb: decide_ctx (light userdata), player. */
+static int decide_lua(lua_State *L)
 {
-    lplayer *lp = ud;
-    lua_State *L = lp->L;
+    decide_ctx *c = (decide_ctx *)lua_touserdata(L, 1);
+    lplayer *lp = c->lp;
     const cdvr_store *st = lp->opts.store;
-    if (lp->capture && !lp->has_policy) {
-        *variant = lp->opts.variant;
-        snprintf(reason, reason_size, "capture: %s (%s; capture waits for data, never adapts)",
-                 cdvr_store_variant(st, (size_t)*variant)->name, lp->variant_why);
-        return CDVR_OK;
-    }
-    lua_getiuservalue(L, 1, UV_POLICY);           /* policy */
+    lua_getiuservalue(L, 2, UV_POLICY);           /* policy */
     lua_createtable(L, 0, 10);                    /* policy, stats */
-    lua_getiuservalue(L, 1, UV_OPTS);             /* policy, stats, opts */
+    lua_getiuservalue(L, 2, UV_OPTS);             /* policy, stats, opts */
     lua_getfield(L, -1, "target_fps");
     lua_setfield(L, -3, "target_fps");
     lua_getfield(L, -1, "min_psnr");
     lua_setfield(L, -3, "min_psnr");
     lua_pop(L, 1);                                /* policy, stats */
-    lua_pushinteger(L, (lua_Integer)t + 1);
+    lua_pushinteger(L, (lua_Integer)c->t + 1);
     lua_setfield(L, -2, "t");
-    lua_pushinteger(L, (lua_Integer)group + 1);
+    lua_pushinteger(L, (lua_Integer)c->group + 1);
     lua_setfield(L, -2, "group");
     lua_pushboolean(L, lp->opts.pipelined);
     lua_setfield(L, -2, "pipelined");
     lua_pushboolean(L, lp->capture);
     lua_setfield(L, -2, "capture");
     size_t nrows;
-    const cdvr_frame_row *rows = cdvr_player_rows(player, &nrows);
+    const cdvr_frame_row *rows = cdvr_player_rows(c->player, &nrows);
     if (nrows) {
         lua_pushstring(L, cdvr_store_variant(st, (size_t)rows[nrows - 1].variant)->name);
         lua_setfield(L, -2, "current");
@@ -180,21 +199,44 @@ static cdvr_status decide_cb(void *ud, cdvr_player *player, size_t t, size_t gro
     lua_setfield(L, -2, "frames");
     push_variants(L, st);
     lua_setfield(L, -2, "variants");              /* policy, stats */
-    if (call_budgeted(lp, 1, 2, "policy", err) != CDVR_OK)
-        return err->status;
+    c->status = call_budgeted(lp, L, 1, 2, "policy", c->err);
+    if (c->status != CDVR_OK)
+        return 0;
     /* name [, reason] */
     const char *name = lua_tostring(L, -2);
     int v = name ? cdvr_store_find_variant(st, name) : -1;
     if (v < 0) {
-        cdvr_error_set(err, CDVR_ERR_ARG, "policy returned %s, not a variant of %s",
-                       name ? name : luaL_typename(L, -2), cdvr_store_path(st));
-        lua_pop(L, 2);
-        return CDVR_ERR_ARG;
+        c->status = cdvr_error_set(c->err, CDVR_ERR_ARG, "policy returned %s, not a variant of %s",
+                                   name ? name : luaL_typename(L, -2), cdvr_store_path(st));
+        return 0;
     }
-    *variant = v;
-    snprintf(reason, reason_size, "%s", lua_isstring(L, -1) ? lua_tostring(L, -1) : "policy");
-    lua_pop(L, 2);
-    return CDVR_OK;
+    c->variant = v;
+    snprintf(c->reason, c->reason_size, "%s", lua_isstring(L, -1) ? lua_tostring(L, -1) : "policy");
+    return 0;
+}
+
+/* Capture without a policy: the user's `variant` (0-based), or with min_psnr the cheapest
+ * variant meeting it, or else the best quality. With a policy, the policy decides with
+ * stats.capture = true: share/lua/cdvr/policy.lua's rule (deterministic: the fastest variant
+ * meeting the floor, the best quality when there is none); capture waits for data either way. */
+static cdvr_status decide_cb(void *ud, cdvr_player *player, size_t t, size_t group, int *variant,
+                             char *reason, size_t reason_size, cdvr_error *err)
+{
+    lplayer *lp = ud;
+    const cdvr_store *st = lp->opts.store;
+    if (lp->capture && !lp->has_policy) {
+        *variant = lp->opts.variant;
+        snprintf(reason, reason_size, "capture: %s (%s; capture waits for data, never adapts)",
+                 cdvr_store_variant(st, (size_t)*variant)->name, lp->variant_why);
+        return CDVR_OK;
+    }
+    decide_ctx c = {lp, player, t, group, *variant, reason, reason_size, err, CDVR_OK};
+    cdvr_status s = run_protected(lp, decide_lua, &c, "policy", err);
+    if (s != CDVR_OK)
+        return s;
+    if (c.status == CDVR_OK)
+        *variant = c.variant;
+    return c.status;
 }
 
 static int read_vec3(lua_State *L, int idx, const char *key, double out[3])
@@ -202,15 +244,25 @@ static int read_vec3(lua_State *L, int idx, const char *key, double out[3])
     return lcdvr_numberarrayfield(L, idx, key, out, 3);
 }
 
-static cdvr_status camera_cb(void *ud, size_t t, size_t frame, cdvr_camera *cam, cdvr_error *err)
+typedef struct camera_ctx {
+    lplayer *lp;
+    size_t t, frame;
+    cdvr_camera *cam;
+    cdvr_error *err;
+    cdvr_status status;
+} camera_ctx;
+
+/* Protected part of camera_cb: camera_ctx (light userdata), player. */
+static int camera_lua(lua_State *L)
 {
-    lplayer *lp = ud;
-    lua_State *L = lp->L;
-    lua_getiuservalue(L, 1, UV_CAMERA);           /* camera function */
-    lua_pushinteger(L, (lua_Integer)frame + 1);
-    lua_pushinteger(L, (lua_Integer)t + 1);
-    if (call_budgeted(lp, 2, 1, "camera", err) != CDVR_OK)
-        return err->status;
+    camera_ctx *c = (camera_ctx *)lua_touserdata(L, 1);
+    cdvr_camera *cam = c->cam;
+    lua_getiuservalue(L, 2, UV_CAMERA);           /* camera function */
+    lua_pushinteger(L, (lua_Integer)c->frame + 1);
+    lua_pushinteger(L, (lua_Integer)c->t + 1);
+    c->status = call_budgeted(c->lp, L, 2, 1, "camera", c->err);
+    if (c->status != CDVR_OK)
+        return 0;
     cdvr_camera *ucam = luaL_testudata(L, -1, LCDVR_CAMERA);
     if (ucam) {
         int w = cam->width, h = cam->height;
@@ -223,13 +275,21 @@ static cdvr_status camera_cb(void *ud, size_t t, size_t frame, cdvr_camera *cam,
         read_vec3(L, -1, "up", cam->up);
         cam->fov = lcdvr_optnumberfield(L, -1, "fov", cam->fov);
     } else {
-        cdvr_error_set(err, CDVR_ERR_ARG, "camera function returned %s (cdvr.Camera or {eye=,center=,up=,fov=} expected)",
-                       luaL_typename(L, -1));
-        lua_pop(L, 1);
-        return CDVR_ERR_ARG;
+        c->status = cdvr_error_set(c->err, CDVR_ERR_ARG,
+                                   "camera function returned %s (cdvr.Camera or {eye=,center=,up=,fov=} expected)",
+                                   luaL_typename(L, -1));
     }
-    lua_pop(L, 1);
-    return cdvr_camera_validate(cam, err);
+    return 0;
+}
+
+static cdvr_status camera_cb(void *ud, size_t t, size_t frame, cdvr_camera *cam, cdvr_error *err)
+{
+    lplayer *lp = ud;
+    camera_ctx c = {lp, t, frame, cam, err, CDVR_OK};
+    cdvr_status s = run_protected(lp, camera_lua, &c, "camera", err);
+    if (s == CDVR_OK)
+        s = c.status;
+    return s == CDVR_OK ? cdvr_camera_validate(cam, err) : s;
 }
 
 static int make_parent_dirs(char *path)
@@ -244,11 +304,55 @@ static int make_parent_dirs(char *path)
     return 1;
 }
 
+/* Parses out= into p; returns 1, or 0 with what is wrong in why. */
+static int parse_out_pattern(const char *text, out_pattern *p, char *why, size_t why_size)
+{
+    size_t n = 0, conversions = 0;
+    char *dst = p->prefix;
+    memset(p, 0, sizeof *p);
+    for (const char *s = text; *s; s++) {
+        if (n + 1 >= sizeof p->prefix) {
+            snprintf(why, why_size, "it is longer than %zu bytes", sizeof p->prefix - 1);
+            return 0;
+        }
+        if (*s != '%' || s[1] == '%') {
+            dst[n++] = *s;
+            s += *s == '%';                       /* "%%" is one literal '%' */
+            continue;
+        }
+        const char *c = s + 1;
+        size_t flags = strspn(c, "-+ 0"), width = strspn(c + flags, "0123456789"), prec = 0;
+        if (c[flags + width] == '.')
+            prec = 1 + strspn(c + flags + width + 1, "0123456789");
+        size_t len = flags + width + prec;
+        int integer = c[len] == 'd' || c[len] == 'i';
+        if (!integer || flags > 4 || width > 2 || prec > 3) {
+            snprintf(why, why_size, "\"%.*s\" %s", (int)(len + (c[len] != '\0') + 1), s,
+                     integer ? "has too many flags or digits (width and precision: at most 99)"
+                             : "is not an integer conversion");
+            return 0;
+        }
+        if (++conversions > 1) {
+            snprintf(why, why_size, "it has more than one conversion");
+            return 0;
+        }
+        snprintf(p->conversion, sizeof p->conversion, "%%%.*sd", (int)len, c);
+        dst[n] = '\0';
+        dst = p->suffix;
+        n = 0;
+        s = c + len;
+    }
+    if (conversions == 0)
+        snprintf(why, why_size, "it has no conversion for the frame number");
+    return conversions == 1;
+}
+
 static cdvr_status frame_cb(void *ud, const cdvr_frame_row *row, const cdvr_image *img, cdvr_error *err)
 {
     lplayer *lp = ud;
-    char path[1100];
-    snprintf(path, sizeof path, lp->out_pattern, (int)row->frame + 1);
+    char number[128], path[2200];
+    snprintf(number, sizeof number, lp->out.conversion, (int)row->frame + 1);
+    snprintf(path, sizeof path, "%s%s%s", lp->out.prefix, number, lp->out.suffix);
     if (!make_parent_dirs(path))
         return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot create its directory: %s", path, strerror(errno));
     return cdvr_image_save_png(img, path, err);
@@ -359,10 +463,115 @@ static int resolve_policy(lua_State *L, int ud, const cdvr_store *st, int varian
     return 1;
 }
 
+/* ---- option values (checked when the player is made) ------------------------------------- */
+
+/* Number option `key` of the options table: def when absent; raises unless lo <= value <= hi
+ * (NaN never passes), with `rule` saying what is allowed. */
+static double number_option(lua_State *L, const char *key, double def, double lo, double hi, const char *rule)
+{
+    int absent = lua_getfield(L, 1, key) == LUA_TNIL;
+    lua_pop(L, 1);
+    if (absent)
+        return def;
+    double v = lcdvr_optnumberfield(L, 1, key, def);
+    if (!(v >= lo && v <= hi))
+        luaL_error(L, "cdvr.player: option '%s' = %f: %s", key, (lua_Number)v, rule);
+    return v;
+}
+
+static lua_Integer integer_option(lua_State *L, const char *key, lua_Integer def, lua_Integer lo, lua_Integer hi)
+{
+    lua_Integer v = lcdvr_optintegerfield(L, 1, key, def);
+    if (v < lo || v > hi)
+        luaL_error(L, "cdvr.player: option '%s' = %I: must be %I..%I", key, (LUAI_UACINT)v, (LUAI_UACINT)lo,
+                   (LUAI_UACINT)hi);
+    return v;
+}
+
+/* background={r, g, b [, a]}, entries in [0, 1] (as cdvr.render). */
+static void background_option(lua_State *L, float bg[4])
+{
+    bg[0] = bg[1] = bg[2] = 0.0f;
+    bg[3] = 1.0f;
+    int t = lua_getfield(L, 1, "background");      /* background */
+    lua_Integer n = t == LUA_TTABLE ? luaL_len(L, -1) : 0;
+    if (t != LUA_TNIL && n != 3 && n != 4)
+        luaL_error(L, "cdvr.player: option 'background': {r, g, b [, a]} expected");
+    for (lua_Integer i = 1; i <= n; i++) {
+        lua_geti(L, -1, i);
+        int ok;
+        lua_Number c = lua_tonumberx(L, -1, &ok);
+        if (!ok || !(c >= 0.0 && c <= 1.0))
+            luaL_error(L, "cdvr.player: option 'background'[%d]: a number in [0, 1] expected", (int)i);
+        bg[i - 1] = (float)c;
+        lua_pop(L, 1);
+    }
+    lua_pop(L, 1);
+}
+
+/* Largest diagonal / step the renderers accept (render_cpu.c: at most INT_MAX samples). */
+static double box_diagonal(const cdvr_store_info *info)
+{
+    double sum = 0;
+    for (int i = 0; i < 3; i++) {
+        double len = (double)(info->dims[i] - 1) * info->spacing[i];
+        sum += len * len;
+    }
+    return sqrt(sum);
+}
+
+/* step, unit, term, background, threads, ring, read_mbps: the render and pipeline options. */
+static void render_options(lua_State *L, lplayer *lp, const cdvr_store_info *info)
+{
+    lp->opts.step = number_option(L, "step", 0, 0, DBL_MAX, "a finite number >= 0 expected (0: half a voxel)");
+    if (lp->opts.step > 0 && box_diagonal(info) / lp->opts.step > (double)INT_MAX)
+        luaL_error(L, "cdvr.player: option 'step' = %f is too small for the store's box (diagonal %f)",
+                   (lua_Number)lp->opts.step, (lua_Number)box_diagonal(info));
+    lp->opts.unit = number_option(L, "unit", 0, 0, DBL_MAX, "a finite number >= 0 expected (0: the TF's unit)");
+    lp->opts.term_alpha = number_option(L, "term", 0, 0, DBL_MAX,
+                                        "a finite number >= 0 expected (0: 0.99; 1 or more: no early termination)");
+    background_option(L, lp->opts.background);
+    lp->opts.threads = (int)integer_option(L, "threads", 0, 0, 256);
+    lp->opts.pipelined = lcdvr_optbooleanfield(L, 1, "pipeline", 1);
+    lp->opts.ring = (int)integer_option(L, "ring", 3, 1, 64);
+    lp->opts.cold = lcdvr_optbooleanfield(L, 1, "cold", 0);
+    lp->opts.read_mbps = number_option(L, "read_mbps", 0, 0, DBL_MAX, "a finite number >= 0 expected (0: no cap)");
+    lp->opts.empty_skip = lcdvr_optbooleanfield(L, 1, "empty_skip", 1);
+}
+
+/* out=: capture settings (pattern, capture floor); returns 1 when capturing. */
+static int capture_options(lua_State *L, lplayer *lp, const cdvr_store *st)
+{
+    const char *out = lcdvr_optstringfield(L, 1, "out", NULL);
+    if (!out)
+        return 0;
+    char why[96];
+    if (!parse_out_pattern(out, &lp->out, why, sizeof why))
+        luaL_error(L, "cdvr.player: option 'out' = \"%s\": %s; out= needs exactly one integer conversion "
+                      "for the frame number (%%d, %%04d, %%5d, ...; %%%% for a literal %%)",
+                   out, why);
+    lp->opts.frame_fn = frame_cb;
+    lp->opts.frame_ud = lp;
+    double min_psnr = number_option(L, "min_psnr", -HUGE_VAL, -HUGE_VAL, HUGE_VAL, "a number in dB expected");
+    lua_getfield(L, 1, "variant");
+    int user_variant = !lua_isnil(L, -1);
+    lua_pop(L, 1);
+    if (user_variant)
+        lp->variant_why = "the variant set by the user";
+    if (!user_variant && min_psnr > -HUGE_VAL) {
+        int v = variant_for_psnr(st, min_psnr);
+        if (v < 0)
+            luaL_error(L, "cdvr.player: no variant of %s reaches min_psnr %f", cdvr_store_path(st), (lua_Number)min_psnr);
+        lp->opts.variant = v;
+        lp->variant_why = "the cheapest variant meeting min_psnr";
+    }
+    return 1;
+}
+
 static void camera_option(lua_State *L, int ud, lplayer *lp, const cdvr_store_info *info)
 {
-    int width = (int)lcdvr_optintegerfield(L, 1, "width", 512);
-    int height = (int)lcdvr_optintegerfield(L, 1, "height", 512);
+    int width = (int)integer_option(L, "width", 512, 1, 65536);
+    int height = (int)integer_option(L, "height", 512, 1, 65536);
     cdvr_camera *cam = NULL;
     lua_getfield(L, 1, "camera");                 /* camera option */
     if ((cam = luaL_testudata(L, -1, LCDVR_CAMERA)) != NULL) {
@@ -389,7 +598,8 @@ static void camera_option(lua_State *L, int ud, lplayer *lp, const cdvr_store_in
         lp->opts.camera = def;
         if (!lua_isnil(L, -1)) {
             if (!is_callable(L, -1))
-                luaL_error(L, "cdvr.player: option 'camera': cdvr.Camera, function or path expected");
+                luaL_error(L, "cdvr.player: option 'camera': cdvr.Camera, function or path expected, got %s",
+                           luaL_typename(L, -1));
             lua_pushvalue(L, -1);
             lua_setiuservalue(L, ud, UV_CAMERA);
             lp->opts.camera_fn = camera_cb;
@@ -399,6 +609,30 @@ static void camera_option(lua_State *L, int ud, lplayer *lp, const cdvr_store_in
     lua_pop(L, 1);
     lp->opts.camera.width = width;
     lp->opts.camera.height = height;
+}
+
+/* store= and tf=: checked, kept in user values; the store is marked in use for the player's
+ * lifetime (st:close() meanwhile is deferred until the player is closed). */
+static cdvr_store *store_and_tf(lua_State *L, int ud, lplayer *lp)
+{
+    lua_getfield(L, 1, "store");
+    lcdvr_checkoption(L, -1, "cdvr.player", "store", LCDVR_STORE);
+    cdvr_store *st = lcdvr_checkstore(L, -1);
+    lcdvr_use(L, -1);
+    lp->holds_store = 1;
+    lua_setiuservalue(L, ud, UV_STORE);
+    lua_getfield(L, 1, "tf");
+    lcdvr_checkoption(L, -1, "cdvr.player", "tf", LCDVR_TF);
+    cdvr_tf *tf = lcdvr_pushtf(L, lcdvr_checktf(L, -1)); /* tf, copy */
+    const cdvr_store_info *info = cdvr_store_get_info(st);
+    cdvr_error tf_err;
+    if (cdvr_tf_set_window(tf, info->qlo, info->qhi, &tf_err) != CDVR_OK) /* tf.h: data units */
+        lcdvr_raise(L, &tf_err);
+    lua_setiuservalue(L, ud, UV_TF);
+    lua_pop(L, 1);
+    lp->opts.tf = tf;
+    lp->opts.store = st;
+    return st;
 }
 
 static int l_player(lua_State *L)
@@ -416,21 +650,9 @@ static int l_player(lua_State *L)
     luaL_setmetatable(L, LCDVR_PLAYER);
     lua_pushvalue(L, 1);
     lua_setiuservalue(L, ud, UV_OPTS);
-
-    lua_getfield(L, 1, "store");
-    cdvr_store *st = lcdvr_checkstore(L, -1);
-    lua_setiuservalue(L, ud, UV_STORE);
+    cdvr_store *st = store_and_tf(L, ud, lp);
     const cdvr_store_info *info = cdvr_store_get_info(st);
-    lua_getfield(L, 1, "tf");
-    cdvr_tf *tf = lcdvr_pushtf(L, lcdvr_checktf(L, -1)); /* tf, copy */
-    cdvr_error tf_err;
-    if (cdvr_tf_set_window(tf, info->qlo, info->qhi, &tf_err) != CDVR_OK) /* tf.h: data units */
-        lcdvr_raise(L, &tf_err);
-    lua_setiuservalue(L, ud, UV_TF);
-    lua_pop(L, 1);
 
-    lp->opts.store = st;
-    lp->opts.tf = tf;
     static const char *const devices[] = {"cpu", "cl", "auto", NULL};
     const char *dev = lcdvr_optstringfield(L, 1, "device", "auto");
     int devi = -1;
@@ -440,59 +662,14 @@ static int l_player(lua_State *L)
     if (devi < 0)
         luaL_error(L, "cdvr.player: invalid device '%s' (cpu, cl, auto)", dev);
     lp->opts.device = devi == 1 || (devi == 2 && CDVR_HAVE_OPENCL) ? CDVR_DEVICE_CL : CDVR_DEVICE_CPU;
-    lp->opts.step = lcdvr_optnumberfield(L, 1, "step", 0);
-    lp->opts.unit = lcdvr_optnumberfield(L, 1, "unit", 0);
-    lp->opts.term_alpha = lcdvr_optnumberfield(L, 1, "term", 0);
-    double bg[4] = {0, 0, 0, 1};
-    if (lua_getfield(L, 1, "background") == LUA_TTABLE) {
-        for (int i = 0; i < 4; i++) {
-            lua_geti(L, -1, i + 1);
-            if (lua_isnumber(L, -1))
-                bg[i] = lua_tonumber(L, -1);
-            lua_pop(L, 1);
-        }
-    }
-    lua_pop(L, 1);
-    for (int i = 0; i < 4; i++)
-        lp->opts.background[i] = (float)bg[i];
-    lp->opts.threads = (int)lcdvr_optintegerfield(L, 1, "threads", 0);
-    lp->opts.pipelined = lcdvr_optbooleanfield(L, 1, "pipeline", 1);
-    lp->opts.ring = (int)lcdvr_optintegerfield(L, 1, "ring", 3);
-    lp->opts.cold = lcdvr_optbooleanfield(L, 1, "cold", 0);
-    lp->opts.read_mbps = lcdvr_optnumberfield(L, 1, "read_mbps", 0);
-    lp->opts.empty_skip = lcdvr_optbooleanfield(L, 1, "empty_skip", 1);
-    lp->callback_limit = (int)lcdvr_optintegerfield(L, 1, "callback_limit", 50000000);
-    luaL_argcheck(L, lp->callback_limit > 0, 1, "callback_limit must be positive");
+    render_options(L, lp, info);
+    lp->callback_limit = integer_option(L, "callback_limit", 50000000, 1, INT_MAX);
     lp->opts.variant = variant_option(L, st);
     lp->variant_why = "best quality (no variant, policy or min_psnr given)";
-
-    const char *out = lcdvr_optstringfield(L, 1, "out", NULL);
-    if (out) {
-        if (strlen(out) >= sizeof lp->out_pattern)
-            luaL_error(L, "cdvr.player: option 'out' is too long");
-        const char *pct = strchr(out, '%');
-        if (!pct || strchr(pct + 1, '%'))
-            luaL_error(L, "cdvr.player: option 'out' needs exactly one integer conversion, like 'frames/%%04d.png'");
-        strcpy(lp->out_pattern, out);
-        lp->capture = 1;
-        lp->opts.frame_fn = frame_cb;
-        lp->opts.frame_ud = lp;
-        double min_psnr = lcdvr_optnumberfield(L, 1, "min_psnr", -HUGE_VAL);
-        lua_getfield(L, 1, "variant");
-        int user_variant = !lua_isnil(L, -1);
-        lua_pop(L, 1);
-        if (user_variant)
-            lp->variant_why = "the variant set by the user";
-        if (!user_variant && min_psnr > -HUGE_VAL) {
-            int v = variant_for_psnr(st, min_psnr);
-            if (v < 0)
-                luaL_error(L, "cdvr.player: no variant of %s reaches min_psnr %f", cdvr_store_path(st), min_psnr);
-            lp->opts.variant = v;
-            lp->variant_why = "the cheapest variant meeting min_psnr";
-        }
-    }
+    lp->capture = capture_options(L, lp, st);
+    double target_fps = number_option(L, "target_fps", 0, DBL_MIN, DBL_MAX, "a finite number > 0 expected");
     if (!lp->capture && lcdvr_optbooleanfield(L, 1, "pace", 1))
-        lp->opts.pace_fps = lcdvr_optnumberfield(L, 1, "target_fps", 0);
+        lp->opts.pace_fps = target_fps;
     lp->opts.loop = lcdvr_optbooleanfield(L, 1, "loop", 0);
     lp->has_policy = resolve_policy(L, ud, st, lp->opts.variant);
     if (lp->has_policy || lp->capture) {
@@ -533,7 +710,7 @@ static void push_stage_medians(lua_State *L, const cdvr_frame_row *rows, size_t 
 
 static int player_run(lua_State *L)
 {
-    lplayer *lp = checkplayer(L, 1);
+    lplayer *lp = checkidleplayer(L, 1, "run");
     const cdvr_store_info *info = cdvr_store_get_info(lp->opts.store);
     lua_Integer frames = (lua_Integer)info->timesteps, first = 1;
     if (!lua_isnoneornil(L, 2)) {
@@ -545,10 +722,12 @@ static int player_run(lua_State *L)
     }
     luaL_argcheck(L, frames >= 1, 2, "frames must be at least 1");
     luaL_argcheck(L, first >= 1 && (size_t)first <= info->timesteps, 2, "first timestep out of range");
-    lua_settop(L, 1);
+    lua_settop(L, 1);                             /* callbacks find the player at index 1 */
     lp->L = L;
+    lp->running = 1;
     cdvr_error err;
     cdvr_status status = cdvr_player_run(lp->player, (size_t)first - 1, (size_t)frames, &err);
+    lp->running = 0;
     lp->L = NULL;
     if (status != CDVR_OK)
         return lcdvr_raise(L, &err);
@@ -587,11 +766,36 @@ static int player_run(lua_State *L)
     return 1;
 }
 
+/* Frees the player and lets go of its store (a deferred st:close() happens now). */
+static void release_player(lua_State *L, lplayer *lp)
+{
+    cdvr_player_free(lp->player);
+    lp->player = NULL;
+    if (lp->holds_store) {
+        lp->holds_store = 0;
+        lua_getiuservalue(L, 1, UV_STORE);        /* store */
+        lcdvr_unuse(L, -1);
+        lua_pop(L, 1);
+    }
+}
+
+/* p:close() and __close: refused while the player runs (from its own callbacks). */
+static int player_close(lua_State *L)
+{
+    lplayer *lp = (lplayer *)luaL_checkudata(L, 1, LCDVR_PLAYER);
+    if (lp->running)
+        return luaL_error(L, "p:close: player is running (called from its own policy or camera callback?)");
+    release_player(L, lp);
+    return 0;
+}
+
+/* __gc: a running player is still on the stack of p:run, so it is collected only when the state
+ * closes inside a callback (os.exit(code, true)): then it is left for the process exit. */
 static int player_gc(lua_State *L)
 {
     lplayer *lp = (lplayer *)luaL_checkudata(L, 1, LCDVR_PLAYER);
-    cdvr_player_free(lp->player);
-    lp->player = NULL;
+    if (!lp->running)
+        release_player(L, lp);
     return 0;
 }
 
@@ -606,13 +810,14 @@ static int player_tostring(lua_State *L)
     return 1;
 }
 
-static const luaL_Reg player_methods[] = {{"run", player_run}, {"close", player_gc}, {NULL, NULL}};
+static const luaL_Reg player_methods[] = {{"run", player_run}, {"close", player_close}, {NULL, NULL}};
 static const luaL_Reg player_meta[] = {
-    {"__gc", player_gc}, {"__close", player_gc}, {"__tostring", player_tostring}, {NULL, NULL}};
+    {"__gc", player_gc}, {"__close", player_close}, {"__tostring", player_tostring}, {NULL, NULL}};
 static const luaL_Reg player_funcs[] = {{"player", l_player}, {NULL, NULL}};
 
 int lcdvr_open_player(lua_State *L)
 {
+    lcdvr_open_budget(L);
     lcdvr_newclass(L, LCDVR_PLAYER, player_methods, player_meta);
     lcdvr_setfuncs(L, player_funcs);
     lcdvr_help_add(L, "cdvr.player{store=, tf=, camera=, policy=, ...}",

@@ -23,7 +23,7 @@ static lstore *tolstore(lua_State *L, int idx)
 cdvr_store *lcdvr_checkstore(lua_State *L, int idx)
 {
     lstore *ud = tolstore(L, idx);
-    if (!ud->st)
+    if (!ud->st || lcdvr_closing(L, idx))
         luaL_error(L, "attempt to use a closed store");
     return ud->st;
 }
@@ -404,7 +404,9 @@ static int l_encode(lua_State *L)
     ctx.nbricks = o.bricks[0] * o.bricks[1] * o.bricks[2];
     const cdvr_volume *u8 = encode_input(L, vol, &o);
     cdvr_error err;
+    lcdvr_use(L, 1); /* the schedule may close the volume: deferred until the encoder is done */
     cdvr_status s = cdvr_store_encode(u8, &o, path, &err);
+    lcdvr_unuse(L, 1);
     if (s == CDVR_ERR_IO)
         return lcdvr_fail(L, &err);
     if (s != CDVR_OK)
@@ -715,6 +717,8 @@ static int store_variants(lua_State *L)
 static int store_gc(lua_State *L)
 {
     lstore *ud = tolstore(L, 1);
+    if (lcdvr_defer_close(L, 1)) /* a player still uses it: closed when the player lets go */
+        return 0;
     cdvr_store_close(ud->st);
     ud->st = NULL;
     return 0;
@@ -723,7 +727,7 @@ static int store_gc(lua_State *L)
 static int store_tostring(lua_State *L)
 {
     lstore *ud = tolstore(L, 1);
-    if (!ud->st) {
+    if (!ud->st || lcdvr_closing(L, 1)) {
         lua_pushliteral(L, "cdvr.Store (closed)");
         return 1;
     }

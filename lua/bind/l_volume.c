@@ -18,7 +18,7 @@ static lvolume *tolvolume(lua_State *L, int idx)
 cdvr_volume *lcdvr_checkvolume(lua_State *L, int idx)
 {
     lvolume *ud = tolvolume(L, idx);
-    if (!ud->vol)
+    if (!ud->vol || lcdvr_closing(L, idx))
         luaL_error(L, "attempt to use a closed volume");
     return ud->vol;
 }
@@ -33,6 +33,8 @@ void lcdvr_pushvolume(lua_State *L, cdvr_volume *vol)
 static int volume_gc(lua_State *L)
 {
     lvolume *ud = tolvolume(L, 1);
+    if (lcdvr_defer_close(L, 1)) /* cdvr.encode still reads it: freed when it is done */
+        return 0;
     cdvr_volume_free(ud->vol);
     ud->vol = NULL;
     return 0;

@@ -218,3 +218,265 @@ void lcdvr_checkoptions_array(lua_State *L, int idx, const char *what, const cha
 {
     check_options(L, idx, what, keys, 1);
 }
+
+void *lcdvr_checkoption(lua_State *L, int idx, const char *what, const char *key, const char *tname)
+{
+    idx = lua_absindex(L, idx);
+    void *p = luaL_testudata(L, idx, tname);
+    if (!p) {
+        const char *got = luaL_getmetafield(L, idx, "__name") == LUA_TSTRING ? lua_tostring(L, -1)
+                                                                              : luaL_typename(L, idx);
+        luaL_error(L, "%s: option '%s': %s expected, got %s", what, key, tname, got);
+    }
+    return p;
+}
+
+/* ---- object lifetimes (lcdvr.h) ---------------------------------------------------------- */
+
+#define USES_KEY "cdvr.uses"       /* registry: weak-keyed table, userdata -> C users (> 0) */
+#define CLOSING_KEY "cdvr.closing" /* registry: weak-keyed table, userdata -> true (closed in use) */
+
+/* Pushes registry[name], a table with weak keys (created on first use). */
+static void push_weak_table(lua_State *L, const char *name)
+{
+    if (lua_getfield(L, LUA_REGISTRYINDEX, name) == LUA_TTABLE)
+        return;
+    lua_pop(L, 1);
+    lua_newtable(L);              /* t */
+    lua_createtable(L, 0, 1);     /* t, mt */
+    lua_pushliteral(L, "k");
+    lua_setfield(L, -2, "__mode");
+    lua_setmetatable(L, -2);      /* t */
+    lua_pushvalue(L, -1);
+    lua_setfield(L, LUA_REGISTRYINDEX, name);
+}
+
+/* registry[table][object at absolute index idx]; nil counts as 0 / false. */
+static lua_Integer weak_get(lua_State *L, const char *table, int idx)
+{
+    push_weak_table(L, table);    /* t */
+    lua_pushvalue(L, idx);
+    lua_rawget(L, -2);            /* t, value */
+    lua_Integer v = lua_isboolean(L, -1) ? lua_toboolean(L, -1) : lua_tointeger(L, -1);
+    lua_pop(L, 2);
+    return v;
+}
+
+static void weak_set(lua_State *L, const char *table, int idx, lua_Integer v)
+{
+    push_weak_table(L, table);    /* t */
+    lua_pushvalue(L, idx);
+    if (v > 0)
+        lua_pushinteger(L, v);
+    else
+        lua_pushnil(L);
+    lua_rawset(L, -3);            /* t */
+    lua_pop(L, 1);
+}
+
+void lcdvr_use(lua_State *L, int idx)
+{
+    idx = lua_absindex(L, idx);
+    weak_set(L, USES_KEY, idx, weak_get(L, USES_KEY, idx) + 1);
+}
+
+void lcdvr_unuse(lua_State *L, int idx)
+{
+    idx = lua_absindex(L, idx);
+    lua_Integer users = weak_get(L, USES_KEY, idx) - 1;
+    weak_set(L, USES_KEY, idx, users);
+    if (users > 0 || !lcdvr_closing(L, idx))
+        return;
+    weak_set(L, CLOSING_KEY, idx, 0);
+    if (luaL_getmetafield(L, idx, "__close") == LUA_TNIL) /* __close */
+        return;
+    lua_pushvalue(L, idx);
+    if (lua_pcall(L, 1, 0, 0) != LUA_OK) /* may run inside a __gc: never raise from here */
+        lua_pop(L, 1);
+}
+
+int lcdvr_defer_close(lua_State *L, int idx)
+{
+    idx = lua_absindex(L, idx);
+    if (weak_get(L, USES_KEY, idx) <= 0)
+        return 0;
+    weak_set(L, CLOSING_KEY, idx, 1);
+    return 1;
+}
+
+int lcdvr_closing(lua_State *L, int idx)
+{
+    if (lua_getfield(L, LUA_REGISTRYINDEX, CLOSING_KEY) != LUA_TTABLE) { /* none deferred yet */
+        lua_pop(L, 1);
+        return 0;
+    }
+    lua_pop(L, 1);
+    return weak_get(L, CLOSING_KEY, lua_absindex(L, idx)) != 0;
+}
+
+/* ---- callback budgets (lcdvr.h) ---------------------------------------------------------- */
+
+#define BUDGET_KEY "cdvr.budget" /* registry: light userdata, the running callback's budget */
+#define BUDGET_SLICE 10000       /* instructions between two checks of the budget */
+
+typedef struct callback_budget {
+    lua_Integer limit, used;
+    int spent;                   /* once set, every instruction raises */
+    lua_State *L;                /* the thread that runs the callback */
+} callback_budget;
+
+#define BUDGET_MESSAGE "callback exceeded its instruction budget (callback_limit = %I instructions)"
+
+static int traceback_handler(lua_State *L)
+{
+    const char *msg = lua_tostring(L, 1);
+    luaL_traceback(L, L, msg ? msg : "(error object is not a string)", 1);
+    return 1;
+}
+
+/* Count hook of a budgeted callback, on its thread and on every coroutine it resumes. Outside
+ * a callback (a coroutine hooked by an earlier one) it removes itself. */
+static void budget_hook(lua_State *L, lua_Debug *ar)
+{
+    (void)ar;
+    lua_getfield(L, LUA_REGISTRYINDEX, BUDGET_KEY);
+    callback_budget *b = (callback_budget *)lua_touserdata(L, -1);
+    lua_pop(L, 1);
+    if (!b) {
+        lua_sethook(L, NULL, 0, 0);
+        return;
+    }
+    if (!b->spent) {
+        b->used += lua_gethookcount(L);
+        if (b->used < b->limit)
+            return;
+        b->spent = 1;
+    }
+    if (lua_gethookcount(L) != 1)
+        lua_sethook(L, budget_hook, LUA_MASKCOUNT, 1);
+    if (b->L != L && lua_gethookcount(b->L) != 1) /* spent inside a coroutine */
+        lua_sethook(b->L, budget_hook, LUA_MASKCOUNT, 1);
+    luaL_error(L, BUDGET_MESSAGE, (LUAI_UACINT)b->limit);
+}
+
+int lcdvr_pcall_budget(lua_State *L, int nargs, int nres, lua_Integer limit)
+{
+    callback_budget b = {limit > 0 ? limit : 1, 0, 0, L};
+    int base = lua_gettop(L) - nargs;              /* the function */
+    lua_pushcfunction(L, traceback_handler);
+    lua_insert(L, base);                           /* handler, function, args */
+    lua_getfield(L, LUA_REGISTRYINDEX, BUDGET_KEY);
+    void *outer = lua_touserdata(L, -1);           /* a callback running this one, or NULL */
+    lua_pop(L, 1);
+    lua_Hook old_hook = lua_gethook(L);
+    int old_mask = lua_gethookmask(L), old_count = lua_gethookcount(L);
+    lua_pushlightuserdata(L, &b);
+    lua_setfield(L, LUA_REGISTRYINDEX, BUDGET_KEY);
+    lua_sethook(L, budget_hook, LUA_MASKCOUNT, (int)(b.limit < BUDGET_SLICE ? b.limit : BUDGET_SLICE));
+    int status = lua_pcall(L, nargs, nres, base);
+    lua_sethook(L, old_hook, old_mask, old_count);
+    if (status == LUA_OK && b.spent) { /* it caught every budget error and returned: still a failure */
+        lua_pop(L, nres);
+        lua_pushfstring(L, BUDGET_MESSAGE " (the callback caught the error and went on)", (LUAI_UACINT)b.limit);
+        status = LUA_ERRRUN;
+    }
+    if (outer)
+        lua_pushlightuserdata(L, outer);
+    else
+        lua_pushnil(L);
+    lua_setfield(L, LUA_REGISTRYINDEX, BUDGET_KEY);
+    lua_remove(L, base);
+    return status;
+}
+
+/* Gives coroutine co the budget hook of L, when L runs a budgeted callback. */
+static void pass_budget_on(lua_State *L, lua_State *co)
+{
+    lua_Hook hook = lua_gethook(L);
+    if (hook != budget_hook || co == L)
+        return;
+    int mask = lua_gethookmask(L), count = lua_gethookcount(L);
+    if (lua_gethook(co) != hook || lua_gethookmask(co) != mask || lua_gethookcount(co) != count)
+        lua_sethook(co, hook, mask, count);
+}
+
+/* coroutine.resume and coroutine.close: Lua's own (upvalue 1) after passing the budget on. */
+static int budget_passing_call(lua_State *L)
+{
+    lua_State *co = lua_tothread(L, 1);
+    luaL_argexpected(L, co, 1, "coroutine");
+    pass_budget_on(L, co);
+    lua_pushvalue(L, lua_upvalueindex(1));
+    lua_insert(L, 1);                              /* original, co, args */
+    lua_call(L, lua_gettop(L) - 1, LUA_MULTRET);
+    return lua_gettop(L);
+}
+
+#if LUA_VERSION_RELEASE_NUM >= 50406
+#define reset_coroutine(co, L) lua_closethread(co, L)
+#else
+#define reset_coroutine(co, L) ((void)(L), lua_resetthread(co))
+#endif
+
+/* A function made by coroutine.wrap: upvalue 1 the coroutine, upvalue 2 Lua's resume. Errors
+ * as in Lua's coroutine.wrap (lcorolib.c auxwrap): the dead coroutine's pending to-be-closed
+ * variables are closed and a string message gets the caller's position. */
+static int budget_wrapped(lua_State *L)
+{
+    lua_State *co = lua_tothread(L, lua_upvalueindex(1));
+    pass_budget_on(L, co);
+    int nargs = lua_gettop(L);
+    lua_pushvalue(L, lua_upvalueindex(2));
+    lua_insert(L, 1);
+    lua_pushvalue(L, lua_upvalueindex(1));
+    lua_insert(L, 2);                              /* resume, co, args */
+    lua_call(L, nargs + 1, LUA_MULTRET);           /* ok, results or message */
+    if (lua_toboolean(L, 1)) {
+        lua_remove(L, 1);
+        return lua_gettop(L);
+    }
+    int stat = lua_status(co);
+    if (stat != LUA_OK && stat != LUA_YIELD) {
+        stat = reset_coroutine(co, L);
+        lua_xmove(co, L, 1);
+    }
+    if (stat != LUA_ERRMEM && lua_type(L, -1) == LUA_TSTRING) {
+        luaL_where(L, 1);
+        lua_insert(L, -2);
+        lua_concat(L, 2);
+    }
+    return lua_error(L);
+}
+
+/* coroutine.wrap(f); upvalue 1 is Lua's coroutine.resume. */
+static int budget_wrap(lua_State *L)
+{
+    luaL_checktype(L, 1, LUA_TFUNCTION);
+    lua_State *co = lua_newthread(L);              /* f, co */
+    lua_pushvalue(L, 1);
+    lua_xmove(L, co, 1);                           /* the body goes to co's stack */
+    lua_pushvalue(L, lua_upvalueindex(1));         /* f, co, resume */
+    lua_pushcclosure(L, budget_wrapped, 2);
+    return 1;
+}
+
+void lcdvr_open_budget(lua_State *L)
+{
+    if (lua_getglobal(L, "coroutine") != LUA_TTABLE) { /* co */
+        lua_pop(L, 1);
+        return;
+    }
+    lua_getfield(L, -1, "resume");                 /* co, resume */
+    lua_pushvalue(L, -1);
+    lua_pushcclosure(L, budget_passing_call, 1);
+    lua_setfield(L, -3, "resume");
+    lua_pushcclosure(L, budget_wrap, 1);           /* co, wrap */
+    lua_setfield(L, -2, "wrap");
+    if (lua_getfield(L, -1, "close") == LUA_TFUNCTION) { /* co, close */
+        lua_pushcclosure(L, budget_passing_call, 1);
+        lua_setfield(L, -2, "close");
+    } else {
+        lua_pop(L, 1);
+    }
+    lua_pop(L, 1);
+}

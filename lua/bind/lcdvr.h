@@ -75,6 +75,39 @@ void lcdvr_checkoptions(lua_State *L, int idx, const char *what, const char *con
  * part 1..#t is allowed. */
 void lcdvr_checkoptions_array(lua_State *L, int idx, const char *what, const char *const keys[]);
 
+/* The userdata of metatable tname in option `key` of the value at idx (an options table field
+ * already pushed, usually -1); raises "what: option 'key': tname expected, got <type>" (never
+ * "bad argument #-1"). */
+void *lcdvr_checkoption(lua_State *L, int idx, const char *what, const char *key, const char *tname);
+
+/* Object lifetimes. A binding whose C object uses another object's C data beyond one call (a
+ * player its store) or during a call that runs Lua code (cdvr.encode its volume while the
+ * schedule runs) marks it in use with lcdvr_use and lets go with lcdvr_unuse (counted, kept in
+ * a weak table in the registry, so it never keeps the object alive). Every close, __close and
+ * __gc of a type that can be in use first calls lcdvr_defer_close: while the object is in use
+ * it records the close and returns 1, and the caller returns without freeing; the last
+ * lcdvr_unuse then calls the object's __close, which frees it. An object whose close is pending
+ * counts as closed for Lua (lcdvr_closing: its methods raise "attempt to use a closed ...")
+ * while its users keep working. */
+void lcdvr_use(lua_State *L, int idx);
+void lcdvr_unuse(lua_State *L, int idx);
+int lcdvr_defer_close(lua_State *L, int idx);
+int lcdvr_closing(lua_State *L, int idx);
+
+/* Callback budgets. Calls the function below its nargs arguments in protected mode, with a
+ * traceback message handler, under a budget of `limit` Lua VM instructions (a count hook,
+ * checked every min(limit, 10000) instructions). The budget covers every coroutine the callback
+ * resumes (coroutine.resume, coroutine.wrap and coroutine.close pass the hook on, see
+ * lcdvr_open_budget), and once spent every further instruction raises again, so a pcall inside
+ * the callback cannot swallow it. Nested budgets (a callback that runs another player) restore
+ * the outer one. Returns the lua_pcall status; on error the message with its traceback is on
+ * top ("... exceeded its instruction budget (callback_limit = N) ..." when the budget ran out). */
+int lcdvr_pcall_budget(lua_State *L, int nargs, int nres, lua_Integer limit);
+/* Replaces coroutine.resume, coroutine.wrap and coroutine.close by versions that pass a running
+ * callback budget on to the coroutine they run (otherwise the same). Called once at start-up,
+ * before any script runs, by lcdvr_open_player. */
+void lcdvr_open_budget(lua_State *L);
+
 /* Per-type accessors, implemented in the type's binding file. push* takes ownership. */
 cdvr_volume *lcdvr_checkvolume(lua_State *L, int idx);
 void lcdvr_pushvolume(lua_State *L, cdvr_volume *vol);
