@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 
 mode=${1:-demo}
 packages=(build-essential cmake pkg-config liblua5.4-dev libteem-dev libniftiio-dev libznz-dev
-          libnifti2-dev zlib1g-dev libzfp-dev
+          libnifti2-dev zlib1g-dev libzfp-dev libbz2-dev
           liblzo2-dev opencl-headers ocl-icd-opencl-dev pocl-opencl-icd clinfo libstb-dev
           libreadline-dev gnuplot-nox)
 

@@ -160,7 +160,7 @@ static cdvr_status nrrd_to_volume(const char *path, const Nrrd *nrrd, cdvr_volum
 cdvr_status cdvr_volume_load_nrrd(const char *path, cdvr_volume **out, cdvr_error *err)
 {
     *out = NULL;
-    cdvr_status st = cdvr_check_readable(path, err);
+    cdvr_status st = cdvr_nrrd_check(path, err);
     if (st != CDVR_OK)
         return st;
     Nrrd *nrrd = nrrdNew();
@@ -168,15 +168,10 @@ cdvr_status cdvr_volume_load_nrrd(const char *path, cdvr_volume **out, cdvr_erro
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
     if (nrrdLoad(nrrd, path, NULL)) {
         char *msg = biffGetDone(NRRD);
-        /* teem's message is several lines, innermost reason last; keep it on one line */
-        for (char *c = msg; c && *c; c++)
-            if (*c == '\n')
-                *c = ' ';
-        size_t len = msg ? strlen(msg) : 0;
-        while (len > 0 && msg[len - 1] == ' ')
-            msg[--len] = '\0';
+        if (msg)
+            cdvr_teem_reason(msg);
         st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: cannot read NRRD: %s", path,
-                                        msg ? msg : "unknown teem error");
+                            msg && *msg ? msg : "unknown teem error");
         free(msg);
         nrrdNuke(nrrd);
         return st;

@@ -1,5 +1,6 @@
 /* core/io/io_raw.c - headerless raw volumes: cdvr_volume_load_raw and cdvr_volume_save_raw. */
 #include "cdvr/atomicfile.h"
+#include "cdvr/regular_file.h"
 #include "cdvr/volume.h"
 #include "volume_io.h"
 
@@ -33,14 +34,11 @@ static cdvr_status check_raw_opts(const char *path, const cdvr_raw_opts *opts, s
 static cdvr_status open_raw(const char *path, const cdvr_raw_opts *opts, size_t timesteps,
                             size_t data_bytes, FILE **out, cdvr_error *err)
 {
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    FILE *f;
     struct stat sb;
-    if (fstat(fileno(f), &sb) != 0 || !S_ISREG(sb.st_mode)) {
-        fclose(f);
-        return cdvr_error_set(err, CDVR_ERR_IO, "%s: not a regular file", path);
-    }
+    cdvr_status st = cdvr_fopen_regular_file(path, &f, &sb, err);
+    if (st != CDVR_OK)
+        return st;
     size_t expected = data_bytes + opts->header_bytes; /* overflow checked by check_raw_opts */
     unsigned long long actual = (unsigned long long)sb.st_size;
     if (actual != expected) {

@@ -1,5 +1,6 @@
 /* core/io/volume.c - cdvr_volume allocation, access and type helpers. */
 #include "cdvr/volume.h"
+#include "cdvr/regular_file.h"
 #include "volume_io.h"
 
 #include <errno.h>
@@ -9,6 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 size_t cdvr_type_size(cdvr_type type)
 {
@@ -303,14 +305,9 @@ void cdvr_convert_to_f32(float *dst, const void *src, size_t count, cdvr_value_r
 
 cdvr_status cdvr_check_readable(const char *path, cdvr_error *err)
 {
-    struct stat sb;
-    if (stat(path, &sb) != 0)
-        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
-    if (!S_ISREG(sb.st_mode))
-        return cdvr_error_set(err, CDVR_ERR_IO, "%s: not a regular file", path);
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
-    fclose(f);
-    return CDVR_OK;
+    int fd;
+    cdvr_status st = cdvr_open_regular_file(path, &fd, NULL, err);
+    if (st == CDVR_OK)
+        close(fd);
+    return st;
 }

@@ -22,7 +22,17 @@ float cdvr_double_to_f32(double v);
 typedef double (*cdvr_value_reader)(const void *src, size_t i);
 void cdvr_convert_to_f32(float *dst, const void *src, size_t count, cdvr_value_reader read);
 
-/* CDVR_OK when path names a readable regular file, else CDVR_ERR_IO naming path and reason. */
+/* CDVR_OK when path names a readable regular file (checked without blocking on a FIFO, see
+ * cdvr/regular_file.h), else CDVR_ERR_IO naming path and reason. */
 cdvr_status cdvr_check_readable(const char *path, cdvr_error *err);
+
+/* Refuses a NRRD file before teem reads it (io_nrrd_check.c): data files that are not regular
+ * files or are the header itself, and headers claiming more data than the files can hold
+ * (raw: file size; gzip: ratio bound, then one inflate pass; bzip2: one decompression pass). */
+cdvr_status cdvr_nrrd_check(const char *path, cdvr_error *err);
+
+/* Cuts teem's biff message (several "[nrrd] function: text" lines, innermost last) in place to
+ * its innermost non-empty reason. */
+void cdvr_teem_reason(char *msg);
 
 #endif

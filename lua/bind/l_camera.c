@@ -237,7 +237,11 @@ static void read_box(lua_State *L, double lo[3], double hi[3])
                 luaL_argerror(L, 1, "dims {x, y, z} expected");
             for (int a = 0; a < 3; a++) {
                 lua_geti(L, 1, a + 1);
-                dims[a] = luaL_checknumber(L, -1);
+                int isnum;
+                dims[a] = lua_tonumberx(L, -1, &isnum);
+                if (!isnum)
+                    luaL_argerror(L, 1, lua_pushfstring(L, "dims[%d]: number expected, got %s", a + 1,
+                                                        luaL_typename(L, -1)));
                 lua_pop(L, 1);
             }
         }

@@ -75,6 +75,7 @@ static const cdvr_tf *read_tf(lua_State *L, int idx)
         if (lua_isnil(L, -1))
             luaL_error(L, "cdvr.render: option 'tf': cannot load transfer function");
     }
+    lcdvr_checkoption(L, -1, "cdvr.render", "tf", LCDVR_TF);
     const cdvr_tf *tf = lcdvr_checktf(L, -1);
     lua_replace(L, idx + 1); /* keep it referenced in a stack slot reserved by the caller */
     return tf;
@@ -90,6 +91,7 @@ static const cdvr_camera *read_camera(lua_State *L, int idx, int box)
         lua_pushvalue(L, box);
         lua_call(L, 1, 1);
     }
+    lcdvr_checkoption(L, -1, "cdvr.render", "camera", LCDVR_CAMERA);
     const cdvr_camera *cam = lcdvr_checkcamera(L, -1);
     lua_replace(L, idx + 2);
     return cam;
