@@ -1,4 +1,5 @@
 /* core/io/io_nifti.c - NIfTI-1 (.nii, .nii.gz, .hdr/.img pairs) through niftilib. */
+#include "cdvr/regular_file.h"
 #include "cdvr/volume.h"
 #include "volume_io.h"
 
@@ -180,9 +181,9 @@ static cdvr_status check_data_size(const char *path, const nifti_image *nim, cdv
         !cdvr_size_add(need, (size_t)nim->iname_offset, &need))
         return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI data size overflows", path);
     struct stat sb;
-    if (stat(nim->iname, &sb) != 0)
-        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot open NIfTI data file %s: %s", path, nim->iname,
-                              strerror(errno));
+    cdvr_error why;
+    if (cdvr_check_regular_file(nim->iname, &sb, &why) != CDVR_OK) /* a .img that is a FIFO or device */
+        return cdvr_error_set(err, why.status, "%s: NIfTI data file %s", path, why.msg);
     size_t have = (size_t)sb.st_size;
     if (nifti_is_gzfile(nim->iname)) {
         if (have > SIZE_MAX / 1032 || need / 1032 <= have)
@@ -236,10 +237,36 @@ static cdvr_status nifti_to_volume(const char *path, const nifti_image *nim, cdv
     return CDVR_OK;
 }
 
+/* Refuses what niftilib lets through in the raw header (it reads dim[0] = 0 as a 1x1x1 volume,
+ * clamps a negative or NaN vox_offset, and takes any sizeof_hdr): sizeof_hdr must be 348 (540
+ * is NIfTI-2, which niftilib's NIfTI-1 reader misreads), dim[0] 1..7, vox_offset finite and
+ * >= 0. */
+static cdvr_status check_raw_header(const char *path, cdvr_error *err)
+{
+    int swapped = 0;
+    nifti_1_header *h = nifti_read_header(path, &swapped, 0);
+    if (!h)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: cannot read a NIfTI-1 header", path);
+    cdvr_status st = CDVR_OK;
+    if (h->sizeof_hdr != 348)
+        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI sizeof_hdr is %d, not 348%s", path, h->sizeof_hdr,
+                            h->sizeof_hdr == 540 ? " (540 is NIfTI-2's; cdvr reads NIfTI-1)" : "");
+    else if (h->dim[0] < 1 || h->dim[0] > 7)
+        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI dim[0] = %d (the number of dimensions) is not 1..7",
+                            path, h->dim[0]);
+    else if (!isfinite(h->vox_offset) || h->vox_offset < 0)
+        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI vox_offset %g is not a byte offset", path,
+                            (double)h->vox_offset);
+    free(h);
+    return st;
+}
+
 cdvr_status cdvr_volume_load_nifti(const char *path, cdvr_volume **out, cdvr_error *err)
 {
     *out = NULL;
     cdvr_status st = cdvr_check_readable(path, err);
+    if (st == CDVR_OK)
+        st = check_raw_header(path, err);
     if (st != CDVR_OK)
         return st;
     nifti_image *nim = nifti_image_read(path, 0); /* header only */

@@ -2,6 +2,7 @@
 #include "cdvr/volume.h"
 #include "volume_io.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
@@ -34,6 +35,12 @@ static void override_spacing(cdvr_volume *vol, const cdvr_raw_opts *raw)
             vol->spacing[i] = raw->spacing[i];
 }
 
+/* raw describes a raw file (dims given), rather than only carrying a spacing override. */
+static int describes_raw(const cdvr_raw_opts *raw)
+{
+    return raw && raw->dims[0] > 0;
+}
+
 cdvr_status cdvr_volume_load(const char *path, const cdvr_raw_opts *raw, cdvr_volume **out,
                              cdvr_error *err)
 {
@@ -43,13 +50,13 @@ cdvr_status cdvr_volume_load(const char *path, const cdvr_raw_opts *raw, cdvr_vo
     case FORMAT_NRRD: st = cdvr_volume_load_nrrd(path, out, err); break;
     case FORMAT_NIFTI: st = cdvr_volume_load_nifti(path, out, err); break;
     case FORMAT_RAW:
-        if (!raw)
+        if (!describes_raw(raw))
             return cdvr_error_set(err, CDVR_ERR_ARG,
                                   "%s: a raw file needs its dims and type (and endian, header, timesteps)",
                                   path);
         return cdvr_volume_load_raw(path, raw, out, err);
     default:
-        if (raw) /* any other name with a raw description is read as raw */
+        if (describes_raw(raw)) /* any other name with a raw description is read as raw */
             return cdvr_volume_load_raw(path, raw, out, err);
         return cdvr_error_set(err, CDVR_ERR_FORMAT,
                               "%s: unknown file type (.nrrd .nhdr .nii .nii.gz, or raw .raw .bin .dat "
@@ -70,6 +77,23 @@ static cdvr_status check_same_shape(const cdvr_volume *first, const cdvr_volume 
                               next->dims[0], next->dims[1], next->dims[2], cdvr_type_name(next->type),
                               first_path, first->dims[0], first->dims[1], first->dims[2],
                               cdvr_type_name(first->type));
+    return CDVR_OK;
+}
+
+/* Files of a series must agree on spacing (relative difference 1e-6) unless the caller
+ * overrides it. */
+static cdvr_status check_same_spacing(const cdvr_volume *first, const cdvr_volume *next,
+                                      const char *first_path, const char *path, cdvr_error *err)
+{
+    for (int i = 0; i < 3; i++) {
+        double a = first->spacing[i], b = next->spacing[i];
+        if (!(fabs(a - b) <= 1e-6 * fmax(fabs(a), fabs(b))))
+            return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                                  "%s: series file has spacing %g %g %g, but %s has %g %g %g (give spacing= to use one "
+                                  "spacing for the whole series)",
+                                  path, next->spacing[0], next->spacing[1], next->spacing[2], first_path,
+                                  first->spacing[0], first->spacing[1], first->spacing[2]);
+    }
     return CDVR_OK;
 }
 
@@ -97,6 +121,7 @@ cdvr_status cdvr_volume_load_series(const char *const *paths, size_t count,
     *out = NULL;
     if (count == 0)
         return cdvr_error_set(err, CDVR_ERR_ARG, "series: no files given");
+    int spacing_given = raw && raw->spacing[0] > 0 && raw->spacing[1] > 0 && raw->spacing[2] > 0;
     cdvr_volume *series;
     cdvr_status st = cdvr_volume_load(paths[0], raw, &series, err);
     for (size_t i = 1; st == CDVR_OK && i < count; i++) {
@@ -105,6 +130,8 @@ cdvr_status cdvr_volume_load_series(const char *const *paths, size_t count,
         if (st != CDVR_OK)
             break;
         st = check_same_shape(series, next, paths[0], paths[i], err);
+        if (st == CDVR_OK && !spacing_given)
+            st = check_same_spacing(series, next, paths[0], paths[i], err);
         if (st == CDVR_OK)
             st = append_frames(series, next, paths[i], err);
         cdvr_volume_free(next);

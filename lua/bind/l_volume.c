@@ -517,7 +517,7 @@ static int l_load_series(lua_State *L)
     }
     cdvr_volume *vol = NULL;
     cdvr_error err;
-    cdvr_status st = cdvr_volume_load_series(paths, (size_t)n, has_raw ? &raw : NULL, &vol, &err);
+    cdvr_status st = cdvr_volume_load_series(paths, (size_t)n, &raw, &vol, &err); /* spacing= too */
     if (st == CDVR_OK && !has_raw)
         for (int i = 0; i < 3; i++)
             if (raw.spacing[i] > 0)
