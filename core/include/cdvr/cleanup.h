@@ -1,0 +1,30 @@
+/* cdvr/cleanup.h - the process-wide temporary-file cleanup context.
+ *
+ * Writers that build a file under a temporary name (cdvr/atomicfile.h: cdvr.encode, raw and
+ * PNG saves, player captures) register the temporary file here for as long as it exists. When
+ * the process receives SIGINT, SIGTERM or SIGHUP, the handler removes every registered
+ * temporary file, then lets the signal do what it did before: the handler that was installed
+ * before is called, or, for the default action, the default is restored and the signal raised
+ * again, so the process ends as killed by that signal (exit status 128 + n in a shell). An
+ * interrupted encode thus leaves neither a partial file under its final name nor a temporary
+ * file beside it. A signal that is ignored (SIG_IGN, e.g. SIGINT for a background job) stays
+ * ignored. SIGKILL cannot be caught: after kill -9 the temporary file ("PATH.tmpXXXXXX") stays.
+ *
+ * The handler is installed at the first registration, and again at a later one if something
+ * replaced it meanwhile. It calls only unlink, sigaction, raise and the previous handler
+ * (async-signal-safe); the table is a fixed array of CDVR_CLEANUP_SLOTS paths with atomic
+ * slot states, so registering never allocates. Registering is thread-safe.
+ */
+#ifndef CDVR_CLEANUP_H
+#define CDVR_CLEANUP_H
+
+#define CDVR_CLEANUP_SLOTS 64
+
+/* Registers tmp_path for removal on SIGINT/SIGTERM/SIGHUP; returns its slot, or -1 when the
+ * table is full or the path too long (the file is then not removed on a signal). */
+int cdvr_cleanup_register(const char *tmp_path);
+
+/* Forgets slot (after the file was renamed or removed); -1 is ignored. */
+void cdvr_cleanup_unregister(int slot);
+
+#endif
