@@ -149,6 +149,9 @@ static cdvr_status read_header(const char *path, FILE *f, nrrd_header *h, cdvr_e
             memset(line, 0, len); /* taken out of what teem parses */
             if (strncmp(h->data_file, "LIST", 4) == 0) {
                 h->list = h->text + pos; /* every further line names a data file */
+                for (char *p = h->text + pos; p < h->text + h->len; p++)
+                    if (*p == '\n' || *p == '\r')
+                        *p = '\0';
                 return CDVR_OK;
             }
         }

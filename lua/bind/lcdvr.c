@@ -460,8 +460,56 @@ static int budget_wrap(lua_State *L)
     return 1;
 }
 
+/* 1 while a budgeted callback runs whose budget is spent. */
+static int budget_spent(lua_State *L)
+{
+    lua_getfield(L, LUA_REGISTRYINDEX, BUDGET_KEY);
+    callback_budget *b = (callback_budget *)lua_touserdata(L, -1);
+    lua_pop(L, 1);
+    return b && b->spent;
+}
+
+/* A message handler given to xpcall (upvalue 1). Once the budget is spent it is not called:
+ * the budget error is raised from inside the count hook, where Lua runs a message handler with
+ * hooks off, so a handler that loops would never be stopped. */
+static int budget_message_handler(lua_State *L)
+{
+    if (budget_spent(L))
+        return 1;                                  /* the message as it is */
+    lua_pushvalue(L, lua_upvalueindex(1));
+    lua_insert(L, 1);
+    lua_call(L, lua_gettop(L) - 1, 1);
+    return 1;
+}
+
+static int return_all(lua_State *L, int status, lua_KContext ctx)
+{
+    (void)status;
+    (void)ctx;
+    return lua_gettop(L);
+}
+
+/* xpcall(f, msgh, ...): Lua's own (upvalue 1) with msgh behind budget_message_handler. */
+static int budget_xpcall(lua_State *L)
+{
+    luaL_checktype(L, 2, LUA_TFUNCTION);
+    lua_pushvalue(L, 2);
+    lua_pushcclosure(L, budget_message_handler, 1);
+    lua_replace(L, 2);
+    lua_pushvalue(L, lua_upvalueindex(1));
+    lua_insert(L, 1);                              /* xpcall, f, handler, args */
+    lua_callk(L, lua_gettop(L) - 1, LUA_MULTRET, 0, return_all); /* yields pass through */
+    return lua_gettop(L);
+}
+
 void lcdvr_open_budget(lua_State *L)
 {
+    if (lua_getglobal(L, "xpcall") == LUA_TFUNCTION) { /* xpcall */
+        lua_pushcclosure(L, budget_xpcall, 1);
+        lua_setglobal(L, "xpcall");
+    } else {
+        lua_pop(L, 1);
+    }
     if (lua_getglobal(L, "coroutine") != LUA_TTABLE) { /* co */
         lua_pop(L, 1);
         return;

@@ -104,8 +104,10 @@ int lcdvr_closing(lua_State *L, int idx);
  * top ("... exceeded its instruction budget (callback_limit = N) ..." when the budget ran out). */
 int lcdvr_pcall_budget(lua_State *L, int nargs, int nres, lua_Integer limit);
 /* Replaces coroutine.resume, coroutine.wrap and coroutine.close by versions that pass a running
- * callback budget on to the coroutine they run (otherwise the same). Called once at start-up,
- * before any script runs, by lcdvr_open_player. */
+ * callback budget on to the coroutine they run, and xpcall by one that no longer calls its
+ * message handler once the budget is spent (Lua runs that handler with hooks off); otherwise
+ * they behave as Lua's own. Called once at start-up, before any script runs, by
+ * lcdvr_open_player. */
 void lcdvr_open_budget(lua_State *L);
 
 /* Per-type accessors, implemented in the type's binding file. push* takes ownership. */

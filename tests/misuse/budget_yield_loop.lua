@@ -1,0 +1,10 @@
+-- expect: error instruction budget
+-- issue 11 item 4: a callback resuming a yielding coroutine forever.
+package.path = os.getenv("CDVR_SOURCE_DIR") .. "/tests/misuse/?.lua;" .. package.path
+local c = require "common"
+local st = c.store()
+local co = coroutine.create(function() while true do coroutine.yield() end end)
+local p = c.player(st, {callback_limit = 100000, policy = function()
+  while true do coroutine.resume(co) end
+end})
+p:run{frames = 3}

@@ -1,0 +1,8 @@
+-- expect: error player is running
+-- issue 11 item 2: p:run from the player's own policy (before: deadlock).
+package.path = os.getenv("CDVR_SOURCE_DIR") .. "/tests/misuse/?.lua;" .. package.path
+local c = require "common"
+local st = c.store()
+local p
+p = c.player(st, {policy = function() p:run{frames = 1} return 'S4T3' end})
+p:run{frames = 6}
