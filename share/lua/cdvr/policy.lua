@@ -129,6 +129,22 @@ local function check_stats(stats, who)
     by_quality[i] = v
     by_name[v.name] = v
   end
+  local frames = stats.frames
+  if frames ~= nil and type(frames) ~= "table" then
+    error(string.format("%s: stats.frames must be a table, got %s", who, type(frames)), 3)
+  end
+  for i, f in ipairs(frames or {}) do
+    if type(f) ~= "table" then
+      error(string.format("%s: stats.frames[%d] must be a table, got %s", who, i, type(f)), 3)
+    end
+  end
+  local floor = stats.min_psnr
+  if floor ~= nil and (type(floor) ~= "number" or floor ~= floor) then
+    error(string.format("%s: stats.min_psnr must be a number (dB), got %s", who, tostring(floor)), 3)
+  end
+  if stats.current ~= nil and type(stats.current) ~= "string" then
+    error(string.format("%s: stats.current must be a variant name, got %s", who, type(stats.current)), 3)
+  end
   table.sort(by_quality, better)
   return by_quality, by_name
 end
@@ -222,6 +238,11 @@ end
 -- Bandwidths (bytes per ms) and variant-independent times measured on frames; nil if none.
 function policy.measure(frames)
   if type(frames) ~= "table" or #frames == 0 then return nil end
+  for i, f in ipairs(frames) do
+    if type(f) ~= "table" then
+      error(string.format("bad argument #1 to 'measure' (frames[%d] must be a table, got %s)", i, type(f)), 2)
+    end
+  end
   local m = {
     read = rate_median(frames, "bytes", "read_ms"),
     unzip = rate_median(frames, "payload_bytes", "unzip_ms"),
@@ -240,8 +261,20 @@ local function uses_stage2(v)
     and stored_bytes(v) < payload_bytes(v)
 end
 
+local function check_model_args(v, m, fname)
+  if type(v) ~= "table" or type(v.bytes_per_timestep) ~= "number" then
+    error(string.format("bad argument #1 to '%s' (variant {name=, bytes_per_timestep=, ...} expected, got %s)", fname,
+                        type(v) == "table" and "a table without bytes_per_timestep" or type(v)), 3)
+  end
+  if type(m) ~= "table" or type(m.decode) ~= "table" then
+    error(string.format("bad argument #2 to '%s' (a measurement from policy.measure expected, got %s)", fname,
+                        type(m)), 3)
+  end
+end
+
 -- Predicted time (ms) of each stage of variant v from measurement m.
 function policy.stages(v, m)
+  check_model_args(v, m, "stages")
   local function per(bytes, rate) return rate and bytes / rate or 0 end
   if m.decode[v.name] == nil then
     m.decode[v.name] = field_median(m.frames, "decode_ms", v.name) or m.decode_all or false
@@ -258,6 +291,7 @@ end
 
 -- Predicted frame time (ms) of variant v from measurement m.
 function policy.predict(v, m, pipelined)
+  check_model_args(v, m, "predict")
   local st = policy.stages(v, m)
   local device = st.upload + st.decode + st.setup + st.render
   if pipelined then
@@ -292,7 +326,17 @@ local function check_opts(opts, fname)
   if type(opts) ~= "table" then
     error(string.format("bad argument #1 to '%s' (table expected, got %s)", fname, type(opts)), 3)
   end
+  if opts.target_fps ~= nil and not positive(opts.target_fps) then
+    error(string.format("%s: target_fps must be a positive number, got %s", fname, tostring(opts.target_fps)), 3)
+  end
+  if opts.variant ~= nil and type(opts.variant) ~= "string" then
+    error(string.format("%s: variant must be a variant name, got %s", fname, type(opts.variant)), 3)
+  end
   return opts
+end
+
+local function integer_at_least(x, min)
+  return type(x) == "number" and math.tointeger(x) ~= nil and x >= min
 end
 
 -- What every adaptive policy does first: validate stats, apply the quality floor, answer
@@ -496,11 +540,14 @@ function policy.closed_loop(opts)
   if type(state.hysteresis) ~= "number" or state.hysteresis < 0 or state.hysteresis >= 1 then
     error(string.format("closed_loop: hysteresis must be in [0, 1), got %s", tostring(state.hysteresis)), 2)
   end
-  if state.window ~= nil and (math.tointeger(state.window) or 0) < 1 then
+  if state.window ~= nil and not integer_at_least(state.window, 1) then
     error(string.format("closed_loop: window must be a positive integer, got %s", tostring(state.window)), 2)
   end
-  if (math.tointeger(state.up_after) or 0) < 1 then
+  if not integer_at_least(state.up_after, 1) then
     error(string.format("closed_loop: up_after must be a positive integer, got %s", tostring(state.up_after)), 2)
+  end
+  if not integer_at_least(state.memory_groups, 0) then
+    error(string.format("closed_loop: memory must be an integer >= 0 (groups), got %s", tostring(state.memory_groups)), 2)
   end
   return function(stats)
     local name, ctx = settle_or_context("closed_loop", stats, opts)

@@ -72,6 +72,18 @@ end
 
 -- Quantile q of values (type 7: linear between order statistics).
 function schedule.quantile(values, q)
+  if type(values) ~= "table" then
+    error(string.format("bad argument #1 to 'quantile' (table of numbers expected, got %s)", type(values)), 2)
+  end
+  for i = 1, #values do
+    if type(values[i]) ~= "number" or values[i] ~= values[i] then
+      error(string.format("bad argument #1 to 'quantile' (values[%d] must be a number, got %s)", i,
+                          tostring(values[i])), 2)
+    end
+  end
+  if type(q) ~= "number" or not (q >= 0 and q <= 1) then
+    error(string.format("bad argument #2 to 'quantile' (number in [0, 1] expected, got %s)", tostring(q)), 2)
+  end
   local n = #values
   if n == 0 then return nil end
   local sorted = table.move(values, 1, n, 1, {})
@@ -97,9 +109,16 @@ local function check_changes(changes)
   return out
 end
 
+local function check_opts(opts, fname)
+  if opts ~= nil and type(opts) ~= "table" then
+    error(string.format("bad argument #2 to '%s' (table expected, got %s)", fname, type(opts)), 3)
+  end
+  return opts or {}
+end
+
 function schedule.from_changes(changes, opts)
   changes = check_changes(changes)
-  opts = opts or {}
+  opts = check_opts(opts, "from_changes")
   options.check(opts, "cdvr.schedule.from_changes", { "fast", "slow", "quantile", "codec" })
   local fast = check_params(opts.fast or { S = 1, T = 2 }, "from_changes: fast")
   local slow = check_params(opts.slow or { S = 4, T = 3 }, "from_changes: slow")
@@ -137,6 +156,7 @@ function schedule.change_driven(volume, opts)
   if not ok or math.tointeger(n) == nil then
     error(string.format("bad argument #1 to 'change_driven' (volume expected, got %s)", type(volume)), 2)
   end
+  opts = check_opts(opts, "change_driven")
   local changes = {}
   local frame = volume:frame(1)
   for t = 1, n - 1 do
