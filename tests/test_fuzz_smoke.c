@@ -119,7 +119,11 @@ static void fuzz_seed(const char *name, fuzz_target target, const bytes *seed, s
         CHECK(0, "out of memory");
         return;
     }
+    const unsigned seed_id = (unsigned)rng;
+    fuzz_outcome_counts = (fuzz_outcomes){0, 0};
     target(seed->p, seed->n);
+    CHECK(fuzz_outcome_counts.accepted == 1 && fuzz_outcome_counts.rejected == 0, "%s seed %u: accepted by the target",
+          name, seed_id);
     for (size_t i = 0; i < count; i++) {
         memcpy(m.p, seed->p, seed->n);
         m.n = seed->n;
@@ -131,7 +135,13 @@ static void fuzz_seed(const char *name, fuzz_target target, const bytes *seed, s
         target(m.p, m.n);
     }
     free(m.p);
-    CHECK(1, "ran");
+    /* the mutants reach both outcomes: the decoder rejects broken inputs and still accepts some */
+    fprintf(stderr, "%s seed %u: %zu mutants, %zu accepted, %zu rejected\n", name, seed_id, count,
+            fuzz_outcome_counts.accepted - 1, fuzz_outcome_counts.rejected);
+    CHECK(fuzz_outcome_counts.rejected > 0 && fuzz_outcome_counts.accepted > 1 &&
+              fuzz_outcome_counts.accepted + fuzz_outcome_counts.rejected >= count / 2,
+          "%s seed %u: %zu accepted, %zu rejected of %zu mutants", name, seed_id, fuzz_outcome_counts.accepted - 1,
+          fuzz_outcome_counts.rejected, count);
 }
 
 /* ---- corpus ---------------------------------------------------------------------------- */

@@ -25,6 +25,17 @@
         }                                                                                  \
     } while (0)
 
+/* What the code under test made of the inputs: each target records whether its input was
+ * accepted (opened, decoded, loaded) or rejected with an error. tests/test_fuzz_smoke.c checks
+ * that every seed is accepted and that mutants are rejected too; libFuzzer ignores it. The one
+ * counting context of the fuzz targets. */
+typedef struct fuzz_outcomes {
+    size_t accepted, rejected;
+} fuzz_outcomes;
+static fuzz_outcomes fuzz_outcome_counts;
+#define FUZZ_OUTCOME(accepted_)                                                            \
+    ((accepted_) ? (void)fuzz_outcome_counts.accepted++ : (void)fuzz_outcome_counts.rejected++)
+
 /* Writes data to a new temporary file whose name ends in suffix; path receives its name
  * (caller unlinks). 0 on failure. */
 static inline int fuzz_write_temp(const uint8_t *data, size_t size, const char *suffix,

@@ -75,7 +75,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         return 0;
     cdvr_volume *vol = NULL;
     cdvr_error err;
-    if (cdvr_volume_load(path, kind == 5 ? &opts : NULL, &vol, &err) == CDVR_OK) {
+    int loaded = cdvr_volume_load(path, kind == 5 ? &opts : NULL, &vol, &err) == CDVR_OK;
+    FUZZ_OUTCOME(loaded);
+    if (loaded) {
         load_touch(vol);
         cdvr_volume_free(vol);
     }

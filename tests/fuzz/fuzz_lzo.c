@@ -34,7 +34,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     uint8_t *out = malloc(expect ? expect : 1);
     cdvr_error err;
     if (out)
-        (void)cdvr_lzo_decompress(data + 2, size - 2, out, expect, &err);
+        FUZZ_OUTCOME(cdvr_lzo_decompress(data + 2, size - 2, out, expect, &err) == CDVR_OK);
     free(out);
     lzo_round_trip(data + 2, size - 2);
     return 0;

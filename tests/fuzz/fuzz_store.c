@@ -105,7 +105,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         return 0;
     cdvr_store *st = NULL;
     cdvr_error err;
-    if (cdvr_store_open(path, &st, &err) == CDVR_OK) {
+    int opened = cdvr_store_open(path, &st, &err) == CDVR_OK;
+    FUZZ_OUTCOME(opened);
+    if (opened) {
         const cdvr_store_info *info = cdvr_store_get_info(st);
         for (size_t v = 0; v < info->nvariants; v++)
             store_variant(st, v);

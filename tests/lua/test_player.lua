@@ -85,8 +85,10 @@ do
   end
 end
 
--- 4. policy and camera callbacks: calls at group boundaries, stats contract, reasons
-do
+-- 4. policy and camera callbacks: calls at group boundaries, stats contract, reasons. Serial:
+-- each decision sees exactly the frames shown before it. Pipelined: the reader decides ahead,
+-- so a decision sees at most those frames, never a frame of its own group or later.
+for _, pipe in ipairs{false, true} do
   local calls = {}
   local function policy(stats)
     calls[#calls + 1] = stats
@@ -97,7 +99,8 @@ do
     cams = cams + 1
     return {eye = {10 + 60 * math.cos(frame), 9 + 60 * math.sin(frame), 30}, center = {10, 9, 8}, up = {0, 0, 1}, fov = 30}
   end
-  local p = cdvr.player{store = st, tf = tf, camera = camfn, width = 32, height = 32, policy = policy, target_fps = 30}
+  local p = cdvr.player{store = st, tf = tf, camera = camfn, width = 32, height = 32, policy = policy, target_fps = 30,
+                        pace = false, pipeline = pipe}
   local r = p:run{frames = 8}
   p:close()
   assert(r.group_length == 3, "group length = lcm(3, 1, 1)")
@@ -105,7 +108,20 @@ do
   assert(calls[1].t == 1 and calls[2].t == 4 and calls[3].t == 7)
   assert(calls[1].target_fps == 30 and #calls[1].variants == 3)
   assert(calls[1].variants[1].name == "S4T3" and calls[1].variants[1].bytes_per_timestep > 0)
-  assert(#calls[2].frames >= 1 or true)
+  assert(#calls[1].frames == 0 and calls[1].current == nil, "the first decision sees no frames")
+  for k = 2, 3 do
+    local seen = calls[k].frames
+    if not pipe then
+      assert(#seen == 3 * (k - 1), ("serial: decision %d saw %d frames, expected %d"):format(k, #seen, 3 * (k - 1)))
+    end
+    assert(#seen <= 3 * (k - 1), ("decision %d saw %d frames: more than were shown"):format(k, #seen))
+    for i, row in ipairs(seen) do
+      assert(row.t == i and row.frame == i, "frames in order, oldest first")
+      assert(row.variant == (i <= 3 and "S4T3" or "raw"), "row variant")
+      assert(row.read_ms >= 0 and row.render_ms > 0 and row.bytes > 0)
+    end
+    if #seen > 0 then assert(calls[k].current == seen[#seen].variant, "current is the last frame's variant") end
+  end
   assert(cams == 8)
   assert(r.frames[1].variant == "S4T3" and r.frames[4].variant == "raw" and r.frames[7].variant == "S4T3")
   assert(r.frames[4].reason == "test policy call 2")
