@@ -89,9 +89,8 @@ cdvr_status cdvr_atomic_open(cdvr_atomic_file *af, const char *path, cdvr_error 
         return st;
     }
     snprintf(af->tmp_path, n, "%s.tmpXXXXXX", af->target_path);
-    int fd = mkstemp(af->tmp_path);
+    int fd = cdvr_cleanup_mkstemp(af->tmp_path, &af->cleanup_slot);
     if (fd >= 0) {
-        af->cleanup_slot = cdvr_cleanup_register(af->tmp_path);
         fchmod(fd, mode); /* mkstemp creates 0600; keep the mode of the file replaced, else 0644 */
         af->f = fdopen(fd, "wb");
     }

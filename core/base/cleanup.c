@@ -6,6 +6,7 @@
 #include <pthread.h>
 #include <signal.h>
 #include <stdatomic.h>
+#include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
@@ -88,6 +89,21 @@ int cdvr_cleanup_register(const char *tmp_path)
         }
     }
     return -1;
+}
+
+int cdvr_cleanup_mkstemp(char *tmpl, int *slot)
+{
+    sigset_t block, old;
+    sigemptyset(&block);
+    for (size_t k = 0; k < NSIGNALS; k++)
+        sigaddset(&block, cleanup_signals[k]);
+    pthread_sigmask(SIG_BLOCK, &block, &old);
+    int fd = mkstemp(tmpl);
+    int saved = errno;
+    *slot = fd >= 0 ? cdvr_cleanup_register(tmpl) : -1;
+    pthread_sigmask(SIG_SETMASK, &old, NULL); /* a signal that came meanwhile is handled now */
+    errno = saved;
+    return fd;
 }
 
 void cdvr_cleanup_unregister(int slot)

@@ -24,6 +24,11 @@
  * table is full or the path too long (the file is then not removed on a signal). */
 int cdvr_cleanup_register(const char *tmp_path);
 
+/* mkstemp(tmpl) and cdvr_cleanup_register(tmpl) as one step for the cleanup signals (they are
+ * blocked in between), so a signal never finds the file created but not yet registered.
+ * Returns the descriptor, or -1 with errno set; *slot as cdvr_cleanup_register. */
+int cdvr_cleanup_mkstemp(char *tmpl, int *slot);
+
 /* Forgets slot (after the file was renamed or removed); -1 is ignored. */
 void cdvr_cleanup_unregister(int slot);
 
