@@ -4,5 +4,9 @@ package.path = os.getenv("CDVR_SOURCE_DIR") .. "/tests/misuse/?.lua;" .. package
 local c = require "common"
 local st = c.store()
 local p
-p = c.player(st, {policy = function() p:run{frames = 1} return 'S4T3' end})
+local once
+p = c.player(st, {policy = function()
+  if not once then once = true; p:run{frames = 1} end
+  return 'S4T3'
+end})
 p:run{frames = 6}
