@@ -185,6 +185,7 @@ static int l_splat_order(lua_State *L)
             if (isnan(threshold))
                 return luaL_error(L, "cdvr.splat_order: threshold is NaN");
             lua_getfield(L, 4, "volume");
+            lcdvr_checkoption(L, -1, "cdvr.splat_order", "volume", LCDVR_VOLUME);
             const cdvr_volume *vol = lcdvr_checkvolume(L, -1);
             lua_pop(L, 1); /* the options table keeps the volume alive */
             for (int a = 0; a < 3; a++)

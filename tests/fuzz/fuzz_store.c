@@ -14,30 +14,44 @@
 
 #include "cdvr/store.h"
 #include "fuzz_common.h"
+#include "store/store_format.h"
 
-enum { STORE_HEADER = 152, STORE_VARIANT = 96, STORE_CHUNK = 64 };
+/* Where the fixup writes, per format version (the layout comment at the top of store.c). */
+typedef struct store_layout {
+    size_t header, variant, chunk;           /* record sizes */
+    size_t nvariants_at, nchunks_at, file_bytes_at;
+    size_t crc_in_chunk, offset_in_chunk, stored_in_chunk;
+} store_layout;
+
+static const store_layout STORE_V1 = {CDVR_STORE_V1_HEADER_BYTES, CDVR_STORE_V1_VARIANT_BYTES, CDVR_STORE_V1_CHUNK_BYTES,
+                                      124, 128, 144, 56, 32, 40};
+static const store_layout STORE_V2 = {CDVR_STORE_HEADER_BYTES, CDVR_STORE_VARIANT_BYTES, CDVR_STORE_CHUNK_BYTES,
+                                      196, 200, 216, 76, 80, 88};
 
 /* Recomputes what mode asks for, where the (possibly corrupt) layout allows. */
 static void store_fixup(uint8_t *buf, size_t size, int mode)
 {
-    if (size < STORE_HEADER || memcmp(buf, "CDVR\0STR", 8) != 0)
+    if (size < CDVR_STORE_V1_HEADER_BYTES || memcmp(buf, CDVR_STORE_MAGIC, 8) != 0)
+        return;
+    const store_layout *l = fuzz_le(buf + 8, 4) == 1 ? &STORE_V1 : &STORE_V2;
+    if (size < l->header)
         return;
     if (mode & 2)
-        fuzz_put_le(buf + 144, size, 8);
+        fuzz_put_le(buf + l->file_bytes_at, size, 8);
     if (!(mode & 1))
         return;
-    uint64_t nvariants = fuzz_le(buf + 124, 4), nchunks = fuzz_le(buf + 128, 8);
-    if (nvariants > 256 || nchunks > size / STORE_CHUNK)
+    uint64_t nvariants = fuzz_le(buf + l->nvariants_at, 4), nchunks = fuzz_le(buf + l->nchunks_at, 8);
+    if (nvariants > 256 || nchunks > size / l->chunk)
         return;
-    size_t index = STORE_HEADER + STORE_VARIANT * (size_t)nvariants;
-    size_t meta = index + STORE_CHUNK * (size_t)nchunks;
+    size_t index = l->header + l->variant * (size_t)nvariants;
+    size_t meta = index + l->chunk * (size_t)nchunks;
     if (meta > size || size - meta < 4)
         return;
     for (size_t c = 0; c < nchunks; c++) {
-        uint8_t *rec = buf + index + STORE_CHUNK * c;
-        uint64_t offset = fuzz_le(rec + 32, 8), stored = fuzz_le(rec + 40, 8);
+        uint8_t *rec = buf + index + l->chunk * c;
+        uint64_t offset = fuzz_le(rec + l->offset_in_chunk, 8), stored = fuzz_le(rec + l->stored_in_chunk, 8);
         if (offset <= size && stored <= size - offset)
-            fuzz_put_le(rec + 56, cdvr_crc32c(0, buf + offset, (size_t)stored), 4);
+            fuzz_put_le(rec + l->crc_in_chunk, cdvr_crc32c(0, buf + offset, (size_t)stored), 4);
     }
     fuzz_put_le(buf + meta, cdvr_crc32c(0, buf, meta), 4);
 }

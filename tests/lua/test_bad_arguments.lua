@@ -79,6 +79,10 @@ fails("option 'tf': cdvr.TF expected, got number", cdvr.player, {store = st, tf 
 fails("option 'tf': cdvr.TF expected, got number", cdvr.render, vol, {tf = 3})
 fails("option 'camera': cdvr.Camera expected, got cdvr.Volume", cdvr.render, vol, {tf = tf, camera = vol})
 fails("dims[2]: number expected", cdvr.orbit_camera, {1, "x", 3})
+if cdvr.splat_order then
+  fails("option 'volume': cdvr.Volume expected, got number", cdvr.splat_order, {4, 4, 4}, {1, 0, 0}, "dda",
+        {threshold = 1, volume = 5})
+end
 
 -- teem's error chain is cut to its reason: one line, no "[nrrd]" function names
 local bad = tmpdir .. "/bad.nrrd"

@@ -5,7 +5,7 @@ package.path = os.getenv("CDVR_SOURCE_DIR") .. "/tests/misuse/?.lua;" .. package
 local c = require "common"
 local st = c.store()
 local gen = coroutine.wrap(function() for i = 1, math.huge do coroutine.yield(i) end end)
-local p = c.player(st, {callback_limit = 100000, camera = function(frame)
+local p = c.player(st, {callback_limit = 100000, loop = true, camera = function(frame)
   for i = 1, 5000 do end
   assert(gen() == frame)
   local ok, v = coroutine.resume(coroutine.create(function(a) return a * 2 end), frame)
