@@ -94,6 +94,21 @@ msg = ok and msg or v
 assert(type(msg) == "string" and msg:find("bad.nrrd", 1, true), tostring(msg))
 assert(not msg:find("[nrrd]", 1, true) and not msg:find("\n"), "teem chain not cut: " .. msg)
 
+-- a series whose files differ in spacing is an error naming the file, unless spacing= is given
+local function nrrd(name, spacing)
+  local g = assert(io.open(tmpdir .. "/" .. name, "wb"))
+  g:write(("NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nspacings: %g 1 1\nencoding: raw\n\n"):format(spacing))
+  g:write(("\0"):rep(8))
+  g:close()
+  return tmpdir .. "/" .. name
+end
+local files = {nrrd("sp1.nrrd", 1), nrrd("sp2.nrrd", 2)}
+local ok2, s1, m1 = pcall(cdvr.load_series, files)
+m1 = ok2 and m1 or s1
+assert(type(m1) == "string" and m1:find("sp2.nrrd", 1, true) and m1:find("spacing="), tostring(m1))
+local series = cdvr.load_series(files, {spacing = {0.5, 1, 1}})
+assert(select(1, series:spacing()) == 0.5 and #series == 2)
+
 -- policy.lua and schedule.lua: bad user input is named, never an internal error from inside them
 local policy, schedule = require "cdvr.policy", require "cdvr.schedule"
 local function stats()
