@@ -49,7 +49,7 @@ local function with_model(policy, pipelined)
 end
 
 local function play(name, opts)
-  local make = cdvr.policy.get(name, {target_fps = opts.target, min_psnr = opts.min_psnr})
+  local make = cdvr.policy.get(name, {target_fps = opts.target}) -- the floor comes in stats.min_psnr
   local p = cdvr.player{store = st, tf = tf, camera = cam, device = "cpu", threads = 1, pace = false, ring = 3,
                         pipeline = opts.pipelined or false, target_fps = opts.target,
                         min_psnr = opts.min_psnr, policy = with_model(make, opts.pipelined)}
