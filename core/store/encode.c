@@ -332,8 +332,10 @@ typedef struct write_ctx {
     const cdvr_encode_opts *opts;
 } write_ctx;
 
+/* Writes at offset of the temporary file; errors name the target the user gave (`target`),
+ * not the temporary name (ENOSPC on "big.cdv" is what the user can act on). */
 static cdvr_status write_at(int fd, const uint8_t *buf, size_t n, uint64_t offset,
-                            const char *tmp, cdvr_error *err)
+                            const char *target, cdvr_error *err)
 {
     size_t done = 0;
     while (done < n) {
@@ -341,7 +343,7 @@ static cdvr_status write_at(int fd, const uint8_t *buf, size_t n, uint64_t offse
         if (w < 0 && errno == EINTR)
             continue;
         if (w <= 0)
-            return cdvr_error_set(err, CDVR_ERR_IO, "%s: write failed: %s", tmp,
+            return cdvr_error_set(err, CDVR_ERR_IO, "%s: write failed: %s", target,
                                   w < 0 ? strerror(errno) : "no progress");
         done += (size_t)w;
     }
@@ -443,7 +445,7 @@ static cdvr_status write_chunk(write_ctx *wc, const frame_window *win, size_t v,
     ci->stored_bytes = ci->stage2 ? packed : payload;
     ci->offset = wc->offset;
     ci->crc32c = cdvr_crc32c(0, stored, (size_t)ci->stored_bytes);
-    s = write_at(wc->fd, stored, (size_t)ci->stored_bytes, ci->offset, wc->tmp, err);
+    s = write_at(wc->fd, stored, (size_t)ci->stored_bytes, ci->offset, st->path, err);
     wc->offset += ci->stored_bytes;
     if (s == CDVR_OK)
         s = measure_chunk(wc, v, ci, frames, lo, bd, err);
@@ -507,14 +509,14 @@ static cdvr_status write_chunks(write_ctx *wc, cdvr_error *err)
     return s;
 }
 
-static cdvr_status write_meta(cdvr_store *st, int fd, const char *tmp, cdvr_error *err)
+static cdvr_status write_meta(cdvr_store *st, int fd, const char *target, cdvr_error *err)
 {
     uint64_t meta = cdvr_store_meta_bytes(st->info.nvariants, st->nchunks_total);
     uint8_t *buf = malloc((size_t)meta + 4);
     if (!buf)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for the index", st->path);
     cdvr_store_serialize_meta(st, buf);
-    cdvr_status s = write_at(fd, buf, (size_t)meta + 4, 0, tmp, err);
+    cdvr_status s = write_at(fd, buf, (size_t)meta + 4, 0, target, err);
     free(buf);
     return s;
 }
@@ -556,7 +558,7 @@ cdvr_status cdvr_store_encode_source(const cdvr_encode_source *src,
     if (s == CDVR_OK) {
         st->info.file_bytes = wc.offset;
         finish_variants(st, wc.errors);
-        s = write_meta(st, wc.fd, wc.tmp, err);
+        s = write_meta(st, wc.fd, st->path, err);
     }
     cdvr_error commit_err;
     cdvr_status c = cdvr_atomic_commit(&af, s != CDVR_OK, &commit_err);

@@ -58,6 +58,7 @@
 
 #include "codec/stage2/stage2.h"
 #include "cdvr/pvtc.h"
+#include "cdvr/regular_file.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -830,18 +831,11 @@ static cdvr_status open_tables(cdvr_store *st, const header_fields *h, cdvr_erro
 cdvr_status cdvr_store_open(const char *path, cdvr_store **out, cdvr_error *err)
 {
     *out = NULL;
-    /* O_NONBLOCK: opening a FIFO must not wait for a writer; regular files ignore it */
-    int fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK);
-    if (fd < 0)
-        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    int fd;
     struct stat sb;
-    if (fstat(fd, &sb) != 0 || !S_ISREG(sb.st_mode)) {
-        close(fd);
-        return cdvr_error_set(err, CDVR_ERR_IO, "%s: not a regular file", path);
-    }
-    int flags = fcntl(fd, F_GETFL);
-    if (flags >= 0)
-        (void)fcntl(fd, F_SETFL, flags & ~O_NONBLOCK);
+    cdvr_status os = cdvr_open_regular_file(path, &fd, &sb, err); /* never waits on a FIFO */
+    if (os != CDVR_OK)
+        return os;
     header_fields h = {0};
     cdvr_store probe = {.path = (char *)path, .fd = fd};
     cdvr_status s = open_header(&probe, (uint64_t)sb.st_size, &h, err);

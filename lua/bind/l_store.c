@@ -1,7 +1,6 @@
 /* lua/bind/l_store.c - cdvr.Store: cdvr.encode, cdvr.open, st:info(), st:decode(), st:chunk(), and
  * the timing helpers the codec benchmark needs (st:bench_decode, st:bench_unpack,
  * cdvr.bench_memcpy, cdvr.clock). */
-#include "cdvr/regular_file.h"
 #include "cdvr/timing.h"
 #include "lcdvr.h"
 
@@ -424,8 +423,7 @@ static int l_open(lua_State *L)
     const char *path = luaL_checkstring(L, 1);
     cdvr_store *st = NULL;
     cdvr_error err;
-    /* a FIFO would block the store's open forever (until store.c opens through cdvr/regular_file.h) */
-    if (cdvr_check_regular_file(path, NULL, &err) != CDVR_OK || cdvr_store_open(path, &st, &err) != CDVR_OK)
+    if (cdvr_store_open(path, &st, &err) != CDVR_OK) /* refuses FIFOs without blocking */
         return lcdvr_raise(L, &err);
     pushstore(L, st);
     return 1;
