@@ -35,6 +35,7 @@ const char *cdvr_status_name(cdvr_status status)
     case CDVR_ERR_NOMEM: return "nomem";
     case CDVR_ERR_UNSUPPORTED: return "unsupported";
     case CDVR_ERR_DEVICE: return "device";
+    case CDVR_ERR_CANCELLED: return "cancelled";
     }
     return "unknown";
 }

@@ -29,9 +29,28 @@ void lcdvr_pushimage(lua_State *L, cdvr_image *img)
      * growing (fresh pages cost a page fault each, about 11 ms for 512x512). */
     size_t pixel_kb = (size_t)img->width * (size_t)img->height * 4 * sizeof(float) / 1024;
     lua_gc(L, LUA_GCSTEP, pixel_kb > INT_MAX ? INT_MAX : (int)pixel_kb);
-    limage *ud = (limage *)lua_newuserdatauv(L, sizeof *ud, 0);
+    limage *ud = (limage *)lua_newuserdatauv(L, sizeof *ud, 1); /* user value 1: stats */
     ud->img = img;
     luaL_setmetatable(L, LCDVR_IMAGE);
+}
+
+void lcdvr_setimagestats(lua_State *L, int idx)
+{
+    idx = lua_absindex(L, idx);
+    tolimage(L, idx);
+    luaL_checktype(L, -1, LUA_TTABLE);
+    lua_setiuservalue(L, idx, 1);                 /* pops the stats table */
+}
+
+/* img:stats(): what the renderer reported (ms, samples, method, texture_bytes, ...). */
+static int image_stats(lua_State *L)
+{
+    lcdvr_checkimage(L, 1);
+    if (lua_getiuservalue(L, 1, 1) != LUA_TTABLE) {
+        lua_pop(L, 1);
+        lua_newtable(L);
+    }
+    return 1;
 }
 
 static int image_gc(lua_State *L)
@@ -103,7 +122,8 @@ static int image_save(lua_State *L)
 }
 
 static const luaL_Reg image_methods[] = {
-    {"size", image_size}, {"pixel", image_pixel}, {"save", image_save}, {NULL, NULL}};
+    {"size", image_size}, {"pixel", image_pixel}, {"save", image_save}, {"stats", image_stats},
+    {NULL, NULL}};
 
 static const luaL_Reg image_meta[] = {
     {"__gc", image_gc}, {"__close", image_gc}, {"__tostring", image_tostring}, {NULL, NULL}};
@@ -114,6 +134,9 @@ int lcdvr_open_image(lua_State *L)
     lcdvr_help_add(L, "img:size()", "width, height of an image in pixels");
     lcdvr_help_add(L, "img:pixel(x, y)",
                    "r, g, b, a in [0,1], premultiplied, before the background (x, y from 0, y down)");
+    lcdvr_help_add(L, "img:stats()",
+                   "what the renderer reported: ms, method, device, samples (ray casting), "
+                   "texture_bytes, full_bytes, axis, levels (slicing); {} for other images");
     lcdvr_help_add(L, "img:save(path.png [, {alpha=true}])",
                    "write an RGB PNG composited over the background (RGBA with alpha=true); other extensions "
                    "are errors; true or nil, msg on I/O failure");

@@ -65,9 +65,11 @@ static cdvr_status call_budgeted(lplayer *lp, lua_State *L, int nargs, int nres,
                                  cdvr_error *err)
 {
     if (lcdvr_pcall_budget(L, nargs, nres, lp->callback_limit) != LUA_OK) {
-        cdvr_error_set(err, CDVR_ERR_ARG, "%s: %s", what, lua_tostring(L, -1));
+        const atomic_int *interrupt = lcdvr_interrupt_flag(L); /* Ctrl-C in the console */
+        cdvr_status why = interrupt && atomic_load(interrupt) ? CDVR_ERR_CANCELLED : CDVR_ERR_ARG;
+        cdvr_error_set(err, why, "%s: %s", what, lua_tostring(L, -1));
         lua_pop(L, 1);
-        return CDVR_ERR_ARG;
+        return why;
     }
     return CDVR_OK;
 }
@@ -347,9 +349,15 @@ static int parse_out_pattern(const char *text, out_pattern *p, char *why, size_t
     return conversions == 1;
 }
 
+/* After each frame: stops the run on Ctrl-C in the console; with out= writes the PNG. */
 static cdvr_status frame_cb(void *ud, const cdvr_frame_row *row, const cdvr_image *img, cdvr_error *err)
 {
     lplayer *lp = ud;
+    const atomic_int *interrupt = lcdvr_interrupt_flag(lp->L);
+    if (interrupt && atomic_load(interrupt))
+        return cdvr_error_set(err, CDVR_ERR_CANCELLED, "playback interrupted");
+    if (!lp->capture)
+        return CDVR_OK;
     char number[128], path[2200];
     snprintf(number, sizeof number, lp->out.conversion, (int)row->frame + 1);
     snprintf(path, sizeof path, "%s%s%s", lp->out.prefix, number, lp->out.suffix);
@@ -550,8 +558,6 @@ static int capture_options(lua_State *L, lplayer *lp, const cdvr_store *st)
         luaL_error(L, "cdvr.player: option 'out' = \"%s\": %s; out= needs exactly one integer conversion "
                       "for the frame number (%%d, %%04d, %%5d, ...; %%%% for a literal %%)",
                    out, why);
-    lp->opts.frame_fn = frame_cb;
-    lp->opts.frame_ud = lp;
     double min_psnr = number_option(L, "min_psnr", -HUGE_VAL, -HUGE_VAL, HUGE_VAL, "a number in dB expected");
     lua_getfield(L, 1, "variant");
     int user_variant = !lua_isnil(L, -1);
@@ -677,6 +683,8 @@ static int l_player(lua_State *L)
         lp->opts.decide_ud = lp;
     }
     camera_option(L, ud, lp, info);
+    lp->opts.frame_fn = frame_cb; /* Ctrl-C in the console, and out= */
+    lp->opts.frame_ud = lp;
 
     cdvr_error err;
     cdvr_error_clear(&err);

@@ -1,5 +1,5 @@
-/* lua/bind/l_render.c - cdvr.render(volume, {...}): the CPU reference ray caster, or the OpenCL
- * renderer with device="cl". */
+/* lua/bind/l_render.c - cdvr.render(volume, {...}): the CPU reference ray caster, the OpenCL
+ * renderer with device="cl", or 2D-texture slicing with method="slice" (l_gl.c). */
 #include "cdvr/timing.h"
 #include "cdvr/render.h"
 #include "lcdvr.h"
@@ -112,15 +112,26 @@ static void read_options(lua_State *L, cdvr_render_opts *o, int box)
     if (!(o->step >= 0.0) || !(o->unit >= 0.0) || !(o->term_alpha >= 0.0))
         luaL_error(L, "cdvr.render: step, unit and term must be >= 0");
     read_background(L, 2, o->background);
+    o->cancel = lcdvr_interrupt_flag(L);
 }
 
 static void push_stats(lua_State *L, const cdvr_render_opts *o, double ms)
 {
-    lua_createtable(L, 0, 2);
+    lua_createtable(L, 0, 4);
     lua_pushinteger(L, (lua_Integer)o->samples);
     lua_setfield(L, -2, "samples");
     lua_pushnumber(L, ms);
     lua_setfield(L, -2, "ms");
+    lua_pushliteral(L, "raycast");
+    lua_setfield(L, -2, "method");
+}
+
+/* The image and stats table on top: the stats become the image's img:stats() as well. */
+static int finish(lua_State *L, int nres)
+{
+    lua_pushvalue(L, -1);
+    lcdvr_setimagestats(L, -3);
+    return nres;
 }
 
 /* Index of string option `key` of the options table (argument 2) in list; raises if unknown. */
@@ -203,9 +214,6 @@ static int l_render(lua_State *L)
                                            "skip", NULL};
         lcdvr_checkoptions(L, 2, "cdvr.render", keys);
     }
-    if (method == 1)
-        return luaL_error(L, "cdvr.render: method '%s' is not available here (use raycast)",
-                          methods[method]);
     size_t timesteps = st ? cdvr_store_get_info(st)->timesteps : vol->timesteps;
     lua_Integer t = lcdvr_optintegerfield(L, 2, "t", 1);
     if (t < 1 || (size_t)t > timesteps)
@@ -234,10 +242,20 @@ static int l_render(lua_State *L)
     const cdvr_volume *u8 = u8_frame(L, vol, &frame, window);
     window_tf(L, &o, window, 3);
     warn_if_missed(L, u8, o.camera);
-    if (method == 2)
-        return lcdvr_render_splat(L, u8, frame, &o, device);
-    if (device == 1)
-        return lcdvr_render_cl(L, u8, frame, &o);
+    if (method == 2) {
+        int nres = lcdvr_render_splat(L, u8, frame, &o, device);
+        lua_pushliteral(L, "splat");
+        lua_setfield(L, -2, "method");
+        return finish(L, nres);
+    }
+    if (method == 1)
+        return finish(L, lcdvr_render_slice(L, u8, frame, &o));
+    if (device == 1) {
+        int nres = lcdvr_render_cl(L, u8, frame, &o);
+        lua_pushliteral(L, "raycast");
+        lua_setfield(L, -2, "method");
+        return finish(L, nres);
+    }
     double start = cdvr_now_ms();
     cdvr_image *img;
     cdvr_error err;
@@ -246,7 +264,7 @@ static int l_render(lua_State *L)
     double ms = cdvr_now_ms() - start;
     lcdvr_pushimage(L, img);
     push_stats(L, &o, ms);
-    return 2;
+    return finish(L, 2);
 }
 
 int lcdvr_open_render(lua_State *L)
@@ -254,11 +272,12 @@ int lcdvr_open_render(lua_State *L)
     lua_pushvalue(L, -1); /* the cdvr table: cdvr.tf and cdvr.orbit_camera for defaults */
     lua_pushcclosure(L, l_render, 1);
     lua_setfield(L, -2, "render");
-    lcdvr_help_add(L, "cdvr.render(volume, {tf=, camera=, step=, unit=, device=, t=, threads=, background=, term=})",
-                   "ray-cast image and stats {samples=, ms=}; device \"cpu\" (default) or \"cl\"; "
-                   "camera defaults to cdvr.orbit_camera(volume); the TF is classified over the "
-                   "volume's value window (v:window(): the series' range, or the quantize/store window), "
-                   "non-u8 frames are quantized over it; term = early-termination alpha (0.99, >= 1 off)");
+    lcdvr_help_add(L, "cdvr.render(volume, {tf=, camera=, step=, unit=, device=, method=, lod=, t=, threads=, background=, term=})",
+                   "image and stats (also img:stats()); method \"raycast\" (default; device \"cpu\" or "
+                   "\"cl\"), \"slice\" (2D textures through EGL; lod=true (seed 002's rule), \"screen\" or "
+                   "false) or \"splat\"; camera defaults to cdvr.orbit_camera(volume); the TF is classified "
+                   "over the volume's value window (v:window(): the series' range, or the quantize/store "
+                   "window), non-u8 frames are quantized over it; term = early-termination alpha (0.99, >= 1 off)");
     lcdvr_help_add(L, "cdvr.render(store, {t=, variant=, device=, ...})",
                    "render timestep t of a store variant: device \"cl\" renders the chunk on the "
                    "device (in the compressed domain for fetch-mode codecs such as hvq), \"cpu\" "

@@ -7,7 +7,25 @@
 
 int lcdvr_raise(lua_State *L, const cdvr_error *err)
 {
+    if (err->status == CDVR_ERR_CANCELLED)
+        return luaL_error(L, "interrupted!");
     return luaL_error(L, "%s", err->msg[0] ? err->msg : cdvr_status_name(err->status));
+}
+
+static const char *const INTERRUPT_KEY = "cdvr.interrupt";
+
+const atomic_int *lcdvr_interrupt_flag(lua_State *L)
+{
+    lua_getfield(L, LUA_REGISTRYINDEX, INTERRUPT_KEY);
+    const atomic_int *flag = lua_touserdata(L, -1);
+    lua_pop(L, 1);
+    return flag;
+}
+
+void lcdvr_set_interrupt_flag(lua_State *L, atomic_int *flag)
+{
+    lua_pushlightuserdata(L, flag);
+    lua_setfield(L, LUA_REGISTRYINDEX, INTERRUPT_KEY);
 }
 
 int lcdvr_fail(lua_State *L, const cdvr_error *err)

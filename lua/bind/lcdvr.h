@@ -14,6 +14,7 @@
 #ifndef CDVR_LCDVR_H
 #define CDVR_LCDVR_H
 
+#include <stdatomic.h>
 #include <stdio.h>
 
 #include <lauxlib.h>
@@ -34,7 +35,8 @@
 #define LCDVR_STORE "cdvr.Store"
 #define LCDVR_PLAYER "cdvr.Player"
 
-/* Raises a Lua error with the core's message. Never returns. */
+/* Raises a Lua error with the core's message ("interrupted!" for CDVR_ERR_CANCELLED, as the
+ * console's Ctrl-C). Never returns. */
 int lcdvr_raise(lua_State *L, const cdvr_error *err);
 /* Pushes nil and the message; returns 2 (for `return lcdvr_fail(L, &err);`). */
 int lcdvr_fail(lua_State *L, const cdvr_error *err);
@@ -130,6 +132,29 @@ void lcdvr_parse_params(lua_State *L, int idx, const cdvr_codec *codec, cdvr_cod
 /* Timesteps per chunk of variant v (its codec's chunk shape). */
 size_t lcdvr_chunk_timesteps(const cdvr_store *st, size_t v);
 
+/* Attaches the table on top of the stack (popped) to the image at idx: img:stats() returns
+ * it. Every renderer's binding fills it (ms, method, device and its own figures). */
+void lcdvr_setimagestats(lua_State *L, int idx);
+
+/* The console's interrupt flag: set by Ctrl-C while a line runs, cleared before the next;
+ * long-running bindings pass it to the core (cdvr_render_opts.cancel). NULL outside the
+ * console (scripts stop on Ctrl-C as usual). */
+const atomic_int *lcdvr_interrupt_flag(lua_State *L);
+void lcdvr_set_interrupt_flag(lua_State *L, atomic_int *flag);
+
+/* 2D-texture slicing for cdvr.render{method="slice"} (l_gl.c): lod= is read from the options
+ * table (argument 2). Pushes the image and its stats table, or raises. */
+int lcdvr_render_slice(lua_State *L, const cdvr_volume *vol, size_t t, void *render_opts);
+
+/* Windows (l_window.c), driven by the console between input lines: processes every open
+ * window's events and playback and redraws what changed (all of them when `changed`: a console
+ * line ran). Returns the milliseconds until it wants to run again, or -1 when no window is
+ * open. Errors are printed (then *printed is set), never raised. */
+int lcdvr_window_tick(lua_State *L, int changed, int *printed);
+/* Opens the console's window (cdvr -i with a display) as the global `window`; returns 0 and
+ * prints one notice line when there is no display or no GL. */
+int lcdvr_window_console(lua_State *L);
+
 /* OpenCL rendering for cdvr.render{device="cl"} (l_device.c). Pushes the image or raises. */
 int lcdvr_render_cl(lua_State *L, const cdvr_volume *vol, size_t t, void *render_opts);
 
@@ -160,5 +185,7 @@ int lcdvr_open_device(lua_State *L);
 int lcdvr_open_player(lua_State *L);
 int lcdvr_open_splat(lua_State *L);
 int lcdvr_open_codec(lua_State *L);
+int lcdvr_open_gl(lua_State *L);
+int lcdvr_open_window(lua_State *L);
 
 #endif

@@ -2,12 +2,16 @@
  *
  *   cdvr SCRIPT.lua [args]   run a script (args in `arg`, like lua)
  *   cdvr -e 'code'           run a string
- *   cdvr -i                  interactive console (line editing and history with readline)
+ *   cdvr -i                  interactive console (line editing and history with readline; a
+ *                            window beside it when a display exists; Ctrl-C interrupts a line)
  *   cdvr --help | --version
  * Exit status: 0 success, 1 script or runtime error (message and traceback on stderr),
  * 2 usage error.
  */
 #include <errno.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -37,6 +41,7 @@ static const char *usage_text =
     "Environment: CDVR_SHARE (share directory), CDVR_CL_DEVICE (OpenCL device choice),\n"
     "  CDVR_PLUGIN_PATH (colon-separated directories whose *.so codec plugins load at start;\n"
     "  unset: the plugins directory beside the executable; empty: none).\n"
+    "  CDVR_HISTORY (console history file, default ~/.cdvr_history).\n"
     "In Lua, cdvr.help() lists every function.\n";
 
 static int is_dir(const char *path)
@@ -202,6 +207,8 @@ static int open_cdvr(lua_State *L)
     lcdvr_open_player(L);
     lcdvr_open_splat(L);
     lcdvr_open_codec(L);
+    lcdvr_open_gl(L);
+    lcdvr_open_window(L);
 
     lua_pushvalue(L, -1);
     lua_setglobal(L, "cdvr");
@@ -239,30 +246,210 @@ static int run_script(lua_State *L, const char *path, char **argv, int argc, int
 }
 
 /* ---- console ------------------------------------------------------------------------- */
+/* The console runs each line as `lua -i` does (an expression prints its values, an incomplete
+ * chunk reads continuation lines). On a terminal it reads through readline's callback
+ * interface, so that open windows (cdvr.window, l_window.c) keep being driven between
+ * keystrokes, and they redraw after every line that ran; Lua runs on this thread only.
+ * Ctrl-C interrupts the running line (a Lua loop through a hook, a render or playback through
+ * the core's cancel flag) and returns to the prompt with "interrupted!"; at the prompt it
+ * clears the line. History (readline) is appended to the history file after every line, so a
+ * session that ends with os.exit() keeps it. */
 
-static char *read_line(const char *prompt)
+/* What the SIGINT handler sees: a handler gets no context, so this is the console's one piece
+ * of process-wide state. `running` is set while Lua runs for the console (a line, a window
+ * frame); the flag is what the core polls (lcdvr_interrupt_flag). */
+static struct {
+    lua_State *L;
+    volatile sig_atomic_t running;
+    atomic_int interrupted;
+    struct session *reading;   /* the session whose readline callback is installed */
+} console_signal;
+
+typedef struct session {
+    lua_State *L;
+    int tty;                   /* stdin is a terminal: prompts */
+    int use_readline;          /* readline's callback interface */
+    char history[4096];        /* history file, "" for none */
+    int changed;               /* a line ran since the windows last drew */
+    int cancelled;             /* read_line stopped by Ctrl-C at the prompt */
+    char *line;                /* readline's callback result */
+    int line_done;
+    char *buf;                 /* plain input: bytes read, not yet split into lines */
+    size_t len, cap;
+    int eof;
+} session;
+
+static void interrupt_hook(lua_State *L, lua_Debug *ar)
 {
+    (void)ar;
+    lua_sethook(L, NULL, 0, 0);
+    luaL_error(L, "interrupted!");
+}
+
+static void on_sigint(int sig)
+{
+    (void)sig;
+    atomic_store(&console_signal.interrupted, 1);
+    if (console_signal.running) /* lua_sethook is safe in a signal handler (see lua.c) */
+        lua_sethook(console_signal.L, interrupt_hook,
+                    LUA_MASKCALL | LUA_MASKRET | LUA_MASKCOUNT, 1);
+}
+
+/* docall (the function below its narg arguments), with Ctrl-C armed: the hook and the core's
+ * cancel flag stop it with "interrupted!". */
+static int console_call(lua_State *L, int narg, int nres)
+{
+    console_signal.running = 1;
+    int status = docall(L, narg, nres);
+    console_signal.running = 0;
+    lua_sethook(L, NULL, 0, 0);
+    return status;
+}
+
+/* Drives the open windows once; returns how long to wait for input (ms, -1: no window). */
+static int drive_windows(session *c)
+{
+    int printed = 0;
+    console_signal.running = 1;
+    int wait = lcdvr_window_tick(c->L, c->changed, &printed);
+    console_signal.running = 0;
+    lua_sethook(c->L, NULL, 0, 0);
+    c->changed = 0;
 #if defined(CDVR_HAVE_READLINE)
-    if (isatty(STDIN_FILENO)) {
-        char *line = readline(prompt);
-        if (line && *line)
-            add_history(line);
-        return line;
+    if (printed && c->use_readline && console_signal.reading) {
+        rl_on_new_line();
+        rl_redisplay();
     }
 #endif
-    if (isatty(STDIN_FILENO)) { /* piped input: no prompts, so output stays plain */
+    return wait;
+}
+
+/* Waits until stdin is readable (1), the timeout passes (0) or a signal arrives (-1). */
+static int wait_input(int timeout_ms)
+{
+    struct pollfd pfd = {STDIN_FILENO, POLLIN, 0};
+    int r = poll(&pfd, 1, timeout_ms);
+    return r > 0 ? 1 : r == 0 ? 0 : -1;
+}
+
+static void remember(session *c, const char *line)
+{
+#if defined(CDVR_HAVE_READLINE)
+    if (!c->use_readline || !*line)
+        return;
+    add_history(line);
+    if (c->history[0] && append_history(1, c->history) != 0) {
+        fprintf(stderr, "cdvr: cannot append to the history file %s\n", c->history);
+        c->history[0] = '\0';
+    }
+#else
+    (void)c;
+    (void)line;
+#endif
+}
+
+#if defined(CDVR_HAVE_READLINE)
+static void on_readline(char *line)
+{
+    session *c = console_signal.reading;
+    c->line = line;
+    c->line_done = 1;
+    rl_callback_handler_remove();
+    console_signal.reading = NULL;
+}
+
+static char *read_line_readline(session *c, const char *prompt)
+{
+    c->line = NULL;
+    c->line_done = 0;
+    console_signal.reading = c;
+    rl_callback_handler_install(prompt, on_readline);
+    while (!c->line_done) {
+        int ready = wait_input(drive_windows(c));
+        if (atomic_exchange(&console_signal.interrupted, 0)) { /* Ctrl-C at the prompt */
+            rl_replace_line("", 0);
+            rl_callback_handler_remove();
+            console_signal.reading = NULL;
+            fputc('\n', stdout);
+            c->cancelled = 1;
+            return NULL;
+        }
+        if (ready > 0)
+            rl_callback_read_char();
+    }
+    return c->line;
+}
+#endif
+
+/* Splits the next line off the plain input buffer, or NULL if none is complete. */
+static char *take_line(session *c, int at_eof)
+{
+    if (c->len == 0)
+        return NULL;
+    char *nl = memchr(c->buf, '\n', c->len);
+    if (!nl && !at_eof)
+        return NULL;
+    size_t n = nl ? (size_t)(nl - c->buf) : c->len;
+    char *line = malloc(n + 1);
+    if (!line)
+        return NULL;
+    memcpy(line, c->buf, n);
+    line[n] = '\0';
+    size_t used = nl ? n + 1 : n;
+    memmove(c->buf, c->buf + used, c->len - used);
+    c->len -= used;
+    return line;
+}
+
+static char *read_line_plain(session *c, const char *prompt)
+{
+    if (c->tty) { /* piped input: no prompts, so output stays plain */
         fputs(prompt, stdout);
         fflush(stdout);
     }
-    size_t cap = 0;
-    char *line = NULL;
-    ssize_t len = getline(&line, &cap, stdin);
-    if (len < 0) {
-        free(line);
-        return NULL;
+    for (;;) {
+        char *line = take_line(c, c->eof);
+        if (line || c->eof)
+            return line;
+        int ready = wait_input(drive_windows(c));
+        if (atomic_exchange(&console_signal.interrupted, 0)) {
+            if (c->tty)
+                fputc('\n', stdout);
+            c->len = 0;
+            c->cancelled = 1;
+            return NULL;
+        }
+        if (ready <= 0)
+            continue;
+        if (c->len + 4096 > c->cap) {
+            char *grown = realloc(c->buf, c->cap + 65536);
+            if (!grown)
+                return NULL;
+            c->buf = grown;
+            c->cap += 65536;
+        }
+        ssize_t n = read(STDIN_FILENO, c->buf + c->len, c->cap - c->len);
+        if (n > 0)
+            c->len += (size_t)n;
+        else if (n == 0 || errno != EINTR)
+            c->eof = 1;
     }
-    if (len > 0 && line[len - 1] == '\n')
-        line[len - 1] = '\0';
+}
+
+/* The next line without its newline (malloc'd), or NULL at the end of input or after Ctrl-C
+ * (c->cancelled). Non-empty lines go to the history. */
+static char *read_line(session *c, const char *prompt)
+{
+    c->cancelled = 0;
+    char *line;
+#if defined(CDVR_HAVE_READLINE)
+    if (c->use_readline)
+        line = read_line_readline(c, prompt);
+    else
+#endif
+        line = read_line_plain(c, prompt);
+    if (line)
+        remember(c, line);
     return line;
 }
 
@@ -282,9 +469,11 @@ static int incomplete(lua_State *L, int status)
 }
 
 /* Compiles the console input: first as "return <line>" (so expressions print), else as a
- * statement, reading continuation lines while the chunk is incomplete. */
-static int load_console_chunk(lua_State *L, char *first)
+ * statement, reading continuation lines while the chunk is incomplete. Returns -1 when Ctrl-C
+ * abandoned the chunk (nothing pushed). */
+static int load_console_chunk(session *c, char *first)
 {
+    lua_State *L = c->L;
     lua_pushfstring(L, "return %s", first);
     const char *ret = lua_tostring(L, -1);
     if (luaL_loadbuffer(L, ret, strlen(ret), "=stdin") == LUA_OK) {
@@ -301,9 +490,11 @@ static int load_console_chunk(lua_State *L, char *first)
             lua_remove(L, -2);                    /* chunk or message */
             return status;
         }
-        char *more = read_line(">> ");
+        char *more = read_line(c, ">> ");
         if (!more) {
             lua_pop(L, 1);
+            if (c->cancelled)
+                return -1;
             lua_pushstring(L, "incomplete input at end of file");
             return LUA_ERRSYNTAX;
         }
@@ -322,41 +513,86 @@ static void print_results(lua_State *L)
     luaL_checkstack(L, LUA_MINSTACK, "too many results to print");
     lua_getglobal(L, "print");
     lua_insert(L, 1);
-    if (lua_pcall(L, n, 0, 0) != LUA_OK)
+    if (console_call(L, n, 0) != LUA_OK)
         report(L, LUA_ERRRUN);
 }
 
-static void console(lua_State *L)
+static void open_history(session *c)
 {
-    char history[4096] = "";
 #if defined(CDVR_HAVE_READLINE)
-    const char *home = getenv("HOME");
-    if (home && isatty(STDIN_FILENO)) {
-        snprintf(history, sizeof history, "%s/.cdvr_history", home);
-        read_history(history);
+    const char *path = getenv("CDVR_HISTORY"), *home = getenv("HOME");
+    if (path && *path)
+        snprintf(c->history, sizeof c->history, "%s", path);
+    else if (home && *home)
+        snprintf(c->history, sizeof c->history, "%s/.cdvr_history", home);
+    if (!c->history[0])
+        return;
+    if (read_history(c->history) != 0 && write_history(c->history) != 0) {
+        fprintf(stderr, "cdvr: cannot create the history file %s: history not kept\n", c->history);
+        c->history[0] = '\0';
     }
+#else
+    (void)c;
 #endif
-    if (isatty(STDIN_FILENO))
-        printf("cdvr %s (%s) - cdvr.help() lists the API, Ctrl-D quits\n", CDVR_VERSION, LUA_RELEASE);
-    char *line;
-    while ((line = read_line("> ")) != NULL) {
+}
+
+static void console_run(session *c)
+{
+    lua_State *L = c->L;
+    for (;;) {
+        char *line = read_line(c, "> ");
+        if (!line) {
+            if (c->cancelled)
+                continue;
+            break;
+        }
         lua_settop(L, 0);
-        int status = load_console_chunk(L, line);
+        int status = load_console_chunk(c, line);
         free(line);
+        if (status < 0)
+            continue;
         if (status == LUA_OK)
-            status = docall(L, 0, LUA_MULTRET);
+            status = console_call(L, 0, LUA_MULTRET);
         if (status == LUA_OK)
             print_results(L);
         else
             report(L, status);
+        atomic_store(&console_signal.interrupted, 0);
+        c->changed = 1;
     }
-    lua_settop(L, 0);
-    if (isatty(STDIN_FILENO))
-        putchar('\n');
+}
+
+static void console(lua_State *L)
+{
+    session c;
+    memset(&c, 0, sizeof c);
+    c.L = L;
+    c.tty = isatty(STDIN_FILENO);
 #if defined(CDVR_HAVE_READLINE)
-    if (history[0])
-        write_history(history);
+    c.use_readline = c.tty;
+    rl_catch_signals = 0; /* Ctrl-C is the console's (on_sigint) */
 #endif
+    if (c.use_readline)
+        open_history(&c);
+    console_signal.L = L;
+    atomic_init(&console_signal.interrupted, 0);
+    lcdvr_set_interrupt_flag(L, &console_signal.interrupted);
+    struct sigaction sa, old;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_sigint;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, &old); /* no SA_RESTART: a wait for input returns on Ctrl-C */
+    if (c.tty)
+        printf("cdvr %s (%s) - cdvr.help() lists the API, Ctrl-C interrupts, Ctrl-D quits\n",
+               CDVR_VERSION, LUA_RELEASE);
+    lcdvr_window_console(L);
+    console_run(&c);
+    lua_settop(L, 0);
+    if (c.tty)
+        putchar('\n');
+    sigaction(SIGINT, &old, NULL);
+    lcdvr_set_interrupt_flag(L, NULL);
+    free(c.buf);
 }
 
 int main(int argc, char **argv)

@@ -20,7 +20,8 @@ typedef enum cdvr_status {
     CDVR_ERR_CORRUPT,     /* store failed a bounds or CRC check */
     CDVR_ERR_NOMEM,       /* allocation failed or size overflows size_t */
     CDVR_ERR_UNSUPPORTED, /* valid request that this build cannot do */
-    CDVR_ERR_DEVICE       /* OpenCL / GL failure */
+    CDVR_ERR_DEVICE,      /* OpenCL / GL failure */
+    CDVR_ERR_CANCELLED    /* stopped on request (Ctrl-C in the console) */
 } cdvr_status;
 
 typedef struct cdvr_error {

@@ -39,6 +39,7 @@
 #ifndef CDVR_RENDER_H
 #define CDVR_RENDER_H
 
+#include <stdatomic.h>
 #include <stdint.h>
 
 #include "cdvr/camera.h"
@@ -56,6 +57,8 @@ typedef struct cdvr_render_opts {
     float background[4];/* straight RGBA stored into the image */
     int threads;        /* 0 -> number of online CPUs */
     uint64_t samples;   /* out: samples taken (for samples/second) */
+    const atomic_int *cancel; /* optional: once *cancel != 0 (e.g. set by a SIGINT handler)
+                                 the render stops and fails with CDVR_ERR_CANCELLED */
 } cdvr_render_opts;
 
 /* Resolved step, unit and termination threshold (the defaults above) for a volume. */
@@ -69,7 +72,7 @@ void cdvr_render_resolve(const cdvr_volume *vol, const cdvr_render_opts *opts, d
 int cdvr_render_view_hits(const cdvr_volume *vol, const cdvr_camera *cam);
 
 /* Renders frame t (from 0) of a u8 volume into a new image of the camera's size.
- * Non-u8 volumes are an error (quantize first). */
+ * Non-u8 volumes are an error (quantize first). Checks opts->cancel before each row. */
 cdvr_status cdvr_render_cpu(const cdvr_volume *vol, size_t t, cdvr_render_opts *opts,
                             cdvr_image **out, cdvr_error *err);
 

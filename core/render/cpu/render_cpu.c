@@ -21,6 +21,7 @@ typedef struct render_job {
     const cdvr_tf *tf;
     float alpha_step[256]; /* a_c[i] = 1 - (1 - a[i])^(step/unit) */
     const cdvr_camera *camera;
+    const atomic_int *cancel; /* NULL, or stop before the next row once nonzero */
     cdvr_image *img;
     atomic_int next_row;
     atomic_uint_fast64_t samples;
@@ -192,7 +193,7 @@ static void *render_worker(void *arg)
     uint64_t samples = 0;
     for (;;) {
         int y = atomic_fetch_add(&job->next_row, 1);
-        if (y >= job->img->height)
+        if (y >= job->img->height || (job->cancel && atomic_load(job->cancel)))
             break;
         samples += render_row(job, y);
     }
@@ -297,6 +298,7 @@ static void setup_job(render_job *job, const cdvr_volume *vol, size_t t,
     for (int i = 0; i < 256; i++)
         job->alpha_step[i] = (float)(1.0 - pow(1.0 - opts->tf->table[i][3], step / unit));
     job->camera = opts->camera;
+    job->cancel = opts->cancel;
     job->img = img;
     atomic_init(&job->next_row, 0);
     atomic_init(&job->samples, 0);
@@ -367,6 +369,10 @@ cdvr_status cdvr_render_cpu(const cdvr_volume *vol, size_t t, cdvr_render_opts *
     run_workers(job, thread_count(opts, img->height));
     opts->samples = (uint64_t)atomic_load(&job->samples);
     free(job);
+    if (opts->cancel && atomic_load(opts->cancel)) {
+        cdvr_image_free(img);
+        return cdvr_error_set(err, CDVR_ERR_CANCELLED, "render: interrupted");
+    }
     *out = img;
     return CDVR_OK;
 }

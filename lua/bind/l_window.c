@@ -1,0 +1,913 @@
+/* lua/bind/l_window.c - cdvr.window{...}: a GLFW window that shows a scene (a volume or a store,
+ * a transfer function, a camera, a method and device, a timestep) and re-renders it when any of
+ * them changes (DESIGN.md section 11). It is a viewer: every frame is rendered by cdvr.render
+ * (the CPU or OpenCL ray caster, or the EGL slicer) exactly as a script would, then shown as
+ * pixels; the window only adds the overlay line. Mouse drag orbits, the wheel zooms, left/right
+ * step timesteps (home/end: first/last), up/down step variants, space plays and pauses.
+ *
+ * A window holds references (user values) to the volume, store, TF, camera and policy it
+ * shows, so they live as long as it does. Open windows are kept in the registry until closed
+ * (a window on screen does not vanish with its last Lua reference); the console drives them
+ * between input lines with lcdvr_window_tick, a script with w:frame().
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cdvr/gl.h"
+#include "cdvr/player.h"
+#include "cdvr/timing.h"
+#include "lcdvr.h"
+
+#define LCDVR_WINDOW "cdvr.Window"
+#define WINDOWS_KEY "cdvr.windows" /* registry: {window = true} for every open window */
+#define ROWS 16
+#define MAX_EVENTS 64
+
+/* User values of the window userdata. */
+enum { UV_VOLUME = 1, UV_STORE, UV_TF, UV_CAMERA, UV_FRAME, UV_POLICY, UV_COUNT = UV_POLICY };
+
+static const char *const method_names[] = {"raycast", "slice", NULL};
+static const char *const device_names[] = {"cpu", "cl", NULL};
+
+typedef struct frame_row {
+    long t;
+    int variant;
+    double decode_ms, render_ms, frame_ms;
+} frame_row;
+
+typedef struct lwindow {
+    cdvr_window *win;          /* NULL once closed */
+    int overlay, playing, dirty, method, device;
+    int lod;                   /* 0 off, 1 seed 002's rule, 2 "screen" (cdvr_lod_mode) */
+    double step;               /* cdvr.render's step (0: its default) */
+    long t;                    /* timestep shown, from 1 */
+    int variant;               /* store scenes: variant shown, from 0 */
+    long frame_t;              /* timestep decoded into UV_FRAME, 0 for none */
+    int frame_variant;
+    double fps;                /* playback pace in timesteps per second, 0: as fast as it renders */
+    double last_step_ms, last_show_ms, shown_fps;
+    frame_row rows[ROWS];      /* the last frames, oldest first (policy stats) */
+    int nrows;
+    char reason[160];          /* why the variant shown was chosen */
+    char error[CDVR_ERRMSG_MAX]; /* the last frame's error, reported once */
+} lwindow;
+
+static lwindow *towindow(lua_State *L, int idx)
+{
+    return (lwindow *)luaL_checkudata(L, idx, LCDVR_WINDOW);
+}
+
+static lwindow *checkwindow(lua_State *L, int idx)
+{
+    lwindow *w = towindow(L, idx);
+    if (!w->win)
+        luaL_error(L, "attempt to use a closed window");
+    return w;
+}
+
+/* Pushes field `name` of the cdvr table. */
+static void push_cdvr_function(lua_State *L, const char *name)
+{
+    luaL_getsubtable(L, LUA_REGISTRYINDEX, LUA_LOADED_TABLE);
+    lua_getfield(L, -1, "cdvr");
+    lua_getfield(L, -1, name);                    /* loaded, cdvr, fn */
+    lua_replace(L, -3);
+    lua_pop(L, 1);
+}
+
+/* ---- the scene ------------------------------------------------------------------------- */
+
+static const cdvr_store *scene_store(lua_State *L, int w_idx)
+{
+    const cdvr_store *st = NULL;
+    if (lua_getiuservalue(L, w_idx, UV_STORE) == LUA_TUSERDATA)
+        st = lcdvr_checkstore(L, -1);
+    lua_pop(L, 1);
+    return st;
+}
+
+/* Timesteps of the scene (0: no scene). */
+static size_t scene_timesteps(lua_State *L, int w_idx)
+{
+    size_t n = 0;
+    if (lua_getiuservalue(L, w_idx, UV_VOLUME) == LUA_TUSERDATA)
+        n = lcdvr_checkvolume(L, -1)->timesteps;
+    lua_pop(L, 1);
+    const cdvr_store *st = scene_store(L, w_idx);
+    return n ? n : st ? cdvr_store_get_info(st)->timesteps : 0;
+}
+
+/* Pushes the volume to render and sets *t (from 1) to its frame: the scene's volume at w->t,
+ * or the store's timestep w->t of the variant shown, decoded once (cdvr_store_decode). Pushes
+ * nil when there is no scene. */
+static void push_scene_volume(lua_State *L, int w_idx, lwindow *w, long *t, double *decode_ms)
+{
+    *decode_ms = 0.0;
+    *t = 1;
+    if (lua_getiuservalue(L, w_idx, UV_VOLUME) == LUA_TUSERDATA) {
+        *t = w->t;
+        return;
+    }
+    lua_pop(L, 1);
+    const cdvr_store *st = scene_store(L, w_idx);
+    if (!st) {
+        lua_pushnil(L);
+        return;
+    }
+    if (w->frame_t != w->t || w->frame_variant != w->variant) {
+        double start = cdvr_now_ms();
+        cdvr_volume *vol;
+        cdvr_error err;
+        if (cdvr_store_decode(st, (size_t)w->variant, (size_t)w->t - 1, &vol, &err) != CDVR_OK)
+            lcdvr_raise(L, &err);
+        lcdvr_pushvolume(L, vol);
+        lua_setiuservalue(L, w_idx, UV_FRAME);
+        w->frame_t = w->t;
+        w->frame_variant = w->variant;
+        *decode_ms = cdvr_now_ms() - start;
+    }
+    lua_getiuservalue(L, w_idx, UV_FRAME);
+}
+
+/* The window's camera, sized to the framebuffer: the one set, else cdvr.orbit_camera of the
+ * volume on top of the stack. Returns it (owned by the window's user value). */
+static cdvr_camera *scene_camera(lua_State *L, int w_idx, int vol_idx, int width, int height)
+{
+    if (lua_getiuservalue(L, w_idx, UV_CAMERA) != LUA_TUSERDATA) {
+        lua_pop(L, 1);
+        push_cdvr_function(L, "orbit_camera");
+        lua_pushvalue(L, vol_idx);
+        lua_createtable(L, 0, 2);
+        lua_pushinteger(L, width);
+        lua_setfield(L, -2, "width");
+        lua_pushinteger(L, height);
+        lua_setfield(L, -2, "height");
+        lua_call(L, 2, 1);                        /* camera */
+        lua_pushvalue(L, -1);
+        lua_setiuservalue(L, w_idx, UV_CAMERA);
+    }
+    cdvr_camera *cam = lcdvr_checkcamera(L, -1);
+    lua_pop(L, 1);
+    cam->width = width;
+    cam->height = height;
+    return cam;
+}
+
+/* ---- options (cdvr.window{...} and w:set{...}) ------------------------------------------ */
+
+static const char *const window_keys[] = {"volume", "store", "tf", "camera", "method", "device",
+                                          "overlay", "t", "variant", "lod", "step", "playing",
+                                          "fps", "policy", "width", "height", "title", NULL};
+
+static int option_index(lua_State *L, int idx, const char *key, const char *const names[],
+                        int current)
+{
+    const char *value = lcdvr_optstringfield(L, idx, key, NULL);
+    if (!value)
+        return current;
+    for (int i = 0; names[i]; i++)
+        if (strcmp(names[i], value) == 0)
+            return i;
+    return luaL_error(L, "window: option '%s': invalid value '%s' (%s or %s)", key, value,
+                      names[0], names[1]);
+}
+
+static void set_variant(lua_State *L, int idx, lwindow *w, const cdvr_store *st)
+{
+    int type = lua_getfield(L, idx, "variant");
+    if (type == LUA_TNIL) {
+        lua_pop(L, 1);
+        return;
+    }
+    if (!st)
+        luaL_error(L, "window: option 'variant' needs a store scene");
+    size_t n = cdvr_store_get_info(st)->nvariants;
+    int v = -1;
+    if (type == LUA_TSTRING) {
+        v = cdvr_store_find_variant(st, lua_tostring(L, -1));
+        if (v < 0)
+            luaL_error(L, "window: store %s has no variant '%s'", cdvr_store_path(st),
+                       lua_tostring(L, -1));
+    } else if (lua_isinteger(L, -1)) {
+        lua_Integer i = lua_tointeger(L, -1);
+        if (i < 1 || (size_t)i > n)
+            luaL_error(L, "window: variant %I outside 1..%I", (LUAI_UACINT)i, (LUAI_UACINT)n);
+        v = (int)i - 1;
+    } else {
+        luaL_error(L, "window: option 'variant': name or index expected");
+    }
+    lua_pop(L, 1);
+    w->variant = v;
+    snprintf(w->reason, sizeof w->reason, "fixed: %s set by the user",
+             cdvr_store_variant(st, (size_t)v)->name);
+}
+
+/* volume= / store= (one replaces the other) */
+static void set_scene(lua_State *L, int w_idx, int idx, lwindow *w)
+{
+    if (lua_getfield(L, idx, "volume") != LUA_TNIL) {
+        lcdvr_checkvolume(L, -1);
+        lua_setiuservalue(L, w_idx, UV_VOLUME);
+        lua_pushnil(L);
+        lua_setiuservalue(L, w_idx, UV_STORE);
+        w->frame_t = 0;
+        snprintf(w->reason, sizeof w->reason, "-");
+    } else {
+        lua_pop(L, 1);
+    }
+    if (lua_getfield(L, idx, "store") != LUA_TNIL) {
+        const cdvr_store *st = lcdvr_checkstore(L, -1);
+        lua_setiuservalue(L, w_idx, UV_STORE);
+        lua_pushnil(L);
+        lua_setiuservalue(L, w_idx, UV_VOLUME);
+        w->frame_t = 0;
+        w->variant = 0;
+        snprintf(w->reason, sizeof w->reason, "fixed: %s (the first variant)",
+                 cdvr_store_variant(st, 0)->name);
+    } else {
+        lua_pop(L, 1);
+    }
+}
+
+/* tf= a cdvr.TF, a preset name or a points table (through cdvr.tf) */
+static void set_tf(lua_State *L, int w_idx, int idx)
+{
+    int type = lua_getfield(L, idx, "tf");
+    if (type == LUA_TNIL) {
+        lua_pop(L, 1);
+        return;
+    }
+    if (type == LUA_TSTRING || type == LUA_TTABLE) {
+        push_cdvr_function(L, "tf");
+        lua_insert(L, -2);
+        lua_call(L, 1, 1);
+    }
+    lcdvr_checktf(L, -1);
+    lua_setiuservalue(L, w_idx, UV_TF);
+}
+
+/* camera= a cdvr.Camera (copied: dragging in the window does not move the script's camera),
+ * or false for cdvr.orbit_camera of the scene */
+static void set_camera(lua_State *L, int w_idx, int idx)
+{
+    int type = lua_getfield(L, idx, "camera");
+    if (type == LUA_TNIL) {
+        lua_pop(L, 1);
+        return;
+    }
+    if (type == LUA_TBOOLEAN && !lua_toboolean(L, -1))
+        lua_pushnil(L);
+    else
+        lcdvr_pushcamera(L, lcdvr_checkcamera(L, -1));
+    lua_setiuservalue(L, w_idx, UV_CAMERA);
+    lua_pop(L, 1);
+}
+
+/* policy= a function or a cdvr.policy name (through cdvr.policy.get) */
+static void set_policy(lua_State *L, int w_idx, int idx)
+{
+    int type = lua_getfield(L, idx, "policy");
+    if (type == LUA_TNIL) {
+        lua_pop(L, 1);
+        return;
+    }
+    if (type == LUA_TSTRING) {
+        push_cdvr_function(L, "policy");
+        lua_getfield(L, -1, "get");
+        lua_remove(L, -2);
+        lua_insert(L, -2);
+        lua_call(L, 1, 1);
+    }
+    luaL_argexpected(L, lua_isfunction(L, -1) || lua_isnil(L, -1), idx, "policy function or name");
+    lua_setiuservalue(L, w_idx, UV_POLICY);
+}
+
+static void apply_options(lua_State *L, int w_idx, int idx, lwindow *w)
+{
+    lcdvr_checkoptions(L, idx, "window", window_keys);
+    set_scene(L, w_idx, idx, w);
+    set_tf(L, w_idx, idx);
+    set_camera(L, w_idx, idx);
+    set_policy(L, w_idx, idx);
+    w->method = option_index(L, idx, "method", method_names, w->method);
+    w->device = option_index(L, idx, "device", device_names, w->device);
+    w->overlay = lcdvr_optbooleanfield(L, idx, "overlay", w->overlay);
+    int lod_type = lua_getfield(L, idx, "lod");   /* true, false, "seed" or "screen" */
+    if (lod_type == LUA_TBOOLEAN)
+        w->lod = lua_toboolean(L, -1);
+    else if (lod_type == LUA_TSTRING && strcmp(lua_tostring(L, -1), "seed") == 0)
+        w->lod = 1;
+    else if (lod_type == LUA_TSTRING && strcmp(lua_tostring(L, -1), "screen") == 0)
+        w->lod = 2;
+    else if (lod_type != LUA_TNIL)
+        luaL_error(L, "window: option 'lod': boolean, \"seed\" or \"screen\" expected");
+    lua_pop(L, 1);
+    w->playing = lcdvr_optbooleanfield(L, idx, "playing", w->playing);
+    double step = lcdvr_optnumberfield(L, idx, "step", w->step);
+    double fps = lcdvr_optnumberfield(L, idx, "fps", w->fps);
+    if (!(step >= 0.0) || !(fps >= 0.0) || !isfinite(step) || !isfinite(fps))
+        luaL_error(L, "window: step and fps must be finite and >= 0");
+    w->step = step;
+    w->fps = fps;
+    set_variant(L, idx, w, scene_store(L, w_idx));
+    size_t n = scene_timesteps(L, w_idx);
+    lua_Integer t = lcdvr_optintegerfield(L, idx, "t", w->t);
+    if (n && (t < 1 || (size_t)t > n))
+        luaL_error(L, "window: t = %I outside 1..%I", (LUAI_UACINT)t, (LUAI_UACINT)n);
+    w->t = n ? (long)t : 1;
+    w->dirty = 1;
+}
+
+/* ---- interaction ------------------------------------------------------------------------- */
+
+/* v rotated by angle (radians) around the unit axis k (Rodrigues). */
+static void rotate(double v[3], const double k[3], double angle)
+{
+    double c = cos(angle), s = sin(angle), kv = k[0] * v[0] + k[1] * v[1] + k[2] * v[2];
+    double cross[3] = {k[1] * v[2] - k[2] * v[1], k[2] * v[0] - k[0] * v[2],
+                       k[0] * v[1] - k[1] * v[0]};
+    for (int i = 0; i < 3; i++)
+        v[i] = v[i] * c + cross[i] * s + k[i] * kv * (1.0 - c);
+}
+
+/* Drag: turn the eye around the centre, dx around the up vector, dy around the right vector
+ * (0.4 degrees per pixel), never over the poles. */
+static void orbit(cdvr_camera *cam, double dx, double dy)
+{
+    const double per_pixel = 0.4 * 3.14159265358979323846 / 180.0;
+    double f[3], u[3], r[3], up[3] = {cam->up[0], cam->up[1], cam->up[2]}, off[3];
+    cdvr_camera_basis(cam, f, u, r);
+    double len = sqrt(up[0] * up[0] + up[1] * up[1] + up[2] * up[2]);
+    for (int i = 0; i < 3; i++) {
+        up[i] /= len;
+        off[i] = cam->eye[i] - cam->center[i];
+    }
+    rotate(off, up, -dx * per_pixel);
+    rotate(r, up, -dx * per_pixel);
+    double tilted[3] = {off[0], off[1], off[2]};
+    rotate(tilted, r, -dy * per_pixel);
+    double dist = sqrt(tilted[0] * tilted[0] + tilted[1] * tilted[1] + tilted[2] * tilted[2]);
+    double along_up = (tilted[0] * up[0] + tilted[1] * up[1] + tilted[2] * up[2]) / dist;
+    if (fabs(along_up) < 0.995)
+        memcpy(off, tilted, sizeof off);
+    for (int i = 0; i < 3; i++)
+        cam->eye[i] = cam->center[i] + off[i];
+}
+
+static void zoom(cdvr_camera *cam, double steps)
+{
+    double scale = pow(0.9, steps);
+    if (cam->orthographic) {
+        cam->ortho_height *= scale;
+        return;
+    }
+    for (int i = 0; i < 3; i++)
+        cam->eye[i] = cam->center[i] + (cam->eye[i] - cam->center[i]) * scale;
+}
+
+static void step_time(lwindow *w, long delta, size_t n)
+{
+    if (!n)
+        return;
+    long t = w->t + delta;
+    w->t = t < 1 ? 1 : (size_t)t > n ? (long)n : t;
+    w->dirty = 1;
+}
+
+static void handle_key(lua_State *L, int w_idx, lwindow *w, int key)
+{
+    size_t n = scene_timesteps(L, w_idx);
+    const cdvr_store *st = scene_store(L, w_idx);
+    switch (key) {
+    case CDVR_KEY_LEFT: step_time(w, -1, n); w->playing = 0; break;
+    case CDVR_KEY_RIGHT: step_time(w, 1, n); w->playing = 0; break;
+    case CDVR_KEY_HOME: step_time(w, -(long)n, n); break;
+    case CDVR_KEY_END: step_time(w, (long)n, n); break;
+    case CDVR_KEY_SPACE: w->playing = !w->playing; w->last_step_ms = cdvr_now_ms(); break;
+    case CDVR_KEY_UP:
+    case CDVR_KEY_DOWN:
+        if (st) {
+            int nv = (int)cdvr_store_get_info(st)->nvariants;
+            w->variant = (w->variant + (key == CDVR_KEY_UP ? nv - 1 : 1)) % nv;
+            snprintf(w->reason, sizeof w->reason, "fixed: %s chosen with the arrow keys",
+                     cdvr_store_variant(st, (size_t)w->variant)->name);
+            lua_pushnil(L);
+            lua_setiuservalue(L, w_idx, UV_POLICY); /* the user's choice overrides a policy */
+            w->dirty = 1;
+        }
+        break;
+    }
+}
+
+static void handle_events(lua_State *L, int w_idx, lwindow *w)
+{
+    cdvr_window_event ev[MAX_EVENTS];
+    size_t n = cdvr_window_poll(w->win, ev, MAX_EVENTS);
+    for (size_t i = 0; i < n; i++) {
+        if (ev[i].type == CDVR_WINDOW_KEY) {
+            handle_key(L, w_idx, w, ev[i].key);
+            continue;
+        }
+        w->dirty = 1;
+        if (ev[i].type == CDVR_WINDOW_RESIZE)
+            continue;
+        if (lua_getiuservalue(L, w_idx, UV_CAMERA) == LUA_TUSERDATA) {
+            cdvr_camera *cam = lcdvr_checkcamera(L, -1);
+            if (ev[i].type == CDVR_WINDOW_DRAG)
+                orbit(cam, ev[i].dx, ev[i].dy);
+            else
+                zoom(cam, ev[i].dy);
+        }
+        lua_pop(L, 1);
+    }
+}
+
+/* ---- playback and the policy ------------------------------------------------------------- */
+
+static void push_policy_stats(lua_State *L, int w_idx, lwindow *w, const cdvr_store *st,
+                              size_t group)
+{
+    lua_createtable(L, 0, 8);                     /* stats */
+    lua_pushinteger(L, w->t);
+    lua_setfield(L, -2, "t");
+    lua_pushinteger(L, (lua_Integer)((size_t)(w->t - 1) / group + 1));
+    lua_setfield(L, -2, "group");
+    lua_pushstring(L, cdvr_store_variant(st, (size_t)w->variant)->name);
+    lua_setfield(L, -2, "current");
+    lua_pushboolean(L, 0);
+    lua_setfield(L, -2, "capture");
+    if (w->fps > 0.0) {
+        lua_pushnumber(L, w->fps);
+        lua_setfield(L, -2, "target_fps");
+    }
+    lua_createtable(L, w->nrows, 0);              /* stats, frames */
+    for (int i = 0; i < w->nrows; i++) {
+        const frame_row *r = &w->rows[i];
+        lua_createtable(L, 0, 8);
+        lua_pushinteger(L, r->t);
+        lua_setfield(L, -2, "t");
+        lua_pushstring(L, cdvr_store_variant(st, (size_t)r->variant)->name);
+        lua_setfield(L, -2, "variant");
+        lua_pushnumber(L, r->decode_ms);          /* read + unzip + decode, on this thread */
+        lua_setfield(L, -2, "decode_ms");
+        lua_pushnumber(L, r->render_ms);
+        lua_setfield(L, -2, "render_ms");
+        lua_pushnumber(L, r->frame_ms);
+        lua_setfield(L, -2, "frame_ms");
+        lua_rawseti(L, -2, i + 1);
+    }
+    lua_setfield(L, -2, "frames");
+    const cdvr_store_info *info = cdvr_store_get_info(st);
+    lua_createtable(L, (int)info->nvariants, 0);  /* stats, variants */
+    for (size_t v = 0; v < info->nvariants; v++) {
+        const cdvr_variant_info *var = cdvr_store_variant(st, v);
+        lua_createtable(L, 0, 6);
+        lua_pushstring(L, var->name);
+        lua_setfield(L, -2, "name");
+        lua_pushstring(L, var->codec_name);
+        lua_setfield(L, -2, "codec");
+        lua_pushnumber(L, (double)var->bytes / (double)info->timesteps);
+        lua_setfield(L, -2, "bytes_per_timestep");
+        lua_pushnumber(L, (double)var->payload_bytes / (double)info->timesteps);
+        lua_setfield(L, -2, "payload_bytes_per_timestep");
+        lua_pushnumber(L, var->psnr);
+        lua_setfield(L, -2, "psnr");
+        lua_rawseti(L, -2, (lua_Integer)v + 1);
+    }
+    lua_setfield(L, -2, "variants");
+    (void)w_idx;
+}
+
+/* At a group boundary of a store scene with a policy: the policy picks the variant. */
+static void run_policy(lua_State *L, int w_idx, lwindow *w)
+{
+    const cdvr_store *st = scene_store(L, w_idx);
+    if (!st)
+        return;
+    size_t group = cdvr_player_group_length(st);
+    if (group == 0 || (size_t)(w->t - 1) % group != 0)
+        return;
+    if (lua_getiuservalue(L, w_idx, UV_POLICY) != LUA_TFUNCTION) {
+        lua_pop(L, 1);
+        return;
+    }
+    push_policy_stats(L, w_idx, w, st, group);
+    lua_call(L, 1, 2);                            /* name, reason */
+    const char *name = lua_tostring(L, -2);
+    int v = name ? cdvr_store_find_variant(st, name) : -1;
+    if (v < 0)
+        luaL_error(L, "window: policy returned %s, not a variant of %s",
+                   name ? name : luaL_typename(L, -2), cdvr_store_path(st));
+    w->variant = v;
+    snprintf(w->reason, sizeof w->reason, "%s", lua_isstring(L, -1) ? lua_tostring(L, -1) : "policy");
+    lua_pop(L, 2);
+}
+
+/* Playing: the next timestep when its time has come (fps pacing, or every frame), looping. */
+static void advance(lua_State *L, int w_idx, lwindow *w)
+{
+    size_t n = scene_timesteps(L, w_idx);
+    if (!w->playing || n == 0)
+        return;
+    double now = cdvr_now_ms();
+    if (w->fps > 0.0 && now - w->last_step_ms < 1000.0 / w->fps)
+        return;
+    w->last_step_ms = now;
+    w->t = (size_t)w->t >= n ? 1 : w->t + 1;
+    w->dirty = 1;
+    run_policy(L, w_idx, w);
+}
+
+/* ---- drawing ------------------------------------------------------------------------------ */
+
+static void overlay(lua_State *L, int w_idx, lwindow *w, uint8_t *rgba, int width, int height)
+{
+    static const uint8_t white[3] = {255, 255, 255};
+    char line[256];
+    const cdvr_store *st = scene_store(L, w_idx);
+    size_t n = scene_timesteps(L, w_idx);
+    const char *how = w->method == 1 ? "slice (EGL)" : w->device == 1 ? "raycast (cl)" : "raycast (cpu)";
+    if (!n)
+        snprintf(line, sizeof line, "no scene: w:set{volume=v, tf=...} or {store=st}");
+    else if (st)
+        snprintf(line, sizeof line, "%.1f fps  t %ld/%zu%s  %s  %s  %s", w->shown_fps, w->t, n,
+                 w->playing ? " playing" : "", cdvr_store_variant(st, (size_t)w->variant)->name,
+                 w->reason, how);
+    else
+        snprintf(line, sizeof line, "%.1f fps  t %ld/%zu%s  volume  %s", w->shown_fps, w->t, n,
+                 w->playing ? " playing" : "", how);
+    cdvr_overlay_text(rgba, width, height, 6, 6, 2, line, white);
+}
+
+static void note_frame(lwindow *w, long t, double decode_ms, double render_ms, double start)
+{
+    double now = cdvr_now_ms();
+    if (w->last_show_ms > 0.0 && now > w->last_show_ms)
+        w->shown_fps = 1000.0 / (now - w->last_show_ms);
+    w->last_show_ms = now;
+    if (w->nrows == ROWS) {
+        memmove(w->rows, w->rows + 1, (ROWS - 1) * sizeof *w->rows);
+        w->nrows--;
+    }
+    frame_row *r = &w->rows[w->nrows++];
+    r->t = t;
+    r->variant = w->variant;
+    r->decode_ms = decode_ms;
+    r->render_ms = render_ms;
+    r->frame_ms = now - start;
+}
+
+/* Renders the scene through cdvr.render and shows it (with the overlay); raises on error.
+ * Stack: the window at w_idx; leaves the stack as it found it. */
+static void draw(lua_State *L, int w_idx, lwindow *w)
+{
+    int top = lua_gettop(L);
+    double start = cdvr_now_ms(), decode_ms, render_ms = 0.0;
+    int width, height;
+    cdvr_window_size(w->win, &width, &height);
+    if (width <= 0 || height <= 0)
+        return;
+    long t;
+    push_scene_volume(L, w_idx, w, &t, &decode_ms); /* volume or nil */
+    int vol_idx = lua_gettop(L);
+    uint8_t *rgba = NULL;
+    if (lua_isnil(L, vol_idx)) {
+        rgba = lua_newuserdatauv(L, (size_t)width * (size_t)height * 4, 0);
+        for (size_t i = 0; i < (size_t)width * (size_t)height; i++) {
+            rgba[4 * i] = rgba[4 * i + 1] = rgba[4 * i + 2] = 24;
+            rgba[4 * i + 3] = 255;
+        }
+    } else {
+        push_cdvr_function(L, "render");
+        lua_pushvalue(L, vol_idx);
+        lua_createtable(L, 0, 8);                 /* render, volume, opts */
+        if (lua_getiuservalue(L, w_idx, UV_TF) != LUA_TUSERDATA) {
+            lua_pop(L, 1);
+            lua_pushliteral(L, "grayscale");
+        }
+        lua_setfield(L, -2, "tf");
+        lcdvr_pushcamera(L, scene_camera(L, w_idx, vol_idx, width, height));
+        lua_setfield(L, -2, "camera");
+        lua_pushstring(L, method_names[w->method]);
+        lua_setfield(L, -2, "method");
+        lua_pushstring(L, device_names[w->device]);
+        lua_setfield(L, -2, "device");
+        lua_pushinteger(L, t);
+        lua_setfield(L, -2, "t");
+        if (w->step > 0.0) {
+            lua_pushnumber(L, w->step);
+            lua_setfield(L, -2, "step");
+        }
+        if (w->method == 1) {
+            if (w->lod == 2)
+                lua_pushliteral(L, "screen");
+            else
+                lua_pushboolean(L, w->lod);
+            lua_setfield(L, -2, "lod");
+        }
+        double render_start = cdvr_now_ms();
+        lua_call(L, 2, 1);                        /* image */
+        render_ms = cdvr_now_ms() - render_start;
+        const cdvr_image *img = lcdvr_checkimage(L, -1);
+        rgba = lua_newuserdatauv(L, (size_t)img->width * (size_t)img->height * 4, 0);
+        cdvr_image_to_rgba8(img, rgba);
+    }
+    note_frame(w, w->t, decode_ms, render_ms, start);
+    if (w->overlay)
+        overlay(L, w_idx, w, rgba, width, height);
+    cdvr_error err;
+    if (cdvr_window_show(w->win, rgba, width, height, &err) != CDVR_OK)
+        lcdvr_raise(L, &err);
+    w->dirty = 0;
+    lua_settop(L, top);
+}
+
+/* One frame: events, playback, and a redraw if anything changed (force: always). */
+static void frame(lua_State *L, int w_idx, lwindow *w, int force)
+{
+    handle_events(L, w_idx, w);
+    if (cdvr_window_should_close(w->win))
+        return;
+    advance(L, w_idx, w);
+    if (force || w->dirty)
+        draw(L, w_idx, w);
+}
+
+/* ---- open windows ------------------------------------------------------------------------ */
+
+static void forget_window(lua_State *L, int w_idx)
+{
+    w_idx = lua_absindex(L, w_idx);
+    lua_getfield(L, LUA_REGISTRYINDEX, WINDOWS_KEY);
+    if (lua_istable(L, -1)) {
+        lua_pushvalue(L, w_idx);
+        lua_pushnil(L);
+        lua_rawset(L, -3);
+    }
+    lua_pop(L, 1);
+}
+
+static int window_close(lua_State *L)
+{
+    lwindow *w = towindow(L, 1);
+    if (w->win) {
+        cdvr_window_close(w->win);
+        w->win = NULL;
+        forget_window(L, 1);
+    }
+    for (int uv = 1; uv <= UV_COUNT; uv++) { /* let go of the scene */
+        lua_pushnil(L);
+        lua_setiuservalue(L, 1, uv);
+    }
+    return 0;
+}
+
+static int l_window(lua_State *L)
+{
+    if (lua_isnoneornil(L, 1)) {
+        lua_settop(L, 0);
+        lua_newtable(L);
+    }
+    luaL_checktype(L, 1, LUA_TTABLE);
+    lcdvr_checkoptions(L, 1, "cdvr.window", window_keys);
+    lua_Integer width = lcdvr_optintegerfield(L, 1, "width", 512);
+    lua_Integer height = lcdvr_optintegerfield(L, 1, "height", 512);
+    luaL_argcheck(L, width >= 1 && width <= 16384 && height >= 1 && height <= 16384, 1,
+                  "width and height must be 1..16384");
+    const char *title = lcdvr_optstringfield(L, 1, "title", "cdvr");
+    lwindow *w = (lwindow *)lua_newuserdatauv(L, sizeof *w, UV_COUNT);
+    memset(w, 0, sizeof *w);
+    w->overlay = 1;
+    w->lod = 1;
+    w->t = 1;
+    snprintf(w->reason, sizeof w->reason, "-");
+    luaL_setmetatable(L, LCDVR_WINDOW);
+    int w_idx = lua_gettop(L);
+    apply_options(L, w_idx, 1, w); /* before opening: bad options leave no window behind */
+    cdvr_error err;
+    if (cdvr_window_open((int)width, (int)height, title, &w->win, &err) != CDVR_OK)
+        return luaL_error(L, "cdvr.window: %s", err.msg);
+    luaL_getsubtable(L, LUA_REGISTRYINDEX, WINDOWS_KEY);
+    lua_pushvalue(L, w_idx);
+    lua_pushboolean(L, 1);
+    lua_rawset(L, -3);
+    lua_pop(L, 1);
+    frame(L, w_idx, w, 1);
+    lua_settop(L, w_idx);
+    return 1;
+}
+
+static int window_set(lua_State *L)
+{
+    lwindow *w = checkwindow(L, 1);
+    luaL_checktype(L, 2, LUA_TTABLE);
+    static const char *const not_here[] = {"width", "height", "title"};
+    for (size_t i = 0; i < sizeof not_here / sizeof not_here[0]; i++)
+        if (lua_getfield(L, 2, not_here[i]) != LUA_TNIL)
+            luaL_error(L, "w:set: '%s' is fixed when the window opens (resize the window instead)",
+                       not_here[i]);
+        else
+            lua_pop(L, 1);
+    apply_options(L, 1, 2, w);
+    return 0;
+}
+
+/* w:frame() -> true, or false once the user closed the window (it is then closed). */
+static int window_frame(lua_State *L)
+{
+    lwindow *w = checkwindow(L, 1);
+    lua_settop(L, 1);
+    frame(L, 1, w, 1);
+    if (cdvr_window_should_close(w->win)) {
+        window_close(L);
+        lua_pushboolean(L, 0);
+        return 1;
+    }
+    lua_pushboolean(L, 1);
+    return 1;
+}
+
+/* w:read() -> the framebuffer shown last, as an opaque image. */
+static int window_read(lua_State *L)
+{
+    lwindow *w = checkwindow(L, 1);
+    int width, height;
+    const uint8_t *px = cdvr_window_pixels(w->win, &width, &height);
+    if (!px)
+        return luaL_error(L, "w:read: nothing shown yet (call w:frame())");
+    cdvr_image *img;
+    cdvr_error err;
+    if (cdvr_image_create(width, height, &img, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    size_t n = (size_t)width * (size_t)height;
+    for (size_t i = 0; i < n; i++) {
+        for (int c = 0; c < 3; c++)
+            img->rgba[4 * i + c] = (float)px[4 * i + c] / 255.0f;
+        img->rgba[4 * i + 3] = 1.0f;
+    }
+    lcdvr_pushimage(L, img);
+    return 1;
+}
+
+/* w:camera() -> a copy of the camera the window shows (after dragging and zooming). */
+static int window_camera(lua_State *L)
+{
+    checkwindow(L, 1);
+    if (lua_getiuservalue(L, 1, UV_CAMERA) != LUA_TUSERDATA)
+        return 1; /* nil: no frame drawn yet */
+    lcdvr_pushcamera(L, lcdvr_checkcamera(L, -1));
+    return 1;
+}
+
+/* w:state() -> {t=, variant=, playing=, method=, device=, reason=, fps=, width=, height=} */
+static int window_state(lua_State *L)
+{
+    lwindow *w = checkwindow(L, 1);
+    const cdvr_store *st = scene_store(L, 1);
+    int width, height;
+    cdvr_window_size(w->win, &width, &height);
+    lua_createtable(L, 0, 9);
+    lua_pushinteger(L, w->t);
+    lua_setfield(L, -2, "t");
+    if (st) {
+        lua_pushstring(L, cdvr_store_variant(st, (size_t)w->variant)->name);
+        lua_setfield(L, -2, "variant");
+    }
+    lua_pushboolean(L, w->playing);
+    lua_setfield(L, -2, "playing");
+    lua_pushstring(L, method_names[w->method]);
+    lua_setfield(L, -2, "method");
+    lua_pushstring(L, device_names[w->device]);
+    lua_setfield(L, -2, "device");
+    lua_pushstring(L, w->reason);
+    lua_setfield(L, -2, "reason");
+    lua_pushnumber(L, w->shown_fps);
+    lua_setfield(L, -2, "fps");
+    lua_pushinteger(L, width);
+    lua_setfield(L, -2, "width");
+    lua_pushinteger(L, height);
+    lua_setfield(L, -2, "height");
+    return 1;
+}
+
+static int window_tostring(lua_State *L)
+{
+    lwindow *w = towindow(L, 1);
+    if (!w->win) {
+        lua_pushliteral(L, "cdvr.Window (closed)");
+        return 1;
+    }
+    int width, height;
+    cdvr_window_size(w->win, &width, &height);
+    lua_pushfstring(L, "cdvr.Window %dx%d t %d (%p)", width, height, (int)w->t, (void *)w);
+    return 1;
+}
+
+/* ---- the console's driver ----------------------------------------------------------------- */
+
+static int tick_one(lua_State *L)
+{
+    lwindow *w = towindow(L, 1);
+    int changed = lua_toboolean(L, 2);
+    lua_settop(L, 1);
+    if (!w->win)
+        return 0;
+    if (changed)
+        w->dirty = 1;
+    frame(L, 1, w, 0);
+    if (cdvr_window_should_close(w->win))
+        window_close(L);
+    return 0;
+}
+
+int lcdvr_window_tick(lua_State *L, int changed, int *printed)
+{
+    int top = lua_gettop(L);
+    if (lua_getfield(L, LUA_REGISTRYINDEX, WINDOWS_KEY) != LUA_TTABLE) {
+        lua_settop(L, top);
+        return -1;
+    }
+    int list = lua_gettop(L), n = 0;
+    lua_newtable(L);                              /* windows, snapshot */
+    lua_pushnil(L);
+    while (lua_next(L, list)) {
+        lua_pop(L, 1);
+        lua_pushvalue(L, -1);
+        lua_rawseti(L, list + 1, ++n);
+    }
+    int wait = n ? 30 : -1;
+    for (int i = 1; i <= n; i++) {
+        lua_pushcfunction(L, tick_one);
+        lua_rawgeti(L, list + 1, i);
+        lwindow *w = towindow(L, -1);
+        lua_pushboolean(L, changed);
+        if (lua_pcall(L, 2, 0, 0) != LUA_OK) {
+            const char *msg = lua_tostring(L, -1);
+            if (msg && strcmp(msg, w->error) != 0) {
+                fprintf(stderr, "\ncdvr: window: %s\n", msg);
+                *printed = 1;
+            }
+            snprintf(w->error, sizeof w->error, "%s", msg ? msg : "error");
+            w->dirty = 0;   /* shown once; the next change tries again */
+            w->playing = 0;
+            lua_pop(L, 1);
+        } else {
+            w->error[0] = '\0';
+        }
+        if (w->win && w->playing)
+            wait = 1;
+    }
+    lua_settop(L, top);
+    return wait;
+}
+
+int lcdvr_window_console(lua_State *L)
+{
+    cdvr_error err;
+    if (!cdvr_window_available(&err)) {
+        fprintf(stderr, "cdvr: %s: console only\n", err.msg);
+        return 0;
+    }
+    lua_pushcfunction(L, l_window);
+    lua_createtable(L, 0, 1);
+    lua_pushliteral(L, "cdvr console");
+    lua_setfield(L, -2, "title");
+    if (lua_pcall(L, 1, 1, 0) != LUA_OK) {
+        fprintf(stderr, "cdvr: no window (%s): console only\n", lua_tostring(L, -1));
+        lua_pop(L, 1);
+        return 0;
+    }
+    lua_setglobal(L, "window");
+    fprintf(stderr, "cdvr: window open as `window`: window:set{volume=v, tf=\"ct_bone\"} shows a scene\n");
+    return 1;
+}
+
+static const luaL_Reg window_methods[] = {
+    {"set", window_set},       {"frame", window_frame}, {"read", window_read},
+    {"camera", window_camera}, {"state", window_state}, {"close", window_close},
+    {NULL, NULL}};
+
+static const luaL_Reg window_meta[] = {
+    {"__gc", window_close}, {"__close", window_close}, {"__tostring", window_tostring},
+    {NULL, NULL}};
+
+static const luaL_Reg window_funcs[] = {{"window", l_window}, {NULL, NULL}};
+
+int lcdvr_open_window(lua_State *L)
+{
+    lcdvr_newclass(L, LCDVR_WINDOW, window_methods, window_meta);
+    lcdvr_setfuncs(L, window_funcs);
+    lcdvr_help_add(L, "cdvr.window{volume= | store=, tf=, camera=, method=, device=, overlay=, t=, variant=, ...}",
+                   "open a window showing the scene (needs a display and GL); more keys: lod, step, "
+                   "playing, fps, policy, width, height, title; drag orbits, wheel zooms, "
+                   "left/right step t, up/down step variants, space plays");
+    lcdvr_help_add(L, "w:set{...}", "change the window's scene (any cdvr.window key but width, height, title)");
+    lcdvr_help_add(L, "w:frame()", "process events and draw one frame now; false once the user closed it");
+    lcdvr_help_add(L, "w:read()", "the window's framebuffer (last frame shown) as an image");
+    lcdvr_help_add(L, "w:camera()", "a copy of the camera the window shows (after dragging and zooming)");
+    lcdvr_help_add(L, "w:state()", "{t=, variant=, playing=, method=, device=, reason=, fps=, width=, height=}");
+    lcdvr_help_add(L, "w:close()", "close the window");
+    return 0;
+}

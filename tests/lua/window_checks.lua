@@ -1,0 +1,120 @@
+-- tests/lua/window_checks.lua - cdvr.window under a display (tests/test_window.sh runs it with
+-- xvfb-run): the framebuffer equals the offscreen render of the same scene, a change of TF,
+-- camera, method or timestep shows in the next frame, store scenes step timesteps and variants,
+-- the object holds its scene, misuse raises. Not collected by ctest on its own (needs a display).
+local failed, passed = 0, 0
+local function check(cond, msg)
+  if cond then
+    passed = passed + 1
+  else
+    failed = failed + 1
+    io.stderr:write(debug.traceback("check failed: " .. tostring(msg), 2), "\n")
+  end
+end
+local function raises(f, pattern, what)
+  local ok, err = pcall(f)
+  check(not ok and (not pattern or tostring(err):find(pattern, 1, true)),
+        what .. ": expected an error" .. (pattern and (" with '" .. pattern .. "'") or "") ..
+        ", got " .. tostring(err))
+end
+local function psnr(a, b) return cdvr.compare(a, b).psnr end
+
+local vol = cdvr.generate("ml", {dims = {40, 36, 32}, timesteps = 1})
+local hot = cdvr.tf("hot")
+local w = cdvr.window{volume = vol, tf = hot, overlay = false, width = 160, height = 120}
+check(tostring(w):find("cdvr.Window 160x120", 1, true), "tostring " .. tostring(w))
+check(w:frame() == true, "frame")
+
+-- the window shows exactly what cdvr.render makes of the same scene (8-bit framebuffer)
+local shot = w:read()
+check(select(1, shot:size()) == 160 and select(2, shot:size()) == 120, "read size")
+local cam = w:camera()
+check(cam.width == 160 and cam.height == 120, "camera sized to the framebuffer")
+local ref = cdvr.render(vol, {tf = hot, camera = cam})
+check(psnr(shot, ref) >= 50, "window vs offscreen ray casting: " .. psnr(shot, ref) .. " dB")
+
+-- a TF change shows in the next frame
+w:set{tf = "grayscale"}
+w:frame()
+local gray = w:read()
+check(psnr(shot, gray) < 30, "TF change changes the frame: " .. psnr(shot, gray))
+check(psnr(gray, cdvr.render(vol, {tf = cdvr.tf("grayscale"), camera = cam})) >= 50, "new TF rendered")
+
+-- the slicer in the window, against the slicer offscreen
+w:set{method = "slice", tf = hot}
+w:frame()
+local sliced = cdvr.render(vol, {tf = hot, camera = w:camera(), method = "slice"})
+check(psnr(w:read(), sliced) >= 50, "window vs offscreen slicing: " .. psnr(w:read(), sliced))
+check(w:state().method == "slice", "state method")
+
+-- a camera set from the script is copied (the window's dragging does not move it)
+local c2 = cdvr.orbit_camera(vol, {azimuth = 90, width = 10, height = 10})
+w:set{camera = c2, method = "raycast"}
+w:frame()
+check(c2.width == 10 and w:camera().width == 160, "script camera untouched, window sized")
+check(psnr(w:read(), cdvr.render(vol, {tf = hot, camera = w:camera()})) >= 50, "new camera rendered")
+
+-- the overlay draws a line on top; overlay=false hides it
+w:set{overlay = true}
+w:frame()
+check(psnr(w:read(), cdvr.render(vol, {tf = hot, camera = w:camera()})) < 50, "overlay drawn")
+w:set{overlay = false}
+
+-- a store scene: timesteps, variants by name, decoded with the store's own decoder
+local tmp = os.tmpname()
+local series = cdvr.generate("sphere", {dims = {24, 22, 20}, timesteps = 4})
+local st = cdvr.encode(series, {variants = {{codec = "raw"}, {S = 4, T = 2}}, stage2 = "none", path = tmp})
+w:set{store = st, t = 3, variant = 2, camera = false}
+w:frame()
+local s = w:state()
+check(s.t == 3 and s.variant == st:variants()[2] and s.reason:find("set by the user", 1, true),
+      "store state: " .. tostring(s.t) .. " " .. tostring(s.variant) .. " " .. tostring(s.reason))
+local frame3 = st:decode(3, 2)
+check(psnr(w:read(), cdvr.render(frame3, {tf = hot, camera = w:camera()})) >= 50, "store frame t=3")
+w:set{t = 1}
+w:frame()
+check(psnr(w:read(), cdvr.render(st:decode(1, 2), {tf = hot, camera = w:camera()})) >= 50,
+      "timestep change shows")
+-- playing advances one timestep per frame and loops
+w:set{playing = true, t = 4}
+w:frame()
+check(w:state().t == 1, "playback loops to t = 1: " .. w:state().t)
+w:frame()
+check(w:state().t == 2, "playback advances")
+-- a policy picks the variant at group boundaries, its reason is kept for the overlay
+w:set{policy = function(stats)
+  assert(stats.t and stats.variants and #stats.variants == 2 and stats.frames)
+  return stats.variants[1].name, "test policy: first variant"
+end}
+for _ = 1, 4 do w:frame() end
+check(w:state().reason == "test policy: first variant" and w:state().variant == st:variants()[1],
+      "policy reason: " .. w:state().reason)
+w:set{playing = false}
+
+-- misuse
+raises(function() w:set{tf = 3} end, nil, "tf of the wrong type")
+raises(function() w:set{methd = "slice"} end, "did you mean 'method'", "misspelled key")
+raises(function() w:set{method = "splat"} end, "invalid value 'splat'", "unknown method")
+raises(function() w:set{t = 9} end, "outside 1..4", "timestep out of range")
+raises(function() w:set{variant = "nope"} end, "no variant 'nope'", "unknown variant")
+raises(function() w:set{width = 3} end, "fixed when the window opens", "width after opening")
+raises(function() cdvr.window{volume = vol, devize = "cpu"} end, "did you mean 'device'", "misspelled open key")
+
+-- the window holds its scene: the store stays usable while shown
+st = nil
+collectgarbage()
+w:set{t = 2}
+check(w:frame(), "scene kept alive by the window")
+
+-- an empty window draws a notice, closing is final
+local empty = cdvr.window{width = 64, height = 48}
+check(empty:frame() and select(1, empty:read():size()) == 64, "empty window")
+empty:close()
+check(tostring(empty) == "cdvr.Window (closed)", "closed tostring")
+raises(function() empty:frame() end, "closed window", "use after close")
+w:close()
+w:close()
+os.remove(tmp)
+
+print(passed .. " passed, " .. failed .. " failed")
+os.exit(failed == 0 and 0 or 1)
