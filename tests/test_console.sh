@@ -49,7 +49,7 @@ check "Ctrl-C in a long render" [ $? -eq 0 ]
 # playback of a store
 session 'expect:> ' \
   'send:st = cdvr.encode(cdvr.generate("sphere", {dims = {40, 40, 40}, timesteps = 4}), {codec = "raw", path = "'"$tmp"'/s.cdv"})' \
-  'send:p = cdvr.player{store = st, tf = cdvr.tf("hot"), camera = cdvr.orbit_camera({dims = {40, 40, 40}}, {width = 128, height = 128})}' \
+  'send:p = cdvr.player{store = st, loop = true, tf = cdvr.tf("hot"), camera = cdvr.orbit_camera({dims = {40, 40, 40}}, {width = 128, height = 128})}' \
   'send:print("playing"); r = p:run{frames = 1000000}' 'expect:playing' 'sleep:0.5' \
   intr 'expect:interrupted!' 'sleep:0.2' \
   'send:print("report", r)' 'expect:report\snil' \

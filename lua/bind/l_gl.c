@@ -104,7 +104,16 @@ static void push_slice_stats(lua_State *L, const cdvr_gl *gl, const cdvr_slice_s
 int lcdvr_render_slice(lua_State *L, const cdvr_volume *vol, size_t t, void *render_opts)
 {
     const cdvr_render_opts *opts = render_opts;
-    int lod = lua_istable(L, 2) ? lod_mode(L, 2, "cdvr.render") : CDVR_LOD_SEED;
+    /* step, term and threads are the ray caster's: slicing steps by the slice spacing, composites
+     * every slice and draws through GL */
+    static const char *const keys[] = {"method", "device", "t", "variant", "tf", "camera",
+                                       "unit", "background", "lod", NULL};
+    lcdvr_checkoptions(L, 2, "cdvr.render{method=\"slice\"}", keys);
+    const char *device = lcdvr_optstringfield(L, 2, "device", "cpu");
+    if (strcmp(device, "cpu") != 0)
+        luaL_error(L, "cdvr.render: method 'slice' draws through EGL; device '%s' is for raycast",
+                   device);
+    int lod = lod_mode(L, 2, "cdvr.render");
     cdvr_gl *gl = get_slicer(L);
     double start = cdvr_now_ms();
     cdvr_slice_stats stats;

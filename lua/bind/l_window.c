@@ -28,7 +28,7 @@
 /* User values of the window userdata. */
 enum { UV_VOLUME = 1, UV_STORE, UV_TF, UV_CAMERA, UV_FRAME, UV_POLICY, UV_COUNT = UV_POLICY };
 
-static const char *const method_names[] = {"raycast", "slice", NULL};
+static const char *const method_names[] = {"raycast", "slice", "splat", NULL};
 static const char *const device_names[] = {"cpu", "cl", NULL};
 
 typedef struct frame_row {
@@ -170,8 +170,8 @@ static int option_index(lua_State *L, int idx, const char *key, const char *cons
     for (int i = 0; names[i]; i++)
         if (strcmp(names[i], value) == 0)
             return i;
-    return luaL_error(L, "window: option '%s': invalid value '%s' (%s or %s)", key, value,
-                      names[0], names[1]);
+    return luaL_error(L, "window: option '%s': invalid value '%s' (%s, %s%s%s)", key, value,
+                      names[0], names[1], names[2] ? ", " : "", names[2] ? names[2] : "");
 }
 
 static void set_variant(lua_State *L, int idx, lwindow *w, const cdvr_store *st)
@@ -528,7 +528,10 @@ static void overlay(lua_State *L, int w_idx, lwindow *w, uint8_t *rgba, int widt
     char line[256];
     const cdvr_store *st = scene_store(L, w_idx);
     size_t n = scene_timesteps(L, w_idx);
-    const char *how = w->method == 1 ? "slice (EGL)" : w->device == 1 ? "raycast (cl)" : "raycast (cpu)";
+    const char *how = w->method == 1   ? "slice (EGL)"
+                      : w->method == 2 ? "splat (cpu)"
+                      : w->device == 1 ? "raycast (cl)"
+                                       : "raycast (cpu)";
     if (!n)
         snprintf(line, sizeof line, "no scene: w:set{volume=v, tf=...} or {store=st}");
     else if (st)
@@ -592,15 +595,16 @@ static void draw(lua_State *L, int w_idx, lwindow *w)
         lua_setfield(L, -2, "camera");
         lua_pushstring(L, method_names[w->method]);
         lua_setfield(L, -2, "method");
-        lua_pushstring(L, device_names[w->device]);
-        lua_setfield(L, -2, "device");
         lua_pushinteger(L, t);
         lua_setfield(L, -2, "t");
-        if (w->step > 0.0) {
-            lua_pushnumber(L, w->step);
-            lua_setfield(L, -2, "step");
-        }
-        if (w->method == 1) {
+        if (w->method == 0) { /* the ray caster's options */
+            lua_pushstring(L, device_names[w->device]);
+            lua_setfield(L, -2, "device");
+            if (w->step > 0.0) {
+                lua_pushnumber(L, w->step);
+                lua_setfield(L, -2, "step");
+            }
+        } else if (w->method == 1) {
             if (w->lod == 2)
                 lua_pushliteral(L, "screen");
             else

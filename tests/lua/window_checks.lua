@@ -94,7 +94,7 @@ w:set{playing = false}
 -- misuse
 raises(function() w:set{tf = 3} end, nil, "tf of the wrong type")
 raises(function() w:set{methd = "slice"} end, "did you mean 'method'", "misspelled key")
-raises(function() w:set{method = "splat"} end, "invalid value 'splat'", "unknown method")
+raises(function() w:set{method = "mip"} end, "invalid value 'mip'", "unknown method")
 raises(function() w:set{t = 9} end, "outside 1..4", "timestep out of range")
 raises(function() w:set{variant = "nope"} end, "no variant 'nope'", "unknown variant")
 raises(function() w:set{width = 3} end, "fixed when the window opens", "width after opening")
