@@ -13,7 +13,7 @@ packages=(build-essential cmake pkg-config liblua5.4-dev libteem-dev libniftiio-
           liblzo2-dev opencl-headers ocl-icd-opencl-dev pocl-opencl-icd clinfo libstb-dev
           libreadline-dev gnuplot-nox
           libglfw3-dev libegl-dev libgl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri
-          xvfb xauth python3)
+          xvfb xauth libxtst6 python3)
 
 missing=()
 for p in "${packages[@]}"; do

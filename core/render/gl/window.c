@@ -17,8 +17,8 @@ struct cdvr_window {
     GLFWwindow *glfw;
     cdvr_window_event queue[QUEUE_MAX];
     size_t queued;
-    int dragging;
-    double last_x, last_y;
+    int dragging, have_cursor;
+    double last_x, last_y;   /* the last cursor position seen */
     uint8_t *shown;       /* what the last show displayed, read back from the framebuffer */
     int shown_w, shown_h;
 };
@@ -74,22 +74,23 @@ static void push_event(cdvr_window *w, const cdvr_window_event *ev)
 static void on_cursor(GLFWwindow *glfw, double x, double y)
 {
     cdvr_window *w = glfwGetWindowUserPointer(glfw);
-    if (w->dragging) {
+    if (w->dragging && w->have_cursor) {
         cdvr_window_event ev = {CDVR_WINDOW_DRAG, x - w->last_x, y - w->last_y, 0};
         push_event(w, &ev);
     }
     w->last_x = x;
     w->last_y = y;
+    w->have_cursor = 1;
 }
 
 static void on_button(GLFWwindow *glfw, int button, int action, int mods)
 {
     (void)mods;
     cdvr_window *w = glfwGetWindowUserPointer(glfw);
-    if (button == GLFW_MOUSE_BUTTON_LEFT) {
+    /* the position at the press is the last cursor event's: glfwGetCursorPos would ask the
+     * server for where the pointer is now, after motion still queued for us */
+    if (button == GLFW_MOUSE_BUTTON_LEFT)
         w->dragging = action == GLFW_PRESS;
-        glfwGetCursorPos(glfw, &w->last_x, &w->last_y);
-    }
 }
 
 static void on_scroll(GLFWwindow *glfw, double dx, double dy)
