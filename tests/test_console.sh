@@ -25,9 +25,9 @@ in_history=()
 session 'expect:> ' \
   'send:print("looping"); for i = 1, 1e15 do end' 'expect:looping' 'sleep:0.3' \
   "${in_history[@]}" \
-  intr 'expect:interrupted!' 'sleep:0.2' \
+  intr 'expect:interrupted!' 'sleep:0.5' \
   'send:print("alive" .. 1)' 'expect:alive1' \
-  'type:x = ' 'sleep:0.2' intr 'sleep:0.2' 'send:print("prompt" .. 2)' 'expect:prompt2' \
+  'type:x = ' 'sleep:0.3' intr 'sleep:0.5' 'send:print("prompt" .. 2)' 'expect:prompt2' \
   'send:os.exit(3)' 'exit:3'
 check "Ctrl-C in a loop and at the prompt, os.exit status" [ $? -eq 0 ]
 if [ $history = yes ]; then
@@ -39,7 +39,7 @@ fi
 session 'expect:> ' \
   'send:v = cdvr.generate("ml", {dims = {64, 64, 64}})' \
   'send:print("rendering"); img = cdvr.render(v, {tf = "hot", camera = cdvr.orbit_camera(v, {width = 3000, height = 3000}), step = 0.05, threads = 1})' \
-  'expect:rendering' 'sleep:0.5' intr 'expect:interrupted!' 'sleep:0.2' \
+  'expect:rendering' 'sleep:0.5' intr 'expect:interrupted!' 'sleep:0.5' \
   'send:print("image", img)' 'expect:image\snil' \
   'send:print("small", (cdvr.render(v, {tf = "hot", camera = cdvr.orbit_camera(v, {width = 8, height = 8})})))' \
   'expect:small\scdvr.Image' \
@@ -51,7 +51,7 @@ session 'expect:> ' \
   'send:st = cdvr.encode(cdvr.generate("sphere", {dims = {40, 40, 40}, timesteps = 4}), {codec = "raw", path = "'"$tmp"'/s.cdv"})' \
   'send:p = cdvr.player{store = st, loop = true, tf = cdvr.tf("hot"), camera = cdvr.orbit_camera({dims = {40, 40, 40}}, {width = 128, height = 128})}' \
   'send:print("playing"); r = p:run{frames = 1000000}' 'expect:playing' 'sleep:0.5' \
-  intr 'expect:interrupted!' 'sleep:0.2' \
+  intr 'expect:interrupted!' 'sleep:0.5' \
   'send:print("report", r)' 'expect:report\snil' \
   'send:print("again", #p:run{frames = 2}.frames)' 'expect:again\s2' \
   'send:os.exit()' 'exit:0'

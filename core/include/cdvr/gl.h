@@ -9,9 +9,10 @@
  *
  * ---- Slicing (cdvr_gl_slice) ----
  * Object-aligned stack: the slices are the planes of constant index k along the index axis a
- * whose world direction (column a of the volume's direction matrix) is most parallel to the
- * camera's view direction f = normalize(center - eye): a maximises |f . dir_a| (ties: the
- * lower axis). Slice k (k = 0..n_a-1) is the rectangle of voxel centres [0, n_u-1] x
+ * whose slices face the camera best: a maximises |f . n_a| / |n_a| with f = normalize(center -
+ * eye) the view direction and n_a = row a of D^-1 the slices' normal (column a of D when D
+ * is orthonormal; D = the volume's direction matrix, cdvr_volume_direction; ties: the lower
+ * axis). Slice k (k = 0..n_a-1) is the rectangle of voxel centres [0, n_u-1] x
  * [0, n_v-1] at index k, with in-plane axes (u, v) = (x, y) for a = z, (x, z) for a = y and
  * (y, z) for a = x, so it covers exactly the ray caster's box (cdvr/render.h step 1).
  * The slices are drawn back to front (farthest first: on each side of the eye's index
@@ -36,14 +37,16 @@
  *     spacing_a / |cos theta| along an inner ray, shorter where the ray enters or leaves
  *     through a side face.
  * Every slice is composited (no early termination); opts->step and opts->term_alpha are not
- * used. Directions are assumed orthonormal (rotations and flips; the loaders' matrices).
+ * used. Any invertible D works (the path lengths are computed in index space and measured in
+ * world units).
  *
  * ---- Level of detail per slice (seed 002, eq. 3) ----
  *   R_k = R_org / 2^L_k,  L_k = floor(log2(d_k / D)),  D = min_k d_k,
  * with d_k the distance from the eye to slice k. The seed's geometry has the eye on the axis of
  * the stack, where d_k is the distance to the slice's plane; for any other view d_k is the
  * distance from the eye to the nearest point of slice k's rectangle (which is the plane
- * distance on the axis), and D, the distance to the nearest slice, is clamped below to
+ * distance on the axis; the point is found by clamping the eye's index coordinates to the
+ * rectangle, exact for orthonormal D, an approximation for sheared ones), and D, the distance to the nearest slice, is clamped below to
  * spacing_a / 2 (an eye inside the stack would otherwise make D vanish). floor(log2(x)) is
  * computed exactly: L is the largest integer with D * 2^L <= d_k (no log2 rounding). L is capped
  * at the level where both texture sides are 1. Level L of an n_u x n_v slice is a texture of
@@ -81,8 +84,7 @@ typedef struct cdvr_grid {
 
 /* The geometry of vol. */
 void cdvr_grid_of_volume(const cdvr_volume *vol, cdvr_grid *grid);
-/* Continuous index coordinates of world point p, and of world direction d (the direction
- * matrix is taken as orthonormal: its inverse is its transpose). */
+/* Continuous index coordinates of world point p, and of world direction d (through D^-1). */
 void cdvr_grid_index_of(const cdvr_grid *grid, const double p[3], double out[3]);
 void cdvr_grid_index_direction(const cdvr_grid *grid, const double d[3], double out[3]);
 /* Index axis (0, 1, 2) whose world direction is most parallel to the camera's view. */

@@ -11,25 +11,29 @@ void cdvr_grid_of_volume(const cdvr_volume *vol, cdvr_grid *grid)
     memcpy(grid->dims, vol->dims, sizeof grid->dims);
     memcpy(grid->origin, vol->origin, sizeof grid->origin);
     memcpy(grid->spacing, vol->spacing, sizeof grid->spacing);
-    memcpy(grid->direction, vol->direction, sizeof grid->direction);
+    cdvr_volume_direction(vol, grid->direction); /* all zeros means the identity */
 }
 
-/* World direction of index axis a: column a of the direction matrix. */
-static void axis_direction(const cdvr_grid *grid, int a, double out[3])
+/* The inverse of the direction matrix (the identity if it is singular: callers check the
+ * geometry first, cdvr_volume_check_geometry). */
+static void inverse_direction(const cdvr_grid *grid, double inv[9])
 {
-    for (int r = 0; r < 3; r++)
-        out[r] = grid->direction[3 * r + a];
+    if (!cdvr_mat3_inverse(grid->direction, inv)) {
+        memset(inv, 0, 9 * sizeof *inv);
+        inv[0] = inv[4] = inv[8] = 1.0;
+    }
 }
 
 int cdvr_slice_axis(const cdvr_grid *grid, const cdvr_camera *cam)
 {
-    double f[3], u[3], r[3];
+    double f[3], u[3], r[3], inv[9];
     cdvr_camera_basis(cam, f, u, r);
+    inverse_direction(grid, inv);
     int best = 0;
     double best_cos = -1.0;
     for (int a = 0; a < 3; a++) {
-        double d[3];
-        axis_direction(grid, a, d);
+        /* the slices' normal: the gradient of index coordinate a, row a of D^-1 */
+        const double *d = inv + 3 * a;
         double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
         double c = len > 0.0 ? fabs(f[0] * d[0] + f[1] * d[1] + f[2] * d[2]) / len : 0.0;
         if (c > best_cos) {
@@ -58,12 +62,11 @@ static void index_to_world(const cdvr_grid *grid, const double idx[3], double ou
 
 void cdvr_grid_index_direction(const cdvr_grid *grid, const double d[3], double out[3])
 {
-    for (int c = 0; c < 3; c++) {
-        double along = 0.0;
-        for (int r = 0; r < 3; r++)
-            along += grid->direction[3 * r + c] * d[r];
-        out[c] = along / grid->spacing[c];
-    }
+    double inv[9];
+    inverse_direction(grid, inv);
+    for (int c = 0; c < 3; c++)
+        out[c] = (inv[3 * c] * d[0] + inv[3 * c + 1] * d[1] + inv[3 * c + 2] * d[2]) /
+                 grid->spacing[c];
 }
 
 void cdvr_grid_index_of(const cdvr_grid *grid, const double p[3], double out[3])

@@ -703,22 +703,14 @@ static cdvr_status check_input(const cdvr_gl *gl, const cdvr_volume *vol, size_t
     if (t >= vol->timesteps)
         return cdvr_error_set(err, CDVR_ERR_ARG, "GL slicing: timestep %zu outside 0..%zu", t,
                               vol->timesteps - 1);
-    for (int a = 0; a < 3; a++) {
+    for (int a = 0; a < 3; a++)
         if (vol->dims[a] > (size_t)gl->max_texture)
             return cdvr_error_set(err, CDVR_ERR_ARG,
                                   "GL slicing: dim %zu (axis %d) larger than the GL texture limit %d",
                                   vol->dims[a], a, gl->max_texture);
-        if (!isfinite(vol->spacing[a]) || vol->spacing[a] <= 0.0 || !isfinite(vol->origin[a]))
-            return cdvr_error_set(err, CDVR_ERR_ARG,
-                                  "GL slicing: volume spacing %g and origin %g (axis %d) must be "
-                                  "finite, spacing positive", vol->spacing[a], vol->origin[a], a);
-        double len = 0.0;
-        for (int r = 0; r < 3; r++)
-            len += vol->direction[3 * r + a] * vol->direction[3 * r + a];
-        if (!(len > 0.0) || !isfinite(len))
-            return cdvr_error_set(err, CDVR_ERR_ARG,
-                                  "GL slicing: direction of axis %d is zero or not finite", a);
-    }
+    cdvr_status st = cdvr_volume_check_geometry(vol, "GL slicing", err);
+    if (st != CDVR_OK)
+        return st;
     if (!isfinite(opts->unit) || opts->unit < 0.0)
         return cdvr_error_set(err, CDVR_ERR_ARG, "GL slicing: unit %g must be >= 0", opts->unit);
     return cdvr_camera_validate(opts->camera, err);
