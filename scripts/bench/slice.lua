@@ -33,6 +33,7 @@ local datasets = {
   {name = "colin27", path = data .. "/mri/colin27_t1_301x370x316_u8.nii.gz", tf = "mri"},
 }
 local evict = cdvr.generate("box", {dims = {2, 2, 2}})
+local evict_cam = cdvr.orbit_camera(evict, {width = 8, height = 8})
 
 local function camera_at(v, D)
   local d, sp, org = {v:dims()}, {v:spacing()}, {v:origin()}
@@ -73,9 +74,9 @@ for _, ds in ipairs(datasets) do
     local function slice(lod)
       return function() return cdvr.render(v, {tf = tf, camera = cam, method = "slice", lod = lod}) end
     end
-    cdvr.render(evict, {tf = tf, camera = cam, method = "slice"})
+    cdvr.render(evict, {tf = tf, camera = evict_cam, method = "slice"})
     local lod_img, lod_first, lod_ms = timed(slice(true), RUNS)
-    cdvr.render(evict, {tf = tf, camera = cam, method = "slice"})
+    cdvr.render(evict, {tf = tf, camera = evict_cam, method = "slice"})
     local full_img, full_first, full_ms = timed(slice(false), RUNS)
     local ray_img, _, ray_ms = timed(function()
       return cdvr.render(v, {tf = tf, camera = cam, step = step})
