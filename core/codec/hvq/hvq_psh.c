@@ -246,7 +246,7 @@ static int place_group(psh_build *b, const uint32_t *keys, uint32_t count, uint3
     if (f < m3 && try_offset(b, keys, count, f, o))
         return 1; /* offset 0 when its home is free: keeps neighbours coherent */
     uint32_t x = 0x9E3779B9u ^ (uint32_t)(keys[0] * 2654435761u);
-    for (int t = 0; t < HVQ_PSH_RANDOM_TRIES && count > 1; t++) {
+    for (int t = 0; t < HVQ_PSH_RANDOM_TRIES; t++) {
         x ^= x << 13;
         x ^= x >> 17;
         x ^= x << 5;

@@ -360,6 +360,21 @@ cdvr_status hvq_lbg(const int16_t *vectors, size_t n, unsigned d, float *centroi
         before = after;
     }
     lbg_sums(vectors, n, d, a.k, index, sums, counts);
+    /* clusters still empty at the end are dropped (sums and counts move with them) */
+    unsigned kept = 0;
+    for (unsigned j = 0; j < a.k; j++) {
+        if (counts[j] == 0) {
+            rep->dropped++;
+            continue;
+        }
+        if (kept != j) {
+            memmove(centroids + (size_t)kept * d, centroids + (size_t)j * d, sizeof *fv * d);
+            memmove(sums + (size_t)kept * d, sums + (size_t)j * d, sizeof *sums * d);
+            counts[kept] = counts[j];
+        }
+        kept++;
+    }
+    a.k = kept;
     *k = a.k;
     rep->lbg_iterations = it;
     rep->distortion = after;

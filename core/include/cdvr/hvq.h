@@ -34,8 +34,8 @@
  *     vectors, until |D_old - D_new| / D_old < eps or D = 0 or 100 iterations. An empty
  *     cluster is re-seeded with the vector farthest from its own centroid (not yet used for
  *     another re-seed; ties: the lowest vector index), or dropped when every vector sits on a
- *     centroid. Entries are the means rounded to the nearest integer, halves away from zero
- *     (level 1: the mean of S/8).
+ *     centroid; clusters empty when LBG stops are dropped. Entries are the cluster means
+ *     rounded to the nearest integer, halves away from zero (level 1: the mean of S/8).
  *  5. The frame is cut into regions of 256x256x256 voxels (64^3 blocks), numbered x fastest
  *     (seed eq. 4). In each region the non-zero blocks go into a perfect spatial hash keyed by
  *     their block coordinates inside the region (0..63), holding (i1, i2); then every voxel's
@@ -67,16 +67,21 @@
  * Slot s stores a key; the lookup of p hits iff the key in slot H(p) equals p. A slot that
  * holds no key stores the first key of the set (which lives in another slot), so no absent
  * key matches it. n = 0: m = r = 0 and no data; every lookup misses.
- * Construction: offsets are assigned to the offset entries in order of decreasing number of
- * keys (ties: lower entry first); an entry's offset is the first one, trying the free slots f
- * in increasing order from the slot of its first key (with offset 0) and wrapping around,
- * with offset f - (p mod m) for its first key p, that puts all its keys in free slots. If an
- * entry cannot be placed the attempt fails and the next one is tried: attempt a in 0..9
- * has m = m0 + floor(a/3) (m0: the smallest m with m^3 >= n) and r the smallest with
- * r^3 >= ceil(n*(10 + 5*(a mod 3))/60) (first attempt: r^3 ~ n/6) - except the last two,
- * where r >= ceil(E/m), E = 1 + the largest key coordinate, which makes (h0, h1) one-to-one
- * - then r is increased until gcd(m, r) = 1. After ten failed attempts the encoder fails
- * with CDVR_ERR_UNSUPPORTED naming the region and the table sizes tried.
+ * Construction (deterministic; the decoder does not depend on it): keys are given in z, y, x
+ * order. Offset entries are assigned in order of decreasing number of keys (ties: the lower
+ * entry first). For one entry whose first key is p, a candidate free slot f gives the offset
+ * f - h0(p) (per axis, mod m), accepted when every key of the entry lands on a free slot. The
+ * candidates: the first free slot at or after p's own slot (offset 0 when it is free: keeps
+ * neighbours together); then 256 pseudo-random ones, the first free slot at or after
+ * floor(u * m^3 / 2^32) for u the successive xorshift32 values (u ^= u << 13, u ^= u >> 17,
+ * u ^= u << 5) starting from 0x9E3779B9 ^ (2654435761 * index of p, mod 2^32); then every free
+ * slot from p's own onwards, wrapping around. If an entry cannot be placed (or two of its keys
+ * share h0) the attempt fails and the next one is tried. Attempt a in 0..9: m = m0 +
+ * floor(a/2) (m0: the smallest m with m^3 >= n); r the smallest with r^3 >= ceil(n*(15 +
+ * 5*(a mod 2))/60) (r^3 ~ n/4, then n/3), except in the last two attempts, where r =
+ * ceil(E/m), E = 1 + the largest key coordinate (then m*r >= E and (h0, h1) is one-to-one on
+ * the keys); then r is increased until gcd(m, r) = 1. After ten failed attempts the encoder
+ * fails with CDVR_ERR_UNSUPPORTED naming the region and the table sizes tried.
  *
  * ---- Payload, byte by byte (all integers little endian) ------------------------------------
  *   0  4   magic "HVQ1"
