@@ -183,13 +183,15 @@ static int device_fetch_all(cl_env *env, const uint8_t *payload, size_t bytes,
     return ok;
 }
 
-/* Encodes frame, decodes it in C, fetches every voxel on the device, compares. */
-static void compare(cl_env *env, const cdvr_hvq_params *p, const size_t d[3],
+/* Encodes frame, decodes it in C, fetches every voxel on the device, compares. Returns the
+ * payload's figures. */
+static cdvr_hvq_stats compare(cl_env *env, const cdvr_hvq_params *p, const size_t d[3],
                     const uint8_t *frame, const char *what)
 {
     size_t n = d[0] * d[1] * d[2], bound, bytes;
     cdvr_error err;
     cdvr_hvq_stats st;
+    memset(&st, 0, sizeof st);
     cdvr_status s = cdvr_hvq_bound(p, d, &bound, &err);
     CHECK_OK(s, err);
     uint8_t *payload = s ? NULL : malloc(bound), *ref = malloc(n), *got = malloc(n);
@@ -217,6 +219,7 @@ static void compare(cl_env *env, const cdvr_hvq_params *p, const size_t d[3],
     free(payload);
     free(ref);
     free(got);
+    return st;
 }
 
 static uint8_t *random_volume(const size_t d[3], uint32_t seed, int sparse)
@@ -269,15 +272,18 @@ static void hard_cases(cl_env *env)
 
 static void random_volumes(cl_env *env)
 {
-    const size_t dims[][3] = {{70, 45, 33}, {260, 9, 7}, {9, 300, 5}, {6, 5, 261}};
+    const size_t dims[][3] = {{80, 64, 36}, {260, 9, 7}, {9, 300, 5}, {6, 5, 261}};
     cdvr_hvq_params p;
     cdvr_hvq_params_default(&p);
     for (size_t i = 0; i < sizeof dims / sizeof *dims; i++) {
         uint8_t *v = random_volume(dims[i], 100u + (uint32_t)i, (int)(i % 2));
         p.grad = (double)(2 * i);
-        p.k1 = i == 1 ? 300 : 256; /* two-byte level-1 indices */
-        p.k2 = i == 2 ? 700 : 256;
-        compare(env, &p, dims[i], v, i % 2 ? "random sparse" : "random");
+        p.k1 = i == 0 ? 300 : 256; /* 2880 blocks: two-byte indices at both levels */
+        p.k2 = i == 0 ? 320 : 256;
+        cdvr_hvq_stats st = compare(env, &p, dims[i], v, i % 2 ? "random sparse" : "random");
+        CHECK(i != 0 || (st.codebook1_entries > 256 && st.codebook2_entries > 256),
+              "the wide case has %zu/%zu entries (two-byte indices need > 256)",
+              st.codebook1_entries, st.codebook2_entries);
         free(v);
     }
 }

@@ -13,21 +13,21 @@ enum { OFF_GRAD = 0, OFF_EPS = 8, OFF_RESIDUAL = 16, OFF_K1 = 20, OFF_K2 = 24, O
        USED_BYTES = 32 };
 
 static const cdvr_codec_param_doc hvq_params[] = {
-    {"grad", "64", "zero-block threshold on a block's average gradient (seed eq. 11-12), 0..765"},
+    {"grad", "8", "zero-block threshold on a block's average gradient (seed eq. 11-12), 0..765"},
     {"residual", "10", "voxels decoded more than this far off are stored exactly, 0..255"},
-    {"k1", "256", "level-1 codebook entries (8-d), 1..4096"},
-    {"k2", "256", "level-2 codebook entries (64-d), 1..4096"},
-    {"eps", "0.001", "LBG stops when the relative distortion change is below this, (0, 1)"},
+    {"k1", "4096", "level-1 codebook entries (8-d) at most, 1..4096 (and 1 per 8 blocks)"},
+    {"k2", "1024", "level-2 codebook entries (64-d) at most, 1..4096 (and 1 per 8 blocks)"},
+    {"eps", "0.01", "LBG stops when the relative distortion change is below this, (0, 1)"},
     {"train", "262144", "training vectors per codebook at most (0: all)"},
     {NULL, NULL, NULL}};
 
 void cdvr_hvq_params_default(cdvr_hvq_params *p)
 {
-    p->grad = 64;
-    p->eps = 0.001;
+    p->grad = 8;
+    p->eps = 0.01;
     p->residual = 10;
-    p->k1 = 256;
-    p->k2 = 256;
+    p->k1 = 4096;
+    p->k2 = 1024;
     p->train = 262144;
 }
 

@@ -275,6 +275,37 @@ static void put_index(uint8_t *p, unsigned w, unsigned v)
         hvq_wr16(p, v);
 }
 
+/* Keys (3 bytes each) and their values (at most 4 bytes each) of one hash being gathered. */
+typedef struct key_list {
+    uint8_t *keys, *values;
+    size_t n, cap;
+} key_list;
+
+/* Room for one more key; 0: out of memory. */
+static int key_list_grow(key_list *k)
+{
+    if (k->n < k->cap)
+        return 1;
+    size_t cap = k->cap ? 2 * k->cap : 4096;
+    uint8_t *keys = realloc(k->keys, 3 * cap);
+    if (keys)
+        k->keys = keys;
+    uint8_t *values = keys ? realloc(k->values, 4 * cap) : NULL;
+    if (values)
+        k->values = values;
+    if (!keys || !values)
+        return 0;
+    k->cap = cap;
+    return 1;
+}
+
+static void key_list_put(key_list *k, size_t x, size_t y, size_t z)
+{
+    k->keys[3 * k->n] = (uint8_t)x;
+    k->keys[3 * k->n + 1] = (uint8_t)y;
+    k->keys[3 * k->n + 2] = (uint8_t)z;
+}
+
 /* Item: region r: its index hash and its residual hash. */
 static void build_region(void *ctx, size_t r)
 {
@@ -285,67 +316,50 @@ static void build_region(void *ctx, size_t r)
     size_t x1 = x0 + CDVR_HVQ_REGION < e->X ? x0 + CDVR_HVQ_REGION : e->X;
     size_t y1 = y0 + CDVR_HVQ_REGION < e->Y ? y0 + CDVR_HVQ_REGION : e->Y;
     size_t z1 = z0 + CDVR_HVQ_REGION < e->Z ? z0 + CDVR_HVQ_REGION : e->Z;
-    unsigned vb = L->w1 + L->w2;
-    size_t nkeys = 0, cap = 4096;
-    uint8_t *keys = malloc(3 * cap), *values = malloc(4 * cap); /* vb <= 4 */
-    cdvr_status s = keys && values ? CDVR_OK : CDVR_ERR_NOMEM;
-    /* index hash: non-zero blocks in z, y, x order */
+    unsigned vb = L->w1 + L->w2; /* <= 4 */
+    key_list k = {NULL, NULL, 0, 0};
+    cdvr_status s = CDVR_OK;
+    /* index hash: non-zero blocks in z, y, x order, keyed by block coordinates in the region */
     for (size_t bz = z0 / 4; s == CDVR_OK && bz < (z1 + 3) / 4; bz++)
         for (size_t by = y0 / 4; s == CDVR_OK && by < (y1 + 3) / 4; by++)
             for (size_t bx = x0 / 4; s == CDVR_OK && bx < (x1 + 3) / 4; bx++) {
-                uint32_t k = e->nz[bx + L->nbx * (by + L->nby * bz)];
-                if (k == UINT32_MAX)
+                uint32_t nz = e->nz[bx + L->nbx * (by + L->nby * bz)];
+                if (nz == UINT32_MAX)
                     continue;
-                if (nkeys == cap) {
-                    cap *= 2;
-                    uint8_t *nk = realloc(keys, 3 * cap), *nv = realloc(values, 4 * cap);
-                    keys = nk ? nk : keys;
-                    values = nv ? nv : values;
-                    if (!nk || !nv) {
-                        s = CDVR_ERR_NOMEM;
-                        break;
-                    }
+                if (!key_list_grow(&k)) {
+                    s = CDVR_ERR_NOMEM;
+                    break;
                 }
-                uint8_t *key = keys + 3 * nkeys, *val = values + (size_t)vb * nkeys;
-                key[0] = (uint8_t)(bx & 63);
-                key[1] = (uint8_t)(by & 63);
-                key[2] = (uint8_t)(bz & 63);
-                put_index(val, L->w1, e->i1[k]);
-                put_index(val + L->w1, L->w2, e->i2[k]);
-                nkeys++;
+                key_list_put(&k, bx & 63, by & 63, bz & 63);
+                put_index(k.values + (size_t)vb * k.n, L->w1, e->i1[nz]);
+                put_index(k.values + (size_t)vb * k.n + L->w1, L->w2, e->i2[nz]);
+                k.n++;
             }
     if (s == CDVR_OK)
-        s = hvq_psh_build(keys, values, nkeys, vb, HVQ_PSH_ATTEMPTS, &e->ihash[r], &e->rerr[r]);
-    /* residual hash: voxels off by more than `residual`, z, y, x order */
-    nkeys = 0;
+        s = hvq_psh_build(k.keys, k.values, k.n, vb, HVQ_PSH_ATTEMPTS, &e->ihash[r], &e->rerr[r]);
+    /* residual hash: voxels off by more than `residual`, z, y, x order, keyed by voxel
+     * coordinates in the region, holding the original value */
+    k.n = 0;
     for (size_t z = z0; s == CDVR_OK && z < z1; z++)
         for (size_t y = y0; s == CDVR_OK && y < y1; y++)
             for (size_t x = x0; x < x1; x++) {
                 int v = e->frame[x + e->X * (y + e->Y * z)];
                 if ((uint32_t)abs(v - base_value(e, x, y, z)) <= e->p->residual)
                     continue;
-                if (nkeys == cap) {
-                    cap *= 2;
-                    uint8_t *nk = realloc(keys, 3 * cap), *nv = realloc(values, 4 * cap);
-                    keys = nk ? nk : keys;
-                    values = nv ? nv : values;
-                    if (!nk || !nv) {
-                        s = CDVR_ERR_NOMEM;
-                        break;
-                    }
+                if (!key_list_grow(&k)) {
+                    s = CDVR_ERR_NOMEM;
+                    break;
                 }
-                keys[3 * nkeys] = (uint8_t)(x & 255);
-                keys[3 * nkeys + 1] = (uint8_t)(y & 255);
-                keys[3 * nkeys + 2] = (uint8_t)(z & 255);
-                values[nkeys++] = (uint8_t)v;
+                key_list_put(&k, x & 255, y & 255, z & 255);
+                k.values[k.n++] = (uint8_t)v;
             }
     if (s == CDVR_OK)
-        s = hvq_psh_build(keys, values, nkeys, 1, HVQ_PSH_ATTEMPTS, &e->rhash[r], &e->rerr[r]);
+        s = hvq_psh_build(k.keys, k.values, k.n, 1, HVQ_PSH_ATTEMPTS, &e->rhash[r], &e->rerr[r]);
     if (s == CDVR_ERR_NOMEM && !e->rerr[r].msg[0])
         cdvr_error_set(&e->rerr[r], s, "out of memory");
     e->rstatus[r] = s;
-    free(keys);
-    free(values);
+    free(k.keys);
+    free(k.values);
 }
 
 static cdvr_status build_regions(hvq_enc *e, cdvr_error *err)

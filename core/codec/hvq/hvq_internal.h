@@ -114,6 +114,9 @@ cdvr_status hvq_lbg(const int16_t *vectors, size_t n, unsigned d, float *centroi
                     double eps, unsigned threads, int64_t *sums, uint64_t *counts,
                     hvq_vq_report *rep, cdvr_error *err);
 
+/* Codebooks have at most ceil(n / HVQ_VECTORS_PER_ENTRY) entries for n vectors. */
+#define HVQ_VECTORS_PER_ENTRY 8
+
 /* Whole training (sampling, PCA splitting, LBG, rounding) of at most k entries; codebook
  * receives *kout entries of d int16: round(mean / scale), halves away from zero. */
 cdvr_status hvq_vq_train(const int16_t *vectors, size_t n, unsigned d, unsigned k, int scale,

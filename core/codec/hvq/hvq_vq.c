@@ -410,6 +410,8 @@ cdvr_status hvq_vq_train(const int16_t *vectors, size_t n, unsigned d, unsigned 
                               "scale %d (at most %u entries of 8, 16, .. 64)", k, d, scale, CDVR_HVQ_K_MAX);
     if (n == 0 || k == 0)
         return CDVR_OK;
+    if ((uint64_t)k > ((uint64_t)n + HVQ_VECTORS_PER_ENTRY - 1) / HVQ_VECTORS_PER_ENTRY)
+        k = (unsigned)((n + HVQ_VECTORS_PER_ENTRY - 1) / HVQ_VECTORS_PER_ENTRY);
     size_t m = (train && n > train) ? train : n;
     int16_t *sample = NULL;
     const int16_t *use = vectors;

@@ -23,6 +23,9 @@
  *     the residual left after the decoded level 1); codebook 2 (at most k2 entries of 64 int16
  *     values c2) is trained on them and each block takes the entry minimising sum_i (e_i -
  *     c2_i)^2 (ties: the lowest index).
+ *     Codebook sizes: at most min(k, ceil(NZ/8)) entries, NZ = the number of non-zero blocks
+ *     (an int16 entry of level 2 costs 128 bytes, as much as ~27 residual voxels; measured on
+ *     a 64^3 Colin27 brick, codebooks with fewer than ~8 blocks per entry do not pay).
  *     Training (both levels): on at most `train` vectors (all of them when train = 0 or there
  *     are fewer; else vector floor(j*n/train) for j < train). Initial codebook by PCA
  *     splitting: start with one cluster holding every vector; repeatedly take the cluster of
@@ -110,11 +113,11 @@
  *  region), m > 1023, r > 256, and codebook sizes above the parameters' k1, k2.
  *
  * ---- Parameter blob (CDVR_CODEC_PARAMS_MAX bytes, little endian, unused bytes 0) -----------
- *   0  f64 grad      zero-block threshold on the average gradient, 0..765 (default 64)
- *   8  f64 eps       LBG stop: relative distortion change, 0 < eps < 1 (default 0.001)
+ *   0  f64 grad      zero-block threshold on the average gradient, 0..765 (default 8)
+ *   8  f64 eps       LBG stop: relative distortion change, 0 < eps < 1 (default 0.01)
  *  16  u32 residual  residual threshold, 0..255 (default 10)
- *  20  u32 k1        codebook 1 size, 1..4096 (default 256)
- *  24  u32 k2        codebook 2 size, 1..4096 (default 256)
+ *  20  u32 k1        codebook 1 size at most, 1..4096 (default 4096)
+ *  24  u32 k2        codebook 2 size at most, 1..4096 (default 1024)
  *  28  u32 train     training vectors at most, 0 = all (default 262144)
  */
 #ifndef CDVR_HVQ_H
@@ -150,7 +153,8 @@ typedef struct cdvr_hvq_stats {
     int hash_attempts;
 } cdvr_hvq_stats;
 
-/* The defaults (grad 64, eps 0.001, residual 10, k1 256, k2 256, train 262144). */
+/* The defaults (grad 8, eps 0.01, residual 10, k1 4096, k2 1024, train 262144), chosen by
+ * measurement on Colin27 and the engine CT (scripts/bench/hvq_bench.sh sweep). */
 void cdvr_hvq_params_default(cdvr_hvq_params *p);
 /* Blob <-> struct (layout above). from_blob does not validate: see cdvr_hvq_params_check. */
 void cdvr_hvq_params_to_blob(const cdvr_hvq_params *p, cdvr_codec_params *blob);
