@@ -460,11 +460,16 @@ cdvr_status cdvr_hvq_encode(const cdvr_hvq_params *p, const size_t dims[3],
                             cdvr_error *err)
 {
     size_t bound;
+    if (!p || !dims || !frame || !out || !out_bytes)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: encode with a NULL argument");
     cdvr_status s = cdvr_hvq_params_check(p, err);
     if (s == CDVR_OK)
         s = cdvr_hvq_bound(p, dims, &bound, err); /* validates dims, no overflow below */
     if (s != CDVR_OK)
         return s;
+    if ((dims[0] + 3) / 4 * ((dims[1] + 3) / 4) * ((dims[2] + 3) / 4) >= UINT32_MAX)
+        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "hvq: %zux%zux%zu has 2^32 blocks or "
+                              "more (encode it in bricks)", dims[0], dims[1], dims[2]);
     hvq_enc e;
     memset(&e, 0, sizeof e);
     e.p = p;

@@ -58,7 +58,10 @@
  *                                  (seed eq. 10), i = (x&3) + 4(y&3) + 16(z&3) (eq. 9);
  *           = m                    else (a zero block).
  * All integer arithmetic: there is no rounding in the decoder. After the residual stage every
- * voxel's error is at most `residual` (residual voxels are exact).
+ * voxel's error is at most `residual` (residual voxels are exact). On the OpenCL device
+ * (CDVR_CODEC_CL_FETCH, kernels/codec/hvq_fetch.cl) a frame is its payload and nothing else:
+ * the fetch reads the means, codebooks and hashes from it, so the device memory of a frame is
+ * the payload's size (plus the 48-byte parameter blob).
  *
  * ---- Perfect spatial hash (Lefebvre & Hoppe 2006) ------------------------------------------
  * A hash of n > 0 keys p = (px, py, pz) (bytes) has a table side m (m^3 >= n slots) and an
