@@ -6,7 +6,8 @@
  *   hvq_bench compare DATADIR [RUNS]
  *       Colin27, the engine CT and Colin27 thresholded so that ~85% of voxels are 0, each
  *       with hvq (defaults), hvq as the seed ran it (grad=64 residual=10), PVTC S4T3s and
- *       S1T3s, and every plugin codec at its defaults: ratio, bits per voxel, volume PSNR,
+ *       S1T3s, zfp (when its plugin is loaded) at hvq's bits per voxel rounded to zfp's 1/64
+ *       step (the nearest ratio), and every other plugin codec at its defaults: ratio, bits per voxel, volume PSNR,
  *       max error, encode and decode seconds (medians of RUNS, default 3) with memcpy of the
  *       frame as the decode baseline, hvq's zero blocks, residual voxels and part sizes.
  *   hvq_bench sweep FILE LABEL KEY=V1,V2,.. [KEY=..]
@@ -87,14 +88,15 @@ static void print_header(void)
            "residual_voxels,means,codebook1,codebook2,index_hash,residual_hash\n");
 }
 
-/* Encodes ds with codec(params) `runs` times, decodes `runs` times, prints one CSV row. */
-static int run_variant(const dataset *ds, const char *codec_name, const char *const *keys,
+/* Encodes ds with codec(params) `runs` times, decodes `runs` times, prints one CSV row.
+ * Returns the bits per voxel, NAN on failure. */
+static double run_variant(const dataset *ds, const char *codec_name, const char *const *keys,
                        const char *const *values, size_t nparams, int runs)
 {
     const cdvr_codec *codec = cdvr_codec_find(codec_name);
     if (!codec) {
         fprintf(stderr, "codec %s is not loaded\n", codec_name);
-        return 0;
+        return NAN;
     }
     cdvr_codec_params blob;
     cdvr_codec_shape shape;
@@ -102,7 +104,7 @@ static int run_variant(const dataset *ds, const char *codec_name, const char *co
     if (cdvr_codec_params_parse(codec, keys, values, nparams, &blob, &err) != CDVR_OK ||
         cdvr_codec_shape_of(codec, &blob, ds->dims, &shape, &err) != CDVR_OK) {
         fprintf(stderr, "%s on %s: %s\n", codec_name, ds->name, err.msg);
-        return 0;
+        return NAN;
     }
     char variant[CDVR_VARIANT_NAME_MAX], ptext[256] = "";
     codec->variant_name(&blob, variant, sizeof variant);
@@ -128,7 +130,7 @@ static int run_variant(const dataset *ds, const char *codec_name, const char *co
         if (codec->encode(&blob, ds->dims, frames, 1, payload, shape.bound_bytes, &bytes,
                           &err) != CDVR_OK) {
             fprintf(stderr, "%s on %s: %s\n", variant, ds->name, err.msg);
-            return 0;
+            return NAN;
         }
         enc[r] = now_s() - t0;
         if (r == 0) {
@@ -144,7 +146,7 @@ static int run_variant(const dataset *ds, const char *codec_name, const char *co
         double t0 = now_s();
         if (codec->decode(&blob, ds->dims, payload, bytes, outs, 1, &err) != CDVR_OK) {
             fprintf(stderr, "%s on %s: decode: %s\n", variant, ds->name, err.msg);
-            return 0;
+            return NAN;
         }
         dec[r] = now_s() - t0;
         t0 = now_s();
@@ -178,7 +180,7 @@ static int run_variant(const dataset *ds, const char *codec_name, const char *co
     free(first);
     free(out);
     free(copy);
-    return 1;
+    return 8.0 * bytes / n;
 }
 
 static int load_u8(const char *path, const char *name, dataset *ds)
@@ -258,14 +260,20 @@ static int compare(const char *datadir, int runs)
                       *s1_v[] = {"1", "3", "space"};
     print_header();
     for (int s = 0; s < 3; s++) {
-        run_variant(&sets[s], "hvq", NULL, NULL, 0, runs);
+        double bpv = run_variant(&sets[s], "hvq", NULL, NULL, 0, runs);
         run_variant(&sets[s], "hvq", seed_k, seed_v, 2, runs);
         run_variant(&sets[s], "pvtc", pv_k, s4_v, 3, runs);
         run_variant(&sets[s], "pvtc", pv_k, s1_v, 3, runs);
         for (size_t i = 0; i < cdvr_codec_count(); i++) {
             const cdvr_codec *c = cdvr_codec_at(i);
-            if (strcmp(c->name, "raw") && strcmp(c->name, "pvtc") && strcmp(c->name, "hvq"))
+            if (strcmp(c->name, "zfp") == 0 && bpv == bpv) {
+                char rate[32];
+                const char *zk[] = {"rate"}, *zv[] = {rate};
+                snprintf(rate, sizeof rate, "%.6g", fmax(1.0, round(bpv * 64)) / 64);
+                run_variant(&sets[s], "zfp", zk, zv, 1, runs);
+            } else if (strcmp(c->name, "raw") && strcmp(c->name, "pvtc") && strcmp(c->name, "hvq")) {
                 run_variant(&sets[s], c->name, NULL, NULL, 0, runs);
+            }
         }
     }
     for (int s = 0; s < 3; s++)
