@@ -58,6 +58,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         uint8_t *frames[1] = {frame};
         cdvr_status st = codec->decode(&blob, dims, payload, bytes, frames, 1, &err);
         FUZZ_ASSERT(st == CDVR_OK || st == CDVR_ERR_CORRUPT);
+        FUZZ_OUTCOME(st == CDVR_OK);
         hvq_fuzz_sum sum = {0};
         cdvr_status described = codec->describe(&blob, dims, payload, bytes, hvq_fuzz_emit, &sum,
                                                 &err);
