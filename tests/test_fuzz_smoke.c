@@ -1,6 +1,6 @@
 /* tests/test_fuzz_smoke.c - runs the libFuzzer targets of tests/fuzz/ (store reader, PVTC
- * chunk decoder, codec-table decoders with the zfp and rle plugins, LZO stage 2, NRRD/NIfTI/raw
- * loaders) without libFuzzer: a deterministic
+ * chunk decoder, codec-table decoders with the zfp and rle plugins, the hvq decoder, LZO
+ * stage 2, NRRD/NIfTI/raw loaders) without libFuzzer: a deterministic
  * corpus of valid inputs built here, then thousands of seeded mutations of each (bit flips,
  * byte sets, truncations, insertions, copies). In the sanitizer build any out-of-bounds access
  * fails the test; in every build a target's differential check (FUZZ_ASSERT) aborts it. */
@@ -10,6 +10,7 @@
 
 #include "check.h"
 #include "spec.h"
+#include "cdvr/hvq.h"
 #include "cdvr/pvtc.h"
 #include "cdvr/store.h"
 #include "cdvr/volume.h"
@@ -28,6 +29,9 @@
 #undef LLVMFuzzerTestOneInput
 #define LLVMFuzzerTestOneInput fuzz_codec_input
 #include "fuzz/fuzz_codec.c"
+#undef LLVMFuzzerTestOneInput
+#define LLVMFuzzerTestOneInput fuzz_hvq_input
+#include "fuzz/fuzz_hvq.c"
 #undef LLVMFuzzerTestOneInput
 
 typedef int (*fuzz_target)(const uint8_t *data, size_t size);
@@ -299,6 +303,40 @@ static int make_codec_seed(bytes *seed, uint8_t preset)
     return ok;
 }
 
+/* hvq seed: 4 header bytes (fuzz_hvq.c) + a payload encoded for those dims. kind 0: smooth +
+ * edges + zero background, 1: noise with residual 0 (a dense residual hash), 2: all zero. */
+static int make_hvq_seed(bytes *seed, const uint8_t head[4], const size_t dims[3],
+                         const cdvr_hvq_params *p, int kind)
+{
+    size_t n = dims[0] * dims[1] * dims[2], bound = 0, got = 0;
+    uint8_t *v = malloc(n), *out = NULL;
+    uint32_t rng = 77;
+    for (size_t i = 0; v && i < n; i++) {
+        size_t x = i % dims[0], y = i / dims[0] % dims[1], z = i / dims[0] / dims[1];
+        int val = (int)((x * 9 + y * 5 + z * 3) % 160) + (x % 11 == 0 ? 90 : 0);
+        v[i] = kind == 2 ? 0 : kind == 1 ? (uint8_t)rng_next(&rng)
+                             : (uint8_t)((x / 4 + y / 4) % 3 == 0 ? 0 : val);
+    }
+    cdvr_error err;
+    cdvr_status st = v ? cdvr_hvq_bound(p, dims, &bound, &err) : CDVR_ERR_NOMEM;
+    out = st == CDVR_OK ? malloc(bound) : NULL;
+    if (out)
+        st = cdvr_hvq_encode(p, dims, v, 1, out, bound, &got, NULL, &err);
+    CHECK_OK(st, err);
+    /* the seed passes the decoder's check with the parameters the target will use */
+    cdvr_hvq_params q;
+    cdvr_hvq_params_default(&q);
+    q.k1 = q.k2 = head[0] & 2 ? CDVR_HVQ_K_MAX : q.k1;
+    if (out && st == CDVR_OK) {
+        cdvr_status checked = cdvr_hvq_check(&q, dims, out, got, NULL, &err);
+        CHECK_OK(checked, err);
+    }
+    int ok = out && st == CDVR_OK && bytes_append(seed, head, 4) && bytes_append(seed, out, got);
+    free(v);
+    free(out);
+    return ok;
+}
+
 static int make_lzo_seed(bytes *seed)
 {
     cdvr_volume *vol = make_series();
@@ -403,6 +441,31 @@ int main(void)
         seed.n = 0;
         if (make_codec_seed(&seed, preset))
             fuzz_seed("codec", fuzz_codec_input, &seed, 300, 1, 7000u + preset);
+    }
+    {
+        cdvr_hvq_params p;
+        cdvr_hvq_params_default(&p);
+        const struct {
+            uint8_t head[4];
+            size_t dims[3];
+            double grad;
+            unsigned residual, k;
+            int kind;
+            size_t mutations;
+        } hvq_seeds[] = {{{0, 10, 8, 6}, {11, 9, 7}, 4, 10, 256, 0, 600},
+                         {{1, 3, 2, 1}, {260, 3, 2}, 2, 10, 256, 0, 300},
+                         {{2, 39, 35, 19}, {40, 36, 20}, 1, 10, 400, 0, 150},
+                         {{0, 12, 4, 2}, {13, 5, 3}, 64, 10, 256, 2, 400},
+                         {{0, 7, 7, 7}, {8, 8, 8}, 8, 0, 16, 1, 400}};
+        for (size_t i = 0; i < sizeof hvq_seeds / sizeof *hvq_seeds; i++) {
+            seed.n = 0;
+            p.grad = hvq_seeds[i].grad;
+            p.residual = hvq_seeds[i].residual;
+            p.k1 = p.k2 = hvq_seeds[i].k;
+            if (make_hvq_seed(&seed, hvq_seeds[i].head, hvq_seeds[i].dims, &p, hvq_seeds[i].kind))
+                fuzz_seed("hvq", fuzz_hvq_input, &seed, hvq_seeds[i].mutations, 4,
+                          8000u + (uint32_t)i);
+        }
     }
     seed.n = 0;
     if (make_lzo_seed(&seed))

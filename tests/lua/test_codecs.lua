@@ -44,6 +44,9 @@ do
         and #raw.params == 0 and raw.plugin == nil, "raw entry")
   check(pvtc and pvtc.id == 1 and pvtc.index == 2 and pvtc.cl_mode == "decode"
         and pvtc.variant == "S4T3", "pvtc entry")
+  local hvq = codecs.hvq
+  check(hvq and hvq.id == 2 and hvq.index == 3 and hvq.cl_mode == "fetch" and hvq.variant == "hvq"
+        and #hvq.params == 6 and hvq.plugin == nil, "hvq entry")
   local want = {S = "4", T = "3", pack = "time", encoder = "lsq"}
   check(pvtc and #pvtc.params == 4, "pvtc params")
   for _, p in ipairs(pvtc and pvtc.params or {}) do
@@ -113,7 +116,8 @@ local function run(env, code)
 end
 
 if exe then
-  local list = "io.write(#cdvr.codecs(), (cdvr.codecs()[3] or {}).name or \"-\", \"\\n\")"
+  -- built-ins: raw, pvtc, hvq; [4] is the first plugin
+  local list = "io.write(#cdvr.codecs(), (cdvr.codecs()[4] or {}).name or \"-\", \"\\n\")"
   local ok, out = run("CDVR_PLUGIN_PATH='" .. bin .. "/tests/plugins:" .. bin .. "/no_such_dir'", list)
   check(ok, "bad plugins at start-up are not fatal: " .. out)
   local warnings = 0
@@ -122,10 +126,10 @@ if exe then
   end
   check(warnings == 9, "one warning per bad plugin and the missing directory (" .. warnings .. "): " .. out)
   check(out:find("bad_abi.so: plugin built for ABI version 42", 1, true), "warning names file and reason")
-  check(out:find("\n2-\n", 1, true) or out:find("^2-\n"), "only the built-ins registered: " .. out)
+  check(out:find("\n3-\n", 1, true) or out:find("^3-\n"), "only the built-ins registered: " .. out)
 
   ok, out = run("CDVR_PLUGIN_PATH=''", list)
-  check(ok and out == "2-\n", "empty CDVR_PLUGIN_PATH loads nothing: " .. out)
+  check(ok and out == "3-\n", "empty CDVR_PLUGIN_PATH loads nothing: " .. out)
 
   if have_rle then
     ok, out = run("CDVR_PLUGIN_PATH='" .. bin .. "/plugins'", list)

@@ -1,0 +1,270 @@
+/* core/codec/hvq/hvq_codec.c - the hvq codec table (cdvr/codec.h) and its parameters; the
+ * format is documented in cdvr/hvq.h. */
+#include "cdvr/codec.h"
+#include "cdvr/hvq.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+enum { OFF_GRAD = 0, OFF_EPS = 8, OFF_RESIDUAL = 16, OFF_K1 = 20, OFF_K2 = 24, OFF_TRAIN = 28,
+       USED_BYTES = 32 };
+
+static const cdvr_codec_param_doc hvq_params[] = {
+    {"grad", "8", "zero-block threshold on a block's average gradient (seed eq. 11-12), 0..765"},
+    {"residual", "10", "voxels decoded more than this far off are stored exactly, 0..255"},
+    {"k1", "4096", "level-1 codebook entries (8-d) at most, 1..4096 (and 1 per 8 blocks)"},
+    {"k2", "1024", "level-2 codebook entries (64-d) at most, 1..4096 (and 1 per 8 blocks)"},
+    {"eps", "0.01", "LBG stops when the relative distortion change is below this, (0, 1)"},
+    {"train", "262144", "training vectors per codebook at most (0: all)"},
+    {NULL, NULL, NULL}};
+
+void cdvr_hvq_params_default(cdvr_hvq_params *p)
+{
+    p->grad = 8;
+    p->eps = 0.01;
+    p->residual = 10;
+    p->k1 = 4096;
+    p->k2 = 1024;
+    p->train = 262144;
+}
+
+void cdvr_hvq_params_to_blob(const cdvr_hvq_params *p, cdvr_codec_params *blob)
+{
+    memset(blob, 0, sizeof *blob);
+    cdvr_params_set_f64(blob, OFF_GRAD, p->grad);
+    cdvr_params_set_f64(blob, OFF_EPS, p->eps);
+    cdvr_params_set_u32(blob, OFF_RESIDUAL, p->residual);
+    cdvr_params_set_u32(blob, OFF_K1, p->k1);
+    cdvr_params_set_u32(blob, OFF_K2, p->k2);
+    cdvr_params_set_u32(blob, OFF_TRAIN, p->train);
+}
+
+void cdvr_hvq_params_from_blob(const cdvr_codec_params *blob, cdvr_hvq_params *p)
+{
+    p->grad = cdvr_params_get_f64(blob, OFF_GRAD);
+    p->eps = cdvr_params_get_f64(blob, OFF_EPS);
+    p->residual = cdvr_params_get_u32(blob, OFF_RESIDUAL);
+    p->k1 = cdvr_params_get_u32(blob, OFF_K1);
+    p->k2 = cdvr_params_get_u32(blob, OFF_K2);
+    p->train = cdvr_params_get_u32(blob, OFF_TRAIN);
+}
+
+cdvr_status cdvr_hvq_params_check(const cdvr_hvq_params *p, cdvr_error *err)
+{
+    if (!(p->grad >= 0 && p->grad <= 765))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: grad = %g, must be 0..765", p->grad);
+    if (!(p->eps > 0 && p->eps < 1))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: eps = %g, must be in (0, 1)",
+                              p->eps);
+    if (p->residual > 255)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: residual = %u, must be 0..255",
+                              p->residual);
+    if (p->k1 < 1 || p->k1 > CDVR_HVQ_K_MAX || p->k2 < 1 || p->k2 > CDVR_HVQ_K_MAX)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: k1 = %u, k2 = %u, each must be "
+                              "1..%u", p->k1, p->k2, CDVR_HVQ_K_MAX);
+    return CDVR_OK;
+}
+
+static void hvq_default(cdvr_codec_params *blob)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_default(&p);
+    cdvr_hvq_params_to_blob(&p, blob);
+}
+
+static int parse_u32(const char *value, unsigned long max, uint32_t *out)
+{
+    char *end;
+    errno = 0;
+    if (!*value || *value == '-' || *value == '+')
+        return 0;
+    unsigned long long v = strtoull(value, &end, 10);
+    if (errno || *end || v > max)
+        return 0;
+    *out = (uint32_t)v;
+    return 1;
+}
+
+static int parse_f64(const char *value, double *out)
+{
+    char *end;
+    errno = 0;
+    double v = strtod(value, &end);
+    if (!*value || errno || *end || !isfinite(v))
+        return 0;
+    *out = v;
+    return 1;
+}
+
+static cdvr_status hvq_set(cdvr_codec_params *blob, const char *key, const char *value,
+                           cdvr_error *err)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_from_blob(blob, &p);
+    int ok;
+    const char *want;
+    if (strcmp(key, "grad") == 0) {
+        ok = parse_f64(value, &p.grad) && p.grad >= 0 && p.grad <= 765;
+        want = "a number 0..765";
+    } else if (strcmp(key, "eps") == 0) {
+        ok = parse_f64(value, &p.eps) && p.eps > 0 && p.eps < 1;
+        want = "a number in (0, 1)";
+    } else if (strcmp(key, "residual") == 0) {
+        ok = parse_u32(value, 255, &p.residual);
+        want = "an integer 0..255";
+    } else if (strcmp(key, "k1") == 0 || strcmp(key, "k2") == 0) {
+        uint32_t *k = key[1] == '1' ? &p.k1 : &p.k2;
+        ok = parse_u32(value, CDVR_HVQ_K_MAX, k) && *k >= 1;
+        want = "an integer 1..4096";
+    } else if (strcmp(key, "train") == 0) {
+        ok = parse_u32(value, UINT32_MAX, &p.train);
+        want = "an integer 0..4294967295 (0: all vectors)";
+    } else {
+        return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: unknown parameter '%s' "
+                              "(parameters: grad, residual, k1, k2, eps, train)", key);
+    }
+    if (!ok)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: %s = '%s', must be %s", key, value,
+                              want);
+    cdvr_hvq_params_to_blob(&p, blob);
+    return CDVR_OK;
+}
+
+static int hvq_get(const cdvr_codec_params *blob, const char *key, char *out, size_t n)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_from_blob(blob, &p);
+    if (strcmp(key, "grad") == 0)
+        snprintf(out, n, "%.17g", p.grad);
+    else if (strcmp(key, "eps") == 0)
+        snprintf(out, n, "%.17g", p.eps);
+    else if (strcmp(key, "residual") == 0)
+        snprintf(out, n, "%u", p.residual);
+    else if (strcmp(key, "k1") == 0)
+        snprintf(out, n, "%u", p.k1);
+    else if (strcmp(key, "k2") == 0)
+        snprintf(out, n, "%u", p.k2);
+    else if (strcmp(key, "train") == 0)
+        snprintf(out, n, "%u", p.train);
+    else
+        return -1;
+    return 0;
+}
+
+static cdvr_status hvq_check(const cdvr_codec_params *blob, cdvr_error *err)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_from_blob(blob, &p);
+    cdvr_status s = cdvr_hvq_params_check(&p, err);
+    for (size_t i = USED_BYTES; s == CDVR_OK && i < CDVR_CODEC_PARAMS_MAX; i++)
+        if (blob->bytes[i])
+            s = cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: unused parameter byte %zu is %u",
+                               i, blob->bytes[i]);
+    return s;
+}
+
+/* "hvq" for the defaults; otherwise the parameters that differ: hvq_g32_r5_k128x512_e0.01_t0. */
+static void hvq_name(const cdvr_codec_params *blob, char *name, size_t n)
+{
+    cdvr_hvq_params p, d;
+    cdvr_hvq_params_from_blob(blob, &p);
+    cdvr_hvq_params_default(&d);
+    char buf[96];
+    int len = snprintf(buf, sizeof buf, "hvq");
+    if (p.grad != d.grad)
+        len += snprintf(buf + len, sizeof buf - (size_t)len, "_g%.6g", p.grad);
+    if (p.residual != d.residual)
+        len += snprintf(buf + len, sizeof buf - (size_t)len, "_r%u", p.residual);
+    if (p.k1 != d.k1 || p.k2 != d.k2)
+        len += snprintf(buf + len, sizeof buf - (size_t)len, "_k%ux%u", p.k1, p.k2);
+    if (p.eps != d.eps)
+        len += snprintf(buf + len, sizeof buf - (size_t)len, "_e%.3g", p.eps);
+    if (p.train != d.train)
+        snprintf(buf + len, sizeof buf - (size_t)len, "_t%u", p.train);
+    snprintf(name, n, "%s", buf);
+}
+
+static cdvr_status hvq_shape(const cdvr_codec_params *blob, const size_t dims[3],
+                             cdvr_codec_shape *out, cdvr_error *err)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_from_blob(blob, &p);
+    size_t bound;
+    cdvr_status s = cdvr_hvq_bound(&p, dims, &bound, err);
+    if (s != CDVR_OK)
+        return s;
+    out->timesteps = 1;
+    out->payload_bytes = 0; /* data dependent */
+    out->bound_bytes = bound;
+    return CDVR_OK;
+}
+
+static cdvr_status hvq_encode(const cdvr_codec_params *blob, const size_t dims[3],
+                              const uint8_t *const *frames, size_t count, uint8_t *out,
+                              size_t out_cap, size_t *out_bytes, cdvr_error *err)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_from_blob(blob, &p);
+    if (count != 1)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: %zu frames for one chunk (1 "
+                              "expected)", count);
+    return cdvr_hvq_encode(&p, dims, frames[0], 0, out, out_cap, out_bytes, NULL, err);
+}
+
+static cdvr_status hvq_decode(const cdvr_codec_params *blob, const size_t dims[3],
+                              const uint8_t *in, size_t in_bytes, uint8_t *const *frames,
+                              size_t count, cdvr_error *err)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_from_blob(blob, &p);
+    if (count != 1)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: %zu frames asked of a chunk of 1",
+                              count);
+    return cdvr_hvq_decode(&p, dims, in, in_bytes, frames[0], err);
+}
+
+static cdvr_status hvq_describe(const cdvr_codec_params *blob, const size_t dims[3],
+                                const uint8_t *payload, size_t bytes,
+                                void (*emit)(void *ud, const char *key, double value), void *ud,
+                                cdvr_error *err)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_from_blob(blob, &p);
+    cdvr_hvq_stats st;
+    cdvr_status s = cdvr_hvq_check(&p, dims, payload, bytes, &st, err);
+    if (s != CDVR_OK)
+        return s;
+    emit(ud, "header", (double)st.header);
+    emit(ud, "means", (double)st.means);
+    emit(ud, "codebook1", (double)st.codebook1);
+    emit(ud, "codebook2", (double)st.codebook2);
+    emit(ud, "index_hash", (double)st.index_hash);
+    emit(ud, "residual_hash", (double)st.residual_hash);
+    emit(ud, "blocks", (double)st.blocks);
+    emit(ud, "zero_blocks", (double)st.zero_blocks);
+    emit(ud, "residual_voxels", (double)st.residual_voxels);
+    return CDVR_OK;
+}
+
+const cdvr_codec cdvr_codec_hvq = {
+    .name = "hvq",
+    .id = CDVR_CODEC_ID_HVQ,
+    .description = "FCHVQ + perfect spatial hashing (seed 004): 4x4x4 blocks, zero blocks by "
+                   "gradient, two-level VQ, sparse residual; rendered in the compressed domain",
+    .params = hvq_params,
+    .params_default = hvq_default,
+    .params_set = hvq_set,
+    .params_get = hvq_get,
+    .params_check = hvq_check,
+    .variant_name = hvq_name,
+    .shape = hvq_shape,
+    .encode = hvq_encode,
+    .decode = hvq_decode,
+    .describe = hvq_describe,
+    .cl_mode = CDVR_CODEC_CL_FETCH,
+    .cl_file = "codec/hvq_fetch.cl",
+    .cl_function = "hvq_fetch",
+};

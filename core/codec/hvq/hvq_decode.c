@@ -1,0 +1,313 @@
+/* core/codec/hvq/hvq_decode.c - the hvq decoder, the definition of the codec (cdvr/hvq.h):
+ * the payload check, the whole-frame decoder and the per-voxel fetch that the OpenCL fetch
+ * (kernels/codec/hvq_fetch.cl) mirrors line for line. */
+#include "codec/hvq/hvq_internal.h"
+
+#include <string.h>
+
+/* ---- check ---------------------------------------------------------------------------------- */
+
+typedef struct hvq_view {
+    const uint8_t *p;
+    size_t bytes;
+    uint64_t dims[3];
+    uint32_t n1, n2;
+    hvq_layout L;
+} hvq_view;
+
+/* Voxel extents of region r. */
+static void region_extent(const hvq_view *v, uint64_t r, uint64_t origin[3], unsigned ext[3])
+{
+    uint64_t idx[3] = {r % v->L.nrx, (r / v->L.nrx) % v->L.nry, r / v->L.nrx / v->L.nry};
+    for (int a = 0; a < 3; a++) {
+        origin[a] = idx[a] * CDVR_HVQ_REGION;
+        uint64_t left = v->dims[a] - origin[a];
+        ext[a] = (unsigned)(left < CDVR_HVQ_REGION ? left : CDVR_HVQ_REGION);
+    }
+}
+
+static cdvr_status check_header(hvq_view *v, const cdvr_hvq_params *p, cdvr_error *err)
+{
+    if (v->bytes < HVQ_HEADER_BYTES)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload of %zu bytes is shorter than "
+                              "its %u-byte header", v->bytes, HVQ_HEADER_BYTES);
+    if (memcmp(v->p, "HVQ1", 4) != 0)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload: bad magic (not \"HVQ1\")");
+    for (int a = 0; a < 3; a++)
+        if (hvq_rd32(v->p + 4 + 4 * a) != v->dims[a])
+            return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload: dims %ux%ux%u, the "
+                                  "chunk has %llux%llux%llu", hvq_rd32(v->p + 4),
+                                  hvq_rd32(v->p + 8), hvq_rd32(v->p + 12),
+                                  (unsigned long long)v->dims[0],
+                                  (unsigned long long)v->dims[1],
+                                  (unsigned long long)v->dims[2]);
+    v->n1 = hvq_rd32(v->p + 16);
+    v->n2 = hvq_rd32(v->p + 20);
+    uint32_t k1 = p ? p->k1 : CDVR_HVQ_K_MAX, k2 = p ? p->k2 : CDVR_HVQ_K_MAX;
+    if (v->n1 > k1 || v->n2 > k2 || v->n1 > CDVR_HVQ_K_MAX || v->n2 > CDVR_HVQ_K_MAX ||
+        (v->n1 == 0) != (v->n2 == 0))
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload: codebooks of %u and %u "
+                              "entries (at most %u and %u, both 0 or neither)", v->n1, v->n2,
+                              k1 < CDVR_HVQ_K_MAX ? k1 : CDVR_HVQ_K_MAX,
+                              k2 < CDVR_HVQ_K_MAX ? k2 : CDVR_HVQ_K_MAX);
+    if (hvq_rd64(v->p + 24) != 0)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload: reserved header bytes are "
+                              "not zero");
+    /* blocks cannot outnumber the payload's bytes: checked before computing the layout */
+    size_t nb = 1;
+    for (int a = 0; a < 3; a++)
+        if (!cdvr_size_mul(nb, (size_t)((v->dims[a] + 3) / 4), &nb) || nb > v->bytes)
+            return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload of %zu bytes cannot "
+                                  "hold the block means of %llux%llux%llu", v->bytes,
+                                  (unsigned long long)v->dims[0],
+                                  (unsigned long long)v->dims[1],
+                                  (unsigned long long)v->dims[2]);
+    hvq_layout_get(v->dims, v->n1, v->n2, &v->L);
+    if (v->L.off_data > v->bytes)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload of %zu bytes ends before its "
+                              "region directory does (%llu bytes)", v->bytes,
+                              (unsigned long long)v->L.off_data);
+    uint64_t pads[2][2] = {{HVQ_HEADER_BYTES + v->L.nblocks, v->L.off_c1},
+                           {v->L.off_c2 + 128u * (uint64_t)v->n2, v->L.off_dir}};
+    for (int i = 0; i < 2; i++)
+        for (uint64_t b = pads[i][0]; b < pads[i][1]; b++)
+            if (v->p[b])
+                return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload: padding byte %llu "
+                                      "is not zero", (unsigned long long)b);
+    return CDVR_OK;
+}
+
+/* One hash of region r (kind 0: index, 1: residual); *at: where its data must start, moved
+ * past it. Counts its keys into *keys. */
+static cdvr_status check_hash(const hvq_view *v, uint64_t r, int kind, uint64_t *at,
+                              cdvr_error *err)
+{
+    static const char *const names[2] = {"index", "residual"};
+    const uint8_t *dir = v->p + v->L.off_dir + HVQ_DIR_ENTRY_BYTES * r + 16 * kind;
+    uint32_t m = hvq_rd16(dir), rr = hvq_rd16(dir + 2), n = hvq_rd32(dir + 4);
+    uint64_t offset = hvq_rd64(dir + 8), origin[3];
+    unsigned ext[3];
+    region_extent(v, r, origin, ext);
+    if (kind == 0)
+        for (int a = 0; a < 3; a++)
+            ext[a] = (ext[a] + 3) / 4;
+    uint64_t domain = (uint64_t)ext[0] * ext[1] * ext[2];
+    unsigned slot_bytes = kind == 0 ? 3 + v->L.w1 + v->L.w2 : 4;
+    if (offset != *at)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload: region %llu %s hash at byte "
+                              "%llu, expected %llu", (unsigned long long)r, names[kind],
+                              (unsigned long long)offset, (unsigned long long)*at);
+    if (n == 0 || m == 0 || rr == 0) {
+        if (n || m || rr)
+            return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload: region %llu %s hash of "
+                                  "%u keys has sides %u, %u", (unsigned long long)r,
+                                  names[kind], n, m, rr);
+        return CDVR_OK;
+    }
+    if (m > HVQ_M_MAX || rr > HVQ_R_MAX || n > domain || n > (uint64_t)m * m * m)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload: region %llu %s hash of %u "
+                              "keys with sides %u, %u (at most %llu keys, sides %u, %u)",
+                              (unsigned long long)r, names[kind], n, m, rr,
+                              (unsigned long long)domain, HVQ_M_MAX, HVQ_R_MAX);
+    uint64_t size = hvq_psh_data_bytes(m, rr, slot_bytes);
+    if (size > v->bytes - *at)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload: region %llu %s hash needs "
+                              "%llu bytes, %llu left", (unsigned long long)r, names[kind],
+                              (unsigned long long)size, (unsigned long long)(v->bytes - *at));
+    const uint8_t *data = v->p + *at;
+    unsigned w = hvq_offset_width(m);
+    uint64_t r3 = (uint64_t)rr * rr * rr, m3 = (uint64_t)m * m * m, found = 0;
+    for (uint64_t i = 0; i < 3 * r3; i++)
+        if ((w == 1 ? data[i] : hvq_rd16(data + 2 * i)) >= m)
+            return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload: region %llu %s hash: "
+                                  "offset entry %llu is not below %u", (unsigned long long)r,
+                                  names[kind], (unsigned long long)(i / 3), m);
+    const uint8_t *slots = data + r3 * 3 * w;
+    for (uint64_t s = 0; s < m3; s++) {
+        const uint8_t *slot = slots + s * slot_bytes;
+        if (kind == 0) {
+            uint32_t i1 = v->L.w1 == 1 ? slot[3] : hvq_rd16(slot + 3);
+            uint32_t i2 = v->L.w2 == 1 ? slot[3 + v->L.w1] : hvq_rd16(slot + 3 + v->L.w1);
+            if (i1 >= v->n1 || i2 >= v->n2)
+                return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload: region %llu index "
+                                      "hash slot %llu holds indices %u, %u (codebooks of %u, "
+                                      "%u)", (unsigned long long)r, (unsigned long long)s, i1,
+                                      i2, v->n1, v->n2);
+        }
+        if (slot[0] < ext[0] && slot[1] < ext[1] && slot[2] < ext[2] &&
+            hvq_psh_slot(data, m, rr, slot[0], slot[1], slot[2]) == s)
+            found++;
+    }
+    if (found != n)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload: region %llu %s hash says %u "
+                              "keys, its slots hold %llu", (unsigned long long)r, names[kind], n,
+                              (unsigned long long)found);
+    *at += size;
+    return CDVR_OK;
+}
+
+static cdvr_status view_open(hvq_view *v, const cdvr_hvq_params *p, const size_t dims[3],
+                             const uint8_t *payload, size_t bytes, cdvr_hvq_stats *stats,
+                             cdvr_error *err)
+{
+    memset(v, 0, sizeof *v);
+    for (int a = 0; a < 3; a++) {
+        if (dims[a] == 0 || dims[a] > UINT32_MAX)
+            return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: dims %zux%zux%zu (each 1..2^32-1)",
+                                  dims[0], dims[1], dims[2]);
+        v->dims[a] = dims[a];
+    }
+    if (!payload && bytes)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: NULL payload of %zu bytes", bytes);
+    v->p = payload;
+    v->bytes = bytes;
+    cdvr_status s = check_header(v, p, err);
+    uint64_t at = v->L.off_data, sizes[2] = {0, 0}, keys[2] = {0, 0};
+    for (uint64_t r = 0; s == CDVR_OK && r < v->L.nregions; r++)
+        for (int kind = 0; s == CDVR_OK && kind < 2; kind++) {
+            uint64_t before = at;
+            s = check_hash(v, r, kind, &at, err);
+            sizes[kind] += at - before;
+            keys[kind] += hvq_rd32(v->p + v->L.off_dir + HVQ_DIR_ENTRY_BYTES * r + 16 * kind + 4);
+        }
+    if (s == CDVR_OK && at != bytes)
+        s = cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload of %zu bytes: its parts end at "
+                           "byte %llu", bytes, (unsigned long long)at);
+    if (s == CDVR_OK && stats) {
+        memset(stats, 0, sizeof *stats);
+        stats->means = (size_t)v->L.nblocks;
+        stats->codebook1 = 16u * (size_t)v->n1;
+        stats->codebook2 = 128u * (size_t)v->n2;
+        stats->index_hash = (size_t)sizes[0];
+        stats->residual_hash = (size_t)sizes[1];
+        stats->header = bytes - stats->means - stats->codebook1 - stats->codebook2 -
+                        stats->index_hash - stats->residual_hash;
+        stats->blocks = (size_t)v->L.nblocks;
+        stats->zero_blocks = (size_t)(v->L.nblocks - keys[0]);
+        stats->residual_voxels = (size_t)keys[1];
+        stats->codebook1_entries = v->n1;
+        stats->codebook2_entries = v->n2;
+        stats->regions = (size_t)v->L.nregions;
+    }
+    return s;
+}
+
+cdvr_status cdvr_hvq_check(const cdvr_hvq_params *p, const size_t dims[3],
+                           const uint8_t *payload, size_t bytes, cdvr_hvq_stats *stats,
+                           cdvr_error *err)
+{
+    hvq_view v;
+    return view_open(&v, p, dims, payload, bytes, stats, err);
+}
+
+/* ---- decode --------------------------------------------------------------------------------- */
+
+/* The index hash entry (m, r, data) of region r, half 0 (index) or 1 (residual). */
+static const uint8_t *dir_hash(const uint8_t *payload, const hvq_layout *L, uint64_t r, int kind,
+                               uint32_t *m, uint32_t *rr)
+{
+    const uint8_t *dir = payload + L->off_dir + HVQ_DIR_ENTRY_BYTES * r + 16 * kind;
+    *m = hvq_rd16(dir);
+    *rr = hvq_rd16(dir + 2);
+    return payload + hvq_rd64(dir + 8);
+}
+
+static unsigned read_index(const uint8_t *p, unsigned w)
+{
+    return w == 1 ? p[0] : hvq_rd16(p);
+}
+
+/* Writes the block's voxels that lie inside the frame. */
+static void decode_block(const hvq_view *v, uint64_t bx, uint64_t by, uint64_t bz, uint8_t *out)
+{
+    const hvq_layout *L = &v->L;
+    int mean = v->p[HVQ_HEADER_BYTES + bx + L->nbx * (by + L->nby * bz)];
+    uint64_t region = (bx >> 6) + L->nrx * ((by >> 6) + L->nry * (bz >> 6));
+    uint32_t m, rr;
+    const uint8_t *data = dir_hash(v->p, L, region, 0, &m, &rr);
+    const uint8_t *hit = hvq_psh_find(data, m, rr, 3 + L->w1 + L->w2, (unsigned)(bx & 63),
+                                      (unsigned)(by & 63), (unsigned)(bz & 63));
+    const uint8_t *c1 = NULL, *c2 = NULL;
+    if (hit) {
+        c1 = v->p + L->off_c1 + 16u * read_index(hit, L->w1);
+        c2 = v->p + L->off_c2 + 128u * read_index(hit + L->w1, L->w2);
+    }
+    for (unsigned z = 0; z < 4 && 4 * bz + z < v->dims[2]; z++)
+        for (unsigned y = 0; y < 4 && 4 * by + y < v->dims[1]; y++)
+            for (unsigned x = 0; x < 4 && 4 * bx + x < v->dims[0]; x++) {
+                int val = mean;
+                if (hit) {
+                    unsigned o8 = (x >> 1) + 2 * (y >> 1) + 4 * (z >> 1), o64 = x + 4 * y + 16 * z;
+                    val += hvq_rds16(c1 + 2 * o8) + hvq_rds16(c2 + 2 * o64);
+                    val = val < 0 ? 0 : val > 255 ? 255 : val;
+                }
+                out[(4 * bx + x) + v->dims[0] * ((4 * by + y) + v->dims[1] * (4 * bz + z))] =
+                    (uint8_t)val;
+            }
+}
+
+/* Residual voxels of region r: every slot whose key maps to itself (the lookup's hits). */
+static void apply_residuals(const hvq_view *v, uint64_t r, uint8_t *out)
+{
+    uint32_t m, rr;
+    const uint8_t *data = dir_hash(v->p, &v->L, r, 1, &m, &rr);
+    if (m == 0)
+        return;
+    uint64_t origin[3];
+    unsigned ext[3];
+    region_extent(v, r, origin, ext);
+    uint64_t m3 = (uint64_t)m * m * m, r3 = (uint64_t)rr * rr * rr;
+    const uint8_t *slots = data + r3 * 3 * hvq_offset_width(m);
+    for (uint64_t s = 0; s < m3; s++) {
+        const uint8_t *k = slots + 4 * s;
+        if (k[0] < ext[0] && k[1] < ext[1] && k[2] < ext[2] &&
+            hvq_psh_slot(data, m, rr, k[0], k[1], k[2]) == s)
+            out[(origin[0] + k[0]) +
+                v->dims[0] * ((origin[1] + k[1]) + v->dims[1] * (origin[2] + k[2]))] = k[3];
+    }
+}
+
+cdvr_status cdvr_hvq_decode(const cdvr_hvq_params *p, const size_t dims[3],
+                            const uint8_t *payload, size_t bytes, uint8_t *out, cdvr_error *err)
+{
+    hvq_view v;
+    cdvr_status s = view_open(&v, p, dims, payload, bytes, NULL, err);
+    if (s != CDVR_OK)
+        return s;
+    for (uint64_t bz = 0; bz < v.L.nbz; bz++)
+        for (uint64_t by = 0; by < v.L.nby; by++)
+            for (uint64_t bx = 0; bx < v.L.nbx; bx++)
+                decode_block(&v, bx, by, bz, out);
+    for (uint64_t r = 0; r < v.L.nregions; r++)
+        apply_residuals(&v, r, out);
+    return CDVR_OK;
+}
+
+/* ---- per-voxel fetch (kernels/codec/hvq_fetch.cl is the same function) ----------------------- */
+
+uint8_t cdvr_hvq_fetch(const uint8_t *payload, const size_t dims[3], size_t x, size_t y,
+                       size_t z)
+{
+    const uint64_t d64[3] = {dims[0], dims[1], dims[2]};
+    hvq_layout L;
+    hvq_layout_get(d64, hvq_rd32(payload + 16), hvq_rd32(payload + 20), &L);
+    uint64_t region = (x >> 8) + L.nrx * ((y >> 8) + L.nry * (z >> 8));
+    uint32_t m, rr;
+    const uint8_t *data = dir_hash(payload, &L, region, 1, &m, &rr);
+    const uint8_t *hit = hvq_psh_find(data, m, rr, 4, (unsigned)(x & 255), (unsigned)(y & 255),
+                                      (unsigned)(z & 255));
+    if (hit)
+        return hit[0];
+    uint64_t bx = x >> 2, by = y >> 2, bz = z >> 2;
+    int val = payload[HVQ_HEADER_BYTES + bx + L.nbx * (by + L.nby * bz)];
+    data = dir_hash(payload, &L, region, 0, &m, &rr);
+    hit = hvq_psh_find(data, m, rr, 3 + L.w1 + L.w2, (unsigned)(bx & 63), (unsigned)(by & 63),
+                       (unsigned)(bz & 63));
+    if (!hit)
+        return (uint8_t)val;
+    unsigned o8 = ((x & 3) >> 1) + 2 * ((y & 3) >> 1) + 4 * ((z & 3) >> 1);
+    unsigned o64 = (x & 3) + 4 * (y & 3) + 16 * (z & 3);
+    val += hvq_rds16(payload + L.off_c1 + 16u * read_index(hit, L.w1) + 2 * o8);
+    val += hvq_rds16(payload + L.off_c2 + 128u * read_index(hit + L.w1, L.w2) + 2 * o64);
+    return (uint8_t)(val < 0 ? 0 : val > 255 ? 255 : val);
+}

@@ -1,0 +1,139 @@
+/* core/codec/hvq/hvq_internal.h - the parts of the hvq codec (cdvr/hvq.h) that tests drive
+ * directly: perfect spatial hashes, codebook training, payload layout helpers. */
+#ifndef CDVR_HVQ_INTERNAL_H
+#define CDVR_HVQ_INTERNAL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "cdvr/error.h"
+#include "cdvr/hvq.h"
+
+/* ---- little-endian fields ---------------------------------------------------------------- */
+
+static inline uint32_t hvq_rd16(const uint8_t *p) { return (uint32_t)p[0] | (uint32_t)p[1] << 8; }
+static inline uint32_t hvq_rd32(const uint8_t *p)
+{
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+static inline uint64_t hvq_rd64(const uint8_t *p)
+{
+    return (uint64_t)hvq_rd32(p) | (uint64_t)hvq_rd32(p + 4) << 32;
+}
+static inline int32_t hvq_rds16(const uint8_t *p) { return (int16_t)(uint16_t)hvq_rd16(p); }
+static inline void hvq_wr16(uint8_t *p, uint32_t v) { p[0] = (uint8_t)v; p[1] = (uint8_t)(v >> 8); }
+static inline void hvq_wr32(uint8_t *p, uint32_t v)
+{
+    for (int i = 0; i < 4; i++)
+        p[i] = (uint8_t)(v >> (8 * i));
+}
+static inline void hvq_wr64(uint8_t *p, uint64_t v)
+{
+    hvq_wr32(p, (uint32_t)v);
+    hvq_wr32(p + 4, (uint32_t)(v >> 32));
+}
+
+/* ---- payload layout ----------------------------------------------------------------------- */
+
+#define HVQ_HEADER_BYTES 32u
+#define HVQ_DIR_ENTRY_BYTES 32u
+#define HVQ_REGION_BLOCKS 64u  /* region side in blocks */
+#define HVQ_M_MAX 1023u        /* largest table side a payload may have */
+#define HVQ_R_MAX 256u         /* largest offset table side */
+
+typedef struct hvq_layout {
+    uint64_t nbx, nby, nbz, nblocks;   /* blocks */
+    uint64_t nrx, nry, nrz, nregions;  /* regions */
+    uint64_t off_c1, off_c2, off_dir, off_data;
+    unsigned w1, w2;                   /* index bytes of codebook 1 and 2 */
+} hvq_layout;
+
+/* Section offsets for dims and codebook sizes (no overflow for dims < 2^32, n <= K_MAX). */
+void hvq_layout_get(const uint64_t dims[3], uint32_t n1, uint32_t n2, hvq_layout *out);
+
+static inline unsigned hvq_index_width(uint32_t entries) { return entries > 256 ? 2u : 1u; }
+static inline unsigned hvq_offset_width(uint32_t m) { return m > 256 ? 2u : 1u; }
+
+/* ---- perfect spatial hash ------------------------------------------------------------------ */
+
+#define HVQ_PSH_ATTEMPTS 10
+#define HVQ_PSH_RANDOM_TRIES 256
+
+typedef struct hvq_psh {
+    uint32_t m, r, n;     /* table side, offset table side, keys */
+    unsigned slot_bytes;  /* 3 key bytes + value bytes */
+    uint8_t *data;        /* r^3 offset entries (3*w bytes) then m^3 slots; NULL when n = 0 */
+    size_t bytes;
+    int attempts;         /* attempts the construction took (1 = first) */
+} hvq_psh;
+
+/* Bytes of a hash's data for table sides m, r. */
+uint64_t hvq_psh_data_bytes(uint32_t m, uint32_t r, unsigned slot_bytes);
+
+/* Table sides of attempt a (0-based) for n > 0 keys whose coordinates are below extent. */
+void hvq_psh_sizes(size_t n, unsigned extent, int attempt, uint32_t *m, uint32_t *r);
+
+/* Largest data any attempt can produce for n keys below extent. */
+uint64_t hvq_psh_bound(size_t n, unsigned extent, unsigned slot_bytes);
+
+/* Builds the hash of n distinct keys (keys[3*i .. 3*i+2]) with vbytes value bytes each
+ * (values[vbytes*i ..]), trying at most max_attempts attempts (1..HVQ_PSH_ATTEMPTS) of the
+ * schedule. CDVR_ERR_UNSUPPORTED when none fits, CDVR_ERR_NOMEM. out->data is malloc'd. */
+cdvr_status hvq_psh_build(const uint8_t *keys, const uint8_t *values, size_t n, unsigned vbytes,
+                          int max_attempts, hvq_psh *out, cdvr_error *err);
+void hvq_psh_free(hvq_psh *h);
+
+/* The value bytes of key (kx, ky, kz) in a hash whose data starts at data, or NULL when the
+ * key is absent (or m = 0). The data must be a checked hash of these sides. */
+const uint8_t *hvq_psh_find(const uint8_t *data, uint32_t m, uint32_t r, unsigned slot_bytes,
+                            unsigned kx, unsigned ky, unsigned kz);
+
+/* The slot key (kx, ky, kz) maps to. */
+uint64_t hvq_psh_slot(const uint8_t *data, uint32_t m, uint32_t r, unsigned kx, unsigned ky,
+                      unsigned kz);
+
+/* ---- codebook training --------------------------------------------------------------------- */
+
+typedef struct hvq_vq_report {
+    unsigned pca_entries;   /* entries after PCA splitting */
+    unsigned entries;       /* final entries */
+    int lbg_iterations;
+    unsigned reseeded;      /* empty clusters re-seeded */
+    unsigned dropped;       /* empty clusters dropped */
+    double distortion;      /* final LBG distortion (training vectors, float centroids) */
+} hvq_vq_report;
+
+/* PCA splitting: at most k float centroids (d <= 64 each) into centroids; *kout entries.
+ * threads only share the work (exact integer sums). */
+cdvr_status hvq_pca_split(const int16_t *vectors, size_t n, unsigned d, unsigned k,
+                          unsigned threads, float *centroids, unsigned *kout, cdvr_error *err);
+
+/* (d: a multiple of 8, at most 64.) LBG from the *k centroids given; may drop empty ones (*k shrinks). sums/counts (k*d int64,
+ * k) receive the final clusters' exact sums over the vectors, for rounding. */
+cdvr_status hvq_lbg(const int16_t *vectors, size_t n, unsigned d, float *centroids, unsigned *k,
+                    double eps, unsigned threads, int64_t *sums, uint64_t *counts,
+                    hvq_vq_report *rep, cdvr_error *err);
+
+/* Codebooks have at most ceil(n / HVQ_VECTORS_PER_ENTRY) entries for n vectors. */
+#define HVQ_VECTORS_PER_ENTRY 8
+
+/* Whole training (sampling, PCA splitting, LBG, rounding) of at most k entries; codebook
+ * receives *kout entries of d int16: round(mean / scale), halves away from zero. */
+cdvr_status hvq_vq_train(const int16_t *vectors, size_t n, unsigned d, unsigned k, int scale,
+                         double eps, uint32_t train, unsigned threads, int16_t *codebook,
+                         unsigned *kout, hvq_vq_report *rep, cdvr_error *err);
+
+/* Nearest codebook entry of each vector: argmin sum (v - scale*c)^2 (exact integers; ties:
+ * the lowest index). */
+void hvq_vq_assign(const int16_t *vectors, size_t n, unsigned d, const int16_t *codebook,
+                   unsigned k, int scale, unsigned threads, uint16_t *index);
+
+/* ---- threads -------------------------------------------------------------------------------- */
+
+/* Runs fn(ctx, item) for item in 0..count-1 on up to `threads` threads (items taken in order
+ * from a shared counter; fn must write only its own item's results). */
+void hvq_parallel_for(unsigned threads, size_t count, void (*fn)(void *ctx, size_t item),
+                      void *ctx);
+unsigned hvq_threads_auto(void);
+
+#endif
