@@ -550,6 +550,23 @@ static void push_details(lua_State *L, const cdvr_store *st, size_t v)
     lua_setfield(L, -2, "details");
 }
 
+/* Device memory the volume data of one frame of variant v takes on the cl device: a
+ * fetch-mode codec keeps its largest chunk payload and the parameter blob there (rendering in
+ * the compressed domain); the others hold one chunk's dense frames. */
+static uint64_t device_bytes(const cdvr_store *st, size_t v)
+{
+    const cdvr_store_info *in = cdvr_store_get_info(st);
+    const cdvr_variant_info *vi = cdvr_store_variant(st, v);
+    uint64_t payload = 0;
+    for (size_t c = 0; c < vi->nchunks; c++) {
+        const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, c);
+        payload = ci->payload_bytes > payload ? ci->payload_bytes : payload;
+    }
+    if (vi->codec && vi->codec->cl_mode == CDVR_CODEC_CL_FETCH && in->nbricks == 1)
+        return payload + CDVR_CODEC_PARAMS_MAX;
+    return (uint64_t)in->dims[0] * in->dims[1] * in->dims[2] * lcdvr_chunk_timesteps(st, v);
+}
+
 static void push_variant_info(lua_State *L, const cdvr_store *st, size_t v)
 {
     const cdvr_store_info *in = cdvr_store_get_info(st);
@@ -570,6 +587,7 @@ static void push_variant_info(lua_State *L, const cdvr_store *st, size_t v)
     setnum(L, "maxerr", vi->maxerr);
     setint(L, "chunks", (lua_Integer)vi->nchunks);
     setint(L, "groups", (lua_Integer)vi->ngroups);
+    setint(L, "device_bytes", (lua_Integer)device_bytes(st, v));
     push_details(L, st, v);
 }
 
