@@ -1074,14 +1074,18 @@ void cdvr_brick_extract(const uint8_t *frame, const size_t vol_dims[3], const si
                    frame + lo[0] + vd[0] * ((lo[1] + y) + vd[1] * (lo[2] + z)), dims[0]);
 }
 
-/* Decodes brick chunk c (timestep t inside it) into the volume. */
+/* Decodes brick chunk c (timestep t inside it) into the volume of dims vd at the brick's
+ * first voxel minus at[3] (the whole volume: at = 0; the brick alone: at = its lo). */
 static cdvr_status decode_brick_into(const cdvr_store *st, size_t v, size_t c, size_t t,
-                                     uint8_t *vol, cdvr_error *err)
+                                     uint8_t *vol, const size_t vd[3], const size_t at[3],
+                                     cdvr_error *err)
 {
     const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, c);
     size_t lo[3], bd[3], voxels, scratch_n;
     cdvr_store_brick_box(&st->info, ci->brick, lo, bd);
     voxels = bd[0] * bd[1] * bd[2];
+    for (int a = 0; a < 3; a++)
+        lo[a] -= at[a];
     uint8_t *payload = NULL, *scratch = NULL;
     uint8_t *frames[64];
     if (ci->count > 64)
@@ -1097,7 +1101,7 @@ static cdvr_status decode_brick_into(const cdvr_store *st, size_t v, size_t c, s
         s = cdvr_store_decode_chunk(st, v, c, payload, frames, err);
     }
     if (s == CDVR_OK)
-        cdvr_brick_place(vol, st->info.dims, frames[t - ci->t0], lo, bd);
+        cdvr_brick_place(vol, vd, frames[t - ci->t0], lo, bd);
     free(payload);
     free(scratch);
     return s;
@@ -1116,8 +1120,9 @@ cdvr_status cdvr_store_decode(const cdvr_store *st, size_t v, size_t t, cdvr_vol
     cdvr_status s = cdvr_volume_create(st->info.dims, 1, CDVR_TYPE_U8, &vol, err);
     /* last brick first: a voxel two bricks share keeps the value of the lower brick, which
      * owns it (the encoder measures each voxel in its owner) */
+    static const size_t whole[3] = {0, 0, 0};
     for (size_t b = st->info.nbricks; s == CDVR_OK && b-- > 0;)
-        s = decode_brick_into(st, v, c0 + b, t, (uint8_t *)vol->data, err);
+        s = decode_brick_into(st, v, c0 + b, t, (uint8_t *)vol->data, st->info.dims, whole, err);
     if (s != CDVR_OK) {
         cdvr_volume_free(vol);
         return s;
@@ -1125,6 +1130,40 @@ cdvr_status cdvr_store_decode(const cdvr_store *st, size_t v, size_t t, cdvr_vol
     memcpy(vol->spacing, st->info.spacing, sizeof vol->spacing);
     memcpy(vol->origin, st->info.origin, sizeof vol->origin);
     memcpy(vol->direction, st->info.direction, sizeof vol->direction);
+    vol->window[0] = st->info.qlo; /* the codes 0..255 stand for the store's value window */
+    vol->window[1] = st->info.qhi;
+    *out = vol;
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_store_decode_brick(const cdvr_store *st, size_t v, size_t t, size_t b,
+                                    cdvr_volume **out, cdvr_error *err)
+{
+    *out = NULL;
+    size_t c = cdvr_store_chunk_for(st, v, t, b);
+    if (c == (size_t)-1)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: no brick %zu of timestep %zu in variant "
+                              "%zu (%zu bricks, %zu timesteps, %zu variants)", st->path, b + 1,
+                              t + 1, v + 1, st->info.nbricks, st->info.timesteps,
+                              st->info.nvariants);
+    size_t lo[3], bd[3];
+    cdvr_store_brick_box(&st->info, b, lo, bd);
+    cdvr_volume *vol = NULL;
+    cdvr_status s = cdvr_volume_create(bd, 1, CDVR_TYPE_U8, &vol, err);
+    if (s == CDVR_OK)
+        s = decode_brick_into(st, v, c, t, (uint8_t *)vol->data, bd, lo, err);
+    if (s != CDVR_OK) {
+        cdvr_volume_free(vol);
+        return s;
+    }
+    const double *D = st->info.direction;
+    for (int r = 0; r < 3; r++) {
+        vol->spacing[r] = st->info.spacing[r];
+        vol->origin[r] = st->info.origin[r];
+        for (int k = 0; k < 3; k++) /* origin + D * (lo * spacing) */
+            vol->origin[r] += D[3 * r + k] * ((double)lo[k] * st->info.spacing[k]);
+    }
+    memcpy(vol->direction, D, sizeof vol->direction);
     vol->window[0] = st->info.qlo; /* the codes 0..255 stand for the store's value window */
     vol->window[1] = st->info.qhi;
     *out = vol;

@@ -664,17 +664,27 @@ static int store_decode(lua_State *L)
                   "timestep out of range");
     int opts = lua_istable(L, 3) ? 3 : (lua_istable(L, 4) ? 4 : 0);
     size_t v = opts == 3 ? 0 : checkvariant(L, st, 3);
-    static const char *const keys[] = {"device", NULL};
+    static const char *const devices[] = {"cpu", "cl", NULL};
+    static const char *const keys[] = {"device", "brick", NULL};
     if (opts)
         lcdvr_checkoptions(L, opts, "st:decode", keys);
-    static const char *const devices[] = {"cpu", "cl", NULL};
     int device = opts ? optionfield(L, opts, "device", devices, 0) : 0;
+    lua_Integer brick = opts ? lcdvr_optintegerfield(L, opts, "brick", 0) : 0;
+    size_t nbricks = cdvr_store_get_info(st)->nbricks;
+    if (brick != 0 && (brick < 1 || (size_t)brick > nbricks))
+        return luaL_error(L, "st:decode: brick %d out of range 1..%d (%s)", (int)brick,
+                          (int)nbricks, cdvr_store_path(st));
+    if (device == 1 && brick)
+        return luaL_error(L, "st:decode: brick= decodes on the cpu device only");
     if (device == 1) {
         lcdvr_decode_cl(L, st, v, (size_t)t - 1);
     } else {
         cdvr_volume *vol = NULL;
         cdvr_error err;
-        if (cdvr_store_decode(st, v, (size_t)t - 1, &vol, &err) != CDVR_OK)
+        cdvr_status s = brick ? cdvr_store_decode_brick(st, v, (size_t)t - 1, (size_t)brick - 1,
+                                                        &vol, &err)
+                              : cdvr_store_decode(st, v, (size_t)t - 1, &vol, &err);
+        if (s != CDVR_OK)
             return lcdvr_raise(L, &err);
         lcdvr_pushvolume(L, vol);
     }
@@ -905,8 +915,9 @@ int lcdvr_open_store(lua_State *L)
     lcdvr_help_add(L, "cdvr.open(path)", "open a .cdv store (lazy); store or nil, msg");
     lcdvr_help_add(L, "st:info()", "dims, timesteps, window, bytes, ratio and per-variant "
                                    "codec, bpv, psnr, maxerr, chunks");
-    lcdvr_help_add(L, "st:decode(t [, variant] [, {device=\"cpu\"|\"cl\"}])",
-                   "u8 volume of timestep t (from 1) of a variant (name or index, default 1)");
+    lcdvr_help_add(L, "st:decode(t [, variant] [, {device=\"cpu\"|\"cl\", brick=b}])",
+                   "u8 volume of timestep t (from 1) of a variant (name or index, default 1); "
+                   "brick=b reads and decodes only brick b (st:info().bricks[b]), placed where it lies");
     lcdvr_help_add(L, "st:chunk(i [, variant])", "payload bytes of chunk i after stage 2, and "
                                                  "{t0=, timesteps=, S=, T=, pack=, stored_bytes=, stage2=}");
     lcdvr_help_add(L, "st:variants()", "list of variant names");

@@ -191,6 +191,14 @@ cdvr_status cdvr_store_decode_chunk(const cdvr_store *st, size_t v, size_t c,
 cdvr_status cdvr_store_decode(const cdvr_store *st, size_t v, size_t t, cdvr_volume **out,
                               cdvr_error *err);
 
+/* Reads and decodes only brick b's chunk of timestep t of variant v into a new u8 volume of
+ * the brick's dims (cdvr_store_brick_box), placed in the world where the brick lies: its
+ * origin is the store's origin + D * (lo * spacing), spacing and direction the store's. Its
+ * boundary voxels are the brick's own decoded values (an assembled volume takes a shared
+ * voxel from the lower brick). */
+cdvr_status cdvr_store_decode_brick(const cdvr_store *st, size_t v, size_t t, size_t b,
+                                    cdvr_volume **out, cdvr_error *err);
+
 /* CRC-32C (Castagnoli), initial value 0 for a fresh CRC: crc = cdvr_crc32c(0, buf, n). */
 uint32_t cdvr_crc32c(uint32_t crc, const void *buf, size_t n);
 
