@@ -1,13 +1,14 @@
 /* core/player/player.c - the playback pipeline of player.h.
  *
- * Threads (pipelined): reader (decisions requested from the calling thread, b1) -> queue ->
- * unzip (b1') -> queue -> calling thread (b2..b5, callbacks). One mutex and one condition
- * variable guard the queues, the item pool and the decision hand-off; every wait loops on
- * its predicate and on `abort`.
+ * Threads (pipelined): reader (plans a group - decision and cameras handed to the calling
+ * thread -, picks its bricks, b1) -> queue -> unzip (b1') -> queue -> calling thread (b2..b5,
+ * composite, callbacks). One mutex and one condition variable guard the queues, the item
+ * pool and the planning hand-off; every wait loops on its predicate and on `abort`.
  */
 #include "cdvr/player.h"
 #include "cdvr/timing.h"
 
+#include <math.h>
 #include <pthread.h>
 #include <stddef.h>
 #include <stdio.h>
@@ -22,21 +23,28 @@
 /* One chunk of a group: the group's chunk of one brick. */
 typedef struct chunk_part {
     size_t chunk;
+    int needed;              /* read and decoded (else skipped or outside the region) */
     uint8_t *stored, *payload;
     size_t stored_cap, payload_cap;
 } chunk_part;
 
-/* A chunk group in flight: the chunks of every brick for the same timesteps. */
+/* A chunk group in flight: the chunks of every brick for the same timesteps. The fields up
+ * to `cams` are reset for every group. */
 typedef struct chunk_item {
     int variant;
     size_t chunk;            /* chunk index of brick 0 of the group */
-    size_t t_begin, t_end;   /* timesteps of this group to render */
+    size_t t_begin, nframes; /* timesteps t_begin, t_begin + stride, ... to render */
     size_t frame0;           /* frame number of t_begin */
     int group_start;
     char reason[160];
     double read_ms, unzip_ms;
     uint64_t stored_bytes, payload_bytes;
+    size_t bricks_read, bricks_region; /* decoded; decoded inside the region */
+    int lossless;            /* the variant decodes every voxel exactly (recorded PSNR inf) */
     cdvr_error err;          /* status != OK: the group failed (rows get the error) */
+    cdvr_error stop;         /* status != OK: planning failed; the run stops after this item */
+    cdvr_camera *cams;       /* the camera of each frame (nframes), evaluated at planning */
+    size_t cams_cap;
     struct chunk_item *next;
     chunk_part *parts;       /* nbricks */
 } chunk_item;
@@ -46,11 +54,25 @@ typedef struct item_queue {
     size_t count;
 } item_queue;
 
+/* Work handed from the reader to the calling thread (callbacks run only there). */
+typedef cdvr_status (*caller_fn)(cdvr_player *p, chunk_item *it, cdvr_error *err);
+
 struct cdvr_player {
     cdvr_player_opts opts;
     size_t group_len;
-    size_t voxels;           /* per frame */
+    size_t stride, phase;    /* frames k with k % stride == phase are this player's */
     size_t nbricks;
+    size_t region_lo[3], region_hi[3]; /* bricks rendered: a box of the brick grid */
+    size_t data_lo[3], data_hi[3];     /* bricks that may be read: the region and, below it,
+                                          the bricks owning voxels of its lower faces */
+    size_t vox_lo[3], vox_dims[3];     /* the voxels of the data box */
+    size_t own_lo[3], own_hi[3];       /* the region's cells: voxels own_lo .. own_hi */
+    int *own;                /* scratch (reader): bricks the view needs, per brick */
+    size_t voxels;           /* per frame: vox_dims product */
+    size_t nregion;          /* bricks in the region */
+    int clipped;             /* the region is smaller than the volume */
+    double *corners;         /* world corners of each brick's cells: nbricks x 8 x 3 */
+    int tf_prefix[257];      /* TF entries with alpha > 0 among 0 .. i-1 */
     size_t stopped_early;    /* frames of the last run not played (end of series, no loop) */
 
     /* run state */
@@ -66,13 +88,14 @@ struct cdvr_player {
     chunk_item *items;
     size_t nitems;
     int reader_done, unzip_done, abort;
-    int decide_state;        /* 0 idle, 1 requested, 2 answered */
-    size_t decide_t, decide_group;
-    int decide_variant;
-    char decide_reason[160];
-    cdvr_error decide_err;
-    size_t planned;          /* frames planned by the reader */
+    int call_state;          /* 0 idle, 1 requested, 2 answered */
+    caller_fn call_fn;
+    chunk_item *call_item;
+    cdvr_error call_err;
+    size_t planned;          /* frames planned by the reader (next frame number to plan) */
     int current_variant;
+    int have_group;          /* a group has been decided in this run */
+    size_t last_group;
 
     /* device */
     uint8_t *host_frames;    /* decoded frames of one group (cpu device, host decode) */
@@ -171,77 +194,226 @@ static int grow(uint8_t **buf, size_t *cap, uint64_t need)
 
 /* ---- stage functions -------------------------------------------------------------------- */
 
-/* Asks for the variant of the group starting at t. threaded: hand the request to the calling
- * thread and wait; otherwise call the callback directly. */
-static cdvr_status decide(cdvr_player *p, size_t t, size_t group, int threaded, int *variant,
-                          char *reason, cdvr_error *err)
+/* Runs fn(p, it) on the calling thread: directly when not threaded, else handed over to it
+ * (next_ready runs it) while this thread waits. */
+static cdvr_status on_caller(cdvr_player *p, int threaded, caller_fn fn, chunk_item *it,
+                             cdvr_error *err)
 {
-    *variant = p->current_variant;
-    reason[0] = '\0';
-    if (!p->opts.decide) {
-        snprintf(reason, 160, "fixed: %s", cdvr_store_variant(p->opts.store, (size_t)*variant)->name);
-        return CDVR_OK;
-    }
     if (!threaded)
-        return p->opts.decide(p->opts.decide_ud, p, t, group, variant, reason, 160, err);
+        return fn(p, it, err);
     pthread_mutex_lock(&p->mu);
-    p->decide_t = t;
-    p->decide_group = group;
-    p->decide_state = 1;
+    p->call_fn = fn;
+    p->call_item = it;
+    p->call_state = 1;
     pthread_cond_broadcast(&p->cv);
-    while (p->decide_state != 2 && !p->abort)
+    while (p->call_state != 2 && !p->abort)
         pthread_cond_wait(&p->cv, &p->mu);
-    cdvr_status st = p->abort ? CDVR_ERR_ARG : p->decide_err.status;
-    if (!p->abort) {
-        *variant = p->decide_variant;
-        memcpy(reason, p->decide_reason, 160);
-        if (st != CDVR_OK && err)
-            *err = p->decide_err;
-    }
-    p->decide_state = 0;
+    cdvr_status st = p->abort ? CDVR_ERR_ARG : p->call_err.status;
+    if (p->abort)
+        cdvr_error_set(err, CDVR_ERR_ARG, "player: stopped");
+    else if (st != CDVR_OK)
+        *err = p->call_err;
+    p->call_state = 0;
     pthread_mutex_unlock(&p->mu);
     return st;
 }
 
-/* Plans the next chunk item (decision at group boundaries) and reads it (b1).
- * Returns 0 when every frame is planned, -1 when a decision failed (err set), 1 otherwise. */
-static int plan_and_read(cdvr_player *p, chunk_item *it, int threaded, cdvr_error *err)
+/* The variant of the group starting at the item's first timestep (policy, or the current). */
+static cdvr_status decide(cdvr_player *p, chunk_item *it, cdvr_error *err)
 {
     const cdvr_store *st = p->opts.store;
-    const cdvr_store_info *info = cdvr_store_get_info(st);
-    if (p->planned >= p->frames)
+    size_t t = it->t_begin, nvar = cdvr_store_get_info(st)->nvariants;
+    int v = p->current_variant;
+    it->reason[0] = '\0';
+    if (!p->opts.decide) {
+        snprintf(it->reason, sizeof it->reason, "fixed: %s", cdvr_store_variant(st, (size_t)v)->name);
+    } else {
+        cdvr_status s = p->opts.decide(p->opts.decide_ud, p, t, t / p->group_len, &v, it->reason,
+                                       sizeof it->reason, err);
+        if (s != CDVR_OK)
+            return s;
+        if (v < 0 || (size_t)v >= nvar)
+            return cdvr_error_set(err, CDVR_ERR_ARG, "%s: policy chose variant %d of %zu",
+                                  cdvr_store_path(st), v + 1, nvar);
+    }
+    p->current_variant = v;
+    it->group_start = 1;
+    return CDVR_OK;
+}
+
+static int grow_cams(chunk_item *it, size_t n)
+{
+    if (n <= it->cams_cap)
+        return 1;
+    cdvr_camera *nc = realloc(it->cams, n * sizeof *nc);
+    if (!nc)
         return 0;
-    size_t frame = p->planned;
-    size_t t = (p->first + frame) % info->timesteps;
-    memset(it, 0, offsetof(chunk_item, parts));
-    cdvr_error_clear(&it->err);
-    if (frame == 0 || t % p->group_len == 0) {
-        int v;
-        if (decide(p, t, t / p->group_len, threaded, &v, it->reason, err) != CDVR_OK)
-            return -1;
-        if (v < 0 || (size_t)v >= info->nvariants) {
-            cdvr_error_set(err, CDVR_ERR_ARG, "%s: policy chose variant %d of %zu", cdvr_store_path(st), v + 1, info->nvariants);
-            return -1;
-        }
-        p->current_variant = v;
-        it->group_start = 1;
+    it->cams = nc;
+    it->cams_cap = n;
+    return 1;
+}
+
+/* Plans the item whose first frame is it->frame0 (timestep it->t_begin): the decision when
+ * it starts a group, its frames (this player's frames of that chunk), and their cameras.
+ * Runs where callbacks may run. On a failing callback the item keeps the frames planned
+ * before it and the error is returned. */
+static cdvr_status plan_item(cdvr_player *p, chunk_item *it, cdvr_error *err)
+{
+    const cdvr_store *st = p->opts.store;
+    size_t t = it->t_begin, group = t / p->group_len;
+    if (!p->have_group || t % p->group_len == 0 || group != p->last_group) {
+        cdvr_status s = decide(p, it, err);
+        if (s != CDVR_OK)
+            return s;
+        p->have_group = 1;
+        p->last_group = group;
     }
     it->variant = p->current_variant;
     it->chunk = cdvr_store_chunk_for(st, (size_t)it->variant, t, 0);
     const cdvr_chunk_info *ch = cdvr_store_chunk(st, (size_t)it->variant, it->chunk);
-    size_t end = ch->t0 + ch->count;
-    size_t left = p->frames - frame;
-    if (end - t > left)
-        end = t + left;
-    it->t_begin = t;
-    it->t_end = end;
-    it->frame0 = frame;
-    p->planned += end - t;
+    size_t in_chunk = (ch->t0 + ch->count - t + p->stride - 1) / p->stride;
+    size_t left = (p->frames - it->frame0 + p->stride - 1) / p->stride;
+    size_t n = in_chunk < left ? in_chunk : left;
+    p->planned = it->frame0 + (n - 1) * p->stride + 1;
+    if (!grow_cams(it, n))
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "player: out of memory for cameras");
+    for (size_t j = 0; j < n; j++) {
+        it->cams[j] = p->opts.camera;
+        if (!p->opts.camera_fn)
+            continue;
+        cdvr_error cerr;
+        cdvr_error_clear(&cerr);
+        if (p->opts.camera_fn(p->opts.camera_ud, t + j * p->stride, it->frame0 + j * p->stride,
+                              &it->cams[j], &cerr) != CDVR_OK) {
+            if (cerr.status == CDVR_OK)
+                cdvr_error_set(&cerr, CDVR_ERR_ARG, "camera callback failed");
+            it->nframes = j;
+            *err = cerr;
+            return cerr.status;
+        }
+    }
+    it->nframes = n;
+    return CDVR_OK;
+}
 
+/* Grid position of brick b. */
+static void brick_at(const cdvr_player *p, size_t b, size_t at[3])
+{
+    const size_t *g = cdvr_store_get_info(p->opts.store)->bricks;
+    at[0] = b % g[0];
+    at[1] = b / g[0] % g[1];
+    at[2] = b / (g[0] * g[1]);
+}
+
+static int in_box(const cdvr_player *p, size_t b, const size_t lo[3], const size_t hi[3])
+{
+    size_t at[3];
+    brick_at(p, b, at);
+    return at[0] >= lo[0] && at[0] < hi[0] && at[1] >= lo[1] && at[1] < hi[1] &&
+           at[2] >= lo[2] && at[2] < hi[2];
+}
+
+static int in_region(const cdvr_player *p, size_t b)
+{
+    return in_box(p, b, p->region_lo, p->region_hi);
+}
+
+static int in_data(const cdvr_player *p, size_t b)
+{
+    return in_box(p, b, p->data_lo, p->data_hi);
+}
+
+/* Calls fn(p, it, n) for each lower neighbour n of brick b (b - (dx,dy,dz), d in {0,1},
+ * not all 0, inside the grid): the bricks owning voxels on b's lower faces. */
+static void each_lower(const cdvr_player *p, size_t b, void (*fn)(const cdvr_player *, void *, size_t),
+                       void *arg)
+{
+    const size_t *g = cdvr_store_get_info(p->opts.store)->bricks;
+    size_t at[3];
+    brick_at(p, b, at);
+    for (int d = 1; d < 8; d++) {
+        size_t dx = d & 1, dy = d >> 1 & 1, dz = d >> 2 & 1;
+        if (dx > at[0] || dy > at[1] || dz > at[2])
+            continue;
+        fn(p, arg, (at[0] - dx) + g[0] * ((at[1] - dy) + g[1] * (at[2] - dz)));
+    }
+}
+
+typedef struct value_hull {
+    const chunk_item *it;
+    int lo, hi;
+} value_hull;
+
+static void widen(const cdvr_player *p, void *arg, size_t n)
+{
+    value_hull *h = arg;
+    const cdvr_chunk_info *ch = cdvr_store_chunk(p->opts.store, (size_t)h->it->variant,
+                                                 h->it->chunk + n);
+    h->lo = ch->value_min < h->lo ? ch->value_min : h->lo;
+    h->hi = ch->value_max > h->hi ? ch->value_max : h->hi;
+}
+
+static void mark_needed(const cdvr_player *p, void *arg, size_t n)
+{
+    (void)p;
+    ((chunk_item *)arg)->parts[n].needed = 1;
+}
+
+/* Does the view need brick b of the region (player.h)? Its cells read its own voxels and,
+ * on its lower faces, voxels its lower neighbours own: their values lie in the chunks'
+ * recorded ranges (for a lossless variant every brick holds those voxels' exact values, so
+ * its own range suffices). */
+static int view_needs(cdvr_player *p, const chunk_item *it, size_t b)
+{
+    if (!p->opts.brick_skip)
+        return 1;
+    value_hull h = {it, 255, 0};
+    widen(p, &h, b);
+    if (!it->lossless)
+        each_lower(p, b, widen, &h);
+    if (p->tf_prefix[h.hi + 1] - p->tf_prefix[h.lo] == 0)
+        return 0; /* every sample in its cells is transparent */
+    for (size_t j = 0; j < it->nframes; j++)
+        if (cdvr_camera_sees_box(&it->cams[j], (const double(*)[3])(p->corners + 24 * b)))
+            return 1;
+    return 0;
+}
+
+/* Brick skipping (player.h): which bricks this item reads. The bricks the view needs, and,
+ * for a lossy variant, their lower neighbours (the owners of the voxels on their lower faces,
+ * whose decoded values the assembled volume holds there). */
+static void select_bricks(cdvr_player *p, chunk_item *it)
+{
+    const cdvr_variant_info *var = cdvr_store_variant(p->opts.store, (size_t)it->variant);
+    it->lossless = isinf(var->psnr) && var->psnr > 0;
+    for (size_t b = 0; b < p->nbricks; b++) {
+        it->parts[b].chunk = it->chunk + b;
+        it->parts[b].needed = 0;
+        p->own[b] = in_region(p, b) && view_needs(p, it, b);
+    }
+    for (size_t b = 0; b < p->nbricks; b++) {
+        if (!p->own[b])
+            continue;
+        it->parts[b].needed = 1;
+        if (!it->lossless)
+            each_lower(p, b, mark_needed, it);
+    }
+    it->bricks_read = it->bricks_region = 0;
+    for (size_t b = 0; b < p->nbricks; b++) {
+        it->bricks_read += (size_t)it->parts[b].needed;
+        it->bricks_region += (size_t)(it->parts[b].needed && in_region(p, b));
+    }
+}
+
+/* Reads (b1) the needed chunks of the item. */
+static void read_item(cdvr_player *p, chunk_item *it)
+{
+    const cdvr_store *st = p->opts.store;
     double t0 = cdvr_now_ms();
     for (size_t b = 0; b < p->nbricks && it->err.status == CDVR_OK; b++) {
         chunk_part *part = &it->parts[b];
-        part->chunk = it->chunk + b;
+        if (!part->needed)
+            continue;
         const cdvr_chunk_info *pc = cdvr_store_chunk(st, (size_t)it->variant, part->chunk);
         it->stored_bytes += pc->stored_bytes;
         it->payload_bytes += pc->payload_bytes;
@@ -260,6 +432,29 @@ static int plan_and_read(cdvr_player *p, chunk_item *it, int threaded, cdvr_erro
     if (p->opts.read_mbps > 0)
         sleep_ms(it->stored_bytes / (p->opts.read_mbps * 1e3) - (cdvr_now_ms() - t0));
     it->read_ms = cdvr_now_ms() - t0;
+}
+
+/* Plans the next item of this player and reads it. Returns 0 when every frame is planned, 1
+ * otherwise; it->stop is set when planning failed (the run ends after this item). */
+static int plan_and_read(cdvr_player *p, chunk_item *it, int threaded)
+{
+    const cdvr_store_info *info = cdvr_store_get_info(p->opts.store);
+    size_t k = p->planned + (p->phase + p->stride - p->planned % p->stride) % p->stride;
+    if (k >= p->frames)
+        return 0;
+    memset(it, 0, offsetof(chunk_item, cams));
+    for (size_t b = 0; b < p->nbricks; b++)
+        it->parts[b].needed = 0;
+    cdvr_error_clear(&it->err);
+    cdvr_error_clear(&it->stop);
+    it->frame0 = k;
+    it->t_begin = (p->first + k) % info->timesteps;
+    int callbacks = p->opts.decide || p->opts.camera_fn;
+    on_caller(p, threaded && callbacks, plan_item, it, &it->stop);
+    if (it->nframes == 0)
+        return 1;
+    select_bricks(p, it);
+    read_item(p, it);
     return 1;
 }
 
@@ -271,6 +466,8 @@ static void unzip(cdvr_player *p, chunk_item *it)
     double t0 = cdvr_now_ms();
     for (size_t b = 0; b < p->nbricks && it->err.status == CDVR_OK; b++) {
         chunk_part *part = &it->parts[b];
+        if (!part->needed)
+            continue;
         const cdvr_chunk_info *ch = cdvr_store_chunk(st, (size_t)it->variant, part->chunk);
         if (!grow(&part->payload, &part->payload_cap, ch->payload_bytes)) {
             cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate %llu bytes",
@@ -313,36 +510,81 @@ static void render_opts_for(const cdvr_player *p, const cdvr_camera *cam, cdvr_r
     ro->threads = p->opts.threads;
 }
 
-/* Decodes the group's chunks on the CPU into p->host_frames (count full frames). */
+/* Brick b's box relative to the region: first voxel lo (in the region) and dims. */
+static void region_box(const cdvr_player *p, size_t b, size_t lo[3], size_t bd[3])
+{
+    cdvr_store_brick_box(cdvr_store_get_info(p->opts.store), b, lo, bd);
+    for (int a = 0; a < 3; a++)
+        lo[a] -= p->vox_lo[a];
+}
+
+/* Fills brick b's box of the item's count frames with its value_min. */
+static void fill_brick(cdvr_player *p, const chunk_item *it, size_t b, size_t count)
+{
+    const size_t *rd = p->vox_dims;
+    size_t lo[3], bd[3];
+    region_box(p, b, lo, bd);
+    uint8_t value = cdvr_store_chunk(p->opts.store, (size_t)it->variant, it->parts[b].chunk)->value_min;
+    for (size_t i = 0; i < count; i++)
+        for (size_t z = 0; z < bd[2]; z++)
+            for (size_t y = 0; y < bd[1]; y++)
+                memset(p->host_frames + i * p->voxels + lo[0] + rd[0] * ((lo[1] + y) + rd[1] * (lo[2] + z)),
+                       value, bd[0]);
+}
+
+/* Decodes brick b's chunk into the item's count frames (straight into them when the brick is
+ * the whole volume). */
+static cdvr_status decode_brick(cdvr_player *p, chunk_item *it, size_t b, size_t count,
+                                int whole, cdvr_error *err)
+{
+    const cdvr_store *st = p->opts.store;
+    size_t lo[3], bd[3], bvox;
+    region_box(p, b, lo, bd);
+    bvox = bd[0] * bd[1] * bd[2];
+    uint8_t *base = p->host_frames, *frames[64];
+    if (!whole) {
+        if (!grow(&p->brick_frames, &p->brick_frames_cap, (uint64_t)bvox * count))
+            return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: cannot allocate a brick",
+                                  cdvr_store_path(st));
+        base = p->brick_frames;
+    }
+    for (size_t i = 0; i < count; i++)
+        frames[i] = base + i * bvox;
+    cdvr_status s = cdvr_store_decode_chunk(st, (size_t)it->variant, it->parts[b].chunk,
+                                            it->parts[b].payload, frames, err);
+    for (size_t i = 0; s == CDVR_OK && !whole && i < count; i++)
+        cdvr_brick_place(p->host_frames + i * p->voxels, p->vox_dims, frames[i], lo, bd);
+    return s;
+}
+
+/* Decodes the group's needed chunks on the CPU into p->host_frames (count frames of the data
+ * box); the other bricks of the data box are filled with their value_min. Every voxel gets
+ * the value its owner (the lower brick of those sharing it, store.h) gives it, except that
+ * for a lossless variant a read brick's decode wins over a skipped brick's fill (the same
+ * exact value, where the fill would not be): so the fills go first there, and otherwise
+ * fills and decodes go together from the last brick to the first. */
 static cdvr_status decode_host(cdvr_player *p, chunk_item *it, size_t count, cdvr_error *err)
 {
     const cdvr_store *st = p->opts.store;
-    const cdvr_store_info *info = cdvr_store_get_info(st);
     size_t need;
     if (count > 64 || !cdvr_size_mul(p->voxels, count, &need) ||
         !grow(&p->host_frames, &p->host_frames_cap, need))
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate %zu frames",
                               cdvr_store_path(st), it->chunk + 1, count);
-    uint8_t *frames[64];
-    for (size_t b = p->nbricks; b-- > 0;) { /* the lower brick owns a shared voxel (store.h) */
-        size_t lo[3], bd[3], bvox;
-        cdvr_store_brick_box(info, b, lo, bd);
-        bvox = bd[0] * bd[1] * bd[2];
-        uint8_t *base = p->host_frames;
-        if (p->nbricks > 1) {
-            if (!grow(&p->brick_frames, &p->brick_frames_cap, (uint64_t)bvox * count))
-                return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: cannot allocate a brick",
-                                      cdvr_store_path(st));
-            base = p->brick_frames;
+    int whole = p->nbricks == 1 && it->parts[0].needed;
+    for (size_t b = 0; it->lossless && b < p->nbricks; b++)
+        if (in_data(p, b) && !it->parts[b].needed)
+            fill_brick(p, it, b, count);
+    for (size_t b = p->nbricks; b-- > 0;) {
+        if (!in_data(p, b))
+            continue;
+        if (it->parts[b].needed) {
+            cdvr_status s = decode_brick(p, it, b, count, whole, err);
+            if (s != CDVR_OK)
+                return s;
+        } else if (!it->lossless) {
+            fill_brick(p, it, b, count);
         }
-        for (size_t i = 0; i < count; i++)
-            frames[i] = base + i * bvox;
-        cdvr_status s = cdvr_store_decode_chunk(st, (size_t)it->variant, it->parts[b].chunk,
-                                                it->parts[b].payload, frames, err);
-        if (s != CDVR_OK)
-            return s;
-        for (size_t i = 0; p->nbricks > 1 && i < count; i++)
-            cdvr_brick_place(p->host_frames + i * p->voxels, info->dims, frames[i], lo, bd);
     }
     return CDVR_OK;
 }
@@ -381,6 +623,16 @@ static cdvr_status upload_decode(cdvr_player *p, chunk_item *it, double *upload_
     return s;
 }
 
+/* A transparent frame: nothing of the group was read (every brick skipped). */
+static cdvr_status blank_image(const cdvr_player *p, const cdvr_camera *cam, cdvr_image **img,
+                               cdvr_error *err)
+{
+    cdvr_status s = cdvr_image_create(cam->width, cam->height, img, err);
+    if (s == CDVR_OK)
+        memcpy((*img)->background, p->opts.background, sizeof (*img)->background);
+    return s;
+}
+
 /* b4 + b5 for timestep t of the current chunk; *img receives the frame. */
 static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const cdvr_camera *cam,
                                 cdvr_image **img, double *setup_ms, double *render_ms, cdvr_error *err)
@@ -392,6 +644,11 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
     cdvr_render_opts ro;
     render_opts_for(p, cam, &ro);
     *setup_ms = *render_ms = 0;
+    if (it->bricks_read == 0)
+        return blank_image(p, cam, img, err);
+    if (p->clipped)
+        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "player: rendering a region of the "
+                              "bricks is not supported by this renderer");
 #if CDVR_HAVE_OPENCL
     if (p->opts.device == CDVR_DEVICE_CL) {
         double t0 = cdvr_now_ms();
@@ -407,7 +664,7 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
     }
 #endif
     cdvr_volume frame = {0};
-    memcpy(frame.dims, info->dims, sizeof frame.dims);
+    memcpy(frame.dims, p->vox_dims, sizeof frame.dims);
     memcpy(frame.spacing, info->spacing, sizeof frame.spacing);
     memcpy(frame.origin, info->origin, sizeof frame.origin);
     memcpy(frame.direction, info->direction, sizeof frame.direction);
@@ -420,16 +677,21 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
     return s;
 }
 
-static void fill_row(cdvr_frame_row *row, const chunk_item *it, size_t t, size_t n)
+/* Row of frame j (of n) of an item: its share of the group's costs. */
+static void fill_row(const cdvr_player *p, cdvr_frame_row *row, const chunk_item *it, size_t j,
+                     size_t n)
 {
-    row->frame = it->frame0 + (t - it->t_begin);
-    row->t = t;
+    row->frame = it->frame0 + j * p->stride;
+    row->t = it->t_begin + j * p->stride;
     row->variant = it->variant;
+    row->rank = p->opts.rank;
     row->read_ms = it->read_ms / n;
     row->unzip_ms = it->unzip_ms / n;
     row->bytes = it->stored_bytes / n;
     row->payload_bytes = it->payload_bytes / n;
-    if (t == it->t_begin && it->group_start) {
+    row->bricks_read = it->bricks_read;
+    row->bricks_skipped = p->nregion - it->bricks_region;
+    if (j == 0 && it->group_start) {
         row->group_start = 1;
         memcpy(row->reason, it->reason, sizeof row->reason);
     }
@@ -454,40 +716,57 @@ static void pace_and_show(cdvr_player *p, cdvr_frame_row *row)
     p->t_last_frame = now;
 }
 
+/* The composite hook for one frame (player.h); its failure fails the frame. */
+static void composite(cdvr_player *p, cdvr_frame_row *row, const cdvr_camera *cam,
+                      cdvr_image **img, cdvr_error *ferr)
+{
+    if (!p->opts.composite)
+        return;
+    cdvr_error cerr;
+    cdvr_error_clear(&cerr);
+    row->status = ferr->status;
+    double t0 = cdvr_now_ms();
+    cdvr_status s = p->opts.composite(p->opts.composite_ud, row, cam, img, &cerr);
+    row->composite_ms = cdvr_now_ms() - t0;
+    if (s != CDVR_OK && ferr->status == CDVR_OK) {
+        *ferr = cerr;
+        if (ferr->status == CDVR_OK)
+            cdvr_error_set(ferr, s, "composite failed");
+    }
+}
+
 /* Renders the frames of one item. Returns non-OK only for callback failures (stop the run).
  * frame_ms: the work from the end of the previous chunk's last frame to the end of this
  * chunk's last frame, pacing waits excluded, shared equally by the chunk's frames. */
 static cdvr_status consume(cdvr_player *p, chunk_item *it, cdvr_error *err)
 {
-    size_t n = it->t_end - it->t_begin;
+    size_t n = it->nframes;
     size_t first_row = p->nrows;
     double work_start = p->t_last_frame, work_ms = 0;
     double upload_ms = 0, decode_ms = 0;
     cdvr_error frame_err = it->err;
-    if (frame_err.status == CDVR_OK)
+    if (n == 0)
+        return CDVR_OK;
+    if (frame_err.status == CDVR_OK && it->bricks_read > 0)
         upload_decode(p, it, &upload_ms, &decode_ms, &frame_err);
     cdvr_status cb = CDVR_OK;
-    for (size_t t = it->t_begin; t < it->t_end && cb == CDVR_OK; t++) {
+    for (size_t j = 0; j < n && cb == CDVR_OK; j++) {
         cdvr_frame_row *row = add_row(p);
         if (!row)
             return cdvr_error_set(err, CDVR_ERR_NOMEM, "player: cannot grow the frame table");
-        fill_row(row, it, t, n);
+        fill_row(p, row, it, j, n);
         row->upload_ms = upload_ms / n;
         row->decode_ms = decode_ms / n;
         cdvr_image *img = NULL;
         cdvr_error ferr = frame_err;
-        if (ferr.status == CDVR_OK) {
-            cdvr_camera cam = p->opts.camera;
-            cdvr_error cerr;
-            cdvr_error_clear(&cerr);
-            if (p->opts.camera_fn &&
-                p->opts.camera_fn(p->opts.camera_ud, t, row->frame, &cam, &cerr) != CDVR_OK) {
-                if (err)
-                    *err = cerr;
-                return cerr.status != CDVR_OK ? cerr.status : CDVR_ERR_ARG;
-            }
-            setup_render(p, it, t, &cam, &img, &row->setup_ms, &row->render_ms, &ferr);
+        if (ferr.status == CDVR_OK)
+            setup_render(p, it, row->t, &it->cams[j], &img, &row->setup_ms, &row->render_ms,
+                         &ferr);
+        if (ferr.status != CDVR_OK) {
+            cdvr_image_free(img);
+            img = NULL;
         }
+        composite(p, row, &it->cams[j], &img, &ferr);
 #if CDVR_HAVE_OPENCL
         if (p->stream)
             row->device_bytes = cdvr_cl_stream_bytes(p->stream);
@@ -495,7 +774,7 @@ static cdvr_status consume(cdvr_player *p, chunk_item *it, cdvr_error *err)
         row->status = ferr.status;
         if (ferr.status != CDVR_OK)
             snprintf(row->error, sizeof row->error, "%s", ferr.msg);
-        if (ferr.status == CDVR_OK && p->opts.frame_fn)
+        if (ferr.status == CDVR_OK && img && p->opts.frame_fn)
             cb = p->opts.frame_fn(p->opts.frame_ud, row, img, err);
         cdvr_image_free(img);
         work_ms += cdvr_now_ms() - work_start;
@@ -509,6 +788,18 @@ static cdvr_status consume(cdvr_player *p, chunk_item *it, cdvr_error *err)
             p->rows[i].interval_ms = p->rows[i].frame_ms;
     }
     return cb;
+}
+
+/* Plays an item, then stops the run with its planning error if it has one. */
+static cdvr_status play_item(cdvr_player *p, chunk_item *it, cdvr_error *err)
+{
+    cdvr_status s = consume(p, it, err);
+    if (s == CDVR_OK && it->stop.status != CDVR_OK) {
+        if (err)
+            *err = it->stop;
+        s = it->stop.status;
+    }
+    return s;
 }
 
 /* ---- threads ---------------------------------------------------------------------------- */
@@ -538,20 +829,13 @@ static void *reader_main(void *arg)
         chunk_item *it = take_free(p);
         if (!it)
             break;
-        int r = plan_and_read(p, it, 1, &it->err);
-        if (r == 0) {
-            put(p, &p->free_items, it);
-            break;
-        }
-        if (r < 0) { /* decision failed: hand the error to the calling thread */
-            pthread_mutex_lock(&p->mu);
-            p->abort = 1;
-            pthread_cond_broadcast(&p->cv);
-            pthread_mutex_unlock(&p->mu);
+        if (plan_and_read(p, it, 1) == 0) {
             put(p, &p->free_items, it);
             break;
         }
         put(p, &p->read_q, it);
+        if (it->stop.status != CDVR_OK)
+            break; /* planning failed: the run ends after this item */
     }
     pthread_mutex_lock(&p->mu);
     p->reader_done = 1;
@@ -581,9 +865,9 @@ static void *unzip_main(void *arg)
     return NULL;
 }
 
-/* Waits for the next unzipped item, answering decision requests meanwhile (callbacks run
- * here, on the calling thread). NULL at the end or on a failed decision (err set). */
-static chunk_item *next_ready(cdvr_player *p, cdvr_error *err)
+/* Waits for the next unzipped item, running the reader's planning requests meanwhile
+ * (callbacks run here, on the calling thread). NULL at the end. */
+static chunk_item *next_ready(cdvr_player *p)
 {
     pthread_mutex_lock(&p->mu);
     for (;;) {
@@ -592,27 +876,17 @@ static chunk_item *next_ready(cdvr_player *p, cdvr_error *err)
             pthread_mutex_unlock(&p->mu);
             return it;
         }
-        if (p->decide_state == 1) {
-            size_t t = p->decide_t, group = p->decide_group;
-            int v = p->current_variant;
+        if (p->call_state == 1) {
+            caller_fn fn = p->call_fn;
+            chunk_item *item = p->call_item;
             pthread_mutex_unlock(&p->mu);
-            cdvr_error derr;
-            cdvr_error_clear(&derr);
-            char reason[160] = "";
-            p->opts.decide(p->opts.decide_ud, p, t, group, &v, reason, sizeof reason, &derr);
+            cdvr_error cerr;
+            cdvr_error_clear(&cerr);
+            fn(p, item, &cerr);
             pthread_mutex_lock(&p->mu);
-            p->decide_variant = v;
-            memcpy(p->decide_reason, reason, sizeof reason);
-            p->decide_err = derr;
-            p->decide_state = 2;
+            p->call_err = cerr;
+            p->call_state = 2;
             pthread_cond_broadcast(&p->cv);
-            if (derr.status != CDVR_OK) {
-                if (err)
-                    *err = derr;
-                p->abort = 1;
-                pthread_mutex_unlock(&p->mu);
-                return NULL;
-            }
             continue;
         }
         if (p->unzip_done || p->abort)
@@ -638,8 +912,8 @@ static cdvr_status run_pipelined(cdvr_player *p, cdvr_error *err)
     }
     cdvr_status status = CDVR_OK;
     chunk_item *it;
-    while ((it = next_ready(p, err)) != NULL) {
-        status = consume(p, it, err);
+    while ((it = next_ready(p)) != NULL) {
+        status = play_item(p, it, err);
         put(p, &p->free_items, it);
         if (status != CDVR_OK) {
             pthread_mutex_lock(&p->mu);
@@ -649,8 +923,6 @@ static cdvr_status run_pipelined(cdvr_player *p, cdvr_error *err)
             break;
         }
     }
-    if (status == CDVR_OK && err && err->status != CDVR_OK)
-        status = err->status;
     pthread_join(reader, NULL);
     pthread_join(unzipper, NULL);
     return status;
@@ -659,20 +931,73 @@ static cdvr_status run_pipelined(cdvr_player *p, cdvr_error *err)
 static cdvr_status run_serial(cdvr_player *p, cdvr_error *err)
 {
     chunk_item *it = &p->items[0];
-    for (;;) {
-        int r = plan_and_read(p, it, 0, err);
-        if (r == 0)
-            return CDVR_OK;
-        if (r < 0)
-            return err->status;
+    while (plan_and_read(p, it, 0)) {
         unzip(p, it);
-        cdvr_status s = consume(p, it, err);
+        cdvr_status s = play_item(p, it, err);
         if (s != CDVR_OK)
             return s;
     }
+    return CDVR_OK;
 }
 
 /* ---- public ----------------------------------------------------------------------------- */
+
+/* The region of bricks this player reads (opts.region_*), its voxel box and brick count. */
+static cdvr_status set_region(cdvr_player *p, cdvr_error *err)
+{
+    const cdvr_store_info *info = cdvr_store_get_info(p->opts.store);
+    int whole = !p->opts.region_hi[0] && !p->opts.region_hi[1] && !p->opts.region_hi[2];
+    p->nregion = 1;
+    for (int a = 0; a < 3; a++) {
+        p->region_lo[a] = whole ? 0 : p->opts.region_lo[a];
+        p->region_hi[a] = whole ? info->bricks[a] : p->opts.region_hi[a];
+        if (p->region_lo[a] >= p->region_hi[a] || p->region_hi[a] > info->bricks[a])
+            return cdvr_error_set(err, CDVR_ERR_ARG, "player: brick region %zu..%zu on axis %d "
+                                  "is not inside the grid of %zu bricks", p->region_lo[a],
+                                  p->region_hi[a], a, info->bricks[a]);
+        p->nregion *= p->region_hi[a] - p->region_lo[a];
+    }
+    const size_t *g = info->bricks;
+    for (int a = 0; a < 3; a++) {
+        p->data_lo[a] = p->region_lo[a] ? p->region_lo[a] - 1 : 0;
+        p->data_hi[a] = p->region_hi[a];
+    }
+#define BRICK_INDEX(v) ((v)[0] + g[0] * ((v)[1] + g[1] * (v)[2]))
+    size_t last[3] = {p->region_hi[0] - 1, p->region_hi[1] - 1, p->region_hi[2] - 1};
+    size_t lo[3], dims[3], llo[3], ldims[3], dlo[3], ddims[3];
+    cdvr_store_brick_box(info, BRICK_INDEX(p->region_lo), lo, dims);
+    cdvr_store_brick_box(info, BRICK_INDEX(last), llo, ldims);
+    cdvr_store_brick_box(info, BRICK_INDEX(p->data_lo), dlo, ddims);
+#undef BRICK_INDEX
+    p->voxels = 1;
+    p->clipped = 0;
+    for (int a = 0; a < 3; a++) {
+        p->own_lo[a] = lo[a];
+        p->own_hi[a] = llo[a] + ldims[a] - 1;
+        p->vox_lo[a] = dlo[a];
+        p->vox_dims[a] = p->own_hi[a] + 1 - dlo[a];
+        p->voxels *= p->vox_dims[a];
+        p->clipped |= p->own_lo[a] != 0 || p->own_hi[a] + 1 != info->dims[a];
+    }
+    return CDVR_OK;
+}
+
+/* World positions of the 8 corners of brick b's cells: origin + D * (index * spacing). */
+static void brick_corners(const cdvr_store_info *info, size_t b, double out[8][3])
+{
+    size_t lo[3], dims[3];
+    cdvr_store_brick_box(info, b, lo, dims);
+    for (int c = 0; c < 8; c++) {
+        double q[3];
+        for (int a = 0; a < 3; a++)
+            q[a] = (double)(lo[a] + ((c >> a) & 1) * (dims[a] - 1)) * info->spacing[a];
+        for (int r = 0; r < 3; r++) {
+            out[c][r] = info->origin[r];
+            for (int a = 0; a < 3; a++)
+                out[c][r] += info->direction[3 * r + a] * q[a];
+        }
+    }
+}
 
 cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, cdvr_error *err)
 {
@@ -691,8 +1016,14 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
     if (p->opts.ring <= 0)
         p->opts.ring = 3;
     p->group_len = cdvr_player_group_length(opts->store);
-    p->voxels = info->dims[0] * info->dims[1] * info->dims[2];
     p->nbricks = info->nbricks;
+    p->stride = opts->frame_stride ? opts->frame_stride : 1;
+    p->phase = opts->frame_phase % p->stride;
+    cdvr_status rs = set_region(p, err);
+    if (rs != CDVR_OK) {
+        free(p);
+        return rs;
+    }
     p->nitems = (size_t)p->opts.ring * 2 + 1;
     p->items = calloc(p->nitems, sizeof *p->items);
     for (size_t i = 0; p->items && i < p->nitems; i++)
@@ -704,11 +1035,18 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
         cdvr_player_free(p);
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "player: out of memory");
     }
+    p->own = calloc(p->nbricks, sizeof *p->own);
+    if (!p->own || !(p->corners = malloc(p->nbricks * 24 * sizeof *p->corners))) {
+        cdvr_player_free(p);
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "player: out of memory");
+    }
+    for (size_t b = 0; b < p->nbricks; b++)
+        brick_corners(info, b, (double(*)[3])(p->corners + 24 * b));
     if (opts->device == CDVR_DEVICE_CL) {
 #if CDVR_HAVE_OPENCL
         cdvr_status s = cdvr_cl_open(&p->cl, err);
         if (s == CDVR_OK)
-            s = cdvr_cl_stream_create(p->cl, info->dims, &p->stream, err);
+            s = cdvr_cl_stream_create(p->cl, p->vox_dims, &p->stream, err);
         if (s == CDVR_OK)
             cdvr_cl_set_skipping(p->stream, opts->empty_skip);
         if (s != CDVR_OK) {
@@ -734,7 +1072,10 @@ void cdvr_player_free(cdvr_player *p)
             free(p->items[i].parts[b].payload);
         }
         free(p->items[i].parts);
+        free(p->items[i].cams);
     }
+    free(p->corners);
+    free(p->own);
     free(p->items);
     free(p->rows);
     free(p->host_frames);
@@ -760,8 +1101,12 @@ cdvr_status cdvr_player_run(cdvr_player *p, size_t first, size_t frames, cdvr_er
     p->nrows = 0;
     p->planned = 0;
     p->current_variant = p->opts.variant;
+    p->have_group = 0;
     p->reader_done = p->unzip_done = p->abort = 0;
-    p->decide_state = 0;
+    p->call_state = 0;
+    p->tf_prefix[0] = 0;
+    for (int i = 0; i < 256; i++) /* read at run start: the TF of this run */
+        p->tf_prefix[i + 1] = p->tf_prefix[i] + (p->opts.tf->table[i][3] > 0.0f);
     memset(&p->free_items, 0, sizeof p->free_items);
     memset(&p->read_q, 0, sizeof p->read_q);
     memset(&p->unzip_q, 0, sizeof p->unzip_q);

@@ -136,3 +136,45 @@ void cdvr_camera_orbit(cdvr_camera *cam, const double center[3], const double up
         cam->eye[i] = center[i] + distance * dir;
     }
 }
+
+/* A point v (relative to the eye, in the camera basis: x along r, y along u, z along f) lies
+ * on the outer side of plane k of the view volume when plane_dist(k) > 0. The side planes pass
+ * through the image's outer edges, half a pixel beyond the outermost pixel-centre rays; the
+ * front plane is the eye's (rays sample at t >= 0). */
+static double plane_dist(const cdvr_camera *cam, int k, double x, double y, double z)
+{
+    double aspect = (double)cam->width / cam->height;
+    if (cam->orthographic) {
+        double hy = 0.5 * cam->ortho_height, hx = hy * aspect;
+        double d[5] = {x - hx, -x - hx, y - hy, -y - hy, -z};
+        return d[k];
+    }
+    double ty = tan(cam->fov * kPi / 360.0), tx = ty * aspect;
+    double d[5] = {x - tx * z, -x - tx * z, y - ty * z, -y - ty * z, -z};
+    return d[k];
+}
+
+int cdvr_camera_sees_box(const cdvr_camera *cam, const double corners[8][3])
+{
+    double f[3], u[3], r[3], v[8][3], scale = 0.0;
+    cdvr_camera_basis(cam, f, u, r);
+    for (int c = 0; c < 8; c++) {
+        double rel[3];
+        for (int i = 0; i < 3; i++)
+            rel[i] = corners[c][i] - cam->eye[i];
+        v[c][0] = dot3(rel, r);
+        v[c][1] = dot3(rel, u);
+        v[c][2] = dot3(rel, f);
+        scale = fmax(scale, sqrt(dot3(rel, rel)));
+    }
+    /* a margin far above the renderer's float rounding keeps the test conservative */
+    double margin = 1e-4 * (scale + 1.0);
+    for (int k = 0; k < 5; k++) {
+        int outside = 0;
+        for (int c = 0; c < 8; c++)
+            outside += plane_dist(cam, k, v[c][0], v[c][1], v[c][2]) > margin;
+        if (outside == 8)
+            return 0;
+    }
+    return 1;
+}

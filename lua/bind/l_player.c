@@ -100,7 +100,7 @@ static void setnum(lua_State *L, const char *key, double v)
 /* Pushes one frame row as a table. */
 static void push_row(lua_State *L, const cdvr_store *st, const cdvr_frame_row *r)
 {
-    lua_createtable(L, 0, 14);
+    lua_createtable(L, 0, 20);
     lua_pushinteger(L, (lua_Integer)r->frame + 1);
     lua_setfield(L, -2, "frame");
     lua_pushinteger(L, (lua_Integer)r->t + 1);
@@ -118,6 +118,13 @@ static void push_row(lua_State *L, const cdvr_store *st, const cdvr_frame_row *r
     setnum(L, "bytes", (double)r->bytes);
     setnum(L, "payload_bytes", (double)r->payload_bytes);
     setnum(L, "device_bytes", (double)r->device_bytes);
+    setnum(L, "composite_ms", r->composite_ms);
+    lua_pushinteger(L, (lua_Integer)r->bricks_read);
+    lua_setfield(L, -2, "bricks_read");
+    lua_pushinteger(L, (lua_Integer)r->bricks_skipped);
+    lua_setfield(L, -2, "bricks_skipped");
+    lua_pushinteger(L, r->rank);
+    lua_setfield(L, -2, "rank");
     if (r->group_start) {
         lua_pushstring(L, r->reason);
         lua_setfield(L, -2, "reason");
@@ -545,6 +552,7 @@ static void render_options(lua_State *L, lplayer *lp, const cdvr_store_info *inf
     lp->opts.cold = lcdvr_optbooleanfield(L, 1, "cold", 0);
     lp->opts.read_mbps = number_option(L, "read_mbps", 0, 0, DBL_MAX, "a finite number >= 0 expected (0: no cap)");
     lp->opts.empty_skip = lcdvr_optbooleanfield(L, 1, "empty_skip", 1);
+    lp->opts.brick_skip = lcdvr_optbooleanfield(L, 1, "brick_skip", 1);
 }
 
 /* out=: capture settings (pattern, capture floor); returns 1 when capturing. */
@@ -647,7 +655,7 @@ static int l_player(lua_State *L)
                                        "variant", "device", "step", "unit", "term", "background",
                                        "threads", "pipeline", "ring", "cold", "read_mbps",
                                        "empty_skip", "callback_limit", "out", "pace", "width",
-                                       "height", "loop", NULL};
+                                       "height", "loop", "brick_skip", NULL};
     luaL_checktype(L, 1, LUA_TTABLE);
     lcdvr_checkoptions(L, 1, "cdvr.player", keys);
     lplayer *lp = (lplayer *)lua_newuserdatauv(L, sizeof *lp, UV_COUNT); /* ud */

@@ -133,6 +133,37 @@ do
   bad:close()
 end
 
+-- The player skips bricks a TF hides, with the same frames: a ramp along x, a TF that hides
+-- its lower half; rows report bricks_read and bricks_skipped.
+do
+  local ramp = cdvr.generate("ramp", {dims = {33, 17, 9}, timesteps = 3})
+  local st = assert(cdvr.encode(ramp, {codec = "raw", bricks = {4, 1, 1}, stage2 = "none",
+                                       path = tmpdir .. "/ramp.cdv"}))
+  local lo, hi = ramp:range()
+  local mid = math.floor((lo + hi) / 2)
+  local tf = cdvr.tf{{0, 0, 0, 0, 0}, {mid, 0, 0, 0, 0}, {mid + 1, 1, .6, .2, .05}, {255, 1, 1, 1, .4}}
+  local cam = cdvr.orbit_camera(ramp, {azimuth = 30, elevation = 20, width = 40, height = 32})
+  local function capture(skip, dir)
+    local p = cdvr.player{store = st, tf = tf, camera = cam, device = "cpu", brick_skip = skip,
+                          out = tmpdir .. "/" .. dir .. "/%02d.png"}
+    local r = p:run{frames = 3}
+    p:close()
+    return r
+  end
+  local on, off = capture(true, "on"), capture(false, "off")
+  for i = 1, 3 do
+    local row = on.frames[i]
+    assert(row.bricks_read + row.bricks_skipped == 4 and row.bricks_skipped >= 1,
+           ("frame %d: %d read, %d skipped"):format(i, row.bricks_read, row.bricks_skipped))
+    assert(off.frames[i].bricks_skipped == 0 and off.frames[i].bricks_read == 4)
+    assert(on.frames[i].rank == 0 and on.frames[i].composite_ms == 0)
+    local a = assert(io.open(("%s/on/%02d.png"):format(tmpdir, i), "rb")):read("a")
+    local b = assert(io.open(("%s/off/%02d.png"):format(tmpdir, i), "rb")):read("a")
+    assert(a == b, "brick skipping changed frame " .. i)
+  end
+  st:close()
+end
+
 bricked:close()
 whole:close()
 os.execute(("rm -rf %q"):format(tmpdir))

@@ -30,4 +30,11 @@ void cdvr_camera_ray(const cdvr_camera *cam, int x, int y, double origin[3], dou
 void cdvr_camera_orbit(cdvr_camera *cam, const double center[3], const double up[3],
                        double distance, double azimuth_deg, double elevation_deg);
 
+/* 0 when no ray of the camera can meet the convex hull of the 8 world points `corners` (a
+ * box): all of them lie beyond one plane of the view volume (the four planes through the
+ * image's outer edges, and the eye's plane: rays start at t = 0). 1 otherwise. Conservative:
+ * a hull that no ray meets may still give 1, a hull some pixel-centre ray meets never gives
+ * 0 (a margin of 1e-4 of the corners' distance covers rounding). */
+int cdvr_camera_sees_box(const cdvr_camera *cam, const double corners[8][3]);
+
 #endif

@@ -11,10 +11,34 @@
  * calling (device) thread by bounded queues of `ring` buffers, so stages overlap. Callbacks
  * (decide, camera) always run on the calling thread: a Lua state is never touched elsewhere.
  *
- * A store split into bricks is read one chunk group at a time (all bricks of the group's
- * timesteps). On the cl device a chunk is decoded by its codec's kernel (decode mode) or kept
- * compressed and rendered through its fetch function (fetch mode); codecs without OpenCL
- * code, and bricked stores, are decoded on the CPU and the frames uploaded.
+ * A store is read one chunk group at a time: the chunks of the group's timesteps, one per
+ * brick (an unbricked store has one brick). On the cl device a chunk is decoded by its
+ * codec's kernel (decode mode) or kept compressed and rendered through its fetch function
+ * (fetch mode); codecs without OpenCL code, and bricked stores, are decoded on the CPU and
+ * the frames uploaded.
+ *
+ * Brick skipping ("model only what a scene needs", opts.brick_skip): when a group is planned,
+ * a brick is read and decoded only if
+ *   - some value in its chunk's recorded range [value_min, value_max] has alpha > 0 under the
+ *     TF (else every sample in its cells is transparent), and
+ *   - the box of its cells can be seen by the camera of at least one frame of the group
+ *     (cdvr_camera_sees_box; no ray of the view crosses it otherwise).
+ * A skipped brick's voxels are filled with its value_min (transparent for a TF-skipped
+ * brick, never sampled for one out of view), then the read bricks are decoded over them, the
+ * lower brick last so it keeps the voxels it owns (store.h). With no brick read the frame is
+ * transparent and nothing is rendered. For a lossless variant this changes no sample: the
+ * cells of a read brick read only its own voxels, which hold their exact values. For a lossy
+ * variant a voxel on a face shared by a read brick and a skipped lower neighbour holds the
+ * read brick's decoded value instead of the neighbour's (both approximate the same voxel);
+ * that is the only difference. Rows report the group's bricks_read and bricks_skipped.
+ *
+ * The camera of every frame is evaluated when its chunk group is planned, before the group is
+ * read (so the reader knows the view it must cover): the reader hands the planning of a group
+ * (policy decision at group boundaries, then camera_fn for each of its frames, in frame
+ * order) to the calling thread, exactly as it hands over decisions, and the frames are later
+ * rendered with those cameras. camera_fn is called once per frame, up to `ring` groups ahead
+ * of the frame being shown. A failing callback stops the run after the frames planned before
+ * it are played.
  *
  * Chunk-level costs (b1, b1', b2, b3) are shared equally by the frames of the chunk group (a
  * chunk may hold several timesteps), so per-frame rows add up to the total work.
@@ -48,6 +72,10 @@ typedef struct cdvr_frame_row {
     uint64_t payload_bytes;  /* bytes after stage 2, this frame's share */
     uint64_t device_bytes;   /* cl device: memory the device stream holds for this frame
                                 (compressed payload in fetch mode); 0 on the cpu device */
+    double composite_ms;     /* the composite hook (distributed compositing) */
+    size_t bricks_read;      /* bricks read and decoded for this frame's chunk group */
+    size_t bricks_skipped;   /* bricks of the player's region not read (transparent or unseen) */
+    int rank;                /* process that played the frame (cdvr/dist.h; 0 in one process) */
     int group_start;         /* 1 if a policy decision was made for this frame's group */
     char reason[160];        /* the decision's one-line reason (group_start only) */
     cdvr_status status;      /* CDVR_OK, or the failure of this frame */
@@ -65,6 +93,14 @@ typedef cdvr_status (*cdvr_decide_fn)(void *ud, cdvr_player *player, size_t t, s
  * camera) for timestep t (0-based) and frame number. */
 typedef cdvr_status (*cdvr_camera_fn)(void *ud, size_t t, size_t frame, cdvr_camera *cam,
                                       cdvr_error *err);
+/* Called on the calling thread after each frame's render with its row, camera and image
+ * (*img NULL when the frame failed here), for every frame, in frame order: may replace *img
+ * (freeing the old one), e.g. by the composite of every process's image (cdvr/dist.h), or set
+ * it to NULL (nothing to show here). A non-OK return fails the frame (its row gets the error);
+ * the run goes on. */
+typedef cdvr_status (*cdvr_composite_fn)(void *ud, const cdvr_frame_row *row,
+                                         const cdvr_camera *cam, cdvr_image **img,
+                                         cdvr_error *err);
 /* Called after each frame with the row and the image (e.g. to write a PNG); may be NULL. */
 typedef cdvr_status (*cdvr_frame_fn)(void *ud, const cdvr_frame_row *row, const cdvr_image *img,
                                      cdvr_error *err);
@@ -87,6 +123,16 @@ typedef struct cdvr_player_opts {
     int empty_skip;              /* 1 (default): empty-space skipping on the cl device */
     double pace_fps;             /* > 0: show frames no faster than this (interactive pacing) */
     int loop;                    /* 1: wrap around after the last timestep; 0: stop there */
+    int brick_skip;              /* 1: skip bricks that are transparent or out of view */
+    /* Distribution (filled by cdvr/dist.h; all zero: this process plays everything). */
+    size_t frame_stride, frame_phase; /* play only frames k with k % stride == phase (0 -> 1, 0) */
+    size_t region_lo[3], region_hi[3];/* read only bricks (i,j,k) of the brick grid with
+                                         lo <= (i,j,k) < hi; hi all 0 -> the whole grid. A
+                                         region smaller than the grid is rendered clipped to
+                                         its cells (render.h, cdvr_render_clip) */
+    int rank;                    /* recorded in the rows */
+    cdvr_composite_fn composite; /* may be NULL */
+    void *composite_ud;
     cdvr_decide_fn decide;       /* NULL: always `variant` */
     void *decide_ud;
     cdvr_camera_fn camera_fn;
@@ -101,9 +147,11 @@ size_t cdvr_player_group_length(const cdvr_store *st);
 
 cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, cdvr_error *err);
 void cdvr_player_free(cdvr_player *p);
-/* Plays `frames` frames starting at timestep `first` (0-based). Past the last timestep the run
- * wraps around to timestep 0 when opts.loop is set, and stops there otherwise
- * (cdvr_player_stopped_early tells). A failed frame (corrupt chunk, ...) gets a row with its
+/* Plays `frames` frames starting at timestep `first` (0-based). Past the last timestep the
+ * run wraps around to timestep 0 when opts.loop is set, and stops there otherwise
+ * (cdvr_player_stopped_early tells). With frame_stride N > 1 this player plays only frames
+ * k = phase, phase + N, ... of that sequence (frame numbers and timesteps stay those of the
+ * whole sequence; a policy is asked when this player's next frame enters a new group). A failed frame (corrupt chunk, ...) gets a row with its
  * status and the run goes on; a failing callback stops the run and returns its error (rows so
  * far are kept). */
 cdvr_status cdvr_player_run(cdvr_player *p, size_t first, size_t frames, cdvr_error *err);
