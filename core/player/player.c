@@ -951,11 +951,20 @@ static cdvr_status set_region(cdvr_player *p, cdvr_error *err)
     for (int a = 0; a < 3; a++) {
         p->region_lo[a] = whole ? 0 : p->opts.region_lo[a];
         p->region_hi[a] = whole ? info->bricks[a] : p->opts.region_hi[a];
-        if (p->region_lo[a] >= p->region_hi[a] || p->region_hi[a] > info->bricks[a])
+        if (p->region_lo[a] > p->region_hi[a] || p->region_hi[a] > info->bricks[a])
             return cdvr_error_set(err, CDVR_ERR_ARG, "player: brick region %zu..%zu on axis %d "
                                   "is not inside the grid of %zu bricks", p->region_lo[a],
                                   p->region_hi[a], a, info->bricks[a]);
         p->nregion *= p->region_hi[a] - p->region_lo[a];
+    }
+    if (p->nregion == 0) { /* an empty region: nothing to read, transparent frames */
+        for (int a = 0; a < 3; a++) {
+            p->data_lo[a] = p->data_hi[a] = p->own_lo[a] = p->own_hi[a] = p->vox_lo[a] = 0;
+            p->vox_dims[a] = 1;
+        }
+        p->voxels = 1;
+        p->clipped = 1;
+        return CDVR_OK;
     }
     const size_t *g = info->bricks;
     for (int a = 0; a < 3; a++) {

@@ -12,6 +12,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "cdvr/dist.h"
 #include "cdvr/timing.h"
 #include "cdvr/player.h"
 #include "lcdvr.h"
@@ -34,11 +35,14 @@ typedef struct lplayer {
     int has_policy;      /* policy= given: it decides, also when capturing (stats.capture) */
     const char *variant_why; /* why opts.variant (a literal) */
     lua_Integer callback_limit;
+    int frame_callback;  /* frame= given (UV_FRAME) */
+    int shows_frames;    /* this process shows the frames (frame=, out=; cdvr/dist.h) */
     out_pattern out;
+    cdvr_dist_play *dist; /* distribute= (cdvr/dist.h) */
 } lplayer;
 
 /* Uservalue slots of the player userdata. */
-enum { UV_OPTS = 1, UV_POLICY, UV_CAMERA, UV_STORE, UV_TF, UV_COUNT = UV_TF };
+enum { UV_OPTS = 1, UV_POLICY, UV_CAMERA, UV_STORE, UV_TF, UV_FRAME, UV_COUNT = UV_FRAME };
 
 static lplayer *checkplayer(lua_State *L, int idx)
 {
@@ -100,7 +104,7 @@ static void setnum(lua_State *L, const char *key, double v)
 /* Pushes one frame row as a table. */
 static void push_row(lua_State *L, const cdvr_store *st, const cdvr_frame_row *r)
 {
-    lua_createtable(L, 0, 20);
+    lua_createtable(L, 0, 22);
     lua_pushinteger(L, (lua_Integer)r->frame + 1);
     lua_setfield(L, -2, "frame");
     lua_pushinteger(L, (lua_Integer)r->t + 1);
@@ -119,6 +123,7 @@ static void push_row(lua_State *L, const cdvr_store *st, const cdvr_frame_row *r
     setnum(L, "payload_bytes", (double)r->payload_bytes);
     setnum(L, "device_bytes", (double)r->device_bytes);
     setnum(L, "composite_ms", r->composite_ms);
+    setnum(L, "wait_ms", r->wait_ms);
     lua_pushinteger(L, (lua_Integer)r->bricks_read);
     lua_setfield(L, -2, "bricks_read");
     lua_pushinteger(L, (lua_Integer)r->bricks_skipped);
@@ -356,13 +361,51 @@ static int parse_out_pattern(const char *text, out_pattern *p, char *why, size_t
     return conversions == 1;
 }
 
-/* After each frame: stops the run on Ctrl-C in the console; with out= writes the PNG. */
+typedef struct frame_ctx {
+    lplayer *lp;
+    const cdvr_frame_row *row;
+    const cdvr_image *img;
+    cdvr_error *err;
+    cdvr_status status;
+} frame_ctx;
+
+/* Protected part of frame_cb for frame=function(row, image): frame_ctx (light userdata),
+ * player. The function gets a copy of the frame. */
+static int frame_lua(lua_State *L)
+{
+    frame_ctx *c = (frame_ctx *)lua_touserdata(L, 1);
+    const cdvr_image *img = c->img;
+    lua_getiuservalue(L, 2, UV_FRAME);            /* fn */
+    push_row(L, c->lp->opts.store, c->row);       /* fn, row */
+    cdvr_image *copy;
+    c->status = cdvr_image_create(img->width, img->height, &copy, c->err);
+    if (c->status != CDVR_OK)
+        return 0;
+    memcpy(copy->rgba, img->rgba, (size_t)img->width * (size_t)img->height * 4 * sizeof(float));
+    memcpy(copy->background, img->background, sizeof copy->background);
+    lcdvr_pushimage(L, copy);                     /* fn, row, image */
+    c->status = call_budgeted(c->lp, L, 2, 0, "frame", c->err);
+    return 0;
+}
+
+/* After each frame: stops the run on Ctrl-C in the console; where this process shows the
+ * frames (distribute='bricks': rank 0), hands it to frame= and, with out=, writes the PNG. */
 static cdvr_status frame_cb(void *ud, const cdvr_frame_row *row, const cdvr_image *img, cdvr_error *err)
 {
     lplayer *lp = ud;
     const atomic_int *interrupt = lcdvr_interrupt_flag(lp->L);
     if (interrupt && atomic_load(interrupt))
         return cdvr_error_set(err, CDVR_ERR_CANCELLED, "playback interrupted");
+    if (!lp->shows_frames)
+        return CDVR_OK;
+    if (lp->frame_callback) {
+        frame_ctx c = {lp, row, img, err, CDVR_OK};
+        cdvr_status s = run_protected(lp, frame_lua, &c, "frame", err);
+        if (s == CDVR_OK)
+            s = c.status;
+        if (s != CDVR_OK)
+            return s;
+    }
     if (!lp->capture)
         return CDVR_OK;
     char number[128], path[2200];
@@ -649,13 +692,47 @@ static cdvr_store *store_and_tf(lua_State *L, int ud, lplayer *lp)
     return st;
 }
 
+/* frame=function(row, image): each shown frame handed to the script. */
+static void frame_option(lua_State *L, int ud, lplayer *lp)
+{
+    if (lua_getfield(L, 1, "frame") != LUA_TNIL) { /* frame function */
+        if (!is_callable(L, -1))
+            luaL_error(L, "cdvr.player: option 'frame': function(row, image) expected, got %s",
+                       luaL_typename(L, -1));
+        lua_pushvalue(L, -1);
+        lua_setiuservalue(L, ud, UV_FRAME);
+        lp->frame_callback = 1;
+    }
+    lua_pop(L, 1);
+}
+
+/* distribute= (cdvr/dist.h): this rank's share of the run. */
+static void distribute_option(lua_State *L, lplayer *lp)
+{
+    static const char *const modes[] = {"none", "time", "bricks", NULL};
+    const char *mode = lcdvr_optstringfield(L, 1, "distribute", "none");
+    int m = 0;
+    while (modes[m] && strcmp(modes[m], mode) != 0)
+        m++;
+    if (!modes[m])
+        luaL_error(L, "cdvr.player: invalid distribute '%s' (none, time, bricks)", mode);
+    if (m == CDVR_DIST_BRICKS && cdvr_dist_size() > 1 && lp->has_policy && !lp->capture)
+        luaL_error(L, "cdvr.player: distribute='bricks': every rank must read the same variant, so "
+                      "a policy cannot adapt per rank (give variant=, or capture with out=)");
+    cdvr_error err;
+    if (cdvr_dist_play_create((cdvr_dist_mode)m, &lp->opts, &lp->dist, &err) != CDVR_OK)
+        lcdvr_raise(L, &err);
+    lp->shows_frames = cdvr_dist_play_shows_frames(lp->dist); /* bricks: rank 0's composite */
+}
+
 static int l_player(lua_State *L)
 {
     static const char *const keys[] = {"store", "tf", "camera", "policy", "target_fps", "min_psnr",
                                        "variant", "device", "step", "unit", "term", "background",
                                        "threads", "pipeline", "ring", "cold", "read_mbps",
                                        "empty_skip", "callback_limit", "out", "pace", "width",
-                                       "height", "loop", "brick_skip", NULL};
+                                       "height", "loop", "brick_skip", "frame", "distribute",
+                                       NULL};
     luaL_checktype(L, 1, LUA_TTABLE);
     lcdvr_checkoptions(L, 1, "cdvr.player", keys);
     lplayer *lp = (lplayer *)lua_newuserdatauv(L, sizeof *lp, UV_COUNT); /* ud */
@@ -681,6 +758,7 @@ static int l_player(lua_State *L)
     lp->opts.variant = variant_option(L, st);
     lp->variant_why = "best quality (no variant, policy or min_psnr given)";
     lp->capture = capture_options(L, lp, st);
+    frame_option(L, ud, lp);
     double target_fps = number_option(L, "target_fps", 0, DBL_MIN, DBL_MAX, "a finite number > 0 expected");
     if (!lp->capture && lcdvr_optbooleanfield(L, 1, "pace", 1))
         lp->opts.pace_fps = target_fps;
@@ -691,8 +769,9 @@ static int l_player(lua_State *L)
         lp->opts.decide_ud = lp;
     }
     camera_option(L, ud, lp, info);
-    lp->opts.frame_fn = frame_cb; /* Ctrl-C in the console, and out= */
+    lp->opts.frame_fn = frame_cb; /* Ctrl-C in the console, frame= and out= */
     lp->opts.frame_ud = lp;
+    distribute_option(L, lp);
 
     cdvr_error err;
     cdvr_error_clear(&err);
@@ -742,29 +821,44 @@ static int player_run(lua_State *L)
     lp->L = L;
     lp->running = 1;
     cdvr_error err;
+    double t0 = cdvr_now_ms();
     cdvr_status status = cdvr_player_run(lp->player, (size_t)first - 1, (size_t)frames, &err);
+    double wall_ms = cdvr_now_ms() - t0;
     lp->running = 0;
     lp->L = NULL;
     if (status != CDVR_OK)
         return lcdvr_raise(L, &err);
     size_t n;
-    const cdvr_frame_row *rows = cdvr_player_rows(lp->player, &n);
-    lua_createtable(L, 0, 8);                     /* report */
+    const cdvr_frame_row *rows;
+    double fps;
+    if (cdvr_dist_play_gather(lp->dist, lp->player, wall_ms, &rows, &n, &fps, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    int ranks = cdvr_dist_size();
+    /* the decision in force on each rank: the reason of its last group start */
+    const char **why = lua_newuserdatauv(L, (size_t)ranks * sizeof *why, 0); /* why */
+    for (int r = 0; r < ranks; r++)
+        why[r] = NULL;
+    lua_createtable(L, 0, 10);                    /* why, report */
     if (cdvr_player_stopped_early(lp->player) > 0) { /* reached the last timestep, loop=false */
         lua_pushfstring(L, "stopped at the last timestep %d of %s after %d of %d frames "
                            "(cdvr.player{loop=true} plays on from timestep 1)",
-                        (int)info->timesteps, cdvr_store_path(lp->opts.store), (int)n, (int)frames);
+                        (int)info->timesteps, cdvr_store_path(lp->opts.store),
+                        (int)(frames - (lua_Integer)cdvr_player_stopped_early(lp->player)),
+                        (int)frames);
         lcdvr_warn(L, "%s", lua_tostring(L, -1));
         lua_setfield(L, -2, "stopped");
     }
-    setnum(L, "fps", cdvr_player_fps(lp->player));
-    lua_createtable(L, (int)n, 0);
-    const char *why = NULL; /* the decision in force: reason of the last group start */
+    setnum(L, "fps", fps);
+    setnum(L, "wall_ms", wall_ms);
+    lua_pushinteger(L, ranks);
+    lua_setfield(L, -2, "ranks");
+    lua_createtable(L, (int)n, 0);                /* why, report, frames */
     for (size_t i = 0; i < n; i++) {
+        int r = rows[i].rank >= 0 && rows[i].rank < ranks ? rows[i].rank : 0;
         push_row(L, lp->opts.store, &rows[i]);
         if (rows[i].group_start)
-            why = rows[i].reason;
-        lua_pushstring(L, why ? why : "");
+            why[r] = rows[i].reason;
+        lua_pushstring(L, why[r] ? why[r] : "");
         lua_setfield(L, -2, "why");
         lua_rawseti(L, -2, (lua_Integer)i + 1);
     }
@@ -787,6 +881,8 @@ static void release_player(lua_State *L, lplayer *lp)
 {
     cdvr_player_free(lp->player);
     lp->player = NULL;
+    cdvr_dist_play_free(lp->dist);
+    lp->dist = NULL;
     if (lp->holds_store) {
         lp->holds_store = 0;
         lua_getiuservalue(L, 1, UV_STORE);        /* store */
@@ -840,11 +936,14 @@ int lcdvr_open_player(lua_State *L)
                    "playback of a store: reader, stage-2 and device threads; camera = cdvr.Camera, path or function(frame, t); "
                    "policy = function(stats) or 'fixed'|'open_loop'|'closed_loop'; target_fps, variant, pipeline, cold, read_mbps, "
                    "out='frames/%04d.png' (capture: deterministic, never adapts; with policy= the policy's capture rule, else variant=, "
-                   "min_psnr= or the best quality), device='cl'|'cpu', pace (default true with target_fps); variant default: best quality; "
-                   "loop=true wraps past the last timestep (default: playback stops there, report.stopped says so)");
+                   "min_psnr= or the best quality), frame=function(row, image), device='cl'|'cpu', pace (default true with target_fps); "
+                   "variant default: best quality; loop=true wraps past the last timestep (default: playback stops there, report.stopped "
+                   "says so); brick_skip (default true: bricks the TF hides or the view misses are not read); "
+                   "distribute='time'|'bricks' (mpirun: frames or bricks shared by the ranks)");
     lcdvr_help_add(L, "p:run{frames=N, first=1}",
-                   "plays N frames -> {fps=, capture=, frames={rows: t, variant, why (the decision in force), read_ms .. render_ms, "
-                   "frame_ms, reason (at group starts), error}, median={...}}");
+                   "plays N frames -> {fps=, wall_ms=, ranks=, capture=, frames={rows: frame, t, variant, rank, why (the decision in "
+                   "force), read_ms .. render_ms, composite_ms, wait_ms, frame_ms, bricks_read, bricks_skipped, reason (at group "
+                   "starts), error}, median={...}} (mpirun: rank 0 gets every rank's rows)");
     lcdvr_help_add(L, "p:close()", "release the player's buffers and its OpenCL stream");
     return 0;
 }

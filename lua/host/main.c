@@ -24,6 +24,7 @@
 #endif
 
 #include "cdvr/plugin.h"
+#include "cdvr/dist.h"
 #include "lcdvr.h"
 
 #ifndef CDVR_SHARE_DIR
@@ -167,7 +168,11 @@ static int report(lua_State *L, int status)
 {
     if (status != LUA_OK) {
         const char *msg = lua_tostring(L, -1);
-        fprintf(stderr, "cdvr: %s\n", msg ? msg : "(error)");
+        if (cdvr_dist_size() > 1) /* mpirun: say which rank failed */
+            fprintf(stderr, "cdvr: rank %d of %d: %s\n", cdvr_dist_rank(), cdvr_dist_size(),
+                    msg ? msg : "(error)");
+        else
+            fprintf(stderr, "cdvr: %s\n", msg ? msg : "(error)");
         fflush(stderr);
         lua_pop(L, 1);
     }
@@ -209,6 +214,7 @@ static int open_cdvr(lua_State *L)
     lcdvr_open_codec(L);
     lcdvr_open_gl(L);
     lcdvr_open_window(L);
+    lcdvr_open_mpi(L);
 
     lua_pushvalue(L, -1);
     lua_setglobal(L, "cdvr");
@@ -640,6 +646,11 @@ int main(int argc, char **argv)
     }
 
     load_plugins();
+    cdvr_error derr;
+    if (cdvr_dist_init(&argc, &argv, &derr) != CDVR_OK) {
+        fprintf(stderr, "cdvr: %s\n", derr.msg);
+        return 1;
+    }
     lua_State *L = luaL_newstate();
     if (!L) {
         fprintf(stderr, "cdvr: cannot create Lua state: not enough memory\n");
@@ -659,6 +670,9 @@ int main(int argc, char **argv)
         status = run_script(L, strcmp(argv[script], "-") == 0 ? NULL : argv[script], argv, argc, script);
     if (status == LUA_OK && interactive)
         console(L);
+    if (status != LUA_OK)
+        cdvr_dist_abort(1); /* mpirun: end every rank, none waits for this one */
     lua_close(L);
+    cdvr_dist_finalize();
     return status == LUA_OK ? 0 : 1;
 }

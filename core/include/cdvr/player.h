@@ -126,10 +126,11 @@ typedef struct cdvr_player_opts {
     int brick_skip;              /* 1: skip bricks that are transparent or out of view */
     /* Distribution (filled by cdvr/dist.h; all zero: this process plays everything). */
     size_t frame_stride, frame_phase; /* play only frames k with k % stride == phase (0 -> 1, 0) */
-    size_t region_lo[3], region_hi[3];/* read only bricks (i,j,k) of the brick grid with
-                                         lo <= (i,j,k) < hi; hi all 0 -> the whole grid. A
-                                         region smaller than the grid is rendered clipped to
-                                         its cells (render.h, cdvr_render_clip) */
+    size_t region_lo[3], region_hi[3];/* render only bricks (i,j,k) of the brick grid with
+                                         lo <= (i,j,k) < hi: hi all 0 -> the whole grid; lo ==
+                                         hi on an axis -> none (transparent frames). A region
+                                         smaller than the grid is rendered clipped to its cells
+                                         (render.h, cdvr_render_clip) */
     int rank;                    /* recorded in the rows */
     cdvr_composite_fn composite; /* may be NULL */
     void *composite_ud;
