@@ -13,7 +13,8 @@ packages=(build-essential cmake pkg-config liblua5.4-dev libteem-dev libniftiio-
           liblzo2-dev opencl-headers ocl-icd-opencl-dev pocl-opencl-icd clinfo libstb-dev
           libreadline-dev gnuplot-nox
           libglfw3-dev libegl-dev libgl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri
-          xvfb xauth libxtst6 python3)
+          xvfb xauth libxtst6 python3
+          libopenmpi-dev openmpi-bin paraview-dev paraview) # MPI ranks + IceT (CDVR_WITH_MPI)
 
 missing=()
 for p in "${packages[@]}"; do
@@ -38,10 +39,10 @@ case "$mode" in
     build build
     ./build/cdvr scripts/demo.lua ;;
   test)
-    build build
+    build build -DCDVR_WITH_MPI=ON
     cd build && ctest --output-on-failure -j"$jobs" ;;
   test-sanitize)
-    build build-asan -DCDVR_SANITIZE=ON
+    build build-asan -DCDVR_SANITIZE=ON -DCDVR_WITH_MPI=ON
     cd build-asan && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
       LSAN_OPTIONS=suppressions=$PWD/../tests/lsan.supp ctest --output-on-failure -j"$jobs" ;;
   *)

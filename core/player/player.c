@@ -644,13 +644,23 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
     cdvr_render_opts ro;
     render_opts_for(p, cam, &ro);
     *setup_ms = *render_ms = 0;
-    if (it->bricks_read == 0)
+    if (it->bricks_region == 0) /* nothing of the region to render: transparent */
         return blank_image(p, cam, img, err);
-    if (p->clipped)
-        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "player: rendering a region of the "
-                              "bricks is not supported by this renderer");
+    cdvr_render_clip clip;
+    if (p->clipped) { /* a region of the bricks (sort-last): its cells only, render.h */
+        for (int a = 0; a < 3; a++) {
+            clip.whole_dims[a] = info->dims[a];
+            clip.offset[a] = p->vox_lo[a];
+            clip.own_lo[a] = p->own_lo[a];
+            clip.own_hi[a] = p->own_hi[a];
+        }
+        ro.clip = &clip;
+    }
 #if CDVR_HAVE_OPENCL
     if (p->opts.device == CDVR_DEVICE_CL) {
+        if (p->clipped)
+            return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "player: the OpenCL renderer does "
+                                  "not render a region of the bricks yet (device='cpu')");
         double t0 = cdvr_now_ms();
         cdvr_status s = cdvr_cl_setup(p->stream, f, p->opts.tf, err);
         double t1 = cdvr_now_ms();

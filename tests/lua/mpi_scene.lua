@@ -38,7 +38,7 @@ local scenes = {
 
 local function play(opts)
   local images, rows = {}, nil
-  opts.store, opts.tf, opts.device, opts.width, opts.height = st, tf, device, 48, 40
+  opts.store, opts.device, opts.width, opts.height = st, device, 48, 40
   opts.loop, opts.threads = true, 1
   opts.frame = function(row, img) images[row.frame] = img end
   local p = cdvr.player(opts)
@@ -47,12 +47,26 @@ local function play(opts)
   return images, rows
 end
 
-local min_psnr = math.huge
+-- Opaque: early termination off (term = 1), else a box stops on its own alpha only and a
+-- pixel may keep up to 1 - term_alpha of colour the one-process ray dropped (cdvr/dist.h).
+local opaque = cdvr.tf{{0, 0, 0, 0, 0}, {60, .1, .2, .8, .3}, {140, .9, .5, .2, .7},
+                       {255, 1, 1, .9, .95}}
+local runs = {}
 for _, name in ipairs{"outside", "inside"} do
   for _, variant in ipairs{"raw", "S1T3"} do
-    local out = ("%s/%s_%s/%%02d.png"):format(dir, name, variant)
-    local got, report = play{camera = scenes[name], variant = variant, distribute = mode, out = out}
-    local ref = play{camera = scenes[name], variant = variant}
+    runs[#runs + 1] = {name = name, variant = variant, tf = tf}
+  end
+end
+runs[#runs + 1] = {name = "outside", variant = "raw", tf = opaque, term = 1, tag = "_opaque"}
+
+local min_psnr = math.huge
+for _, run in ipairs(runs) do
+  local name, variant = run.name, run.variant
+  do
+    local out = ("%s/%s_%s%s/%%02d.png"):format(dir, name, variant, run.tag or "")
+    local got, report = play{camera = scenes[name], variant = variant, distribute = mode, out = out,
+                             tf = run.tf, term = run.term}
+    local ref = play{camera = scenes[name], variant = variant, tf = run.tf, term = run.term}
     local shown = 0
     for frame, img in pairs(got) do
       local r = cdvr.compare(img, ref[frame])

@@ -35,6 +35,24 @@
  *  5. Front-to-back: C += (1 - A) * a * rgb; A += (1 - A) * a. Stop after a sample with
  *     A >= term_alpha (early termination).
  *  6. The pixel stores premultiplied (C, A); the background is composited later (image.h).
+ *
+ * Clipped rendering (opts->clip; sort-last compositing of boxes of one volume, cdvr/dist.h):
+ * the volume passed holds only voxels offset .. offset + dims - 1 of a whole volume of
+ * whole_dims voxels; its origin, spacing and direction are the whole volume's. Steps 0-2
+ * use the whole volume's box, so the rays, t_near, t_far, n and every segment and midpoint
+ * are those of the render of the whole volume. Step 3 computes g for the whole volume
+ * (clamped to [0, whole_dims - 1]) and keeps the sample only if g lies in the owned cells:
+ * for each axis own_lo <= g < own_hi, or g <= own_hi where own_hi = whole_dims - 1 (the last
+ * box owns the far face); other samples are skipped (not classified, not composited, not
+ * counted). A kept sample interpolates voxels floor(g) and floor(g) + 1 of the whole volume,
+ * read from the passed volume at minus offset, so offset <= own_lo and own_hi <= offset +
+ * dims - 1 are required. Boxes whose owned cells tile the whole volume's cells (the brick
+ * rule of store.h: own_hi of one box = own_lo of the next) own disjoint sets of the whole
+ * render's samples that together are all of them, each with the same value; blended front
+ * to back in a visibility order (C = C_front + (1 - A_front) C_back, A likewise) they give
+ * the whole render up to float rounding, except that early termination (step 5) acts on
+ * each box's own accumulation: with term_alpha < 1 a pixel may keep up to (1 - term_alpha)
+ * of colour the whole render would have dropped.
  */
 #ifndef CDVR_RENDER_H
 #define CDVR_RENDER_H
@@ -48,6 +66,14 @@
 #include "cdvr/tf.h"
 #include "cdvr/volume.h"
 
+/* The box of a whole volume that a clipped render covers (see above). */
+typedef struct cdvr_render_clip {
+    size_t whole_dims[3];   /* dims of the whole volume */
+    size_t offset[3];       /* whole-volume index of the passed volume's voxel (0,0,0) */
+    size_t own_lo[3];       /* owned cells: voxel planes own_lo .. own_hi per axis */
+    size_t own_hi[3];
+} cdvr_render_clip;
+
 typedef struct cdvr_render_opts {
     const cdvr_tf *tf;
     const cdvr_camera *camera;
@@ -56,6 +82,7 @@ typedef struct cdvr_render_opts {
     double term_alpha;  /* early termination threshold; 0 -> 0.99; >= 1 disables */
     float background[4];/* straight RGBA stored into the image */
     int threads;        /* 0 -> number of online CPUs */
+    const cdvr_render_clip *clip; /* NULL: the volume is whole; else render only its box */
     uint64_t samples;   /* out: samples taken (for samples/second) */
     const atomic_int *cancel; /* optional: once *cancel != 0 (e.g. set by a SIGINT handler)
                                  the render stops and fails with CDVR_ERR_CANCELLED */

@@ -13,10 +13,14 @@
 
 typedef struct render_job {
     const uint8_t *voxels;
-    int dims[3];
+    int dims[3];             /* of the whole volume (clipped: render.h) */
     size_t stride_y, stride_z;
     double origin[3], inv_dir[9];   /* step 0: box frame q = inv_dir * (world - origin) */
     float inv_spacing[3], box_hi[3]; /* box [0, box_hi] in the box frame */
+    int clipped;             /* opts->clip given: keep only samples in the owned cells */
+    size_t offset[3];        /* whole-volume index of the passed voxels' first one */
+    float own_lo[3], own_hi[3];
+    int own_far[3];          /* own_hi is the volume's far face (closed there) */
     float step, unit, term_alpha;
     const cdvr_tf *tf;
     float alpha_step[256]; /* a_c[i] = 1 - (1 - a[i])^(step/unit) */
@@ -78,19 +82,34 @@ static float lerpf(float a, float b, float f)
     return a + f * (b - a);
 }
 
-/* Step 3: trilinear interpolation at box-frame position p (grid coordinates clamped). */
-static float sample_volume(const render_job *job, const float p[3])
+/* Step 3, first half: grid coordinates of box-frame position p, clamped. */
+static void grid_position(const render_job *job, const float p[3], float g[3])
+{
+    for (int a = 0; a < 3; a++) {
+        float top = (float)(job->dims[a] - 1);
+        g[a] = fminf(fmaxf(p[a] * job->inv_spacing[a], 0.0f), top);
+    }
+}
+
+/* Clipped rendering: is the sample at grid position g in the owned cells? */
+static int owned(const render_job *job, const float g[3])
+{
+    for (int a = 0; a < 3; a++)
+        if (g[a] < job->own_lo[a] || (g[a] >= job->own_hi[a] && !job->own_far[a]))
+            return 0;
+    return 1;
+}
+
+/* Step 3, second half: trilinear interpolation at grid position g (of the whole volume). */
+static float sample_volume(const render_job *job, const float g[3])
 {
     size_t lo[3], hi[3];
     float f[3];
     for (int a = 0; a < 3; a++) {
-        float g = p[a] * job->inv_spacing[a];
-        float top = (float)(job->dims[a] - 1);
-        g = fminf(fmaxf(g, 0.0f), top);
-        int i0 = (int)g;
-        lo[a] = (size_t)i0;
-        hi[a] = (size_t)(i0 + 1 < job->dims[a] ? i0 + 1 : i0);
-        f[a] = g - (float)i0;
+        int i0 = (int)g[a];
+        lo[a] = (size_t)i0 - job->offset[a];
+        hi[a] = (size_t)(i0 + 1 < job->dims[a] ? i0 + 1 : i0) - job->offset[a];
+        f[a] = g[a] - (float)i0;
     }
     const uint8_t *v = job->voxels;
     size_t y0 = lo[1] * job->stride_y, y1 = hi[1] * job->stride_y;
@@ -121,6 +140,34 @@ static void classify(const render_job *job, float s, float ds, int full, float r
             rgba[c] = lerpf(lo[c], hi[c], f);
 }
 
+/* Clipped rendering: segments [*first, *stop) of a ray (n segments from t_near) that may
+ * have their midpoint in the owned cells: the ray's stretch (box frame) through the owned box
+ * widened by a cell, in double, then by two segments each side for rounding. The exact test
+ * is owned(), on each sample's own grid position. */
+static void owned_segments(const render_job *job, const float o[3], const float d[3],
+                           float t_near, long n, long *first, long *stop)
+{
+    double t0 = -INFINITY, t1 = INFINITY;
+    for (int a = 0; a < 3; a++) {
+        double sp = 1.0 / job->inv_spacing[a];
+        double lo = (job->own_lo[a] - 1.0) * sp, hi = (job->own_hi[a] + 1.0) * sp;
+        if (fabs(d[a]) < 1e-12) {
+            if (o[a] < lo || o[a] > hi) {
+                *first = *stop = 0;
+                return;
+            }
+            continue;
+        }
+        double ta = (lo - o[a]) / d[a], tb = (hi - o[a]) / d[a];
+        t0 = fmax(t0, fmin(ta, tb));
+        t1 = fmin(t1, fmax(ta, tb));
+    }
+    double step = job->step;
+    double f = floor((t0 - t_near) / step) - 2.0, s = ceil((t1 - t_near) / step) + 2.0;
+    *first = f < 0.0 ? 0 : f > (double)n ? n : (long)f;
+    *stop = s < 0.0 ? 0 : s > (double)n ? n : (long)s;
+}
+
 /* Steps 2 and 5 for one ray; returns the number of samples taken. */
 static uint64_t march_ray(const render_job *job, const float o[3], const float d[3],
                           float out[4])
@@ -134,32 +181,37 @@ static uint64_t march_ray(const render_job *job, const float o[3], const float d
     if (n < 1)
         n = 1;
     float C[3] = {0.0f, 0.0f, 0.0f}, A = 0.0f;
-    long i;
-    for (i = 0; i < n; i++) {
+    long i, first = 0, stop = n;
+    if (job->clipped)
+        owned_segments(job, o, d, t_near, n, &first, &stop);
+    uint64_t taken = 0;
+    for (i = first; i < stop; i++) {
         float ts = t_near + (float)i * step;
         float ds = i < n - 1 ? step : t_far - ts;
         if (ds <= 0.0f)
             break;
-        float tm = ts + 0.5f * ds, p[3], rgba[4];
+        float tm = ts + 0.5f * ds, p[3], g[3], rgba[4];
         for (int a = 0; a < 3; a++)
             p[a] = o[a] + tm * d[a];
-        classify(job, sample_volume(job, p), ds, ds >= step, rgba);
+        grid_position(job, p, g);
+        if (job->clipped && !owned(job, g))
+            continue;
+        taken++;
+        classify(job, sample_volume(job, g), ds, ds >= step, rgba);
         if (rgba[3] > 0.0f) {
             float w = (1.0f - A) * rgba[3];
             for (int c = 0; c < 3; c++)
                 C[c] += w * rgba[c];
             A += w;
-            if (A >= job->term_alpha || A >= 1.0f) {
-                i++;
+            if (A >= job->term_alpha || A >= 1.0f)
                 break;
-            }
         }
     }
     out[0] = C[0];
     out[1] = C[1];
     out[2] = C[2];
     out[3] = A;
-    return (uint64_t)i;
+    return taken;
 }
 
 /* Step 0: the world ray (double) in the box frame, rounded to float. */
@@ -227,6 +279,21 @@ static void run_workers(render_job *job, int nthreads)
         pthread_join(threads[i], NULL);
 }
 
+/* The clip box must lie inside the whole volume and its owned cells inside the passed
+ * voxels (render.h). */
+static cdvr_status check_clip(const cdvr_volume *vol, const cdvr_render_clip *c, cdvr_error *err)
+{
+    for (int a = 0; c && a < 3; a++)
+        if (c->whole_dims[a] == 0 || c->whole_dims[a] > INT_MAX || c->own_lo[a] > c->own_hi[a] ||
+            c->own_hi[a] >= c->whole_dims[a] || c->offset[a] > c->own_lo[a] ||
+            c->own_hi[a] > c->offset[a] + vol->dims[a] - 1)
+            return cdvr_error_set(err, CDVR_ERR_ARG, "render: clip axis %d: owned cells %zu..%zu "
+                                  "of %zu voxels are not inside the %zu voxels given from %zu", a,
+                                  c->own_lo[a], c->own_hi[a], c->whole_dims[a], vol->dims[a],
+                                  c->offset[a]);
+    return CDVR_OK;
+}
+
 static cdvr_status check_volume(const cdvr_volume *vol, size_t t, cdvr_error *err)
 {
     if (vol->type != CDVR_TYPE_U8)
@@ -282,14 +349,21 @@ static void setup_job(render_job *job, const cdvr_volume *vol, size_t t,
     job->voxels = cdvr_volume_frame(vol, t);
     job->stride_y = vol->dims[0];
     job->stride_z = vol->dims[0] * vol->dims[1];
+    const cdvr_render_clip *clip = opts->clip;
     double D[9];
     cdvr_volume_direction(vol, D);
     cdvr_mat3_inverse(D, job->inv_dir); /* invertible: checked by check_volume */
+    job->clipped = clip != NULL;
     for (int a = 0; a < 3; a++) {
-        job->dims[a] = (int)vol->dims[a];
+        size_t whole = clip ? clip->whole_dims[a] : vol->dims[a];
+        job->dims[a] = (int)whole;
         job->origin[a] = vol->origin[a];
         job->inv_spacing[a] = (float)(1.0 / vol->spacing[a]);
-        job->box_hi[a] = (float)((double)(vol->dims[a] - 1) * vol->spacing[a]);
+        job->box_hi[a] = (float)((double)(whole - 1) * vol->spacing[a]);
+        job->offset[a] = clip ? clip->offset[a] : 0;
+        job->own_lo[a] = clip ? (float)clip->own_lo[a] : 0.0f;
+        job->own_hi[a] = clip ? (float)clip->own_hi[a] : (float)(whole - 1);
+        job->own_far[a] = !clip || clip->own_hi[a] + 1 == whole;
     }
     job->step = (float)step;
     job->unit = (float)unit;
@@ -347,6 +421,8 @@ cdvr_status cdvr_render_cpu(const cdvr_volume *vol, size_t t, cdvr_render_opts *
     if (!vol || !opts)
         return cdvr_error_set(err, CDVR_ERR_ARG, "render: NULL volume or options");
     cdvr_status st = check_volume(vol, t, err);
+    if (st == CDVR_OK)
+        st = check_clip(vol, opts->clip, err);
     if (st != CDVR_OK)
         return st;
     double step, unit, term;
