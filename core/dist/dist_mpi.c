@@ -140,11 +140,13 @@ static void icet_setup(int width, int height, const int *order)
 /* The composite hook of CDVR_DIST_BRICKS (player.h): every rank's image blended in
  * visibility order into rank 0's. */
 static cdvr_status composite_frame(void *ud, const cdvr_frame_row *row, const cdvr_camera *cam,
-                                   cdvr_image **img, cdvr_error *err)
+                                   cdvr_image **img, double *wait_ms, cdvr_error *err)
 {
     cdvr_dist_play *dp = ud;
     int mine = row->status != CDVR_OK ? the_group.rank : -1, failed = -1;
+    double t0 = cdvr_now_ms(); /* the reduction completes when the last rank's frame is ready */
     MPI_Allreduce(&mine, &failed, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    *wait_ms = cdvr_now_ms() - t0;
     if (failed >= 0) {
         if (the_group.rank == 0) {
             cdvr_image_free(*img);

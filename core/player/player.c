@@ -735,9 +735,10 @@ static void composite(cdvr_player *p, cdvr_frame_row *row, const cdvr_camera *ca
     cdvr_error cerr;
     cdvr_error_clear(&cerr);
     row->status = ferr->status;
-    double t0 = cdvr_now_ms();
-    cdvr_status s = p->opts.composite(p->opts.composite_ud, row, cam, img, &cerr);
-    row->composite_ms = cdvr_now_ms() - t0;
+    double t0 = cdvr_now_ms(), wait = 0;
+    cdvr_status s = p->opts.composite(p->opts.composite_ud, row, cam, img, &wait, &cerr);
+    row->wait_ms = wait;
+    row->composite_ms = cdvr_now_ms() - t0 - wait;
     if (s != CDVR_OK && ferr->status == CDVR_OK) {
         *ferr = cerr;
         if (ferr->status == CDVR_OK)

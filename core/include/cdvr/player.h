@@ -72,7 +72,8 @@ typedef struct cdvr_frame_row {
     uint64_t payload_bytes;  /* bytes after stage 2, this frame's share */
     uint64_t device_bytes;   /* cl device: memory the device stream holds for this frame
                                 (compressed payload in fetch mode); 0 on the cpu device */
-    double composite_ms;     /* the composite hook (distributed compositing) */
+    double composite_ms;     /* the composite hook (distributed compositing), wait_ms excluded */
+    double wait_ms;          /* the composite hook waiting for the other processes' frames */
     size_t bricks_read;      /* bricks read and decoded for this frame's chunk group */
     size_t bricks_skipped;   /* bricks of the player's region not read (transparent or unseen) */
     int rank;                /* process that played the frame (cdvr/dist.h; 0 in one process) */
@@ -96,11 +97,12 @@ typedef cdvr_status (*cdvr_camera_fn)(void *ud, size_t t, size_t frame, cdvr_cam
 /* Called on the calling thread after each frame's render with its row, camera and image
  * (*img NULL when the frame failed here), for every frame, in frame order: may replace *img
  * (freeing the old one), e.g. by the composite of every process's image (cdvr/dist.h), or set
- * it to NULL (nothing to show here). A non-OK return fails the frame (its row gets the error);
- * the run goes on. */
+ * it to NULL (nothing to show here). *wait_ms (preset 0) gets the part of its time spent
+ * waiting for other processes. A non-OK return fails the frame (its row gets the error); the
+ * run goes on. */
 typedef cdvr_status (*cdvr_composite_fn)(void *ud, const cdvr_frame_row *row,
                                          const cdvr_camera *cam, cdvr_image **img,
-                                         cdvr_error *err);
+                                         double *wait_ms, cdvr_error *err);
 /* Called after each frame with the row and the image (e.g. to write a PNG); may be NULL. */
 typedef cdvr_status (*cdvr_frame_fn)(void *ud, const cdvr_frame_row *row, const cdvr_image *img,
                                      cdvr_error *err);
