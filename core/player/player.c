@@ -658,9 +658,6 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
     }
 #if CDVR_HAVE_OPENCL
     if (p->opts.device == CDVR_DEVICE_CL) {
-        if (p->clipped)
-            return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "player: the OpenCL renderer does "
-                                  "not render a region of the bricks yet (device='cpu')");
         double t0 = cdvr_now_ms();
         cdvr_status s = cdvr_cl_setup(p->stream, f, p->opts.tf, err);
         double t1 = cdvr_now_ms();

@@ -37,4 +37,13 @@ typedef struct cdvr_cl_box_frame {
     cdvr_cl_f32 origin[3], inv_dir[9];
 } cdvr_cl_box_frame;
 
+/* Clipped rendering (render.h, cdvr_render_clip) in the ray caster's terms: the stream's
+ * frame holds the whole volume's voxels from `offset`; a sample at whole-volume grid
+ * position g (clamped to [0, whole_top]) is kept when own_lo <= g < own_hi per axis, or
+ * g <= own_hi on axes where own_far is set (own_hi is the volume's far face). */
+typedef struct cdvr_cl_clip {
+    cdvr_cl_f32 offset[3], whole_top[3], own_lo[3], own_hi[3];
+    cdvr_cl_i32 own_far[3], enabled;
+} cdvr_cl_clip;
+
 #endif

@@ -30,6 +30,7 @@ typedef struct vec3x8 {
 
 typedef cdvr_cl_camera cam_params; /* kernels/common/cl_shared.h */
 typedef cdvr_cl_box_frame box_frame; /* render.h step 0, kernels/common/cl_shared.h */
+typedef cdvr_cl_clip clip_params;    /* clipped rendering, render.h */
 
 /* Voxels are read from a dense u8 frame, or, when the program is built with
  * -DCDVR_FETCH=name, through a codec's per-sample fetch function (cdvr/codec.h): vol is then
@@ -42,6 +43,7 @@ typedef struct volume_geo {
     int3 base_max;  /* largest lower trilinear corner per axis: max(dims - 2, 0) */
     long3 stride;   /* index step to the upper corner per axis; 0 where dims is 1 */
     float3 top;     /* dims - 1 */
+    float3 offset;  /* clipped rendering: whole-volume index of voxel (0,0,0), else 0 */
 } volume_geo;
 
 /* Per-lane rays of the packet and their clipped segments. */
@@ -165,12 +167,14 @@ static vfloat fetch8(const volume_geo *v, vint x, vint y, vint z)
 
 /* render.h step 3 at grid position g (clamped here). */
 /* always inlined: as a call (two callers) its vector arguments and result go through memory */
+/* g is a whole-volume grid position; the frame's voxels start at v->offset (an integer:
+ * g - offset is exact in float). */
 __attribute__((always_inline)) static inline vfloat trilinear(const volume_geo *v, vec3x8 g)
 {
     vfloat fx, fy, fz;
-    vint x0 = corner(g.x, v->top.x, v->base_max.x, &fx);
-    vint y0 = corner(g.y, v->top.y, v->base_max.y, &fy);
-    vint z0 = corner(g.z, v->top.z, v->base_max.z, &fz);
+    vint x0 = corner(g.x - v->offset.x, v->top.x, v->base_max.x, &fx);
+    vint y0 = corner(g.y - v->offset.y, v->top.y, v->base_max.y, &fy);
+    vint z0 = corner(g.z - v->offset.z, v->top.z, v->base_max.z, &fz);
 #ifdef CDVR_FETCH
     vint x1 = x0 + (v->stride.x != 0), y1 = y0 + (v->stride.y != 0), z1 = z0 + (v->stride.z != 0);
     return mix(mix(mix(fetch8(v, x0, y0, z0), fetch8(v, x1, y0, z0), fx),
@@ -298,21 +302,37 @@ static void brick_step(march *m, vint need, const bricks *b, const volume_geo *v
     m->end = select(m->end, select(m->end, run_end, visible), need);
 }
 
+/* Clipped rendering: lanes whose sample at whole-volume grid position g is in the owned
+ * cells (all lanes when not clipped). */
+static vint owned(const clip_params *c, vec3x8 g)
+{
+    if (!c->enabled)
+        return (vint)(-1);
+    vfloat gx = clamp(g.x, 0.0f, c->whole_top[0]), gy = clamp(g.y, 0.0f, c->whole_top[1]);
+    vfloat gz = clamp(g.z, 0.0f, c->whole_top[2]);
+    return gx >= c->own_lo[0] & (gx < c->own_hi[0] | (vint)(-c->own_far[0])) &
+           gy >= c->own_lo[1] & (gy < c->own_hi[1] | (vint)(-c->own_far[1])) &
+           gz >= c->own_lo[2] & (gz < c->own_hi[2] | (vint)(-c->own_far[2]));
+}
+
 /* Samples the lanes inside a visible run (all lanes run when skipping is off). */
-static void sample_step(march *m, vint run, const volume_geo *v, vec3x8 g0, vec3x8 dg,
-                        __global const float4 *table, float term_alpha, rgba8 *acc)
+static void sample_step(march *m, vint run, const volume_geo *v, const clip_params *clip,
+                        vec3x8 g0, vec3x8 dg, __global const float4 *table, float term_alpha,
+                        rgba8 *acc)
 {
     vint i0;
     vfloat fr;
-    rgba8 c = classify(trilinear(v, at(g0, dg, m->i)), table, &i0, &fr);
-    c.a = select((vfloat)(0.0f), c.a, run);
+    vec3x8 g = at(g0, dg, m->i);
+    vint keep = run & owned(clip, g);
+    rgba8 c = classify(trilinear(v, g), table, &i0, &fr);
+    c.a = select((vfloat)(0.0f), c.a, keep);
     composite(acc, c);
     m->i -= run;
-    m->taken -= run;
+    m->taken -= keep;
     /* Termination changes the lanes only behind a branch: as a data dependency it would chain
      * each step's sample addresses to the previous step's compositing, while the branch
      * (rarely taken) lets the CPU start the next step's loads early. */
-    vint stop = run & (acc->a >= term_alpha | acc->a >= 1.0f);
+    vint stop = keep & (acc->a >= term_alpha | acc->a >= 1.0f);
     if (any(stop)) {
         m->done |= stop;
         m->active &= ~stop;
@@ -321,8 +341,8 @@ static void sample_step(march *m, vint run, const volume_geo *v, vec3x8 g0, vec3
 }
 
 static void march_full(march *m, int skipping, const bricks *b, const volume_geo *v,
-                       vec3x8 g0, vec3x8 dg, __global const float4 *table, float term_alpha,
-                       rgba8 *acc)
+                       const clip_params *clip, vec3x8 g0, vec3x8 dg,
+                       __global const float4 *table, float term_alpha, rgba8 *acc)
 {
     while (any(m->active)) {
         if (skipping) {
@@ -334,13 +354,13 @@ static void march_full(march *m, int skipping, const bricks *b, const volume_geo
         }
         vint run = m->active & (m->i < m->end);
         if (any(run))
-            sample_step(m, run, v, g0, dg, table, term_alpha, acc);
+            sample_step(m, run, v, clip, g0, dg, table, term_alpha, acc);
     }
 }
 
 /* The last segment, shorter than step unless L is a multiple of it, on lanes `last`. */
 static void last_segment(const packet *p, vint n, vint last, float step, float unit,
-                         const volume_geo *v, float3 inv_spacing,
+                         const volume_geo *v, const clip_params *clip, float3 inv_spacing,
                          __global const float4 *table, __global const float *alpha,
                          rgba8 *acc, vint *taken)
 {
@@ -352,6 +372,9 @@ static void last_segment(const packet *p, vint n, vint last, float step, float u
     vfloat tm = ts + 0.5f * ds;
     vec3x8 g = {(p->o.x + tm * p->d.x) * inv_spacing.x, (p->o.y + tm * p->d.y) * inv_spacing.y,
                 (p->o.z + tm * p->d.z) * inv_spacing.z};
+    last &= owned(clip, g);
+    if (!any(last))
+        return;
     vint i0;
     vfloat fr;
     rgba8 c = classify(trilinear(v, g), table, &i0, &fr);
@@ -372,7 +395,7 @@ static void last_segment(const packet *p, vint n, vint last, float step, float u
 }
 
 static volume_geo make_geo(__global const uchar *vol, __constant uchar *params, int frame,
-                           int X, int Y, int Z)
+                           int X, int Y, int Z, const clip_params *clip)
 {
     volume_geo v;
     v.vol = vol;
@@ -382,6 +405,8 @@ static volume_geo make_geo(__global const uchar *vol, __constant uchar *params, 
     v.base_max = max(v.dims - 2, 0);
     v.stride = (long3)(X > 1 ? 1 : 0, Y > 1 ? (long)X : 0, Z > 1 ? (long)X * (long)Y : 0);
     v.top = convert_float3(v.dims - 1);
+    v.offset = clip->enabled ? (float3)(clip->offset[0], clip->offset[1], clip->offset[2])
+                             : (float3)(0.0f);
     return v;
 }
 
@@ -456,14 +481,15 @@ static void visible_range(vec3x8 g0, vec3x8 dg, float3 lo, float3 hi, vint n_ful
 /* frames/params/offset: a dense frame at frames + offset (params unused), or, with
  * CDVR_FETCH, the chunk payload, its parameter blob and the frame index within the chunk.
  * Geometry as render_cpu.c holds it: the box frame (origin, D^-1), 1/spacing and the box's
- * upper corner (dims-1)*spacing in the box frame (computed in double on the host). table: rgb + step-corrected alpha; alpha: alpha per unit (for the
+ * upper corner (dims-1)*spacing in the box frame (computed in double on the host; the whole
+ * volume's when clipped: clip, render.h). table: rgb + step-corrected alpha; alpha: alpha per unit (for the
  * shorter last segment). Bricks: edge 1 << brick_shift, counts nbx, nby, nbz, skipping on/off.
  * Work-item (gx, gy) renders the PACKET_W x PACKET_H pixels from (PACKET_W gx, PACKET_H gy). */
 __kernel void raycast(__global const uchar *frames, __constant uchar *params, ulong offset,
                       int X, int Y, int Z,
                       box_frame box, float isx, float isy, float isz,
                       float hx, float hy, float hz,
-                      float step, float term_alpha, cam_params cam,
+                      float step, float term_alpha, cam_params cam, clip_params clip,
                       __global const float4 *table, __global const float *alpha,
                       float unit, __global const uchar *brick_visible, int brick_shift,
                       int nbx, int nby, int nbz, int skipping, float vlx, float vly,
@@ -497,9 +523,9 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
                  select((vfloat)(0.0f), p.d.y * step * inv_spacing.y, p.hit),
                  select((vfloat)(0.0f), p.d.z * step * inv_spacing.z, p.hit)};
 #ifdef CDVR_FETCH
-    volume_geo v = make_geo(frames, params, (int)offset, X, Y, Z);
+    volume_geo v = make_geo(frames, params, (int)offset, X, Y, Z, &clip);
 #else
-    volume_geo v = make_geo(frames + offset, params, 0, X, Y, Z);
+    volume_geo v = make_geo(frames + offset, params, 0, X, Y, Z, &clip);
 #endif
     bricks b = make_bricks(brick_visible, brick_shift, nbx, nby, nbz, dg);
     march m;
@@ -513,13 +539,23 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
         last &= stop >= m.n_full; /* the last segment lies beyond the full ones */
         m.n_full = stop;
     }
+    if (clip.enabled) { /* only the samples near the owned cells (owned() decides); the host
+                           turns skipping off for clipped renders */
+        float3 own_lo = (float3)(clip.own_lo[0], clip.own_lo[1], clip.own_lo[2]) - 1.0f;
+        float3 own_hi = (float3)(clip.own_hi[0], clip.own_hi[1], clip.own_hi[2]) + 1.0f;
+        vint first, stop;
+        visible_range(g0, dg, own_lo, own_hi, m.n_full, &first, &stop);
+        last &= stop >= m.n_full;
+        m.i = max(m.i, first);
+        m.n_full = min(m.n_full, stop);
+    }
     m.end = skipping ? (vint)(0) : m.n_full;
     m.active = p.hit & (m.i < m.n_full);
     m.done = (vint)(0);
     m.taken = (vint)(0);
     rgba8 acc = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
-    march_full(&m, skipping, &b, &v, g0, dg, table, term_alpha, &acc);
-    last_segment(&p, n, last & ~m.done, step, unit, &v, inv_spacing, table, alpha,
+    march_full(&m, skipping, &b, &v, &clip, g0, dg, table, term_alpha, &acc);
+    last_segment(&p, n, last & ~m.done, step, unit, &v, &clip, inv_spacing, table, alpha,
                  &acc, &m.taken);
     store_pixels(image, px, py, cam.width, cam.height, acc);
     int8 t = m.taken;

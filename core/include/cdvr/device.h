@@ -110,7 +110,9 @@ cdvr_status cdvr_cl_setup(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf, cd
  * spacing, origin and direction (volume.h: row-major 3x3, column c = world direction of index
  * axis c; NULL or all zeros = identity; must be invertible). opts->tf is used only
  * for its unit when opts->unit is 0 (NULL: the TF of the setup); opts->threads and
- * opts->samples are ignored (see cdvr_cl_last_samples). img must have the camera's size;
+ * opts->samples are ignored (see cdvr_cl_last_samples). With opts->clip the stream's frames
+ * are the box of the whole volume that render.h's clipped rendering describes (no empty-space
+ * skipping then: the brick grid covers the box's voxels only). img must have the camera's size;
  * its pixels are overwritten and its background set from opts->background. */
 cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_opts *opts,
                            const double spacing[3], const double origin[3],

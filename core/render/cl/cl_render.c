@@ -9,6 +9,7 @@
 
 typedef cdvr_cl_camera cam_params; /* kernels/common/cl_shared.h */
 typedef cdvr_cl_box_frame box_frame; /* render.h step 0 */
+typedef cdvr_cl_clip clip_params;    /* clipped rendering, render.h */
 
 static cdvr_status run_kernel(cdvr_cl *cl, cl_kernel k, cl_uint ndim, const size_t *global,
                               const size_t *local, const char *what, cdvr_error *err)
@@ -338,22 +339,42 @@ static int make_box_frame(const double origin[3], const double direction[9], box
     return 1;
 }
 
-/* Sets the ray-cast kernel's arguments (in the order of kernels/render/raycast.cl). */
+/* The kernel's clip argument for opts->clip (render.h; enabled 0 without one). */
+static clip_params clip_params_of(const cdvr_render_clip *c)
+{
+    clip_params k;
+    memset(&k, 0, sizeof k);
+    k.enabled = c != NULL;
+    for (int a = 0; c && a < 3; a++) {
+        k.offset[a] = (cl_float)c->offset[a];
+        k.whole_top[a] = (cl_float)(c->whole_dims[a] - 1);
+        k.own_lo[a] = (cl_float)c->own_lo[a];
+        k.own_hi[a] = (cl_float)c->own_hi[a];
+        k.own_far[a] = c->own_hi[a] + 1 == c->whole_dims[a];
+    }
+    return k;
+}
+
+/* Sets the ray-cast kernel's arguments (in the order of kernels/render/raycast.cl). A clipped
+ * render casts the whole volume's rays and skips no empty space (the brick grid describes
+ * the stream's own voxels only). */
 static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_params rp,
-                                    const cam_params *cam, const double spacing[3],
-                                    const box_frame *box, cl_mem image, cl_kernel *kernel,
-                                    cdvr_error *err)
+                                    const cam_params *cam, const cdvr_render_clip *clip,
+                                    const double spacing[3], const box_frame *box, cl_mem image,
+                                    cl_kernel *kernel, cdvr_error *err)
 {
     voxel_source src = source_of(s, frame);
     cl_kernel k = *kernel = src.k_raycast;
     cl_int ints[3] = {(cl_int)s->dims[0], (cl_int)s->dims[1], (cl_int)s->dims[2]};
     cl_float geo[6]; /* 1/spacing, then the box's upper corner in the box frame */
     for (int i = 0; i < 3; i++) {
+        size_t whole = clip ? clip->whole_dims[i] : s->dims[i];
         geo[i] = (cl_float)(1.0 / spacing[i]);
-        geo[3 + i] = (cl_float)((double)(s->dims[i] - 1) * spacing[i]);
+        geo[3 + i] = (cl_float)((double)(whole - 1) * spacing[i]);
     }
+    clip_params kclip = clip_params_of(clip);
     cl_int bricks[5] = {CDVR_CL_BRICK_SHIFT, (cl_int)s->brick_dims[0], (cl_int)s->brick_dims[1],
-                        (cl_int)s->brick_dims[2], s->skipping};
+                        (cl_int)s->brick_dims[2], s->skipping && !clip};
     cl_float step = (cl_float)rp.step, term_alpha = (cl_float)rp.term_alpha;
     cl_float unit = (cl_float)rp.unit;
     /* (size, value) of arguments 3.. in kernel order */
@@ -366,7 +387,8 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
                 {sizeof(cl_float), &geo[2]},  {sizeof(cl_float), &geo[3]},
                 {sizeof(cl_float), &geo[4]},  {sizeof(cl_float), &geo[5]},
                 {sizeof step, &step},         {sizeof term_alpha, &term_alpha},
-                {sizeof *cam, cam},           {sizeof(cl_mem), &s->table},
+                {sizeof *cam, cam},           {sizeof kclip, &kclip},
+                {sizeof(cl_mem), &s->table},
                 {sizeof(cl_mem), &s->alpha_unit}, {sizeof unit, &unit},
                 {sizeof(cl_mem), &s->brick_visible}, {sizeof(cl_int), &bricks[0]},
                 {sizeof(cl_int), &bricks[1]}, {sizeof(cl_int), &bricks[2]},
@@ -493,6 +515,15 @@ static cdvr_status check_render_args(const cdvr_cl_stream *s, size_t frame,
                               img->width, img->height, opts->camera->width, opts->camera->height);
     if (!(opts->step >= 0) || !(opts->unit >= 0))
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: step and unit must be >= 0");
+    const cdvr_render_clip *c = opts->clip;
+    for (int a = 0; c && a < 3; a++)
+        if (c->whole_dims[a] == 0 || c->whole_dims[a] > (1u << 24) || c->own_lo[a] > c->own_hi[a] ||
+            c->own_hi[a] >= c->whole_dims[a] || c->offset[a] > c->own_lo[a] ||
+            c->own_hi[a] > c->offset[a] + s->dims[a] - 1)
+            return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: clip axis %d: owned cells "
+                                  "%zu..%zu of %zu voxels are not inside the %zu voxels from %zu",
+                                  a, c->own_lo[a], c->own_hi[a], c->whole_dims[a], s->dims[a],
+                                  c->offset[a]);
     return CDVR_OK;
 }
 
@@ -516,7 +547,8 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
                               rp.step, rp.unit);
     double diagonal = 0;
     for (int a = 0; a < 3; a++)
-        diagonal += pow((double)(s->dims[a] - 1) * spacing[a], 2);
+        diagonal += pow((double)((opts->clip ? opts->clip->whole_dims[a] : s->dims[a]) - 1) *
+                        spacing[a], 2);
     /* segment counts are ints, and a work-item sums its packet's counts in 32 bits */
     if (sqrt(diagonal) / rp.step > (double)UINT32_MAX / (PACKET_W * PACKET_H))
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: step %g too small for a box of "
@@ -533,8 +565,8 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
         return st;
     cl_mem host_image = wrap_host_image(s->cl, img, pixels);
     cl_kernel kernel;
-    st = set_raycast_args(s, frame, rp, &cam, spacing, &box, host_image ? host_image : s->image,
-                          &kernel, err);
+    st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box,
+                          host_image ? host_image : s->image, &kernel, err);
     if (!st)
         st = cast_and_read(s, kernel, global, local, host_image, img, pixels, err);
     cdvr_cl_release(&host_image);
