@@ -1,10 +1,13 @@
 /* tests/test_player_bricks.c - brick skipping in the player (player.h): a TF that hides half
  * the volume and cameras that see part of it skip bricks, and skipping changes no pixel
  * (identical images, lossless and lossy variants), serial and pipelined;
- * cameras are evaluated once per frame, when the group is planned; the camera box test. */
+ * cameras are evaluated once per frame, when the group is planned; players of the regions of
+ * a k-d partition blended in visibility order equal the whole player (what distribute="bricks"
+ * does across processes), a frame stride plays its share; the camera box test. */
 #include "check.h"
 
 #include "cdvr/compare.h"
+#include "cdvr/dist.h"
 #include "cdvr/player.h"
 
 #include <string.h>
@@ -201,6 +204,104 @@ static void test_skipping(void)
     cdvr_volume_free(vol);
 }
 
+/* Plays frames with opts->region/stride (and the camera callback), capturing them. */
+static void play_opts(cdvr_player_opts *o, size_t frames, capture *c)
+{
+    o->camera_fn = count_camera;
+    o->camera_ud = c;
+    o->frame_fn = keep_frame;
+    o->frame_ud = c;
+    cdvr_player *p;
+    cdvr_error err;
+    cdvr_status s = cdvr_player_create(o, &p, &err);
+    CHECK_OK(s, err);
+    if (s != CDVR_OK)
+        return;
+    CHECK_OK(cdvr_player_run(p, 0, frames, &err), err);
+    cdvr_player_free(p);
+}
+
+/* What distribute="bricks" does, in one process: each part of the k-d partition plays its
+ * region of bricks (clipped, lossy variants reading the bricks below), the frames blended in
+ * cdvr_dist_order equal the whole player's (early termination off). And distribute="time":
+ * a stride and phase play every third frame with the whole sequence's numbers. */
+static void test_regions(void)
+{
+    cdvr_error err;
+    cdvr_volume *vol = make_series();
+    cdvr_store *st = vol ? encode(vol, "regions.cdv", &err) : NULL;
+    CHECK(st != NULL, "encode");
+    if (!st) {
+        cdvr_volume_free(vol);
+        return;
+    }
+    const cdvr_store_info *info = cdvr_store_get_info(st);
+    cdvr_tf_point pts[] = {{0, 0, 0, 0, 0}, {60, .2, .3, .9, .05}, {200, 1, .6, .2, .3},
+                           {255, 1, 1, 1, .6}};
+    cdvr_tf tf;
+    CHECK_OK(cdvr_tf_init(&tf, pts, 4, 0, &err), err);
+    cdvr_camera cams[2] = {camera(20, -70, 40, 20, 14, 11, 30), camera(26, 14, 11, 60, 16, 12, 50)};
+    for (int v = 0; v < 2; v++)
+        for (int ci = 0; ci < 2; ci++) {
+            cdvr_player_opts base = {.store = st, .device = CDVR_DEVICE_CPU, .tf = &tf,
+                                     .camera = cams[ci], .threads = 2, .variant = v,
+                                     .pipelined = 1, .loop = 1, .brick_skip = 1,
+                                     .term_alpha = 1.0};
+            capture whole = {0}, parts[4];
+            memset(parts, 0, sizeof parts);
+            whole.cam = cams[ci];
+            play_opts(&base, 3, &whole);
+            for (size_t k = 0; k < 4; k++) {
+                cdvr_player_opts o = base;
+                parts[k].cam = cams[ci];
+                if (!cdvr_dist_partition(info->bricks, 4, k, o.region_lo, o.region_hi)) {
+                    memcpy(o.region_lo, info->bricks, sizeof o.region_lo); /* empty region */
+                    memcpy(o.region_hi, info->bricks, sizeof o.region_hi);
+                }
+                play_opts(&o, 3, &parts[k]);
+            }
+            cdvr_dist_view view;
+            cdvr_dist_view_of(info, &cams[ci], &view);
+            int order[4];
+            cdvr_dist_order(info->dims, info->bricks, 4, &view, order);
+            for (int f = 0; f < 3; f++) {
+                cdvr_image *blend = NULL;
+                if (!whole.img[f] || cdvr_image_create(48, 40, &blend, NULL) != CDVR_OK)
+                    continue;
+                memcpy(blend->background, whole.img[f]->background, sizeof blend->background);
+                for (int k = 0; k < 4; k++) {
+                    const cdvr_image *im = parts[order[k]].img[f];
+                    for (size_t i = 0; im && i < 48 * 40; i++) {
+                        float rest = 1.0f - blend->rgba[4 * i + 3];
+                        for (int c = 0; c < 4; c++)
+                            blend->rgba[4 * i + c] += rest * im->rgba[4 * i + c];
+                    }
+                }
+                cdvr_compare_result r;
+                cdvr_compare_images(blend, whole.img[f], &r, NULL);
+                CHECK(r.psnr >= 50.0, "variant %d camera %d frame %d: regions blended %.1f dB",
+                      v, ci, f, r.psnr);
+                cdvr_image_free(blend);
+            }
+            free_capture(&whole);
+            for (int k = 0; k < 4; k++)
+                free_capture(&parts[k]);
+        }
+    /* a stride: frames 1 and 4 of 0..5, with their own numbers and timesteps */
+    capture c = {0};
+    c.cam = cams[0];
+    cdvr_player_opts o = {.store = st, .device = CDVR_DEVICE_CPU, .tf = &tf, .camera = cams[0],
+                          .threads = 2, .pipelined = 1, .loop = 1, .frame_stride = 3,
+                          .frame_phase = 1};
+    play_opts(&o, FRAMES, &c);
+    CHECK(c.cam_calls == 2 && c.img[1] && c.img[4] && !c.img[0] && !c.img[2] && !c.img[3] &&
+              !c.img[5], "stride 3 phase 1: frames 1 and 4 (%d camera calls)", c.cam_calls);
+    CHECK(c.row[4].t == 0 && c.row[4].frame == 4 && c.row[1].t == 1, "timesteps of the whole run");
+    free_capture(&c);
+    cdvr_store_close(st);
+    cdvr_volume_free(vol);
+}
+
 /* Boxes in front, behind, beside and around the eye. */
 static void test_sees_box(void)
 {
@@ -246,6 +347,7 @@ int main(void)
     }
     test_sees_box();
     test_skipping();
+    test_regions();
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
     if (system(cmd) != 0)
