@@ -908,10 +908,10 @@ int lcdvr_open_store(lua_State *L)
     lcdvr_newclass(L, LCDVR_STORE, store_methods, store_meta);
     lcdvr_setfuncs(L, store_funcs);
     lcdvr_help_add(L, "cdvr.encode(volume, {path=, codec=, S=, T=, pack=, encoder=, stage2=, "
-                      "lzo_min_saving=, name=, variants=, schedule=, progress=})",
+                      "lzo_min_saving=, name=, variants=, schedule=, progress=, bricks=})",
                    "encode a series into a .cdv store (written atomically; defaults codec=pvtc "
-                   "S=4 T=3 pack=time encoder=lsq stage2=lzo lzo_min_saving=0.1); the opened "
-                   "store, or nil, msg on write failure");
+                   "S=4 T=3 pack=time encoder=lsq stage2=lzo lzo_min_saving=0.1; bricks={bx,by,bz} "
+                   "splits each timestep into bricks); the opened store, or nil, msg on write failure");
     lcdvr_help_add(L, "cdvr.open(path)", "open a .cdv store (lazy); store or nil, msg");
     lcdvr_help_add(L, "st:info()", "dims, timesteps, window, bytes, ratio and per-variant "
                                    "codec, bpv, psnr, maxerr, chunks");

@@ -4,7 +4,7 @@
 -- frame. CSV on stdout.
 --
 --   build/cdvr scripts/bench/mpi.lua [--frames 30] [--ranks 1,2,4] [--size 256] [--big 0|1]
---                                    [--variants raw,S4T3] [--repeats 3]
+--                                    [--variants raw,S4T3] [--repeats 3] [--vf 1|0]
 --
 -- The script drives itself: run plainly, it encodes the stores and starts
 -- `mpirun -np N build/cdvr scripts/bench/mpi.lua --worker ...` for every configuration
@@ -33,7 +33,7 @@ local function split(s)
 end
 
 local _, opt = common.parse_args(arg, {frames = "30", ranks = "1,2,4", size = "256", big = "0",
-                                       variants = "raw,S4T3", repeats = "3"})
+                                       variants = "raw,S4T3", repeats = "3", vf = "1"})
 
 local function median_of(rows, key)
   local v = {}
@@ -54,9 +54,11 @@ if opt.worker then
   end
   local tf = cdvr.tf{{0, 0, 0, 0, 0}, {40, .2, .3, .9, 0}, {90, .9, .6, .3, .08}, {255, 1, 1, .9, .3}}
   local n = cdvr.mpi.size()
+  -- big volumes: one group in flight per queue (each holds every brick's buffers)
+  local ring = info.dims[1] * info.dims[2] * info.dims[3] > (1 << 26) and 1 or 3
   local p = cdvr.player{store = st, tf = tf, device = "cpu", variant = variant, width = size,
                         height = size, loop = true, distribute = mode,
-                        threads = math.max(1, 2 // n),
+                        threads = math.max(1, 2 // n), ring = ring,
                         camera = cdvr.path.orbit{center = c, distance = 2.2 * ext, period = frames,
                                                  elevation = 20}}
   p:run{frames = math.min(3, frames)}          -- warm-up: page cache, allocations
@@ -102,7 +104,9 @@ end
 
 local datasets = {}
 local vf = common.shared_data() .. "/series/viscousfingers/vf_t%03d.nrrd"
-if common.exists(vf:format(40)) then
+if opt.vf == "0" then
+  say("viscous fingers skipped (--vf 0)")
+elseif common.exists(vf:format(40)) then
   local s = assert(cdvr.load_series(vf, {first = 40, count = 60}))
   local q = s:quantize{lo = 0, hi = 125}
   s = nil
