@@ -50,12 +50,14 @@ cdvr_status cdvr_dist_init(int *argc, char ***argv, cdvr_error *err)
     int provided = 0;
     if (MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS)
         return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "MPI_Init_thread failed");
+    if (provided < MPI_THREAD_FUNNELED) { /* the player's threads need at least this */
+        MPI_Finalize();
+        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "MPI gives thread level %d, cdvr needs "
+                              "MPI_THREAD_FUNNELED", provided);
+    }
     the_group.joined = 1;
     MPI_Comm_rank(MPI_COMM_WORLD, &the_group.rank);
     MPI_Comm_size(MPI_COMM_WORLD, &the_group.size);
-    if (provided < MPI_THREAD_FUNNELED)
-        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "MPI gives thread level %d, cdvr needs "
-                              "MPI_THREAD_FUNNELED", provided);
     return CDVR_OK;
 }
 
