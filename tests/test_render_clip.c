@@ -112,7 +112,7 @@ static cdvr_status render_cl(const cdvr_volume *vol, cdvr_render_opts *opts, cdv
     if (!st)
         st = cdvr_image_create(opts->camera->width, opts->camera->height, out, err);
     if (!st)
-        st = cdvr_cl_render(s, 0, opts, vol->spacing, vol->origin, *out, err);
+        st = cdvr_cl_render(s, 0, opts, vol->spacing, vol->origin, vol->direction, *out, err);
     *samples = s ? cdvr_cl_last_samples(s) : 0;
     cdvr_cl_stream_free(s);
     return st;
@@ -198,6 +198,15 @@ static void check_all(render_fn render, const char *dev, const cdvr_volume *vol)
     };
     for (size_t i = 0; i < sizeof scenes / sizeof *scenes; i++)
         check_scene(render, dev, vol, &tf, &scenes[i].cam, scenes[i].step, scenes[i].what);
+    /* an oriented volume (index axes rotated and flipped in the world, render.h step 0) */
+    cdvr_volume oriented = *vol;
+    static const double D[9] = {0, -1, 0, 0, 0, 1, -1, 0, 0};
+    memcpy(oriented.direction, D, sizeof D);
+    double mid[3] = {16.5, 14, 11}, c[3];
+    cdvr_volume_index_to_world(&oriented, mid, c);
+    cdvr_camera cam = {{c[0] + 50, c[1] - 40, c[2] + 30}, {c[0], c[1], c[2]}, {0, 0, 1}, 35, 40,
+                       36, 0, 0};
+    check_scene(render, dev, &oriented, &tf, &cam, 0, "oriented volume");
 }
 
 static void check_misuse(const cdvr_volume *vol)

@@ -203,10 +203,6 @@ cdvr_status cdvr_dist_play_create(cdvr_dist_mode mode, cdvr_player_opts *opts,
 {
     *out = NULL;
     int spatial = mode == CDVR_DIST_BRICKS && the_group.size > 1;
-    if (spatial && opts->decide)
-        return cdvr_error_set(err, CDVR_ERR_ARG, "distribute='bricks': every rank must read the "
-                              "same variant, so a policy cannot adapt per rank (give variant= "
-                              "or capture with out=)");
     if (spatial && icet_context(err) != CDVR_OK)
         return err ? err->status : CDVR_ERR_UNSUPPORTED;
     cdvr_dist_play *dp = calloc(1, sizeof *dp);

@@ -107,8 +107,10 @@ typedef struct cdvr_dist_play cdvr_dist_play;
 
 /* Sets opts up for this process's share of a run in `mode` (frame stride and phase, or the
  * brick region and the composite hook; opts->rank) and creates what the run needs (the IceT
- * context, once per process). Collective over all processes. In CDVR_DIST_BRICKS mode with
- * more than one process, opts->decide must be NULL (one variant for every rank). */
+ * context, once per process). Collective over all processes. In CDVR_DIST_BRICKS mode the
+ * caller makes every rank read the same variant: opts->decide, if any, must decide the same
+ * on every rank (the Lua binding refuses a policy outside capture, where policies follow the
+ * deterministic capture rule). */
 cdvr_status cdvr_dist_play_create(cdvr_dist_mode mode, cdvr_player_opts *opts,
                                   cdvr_dist_play **out, cdvr_error *err);
 void cdvr_dist_play_free(cdvr_dist_play *dp);
