@@ -902,12 +902,18 @@ static int player_close(lua_State *L)
 }
 
 /* __gc: a running player is still on the stack of p:run, so it is collected only when the state
- * closes inside a callback (os.exit(code, true)): then it is left for the process exit. */
+ * closes inside a callback (os.exit(code, true)): then it is left for the process exit (p:run's
+ * frame still points at it), except its distribution, which nothing else points at and which
+ * the run, ended by the exit, never uses again. */
 static int player_gc(lua_State *L)
 {
     lplayer *lp = (lplayer *)luaL_checkudata(L, 1, LCDVR_PLAYER);
-    if (!lp->running)
+    if (!lp->running) {
         release_player(L, lp);
+    } else {
+        cdvr_dist_play_free(lp->dist);
+        lp->dist = NULL;
+    }
     return 0;
 }
 
