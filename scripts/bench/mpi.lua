@@ -93,7 +93,9 @@ local exe = arg[-1] or "build/cdvr"
 local script = debug.getinfo(1, "S").source:match("^@(.*)$")
 local mpirun = os.getenv("CDVR_MPIEXEC") or "mpirun"
 local root = io.popen("id -u"):read("l") == "0"
-local mpi_flags = "--oversubscribe" .. (root and " --allow-run-as-root" or "")
+-- --bind-to none: Open MPI binds each rank to one core by default, which would halve a lone
+-- rank's two render threads against the one-process baseline
+local mpi_flags = "--oversubscribe --bind-to none" .. (root and " --allow-run-as-root" or "")
 local frames, size = tonumber(opt.frames), tonumber(opt.size)
 local tmp = os.tmpname()
 os.remove(tmp)
