@@ -5,13 +5,12 @@
 --
 --   cdvr scripts/bench/hvq.lua [--runs N] [--size PIXELS]
 --
--- NOT YET RUN: written against the store/player API of issue 13 (cdvr.encode with
--- variants={...}, st:info() rows with bytes per part and device_bytes, cdvr.render(st, {variant=,
--- device="cl"})) before that API landed. scripts/bench/hvq_bench.sh measures the codec side
--- (ratio, bpv, volume PSNR, maxerr, encode/decode time) through the codec table today.
+-- scripts/bench/hvq_bench.sh measures the codec side alone (ratio, bpv, volume PSNR, maxerr,
+-- encode/decode time) through the codec table, without the store or a device.
 --
 -- CSV on stdout, one row per dataset x variant:
---   ratio, bpv          raw bytes / stored bytes of the variant, 8 / ratio
+--   ratio, bpv          raw bytes / stored bytes of the variant (st:info()'s ratio is the
+--                       inverse, stored / raw), bits per voxel stored
 --   volume_psnr, maxerr decoded volume against the original
 --   image_psnr          device render of the variant against the CPU render of the original
 --   encode_s            wall time of cdvr.encode (one variant)
@@ -53,6 +52,7 @@ end
 
 local function fmt(x)
   if x == nil then return "" end
+  if type(x) == "string" then return x end
   if x == math.huge then return "inf" end
   if math.type(x) == "integer" then return tostring(x) end
   return ("%.4g"):format(x)
@@ -89,9 +89,9 @@ local function bench(name, vol, tf, spec)
   local X, Y, Z = vol:dims()
   local fps_v = timed_fps(st, {t = 1, variant = row.name, tf = tf, camera = cam, device = "cl"})
   local fps_d = timed_fps(dec, {tf = tf, camera = cam, device = "cl"})
-  local bytes = type(row.bytes) == "table" and row.bytes or {}
-  local r = {dataset = name, variant = row.name, codec = spec.codec, ratio = row.ratio,
-             bpv = 8 / row.ratio, volume_psnr = vcmp.psnr, maxerr = vcmp.maxerr,
+  local bytes = row -- hvq's part sizes are fields of its row (st:info())
+  local r = {dataset = name, variant = row.name, codec = spec.codec, ratio = 1 / row.ratio,
+             bpv = row.bpv, volume_psnr = vcmp.psnr, maxerr = vcmp.maxerr,
              image_psnr = cdvr.compare(ref, img).psnr, encode_s = encode_s,
              device_bytes = row.device_bytes, dense_bytes = X * Y * Z, fps_variant = fps_v,
              fps_dense = fps_d, fps_ratio = fps_v / fps_d, zero_blocks = row.zero_blocks,
@@ -125,8 +125,8 @@ for _, s in ipairs(sets) do
   bench(name, vol, tf, {codec = "hvq", grad = 64, residual = 10})
   bench(name, vol, tf, {codec = "pvtc", S = 4, T = 3, pack = "space"})
   bench(name, vol, tf, {codec = "pvtc", S = 1, T = 3, pack = "space"})
-  if has_zfp then -- fixed rate at hvq's bits per voxel: the nearest ratio
-    bench(name, vol, tf, {codec = "zfp", rate = ("%.3g"):format(hvq.bpv)})
+  if has_zfp then -- fixed rate at hvq's bits per voxel (zfp's 1/64 steps): the nearest ratio
+    bench(name, vol, tf, {codec = "zfp", rate = math.max(1, math.floor(hvq.bpv * 64 + 0.5)) / 64})
   end
 end
 common.progress_done()
