@@ -777,6 +777,9 @@ int main(void)
     test_version1();
     test_bricks();
     test_codec_not_loaded();
-    rmdir(tmpdir);
+    const char *left[] = {"hard.cdv", "s2.cdv", "sched.cdv"};
+    for (size_t i = 0; i < sizeof left / sizeof *left; i++)
+        unlink(tmp_path(left[i]));
+    CHECK(rmdir(tmpdir) == 0, "%s: files left behind", tmpdir);
     return check_finish();
 }
