@@ -42,7 +42,8 @@ static const char *const stage2_names[] = {"none", "lzo", NULL};
 /* Keys of a variant table that are not codec parameters. */
 static const char *const variant_keys[] = {"codec", "name", "stage2", "lzo_min_saving", NULL};
 /* Keys only the top-level options table takes. */
-static const char *const top_keys[] = {"path", "schedule", "progress", "variants", "bricks", NULL};
+static const char *const top_keys[] = {"path", "schedule", "progress", "variants", "bricks",
+                                        "threads", NULL};
 
 static int in_list(const char *const list[], const char *key)
 {
@@ -402,6 +403,11 @@ static int l_encode(lua_State *L)
         o.bricks[i] = (size_t)bricks[i];
     }
     ctx.nbricks = o.bricks[0] * o.bricks[1] * o.bricks[2];
+    lua_Integer threads = lcdvr_optintegerfield(L, 2, "threads", 0);
+    if (threads < 0 || threads > CDVR_ENCODE_MAX_THREADS)
+        return luaL_error(L, "cdvr.encode: option 'threads': 0 (one per core) .. %d expected, "
+                          "got %d", CDVR_ENCODE_MAX_THREADS, (int)threads);
+    o.threads = (int)threads;
     const cdvr_volume *u8 = encode_input(L, vol, &o);
     cdvr_error err;
     lcdvr_use(L, 1); /* the schedule may close the volume: deferred until the encoder is done */
@@ -908,10 +914,11 @@ int lcdvr_open_store(lua_State *L)
     lcdvr_newclass(L, LCDVR_STORE, store_methods, store_meta);
     lcdvr_setfuncs(L, store_funcs);
     lcdvr_help_add(L, "cdvr.encode(volume, {path=, codec=, S=, T=, pack=, encoder=, stage2=, "
-                      "lzo_min_saving=, name=, variants=, schedule=, progress=, bricks=})",
+                      "lzo_min_saving=, name=, variants=, schedule=, progress=, bricks=, threads=})",
                    "encode a series into a .cdv store (written atomically; defaults codec=pvtc "
                    "S=4 T=3 pack=time encoder=lsq stage2=lzo lzo_min_saving=0.1; bricks={bx,by,bz} "
-                   "splits each timestep into bricks); the opened store, or nil, msg on write failure");
+                   "splits each timestep into bricks; threads=0: one per core, the same bytes for "
+                   "any count); the opened store, or nil, msg on write failure");
     lcdvr_help_add(L, "cdvr.open(path)", "open a .cdv store (lazy); store or nil, msg");
     lcdvr_help_add(L, "st:info()", "dims, timesteps, window, bytes, ratio and per-variant "
                                    "codec, bpv, psnr, maxerr, chunks");
