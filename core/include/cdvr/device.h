@@ -30,6 +30,7 @@
 #include "cdvr/image.h"
 #include "cdvr/codec.h"
 #include "cdvr/render.h"
+#include "cdvr/skip.h"
 #include "cdvr/tf.h"
 
 typedef struct cdvr_cl cdvr_cl;
@@ -104,6 +105,12 @@ uint64_t cdvr_cl_volume_bytes(const cdvr_cl_stream *s);
  * including the upper one-voxel apron that trilinear interpolation reads) and the per-brick
  * flag "some value in [min, max] has alpha > 0 under this TF". */
 cdvr_status cdvr_cl_setup(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf, cdvr_error *err);
+
+/* b4 from a grid the caller made (cdvr/skip.h: bricks of cdvr_cl_brick_edge() voxels over
+ * the stream's dims, flags made for tf, e.g. from a store's range tables on another thread):
+ * its flags are uploaded as they are. CDVR_ERR_ARG when the grid does not fit. */
+cdvr_status cdvr_cl_setup_grid(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf,
+                               const cdvr_skip_grid *g, cdvr_error *err);
 
 /* b5: ray casts device frame `frame` with the TF of the last cdvr_cl_setup (which must have
  * been called for this frame) following render.h exactly, in float. The volume's geometry:

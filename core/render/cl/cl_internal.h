@@ -10,6 +10,7 @@
 
 #include "cdvr/codec.h"
 #include "cdvr/device.h"
+#include "cdvr/skip.h"
 #include "common/cl_shared.h"
 
 /* The program of one codec: its decode kernel (decode mode), or the brick min/max and
@@ -63,11 +64,10 @@ struct cdvr_cl_stream {
     cl_mem image;                /* width*height float4 */
     cl_mem samples;              /* uint sample counter per ray-cast work-item */
     size_t image_pixels, sample_slots;
-    unsigned char *minmax_host;  /* copy of brick_minmax for minmax_frame */
-    unsigned char *flags_host;   /* nbricks flags as last uploaded */
-    size_t minmax_frame;         /* frame the min/max grid belongs to, (size_t)-1 for none */
-    int flags_valid;             /* brick_visible matches minmax_host and tf_visible */
-    unsigned char tf_visible[256]; /* alpha > 0 per TF entry, as the flags were built */
+    cdvr_skip_grid grid;         /* host copy of the min/max grid (minmax_frame) and the
+                                    flags last uploaded to brick_visible (cdvr/skip.h) */
+    size_t minmax_frame;         /* frame grid.minmax belongs to, (size_t)-1 for none */
+    int grid_uploaded;           /* brick_visible holds another grid's flags (setup_grid) */
     cdvr_tf tf;                  /* TF of the last setup */
     size_t setup_frame;          /* frame of the last setup, (size_t)-1 for none */
     size_t bricks_visible;

@@ -60,7 +60,7 @@ static cdvr_status set_source_args(cl_kernel k, const char *name, const voxel_so
     return st;
 }
 
-/* Min/max of every brick of device frame `frame`, copied to s->minmax_host. */
+/* Min/max of every brick of device frame `frame`, copied to s->grid.minmax. */
 static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *err)
 {
     voxel_source src = source_of(s, frame);
@@ -78,104 +78,20 @@ static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *e
     if (st)
         return st;
     cl_int code = clEnqueueReadBuffer(s->cl->queue, s->brick_minmax, CL_TRUE, 0, 2 * s->nbricks,
-                                      s->minmax_host, 0, NULL, NULL);
+                                      s->grid.minmax, 0, NULL, NULL);
+    cdvr_skip_grid_touch(&s->grid);
     return cdvr_cl_check(code, "read brick min/max grid", err);
 }
 
-/* One chamfer pass of the chessboard distance transform: each brick takes the minimum over
- * its 13 neighbours already visited in the scan direction (dir = +1 forward, -1 backward)
- * plus one. Two passes give the exact L-infinity distance to the nearest visible brick. */
-static void chessboard_pass(unsigned char *dist, const size_t n[3], int dir)
+/* Uploads the flags of grid g and takes its visible box and count. */
+static cdvr_status use_grid(cdvr_cl_stream *s, const cdvr_skip_grid *g, cdvr_error *err)
 {
-    long nx = (long)n[0], ny = (long)n[1], nz = (long)n[2];
-    for (long k = 0; k < nx * ny * nz; k++) {
-        long idx = dir > 0 ? k : nx * ny * nz - 1 - k;
-        long x = idx % nx, y = (idx / nx) % ny, z = idx / (nx * ny);
-        int best = dist[idx];
-        for (long dz = -1; dz <= 0; dz++)
-            for (long dy = -1; dy <= 1; dy++)
-                for (long dx = -1; dx <= 1; dx++) {
-                    if ((dz < 0 || dy < 0 || (dy == 0 && dx < 0)) == 0)
-                        continue; /* only neighbours before idx in forward order */
-                    long qx = x + dir * dx, qy = y + dir * dy, qz = z + dir * dz;
-                    if (qx < 0 || qy < 0 || qz < 0 || qx >= nx || qy >= ny || qz >= nz)
-                        continue;
-                    int cand = dist[qx + nx * (qy + ny * qz)] + 1;
-                    if (cand < best)
-                        best = cand;
-                }
-        dist[idx] = (unsigned char)best;
-    }
-}
-
-/* Chessboard distance (in bricks, 1 .. BRICK_REACH_MAX) from each brick with seed[b] == 0 to
- * the nearest brick with seed[b] != 0, into dist; bricks outside the grid are never seeds. */
-#define BRICK_REACH_MAX 127
-static void chessboard_distance(const unsigned char *seed, unsigned char *dist, const size_t n[3],
-                                size_t count)
-{
-    for (size_t b = 0; b < count; b++)
-        dist[b] = seed[b] ? 0 : 255;
-    chessboard_pass(dist, n, 1);
-    chessboard_pass(dist, n, -1);
-}
-
-/* Grid-coordinate box around the visible bricks: samples outside it lie in invisible bricks.
- * A face on the grid's border is moved to infinity, since samples beyond the volume are
- * clamped into the border bricks. */
-static void visible_box(cdvr_cl_stream *s, const unsigned char *visible)
-{
-    size_t lo[3] = {SIZE_MAX, SIZE_MAX, SIZE_MAX}, hi[3] = {0, 0, 0};
-    const size_t *n = s->brick_dims;
-    for (size_t b = 0; b < s->nbricks; b++) {
-        if (!visible[b])
-            continue;
-        size_t at[3] = {b % n[0], b / n[0] % n[1], b / (n[0] * n[1])};
-        for (int a = 0; a < 3; a++) {
-            lo[a] = at[a] < lo[a] ? at[a] : lo[a];
-            hi[a] = at[a] > hi[a] ? at[a] : hi[a];
-        }
-    }
+    s->bricks_visible = g->bricks_visible;
     for (int a = 0; a < 3; a++) {
-        if (lo[a] == SIZE_MAX) { /* nothing visible: an empty box */
-            s->visible_lo[a] = INFINITY;
-            s->visible_hi[a] = -INFINITY;
-            continue;
-        }
-        s->visible_lo[a] = lo[a] == 0 ? -INFINITY : (cl_float)(lo[a] * CDVR_CL_BRICK);
-        s->visible_hi[a] = hi[a] + 1 == n[a] ? INFINITY : (cl_float)((hi[a] + 1) * CDVR_CL_BRICK);
+        s->visible_lo[a] = g->visible_lo[a];
+        s->visible_hi[a] = g->visible_hi[a];
     }
-}
-
-/* Per brick, one byte for the ray caster's walk: invisible bricks (no value of [min, max] has
- * alpha > 0) store their distance d to the nearest visible brick (the cube of bricks within
- * d - 1 is empty and is jumped in one step); visible bricks store 128 + d, d the distance to
- * the nearest invisible brick (the cube within d - 1 is all visible and is sampled without
- * further look-ups). Distances are capped at BRICK_REACH_MAX. */
-static cdvr_status upload_flags(cdvr_cl_stream *s, const int prefix[257], cdvr_error *err)
-{
-    unsigned char *visible = malloc(2 * s->nbricks);
-    if (!visible)
-        return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL setup: out of memory");
-    unsigned char *hidden = visible + s->nbricks;
-    s->bricks_visible = 0;
-    for (size_t b = 0; b < s->nbricks; b++) {
-        int lo = s->minmax_host[2 * b], hi = s->minmax_host[2 * b + 1];
-        visible[b] = prefix[hi + 1] - prefix[lo] > 0;
-        hidden[b] = !visible[b];
-        s->bricks_visible += visible[b];
-    }
-    visible_box(s, visible);
-    unsigned char *to_visible = s->flags_host;
-    chessboard_distance(visible, to_visible, s->brick_dims, s->nbricks);
-    chessboard_distance(hidden, hidden, s->brick_dims, s->nbricks);
-    for (size_t b = 0; b < s->nbricks; b++) {
-        int d = visible[b] ? hidden[b] : to_visible[b];
-        d = d > BRICK_REACH_MAX ? BRICK_REACH_MAX : d;
-        s->flags_host[b] = (unsigned char)(visible[b] ? 128 + d : d);
-    }
-    free(visible);
-    return write_buffer(s->cl, s->brick_visible, s->flags_host, s->nbricks, "upload brick flags",
+    return write_buffer(s->cl, s->brick_visible, g->flags, s->nbricks, "upload brick flags",
                         err);
 }
 
@@ -190,29 +106,49 @@ cdvr_status cdvr_cl_setup(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf, cd
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL setup: frame %zu not decoded (%zu frames)",
                               frame, s->frames_valid);
     s->tf = *tf;
-    unsigned char visible[256];
-    int prefix[257];
-    prefix[0] = 0;
-    for (int i = 0; i < 256; i++) {
-        visible[i] = tf->table[i][3] > 0.0f;
-        prefix[i + 1] = prefix[i] + visible[i];
-    }
     cdvr_status st = CDVR_OK;
     if (s->minmax_frame != frame) {
-        s->flags_valid = 0;
         st = compute_minmax(s, frame, err);
         if (st)
             return st;
         s->minmax_frame = frame;
     }
-    if (!s->flags_valid || memcmp(visible, s->tf_visible, sizeof visible)) {
-        s->flags_valid = 0;
-        st = upload_flags(s, prefix, err);
-        if (st)
+    if (cdvr_skip_flags(&s->grid, tf) || s->grid_uploaded != 0) {
+        st = use_grid(s, &s->grid, err);
+        if (st) {
+            cdvr_skip_grid_touch(&s->grid);
             return st;
-        memcpy(s->tf_visible, visible, sizeof visible);
-        s->flags_valid = 1;
+        }
+        s->grid_uploaded = 0;
     }
+    s->setup_frame = frame;
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_cl_setup_grid(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf,
+                               const cdvr_skip_grid *g, cdvr_error *err)
+{
+    s->setup_frame = (size_t)-1;
+    if (!tf || !g)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL setup: no transfer function or grid");
+    if (frame >= s->frames_valid)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL setup: frame %zu not decoded (%zu frames)",
+                              frame, s->frames_valid);
+    unsigned char visible[256];
+    for (int i = 0; i < 256; i++)
+        visible[i] = tf->table[i][3] > 0.0f;
+    if (g->shift != CDVR_CL_BRICK_SHIFT || g->nbricks != s->nbricks ||
+        memcmp(g->dims, s->brick_dims, sizeof g->dims) != 0 || !g->flags_valid ||
+        memcmp(visible, g->tf_visible, sizeof visible) != 0)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL setup: the grid (bricks of 2^%u, "
+                              "%zux%zux%zu, flags %s) does not fit this stream and TF", g->shift,
+                              g->dims[0], g->dims[1], g->dims[2],
+                              g->flags_valid ? "made for another TF" : "not made");
+    s->tf = *tf;
+    cdvr_status st = use_grid(s, g, err);
+    if (st)
+        return st;
+    s->grid_uploaded = 1; /* brick_visible no longer holds s->grid's flags */
     s->setup_frame = frame;
     return CDVR_OK;
 }

@@ -40,6 +40,11 @@ cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_str
         s->brick_dims[i] = ceil_div(dims[i], CDVR_CL_BRICK);
         s->nbricks *= s->brick_dims[i];
     }
+    cdvr_status gst = cdvr_skip_grid_init(&s->grid, dims, CDVR_CL_BRICK_SHIFT, err);
+    if (gst) {
+        free(s);
+        return gst;
+    }
     s->skipping = 1;
     s->setup_frame = (size_t)-1;
     s->minmax_frame = (size_t)-1;
@@ -64,12 +69,6 @@ cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_str
     if (!st)
         st = cdvr_cl_ensure_buffer(cl, &s->brick_visible, &cap, s->nbricks, CL_MEM_READ_ONLY,
                                    "brick flags", err);
-    if (!st) { /* host copies only once the device has accepted the sizes */
-        s->minmax_host = malloc(minmax_bytes);
-        s->flags_host = malloc(s->nbricks);
-        if (!s->minmax_host || !s->flags_host)
-            st = cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL stream: out of memory");
-    }
     if (st) {
         cdvr_cl_stream_free(s);
         return st;
@@ -86,8 +85,7 @@ void cdvr_cl_stream_free(cdvr_cl_stream *s)
                       &s->brick_minmax, &s->brick_visible, &s->image, &s->samples};
     for (size_t i = 0; i < sizeof mems / sizeof *mems; i++)
         cdvr_cl_release(mems[i]);
-    free(s->minmax_host);
-    free(s->flags_host);
+    cdvr_skip_grid_free(&s->grid);
     free(s);
 }
 
