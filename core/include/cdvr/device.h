@@ -80,8 +80,8 @@ cdvr_status cdvr_cl_upload(cdvr_cl_stream *s, const void *payload, size_t bytes,
 
 /* b3: makes device frames 0 .. count-1 of the stream's dims from the uploaded payload of a
  * chunk of `codec` with `params` (cdvr/codec.h), count <= the codec's timesteps per chunk:
- *  - decode mode: runs the codec's decode kernel into dense frames, bit-exact with the codec's
- *    C decoder;
+ *  - decode mode: dense frames, by the codec's decode kernel or, on a CPU device where that
+ *    is faster, by its C decoder (cdvr_cl_decode_path), bit-exact with each other;
  *  - fetch mode: keeps the payload as it is; cdvr_cl_setup and cdvr_cl_render read every
  *    voxel through the codec's fetch function (rendering in the compressed domain);
  *  - codecs without OpenCL source: CDVR_ERR_UNSUPPORTED (decode on the CPU and use
@@ -89,6 +89,24 @@ cdvr_status cdvr_cl_upload(cdvr_cl_stream *s, const void *payload, size_t bytes,
  * The codec's program is built (or loaded from the binary cache) on first use. */
 cdvr_status cdvr_cl_decode(cdvr_cl_stream *s, const cdvr_codec *codec,
                            const cdvr_codec_params *params, size_t count, cdvr_error *err);
+
+/* Decode paths of decode-mode codecs. Both give the same bytes (the kernels are bit-exact
+ * with the codecs' C decoders). */
+typedef enum cdvr_cl_decode_path {
+    CDVR_CL_DECODE_AUTO = 0,   /* the kernel on GPUs and other devices that are not CPUs; on a
+                                  CPU device the faster of the two, measured on the first
+                                  chunk of each codec and remembered for the device (in
+                                  memory, and on disk beside the program cache) */
+    CDVR_CL_DECODE_KERNEL = 1, /* the codec's decode kernel */
+    CDVR_CL_DECODE_HOST = 2    /* the codec's C decoder writing straight into the frames
+                                  buffer, mapped (host memory on CPU devices: no copy) */
+} cdvr_cl_decode_path;
+
+/* The path cdvr_cl_decode takes from now on. New streams take AUTO, or what the environment
+ * variable CDVR_CL_DECODE says ("auto", "kernel" or "host"). */
+void cdvr_cl_set_decode_path(cdvr_cl_stream *s, cdvr_cl_decode_path path);
+/* The path the last successful cdvr_cl_decode of a decode-mode codec took (AUTO before any). */
+cdvr_cl_decode_path cdvr_cl_last_decode_path(const cdvr_cl_stream *s);
 
 /* b2 for frames decoded on the host: uploads count dense u8 frames (count * dims product
  * bytes) as device frames 0 .. count-1. */

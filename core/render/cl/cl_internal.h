@@ -15,11 +15,17 @@
 
 /* The program of one codec: its decode kernel (decode mode), or the brick min/max and
  * ray-cast kernels built over its fetch function (fetch mode). */
+#define CDVR_CL_SIZE_CLASSES 32
+
 typedef struct cdvr_cl_codec_program {
     const cdvr_codec *codec;
     cl_program program;
     cl_kernel k_decode;
     cl_kernel k_bricks, k_raycast;
+    /* decode mode on a CPU device: the faster path per size class of the decoded frames
+     * (floor(log4(bytes))), once measured (cl_stream.c); AUTO until known */
+    cdvr_cl_decode_path fastest[CDVR_CL_SIZE_CLASSES];
+    double kernel_ms[CDVR_CL_SIZE_CLASSES], host_ms[CDVR_CL_SIZE_CLASSES];
 } cdvr_cl_codec_program;
 
 #define CDVR_CL_MAX_CODEC_PROGRAMS 32
@@ -39,7 +45,15 @@ struct cdvr_cl {
 
 /* The program of codec (built, or loaded from the binary cache, on first use). */
 cdvr_status cdvr_cl_get_codec_program(cdvr_cl *cl, const cdvr_codec *codec,
-                                  const cdvr_cl_codec_program **out, cdvr_error *err);
+                                      cdvr_cl_codec_program **out, cdvr_error *err);
+/* The decode path remembered on disk for codec and a size class on this device (beside the
+ * program cache, keyed by the device, its driver, the codec's kernel source and the class), or
+ * CDVR_CL_DECODE_AUTO when none is; and the writer of that record. */
+cdvr_cl_decode_path cdvr_cl_load_decode_choice(cdvr_cl *cl, const cdvr_codec *codec,
+                                               unsigned size_class, double *kernel_ms,
+                                               double *host_ms);
+void cdvr_cl_store_decode_choice(cdvr_cl *cl, const cdvr_codec *codec, unsigned size_class,
+                                 cdvr_cl_decode_path path, double kernel_ms, double host_ms);
 /* Sets argument `index` of kernel `name`; on failure fills err naming both. */
 cdvr_status cdvr_cl_arg(cl_kernel k, const char *name, cl_uint index, size_t size,
                         const void *value, cdvr_error *err);
@@ -75,6 +89,8 @@ struct cdvr_cl_stream {
     cl_float visible_hi[3];      /* bricks, +-inf at the grid's faces); lo > hi: none visible */
     int skipping;
     uint64_t last_samples;
+    cdvr_cl_decode_path decode_path;      /* what cdvr_cl_decode may use (AUTO: choose) */
+    cdvr_cl_decode_path last_decode_path; /* what the last decode used */
 };
 
 /* "CL_OUT_OF_RESOURCES" etc. for an OpenCL error code. */
