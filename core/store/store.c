@@ -823,6 +823,7 @@ static cdvr_status parse_tables(cdvr_store *st, const uint8_t *meta, size_t meta
             }
             vi->bytes += ci->stored_bytes;
             vi->payload_bytes += ci->payload_bytes;
+            vi->ranges_bytes += ci->ranges_stored_bytes;
         }
         if (s == CDVR_OK && next_t0 != st->info.timesteps)
             s = cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s covers %zu of %zu "

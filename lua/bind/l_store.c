@@ -587,6 +587,7 @@ static void push_variant_info(lua_State *L, const cdvr_store *st, size_t v)
     setstr(L, "stage2", stage2_names[vi->stage2]);
     setint(L, "bytes", (lua_Integer)vi->bytes);
     setint(L, "payload_bytes", (lua_Integer)vi->payload_bytes);
+    setint(L, "ranges_bytes", (lua_Integer)vi->ranges_bytes);
     setnum(L, "ratio", (double)vi->bytes / (double)in->raw_bytes);
     setnum(L, "bpv", 8.0 * (double)vi->bytes / (double)in->raw_bytes);
     setnum(L, "psnr", vi->psnr);
@@ -921,7 +922,8 @@ int lcdvr_open_store(lua_State *L)
                    "any count); the opened store, or nil, msg on write failure");
     lcdvr_help_add(L, "cdvr.open(path)", "open a .cdv store (lazy); store or nil, msg");
     lcdvr_help_add(L, "st:info()", "dims, timesteps, window, bytes, ratio and per-variant "
-                                   "codec, bpv, psnr, maxerr, chunks");
+                                   "codec, bpv, psnr, maxerr, chunks, ranges_bytes (the value "
+                                   "range tables for empty-space skipping)");
     lcdvr_help_add(L, "st:decode(t [, variant] [, {device=\"cpu\"|\"cl\", brick=b}])",
                    "u8 volume of timestep t (from 1) of a variant (name or index, default 1); "
                    "brick=b reads and decodes only brick b (st:info().bricks[b]), placed where it lies");

@@ -117,6 +117,7 @@ typedef struct cdvr_variant_info {
     size_t ngroups;
     uint64_t bytes;                /* stored bytes of all chunks */
     uint64_t payload_bytes;        /* bytes before stage 2 */
+    uint64_t ranges_bytes;         /* stored bytes of the chunks' range tables */
     double psnr, maxerr;           /* volume PSNR / max error measured at encode time */
     double lzo_min_saving;
 } cdvr_variant_info;
