@@ -179,11 +179,13 @@ static void test_store_grid(void)
                 CHECK_OK(cdvr_image_create(96, 80, &a, &err), err);
                 CHECK_OK(cdvr_image_create(96, 80, &b, &err), err);
                 CHECK_OK(cdvr_cl_setup(s, 0, &tf, &err), err);
-                CHECK_OK(cdvr_cl_render(s, 0, &ro, dec->spacing, dec->origin, a, &err), err);
+                CHECK_OK(cdvr_cl_render(s, 0, &ro, dec->spacing, dec->origin, dec->direction,
+                                        a, &err), err);
                 sa = cdvr_cl_last_samples(s);
                 cdvr_skip_flags(&from_tables, &tf);
                 CHECK_OK(cdvr_cl_setup_grid(s, 0, &tf, &from_tables, &err), err);
-                CHECK_OK(cdvr_cl_render(s, 0, &ro, dec->spacing, dec->origin, b, &err), err);
+                CHECK_OK(cdvr_cl_render(s, 0, &ro, dec->spacing, dec->origin, dec->direction,
+                                        b, &err), err);
                 sb = cdvr_cl_last_samples(s);
                 CHECK(a && b && memcmp(a->rgba, b->rgba, sizeof(float) * 4 * 96 * 80) == 0 &&
                       sa == sb && sa > 0, "timestep %zu: recorded ranges change pixels or "
@@ -196,7 +198,8 @@ static void test_store_grid(void)
                       "grid for another TF refused");
                 /* and the device's own setup works again after a grid was used */
                 CHECK_OK(cdvr_cl_setup(s, 0, &tf, &err), err);
-                CHECK_OK(cdvr_cl_render(s, 0, &ro, dec->spacing, dec->origin, b, &err), err);
+                CHECK_OK(cdvr_cl_render(s, 0, &ro, dec->spacing, dec->origin, dec->direction,
+                                        b, &err), err);
                 CHECK(memcmp(a->rgba, b->rgba, sizeof(float) * 4 * 96 * 80) == 0,
                       "kernel setup after a grid");
                 cdvr_image_free(a);
