@@ -375,7 +375,8 @@ static const cdvr_volume *encode_input(lua_State *L, const cdvr_volume *vol,
 
 static int l_encode(lua_State *L)
 {
-    const cdvr_volume *vol = lcdvr_checkvolume(L, 1);
+    int lazy = lcdvr_volume_lazy(L, 1); /* read one timestep at a time while encoding */
+    const cdvr_volume *vol = lazy ? NULL : lcdvr_checkvolume(L, 1);
     luaL_checktype(L, 2, LUA_TTABLE);
     const char *path = lcdvr_optstringfield(L, 2, "path", NULL);
     if (!path)
@@ -408,10 +409,16 @@ static int l_encode(lua_State *L)
         return luaL_error(L, "cdvr.encode: option 'threads': 0 (one per core) .. %d expected, "
                           "got %d", CDVR_ENCODE_MAX_THREADS, (int)threads);
     o.threads = (int)threads;
-    const cdvr_volume *u8 = encode_input(L, vol, &o);
+    cdvr_encode_source src;
+    const cdvr_volume *u8 = NULL;
+    if (lazy)
+        lcdvr_volume_source(L, 1, &src, &o);
+    else
+        u8 = encode_input(L, vol, &o);
     cdvr_error err;
     lcdvr_use(L, 1); /* the schedule may close the volume: deferred until the encoder is done */
-    cdvr_status s = cdvr_store_encode(u8, &o, path, &err);
+    cdvr_status s = lazy ? cdvr_store_encode_source(&src, &o, path, &err)
+                         : cdvr_store_encode(u8, &o, path, &err);
     lcdvr_unuse(L, 1);
     if (s == CDVR_ERR_IO)
         return lcdvr_fail(L, &err);

@@ -1,12 +1,14 @@
 /* cdvr/series.h - a series of volume files read one file at a time (out of core).
  *
- * cdvr_series_open reads the first file (any format cdvr_volume_load reads) for the dims,
- * voxel type, geometry and timesteps per file. Every other file must have the same dims, type
- * and number of timesteps; that is checked when it is read, and the error names the file.
- * The series holds the one file it read last: asking for a timestep of another file reads
- * that file instead. So a series of files of one 3D volume each never holds more than one
- * timestep in memory, whatever its length. Calls on one series must come from one thread
- * at a time.
+ * cdvr_series_open reads the header of every file (not its voxels) and makes the checks
+ * cdvr_volume_load_series makes, with the same messages: every file exists and is readable,
+ * and has the dims and type of the first and, unless the caller gives a spacing, its spacing;
+ * a file may hold several timesteps (a 4D file), and the series is their concatenation. Voxels
+ * are read when a timestep is asked for: the series holds the one file it read last, and
+ * asking for a timestep of another file reads that file instead, so a series of files of one
+ * 3D volume each never holds more than one timestep, whatever its length. A file that changed
+ * since it was opened is an error naming it. Calls on one series must come from one thread at
+ * a time.
  */
 #ifndef CDVR_SERIES_H
 #define CDVR_SERIES_H
@@ -21,15 +23,14 @@ typedef struct cdvr_series cdvr_series;
 
 typedef struct cdvr_series_info {
     size_t dims[3];
-    size_t timesteps;          /* files * per_file */
-    size_t per_file;           /* timesteps in each file (those of the first) */
+    size_t timesteps;          /* of all files */
     size_t files;
     cdvr_type type;
     double spacing[3], origin[3], direction[9]; /* of the first file */
 } cdvr_series_info;
 
-/* Opens count files (raw files need raw; its spacing, when set, overrides every file's).
- * Reads the first file now. */
+/* Opens count files (raw files need raw; its spacing, when set, overrides every file's),
+ * reading their headers. */
 cdvr_status cdvr_series_open(const char *const *paths, size_t count, const cdvr_raw_opts *raw,
                              cdvr_series **out, cdvr_error *err);
 void cdvr_series_close(cdvr_series *s);
