@@ -516,6 +516,33 @@ static cdvr_status build_program(cdvr_cl *cl, cdvr_error *err)
     return st;
 }
 
+static cdvr_status create_kernel(cl_program program, const char *name, cl_kernel *out,
+                                 cdvr_error *err);
+
+cdvr_status cdvr_cl_long_index_kernels(cdvr_cl *cl, cl_kernel *bricks, cl_kernel *raycast,
+                                       cdvr_error *err)
+{
+    if (!cl->program_long) {
+        char *source = NULL, cache_path[512];
+        int from_cache;
+        cdvr_status st = load_sources(NULL, render_files, NRENDER_FILES, &source, err);
+        if (!st)
+            st = build_cached(cl, source, BUILD_OPTIONS " -DCDVR_LONG_INDEX",
+                              "the render kernels (64-bit indices)", &cl->program_long,
+                              &from_cache, cache_path, sizeof cache_path, err);
+        free(source);
+        if (!st)
+            st = create_kernel(cl->program_long, "brick_minmax", &cl->k_bricks_long, err);
+        if (!st)
+            st = create_kernel(cl->program_long, "raycast", &cl->k_raycast_long, err);
+        if (st)
+            return st;
+    }
+    *bricks = cl->k_bricks_long;
+    *raycast = cl->k_raycast_long;
+    return CDVR_OK;
+}
+
 /* ---- remembered decode paths ------------------------------------------------------------
  * One cache entry per device and codec, in the program cache's format, holding the text
  * "host|kernel KERNEL_MS HOST_MS"; its key covers the codec's kernel source, the device and
@@ -627,6 +654,8 @@ cdvr_status cdvr_cl_open(cdvr_cl **out, cdvr_error *err)
         st = create_kernel(cl->program, "brick_minmax", &cl->k_bricks, err);
     if (!st)
         st = create_kernel(cl->program, "raycast", &cl->k_raycast, err);
+    if (!st)
+        st = create_kernel(cl->program, "make_quads", &cl->k_quads, err);
     if (st) {
         cdvr_cl_close(cl);
         return st;
@@ -715,12 +744,15 @@ void cdvr_cl_close(cdvr_cl *cl)
         return;
     for (size_t i = 0; i < cl->ncodecs; i++)
         release_codec_program(&cl->codecs[i]);
-    if (cl->k_bricks)
-        clReleaseKernel(cl->k_bricks);
-    if (cl->k_raycast)
-        clReleaseKernel(cl->k_raycast);
+    cl_kernel kernels[] = {cl->k_bricks, cl->k_raycast, cl->k_quads, cl->k_bricks_long,
+                           cl->k_raycast_long};
+    for (size_t i = 0; i < sizeof kernels / sizeof *kernels; i++)
+        if (kernels[i])
+            clReleaseKernel(kernels[i]);
     if (cl->program)
         clReleaseProgram(cl->program);
+    if (cl->program_long)
+        clReleaseProgram(cl->program_long);
     if (cl->queue)
         clReleaseCommandQueue(cl->queue);
     if (cl->context)

@@ -13,6 +13,10 @@
 #include "cdvr/skip.h"
 #include "common/cl_shared.h"
 
+/* The dense render kernels with 64-bit voxel indices (built on first use). */
+cdvr_status cdvr_cl_long_index_kernels(cdvr_cl *cl, cl_kernel *bricks, cl_kernel *raycast,
+                                       cdvr_error *err);
+
 /* The program of one codec: its decode kernel (decode mode), or the brick min/max and
  * ray-cast kernels built over its fetch function (fetch mode). */
 #define CDVR_CL_SIZE_CLASSES 32
@@ -36,8 +40,11 @@ struct cdvr_cl {
     cl_device_id device;
     cl_context context;
     cl_command_queue queue;
-    cl_program program;              /* dense brick min/max and ray cast */
-    cl_kernel k_bricks, k_raycast;
+    cl_program program;              /* dense brick min/max, ray cast and quads */
+    cl_kernel k_bricks, k_raycast, k_quads;
+    cl_program program_long;         /* the same with 64-bit voxel indices (frames of 2^31
+                                        voxels or more), built on first use */
+    cl_kernel k_bricks_long, k_raycast_long;
     cdvr_cl_codec_program codecs[CDVR_CL_MAX_CODEC_PROGRAMS]; /* built on first use */
     size_t ncodecs;
     cdvr_cl_info info;
@@ -74,6 +81,9 @@ struct cdvr_cl_stream {
     cl_mem table;                /* 256 float4: rgb + step-corrected alpha (per render) */
     cl_mem alpha_unit;           /* 256 floats: alpha per unit length (shorter last segment) */
     cl_mem brick_minmax;         /* nbricks uchar2: value range per brick incl. apron */
+    cl_mem quads;                /* quads of frame quads_frame for the ray caster (raycast.cl) */
+    size_t quads_capacity, quads_frame;
+    size_t last_rendered;        /* frame of the last render: a second render of it makes quads */
     cl_mem brick_visible;        /* nbricks uchar flags */
     cl_mem image;                /* width*height float4 */
     cl_mem samples;              /* uint sample counter per ray-cast work-item */

@@ -34,19 +34,22 @@ typedef struct voxel_source {
     cl_kernel k_bricks, k_raycast;
     cl_mem vol, params;
     cl_ulong offset;
+    cl_int quads;               /* vol holds the frame's quads (ray caster only) */
 } voxel_source;
 
-static voxel_source source_of(const cdvr_cl_stream *s, size_t frame)
+static cdvr_status source_of(cdvr_cl_stream *s, size_t frame, voxel_source *v, cdvr_error *err)
 {
-    voxel_source v;
     if (s->fetch) {
-        v = (voxel_source){s->fetch->k_bricks, s->fetch->k_raycast, s->payload, s->params,
-                           (cl_ulong)frame};
-    } else {
-        v = (voxel_source){s->cl->k_bricks, s->cl->k_raycast, s->frames, s->params,
-                           (cl_ulong)(frame * s->voxels)};
+        *v = (voxel_source){s->fetch->k_bricks, s->fetch->k_raycast, s->payload, s->params,
+                            (cl_ulong)frame, 0};
+        return CDVR_OK;
     }
-    return v;
+    *v = (voxel_source){s->cl->k_bricks, s->cl->k_raycast, s->frames, s->params,
+                        (cl_ulong)(frame * s->voxels), 0};
+    const char *force = getenv("CDVR_CL_LONG_INDEX");
+    if (s->voxels > INT_MAX || (force && !strcmp(force, "1"))) /* 32-bit indices overflow */
+        return cdvr_cl_long_index_kernels(s->cl, &v->k_bricks, &v->k_raycast, err);
+    return CDVR_OK;
 }
 
 static cdvr_status set_source_args(cl_kernel k, const char *name, const voxel_source *v,
@@ -63,7 +66,10 @@ static cdvr_status set_source_args(cl_kernel k, const char *name, const voxel_so
 /* Min/max of every brick of device frame `frame`, copied to s->grid.minmax. */
 static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *err)
 {
-    voxel_source src = source_of(s, frame);
+    voxel_source src;
+    cdvr_status sst = source_of(s, frame, &src, err);
+    if (sst)
+        return sst;
     cl_kernel k = src.k_bricks;
     cl_uint args[7] = {(cl_uint)s->dims[0], (cl_uint)s->dims[1], (cl_uint)s->dims[2],
                        CDVR_CL_BRICK, (cl_uint)s->brick_dims[0], (cl_uint)s->brick_dims[1],
@@ -299,7 +305,15 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
                                     const double spacing[3], const box_frame *box, cl_mem image,
                                     cl_kernel *kernel, cdvr_error *err)
 {
-    voxel_source src = source_of(s, frame);
+    voxel_source src;
+    cdvr_status sst = source_of(s, frame, &src, err);
+    if (sst)
+        return sst;
+    if (!s->fetch && s->quads_frame == frame) {
+        src.vol = s->quads;
+        src.offset = 0;
+        src.quads = 1;
+    }
     cl_kernel k = *kernel = src.k_raycast;
     cl_int ints[3] = {(cl_int)s->dims[0], (cl_int)s->dims[1], (cl_int)s->dims[2]};
     cl_float geo[6]; /* 1/spacing, then the box's upper corner in the box frame */
@@ -317,7 +331,8 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
     struct {
         size_t size;
         const void *value;
-    } args[] = {{sizeof(cl_int), &ints[0]},   {sizeof(cl_int), &ints[1]},
+    } args[] = {{sizeof src.quads, &src.quads},
+                {sizeof(cl_int), &ints[0]},   {sizeof(cl_int), &ints[1]},
                 {sizeof(cl_int), &ints[2]},   {sizeof *box, box},
                 {sizeof(cl_float), &geo[0]},  {sizeof(cl_float), &geo[1]},
                 {sizeof(cl_float), &geo[2]},  {sizeof(cl_float), &geo[3]},
@@ -337,6 +352,44 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
     for (cl_uint i = 0; !st && i < sizeof args / sizeof *args; i++)
         st = cdvr_cl_arg(k, "raycast", 3 + i, args[i].size, args[i].value, err);
     return st;
+}
+
+/* A frame rendered a second time (a scene shown again: another camera, TF or step) gets its
+ * quads (raycast.cl), which the ray caster reads with two gathers per sample instead of eight
+ * loads: 4 bytes per voxel, so only below 2^31 voxels and when the device takes the buffer.
+ * Playback renders each frame once and never pays for them. On any failure the frame is
+ * simply rendered from its voxels. */
+static void make_quads_if_rerendered(cdvr_cl_stream *s, size_t frame)
+{
+    int again = s->last_rendered == frame;
+    s->last_rendered = frame;
+    const char *force_long = getenv("CDVR_CL_LONG_INDEX");
+    if (s->fetch || !again || s->quads_frame == frame || s->voxels > INT_MAX / 4 ||
+        (force_long && !strcmp(force_long, "1")))
+        return;
+    cdvr_error err;
+    cl_kernel k = s->cl->k_quads;
+    cl_ulong offset = frame * s->voxels;
+    cl_uint d[3] = {(cl_uint)s->dims[0], (cl_uint)s->dims[1], (cl_uint)s->dims[2]};
+    cdvr_status st = cdvr_cl_ensure_buffer(s->cl, &s->quads, &s->quads_capacity, 4 * s->voxels,
+                                           CL_MEM_READ_WRITE, "quads", &err);
+    if (!st)
+        st = cdvr_cl_arg(k, "make_quads", 0, sizeof(cl_mem), &s->frames, &err);
+    if (!st)
+        st = cdvr_cl_arg(k, "make_quads", 1, sizeof offset, &offset, &err);
+    for (cl_uint i = 0; !st && i < 3; i++)
+        st = cdvr_cl_arg(k, "make_quads", 2 + i, sizeof(cl_uint), &d[i], &err);
+    if (!st)
+        st = cdvr_cl_arg(k, "make_quads", 5, sizeof(cl_mem), &s->quads, &err);
+    if (!st)
+        st = run_kernel(s->cl, k, 1, &s->voxels, NULL, "make_quads kernel", &err);
+    if (st) {
+        cdvr_cl_release(&s->quads);
+        s->quads_capacity = 0;
+        s->quads_frame = (size_t)-1;
+        return;
+    }
+    s->quads_frame = frame;
 }
 
 /* Device image of `pixels` and one sample counter per work-item (`items`). */
@@ -499,6 +552,7 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
         st = upload_tables(s, rp, err);
     if (st)
         return st;
+    make_quads_if_rerendered(s, frame);
     cl_mem host_image = wrap_host_image(s->cl, img, pixels);
     cl_kernel kernel;
     st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box,

@@ -66,6 +66,7 @@ cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_str
     s->decode_path = decode_path_from_env();
     s->setup_frame = (size_t)-1;
     s->minmax_frame = (size_t)-1;
+    s->quads_frame = s->last_rendered = (size_t)-1;
     size_t cap = 0, minmax_bytes = 2 * s->nbricks; /* nbricks < voxels: no overflow */
     cdvr_status st = cdvr_cl_ensure_buffer(cl, &s->table, &cap, 256 * 4 * sizeof(float),
                                            CL_MEM_READ_ONLY, "TF table", err);
@@ -99,7 +100,7 @@ void cdvr_cl_stream_free(cdvr_cl_stream *s)
 {
     if (!s)
         return;
-    cl_mem *mems[] = {&s->payload, &s->params, &s->frames, &s->table, &s->alpha_unit,
+    cl_mem *mems[] = {&s->payload, &s->params, &s->frames, &s->quads, &s->table, &s->alpha_unit,
                       &s->brick_minmax, &s->brick_visible, &s->image, &s->samples};
     for (size_t i = 0; i < sizeof mems / sizeof *mems; i++)
         cdvr_cl_release(mems[i]);
@@ -113,6 +114,7 @@ static void invalidate_frames(cdvr_cl_stream *s)
     s->fetch = NULL;
     s->setup_frame = (size_t)-1;
     s->minmax_frame = (size_t)-1;
+    s->quads_frame = s->last_rendered = (size_t)-1;
 }
 
 cdvr_status cdvr_cl_upload(cdvr_cl_stream *s, const void *payload, size_t bytes, cdvr_error *err)
@@ -352,6 +354,7 @@ cdvr_status cdvr_cl_upload_frames(cdvr_cl_stream *s, const uint8_t *frames, size
 uint64_t cdvr_cl_stream_bytes(const cdvr_cl_stream *s)
 {
     uint64_t b = (uint64_t)s->payload_capacity + s->frame_capacity + CDVR_CL_PARAMS_BYTES;
+    b += s->quads_capacity;
     b += 256 * 4 * sizeof(float) + 256 * sizeof(float); /* TF tables */
     b += 3 * (uint64_t)s->nbricks;                       /* brick min/max + flags */
     b += (uint64_t)s->image_pixels * 4 * sizeof(float) + s->sample_slots * sizeof(cl_uint);
