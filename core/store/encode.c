@@ -645,7 +645,6 @@ typedef struct write_ctx {
     cdvr_store *st;
     const cdvr_encode_source *src;
     const cdvr_encode_opts *opts;
-    const char *tmp;
     int fd;
     uint64_t offset;             /* next free byte of the data area */
     uint64_t *sse;               /* per variant */
@@ -884,7 +883,6 @@ cdvr_status cdvr_store_encode_source(const cdvr_encode_source *src,
         cdvr_store_close(st);
         return s;
     }
-    wc.tmp = af.tmp_path;
     wc.fd = fileno(af.f); /* written with pwrite only: the FILE buffers nothing */
     s = write_chunks(&wc, err);
     if (s == CDVR_OK) {
