@@ -113,6 +113,14 @@ cdvr_cl_decode_path cdvr_cl_last_decode_path(const cdvr_cl_stream *s);
 cdvr_status cdvr_cl_upload_frames(cdvr_cl_stream *s, const uint8_t *frames, size_t count,
                                   cdvr_error *err);
 
+/* b2 without a copy for frames decoded on the host: count dense u8 frames in the caller's
+ * memory become device frames 0 .. count-1 (a buffer over that memory: devices that share host
+ * memory read it in place, others copy it). The memory must stay allocated and unchanged
+ * until the stream's next decode or upload, or until the stream is freed. Page-aligned memory
+ * avoids a copy on most CPU drivers. */
+cdvr_status cdvr_cl_use_host_frames(cdvr_cl_stream *s, const uint8_t *frames, size_t count,
+                                    cdvr_error *err);
+
 /* Device memory the stream holds now (all its buffers), and the part that holds the volume
  * data of the current frames (dense frames, or payload + parameters in fetch mode). */
 uint64_t cdvr_cl_stream_bytes(const cdvr_cl_stream *s);

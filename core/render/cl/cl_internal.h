@@ -76,6 +76,8 @@ struct cdvr_cl_stream {
     cl_mem params;               /* the chunk's codec parameter blob (CDVR_CL_PARAMS_BYTES) */
     cl_mem frames;               /* decoded u8 frames, contiguous */
     size_t frame_capacity, frames_valid;
+    cl_mem host_frames;          /* frames in the caller's memory (cdvr_cl_use_host_frames), */
+                                 /* read instead of `frames` while set */
     const cdvr_cl_codec_program *fetch; /* frames stay compressed: read through this codec's
                                            fetch kernels (NULL: dense frames) */
     cl_mem table;                /* 256 float4: rgb + step-corrected alpha (per render) */
@@ -102,6 +104,12 @@ struct cdvr_cl_stream {
     cdvr_cl_decode_path decode_path;      /* what cdvr_cl_decode may use (AUTO: choose) */
     cdvr_cl_decode_path last_decode_path; /* what the last decode used */
 };
+
+/* The buffer holding the stream's dense frames now. */
+static inline cl_mem cdvr_cl_frames_mem(const cdvr_cl_stream *s)
+{
+    return s->host_frames ? s->host_frames : s->frames;
+}
 
 /* "CL_OUT_OF_RESOURCES" etc. for an OpenCL error code. */
 const char *cdvr_cl_error_name(cl_int code);

@@ -44,7 +44,7 @@ static cdvr_status source_of(cdvr_cl_stream *s, size_t frame, voxel_source *v, c
                             (cl_ulong)frame, 0};
         return CDVR_OK;
     }
-    *v = (voxel_source){s->cl->k_bricks, s->cl->k_raycast, s->frames, s->params,
+    *v = (voxel_source){s->cl->k_bricks, s->cl->k_raycast, cdvr_cl_frames_mem(s), s->params,
                         (cl_ulong)(frame * s->voxels), 0};
     const char *force = getenv("CDVR_CL_LONG_INDEX");
     if (s->voxels > INT_MAX || (force && !strcmp(force, "1"))) /* 32-bit indices overflow */
@@ -370,11 +370,12 @@ static void make_quads_if_rerendered(cdvr_cl_stream *s, size_t frame)
     cdvr_error err;
     cl_kernel k = s->cl->k_quads;
     cl_ulong offset = frame * s->voxels;
+    cl_mem frames = cdvr_cl_frames_mem(s);
     cl_uint d[3] = {(cl_uint)s->dims[0], (cl_uint)s->dims[1], (cl_uint)s->dims[2]};
     cdvr_status st = cdvr_cl_ensure_buffer(s->cl, &s->quads, &s->quads_capacity, 4 * s->voxels,
                                            CL_MEM_READ_WRITE, "quads", &err);
     if (!st)
-        st = cdvr_cl_arg(k, "make_quads", 0, sizeof(cl_mem), &s->frames, &err);
+        st = cdvr_cl_arg(k, "make_quads", 0, sizeof(cl_mem), &frames, &err);
     if (!st)
         st = cdvr_cl_arg(k, "make_quads", 1, sizeof offset, &offset, &err);
     for (cl_uint i = 0; !st && i < 3; i++)

@@ -100,7 +100,8 @@ void cdvr_cl_stream_free(cdvr_cl_stream *s)
 {
     if (!s)
         return;
-    cl_mem *mems[] = {&s->payload, &s->params, &s->frames, &s->quads, &s->table, &s->alpha_unit,
+    cl_mem *mems[] = {&s->payload, &s->params, &s->frames, &s->host_frames, &s->quads, &s->table,
+                      &s->alpha_unit,
                       &s->brick_minmax, &s->brick_visible, &s->image, &s->samples};
     for (size_t i = 0; i < sizeof mems / sizeof *mems; i++)
         cdvr_cl_release(mems[i]);
@@ -110,6 +111,7 @@ void cdvr_cl_stream_free(cdvr_cl_stream *s)
 
 static void invalidate_frames(cdvr_cl_stream *s)
 {
+    cdvr_cl_release(&s->host_frames);
     s->frames_valid = 0;
     s->fetch = NULL;
     s->setup_frame = (size_t)-1;
@@ -351,6 +353,27 @@ cdvr_status cdvr_cl_upload_frames(cdvr_cl_stream *s, const uint8_t *frames, size
     return st;
 }
 
+cdvr_status cdvr_cl_use_host_frames(cdvr_cl_stream *s, const uint8_t *frames, size_t count,
+                                    cdvr_error *err)
+{
+    invalidate_frames(s);
+    size_t bytes;
+    if (!frames || count == 0 || !cdvr_size_mul(s->voxels, count, &bytes))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL frames in host memory: %zu frames", count);
+    if (bytes > s->cl->info.max_alloc_bytes)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL: %zu bytes of frames exceed the "
+                              "device's largest buffer on %s", bytes, s->cl->info.device);
+    cl_int code;
+    s->host_frames = clCreateBuffer(s->cl->context, CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, bytes,
+                                    (void *)frames, &code);
+    if (code != CL_SUCCESS) {
+        s->host_frames = NULL;
+        return cdvr_cl_check(code, "frames in host memory", err);
+    }
+    s->frames_valid = count;
+    return CDVR_OK;
+}
+
 uint64_t cdvr_cl_stream_bytes(const cdvr_cl_stream *s)
 {
     uint64_t b = (uint64_t)s->payload_capacity + s->frame_capacity + CDVR_CL_PARAMS_BYTES;
@@ -377,7 +400,7 @@ cdvr_status cdvr_cl_download(cdvr_cl_stream *s, size_t frame, uint8_t *out, cdvr
     if (frame >= s->frames_valid)
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL download: frame %zu not decoded (%zu frames)",
                               frame, s->frames_valid);
-    cl_int code = clEnqueueReadBuffer(s->cl->queue, s->frames, CL_TRUE, frame * s->voxels,
-                                      s->voxels, out, 0, NULL, NULL);
+    cl_int code = clEnqueueReadBuffer(s->cl->queue, cdvr_cl_frames_mem(s), CL_TRUE,
+                                      frame * s->voxels, s->voxels, out, 0, NULL, NULL);
     return cdvr_cl_check(code, "download frame", err);
 }
