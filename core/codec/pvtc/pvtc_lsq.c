@@ -11,18 +11,23 @@
 
 #define LSQ_MAX_ITERATIONS 6
 #define POWER_ITERATIONS 12
-/* Quantised steps searched around each channel's endpoints. Radius 2 (25 pairs) against 1 (9
- * pairs), measured on viscous fingers 64^3 and its 256^3 upsampling (scripts/bench/
- * make_series.py), every S and T: at most 0.002 dB lower, for a tenth to a sixth less time. */
-#define SEARCH_RADIUS 1
+/* Quantised steps searched around each channel's endpoints: 2 (25 pairs) for T = 2, whose
+ * 8-bit endpoints are finer, 1 (9 pairs) for T = 3. Radius 1 against 2 for T = 3, measured on
+ * viscous fingers 64^3 and its 256^3 upsampling (scripts/bench/make_series.py): at most
+ * 0.002 dB lower, for a tenth to a sixth less time (T = 2 lost up to 0.03 dB). */
+#define SEARCH_RADIUS_MAX 2
+static int search_radius(int T)
+{
+    return T == 2 ? 2 : 1;
+}
 #define CLUSTER_FIT_MAX_POSITIONS 16
 /* The cluster fit runs only when the refined principal-axis fit errs by more than this squared
- * error per value (T = 3, 5/6-bit endpoints; T = 2, 8-bit ones: half again as strict). The
- * cluster fit rarely improves a fit already this close and is most of the encoder's time:
- * against a threshold of 1, on the data above, S1T3 loses 0.003 to 0.022 dB and S1T2 0.016 to
- * 0.022 dB for 1.3x to 2.5x less time (the issue's budget: 0.05 dB). */
+ * error per value. The cluster fit rarely improves a fit already this close and is most of the
+ * encoder's time. For T = 3 (5/6-bit endpoints) 3 against the earlier 1, measured on viscous
+ * fingers 64^3 and its 256^3 upsampling: S1T3 0.003 to 0.022 dB lower for 1.4x to 2.5x less
+ * time (the issue's budget: 0.05 dB); T = 2 keeps 1 (a threshold of 2 lost up to 0.03 dB). */
 #define CLUSTER_FIT_MIN_ERROR_PER_VALUE_T3 3u
-#define CLUSTER_FIT_MIN_ERROR_PER_VALUE_T2 2u
+#define CLUSTER_FIT_MIN_ERROR_PER_VALUE_T2 1u
 
 static const double INDEX_WEIGHT[4] = {1.0, 2.0 / 3.0, 1.0 / 3.0, 0.0};
 
@@ -220,7 +225,7 @@ static int channel_error(const index_stats *st, int c, int a, int b)
 }
 
 /* With indices fixed the error separates by channel: per channel, the best quantised (a, b)
- * within SEARCH_RADIUS steps of the current pair (the first of equal ones, a then b
+ * within search_radius steps of the current pair (the first of equal ones, a then b
  * ascending). */
 static void search_neighbourhood(int T, const index_stats *st, pvtc_code *code)
 {
@@ -228,13 +233,13 @@ static void search_neighbourhood(int T, const index_stats *st, pvtc_code *code)
         int bits = pvtc_channel_bits(T, c), max = (1 << bits) - 1;
         int qa0 = code->qa[c], qb0 = code->qb[c];
         int best = channel_error(st, c, pvtc_expand(bits, qa0), pvtc_expand(bits, qb0));
-        int qb_lo = clamp_int(qb0 - SEARCH_RADIUS, 0, max);
-        int qb_hi = clamp_int(qb0 + SEARCH_RADIUS, 0, max);
-        int b_expanded[2 * SEARCH_RADIUS + 1];
+        int r = search_radius(T);
+        int qb_lo = clamp_int(qb0 - r, 0, max);
+        int qb_hi = clamp_int(qb0 + r, 0, max);
+        int b_expanded[2 * SEARCH_RADIUS_MAX + 1];
         for (int qb = qb_lo; qb <= qb_hi; qb++)
             b_expanded[qb - qb_lo] = pvtc_expand(bits, qb);
-        for (int qa = clamp_int(qa0 - SEARCH_RADIUS, 0, max);
-             qa <= clamp_int(qa0 + SEARCH_RADIUS, 0, max); qa++) {
+        for (int qa = clamp_int(qa0 - r, 0, max); qa <= clamp_int(qa0 + r, 0, max); qa++) {
             int a = pvtc_expand(bits, qa);
             for (int qb = qb_lo; qb <= qb_hi; qb++) {
                 int e = channel_error(st, c, a, b_expanded[qb - qb_lo]);
