@@ -14,7 +14,8 @@
 -- scripts/bench/make_series.py writes them (PATTERN like /tmp/vf256/vf256_t%03d.raw); each
 -- length N takes its first N files, or --series-for-N gives another pattern per length.
 --
--- Options: --old EXE (baseline executable), --variants raw,S4T3,S1T3 (names: raw or SxTy),
+-- Options: --old EXE (baseline executable), --new EXE (default: the cdvr running this script),
+--   --variants raw,S4T3,S1T3 (names: raw or SxTy),
 --   --encoder lsq|bbox, --sizes 512,64, --frames 30, --device cl|cpu, --threads 0,
 --   --out DIR (stores; default a fresh directory under /tmp, removed at the end unless --keep),
 --   --skip encode|playback, --repeats 1 (playback repeats; medians of fps and stages).
@@ -25,7 +26,7 @@ local _, opt = common.parse_args(arg, {timesteps = "60", dims = "256", variants 
                                        encoder = "lsq", sizes = "512,64", frames = "30",
                                        device = "cl", threads = "0", repeats = "1"})
 assert(opt.series, "--series PATTERN is required (see scripts/bench/make_series.py)")
-local new_exe = arg[-1]
+local new_exe = opt.new or arg[-1]
 local exes = {{name = "new", path = new_exe}}
 if opt.old then table.insert(exes, 1, {name = "old", path = opt.old}) end
 
