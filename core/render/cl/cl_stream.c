@@ -57,11 +57,6 @@ cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_str
         s->brick_dims[i] = ceil_div(dims[i], CDVR_CL_BRICK);
         s->nbricks *= s->brick_dims[i];
     }
-    cdvr_status gst = cdvr_skip_grid_init(&s->grid, dims, CDVR_CL_BRICK_SHIFT, err);
-    if (gst) {
-        free(s);
-        return gst;
-    }
     s->skipping = 1;
     s->decode_path = decode_path_from_env();
     s->setup_frame = (size_t)-1;
@@ -88,6 +83,8 @@ cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_str
     if (!st)
         st = cdvr_cl_ensure_buffer(cl, &s->brick_visible, &cap, s->nbricks, CL_MEM_READ_ONLY,
                                    "brick flags", err);
+    if (!st) /* host copies only once the device has accepted the sizes */
+        st = cdvr_skip_grid_init(&s->grid, dims, CDVR_CL_BRICK_SHIFT, err);
     if (st) {
         cdvr_cl_stream_free(s);
         return st;
