@@ -4,7 +4,8 @@
  * raw codec without encode_part); PVTC's encode_part gives encode's bytes for any number of
  * parts; every chunk's range table equals the ranges computed by definition from its decoded
  * frames, and the tables of a bricked store merge into exactly the ranges of the assembled
- * volume; a version-2 store without tables still opens. */
+ * volume; no_range_tables writes the same chunks without them; a version-2 store without
+ * tables still opens. */
 #include "check.h"
 
 #include "cdvr/pvtc.h"
@@ -293,6 +294,44 @@ static void test_ranges(void)
     }
 }
 
+/* no_range_tables: the same chunks, no tables, a smaller file that reads the same. */
+static void test_no_tables(void)
+{
+    cdvr_volume *u8 = make_series(19, 11, 9, 4);
+    cdvr_variant_spec vs = pvtc_spec(1, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_LZO);
+    cdvr_encode_opts o = {.variants = &vs, .nvariants = 1, .qhi = 255};
+    const char *with = tmp_path("with.cdv"), *without = tmp_path("without.cdv");
+    cdvr_error err;
+    CHECK_OK(cdvr_store_encode(u8, &o, with, &err), err);
+    o.no_range_tables = 1;
+    CHECK_OK(cdvr_store_encode(u8, &o, without, &err), err);
+    cdvr_store *a = NULL, *b = NULL;
+    CHECK_OK(cdvr_store_open(with, &a, &err), err);
+    CHECK_OK(cdvr_store_open(without, &b, &err), err);
+    if (a && b) {
+        const cdvr_variant_info *va = cdvr_store_variant(a, 0), *vb = cdvr_store_variant(b, 0);
+        CHECK(va->ranges_bytes > 0 && vb->ranges_bytes == 0 && va->bytes == vb->bytes &&
+              va->psnr == vb->psnr && cdvr_store_get_info(b)->file_bytes <
+              cdvr_store_get_info(a)->file_bytes, "tables: %llu vs %llu bytes",
+              (unsigned long long)va->ranges_bytes, (unsigned long long)vb->ranges_bytes);
+        for (size_t c = 0; c < va->nchunks; c++) {
+            uint8_t *pa = NULL, *pb = NULL;
+            CHECK_OK(cdvr_store_load_payload(a, 0, c, &pa, &err), err);
+            CHECK_OK(cdvr_store_load_payload(b, 0, c, &pb, &err), err);
+            CHECK(pa && pb && cdvr_store_ranges_bytes(b, 0, c) == 0 &&
+                  memcmp(pa, pb, (size_t)cdvr_store_chunk(a, 0, c)->payload_bytes) == 0,
+                  "chunk %zu", c);
+            free(pa);
+            free(pb);
+        }
+    }
+    cdvr_store_close(a);
+    cdvr_store_close(b);
+    unlink(with);
+    unlink(without);
+    cdvr_volume_free(u8);
+}
+
 static void test_bad_threads(void)
 {
     cdvr_volume *u8 = make_series(8, 8, 8, 1);
@@ -368,6 +407,7 @@ int main(void)
     test_threads_same_bytes();
     test_encode_part();
     test_ranges();
+    test_no_tables();
     test_bad_threads();
     test_store_without_tables();
     const char *names[] = {"threads.cdv", "ranges.cdv", "tiny.cdv", "old.cdv", "neg.cdv"};

@@ -404,7 +404,7 @@ static cdvr_status measure_chunk(const cdvr_store *st, chunk_job *job, cdvr_erro
     cdvr_status s = ci->codec->decode(&ci->params, job->bd, job->bufs.payload,
                                       job->payload_bytes, frames, ci->count, err);
     uint8_t mn = 255, mx = 0;
-    size_t window = job->ranges_bytes / ci->count, own_lo[3], own_bd[3];
+    size_t window = job->ranges_bytes / ci->count, own_lo[3], own_bd[3]; /* 0: no table */
     cdvr_store_brick_owned(&st->info, ci->brick, own_lo, own_bd);
     for (size_t i = 0; s == CDVR_OK && i < ci->count; i++) {
         measure_frame(job->frames[i], frames[i], job->lo, job->bd, &job->sse, &job->maxerr);
@@ -415,7 +415,8 @@ static cdvr_status measure_chunk(const cdvr_store *st, chunk_job *job, cdvr_erro
         const uint8_t *owned = frames[i] + (own_lo[0] - job->lo[0]) +
                                job->bd[0] * ((own_lo[1] - job->lo[1]) +
                                              job->bd[1] * (own_lo[2] - job->lo[2]));
-        s = cdvr_range_compute(owned, job->bd[0], job->bd[0] * job->bd[1], st->info.dims,
+        if (window)
+            s = cdvr_range_compute(owned, job->bd[0], job->bd[0] * job->bd[1], st->info.dims,
                                own_lo, own_bd, CDVR_RANGE_SHIFT, job->bufs.ranges + i * window,
                                err);
     }
@@ -447,10 +448,10 @@ static cdvr_status finish_job(const cdvr_store *st, chunk_job *job, cdvr_error *
     ci->crc32c = cdvr_crc32c(0, ci->stage2 ? job->bufs.packed : job->bufs.payload,
                              (size_t)ci->stored_bytes);
     s = measure_chunk(st, job, err);
-    if (s == CDVR_OK)
+    if (s == CDVR_OK && job->ranges_bytes)
         s = cdvr_lzo_compress(job->bufs.ranges, job->ranges_bytes, job->bufs.ranges_packed,
                               job->bufs.ranges_packed_cap, &table_packed, err);
-    if (s != CDVR_OK)
+    if (s != CDVR_OK || !job->ranges_bytes)
         return s;
     ci->ranges_shift = CDVR_RANGE_SHIFT;
     ci->ranges_stage2 = cdvr_lzo_keep(job->ranges_bytes, table_packed, CDVR_LZO_MIN_SAVING);
@@ -691,7 +692,7 @@ static cdvr_status prepare_job(write_ctx *wc, const frame_window *win, size_t v,
     size_t own_lo[3], own_bd[3];
     cdvr_store_brick_owned(&st->info, ci->brick, own_lo, own_bd);
     window = cdvr_range_window_bytes(st->info.dims, own_lo, own_bd, CDVR_RANGE_SHIFT);
-    job->ranges_bytes = window * ci->count;
+    job->ranges_bytes = wc->opts->no_range_tables ? 0 : window * ci->count;
     if (!cdvr_size_mul(voxels, ci->count, &decoded) ||
         !reserve(&job->bufs.payload, &job->bufs.payload_cap, job->shape.bound_bytes) ||
         !reserve(&job->bufs.packed, &job->bufs.packed_cap, cdvr_lzo_bound(job->shape.bound_bytes)) ||
@@ -746,10 +747,12 @@ static cdvr_status write_group(write_ctx *wc, chunk_job *jobs, size_t njobs, cdv
                 *err = job->err;
             return job->err.status;
         }
-        ci->ranges_offset = wc->offset;
-        s = write_at(wc->fd, ci->ranges_stage2 ? job->bufs.ranges_packed : job->bufs.ranges,
-                     (size_t)ci->ranges_stored_bytes, ci->ranges_offset, wc->st->path, err);
-        wc->offset += ci->ranges_stored_bytes;
+        if (ci->ranges_shift) {
+            ci->ranges_offset = wc->offset;
+            s = write_at(wc->fd, ci->ranges_stage2 ? job->bufs.ranges_packed : job->bufs.ranges,
+                         (size_t)ci->ranges_stored_bytes, ci->ranges_offset, wc->st->path, err);
+            wc->offset += ci->ranges_stored_bytes;
+        }
         ci->offset = wc->offset;
         if (s == CDVR_OK)
             s = write_at(wc->fd, ci->stage2 ? job->bufs.packed : job->bufs.payload,

@@ -43,7 +43,7 @@ static const char *const stage2_names[] = {"none", "lzo", NULL};
 static const char *const variant_keys[] = {"codec", "name", "stage2", "lzo_min_saving", NULL};
 /* Keys only the top-level options table takes. */
 static const char *const top_keys[] = {"path", "schedule", "progress", "variants", "bricks",
-                                        "threads", NULL};
+                                        "threads", "ranges", NULL};
 
 static int in_list(const char *const list[], const char *key)
 {
@@ -409,6 +409,7 @@ static int l_encode(lua_State *L)
         return luaL_error(L, "cdvr.encode: option 'threads': 0 (one per core) .. %d expected, "
                           "got %d", CDVR_ENCODE_MAX_THREADS, (int)threads);
     o.threads = (int)threads;
+    o.no_range_tables = !lcdvr_optbooleanfield(L, 2, "ranges", 1);
     cdvr_encode_source src;
     const cdvr_volume *u8 = NULL;
     if (lazy)
@@ -922,11 +923,12 @@ int lcdvr_open_store(lua_State *L)
     lcdvr_newclass(L, LCDVR_STORE, store_methods, store_meta);
     lcdvr_setfuncs(L, store_funcs);
     lcdvr_help_add(L, "cdvr.encode(volume, {path=, codec=, S=, T=, pack=, encoder=, stage2=, "
-                      "lzo_min_saving=, name=, variants=, schedule=, progress=, bricks=, threads=})",
+                      "lzo_min_saving=, name=, variants=, schedule=, progress=, bricks=, threads=, ranges=})",
                    "encode a series into a .cdv store (written atomically; defaults codec=pvtc "
                    "S=4 T=3 pack=time encoder=lsq stage2=lzo lzo_min_saving=0.1; bricks={bx,by,bz} "
                    "splits each timestep into bricks; threads=0: one per core, the same bytes for "
-                   "any count); the opened store, or nil, msg on write failure");
+                   "any count; ranges=true: per-brick value range tables for empty-space "
+                   "skipping); the opened store, or nil, msg on write failure");
     lcdvr_help_add(L, "cdvr.open(path)", "open a .cdv store (lazy); store or nil, msg");
     lcdvr_help_add(L, "st:info()", "dims, timesteps, window, bytes, ratio and per-variant "
                                    "codec, bpv, psnr, maxerr, chunks, ranges_bytes (the value "
