@@ -4,7 +4,8 @@
  * that decoded timestep by itself: on the cpu device (host decode in the pipeline), and on
  * the cl device with the recorded ranges (grids uploaded), without them (the store rewritten
  * as an older one: the device's min/max kernel), with the host decode forced and with the
- * decode kernel forced; serial and pipelined; a PVTC variant, raw, and a bricked store. */
+ * decode kernel forced; serial and pipelined; a PVTC variant, raw, and a bricked store; and
+ * with brick skipping on a lossless variant (skipped bricks filled, the device's grid). */
 #include "check.h"
 
 #include "cdvr/device.h"
@@ -107,9 +108,10 @@ static int reference(const cdvr_store *st, size_t v, size_t t, cdvr_device_kind 
     return ok;
 }
 
-/* Plays every timestep of variant v and compares each frame with its reference. */
+/* Plays every timestep of variant v and compares each frame with its reference. With
+ * brick_skip, some brick must have been skipped. */
 static void play_and_compare(const cdvr_store *st, size_t v, cdvr_device_kind device,
-                             int pipelined, const char *what)
+                             int pipelined, int brick_skip, const char *what)
 {
     const cdvr_store_info *in = cdvr_store_get_info(st);
     size_t n = in->timesteps, px = (size_t)W * H * 4;
@@ -119,7 +121,8 @@ static void play_and_compare(const cdvr_store *st, size_t v, cdvr_device_kind de
     make_tf(&tf);
     cdvr_player_opts o = {.store = st, .device = device, .tf = &tf, .camera = make_camera(),
                           .variant = (int)v, .pipelined = pipelined, .ring = 2,
-                          .empty_skip = 1, .frame_fn = keep_frame, .frame_ud = &cap};
+                          .empty_skip = 1, .brick_skip = brick_skip, .frame_fn = keep_frame,
+                          .frame_ud = &cap};
     cdvr_player *p = NULL;
     cdvr_error err;
     cdvr_status s = cdvr_player_create(&o, &p, &err);
@@ -128,8 +131,12 @@ static void play_and_compare(const cdvr_store *st, size_t v, cdvr_device_kind de
         CHECK_OK(cdvr_player_run(p, 0, n, &err), err);
         size_t nrows = 0;
         const cdvr_frame_row *rows = cdvr_player_rows(p, &nrows);
-        for (size_t i = 0; i < nrows; i++)
+        size_t skipped = 0;
+        for (size_t i = 0; i < nrows; i++) {
             CHECK(rows[i].status == CDVR_OK, "%s: frame %zu: %s", what, i, rows[i].error);
+            skipped += rows[i].bricks_skipped;
+        }
+        CHECK(!brick_skip || skipped > 0, "%s: no brick skipped", what);
         for (size_t t = 0; t < n; t++)
             if (reference(st, v, t, device, ref))
                 CHECK(memcmp(ref, cap.pixels + t * px, px * sizeof(float)) == 0,
@@ -186,8 +193,8 @@ int main(void)
     have_cl = cdvr_cl_open(&probe, &perr) == CDVR_OK;
     cdvr_cl_close(probe);
 #endif
-    static const size_t grids[2][3] = {{1, 1, 1}, {2, 1, 2}};
-    for (int g = 0; g < 2 && vol; g++) {
+    static const size_t grids[3][3] = {{1, 1, 1}, {2, 1, 2}, {4, 1, 1}};
+    for (int g = 0; g < 3 && vol; g++) {
         cdvr_encode_opts o = {.variants = vs, .nvariants = 2, .qhi = 255};
         memcpy(o.bricks, grids[g], sizeof o.bricks);
         cdvr_error err;
@@ -200,18 +207,23 @@ int main(void)
             if (!st)
                 continue;
             char what[96];
-            for (size_t v = 0; v < 2; v++)
+            /* grid 2: brick skipping on the raw variant (lossless: no pixel changes; the
+               sphere leaves the last column of bricks transparent in early timesteps) */
+            int brick_skip = g == 2;
+            for (size_t v = brick_skip ? 1 : 0; v < 2; v++)
                 for (int pipelined = 0; pipelined < 2; pipelined++) {
-                    snprintf(what, sizeof what, "bricks %d, tables %d, variant %zu, %s", g,
-                             tables, v + 1, pipelined ? "pipelined" : "serial");
+                    snprintf(what, sizeof what, "bricks %d, tables %d, variant %zu, %s%s", g,
+                             tables, v + 1, pipelined ? "pipelined" : "serial",
+                             brick_skip ? ", brick skipping" : "");
                     if (tables)
-                        play_and_compare(st, v, CDVR_DEVICE_CPU, pipelined, what);
+                        play_and_compare(st, v, CDVR_DEVICE_CPU, pipelined, brick_skip, what);
                     static const char *const paths[] = {"host", "kernel"};
                     for (int k = 0; have_cl && k < 2; k++) {
                         setenv("CDVR_CL_DECODE", paths[k], 1);
                         char what_cl[128];
                         snprintf(what_cl, sizeof what_cl, "cl, %s decode, %s", paths[k], what);
-                        play_and_compare(st, v, CDVR_DEVICE_CL, pipelined, what_cl);
+                        play_and_compare(st, v, CDVR_DEVICE_CL, pipelined, brick_skip,
+                                         what_cl);
                         unsetenv("CDVR_CL_DECODE");
                     }
                 }
