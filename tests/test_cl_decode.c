@@ -1,6 +1,8 @@
 /* tests/test_cl_decode.c - codec decode kernels through the codec table (cdvr_cl_decode): the
- * PVTC kernel is bit-exact with cdvr_pvtc_decode_chunk on every variant, odd dims, random chunks
- * and encoded real data; raw chunks; host-decoded frames; bad arguments. */
+ * PVTC kernel and the host path (the C decoder into the mapped frames buffer) are bit-exact
+ * with cdvr_pvtc_decode_chunk, and so with each other, on every variant, odd dims, random
+ * chunks and encoded real data; raw chunks on both paths; the automatic choice on a CPU device
+ * is measured once and remembered on disk; host-decoded frames; bad arguments. */
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -25,7 +27,8 @@ static const cdvr_pvtc_params variants[] = {
     {1, 2, CDVR_PACK_SPACE}, {1, 3, CDVR_PACK_SPACE}, {4, 2, CDVR_PACK_SPACE}, {4, 3, CDVR_PACK_SPACE}};
 #define NVARIANTS (sizeof variants / sizeof *variants)
 
-/* Decodes `chunk` with the C decoder and the kernel (nframes frames) and compares. */
+/* Decodes `chunk` (nframes frames) with the C decoder, then on the device by the kernel and by
+ * the host path, and compares. */
 static void compare_decoders(cdvr_cl_stream *s, const cdvr_pvtc_params *p, const size_t dims[3],
                              const uint8_t *chunk, size_t bytes, size_t nframes, const char *what)
 {
@@ -35,24 +38,32 @@ static void compare_decoders(cdvr_cl_stream *s, const cdvr_pvtc_params *p, const
     cdvr_error err;
     cdvr_status st = cdvr_pvtc_decode_chunk(p, dims, chunk, bytes, frames, nframes, &err);
     CHECK_OK(st, err);
-    st = cdvr_cl_upload(s, chunk, bytes, &err);
-    CHECK_OK(st, err);
-    cdvr_codec_params blob;
-    cdvr_pvtc_params_to_blob(p, CDVR_ENCODER_LSQ, &blob);
-    st = cdvr_cl_decode(s, cdvr_codec_find("pvtc"), &blob, nframes, &err);
-    CHECK_OK(st, err);
-    for (size_t f = 0; f < nframes && st == CDVR_OK; f++) {
-        memset(got, 0xA5, voxels);
-        st = cdvr_cl_download(s, f, got, &err);
+    static const cdvr_cl_decode_path paths[] = {CDVR_CL_DECODE_KERNEL, CDVR_CL_DECODE_HOST};
+    for (size_t pi = 0; pi < 2 && st == CDVR_OK; pi++) {
+        cdvr_cl_set_decode_path(s, paths[pi]);
+        st = cdvr_cl_upload(s, chunk, bytes, &err);
         CHECK_OK(st, err);
-        size_t bad = 0, first = 0;
-        for (size_t i = 0; i < voxels; i++)
-            if (got[i] != frames[f][i] && bad++ == 0)
-                first = i;
-        CHECK(bad == 0, "%s S%dT%d%s %zux%zux%zu frame %zu/%zu: %zu voxels differ, first at %zu "
-              "(kernel %d, C %d)", what, p->S, p->T, p->pack == CDVR_PACK_SPACE ? "s" : "",
-              dims[0], dims[1], dims[2], f, nframes, bad, first, got[first], frames[f][first]);
+        cdvr_codec_params blob;
+        cdvr_pvtc_params_to_blob(p, CDVR_ENCODER_LSQ, &blob);
+        st = cdvr_cl_decode(s, cdvr_codec_find("pvtc"), &blob, nframes, &err);
+        CHECK_OK(st, err);
+        CHECK(st || cdvr_cl_last_decode_path(s) == paths[pi], "decode took path %d, not %d",
+              (int)cdvr_cl_last_decode_path(s), (int)paths[pi]);
+        for (size_t f = 0; f < nframes && st == CDVR_OK; f++) {
+            memset(got, 0xA5, voxels);
+            st = cdvr_cl_download(s, f, got, &err);
+            CHECK_OK(st, err);
+            size_t bad = 0, first = 0;
+            for (size_t i = 0; i < voxels; i++)
+                if (got[i] != frames[f][i] && bad++ == 0)
+                    first = i;
+            CHECK(bad == 0, "%s S%dT%d%s %zux%zux%zu frame %zu/%zu, %s path: %zu voxels differ, "
+                  "first at %zu (device %d, C %d)", what, p->S, p->T,
+                  p->pack == CDVR_PACK_SPACE ? "s" : "", dims[0], dims[1], dims[2], f, nframes,
+                  pi ? "host" : "kernel", bad, first, got[first], frames[f][first]);
+        }
     }
+    cdvr_cl_set_decode_path(s, CDVR_CL_DECODE_AUTO);
     free(ref);
     free(got);
 }
@@ -122,13 +133,21 @@ static void raw_chunks(cdvr_cl *cl)
     const cdvr_codec *raw = cdvr_codec_find("raw"), *pvtc = cdvr_codec_find("pvtc");
     cdvr_codec_params none;
     raw->params_default(&none);
-    st = cdvr_cl_upload(s, payload, voxels, &err);
-    CHECK_OK(st, err);
-    st = cdvr_cl_decode(s, raw, &none, 1, &err);
-    CHECK_OK(st, err);
-    st = cdvr_cl_download(s, 0, got, &err);
-    CHECK_OK(st, err);
-    CHECK(memcmp(got, payload, voxels) == 0, "raw frame differs");
+    for (int path = CDVR_CL_DECODE_AUTO; path <= CDVR_CL_DECODE_HOST; path++) {
+        cdvr_cl_set_decode_path(s, (cdvr_cl_decode_path)path);
+        st = cdvr_cl_upload(s, payload, voxels, &err);
+        CHECK_OK(st, err);
+        st = cdvr_cl_decode(s, raw, &none, 1, &err);
+        CHECK_OK(st, err);
+        memset(got, 0, sizeof got);
+        st = cdvr_cl_download(s, 0, got, &err);
+        CHECK_OK(st, err);
+        CHECK(memcmp(got, payload, voxels) == 0, "raw frame differs (path %d)", path);
+        CHECK(cdvr_cl_last_decode_path(s) != CDVR_CL_DECODE_AUTO &&
+              (path == CDVR_CL_DECODE_AUTO || (int)cdvr_cl_last_decode_path(s) == path),
+              "path %d taken as %d", path, (int)cdvr_cl_last_decode_path(s));
+    }
+    cdvr_cl_set_decode_path(s, CDVR_CL_DECODE_AUTO);
     /* frames decoded on the host */
     st = cdvr_cl_upload_frames(s, payload, 2, &err);
     CHECK_OK(st, err);
@@ -174,6 +193,69 @@ static void raw_chunks(cdvr_cl *cl)
     cdvr_cl_stream_free(s);
 }
 
+/* The automatic path: on a CPU device the first decode measures both paths and leaves its
+ * choice on disk, where a second device context finds it (no measurement: the same path). */
+static void remembered_choice(void)
+{
+    char dir[] = "/tmp/cdvr_test_decode_choice_XXXXXX";
+    if (!mkdtemp(dir))
+        return;
+    const char *old = getenv("CDVR_CACHE_DIR");
+    char *saved = old ? strdup(old) : NULL;
+    setenv("CDVR_CACHE_DIR", dir, 1);
+    size_t dims[3] = {32, 24, 20}, voxels = 32 * 24 * 20;
+    cdvr_pvtc_params p = {4, 3, CDVR_PACK_TIME};
+    cdvr_codec_params blob;
+    cdvr_pvtc_params_to_blob(&p, CDVR_ENCODER_BBOX, &blob);
+    cdvr_pvtc_geometry g;
+    cdvr_error err;
+    cdvr_pvtc_geometry_get(&p, dims, &g, &err);
+    uint8_t *chunk = malloc(g.chunk_bytes), *got = malloc(voxels), *ref = malloc(3 * voxels);
+    uint32_t seed = 99;
+    for (size_t i = 0; i < g.chunk_bytes; i++)
+        chunk[i] = (uint8_t)next_random(&seed);
+    uint8_t *frames[3] = {ref, ref + voxels, ref + 2 * voxels};
+    CHECK_OK(cdvr_pvtc_decode_chunk(&p, dims, chunk, g.chunk_bytes, frames, 3, &err), err);
+    cdvr_cl_decode_path first = CDVR_CL_DECODE_AUTO;
+    for (int round = 0; round < 2; round++) {
+        cdvr_cl *cl = NULL;
+        cdvr_cl_stream *s = NULL;
+        if (cdvr_cl_open(&cl, &err) || cdvr_cl_stream_create(cl, dims, &s, &err)) {
+            cdvr_cl_close(cl);
+            break;
+        }
+        int gpu = cdvr_cl_get_info(cl)->is_gpu;
+        cdvr_cl_set_decode_path(s, CDVR_CL_DECODE_AUTO);
+        CHECK_OK(cdvr_cl_upload(s, chunk, g.chunk_bytes, &err), err);
+        CHECK_OK(cdvr_cl_decode(s, cdvr_codec_find("pvtc"), &blob, 3, &err), err);
+        cdvr_cl_decode_path took = cdvr_cl_last_decode_path(s);
+        for (size_t f = 0; f < 3; f++) {
+            CHECK_OK(cdvr_cl_download(s, f, got, &err), err);
+            CHECK(memcmp(got, frames[f], voxels) == 0, "auto path, round %d, frame %zu", round,
+                  f);
+        }
+        CHECK(gpu ? took == CDVR_CL_DECODE_KERNEL : took != CDVR_CL_DECODE_AUTO,
+              "auto took %d on a %s", (int)took, gpu ? "GPU" : "CPU");
+        if (round == 0)
+            first = took;
+        else
+            CHECK(took == first, "remembered path %d, measured %d", (int)took, (int)first);
+        cdvr_cl_stream_free(s);
+        cdvr_cl_close(cl);
+    }
+    char cmd[128];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    CHECK(system(cmd) == 0, "remove %s", dir);
+    if (saved)
+        setenv("CDVR_CACHE_DIR", saved, 1);
+    else
+        unsetenv("CDVR_CACHE_DIR");
+    free(saved);
+    free(chunk);
+    free(got);
+    free(ref);
+}
+
 int main(void)
 {
     cdvr_cl *cl;
@@ -206,6 +288,7 @@ int main(void)
     }
     raw_chunks(cl);
     cdvr_cl_close(cl);
+    remembered_choice();
     return check_finish();
 }
 

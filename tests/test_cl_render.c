@@ -5,7 +5,8 @@
  * over large empty regions, and over compact blobs, where rays start and stop at the box
  * around the visible bricks); without skipping the sample counts equal the CPU's; zero/full
  * opacity, tiny and huge steps; odd image sizes; oriented volumes (oblique, mirrored, sheared);
- * misuse errors. */
+ * the voxel layouts (a frame's voxels, its quads on a second render, 64-bit indices) give the
+ * same pixels and samples, also on volumes one voxel thick in x or y; misuse errors. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -177,6 +178,48 @@ static void engine_scenes(cdvr_cl *cl, const char *data)
     cdvr_volume_free(vol);
 }
 
+/* The ray caster's voxel layouts give the same image: the first render reads the frame's
+ * voxels, a render of the same frame again reads its quads (the stream grows by 4 bytes per
+ * voxel), and 64-bit voxel indices (CDVR_CL_LONG_INDEX=1) read the voxels too. */
+static void check_layouts(cdvr_cl *cl, const cdvr_volume *vol, const scene *sc)
+{
+    cdvr_error err;
+    cdvr_image *img[4] = {NULL, NULL, NULL, NULL};
+    uint64_t samples[4] = {0, 0, 0, 0}, bytes[2] = {0, 0};
+    cdvr_render_opts opts = {.tf = &sc->tf, .camera = &sc->cam, .step = sc->step};
+    size_t n = (size_t)sc->cam.width * (size_t)sc->cam.height;
+    for (int k = 0; k < 4; k++) {
+        if (k == 3)
+            setenv("CDVR_CL_LONG_INDEX", "1", 1);
+        cdvr_cl_stream *s = NULL;
+        cdvr_status st = upload_volume(cl, vol, &s, &err);
+        for (int rep = 0; !st && rep <= (k < 3 ? k : 1); rep++) {
+            cdvr_image_free(img[k]);
+            img[k] = NULL;
+            st = cdvr_image_create(sc->cam.width, sc->cam.height, &img[k], &err);
+            if (!st)
+                st = cdvr_cl_setup(s, 0, &sc->tf, &err);
+            if (!st)
+                st = cdvr_cl_render(s, 0, &opts, vol->spacing, vol->origin, vol->direction,
+                                    img[k], &err);
+            if (!st && k == 1)
+                bytes[rep] = cdvr_cl_stream_bytes(s);
+        }
+        CHECK(st == CDVR_OK, "%s: layout %d: %s", sc->name, k, err.msg);
+        samples[k] = s ? cdvr_cl_last_samples(s) : 0;
+        cdvr_cl_stream_free(s);
+        unsetenv("CDVR_CL_LONG_INDEX");
+    }
+    CHECK(bytes[1] == bytes[0] + 4 * cdvr_volume_voxels(vol), "%s: quads of %zu voxels: stream "
+          "%llu -> %llu bytes", sc->name, cdvr_volume_voxels(vol), (unsigned long long)bytes[0],
+          (unsigned long long)bytes[1]);
+    for (int k = 1; k < 4; k++)
+        CHECK(img[0] && img[k] && memcmp(img[0]->rgba, img[k]->rgba, 4 * sizeof(float) * n) == 0 &&
+              samples[k] == samples[0], "%s: layout %d differs from the voxels' image", sc->name, k);
+    for (int k = 0; k < 4; k++)
+        cdvr_image_free(img[k]);
+}
+
 static void synthetic_scenes(cdvr_cl *cl)
 {
     cdvr_generate_opts gen = {{40, 33, 27}, 1, CDVR_TYPE_U8, 0, 0, 0, 0};
@@ -207,6 +250,24 @@ static void synthetic_scenes(cdvr_cl *cl)
         sc.step = views[i].step;
         sc.name = views[i].name;
         CHECK(check_scene(&sc) > 0.02, "%s is empty", sc.name);
+        check_layouts(cl, vol, &sc);
+    }
+    /* flat volumes: the quads' clamped neighbours along x and along y */
+    static const size_t flat[2][3] = {{1, 9, 7}, {8, 1, 6}};
+    for (int f = 0; f < 2; f++) {
+        cdvr_generate_opts g2 = {{flat[f][0], flat[f][1], flat[f][2]}, 1, CDVR_TYPE_U8, 0, 0, 0, 0};
+        cdvr_volume *thin = NULL;
+        if (cdvr_volume_generate("ml", &g2, &thin, &err) == CDVR_OK) {
+            scene ts = sc;
+            double tc[3], te, tup[3] = {0, 0, 1};
+            volume_centre(thin, tc, &te);
+            look(&ts.cam, tc, tc, tup);
+            cdvr_camera_orbit(&ts.cam, tc, tup, 3 * te + 5, 35 + 40 * f, 25);
+            ts.step = 0.3;
+            ts.name = f ? "flat in y" : "flat in x";
+            check_layouts(cl, thin, &ts);
+        }
+        cdvr_volume_free(thin);
     }
     /* zero opacity everywhere: nothing visible, every brick skipped */
     const cdvr_tf_point clear[] = {{0, 1, 1, 1, 0}, {255, 1, 1, 1, 0}};

@@ -83,7 +83,7 @@ static void test_bad_plugins(void)
         cdvr_status status;
         const char *want[3];
     } cases[] = {
-        {"bad_abi.so", CDVR_ERR_FORMAT, {"ABI version 42", "version 1", NULL}},
+        {"bad_abi.so", CDVR_ERR_FORMAT, {"ABI version 42", "version 2", NULL}},
         {"bad_nosym.so", CDVR_ERR_FORMAT, {"not a cdvr plugin", "no cdvr_plugin_v1 symbol", NULL}},
         {"bad_null_info.so", CDVR_ERR_FORMAT, {"cdvr_plugin_v1 returned NULL", NULL}},
         {"bad_null_codec.so", CDVR_ERR_FORMAT, {"returned no codec", NULL}},

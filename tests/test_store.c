@@ -456,8 +456,8 @@ static void write_file(const char *path, const uint8_t *buf, size_t n)
     fclose(f);
 }
 
-/* Opens path and decodes everything; returns 1 if any step reported an error. Messages must
- * name the file. */
+/* Opens path, reads every range table and decodes everything; returns 1 if any step reported
+ * an error. Messages must name the file. */
 static int open_and_decode_all(const char *path)
 {
     cdvr_store *st = NULL;
@@ -468,6 +468,17 @@ static int open_and_decode_all(const char *path)
     }
     int failed = 0;
     const cdvr_store_info *in = cdvr_store_get_info(st);
+    for (size_t v = 0; v < in->nvariants; v++)
+        for (size_t c = 0; c < cdvr_store_variant(st, v)->nchunks; c++) {
+            size_t n = cdvr_store_ranges_bytes(st, v, c);
+            uint8_t *table = malloc(n ? n : 1);
+            if (n && cdvr_store_read_ranges(st, v, c, table, &err) != CDVR_OK) {
+                failed = 1;
+                CHECK(strstr(err.msg, path) && strstr(err.msg, "range table"), "message: %s",
+                      err.msg);
+            }
+            free(table);
+        }
     for (size_t v = 0; v < in->nvariants; v++)
         for (size_t t = 0; t < in->timesteps; t++) {
             cdvr_volume *d = NULL;

@@ -279,3 +279,33 @@ cdvr_status cdvr_volume_load_nifti(const char *path, cdvr_volume **out, cdvr_err
     nifti_image_free(nim);
     return st;
 }
+
+cdvr_status cdvr_volume_probe_nifti(const char *path, cdvr_volume *head, cdvr_error *err)
+{
+    cdvr_status st = cdvr_check_readable(path, err);
+    if (st == CDVR_OK)
+        st = check_raw_header(path, err);
+    if (st != CDVR_OK)
+        return st;
+    nifti_image *nim = nifti_image_read(path, 0); /* header only */
+    if (!nim)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                              "%s: cannot read NIfTI header: not a NIfTI-1 file or corrupt "
+                              "(niftilib's reason is on stderr)",
+                              path);
+    int native;
+    double slope, inter;
+    if (!nifti_reader(nim->datatype, &head->type, &native))
+        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI datatype %s (%d) is not supported",
+                            path, nifti_datatype_string(nim->datatype), nim->datatype);
+    if (st == CDVR_OK && nifti_scaling(nim, &slope, &inter))
+        head->type = CDVR_TYPE_F32;
+    if (st == CDVR_OK)
+        st = nifti_shape(path, nim, head->dims, &head->timesteps, err);
+    if (st == CDVR_OK)
+        st = check_data_size(path, nim, err);
+    if (st == CDVR_OK)
+        nifti_geometry(nim, head);
+    nifti_image_free(nim);
+    return st;
+}

@@ -1,6 +1,7 @@
 /* core/io/io_nrrd.c - NRRD (.nrrd, .nhdr with detached data) through teem. */
 #include "cdvr/volume.h"
 #include "volume_io.h"
+#include "cdvr/regular_file.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -177,6 +178,40 @@ cdvr_status cdvr_volume_load_nrrd(const char *path, cdvr_volume **out, cdvr_erro
         return st;
     }
     st = nrrd_to_volume(path, nrrd, out, err);
+    nrrdNuke(nrrd);
+    return st;
+}
+
+cdvr_status cdvr_volume_probe_nrrd(const char *path, cdvr_volume *head, cdvr_error *err)
+{
+    cdvr_status st = cdvr_check_regular_file(path, NULL, err);
+    if (st != CDVR_OK)
+        return st;
+    Nrrd *nrrd = nrrdNew();
+    NrrdIoState *nio = nrrdIoStateNew();
+    if (!nrrd || !nio) {
+        nrrdNix(nrrd);
+        nrrdIoStateNix(nio);
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
+    }
+    nrrdIoStateSet(nio, nrrdIoStateSkipData, AIR_TRUE);
+    if (nrrdLoad(nrrd, path, nio)) {
+        char *msg = biffGetDone(NRRD);
+        if (msg)
+            cdvr_teem_reason(msg);
+        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: cannot read NRRD header: %s", path,
+                            msg && *msg ? msg : "unknown teem error");
+        free(msg);
+    }
+    cdvr_value_reader reader;
+    if (st == CDVR_OK && !map_type(nrrd->type, &head->type, &reader))
+        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD type '%s' is not supported", path,
+                            airEnumStr(nrrdType, nrrd->type));
+    if (st == CDVR_OK)
+        st = nrrd_shape(path, nrrd, head->dims, &head->timesteps, err);
+    if (st == CDVR_OK)
+        st = nrrd_geometry(path, nrrd, head, err);
+    nrrdIoStateNix(nio);
     nrrdNuke(nrrd);
     return st;
 }

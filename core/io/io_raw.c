@@ -95,6 +95,25 @@ cdvr_status cdvr_volume_load_raw(const char *path, const cdvr_raw_opts *opts, cd
     return CDVR_OK;
 }
 
+cdvr_status cdvr_volume_probe_raw(const char *path, const cdvr_raw_opts *opts, cdvr_volume *head,
+                                  cdvr_error *err)
+{
+    size_t timesteps = opts->timesteps ? opts->timesteps : 1;
+    size_t data_bytes;
+    cdvr_status st = check_raw_opts(path, opts, timesteps, &data_bytes, err);
+    FILE *f = NULL;
+    if (st == CDVR_OK)
+        st = open_raw(path, opts, timesteps, data_bytes, &f, err);
+    if (st != CDVR_OK)
+        return st;
+    fclose(f);
+    memcpy(head->dims, opts->dims, sizeof head->dims);
+    head->timesteps = timesteps;
+    head->type = opts->type;
+    apply_spacing(head, opts->spacing);
+    return CDVR_OK;
+}
+
 /* Writes data (bytes long) to f, byte-swapped when swap, through a bounded buffer. */
 static int write_data(FILE *f, const unsigned char *data, size_t bytes, size_t elem, int swap)
 {

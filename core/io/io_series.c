@@ -68,8 +68,34 @@ cdvr_status cdvr_volume_load(const char *path, const cdvr_raw_opts *raw, cdvr_vo
     return st;
 }
 
-static cdvr_status check_same_shape(const cdvr_volume *first, const cdvr_volume *next,
-                                    const char *first_path, const char *path, cdvr_error *err)
+cdvr_status cdvr_volume_probe(const char *path, const cdvr_raw_opts *raw, cdvr_volume *head,
+                              cdvr_error *err)
+{
+    cdvr_status st;
+    switch (format_of(path)) {
+    case FORMAT_NRRD: st = cdvr_volume_probe_nrrd(path, head, err); break;
+    case FORMAT_NIFTI: st = cdvr_volume_probe_nifti(path, head, err); break;
+    case FORMAT_RAW:
+        if (!describes_raw(raw))
+            return cdvr_error_set(err, CDVR_ERR_ARG,
+                                  "%s: a raw file needs its dims and type (and endian, header, timesteps)",
+                                  path);
+        return cdvr_volume_probe_raw(path, raw, head, err);
+    default:
+        if (describes_raw(raw))
+            return cdvr_volume_probe_raw(path, raw, head, err);
+        return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                              "%s: unknown file type (.nrrd .nhdr .nii .nii.gz, or raw .raw .bin .dat "
+                              "with dims and type)",
+                              path);
+    }
+    if (st == CDVR_OK)
+        override_spacing(head, raw);
+    return st;
+}
+
+cdvr_status cdvr_series_same_shape(const cdvr_volume *first, const cdvr_volume *next,
+                                   const char *first_path, const char *path, cdvr_error *err)
 {
     if (memcmp(first->dims, next->dims, sizeof first->dims) != 0 || first->type != next->type)
         return cdvr_error_set(err, CDVR_ERR_FORMAT,
@@ -82,8 +108,8 @@ static cdvr_status check_same_shape(const cdvr_volume *first, const cdvr_volume 
 
 /* Files of a series must agree on spacing (relative difference 1e-6) unless the caller
  * overrides it. */
-static cdvr_status check_same_spacing(const cdvr_volume *first, const cdvr_volume *next,
-                                      const char *first_path, const char *path, cdvr_error *err)
+cdvr_status cdvr_series_same_spacing(const cdvr_volume *first, const cdvr_volume *next,
+                                     const char *first_path, const char *path, cdvr_error *err)
 {
     for (int i = 0; i < 3; i++) {
         double a = first->spacing[i], b = next->spacing[i];
@@ -129,9 +155,9 @@ cdvr_status cdvr_volume_load_series(const char *const *paths, size_t count,
         st = cdvr_volume_load(paths[i], raw, &next, err);
         if (st != CDVR_OK)
             break;
-        st = check_same_shape(series, next, paths[0], paths[i], err);
+        st = cdvr_series_same_shape(series, next, paths[0], paths[i], err);
         if (st == CDVR_OK && !spacing_given)
-            st = check_same_spacing(series, next, paths[0], paths[i], err);
+            st = cdvr_series_same_spacing(series, next, paths[0], paths[i], err);
         if (st == CDVR_OK)
             st = append_frames(series, next, paths[i], err);
         cdvr_volume_free(next);

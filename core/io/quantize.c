@@ -1,4 +1,5 @@
 /* core/io/quantize.c - cdvr_volume_quantize: any volume to u8 over a window [lo, hi]. */
+#include "cdvr/series.h"
 #include "cdvr/volume.h"
 
 #include <float.h>
@@ -47,15 +48,38 @@ static uint8_t quantize_value(const window *w, double v, cdvr_quantize_report *r
     return q >= 255.0 ? 255 : q <= 0.0 ? 0 : (uint8_t)q;
 }
 
-static double value_at(const cdvr_volume *vol, size_t i)
+static double value_at(const void *data, cdvr_type type, size_t i)
 {
-    switch (vol->type) {
-    case CDVR_TYPE_U8: return ((const uint8_t *)vol->data)[i];
-    case CDVR_TYPE_U16: return ((const uint16_t *)vol->data)[i];
-    case CDVR_TYPE_I16: return ((const int16_t *)vol->data)[i];
-    case CDVR_TYPE_F32: return ((const float *)vol->data)[i];
+    switch (type) {
+    case CDVR_TYPE_U8: return ((const uint8_t *)data)[i];
+    case CDVR_TYPE_U16: return ((const uint16_t *)data)[i];
+    case CDVR_TYPE_I16: return ((const int16_t *)data)[i];
+    case CDVR_TYPE_F32: return ((const float *)data)[i];
     }
     return 0.0;
+}
+
+static cdvr_status check_window(double lo, double hi, cdvr_error *err)
+{
+    if (!isfinite(lo) || !isfinite(hi) || hi < lo)
+        return cdvr_error_set(err, CDVR_ERR_ARG,
+                              "quantize: window [%g, %g] must be finite with lo <= hi", lo, hi);
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_quantize_values(const void *in, cdvr_type type, size_t count, double lo,
+                                 double hi, uint8_t *out, cdvr_quantize_report *report,
+                                 cdvr_error *err)
+{
+    cdvr_quantize_report local = {0};
+    cdvr_quantize_report *r = report ? report : &local;
+    cdvr_status st = check_window(lo, hi, err);
+    if (st != CDVR_OK)
+        return st;
+    window w = make_window(lo, hi);
+    for (size_t i = 0; i < count; i++)
+        out[i] = quantize_value(&w, value_at(in, type, i), r);
+    return CDVR_OK;
 }
 
 cdvr_status cdvr_volume_quantize(const cdvr_volume *in, double lo, double hi, cdvr_volume **out,
@@ -65,10 +89,10 @@ cdvr_status cdvr_volume_quantize(const cdvr_volume *in, double lo, double hi, cd
     cdvr_quantize_report local;
     cdvr_quantize_report *r = report ? report : &local;
     memset(r, 0, sizeof *r);
-    if (!isfinite(lo) || !isfinite(hi) || hi < lo)
-        return cdvr_error_set(err, CDVR_ERR_ARG,
-                              "quantize: window [%g, %g] must be finite with lo <= hi", lo, hi);
-    cdvr_status st = cdvr_volume_create(in->dims, in->timesteps, CDVR_TYPE_U8, out, err);
+    cdvr_status st = check_window(lo, hi, err);
+    if (st != CDVR_OK)
+        return st;
+    st = cdvr_volume_create(in->dims, in->timesteps, CDVR_TYPE_U8, out, err);
     if (st != CDVR_OK)
         return st;
     memcpy((*out)->spacing, in->spacing, sizeof in->spacing);
@@ -76,10 +100,6 @@ cdvr_status cdvr_volume_quantize(const cdvr_volume *in, double lo, double hi, cd
     memcpy((*out)->direction, in->direction, sizeof in->direction);
     (*out)->window[0] = lo;
     (*out)->window[1] = hi;
-    window w = make_window(lo, hi);
-    uint8_t *dst = (*out)->data;
-    size_t count = cdvr_volume_voxels(in) * in->timesteps;
-    for (size_t i = 0; i < count; i++)
-        dst[i] = quantize_value(&w, value_at(in, i), r);
-    return CDVR_OK;
+    return cdvr_quantize_values(in->data, in->type, cdvr_volume_voxels(in) * in->timesteps, lo,
+                                hi, (*out)->data, r, err);
 }

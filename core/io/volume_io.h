@@ -35,4 +35,22 @@ cdvr_status cdvr_nrrd_check(const char *path, cdvr_error *err);
  * its innermost non-empty reason. */
 void cdvr_teem_reason(char *msg);
 
+/* Header probes: what cdvr_volume_load of the same file gives (dims, timesteps, type after
+ * the loaders' conversions, spacing, origin, direction) without reading the voxels. head must
+ * be preset (spacing 1, origin 0, direction identity); head->data is left alone. */
+cdvr_status cdvr_volume_probe_nrrd(const char *path, cdvr_volume *head, cdvr_error *err);
+cdvr_status cdvr_volume_probe_nifti(const char *path, cdvr_volume *head, cdvr_error *err);
+cdvr_status cdvr_volume_probe_raw(const char *path, const cdvr_raw_opts *opts, cdvr_volume *head,
+                                  cdvr_error *err);
+/* The same dispatch on the file name as cdvr_volume_load (raw spacing overrides included). */
+cdvr_status cdvr_volume_probe(const char *path, const cdvr_raw_opts *raw, cdvr_volume *head,
+                              cdvr_error *err);
+
+/* The checks cdvr_volume_load_series makes of each file against the first: the same dims and
+ * type; the same spacing (relative 1e-6) unless the caller gives one. Errors name both files. */
+cdvr_status cdvr_series_same_shape(const cdvr_volume *first, const cdvr_volume *next,
+                                   const char *first_path, const char *path, cdvr_error *err);
+cdvr_status cdvr_series_same_spacing(const cdvr_volume *first, const cdvr_volume *next,
+                                     const char *first_path, const char *path, cdvr_error *err);
+
 #endif

@@ -3,7 +3,16 @@
  * Threads (pipelined): reader (plans a group - decision and cameras handed to the calling
  * thread -, picks its bricks, b1) -> queue -> unzip (b1') -> queue -> calling thread (b2..b5,
  * composite, callbacks). One mutex and one condition variable guard the queues, the item
- * pool and the planning hand-off; every wait loops on its predicate and on `abort`.
+ * pool, the decode slots and the planning hand-off; every wait loops on its predicate and on
+ * `abort`.
+ *
+ * Off the calling thread's path, the unzip thread also decodes a group on the host when it
+ * is decoded there anyway (cpu device, codecs without device code, bricked stores) or when the
+ * cl device decodes that variant faster on the host (its first group, decoded by the device,
+ * tells: cdvr_cl_decode_path), into one of two decode slots (double buffering), and turns the
+ * store's range tables into each frame's skip grid and flags (cdvr/skip.h). The calling
+ * thread then hands the slot's frames to the device without a copy and uploads the flags, so
+ * the next group's decode and setup overlap the current group's rendering.
  */
 #include "cdvr/player.h"
 #include "cdvr/timing.h"
@@ -16,9 +25,13 @@
 #include <string.h>
 #include <time.h>
 
+#include "cdvr/skip.h"
+
 #if CDVR_HAVE_OPENCL
 #include "cdvr/device.h"
 #endif
+
+#define NSLOTS 2 /* decode slots: one rendered, one being filled */
 
 /* One chunk of a group: the group's chunk of one brick. */
 typedef struct chunk_part {
@@ -26,6 +39,8 @@ typedef struct chunk_part {
     int needed;              /* read and decoded (else skipped or outside the region) */
     uint8_t *stored, *payload;
     size_t stored_cap, payload_cap;
+    uint8_t *ranges;         /* the chunk's range table (store.h), when the group has grids */
+    size_t ranges_cap;
 } chunk_part;
 
 /* A chunk group in flight: the chunks of every brick for the same timesteps. The fields up
@@ -43,10 +58,17 @@ typedef struct chunk_item {
     int lossless;            /* the variant decodes every voxel exactly (recorded PSNR inf) */
     cdvr_error err;          /* status != OK: the group failed (rows get the error) */
     cdvr_error stop;         /* status != OK: planning failed; the run stops after this item */
+    int with_grids;          /* the range tables were read: make the frames' skip grids */
+    int slot;                /* decode slot holding the host-decoded frames, or -1 */
+    double host_decode_ms;   /* the host decode in the pipeline (b3) */
+    size_t ngrids;           /* skip grids made for the group's first ngrids frames */
+    /* kept from group to group */
     cdvr_camera *cams;       /* the camera of each frame (nframes), evaluated at planning */
     size_t cams_cap;
     struct chunk_item *next;
     chunk_part *parts;       /* nbricks */
+    cdvr_skip_grid *grids;   /* per frame of the chunk */
+    size_t grids_cap;
 } chunk_item;
 
 typedef struct item_queue {
@@ -97,11 +119,13 @@ struct cdvr_player {
     int have_group;          /* a group has been decided in this run */
     size_t last_group;
 
-    /* device */
-    uint8_t *host_frames;    /* decoded frames of one group (cpu device, host decode) */
-    size_t host_frames_cap;
+    /* host decode (unzip thread, or the calling thread in serial mode) */
+    uint8_t *slots[NSLOTS];  /* decoded frames of a group (vox_dims each), page aligned */
+    size_t slot_cap[NSLOTS];
+    int slot_busy[NSLOTS];
     uint8_t *brick_frames;   /* scratch: decoded frames of one brick */
     size_t brick_frames_cap;
+    int *host_decodes;       /* per variant (cl device): its decode is faster on the host */
 #if CDVR_HAVE_OPENCL
     cdvr_cl *cl;
     cdvr_cl_stream *stream;
@@ -405,11 +429,48 @@ static void select_bricks(cdvr_player *p, chunk_item *it)
     }
 }
 
-/* Reads (b1) the needed chunks of the item. */
+/* Whether the group's frames get skip grids from the store's range tables: on the cl device
+ * with skipping, rendering the whole volume (clipped renders do not skip), every brick read
+ * (a skipped brick's fill is not what its table describes: the device computes the grid then),
+ * and every chunk with a table of the device's bricks. */
+static int wants_grids(const cdvr_player *p, const chunk_item *it)
+{
+#if CDVR_HAVE_OPENCL
+    if (p->opts.device != CDVR_DEVICE_CL || !p->opts.empty_skip || p->clipped ||
+        it->bricks_read != p->nbricks)
+        return 0;
+    for (size_t b = 0; b < p->nbricks; b++) {
+        const cdvr_chunk_info *ch = cdvr_store_chunk(p->opts.store, (size_t)it->variant,
+                                                     it->chunk + b);
+        if (!ch->ranges_shift || ((size_t)1 << ch->ranges_shift) != cdvr_cl_brick_edge())
+            return 0;
+    }
+    return 1;
+#else
+    (void)p;
+    (void)it;
+    return 0;
+#endif
+}
+
+/* b1 of a chunk's range table (read and checked like the chunk). */
+static void read_ranges(cdvr_player *p, chunk_item *it, chunk_part *part)
+{
+    const cdvr_store *st = p->opts.store;
+    size_t bytes = cdvr_store_ranges_bytes(st, (size_t)it->variant, part->chunk);
+    if (!grow(&part->ranges, &part->ranges_cap, bytes))
+        cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate a %zu-byte "
+                       "range table", cdvr_store_path(st), part->chunk + 1, bytes);
+    else
+        cdvr_store_read_ranges(st, (size_t)it->variant, part->chunk, part->ranges, &it->err);
+}
+
+/* Reads (b1) the needed chunks of the item (and their range tables for skip grids). */
 static void read_item(cdvr_player *p, chunk_item *it)
 {
     const cdvr_store *st = p->opts.store;
     double t0 = cdvr_now_ms();
+    it->with_grids = wants_grids(p, it);
     for (size_t b = 0; b < p->nbricks && it->err.status == CDVR_OK; b++) {
         chunk_part *part = &it->parts[b];
         if (!part->needed)
@@ -426,6 +487,8 @@ static void read_item(cdvr_player *p, chunk_item *it)
         if (p->opts.cold)
             cdvr_store_drop_cache(st, (size_t)it->variant, part->chunk);
         cdvr_store_read_chunk(st, (size_t)it->variant, part->chunk, part->stored, &it->err);
+        if (it->with_grids && it->err.status == CDVR_OK)
+            read_ranges(p, it, part);
         if (p->opts.cold)
             cdvr_store_drop_cache(st, (size_t)it->variant, part->chunk);
     }
@@ -447,6 +510,7 @@ static int plan_and_read(cdvr_player *p, chunk_item *it, int threaded)
         it->parts[b].needed = 0;
     cdvr_error_clear(&it->err);
     cdvr_error_clear(&it->stop);
+    it->slot = -1;
     it->frame0 = k;
     it->t_begin = (p->first + k) % info->timesteps;
     int callbacks = p->opts.decide || p->opts.camera_fn;
@@ -458,6 +522,9 @@ static int plan_and_read(cdvr_player *p, chunk_item *it, int threaded)
     return 1;
 }
 
+static void prepare(cdvr_player *p, chunk_item *it);
+
+/* b1' of every needed chunk of the group, then what the pipeline prepares (prepare, below). */
 static void unzip(cdvr_player *p, chunk_item *it)
 {
     if (it->err.status != CDVR_OK)
@@ -479,6 +546,7 @@ static void unzip(cdvr_player *p, chunk_item *it)
                                 part->payload, &it->err);
     }
     it->unzip_ms = cdvr_now_ms() - t0;
+    prepare(p, it);
 }
 
 /* ---- device (calling thread) ------------------------------------------------------------ */
@@ -518,8 +586,9 @@ static void region_box(const cdvr_player *p, size_t b, size_t lo[3], size_t bd[3
         lo[a] -= p->vox_lo[a];
 }
 
-/* Fills brick b's box of the item's count frames with its value_min. */
-static void fill_brick(cdvr_player *p, const chunk_item *it, size_t b, size_t count)
+/* Fills brick b's box of the item's count frames (at out) with its value_min. */
+static void fill_brick(cdvr_player *p, const chunk_item *it, size_t b, size_t count,
+                       uint8_t *out)
 {
     const size_t *rd = p->vox_dims;
     size_t lo[3], bd[3];
@@ -528,20 +597,20 @@ static void fill_brick(cdvr_player *p, const chunk_item *it, size_t b, size_t co
     for (size_t i = 0; i < count; i++)
         for (size_t z = 0; z < bd[2]; z++)
             for (size_t y = 0; y < bd[1]; y++)
-                memset(p->host_frames + i * p->voxels + lo[0] + rd[0] * ((lo[1] + y) + rd[1] * (lo[2] + z)),
+                memset(out + i * p->voxels + lo[0] + rd[0] * ((lo[1] + y) + rd[1] * (lo[2] + z)),
                        value, bd[0]);
 }
 
-/* Decodes brick b's chunk into the item's count frames (straight into them when the brick is
- * the whole volume). */
+/* Decodes brick b's chunk into the item's count frames at out (straight into them when the
+ * brick is the whole volume). */
 static cdvr_status decode_brick(cdvr_player *p, chunk_item *it, size_t b, size_t count,
-                                int whole, cdvr_error *err)
+                                int whole, uint8_t *out, cdvr_error *err)
 {
     const cdvr_store *st = p->opts.store;
     size_t lo[3], bd[3], bvox;
     region_box(p, b, lo, bd);
     bvox = bd[0] * bd[1] * bd[2];
-    uint8_t *base = p->host_frames, *frames[64];
+    uint8_t *base = out, *frames[64];
     if (!whole) {
         if (!grow(&p->brick_frames, &p->brick_frames_cap, (uint64_t)bvox * count))
             return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: cannot allocate a brick",
@@ -553,74 +622,214 @@ static cdvr_status decode_brick(cdvr_player *p, chunk_item *it, size_t b, size_t
     cdvr_status s = cdvr_store_decode_chunk(st, (size_t)it->variant, it->parts[b].chunk,
                                             it->parts[b].payload, frames, err);
     for (size_t i = 0; s == CDVR_OK && !whole && i < count; i++)
-        cdvr_brick_place(p->host_frames + i * p->voxels, p->vox_dims, frames[i], lo, bd);
+        cdvr_brick_place(out + i * p->voxels, p->vox_dims, frames[i], lo, bd);
     return s;
 }
 
-/* Decodes the group's needed chunks on the CPU into p->host_frames (count frames of the data
- * box); the other bricks of the data box are filled with their value_min. Every voxel gets
+/* Decodes the group's needed chunks on the CPU into out (count frames of the data box, room
+ * for them); the other bricks of the data box are filled with their value_min. Every voxel gets
  * the value its owner (the lower brick of those sharing it, store.h) gives it, except that
  * for a lossless variant a read brick's decode wins over a skipped brick's fill (the same
  * exact value, where the fill would not be): so the fills go first there, and otherwise
  * fills and decodes go together from the last brick to the first. */
-static cdvr_status decode_host(cdvr_player *p, chunk_item *it, size_t count, cdvr_error *err)
+static cdvr_status decode_host(cdvr_player *p, chunk_item *it, size_t count, uint8_t *out,
+                               cdvr_error *err)
 {
     const cdvr_store *st = p->opts.store;
-    size_t need;
-    if (count > 64 || !cdvr_size_mul(p->voxels, count, &need) ||
-        !grow(&p->host_frames, &p->host_frames_cap, need))
-        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate %zu frames",
+    if (count > 64)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: chunk %zu: %zu frames (at most 64)",
                               cdvr_store_path(st), it->chunk + 1, count);
     int whole = p->nbricks == 1 && it->parts[0].needed;
     for (size_t b = 0; it->lossless && b < p->nbricks; b++)
         if (in_data(p, b) && !it->parts[b].needed)
-            fill_brick(p, it, b, count);
+            fill_brick(p, it, b, count, out);
     for (size_t b = p->nbricks; b-- > 0;) {
         if (!in_data(p, b))
             continue;
         if (it->parts[b].needed) {
-            cdvr_status s = decode_brick(p, it, b, count, whole, err);
+            cdvr_status s = decode_brick(p, it, b, count, whole, out, err);
             if (s != CDVR_OK)
                 return s;
         } else if (!it->lossless) {
-            fill_brick(p, it, b, count);
+            fill_brick(p, it, b, count, out);
         }
     }
     return CDVR_OK;
 }
 
-/* b2 + b3 for one chunk group. */
+/* ---- what the pipeline makes before the device needs it --------------------------------- */
+
+/* Whether the group is decoded on the host (by the unzip thread): always on the cpu device;
+ * on the cl device for codecs without device code, bricked stores, and decode-mode variants
+ * whose first group the device decoded faster on the host. */
+static int decodes_on_host(cdvr_player *p, const chunk_item *it)
+{
+    if (p->opts.device != CDVR_DEVICE_CL)
+        return 1;
+    const cdvr_chunk_info *ch = cdvr_store_chunk(p->opts.store, (size_t)it->variant, it->chunk);
+    if (!ch->codec || ch->codec->cl_mode == CDVR_CODEC_CL_NONE || p->nbricks > 1)
+        return 1;
+    if (ch->codec->cl_mode != CDVR_CODEC_CL_DECODE)
+        return 0;
+    pthread_mutex_lock(&p->mu);
+    int host = p->host_decodes[it->variant];
+    pthread_mutex_unlock(&p->mu);
+    return host;
+}
+
+/* A free decode slot (waiting for the calling thread to finish one), or -1 on abort. */
+static int acquire_slot(cdvr_player *p)
+{
+    pthread_mutex_lock(&p->mu);
+    int k = -1;
+    for (;;) {
+        for (int i = 0; i < NSLOTS && k < 0; i++)
+            if (!p->slot_busy[i])
+                k = i;
+        if (k >= 0 || p->abort)
+            break;
+        pthread_cond_wait(&p->cv, &p->mu);
+    }
+    if (k >= 0)
+        p->slot_busy[k] = 1;
+    pthread_mutex_unlock(&p->mu);
+    return k;
+}
+
+static void release_slot(cdvr_player *p, chunk_item *it)
+{
+    if (it->slot < 0)
+        return;
+    pthread_mutex_lock(&p->mu);
+    p->slot_busy[it->slot] = 0;
+    pthread_cond_broadcast(&p->cv);
+    pthread_mutex_unlock(&p->mu);
+    it->slot = -1;
+}
+
+/* Page-aligned room for `need` bytes in slot k (free: nothing else points into it). */
+static int slot_room(cdvr_player *p, int k, size_t need)
+{
+    if (p->slots[k] && p->slot_cap[k] >= need)
+        return 1;
+    free(p->slots[k]);
+    p->slots[k] = NULL;
+    p->slot_cap[k] = 0;
+    void *mem = NULL;
+    if (posix_memalign(&mem, 4096, need ? need : 1) != 0)
+        return 0;
+    p->slots[k] = mem;
+    p->slot_cap[k] = need;
+    return 1;
+}
+
+/* The skip grid and flags of each frame of the group from the range tables (cdvr/skip.h):
+ * the whole volume, every brick read (wants_grids). */
+static cdvr_status make_grids(cdvr_player *p, chunk_item *it, size_t count, cdvr_error *err)
+{
+    const cdvr_store *st = p->opts.store;
+    const cdvr_store_info *info = cdvr_store_get_info(st);
+    if (count > it->grids_cap) {
+        cdvr_skip_grid *g = realloc(it->grids, count * sizeof *g);
+        if (!g)
+            return cdvr_error_set(err, CDVR_ERR_NOMEM, "player: no memory for skip grids");
+        it->grids = g;
+        for (size_t f = it->grids_cap; f < count; f++) {
+            cdvr_status s = cdvr_skip_grid_init(&it->grids[f], info->dims, CDVR_RANGE_SHIFT, err);
+            if (s != CDVR_OK)
+                return s;
+            it->grids_cap = f + 1;
+        }
+    }
+    for (size_t f = 0; f < count; f++) {
+        cdvr_skip_grid *g = &it->grids[f];
+        for (size_t i = 0; i < g->nbricks; i++) {
+            g->minmax[2 * i] = 255;
+            g->minmax[2 * i + 1] = 0;
+        }
+        for (size_t b = 0; b < p->nbricks; b++) {
+            size_t lo[3], bd[3], g0[3], n[3];
+            cdvr_store_brick_owned(info, b, lo, bd);
+            cdvr_range_window(info->dims, lo, bd, CDVR_RANGE_SHIFT, g0, n);
+            cdvr_range_merge(it->parts[b].ranges + f * 2 * n[0] * n[1] * n[2], g0, n, g->dims,
+                             g->minmax);
+        }
+        cdvr_skip_grid_touch(g);
+        cdvr_skip_flags(g, p->opts.tf);
+    }
+    it->ngrids = count;
+    return CDVR_OK;
+}
+
+/* After b1': the host decode into a slot and the skip grids, when they apply. Their time is
+ * the group's b3 (host_decode_ms) and part of its b1' (unzip_ms). */
+static void prepare(cdvr_player *p, chunk_item *it)
+{
+    if (it->err.status != CDVR_OK || it->nframes == 0 || it->bricks_read == 0)
+        return;
+    const cdvr_chunk_info *ch = cdvr_store_chunk(p->opts.store, (size_t)it->variant, it->chunk);
+    if (decodes_on_host(p, it)) {
+        int k = acquire_slot(p);
+        size_t need;
+        if (k < 0) {
+            cdvr_error_set(&it->err, CDVR_ERR_ARG, "player: stopped");
+            return;
+        }
+        it->slot = k;
+        double t0 = cdvr_now_ms();
+        if (!cdvr_size_mul(p->voxels, ch->count, &need) || !slot_room(p, k, need))
+            cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate %zu frames",
+                           cdvr_store_path(p->opts.store), it->chunk + 1, ch->count);
+        else
+            decode_host(p, it, ch->count, p->slots[k], &it->err);
+        it->host_decode_ms = cdvr_now_ms() - t0;
+    }
+    if (it->err.status == CDVR_OK && it->with_grids) {
+        double t0 = cdvr_now_ms();
+        make_grids(p, it, ch->count, &it->err);
+        it->unzip_ms += cdvr_now_ms() - t0;
+    }
+}
+
+/* b2 + b3 for one chunk group: frames the pipeline decoded on the host go to the device
+ * without a copy where it shares host memory; the others are decoded by the device (and the
+ * variant's fastest path is noted for the pipeline). */
 static cdvr_status upload_decode(cdvr_player *p, chunk_item *it, double *upload_ms, double *decode_ms,
                                  cdvr_error *err)
 {
     const cdvr_store *st = p->opts.store;
     const cdvr_chunk_info *ch = cdvr_store_chunk(st, (size_t)it->variant, it->chunk);
-    *upload_ms = *decode_ms = 0;
+    *upload_ms = 0;
+    *decode_ms = it->host_decode_ms;
+    if (it->slot >= 0) {
 #if CDVR_HAVE_OPENCL
-    int device_codec = ch->codec && ch->codec->cl_mode != CDVR_CODEC_CL_NONE && p->nbricks == 1;
-    if (p->opts.device == CDVR_DEVICE_CL && device_codec) {
-        double t0 = cdvr_now_ms();
-        cdvr_status s = cdvr_cl_upload(p->stream, it->parts[0].payload,
-                                       (size_t)ch->payload_bytes, err);
-        double t1 = cdvr_now_ms();
-        if (s == CDVR_OK)
-            s = cdvr_cl_decode(p->stream, ch->codec, &ch->params, ch->count, err);
-        *upload_ms = t1 - t0;
-        *decode_ms = cdvr_now_ms() - t1;
-        return s;
-    }
+        if (p->opts.device == CDVR_DEVICE_CL) {
+            double t0 = cdvr_now_ms();
+            cdvr_status s = cdvr_cl_use_host_frames(p->stream, p->slots[it->slot], ch->count, err);
+            *upload_ms = cdvr_now_ms() - t0;
+            return s;
+        }
 #endif
+        return CDVR_OK;
+    }
+#if CDVR_HAVE_OPENCL
     double t0 = cdvr_now_ms();
-    cdvr_status s = decode_host(p, it, ch->count, err);
-    *decode_ms = cdvr_now_ms() - t0;
-#if CDVR_HAVE_OPENCL
-    if (s == CDVR_OK && p->opts.device == CDVR_DEVICE_CL) {
-        double t1 = cdvr_now_ms();
-        s = cdvr_cl_upload_frames(p->stream, p->host_frames, ch->count, err);
-        *upload_ms = cdvr_now_ms() - t1;
+    cdvr_status s = cdvr_cl_upload(p->stream, it->parts[0].payload, (size_t)ch->payload_bytes,
+                                   err);
+    double t1 = cdvr_now_ms();
+    if (s == CDVR_OK)
+        s = cdvr_cl_decode(p->stream, ch->codec, &ch->params, ch->count, err);
+    *upload_ms = t1 - t0;
+    *decode_ms = cdvr_now_ms() - t1;
+    if (s == CDVR_OK && ch->codec->cl_mode == CDVR_CODEC_CL_DECODE) {
+        pthread_mutex_lock(&p->mu);
+        p->host_decodes[it->variant] = cdvr_cl_last_decode_path(p->stream) == CDVR_CL_DECODE_HOST;
+        pthread_mutex_unlock(&p->mu);
     }
-#endif
     return s;
+#else
+    return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "player: no host decode (internal error)");
+#endif
 }
 
 /* A transparent frame: nothing of the group was read (every brick skipped). */
@@ -659,7 +868,11 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
 #if CDVR_HAVE_OPENCL
     if (p->opts.device == CDVR_DEVICE_CL) {
         double t0 = cdvr_now_ms();
-        cdvr_status s = cdvr_cl_setup(p->stream, f, p->opts.tf, err);
+        cdvr_status s = CDVR_ERR_ARG;
+        if (f < it->ngrids) /* flags made in the pipeline: upload them */
+            s = cdvr_cl_setup_grid(p->stream, f, p->opts.tf, &it->grids[f], err);
+        if (s == CDVR_ERR_ARG)
+            s = cdvr_cl_setup(p->stream, f, p->opts.tf, err);
         double t1 = cdvr_now_ms();
         if (s == CDVR_OK)
             s = cdvr_image_create(cam->width, cam->height, img, err);
@@ -677,7 +890,7 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
     memcpy(frame.direction, info->direction, sizeof frame.direction);
     frame.timesteps = 1;
     frame.type = CDVR_TYPE_U8;
-    frame.data = p->host_frames + f * p->voxels;
+    frame.data = p->slots[it->slot] + f * p->voxels;
     double t0 = cdvr_now_ms();
     cdvr_status s = cdvr_render_cpu(&frame, 0, &ro, img, err);
     *render_ms = cdvr_now_ms() - t0;
@@ -922,6 +1135,7 @@ static cdvr_status run_pipelined(cdvr_player *p, cdvr_error *err)
     chunk_item *it;
     while ((it = next_ready(p)) != NULL) {
         status = play_item(p, it, err);
+        release_slot(p, it);
         put(p, &p->free_items, it);
         if (status != CDVR_OK) {
             pthread_mutex_lock(&p->mu);
@@ -942,6 +1156,7 @@ static cdvr_status run_serial(cdvr_player *p, cdvr_error *err)
     while (plan_and_read(p, it, 0)) {
         unzip(p, it);
         cdvr_status s = play_item(p, it, err);
+        release_slot(p, it);
         if (s != CDVR_OK)
             return s;
     }
@@ -1046,9 +1261,10 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
     for (size_t i = 0; p->items && i < p->nitems; i++)
         if (!(p->items[i].parts = calloc(p->nbricks, sizeof *p->items[i].parts)))
             p->nitems = i; /* free what was made, then fail below */
+    p->host_decodes = calloc(info->nvariants, sizeof *p->host_decodes);
     pthread_mutex_init(&p->mu, NULL);
     pthread_cond_init(&p->cv, NULL);
-    if (!p->items || p->nitems != (size_t)p->opts.ring * 2 + 1) {
+    if (!p->items || p->nitems != (size_t)p->opts.ring * 2 + 1 || !p->host_decodes) {
         cdvr_player_free(p);
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "player: out of memory");
     }
@@ -1087,16 +1303,22 @@ void cdvr_player_free(cdvr_player *p)
         for (size_t b = 0; p->items[i].parts && b < p->nbricks; b++) {
             free(p->items[i].parts[b].stored);
             free(p->items[i].parts[b].payload);
+            free(p->items[i].parts[b].ranges);
         }
         free(p->items[i].parts);
         free(p->items[i].cams);
+        for (size_t f = 0; f < p->items[i].grids_cap; f++)
+            cdvr_skip_grid_free(&p->items[i].grids[f]);
+        free(p->items[i].grids);
     }
     free(p->corners);
     free(p->own);
     free(p->items);
     free(p->rows);
-    free(p->host_frames);
+    for (int k = 0; k < NSLOTS; k++)
+        free(p->slots[k]);
     free(p->brick_frames);
+    free(p->host_decodes);
 #if CDVR_HAVE_OPENCL
     cdvr_cl_stream_free(p->stream);
     cdvr_cl_close(p->cl);
@@ -1120,6 +1342,8 @@ cdvr_status cdvr_player_run(cdvr_player *p, size_t first, size_t frames, cdvr_er
     p->current_variant = p->opts.variant;
     p->have_group = 0;
     p->reader_done = p->unzip_done = p->abort = 0;
+    for (int k = 0; k < NSLOTS; k++) /* items of an earlier run left in flight hold none now */
+        p->slot_busy[k] = 0;
     p->call_state = 0;
     p->tf_prefix[0] = 0;
     for (int i = 0; i < 256; i++) /* read at run start: the TF of this run */

@@ -17,6 +17,7 @@
 #include "codec/stage2/stage2.h"
 
 #include <errno.h>
+#include <pthread.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -263,12 +264,51 @@ static cdvr_status window_need(frame_window *w, size_t from, size_t to, cdvr_err
     return CDVR_OK;
 }
 
-/* ---- write pass: one chunk -------------------------------------------------------------- */
+/* ---- write pass: chunk jobs ------------------------------------------------------------- */
 
-typedef struct chunk_work {
-    uint8_t *payload, *packed, *bricks, *decoded;
-    size_t payload_cap, packed_cap, bricks_cap, decoded_cap;
-} chunk_work;
+/* Buffers of one chunk in flight, kept for the next chunk that uses the job. */
+typedef struct job_bufs {
+    uint8_t *payload, *packed, *bricks, *decoded, *ranges, *ranges_packed;
+    size_t payload_cap, packed_cap, bricks_cap, decoded_cap, ranges_cap, ranges_packed_cap;
+} job_bufs;
+
+/* One chunk being encoded: the codec runs in nparts parts (encode_part), or in one call, then
+ * the chunk is finished: stage 2, CRC, a second decode for the errors and value ranges, and
+ * the range table. Everything but the file offsets, which the calling thread assigns in
+ * order when it writes the chunk. */
+typedef struct chunk_job {
+    cdvr_chunk_info *ci;
+    size_t variant, timesteps;   /* timesteps: frames given to the codec (padded) */
+    size_t lo[3], bd[3];
+    cdvr_codec_shape shape;
+    const uint8_t *frames[MAX_CHUNK_TIMESTEPS];
+    job_bufs bufs;
+    size_t nparts, parts_done;   /* parts_done and finished: under the pool's mutex */
+    int finished;
+    size_t payload_bytes, ranges_bytes;
+    uint64_t sse;                /* squared error over the voxels the brick owns */
+    double maxerr;
+    cdvr_error err;              /* status != CDVR_OK: the chunk failed */
+} chunk_job;
+
+/* Part `part` of a job; part == nparts is its finish. */
+typedef struct task {
+    chunk_job *job;
+    size_t part;
+} task;
+
+/* The encode pool: worker threads (threads - 1 of them; the calling thread works too while
+ * it waits) and one queue of tasks, parts in submission order and finishes in front. */
+typedef struct encode_pool {
+    pthread_mutex_t mu;
+    pthread_cond_t work_cv, done_cv;
+    task *queue;                 /* ring of cap tasks from head */
+    size_t head, count, cap;
+    pthread_t *threads;
+    size_t nthreads;
+    int stop;
+    const cdvr_store *st;
+} encode_pool;
 
 static int reserve(uint8_t **buf, size_t *cap, size_t need)
 {
@@ -282,12 +322,14 @@ static int reserve(uint8_t **buf, size_t *cap, size_t need)
     return 1;
 }
 
-static void work_free(chunk_work *w)
+static void bufs_free(job_bufs *b)
 {
-    free(w->payload);
-    free(w->packed);
-    free(w->bricks);
-    free(w->decoded);
+    free(b->payload);
+    free(b->packed);
+    free(b->bricks);
+    free(b->decoded);
+    free(b->ranges);
+    free(b->ranges_packed);
 }
 
 /* First local index along an axis that the brick starting at voxel lo owns: a voxel two
@@ -297,39 +339,319 @@ static size_t first_owned(size_t lo)
     return lo > 0 ? 1 : 0;
 }
 
-typedef struct chunk_error {
-    double sse, maxerr;
-} chunk_error;
-
-/* Squared and max error of a decoded brick frame against its source, over owned voxels. */
+/* Squared and max error of a decoded brick frame against its source, over owned voxels
+ * (integers: the sum is exact whatever the order of the chunks). */
 static void measure_frame(const uint8_t *ref, const uint8_t *dec, const size_t lo[3],
-                          const size_t bd[3], chunk_error *e)
+                          const size_t bd[3], uint64_t *sse, double *maxerr)
 {
+    int worst = (int)*maxerr;
     for (size_t z = first_owned(lo[2]); z < bd[2]; z++) {
         for (size_t y = first_owned(lo[1]); y < bd[1]; y++) {
             size_t row = bd[0] * (y + bd[1] * z);
-            double sse = 0;
+            uint64_t row_sse = 0;
             for (size_t x = first_owned(lo[0]); x < bd[0]; x++) {
-                double d = (double)ref[row + x] - (double)dec[row + x];
-                sse += d * d;
-                if (fabs(d) > e->maxerr)
-                    e->maxerr = fabs(d);
+                int d = (int)ref[row + x] - (int)dec[row + x];
+                d = d < 0 ? -d : d;
+                row_sse += (uint64_t)(d * d);
+                worst = d > worst ? d : worst;
             }
-            e->sse += sse;
+            *sse += row_sse;
         }
     }
+    *maxerr = worst;
+}
+
+static void job_fail(encode_pool *pool, chunk_job *job, const cdvr_error *e)
+{
+    pthread_mutex_lock(&pool->mu);
+    if (job->err.status == CDVR_OK)
+        job->err = *e;
+    pthread_mutex_unlock(&pool->mu);
+}
+
+static void run_part(encode_pool *pool, chunk_job *job, size_t part)
+{
+    const cdvr_store *st = pool->st;
+    const cdvr_chunk_info *ci = job->ci;
+    cdvr_error cerr, e;
+    cdvr_status s;
+    if (job->nparts == 1) {
+        size_t bytes = 0;
+        s = ci->codec->encode(&ci->params, job->bd, job->frames, ci->count, job->bufs.payload,
+                              job->shape.bound_bytes, &bytes, &cerr);
+        job->payload_bytes = bytes;
+    } else {
+        s = ci->codec->encode_part(&ci->params, job->bd, job->frames, ci->count, part,
+                                   job->nparts, job->bufs.payload, job->shape.bound_bytes,
+                                   &cerr); /* payload_bytes: set by prepare_job */
+    }
+    if (s != CDVR_OK) {
+        cdvr_error_set(&e, cerr.status, "%s: variant %s, timestep %zu: %s", st->path,
+                       st->variants[job->variant].name, ci->t0 + 1, cerr.msg);
+        job_fail(pool, job, &e);
+    }
+}
+
+/* Decodes the payload again: errors against the source, the chunk's value range and its
+ * range table. */
+static cdvr_status measure_chunk(const cdvr_store *st, chunk_job *job, cdvr_error *err)
+{
+    cdvr_chunk_info *ci = job->ci;
+    size_t voxels = job->bd[0] * job->bd[1] * job->bd[2];
+    uint8_t *frames[MAX_CHUNK_TIMESTEPS];
+    for (size_t i = 0; i < ci->count; i++)
+        frames[i] = job->bufs.decoded + i * voxels;
+    cdvr_status s = ci->codec->decode(&ci->params, job->bd, job->bufs.payload,
+                                      job->payload_bytes, frames, ci->count, err);
+    uint8_t mn = 255, mx = 0;
+    size_t window = job->ranges_bytes / ci->count, own_lo[3], own_bd[3]; /* 0: no table */
+    cdvr_store_brick_owned(&st->info, ci->brick, own_lo, own_bd);
+    for (size_t i = 0; s == CDVR_OK && i < ci->count; i++) {
+        measure_frame(job->frames[i], frames[i], job->lo, job->bd, &job->sse, &job->maxerr);
+        for (size_t k = 0; k < voxels; k++) {
+            mn = frames[i][k] < mn ? frames[i][k] : mn;
+            mx = frames[i][k] > mx ? frames[i][k] : mx;
+        }
+        const uint8_t *owned = frames[i] + (own_lo[0] - job->lo[0]) +
+                               job->bd[0] * ((own_lo[1] - job->lo[1]) +
+                                             job->bd[1] * (own_lo[2] - job->lo[2]));
+        if (window)
+            s = cdvr_range_compute(owned, job->bd[0], job->bd[0] * job->bd[1], st->info.dims,
+                               own_lo, own_bd, CDVR_RANGE_SHIFT, job->bufs.ranges + i * window,
+                               err);
+    }
+    ci->value_min = mn;
+    ci->value_max = mx;
+    return s;
+}
+
+static cdvr_status finish_job(const cdvr_store *st, chunk_job *job, cdvr_error *err)
+{
+    cdvr_chunk_info *ci = job->ci;
+    const cdvr_variant_info *vi = &st->variants[job->variant];
+    size_t payload = job->payload_bytes, packed = 0, table_packed = 0;
+    if (payload == 0 || payload > job->shape.bound_bytes ||
+        (job->shape.payload_bytes && payload != job->shape.payload_bytes))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: codec %s wrote %zu bytes (size %zu, bound "
+                              "%zu)", st->path, ci->codec->name, payload,
+                              job->shape.payload_bytes, job->shape.bound_bytes);
+    cdvr_status s = CDVR_OK;
+    if (vi->stage2 == CDVR_STAGE2_LZO)
+        s = cdvr_lzo_compress(job->bufs.payload, payload, job->bufs.packed, job->bufs.packed_cap,
+                              &packed, err);
+    if (s != CDVR_OK)
+        return s;
+    ci->payload_bytes = payload;
+    ci->stage2 = vi->stage2 == CDVR_STAGE2_LZO && cdvr_lzo_keep(payload, packed,
+                                                                 vi->lzo_min_saving);
+    ci->stored_bytes = ci->stage2 ? packed : payload;
+    ci->crc32c = cdvr_crc32c(0, ci->stage2 ? job->bufs.packed : job->bufs.payload,
+                             (size_t)ci->stored_bytes);
+    s = measure_chunk(st, job, err);
+    if (s == CDVR_OK && job->ranges_bytes)
+        s = cdvr_lzo_compress(job->bufs.ranges, job->ranges_bytes, job->bufs.ranges_packed,
+                              job->bufs.ranges_packed_cap, &table_packed, err);
+    if (s != CDVR_OK || !job->ranges_bytes)
+        return s;
+    ci->ranges_shift = CDVR_RANGE_SHIFT;
+    ci->ranges_stage2 = cdvr_lzo_keep(job->ranges_bytes, table_packed, CDVR_LZO_MIN_SAVING);
+    ci->ranges_stored_bytes = ci->ranges_stage2 ? table_packed : job->ranges_bytes;
+    ci->ranges_crc32c = cdvr_crc32c(0, ci->ranges_stage2 ? job->bufs.ranges_packed
+                                                         : job->bufs.ranges,
+                                    (size_t)ci->ranges_stored_bytes);
+    return CDVR_OK;
+}
+
+static void run_finish(encode_pool *pool, chunk_job *job)
+{
+    cdvr_error e;
+    if (finish_job(pool->st, job, &e) != CDVR_OK)
+        job_fail(pool, job, &e);
+}
+
+/* ---- write pass: the pool --------------------------------------------------------------- */
+
+/* Caller holds mu. */
+static void push_task(encode_pool *pool, task t, int front)
+{
+    if (front) {
+        pool->head = (pool->head + pool->cap - 1) % pool->cap;
+        pool->queue[pool->head] = t;
+    } else {
+        pool->queue[(pool->head + pool->count) % pool->cap] = t;
+    }
+    pool->count++;
+}
+
+/* Runs one queued task; caller holds mu, which is released while the task runs. */
+static void run_one_locked(encode_pool *pool)
+{
+    task t = pool->queue[pool->head];
+    pool->head = (pool->head + 1) % pool->cap;
+    pool->count--;
+    chunk_job *job = t.job;
+    int failed = job->err.status != CDVR_OK;
+    pthread_mutex_unlock(&pool->mu);
+    if (!failed && t.part < job->nparts)
+        run_part(pool, job, t.part);
+    else if (!failed)
+        run_finish(pool, job);
+    pthread_mutex_lock(&pool->mu);
+    if (t.part < job->nparts) {
+        if (++job->parts_done == job->nparts)
+            push_task(pool, (task){job, job->nparts}, 1);
+        pthread_cond_signal(&pool->work_cv);
+    } else {
+        job->finished = 1;
+        pthread_cond_broadcast(&pool->done_cv);
+    }
+}
+
+static void *worker_main(void *arg)
+{
+    encode_pool *pool = arg;
+    pthread_mutex_lock(&pool->mu);
+    for (;;) {
+        while (!pool->count && !pool->stop)
+            pthread_cond_wait(&pool->work_cv, &pool->mu);
+        if (pool->stop)
+            break;
+        run_one_locked(pool);
+    }
+    pthread_mutex_unlock(&pool->mu);
+    return NULL;
+}
+
+static size_t online_cores(void)
+{
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    return n > 0 ? (size_t)n : 1;
+}
+
+static cdvr_status pool_start(encode_pool *pool, const cdvr_store *st, size_t threads,
+                              size_t queue_cap, cdvr_error *err)
+{
+    memset(pool, 0, sizeof *pool);
+    pool->st = st;
+    pool->cap = queue_cap;
+    pool->queue = malloc(queue_cap * sizeof *pool->queue);
+    pool->threads = malloc((threads ? threads : 1) * sizeof *pool->threads);
+    if (!pool->queue || !pool->threads) {
+        free(pool->queue);
+        free(pool->threads);
+        pool->queue = NULL;
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for the encode pool", st->path);
+    }
+    pthread_mutex_init(&pool->mu, NULL);
+    pthread_cond_init(&pool->work_cv, NULL);
+    pthread_cond_init(&pool->done_cv, NULL);
+    for (size_t i = 1; i < threads; i++) { /* the calling thread is the first */
+        if (pthread_create(&pool->threads[pool->nthreads], NULL, worker_main, pool) != 0)
+            break; /* fewer threads: same output, only slower */
+        pool->nthreads++;
+    }
+    return CDVR_OK;
+}
+
+static void pool_stop(encode_pool *pool)
+{
+    pthread_mutex_lock(&pool->mu);
+    pool->stop = 1;
+    pthread_cond_broadcast(&pool->work_cv);
+    pthread_mutex_unlock(&pool->mu);
+    for (size_t i = 0; i < pool->nthreads; i++)
+        pthread_join(pool->threads[i], NULL);
+    pthread_mutex_destroy(&pool->mu);
+    pthread_cond_destroy(&pool->work_cv);
+    pthread_cond_destroy(&pool->done_cv);
+    free(pool->queue);
+    free(pool->threads);
+}
+
+/* Waits until every job of the group is finished, running queued tasks meanwhile. */
+static void pool_wait(encode_pool *pool, chunk_job *jobs, size_t njobs)
+{
+    pthread_mutex_lock(&pool->mu);
+    for (size_t j = 0; j < njobs;) {
+        if (jobs[j].finished)
+            j++;
+        else if (pool->count)
+            run_one_locked(pool);
+        else
+            pthread_cond_wait(&pool->done_cv, &pool->mu);
+    }
+    pthread_mutex_unlock(&pool->mu);
+}
+
+/* ---- write pass: time order ------------------------------------------------------------- */
+
+/* Timesteps per chunk of a planned group (its count, or more for a padded last group). */
+static size_t planned_timesteps(const cdvr_store *st, const cdvr_chunk_info *ci)
+{
+    size_t lo[3], bd[3];
+    cdvr_codec_shape shape;
+    cdvr_store_brick_box(&st->info, ci->brick, lo, bd);
+    if (cdvr_codec_shape_of(ci->codec, &ci->params, bd, &shape, NULL) != CDVR_OK)
+        return ci->count;
+    return shape.timesteps;
+}
+
+/* One group in the write order: variant, its first chunk, and the frames [from, to) the
+ * window must hold when it is submitted. */
+typedef struct group_step {
+    size_t variant, first_chunk, from, to;
+} group_step;
+
+/* The write order: always the pending group that ends first, so the frames in memory never
+ * span more than a few groups. `from` keeps every frame that a group in flight (the depth - 1
+ * submitted before, still being encoded) or a later group of any variant will need. Returns
+ * the ring capacity the order needs. */
+static size_t plan_order(const cdvr_store *st, size_t depth, group_step *order, size_t *n)
+{
+    size_t nv = st->info.nvariants, nb = st->info.nbricks, count = 0, cap = 1;
+    size_t next[CDVR_STORE_MAX_VARIANTS] = {0};
+    for (;;) {
+        size_t best = nv, best_end = 0, low_t0 = SIZE_MAX;
+        for (size_t v = 0; v < nv; v++) {
+            if (next[v] == st->variants[v].ngroups)
+                continue;
+            const cdvr_chunk_info *g = &st->chunks[st->chunk_first[v] + next[v] * nb];
+            size_t end = g->t0 + g->count;
+            low_t0 = g->t0 < low_t0 ? g->t0 : low_t0;
+            if (best == nv || end < best_end) {
+                best = v;
+                best_end = end;
+            }
+        }
+        if (best == nv)
+            break;
+        group_step *g = &order[count];
+        g->variant = best;
+        g->first_chunk = st->chunk_first[best] + next[best] * nb;
+        g->to = best_end;
+        g->from = low_t0;
+        for (size_t k = 1; k < depth && k <= count; k++) {
+            size_t t0 = st->chunks[order[count - k].first_chunk].t0;
+            g->from = t0 < g->from ? t0 : g->from;
+        }
+        cap = g->to - g->from > cap ? g->to - g->from : cap;
+        next[best]++;
+        count++;
+    }
+    *n = count;
+    return cap;
 }
 
 typedef struct write_ctx {
     cdvr_store *st;
     const cdvr_encode_source *src;
-    const char *tmp;
+    const cdvr_encode_opts *opts;
     int fd;
     uint64_t offset;             /* next free byte of the data area */
-    chunk_work work;
-    chunk_error *errors;         /* per variant */
-    size_t done;
-    const cdvr_encode_opts *opts;
+    uint64_t *sse;               /* per variant */
+    double *maxerr;              /* per variant */
+    size_t done, threads, depth;
+    encode_pool pool;
 } write_ctx;
 
 /* Writes at offset of the temporary file; errors name the target the user gave (`target`),
@@ -350,161 +672,160 @@ static cdvr_status write_at(int fd, const uint8_t *buf, size_t n, uint64_t offse
     return CDVR_OK;
 }
 
-/* Source frames of the brick: pointers into the window (one brick) or copies. */
-static cdvr_status brick_frames(write_ctx *wc, const frame_window *win, const cdvr_chunk_info *ci,
-                                size_t timesteps, const size_t lo[3], const size_t bd[3],
-                                const uint8_t **frames, cdvr_error *err)
+/* Sets up the job of chunk ci (frames from the window, buffers) and returns its task count. */
+static cdvr_status prepare_job(write_ctx *wc, const frame_window *win, size_t v,
+                               cdvr_chunk_info *ci, size_t timesteps, chunk_job *job,
+                               cdvr_error *err)
 {
-    const cdvr_store_info *in = &wc->st->info;
-    size_t voxels = bd[0] * bd[1] * bd[2];
-    if (in->nbricks > 1 && !reserve(&wc->work.bricks, &wc->work.bricks_cap, voxels * ci->count))
-        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for a brick", wc->st->path);
+    const cdvr_store *st = wc->st;
+    job_bufs bufs = job->bufs;
+    memset(job, 0, sizeof *job);
+    job->bufs = bufs;
+    job->ci = ci;
+    job->variant = v;
+    job->timesteps = timesteps;
+    cdvr_store_brick_box(&st->info, ci->brick, job->lo, job->bd);
+    cdvr_status s = cdvr_codec_shape_of(ci->codec, &ci->params, job->bd, &job->shape, err);
+    if (s != CDVR_OK)
+        return s;
+    size_t voxels = job->bd[0] * job->bd[1] * job->bd[2], decoded, window;
+    size_t own_lo[3], own_bd[3];
+    cdvr_store_brick_owned(&st->info, ci->brick, own_lo, own_bd);
+    window = cdvr_range_window_bytes(st->info.dims, own_lo, own_bd, CDVR_RANGE_SHIFT);
+    job->ranges_bytes = wc->opts->no_range_tables ? 0 : window * ci->count;
+    if (!cdvr_size_mul(voxels, ci->count, &decoded) ||
+        !reserve(&job->bufs.payload, &job->bufs.payload_cap, job->shape.bound_bytes) ||
+        !reserve(&job->bufs.packed, &job->bufs.packed_cap, cdvr_lzo_bound(job->shape.bound_bytes)) ||
+        !reserve(&job->bufs.decoded, &job->bufs.decoded_cap, decoded) ||
+        !reserve(&job->bufs.ranges, &job->bufs.ranges_cap, job->ranges_bytes) ||
+        !reserve(&job->bufs.ranges_packed, &job->bufs.ranges_packed_cap,
+                 cdvr_lzo_bound(job->ranges_bytes)) ||
+        (st->info.nbricks > 1 && !reserve(&job->bufs.bricks, &job->bufs.bricks_cap, decoded)))
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for a %zu-byte chunk",
+                              st->path, job->shape.bound_bytes);
     for (size_t i = 0; i < timesteps; i++) {
         size_t k = i < ci->count ? i : ci->count - 1; /* pad: repeat the last real timestep */
         const uint8_t *full = window_frame(win, ci->t0 + k);
-        if (in->nbricks == 1) {
-            frames[i] = full;
+        if (st->info.nbricks == 1) {
+            job->frames[i] = full;
         } else {
             if (i < ci->count)
-                cdvr_brick_extract(full, in->dims, lo, bd, wc->work.bricks + k * voxels);
-            frames[i] = wc->work.bricks + k * voxels;
+                cdvr_brick_extract(full, st->info.dims, job->lo, job->bd,
+                                   job->bufs.bricks + k * voxels);
+            job->frames[i] = job->bufs.bricks + k * voxels;
         }
     }
+    size_t parts = wc->threads == 1 ? 1 : 4 * wc->threads;
+    job->nparts = ci->codec->encode_part && job->shape.payload_bytes ? parts : 1;
+    if (job->nparts > 1)
+        job->payload_bytes = job->shape.payload_bytes;
     return CDVR_OK;
 }
 
-/* Decodes the payload again: error against the source and the value range of the chunk. */
-static cdvr_status measure_chunk(write_ctx *wc, size_t v, cdvr_chunk_info *ci,
-                                 const uint8_t *const *src, const size_t lo[3],
-                                 const size_t bd[3], cdvr_error *err)
+/* Queues every task of a group's jobs (the calling thread runs them itself with 1 thread). */
+static void submit(write_ctx *wc, chunk_job *jobs, size_t njobs)
 {
-    size_t voxels = bd[0] * bd[1] * bd[2];
-    if (!reserve(&wc->work.decoded, &wc->work.decoded_cap, voxels * ci->count))
-        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory to measure PSNR",
-                              wc->st->path);
-    uint8_t *frames[MAX_CHUNK_TIMESTEPS];
-    for (size_t i = 0; i < ci->count; i++)
-        frames[i] = wc->work.decoded + i * voxels;
-    size_t vlo[3], vdims[3];
-    cdvr_store_brick_box(&wc->st->info, ci->brick, vlo, vdims);
-    cdvr_status s = ci->codec->decode(&ci->params, bd, wc->work.payload,
-                                      (size_t)ci->payload_bytes, frames, ci->count, err);
-    if (s != CDVR_OK)
-        return s;
-    uint8_t mn = 255, mx = 0;
-    for (size_t i = 0; i < ci->count; i++) {
-        measure_frame(src[i], frames[i], lo, bd, &wc->errors[v]);
-        for (size_t k = 0; k < voxels; k++) {
-            mn = frames[i][k] < mn ? frames[i][k] : mn;
-            mx = frames[i][k] > mx ? frames[i][k] : mx;
-        }
-    }
-    ci->value_min = mn;
-    ci->value_max = mx;
-    return CDVR_OK;
+    encode_pool *pool = &wc->pool;
+    pthread_mutex_lock(&pool->mu);
+    for (size_t j = 0; j < njobs; j++)
+        for (size_t p = 0; p < jobs[j].nparts; p++)
+            push_task(pool, (task){&jobs[j], p}, 0);
+    pthread_cond_broadcast(&pool->work_cv);
+    pthread_mutex_unlock(&pool->mu);
 }
 
-static cdvr_status write_chunk(write_ctx *wc, const frame_window *win, size_t v,
-                               cdvr_chunk_info *ci, size_t timesteps, cdvr_error *err)
+/* Waits for a group and writes, in brick order, each chunk's range table and stored bytes. */
+static cdvr_status write_group(write_ctx *wc, chunk_job *jobs, size_t njobs, cdvr_error *err)
 {
-    cdvr_store *st = wc->st;
-    const cdvr_variant_info *vi = &st->variants[v];
-    size_t lo[3], bd[3];
-    cdvr_store_brick_box(&st->info, ci->brick, lo, bd);
-    cdvr_codec_shape shape;
-    cdvr_error cerr;
-    const uint8_t *frames[MAX_CHUNK_TIMESTEPS];
-    cdvr_status s = cdvr_codec_shape_of(ci->codec, &ci->params, bd, &shape, err);
-    if (s == CDVR_OK)
-        s = brick_frames(wc, win, ci, timesteps, lo, bd, frames, err);
-    if (s == CDVR_OK && (!reserve(&wc->work.payload, &wc->work.payload_cap, shape.bound_bytes) ||
-                         !reserve(&wc->work.packed, &wc->work.packed_cap,
-                                  cdvr_lzo_bound(shape.bound_bytes))))
-        s = cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for a %zu-byte chunk", st->path,
-                           shape.bound_bytes);
-    size_t payload = 0, packed = 0;
-    if (s == CDVR_OK &&
-        ci->codec->encode(&ci->params, bd, frames, ci->count, wc->work.payload,
-                          shape.bound_bytes, &payload, &cerr) != CDVR_OK)
-        s = cdvr_error_set(err, cerr.status, "%s: variant %s, timestep %zu: %s", st->path,
-                           vi->name, ci->t0 + 1, cerr.msg);
-    if (s == CDVR_OK && (payload == 0 || payload > shape.bound_bytes ||
-                         (shape.payload_bytes && payload != shape.payload_bytes)))
-        s = cdvr_error_set(err, CDVR_ERR_ARG, "%s: codec %s wrote %zu bytes (size %zu, bound "
-                           "%zu)", st->path, ci->codec->name, payload, shape.payload_bytes,
-                           shape.bound_bytes);
-    if (s == CDVR_OK && vi->stage2 == CDVR_STAGE2_LZO)
-        s = cdvr_lzo_compress(wc->work.payload, payload, wc->work.packed, wc->work.packed_cap,
-                              &packed, err);
-    if (s != CDVR_OK)
-        return s;
-    ci->payload_bytes = payload;
-    ci->stage2 = vi->stage2 == CDVR_STAGE2_LZO && cdvr_lzo_keep(payload, packed,
-                                                                 vi->lzo_min_saving);
-    const uint8_t *stored = ci->stage2 ? wc->work.packed : wc->work.payload;
-    ci->stored_bytes = ci->stage2 ? packed : payload;
-    ci->offset = wc->offset;
-    ci->crc32c = cdvr_crc32c(0, stored, (size_t)ci->stored_bytes);
-    s = write_at(wc->fd, stored, (size_t)ci->stored_bytes, ci->offset, st->path, err);
-    wc->offset += ci->stored_bytes;
-    if (s == CDVR_OK)
-        s = measure_chunk(wc, v, ci, frames, lo, bd, err);
-    if (s == CDVR_OK && wc->opts->progress)
-        wc->opts->progress(wc->opts->progress_ud, ++wc->done, st->nchunks_total);
+    pool_wait(&wc->pool, jobs, njobs);
+    cdvr_status s = CDVR_OK;
+    for (size_t j = 0; s == CDVR_OK && j < njobs; j++) {
+        chunk_job *job = &jobs[j];
+        cdvr_chunk_info *ci = job->ci;
+        if (job->err.status != CDVR_OK) {
+            if (err)
+                *err = job->err;
+            return job->err.status;
+        }
+        if (ci->ranges_shift) {
+            ci->ranges_offset = wc->offset;
+            s = write_at(wc->fd, ci->ranges_stage2 ? job->bufs.ranges_packed : job->bufs.ranges,
+                         (size_t)ci->ranges_stored_bytes, ci->ranges_offset, wc->st->path, err);
+            wc->offset += ci->ranges_stored_bytes;
+        }
+        ci->offset = wc->offset;
+        if (s == CDVR_OK)
+            s = write_at(wc->fd, ci->stage2 ? job->bufs.packed : job->bufs.payload,
+                         (size_t)ci->stored_bytes, ci->offset, wc->st->path, err);
+        wc->offset += ci->stored_bytes;
+        wc->sse[job->variant] += job->sse;
+        wc->maxerr[job->variant] = job->maxerr > wc->maxerr[job->variant]
+                                       ? job->maxerr : wc->maxerr[job->variant];
+        if (s == CDVR_OK && wc->opts->progress)
+            wc->opts->progress(wc->opts->progress_ud, ++wc->done, wc->st->nchunks_total);
+    }
     return s;
 }
 
-/* ---- write pass: time order ------------------------------------------------------------- */
-
-/* Timesteps per chunk of a planned group (its count, or more for a padded last group). */
-static size_t planned_timesteps(const cdvr_store *st, const cdvr_chunk_info *ci)
-{
-    size_t lo[3], bd[3];
-    cdvr_codec_shape shape;
-    cdvr_store_brick_box(&st->info, ci->brick, lo, bd);
-    if (cdvr_codec_shape_of(ci->codec, &ci->params, bd, &shape, NULL) != CDVR_OK)
-        return ci->count;
-    return shape.timesteps;
-}
-
-/* Encodes every group in time order: always the pending group that ends first, so the
- * frames in memory never span more than the longest group. */
+/* Encodes every group in the planned order with up to `depth` groups in flight: while the
+ * pool encodes them, this thread reads the next frames, then waits for the oldest group
+ * (running tasks meanwhile) and writes it. Offsets follow the order, so the file does not
+ * depend on the thread count. */
 static cdvr_status write_chunks(write_ctx *wc, cdvr_error *err)
 {
     cdvr_store *st = wc->st;
-    size_t nv = st->info.nvariants, nb = st->info.nbricks, span = 1, ring_bytes;
-    for (size_t c = 0; c < st->nchunks_total; c++)
-        span = st->chunks[c].count > span ? st->chunks[c].count : span;
-    frame_window win = {.src = wc->src, .cap = span};
+    size_t nb = st->info.nbricks, ngroups_total = 0, norder = 0, ring_bytes;
+    for (size_t v = 0; v < st->info.nvariants; v++)
+        ngroups_total += st->variants[v].ngroups;
+    group_step *order = malloc(ngroups_total * sizeof *order);
+    chunk_job *jobs = calloc(wc->depth * nb, sizeof *jobs); /* slot k: jobs k*nb .. */
+    frame_window win = {.src = wc->src};
     win.voxels = st->info.dims[0] * st->info.dims[1] * st->info.dims[2];
-    size_t *next = calloc(nv, sizeof *next); /* next group per variant */
     cdvr_status s = CDVR_OK;
-    if (!next || !cdvr_size_mul(win.voxels, win.cap, &ring_bytes) ||
-        !(win.ring = malloc(ring_bytes)))
-        s = cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for %zu frames", st->path, span);
-    while (s == CDVR_OK) {
-        size_t best = nv, best_end = 0, low_t0 = SIZE_MAX;
-        for (size_t v = 0; v < nv; v++) {
-            if (next[v] == st->variants[v].ngroups)
-                continue;
-            const cdvr_chunk_info *g = &st->chunks[st->chunk_first[v] + next[v] * nb];
-            size_t end = g->t0 + g->count;
-            low_t0 = g->t0 < low_t0 ? g->t0 : low_t0;
-            if (best == nv || end < best_end) {
-                best = v;
-                best_end = end;
-            }
-        }
-        if (best == nv)
-            break;
-        s = window_need(&win, low_t0, best_end, err);
-        size_t first = st->chunk_first[best] + next[best] * nb;
-        size_t timesteps = planned_timesteps(st, &st->chunks[first]);
-        for (size_t b = 0; s == CDVR_OK && b < nb; b++)
-            s = write_chunk(wc, &win, best, &st->chunks[first + b], timesteps, err);
-        next[best]++;
+    if (!order || !jobs)
+        s = cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory to plan %zu groups", st->path,
+                           ngroups_total);
+    if (s == CDVR_OK) {
+        win.cap = plan_order(st, wc->depth, order, &norder);
+        if (!cdvr_size_mul(win.voxels, win.cap, &ring_bytes) || !(win.ring = malloc(ring_bytes)))
+            s = cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for %zu frames", st->path,
+                               win.cap);
     }
-    free(next);
+    if (s == CDVR_OK)
+        s = pool_start(&wc->pool, st, wc->threads, wc->depth * nb * (4 * wc->threads + 1), err);
+    size_t written = 0, submitted = 0;
+    for (size_t i = 0; s == CDVR_OK && i < norder; i++) {
+        if (i - written == wc->depth) {
+            s = write_group(wc, &jobs[(written % wc->depth) * nb], nb, err);
+            written++;
+        }
+        if (s == CDVR_OK)
+            s = window_need(&win, order[i].from, order[i].to, err);
+        chunk_job *slot = &jobs[(i % wc->depth) * nb];
+        size_t timesteps = planned_timesteps(st, &st->chunks[order[i].first_chunk]);
+        for (size_t b = 0; s == CDVR_OK && b < nb; b++)
+            s = prepare_job(wc, &win, order[i].variant, &st->chunks[order[i].first_chunk + b],
+                            timesteps, &slot[b], err);
+        if (s == CDVR_OK) {
+            submit(wc, slot, nb);
+            submitted++;
+        }
+    }
+    for (; written < submitted; written++) { /* on failure: wait, so no task uses freed memory */
+        cdvr_error gerr;
+        cdvr_status g = write_group(wc, &jobs[(written % wc->depth) * nb], nb, &gerr);
+        if (s == CDVR_OK && g != CDVR_OK) {
+            s = g;
+            if (err)
+                *err = gerr;
+        }
+    }
+    if (wc->pool.queue)
+        pool_stop(&wc->pool);
+    for (size_t j = 0; jobs && j < wc->depth * nb; j++)
+        bufs_free(&jobs[j].bufs);
+    free(jobs);
+    free(order);
     free(win.ring);
     return s;
 }
@@ -521,13 +842,19 @@ static cdvr_status write_meta(cdvr_store *st, int fd, const char *target, cdvr_e
     return s;
 }
 
-static void finish_variants(cdvr_store *st, const chunk_error *errors)
+static void finish_variants(cdvr_store *st, const uint64_t *sse, const double *maxerr)
 {
     for (size_t v = 0; v < st->info.nvariants; v++) {
-        double mse = errors[v].sse / (double)st->info.raw_bytes;
+        double mse = (double)sse[v] / (double)st->info.raw_bytes;
         st->variants[v].psnr = mse > 0 ? 10.0 * log10(255.0 * 255.0 / mse) : HUGE_VAL;
-        st->variants[v].maxerr = errors[v].maxerr;
+        st->variants[v].maxerr = maxerr[v];
     }
+}
+
+static size_t encode_threads(const cdvr_encode_opts *opts)
+{
+    size_t n = opts->threads > 0 ? (size_t)opts->threads : online_cores();
+    return n > CDVR_ENCODE_MAX_THREADS ? CDVR_ENCODE_MAX_THREADS : n;
 }
 
 cdvr_status cdvr_store_encode_source(const cdvr_encode_source *src,
@@ -536,28 +863,34 @@ cdvr_status cdvr_store_encode_source(const cdvr_encode_source *src,
 {
     cdvr_store *st = NULL;
     cdvr_status s = check_opts(src, opts, path, err);
+    if (s == CDVR_OK && opts->threads < 0)
+        s = cdvr_error_set(err, CDVR_ERR_ARG, "%s: threads %d (0 = one per core)", path,
+                           opts->threads);
     if (s == CDVR_OK)
         s = plan_store(src, opts, path, &st, err);
     if (s != CDVR_OK)
         return s;
     uint64_t meta = cdvr_store_meta_bytes(st->info.nvariants, st->nchunks_total);
     write_ctx wc = {.st = st, .src = src, .opts = opts, .offset = meta + 4};
-    wc.errors = calloc(st->info.nvariants, sizeof *wc.errors);
+    wc.threads = encode_threads(opts);
+    wc.depth = wc.threads > 1 ? 2 : 1;
+    wc.sse = calloc(st->info.nvariants, sizeof *wc.sse);
+    wc.maxerr = calloc(st->info.nvariants, sizeof *wc.maxerr);
     cdvr_atomic_file af;
-    s = !wc.errors ? cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory", path)
+    s = !wc.sse || !wc.maxerr ? cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory", path)
         : meta == 0 ? cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: index too large", path)
                     : cdvr_atomic_open(&af, path, err);
     if (s != CDVR_OK) {
-        free(wc.errors);
+        free(wc.sse);
+        free(wc.maxerr);
         cdvr_store_close(st);
         return s;
     }
-    wc.tmp = af.tmp_path;
     wc.fd = fileno(af.f); /* written with pwrite only: the FILE buffers nothing */
     s = write_chunks(&wc, err);
     if (s == CDVR_OK) {
         st->info.file_bytes = wc.offset;
-        finish_variants(st, wc.errors);
+        finish_variants(st, wc.sse, wc.maxerr);
         s = write_meta(st, wc.fd, st->path, err);
     }
     cdvr_error commit_err;
@@ -567,8 +900,8 @@ cdvr_status cdvr_store_encode_source(const cdvr_encode_source *src,
         if (err)
             *err = commit_err;
     }
-    work_free(&wc.work);
-    free(wc.errors);
+    free(wc.sse);
+    free(wc.maxerr);
     cdvr_store_close(st);
     return s;
 }

@@ -47,9 +47,21 @@
  *    88  u64    stored bytes
  *    96  u64    payload bytes (the codec's fixed chunk size, or at most its bound)
  *   104  u8     min, u8 max of the decoded voxels of the chunk's timesteps
- *   106  u8[22] reserved, 0 (room for per-brick value ranges)
+ *   106  u8     range table flags: bit 0 present, bit 1 stored as LZO1X; other bits 0
+ *   107  u8     range table shift: range bricks of 2^shift voxels (1..7; 0 when absent)
+ *   108  u32    CRC-32C of the stored range table bytes (0 when absent)
+ *   112  u64    offset of the stored range table (0 when absent)
+ *   120  u64    stored bytes of the range table (0 when absent)
  *  u32 CRC-32C of bytes [0, M)  (at offset M)
- *  CHUNK DATA from the data offset to file bytes; chunks never overlap (any order).
+ *  CHUNK DATA from the data offset to file bytes: the stored bytes of each chunk and of its
+ *  range table; no two extents overlap (any order; the encoder puts each table right before
+ *  its chunk).
+ *
+ * Range table of a chunk (store.h, "value ranges per range brick"): for each of the chunk's
+ * count timesteps, for each range brick of the window that meets the voxels the chunk's brick
+ * owns (x fastest, then y, then z), u8 min and u8 max of the decoded voxels of that range
+ * brick among them; count * 2 * (window bricks) bytes before LZO. Version 2 stores written
+ * before range tables existed have bytes 106..127 all 0 (no table) and stay readable.
  *
  * The groups of a variant cover timesteps 0 .. timesteps-1 in order without gaps; all chunks
  * of a group share t0 and count.
@@ -219,6 +231,17 @@ void cdvr_store_brick_box(const cdvr_store_info *info, size_t b, size_t lo[3], s
     }
 }
 
+void cdvr_store_brick_owned(const cdvr_store_info *info, size_t b, size_t lo[3],
+                            size_t dims[3])
+{
+    cdvr_store_brick_box(info, b, lo, dims);
+    for (int a = 0; a < 3; a++)
+        if (lo[a] > 0 && dims[a] > 1) {
+            lo[a]++;
+            dims[a]--;
+        }
+}
+
 /* ---- metadata writer -------------------------------------------------------------------- */
 
 static void put_name(wcursor *w, const char *name, size_t field)
@@ -291,7 +314,12 @@ static void put_chunk(wcursor *w, const cdvr_chunk_info *c)
     put_u64(w, c->payload_bytes);
     *w->p++ = c->value_min;
     *w->p++ = c->value_max;
-    put_zeros(w, 22);
+    int has_ranges = c->ranges_shift != 0;
+    *w->p++ = (uint8_t)(has_ranges ? 1u | (c->ranges_stage2 ? 2u : 0u) : 0u);
+    *w->p++ = (uint8_t)c->ranges_shift;
+    put_u32(w, has_ranges ? c->ranges_crc32c : 0);
+    put_u64(w, has_ranges ? c->ranges_offset : 0);
+    put_u64(w, has_ranges ? c->ranges_stored_bytes : 0);
 }
 
 void cdvr_store_serialize_meta(const cdvr_store *st, uint8_t *buf)
@@ -553,13 +581,22 @@ static cdvr_status parse_chunk_v2(const cdvr_store *st, rcursor *r, size_t v,
     ci->offset = get_u64(r);
     ci->stored_bytes = get_u64(r);
     ci->payload_bytes = get_u64(r);
-    uint8_t tail[24];
+    uint8_t tail[4];
     get_bytes(r, tail, sizeof tail);
     ci->value_min = tail[0];
     ci->value_max = tail[1];
-    int reserved = flag > 1;
-    for (size_t i = 2; i < sizeof tail; i++)
-        reserved |= tail[i] != 0;
+    ci->ranges_crc32c = get_u32(r);
+    ci->ranges_offset = get_u64(r);
+    ci->ranges_stored_bytes = get_u64(r);
+    int reserved = flag > 1 || tail[2] > 3;
+    if (tail[2] & 1) {
+        ci->ranges_shift = tail[3];
+        ci->ranges_stage2 = (tail[2] & 2) != 0;
+        reserved |= tail[3] < 1 || tail[3] > 7 || ci->ranges_stored_bytes == 0;
+    } else {
+        reserved |= tail[2] != 0 || tail[3] != 0 || ci->ranges_crc32c != 0 ||
+                    ci->ranges_offset != 0 || ci->ranges_stored_bytes != 0;
+    }
     ci->stage2 = (int)(flag & 1);
     if (reserved)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s: a chunk has reserved "
@@ -681,6 +718,14 @@ static cdvr_status check_chunk(const cdvr_store *st, size_t v, size_t c, size_t 
     if (ci->value_min > ci->value_max)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: value range %u..%u", pre,
                               ci->value_min, ci->value_max);
+    size_t table = cdvr_store_ranges_bytes(st, v, c);
+    if (ci->ranges_shift && (table == 0 || (ci->ranges_stage2
+                                                ? ci->ranges_stored_bytes >= table
+                                                : ci->ranges_stored_bytes != table)))
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: range table of %llu stored bytes "
+                              "(stage-2 flag %d) does not fit %zu bytes of ranges", pre,
+                              (unsigned long long)ci->ranges_stored_bytes, ci->ranges_stage2,
+                              table);
     return CDVR_OK;
 }
 
@@ -699,12 +744,18 @@ static int compare_extents(const void *a, const void *b)
 static cdvr_status check_extents(const cdvr_store *st, uint64_t data_start, cdvr_error *err)
 {
     size_t n = st->nchunks_total;
-    extent *ex = malloc((n ? n : 1) * sizeof *ex);
+    extent *ex = malloc((n ? 2 * n : 1) * sizeof *ex);
     if (!ex)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory to check %zu chunks",
                               st->path, n);
-    for (size_t c = 0; c < n; c++)
-        ex[c] = (extent){st->chunks[c].offset, st->chunks[c].stored_bytes, c};
+    size_t nex = 0;
+    for (size_t c = 0; c < n; c++) {
+        const cdvr_chunk_info *ci = &st->chunks[c];
+        ex[nex++] = (extent){ci->offset, ci->stored_bytes, c};
+        if (ci->ranges_shift)
+            ex[nex++] = (extent){ci->ranges_offset, ci->ranges_stored_bytes, c};
+    }
+    n = nex;
     qsort(ex, n, sizeof *ex, compare_extents);
     cdvr_status s = CDVR_OK;
     uint64_t end = data_start;
@@ -716,7 +767,8 @@ static cdvr_status check_extents(const cdvr_store *st, uint64_t data_start, cdvr
             while (v + 1 < st->info.nvariants && st->chunk_first[v + 1] <= e->chunk)
                 v++;
             s = cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s chunk %zu: bytes "
-                               "%llu..%llu overlap another chunk or lie outside the data "
+                               "%llu..%llu (chunk or range table) overlap another extent or "
+                               "lie outside the data "
                                "(%llu..%llu)", st->path, st->variants[v].name,
                                e->chunk - st->chunk_first[v] + 1,
                                (unsigned long long)e->offset,
@@ -771,6 +823,7 @@ static cdvr_status parse_tables(cdvr_store *st, const uint8_t *meta, size_t meta
             }
             vi->bytes += ci->stored_bytes;
             vi->payload_bytes += ci->payload_bytes;
+            vi->ranges_bytes += ci->ranges_stored_bytes;
         }
         if (s == CDVR_OK && next_t0 != st->info.timesteps)
             s = cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s covers %zu of %zu "
@@ -1026,6 +1079,53 @@ cdvr_status cdvr_store_decode_chunk(const cdvr_store *st, size_t v, size_t c,
         return cdvr_error_set(err, derr.status, "%s: variant %s chunk %zu: %s", st->path,
                               vi->name, c + 1, derr.msg);
     return CDVR_OK;
+}
+
+size_t cdvr_store_ranges_bytes(const cdvr_store *st, size_t v, size_t c)
+{
+    const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, c);
+    if (!ci || !ci->ranges_shift)
+        return 0;
+    size_t lo[3], bd[3], per_frame, bytes;
+    cdvr_store_brick_owned(&st->info, ci->brick, lo, bd);
+    per_frame = cdvr_range_window_bytes(st->info.dims, lo, bd, ci->ranges_shift);
+    return cdvr_size_mul(per_frame, ci->count, &bytes) ? bytes : 0;
+}
+
+cdvr_status cdvr_store_read_ranges(const cdvr_store *st, size_t v, size_t c, uint8_t *out,
+                                   cdvr_error *err)
+{
+    const cdvr_chunk_info *ci;
+    cdvr_status s = chunk_lookup(st, v, c, &ci, err);
+    if (s != CDVR_OK)
+        return s;
+    const char *name = st->variants[v].name;
+    size_t bytes = cdvr_store_ranges_bytes(st, v, c);
+    if (bytes == 0)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: variant %s chunk %zu has no range table",
+                              st->path, name, c + 1);
+    size_t stored_n = (size_t)ci->ranges_stored_bytes, got = 0;
+    uint8_t *stored = ci->ranges_stage2 ? malloc(stored_n) : out;
+    if (!stored)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for a range table", st->path);
+    if (read_at(st->fd, stored, stored_n, ci->ranges_offset, &got) != CDVR_OK)
+        s = cdvr_error_set(err, CDVR_ERR_IO, "%s: variant %s chunk %zu: range table read "
+                           "failed: %s", st->path, name, c + 1, strerror(errno));
+    else if (got != stored_n)
+        s = cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s chunk %zu: range table "
+                           "truncated (%zu of %zu bytes)", st->path, name, c + 1, got, stored_n);
+    else if (cdvr_crc32c(0, stored, got) != ci->ranges_crc32c)
+        s = cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s chunk %zu: range table "
+                           "CRC-32C mismatch", st->path, name, c + 1);
+    if (s == CDVR_OK && ci->ranges_stage2) {
+        cdvr_error lerr;
+        if (cdvr_lzo_decompress(stored, stored_n, out, bytes, &lerr) != CDVR_OK)
+            s = cdvr_error_set(err, lerr.status, "%s: variant %s chunk %zu: range table: %s",
+                               st->path, name, c + 1, lerr.msg);
+    }
+    if (stored != out)
+        free(stored);
+    return s;
 }
 
 /* Reads and unpacks chunk c; *payload is malloc'd (payload_bytes). */

@@ -15,9 +15,9 @@ typedef int32_t cdvr_cl_i32;
 #endif
 
 /* Rays per ray-cast work-item: a packet of PACKET_W x PACKET_H neighbouring pixels marched
- * in lock-step on 8-wide vectors (lanes row by row). */
+ * in lock-step on 16-wide vectors (lanes row by row). */
 #define CDVR_CL_PACKET_W 4
-#define CDVR_CL_PACKET_H 2
+#define CDVR_CL_PACKET_H 4
 /* Edge of the min/max bricks for empty-space skipping: 1 << CDVR_CL_BRICK_SHIFT voxels. */
 #define CDVR_CL_BRICK_SHIFT 2
 /* Bytes of the codec parameter blob handed to decode kernels and fetch functions

@@ -36,3 +36,20 @@ __kernel void brick_minmax(__global const uchar *frames, __constant uchar *param
         }
     minmax[b] = (uchar2)((uchar)lo, (uchar)hi);
 }
+
+/* The quads of a dense frame for the ray caster (raycast.cl): per voxel (x, y, z), one word
+ * holding voxels (x, y), (x1, y), (x, y1), (x1, y1) of its plane, low byte first, with
+ * x1 = min(x + 1, X - 1) and y1 = min(y + 1, Y - 1). One work-item per voxel. */
+__kernel void make_quads(__global const uchar *frames, ulong offset, uint X, uint Y, uint Z,
+                         __global uint *quads)
+{
+    size_t i = get_global_id(0);
+    if (i >= (size_t)X * Y * Z)
+        return;
+    __global const uchar *f = frames + offset;
+    uint x = i % X, y = (i / X) % Y;
+    size_t row = i - x, up = y + 1 < Y ? X : 0;
+    uint x1 = x + 1 < X ? x + 1 : x;
+    quads[i] = (uint)f[row + x] | (uint)f[row + x1] << 8 | (uint)f[row + up + x] << 16 |
+               (uint)f[row + up + x1] << 24;
+}

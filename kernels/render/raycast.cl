@@ -3,11 +3,21 @@
  * samples, trilinear interpolation, post-classification with the step-corrected table,
  * front-to-back compositing and early termination.
  *
- * Each work-item marches a packet of RAY_PACKET horizontally neighbouring rays in lock-step
- * on float8 lanes, so the CPU device's compiler emits vector code (PoCL does not vectorise
- * across work-items: the march loop is data dependent). Every lane keeps its own sample index
- * on its own segment grid; lane masks (-1 true, as vector comparisons give) say which lanes
- * sample, which look up bricks and which are still running.
+ * Each work-item marches a packet of RAY_PACKET neighbouring rays (PACKET_W x PACKET_H
+ * pixels) in lock-step on 16-wide vectors, so the CPU device's compiler emits vector code
+ * (PoCL does not vectorise across work-items: the march loop is data dependent). Every lane
+ * keeps its own sample index on its own segment grid; lane masks (-1 true, as vector
+ * comparisons give) say which lanes sample, which look up bricks and which are still running.
+ * Inside visible runs each step takes UNROLL samples per lane whose voxel loads do not depend
+ * on each other (the CPU overlaps them), composited in order; a lane takes only the samples
+ * left in its run and none after it terminates, so the samples and their order are those of
+ * one sample per step.
+ *
+ * Dense frames are read as rows of voxel pairs, or, when the host made them for a frame it
+ * renders again (cdvr_cl_render), as "quads": one 32-bit word per voxel holding its 2x2
+ * neighbourhood in x and y, so a sample is two gathers instead of eight loads. Both give the
+ * same values. Voxel indices are 32-bit unless the program is built with
+ * -DCDVR_LONG_INDEX (frames of 2^31 voxels or more; no quads then).
  *
  * Rays are carried in grid (voxel) coordinates: sample i of the full segments sits at
  * g0 + i*dg. Empty-space skipping walks the brick grid: for the brick holding a lane's current
@@ -16,17 +26,24 @@
  * inside it), a visible cube's samples need no further look-ups. Skipped samples are exactly
  * those whose value range has zero opacity under the TF. */
 
-#define RAY_PACKET 8 /* a packet is PACKET_W x PACKET_H pixels (lanes row by row) */
+#define RAY_PACKET 16 /* a packet is PACKET_W x PACKET_H pixels (lanes row by row) */
 #define PACKET_W CDVR_CL_PACKET_W
 #define PACKET_H CDVR_CL_PACKET_H
-typedef float8 vfloat;
-typedef int8 vint;
-typedef long8 vlong;
+typedef float16 vfloat;
+typedef int16 vint;
+typedef long16 vlong;
+typedef uint16 vuint;
+#define convert_vfloat convert_float16
+#define convert_vint convert_int16
+#define convert_vlong convert_long16
+/* L16(E) lists E(0), E(1), .. E(f): one expression per lane (s0 .. sf) */
+#define L16(E) E(0), E(1), E(2), E(3), E(4), E(5), E(6), E(7), E(8), E(9), E(a), E(b), E(c), \
+               E(d), E(e), E(f)
 
 /* Per lane of a packet: one coordinate per axis. */
-typedef struct vec3x8 {
+typedef struct vec3x {
     vfloat x, y, z;
-} vec3x8;
+} vec3x;
 
 typedef cdvr_cl_camera cam_params; /* kernels/common/cl_shared.h */
 typedef cdvr_cl_box_frame box_frame; /* render.h step 0, kernels/common/cl_shared.h */
@@ -39,6 +56,7 @@ typedef struct volume_geo {
     __global const uchar *vol;
     __constant uchar *params;
     int frame;
+    int quads;      /* vol holds the frame's quads (see the top of this file) */
     int3 dims;
     int3 base_max;  /* largest lower trilinear corner per axis: max(dims - 2, 0) */
     long3 stride;   /* index step to the upper corner per axis; 0 where dims is 1 */
@@ -48,31 +66,31 @@ typedef struct volume_geo {
 
 /* Per-lane rays of the packet and their clipped segments. */
 typedef struct packet {
-    vec3x8 o, d;
+    vec3x o, d;
     vfloat t_near, t_far;
     vint hit;
 } packet;
 
 static void camera_rays(const cam_params *cam, vint px, vint py, packet *p)
 {
-    vfloat sxn = 2.0f * (convert_float8(px) + 0.5f) / (float)cam->width - 1.0f;
-    vfloat syn = 2.0f * (convert_float8(py) + 0.5f) / (float)cam->height - 1.0f;
+    vfloat sxn = 2.0f * (convert_vfloat(px) + 0.5f) / (float)cam->width - 1.0f;
+    vfloat syn = 2.0f * (convert_vfloat(py) + 0.5f) / (float)cam->height - 1.0f;
     vfloat sx = sxn * cam->aspect;
     vfloat side[3];
     for (int a = 0; a < 3; a++)
         side[a] = sx * cam->r[a] - syn * cam->u[a];
     if (cam->orthographic) {
         float h = cam->ortho_half_height;
-        p->o = (vec3x8){cam->eye[0] + side[0] * h, cam->eye[1] + side[1] * h,
+        p->o = (vec3x){cam->eye[0] + side[0] * h, cam->eye[1] + side[1] * h,
                         cam->eye[2] + side[2] * h};
-        p->d = (vec3x8){(vfloat)cam->f[0], (vfloat)cam->f[1], (vfloat)cam->f[2]};
+        p->d = (vec3x){(vfloat)cam->f[0], (vfloat)cam->f[1], (vfloat)cam->f[2]};
         return;
     }
-    p->o = (vec3x8){(vfloat)cam->eye[0], (vfloat)cam->eye[1], (vfloat)cam->eye[2]};
+    p->o = (vec3x){(vfloat)cam->eye[0], (vfloat)cam->eye[1], (vfloat)cam->eye[2]};
     vfloat dx = cam->f[0] + side[0] * cam->tan_half, dy = cam->f[1] + side[1] * cam->tan_half;
     vfloat dz = cam->f[2] + side[2] * cam->tan_half;
     vfloat inv_len = 1.0f / sqrt(dx * dx + dy * dy + dz * dz);
-    p->d = (vec3x8){dx * inv_len, dy * inv_len, dz * inv_len};
+    p->d = (vec3x){dx * inv_len, dy * inv_len, dz * inv_len};
 }
 
 /* render.h step 0: the packet's world rays in the box frame q = inv_dir * (world - origin)
@@ -81,9 +99,9 @@ static void to_box_frame(const box_frame *bf, packet *p)
 {
     const float *m = bf->inv_dir;
     vfloat rx = p->o.x - bf->origin[0], ry = p->o.y - bf->origin[1], rz = p->o.z - bf->origin[2];
-    vec3x8 o = {m[0] * rx + m[1] * ry + m[2] * rz, m[3] * rx + m[4] * ry + m[5] * rz,
+    vec3x o = {m[0] * rx + m[1] * ry + m[2] * rz, m[3] * rx + m[4] * ry + m[5] * rz,
                 m[6] * rx + m[7] * ry + m[8] * rz};
-    vec3x8 d = {m[0] * p->d.x + m[1] * p->d.y + m[2] * p->d.z,
+    vec3x d = {m[0] * p->d.x + m[1] * p->d.y + m[2] * p->d.z,
                 m[3] * p->d.x + m[4] * p->d.y + m[5] * p->d.z,
                 m[6] * p->d.x + m[7] * p->d.y + m[8] * p->d.z};
     p->o = o;
@@ -113,11 +131,22 @@ static void intersect_box(packet *p, float3 lo, float3 hi)
     p->hit &= ~miss & (p->t_far > p->t_near);
 }
 
+
+#ifdef CDVR_LONG_INDEX
+typedef vlong vindex;
+typedef long sindex;
+#define convert_vindex convert_vlong
+#else
+typedef vint vindex;
+typedef int sindex;
+#define convert_vindex convert_vint
+#endif
+
 /* Byte of each lane at p[idx]; lanes are independent scalar loads. */
-static vfloat gather8(__global const uchar *p, vlong idx)
+#define BYTE_AT(k) p[idx.s##k]
+static vfloat gather16(__global const uchar *p, vindex idx)
 {
-    return convert_float8((uchar8)(p[idx.s0], p[idx.s1], p[idx.s2], p[idx.s3], p[idx.s4],
-                                   p[idx.s5], p[idx.s6], p[idx.s7]));
+    return convert_vfloat((uchar16)(L16(BYTE_AT)));
 }
 
 /* Clamped grid position -> lower trilinear corner, at most dims - 2 so the upper corner is
@@ -126,8 +155,8 @@ static vfloat gather8(__global const uchar *p, vlong idx)
 static vint corner(vfloat g, float top, int base_max, vfloat *frac)
 {
     g = clamp(g, 0.0f, top);
-    vint i0 = min(convert_int8(g), base_max);
-    *frac = g - convert_float8(i0);
+    vint i0 = min(convert_vint(g), base_max);
+    *frac = g - convert_vfloat(i0);
     return i0;
 }
 
@@ -138,30 +167,43 @@ static ushort pair_at(__global const uchar *q)
     return as_ushort(vload2(0, q));
 }
 
-#define PAIRS8(p, base, off)                                                                   \
-    (ushort8)(pair_at(p + base.s0 + off), pair_at(p + base.s1 + off), pair_at(p + base.s2 + off), \
-              pair_at(p + base.s3 + off), pair_at(p + base.s4 + off), pair_at(p + base.s5 + off), \
-              pair_at(p + base.s6 + off), pair_at(p + base.s7 + off))
-
-static vfloat lerp_pairs(ushort8 w, vfloat fx)
+/* The pairs at p + base + off of each lane. */
+#define PAIR_AT(k) pair_at(p + base.s##k + off)
+static ushort16 pairs16(__global const uchar *p, vindex base, sindex off)
 {
-    return mix(convert_float8(w & (ushort)0xff), convert_float8(w >> (ushort)8), fx);
+    return (ushort16)(L16(PAIR_AT));
+}
+
+static vfloat lerp_pairs(ushort16 w, vfloat fx)
+{
+    return mix(convert_vfloat(w & (ushort)0xff), convert_vfloat(w >> (ushort)8), fx);
+}
+#endif
+
+#ifndef CDVR_LONG_INDEX
+/* The quads of each lane at q[idx] (one gather) and their x-lerps: rows y0 and y1. */
+#define QUAD_AT(k) q[idx.s##k]
+static void lerp_quads(__global const uint *q, vint idx, vfloat fx, vfloat *row0, vfloat *row1)
+{
+    vuint w = (vuint)(L16(QUAD_AT));
+    *row0 = mix(convert_vfloat(w & 0xffu), convert_vfloat((w >> 8) & 0xffu), fx);
+    *row1 = mix(convert_vfloat((w >> 16) & 0xffu), convert_vfloat(w >> 24), fx);
 }
 #endif
 
 #ifdef CDVR_FETCH
 /* Voxel (x, y, z) of each lane through the codec's fetch function. */
-static vfloat fetch8(const volume_geo *v, vint x, vint y, vint z)
+static vfloat fetch16(const volume_geo *v, vint x, vint y, vint z)
 {
-    int xs[8], ys[8], zs[8];
-    float out[8];
-    vstore8(x, 0, xs);
-    vstore8(y, 0, ys);
-    vstore8(z, 0, zs);
+    int xs[RAY_PACKET], ys[RAY_PACKET], zs[RAY_PACKET];
+    float out[RAY_PACKET];
+    vstore16(x, 0, xs);
+    vstore16(y, 0, ys);
+    vstore16(z, 0, zs);
     int4 dims = (int4)(v->dims.x, v->dims.y, v->dims.z, v->frame);
-    for (int k = 0; k < 8; k++)
+    for (int k = 0; k < RAY_PACKET; k++)
         out[k] = (float)CDVR_FETCH(v->vol, v->params, dims, xs[k], ys[k], zs[k]);
-    return vload8(0, out);
+    return vload16(0, out);
 }
 #endif
 
@@ -169,7 +211,7 @@ static vfloat fetch8(const volume_geo *v, vint x, vint y, vint z)
 /* always inlined: as a call (two callers) its vector arguments and result go through memory */
 /* g is a whole-volume grid position; the frame's voxels start at v->offset (an integer:
  * g - offset is exact in float). */
-__attribute__((always_inline)) static inline vfloat trilinear(const volume_geo *v, vec3x8 g)
+__attribute__((always_inline)) static inline vfloat trilinear(const volume_geo *v, vec3x g)
 {
     vfloat fx, fy, fz;
     vint x0 = corner(g.x - v->offset.x, v->top.x, v->base_max.x, &fx);
@@ -177,38 +219,45 @@ __attribute__((always_inline)) static inline vfloat trilinear(const volume_geo *
     vint z0 = corner(g.z - v->offset.z, v->top.z, v->base_max.z, &fz);
 #ifdef CDVR_FETCH
     vint x1 = x0 + (v->stride.x != 0), y1 = y0 + (v->stride.y != 0), z1 = z0 + (v->stride.z != 0);
-    return mix(mix(mix(fetch8(v, x0, y0, z0), fetch8(v, x1, y0, z0), fx),
-                   mix(fetch8(v, x0, y1, z0), fetch8(v, x1, y1, z0), fx), fy),
-               mix(mix(fetch8(v, x0, y0, z1), fetch8(v, x1, y0, z1), fx),
-                   mix(fetch8(v, x0, y1, z1), fetch8(v, x1, y1, z1), fx), fy),
+    return mix(mix(mix(fetch16(v, x0, y0, z0), fetch16(v, x1, y0, z0), fx),
+                   mix(fetch16(v, x0, y1, z0), fetch16(v, x1, y1, z0), fx), fy),
+               mix(mix(fetch16(v, x0, y0, z1), fetch16(v, x1, y0, z1), fx),
+                   mix(fetch16(v, x0, y1, z1), fetch16(v, x1, y1, z1), fx), fy),
                fz);
 #else
-    vlong base = convert_long8(x0) + v->stride.y * convert_long8(y0) +
-                 v->stride.z * convert_long8(z0);
-    long sx = v->stride.x, sy = v->stride.y, sz = v->stride.z;
+    sindex sx = (sindex)v->stride.x, sy = (sindex)v->stride.y, sz = (sindex)v->stride.z;
+    vindex base = convert_vindex(x0) + sy * convert_vindex(y0) + sz * convert_vindex(z0);
     __global const uchar *p = v->vol;
     vfloat c00, c10, c01, c11;
-#ifdef __ENDIAN_LITTLE__
-    if (sx == 1) {
-        c00 = lerp_pairs(PAIRS8(p, base, 0), fx);
-        c10 = lerp_pairs(PAIRS8(p, base, sy), fx);
-        c01 = lerp_pairs(PAIRS8(p, base, sz), fx);
-        c11 = lerp_pairs(PAIRS8(p, base, sz + sy), fx);
+#ifndef CDVR_LONG_INDEX
+    if (v->quads) {
+        __global const uint *q = (__global const uint *)p;
+        lerp_quads(q, base, fx, &c00, &c10);
+        lerp_quads(q, base + sz, fx, &c01, &c11);
         return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
     }
 #endif
-    c00 = mix(gather8(p, base), gather8(p, base + sx), fx);
-    c10 = mix(gather8(p, base + sy), gather8(p, base + sy + sx), fx);
-    c01 = mix(gather8(p, base + sz), gather8(p, base + sz + sx), fx);
-    c11 = mix(gather8(p, base + sz + sy), gather8(p, base + sz + sy + sx), fx);
+#ifdef __ENDIAN_LITTLE__
+    if (sx == 1) {
+        c00 = lerp_pairs(pairs16(p, base, 0), fx);
+        c10 = lerp_pairs(pairs16(p, base, sy), fx);
+        c01 = lerp_pairs(pairs16(p, base, sz), fx);
+        c11 = lerp_pairs(pairs16(p, base, sz + sy), fx);
+        return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
+    }
+#endif
+    c00 = mix(gather16(p, base), gather16(p, base + sx), fx);
+    c10 = mix(gather16(p, base + sy), gather16(p, base + sy + sx), fx);
+    c01 = mix(gather16(p, base + sz), gather16(p, base + sz + sx), fx);
+    c11 = mix(gather16(p, base + sz + sy), gather16(p, base + sz + sy + sx), fx);
     return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
 #endif
 }
 
 /* Classified sample per lane: rgb lerped from the table, alpha per the caller. */
-typedef struct rgba8 {
+typedef struct rgbax {
     vfloat r, g, b, a;
-} rgba8;
+} rgbax;
 
 #define TABLE_LANE(k)                                                                          \
     do {                                                                                       \
@@ -219,21 +268,23 @@ typedef struct rgba8 {
 
 /* render.h step 4 for full segments: lerp of rgb and of the step-corrected alpha. *i0_out and
  * *fr_out give the table position for the shorter last segment's alpha. */
-static rgba8 classify(vfloat s, __global const float4 *table, vint *i0_out, vfloat *fr_out)
+static rgbax classify(vfloat s, __global const float4 *table, vint *i0_out, vfloat *fr_out)
 {
-    vint i0 = min(convert_int8(s), 254);
-    vfloat fr = s - convert_float8(i0);
-    rgba8 c0, c1;
+    vint i0 = min(convert_vint(s), 254);
+    vfloat fr = s - convert_vfloat(i0);
+    rgbax c0, c1;
     TABLE_LANE(0); TABLE_LANE(1); TABLE_LANE(2); TABLE_LANE(3);
     TABLE_LANE(4); TABLE_LANE(5); TABLE_LANE(6); TABLE_LANE(7);
+    TABLE_LANE(8); TABLE_LANE(9); TABLE_LANE(a); TABLE_LANE(b);
+    TABLE_LANE(c); TABLE_LANE(d); TABLE_LANE(e); TABLE_LANE(f);
     *i0_out = i0;
     *fr_out = fr;
-    return (rgba8){mix(c0.r, c1.r, fr), mix(c0.g, c1.g, fr), mix(c0.b, c1.b, fr),
+    return (rgbax){mix(c0.r, c1.r, fr), mix(c0.g, c1.g, fr), mix(c0.b, c1.b, fr),
                    mix(c0.a, c1.a, fr)};
 }
 
 /* render.h step 5 on the lanes whose alpha is given (others pass 0 and change nothing). */
-static void composite(rgba8 *acc, rgba8 c)
+static void composite(rgbax *acc, rgbax c)
 {
     vfloat w = (1.0f - acc->a) * c.a;
     acc->r += w * c.r;
@@ -245,31 +296,31 @@ static void composite(rgba8 *acc, rgba8 c)
 typedef struct bricks {
     __global const uchar *dist; /* per brick: d if invisible, 128 + d if visible (see host) */
     int shift, nbx, nby, nbz;   /* brick edge 1 << shift */
-    vec3x8 inv_dg;              /* 1 / dg per axis, +inf where dg is 0 */
+    vec3x inv_dg;              /* 1 / dg per axis, +inf where dg is 0 */
     vint fwd_x, fwd_y, fwd_z;   /* -1 where dg >= 0: the ray leaves by the upper face */
 } bricks;
 
 /* Per lane, the parameter of the face where the ray leaves the cube of like bricks around
  * the brick holding grid point g. Code d (invisible) or 128 + d (visible) from the host says
  * that all bricks within chessboard distance d - 1 share its state. */
-static vfloat brick_exit(const bricks *b, const volume_geo *v, vec3x8 g0, vec3x8 g,
+static vfloat brick_exit(const bricks *b, const volume_geo *v, vec3x g0, vec3x g,
                          vint *visible)
 {
-    vint bx = min(convert_int8(clamp(g.x, 0.0f, v->top.x)) >> b->shift, b->nbx - 1);
-    vint by = min(convert_int8(clamp(g.y, 0.0f, v->top.y)) >> b->shift, b->nby - 1);
-    vint bz = min(convert_int8(clamp(g.z, 0.0f, v->top.z)) >> b->shift, b->nbz - 1);
+    vint bx = min(convert_vint(clamp(g.x, 0.0f, v->top.x)) >> b->shift, b->nbx - 1);
+    vint by = min(convert_vint(clamp(g.y, 0.0f, v->top.y)) >> b->shift, b->nby - 1);
+    vint bz = min(convert_vint(clamp(g.z, 0.0f, v->top.z)) >> b->shift, b->nbz - 1);
     vint idx = bx + b->nbx * (by + b->nby * bz);
     __global const uchar *d = b->dist;
-    vint code = convert_int8((uchar8)(d[idx.s0], d[idx.s1], d[idx.s2], d[idx.s3], d[idx.s4],
-                                      d[idx.s5], d[idx.s6], d[idx.s7]));
+#define CODE_AT(k) d[idx.s##k]
+    vint code = convert_vint((uchar16)(L16(CODE_AT)));
     *visible = code >= 128;
     vint reach = max(code & 127, 1) - 1; /* bricks on each side that are alike */
     vint fx = select(bx - reach, bx + reach + 1, b->fwd_x);
     vint fy = select(by - reach, by + reach + 1, b->fwd_y);
     vint fz = select(bz - reach, bz + reach + 1, b->fwd_z);
-    vfloat tx = (convert_float8(fx << b->shift) - g0.x) * b->inv_dg.x;
-    vfloat ty = (convert_float8(fy << b->shift) - g0.y) * b->inv_dg.y;
-    vfloat tz = (convert_float8(fz << b->shift) - g0.z) * b->inv_dg.z;
+    vfloat tx = (convert_vfloat(fx << b->shift) - g0.x) * b->inv_dg.x;
+    vfloat ty = (convert_vfloat(fy << b->shift) - g0.y) * b->inv_dg.y;
+    vfloat tz = (convert_vfloat(fz << b->shift) - g0.z) * b->inv_dg.z;
     return fmin(tx, fmin(ty, tz));
 }
 
@@ -282,29 +333,29 @@ typedef struct march {
     vint i, end, n_full, active, done, taken;
 } march;
 
-static vec3x8 at(vec3x8 g0, vec3x8 dg, vint i)
+static vec3x at(vec3x g0, vec3x dg, vint i)
 {
-    vfloat fi = convert_float8(i);
-    return (vec3x8){g0.x + fi * dg.x, g0.y + fi * dg.y, g0.z + fi * dg.z};
+    vfloat fi = convert_vfloat(i);
+    return (vec3x){g0.x + fi * dg.x, g0.y + fi * dg.y, g0.z + fi * dg.z};
 }
 
 /* Lanes whose visible run is used up look up their brick: an invisible cube moves the lane's
  * index past it, a visible one sets the end of the lane's next run. */
-static void brick_step(march *m, vint need, const bricks *b, const volume_geo *v, vec3x8 g0,
-                       vec3x8 dg)
+static void brick_step(march *m, vint need, const bricks *b, const volume_geo *v, vec3x g0,
+                       vec3x dg)
 {
     vint visible;
     vfloat t_exit = fmin(brick_exit(b, v, g0, at(g0, dg, m->i), &visible),
-                         convert_float8(m->n_full));
-    vint skip_to = max(m->i + 1, convert_int8(ceil(t_exit - SKIP_MARGIN)));
-    vint run_end = clamp(convert_int8(ceil(t_exit)), m->i + 1, m->n_full);
+                         convert_vfloat(m->n_full));
+    vint skip_to = max(m->i + 1, convert_vint(ceil(t_exit - SKIP_MARGIN)));
+    vint run_end = clamp(convert_vint(ceil(t_exit)), m->i + 1, m->n_full);
     m->i = select(m->i, select(skip_to, m->i, visible), need);
     m->end = select(m->end, select(m->end, run_end, visible), need);
 }
 
 /* Clipped rendering: lanes whose sample at whole-volume grid position g is in the owned
  * cells (all lanes when not clipped). */
-static vint owned(const clip_params *c, vec3x8 g)
+static vint owned(const clip_params *c, vec3x g)
 {
     if (!c->enabled)
         return (vint)(-1);
@@ -316,23 +367,39 @@ static vint owned(const clip_params *c, vec3x8 g)
 }
 
 /* Samples the lanes inside a visible run (all lanes run when skipping is off). */
-static void sample_step(march *m, vint run, const volume_geo *v, const clip_params *clip,
-                        vec3x8 g0, vec3x8 dg, __global const float4 *table, float term_alpha,
-                        rgba8 *acc)
+#define UNROLL 4 /* samples per lane per step inside visible runs */
+
+/* Samples the lanes inside a visible run (all lanes run when skipping is off): up to UNROLL
+ * each, the k-th only for lanes whose run still holds it and that have not terminated; a
+ * sample outside the owned cells (clipped rendering) advances the lane but adds nothing. */
+static void sample_steps(march *m, vint run, const volume_geo *v, const clip_params *clip,
+                         vec3x g0, vec3x dg, __global const float4 *table, float term_alpha,
+                         rgbax *acc)
 {
-    vint i0;
-    vfloat fr;
-    vec3x8 g = at(g0, dg, m->i);
-    vint keep = run & owned(clip, g);
-    rgba8 c = classify(trilinear(v, g), table, &i0, &fr);
-    c.a = select((vfloat)(0.0f), c.a, keep);
-    composite(acc, c);
-    m->i -= run;
-    m->taken -= keep;
+    vfloat s[UNROLL];
+    vint own[UNROLL];
+    for (int k = 0; k < UNROLL; k++) { /* independent loads, before any compositing */
+        vec3x g = at(g0, dg, m->i + k);
+        own[k] = owned(clip, g);
+        s[k] = trilinear(v, g);
+    }
+    vint stop = (vint)(0), live = run;
+    for (int k = 0; k < UNROLL; k++) {
+        live &= m->i < m->end;
+        vint keep = live & own[k];
+        vint i0;
+        vfloat fr;
+        rgbax c = classify(s[k], table, &i0, &fr);
+        c.a = select((vfloat)(0.0f), c.a, keep);
+        composite(acc, c);
+        m->i -= live;
+        m->taken -= keep;
+        stop |= keep & (acc->a >= term_alpha | acc->a >= 1.0f);
+        live &= ~stop;
+    }
     /* Termination changes the lanes only behind a branch: as a data dependency it would chain
      * each step's sample addresses to the previous step's compositing, while the branch
      * (rarely taken) lets the CPU start the next step's loads early. */
-    vint stop = keep & (acc->a >= term_alpha | acc->a >= 1.0f);
     if (any(stop)) {
         m->done |= stop;
         m->active &= ~stop;
@@ -341,8 +408,8 @@ static void sample_step(march *m, vint run, const volume_geo *v, const clip_para
 }
 
 static void march_full(march *m, int skipping, const bricks *b, const volume_geo *v,
-                       const clip_params *clip, vec3x8 g0, vec3x8 dg,
-                       __global const float4 *table, float term_alpha, rgba8 *acc)
+                       const clip_params *clip, vec3x g0, vec3x dg,
+                       __global const float4 *table, float term_alpha, rgbax *acc)
 {
     while (any(m->active)) {
         if (skipping) {
@@ -354,7 +421,7 @@ static void march_full(march *m, int skipping, const bricks *b, const volume_geo
         }
         vint run = m->active & (m->i < m->end);
         if (any(run))
-            sample_step(m, run, v, clip, g0, dg, table, term_alpha, acc);
+            sample_steps(m, run, v, clip, g0, dg, table, term_alpha, acc);
     }
 }
 
@@ -362,27 +429,26 @@ static void march_full(march *m, int skipping, const bricks *b, const volume_geo
 static void last_segment(const packet *p, vint n, vint last, float step, float unit,
                          const volume_geo *v, const clip_params *clip, float3 inv_spacing,
                          __global const float4 *table, __global const float *alpha,
-                         rgba8 *acc, vint *taken)
+                         rgbax *acc, vint *taken)
 {
-    vfloat ts = p->t_near + convert_float8(n - 1) * step;
+    vfloat ts = p->t_near + convert_vfloat(n - 1) * step;
     vfloat ds = p->t_far - ts;
     last &= ds > 0.0f;
     if (!any(last))
         return;
     vfloat tm = ts + 0.5f * ds;
-    vec3x8 g = {(p->o.x + tm * p->d.x) * inv_spacing.x, (p->o.y + tm * p->d.y) * inv_spacing.y,
-                (p->o.z + tm * p->d.z) * inv_spacing.z};
+    vec3x g = {(p->o.x + tm * p->d.x) * inv_spacing.x, (p->o.y + tm * p->d.y) * inv_spacing.y,
+               (p->o.z + tm * p->d.z) * inv_spacing.z};
     last &= owned(clip, g);
     if (!any(last))
         return;
     vint i0;
     vfloat fr;
-    rgba8 c = classify(trilinear(v, g), table, &i0, &fr);
+    rgbax c = classify(trilinear(v, g), table, &i0, &fr);
     vint i1 = i0 + 1;
-    vfloat a0 = (vfloat)(alpha[i0.s0], alpha[i0.s1], alpha[i0.s2], alpha[i0.s3],
-                         alpha[i0.s4], alpha[i0.s5], alpha[i0.s6], alpha[i0.s7]);
-    vfloat a1 = (vfloat)(alpha[i1.s0], alpha[i1.s1], alpha[i1.s2], alpha[i1.s3],
-                         alpha[i1.s4], alpha[i1.s5], alpha[i1.s6], alpha[i1.s7]);
+#define ALPHA0(k) alpha[i0.s##k]
+#define ALPHA1(k) alpha[i1.s##k]
+    vfloat a0 = (vfloat)(L16(ALPHA0)), a1 = (vfloat)(L16(ALPHA1));
     vfloat a = mix(a0, a1, fr);
     /* 1 - pow(1, x) is exactly 0: most last segments lie in empty space */
     vint partial = ds < step & a > 0.0f;
@@ -395,12 +461,13 @@ static void last_segment(const packet *p, vint n, vint last, float step, float u
 }
 
 static volume_geo make_geo(__global const uchar *vol, __constant uchar *params, int frame,
-                           int X, int Y, int Z, const clip_params *clip)
+                           int quads, int X, int Y, int Z, const clip_params *clip)
 {
     volume_geo v;
     v.vol = vol;
     v.params = params;
     v.frame = frame;
+    v.quads = quads;
     v.dims = (int3)(X, Y, Z);
     v.base_max = max(v.dims - 2, 0);
     v.stride = (long3)(X > 1 ? 1 : 0, Y > 1 ? (long)X : 0, Z > 1 ? (long)X * (long)Y : 0);
@@ -411,7 +478,7 @@ static volume_geo make_geo(__global const uchar *vol, __constant uchar *params, 
 }
 
 static bricks make_bricks(__global const uchar *dist, int shift, int nbx, int nby, int nbz,
-                          vec3x8 dg)
+                          vec3x dg)
 {
     bricks b;
     b.dist = dist;
@@ -419,7 +486,7 @@ static bricks make_bricks(__global const uchar *dist, int shift, int nbx, int nb
     b.nbx = nbx;
     b.nby = nby;
     b.nbz = nbz;
-    b.inv_dg = (vec3x8){select((vfloat)(INFINITY), 1.0f / dg.x, dg.x != 0.0f),
+    b.inv_dg = (vec3x){select((vfloat)(INFINITY), 1.0f / dg.x, dg.x != 0.0f),
                         select((vfloat)(INFINITY), 1.0f / dg.y, dg.y != 0.0f),
                         select((vfloat)(INFINITY), 1.0f / dg.z, dg.z != 0.0f)};
     b.fwd_x = dg.x >= 0.0f;
@@ -429,16 +496,16 @@ static bricks make_bricks(__global const uchar *dist, int shift, int nbx, int nb
 }
 
 static void store_pixels(__global float4 *image, vint px, vint py, int width, int height,
-                         rgba8 acc)
+                         rgbax acc)
 {
-    float r[8], g[8], b[8], a[8];
-    int px_[8], py_[8];
-    vstore8(acc.r, 0, r);
-    vstore8(acc.g, 0, g);
-    vstore8(acc.b, 0, b);
-    vstore8(acc.a, 0, a);
-    vstore8(px, 0, px_);
-    vstore8(py, 0, py_);
+    float r[RAY_PACKET], g[RAY_PACKET], b[RAY_PACKET], a[RAY_PACKET];
+    int px_[RAY_PACKET], py_[RAY_PACKET];
+    vstore16(acc.r, 0, r);
+    vstore16(acc.g, 0, g);
+    vstore16(acc.b, 0, b);
+    vstore16(acc.a, 0, a);
+    vstore16(px, 0, px_);
+    vstore16(py, 0, py_);
     for (int k = 0; k < RAY_PACKET; k++)
         if (px_[k] < width && py_[k] < height)
             image[py_[k] * width + px_[k]] = (float4)(r[k], g[k], b[k], a[k]);
@@ -460,7 +527,7 @@ static void visible_slab(vfloat g0, vfloat dg, float lo, float hi, vfloat *enter
 /* Sample indices [*first, *stop) of the full segments that can lie in visible bricks: the
  * others are in invisible bricks outside the visible box, which the host sized in grid
  * coordinates. One sample of margin on each side absorbs rounding. */
-static void visible_range(vec3x8 g0, vec3x8 dg, float3 lo, float3 hi, vint n_full,
+static void visible_range(vec3x g0, vec3x dg, float3 lo, float3 hi, vint n_full,
                           vint *first, vint *stop)
 {
     if (any(lo > hi)) { /* no visible brick */
@@ -471,22 +538,23 @@ static void visible_range(vec3x8 g0, vec3x8 dg, float3 lo, float3 hi, vint n_ful
     visible_slab(g0.x, dg.x, lo.x, hi.x, &enter, &exit);
     visible_slab(g0.y, dg.y, lo.y, hi.y, &enter, &exit);
     visible_slab(g0.z, dg.z, lo.z, hi.z, &enter, &exit);
-    vfloat limit = convert_float8(n_full) + 1.0f;
+    vfloat limit = convert_vfloat(n_full) + 1.0f;
     enter = clamp(floor(enter) - 1.0f, 0.0f, limit);
     exit = clamp(ceil(exit) + 1.0f, 0.0f, limit);
-    *first = convert_int8(enter);
-    *stop = min(convert_int8(exit), n_full);
+    *first = convert_vint(enter);
+    *stop = min(convert_vint(exit), n_full);
 }
 
-/* frames/params/offset: a dense frame at frames + offset (params unused), or, with
- * CDVR_FETCH, the chunk payload, its parameter blob and the frame index within the chunk.
+/* frames/params/offset: a dense frame at frames + offset (params unused; with quads != 0, the
+ * frame's quads), or, with CDVR_FETCH, the chunk payload, its parameter blob and the frame
+ * index within the chunk.
  * Geometry as render_cpu.c holds it: the box frame (origin, D^-1), 1/spacing and the box's
  * upper corner (dims-1)*spacing in the box frame (computed in double on the host; the whole
  * volume's when clipped: clip, render.h). table: rgb + step-corrected alpha; alpha: alpha per unit (for the
  * shorter last segment). Bricks: edge 1 << brick_shift, counts nbx, nby, nbz, skipping on/off.
  * Work-item (gx, gy) renders the PACKET_W x PACKET_H pixels from (PACKET_W gx, PACKET_H gy). */
 __kernel void raycast(__global const uchar *frames, __constant uchar *params, ulong offset,
-                      int X, int Y, int Z,
+                      int quads, int X, int Y, int Z,
                       box_frame box, float isx, float isy, float isz,
                       float hx, float hy, float hz,
                       float step, float term_alpha, cam_params cam, clip_params clip,
@@ -502,7 +570,8 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
         samples[slot] = 0;
         return;
     }
-    vint px = px0 + (vint)(0, 1, 2, 3, 0, 1, 2, 3), py = py0 + (vint)(0, 0, 0, 0, 1, 1, 1, 1);
+    vint px = px0 + (vint)(0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3);
+    vint py = py0 + (vint)(0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3);
     packet p;
     camera_rays(&cam, px, py, &p);
     p.hit = px < cam.width & py < cam.height;
@@ -512,20 +581,20 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     /* lanes that miss get an empty, well-defined segment (their t values may be inf/NaN) */
     p.t_near = select((vfloat)(0.0f), p.t_near, p.hit);
     p.t_far = select((vfloat)(0.0f), p.t_far, p.hit);
-    vint n = max(convert_int8(ceil((p.t_far - p.t_near) / step)), 1);
+    vint n = max(convert_vint(ceil((p.t_far - p.t_near) / step)), 1);
     vfloat t0 = p.t_near + 0.5f * step;
-    vec3x8 g0 = {(p.o.x + t0 * p.d.x) * inv_spacing.x, (p.o.y + t0 * p.d.y) * inv_spacing.y,
-                 (p.o.z + t0 * p.d.z) * inv_spacing.z};
+    vec3x g0 = {(p.o.x + t0 * p.d.x) * inv_spacing.x, (p.o.y + t0 * p.d.y) * inv_spacing.y,
+                (p.o.z + t0 * p.d.z) * inv_spacing.z};
     g0.x = select((vfloat)(0.0f), g0.x, p.hit);
     g0.y = select((vfloat)(0.0f), g0.y, p.hit);
     g0.z = select((vfloat)(0.0f), g0.z, p.hit);
-    vec3x8 dg = {select((vfloat)(0.0f), p.d.x * step * inv_spacing.x, p.hit),
-                 select((vfloat)(0.0f), p.d.y * step * inv_spacing.y, p.hit),
-                 select((vfloat)(0.0f), p.d.z * step * inv_spacing.z, p.hit)};
+    vec3x dg = {select((vfloat)(0.0f), p.d.x * step * inv_spacing.x, p.hit),
+                select((vfloat)(0.0f), p.d.y * step * inv_spacing.y, p.hit),
+                select((vfloat)(0.0f), p.d.z * step * inv_spacing.z, p.hit)};
 #ifdef CDVR_FETCH
-    volume_geo v = make_geo(frames, params, (int)offset, X, Y, Z, &clip);
+    volume_geo v = make_geo(frames, params, (int)offset, 0, X, Y, Z, &clip);
 #else
-    volume_geo v = make_geo(frames + offset, params, 0, X, Y, Z, &clip);
+    volume_geo v = make_geo(frames + offset, params, 0, quads, X, Y, Z, &clip);
 #endif
     bricks b = make_bricks(brick_visible, brick_shift, nbx, nby, nbz, dg);
     march m;
@@ -553,11 +622,12 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     m.active = p.hit & (m.i < m.n_full);
     m.done = (vint)(0);
     m.taken = (vint)(0);
-    rgba8 acc = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
+    rgbax acc = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
     march_full(&m, skipping, &b, &v, &clip, g0, dg, table, term_alpha, &acc);
     last_segment(&p, n, last & ~m.done, step, unit, &v, &clip, inv_spacing, table, alpha,
                  &acc, &m.taken);
     store_pixels(image, px, py, cam.width, cam.height, acc);
-    int8 t = m.taken;
-    samples[slot] = (uint)(t.s0 + t.s1 + t.s2 + t.s3 + t.s4 + t.s5 + t.s6 + t.s7);
+    int8 t8 = m.taken.lo + m.taken.hi;
+    int4 t4 = t8.lo + t8.hi;
+    samples[slot] = (uint)(t4.s0 + t4.s1 + t4.s2 + t4.s3);
 }

@@ -226,7 +226,7 @@ static void read_box(lua_State *L, double lo[3], double hi[3])
     cdvr_volume box = {.spacing = {1, 1, 1}, .direction = {1, 0, 0, 0, 1, 0, 0, 0, 1}};
     double dims[3];
     if (luaL_testudata(L, 1, LCDVR_VOLUME)) {
-        const cdvr_volume *v = lcdvr_checkvolume(L, 1);
+        const cdvr_volume *v = lcdvr_volume_header(L, 1); /* geometry only */
         box = *v;
         for (int a = 0; a < 3; a++)
             dims[a] = (double)v->dims[a];

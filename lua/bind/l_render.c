@@ -202,7 +202,8 @@ static size_t store_variant(lua_State *L, const cdvr_store *st)
 static int l_render(lua_State *L)
 {
     const cdvr_store *st = luaL_testudata(L, 1, LCDVR_STORE) ? lcdvr_checkstore(L, 1) : NULL;
-    cdvr_volume *vol = st ? NULL : lcdvr_checkvolume(L, 1);
+    const cdvr_volume *head = st ? NULL : lcdvr_volume_header(L, 1);
+    cdvr_volume *vol = NULL;
     luaL_checktype(L, 2, LUA_TTABLE);
     static const char *const devices[] = {"cpu", "cl", NULL};
     static const char *const methods[] = {"raycast", "slice", "splat", NULL};
@@ -214,7 +215,7 @@ static int l_render(lua_State *L)
                                            "skip", NULL};
         lcdvr_checkoptions(L, 2, "cdvr.render", keys);
     }
-    size_t timesteps = st ? cdvr_store_get_info(st)->timesteps : vol->timesteps;
+    size_t timesteps = st ? cdvr_store_get_info(st)->timesteps : head->timesteps;
     lua_Integer t = lcdvr_optintegerfield(L, 2, "t", 1);
     if (t < 1 || (size_t)t > timesteps)
         return luaL_error(L, "cdvr.render: t = %I outside 1..%I", (LUAI_UACINT)t,
@@ -234,6 +235,12 @@ static int l_render(lua_State *L)
         lua_replace(L, 1);
         vol = decoded;
         frame = 0;
+    } else if (lcdvr_volume_lazy(L, 1)) { /* a series read as needed: timestep t only */
+        vol = lcdvr_volume_read(L, 1, frame, 1);
+        lua_replace(L, 1);
+        frame = 0;
+    } else {
+        vol = lcdvr_checkvolume(L, 1);
     }
     lua_settop(L, 4); /* slots 3, 4 hold the TF and camera while rendering */
     cdvr_render_opts o = {0};

@@ -42,7 +42,8 @@ static const char *const stage2_names[] = {"none", "lzo", NULL};
 /* Keys of a variant table that are not codec parameters. */
 static const char *const variant_keys[] = {"codec", "name", "stage2", "lzo_min_saving", NULL};
 /* Keys only the top-level options table takes. */
-static const char *const top_keys[] = {"path", "schedule", "progress", "variants", "bricks", NULL};
+static const char *const top_keys[] = {"path", "schedule", "progress", "variants", "bricks",
+                                        "threads", "ranges", NULL};
 
 static int in_list(const char *const list[], const char *key)
 {
@@ -374,7 +375,8 @@ static const cdvr_volume *encode_input(lua_State *L, const cdvr_volume *vol,
 
 static int l_encode(lua_State *L)
 {
-    const cdvr_volume *vol = lcdvr_checkvolume(L, 1);
+    int lazy = lcdvr_volume_lazy(L, 1); /* read one timestep at a time while encoding */
+    const cdvr_volume *vol = lazy ? NULL : lcdvr_checkvolume(L, 1);
     luaL_checktype(L, 2, LUA_TTABLE);
     const char *path = lcdvr_optstringfield(L, 2, "path", NULL);
     if (!path)
@@ -402,10 +404,22 @@ static int l_encode(lua_State *L)
         o.bricks[i] = (size_t)bricks[i];
     }
     ctx.nbricks = o.bricks[0] * o.bricks[1] * o.bricks[2];
-    const cdvr_volume *u8 = encode_input(L, vol, &o);
+    lua_Integer threads = lcdvr_optintegerfield(L, 2, "threads", 0);
+    if (threads < 0 || threads > CDVR_ENCODE_MAX_THREADS)
+        return luaL_error(L, "cdvr.encode: option 'threads': 0 (one per core) .. %d expected, "
+                          "got %d", CDVR_ENCODE_MAX_THREADS, (int)threads);
+    o.threads = (int)threads;
+    o.no_range_tables = !lcdvr_optbooleanfield(L, 2, "ranges", 1);
+    cdvr_encode_source src;
+    const cdvr_volume *u8 = NULL;
+    if (lazy)
+        lcdvr_volume_source(L, 1, &src, &o);
+    else
+        u8 = encode_input(L, vol, &o);
     cdvr_error err;
     lcdvr_use(L, 1); /* the schedule may close the volume: deferred until the encoder is done */
-    cdvr_status s = cdvr_store_encode(u8, &o, path, &err);
+    cdvr_status s = lazy ? cdvr_store_encode_source(&src, &o, path, &err)
+                         : cdvr_store_encode(u8, &o, path, &err);
     lcdvr_unuse(L, 1);
     if (s == CDVR_ERR_IO)
         return lcdvr_fail(L, &err);
@@ -581,6 +595,7 @@ static void push_variant_info(lua_State *L, const cdvr_store *st, size_t v)
     setstr(L, "stage2", stage2_names[vi->stage2]);
     setint(L, "bytes", (lua_Integer)vi->bytes);
     setint(L, "payload_bytes", (lua_Integer)vi->payload_bytes);
+    setint(L, "ranges_bytes", (lua_Integer)vi->ranges_bytes);
     setnum(L, "ratio", (double)vi->bytes / (double)in->raw_bytes);
     setnum(L, "bpv", 8.0 * (double)vi->bytes / (double)in->raw_bytes);
     setnum(L, "psnr", vi->psnr);
@@ -908,13 +923,16 @@ int lcdvr_open_store(lua_State *L)
     lcdvr_newclass(L, LCDVR_STORE, store_methods, store_meta);
     lcdvr_setfuncs(L, store_funcs);
     lcdvr_help_add(L, "cdvr.encode(volume, {path=, codec=, S=, T=, pack=, encoder=, stage2=, "
-                      "lzo_min_saving=, name=, variants=, schedule=, progress=, bricks=})",
+                      "lzo_min_saving=, name=, variants=, schedule=, progress=, bricks=, threads=, ranges=})",
                    "encode a series into a .cdv store (written atomically; defaults codec=pvtc "
                    "S=4 T=3 pack=time encoder=lsq stage2=lzo lzo_min_saving=0.1; bricks={bx,by,bz} "
-                   "splits each timestep into bricks); the opened store, or nil, msg on write failure");
+                   "splits each timestep into bricks; threads=0: one per core, the same bytes for "
+                   "any count; ranges=true: per-brick value range tables for empty-space "
+                   "skipping); the opened store, or nil, msg on write failure");
     lcdvr_help_add(L, "cdvr.open(path)", "open a .cdv store (lazy); store or nil, msg");
     lcdvr_help_add(L, "st:info()", "dims, timesteps, window, bytes, ratio and per-variant "
-                                   "codec, bpv, psnr, maxerr, chunks");
+                                   "codec, bpv, psnr, maxerr, chunks, ranges_bytes (the value "
+                                   "range tables for empty-space skipping)");
     lcdvr_help_add(L, "st:decode(t [, variant] [, {device=\"cpu\"|\"cl\", brick=b}])",
                    "u8 volume of timestep t (from 1) of a variant (name or index, default 1); "
                    "brick=b reads and decodes only brick b (st:info().bricks[b]), placed where it lies");

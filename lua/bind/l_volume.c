@@ -1,13 +1,45 @@
 /* lua/bind/l_volume.c - cdvr.Volume: volumes and series in Lua (cdvr.load, v:dims(), ...). */
 #include "lcdvr.h"
+#include "cdvr/series.h"
 
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
+/* ---- lazy volumes -------------------------------------------------------------------------
+ * cdvr.load_series gives a volume that reads its files as it needs them (cdvr/series.h): its
+ * dims, type, geometry and timestep count come from the first file; a timestep is read when
+ * something asks for it (v:get, v:frame, cdvr.render{t=}, cdvr.encode one timestep at a time),
+ * and v:quantize of it is lazy too (codes made while reading). What needs every voxel at once
+ * (v:set, v:save_raw, cdvr.compare, ...) reads all timesteps into memory first, once; from then
+ * on the volume is an ordinary one. Its value window (volume.h) is that of a volume in memory:
+ * [0, 255] for u8 files, the quantisation window of v:quantize, else the range of every
+ * timestep, which one pass over the files computes the first time it is needed. */
+
+/* The files, shared by a lazy series and the lazy volumes v:quantize makes of it. */
+typedef struct lazy_source {
+    cdvr_series *series;
+    int refs;
+} lazy_source;
+
+typedef struct lazy_volume {
+    lazy_source *src;
+    cdvr_volume head;            /* dims, timesteps, type, geometry, window; no voxels */
+    int quantized;               /* u8 codes of the source's values over [qlo, qhi] */
+    double qlo, qhi;
+    int range_known;             /* v:range of the codes (quantized) */
+    double range_lo, range_hi;
+    double enc_lo, enc_hi;       /* window of the encode source (lcdvr_volume_source) */
+    int enc_quantize;
+} lazy_volume;
+
 typedef struct lvolume {
-    cdvr_volume *vol; /* NULL once closed */
+    cdvr_volume *vol;            /* the voxels; NULL once closed, and for a lazy volume until
+                                    something needs all of them */
+    lazy_volume *lazy;           /* cdvr.load_series: read from the files as needed */
+    int closed;
 } lvolume;
 
 static lvolume *tolvolume(lua_State *L, int idx)
@@ -15,18 +47,191 @@ static lvolume *tolvolume(lua_State *L, int idx)
     return (lvolume *)luaL_checkudata(L, idx, LCDVR_VOLUME);
 }
 
-cdvr_volume *lcdvr_checkvolume(lua_State *L, int idx)
+static void lazy_free(lazy_volume *lv)
+{
+    if (!lv)
+        return;
+    if (--lv->src->refs == 0) {
+        cdvr_series_close(lv->src->series);
+        free(lv->src);
+    }
+    free(lv);
+}
+
+/* Range pass progress on stderr when it is a terminal. */
+static void range_progress(void *ud, size_t done, size_t total)
+{
+    (void)ud;
+    fprintf(stderr, "\rcdvr: value range of the series: %zu/%zu files", done, total);
+    if (done == total)
+        fputc('\n', stderr);
+    fflush(stderr);
+}
+
+/* The window of a lazy volume (see above); reads every file once when it is the range. */
+static cdvr_status lazy_window(lazy_volume *lv, double w[2], cdvr_error *err)
+{
+    if (lv->quantized) {
+        w[0] = lv->qlo;
+        w[1] = lv->qhi;
+        return CDVR_OK;
+    }
+    if (lv->head.type == CDVR_TYPE_U8) {
+        w[0] = 0;
+        w[1] = 255;
+        return CDVR_OK;
+    }
+    cdvr_status st = cdvr_series_range(lv->src->series, &w[0], &w[1],
+                                       isatty(2) ? range_progress : NULL, NULL, err);
+    if (st == CDVR_OK) {
+        lv->head.window[0] = w[0];
+        lv->head.window[1] = w[1];
+    }
+    return st;
+}
+
+/* Timesteps [t, t + count) as a new volume in memory, with the lazy volume's window. */
+static cdvr_status lazy_read(lazy_volume *lv, size_t t, size_t count, cdvr_volume **out,
+                             cdvr_error *err)
+{
+    *out = NULL;
+    double w[2];
+    cdvr_volume *raw = NULL;
+    cdvr_status st = lazy_window(lv, w, err);
+    if (st == CDVR_OK)
+        st = cdvr_series_read(lv->src->series, t, count, &raw, err);
+    if (st == CDVR_OK && lv->quantized) {
+        st = cdvr_volume_quantize(raw, lv->qlo, lv->qhi, out, NULL, err);
+        cdvr_volume_free(raw);
+        raw = NULL;
+    } else if (st == CDVR_OK) {
+        *out = raw;
+    }
+    if (*out) {
+        (*out)->window[0] = w[0];
+        (*out)->window[1] = w[1];
+    }
+    return st;
+}
+
+/* Reads every timestep of a lazy volume into memory: from now on it is an ordinary volume. */
+static void materialise(lua_State *L, lvolume *ud)
+{
+    cdvr_error err;
+    cdvr_volume *all = NULL;
+    if (lazy_read(ud->lazy, 0, ud->lazy->head.timesteps, &all, &err) != CDVR_OK)
+        lcdvr_raise(L, &err);
+    ud->vol = all;
+}
+
+/* The volume at idx, open; raises for a closed one. */
+static lvolume *checkopen(lua_State *L, int idx)
 {
     lvolume *ud = tolvolume(L, idx);
-    if (!ud->vol || lcdvr_closing(L, idx))
+    if (ud->closed || lcdvr_closing(L, idx))
         luaL_error(L, "attempt to use a closed volume");
+    return ud;
+}
+
+cdvr_volume *lcdvr_checkvolume(lua_State *L, int idx)
+{
+    lvolume *ud = checkopen(L, idx);
+    if (!ud->vol)
+        materialise(L, ud);
     return ud->vol;
+}
+
+const cdvr_volume *lcdvr_volume_header(lua_State *L, int idx)
+{
+    lvolume *ud = checkopen(L, idx);
+    return ud->vol ? ud->vol : &ud->lazy->head;
+}
+
+int lcdvr_volume_lazy(lua_State *L, int idx)
+{
+    lvolume *ud = checkopen(L, idx);
+    return ud->vol == NULL;
+}
+
+cdvr_volume *lcdvr_volume_read(lua_State *L, int idx, size_t t, size_t count)
+{
+    lvolume *ud = checkopen(L, idx);
+    cdvr_volume *out = NULL;
+    cdvr_error err;
+    cdvr_status st;
+    if (ud->vol) {
+        double w[2];
+        cdvr_volume_window(ud->vol, w); /* cached: frames keep the series' window */
+        st = cdvr_volume_slice_time(ud->vol, t, count, &out, &err);
+    } else {
+        st = lazy_read(ud->lazy, t, count, &out, &err);
+    }
+    if (st != CDVR_OK)
+        lcdvr_raise(L, &err);
+    lcdvr_pushvolume(L, out);
+    return out;
+}
+
+/* Encode source frame t: the series' voxels of t as u8 (copied, or quantised). */
+static cdvr_status lazy_frame(void *ud, size_t t, uint8_t *out, cdvr_error *err)
+{
+    lazy_volume *lv = ud;
+    const void *voxels;
+    cdvr_status st = cdvr_series_frame(lv->src->series, t, &voxels, err);
+    size_t n = lv->head.dims[0] * lv->head.dims[1] * lv->head.dims[2];
+    if (st != CDVR_OK)
+        return st;
+    if (!lv->enc_quantize) {
+        memcpy(out, voxels, n);
+        return CDVR_OK;
+    }
+    return cdvr_quantize_values(voxels, cdvr_series_get_info(lv->src->series)->type, n,
+                                lv->enc_lo, lv->enc_hi, out, NULL, err);
+}
+
+void lcdvr_volume_source(lua_State *L, int idx, cdvr_encode_source *src, cdvr_encode_opts *o)
+{
+    lvolume *ud = checkopen(L, idx);
+    lazy_volume *lv = ud->lazy;
+    if (ud->vol || !lv)
+        luaL_error(L, "internal error: lcdvr_volume_source on a volume in memory");
+    double w[2];
+    cdvr_error err;
+    if (lazy_window(lv, w, &err) != CDVR_OK)
+        lcdvr_raise(L, &err);
+    const cdvr_series_info *in = cdvr_series_get_info(lv->src->series);
+    lv->enc_quantize = lv->quantized || in->type != CDVR_TYPE_U8;
+    lv->enc_lo = w[0];
+    lv->enc_hi = w[1];
+    o->qlo = w[0];
+    o->qhi = w[1];
+    o->source_type = in->type;
+    memset(src, 0, sizeof *src);
+    memcpy(src->dims, in->dims, sizeof src->dims);
+    memcpy(src->spacing, lv->head.spacing, sizeof src->spacing);
+    memcpy(src->origin, lv->head.origin, sizeof src->origin);
+    cdvr_volume_direction(&lv->head, src->direction);
+    src->timesteps = in->timesteps;
+    src->frame = lazy_frame;
+    src->frame_ud = lv;
 }
 
 void lcdvr_pushvolume(lua_State *L, cdvr_volume *vol)
 {
     lvolume *ud = (lvolume *)lua_newuserdatauv(L, sizeof *ud, 0);
     ud->vol = vol;
+    ud->lazy = NULL;
+    ud->closed = 0;
+    luaL_setmetatable(L, LCDVR_VOLUME);
+}
+
+/* Pushes a lazy volume over src (one more reference to it); it takes lv. */
+static void push_lazy(lua_State *L, lazy_volume *lv)
+{
+    lvolume *ud = (lvolume *)lua_newuserdatauv(L, sizeof *ud, 0);
+    ud->vol = NULL;
+    ud->lazy = lv;
+    ud->closed = 0;
     luaL_setmetatable(L, LCDVR_VOLUME);
 }
 
@@ -36,26 +241,30 @@ static int volume_gc(lua_State *L)
     if (lcdvr_defer_close(L, 1)) /* cdvr.encode still reads it: freed when it is done */
         return 0;
     cdvr_volume_free(ud->vol);
+    lazy_free(ud->lazy);
     ud->vol = NULL;
+    ud->lazy = NULL;
+    ud->closed = 1;
     return 0;
 }
 
 static int volume_tostring(lua_State *L)
 {
     lvolume *ud = tolvolume(L, 1);
-    if (!ud->vol) {
+    if (ud->closed) {
         lua_pushliteral(L, "cdvr.Volume (closed)");
         return 1;
     }
-    const cdvr_volume *v = ud->vol;
-    lua_pushfstring(L, "cdvr.Volume %dx%dx%d x %d %s (%p)", (int)v->dims[0], (int)v->dims[1],
-                    (int)v->dims[2], (int)v->timesteps, cdvr_type_name(v->type), (void *)ud);
+    const cdvr_volume *v = ud->vol ? ud->vol : &ud->lazy->head;
+    lua_pushfstring(L, "cdvr.Volume %dx%dx%d x %d %s%s (%p)", (int)v->dims[0], (int)v->dims[1],
+                    (int)v->dims[2], (int)v->timesteps, cdvr_type_name(v->type),
+                    ud->vol ? "" : ", read from its files as needed", (void *)ud);
     return 1;
 }
 
 static int volume_dims(lua_State *L)
 {
-    const cdvr_volume *v = lcdvr_checkvolume(L, 1);
+    const cdvr_volume *v = lcdvr_volume_header(L, 1);
     for (int i = 0; i < 3; i++)
         lua_pushinteger(L, (lua_Integer)v->dims[i]);
     return 3;
@@ -63,28 +272,83 @@ static int volume_dims(lua_State *L)
 
 static int volume_type(lua_State *L)
 {
-    lua_pushstring(L, cdvr_type_name(lcdvr_checkvolume(L, 1)->type));
+    lua_pushstring(L, cdvr_type_name(lcdvr_volume_header(L, 1)->type));
     return 1;
 }
 
 static int volume_timesteps(lua_State *L)
 {
-    lua_pushinteger(L, (lua_Integer)lcdvr_checkvolume(L, 1)->timesteps);
+    lua_pushinteger(L, (lua_Integer)lcdvr_volume_header(L, 1)->timesteps);
     return 1;
+}
+
+/* Range of the codes of a lazy quantized volume: one pass over its files (cached). */
+static cdvr_status lazy_code_range(lazy_volume *lv, double *lo, double *hi, cdvr_error *err)
+{
+    if (!lv->range_known) {
+        const cdvr_series_info *in = cdvr_series_get_info(lv->src->series);
+        size_t n = in->dims[0] * in->dims[1] * in->dims[2];
+        uint8_t *codes = malloc(n), mn = 255, mx = 0;
+        if (!codes)
+            return cdvr_error_set(err, CDVR_ERR_NOMEM, "range: no memory for a frame");
+        cdvr_status st = CDVR_OK;
+        for (size_t t = 0; st == CDVR_OK && t < in->timesteps; t++) {
+            const void *voxels;
+            st = cdvr_series_frame(lv->src->series, t, &voxels, err);
+            if (st == CDVR_OK)
+                st = cdvr_quantize_values(voxels, in->type, n, lv->qlo, lv->qhi, codes, NULL, err);
+            for (size_t i = 0; st == CDVR_OK && i < n; i++) {
+                mn = codes[i] < mn ? codes[i] : mn;
+                mx = codes[i] > mx ? codes[i] : mx;
+            }
+        }
+        free(codes);
+        if (st != CDVR_OK)
+            return st;
+        lv->range_lo = mn;
+        lv->range_hi = mx;
+        lv->range_known = 1;
+    }
+    *lo = lv->range_lo;
+    *hi = lv->range_hi;
+    return CDVR_OK;
 }
 
 static int volume_range(lua_State *L)
 {
+    lvolume *ud = checkopen(L, 1);
     double lo, hi;
-    cdvr_volume_range(lcdvr_checkvolume(L, 1), &lo, &hi);
+    cdvr_error err;
+    cdvr_status st = CDVR_OK;
+    if (ud->vol)
+        cdvr_volume_range(ud->vol, &lo, &hi);
+    else if (ud->lazy->quantized)
+        st = lazy_code_range(ud->lazy, &lo, &hi, &err);
+    else
+        st = cdvr_series_range(ud->lazy->src->series, &lo, &hi,
+                               isatty(2) ? range_progress : NULL, NULL, &err);
+    if (st != CDVR_OK)
+        return lcdvr_raise(L, &err);
     lua_pushnumber(L, lo);
     lua_pushnumber(L, hi);
     return 2;
 }
 
+static double value_of(const void *voxels, cdvr_type type, size_t i)
+{
+    switch (type) {
+    case CDVR_TYPE_U8: return ((const uint8_t *)voxels)[i];
+    case CDVR_TYPE_U16: return ((const uint16_t *)voxels)[i];
+    case CDVR_TYPE_I16: return ((const int16_t *)voxels)[i];
+    case CDVR_TYPE_F32: return ((const float *)voxels)[i];
+    }
+    return 0;
+}
+
 static int volume_get(lua_State *L)
 {
-    const cdvr_volume *v = lcdvr_checkvolume(L, 1);
+    lvolume *ud = checkopen(L, 1);
+    const cdvr_volume *v = lcdvr_volume_header(L, 1);
     lua_Integer c[4];
     for (int i = 0; i < 3; i++) {
         c[i] = luaL_checkinteger(L, i + 2);
@@ -92,7 +356,26 @@ static int volume_get(lua_State *L)
     }
     c[3] = luaL_optinteger(L, 5, 1);
     luaL_argcheck(L, c[3] >= 1 && (size_t)c[3] <= v->timesteps, 5, "timestep out of range");
-    lua_pushnumber(L, cdvr_volume_get(v, (size_t)c[0], (size_t)c[1], (size_t)c[2], (size_t)c[3] - 1));
+    if (ud->vol) {
+        lua_pushnumber(L, cdvr_volume_get(v, (size_t)c[0], (size_t)c[1], (size_t)c[2], (size_t)c[3] - 1));
+        return 1;
+    }
+    const void *voxels;
+    cdvr_error err;
+    lazy_volume *lv = ud->lazy;
+    if (cdvr_series_frame(lv->src->series, (size_t)c[3] - 1, &voxels, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    cdvr_type type = cdvr_series_get_info(lv->src->series)->type;
+    size_t i = (size_t)c[0] + v->dims[0] * ((size_t)c[1] + v->dims[1] * (size_t)c[2]);
+    if (!lv->quantized) {
+        lua_pushnumber(L, value_of(voxels, type, i));
+        return 1;
+    }
+    uint8_t code;
+    const uint8_t *at = (const uint8_t *)voxels + i * cdvr_type_size(type);
+    if (cdvr_quantize_values(at, type, 1, lv->qlo, lv->qhi, &code, NULL, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    lua_pushnumber(L, code);
     return 1;
 }
 
@@ -110,18 +393,18 @@ static int push_triple(lua_State *L, const double v[3])
 
 static int volume_spacing(lua_State *L)
 {
-    return push_triple(L, lcdvr_checkvolume(L, 1)->spacing);
+    return push_triple(L, lcdvr_volume_header(L, 1)->spacing);
 }
 
 static int volume_origin(lua_State *L)
 {
-    return push_triple(L, lcdvr_checkvolume(L, 1)->origin);
+    return push_triple(L, lcdvr_volume_header(L, 1)->origin);
 }
 
 static int volume_direction(lua_State *L)
 {
     double D[9];
-    cdvr_volume_direction(lcdvr_checkvolume(L, 1), D);
+    cdvr_volume_direction(lcdvr_volume_header(L, 1), D);
     for (int i = 0; i < 9; i++)
         lua_pushnumber(L, D[i]);
     return 9;
@@ -131,7 +414,7 @@ static int volume_direction(lua_State *L)
 static int volume_bounds(lua_State *L)
 {
     double lo[3], hi[3];
-    cdvr_volume_bounds(lcdvr_checkvolume(L, 1), lo, hi);
+    cdvr_volume_bounds(lcdvr_volume_header(L, 1), lo, hi);
     for (int a = 0; a < 3; a++) {
         lua_pushnumber(L, lo[a]);
         lua_pushnumber(L, hi[a]);
@@ -142,7 +425,7 @@ static int volume_bounds(lua_State *L)
 /* World position of voxel (i, j, k) (from 0, fractional allowed). */
 static int volume_to_world(lua_State *L)
 {
-    const cdvr_volume *v = lcdvr_checkvolume(L, 1);
+    const cdvr_volume *v = lcdvr_volume_header(L, 1);
     double ijk[3], xyz[3];
     for (int a = 0; a < 3; a++)
         ijk[a] = luaL_checknumber(L, a + 2);
@@ -152,8 +435,13 @@ static int volume_to_world(lua_State *L)
 
 static int volume_window(lua_State *L)
 {
+    lvolume *ud = checkopen(L, 1);
     double w[2];
-    cdvr_volume_window(lcdvr_checkvolume(L, 1), w);
+    cdvr_error err;
+    if (ud->vol)
+        cdvr_volume_window(ud->vol, w);
+    else if (lazy_window(ud->lazy, w, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
     lua_pushnumber(L, w[0]);
     lua_pushnumber(L, w[1]);
     return 2;
@@ -161,7 +449,7 @@ static int volume_window(lua_State *L)
 
 static int volume_bytes(lua_State *L)
 {
-    const cdvr_volume *v = lcdvr_checkvolume(L, 1);
+    const cdvr_volume *v = lcdvr_volume_header(L, 1);
     lua_pushinteger(L, (lua_Integer)(cdvr_volume_frame_bytes(v) * v->timesteps));
     return 1;
 }
@@ -175,17 +463,11 @@ static size_t check_timestep(lua_State *L, const cdvr_volume *v, int arg)
 
 static int volume_frame(lua_State *L)
 {
-    cdvr_volume *v = lcdvr_checkvolume(L, 1);
+    const cdvr_volume *v = lcdvr_volume_header(L, 1);
     size_t t = check_timestep(L, v, 2);
     lua_Integer count = luaL_optinteger(L, 3, 1);
-    double series_window[2];
-    cdvr_volume_window(v, series_window); /* cached: frames keep the series' window */
     luaL_argcheck(L, count >= 1 && (lua_Unsigned)count <= v->timesteps - t, 3, "timestep count out of range");
-    cdvr_volume *frame;
-    cdvr_error err;
-    if (cdvr_volume_slice_time(v, t, (size_t)count, &frame, &err) != CDVR_OK)
-        return lcdvr_raise(L, &err);
-    lcdvr_pushvolume(L, frame);
+    lcdvr_volume_read(L, 1, t, (size_t)count);
     return 1;
 }
 
@@ -249,10 +531,88 @@ static void push_report(lua_State *L, const cdvr_quantize_report *r)
     lua_setfield(L, -2, "inf");
 }
 
+/* __index of a lazy quantize report: counts the clipped, NaN and Inf values of the source (one
+ * pass over its files) the first time a field is read. Upvalue 1: the quantized volume. */
+static int lazy_report_index(lua_State *L)
+{
+    lvolume *ud = tolvolume(L, lua_upvalueindex(1));
+    if (ud->closed)
+        return luaL_error(L, "quantize report: its volume is closed");
+    lazy_volume *lv = ud->lazy;
+    const cdvr_series_info *in = cdvr_series_get_info(lv->src->series);
+    size_t n = in->dims[0] * in->dims[1] * in->dims[2];
+    uint8_t *codes = lua_newuserdatauv(L, n, 0);
+    cdvr_quantize_report r = {0};
+    cdvr_error err;
+    for (size_t t = 0; t < in->timesteps; t++) {
+        const void *voxels;
+        if (cdvr_series_frame(lv->src->series, t, &voxels, &err) != CDVR_OK ||
+            cdvr_quantize_values(voxels, in->type, n, lv->qlo, lv->qhi, codes, &r, &err) != CDVR_OK)
+            return lcdvr_raise(L, &err);
+    }
+    lua_pop(L, 1);
+    lua_pushnil(L);
+    lua_setmetatable(L, 1); /* counted once: the fields are plain from now on */
+    static const char *const names[] = {"clipped", "clipped_low", "clipped_high", "nan", "inf"};
+    size_t values[] = {r.clipped_low + r.clipped_high, r.clipped_low, r.clipped_high,
+                       r.nan_count, r.inf_count};
+    for (int i = 0; i < 5; i++) {
+        lua_pushinteger(L, (lua_Integer)values[i]);
+        lua_setfield(L, 1, names[i]);
+    }
+    lua_rawget(L, 1); /* the field asked for (key at 2) */
+    return 1;
+}
+
+/* v:quantize of a lazy series (not yet quantized): a lazy u8 volume over [lo, hi] and a report
+ * table whose counts come from a pass over the files when first read. */
+static int quantize_lazy(lua_State *L, lvolume *ud)
+{
+    lazy_volume *src = ud->lazy;
+    double lo, hi;
+    cdvr_error err;
+    if (!lua_isnoneornil(L, 2))
+        luaL_checktype(L, 2, LUA_TTABLE);
+    int has_lo = !lua_isnoneornil(L, 2) && lua_getfield(L, 2, "lo") != LUA_TNIL;
+    int has_hi = !lua_isnoneornil(L, 2) && lua_getfield(L, 2, "hi") != LUA_TNIL;
+    lua_settop(L, 2);
+    if ((!has_lo || !has_hi) &&
+        cdvr_series_range(src->src->series, &lo, &hi, isatty(2) ? range_progress : NULL, NULL,
+                          &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    if (!lua_isnoneornil(L, 2)) {
+        lo = lcdvr_optnumberfield(L, 2, "lo", lo);
+        hi = lcdvr_optnumberfield(L, 2, "hi", hi);
+    }
+    if (!isfinite(lo) || !isfinite(hi) || hi < lo)
+        return luaL_error(L, "quantize: window [%f, %f] must be finite with lo <= hi", lo, hi);
+    lazy_volume *lv = calloc(1, sizeof *lv);
+    if (!lv)
+        return luaL_error(L, "quantize: out of memory");
+    lv->src = src->src;
+    lv->src->refs++;
+    lv->head = src->head;
+    lv->head.type = CDVR_TYPE_U8;
+    lv->head.window[0] = lv->qlo = lo;
+    lv->head.window[1] = lv->qhi = hi;
+    lv->quantized = 1;
+    push_lazy(L, lv);                                  /* q */
+    lua_newtable(L);                                   /* q, report */
+    lua_createtable(L, 0, 1);                          /* q, report, mt */
+    lua_pushvalue(L, -3);
+    lua_pushcclosure(L, lazy_report_index, 1);
+    lua_setfield(L, -2, "__index");
+    lua_setmetatable(L, -2);                           /* q, report */
+    return 2;
+}
+
 static int volume_quantize(lua_State *L)
 {
     static const char *const keys[] = {"lo", "hi", NULL};
     lcdvr_checkoptions(L, 2, "v:quantize", keys);
+    lvolume *ud = checkopen(L, 1);
+    if (!ud->vol && !ud->lazy->quantized)
+        return quantize_lazy(L, ud);
     const cdvr_volume *v = lcdvr_checkvolume(L, 1);
     double lo, hi;
     cdvr_volume_range(v, &lo, &hi);
@@ -515,14 +875,36 @@ static int l_load_series(lua_State *L)
         paths[i] = lua_tostring(L, -1); /* stays alive: the list holds it */
         lua_pop(L, 1);
     }
-    cdvr_volume *vol = NULL;
+    cdvr_series *series = NULL;
     cdvr_error err;
-    cdvr_status st = cdvr_volume_load_series(paths, (size_t)n, &raw, &vol, &err); /* spacing= too */
-    if (st == CDVR_OK && !has_raw)
-        for (int i = 0; i < 3; i++)
-            if (raw.spacing[i] > 0)
-                vol->spacing[i] = raw.spacing[i];
-    return push_load_result(L, st, vol, &err);
+    if (cdvr_series_open(paths, (size_t)n, &raw, &series, &err) != CDVR_OK) /* spacing= too */
+        return lcdvr_raise(L, &err);
+    lazy_source *src = calloc(1, sizeof *src);
+    lazy_volume *lv = calloc(1, sizeof *lv);
+    if (!src || !lv) {
+        free(src);
+        free(lv);
+        cdvr_series_close(series);
+        return luaL_error(L, "cdvr.load_series: out of memory");
+    }
+    src->series = series;
+    src->refs = 1;
+    lv->src = src;
+    const cdvr_series_info *in = cdvr_series_get_info(series);
+    cdvr_volume *h = &lv->head;
+    memcpy(h->dims, in->dims, sizeof h->dims);
+    memcpy(h->spacing, in->spacing, sizeof h->spacing);
+    memcpy(h->origin, in->origin, sizeof h->origin);
+    memcpy(h->direction, in->direction, sizeof h->direction);
+    for (int i = 0; !has_raw && i < 3; i++)
+        if (raw.spacing[i] > 0)
+            h->spacing[i] = raw.spacing[i];
+    h->timesteps = in->timesteps;
+    h->type = in->type;
+    h->window[0] = in->type == CDVR_TYPE_U8 ? 0 : NAN;
+    h->window[1] = in->type == CDVR_TYPE_U8 ? 255 : NAN;
+    push_lazy(L, lv);
+    return 1;
 }
 
 static int l_volume_new(lua_State *L)

@@ -113,7 +113,23 @@ int lcdvr_pcall_budget(lua_State *L, int nargs, int nres, lua_Integer limit);
 void lcdvr_open_budget(lua_State *L);
 
 /* Per-type accessors, implemented in the type's binding file. push* takes ownership. */
+/* lcdvr_checkvolume reads every timestep of a lazy volume (cdvr.load_series, l_volume.c)
+ * into memory first (once: it is an ordinary volume from then on); bindings that can work a
+ * timestep at a time use the lazy accessors below instead. */
 cdvr_volume *lcdvr_checkvolume(lua_State *L, int idx);
+/* The volume at idx without reading voxels: dims, timesteps, type, geometry and window of a
+ * lazy volume (data NULL; window NAN while not computed), else the volume itself. */
+const cdvr_volume *lcdvr_volume_header(lua_State *L, int idx);
+/* 1 when the volume at idx is lazy (its voxels not in memory). */
+int lcdvr_volume_lazy(lua_State *L, int idx);
+/* Pushes and returns a new volume of timesteps [t, t + count) (from 0) of the volume at idx,
+ * carrying its value window (for a lazy float series one pass over its files computes that
+ * range the first time); raises on errors. */
+cdvr_volume *lcdvr_volume_read(lua_State *L, int idx, size_t t, size_t count);
+/* The lazy volume at idx as an encode source (cdvr_store_encode_source): its u8 codes, or its
+ * values quantised over its window; sets o->qlo, o->qhi and o->source_type. The source reads
+ * the volume's files, so the volume must stay open (lcdvr_use) while it is used. */
+void lcdvr_volume_source(lua_State *L, int idx, cdvr_encode_source *src, cdvr_encode_opts *o);
 void lcdvr_pushvolume(lua_State *L, cdvr_volume *vol);
 cdvr_image *lcdvr_checkimage(lua_State *L, int idx);
 void lcdvr_pushimage(lua_State *L, cdvr_image *img);

@@ -125,7 +125,7 @@ static const cdvr_codec bad_codec = {
 };
 
 #if defined(BAD_ABI)
-static const cdvr_plugin_info bad_info = {CDVR_PLUGIN_ABI + 41, &bad_codec};
+static const cdvr_plugin_info bad_info = {42u, &bad_codec}; /* never a real ABI version */
 #elif defined(BAD_NULL_CODEC)
 static const cdvr_plugin_info bad_info = {CDVR_PLUGIN_ABI, NULL};
 static const cdvr_codec *const unused_codec = &bad_codec;

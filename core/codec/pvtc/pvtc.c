@@ -515,9 +515,9 @@ static void scatter_code(int T, int S, const pvtc_code *code, uint8_t *ep, uint8
     }
 }
 
-cdvr_status cdvr_pvtc_encode_chunk(const cdvr_pvtc_params *params, cdvr_pvtc_encoder encoder,
-                                   const size_t dims[3], const uint8_t *const *frames,
-                                   uint8_t *out, cdvr_error *err)
+cdvr_status pvtc_encode_blocks(const cdvr_pvtc_params *params, cdvr_pvtc_encoder encoder,
+                               const size_t dims[3], const uint8_t *const *frames,
+                               size_t first, size_t count, uint8_t *out, cdvr_error *err)
 {
     chunk_layout lay;
     cdvr_status st = layout_init(params, dims, &lay, err);
@@ -527,23 +527,36 @@ cdvr_status cdvr_pvtc_encode_chunk(const cdvr_pvtc_params *params, cdvr_pvtc_enc
         return cdvr_error_set(err, CDVR_ERR_ARG, "pvtc encode: unknown encoder %d", (int)encoder);
     if (!frames || !out)
         return cdvr_error_set(err, CDVR_ERR_ARG, "pvtc encode: NULL frames or output");
+    if (first > lay.geom.nblocks || count > lay.geom.nblocks - first)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "pvtc encode: blocks %zu+%zu of %zu", first,
+                              count, lay.geom.nblocks);
     for (size_t f = 0; f < lay.geom.frames; f++)
         if (!frames[f])
             return cdvr_error_set(err, CDVR_ERR_ARG, "pvtc S%dT%d %s encode: frame %zu is NULL",
                                   params->S, params->T, pack_name(params->pack), f);
     const size_t *nb = lay.geom.blocks;
-    uint8_t *ep = out, *idx = out + 4 * lay.geom.nblocks;
+    uint8_t *ep = out + 4 * first, *idx = out + 4 * lay.geom.nblocks + 4 * (size_t)lay.S * first;
     pvtc_block blk;
     pvtc_code code;
-    for (size_t bz = 0; bz < nb[2]; bz++)
-        for (size_t by = 0; by < nb[1]; by++)
-            for (size_t bx = 0; bx < nb[0]; bx++, ep += 4, idx += 4 * (size_t)lay.S) {
-                gather_block(&lay, frames, bx, by, bz, &blk);
-                if (encoder == CDVR_ENCODER_BBOX)
-                    pvtc_encode_block_bbox(&blk, &code);
-                else
-                    pvtc_encode_block_lsq(&blk, &code);
-                scatter_code(lay.T, lay.S, &code, ep, idx);
-            }
+    for (size_t b = first; b < first + count; b++, ep += 4, idx += 4 * (size_t)lay.S) {
+        size_t bx = b % nb[0], by = b / nb[0] % nb[1], bz = b / (nb[0] * nb[1]);
+        gather_block(&lay, frames, bx, by, bz, &blk);
+        if (encoder == CDVR_ENCODER_BBOX)
+            pvtc_encode_block_bbox(&blk, &code);
+        else
+            pvtc_encode_block_lsq(&blk, &code);
+        scatter_code(lay.T, lay.S, &code, ep, idx);
+    }
     return CDVR_OK;
+}
+
+cdvr_status cdvr_pvtc_encode_chunk(const cdvr_pvtc_params *params, cdvr_pvtc_encoder encoder,
+                                   const size_t dims[3], const uint8_t *const *frames,
+                                   uint8_t *out, cdvr_error *err)
+{
+    cdvr_pvtc_geometry g;
+    cdvr_status st = cdvr_pvtc_geometry_get(params, dims, &g, err);
+    if (st != CDVR_OK)
+        return st;
+    return pvtc_encode_blocks(params, encoder, dims, frames, 0, g.nblocks, out, err);
 }

@@ -9,6 +9,7 @@
  * pvtc_decode.cl, one work-item per block. */
 #include "cdvr/codec.h"
 #include "cdvr/pvtc.h"
+#include "pvtc_internal.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -161,6 +162,32 @@ static cdvr_status pvtc_encode(const cdvr_codec_params *p, const size_t dims[3],
     return s;
 }
 
+/* Part k of n: blocks [k B / n, (k + 1) B / n) of the chunk's B blocks. */
+static cdvr_status pvtc_encode_part(const cdvr_codec_params *p, const size_t dims[3],
+                                    const uint8_t *const *frames, size_t count, size_t part,
+                                    size_t nparts, uint8_t *out, size_t out_cap,
+                                    cdvr_error *err)
+{
+    cdvr_pvtc_params q;
+    cdvr_pvtc_encoder enc;
+    cdvr_pvtc_params_from_blob(p, &q, &enc);
+    cdvr_pvtc_geometry g;
+    cdvr_status s = cdvr_pvtc_geometry_get(&q, dims, &g, err);
+    if (s != CDVR_OK)
+        return s;
+    if (count < 1 || count > g.frames || out_cap < g.chunk_bytes || nparts == 0 ||
+        part >= nparts)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "codec pvtc: %zu frames (1..%zu) into %zu bytes "
+                              "(%zu needed), part %zu of %zu", count, g.frames, out_cap,
+                              g.chunk_bytes, part, nparts);
+    /* part * nblocks cannot overflow for any chunk that fits in memory in 64-bit size_t;
+     * split it to stay exact elsewhere too */
+    size_t q_blocks = g.nblocks / nparts, r_blocks = g.nblocks % nparts;
+    size_t first = part * q_blocks + part * r_blocks / nparts;
+    size_t end = (part + 1) * q_blocks + (part + 1) * r_blocks / nparts;
+    return pvtc_encode_blocks(&q, enc, dims, frames, first, end - first, out, err);
+}
+
 static cdvr_status pvtc_decode(const cdvr_codec_params *p, const size_t dims[3],
                                const uint8_t *in, size_t in_bytes, uint8_t *const *frames,
                                size_t count, cdvr_error *err)
@@ -196,4 +223,5 @@ const cdvr_codec cdvr_codec_pvtc = {
     .cl_file = "codec/pvtc_decode.cl",
     .cl_function = "pvtc_decode",
     .cl_work_items = pvtc_work_items,
+    .encode_part = pvtc_encode_part,
 };

@@ -46,6 +46,13 @@ uint32_t pvtc_code_error(const pvtc_block *blk, const pvtc_code *code);
 uint32_t pvtc_encode_block_bbox(const pvtc_block *blk, pvtc_code *code);
 uint32_t pvtc_encode_block_lsq(const pvtc_block *blk, pvtc_code *code);
 
+/* Encodes blocks [first, first + count) (linear block index x fastest, then y, z) of a chunk
+ * into their places in out (the whole chunk's buffer); cdvr_pvtc_encode_chunk is all of
+ * them. */
+cdvr_status pvtc_encode_blocks(const cdvr_pvtc_params *params, cdvr_pvtc_encoder encoder,
+                               const size_t dims[3], const uint8_t *const *frames,
+                               size_t first, size_t count, uint8_t *out, cdvr_error *err);
+
 /* ---- decoder paths ------------------------------------------------------------------------
  * The reference decoder (one voxel at a time, pvtc.c) is the definition; the portable
  * (64-bit SWAR), SSSE3 and AVX2 paths must be bit-exact with it. AUTO picks the fastest

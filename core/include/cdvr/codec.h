@@ -140,6 +140,16 @@ struct cdvr_codec {
     const char *cl_function;              /* decode kernel or fetch function name */
     /* Decode mode: work-items to launch for a chunk of dims. */
     size_t (*cl_work_items)(const cdvr_codec_params *p, const size_t dims[3]);
+
+    /* Optional (may be NULL), for codecs whose payload size is fixed by the parameters
+     * (shape.payload_bytes != 0): lets the encoder spread one chunk over several threads.
+     * Writes the bytes of part `part` (0 .. nparts-1, any nparts >= 1) of the payload that
+     * `encode` writes for the same frames into out (out_cap >= shape.payload_bytes). The parts
+     * write disjoint bytes that together make the whole payload, so running every part, in
+     * any order and on any threads, into one buffer gives exactly encode's output. */
+    cdvr_status (*encode_part)(const cdvr_codec_params *p, const size_t dims[3],
+                               const uint8_t *const *frames, size_t count, size_t part,
+                               size_t nparts, uint8_t *out, size_t out_cap, cdvr_error *err);
 };
 
 /* ---- registry ------------------------------------------------------------------------------

@@ -30,6 +30,7 @@
 #include "cdvr/image.h"
 #include "cdvr/codec.h"
 #include "cdvr/render.h"
+#include "cdvr/skip.h"
 #include "cdvr/tf.h"
 
 typedef struct cdvr_cl cdvr_cl;
@@ -79,8 +80,8 @@ cdvr_status cdvr_cl_upload(cdvr_cl_stream *s, const void *payload, size_t bytes,
 
 /* b3: makes device frames 0 .. count-1 of the stream's dims from the uploaded payload of a
  * chunk of `codec` with `params` (cdvr/codec.h), count <= the codec's timesteps per chunk:
- *  - decode mode: runs the codec's decode kernel into dense frames, bit-exact with the codec's
- *    C decoder;
+ *  - decode mode: dense frames, by the codec's decode kernel or, on a CPU device where that
+ *    is faster, by its C decoder (cdvr_cl_decode_path), bit-exact with each other;
  *  - fetch mode: keeps the payload as it is; cdvr_cl_setup and cdvr_cl_render read every
  *    voxel through the codec's fetch function (rendering in the compressed domain);
  *  - codecs without OpenCL source: CDVR_ERR_UNSUPPORTED (decode on the CPU and use
@@ -89,10 +90,36 @@ cdvr_status cdvr_cl_upload(cdvr_cl_stream *s, const void *payload, size_t bytes,
 cdvr_status cdvr_cl_decode(cdvr_cl_stream *s, const cdvr_codec *codec,
                            const cdvr_codec_params *params, size_t count, cdvr_error *err);
 
+/* Decode paths of decode-mode codecs. Both give the same bytes (the kernels are bit-exact
+ * with the codecs' C decoders). */
+typedef enum cdvr_cl_decode_path {
+    CDVR_CL_DECODE_AUTO = 0,   /* the kernel on GPUs and other devices that are not CPUs; on a
+                                  CPU device the faster of the two, measured on the first
+                                  chunk of each codec and remembered for the device (in
+                                  memory, and on disk beside the program cache) */
+    CDVR_CL_DECODE_KERNEL = 1, /* the codec's decode kernel */
+    CDVR_CL_DECODE_HOST = 2    /* the codec's C decoder writing straight into the frames
+                                  buffer, mapped (host memory on CPU devices: no copy) */
+} cdvr_cl_decode_path;
+
+/* The path cdvr_cl_decode takes from now on. New streams take AUTO, or what the environment
+ * variable CDVR_CL_DECODE says ("auto", "kernel" or "host"). */
+void cdvr_cl_set_decode_path(cdvr_cl_stream *s, cdvr_cl_decode_path path);
+/* The path the last successful cdvr_cl_decode of a decode-mode codec took (AUTO before any). */
+cdvr_cl_decode_path cdvr_cl_last_decode_path(const cdvr_cl_stream *s);
+
 /* b2 for frames decoded on the host: uploads count dense u8 frames (count * dims product
  * bytes) as device frames 0 .. count-1. */
 cdvr_status cdvr_cl_upload_frames(cdvr_cl_stream *s, const uint8_t *frames, size_t count,
                                   cdvr_error *err);
+
+/* b2 without a copy for frames decoded on the host: count dense u8 frames in the caller's
+ * memory become device frames 0 .. count-1 (a buffer over that memory: devices that share host
+ * memory read it in place, others copy it). The memory must stay allocated and unchanged
+ * until the stream's next decode or upload, or until the stream is freed. Page-aligned memory
+ * avoids a copy on most CPU drivers. */
+cdvr_status cdvr_cl_use_host_frames(cdvr_cl_stream *s, const uint8_t *frames, size_t count,
+                                    cdvr_error *err);
 
 /* Device memory the stream holds now (all its buffers), and the part that holds the volume
  * data of the current frames (dense frames, or payload + parameters in fetch mode). */
@@ -105,8 +132,17 @@ uint64_t cdvr_cl_volume_bytes(const cdvr_cl_stream *s);
  * flag "some value in [min, max] has alpha > 0 under this TF". */
 cdvr_status cdvr_cl_setup(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf, cdvr_error *err);
 
+/* b4 from a grid the caller made (cdvr/skip.h: bricks of cdvr_cl_brick_edge() voxels over
+ * the stream's dims, flags made for tf, e.g. from a store's range tables on another thread):
+ * its flags are uploaded as they are. CDVR_ERR_ARG when the grid does not fit. */
+cdvr_status cdvr_cl_setup_grid(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf,
+                               const cdvr_skip_grid *g, cdvr_error *err);
+
 /* b5: ray casts device frame `frame` with the TF of the last cdvr_cl_setup (which must have
- * been called for this frame) following render.h exactly, in float. The volume's geometry:
+ * been called for this frame) following render.h exactly, in float. A frame rendered a second
+ * time in a row gets a 4-byte-per-voxel copy ("quads") that the ray caster reads faster; the
+ * images are the same. Frames of 2^31 voxels or more use kernels with 64-bit voxel indices
+ * (built on first use; the environment variable CDVR_CL_LONG_INDEX=1 forces them, for tests). The volume's geometry:
  * spacing, origin and direction (volume.h: row-major 3x3, column c = world direction of index
  * axis c; NULL or all zeros = identity; must be invertible). opts->tf is used only
  * for its unit when opts->unit is 0 (NULL: the TF of the setup); opts->threads and

@@ -14,8 +14,16 @@
  * A store is read one chunk group at a time: the chunks of the group's timesteps, one per
  * brick (an unbricked store has one brick). On the cl device a chunk is decoded by its
  * codec's kernel (decode mode) or kept compressed and rendered through its fetch function
- * (fetch mode); codecs without OpenCL code, and bricked stores, are decoded on the CPU and
- * the frames uploaded.
+ * (fetch mode); codecs without OpenCL code, bricked stores, and decode-mode variants that the
+ * device decodes faster on the host (a CPU device: cdvr_cl_decode_path, learnt from the
+ * variant's first group) are decoded on the host by the unzip thread, into one of two decode
+ * slots, and handed to the device without a copy where it shares host memory. For stores
+ * with range tables (store.h), when the whole volume is rendered and every brick of the group
+ * is read, the unzip thread also makes each frame's skip grid and flags (cdvr/skip.h), and b4
+ * only uploads them (else the device computes them from the frame). So the next group's
+ * decode and setup overlap the current group's rendering. Timings follow the work: b1
+ * includes reading the range tables, b1' making the grids, b3 the host decode (wherever it
+ * ran), b4 what the calling thread still does.
  *
  * Brick skipping ("model only what a scene needs", opts.brick_skip): when a group is planned,
  * a brick is read and decoded only if

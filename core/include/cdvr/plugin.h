@@ -27,7 +27,7 @@
 #include "cdvr/codec.h"
 #include "cdvr/error.h"
 
-#define CDVR_PLUGIN_ABI 1u
+#define CDVR_PLUGIN_ABI 2u /* 2: cdvr_codec.encode_part */
 #define CDVR_PLUGIN_SYMBOL "cdvr_plugin_v1"
 
 /* Put before the definition of cdvr_plugin_v1: plugins are built with hidden visibility

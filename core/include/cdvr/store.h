@@ -59,6 +59,8 @@ typedef void (*cdvr_progress_fn)(void *ud, size_t done, size_t total);
  * increasing t order, each t at most once per encode (the encoder keeps what it still needs). */
 typedef cdvr_status (*cdvr_source_frame_fn)(void *ud, size_t t, uint8_t *out, cdvr_error *err);
 
+#define CDVR_ENCODE_MAX_THREADS 256
+
 typedef struct cdvr_encode_opts {
     const cdvr_variant_spec *variants;
     size_t nvariants;
@@ -69,6 +71,10 @@ typedef struct cdvr_encode_opts {
     double qlo, qhi;               /* quantisation window recorded in the header */
     cdvr_type source_type;         /* type before quantisation, recorded */
     size_t bricks[3];              /* brick grid; 0 -> 1 */
+    int threads;                   /* encode threads: 0 one per online core, 1 only the calling
+                                      thread; the output is the same byte for byte */
+    int no_range_tables;           /* 1: record no range tables (smaller store; playback then
+                                      computes each frame's brick ranges itself) */
 } cdvr_encode_opts;
 
 /* A series to encode, read one timestep at a time (out of core). */
@@ -94,6 +100,12 @@ typedef struct cdvr_chunk_info {
     uint32_t crc32c;               /* of the stored bytes */
     int stage2;                    /* 1 if LZO applies to this chunk */
     uint8_t value_min, value_max;  /* range of the decoded voxels of the chunk's timesteps */
+    /* Range table (value ranges per range brick, see below), stored after the chunk's bytes;
+     * ranges_shift 0: the chunk has none (version 1 stores and older version 2 ones). */
+    unsigned ranges_shift;         /* range bricks of 2^shift voxels */
+    int ranges_stage2;             /* 1 if the stored table is LZO1X of the table */
+    uint32_t ranges_crc32c;        /* of the stored table bytes */
+    uint64_t ranges_offset, ranges_stored_bytes;
 } cdvr_chunk_info;
 
 typedef struct cdvr_variant_info {
@@ -107,6 +119,7 @@ typedef struct cdvr_variant_info {
     size_t ngroups;
     uint64_t bytes;                /* stored bytes of all chunks */
     uint64_t payload_bytes;        /* bytes before stage 2 */
+    uint64_t ranges_bytes;         /* stored bytes of the chunks' range tables */
     double psnr, maxerr;           /* volume PSNR / max error measured at encode time */
     double lzo_min_saving;
 } cdvr_variant_info;
@@ -153,6 +166,10 @@ size_t cdvr_store_chunk_for(const cdvr_store *st, size_t v, size_t t, size_t b);
  * assembled volumes take its value there, and encode-time errors count it there); N = 1
  * gives one voxel. */
 void cdvr_store_brick_box(const cdvr_store_info *info, size_t b, size_t lo[3], size_t dims[3]);
+/* The voxels brick b owns: its box without the first voxel along each axis where it starts
+ * after voxel 0 (that one belongs to the brick below). */
+void cdvr_store_brick_owned(const cdvr_store_info *info, size_t b, size_t lo[3],
+                            size_t dims[3]);
 /* The same rule for any grid (the encoder and readers share it); 0 if the grid is invalid
  * (a count of 0, or more bricks than cells along an axis with more than one voxel). */
 int cdvr_brick_box(const size_t vol_dims[3], const size_t bricks[3], size_t b, size_t lo[3],
@@ -198,6 +215,47 @@ cdvr_status cdvr_store_decode(const cdvr_store *st, size_t v, size_t t, cdvr_vol
  * voxel from the lower brick). */
 cdvr_status cdvr_store_decode_brick(const cdvr_store *st, size_t v, size_t t, size_t b,
                                     cdvr_volume **out, cdvr_error *err);
+
+/* ---- value ranges per range brick ----------------------------------------------------------
+ * For empty-space skipping the encoder records, per chunk and per timestep of it, the range
+ * of the decoded values of each range brick: along each axis of N voxels, range brick g
+ * (from 0) holds voxels E*g .. min(E*g + E, N - 1) with E = 2^shift, i.e. its cube plus the
+ * upper one-voxel apron trilinear interpolation reads (the ray caster's skipping bricks,
+ * shift CDVR_RANGE_SHIFT). The volume has ceil(N / E) of them per axis (cdvr_range_grid).
+ * The chunk of store brick b holds the window of range bricks that meet the voxels b owns
+ * (cdvr_store_brick_owned; cdvr_range_window), each with its range over those voxels; a
+ * whole range brick's range is the smallest min and largest max over the store bricks it
+ * meets (cdvr_range_merge), which is exactly its range in the assembled volume. Table
+ * layout: per frame of the chunk (count of them), per window brick (x fastest, then y, z),
+ * two bytes: min, max. */
+#define CDVR_RANGE_SHIFT 2
+
+/* Range bricks per axis of a volume. */
+void cdvr_range_grid(const size_t vol_dims[3], unsigned shift, size_t n[3]);
+/* Window of range bricks meeting the voxel box lo .. lo + bd - 1: first brick g0 and counts n
+ * per axis. */
+void cdvr_range_window(const size_t vol_dims[3], const size_t lo[3], const size_t bd[3],
+                       unsigned shift, size_t g0[3], size_t n[3]);
+/* Bytes of one frame's window table: 2 * n0 * n1 * n2. */
+size_t cdvr_range_window_bytes(const size_t vol_dims[3], const size_t lo[3],
+                               const size_t bd[3], unsigned shift);
+/* Window table of one frame of the voxel box (first voxel lo, bd voxels per axis) into out.
+ * voxels points at the box's first voxel; rows and planes of the box are row_stride and
+ * plane_stride bytes apart. */
+cdvr_status cdvr_range_compute(const uint8_t *voxels, size_t row_stride, size_t plane_stride,
+                               const size_t vol_dims[3], const size_t lo[3], const size_t bd[3],
+                               unsigned shift, uint8_t *out, cdvr_error *err);
+/* Folds a window table into the grid's table (2 bytes per brick of the grid, preset to
+ * min 255, max 0): min of the mins, max of the maxes. */
+void cdvr_range_merge(const uint8_t *window, const size_t g0[3], const size_t n[3],
+                      const size_t grid[3], uint8_t *grid_minmax);
+
+/* Bytes of chunk c's range table (count frames of its window), 0 when it has none. */
+size_t cdvr_store_ranges_bytes(const cdvr_store *st, size_t v, size_t c);
+/* Reads chunk c's range table into out (cdvr_store_ranges_bytes): pread, CRC-32C check, LZO
+ * if flagged. CDVR_ERR_ARG when the chunk has none. */
+cdvr_status cdvr_store_read_ranges(const cdvr_store *st, size_t v, size_t c, uint8_t *out,
+                                   cdvr_error *err);
 
 /* CRC-32C (Castagnoli), initial value 0 for a fresh CRC: crc = cdvr_crc32c(0, buf, n). */
 uint32_t cdvr_crc32c(uint32_t crc, const void *buf, size_t n);

@@ -517,6 +517,86 @@ static cdvr_status build_program(cdvr_cl *cl, cdvr_error *err)
 }
 
 static cdvr_status create_kernel(cl_program program, const char *name, cl_kernel *out,
+                                 cdvr_error *err);
+
+cdvr_status cdvr_cl_long_index_kernels(cdvr_cl *cl, cl_kernel *bricks, cl_kernel *raycast,
+                                       cdvr_error *err)
+{
+    if (!cl->program_long) {
+        char *source = NULL, cache_path[512];
+        int from_cache;
+        cdvr_status st = load_sources(NULL, render_files, NRENDER_FILES, &source, err);
+        if (!st)
+            st = build_cached(cl, source, BUILD_OPTIONS " -DCDVR_LONG_INDEX",
+                              "the render kernels (64-bit indices)", &cl->program_long,
+                              &from_cache, cache_path, sizeof cache_path, err);
+        free(source);
+        if (!st)
+            st = create_kernel(cl->program_long, "brick_minmax", &cl->k_bricks_long, err);
+        if (!st)
+            st = create_kernel(cl->program_long, "raycast", &cl->k_raycast_long, err);
+        if (st)
+            return st;
+    }
+    *bricks = cl->k_bricks_long;
+    *raycast = cl->k_raycast_long;
+    return CDVR_OK;
+}
+
+/* ---- remembered decode paths ------------------------------------------------------------
+ * One cache entry per device and codec, in the program cache's format, holding the text
+ * "host|kernel KERNEL_MS HOST_MS"; its key covers the codec's kernel source, the device and
+ * its driver, and the cdvr version (whose C decoder was measured). */
+
+static int decode_choice_path(cdvr_cl *cl, const cdvr_codec *codec, unsigned size_class,
+                              char *path, size_t n, char key[33])
+{
+    char dir[400], what[96], *source = NULL;
+    if (load_sources(codec, NULL, 0, &source, NULL) != CDVR_OK)
+        return 0;
+    snprintf(what, sizeof what, "decode path, size class %u, cdvr %s", size_class, CDVR_VERSION);
+    cache_key(cl, source, what, key);
+    free(source);
+    if (cache_dir(dir, sizeof dir) != 0)
+        return 0;
+    snprintf(path, n, "%s/%s.decode", dir, key);
+    return 1;
+}
+
+cdvr_cl_decode_path cdvr_cl_load_decode_choice(cdvr_cl *cl, const cdvr_codec *codec,
+                                               unsigned size_class, double *kernel_ms,
+                                               double *host_ms)
+{
+    char path[512], key[33], text[64], which[8];
+    size_t size = 0;
+    if (!decode_choice_path(cl, codec, size_class, path, sizeof path, key))
+        return CDVR_CL_DECODE_AUTO;
+    unsigned char *bin = cache_load(path, key, &size);
+    cdvr_cl_decode_path choice = CDVR_CL_DECODE_AUTO;
+    if (bin && size < sizeof text) {
+        memcpy(text, bin, size);
+        text[size] = '\0';
+        if (sscanf(text, "%7s %lf %lf", which, kernel_ms, host_ms) == 3)
+            choice = !strcmp(which, "host") ? CDVR_CL_DECODE_HOST
+                   : !strcmp(which, "kernel") ? CDVR_CL_DECODE_KERNEL : CDVR_CL_DECODE_AUTO;
+    }
+    free(bin);
+    return choice;
+}
+
+void cdvr_cl_store_decode_choice(cdvr_cl *cl, const cdvr_codec *codec, unsigned size_class,
+                                 cdvr_cl_decode_path path, double kernel_ms, double host_ms)
+{
+    char file[512], key[33], text[64];
+    if (!decode_choice_path(cl, codec, size_class, file, sizeof file, key))
+        return;
+    int n = snprintf(text, sizeof text, "%s %.4f %.4f",
+                     path == CDVR_CL_DECODE_HOST ? "host" : "kernel", kernel_ms, host_ms);
+    if (n > 0 && (size_t)n < sizeof text)
+        cache_store(file, key, (const unsigned char *)text, (size_t)n);
+}
+
+static cdvr_status create_kernel(cl_program program, const char *name, cl_kernel *out,
                                 cdvr_error *err)
 {
     cl_int code;
@@ -574,6 +654,8 @@ cdvr_status cdvr_cl_open(cdvr_cl **out, cdvr_error *err)
         st = create_kernel(cl->program, "brick_minmax", &cl->k_bricks, err);
     if (!st)
         st = create_kernel(cl->program, "raycast", &cl->k_raycast, err);
+    if (!st)
+        st = create_kernel(cl->program, "make_quads", &cl->k_quads, err);
     if (st) {
         cdvr_cl_close(cl);
         return st;
@@ -625,7 +707,7 @@ static cdvr_status build_codec_program(cdvr_cl *cl, const cdvr_codec *codec,
 }
 
 cdvr_status cdvr_cl_get_codec_program(cdvr_cl *cl, const cdvr_codec *codec,
-                                  const cdvr_cl_codec_program **out, cdvr_error *err)
+                                      cdvr_cl_codec_program **out, cdvr_error *err)
 {
     *out = NULL;
     if (codec->cl_mode == CDVR_CODEC_CL_NONE)
@@ -662,12 +744,15 @@ void cdvr_cl_close(cdvr_cl *cl)
         return;
     for (size_t i = 0; i < cl->ncodecs; i++)
         release_codec_program(&cl->codecs[i]);
-    if (cl->k_bricks)
-        clReleaseKernel(cl->k_bricks);
-    if (cl->k_raycast)
-        clReleaseKernel(cl->k_raycast);
+    cl_kernel kernels[] = {cl->k_bricks, cl->k_raycast, cl->k_quads, cl->k_bricks_long,
+                           cl->k_raycast_long};
+    for (size_t i = 0; i < sizeof kernels / sizeof *kernels; i++)
+        if (kernels[i])
+            clReleaseKernel(kernels[i]);
     if (cl->program)
         clReleaseProgram(cl->program);
+    if (cl->program_long)
+        clReleaseProgram(cl->program_long);
     if (cl->queue)
         clReleaseCommandQueue(cl->queue);
     if (cl->context)

@@ -10,15 +10,26 @@
 
 #include "cdvr/codec.h"
 #include "cdvr/device.h"
+#include "cdvr/skip.h"
 #include "common/cl_shared.h"
+
+/* The dense render kernels with 64-bit voxel indices (built on first use). */
+cdvr_status cdvr_cl_long_index_kernels(cdvr_cl *cl, cl_kernel *bricks, cl_kernel *raycast,
+                                       cdvr_error *err);
 
 /* The program of one codec: its decode kernel (decode mode), or the brick min/max and
  * ray-cast kernels built over its fetch function (fetch mode). */
+#define CDVR_CL_SIZE_CLASSES 32
+
 typedef struct cdvr_cl_codec_program {
     const cdvr_codec *codec;
     cl_program program;
     cl_kernel k_decode;
     cl_kernel k_bricks, k_raycast;
+    /* decode mode on a CPU device: the faster path per size class of the decoded frames
+     * (floor(log4(bytes))), once measured (cl_stream.c); AUTO until known */
+    cdvr_cl_decode_path fastest[CDVR_CL_SIZE_CLASSES];
+    double kernel_ms[CDVR_CL_SIZE_CLASSES], host_ms[CDVR_CL_SIZE_CLASSES];
 } cdvr_cl_codec_program;
 
 #define CDVR_CL_MAX_CODEC_PROGRAMS 32
@@ -29,8 +40,11 @@ struct cdvr_cl {
     cl_device_id device;
     cl_context context;
     cl_command_queue queue;
-    cl_program program;              /* dense brick min/max and ray cast */
-    cl_kernel k_bricks, k_raycast;
+    cl_program program;              /* dense brick min/max, ray cast and quads */
+    cl_kernel k_bricks, k_raycast, k_quads;
+    cl_program program_long;         /* the same with 64-bit voxel indices (frames of 2^31
+                                        voxels or more), built on first use */
+    cl_kernel k_bricks_long, k_raycast_long;
     cdvr_cl_codec_program codecs[CDVR_CL_MAX_CODEC_PROGRAMS]; /* built on first use */
     size_t ncodecs;
     cdvr_cl_info info;
@@ -38,7 +52,15 @@ struct cdvr_cl {
 
 /* The program of codec (built, or loaded from the binary cache, on first use). */
 cdvr_status cdvr_cl_get_codec_program(cdvr_cl *cl, const cdvr_codec *codec,
-                                  const cdvr_cl_codec_program **out, cdvr_error *err);
+                                      cdvr_cl_codec_program **out, cdvr_error *err);
+/* The decode path remembered on disk for codec and a size class on this device (beside the
+ * program cache, keyed by the device, its driver, the codec's kernel source and the class), or
+ * CDVR_CL_DECODE_AUTO when none is; and the writer of that record. */
+cdvr_cl_decode_path cdvr_cl_load_decode_choice(cdvr_cl *cl, const cdvr_codec *codec,
+                                               unsigned size_class, double *kernel_ms,
+                                               double *host_ms);
+void cdvr_cl_store_decode_choice(cdvr_cl *cl, const cdvr_codec *codec, unsigned size_class,
+                                 cdvr_cl_decode_path path, double kernel_ms, double host_ms);
 /* Sets argument `index` of kernel `name`; on failure fills err naming both. */
 cdvr_status cdvr_cl_arg(cl_kernel k, const char *name, cl_uint index, size_t size,
                         const void *value, cdvr_error *err);
@@ -54,20 +76,24 @@ struct cdvr_cl_stream {
     cl_mem params;               /* the chunk's codec parameter blob (CDVR_CL_PARAMS_BYTES) */
     cl_mem frames;               /* decoded u8 frames, contiguous */
     size_t frame_capacity, frames_valid;
+    cl_mem host_frames;          /* frames in the caller's memory (cdvr_cl_use_host_frames), */
+                                 /* read instead of `frames` while set */
     const cdvr_cl_codec_program *fetch; /* frames stay compressed: read through this codec's
                                            fetch kernels (NULL: dense frames) */
     cl_mem table;                /* 256 float4: rgb + step-corrected alpha (per render) */
     cl_mem alpha_unit;           /* 256 floats: alpha per unit length (shorter last segment) */
     cl_mem brick_minmax;         /* nbricks uchar2: value range per brick incl. apron */
+    cl_mem quads;                /* quads of frame quads_frame for the ray caster (raycast.cl) */
+    size_t quads_capacity, quads_frame;
+    size_t last_rendered;        /* frame of the last render: a second render of it makes quads */
     cl_mem brick_visible;        /* nbricks uchar flags */
     cl_mem image;                /* width*height float4 */
     cl_mem samples;              /* uint sample counter per ray-cast work-item */
     size_t image_pixels, sample_slots;
-    unsigned char *minmax_host;  /* copy of brick_minmax for minmax_frame */
-    unsigned char *flags_host;   /* nbricks flags as last uploaded */
-    size_t minmax_frame;         /* frame the min/max grid belongs to, (size_t)-1 for none */
-    int flags_valid;             /* brick_visible matches minmax_host and tf_visible */
-    unsigned char tf_visible[256]; /* alpha > 0 per TF entry, as the flags were built */
+    cdvr_skip_grid grid;         /* host copy of the min/max grid (minmax_frame) and the
+                                    flags last uploaded to brick_visible (cdvr/skip.h) */
+    size_t minmax_frame;         /* frame grid.minmax belongs to, (size_t)-1 for none */
+    int grid_uploaded;           /* brick_visible holds another grid's flags (setup_grid) */
     cdvr_tf tf;                  /* TF of the last setup */
     size_t setup_frame;          /* frame of the last setup, (size_t)-1 for none */
     size_t bricks_visible;
@@ -75,7 +101,15 @@ struct cdvr_cl_stream {
     cl_float visible_hi[3];      /* bricks, +-inf at the grid's faces); lo > hi: none visible */
     int skipping;
     uint64_t last_samples;
+    cdvr_cl_decode_path decode_path;      /* what cdvr_cl_decode may use (AUTO: choose) */
+    cdvr_cl_decode_path last_decode_path; /* what the last decode used */
 };
+
+/* The buffer holding the stream's dense frames now. */
+static inline cl_mem cdvr_cl_frames_mem(const cdvr_cl_stream *s)
+{
+    return s->host_frames ? s->host_frames : s->frames;
+}
 
 /* "CL_OUT_OF_RESOURCES" etc. for an OpenCL error code. */
 const char *cdvr_cl_error_name(cl_int code);

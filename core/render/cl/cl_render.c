@@ -34,19 +34,22 @@ typedef struct voxel_source {
     cl_kernel k_bricks, k_raycast;
     cl_mem vol, params;
     cl_ulong offset;
+    cl_int quads;               /* vol holds the frame's quads (ray caster only) */
 } voxel_source;
 
-static voxel_source source_of(const cdvr_cl_stream *s, size_t frame)
+static cdvr_status source_of(cdvr_cl_stream *s, size_t frame, voxel_source *v, cdvr_error *err)
 {
-    voxel_source v;
     if (s->fetch) {
-        v = (voxel_source){s->fetch->k_bricks, s->fetch->k_raycast, s->payload, s->params,
-                           (cl_ulong)frame};
-    } else {
-        v = (voxel_source){s->cl->k_bricks, s->cl->k_raycast, s->frames, s->params,
-                           (cl_ulong)(frame * s->voxels)};
+        *v = (voxel_source){s->fetch->k_bricks, s->fetch->k_raycast, s->payload, s->params,
+                            (cl_ulong)frame, 0};
+        return CDVR_OK;
     }
-    return v;
+    *v = (voxel_source){s->cl->k_bricks, s->cl->k_raycast, cdvr_cl_frames_mem(s), s->params,
+                        (cl_ulong)(frame * s->voxels), 0};
+    const char *force = getenv("CDVR_CL_LONG_INDEX");
+    if (s->voxels > INT_MAX || (force && !strcmp(force, "1"))) /* 32-bit indices overflow */
+        return cdvr_cl_long_index_kernels(s->cl, &v->k_bricks, &v->k_raycast, err);
+    return CDVR_OK;
 }
 
 static cdvr_status set_source_args(cl_kernel k, const char *name, const voxel_source *v,
@@ -60,10 +63,13 @@ static cdvr_status set_source_args(cl_kernel k, const char *name, const voxel_so
     return st;
 }
 
-/* Min/max of every brick of device frame `frame`, copied to s->minmax_host. */
+/* Min/max of every brick of device frame `frame`, copied to s->grid.minmax. */
 static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *err)
 {
-    voxel_source src = source_of(s, frame);
+    voxel_source src;
+    cdvr_status sst = source_of(s, frame, &src, err);
+    if (sst)
+        return sst;
     cl_kernel k = src.k_bricks;
     cl_uint args[7] = {(cl_uint)s->dims[0], (cl_uint)s->dims[1], (cl_uint)s->dims[2],
                        CDVR_CL_BRICK, (cl_uint)s->brick_dims[0], (cl_uint)s->brick_dims[1],
@@ -78,104 +84,20 @@ static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *e
     if (st)
         return st;
     cl_int code = clEnqueueReadBuffer(s->cl->queue, s->brick_minmax, CL_TRUE, 0, 2 * s->nbricks,
-                                      s->minmax_host, 0, NULL, NULL);
+                                      s->grid.minmax, 0, NULL, NULL);
+    cdvr_skip_grid_touch(&s->grid);
     return cdvr_cl_check(code, "read brick min/max grid", err);
 }
 
-/* One chamfer pass of the chessboard distance transform: each brick takes the minimum over
- * its 13 neighbours already visited in the scan direction (dir = +1 forward, -1 backward)
- * plus one. Two passes give the exact L-infinity distance to the nearest visible brick. */
-static void chessboard_pass(unsigned char *dist, const size_t n[3], int dir)
+/* Uploads the flags of grid g and takes its visible box and count. */
+static cdvr_status use_grid(cdvr_cl_stream *s, const cdvr_skip_grid *g, cdvr_error *err)
 {
-    long nx = (long)n[0], ny = (long)n[1], nz = (long)n[2];
-    for (long k = 0; k < nx * ny * nz; k++) {
-        long idx = dir > 0 ? k : nx * ny * nz - 1 - k;
-        long x = idx % nx, y = (idx / nx) % ny, z = idx / (nx * ny);
-        int best = dist[idx];
-        for (long dz = -1; dz <= 0; dz++)
-            for (long dy = -1; dy <= 1; dy++)
-                for (long dx = -1; dx <= 1; dx++) {
-                    if ((dz < 0 || dy < 0 || (dy == 0 && dx < 0)) == 0)
-                        continue; /* only neighbours before idx in forward order */
-                    long qx = x + dir * dx, qy = y + dir * dy, qz = z + dir * dz;
-                    if (qx < 0 || qy < 0 || qz < 0 || qx >= nx || qy >= ny || qz >= nz)
-                        continue;
-                    int cand = dist[qx + nx * (qy + ny * qz)] + 1;
-                    if (cand < best)
-                        best = cand;
-                }
-        dist[idx] = (unsigned char)best;
-    }
-}
-
-/* Chessboard distance (in bricks, 1 .. BRICK_REACH_MAX) from each brick with seed[b] == 0 to
- * the nearest brick with seed[b] != 0, into dist; bricks outside the grid are never seeds. */
-#define BRICK_REACH_MAX 127
-static void chessboard_distance(const unsigned char *seed, unsigned char *dist, const size_t n[3],
-                                size_t count)
-{
-    for (size_t b = 0; b < count; b++)
-        dist[b] = seed[b] ? 0 : 255;
-    chessboard_pass(dist, n, 1);
-    chessboard_pass(dist, n, -1);
-}
-
-/* Grid-coordinate box around the visible bricks: samples outside it lie in invisible bricks.
- * A face on the grid's border is moved to infinity, since samples beyond the volume are
- * clamped into the border bricks. */
-static void visible_box(cdvr_cl_stream *s, const unsigned char *visible)
-{
-    size_t lo[3] = {SIZE_MAX, SIZE_MAX, SIZE_MAX}, hi[3] = {0, 0, 0};
-    const size_t *n = s->brick_dims;
-    for (size_t b = 0; b < s->nbricks; b++) {
-        if (!visible[b])
-            continue;
-        size_t at[3] = {b % n[0], b / n[0] % n[1], b / (n[0] * n[1])};
-        for (int a = 0; a < 3; a++) {
-            lo[a] = at[a] < lo[a] ? at[a] : lo[a];
-            hi[a] = at[a] > hi[a] ? at[a] : hi[a];
-        }
-    }
+    s->bricks_visible = g->bricks_visible;
     for (int a = 0; a < 3; a++) {
-        if (lo[a] == SIZE_MAX) { /* nothing visible: an empty box */
-            s->visible_lo[a] = INFINITY;
-            s->visible_hi[a] = -INFINITY;
-            continue;
-        }
-        s->visible_lo[a] = lo[a] == 0 ? -INFINITY : (cl_float)(lo[a] * CDVR_CL_BRICK);
-        s->visible_hi[a] = hi[a] + 1 == n[a] ? INFINITY : (cl_float)((hi[a] + 1) * CDVR_CL_BRICK);
+        s->visible_lo[a] = g->visible_lo[a];
+        s->visible_hi[a] = g->visible_hi[a];
     }
-}
-
-/* Per brick, one byte for the ray caster's walk: invisible bricks (no value of [min, max] has
- * alpha > 0) store their distance d to the nearest visible brick (the cube of bricks within
- * d - 1 is empty and is jumped in one step); visible bricks store 128 + d, d the distance to
- * the nearest invisible brick (the cube within d - 1 is all visible and is sampled without
- * further look-ups). Distances are capped at BRICK_REACH_MAX. */
-static cdvr_status upload_flags(cdvr_cl_stream *s, const int prefix[257], cdvr_error *err)
-{
-    unsigned char *visible = malloc(2 * s->nbricks);
-    if (!visible)
-        return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL setup: out of memory");
-    unsigned char *hidden = visible + s->nbricks;
-    s->bricks_visible = 0;
-    for (size_t b = 0; b < s->nbricks; b++) {
-        int lo = s->minmax_host[2 * b], hi = s->minmax_host[2 * b + 1];
-        visible[b] = prefix[hi + 1] - prefix[lo] > 0;
-        hidden[b] = !visible[b];
-        s->bricks_visible += visible[b];
-    }
-    visible_box(s, visible);
-    unsigned char *to_visible = s->flags_host;
-    chessboard_distance(visible, to_visible, s->brick_dims, s->nbricks);
-    chessboard_distance(hidden, hidden, s->brick_dims, s->nbricks);
-    for (size_t b = 0; b < s->nbricks; b++) {
-        int d = visible[b] ? hidden[b] : to_visible[b];
-        d = d > BRICK_REACH_MAX ? BRICK_REACH_MAX : d;
-        s->flags_host[b] = (unsigned char)(visible[b] ? 128 + d : d);
-    }
-    free(visible);
-    return write_buffer(s->cl, s->brick_visible, s->flags_host, s->nbricks, "upload brick flags",
+    return write_buffer(s->cl, s->brick_visible, g->flags, s->nbricks, "upload brick flags",
                         err);
 }
 
@@ -190,29 +112,49 @@ cdvr_status cdvr_cl_setup(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf, cd
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL setup: frame %zu not decoded (%zu frames)",
                               frame, s->frames_valid);
     s->tf = *tf;
-    unsigned char visible[256];
-    int prefix[257];
-    prefix[0] = 0;
-    for (int i = 0; i < 256; i++) {
-        visible[i] = tf->table[i][3] > 0.0f;
-        prefix[i + 1] = prefix[i] + visible[i];
-    }
     cdvr_status st = CDVR_OK;
     if (s->minmax_frame != frame) {
-        s->flags_valid = 0;
         st = compute_minmax(s, frame, err);
         if (st)
             return st;
         s->minmax_frame = frame;
     }
-    if (!s->flags_valid || memcmp(visible, s->tf_visible, sizeof visible)) {
-        s->flags_valid = 0;
-        st = upload_flags(s, prefix, err);
-        if (st)
+    if (cdvr_skip_flags(&s->grid, tf) || s->grid_uploaded != 0) {
+        st = use_grid(s, &s->grid, err);
+        if (st) {
+            cdvr_skip_grid_touch(&s->grid);
             return st;
-        memcpy(s->tf_visible, visible, sizeof visible);
-        s->flags_valid = 1;
+        }
+        s->grid_uploaded = 0;
     }
+    s->setup_frame = frame;
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_cl_setup_grid(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf,
+                               const cdvr_skip_grid *g, cdvr_error *err)
+{
+    s->setup_frame = (size_t)-1;
+    if (!tf || !g)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL setup: no transfer function or grid");
+    if (frame >= s->frames_valid)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL setup: frame %zu not decoded (%zu frames)",
+                              frame, s->frames_valid);
+    unsigned char visible[256];
+    for (int i = 0; i < 256; i++)
+        visible[i] = tf->table[i][3] > 0.0f;
+    if (g->shift != CDVR_CL_BRICK_SHIFT || g->nbricks != s->nbricks ||
+        memcmp(g->dims, s->brick_dims, sizeof g->dims) != 0 || !g->flags_valid ||
+        memcmp(visible, g->tf_visible, sizeof visible) != 0)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL setup: the grid (bricks of 2^%u, "
+                              "%zux%zux%zu, flags %s) does not fit this stream and TF", g->shift,
+                              g->dims[0], g->dims[1], g->dims[2],
+                              g->flags_valid ? "made for another TF" : "not made");
+    s->tf = *tf;
+    cdvr_status st = use_grid(s, g, err);
+    if (st)
+        return st;
+    s->grid_uploaded = 1; /* brick_visible no longer holds s->grid's flags */
     s->setup_frame = frame;
     return CDVR_OK;
 }
@@ -278,11 +220,14 @@ static cdvr_status camera_params(const cdvr_camera *cam, cam_params *out, cdvr_e
 
 /* Pixels per work-item (kernels/render/raycast.cl marches a packet of PACKET_W x PACKET_H
  * neighbouring rays in lock-step) and the work-group in work-items: neighbouring rays share
- * voxels and bricks in cache. */
+ * voxels and bricks in cache. On a GPU 8 x 8 work-items fill a wave; a CPU device runs a
+ * work-group on one thread, and there small groups (2 x 2 packets: 8 x 8 pixels) balance the
+ * threads: with 8 x 8 packets PoCL on 2 threads rendered the engine CT at 512^2 in 1.45x its
+ * one-thread time, with 2 x 2 in 1.95x (scripts/bench/vs_vtk.py's scene). */
 #define PACKET_W CDVR_CL_PACKET_W
 #define PACKET_H CDVR_CL_PACKET_H
-#define RAY_GROUP_W 8
-#define RAY_GROUP_H 8
+#define RAY_GROUP_GPU 8
+#define RAY_GROUP_CPU 2
 
 static size_t round_up(size_t n, size_t m)
 {
@@ -363,7 +308,15 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
                                     const double spacing[3], const box_frame *box, cl_mem image,
                                     cl_kernel *kernel, cdvr_error *err)
 {
-    voxel_source src = source_of(s, frame);
+    voxel_source src;
+    cdvr_status sst = source_of(s, frame, &src, err);
+    if (sst)
+        return sst;
+    if (!s->fetch && s->quads_frame == frame) {
+        src.vol = s->quads;
+        src.offset = 0;
+        src.quads = 1;
+    }
     cl_kernel k = *kernel = src.k_raycast;
     cl_int ints[3] = {(cl_int)s->dims[0], (cl_int)s->dims[1], (cl_int)s->dims[2]};
     cl_float geo[6]; /* 1/spacing, then the box's upper corner in the box frame */
@@ -381,7 +334,8 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
     struct {
         size_t size;
         const void *value;
-    } args[] = {{sizeof(cl_int), &ints[0]},   {sizeof(cl_int), &ints[1]},
+    } args[] = {{sizeof src.quads, &src.quads},
+                {sizeof(cl_int), &ints[0]},   {sizeof(cl_int), &ints[1]},
                 {sizeof(cl_int), &ints[2]},   {sizeof *box, box},
                 {sizeof(cl_float), &geo[0]},  {sizeof(cl_float), &geo[1]},
                 {sizeof(cl_float), &geo[2]},  {sizeof(cl_float), &geo[3]},
@@ -401,6 +355,45 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
     for (cl_uint i = 0; !st && i < sizeof args / sizeof *args; i++)
         st = cdvr_cl_arg(k, "raycast", 3 + i, args[i].size, args[i].value, err);
     return st;
+}
+
+/* A frame rendered a second time (a scene shown again: another camera, TF or step) gets its
+ * quads (raycast.cl), which the ray caster reads with two gathers per sample instead of eight
+ * loads: 4 bytes per voxel, so only below 2^31 voxels and when the device takes the buffer.
+ * Playback renders each frame once and never pays for them. On any failure the frame is
+ * simply rendered from its voxels. */
+static void make_quads_if_rerendered(cdvr_cl_stream *s, size_t frame)
+{
+    int again = s->last_rendered == frame;
+    s->last_rendered = frame;
+    const char *force_long = getenv("CDVR_CL_LONG_INDEX");
+    if (s->fetch || !again || s->quads_frame == frame || s->voxels > INT_MAX / 4 ||
+        (force_long && !strcmp(force_long, "1")))
+        return;
+    cdvr_error err;
+    cl_kernel k = s->cl->k_quads;
+    cl_ulong offset = frame * s->voxels;
+    cl_mem frames = cdvr_cl_frames_mem(s);
+    cl_uint d[3] = {(cl_uint)s->dims[0], (cl_uint)s->dims[1], (cl_uint)s->dims[2]};
+    cdvr_status st = cdvr_cl_ensure_buffer(s->cl, &s->quads, &s->quads_capacity, 4 * s->voxels,
+                                           CL_MEM_READ_WRITE, "quads", &err);
+    if (!st)
+        st = cdvr_cl_arg(k, "make_quads", 0, sizeof(cl_mem), &frames, &err);
+    if (!st)
+        st = cdvr_cl_arg(k, "make_quads", 1, sizeof offset, &offset, &err);
+    for (cl_uint i = 0; !st && i < 3; i++)
+        st = cdvr_cl_arg(k, "make_quads", 2 + i, sizeof(cl_uint), &d[i], &err);
+    if (!st)
+        st = cdvr_cl_arg(k, "make_quads", 5, sizeof(cl_mem), &s->quads, &err);
+    if (!st)
+        st = run_kernel(s->cl, k, 1, &s->voxels, NULL, "make_quads kernel", &err);
+    if (st) {
+        cdvr_cl_release(&s->quads);
+        s->quads_capacity = 0;
+        s->quads_frame = (size_t)-1;
+        return;
+    }
+    s->quads_frame = frame;
 }
 
 /* Device image of `pixels` and one sample counter per work-item (`items`). */
@@ -554,7 +547,8 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: step %g too small for a box of "
                               "diagonal %g", rp.step, sqrt(diagonal));
     size_t pixels = (size_t)img->width * (size_t)img->height;
-    size_t local[2] = {RAY_GROUP_W, RAY_GROUP_H};
+    size_t group = s->cl->info.is_gpu ? RAY_GROUP_GPU : RAY_GROUP_CPU;
+    size_t local[2] = {group, group};
     size_t packets_x = ((size_t)img->width + PACKET_W - 1) / PACKET_W;
     size_t packets_y = ((size_t)img->height + PACKET_H - 1) / PACKET_H;
     size_t global[2] = {round_up(packets_x, local[0]), round_up(packets_y, local[1])};
@@ -563,6 +557,7 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
         st = upload_tables(s, rp, err);
     if (st)
         return st;
+    make_quads_if_rerendered(s, frame);
     cl_mem host_image = wrap_host_image(s->cl, img, pixels);
     cl_kernel kernel;
     st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box,

@@ -4,6 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "cdvr/timing.h"
 #include "cl_internal.h"
 
 size_t cdvr_cl_brick_edge(void)
@@ -14,6 +15,22 @@ size_t cdvr_cl_brick_edge(void)
 static size_t ceil_div(size_t a, size_t b)
 {
     return a / b + (a % b != 0);
+}
+
+static cdvr_cl_decode_path decode_path_from_env(void)
+{
+    const char *e = getenv("CDVR_CL_DECODE");
+    if (e && strcmp(e, "kernel") == 0)
+        return CDVR_CL_DECODE_KERNEL;
+    if (e && strcmp(e, "host") == 0)
+        return CDVR_CL_DECODE_HOST;
+    return CDVR_CL_DECODE_AUTO;
+}
+
+/* Buffers the host may map: in host memory on CPU devices (maps then cost no copy). */
+static cl_mem_flags host_visible(const cdvr_cl *cl, cl_mem_flags flags)
+{
+    return cl->info.is_gpu ? flags : flags | CL_MEM_ALLOC_HOST_PTR;
 }
 
 cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_stream **out,
@@ -41,8 +58,10 @@ cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_str
         s->nbricks *= s->brick_dims[i];
     }
     s->skipping = 1;
+    s->decode_path = decode_path_from_env();
     s->setup_frame = (size_t)-1;
     s->minmax_frame = (size_t)-1;
+    s->quads_frame = s->last_rendered = (size_t)-1;
     size_t cap = 0, minmax_bytes = 2 * s->nbricks; /* nbricks < voxels: no overflow */
     cdvr_status st = cdvr_cl_ensure_buffer(cl, &s->table, &cap, 256 * 4 * sizeof(float),
                                            CL_MEM_READ_ONLY, "TF table", err);
@@ -64,12 +83,8 @@ cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_str
     if (!st)
         st = cdvr_cl_ensure_buffer(cl, &s->brick_visible, &cap, s->nbricks, CL_MEM_READ_ONLY,
                                    "brick flags", err);
-    if (!st) { /* host copies only once the device has accepted the sizes */
-        s->minmax_host = malloc(minmax_bytes);
-        s->flags_host = malloc(s->nbricks);
-        if (!s->minmax_host || !s->flags_host)
-            st = cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL stream: out of memory");
-    }
+    if (!st) /* host copies only once the device has accepted the sizes */
+        st = cdvr_skip_grid_init(&s->grid, dims, CDVR_CL_BRICK_SHIFT, err);
     if (st) {
         cdvr_cl_stream_free(s);
         return st;
@@ -82,21 +97,23 @@ void cdvr_cl_stream_free(cdvr_cl_stream *s)
 {
     if (!s)
         return;
-    cl_mem *mems[] = {&s->payload, &s->params, &s->frames, &s->table, &s->alpha_unit,
+    cl_mem *mems[] = {&s->payload, &s->params, &s->frames, &s->host_frames, &s->quads, &s->table,
+                      &s->alpha_unit,
                       &s->brick_minmax, &s->brick_visible, &s->image, &s->samples};
     for (size_t i = 0; i < sizeof mems / sizeof *mems; i++)
         cdvr_cl_release(mems[i]);
-    free(s->minmax_host);
-    free(s->flags_host);
+    cdvr_skip_grid_free(&s->grid);
     free(s);
 }
 
 static void invalidate_frames(cdvr_cl_stream *s)
 {
+    cdvr_cl_release(&s->host_frames);
     s->frames_valid = 0;
     s->fetch = NULL;
     s->setup_frame = (size_t)-1;
     s->minmax_frame = (size_t)-1;
+    s->quads_frame = s->last_rendered = (size_t)-1;
 }
 
 cdvr_status cdvr_cl_upload(cdvr_cl_stream *s, const void *payload, size_t bytes, cdvr_error *err)
@@ -107,7 +124,8 @@ cdvr_status cdvr_cl_upload(cdvr_cl_stream *s, const void *payload, size_t bytes,
         invalidate_frames(s);
     s->payload_bytes = 0;
     cdvr_status st = cdvr_cl_ensure_buffer(s->cl, &s->payload, &s->payload_capacity, bytes,
-                                           CL_MEM_READ_ONLY, "chunk payload", err);
+                                           host_visible(s->cl, CL_MEM_READ_ONLY),
+                                           "chunk payload", err);
     if (st)
         return st;
     cl_int code = clEnqueueWriteBuffer(s->cl->queue, s->payload, CL_TRUE, 0, bytes, payload, 0,
@@ -126,8 +144,8 @@ static cdvr_status ensure_frames(cdvr_cl_stream *s, size_t count, cdvr_error *er
                               count, s->voxels);
     if (s->frames && s->frame_capacity >= bytes)
         return CDVR_OK;
-    return cdvr_cl_ensure_buffer(s->cl, &s->frames, &s->frame_capacity, bytes, CL_MEM_READ_WRITE,
-                                 "decoded frames", err);
+    return cdvr_cl_ensure_buffer(s->cl, &s->frames, &s->frame_capacity, bytes,
+                                 host_visible(s->cl, CL_MEM_READ_WRITE), "decoded frames", err);
 }
 
 /* Runs the codec's decode kernel over the uploaded payload into frames 0 .. count-1. */
@@ -165,6 +183,110 @@ static cdvr_status run_decode_kernel(cdvr_cl_stream *s, const cdvr_cl_codec_prog
     return cdvr_cl_check(code, what, err);
 }
 
+/* The codec's C decoder from the mapped payload into the mapped frames 0 .. count-1. */
+static cdvr_status run_host_decode(cdvr_cl_stream *s, const cdvr_codec *codec,
+                                   const cdvr_codec_params *params, size_t count,
+                                   cdvr_error *err)
+{
+    cl_command_queue q = s->cl->queue;
+    cl_int code;
+    size_t bytes = s->voxels * count;
+    if (count > 64)
+        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "OpenCL decode on the host: %zu frames "
+                              "per chunk (at most 64)", count);
+    void *in = clEnqueueMapBuffer(q, s->payload, CL_TRUE, CL_MAP_READ, 0, s->payload_bytes, 0,
+                                  NULL, NULL, &code);
+    if (code != CL_SUCCESS)
+        return cdvr_cl_check(code, "map chunk payload", err);
+    void *out = clEnqueueMapBuffer(q, s->frames, CL_TRUE, CL_MAP_WRITE_INVALIDATE_REGION, 0,
+                                   bytes, 0, NULL, NULL, &code);
+    cdvr_status st = cdvr_cl_check(code, "map decoded frames", err);
+    if (!st) {
+        uint8_t *frames[64];
+        for (size_t f = 0; f < count; f++)
+            frames[f] = (uint8_t *)out + f * s->voxels;
+        cdvr_error derr;
+        if (codec->decode(params, s->dims, in, s->payload_bytes, frames, count, &derr))
+            st = cdvr_error_set(err, derr.status, "OpenCL decode on the host: %s", derr.msg);
+        cl_int c2 = clEnqueueUnmapMemObject(q, s->frames, out, 0, NULL, NULL);
+        if (!st)
+            st = cdvr_cl_check(c2, "unmap decoded frames", err);
+    }
+    cl_int c1 = clEnqueueUnmapMemObject(q, s->payload, in, 0, NULL, NULL);
+    cl_int c3 = clFinish(q);
+    if (!st)
+        st = cdvr_cl_check(c1 ? c1 : c3, "unmap chunk payload", err);
+    return st;
+}
+
+/* Runs one path and returns its wall time in ms (negative on failure, err set). */
+static double timed_decode(cdvr_cl_stream *s, const cdvr_cl_codec_program *cp,
+                           cdvr_cl_decode_path path, const cdvr_codec_params *params,
+                           size_t count, cdvr_error *err)
+{
+    double t0 = cdvr_now_ms();
+    cdvr_status st = path == CDVR_CL_DECODE_HOST
+                         ? run_host_decode(s, cp->codec, params, count, err)
+                         : run_decode_kernel(s, cp, params, count, err);
+    return st ? -1 : cdvr_now_ms() - t0;
+}
+
+/* Which path to take: the one asked for, the kernel off CPU devices, else the faster one for
+ * chunks of this size class (decoded bytes, in powers of 4), remembered or measured here on
+ * this chunk the first time (the kernel once to warm up, then each path twice, the better of
+ * two runs; the frames hold the last run's output). *done is set when the measurement left
+ * the frames decoded. */
+static cdvr_status choose_path(cdvr_cl_stream *s, cdvr_cl_codec_program *cp,
+                               const cdvr_codec_params *params, size_t count,
+                               cdvr_cl_decode_path *path, int *done, cdvr_error *err)
+{
+    *done = 0;
+    *path = s->decode_path;
+    if (*path != CDVR_CL_DECODE_AUTO)
+        return CDVR_OK;
+    if (s->cl->info.is_gpu || count > 64) {
+        *path = CDVR_CL_DECODE_KERNEL;
+        return CDVR_OK;
+    }
+    unsigned cls = 0;
+    for (size_t bytes = s->voxels * count; bytes >= 4 && cls + 1 < CDVR_CL_SIZE_CLASSES;
+         bytes /= 4)
+        cls++;
+    if (cp->fastest[cls] == CDVR_CL_DECODE_AUTO)
+        cp->fastest[cls] = cdvr_cl_load_decode_choice(s->cl, cp->codec, cls, &cp->kernel_ms[cls],
+                                                      &cp->host_ms[cls]);
+    if (cp->fastest[cls] == CDVR_CL_DECODE_AUTO) {
+        double kernel = 1e300, host = 1e300;
+        if (timed_decode(s, cp, CDVR_CL_DECODE_KERNEL, params, count, err) < 0)
+            return CDVR_ERR_DEVICE;
+        for (int rep = 0; rep < 2; rep++) {
+            double k = timed_decode(s, cp, CDVR_CL_DECODE_KERNEL, params, count, err);
+            double h = timed_decode(s, cp, CDVR_CL_DECODE_HOST, params, count, err);
+            if (k < 0 || h < 0)
+                return err && err->status ? err->status : CDVR_ERR_DEVICE;
+            kernel = k < kernel ? k : kernel;
+            host = h < host ? h : host;
+        }
+        cp->kernel_ms[cls] = kernel;
+        cp->host_ms[cls] = host;
+        cp->fastest[cls] = host < kernel ? CDVR_CL_DECODE_HOST : CDVR_CL_DECODE_KERNEL;
+        cdvr_cl_store_decode_choice(s->cl, cp->codec, cls, cp->fastest[cls], kernel, host);
+        *done = 1;
+    }
+    *path = cp->fastest[cls];
+    return CDVR_OK;
+}
+
+void cdvr_cl_set_decode_path(cdvr_cl_stream *s, cdvr_cl_decode_path path)
+{
+    s->decode_path = path;
+}
+
+cdvr_cl_decode_path cdvr_cl_last_decode_path(const cdvr_cl_stream *s)
+{
+    return s->last_decode_path;
+}
+
 cdvr_status cdvr_cl_decode(cdvr_cl_stream *s, const cdvr_codec *codec,
                            const cdvr_codec_params *params, size_t count, cdvr_error *err)
 {
@@ -185,7 +307,7 @@ cdvr_status cdvr_cl_decode(cdvr_cl_stream *s, const cdvr_codec *codec,
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL decode: %s chunk of %zux%zux%zu needs "
                               "%zu bytes, got %zu", codec->name, s->dims[0], s->dims[1],
                               s->dims[2], shape.payload_bytes, s->payload_bytes);
-    const cdvr_cl_codec_program *cp;
+    cdvr_cl_codec_program *cp;
     st = cdvr_cl_get_codec_program(s->cl, codec, &cp, err);
     if (!st)
         st = cdvr_cl_check(clEnqueueWriteBuffer(s->cl->queue, s->params, CL_TRUE, 0,
@@ -193,9 +315,16 @@ cdvr_status cdvr_cl_decode(cdvr_cl_stream *s, const cdvr_codec *codec,
                                                 NULL),
                            "upload codec parameters", err);
     if (!st && codec->cl_mode == CDVR_CODEC_CL_DECODE) {
+        cdvr_cl_decode_path path = CDVR_CL_DECODE_KERNEL;
+        int done = 0;
         st = ensure_frames(s, count, err);
         if (!st)
-            st = run_decode_kernel(s, cp, params, count, err);
+            st = choose_path(s, cp, params, count, &path, &done, err);
+        if (!st && !done)
+            st = path == CDVR_CL_DECODE_HOST ? run_host_decode(s, codec, params, count, err)
+                                             : run_decode_kernel(s, cp, params, count, err);
+        if (!st)
+            s->last_decode_path = path;
     }
     if (st)
         return st;
@@ -221,9 +350,31 @@ cdvr_status cdvr_cl_upload_frames(cdvr_cl_stream *s, const uint8_t *frames, size
     return st;
 }
 
+cdvr_status cdvr_cl_use_host_frames(cdvr_cl_stream *s, const uint8_t *frames, size_t count,
+                                    cdvr_error *err)
+{
+    invalidate_frames(s);
+    size_t bytes;
+    if (!frames || count == 0 || !cdvr_size_mul(s->voxels, count, &bytes))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL frames in host memory: %zu frames", count);
+    if (bytes > s->cl->info.max_alloc_bytes)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL: %zu bytes of frames exceed the "
+                              "device's largest buffer on %s", bytes, s->cl->info.device);
+    cl_int code;
+    s->host_frames = clCreateBuffer(s->cl->context, CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR, bytes,
+                                    (void *)frames, &code);
+    if (code != CL_SUCCESS) {
+        s->host_frames = NULL;
+        return cdvr_cl_check(code, "frames in host memory", err);
+    }
+    s->frames_valid = count;
+    return CDVR_OK;
+}
+
 uint64_t cdvr_cl_stream_bytes(const cdvr_cl_stream *s)
 {
     uint64_t b = (uint64_t)s->payload_capacity + s->frame_capacity + CDVR_CL_PARAMS_BYTES;
+    b += s->quads_capacity;
     b += 256 * 4 * sizeof(float) + 256 * sizeof(float); /* TF tables */
     b += 3 * (uint64_t)s->nbricks;                       /* brick min/max + flags */
     b += (uint64_t)s->image_pixels * 4 * sizeof(float) + s->sample_slots * sizeof(cl_uint);
@@ -246,7 +397,7 @@ cdvr_status cdvr_cl_download(cdvr_cl_stream *s, size_t frame, uint8_t *out, cdvr
     if (frame >= s->frames_valid)
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL download: frame %zu not decoded (%zu frames)",
                               frame, s->frames_valid);
-    cl_int code = clEnqueueReadBuffer(s->cl->queue, s->frames, CL_TRUE, frame * s->voxels,
-                                      s->voxels, out, 0, NULL, NULL);
+    cl_int code = clEnqueueReadBuffer(s->cl->queue, cdvr_cl_frames_mem(s), CL_TRUE,
+                                      frame * s->voxels, s->voxels, out, 0, NULL, NULL);
     return cdvr_cl_check(code, "download frame", err);
 }

@@ -1,0 +1,142 @@
+/* core/store/ranges.c - value ranges per range brick (store.h): the grid, the window of range
+ * bricks a voxel box meets, their ranges over one frame of it, and the merge of windows into
+ * the grid of the whole volume.
+ *
+ * Range brick g (per axis) holds voxels E*g .. min(E*g + E, N - 1): its cube plus the upper
+ * apron that trilinear interpolation reads. It meets a box whose voxels are lo .. hi
+ * when E*g <= hi and E*g + E >= lo, i.e. g from ceil(lo / E) - 1 (at least 0) to hi / E.
+ * Ranges are computed separably: per voxel row, the min and max of each brick's x span; then
+ * each row is folded into the one or two bricks along y and z whose spans hold it. */
+#include "cdvr/store.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+void cdvr_range_grid(const size_t vol_dims[3], unsigned shift, size_t n[3])
+{
+    size_t edge = (size_t)1 << shift;
+    for (int a = 0; a < 3; a++)
+        n[a] = vol_dims[a] / edge + (vol_dims[a] % edge != 0);
+}
+
+void cdvr_range_window(const size_t vol_dims[3], const size_t lo[3], const size_t bd[3],
+                       unsigned shift, size_t g0[3], size_t n[3])
+{
+    size_t grid[3], edge = (size_t)1 << shift;
+    cdvr_range_grid(vol_dims, shift, grid);
+    for (int a = 0; a < 3; a++) {
+        size_t hi = lo[a] + bd[a] - 1, last = hi / edge;
+        g0[a] = lo[a] == 0 ? 0 : (lo[a] - 1) / edge;
+        last = last < grid[a] - 1 ? last : grid[a] - 1;
+        n[a] = last - g0[a] + 1;
+    }
+}
+
+size_t cdvr_range_window_bytes(const size_t vol_dims[3], const size_t lo[3],
+                               const size_t bd[3], unsigned shift)
+{
+    size_t g0[3], n[3];
+    cdvr_range_window(vol_dims, lo, bd, shift, g0, n);
+    return 2 * n[0] * n[1] * n[2];
+}
+
+/* Local voxel span [first[w], last[w]] of window brick w along one axis. */
+static void spans(size_t N, size_t lo, size_t bd, unsigned shift, size_t g0, size_t n,
+                  size_t *first, size_t *last)
+{
+    size_t edge = (size_t)1 << shift, hi = lo + bd - 1;
+    for (size_t w = 0; w < n; w++) {
+        size_t g = g0 + w, a = g * edge, b = g * edge + edge;
+        b = b < N - 1 ? b : N - 1;
+        a = a > lo ? a : lo;
+        b = b < hi ? b : hi;
+        first[w] = a - lo;
+        last[w] = b - lo;
+    }
+}
+
+/* Window bricks (at most two) whose span along an axis holds local voxel i. */
+static int bricks_of(size_t i, size_t lo, unsigned shift, size_t g0, size_t n,
+                     const size_t *first, const size_t *last, size_t out[2])
+{
+    size_t g = (lo + i) >> shift, k = 0;
+    for (size_t c = 0; c < 2; c++, g--) {
+        if (g >= g0 && g - g0 < n && first[g - g0] <= i && i <= last[g - g0])
+            out[k++] = g - g0;
+        if (g == 0)
+            break;
+    }
+    return (int)k;
+}
+
+cdvr_status cdvr_range_compute(const uint8_t *voxels, size_t row_stride, size_t plane_stride,
+                               const size_t vol_dims[3], const size_t lo[3], const size_t bd[3],
+                               unsigned shift, uint8_t *out, cdvr_error *err)
+{
+    size_t g0[3], n[3];
+    cdvr_range_window(vol_dims, lo, bd, shift, g0, n);
+    size_t total = n[0] + n[1] + n[2];
+    size_t *first = malloc(2 * total * sizeof *first);
+    uint8_t *rminmax = malloc(2 * n[0]);
+    if (!first || !rminmax) {
+        free(first);
+        free(rminmax);
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "value ranges: no memory for %zu bricks",
+                              total);
+    }
+    size_t *fx = first, *fy = fx + n[0], *fz = fy + n[1], *last = first + total;
+    size_t *lx = last, *ly = lx + n[0], *lz = ly + n[1];
+    spans(vol_dims[0], lo[0], bd[0], shift, g0[0], n[0], fx, lx);
+    spans(vol_dims[1], lo[1], bd[1], shift, g0[1], n[1], fy, ly);
+    spans(vol_dims[2], lo[2], bd[2], shift, g0[2], n[2], fz, lz);
+    size_t cells = n[0] * n[1] * n[2];
+    for (size_t i = 0; i < cells; i++) {
+        out[2 * i] = 255;
+        out[2 * i + 1] = 0;
+    }
+    for (size_t z = 0; z < bd[2]; z++) {
+        size_t wz[2];
+        int nz = bricks_of(z, lo[2], shift, g0[2], n[2], fz, lz, wz);
+        for (size_t y = 0; y < bd[1]; y++) {
+            size_t wy[2];
+            int ny = bricks_of(y, lo[1], shift, g0[1], n[1], fy, ly, wy);
+            const uint8_t *row = voxels + row_stride * y + plane_stride * z;
+            for (size_t w = 0; w < n[0]; w++) {
+                uint8_t mn = 255, mx = 0;
+                for (size_t x = fx[w]; x <= lx[w]; x++) {
+                    mn = row[x] < mn ? row[x] : mn;
+                    mx = row[x] > mx ? row[x] : mx;
+                }
+                rminmax[2 * w] = mn;
+                rminmax[2 * w + 1] = mx;
+            }
+            for (int iz = 0; iz < nz; iz++)
+                for (int iy = 0; iy < ny; iy++) {
+                    uint8_t *o = out + 2 * n[0] * (wy[iy] + n[1] * wz[iz]);
+                    for (size_t w = 0; w < 2 * n[0]; w += 2) {
+                        o[w] = rminmax[w] < o[w] ? rminmax[w] : o[w];
+                        o[w + 1] = rminmax[w + 1] > o[w + 1] ? rminmax[w + 1] : o[w + 1];
+                    }
+                }
+        }
+    }
+    free(first);
+    free(rminmax);
+    return CDVR_OK;
+}
+
+void cdvr_range_merge(const uint8_t *window, const size_t g0[3], const size_t n[3],
+                      const size_t grid[3], uint8_t *grid_minmax)
+{
+    for (size_t z = 0; z < n[2]; z++)
+        for (size_t y = 0; y < n[1]; y++) {
+            const uint8_t *src = window + 2 * n[0] * (y + n[1] * z);
+            uint8_t *dst = grid_minmax + 2 * (g0[0] + grid[0] * ((g0[1] + y) +
+                                                                 grid[1] * (g0[2] + z)));
+            for (size_t x = 0; x < n[0]; x++) {
+                dst[2 * x] = src[2 * x] < dst[2 * x] ? src[2 * x] : dst[2 * x];
+                dst[2 * x + 1] = src[2 * x + 1] > dst[2 * x + 1] ? src[2 * x + 1]
+                                                                  : dst[2 * x + 1];
+            }
+        }
+}

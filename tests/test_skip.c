@@ -1,0 +1,227 @@
+/* tests/test_skip.c - empty-space skipping grids on the host (cdvr/skip.h): the row-wise
+ * chamfer distance equals the chessboard distance by brute force (random seeds, thin and
+ * odd grids, no seed, all seeds); flags and the visible box follow their definition; the
+ * grid made from a store's range tables equals the one computed from the decoded frame; and
+ * on the OpenCL device, setup from the recorded ranges (cdvr_cl_setup_grid) renders every
+ * pixel and takes every sample exactly as setup from the device's own min/max kernel. */
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "cdvr/device.h"
+#include "cdvr/skip.h"
+#include "cdvr/store.h"
+#include "check.h"
+
+static uint32_t rng_state = 12345;
+
+static uint32_t rng(void)
+{
+    rng_state = rng_state * 1664525u + 1013904223u;
+    return rng_state >> 8;
+}
+
+static void test_distance(void)
+{
+    static const size_t grids[][3] = {{1, 1, 1}, {7, 1, 1}, {1, 9, 1}, {1, 1, 6},
+                                      {5, 4, 3}, {13, 11, 9}, {33, 2, 17}};
+    for (size_t gi = 0; gi < sizeof grids / sizeof *grids; gi++) {
+        const size_t *n = grids[gi];
+        size_t count = n[0] * n[1] * n[2];
+        uint8_t *seed = malloc(count), *dist = malloc(count);
+        for (int density = 0; density < 4; density++) { /* none, sparse, dense, all */
+            for (size_t b = 0; b < count; b++)
+                seed[b] = density == 0 ? 0 : density == 3 ? 1 : rng() % (density == 1 ? 40 : 3) == 0;
+            cdvr_skip_distance(seed, dist, n);
+            size_t wrong = 0;
+            for (size_t b = 0; b < count; b++) {
+                long x = (long)(b % n[0]), y = (long)(b / n[0] % n[1]), z = (long)(b / (n[0] * n[1]));
+                long best = 255;
+                for (size_t q = 0; q < count; q++) {
+                    if (!seed[q])
+                        continue;
+                    long dx = labs(x - (long)(q % n[0])), dy = labs(y - (long)(q / n[0] % n[1]));
+                    long dz = labs(z - (long)(q / (n[0] * n[1])));
+                    long d = dx > dy ? dx : dy;
+                    d = d > dz ? d : dz;
+                    best = d < best ? d : best;
+                }
+                wrong += dist[b] != best;
+            }
+            CHECK(wrong == 0, "grid %zux%zux%zu density %d: %zu distances wrong", n[0], n[1],
+                  n[2], density, wrong);
+        }
+        free(seed);
+        free(dist);
+    }
+}
+
+static void tf_window(cdvr_tf *tf, double lo, double hi)
+{
+    cdvr_tf_point pts[4] = {{0, 0, 0, 0, 0}, {lo, 1, 0.5, 0.2, 0}, {hi, 1, 1, 1, 0.6},
+                            {255, 1, 1, 1, 0}};
+    cdvr_error err;
+    CHECK_OK(cdvr_tf_init(tf, pts, 4, 0, &err), err);
+}
+
+/* A field with empty regions and two blobs. */
+static void fill_frame(uint8_t *f, const size_t d[3], int t)
+{
+    for (size_t z = 0; z < d[2]; z++)
+        for (size_t y = 0; y < d[1]; y++)
+            for (size_t x = 0; x < d[0]; x++) {
+                double a = hypot(hypot((double)x - 10 - t, (double)y - 12), (double)z - 9);
+                double b = hypot(hypot((double)x - 30, (double)y - 8 - t), (double)z - 20);
+                int v = a < 7 ? (int)(220 - 20 * a) : b < 5 ? (int)(140 - 10 * b) : 0;
+                f[x + d[0] * (y + d[1] * z)] = (uint8_t)(v + (int)(rng() % 3));
+            }
+}
+
+static void test_flags(void)
+{
+    size_t d[3] = {41, 27, 30};
+    uint8_t *f = malloc(d[0] * d[1] * d[2]);
+    fill_frame(f, d, 0);
+    cdvr_skip_grid g;
+    cdvr_error err;
+    CHECK_OK(cdvr_skip_grid_init(&g, d, 2, &err), err);
+    CHECK(g.dims[0] == 11 && g.dims[1] == 7 && g.dims[2] == 8, "grid dims");
+    CHECK_OK(cdvr_skip_minmax_from_frame(&g, f, &err), err);
+    cdvr_tf tf;
+    tf_window(&tf, 100, 180);
+    CHECK(cdvr_skip_flags(&g, &tf) == 1 && cdvr_skip_flags(&g, &tf) == 0, "flags cached per TF");
+    size_t visible = 0, bad = 0;
+    for (size_t b = 0; b < g.nbricks; b++) {
+        int any = 0;
+        for (int v = g.minmax[2 * b]; v <= g.minmax[2 * b + 1]; v++)
+            any |= tf.table[v][3] > 0;
+        visible += any;
+        bad += any != (g.flags[b] >= 128) || (g.flags[b] & 127) == 0;
+    }
+    CHECK(bad == 0 && visible == g.bricks_visible && visible > 0 && visible < g.nbricks,
+          "flags: %zu wrong, %zu visible of %zu", bad, visible, g.nbricks);
+    tf_window(&tf, 250, 254); /* nothing in range: empty box */
+    cdvr_skip_flags(&g, &tf);
+    CHECK(g.bricks_visible == 0 && g.visible_lo[0] > g.visible_hi[0], "nothing visible");
+    cdvr_skip_grid_free(&g);
+    free(f);
+}
+
+/* Encodes two timesteps, rebuilds each frame's grid from the range tables and compares with
+ * the grid of the decoded frame; with OpenCL, renders with both setups. */
+static void test_store_grid(void)
+{
+    size_t d[3] = {41, 27, 30};
+    cdvr_volume *vol = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_volume_create(d, 3, CDVR_TYPE_U8, &vol, &err), err);
+    for (int t = 0; vol && t < 3; t++)
+        fill_frame(cdvr_volume_frame(vol, (size_t)t), d, 3 * t);
+    cdvr_variant_spec vs = {.codec = cdvr_codec_find("pvtc"), .lzo_min_saving = -1};
+    vs.codec->params_default(&vs.params);
+    char path[] = "/tmp/cdvr_test_skip_XXXXXX";
+    int fd = mkstemp(path);
+    if (fd >= 0)
+        close(fd);
+    static const size_t grids[2][3] = {{1, 1, 1}, {2, 3, 2}};
+    for (int gi = 0; gi < 2 && vol; gi++) {
+        cdvr_encode_opts o = {.variants = &vs, .nvariants = 1, .qhi = 255};
+        memcpy(o.bricks, grids[gi], sizeof o.bricks);
+        cdvr_store *st = NULL;
+        CHECK_OK(cdvr_store_encode(vol, &o, path, &err), err);
+        CHECK_OK(cdvr_store_open(path, &st, &err), err);
+        if (!st)
+            break;
+        const cdvr_store_info *in = cdvr_store_get_info(st);
+        cdvr_skip_grid from_tables, from_frame;
+        CHECK_OK(cdvr_skip_grid_init(&from_tables, d, CDVR_RANGE_SHIFT, &err), err);
+        CHECK_OK(cdvr_skip_grid_init(&from_frame, d, CDVR_RANGE_SHIFT, &err), err);
+        for (size_t t = 0; t < in->timesteps; t++) {
+            memset(from_tables.minmax, 0, 2 * from_tables.nbricks);
+            for (size_t b = 0; b < from_tables.nbricks; b++)
+                from_tables.minmax[2 * b] = 255;
+            for (size_t b = 0; b < in->nbricks; b++) {
+                size_t c = cdvr_store_chunk_for(st, 0, t, b);
+                const cdvr_chunk_info *ci = cdvr_store_chunk(st, 0, c);
+                size_t n = cdvr_store_ranges_bytes(st, 0, c), lo[3], bd[3], g0[3], wn[3];
+                uint8_t *table = malloc(n ? n : 1);
+                CHECK_OK(cdvr_store_read_ranges(st, 0, c, table, &err), err);
+                cdvr_store_brick_owned(in, b, lo, bd);
+                cdvr_range_window(in->dims, lo, bd, CDVR_RANGE_SHIFT, g0, wn);
+                cdvr_range_merge(table + (t - ci->t0) * 2 * wn[0] * wn[1] * wn[2], g0, wn,
+                                 from_tables.dims, from_tables.minmax);
+                free(table);
+            }
+            cdvr_skip_grid_touch(&from_tables);
+            cdvr_volume *dec = NULL;
+            CHECK_OK(cdvr_store_decode(st, 0, t, &dec, &err), err);
+            if (dec)
+                CHECK_OK(cdvr_skip_minmax_from_frame(&from_frame, dec->data, &err), err);
+            CHECK(memcmp(from_tables.minmax, from_frame.minmax, 2 * from_frame.nbricks) == 0,
+                  "bricks %zu: timestep %zu: recorded ranges differ from the decoded frame's",
+                  in->nbricks, t);
+#if CDVR_HAVE_OPENCL
+            cdvr_cl *cl = NULL;
+            cdvr_cl_stream *s = NULL;
+            cdvr_cl_open(&cl, &err);
+            if (cl && dec && cdvr_cl_stream_create(cl, d, &s, &err) == CDVR_OK) {
+                cdvr_tf tf;
+                tf_window(&tf, 90, 200);
+                cdvr_camera cam = {.eye = {80, -40, 60}, .center = {20, 13, 15},
+                                   .up = {0, 0, 1}, .fov = 35, .width = 96, .height = 80};
+                cdvr_render_opts ro = {.tf = &tf, .camera = &cam, .step = 0.5};
+                cdvr_image *a = NULL, *b = NULL;
+                uint64_t sa = 0, sb = 0;
+                CHECK_OK(cdvr_cl_upload_frames(s, dec->data, 1, &err), err);
+                CHECK_OK(cdvr_image_create(96, 80, &a, &err), err);
+                CHECK_OK(cdvr_image_create(96, 80, &b, &err), err);
+                CHECK_OK(cdvr_cl_setup(s, 0, &tf, &err), err);
+                CHECK_OK(cdvr_cl_render(s, 0, &ro, dec->spacing, dec->origin, dec->direction,
+                                        a, &err), err);
+                sa = cdvr_cl_last_samples(s);
+                cdvr_skip_flags(&from_tables, &tf);
+                CHECK_OK(cdvr_cl_setup_grid(s, 0, &tf, &from_tables, &err), err);
+                CHECK_OK(cdvr_cl_render(s, 0, &ro, dec->spacing, dec->origin, dec->direction,
+                                        b, &err), err);
+                sb = cdvr_cl_last_samples(s);
+                CHECK(a && b && memcmp(a->rgba, b->rgba, sizeof(float) * 4 * 96 * 80) == 0 &&
+                      sa == sb && sa > 0, "timestep %zu: recorded ranges change pixels or "
+                      "samples (%llu vs %llu)", t, (unsigned long long)sa,
+                      (unsigned long long)sb);
+                /* a grid made for another TF is refused */
+                cdvr_tf other;
+                tf_window(&other, 10, 20);
+                CHECK(cdvr_cl_setup_grid(s, 0, &other, &from_tables, &err) == CDVR_ERR_ARG,
+                      "grid for another TF refused");
+                /* and the device's own setup works again after a grid was used */
+                CHECK_OK(cdvr_cl_setup(s, 0, &tf, &err), err);
+                CHECK_OK(cdvr_cl_render(s, 0, &ro, dec->spacing, dec->origin, dec->direction,
+                                        b, &err), err);
+                CHECK(memcmp(a->rgba, b->rgba, sizeof(float) * 4 * 96 * 80) == 0,
+                      "kernel setup after a grid");
+                cdvr_image_free(a);
+                cdvr_image_free(b);
+            }
+            cdvr_cl_stream_free(s);
+            cdvr_cl_close(cl);
+#endif
+            cdvr_volume_free(dec);
+        }
+        cdvr_skip_grid_free(&from_tables);
+        cdvr_skip_grid_free(&from_frame);
+        cdvr_store_close(st);
+    }
+    unlink(path);
+    cdvr_volume_free(vol);
+}
+
+int main(void)
+{
+    test_distance();
+    test_flags();
+    test_store_grid();
+    return check_finish();
+}
