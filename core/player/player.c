@@ -235,7 +235,7 @@ static cdvr_status on_caller(cdvr_player *p, int threaded, caller_fn fn, chunk_i
     cdvr_status st = p->abort ? CDVR_ERR_ARG : p->call_err.status;
     if (p->abort)
         cdvr_error_set(err, CDVR_ERR_ARG, "player: stopped");
-    else if (st != CDVR_OK)
+    else if (st != CDVR_OK && err)
         *err = p->call_err;
     p->call_state = 0;
     pthread_mutex_unlock(&p->mu);
@@ -312,7 +312,8 @@ static cdvr_status plan_item(cdvr_player *p, chunk_item *it, cdvr_error *err)
             if (cerr.status == CDVR_OK)
                 cdvr_error_set(&cerr, CDVR_ERR_ARG, "camera callback failed");
             it->nframes = j;
-            *err = cerr;
+            if (err)
+                *err = cerr;
             return cerr.status;
         }
     }
