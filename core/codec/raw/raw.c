@@ -62,7 +62,7 @@ static cdvr_status raw_encode(const cdvr_codec_params *p, const size_t dims[3],
                               const uint8_t *const *frames, size_t count, uint8_t *out,
                               size_t out_cap, size_t *out_bytes, cdvr_error *err)
 {
-    cdvr_codec_shape shape;
+    cdvr_codec_shape shape = {0};
     cdvr_status s = raw_shape(p, dims, &shape, err);
     if (s != CDVR_OK)
         return s;
@@ -78,7 +78,7 @@ static cdvr_status raw_decode(const cdvr_codec_params *p, const size_t dims[3],
                               const uint8_t *in, size_t in_bytes, uint8_t *const *frames,
                               size_t count, cdvr_error *err)
 {
-    cdvr_codec_shape shape;
+    cdvr_codec_shape shape = {0};
     cdvr_status s = raw_shape(p, dims, &shape, err);
     if (s != CDVR_OK)
         return s;
