@@ -22,9 +22,10 @@ local st = assert(cdvr.encode(q, {variants = {{S = 1, T = 3}, {S = 4, T = 3}, {c
                                   stage2 = "lzo", path = store_path}))
 local info = st:info()
 
--- perfusion: low signal transparent blue, mid green-yellow, high red and opaque
-local tf = cdvr.tf{{0, 0, 0, 0, 0}, {40, 0.1, 0.2, 0.6, 0}, {80, 0.2, 0.6, 1.0, 0.12},
-                   {115, 0.9, 0.9, 0.3, 0.35}, {160, 1.0, 0.35, 0.1, 0.8}, {255, 1, 1, 1, 1}}
+-- perfusion, control points in the series' own signal units (the window is [0, hi]):
+-- low signal transparent blue, mid green-yellow, high red and opaque
+local tf = cdvr.tf{{0, 0, 0, 0, 0}, {450, 0.1, 0.2, 0.6, 0}, {900, 0.2, 0.6, 1.0, 0.12},
+                   {1280, 0.9, 0.9, 0.3, 0.35}, {1780, 1.0, 0.35, 0.1, 0.8}, {hi, 1, 1, 1, 1}}
 local frames = tonumber(opt.frames)
 -- orbit around the centre of the volume's oriented box in world (patient, mm) coordinates
 local x0, x1, y0, y1, z0, z1 = st:decode(1):bounds()
