@@ -62,30 +62,22 @@ static cdvr_camera default_camera(void)
 }
 
 /* cdvr.camera(path.lua): runs the file (it returns the field table) and builds from that;
- * an unreadable file returns nil, message. */
-static int camera_from_file(lua_State *L, const char *path)
+ * an unreadable or malformed file raises, naming the file and the reason. */
+static void camera_from_file(lua_State *L, const char *path)
 {
-    if (luaL_loadfilex(L, path, "t") != LUA_OK) {
-        luaL_pushfail(L);
-        lua_insert(L, -2);
-        return 2;
-    }
+    if (luaL_loadfilex(L, path, "t") != LUA_OK)
+        luaL_error(L, "cdvr.camera: %s", lua_tostring(L, -1));
     lua_call(L, 0, 1);
     if (!lua_istable(L, -1))
-        return luaL_error(L, "%s: camera file must return a table, got %s", path,
-                          luaL_typename(L, -1));
-    lua_replace(L, 1);
+        luaL_error(L, "%s: camera file must return a table, got %s", path, luaL_typename(L, -1));
+    lua_replace(L, 1); /* fields table in place of the path */
     lua_settop(L, 1);
-    return -1;
 }
 
 static int l_camera(lua_State *L)
 {
-    if (lua_type(L, 1) == LUA_TSTRING) {
-        int pushed = camera_from_file(L, lua_tostring(L, 1));
-        if (pushed >= 0)
-            return pushed;
-    }
+    if (lua_type(L, 1) == LUA_TSTRING)
+        camera_from_file(L, lua_tostring(L, 1));
     luaL_checktype(L, 1, LUA_TTABLE);
     static const char *const keys[] = {CAMERA_KEYS, NULL};
     lcdvr_checkoptions(L, 1, "cdvr.camera", keys);
@@ -326,7 +318,7 @@ int lcdvr_open_camera(lua_State *L)
                    "camera around the box centre looking at it; azimuth 0 = +x side for up z; "
                    "default distance fits the box");
     lcdvr_help_add(L, "cam:get()", "table of the camera's fields (also readable as cam.eye, cam.fov, ...)");
-    lcdvr_help_add(L, "cdvr.camera(path.lua)", "camera saved by cam:save (nil, msg if unreadable)");
+    lcdvr_help_add(L, "cdvr.camera(path.lua)", "camera saved by cam:save (raises if unreadable)");
     lcdvr_help_add(L, "cam:save(path)", "write a Lua file cdvr.camera(path) reads back; true or nil, msg");
     lcdvr_help_add(L, "cam:set{...}", "change fields (validated; the camera is unchanged on error)");
     return 0;

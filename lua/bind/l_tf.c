@@ -113,15 +113,12 @@ static int valid_preset_name(const char *name)
     return 1;
 }
 
-/* Runs a Lua file that returns a points table and builds the TF from it; an unreadable file
- * returns nil, message. */
+/* Runs a Lua file that returns a points table and builds the TF from it; an unreadable or
+ * malformed file raises (its message names the file and the reason), as loaders do. */
 static int load_tf_file(lua_State *L, const char *path)
 {
-    if (luaL_loadfilex(L, path, "t") != LUA_OK) {
-        luaL_pushfail(L);
-        lua_insert(L, -2);
-        return 2;
-    }
+    if (luaL_loadfilex(L, path, "t") != LUA_OK)
+        return luaL_error(L, "cdvr.tf: %s", lua_tostring(L, -1));
     lua_call(L, 0, 1);
     if (!lua_istable(L, -1))
         return luaL_error(L, "%s: transfer function file must return a table, got %s", path,
@@ -143,13 +140,13 @@ static int load_preset(lua_State *L, const char *name)
 
 static int l_tf(lua_State *L)
 {
-    int n;
     lua_settop(L, 2); /* source, options */
     if (lua_type(L, 1) == LUA_TSTRING) {
         const char *s = lua_tostring(L, 1);
-        n = ends_with(s, ".lua") ? load_tf_file(L, s) : load_preset(L, s);
-        if (n != 1) /* nil, message */
-            return n;
+        if (ends_with(s, ".lua"))
+            load_tf_file(L, s);
+        else
+            load_preset(L, s);
     } else {
         luaL_checktype(L, 1, LUA_TTABLE);
         push_tf_from_table(L, 1);

@@ -35,8 +35,15 @@ check(cdvr.tf(path):points()[2][2] == 1, "cdvr.tf(path.lua)")
 os.remove(path)
 local nilv, msg = tf:save("/nonexistent-dir/tf.lua")
 check(nilv == nil and type(msg) == "string" and msg:find("nonexistent", 1, true), "save to bad path: " .. tostring(msg))
-nilv, msg = cdvr.tf("/nonexistent-dir/tf.lua")
-check(nilv == nil and type(msg) == "string", "load of a missing file returns nil, msg")
+local ok
+ok, msg = pcall(cdvr.tf, "/nonexistent-dir/tf.lua")
+check(not ok and tostring(msg):find("/nonexistent-dir/tf.lua", 1, true) and tostring(msg):find("cannot open", 1, true),
+      "load of a missing TF file raises, naming the file and the reason: " .. tostring(msg))
+local badtf = os.tmpname() .. ".lua"
+local bf = assert(io.open(badtf, "w")); bf:write("return {{0, 0,0,0, 0},"); bf:close()
+ok, msg = pcall(cdvr.tf, badtf)
+check(not ok and tostring(msg):find(badtf, 1, true), "a malformed TF file raises, naming it: " .. tostring(msg))
+os.remove(badtf)
 for _, name in ipairs{"grayscale", "ct_bone", "ct_soft", "hot", "mri"} do
   local p = cdvr.tf(name)
   check(p and #p:points() >= 2, "preset " .. name)
@@ -87,8 +94,9 @@ check(cdvr.camera(dofile(campath)).height == 32, "cdvr.camera(dofile(path))")
 os.remove(campath)
 nilv, msg = cam:save("/nonexistent-dir/cam.lua")
 check(nilv == nil and msg:find("nonexistent", 1, true), "cam:save to a bad path: " .. tostring(msg))
-nilv, msg = cdvr.camera("/nonexistent-dir/cam.lua")
-check(nilv == nil and type(msg) == "string", "cdvr.camera of a missing file returns nil, msg")
+local okc, cmsg = pcall(cdvr.camera, "/nonexistent-dir/cam.lua")
+check(not okc and tostring(cmsg):find("/nonexistent-dir/cam.lua", 1, true) and tostring(cmsg):find("cannot open", 1, true),
+      "cdvr.camera of a missing file raises, naming the file and the reason: " .. tostring(cmsg))
 
 local orbit = cdvr.orbit_camera({17, 17, 17}, {azimuth = 90, elevation = 0, width = 33, height = 33})
 check(near(orbit.center[1], 8) and near(orbit.center[3], 8) and orbit.eye[2] > 8 and near(orbit.eye[1], 8, 1e-9),
