@@ -9,15 +9,26 @@ function M.shared_data()
   return here .. "/../shared/data"
 end
 
--- Splits arg into positional arguments and "--name value" options (defaults in `opt`).
+-- Splits arg into positional arguments and options (defaults in `opt`): "--name value",
+-- "--name=value", and "--name" alone (a flag: value "1") when no value follows it.
 function M.parse_args(argv, opt)
   local positional = {}
   local i = 1
   while i <= #argv do
     local a = argv[i]
-    if a:match("^%-%-") then
-      opt[a:sub(3)] = argv[i + 1]
-      i = i + 2
+    local key, value = a:match("^%-%-([^=]+)=(.*)$")
+    if key then -- --key=value
+      opt[key] = value
+      i = i + 1
+    elseif a:match("^%-%-") then
+      local nxt = argv[i + 1]
+      if nxt == nil or nxt:match("^%-%-") then -- a flag (--keep): no value follows
+        opt[a:sub(3)] = "1"
+        i = i + 1
+      else
+        opt[a:sub(3)] = nxt
+        i = i + 2
+      end
     else
       positional[#positional + 1] = a
       i = i + 1
