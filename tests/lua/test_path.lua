@@ -215,11 +215,11 @@ do
   local fh = assert(io.open(file, "w"))
   fh:write("return {kind = 'spiral'}\n")
   fh:close()
-  local p, err = path.load(file)
-  assert(p == nil and err:find("not a camera path") and err:find("spiral"), err)
+  local ok, err = pcall(path.load, file)
+  assert(not ok and err:find("not a camera path") and err:find("spiral") and err:find(file, 1, true), err)
   os.remove(file)
-  p, err = path.load(dir .. "/does_not_exist.lua")
-  assert(p == nil and err:find("does_not_exist"), err)
+  ok, err = pcall(path.load, dir .. "/does_not_exist.lua")
+  assert(not ok and err:find("does_not_exist"), err)
   expect_error("unknown path kind", path.from, { kind = "spiral" })
 end
 

@@ -409,12 +409,14 @@ function path.save(p, file)
   return serialize.save_lua(p:totable(), file)
 end
 
+-- Raises, naming the file and the reason, when the file cannot be read or is not a path (a
+-- loader, like cdvr.load and cdvr.tf(path.lua)).
 function path.load(file)
   local tbl, err = serialize.load_lua(file)
-  if tbl == nil then return nil, err end
+  if tbl == nil then error("cdvr.path.load: " .. tostring(err), 2) end
   local ok, p = pcall(path.from, tbl)
   if not ok then
-    return nil, string.format("%s: not a camera path: %s", file, p)
+    error(string.format("cdvr.path.load: %s: not a camera path: %s", file, p), 2)
   end
   return p
 end

@@ -22,7 +22,7 @@ local HELP = {
   { "cdvr.path.fn(function(t) ... end)", "camera path from a Lua function returning {eye=, center=, up=, fov=}" },
   { "cdvr.path.from(tbl)", "rebuild a camera path from its p:totable() table" },
   { "cdvr.path.save(p, file)", "save a camera path to a plain Lua file" },
-  { "cdvr.path.load(file)", "load a camera path saved by cdvr.path.save -> path or nil, message" },
+  { "cdvr.path.load(file)", "load a camera path saved by cdvr.path.save -> path (raises naming the file)" },
   { "p(t)", "camera path at time t -> {eye=, center=, up=, fov=}" },
   { "p:camera(t, width, height [, opts])", "camera path at time t as a cdvr.camera" },
   { "p:totable()", "camera path as a plain table" },
