@@ -1,15 +1,17 @@
 /* core/player/player.c - the playback pipeline of player.h.
  *
  * Threads (pipelined): reader (plans a group - decision and cameras handed to the calling
- * thread -, picks its bricks, b1) -> queue -> unzip (b1') -> queue -> calling thread (b2..b5,
- * composite, callbacks). One mutex and one condition variable guard the queues, the item
- * pool, the decode slots and the planning hand-off; every wait loops on its predicate and on
- * `abort`.
+ * thread -, picks its bricks, b1) -> queue -> 1 or 2 unzip workers (b1') -> queue -> calling
+ * thread (b2..b5, composite, callbacks). Items carry their planning order (seq): workers take
+ * them in that order, may finish out of order, and the calling thread takes them back in
+ * order. One mutex and one condition variable guard the queues, the item pool, the decode
+ * slots and the planning hand-off; every wait loops on its predicate and on `abort`.
  *
- * Off the calling thread's path, the unzip thread also decodes a group on the host when it
+ * Off the calling thread's path, the unzip worker also decodes a group on the host when it
  * is decoded there anyway (cpu device, codecs without device code, bricked stores) or when the
  * cl device decodes that variant faster on the host (its first group, decoded by the device,
- * tells: cdvr_cl_decode_path), into one of two decode slots (double buffering), and turns the
+ * tells: cdvr_cl_decode_path), into one of nworkers + 1 decode slots (one being rendered, one
+ * per worker being filled; handed out in planning order, see acquire_slot), and turns the
  * store's range tables into each frame's skip grid and flags (cdvr/skip.h). The calling
  * thread then hands the slot's frames to the device without a copy and uploads the flags, so
  * the next group's decode and setup overlap the current group's rendering.
@@ -24,6 +26,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "cdvr/skip.h"
 
@@ -31,7 +34,8 @@
 #include "cdvr/device.h"
 #endif
 
-#define NSLOTS 2 /* decode slots: one rendered, one being filled */
+#define MAX_UNZIP 2                /* unzip workers at most */
+#define MAX_SLOTS (MAX_UNZIP + 1)  /* decode slots: one rendered, one per worker being filled */
 
 /* One chunk of a group: the group's chunk of one brick. */
 typedef struct chunk_part {
@@ -61,6 +65,7 @@ typedef struct chunk_item {
     int with_grids;          /* the range tables were read: make the frames' skip grids */
     int slot;                /* decode slot holding the host-decoded frames, or -1 */
     double host_decode_ms;   /* the host decode in the pipeline (b3) */
+    size_t seq;              /* planning order in this run: items reach the device in it */
     size_t ngrids;           /* skip grids made for the group's first ngrids frames */
     /* kept from group to group */
     cdvr_camera *cams;       /* the camera of each frame (nframes), evaluated at planning */
@@ -109,7 +114,12 @@ struct cdvr_player {
     item_queue free_items, read_q, unzip_q;
     chunk_item *items;
     size_t nitems;
-    int reader_done, unzip_done, abort;
+    int reader_done, abort;
+    int nworkers, workers_done; /* unzip workers of the run, and those that have ended */
+    size_t seq_next;         /* reader: seq of the next item planned */
+    size_t seq_play;         /* calling thread: seq of the next item to play */
+    size_t slot_turn;        /* seq of the next item whose slot request is served */
+    unsigned char *turn_passed; /* per seq % nitems: the item needs no slot (turn skipped) */
     int call_state;          /* 0 idle, 1 requested, 2 answered */
     caller_fn call_fn;
     chunk_item *call_item;
@@ -119,12 +129,13 @@ struct cdvr_player {
     int have_group;          /* a group has been decided in this run */
     size_t last_group;
 
-    /* host decode (unzip thread, or the calling thread in serial mode) */
-    uint8_t *slots[NSLOTS];  /* decoded frames of a group (vox_dims each), page aligned */
-    size_t slot_cap[NSLOTS];
-    int slot_busy[NSLOTS];
-    uint8_t *brick_frames;   /* scratch: decoded frames of one brick */
-    size_t brick_frames_cap;
+    /* host decode (unzip workers, or the calling thread in serial mode) */
+    int nslots;              /* nworkers + 1 */
+    uint8_t *slots[MAX_SLOTS]; /* decoded frames of a group (vox_dims each), page aligned */
+    size_t slot_cap[MAX_SLOTS];
+    int slot_busy[MAX_SLOTS];
+    uint8_t *brick_frames[MAX_UNZIP]; /* per worker scratch: decoded frames of one brick */
+    size_t brick_frames_cap[MAX_UNZIP];
     int *host_decodes;       /* per variant (cl device): its decode is faster on the host */
 #if CDVR_HAVE_OPENCL
     cdvr_cl *cl;
@@ -200,6 +211,26 @@ static chunk_item *queue_pop(item_queue *q)
         q->count--;
     }
     return it;
+}
+
+/* Takes the item with sequence number seq out of q, or NULL when it is not there. */
+static chunk_item *queue_take_seq(item_queue *q, size_t seq)
+{
+    chunk_item *prev = NULL;
+    for (chunk_item *it = q->head; it; prev = it, it = it->next) {
+        if (it->seq != seq)
+            continue;
+        if (prev)
+            prev->next = it->next;
+        else
+            q->head = it->next;
+        if (q->tail == it)
+            q->tail = prev;
+        q->count--;
+        it->next = NULL;
+        return it;
+    }
+    return NULL;
 }
 
 static int grow(uint8_t **buf, size_t *cap, uint64_t need)
@@ -512,6 +543,7 @@ static int plan_and_read(cdvr_player *p, chunk_item *it, int threaded)
     cdvr_error_clear(&it->err);
     cdvr_error_clear(&it->stop);
     it->slot = -1;
+    it->seq = p->seq_next++;
     it->frame0 = k;
     it->t_begin = (p->first + k) % info->timesteps;
     int callbacks = p->opts.decide || p->opts.camera_fn;
@@ -523,10 +555,11 @@ static int plan_and_read(cdvr_player *p, chunk_item *it, int threaded)
     return 1;
 }
 
-static void prepare(cdvr_player *p, chunk_item *it);
+static void prepare(cdvr_player *p, int w, chunk_item *it);
+static void pass_turn(cdvr_player *p, const chunk_item *it);
 
-/* b1' of every needed chunk of the group, then what the pipeline prepares (prepare, below). */
-static void unzip(cdvr_player *p, chunk_item *it)
+/* b1' of every needed chunk of the group. */
+static void unzip_chunks(cdvr_player *p, chunk_item *it)
 {
     if (it->err.status != CDVR_OK)
         return;
@@ -547,7 +580,16 @@ static void unzip(cdvr_player *p, chunk_item *it)
                                 part->payload, &it->err);
     }
     it->unzip_ms = cdvr_now_ms() - t0;
-    prepare(p, it);
+}
+
+/* b1' of the group, then what the pipeline prepares (prepare, below), by unzip worker w. An
+ * item that got no decode slot gives up its turn for one. */
+static void unzip(cdvr_player *p, int w, chunk_item *it)
+{
+    unzip_chunks(p, it);
+    prepare(p, w, it);
+    if (it->slot < 0)
+        pass_turn(p, it);
 }
 
 /* ---- device (calling thread) ------------------------------------------------------------ */
@@ -604,7 +646,7 @@ static void fill_brick(cdvr_player *p, const chunk_item *it, size_t b, size_t co
 
 /* Decodes brick b's chunk into the item's count frames at out (straight into them when the
  * brick is the whole volume). */
-static cdvr_status decode_brick(cdvr_player *p, chunk_item *it, size_t b, size_t count,
+static cdvr_status decode_brick(cdvr_player *p, int w, chunk_item *it, size_t b, size_t count,
                                 int whole, uint8_t *out, cdvr_error *err)
 {
     const cdvr_store *st = p->opts.store;
@@ -613,10 +655,10 @@ static cdvr_status decode_brick(cdvr_player *p, chunk_item *it, size_t b, size_t
     bvox = bd[0] * bd[1] * bd[2];
     uint8_t *base = out, *frames[64];
     if (!whole) {
-        if (!grow(&p->brick_frames, &p->brick_frames_cap, (uint64_t)bvox * count))
+        if (!grow(&p->brick_frames[w], &p->brick_frames_cap[w], (uint64_t)bvox * count))
             return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: cannot allocate a brick",
                                   cdvr_store_path(st));
-        base = p->brick_frames;
+        base = p->brick_frames[w];
     }
     for (size_t i = 0; i < count; i++)
         frames[i] = base + i * bvox;
@@ -633,8 +675,8 @@ static cdvr_status decode_brick(cdvr_player *p, chunk_item *it, size_t b, size_t
  * for a lossless variant a read brick's decode wins over a skipped brick's fill (the same
  * exact value, where the fill would not be): so the fills go first there, and otherwise
  * fills and decodes go together from the last brick to the first. */
-static cdvr_status decode_host(cdvr_player *p, chunk_item *it, size_t count, uint8_t *out,
-                               cdvr_error *err)
+static cdvr_status decode_host(cdvr_player *p, int w, chunk_item *it, size_t count,
+                               uint8_t *out, cdvr_error *err)
 {
     const cdvr_store *st = p->opts.store;
     if (count > 64)
@@ -648,7 +690,7 @@ static cdvr_status decode_host(cdvr_player *p, chunk_item *it, size_t count, uin
         if (!in_data(p, b))
             continue;
         if (it->parts[b].needed) {
-            cdvr_status s = decode_brick(p, it, b, count, whole, out, err);
+            cdvr_status s = decode_brick(p, w, it, b, count, whole, out, err);
             if (s != CDVR_OK)
                 return s;
         } else if (!it->lossless) {
@@ -660,7 +702,7 @@ static cdvr_status decode_host(cdvr_player *p, chunk_item *it, size_t count, uin
 
 /* ---- what the pipeline makes before the device needs it --------------------------------- */
 
-/* Whether the group is decoded on the host (by the unzip thread): always on the cpu device;
+/* Whether the group is decoded on the host (by an unzip worker): always on the cpu device;
  * on the cl device for codecs without device code, bricked stores, and decode-mode variants
  * whose first group the device decoded faster on the host. */
 static int decodes_on_host(cdvr_player *p, const chunk_item *it)
@@ -678,21 +720,48 @@ static int decodes_on_host(cdvr_player *p, const chunk_item *it)
     return host;
 }
 
-/* A free decode slot (waiting for the calling thread to finish one), or -1 on abort. */
-static int acquire_slot(cdvr_player *p)
+/* Decode slots are handed out in planning order (slot_turn): an item later than one still
+ * waiting for a slot never takes the last free one, so with nworkers + 1 slots the item the
+ * calling thread waits for always gets one (the others are held by the item being played and
+ * by earlier items). An item that needs none passes its turn (pass_turn). */
+
+/* Moves the turn past the items that passed it (caller holds mu). */
+static void advance_turn(cdvr_player *p)
+{
+    while (p->turn_passed[p->slot_turn % p->nitems]) {
+        p->turn_passed[p->slot_turn % p->nitems] = 0;
+        p->slot_turn++;
+    }
+    pthread_cond_broadcast(&p->cv);
+}
+
+static void pass_turn(cdvr_player *p, const chunk_item *it)
+{
+    pthread_mutex_lock(&p->mu);
+    p->turn_passed[it->seq % p->nitems] = 1;
+    advance_turn(p);
+    pthread_mutex_unlock(&p->mu);
+}
+
+/* A free decode slot for the item, at its turn (waiting for the calling thread to finish
+ * one), or -1 on abort. */
+static int acquire_slot(cdvr_player *p, const chunk_item *it)
 {
     pthread_mutex_lock(&p->mu);
     int k = -1;
     for (;;) {
-        for (int i = 0; i < NSLOTS && k < 0; i++)
+        for (int i = 0; i < p->nslots && k < 0 && p->slot_turn == it->seq; i++)
             if (!p->slot_busy[i])
                 k = i;
         if (k >= 0 || p->abort)
             break;
         pthread_cond_wait(&p->cv, &p->mu);
     }
-    if (k >= 0)
+    if (k >= 0) {
         p->slot_busy[k] = 1;
+        p->slot_turn++;
+        advance_turn(p);
+    }
     pthread_mutex_unlock(&p->mu);
     return k;
 }
@@ -764,13 +833,13 @@ static cdvr_status make_grids(cdvr_player *p, chunk_item *it, size_t count, cdvr
 
 /* After b1': the host decode into a slot and the skip grids, when they apply. Their time is
  * the group's b3 (host_decode_ms) and part of its b1' (unzip_ms). */
-static void prepare(cdvr_player *p, chunk_item *it)
+static void prepare(cdvr_player *p, int w, chunk_item *it)
 {
     if (it->err.status != CDVR_OK || it->nframes == 0 || it->bricks_read == 0)
         return;
     const cdvr_chunk_info *ch = cdvr_store_chunk(p->opts.store, (size_t)it->variant, it->chunk);
     if (decodes_on_host(p, it)) {
-        int k = acquire_slot(p);
+        int k = acquire_slot(p, it);
         size_t need;
         if (k < 0) {
             cdvr_error_set(&it->err, CDVR_ERR_ARG, "player: stopped");
@@ -782,7 +851,7 @@ static void prepare(cdvr_player *p, chunk_item *it)
             cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate %zu frames",
                            cdvr_store_path(p->opts.store), it->chunk + 1, ch->count);
         else
-            decode_host(p, it, ch->count, p->slots[k], &it->err);
+            decode_host(p, w, it, ch->count, p->slots[k], &it->err);
         it->host_decode_ms = cdvr_now_ms() - t0;
     }
     if (it->err.status == CDVR_OK && it->with_grids) {
@@ -1066,9 +1135,18 @@ static void *reader_main(void *arg)
     return NULL;
 }
 
+typedef struct unzip_worker {
+    cdvr_player *p;
+    int w;                   /* index: its scratch */
+    pthread_t thread;
+} unzip_worker;
+
+/* An unzip worker: takes the items in planning order, and hands them over in any order
+ * (next_ready restores it). */
 static void *unzip_main(void *arg)
 {
-    cdvr_player *p = arg;
+    cdvr_player *p = ((unzip_worker *)arg)->p;
+    int w = ((unzip_worker *)arg)->w;
     for (;;) {
         pthread_mutex_lock(&p->mu);
         while (!p->read_q.head && !p->reader_done && !p->abort)
@@ -1077,24 +1155,25 @@ static void *unzip_main(void *arg)
         pthread_mutex_unlock(&p->mu);
         if (!it)
             break;
-        unzip(p, it);
+        unzip(p, w, it);
         put(p, &p->unzip_q, it);
     }
     pthread_mutex_lock(&p->mu);
-    p->unzip_done = 1;
+    p->workers_done++;
     pthread_cond_broadcast(&p->cv);
     pthread_mutex_unlock(&p->mu);
     return NULL;
 }
 
-/* Waits for the next unzipped item, running the reader's planning requests meanwhile
- * (callbacks run here, on the calling thread). NULL at the end. */
+/* Waits for the next unzipped item in planning order, running the reader's planning
+ * requests meanwhile (callbacks run here, on the calling thread). NULL at the end. */
 static chunk_item *next_ready(cdvr_player *p)
 {
     pthread_mutex_lock(&p->mu);
     for (;;) {
-        if (p->unzip_q.head) {
-            chunk_item *it = queue_pop(&p->unzip_q);
+        chunk_item *it = queue_take_seq(&p->unzip_q, p->seq_play);
+        if (it) {
+            p->seq_play++;
             pthread_mutex_unlock(&p->mu);
             return it;
         }
@@ -1111,7 +1190,7 @@ static chunk_item *next_ready(cdvr_player *p)
             pthread_cond_broadcast(&p->cv);
             continue;
         }
-        if (p->unzip_done || p->abort)
+        if (p->workers_done == p->nworkers || p->abort)
             break;
         pthread_cond_wait(&p->cv, &p->mu);
     }
@@ -1119,18 +1198,31 @@ static chunk_item *next_ready(cdvr_player *p)
     return NULL;
 }
 
+static void abort_run(cdvr_player *p)
+{
+    pthread_mutex_lock(&p->mu);
+    p->abort = 1;
+    pthread_cond_broadcast(&p->cv);
+    pthread_mutex_unlock(&p->mu);
+}
+
 static cdvr_status run_pipelined(cdvr_player *p, cdvr_error *err)
 {
-    pthread_t reader, unzipper;
+    pthread_t reader;
+    unzip_worker workers[MAX_UNZIP];
     if (pthread_create(&reader, NULL, reader_main, p) != 0)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "player: cannot start the reader thread");
-    if (pthread_create(&unzipper, NULL, unzip_main, p) != 0) {
-        pthread_mutex_lock(&p->mu);
-        p->abort = 1;
-        pthread_cond_broadcast(&p->cv);
-        pthread_mutex_unlock(&p->mu);
-        pthread_join(reader, NULL);
-        return cdvr_error_set(err, CDVR_ERR_NOMEM, "player: cannot start the unzip thread");
+    for (int w = 0; w < p->nworkers; w++) {
+        workers[w].p = p;
+        workers[w].w = w;
+        if (pthread_create(&workers[w].thread, NULL, unzip_main, &workers[w]) != 0) {
+            abort_run(p);
+            pthread_join(reader, NULL);
+            while (w-- > 0)
+                pthread_join(workers[w].thread, NULL);
+            return cdvr_error_set(err, CDVR_ERR_NOMEM, "player: cannot start unzip thread %d",
+                                  w + 1);
+        }
     }
     cdvr_status status = CDVR_OK;
     chunk_item *it;
@@ -1139,15 +1231,13 @@ static cdvr_status run_pipelined(cdvr_player *p, cdvr_error *err)
         release_slot(p, it);
         put(p, &p->free_items, it);
         if (status != CDVR_OK) {
-            pthread_mutex_lock(&p->mu);
-            p->abort = 1;
-            pthread_cond_broadcast(&p->cv);
-            pthread_mutex_unlock(&p->mu);
+            abort_run(p);
             break;
         }
     }
     pthread_join(reader, NULL);
-    pthread_join(unzipper, NULL);
+    for (int w = 0; w < p->nworkers; w++)
+        pthread_join(workers[w].thread, NULL);
     return status;
 }
 
@@ -1155,7 +1245,7 @@ static cdvr_status run_serial(cdvr_player *p, cdvr_error *err)
 {
     chunk_item *it = &p->items[0];
     while (plan_and_read(p, it, 0)) {
-        unzip(p, it);
+        unzip(p, 0, it);
         cdvr_status s = play_item(p, it, err);
         release_slot(p, it);
         if (s != CDVR_OK)
@@ -1215,6 +1305,22 @@ static cdvr_status set_region(cdvr_player *p, cdvr_error *err)
     return CDVR_OK;
 }
 
+/* Unzip workers of a pipelined player: `requested` (player.h) when > 0, else
+ * CDVR_UNZIP_THREADS when set to a number > 0, else 2 on a machine with 2 or more cores and 1
+ * otherwise; at most MAX_UNZIP. */
+static int unzip_workers(int requested)
+{
+    long n = requested;
+    if (n <= 0) {
+        const char *env = getenv("CDVR_UNZIP_THREADS");
+        char *end = NULL;
+        n = env ? strtol(env, &end, 10) : 0;
+        if (!env || end == env || *end != '\0' || n <= 0)
+            n = sysconf(_SC_NPROCESSORS_ONLN) >= 2 ? 2 : 1;
+    }
+    return n > MAX_UNZIP ? MAX_UNZIP : (int)n;
+}
+
 /* World positions of the 8 corners of brick b's cells: origin + D * (index * spacing). */
 static void brick_corners(const cdvr_store_info *info, size_t b, double out[8][3])
 {
@@ -1263,9 +1369,13 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
         if (!(p->items[i].parts = calloc(p->nbricks, sizeof *p->items[i].parts)))
             p->nitems = i; /* free what was made, then fail below */
     p->host_decodes = calloc(info->nvariants, sizeof *p->host_decodes);
+    p->turn_passed = calloc(p->nitems ? p->nitems : 1, 1);
+    p->nworkers = p->opts.pipelined ? unzip_workers(p->opts.unzip_threads) : 1;
+    p->nslots = p->nworkers + 1;
     pthread_mutex_init(&p->mu, NULL);
     pthread_cond_init(&p->cv, NULL);
-    if (!p->items || p->nitems != (size_t)p->opts.ring * 2 + 1 || !p->host_decodes) {
+    if (!p->items || p->nitems != (size_t)p->opts.ring * 2 + 1 || !p->host_decodes ||
+        !p->turn_passed) {
         cdvr_player_free(p);
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "player: out of memory");
     }
@@ -1316,10 +1426,12 @@ void cdvr_player_free(cdvr_player *p)
     free(p->own);
     free(p->items);
     free(p->rows);
-    for (int k = 0; k < NSLOTS; k++)
+    for (int k = 0; k < MAX_SLOTS; k++)
         free(p->slots[k]);
-    free(p->brick_frames);
+    for (int w = 0; w < MAX_UNZIP; w++)
+        free(p->brick_frames[w]);
     free(p->host_decodes);
+    free(p->turn_passed);
 #if CDVR_HAVE_OPENCL
     cdvr_cl_stream_free(p->stream);
     cdvr_cl_close(p->cl);
@@ -1342,8 +1454,10 @@ cdvr_status cdvr_player_run(cdvr_player *p, size_t first, size_t frames, cdvr_er
     p->planned = 0;
     p->current_variant = p->opts.variant;
     p->have_group = 0;
-    p->reader_done = p->unzip_done = p->abort = 0;
-    for (int k = 0; k < NSLOTS; k++) /* items of an earlier run left in flight hold none now */
+    p->reader_done = p->abort = p->workers_done = 0;
+    p->seq_next = p->seq_play = p->slot_turn = 0;
+    memset(p->turn_passed, 0, p->nitems);
+    for (int k = 0; k < MAX_SLOTS; k++) /* items of an earlier run left in flight hold none now */
         p->slot_busy[k] = 0;
     p->call_state = 0;
     p->tf_prefix[0] = 0;

@@ -7,19 +7,25 @@
  *   b3  decode  decode kernel (or C decoder on the cpu device)
  *   b4  setup   per-frame setup: TF table, brick min/max grid for empty-space skipping
  *   b5  render  ray cast
- * With `pipelined`, b1 runs in a reader thread and b1' in an unzip thread, connected to the
+ * With `pipelined`, b1 runs in a reader thread and b1' in unzip workers, connected to the
  * calling (device) thread by bounded queues of `ring` buffers, so stages overlap. Callbacks
  * (decide, camera) always run on the calling thread: a Lua state is never touched elsewhere.
+ * There are `unzip_threads` unzip workers (0: the environment variable CDVR_UNZIP_THREADS
+ * when set to a number > 0, else 2 on a machine with 2 or more cores and 1 otherwise; at most
+ * 2): consecutive groups are unzipped (and host-decoded, below) at the same time and reach
+ * the calling thread in their planning order, so every frame is the same whatever the count.
  *
  * A store is read one chunk group at a time: the chunks of the group's timesteps, one per
  * brick (an unbricked store has one brick). On the cl device a chunk is decoded by its
  * codec's kernel (decode mode) or kept compressed and rendered through its fetch function
  * (fetch mode); codecs without OpenCL code, bricked stores, and decode-mode variants that the
  * device decodes faster on the host (a CPU device: cdvr_cl_decode_path, learnt from the
- * variant's first group) are decoded on the host by the unzip thread, into one of two decode
- * slots, and handed to the device without a copy where it shares host memory. For stores
+ * variant's first group) are decoded on the host by an unzip worker, into one of the decode
+ * slots (one per worker plus the one being rendered; each holds a group's frames of the
+ * rendered box, so a second worker costs one slot more: voxels x timesteps per chunk bytes),
+ * and handed to the device without a copy where it shares host memory. For stores
  * with range tables (store.h), when the whole volume is rendered and every brick of the group
- * is read, the unzip thread also makes each frame's skip grid and flags (cdvr/skip.h), and b4
+ * is read, the unzip worker also makes each frame's skip grid and flags (cdvr/skip.h), and b4
  * only uploads them (else the device computes them from the frame). So the next group's
  * decode and setup overlap the current group's rendering. Timings follow the work: b1
  * includes reading the range tables, b1' making the grids, b3 the host decode (wherever it
@@ -128,6 +134,7 @@ typedef struct cdvr_player_opts {
     int variant;                 /* initial variant (0-based) */
     int pipelined;               /* 1: reader/unzip threads; 0: serial */
     int ring;                    /* queue depth (buffers per queue), default 3 */
+    int unzip_threads;           /* unzip workers when pipelined (1..2), 0: automatic (above) */
     int cold;                    /* drop chunks from the page cache (posix_fadvise) */
     double read_mbps;            /* > 0: cap read bandwidth (MB/s, 1e6 bytes) */
     int empty_skip;              /* 1 (default): empty-space skipping on the cl device */

@@ -1,0 +1,329 @@
+/* tests/test_player_unzip.c - the player's unzip workers (core/player/player.c): with 2
+ * workers consecutive chunk groups are unzipped and host-decoded at the same time, each into
+ * its own decode slot, and reach the device thread in planning order. Every frame of a
+ * pipelined run with 2 workers is byte-identical to the run with 1 worker, to the serial run
+ * and to the render of that timestep decoded alone: raw + LZO and PVTC, cpu and cl devices
+ * (host decode and decode kernel forced), whole runs, runs stopped inside a group, runs that
+ * wrap around, and several runs of one player. A chunk whose LZO stream is corrupt (CRC
+ * fixed, so the worker finds it) and one whose bytes fail the CRC (the reader finds it) give
+ * error rows naming the chunk and the store, the other frames play, and nothing hangs. */
+#include "check.h"
+
+#include "cdvr/device.h"
+#include "cdvr/player.h"
+#include "cdvr/pvtc.h"
+#include "store/store_format.h"
+
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#define W 40
+#define H 32
+#define T 8 /* timesteps: PVTC chunks of 3, so the last group is short */
+#define PX ((size_t)W * H * 4)
+
+typedef struct capture {
+    float *pixels; /* per frame number: W x H x 4 */
+    size_t frames;
+} capture;
+
+static cdvr_status keep_frame(void *ud, const cdvr_frame_row *row, const cdvr_image *img,
+                              cdvr_error *err)
+{
+    capture *c = ud;
+    (void)err;
+    if (row->frame < c->frames)
+        memcpy(c->pixels + row->frame * PX, img->rgba, sizeof(float) * PX);
+    return CDVR_OK;
+}
+
+static cdvr_volume *make_series(void)
+{
+    size_t dims[3] = {33, 28, 24};
+    cdvr_volume *v = NULL;
+    cdvr_error err;
+    if (cdvr_volume_create(dims, T, CDVR_TYPE_U8, &v, &err) != CDVR_OK)
+        return NULL;
+    uint8_t *p = v->data;
+    for (size_t t = 0; t < T; t++)
+        for (size_t z = 0; z < dims[2]; z++)
+            for (size_t y = 0; y < dims[1]; y++)
+                for (size_t x = 0; x < dims[0]; x++) {
+                    double dx = (double)x - 9 - 2.0 * t, dy = (double)y - 14, dz = (double)z - 12;
+                    double r = dx * dx + dy * dy + dz * dz;
+                    *p++ = (uint8_t)(r < 80 ? 230 - 2 * r : (x * 3 + y + t) % 11 == 0 ? 50 : 0);
+                }
+    return v;
+}
+
+static void make_tf(cdvr_tf *tf)
+{
+    cdvr_tf_point pts[] = {{0, 0, 0, 0, 0}, {60, 0.2, 0.3, 0.9, 0.05}, {120, 0.9, 0.5, 0.2, 0.3},
+                           {255, 1, 1, 1, 0.9}};
+    cdvr_error err;
+    CHECK_OK(cdvr_tf_init(tf, pts, 4, 0, &err), err);
+}
+
+static cdvr_camera make_camera(void)
+{
+    cdvr_camera cam = {.eye = {90, -55, 65}, .center = {16, 13.5, 11.5}, .up = {0, 0, 1},
+                       .fov = 30, .width = W, .height = H};
+    return cam;
+}
+
+/* The render of timestep t of variant v decoded by itself, into ref[t] (T frames). */
+static void references(const cdvr_store *st, size_t v, cdvr_device_kind device, float *ref)
+{
+    cdvr_tf tf;
+    make_tf(&tf);
+    cdvr_camera cam = make_camera();
+    cdvr_render_opts ro = {.tf = &tf, .camera = &cam};
+    for (size_t t = 0; t < T; t++) {
+        cdvr_volume *vol = NULL;
+        cdvr_image *img = NULL;
+        cdvr_error err;
+        int ok = cdvr_store_decode(st, v, t, &vol, &err) == CDVR_OK;
+        if (ok && device == CDVR_DEVICE_CPU)
+            ok = cdvr_render_cpu(vol, 0, &ro, &img, &err) == CDVR_OK;
+#if CDVR_HAVE_OPENCL
+        if (ok && device == CDVR_DEVICE_CL) {
+            cdvr_cl *cl = NULL;
+            cdvr_cl_stream *s = NULL;
+            ok = cdvr_cl_open(&cl, &err) == CDVR_OK &&
+                 cdvr_cl_stream_create(cl, vol->dims, &s, &err) == CDVR_OK &&
+                 cdvr_cl_upload_frames(s, vol->data, 1, &err) == CDVR_OK &&
+                 cdvr_cl_setup(s, 0, &tf, &err) == CDVR_OK &&
+                 cdvr_image_create(W, H, &img, &err) == CDVR_OK &&
+                 cdvr_cl_render(s, 0, &ro, vol->spacing, vol->origin, vol->direction, img,
+                                &err) == CDVR_OK;
+            cdvr_cl_stream_free(s);
+            cdvr_cl_close(cl);
+        }
+#endif
+        CHECK(ok, "reference of timestep %zu: %s", t + 1, err.msg);
+        if (ok)
+            memcpy(ref + t * PX, img->rgba, sizeof(float) * PX);
+        cdvr_image_free(img);
+        cdvr_volume_free(vol);
+    }
+}
+
+/* A player of variant v: serial (workers 0) or pipelined with `workers` unzip workers. */
+static cdvr_player *make_player(const cdvr_store *st, size_t v, cdvr_device_kind device,
+                                int workers, int loop, const cdvr_tf *tf, capture *cap)
+{
+    cdvr_player_opts o = {.store = st, .device = device, .tf = tf, .camera = make_camera(),
+                          .variant = (int)v, .pipelined = workers > 0, .ring = 2,
+                          .unzip_threads = workers, .empty_skip = 1, .loop = loop,
+                          .frame_fn = keep_frame, .frame_ud = cap};
+    cdvr_player *p = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_player_create(&o, &p, &err), err);
+    return p;
+}
+
+/* Plays `frames` frames from timestep `first` and checks each against ref (by timestep) and
+ * against the frames of other runs with the same first frame (*same, when it holds any). */
+static void play_check(cdvr_player *p, capture *cap, size_t first, size_t frames,
+                       const float *ref, const char *what)
+{
+    cdvr_error err;
+    memset(cap->pixels, 0, sizeof(float) * PX * cap->frames);
+    CHECK_OK(cdvr_player_run(p, first, frames, &err), err);
+    size_t nrows = 0;
+    const cdvr_frame_row *rows = cdvr_player_rows(p, &nrows);
+    CHECK(nrows == frames, "%s: %zu rows for %zu frames", what, nrows, frames);
+    for (size_t i = 0; i < nrows; i++) {
+        CHECK(rows[i].status == CDVR_OK, "%s: frame %zu: %s", what, i, rows[i].error);
+        CHECK(rows[i].frame == i && rows[i].t == (first + i) % T,
+              "%s: row %zu is frame %zu, timestep %zu", what, i, rows[i].frame, rows[i].t);
+        CHECK(memcmp(cap->pixels + i * PX, ref + rows[i].t * PX, sizeof(float) * PX) == 0,
+              "%s: frame %zu (timestep %zu) differs from its render alone", what, i,
+              rows[i].t + 1);
+    }
+}
+
+/* Runs of variant v on a device with 2 workers, 1 worker and serial, equal to the references
+ * (and so to each other): the whole series, stopped inside a group, wrapping around, all on
+ * one player (its state is reset between runs). */
+static void check_variant(const cdvr_store *st, size_t v, cdvr_device_kind device,
+                          const char *dev_name)
+{
+    float *ref = calloc(T * PX, sizeof(float));
+    capture cap = {calloc(2 * T * PX, sizeof(float)), 2 * T};
+    cdvr_tf tf;
+    make_tf(&tf);
+    references(st, v, device, ref);
+    static const int workers[] = {2, 1, 0};
+    for (int w = 0; w < 3; w++) {
+        cdvr_player *p = make_player(st, v, device, workers[w], 1, &tf, &cap);
+        if (!p)
+            continue;
+        static const size_t runs[][2] = {{0, T}, {1, 4}, {0, 2}, {4, 1}, {6, 7}, {2, 2 * T}};
+        for (size_t r = 0; r < sizeof runs / sizeof runs[0]; r++) {
+            char what[128];
+            snprintf(what, sizeof what, "%s, variant %zu, %d workers, first %zu frames %zu",
+                     dev_name, v + 1, workers[w], runs[r][0], runs[r][1]);
+            play_check(p, &cap, runs[r][0], runs[r][1], ref, what);
+        }
+        cdvr_player_free(p);
+    }
+    free(cap.pixels);
+    free(ref);
+}
+
+/* Copies the store at src to dst and damages chunk c of variant v: with fix_crc, its stored
+ * bytes become an invalid LZO stream under a correct CRC (the unzip fails); else one byte is
+ * flipped (the read's CRC check fails). */
+static int damage(const char *src, const char *dst, size_t v, size_t c, int fix_crc)
+{
+    cdvr_store *st = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_store_open(src, &st, &err), err);
+    if (!st)
+        return 0;
+    FILE *in = fopen(src, "rb");
+    fseek(in, 0, SEEK_END);
+    size_t n = (size_t)ftell(in);
+    uint8_t *file = malloc(n);
+    rewind(in);
+    int ok = fread(file, 1, n, in) == n;
+    fclose(in);
+    cdvr_chunk_info *ci = (cdvr_chunk_info *)cdvr_store_chunk(st, v, c);
+    uint8_t *bytes = file + ci->offset;
+    if (fix_crc) {
+        CHECK(ci->stage2, "chunk %zu of variant %zu is LZO-packed", c + 1, v + 1);
+        for (size_t i = 0; i < ci->stored_bytes; i++)
+            bytes[i] = (uint8_t)(0xff - i % 3);
+        ci->crc32c = cdvr_crc32c(0, bytes, (size_t)ci->stored_bytes);
+        cdvr_store_serialize_meta(st, file); /* the metadata (and its CRC) lead the file */
+    } else {
+        bytes[ci->stored_bytes / 2] ^= 0x5a;
+    }
+    cdvr_store_close(st);
+    FILE *out = fopen(dst, "wb");
+    ok = ok && out && fwrite(file, 1, n, out) == n;
+    if (out)
+        fclose(out);
+    free(file);
+    CHECK(ok, "write %s", dst);
+    return ok;
+}
+
+/* A damaged chunk (timesteps t0 .. t0 + count - 1) in a run with 2 workers: error rows naming
+ * chunk c + 1 and the file, the other frames equal their references, and several runs (one
+ * stopped early) end. */
+static void check_damaged(const char *path, size_t v, size_t c, int fix_crc,
+                          cdvr_device_kind device, const char *dev_name, const float *ref)
+{
+    cdvr_store *st = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_store_open(path, &st, &err), err);
+    if (!st)
+        return;
+    const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, c);
+    capture cap = {calloc(T * PX, sizeof(float)), T};
+    cdvr_tf tf;
+    make_tf(&tf);
+    char chunk[32];
+    snprintf(chunk, sizeof chunk, "chunk %zu", c + 1);
+    for (int w = 2; w >= 1; w--) {
+        cdvr_player *p = make_player(st, v, device, w, 0, &tf, &cap);
+        static const size_t runs[][2] = {{0, T}, {0, 4}, {1, 2}};
+        for (size_t r = 0; p && r < sizeof runs / sizeof runs[0]; r++) {
+            CHECK_OK(cdvr_player_run(p, runs[r][0], runs[r][1], &err), err);
+            size_t nrows = 0, failed = 0;
+            const cdvr_frame_row *rows = cdvr_player_rows(p, &nrows);
+            CHECK(nrows == runs[r][1], "%s damaged (crc %s), %d workers: %zu rows", dev_name,
+                  fix_crc ? "fixed" : "bad", w, nrows);
+            for (size_t i = 0; i < nrows; i++) {
+                int bad = rows[i].t >= ci->t0 && rows[i].t < ci->t0 + ci->count;
+                failed += bad;
+                if (bad)
+                    CHECK(rows[i].status != CDVR_OK && strstr(rows[i].error, chunk) &&
+                              strstr(rows[i].error, path),
+                          "%s, %d workers: frame %zu of the damaged chunk: status %d '%s'",
+                          dev_name, w, i, rows[i].status, rows[i].error);
+                else
+                    CHECK(rows[i].status == CDVR_OK &&
+                              memcmp(cap.pixels + rows[i].frame * PX, ref + rows[i].t * PX,
+                                     sizeof(float) * PX) == 0,
+                          "%s, %d workers: frame %zu (timestep %zu) '%s'", dev_name, w, i,
+                          rows[i].t + 1, rows[i].error);
+            }
+            CHECK(failed > 0 || runs[r][0] + runs[r][1] <= ci->t0,
+                  "%s: the damaged chunk was played", dev_name);
+        }
+        cdvr_player_free(p);
+    }
+    free(cap.pixels);
+    cdvr_store_close(st);
+}
+
+int main(void)
+{
+    cdvr_volume *vol = make_series();
+    char path[] = "/tmp/cdvr_test_player_unzip_XXXXXX";
+    int fd = mkstemp(path);
+    if (fd >= 0)
+        close(fd);
+    char bad[64];
+    snprintf(bad, sizeof bad, "%s.bad", path);
+    cdvr_variant_spec vs[2] = {{.codec = cdvr_codec_find("pvtc"), .lzo_min_saving = -1},
+                               {.codec = cdvr_codec_find("raw"), .stage2 = CDVR_STAGE2_LZO,
+                                .lzo_min_saving = 0}};
+    cdvr_pvtc_params pp = {4, 3, CDVR_PACK_TIME};
+    cdvr_pvtc_params_to_blob(&pp, CDVR_ENCODER_BBOX, &vs[0].params);
+    vs[1].codec->params_default(&vs[1].params);
+    cdvr_encode_opts eo = {.variants = vs, .nvariants = 2, .qhi = 255};
+    cdvr_error err;
+    CHECK_OK(cdvr_store_encode(vol, &eo, path, &err), err);
+    int have_cl = 0;
+#if CDVR_HAVE_OPENCL
+    cdvr_cl *probe = NULL;
+    have_cl = cdvr_cl_open(&probe, &err) == CDVR_OK;
+    cdvr_cl_close(probe);
+#endif
+    cdvr_store *st = NULL;
+    CHECK_OK(cdvr_store_open(path, &st, &err), err);
+    for (size_t v = 0; st && v < 2; v++) {
+        check_variant(st, v, CDVR_DEVICE_CPU, "cpu");
+        static const char *const paths[] = {"host", "kernel"};
+        for (int k = 0; have_cl && k < 2; k++) {
+            setenv("CDVR_CL_DECODE", paths[k], 1);
+            char name[32];
+            snprintf(name, sizeof name, "cl, %s decode", paths[k]);
+            check_variant(st, v, CDVR_DEVICE_CL, name);
+            unsetenv("CDVR_CL_DECODE");
+        }
+    }
+    /* damaged raw chunk 4 (timestep 4, a group's first), then PVTC chunk 2 (timesteps 4..6) */
+    static const struct { size_t v, c; int fix_crc; } cases[] = {{1, 3, 1}, {1, 3, 0}, {0, 1, 0}};
+    for (size_t i = 0; st && i < 3; i++) {
+        float *ref = calloc(T * PX, sizeof(float));
+        if (!damage(path, bad, cases[i].v, cases[i].c, cases[i].fix_crc)) {
+            free(ref);
+            continue;
+        }
+        references(st, cases[i].v, CDVR_DEVICE_CPU, ref);
+        check_damaged(bad, cases[i].v, cases[i].c, cases[i].fix_crc, CDVR_DEVICE_CPU, "cpu", ref);
+        if (have_cl) {
+            setenv("CDVR_CL_DECODE", "host", 1);
+            references(st, cases[i].v, CDVR_DEVICE_CL, ref);
+            check_damaged(bad, cases[i].v, cases[i].c, cases[i].fix_crc, CDVR_DEVICE_CL, "cl",
+                          ref);
+            unsetenv("CDVR_CL_DECODE");
+        }
+        free(ref);
+    }
+    cdvr_store_close(st);
+    unlink(bad);
+    unlink(path);
+    cdvr_volume_free(vol);
+    if (!have_cl)
+        printf("no OpenCL device: the cpu device only\n");
+    return check_finish();
+}
