@@ -200,43 +200,6 @@ static cdvr_status check_data_size(const char *path, const nifti_image *nim, cdv
                           path, nim->nx, nim->ny, nim->nz, nim->nt, nifti_datatype_string(nim->datatype), need, have);
 }
 
-static cdvr_status nifti_to_volume(const char *path, const nifti_image *nim, cdvr_volume **out,
-                                   cdvr_error *err)
-{
-    cdvr_type type;
-    int native;
-    cdvr_value_reader reader = nifti_reader(nim->datatype, &type, &native);
-    if (!reader)
-        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI datatype %s (%d) is not supported",
-                              path, nifti_datatype_string(nim->datatype), nim->datatype);
-    double slope, inter;
-    int scaled = nifti_scaling(nim, &slope, &inter);
-    if (scaled)
-        type = CDVR_TYPE_F32;
-    size_t dims[3] = {0, 0, 0}, timesteps = 0;
-    cdvr_status st = nifti_shape(path, nim, dims, &timesteps, err);
-    if (st == CDVR_OK)
-        st = check_data_size(path, nim, err);
-    if (st == CDVR_OK)
-        st = cdvr_volume_create(dims, timesteps, type, out, err);
-    if (st != CDVR_OK)
-        return st;
-    if (nim->nvox != cdvr_volume_voxels(*out) * timesteps) {
-        cdvr_volume_free(*out);
-        *out = NULL;
-        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI voxel count %zu does not match its dims",
-                              path, nim->nvox);
-    }
-    st = load_voxels(path, nim, *out, reader, native, scaled, slope, inter, err);
-    if (st != CDVR_OK) {
-        cdvr_volume_free(*out);
-        *out = NULL;
-        return st;
-    }
-    nifti_geometry(nim, *out);
-    return CDVR_OK;
-}
-
 /* Refuses what niftilib lets through in the raw header (it reads dim[0] = 0 as a 1x1x1 volume,
  * clamps a negative or NaN vox_offset, and takes any sizeof_hdr): sizeof_hdr must be 348 (540
  * is NIfTI-2, which niftilib's NIfTI-1 reader misreads), dim[0] 1..7, vox_offset finite and
@@ -261,20 +224,83 @@ static cdvr_status check_raw_header(const char *path, cdvr_error *err)
     return st;
 }
 
-cdvr_status cdvr_volume_load_nifti(const char *path, cdvr_volume **out, cdvr_error *err)
+/* Opens path's header after the checks niftilib does not make (header only, no voxels). */
+static cdvr_status open_header(const char *path, nifti_image **nim, cdvr_error *err)
 {
-    *out = NULL;
+    *nim = NULL;
     cdvr_status st = cdvr_check_readable(path, err);
     if (st == CDVR_OK)
         st = check_raw_header(path, err);
     if (st != CDVR_OK)
         return st;
-    nifti_image *nim = nifti_image_read(path, 0); /* header only */
-    if (!nim)
+    *nim = nifti_image_read(path, 0);
+    if (!*nim)
         return cdvr_error_set(err, CDVR_ERR_FORMAT,
                               "%s: cannot read NIfTI header: not a NIfTI-1 file or corrupt "
                               "(niftilib's reason is on stderr)",
                               path);
+    return CDVR_OK;
+}
+
+/* How the header's values become ours: the datatype's reader and the scaling. */
+typedef struct {
+    cdvr_value_reader reader;
+    int native, scaled;
+    double slope, inter;
+} nifti_values;
+
+/* Fills head's dims, timesteps and type from the header, and vals; checks the data size
+ * against the file. */
+static cdvr_status describe(const char *path, const nifti_image *nim, cdvr_volume *head,
+                            nifti_values *vals, cdvr_error *err)
+{
+    vals->reader = nifti_reader(nim->datatype, &head->type, &vals->native);
+    if (!vals->reader)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI datatype %s (%d) is not supported",
+                              path, nifti_datatype_string(nim->datatype), nim->datatype);
+    vals->scaled = nifti_scaling(nim, &vals->slope, &vals->inter);
+    if (vals->scaled)
+        head->type = CDVR_TYPE_F32;
+    cdvr_status st = nifti_shape(path, nim, head->dims, &head->timesteps, err);
+    if (st == CDVR_OK)
+        st = check_data_size(path, nim, err);
+    return st;
+}
+
+static cdvr_status nifti_to_volume(const char *path, const nifti_image *nim, cdvr_volume **out,
+                                   cdvr_error *err)
+{
+    cdvr_volume head = {0};
+    nifti_values vals;
+    cdvr_status st = describe(path, nim, &head, &vals, err);
+    if (st == CDVR_OK)
+        st = cdvr_volume_create(head.dims, head.timesteps, head.type, out, err);
+    if (st != CDVR_OK)
+        return st;
+    if (nim->nvox != cdvr_volume_voxels(*out) * head.timesteps) {
+        cdvr_volume_free(*out);
+        *out = NULL;
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI voxel count %zu does not match its dims",
+                              path, nim->nvox);
+    }
+    st = load_voxels(path, nim, *out, vals.reader, vals.native, vals.scaled, vals.slope, vals.inter,
+                     err);
+    if (st != CDVR_OK) {
+        cdvr_volume_free(*out);
+        *out = NULL;
+        return st;
+    }
+    nifti_geometry(nim, *out);
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_volume_load_nifti(const char *path, cdvr_volume **out, cdvr_error *err)
+{
+    *out = NULL;
+    nifti_image *nim;
+    cdvr_status st = open_header(path, &nim, err);
+    if (st != CDVR_OK)
+        return st;
     st = nifti_to_volume(path, nim, out, err);
     nifti_image_free(nim);
     return st;
@@ -282,28 +308,12 @@ cdvr_status cdvr_volume_load_nifti(const char *path, cdvr_volume **out, cdvr_err
 
 cdvr_status cdvr_volume_probe_nifti(const char *path, cdvr_volume *head, cdvr_error *err)
 {
-    cdvr_status st = cdvr_check_readable(path, err);
-    if (st == CDVR_OK)
-        st = check_raw_header(path, err);
+    nifti_image *nim;
+    cdvr_status st = open_header(path, &nim, err);
     if (st != CDVR_OK)
         return st;
-    nifti_image *nim = nifti_image_read(path, 0); /* header only */
-    if (!nim)
-        return cdvr_error_set(err, CDVR_ERR_FORMAT,
-                              "%s: cannot read NIfTI header: not a NIfTI-1 file or corrupt "
-                              "(niftilib's reason is on stderr)",
-                              path);
-    int native;
-    double slope, inter;
-    if (!nifti_reader(nim->datatype, &head->type, &native))
-        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI datatype %s (%d) is not supported",
-                            path, nifti_datatype_string(nim->datatype), nim->datatype);
-    if (st == CDVR_OK && nifti_scaling(nim, &slope, &inter))
-        head->type = CDVR_TYPE_F32;
-    if (st == CDVR_OK)
-        st = nifti_shape(path, nim, head->dims, &head->timesteps, err);
-    if (st == CDVR_OK)
-        st = check_data_size(path, nim, err);
+    nifti_values vals;
+    st = describe(path, nim, head, &vals, err);
     if (st == CDVR_OK)
         nifti_geometry(nim, head);
     nifti_image_free(nim);
