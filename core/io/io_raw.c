@@ -61,16 +61,25 @@ static void apply_spacing(cdvr_volume *vol, const double spacing[3])
             vol->spacing[i] = spacing[i];
 }
 
+/* Checks opts against path and opens it: *timesteps and *data_bytes are what it holds. */
+static cdvr_status open_checked(const char *path, const cdvr_raw_opts *opts, size_t *timesteps,
+                                size_t *data_bytes, FILE **f, cdvr_error *err)
+{
+    *f = NULL;
+    *timesteps = opts->timesteps ? opts->timesteps : 1;
+    cdvr_status st = check_raw_opts(path, opts, *timesteps, data_bytes, err);
+    if (st == CDVR_OK)
+        st = open_raw(path, opts, *timesteps, *data_bytes, f, err);
+    return st;
+}
+
 cdvr_status cdvr_volume_load_raw(const char *path, const cdvr_raw_opts *opts, cdvr_volume **out,
                                  cdvr_error *err)
 {
     *out = NULL;
-    size_t timesteps = opts->timesteps ? opts->timesteps : 1;
-    size_t data_bytes;
-    cdvr_status st = check_raw_opts(path, opts, timesteps, &data_bytes, err);
-    FILE *f = NULL;
-    if (st == CDVR_OK)
-        st = open_raw(path, opts, timesteps, data_bytes, &f, err);
+    size_t timesteps, data_bytes;
+    FILE *f;
+    cdvr_status st = open_checked(path, opts, &timesteps, &data_bytes, &f, err);
     if (st != CDVR_OK)
         return st;
     cdvr_volume *vol;
@@ -98,12 +107,9 @@ cdvr_status cdvr_volume_load_raw(const char *path, const cdvr_raw_opts *opts, cd
 cdvr_status cdvr_volume_probe_raw(const char *path, const cdvr_raw_opts *opts, cdvr_volume *head,
                                   cdvr_error *err)
 {
-    size_t timesteps = opts->timesteps ? opts->timesteps : 1;
-    size_t data_bytes;
-    cdvr_status st = check_raw_opts(path, opts, timesteps, &data_bytes, err);
-    FILE *f = NULL;
-    if (st == CDVR_OK)
-        st = open_raw(path, opts, timesteps, data_bytes, &f, err);
+    size_t timesteps, data_bytes;
+    FILE *f;
+    cdvr_status st = open_checked(path, opts, &timesteps, &data_bytes, &f, err);
     if (st != CDVR_OK)
         return st;
     fclose(f);
