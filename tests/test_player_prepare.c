@@ -7,6 +7,7 @@
  * decode kernel forced; serial and pipelined; a PVTC variant, raw, and a bricked store; and
  * with brick skipping on a lossless variant (skipped bricks filled, the device's grid). */
 #include "check.h"
+#include "player_frames.h"
 
 #include "cdvr/device.h"
 #include "cdvr/player.h"
@@ -20,21 +21,6 @@
 
 #define W 48
 #define H 40
-
-typedef struct capture {
-    float *pixels;   /* frames x W x H x 4 */
-    size_t frames;
-} capture;
-
-static cdvr_status keep_frame(void *ud, const cdvr_frame_row *row, const cdvr_image *img,
-                              cdvr_error *err)
-{
-    capture *c = ud;
-    (void)err;
-    if (row->frame < c->frames)
-        memcpy(c->pixels + row->frame * W * H * 4, img->rgba, sizeof(float) * W * H * 4);
-    return CDVR_OK;
-}
 
 static cdvr_volume *make_series(void)
 {
@@ -70,44 +56,6 @@ static cdvr_camera make_camera(void)
     return cam;
 }
 
-/* Renders timestep t of variant v of st decoded by itself (the reference frames). */
-static int reference(const cdvr_store *st, size_t v, size_t t, cdvr_device_kind device,
-                     float *out)
-{
-    cdvr_volume *vol = NULL;
-    cdvr_image *img = NULL;
-    cdvr_error err;
-    cdvr_tf tf;
-    make_tf(&tf);
-    cdvr_camera cam = make_camera();
-    cdvr_render_opts ro = {.tf = &tf, .camera = &cam};
-    int ok = cdvr_store_decode(st, v, t, &vol, &err) == CDVR_OK;
-    if (ok && device == CDVR_DEVICE_CPU) {
-        ok = cdvr_render_cpu(vol, 0, &ro, &img, &err) == CDVR_OK;
-    }
-#if CDVR_HAVE_OPENCL
-    if (ok && device == CDVR_DEVICE_CL) {
-        cdvr_cl *cl = NULL;
-        cdvr_cl_stream *s = NULL;
-        ok = cdvr_cl_open(&cl, &err) == CDVR_OK &&
-             cdvr_cl_stream_create(cl, vol->dims, &s, &err) == CDVR_OK &&
-             cdvr_cl_upload_frames(s, vol->data, 1, &err) == CDVR_OK &&
-             cdvr_cl_setup(s, 0, &tf, &err) == CDVR_OK &&
-             cdvr_image_create(W, H, &img, &err) == CDVR_OK &&
-             cdvr_cl_render(s, 0, &ro, vol->spacing, vol->origin, vol->direction, img,
-                            &err) == CDVR_OK;
-        cdvr_cl_stream_free(s);
-        cdvr_cl_close(cl);
-    }
-#endif
-    CHECK(ok, "reference of timestep %zu: %s", t + 1, err.msg);
-    if (ok)
-        memcpy(out, img->rgba, sizeof(float) * W * H * 4);
-    cdvr_image_free(img);
-    cdvr_volume_free(vol);
-    return ok;
-}
-
 /* Plays every timestep of variant v and compares each frame with its reference. With
  * brick_skip, some brick must have been skipped. */
 static void play_and_compare(const cdvr_store *st, size_t v, cdvr_device_kind device,
@@ -115,7 +63,7 @@ static void play_and_compare(const cdvr_store *st, size_t v, cdvr_device_kind de
 {
     const cdvr_store_info *in = cdvr_store_get_info(st);
     size_t n = in->timesteps, px = (size_t)W * H * 4;
-    capture cap = {calloc(n * px, sizeof(float)), n};
+    capture cap = {calloc(n * px, sizeof(float)), n, px};
     float *ref = malloc(px * sizeof(float));
     cdvr_tf tf;
     make_tf(&tf);
@@ -137,8 +85,9 @@ static void play_and_compare(const cdvr_store *st, size_t v, cdvr_device_kind de
             skipped += rows[i].bricks_skipped;
         }
         CHECK(!brick_skip || skipped > 0, "%s: no brick skipped", what);
+        cdvr_camera cam = make_camera();
         for (size_t t = 0; t < n; t++)
-            if (reference(st, v, t, device, ref))
+            if (render_alone(st, v, t, device, &tf, &cam, ref))
                 CHECK(memcmp(ref, cap.pixels + t * px, px * sizeof(float)) == 0,
                       "%s: timestep %zu differs from its render alone", what, t + 1);
     }

@@ -8,6 +8,7 @@
  * fixed, so the worker finds it) and one whose bytes fail the CRC (the reader finds it) give
  * error rows naming the chunk and the store, the other frames play, and nothing hangs. */
 #include "check.h"
+#include "player_frames.h"
 
 #include "cdvr/device.h"
 #include "cdvr/player.h"
@@ -24,21 +25,6 @@
 #define H 32
 #define T 8 /* timesteps: PVTC chunks of 3, so the last group is short */
 #define PX ((size_t)W * H * 4)
-
-typedef struct capture {
-    float *pixels; /* per frame number: W x H x 4 */
-    size_t frames;
-} capture;
-
-static cdvr_status keep_frame(void *ud, const cdvr_frame_row *row, const cdvr_image *img,
-                              cdvr_error *err)
-{
-    capture *c = ud;
-    (void)err;
-    if (row->frame < c->frames)
-        memcpy(c->pixels + row->frame * PX, img->rgba, sizeof(float) * PX);
-    return CDVR_OK;
-}
 
 static cdvr_volume *make_series(void)
 {
@@ -80,35 +66,8 @@ static void references(const cdvr_store *st, size_t v, cdvr_device_kind device, 
     cdvr_tf tf;
     make_tf(&tf);
     cdvr_camera cam = make_camera();
-    cdvr_render_opts ro = {.tf = &tf, .camera = &cam};
-    for (size_t t = 0; t < T; t++) {
-        cdvr_volume *vol = NULL;
-        cdvr_image *img = NULL;
-        cdvr_error err;
-        int ok = cdvr_store_decode(st, v, t, &vol, &err) == CDVR_OK;
-        if (ok && device == CDVR_DEVICE_CPU)
-            ok = cdvr_render_cpu(vol, 0, &ro, &img, &err) == CDVR_OK;
-#if CDVR_HAVE_OPENCL
-        if (ok && device == CDVR_DEVICE_CL) {
-            cdvr_cl *cl = NULL;
-            cdvr_cl_stream *s = NULL;
-            ok = cdvr_cl_open(&cl, &err) == CDVR_OK &&
-                 cdvr_cl_stream_create(cl, vol->dims, &s, &err) == CDVR_OK &&
-                 cdvr_cl_upload_frames(s, vol->data, 1, &err) == CDVR_OK &&
-                 cdvr_cl_setup(s, 0, &tf, &err) == CDVR_OK &&
-                 cdvr_image_create(W, H, &img, &err) == CDVR_OK &&
-                 cdvr_cl_render(s, 0, &ro, vol->spacing, vol->origin, vol->direction, img,
-                                &err) == CDVR_OK;
-            cdvr_cl_stream_free(s);
-            cdvr_cl_close(cl);
-        }
-#endif
-        CHECK(ok, "reference of timestep %zu: %s", t + 1, err.msg);
-        if (ok)
-            memcpy(ref + t * PX, img->rgba, sizeof(float) * PX);
-        cdvr_image_free(img);
-        cdvr_volume_free(vol);
-    }
+    for (size_t t = 0; t < T; t++)
+        render_alone(st, v, t, device, &tf, &cam, ref + t * PX);
 }
 
 /* A player of variant v: serial (workers 0) or pipelined with `workers` unzip workers. */
@@ -153,7 +112,7 @@ static void check_variant(const cdvr_store *st, size_t v, cdvr_device_kind devic
                           const char *dev_name)
 {
     float *ref = calloc(T * PX, sizeof(float));
-    capture cap = {calloc(2 * T * PX, sizeof(float)), 2 * T};
+    capture cap = {calloc(2 * T * PX, sizeof(float)), 2 * T, PX};
     cdvr_tf tf;
     make_tf(&tf);
     references(st, v, device, ref);
@@ -225,7 +184,7 @@ static void check_damaged(const char *path, size_t v, size_t c, int fix_crc,
     if (!st)
         return;
     const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, c);
-    capture cap = {calloc(T * PX, sizeof(float)), T};
+    capture cap = {calloc(T * PX, sizeof(float)), T, PX};
     cdvr_tf tf;
     make_tf(&tf);
     char chunk[32];
