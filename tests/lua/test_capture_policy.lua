@@ -8,15 +8,8 @@
 --     first-listed variant).
 --   * Playing render-bound (device="cpu", a large image of a small volume, an unreachable
 --     target) closed_loop keeps the best quality and says it is render-bound.
-local failed, passed = 0, 0
-local function check(cond, msg)
-  if cond then
-    passed = passed + 1
-  else
-    failed = failed + 1
-    io.stderr:write(debug.traceback("check failed: " .. tostring(msg), 2), "\n")
-  end
-end
+local checks = dofile((arg[0]:match("^(.*)/") or ".") .. "/checks.lua")
+local check = checks.check
 local tmpdir = os.tmpname()
 os.remove(tmpdir)
 assert(os.execute(("mkdir -p %q"):format(tmpdir)))
@@ -95,5 +88,4 @@ p:close()
 
 st:close()
 os.execute(("rm -rf %q"):format(tmpdir))
-print(string.format("%d passed, %d failed", passed, failed))
-if failed > 0 then os.exit(1) end
+checks.finish()

@@ -2,15 +2,8 @@
 -- and cdvr.open raise an error naming the file and the reason; img:save refuses an extension it
 -- does not write; PNGs are RGB unless alpha is asked for; a camera whose view misses the
 -- volume gives the image plus a one-line warning on stderr.
-local failed, passed = 0, 0
-local function check(cond, msg)
-  if cond then
-    passed = passed + 1
-  else
-    failed = failed + 1
-    io.stderr:write(debug.traceback("check failed: " .. tostring(msg), 2), "\n")
-  end
-end
+local checks = dofile((arg[0]:match("^(.*)/") or ".") .. "/checks.lua")
+local check = checks.check
 local function raises(parts, what, f, ...)
   local ok, msg = pcall(f, ...)
   check(not ok, what .. ": expected an error, got " .. tostring(msg))
@@ -77,5 +70,4 @@ check(out:find("image\t16\t12", 1, true) and out:find("done", 1, true), "render 
 check(warnings == 1 and out:find("cdvr: warning: cdvr.render: the camera's view misses the volume", 1, true),
       "exactly one warning, for the camera that misses: " .. out)
 
-print(string.format("%d passed, %d failed", passed, failed))
-if failed > 0 then os.exit(1) end
+checks.finish()

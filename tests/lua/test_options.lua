@@ -2,15 +2,8 @@
 -- function taking an options table (C bindings except the store/device ones, and the Lua
 -- modules of share/lua/cdvr) rejects an unknown key, naming the function and suggesting the
 -- closest known option; the right spelling works.
-local failed, passed = 0, 0
-local function check(cond, msg)
-  if cond then
-    passed = passed + 1
-  else
-    failed = failed + 1
-    io.stderr:write(debug.traceback("check failed: " .. tostring(msg), 2), "\n")
-  end
-end
+local checks = dofile((arg[0]:match("^(.*)/") or ".") .. "/checks.lua")
+local check = checks.check
 local function rejects(expected, what, f, ...)
   local ok, msg = pcall(f, ...)
   check(not ok and tostring(msg):find(expected, 1, true),
@@ -88,5 +81,4 @@ rejects("cdvr.schedule.from_changes: unknown option 'quantil' (did you mean 'qua
 rejects("cdvr.schedule.change_driven: unknown option 'fats' (did you mean 'fast'?)", "change_driven",
         cdvr.schedule.change_driven, v, {fats = {S = 1, T = 2}})
 
-print(string.format("%d passed, %d failed", passed, failed))
-if failed > 0 then os.exit(1) end
+checks.finish()

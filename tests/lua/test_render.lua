@@ -1,20 +1,7 @@
 -- tests/lua/test_render.lua - the Lua surface of transfer functions, cameras, cdvr.render,
 -- images and cdvr.compare; misuse raises, I/O failures return nil, msg.
-local failed, passed = 0, 0
-local function check(cond, msg)
-  if cond then
-    passed = passed + 1
-  else
-    failed = failed + 1
-    io.stderr:write(debug.traceback("check failed: " .. tostring(msg), 2), "\n")
-  end
-end
-local function raises(f, pattern, what)
-  local ok, err = pcall(f)
-  check(not ok and (not pattern or tostring(err):find(pattern, 1, true)),
-        what .. ": expected an error" .. (pattern and (" with '" .. pattern .. "'") or "") ..
-        ", got " .. tostring(err))
-end
+local checks = dofile((arg[0]:match("^(.*)/") or ".") .. "/checks.lua")
+local check, raises = checks.check, checks.raises
 local function near(a, b, tol) return math.abs(a - b) <= (tol or 1e-6) end
 local tmpdir = os.getenv("CDVR_BINARY_DIR") or "."
 
@@ -177,5 +164,4 @@ else
   print("CDVR_SHARED_DATA not set: engine render skipped")
 end
 
-print(string.format("%d passed, %d failed", passed, failed))
-if failed > 0 then os.exit(1) end
+checks.finish()

@@ -3,21 +3,8 @@
 -- caster on a real volume at matched sampling), img:stats() of every method, misuse.
 -- Without GL only the plan and the errors are checked; the slicing checks skip (77) only when
 -- no EGL context can be created.
-local failed, passed = 0, 0
-local function check(cond, msg)
-  if cond then
-    passed = passed + 1
-  else
-    failed = failed + 1
-    io.stderr:write(debug.traceback("check failed: " .. tostring(msg), 2), "\n")
-  end
-end
-local function raises(f, pattern, what)
-  local ok, err = pcall(f)
-  check(not ok and (not pattern or tostring(err):find(pattern, 1, true)),
-        what .. ": expected an error" .. (pattern and (" with '" .. pattern .. "'") or "") ..
-        ", got " .. tostring(err))
-end
+local checks = dofile((arg[0]:match("^(.*)/") or ".") .. "/checks.lua")
+local check, raises = checks.check, checks.raises
 
 -- 1. Table 2: 1024^3 voxels of 4 bytes in [-1, 1]^3, eye at distance D from the first slice
 local MiB = 1024 * 1024
@@ -50,8 +37,8 @@ check(img:stats() == stats and stats.method == "raycast" and stats.samples > 0, 
 if not cdvr.have_gl then
   raises(function() cdvr.render(vol, {tf = tf, camera = cam, method = "slice"}) end,
          "built without GL", "method=slice without GL")
-  print(passed .. " passed, " .. failed .. " failed (no GL in this build)")
-  os.exit(failed == 0 and 0 or 1)
+  checks.finish(" (no GL in this build)")
+  os.exit(0)
 end
 local ok, simg, sstats = pcall(cdvr.render, vol, {tf = tf, camera = cam, method = "slice"})
 if not ok and tostring(simg):find("EGL", 1, true) then
@@ -126,5 +113,5 @@ else
   print("CDVR_SHARED_DATA unset: real-volume checks skipped")
 end
 
-print(passed .. " passed, " .. failed .. " failed")
-os.exit(failed == 0 and 0 or 1)
+checks.finish()
+os.exit(0)

@@ -1,21 +1,8 @@
 -- tests/lua/test_splat.lua - the Lua surface of splatting: cdvr.splat_order (#o, o[i],
 -- thresholds, perspective), cdvr.splat_order_quality, cdvr.render{method="splat"}; misuse
 -- raises naming the function and the reason, unknown option keys are rejected.
-local failed, passed = 0, 0
-local function check(cond, msg)
-  if cond then
-    passed = passed + 1
-  else
-    failed = failed + 1
-    io.stderr:write(debug.traceback("check failed: " .. tostring(msg), 2), "\n")
-  end
-end
-local function raises(f, pattern, what)
-  local ok, err = pcall(f)
-  check(not ok and (not pattern or tostring(err):find(pattern, 1, true)),
-        what .. ": expected an error" .. (pattern and (" with '" .. pattern .. "'") or "") ..
-        ", got " .. tostring(err))
-end
+local checks = dofile((arg[0]:match("^(.*)/") or ".") .. "/checks.lua")
+local check, raises = checks.check, checks.raises
 
 -- orders: a permutation of 0..N-1, back to front
 local dims = {5, 3, 7}
@@ -169,5 +156,4 @@ raises(function() cdvr.render(blob, {method = "splat", tf = tf, device = "cl"}) 
 raises(function() cdvr.render(blob, {method = "splat", tf = tf, threshold = "high"}) end,
        "number expected", "threshold of the wrong type")
 
-io.write(string.format("%d passed, %d failed\n", passed, failed))
-if failed > 0 then os.exit(1) end
+checks.finish()

@@ -5,15 +5,8 @@
 -- quantize window and its decoded frames classify like the quantized series. Real files of
 -- ../shared/data (combustor float, headsq u16, viscous fingers) when CDVR_SHARED_DATA is set;
 -- the bundled ASL series always.
-local failed, passed = 0, 0
-local function check(cond, msg)
-  if cond then
-    passed = passed + 1
-  else
-    failed = failed + 1
-    io.stderr:write(debug.traceback("check failed: " .. tostring(msg), 2), "\n")
-  end
-end
+local checks = dofile((arg[0]:match("^(.*)/") or ".") .. "/checks.lua")
+local check = checks.check
 local function psnr(a, b) return cdvr.compare(a, b).psnr end
 local function same(a, b, what) check(psnr(a, b) == math.huge, what .. ": images differ (" .. psnr(a, b) .. " dB)") end
 local tmpdir = os.getenv("CDVR_BINARY_DIR") or "."
@@ -154,5 +147,4 @@ else
   end
 end
 
-print(string.format("%d passed, %d failed", passed, failed))
-if failed > 0 then os.exit(1) end
+checks.finish()

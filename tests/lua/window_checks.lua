@@ -2,21 +2,8 @@
 -- xvfb-run): the framebuffer equals the offscreen render of the same scene, a change of TF,
 -- camera, method or timestep shows in the next frame, store scenes step timesteps and variants,
 -- the object holds its scene, misuse raises. Not collected by ctest on its own (needs a display).
-local failed, passed = 0, 0
-local function check(cond, msg)
-  if cond then
-    passed = passed + 1
-  else
-    failed = failed + 1
-    io.stderr:write(debug.traceback("check failed: " .. tostring(msg), 2), "\n")
-  end
-end
-local function raises(f, pattern, what)
-  local ok, err = pcall(f)
-  check(not ok and (not pattern or tostring(err):find(pattern, 1, true)),
-        what .. ": expected an error" .. (pattern and (" with '" .. pattern .. "'") or "") ..
-        ", got " .. tostring(err))
-end
+local checks = dofile((arg[0]:match("^(.*)/") or ".") .. "/checks.lua")
+local check, raises = checks.check, checks.raises
 local function psnr(a, b) return cdvr.compare(a, b).psnr end
 
 local vol = cdvr.generate("ml", {dims = {40, 36, 32}, timesteps = 1})
@@ -163,5 +150,5 @@ w:close()
 w:close()
 os.remove(tmp)
 
-print(passed .. " passed, " .. failed .. " failed")
-os.exit(failed == 0 and 0 or 1)
+checks.finish()
+os.exit(0)
