@@ -23,6 +23,16 @@ function M.raises(f, pattern, what)
           ", got " .. tostring(err))
 end
 
+-- f() must raise, with every string of parts (plain text) in its message.
+function M.raises_all(f, parts, what)
+  local ok, msg = pcall(f)
+  M.check(not ok, what .. ": expected an error")
+  for _, part in ipairs(parts) do
+    M.check(not ok and tostring(msg):find(part, 1, true) ~= nil,
+            what .. ": message '" .. tostring(msg) .. "' lacks '" .. part .. "'")
+  end
+end
+
 -- Prints the counts (with note after them, if given); exits 1 when a check failed.
 function M.finish(note)
   print(("%d passed, %d failed%s"):format(M.passed, M.failed, note or ""))

@@ -4,22 +4,8 @@
 -- plugin of tests/plugins/ refused with an error naming the file and the reason; and
 -- CDVR_PLUGIN_PATH at start-up (a warning line per failure, never fatal; empty: none).
 
-local failures = 0
-local function check(cond, what)
-  if not cond then
-    failures = failures + 1
-    io.stderr:write("check failed: ", what, "\n", debug.traceback(), "\n")
-  end
-end
-
-local function raises(f, parts, what)
-  local ok, msg = pcall(f)
-  check(not ok, what .. ": expected an error")
-  for _, part in ipairs(parts) do
-    check(not ok and tostring(msg):find(part, 1, true) ~= nil,
-          what .. ": message '" .. tostring(msg) .. "' lacks '" .. part .. "'")
-  end
-end
+local checks = dofile((arg[0]:match("^(.*)/") or ".") .. "/checks.lua")
+local check, raises = checks.check, checks.raises_all
 
 local bin = os.getenv("CDVR_BINARY_DIR") or "."
 local built = " " .. (os.getenv("CDVR_BUILT_PLUGINS") or "") .. " "
@@ -139,7 +125,5 @@ else
   io.stderr:write("no executable path in arg[-1]: start-up checks skipped\n")
 end
 
-if failures > 0 then
-  error(failures .. " check(s) failed")
-end
+checks.finish()
 print("test_codecs: all checks passed")

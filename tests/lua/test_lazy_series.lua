@@ -6,22 +6,8 @@
 -- files); and files that disappear or change after load_series are errors naming the file.
 -- Real data (viscous fingers) when CDVR_SHARED_DATA is set; the rest runs on files made here.
 
-local failures = 0
-local function check(cond, what)
-  if not cond then
-    failures = failures + 1
-    io.stderr:write("check failed: ", what, "\n", debug.traceback(), "\n")
-  end
-end
-
-local function raises(f, parts, what)
-  local ok, msg = pcall(f)
-  check(not ok, what .. ": expected an error")
-  for _, part in ipairs(parts) do
-    check(not ok and tostring(msg):find(part, 1, true) ~= nil,
-          what .. ": message '" .. tostring(msg) .. "' lacks '" .. part .. "'")
-  end
-end
+local checks = dofile((arg[0]:match("^(.*)/") or ".") .. "/checks.lua")
+local check, raises = checks.check, checks.raises_all
 
 local dir = os.tmpname()
 os.remove(dir)
@@ -183,5 +169,5 @@ if data then
 end
 
 os.execute("rm -rf '" .. dir .. "'")
-if failures > 0 then error(failures .. " check(s) failed") end
+checks.finish()
 if not data then os.exit(77) end
