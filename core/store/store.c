@@ -1006,6 +1006,28 @@ static cdvr_status chunk_lookup(const cdvr_store *st, size_t v, size_t c,
     return CDVR_OK;
 }
 
+/* Reads n bytes of chunk c's part `what` ("" for the chunk itself, "range table ") at offset
+ * into buf and checks them against the CRC-32C the index records. */
+static cdvr_status read_checked(const cdvr_store *st, size_t v, size_t c, const char *what,
+                                uint8_t *buf, size_t n, uint64_t offset, uint32_t crc_index,
+                                cdvr_error *err)
+{
+    const char *name = st->variants[v].name;
+    size_t got = 0;
+    if (read_at(st->fd, buf, n, offset, &got) != CDVR_OK)
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: variant %s chunk %zu: %sread failed: %s",
+                              st->path, name, c + 1, what, strerror(errno));
+    if (got != n)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s chunk %zu: %struncated "
+                              "(%zu of %zu bytes)", st->path, name, c + 1, what, got, n);
+    uint32_t crc = cdvr_crc32c(0, buf, got);
+    if (crc != crc_index)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s chunk %zu: %sCRC-32C "
+                              "mismatch (index 0x%08x, data 0x%08x)", st->path, name, c + 1, what,
+                              crc_index, crc);
+    return CDVR_OK;
+}
+
 cdvr_status cdvr_store_read_chunk(const cdvr_store *st, size_t v, size_t c, uint8_t *buf,
                                   cdvr_error *err)
 {
@@ -1013,21 +1035,7 @@ cdvr_status cdvr_store_read_chunk(const cdvr_store *st, size_t v, size_t c, uint
     cdvr_status s = chunk_lookup(st, v, c, &ci, err);
     if (s != CDVR_OK)
         return s;
-    const char *name = st->variants[v].name;
-    size_t got = 0;
-    if (read_at(st->fd, buf, (size_t)ci->stored_bytes, ci->offset, &got) != CDVR_OK)
-        return cdvr_error_set(err, CDVR_ERR_IO, "%s: variant %s chunk %zu: read failed: %s",
-                              st->path, name, c + 1, strerror(errno));
-    if (got != ci->stored_bytes)
-        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s chunk %zu: truncated "
-                              "(%zu of %llu bytes)", st->path, name, c + 1, got,
-                              (unsigned long long)ci->stored_bytes);
-    uint32_t crc = cdvr_crc32c(0, buf, got);
-    if (crc != ci->crc32c)
-        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s chunk %zu: CRC-32C mismatch "
-                              "(index 0x%08x, data 0x%08x)", st->path, name, c + 1, ci->crc32c,
-                              crc);
-    return CDVR_OK;
+    return read_checked(st, v, c, "", buf, (size_t)ci->stored_bytes, ci->offset, ci->crc32c, err);
 }
 
 void cdvr_store_drop_cache(const cdvr_store *st, size_t v, size_t c)
@@ -1104,19 +1112,12 @@ cdvr_status cdvr_store_read_ranges(const cdvr_store *st, size_t v, size_t c, uin
     if (bytes == 0)
         return cdvr_error_set(err, CDVR_ERR_ARG, "%s: variant %s chunk %zu has no range table",
                               st->path, name, c + 1);
-    size_t stored_n = (size_t)ci->ranges_stored_bytes, got = 0;
+    size_t stored_n = (size_t)ci->ranges_stored_bytes;
     uint8_t *stored = ci->ranges_stage2 ? malloc(stored_n) : out;
     if (!stored)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for a range table", st->path);
-    if (read_at(st->fd, stored, stored_n, ci->ranges_offset, &got) != CDVR_OK)
-        s = cdvr_error_set(err, CDVR_ERR_IO, "%s: variant %s chunk %zu: range table read "
-                           "failed: %s", st->path, name, c + 1, strerror(errno));
-    else if (got != stored_n)
-        s = cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s chunk %zu: range table "
-                           "truncated (%zu of %zu bytes)", st->path, name, c + 1, got, stored_n);
-    else if (cdvr_crc32c(0, stored, got) != ci->ranges_crc32c)
-        s = cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s chunk %zu: range table "
-                           "CRC-32C mismatch", st->path, name, c + 1);
+    s = read_checked(st, v, c, "range table ", stored, stored_n, ci->ranges_offset,
+                     ci->ranges_crc32c, err);
     if (s == CDVR_OK && ci->ranges_stage2) {
         cdvr_error lerr;
         if (cdvr_lzo_decompress(stored, stored_n, out, bytes, &lerr) != CDVR_OK)
