@@ -17,7 +17,7 @@ if grep -q "CDVR_HAVE_OPENCL=1\|OpenCL_FOUND:.*=TRUE" "$build/CMakeCache.txt" 2>
   cl_libs="-lOpenCL"
 fi
 gcc -std=c11 -O2 -D_POSIX_C_SOURCE=200809L -I"$src/core/include" "$src/scripts/bench/pvtc_bench.c" \
-  "$build/libcdvr_core.a" -lteem -lniftiio -lznz -lz -llzo2 $cl_libs -lm -lpthread -o "$out/pvtc_bench"
+  "$build/libcdvr_core.a" -lteem -lniftiio -lznz -lz -lbz2 -llzo2 $cl_libs -lm -lpthread -o "$out/pvtc_bench"
 g++ -O2 "$src/scripts/bench/bc1_squish.cpp" -lsquish -o "$out/bc1_squish"
 
 "$out/pvtc_bench" prep "$out" "$data"

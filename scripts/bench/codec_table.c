@@ -21,6 +21,7 @@
 
 #include "cdvr/codec.h"
 #include "cdvr/plugin.h"
+#include "cdvr/timing.h"
 #include "cdvr/volume.h"
 
 typedef struct bench_variant {
@@ -37,25 +38,6 @@ static const bench_variant VARIANTS[] = {
     {"zfp", {"rate"}, {"2"}, 1},                 {"zfp", {"rate"}, {"4"}, 1},
 };
 #define NVARIANTS (sizeof VARIANTS / sizeof VARIANTS[0])
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
-static double median(double *v, int n)
-{
-    qsort(v, (size_t)n, sizeof *v, cmp_double);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 static void progress(const char *fmt, const char *a, const char *b)
 {
@@ -95,7 +77,7 @@ static int encode_all(const cdvr_codec *codec, const cdvr_codec_params *p, const
     e->total_bytes = 0;
     if (!e->payload || !e->bytes || T > 4)
         return 0;
-    double t0 = now_s();
+    double t0 = cdvr_now_ms() * 1e-3;
     for (size_t c = 0; c < e->nchunks; c++) {
         const uint8_t *frames[4];
         size_t count = nt - c * T < T ? nt - c * T : T;
@@ -109,7 +91,7 @@ static int encode_all(const cdvr_codec *codec, const cdvr_codec_params *p, const
         }
         e->total_bytes += e->bytes[c];
     }
-    *seconds = now_s() - t0;
+    *seconds = cdvr_now_ms() * 1e-3 - t0;
     return 1;
 }
 
@@ -151,12 +133,12 @@ static void error_of(const cdvr_volume *a, const cdvr_volume *b, double *psnr, i
 static double time_once(const cdvr_codec *codec, const cdvr_codec_params *p,
                         const cdvr_volume *vol, const encoded *e, cdvr_volume *out)
 {
-    double t0 = now_s();
+    double t0 = cdvr_now_ms() * 1e-3;
     if (codec)
         decode_all(codec, p, vol, e, out);
     else
         memcpy(out->data, vol->data, cdvr_volume_voxels(vol) * vol->timesteps);
-    return now_s() - t0;
+    return cdvr_now_ms() * 1e-3 - t0;
 }
 
 /* One variant, encoded and checked once, then timed. */
@@ -199,7 +181,7 @@ static int prepare(const bench_variant *bv, const cdvr_volume *vol, cdvr_volume 
     if (!ok || !decode_all(row->codec, &row->params, vol, &row->enc, out))
         return 0;
     error_of(vol, out, &row->psnr, &row->max_err);
-    row->encode_s = median(enc, 3);
+    row->encode_s = cdvr_median(enc, 3);
     row->bpv = 8.0 * (double)row->enc.total_bytes /
                (double)(cdvr_volume_voxels(vol) * vol->timesteps);
     return 1;
@@ -219,11 +201,11 @@ static void time_row(const bench_row *row, const bench_row *base, const cdvr_vol
         vs_base[r] = base ? t[r] / tb : NAN;
         vs_mem[r] = t[r] / tm;
     }
-    double dec = median(t, reps), mb = (double)(cdvr_volume_voxels(vol) * vol->timesteps) / 1e6;
+    double dec = cdvr_median(t, (size_t)reps), mb = (double)(cdvr_volume_voxels(vol) * vol->timesteps) / 1e6;
     printf("%s,%s,%zu,%.4f,%.2f,%d,%.1f,%.1f,%.3f,%.3f,%.2f,%.2f\n", name, row->variant,
            row->enc.shape.timesteps, row->bpv, row->psnr, row->max_err, mb / row->encode_s,
            mb / dec, 1e3 * dec / (double)row->enc.nchunks, 1e3 * dec / (double)vol->timesteps,
-           median(vs_mem, reps), base ? median(vs_base, reps) : NAN);
+           cdvr_median(vs_mem, (size_t)reps), base ? cdvr_median(vs_base, (size_t)reps) : NAN);
 }
 
 static void run_dataset(const char *name, const cdvr_volume *vol, int reps)

@@ -14,5 +14,5 @@ out=$(mktemp -d); trap 'rm -rf "$out"' EXIT
 cl_libs=""
 if nm "$build/libcdvr_core.a" 2>/dev/null | grep -q " U clGetPlatformIDs"; then cl_libs="-lOpenCL"; fi
 gcc -std=c11 -O2 -D_POSIX_C_SOURCE=200809L -I"$src/core/include" "$src/scripts/bench/codec_table.c" \
-  "$build/libcdvr_core.a" -lteem -lniftiio -lznz -lz -llzo2 $cl_libs -ldl -lm -lpthread -o "$out/codec_table"
+  "$build/libcdvr_core.a" -lteem -lniftiio -lznz -lz -lbz2 -llzo2 $cl_libs -ldl -lm -lpthread -o "$out/codec_table"
 "$out/codec_table" "$build/plugins" "$data" "$reps"

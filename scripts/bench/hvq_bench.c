@@ -22,26 +22,8 @@
 
 #include "cdvr/codec.h"
 #include "cdvr/plugin.h"
+#include "cdvr/timing.h"
 #include "cdvr/volume.h"
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec + ts.tv_nsec * 1e-9;
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
-static double median(double *v, int n)
-{
-    qsort(v, (size_t)n, sizeof *v, cmp_double);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 static void progress(const char *fmt, const char *a, const char *b)
 {
@@ -126,13 +108,13 @@ static double run_variant(const dataset *ds, const char *codec_name, const char 
     runs = runs < 1 ? 1 : runs > 16 ? 16 : runs;
     for (int r = 0; r < runs; r++) {
         progress("%s %s: encoding\n", ds->name, variant);
-        double t0 = now_s();
+        double t0 = cdvr_now_ms() * 1e-3;
         if (codec->encode(&blob, ds->dims, frames, 1, payload, shape.bound_bytes, &bytes,
                           &err) != CDVR_OK) {
             fprintf(stderr, "%s on %s: %s\n", variant, ds->name, err.msg);
             return NAN;
         }
-        enc[r] = now_s() - t0;
+        enc[r] = cdvr_now_ms() * 1e-3 - t0;
         if (r == 0) {
             first = malloc(bytes);
             memcpy(first, payload, bytes);
@@ -143,15 +125,15 @@ static double run_variant(const dataset *ds, const char *codec_name, const char 
     }
     uint8_t *outs[1] = {out};
     for (int r = 0; r < runs; r++) {
-        double t0 = now_s();
+        double t0 = cdvr_now_ms() * 1e-3;
         if (codec->decode(&blob, ds->dims, payload, bytes, outs, 1, &err) != CDVR_OK) {
             fprintf(stderr, "%s on %s: decode: %s\n", variant, ds->name, err.msg);
             return NAN;
         }
-        dec[r] = now_s() - t0;
-        t0 = now_s();
+        dec[r] = cdvr_now_ms() * 1e-3 - t0;
+        t0 = cdvr_now_ms() * 1e-3;
         memcpy(copy, ds->data, n);
-        cpy[r] = now_s() - t0;
+        cpy[r] = cdvr_now_ms() * 1e-3 - t0;
         deterministic &= copy[r % n] == ds->data[r % n]; /* keeps the copy */
     }
     double sse = 0;
@@ -165,11 +147,11 @@ static double run_variant(const dataset *ds, const char *codec_name, const char 
     figures f = {.n = 0};
     if (codec->describe)
         codec->describe(&blob, ds->dims, payload, bytes, figures_emit, &f, &err);
-    double dmed = median(dec, runs), cmed = median(cpy, runs);
+    double dmed = cdvr_median(dec, (size_t)runs), cmed = cdvr_median(cpy, (size_t)runs);
     printf("%s,%s,%s,%s,%zu,%zu,%.3f,%.4f,%.3f,%d,%.3f,%.4f,%.5f,%.1f,%s,%.0f,%.0f,%.0f,%.0f,"
            "%.0f,%.0f,%.0f,%.0f\n",
            ds->name, variant, codec_name, ptext, n, bytes, (double)n / bytes, 8.0 * bytes / n,
-           psnr, maxerr, median(enc, runs), dmed, cmed, dmed / cmed,
+           psnr, maxerr, cdvr_median(enc, (size_t)runs), dmed, cmed, dmed / cmed,
            runs > 1 ? (deterministic ? "yes" : "NO") : "-", figure(&f, "zero_blocks"),
            figure(&f, "blocks"), figure(&f, "residual_voxels"), figure(&f, "means"),
            figure(&f, "codebook1"), figure(&f, "codebook2"), figure(&f, "index_hash"),

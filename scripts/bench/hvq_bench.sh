@@ -17,7 +17,7 @@ if nm "$build/libcdvr_core.a" 2>/dev/null | grep -q " U clGetPlatformIDs"; then
   cl_libs="-lOpenCL"
 fi
 gcc -std=c11 -O2 -D_POSIX_C_SOURCE=200809L -I"$src/core/include" "$src/scripts/bench/hvq_bench.c" \
-  "$build/libcdvr_core.a" -lteem -lniftiio -lznz -lz -llzo2 $cl_libs -lm -lpthread -ldl \
+  "$build/libcdvr_core.a" -lteem -lniftiio -lznz -lz -lbz2 -llzo2 $cl_libs -lm -lpthread -ldl \
   -rdynamic -o "$out/hvq_bench"
 if [ $# -eq 0 ]; then
   set -- compare "$data" 3
