@@ -249,6 +249,8 @@ int lcdvr_decode_cl(lua_State *L, const cdvr_store *st, size_t v, size_t t)
     memcpy(vol->spacing, info->spacing, sizeof vol->spacing);
     memcpy(vol->origin, info->origin, sizeof vol->origin);
     memcpy(vol->direction, info->direction, sizeof vol->direction);
+    vol->window[0] = info->qlo; /* the codes 0..255 stand for the store's value window */
+    vol->window[1] = info->qhi;
     lcdvr_pushvolume(L, vol); /* owned by Lua from here */
     forget_frame(d);         /* the stream's frames are about to be replaced */
     size_t frame = load_chunk(L, s, st, v, t);

@@ -229,8 +229,6 @@ static int l_render(lua_State *L)
         cdvr_error err;
         if (cdvr_store_decode(st, v, frame, &decoded, &err) != CDVR_OK)
             return lcdvr_raise(L, &err);
-        decoded->window[0] = cdvr_store_get_info(st)->qlo; /* its codes span the store window */
-        decoded->window[1] = cdvr_store_get_info(st)->qhi;
         lcdvr_pushvolume(L, decoded);
         lua_replace(L, 1);
         vol = decoded;

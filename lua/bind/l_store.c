@@ -703,10 +703,7 @@ static int store_decode(lua_State *L)
             return lcdvr_raise(L, &err);
         lcdvr_pushvolume(L, vol);
     }
-    cdvr_volume *out = lcdvr_checkvolume(L, -1); /* codes span the store's window (volume.h) */
-    out->window[0] = cdvr_store_get_info(st)->qlo; /* (the cl path builds its own volume) */
-    out->window[1] = cdvr_store_get_info(st)->qhi;
-    return 1;
+    return 1; /* the decoded volume carries the store's value window either way */
 }
 
 /* Reads and unpacks chunk c into a Lua string (pushed), or raises. */

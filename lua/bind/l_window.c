@@ -122,8 +122,6 @@ static void push_scene_volume(lua_State *L, int w_idx, lwindow *w, long *t, doub
         cdvr_error err;
         if (cdvr_store_decode(st, (size_t)w->variant, (size_t)w->t - 1, &vol, &err) != CDVR_OK)
             lcdvr_raise(L, &err);
-        vol->window[0] = cdvr_store_get_info(st)->qlo; /* its codes span the store's window */
-        vol->window[1] = cdvr_store_get_info(st)->qhi;
         lcdvr_pushvolume(L, vol);
         lua_setiuservalue(L, w_idx, UV_FRAME);
         w->frame_t = w->t;
