@@ -85,7 +85,11 @@ typedef struct item_queue {
 typedef cdvr_status (*caller_fn)(cdvr_player *p, chunk_item *it, cdvr_error *err);
 
 struct cdvr_player {
-    cdvr_player_opts opts;
+    cdvr_player_opts opts;   /* opts.method resolved (never NULL) */
+    int on_stream;           /* frames live on the cl stream and the method's render_stream
+                                renders them (else frames are decoded on the host and the
+                                method's render draws them on its device) */
+    cdvr_render_ctx *own_ctx;/* made here when opts.ctx is NULL and the method needs one */
     size_t group_len;
     size_t stride, phase;    /* frames k with k % stride == phase are this player's */
     size_t nbricks;
@@ -468,7 +472,7 @@ static void select_bricks(cdvr_player *p, chunk_item *it)
 static int wants_grids(const cdvr_player *p, const chunk_item *it)
 {
 #if CDVR_HAVE_OPENCL
-    if (p->opts.device != CDVR_DEVICE_CL || !p->opts.empty_skip || p->clipped ||
+    if (!p->on_stream || !p->opts.empty_skip || p->clipped ||
         it->bricks_read != p->nbricks)
         return 0;
     for (size_t b = 0; b < p->nbricks; b++) {
@@ -707,7 +711,7 @@ static cdvr_status decode_host(cdvr_player *p, int w, chunk_item *it, size_t cou
  * whose first group the device decoded faster on the host. */
 static int decodes_on_host(cdvr_player *p, const chunk_item *it)
 {
-    if (p->opts.device != CDVR_DEVICE_CL)
+    if (!p->on_stream)
         return 1;
     const cdvr_chunk_info *ch = cdvr_store_chunk(p->opts.store, (size_t)it->variant, it->chunk);
     if (!ch->codec || ch->codec->cl_mode == CDVR_CODEC_CL_NONE || p->nbricks > 1)
@@ -873,7 +877,7 @@ static cdvr_status upload_decode(cdvr_player *p, chunk_item *it, double *upload_
     *decode_ms = it->host_decode_ms;
     if (it->slot >= 0) {
 #if CDVR_HAVE_OPENCL
-        if (p->opts.device == CDVR_DEVICE_CL) {
+        if (p->on_stream) {
             double t0 = cdvr_now_ms();
             cdvr_status s = cdvr_cl_use_host_frames(p->stream, p->slots[it->slot], ch->count, err);
             *upload_ms = cdvr_now_ms() - t0;
@@ -936,20 +940,15 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
         ro.clip = &clip;
     }
 #if CDVR_HAVE_OPENCL
-    if (p->opts.device == CDVR_DEVICE_CL) {
+    if (p->on_stream) {
         double t0 = cdvr_now_ms();
-        cdvr_status s = CDVR_ERR_ARG;
-        if (f < it->ngrids) /* flags made in the pipeline: upload them */
-            s = cdvr_cl_setup_grid(p->stream, f, p->opts.tf, &it->grids[f], err);
-        if (s == CDVR_ERR_ARG)
-            s = cdvr_cl_setup(p->stream, f, p->opts.tf, err);
-        double t1 = cdvr_now_ms();
+        const cdvr_skip_grid *grid = f < it->ngrids ? &it->grids[f] : NULL;
+        cdvr_status s = cdvr_image_create(cam->width, cam->height, img, err);
         if (s == CDVR_OK)
-            s = cdvr_image_create(cam->width, cam->height, img, err);
-        if (s == CDVR_OK)
-            s = cdvr_cl_render(p->stream, f, &ro, info->spacing, info->origin, info->direction, *img, err);
-        *setup_ms = t1 - t0;
-        *render_ms = cdvr_now_ms() - t1;
+            s = p->opts.method->render_stream(p->stream, f, grid, &ro, &p->opts.method_params,
+                                              info->spacing, info->origin, info->direction,
+                                              *img, setup_ms, err);
+        *render_ms = cdvr_now_ms() - t0 - *setup_ms;
         return s;
     }
 #endif
@@ -961,8 +960,10 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
     frame.timesteps = 1;
     frame.type = CDVR_TYPE_U8;
     frame.data = p->slots[it->slot] + f * p->voxels;
+    cdvr_render_ctx *ctx = p->opts.ctx ? p->opts.ctx : p->own_ctx;
     double t0 = cdvr_now_ms();
-    cdvr_status s = cdvr_render_cpu(&frame, 0, &ro, img, err);
+    cdvr_status s = p->opts.method->render(ctx, p->opts.device, &frame, 0, &ro,
+                                           &p->opts.method_params, NULL, img, err);
     *render_ms = cdvr_now_ms() - t0;
     return s;
 }
@@ -1348,10 +1349,18 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
         return cdvr_error_set(err, CDVR_ERR_ARG, "player: variant %d out of range 1..%zu", opts->variant + 1, info->nvariants);
     if (cdvr_camera_validate(&opts->camera, err) != CDVR_OK)
         return err ? err->status : CDVR_ERR_ARG;
+    const cdvr_render_method *method = opts->method ? opts->method
+                                                    : cdvr_render_method_find("raycast");
+    if (cdvr_render_method_check_device(method, opts->device, err) != CDVR_OK)
+        return err ? err->status : CDVR_ERR_UNSUPPORTED;
     cdvr_player *p = calloc(1, sizeof *p);
     if (!p)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "player: out of memory");
     p->opts = *opts;
+    p->opts.method = method;
+    if (!opts->method)
+        method->params_default(&p->opts.method_params);
+    p->on_stream = opts->device == CDVR_DEVICE_CL && method->render_stream != NULL;
     if (p->opts.ring <= 0)
         p->opts.ring = 3;
     p->group_len = cdvr_player_group_length(opts->store);
@@ -1359,6 +1368,10 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
     p->stride = opts->frame_stride ? opts->frame_stride : 1;
     p->phase = opts->frame_phase % p->stride;
     cdvr_status rs = set_region(p, err);
+    if (rs == CDVR_OK && p->clipped && !method->bricks)
+        rs = cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "player: method '%s' cannot render a "
+                            "box of the bricks (sort-last distribution needs a method that "
+                            "honours clipping: raycast)", method->name);
     if (rs != CDVR_OK) {
         free(p);
         return rs;
@@ -1386,7 +1399,14 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
     }
     for (size_t b = 0; b < p->nbricks; b++)
         brick_corners(info, b, (double(*)[3])(p->corners + 24 * b));
-    if (opts->device == CDVR_DEVICE_CL) {
+    if (!p->on_stream && opts->device != CDVR_DEVICE_CPU && !opts->ctx) {
+        cdvr_status s = cdvr_render_ctx_create(&p->own_ctx, err);
+        if (s != CDVR_OK) {
+            cdvr_player_free(p);
+            return s;
+        }
+    }
+    if (p->on_stream) {
 #if CDVR_HAVE_OPENCL
         cdvr_status s = cdvr_cl_open(&p->cl, err);
         if (s == CDVR_OK)
@@ -1436,6 +1456,7 @@ void cdvr_player_free(cdvr_player *p)
     cdvr_cl_stream_free(p->stream);
     cdvr_cl_close(p->cl);
 #endif
+    cdvr_render_ctx_free(p->own_ctx);
     pthread_mutex_destroy(&p->mu);
     pthread_cond_destroy(&p->cv);
     free(p);

@@ -24,6 +24,7 @@
 #include "cdvr/camera.h"
 #include "cdvr/error.h"
 #include "cdvr/image.h"
+#include "cdvr/method.h"
 #include "cdvr/store.h"
 #include "cdvr/tf.h"
 #include "cdvr/volume.h"
@@ -158,9 +159,30 @@ void lcdvr_setimagestats(lua_State *L, int idx);
 const atomic_int *lcdvr_interrupt_flag(lua_State *L);
 void lcdvr_set_interrupt_flag(lua_State *L, atomic_int *flag);
 
-/* 2D-texture slicing for cdvr.render{method="slice"} (l_gl.c): lod= is read from the options
- * table (argument 2). Pushes the image and its stats table, or raises. */
-int lcdvr_render_slice(lua_State *L, const cdvr_volume *vol, size_t t, void *render_opts);
+/* Render methods (l_method.c, cdvr/method.h). The state's render context (OpenCL device and
+ * stream, EGL slicer), made on first use and kept in the registry. */
+cdvr_render_ctx *lcdvr_render_ctx(lua_State *L);
+/* The method called name, or raises "what: option 'method': unknown method 'x' (methods: ...)". */
+const cdvr_render_method *lcdvr_method_lookup(lua_State *L, const char *name, const char *what);
+/* The method of option `method` of the table at idx (default "raycast"). */
+const cdvr_render_method *lcdvr_method_option(lua_State *L, int idx, const char *what);
+/* lcdvr_checkoptions for the table at idx with the keys `base` (NULL-terminated) plus the
+ * scene keys and own options of method m. */
+void lcdvr_method_checkoptions(lua_State *L, int idx, const cdvr_render_method *m,
+                               const char *what, const char *const base[]);
+/* 1 when m takes key (a scene key it honours or one of its options). */
+int lcdvr_method_takes(const cdvr_render_method *m, const char *key);
+/* m's options from the table at idx (the defaults for absent keys; not a table: all defaults);
+ * wrong types and bad values raise naming `what` and the option. */
+void lcdvr_method_params(lua_State *L, int idx, const cdvr_render_method *m, const char *what,
+                         cdvr_method_params *out);
+/* Option `device` of the table at idx for m: absent or "auto" -> the default device rule
+ * (cdvr_render_method_default_device); a device m does not list raises. */
+cdvr_device_kind lcdvr_method_device(lua_State *L, int idx, const cdvr_render_method *m,
+                                     const char *what);
+/* Pushes a table of a render's figures, with method = m->name. */
+void lcdvr_push_render_stats(lua_State *L, const cdvr_render_method *m,
+                             const cdvr_render_stats *stats);
 
 /* Windows (l_window.c), driven by the console between input lines: processes every open
  * window's events and playback and redraws what changed (all of them when `changed`: a console
@@ -170,20 +192,6 @@ int lcdvr_window_tick(lua_State *L, int changed, int *printed);
 /* Opens the console's window (cdvr -i with a display) as the global `window`; returns 0 and
  * prints one notice line when there is no display or no GL. */
 int lcdvr_window_console(lua_State *L);
-
-/* OpenCL rendering for cdvr.render{device="cl"} (l_device.c). Pushes the image or raises. */
-int lcdvr_render_cl(lua_State *L, const cdvr_volume *vol, size_t t, void *render_opts);
-
-/* OpenCL render of timestep t (from 0) of variant v of a store (l_device.c): the chunk goes
- * to the device and is decoded there, or rendered in the compressed domain by a fetch-mode
- * codec. Pushes image and stats, or raises. */
-int lcdvr_render_cl_store(lua_State *L, const cdvr_store *st, size_t v, size_t t,
-                          void *render_opts);
-
-/* cdvr.render{method="splat"} (l_splat.c): reads the splat options of the table at index 2
- * beside the common ones in render_opts (a cdvr_render_opts); pushes the image and stats. */
-int lcdvr_render_splat(lua_State *L, const cdvr_volume *vol, size_t t, const void *render_opts,
-                       int device);
 
 /* OpenCL decode for st:decode(t, variant, {device="cl"}) (l_device.c): decodes timestep t
  * (from 0) of variant v with the decode kernel and pushes a new u8 volume, or raises. */
@@ -195,6 +203,7 @@ int lcdvr_open_image(lua_State *L);
 int lcdvr_open_tf(lua_State *L);
 int lcdvr_open_camera(lua_State *L);
 int lcdvr_open_render(lua_State *L);
+int lcdvr_open_method(lua_State *L);
 int lcdvr_open_compare(lua_State *L);
 int lcdvr_open_store(lua_State *L);
 int lcdvr_open_device(lua_State *L);

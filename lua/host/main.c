@@ -206,6 +206,7 @@ static int open_cdvr(lua_State *L)
     lcdvr_open_tf(L);
     lcdvr_open_camera(L);
     lcdvr_open_render(L);
+    lcdvr_open_method(L);
     lcdvr_open_compare(L);
     lcdvr_open_store(L);
     lcdvr_open_device(L);

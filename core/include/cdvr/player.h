@@ -72,6 +72,7 @@
 #include "cdvr/camera.h"
 #include "cdvr/error.h"
 #include "cdvr/image.h"
+#include "cdvr/method.h"
 #include "cdvr/render.h"
 #include "cdvr/store.h"
 #include "cdvr/tf.h"
@@ -121,11 +122,15 @@ typedef cdvr_status (*cdvr_composite_fn)(void *ud, const cdvr_frame_row *row,
 typedef cdvr_status (*cdvr_frame_fn)(void *ud, const cdvr_frame_row *row, const cdvr_image *img,
                                      cdvr_error *err);
 
-typedef enum cdvr_device_kind { CDVR_DEVICE_CPU = 0, CDVR_DEVICE_CL = 1 } cdvr_device_kind;
-
 typedef struct cdvr_player_opts {
     const cdvr_store *store;
-    cdvr_device_kind device;
+    cdvr_device_kind device;     /* one of the method's devices (cdvr/method.h) */
+    const cdvr_render_method *method; /* NULL: raycast */
+    cdvr_method_params method_params; /* the method's options (all zero with method NULL:
+                                         its defaults) */
+    cdvr_render_ctx *ctx;        /* devices for methods that render through it (gl, or a cl
+                                    method without render_stream); NULL: the player makes its
+                                    own when it needs one */
     const cdvr_tf *tf;
     cdvr_camera camera;          /* initial camera (also used when camera_fn is NULL) */
     double step, unit, term_alpha;
