@@ -190,8 +190,10 @@ const cdvr_render_method cdvr_method_raycast = {
     .description = "ray casting, front-to-back emission-absorption with trilinear samples "
                    "(render.h; the cpu renderer is the reference, cl matches it to 50 dB)",
     .devices = CDVR_DEVICE_BIT(CDVR_DEVICE_CPU) | CDVR_DEVICE_BIT(CDVR_DEVICE_CL),
-    .blends = CDVR_BLEND_BIT(CDVR_BLEND_COMPOSITE),
-    .shading = 0,
+    .blends = CDVR_BLEND_BIT(CDVR_BLEND_COMPOSITE) | CDVR_BLEND_BIT(CDVR_BLEND_MAX) |
+              CDVR_BLEND_BIT(CDVR_BLEND_MIN) | CDVR_BLEND_BIT(CDVR_BLEND_AVERAGE) |
+              CDVR_BLEND_BIT(CDVR_BLEND_ISO),
+    .shading = 1,
     .bricks = 1,
     .distribute = CDVR_METHOD_DIST_TIME | CDVR_METHOD_DIST_BRICKS,
     .scene_keys = CDVR_SCENE_STEP | CDVR_SCENE_UNIT | CDVR_SCENE_TERM | CDVR_SCENE_THREADS,

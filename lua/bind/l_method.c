@@ -3,6 +3,7 @@
  * registry and closed by its __gc, never in a C global), and the helpers that cdvr.render,
  * cdvr.window and cdvr.player use to read a method, its device and its options from an
  * options table: one reading of the method table for all of them. */
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -71,8 +72,11 @@ const cdvr_render_method *lcdvr_method_option(lua_State *L, int idx, const char 
     return lcdvr_method_lookup(L, name, what);
 }
 
-/* The keys an options table may hold for method m: `base` (NULL-terminated), the scene keys m
- * honours and m's own options. */
+const char *const lcdvr_look_keys[] = {"blend", "iso", "shade", "ambient", "diffuse", "specular",
+                                       "specular_power", "light", "gradient_opacity", NULL};
+
+/* The keys an options table may hold for method m: `base` (NULL-terminated), the look keys,
+ * the scene keys m honours and m's own options. */
 static int method_keys(const cdvr_render_method *m, const char *const base[],
                        const char *keys[MAX_KEYS])
 {
@@ -82,6 +86,8 @@ static int method_keys(const cdvr_render_method *m, const char *const base[],
     int n = 0;
     for (int i = 0; base[i] && n < MAX_KEYS - 1; i++)
         keys[n++] = base[i];
+    for (int i = 0; lcdvr_look_keys[i] && n < MAX_KEYS - 1; i++)
+        keys[n++] = lcdvr_look_keys[i];
     for (size_t i = 0; i < sizeof scene / sizeof scene[0] && n < MAX_KEYS - 1; i++)
         if (m->scene_keys & scene[i].bit)
             keys[n++] = scene[i].key;
@@ -156,6 +162,153 @@ void lcdvr_method_params(lua_State *L, int idx, const cdvr_render_method *m, con
     }
 }
 
+/* ---- blend mode, shading, gradient opacity, iso ----------------------------------------- */
+
+static double checked_number(lua_State *L, int idx, const char *key, double def, double lo,
+                             double hi, const char *what)
+{
+    int type = lua_getfield(L, idx, key);
+    double v = def;
+    if (type != LUA_TNIL) {
+        int ok;
+        v = lua_tonumberx(L, -1, &ok);
+        if (!ok || !(v >= lo && v <= hi))
+            luaL_error(L, "%s: option '%s': a number in [%g, %g] expected, got %s", what, key, lo,
+                       hi, ok ? lua_tostring(L, -1) : luaL_typename(L, -1));
+    }
+    lua_pop(L, 1);
+    return v;
+}
+
+/* {x, y, z} at the top of the stack into v (finite numbers). */
+static void read_vec3(lua_State *L, const char *what, const char *key, double v[3])
+{
+    if (!lua_istable(L, -1) || luaL_len(L, -1) != 3)
+        luaL_error(L, "%s: option '%s': {x, y, z} expected", what, key);
+    for (int a = 0; a < 3; a++) {
+        lua_geti(L, -1, a + 1);
+        int ok;
+        v[a] = lua_tonumberx(L, -1, &ok);
+        if (!ok || !isfinite(v[a]))
+            luaL_error(L, "%s: option '%s': {x, y, z} of finite numbers expected", what, key);
+        lua_pop(L, 1);
+    }
+}
+
+static void read_light(lua_State *L, int idx, cdvr_shading *sh, const char *what)
+{
+    if (lua_getfield(L, idx, "light") == LUA_TNIL) {
+        lua_pop(L, 1);
+        return;
+    }
+    static const char *const keys[] = {"dir", "headlight", NULL};
+    if (!lua_istable(L, -1))
+        luaL_error(L, "%s: option 'light': {dir={x, y, z}} or {headlight=true} expected", what);
+    lcdvr_checkoptions(L, -1, "light", keys);
+    if (lua_getfield(L, -1, "dir") != LUA_TNIL) {
+        read_vec3(L, what, "light.dir", sh->light_dir);
+        sh->light_fixed = 1;
+    }
+    lua_pop(L, 1);
+    if (lcdvr_optbooleanfield(L, -1, "headlight", 0))
+        sh->light_fixed = 0;
+    lua_pop(L, 1);
+}
+
+static void read_gradient_opacity(lua_State *L, int idx, cdvr_gradient_opacity *go,
+                                  const char *what)
+{
+    if (lua_getfield(L, idx, "gradient_opacity") == LUA_TNIL) {
+        lua_pop(L, 1);
+        return;
+    }
+    lua_Integer n = lua_istable(L, -1) ? luaL_len(L, -1) : -1;
+    if (n < 1 || n > CDVR_GRADIENT_OPACITY_MAX)
+        luaL_error(L, "%s: option 'gradient_opacity': a list of 1..%d {magnitude, opacity} pairs "
+                   "expected", what, CDVR_GRADIENT_OPACITY_MAX);
+    go->npoints = (size_t)n;
+    for (lua_Integer i = 1; i <= n; i++) {
+        lua_geti(L, -1, i);                       /* list, pair */
+        int ok_m = 0, ok_a = 0;
+        if (lua_istable(L, -1) && luaL_len(L, -1) == 2) {
+            lua_geti(L, -1, 1);
+            go->magnitude[i - 1] = lua_tonumberx(L, -1, &ok_m);
+            lua_geti(L, -2, 2);
+            go->factor[i - 1] = lua_tonumberx(L, -1, &ok_a);
+            lua_pop(L, 2);
+        }
+        if (!ok_m || !ok_a)
+            luaL_error(L, "%s: option 'gradient_opacity': entry %d: {magnitude, opacity} expected",
+                       what, (int)i);
+        lua_pop(L, 1);
+    }
+    lua_pop(L, 1);
+}
+
+static void read_iso(lua_State *L, int idx, cdvr_look *look, const char *what)
+{
+    static const char *const keys[] = {"value", "color", "opacity", NULL};
+    if (!lua_istable(L, -1))
+        luaL_error(L, "%s: option 'iso': {value=, color={r, g, b}, opacity=} expected", what);
+    lcdvr_checkoptions(L, -1, "iso", keys);
+    int iso = lua_gettop(L);
+    if (lua_getfield(L, iso, "value") != LUA_TNUMBER)
+        luaL_error(L, "%s: option 'iso': value= (a number in data units) is required", what);
+    look->iso_value = lua_tonumber(L, -1);
+    lua_pop(L, 1);
+    if (lua_getfield(L, iso, "color") != LUA_TNIL) {
+        double rgb[3];
+        read_vec3(L, what, "iso.color", rgb);
+        for (int c = 0; c < 3; c++)
+            look->iso_color[c] = (float)rgb[c];
+        look->iso_color_set = 1;
+    }
+    lua_pop(L, 1);
+    look->iso_opacity = checked_number(L, iso, "opacity", 1.0, 0.0, 1.0, what);
+    (void)idx;
+}
+
+void lcdvr_read_look(lua_State *L, int idx, const cdvr_render_method *m, const char *what,
+                     cdvr_look *look)
+{
+    memset(look, 0, sizeof *look);
+    if (!lua_istable(L, idx))
+        return;
+    idx = lua_absindex(L, idx);
+    const char *blend = lcdvr_optstringfield(L, idx, "blend", NULL);
+    int has_iso = lua_getfield(L, idx, "iso") != LUA_TNIL;
+    if (has_iso && !blend)
+        blend = "iso";
+    int b = blend ? cdvr_blend_parse(blend) : CDVR_BLEND_COMPOSITE;
+    if (b < 0)
+        luaL_error(L, "%s: option 'blend': unknown mode '%s' (composite, max, min, average, iso)",
+                   what, blend);
+    if (!(m->blends & CDVR_BLEND_BIT(b)))
+        luaL_error(L, "%s: method '%s' has no blend mode '%s'", what, m->name, blend);
+    look->blend = b;
+    if (b == CDVR_BLEND_ISO && !has_iso)
+        luaL_error(L, "%s: blend 'iso' needs iso={value=, color=}", what);
+    if (has_iso && b != CDVR_BLEND_ISO)
+        luaL_error(L, "%s: option 'iso' is for blend 'iso', not '%s'", what, blend);
+    if (has_iso)
+        read_iso(L, idx, look, what);
+    lua_pop(L, 1);
+    /* iso surfaces are shaded unless shade=false; composite only with shade=true */
+    int shade = lcdvr_optbooleanfield(L, idx, "shade", b == CDVR_BLEND_ISO);
+    read_gradient_opacity(L, idx, &look->gradient_opacity, what);
+    if ((shade || look->gradient_opacity.npoints) && !m->shading)
+        luaL_error(L, "%s: method '%s' does not shade (shade=, gradient_opacity= are for %s)",
+                   what, m->name, "raycast");
+    cdvr_shading *sh = &look->shade;
+    cdvr_shading_default(sh);
+    sh->enabled = shade;
+    sh->ambient = checked_number(L, idx, "ambient", sh->ambient, 0.0, 1e6, what);
+    sh->diffuse = checked_number(L, idx, "diffuse", sh->diffuse, 0.0, 1e6, what);
+    sh->specular = checked_number(L, idx, "specular", sh->specular, 0.0, 1e6, what);
+    sh->specular_power = checked_number(L, idx, "specular_power", sh->specular_power, 0.0, 1e6, what);
+    read_light(L, idx, sh, what);
+}
+
 cdvr_device_kind lcdvr_method_device(lua_State *L, int idx, const cdvr_render_method *m,
                                      const char *what)
 {
@@ -175,10 +328,12 @@ cdvr_device_kind lcdvr_method_device(lua_State *L, int idx, const cdvr_render_me
     return (cdvr_device_kind)kind;
 }
 
-void lcdvr_push_render_stats(lua_State *L, const cdvr_render_method *m,
+void lcdvr_push_render_stats(lua_State *L, const cdvr_render_method *m, cdvr_device_kind device,
                              const cdvr_render_stats *stats)
 {
     lua_createtable(L, 0, (int)stats->count + 1);
+    lua_pushstring(L, cdvr_device_name(device)); /* a method may name the device more closely */
+    lua_setfield(L, -2, "device");
     for (size_t i = 0; i < stats->count; i++) {
         const cdvr_render_stat *s = &stats->items[i];
         if (s->kind == CDVR_STAT_STRING)

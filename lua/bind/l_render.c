@@ -144,6 +144,7 @@ typedef struct render_call {
     const cdvr_render_method *method;
     cdvr_device_kind device;
     cdvr_method_params params;
+    cdvr_look look;
     cdvr_render_ctx *ctx;
 } render_call;
 
@@ -154,7 +155,7 @@ static int push_result(lua_State *L, const render_call *c, cdvr_status status, c
     if (status != CDVR_OK)
         return lcdvr_raise(L, err);
     lcdvr_pushimage(L, img);
-    lcdvr_push_render_stats(L, c->method, stats);
+    lcdvr_push_render_stats(L, c->method, c->device, stats);
     return finish(L, 2);
 }
 
@@ -170,6 +171,7 @@ static int render_store_direct(lua_State *L, render_call *c, const cdvr_store *s
     lua_call(L, 1, 1);          /* st, opts, tf, camera, info */
     cdvr_render_opts o = {0};
     read_options(L, &o, 5);
+    o.look = c->look;
     const cdvr_store_info *info = cdvr_store_get_info(st);
     const double window[2] = {info->qlo, info->qhi};
     window_tf(L, &o, window, 3);
@@ -216,6 +218,7 @@ static void read_call(lua_State *L, render_call *c)
     lcdvr_method_checkoptions(L, 2, c->method, "cdvr.render", base_keys);
     c->device = lcdvr_method_device(L, 2, c->method, "cdvr.render");
     lcdvr_method_params(L, 2, c->method, "cdvr.render", &c->params);
+    lcdvr_read_look(L, 2, c->method, "cdvr.render", &c->look);
     c->ctx = lcdvr_render_ctx(L);
 }
 
@@ -255,6 +258,7 @@ static int l_render(lua_State *L)
     lua_settop(L, 4); /* slots 3, 4 hold the TF and camera while rendering */
     cdvr_render_opts o = {0};
     read_options(L, &o, 1);
+    o.look = c.look;
     double window[2];
     const cdvr_volume *u8 = u8_frame(L, vol, &frame, window);
     window_tf(L, &o, window, 3);

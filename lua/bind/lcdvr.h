@@ -180,8 +180,17 @@ void lcdvr_method_params(lua_State *L, int idx, const cdvr_render_method *m, con
  * (cdvr_render_method_default_device); a device m does not list raises. */
 cdvr_device_kind lcdvr_method_device(lua_State *L, int idx, const cdvr_render_method *m,
                                      const char *what);
-/* Pushes a table of a render's figures, with method = m->name. */
-void lcdvr_push_render_stats(lua_State *L, const cdvr_render_method *m,
+/* The look options of the table at idx (blend=, iso={value=, color=, opacity=}, shade=,
+ * ambient=, diffuse=, specular=, specular_power=, light={dir=} | {headlight=true},
+ * gradient_opacity={{magnitude, opacity}, ...}) for method m: a blend mode or shading m lacks
+ * raises naming both. iso= implies blend "iso", which shades unless shade=false. */
+void lcdvr_read_look(lua_State *L, int idx, const cdvr_render_method *m, const char *what,
+                     cdvr_look *look);
+/* The look keys (NULL-terminated) every look-taking options table allows. */
+extern const char *const lcdvr_look_keys[];
+/* Pushes a table of a render's figures, with method = m->name and device = the device's name
+ * unless the method named it more closely (the OpenCL device, the GL renderer). */
+void lcdvr_push_render_stats(lua_State *L, const cdvr_render_method *m, cdvr_device_kind device,
                              const cdvr_render_stats *stats);
 
 /* Windows (l_window.c), driven by the console between input lines: processes every open

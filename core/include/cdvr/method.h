@@ -35,6 +35,10 @@
  *    cycles its order with 'o'); returns 1 when the params changed;
  *  - describe: a short text for the window's overlay ("lod seed", "order dda").
  *
+ * Adding a method: a file core/render/<folder>/<name>_method.c defining its table, one line in
+ * the built-in list of core/render/method.c, and that folder's CMakeLists.txt. Nothing else
+ * names a method.
+ *
  * Threads: the table is immutable; a cdvr_render_ctx and what it opened belong to one thread
  * at a time.
  */
@@ -71,15 +75,7 @@ const char *cdvr_device_name(cdvr_device_kind kind);
 /* The kind called name; -1 for an unknown name. */
 int cdvr_device_parse(const char *name);
 
-/* Blend modes (VTK's BlendMode). Only composite exists yet; the bit set says what a method
- * supports, so a later mode is refused clearly by methods that lack it. */
-typedef enum cdvr_blend {
-    CDVR_BLEND_COMPOSITE = 0,
-    CDVR_BLEND_MAX = 1,
-    CDVR_BLEND_MIN = 2,
-    CDVR_BLEND_AVERAGE = 3,
-    CDVR_BLEND_ISO = 4
-} cdvr_blend;
+/* Blend modes: cdvr_blend of render.h; the bit set says what a method supports. */
 #define CDVR_BLEND_BIT(mode) (1u << (mode))
 
 /* Common scene options a method honours (scene_keys bits); the rest of cdvr_render_opts
