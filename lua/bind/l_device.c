@@ -80,6 +80,12 @@ static ldevice *get_device(lua_State *L, cdvr_error *err)
     return d;
 }
 
+int lcdvr_cl_available(lua_State *L)
+{
+    cdvr_error err;
+    return get_device(L, &err) != NULL;
+}
+
 static ldevice *check_device(lua_State *L, const char *what)
 {
     cdvr_error err;
@@ -320,6 +326,12 @@ int lcdvr_open_device(lua_State *L)
 }
 
 #else /* no OpenCL in this build */
+
+int lcdvr_cl_available(lua_State *L)
+{
+    (void)L;
+    return 0;
+}
 
 static int l_cl_info(lua_State *L)
 {
