@@ -270,14 +270,16 @@ static int new_box(lwindow *w, const size_t dims[3], const double spacing[3],
 /* volume= / store= (one replaces the other). A scene of another box (dims, spacing, origin,
  * direction) drops the camera, so the next frame frames it (cdvr.orbit_camera), unless the
  * same call sets camera= (applied after this). A store shows its best variant
- * (cdvr_store_best_variant, the player's default too) until variant= or a policy says. */
-static void set_scene(lua_State *L, int w_idx, int idx, lwindow *w)
+ * (cdvr_store_best_variant, the player's default too) until variant= or a policy says.
+ * Returns 1 when the call named a scene. */
+static int set_scene(lua_State *L, int w_idx, int idx, lwindow *w)
 {
-    int reframe = 0;
+    int reframe = 0, named = 0;
     if (lua_getfield(L, idx, "volume") != LUA_TNIL) {
         lcdvr_checkoption(L, -1, "window", "volume", LCDVR_VOLUME);
         const cdvr_volume *vol = lcdvr_volume_header(L, -1);
         reframe = new_box(w, vol->dims, vol->spacing, vol->origin, vol->direction);
+        named = 1;
         lcdvr_checkvolume(L, -1);
         lua_setiuservalue(L, w_idx, UV_VOLUME);
         lua_pushnil(L);
@@ -293,6 +295,7 @@ static void set_scene(lua_State *L, int w_idx, int idx, lwindow *w)
         const cdvr_store *st = lcdvr_checkstore(L, -1);
         const cdvr_store_info *info = cdvr_store_get_info(st);
         reframe = new_box(w, info->dims, info->spacing, info->origin, info->direction);
+        named = 1;
         lua_setiuservalue(L, w_idx, UV_STORE);
         lua_pushnil(L);
         lua_setiuservalue(L, w_idx, UV_VOLUME);
@@ -307,6 +310,7 @@ static void set_scene(lua_State *L, int w_idx, int idx, lwindow *w)
         lua_pushnil(L);
         lua_setiuservalue(L, w_idx, UV_CAMERA);
     }
+    return named;
 }
 
 /* tf= a cdvr.TF, a preset name or a points table (through cdvr.tf) */
@@ -356,13 +360,17 @@ static void set_camera(lua_State *L, int w_idx, int idx)
     lua_setiuservalue(L, w_idx, UV_CAMERA_FN);
 }
 
-/* policy= a function or a cdvr.policy name (through cdvr.policy.get) */
+/* policy= a function, a cdvr.policy name (through cdvr.policy.get), or false for none */
 static void set_policy(lua_State *L, int w_idx, int idx)
 {
     int type = lua_getfield(L, idx, "policy");
     if (type == LUA_TNIL) {
         lua_pop(L, 1);
         return;
+    }
+    if (type == LUA_TBOOLEAN && !lua_toboolean(L, -1)) {
+        lua_pop(L, 1);
+        lua_pushnil(L);
     }
     if (type == LUA_TSTRING) {
         push_cdvr_function(L, "policy");
@@ -371,14 +379,16 @@ static void set_policy(lua_State *L, int w_idx, int idx)
         lua_insert(L, -2);
         lua_call(L, 1, 1);
     }
-    luaL_argexpected(L, lua_isfunction(L, -1) || lua_isnil(L, -1), idx, "policy function or name");
+    luaL_argexpected(L, lua_isfunction(L, -1) || lua_isnil(L, -1), idx, "policy function, name or false");
     lua_setiuservalue(L, w_idx, UV_POLICY);
 }
+
+static void run_policy(lua_State *L, int w_idx, lwindow *w);
 
 static void apply_options(lua_State *L, int w_idx, int idx, lwindow *w)
 {
     lcdvr_checkoptions(L, idx, "window", window_keys);
-    set_scene(L, w_idx, idx, w);
+    int new_scene = set_scene(L, w_idx, idx, w);
     set_tf(L, w_idx, idx);
     set_camera(L, w_idx, idx);
     set_policy(L, w_idx, idx);
@@ -408,11 +418,26 @@ static void apply_options(lua_State *L, int w_idx, int idx, lwindow *w)
     w->fps = fps;
     set_variant(L, idx, w, scene_store(L, w_idx));
     size_t n = scene_timesteps(L, w_idx);
-    lua_Integer t = lcdvr_optintegerfield(L, idx, "t", w->t);
+    /* a new scene keeps the timestep shown where it has it, else shows its last */
+    lua_Integer t = lcdvr_optintegerfield(L, idx, "t", new_scene && n && (size_t)w->t > n ? (long)n : w->t);
     if (n && (t < 1 || (size_t)t > n))
         luaL_error(L, "window: t = %I outside 1..%I", (LUAI_UACINT)t, (LUAI_UACINT)n);
     w->t = n ? (long)t : 1;
     w->dirty = 1;
+    /* a new store or policy: the policy chooses the first group's variant, as in the player
+     * (unless variant= says which) */
+    int asked = 0;
+    static const char *const decide_keys[] = {"store", "policy", "variant"};
+    for (int i = 0; i < 3; i++) {
+        int present = lua_getfield(L, idx, decide_keys[i]) != LUA_TNIL;
+        lua_pop(L, 1);
+        if (present)
+            asked = i < 2 ? 1 : -1;
+        if (asked < 0)
+            break;
+    }
+    if (asked > 0)
+        run_policy(L, w_idx, w);
 }
 
 /* ---- interaction ------------------------------------------------------------------------- */
