@@ -802,7 +802,7 @@ int lcdvr_open_player(lua_State *L)
                    "playback of a store: reader, stage-2 and device threads; camera = cdvr.Camera, path or function(frame, t); "
                    "policy = function(stats) or 'fixed'|'open_loop'|'closed_loop'; target_fps, variant, pipeline, cold, read_mbps, "
                    "out='frames/%04d.png' (capture: deterministic, never adapts; with policy= the policy's capture rule, else variant=, "
-                   "min_psnr= or the best quality), frame=function(row, image), device='cl'|'cpu', pace (default true with target_fps); "
+                   "min_psnr= or the best quality), frame=function(row, image), device='cl'|'cpu'|'auto' (default auto: cl when an OpenCL device opens), pace (default true with target_fps); "
                    "variant default: best quality; loop=true wraps past the last timestep (default: playback stops there, report.stopped "
                    "says so); brick_skip (default true: bricks the TF hides or the view misses are not read); "
                    "distribute='time'|'bricks' (mpirun: frames or bricks shared by the ranks)");
