@@ -1,7 +1,8 @@
 /* tests/test_overlay.c - the window's overlay text (core/render/gl/overlay.c; plain C, in every
  * build): cdvr_overlay_lines wraps a long line at spaces into lines that fit the image, draws
- * every glyph of it (the same lit pixels as one unwrapped line on a wide image), cuts a word
- * wider than the image with '~', and a short text stays one line. */
+ * every glyph of it (the same lit pixels as one unwrapped line on a wide image), keeps fields
+ * (two spaces apart) whole where they fit, cuts a word wider than the image with '~', and a
+ * short text stays one line. */
 #include "check.h"
 
 #include "cdvr/gl.h"
@@ -63,6 +64,20 @@ int main(void)
     CHECK(cdvr_overlay_lines(tiny, 60, 30, 6, 6, 2, "aaaa bbbb cccc dddd eeee", white) == 1,
           "lines below the image are not drawn");
     CHECK(cdvr_overlay_lines(tiny, 60, 100, 6, 6, 2, "   ", white) == 0, "blank text: no line");
+    /* fields (two spaces apart) stay whole where they fit: "aa" / "b cccccc", not "aa  b" /
+     * "cccccc" (which single-space breaking gives: "aa  b" fits too) */
+    uint8_t *a = grey(400, 100), *b = grey(400, 100);
+    cdvr_overlay_lines(a, 400, 100, 6, 6, 2, "b cccccc", white);
+    size_t field = lit(a, 400, 100, &max_x);
+    int two_fields_w = max_x + 20; /* "b cccccc" fits, the whole text does not */
+    int k = cdvr_overlay_lines(b, two_fields_w, 100, 6, 6, 2, "aa  b cccccc", white);
+    size_t below = 0;
+    for (int y = 30; y < 100; y++) /* the second line */
+        for (int x = 0; x < two_fields_w; x++)
+            below += b[4 * ((size_t)y * (size_t)two_fields_w + (size_t)x)] == 255;
+    CHECK(k == 2 && below == field, "break between fields: %d lines, %zu of %zu lit below", k, below, field);
+    free(a);
+    free(b);
     free(tiny);
     free(wide);
     free(narrow);

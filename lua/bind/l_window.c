@@ -258,12 +258,16 @@ static void set_variant(lua_State *L, int idx, lwindow *w, const cdvr_store *st)
 static int new_box(lwindow *w, const size_t dims[3], const double spacing[3],
                    const double origin[3], const double direction[9])
 {
-    scene_box b = {1, {dims[0], dims[1], dims[2]}, {0}, {0}, {0}};
-    memcpy(b.spacing, spacing, sizeof b.spacing);
-    memcpy(b.origin, origin, sizeof b.origin);
-    memcpy(b.direction, direction, sizeof b.direction);
-    int changed = !w->box.set || memcmp(&b, &w->box, sizeof b) != 0;
-    w->box = b;
+    scene_box *b = &w->box;
+    int changed = !b->set || memcmp(b->dims, dims, sizeof b->dims) != 0 ||
+                  memcmp(b->spacing, spacing, sizeof b->spacing) != 0 ||
+                  memcmp(b->origin, origin, sizeof b->origin) != 0 ||
+                  memcmp(b->direction, direction, sizeof b->direction) != 0;
+    b->set = 1;
+    memcpy(b->dims, dims, sizeof b->dims);
+    memcpy(b->spacing, spacing, sizeof b->spacing);
+    memcpy(b->origin, origin, sizeof b->origin);
+    memcpy(b->direction, direction, sizeof b->direction);
     return changed;
 }
 
@@ -612,7 +616,7 @@ static void overlay(lua_State *L, int w_idx, lwindow *w, uint8_t *rgba, int widt
                       : w->device == 1 ? "raycast (cl)"
                                        : "raycast (cpu)";
     double ms = w->last_frame_ms;
-    snprintf(timing, sizeof timing, "%.1f ms (%.1f fps)", ms, ms > 0.0 ? 1000.0 / ms : 0.0);
+    snprintf(timing, sizeof timing, "%.1f ms = %.0f fps", ms, ms > 0.0 ? 1000.0 / ms : 0.0);
     if (!n)
         snprintf(line, sizeof line, "no scene: window:set{volume=v, tf=...} or window:set{store=st}");
     else if (st)

@@ -210,8 +210,9 @@ const uint8_t *cdvr_window_pixels(const cdvr_window *win, int *width, int *heigh
  * opaque colour rgb at (x, y) (top-left) on a darkened band, into an 8-bit RGBA image. */
 void cdvr_overlay_text(uint8_t *rgba, int width, int height, int x, int y, int scale,
                        const char *text, const uint8_t rgb[3]);
-/* The same text wrapped to the image: broken before spaces into lines that fit between x and
- * the right edge (a word wider than that is cut and ends in '~'), drawn from (x, y) down,
+/* The same text wrapped to the image: broken into lines that fit between x and the right
+ * edge, before two spaces (fields) where one field fits, else before a space (a word wider
+ * than the line is cut and ends in '~'), drawn from (x, y) down,
  * one under the other, while they start inside the image. Returns the number of lines drawn. */
 int cdvr_overlay_lines(uint8_t *rgba, int width, int height, int x, int y, int scale,
                        const char *text, const uint8_t rgb[3]);

@@ -1,5 +1,6 @@
-/* core/render/gl/overlay.c - one line of text on an 8-bit RGBA image (the window's overlay),
- * with stb_easy_font's segment glyphs rasterised as rectangles on the CPU. No GL needed. */
+/* core/render/gl/overlay.c - text on an 8-bit RGBA image (the window's overlay): one line, or
+ * a line wrapped to the image's width, with stb_easy_font's segment glyphs rasterised as
+ * rectangles on the CPU. No GL needed. */
 #include "cdvr/gl.h"
 
 #include <stdio.h>
@@ -100,13 +101,15 @@ int cdvr_overlay_lines(uint8_t *rgba, int width, int height, int x, int y, int s
         if (!*s)
             break;
         size_t n = strlen(s), fit = 0;
-        for (size_t k = 1; k <= n && k <= OVERLAY_MAX_CHARS; k++) { /* break before a space */
-            if (k < n && s[k] != ' ')
-                continue;
-            if (prefix_width(s, k, "", scale) > avail)
-                break;
-            fit = k;
-        }
+        /* break before two spaces (between fields) where a field fits, else before one */
+        for (int gap = 2; gap >= 1 && fit == 0; gap--)
+            for (size_t k = 1; k <= n && k <= OVERLAY_MAX_CHARS; k++) {
+                if (k < n && strncmp(s + k, "  ", (size_t)gap) != 0)
+                    continue;
+                if (prefix_width(s, k, "", scale) > avail)
+                    break;
+                fit = k;
+            }
         char line[OVERLAY_MAX_CHARS + 8];
         size_t used = fit;
         if (fit == 0) { /* one word wider than the window: cut it, marked with '~' */
