@@ -60,6 +60,7 @@ typedef struct lwindow {
     double last_step_ms;
     double last_frame_ms, last_render_ms; /* the last frame drawn: its whole time, its render */
     lua_Integer callback_limit;/* instruction budget of the policy and camera callbacks */
+    double min_psnr;           /* the policy's quality floor (stats.min_psnr), NaN: none */
     size_t frames;             /* frames drawn (the camera callback's frame number) */
     int decided;               /* the policy chose the variant for the next frame's group */
     scene_box box;             /* of the scene shown */
@@ -208,8 +209,8 @@ static cdvr_camera *scene_camera(lua_State *L, int w_idx, lwindow *w, int vol_id
 
 static const char *const window_keys[] = {"volume", "store", "tf", "camera", "method", "device",
                                           "overlay", "t", "variant", "lod", "step", "playing",
-                                          "fps", "policy", "callback_limit", "width", "height",
-                                          "title", NULL};
+                                          "fps", "policy", "min_psnr", "callback_limit", "width",
+                                          "height", "title", NULL};
 
 static int option_index(lua_State *L, int idx, const char *key, const char *const names[],
                         int current)
@@ -402,6 +403,14 @@ static void apply_options(lua_State *L, int w_idx, int idx, lwindow *w)
     if (w->callback_limit < 1 || w->callback_limit > INT_MAX)
         luaL_error(L, "window: option 'callback_limit' = %I: must be 1..%d",
                    (LUAI_UACINT)w->callback_limit, INT_MAX);
+    int floor_type = lua_getfield(L, idx, "min_psnr"); /* a number, or false for none */
+    if (floor_type == LUA_TBOOLEAN && !lua_toboolean(L, -1))
+        w->min_psnr = NAN;
+    else if (floor_type != LUA_TNIL && (!lua_isnumber(L, -1) || isnan(lua_tonumber(L, -1))))
+        luaL_error(L, "window: option 'min_psnr': a number in dB or false expected");
+    else if (floor_type != LUA_TNIL)
+        w->min_psnr = lua_tonumber(L, -1);
+    lua_pop(L, 1);
     w->overlay = lcdvr_optbooleanfield(L, idx, "overlay", w->overlay);
     int lod_type = lua_getfield(L, idx, "lod");   /* true, false, "seed" or "screen" */
     if (lod_type == LUA_TBOOLEAN)
@@ -572,7 +581,8 @@ static void run_policy(lua_State *L, int w_idx, lwindow *w)
         lua_pop(L, 1);
         return;
     }
-    lcdvr_policy_view view = {(size_t)w->t - 1, (size_t)(w->t - 1) / group, w->fps, NAN, 0, 0};
+    lcdvr_policy_view view = {(size_t)w->t - 1, (size_t)(w->t - 1) / group, w->fps, w->min_psnr,
+                              0, 0};
     lcdvr_push_policy_stats(L, st, &view, w->rows, (size_t)w->nrows);
     cdvr_error err;
     cdvr_status s = lcdvr_call_callback(L, 1, 2, w->callback_limit, "window: policy", &err);
@@ -795,6 +805,7 @@ static int l_window(lua_State *L)
     w->t = 1;
     w->device = -1;
     w->callback_limit = LCDVR_CALLBACK_LIMIT;
+    w->min_psnr = NAN;
     snprintf(w->reason, sizeof w->reason, "-");
     luaL_setmetatable(L, LCDVR_WINDOW);
     int w_idx = lua_gettop(L);
@@ -1021,7 +1032,7 @@ int lcdvr_open_window(lua_State *L)
     lcdvr_setfuncs(L, window_funcs);
     lcdvr_help_add(L, "cdvr.window{volume= | store=, tf=, camera=, method=, device=, overlay=, t=, variant=, ...}",
                    "open a window showing the scene (needs a display and GL); more keys: lod, step, "
-                   "playing, fps, policy, callback_limit, width, height, title; camera = cdvr.Camera, false "
+                   "playing, fps, policy, min_psnr, callback_limit, width, height, title; camera = cdvr.Camera, false "
                    "(frame the scene) or function(frame, t); defaults as cdvr.player: the store's best "
                    "variant, device cl when OpenCL has a device; drag orbits, wheel zooms, left/right "
                    "step t, up/down step variants, space plays, r resets the view, Esc or q closes");

@@ -86,10 +86,10 @@ local function capture_at(t0, sink)
 end
 local from_player, from_window = {}, {}
 local pp = cdvr.player{store = st, tf = tf, width = 32, height = 32, target_fps = 1000, pace = false,
-                       policy = capture_at(4, from_player)}
+                       min_psnr = 30, policy = capture_at(4, from_player)}
 pp:run{frames = 5}
 pp:close()
-w:set{store = st, fps = 1000, playing = true, t = 1, policy = capture_at(4, from_window)}
+w:set{store = st, fps = 1000, min_psnr = 30, playing = true, t = 1, policy = capture_at(4, from_window)}
 for _ = 1, 200 do
   if from_window.stats then break end
   w:frame()
@@ -111,6 +111,7 @@ if ws and ps then
   end
   check(ws.best == names[2] and ps.best == names[2], "stats.best: " .. tostring(ws.best))
   check(ws.target_fps == 1000 and ps.target_fps == 1000, "target_fps")
+  check(ws.min_psnr == 30 and ps.min_psnr == 30, "min_psnr")
   -- the window's rows time read, unzip and decode apart, with the bytes read
   local r1 = ws.frames[1]
   check(r1.t <= 2 and r1.variant == names[2] and r1.reason == "test: the best",
@@ -124,7 +125,17 @@ end
 w:set{policy = "closed_loop", playing = true, t = 1}
 for _ = 1, 12 do w:frame() end
 check(w:state().reason:find("closed_loop", 1, true), "closed_loop in the window: " .. w:state().reason)
-w:set{playing = false, policy = false}
+w:set{playing = false, policy = false, min_psnr = false}
+
+-- a bricked store: the window assembles the bricks of a chunk group as st:decode does
+local tmp3 = os.tmpname()
+local bricked = cdvr.encode(series, {variants = {{S = 4, T = 3}}, bricks = {2, 2, 1}, stage2 = "lzo", path = tmp3})
+for _, t in ipairs{2, 6} do
+  w:set{store = bricked, t = t, overlay = false}
+  w:frame()
+  local ref = cdvr.render(bricked:decode(t, 1), {tf = tf, camera = w:camera(), device = w:state().device})
+  check(cdvr.compare(w:read(), ref).psnr >= 50, "bricked store frame t = " .. t .. ": " .. cdvr.compare(w:read(), ref).psnr)
+end
 
 -- ---- budgets: a looping policy or camera callback raises, the window stays usable ------------
 w:set{store = st, t = 3, callback_limit = 100000}
@@ -232,5 +243,6 @@ end
 w:close()
 os.remove(tmp)
 os.remove(tmp2)
+os.remove(tmp3)
 checks.finish()
 os.exit(0)
