@@ -3,7 +3,9 @@
  *
  * Callbacks (policy, camera) run on the calling thread under an instruction budget
  * (`callback_limit`, default 5e7 VM instructions): a callback that runs too long or raises
- * stops playback with its traceback instead of stalling it.
+ * stops playback with its traceback instead of stalling it. The policy's stats, the budgeted
+ * call, the default variant and device are the scene contract it shares with the window
+ * (l_scene.c).
  */
 #include <errno.h>
 #include <float.h>
