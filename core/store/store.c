@@ -944,6 +944,27 @@ int cdvr_store_find_variant(const cdvr_store *st, const char *name)
     return -1;
 }
 
+/* The quality a variant is ranked by: a raw variant is lossless (+inf), else its recorded
+ * PSNR (+inf when lossless; a NaN, never written by the encoder, ranks below everything). */
+static double variant_quality(const cdvr_variant_info *var)
+{
+    if (var->codec_id == CDVR_CODEC_ID_RAW)
+        return HUGE_VAL;
+    return isnan(var->psnr) ? -HUGE_VAL : var->psnr;
+}
+
+int cdvr_store_best_variant(const cdvr_store *st)
+{
+    int best = 0;
+    for (size_t v = 1; v < st->info.nvariants; v++) {
+        const cdvr_variant_info *a = &st->variants[v], *b = &st->variants[best];
+        double qa = variant_quality(a), qb = variant_quality(b);
+        if (qa > qb || (qa == qb && a->bytes > b->bytes))
+            best = (int)v;
+    }
+    return best;
+}
+
 const cdvr_chunk_info *cdvr_store_chunk(const cdvr_store *st, size_t v, size_t c)
 {
     if (v >= st->info.nvariants || c >= st->variants[v].nchunks)

@@ -1,5 +1,5 @@
 /* lua/bind/l_camera.c - cdvr.Camera: cdvr.camera{...}, cdvr.orbit_camera(volume, {...}),
- * cam:get(), cam:set{...}; fields readable as cam.eye, cam.fov, ... */
+ * (or a store, or a box table), cam:get(), cam:set{...}; fields readable as cam.eye, cam.fov, ... */
 #include "lcdvr.h"
 
 #include <errno.h>
@@ -211,7 +211,7 @@ static int camera_gc(lua_State *L)
     return 0;
 }
 
-/* World bounds of the first argument: a volume (its oriented box), {x, y, z} dims, or
+/* World bounds of the first argument: a volume or a store (its oriented box), {x, y, z} dims, or
  * {dims=, spacing=, origin=[, direction=]}. */
 static void read_box(lua_State *L, double lo[3], double hi[3])
 {
@@ -222,8 +222,16 @@ static void read_box(lua_State *L, double lo[3], double hi[3])
         box = *v;
         for (int a = 0; a < 3; a++)
             dims[a] = (double)v->dims[a];
+    } else if (luaL_testudata(L, 1, LCDVR_STORE)) { /* its box, as st:info() gives it */
+        const cdvr_store_info *info = cdvr_store_get_info(lcdvr_checkstore(L, 1));
+        for (int a = 0; a < 3; a++) {
+            dims[a] = (double)info->dims[a];
+            box.spacing[a] = info->spacing[a];
+            box.origin[a] = info->origin[a];
+        }
+        memcpy(box.direction, info->direction, sizeof box.direction);
     } else {
-        luaL_argexpected(L, lua_istable(L, 1), 1, "cdvr.Volume or dims table");
+        luaL_argexpected(L, lua_istable(L, 1), 1, "cdvr.Volume, cdvr.Store or dims table");
         if (!lcdvr_numberarrayfield(L, 1, "dims", dims, 3)) {
             if (luaL_len(L, 1) != 3)
                 luaL_argerror(L, 1, "dims {x, y, z} expected");
@@ -314,7 +322,7 @@ int lcdvr_open_camera(lua_State *L)
     lcdvr_setfuncs(L, camera_funcs);
     lcdvr_help_add(L, "cdvr.camera{eye=, center=, up=, fov=, width=, height=, orthographic=, ortho_height=}",
                    "pinhole camera (defaults center {0,0,0}, up {0,0,1}, fov 30, 512x512)");
-    lcdvr_help_add(L, "cdvr.orbit_camera(volume | dims, {azimuth=, elevation=, distance=, fov=, width=, height=, up=})",
+    lcdvr_help_add(L, "cdvr.orbit_camera(volume | store | dims, {azimuth=, elevation=, distance=, fov=, width=, height=, up=})",
                    "camera around the box centre looking at it; azimuth 0 = +x side for up z; "
                    "default distance fits the box");
     lcdvr_help_add(L, "cam:get()", "table of the camera's fields (also readable as cam.eye, cam.fov, ...)");

@@ -3,7 +3,9 @@
  *
  * Callbacks (policy, camera) run on the calling thread under an instruction budget
  * (`callback_limit`, default 5e7 VM instructions): a callback that runs too long or raises
- * stops playback with its traceback instead of stalling it.
+ * stops playback with its traceback instead of stalling it. The policy's stats, the budgeted
+ * call, the default variant and device are the scene contract it shares with the window
+ * (l_scene.c).
  */
 #include <errno.h>
 #include <float.h>
@@ -35,6 +37,7 @@ typedef struct lplayer {
     int has_policy;      /* policy= given: it decides, also when capturing (stats.capture) */
     const char *variant_why; /* why opts.variant (a literal) */
     lua_Integer callback_limit;
+    double target_fps, min_psnr; /* for stats: target_fps 0 and min_psnr NaN when not given */
     int frame_callback;  /* frame= given (UV_FRAME) */
     int shows_frames;    /* this process shows the frames (frame=, out=; cdvr/dist.h) */
     out_pattern out;
@@ -63,19 +66,12 @@ static lplayer *checkidleplayer(lua_State *L, int idx, const char *what)
 
 /* ---- callbacks ---------------------------------------------------------------------------- */
 
-/* Calls the function below its nargs arguments under the callback budget; leaves nres results
- * and returns CDVR_OK, or fills err with "what: message and traceback". */
+/* Calls the function below its nargs arguments under the callback budget (the scene
+ * contract, lcdvr_call_callback). */
 static cdvr_status call_budgeted(lplayer *lp, lua_State *L, int nargs, int nres, const char *what,
                                  cdvr_error *err)
 {
-    if (lcdvr_pcall_budget(L, nargs, nres, lp->callback_limit) != LUA_OK) {
-        const atomic_int *interrupt = lcdvr_interrupt_flag(L); /* Ctrl-C in the console */
-        cdvr_status why = interrupt && atomic_load(interrupt) ? CDVR_ERR_CANCELLED : CDVR_ERR_ARG;
-        cdvr_error_set(err, why, "%s: %s", what, lua_tostring(L, -1));
-        lua_pop(L, 1);
-        return why;
-    }
-    return CDVR_OK;
+    return lcdvr_call_callback(L, nargs, nres, lp->callback_limit, what, err);
 }
 
 /* Runs fn(ctx, player) in protected mode on the running state, so that no Lua error (memory
@@ -101,70 +97,6 @@ static void setnum(lua_State *L, const char *key, double v)
     lua_setfield(L, -2, key);
 }
 
-/* Pushes one frame row as a table. */
-static void push_row(lua_State *L, const cdvr_store *st, const cdvr_frame_row *r)
-{
-    lua_createtable(L, 0, 22);
-    lua_pushinteger(L, (lua_Integer)r->frame + 1);
-    lua_setfield(L, -2, "frame");
-    lua_pushinteger(L, (lua_Integer)r->t + 1);
-    lua_setfield(L, -2, "t");
-    lua_pushstring(L, cdvr_store_variant(st, (size_t)r->variant)->name);
-    lua_setfield(L, -2, "variant");
-    setnum(L, "read_ms", r->read_ms);
-    setnum(L, "unzip_ms", r->unzip_ms);
-    setnum(L, "upload_ms", r->upload_ms);
-    setnum(L, "decode_ms", r->decode_ms);
-    setnum(L, "setup_ms", r->setup_ms);
-    setnum(L, "render_ms", r->render_ms);
-    setnum(L, "frame_ms", r->frame_ms);
-    setnum(L, "interval_ms", r->interval_ms);
-    setnum(L, "bytes", (double)r->bytes);
-    setnum(L, "payload_bytes", (double)r->payload_bytes);
-    setnum(L, "device_bytes", (double)r->device_bytes);
-    setnum(L, "composite_ms", r->composite_ms);
-    setnum(L, "wait_ms", r->wait_ms);
-    lua_pushinteger(L, (lua_Integer)r->bricks_read);
-    lua_setfield(L, -2, "bricks_read");
-    lua_pushinteger(L, (lua_Integer)r->bricks_skipped);
-    lua_setfield(L, -2, "bricks_skipped");
-    lua_pushinteger(L, r->rank);
-    lua_setfield(L, -2, "rank");
-    if (r->group_start) {
-        lua_pushstring(L, r->reason);
-        lua_setfield(L, -2, "reason");
-    }
-    if (r->status != CDVR_OK) {
-        lua_pushstring(L, r->error);
-        lua_setfield(L, -2, "error");
-    }
-}
-
-static void push_variants(lua_State *L, const cdvr_store *st)
-{
-    const cdvr_store_info *info = cdvr_store_get_info(st);
-    lua_createtable(L, (int)info->nvariants, 0);
-    for (size_t v = 0; v < info->nvariants; v++) {
-        const cdvr_variant_info *var = cdvr_store_variant(st, v);
-        const cdvr_chunk_info *ch0 = cdvr_store_chunk(st, v, 0);
-        lua_createtable(L, 0, 10);
-        lua_pushstring(L, var->name);
-        lua_setfield(L, -2, "name");
-        lua_pushstring(L, var->codec_name);
-        lua_setfield(L, -2, "codec");
-        if (var->codec)
-            lcdvr_push_params(L, var->codec, &ch0->params);
-        lua_pushstring(L, var->stage2 == CDVR_STAGE2_LZO ? "lzo" : "none");
-        lua_setfield(L, -2, "stage2");
-        setnum(L, "bytes_per_timestep", (double)var->bytes / (double)info->timesteps);
-        setnum(L, "payload_bytes_per_timestep", (double)var->payload_bytes / (double)info->timesteps);
-        setnum(L, "psnr", var->psnr);
-        lua_pushinteger(L, (lua_Integer)lcdvr_chunk_timesteps(st, v));
-        lua_setfield(L, -2, "group");
-        lua_rawseti(L, -2, (lua_Integer)v + 1);
-    }
-}
-
 typedef struct decide_ctx {
     lplayer *lp;
     cdvr_player *player;
@@ -183,49 +115,15 @@ static int decide_lua(lua_State *L)
     lplayer *lp = c->lp;
     const cdvr_store *st = lp->opts.store;
     lua_getiuservalue(L, 2, UV_POLICY);           /* policy */
-    lua_createtable(L, 0, 10);                    /* policy, stats */
-    lua_getiuservalue(L, 2, UV_OPTS);             /* policy, stats, opts */
-    lua_getfield(L, -1, "target_fps");
-    lua_setfield(L, -3, "target_fps");
-    lua_getfield(L, -1, "min_psnr");
-    lua_setfield(L, -3, "min_psnr");
-    lua_pop(L, 1);                                /* policy, stats */
-    lua_pushinteger(L, (lua_Integer)c->t + 1);
-    lua_setfield(L, -2, "t");
-    lua_pushinteger(L, (lua_Integer)c->group + 1);
-    lua_setfield(L, -2, "group");
-    lua_pushboolean(L, lp->opts.pipelined);
-    lua_setfield(L, -2, "pipelined");
-    lua_pushboolean(L, lp->capture);
-    lua_setfield(L, -2, "capture");
+    lcdvr_policy_view view = {c->t, c->group, lp->target_fps, lp->min_psnr, lp->opts.pipelined,
+                              lp->capture};
     size_t nrows;
     const cdvr_frame_row *rows = cdvr_player_rows(c->player, &nrows);
-    if (nrows) {
-        lua_pushstring(L, cdvr_store_variant(st, (size_t)rows[nrows - 1].variant)->name);
-        lua_setfield(L, -2, "current");
-    }
-    size_t first = nrows > 16 ? nrows - 16 : 0;
-    lua_createtable(L, (int)(nrows - first), 0);  /* policy, stats, frames */
-    for (size_t i = first; i < nrows; i++) {
-        push_row(L, st, &rows[i]);
-        lua_rawseti(L, -2, (lua_Integer)(i - first + 1));
-    }
-    lua_setfield(L, -2, "frames");
-    push_variants(L, st);
-    lua_setfield(L, -2, "variants");              /* policy, stats */
+    lcdvr_push_policy_stats(L, st, &view, rows, nrows); /* policy, stats */
     c->status = call_budgeted(lp, L, 1, 2, "policy", c->err);
     if (c->status != CDVR_OK)
         return 0;
-    /* name [, reason] */
-    const char *name = lua_tostring(L, -2);
-    int v = name ? cdvr_store_find_variant(st, name) : -1;
-    if (v < 0) {
-        c->status = cdvr_error_set(c->err, CDVR_ERR_ARG, "policy returned %s, not a variant of %s",
-                                   name ? name : luaL_typename(L, -2), cdvr_store_path(st));
-        return 0;
-    }
-    c->variant = v;
-    snprintf(c->reason, c->reason_size, "%s", lua_isstring(L, -1) ? lua_tostring(L, -1) : "policy");
+    c->status = lcdvr_policy_result(L, st, &c->variant, c->reason, c->reason_size, c->err);
     return 0;
 }
 
@@ -253,11 +151,6 @@ static cdvr_status decide_cb(void *ud, cdvr_player *player, size_t t, size_t gro
     return c.status;
 }
 
-static int read_vec3(lua_State *L, int idx, const char *key, double out[3])
-{
-    return lcdvr_numberarrayfield(L, idx, key, out, 3);
-}
-
 typedef struct camera_ctx {
     lplayer *lp;
     size_t t, frame;
@@ -277,22 +170,7 @@ static int camera_lua(lua_State *L)
     c->status = call_budgeted(c->lp, L, 2, 1, "camera", c->err);
     if (c->status != CDVR_OK)
         return 0;
-    cdvr_camera *ucam = luaL_testudata(L, -1, LCDVR_CAMERA);
-    if (ucam) {
-        int w = cam->width, h = cam->height;
-        *cam = *ucam;
-        cam->width = w;
-        cam->height = h;
-    } else if (lua_istable(L, -1)) {
-        read_vec3(L, -1, "eye", cam->eye);
-        read_vec3(L, -1, "center", cam->center);
-        read_vec3(L, -1, "up", cam->up);
-        cam->fov = lcdvr_optnumberfield(L, -1, "fov", cam->fov);
-    } else {
-        c->status = cdvr_error_set(c->err, CDVR_ERR_ARG,
-                                   "camera function returned %s (cdvr.Camera or {eye=,center=,up=,fov=} expected)",
-                                   luaL_typename(L, -1));
-    }
+    c->status = lcdvr_camera_result(L, -1, cam, c->err);
     return 0;
 }
 
@@ -301,9 +179,7 @@ static cdvr_status camera_cb(void *ud, size_t t, size_t frame, cdvr_camera *cam,
     lplayer *lp = ud;
     camera_ctx c = {lp, t, frame, cam, err, CDVR_OK};
     cdvr_status s = run_protected(lp, camera_lua, &c, "camera", err);
-    if (s == CDVR_OK)
-        s = c.status;
-    return s == CDVR_OK ? cdvr_camera_validate(cam, err) : s;
+    return s == CDVR_OK ? c.status : s;
 }
 
 static int make_parent_dirs(char *path)
@@ -376,7 +252,7 @@ static int frame_lua(lua_State *L)
     frame_ctx *c = (frame_ctx *)lua_touserdata(L, 1);
     const cdvr_image *img = c->img;
     lua_getiuservalue(L, 2, UV_FRAME);            /* fn */
-    push_row(L, c->lp->opts.store, c->row);       /* fn, row */
+    lcdvr_push_frame_row(L, c->lp->opts.store, c->row);       /* fn, row */
     cdvr_image *copy;
     c->status = cdvr_image_create(img->width, img->height, &copy, c->err);
     if (c->status != CDVR_OK)
@@ -429,29 +305,11 @@ static int is_callable(lua_State *L, int idx)
     return 0;
 }
 
-/* Best quality (policy.lua's order): highest encode-time PSNR (a raw variant counts as
- * lossless), ties broken by more stored bytes. */
-static int best_variant(const cdvr_store *st)
-{
-    const cdvr_store_info *info = cdvr_store_get_info(st);
-    int best = 0;
-    double best_q = -HUGE_VAL;
-    for (size_t v = 0; v < info->nvariants; v++) {
-        const cdvr_variant_info *var = cdvr_store_variant(st, v);
-        double q = var->codec_id == CDVR_CODEC_ID_RAW ? HUGE_VAL : isnan(var->psnr) ? -HUGE_VAL : var->psnr;
-        if (q > best_q || (q == best_q && var->bytes > cdvr_store_variant(st, (size_t)best)->bytes)) {
-            best = (int)v;
-            best_q = q;
-        }
-    }
-    return best;
-}
-
 /* variant= (name or index, 0-based result); absent: the best quality. */
 static int variant_option(lua_State *L, const cdvr_store *st)
 {
     int t = lua_getfield(L, 1, "variant");
-    int v = best_variant(st);
+    int v = cdvr_store_best_variant(st);
     if (t == LUA_TNUMBER) {
         v = (int)lua_tointeger(L, -1) - 1;
     } else if (t == LUA_TSTRING) {
@@ -752,14 +610,18 @@ static int l_player(lua_State *L)
             devi = i;
     if (devi < 0)
         luaL_error(L, "cdvr.player: invalid device '%s' (cpu, cl, auto)", dev);
-    lp->opts.device = devi == 1 || (devi == 2 && CDVR_HAVE_OPENCL) ? CDVR_DEVICE_CL : CDVR_DEVICE_CPU;
+    if (devi == 2) /* auto: the scene contract's rule, as the window's default */
+        devi = strcmp(lcdvr_default_device(L, "raycast"), "cl") == 0;
+    lp->opts.device = devi == 1 ? CDVR_DEVICE_CL : CDVR_DEVICE_CPU;
     render_options(L, lp, info);
-    lp->callback_limit = integer_option(L, "callback_limit", 50000000, 1, INT_MAX);
+    lp->callback_limit = integer_option(L, "callback_limit", LCDVR_CALLBACK_LIMIT, 1, INT_MAX);
+    lp->min_psnr = number_option(L, "min_psnr", NAN, -HUGE_VAL, HUGE_VAL, "a number in dB expected");
     lp->opts.variant = variant_option(L, st);
     lp->variant_why = "best quality (no variant, policy or min_psnr given)";
     lp->capture = capture_options(L, lp, st);
     frame_option(L, ud, lp);
     double target_fps = number_option(L, "target_fps", 0, DBL_MIN, DBL_MAX, "a finite number > 0 expected");
+    lp->target_fps = target_fps;
     if (!lp->capture && lcdvr_optbooleanfield(L, 1, "pace", 1))
         lp->opts.pace_fps = target_fps;
     lp->opts.loop = lcdvr_optbooleanfield(L, 1, "loop", 0);
@@ -855,7 +717,7 @@ static int player_run(lua_State *L)
     lua_createtable(L, (int)n, 0);                /* why, report, frames */
     for (size_t i = 0; i < n; i++) {
         int r = rows[i].rank >= 0 && rows[i].rank < ranks ? rows[i].rank : 0;
-        push_row(L, lp->opts.store, &rows[i]);
+        lcdvr_push_frame_row(L, lp->opts.store, &rows[i]);
         if (rows[i].group_start)
             why[r] = rows[i].reason;
         lua_pushstring(L, why[r] ? why[r] : "");
@@ -942,7 +804,7 @@ int lcdvr_open_player(lua_State *L)
                    "playback of a store: reader, stage-2 and device threads; camera = cdvr.Camera, path or function(frame, t); "
                    "policy = function(stats) or 'fixed'|'open_loop'|'closed_loop'; target_fps, variant, pipeline, cold, read_mbps, "
                    "out='frames/%04d.png' (capture: deterministic, never adapts; with policy= the policy's capture rule, else variant=, "
-                   "min_psnr= or the best quality), frame=function(row, image), device='cl'|'cpu', pace (default true with target_fps); "
+                   "min_psnr= or the best quality), frame=function(row, image), device='cl'|'cpu'|'auto' (default auto: cl when an OpenCL device opens), pace (default true with target_fps); "
                    "variant default: best quality; loop=true wraps past the last timestep (default: playback stops there, report.stopped "
                    "says so); brick_skip (default true: bricks the TF hides or the view misses are not read); "
                    "distribute='time'|'bricks' (mpirun: frames or bricks shared by the ranks)");

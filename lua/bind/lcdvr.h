@@ -25,6 +25,7 @@
 #include "cdvr/error.h"
 #include "cdvr/image.h"
 #include "cdvr/method.h"
+#include "cdvr/player.h"
 #include "cdvr/store.h"
 #include "cdvr/tf.h"
 #include "cdvr/volume.h"
@@ -112,6 +113,55 @@ int lcdvr_pcall_budget(lua_State *L, int nargs, int nres, lua_Integer limit);
  * they behave as Lua's own. Called once at start-up, before any script runs, by
  * lcdvr_open_player. */
 void lcdvr_open_budget(lua_State *L);
+
+/* ---- the scene contract (l_scene.c): what the player and the window share ---------------- */
+
+/* The callback budget both give their policy and camera callbacks (option callback_limit). */
+#define LCDVR_CALLBACK_LIMIT 50000000
+/* Frame rows a policy sees (stats.frames): the last ones, oldest first. */
+#define LCDVR_POLICY_ROWS 16
+
+/* What a policy is told besides the store and the rows. */
+typedef struct lcdvr_policy_view {
+    size_t t, group;         /* the next timestep to show and its group, from 0 */
+    double target_fps;       /* > 0: stats.target_fps; else absent */
+    double min_psnr;         /* NaN: absent */
+    int pipelined, capture;
+} lcdvr_policy_view;
+
+/* Pushes one frame row as a table (policy stats.frames[i], the player's report rows). */
+void lcdvr_push_frame_row(lua_State *L, const cdvr_store *st, const cdvr_frame_row *r);
+/* Pushes stats.variants: {name=, codec=, <codec parameters>, stage2=, bytes_per_timestep=,
+ * payload_bytes_per_timestep=, psnr=, group=} per variant. */
+void lcdvr_push_store_variants(lua_State *L, const cdvr_store *st);
+/* Pushes the policy's stats table (share/lua/cdvr/policy.lua documents it): view's fields,
+ * current (the variant of the last row), best (cdvr_store_best_variant), frames (the last
+ * LCDVR_POLICY_ROWS rows) and variants. */
+void lcdvr_push_policy_stats(lua_State *L, const cdvr_store *st, const lcdvr_policy_view *view,
+                             const cdvr_frame_row *rows, size_t nrows);
+/* Calls the function below its nargs arguments under a budget of `limit` instructions
+ * (lcdvr_pcall_budget); leaves nres results and returns CDVR_OK, or pops the error and fills
+ * err with "what: message and traceback" (CDVR_ERR_CANCELLED after Ctrl-C in the console). */
+cdvr_status lcdvr_call_callback(lua_State *L, int nargs, int nres, lua_Integer limit,
+                                const char *what, cdvr_error *err);
+/* Reads a policy's two results (name [, reason], on top; popped) into *variant (from 0) and
+ * reason, or fills err ("policy returned X, not a variant of <store>"). */
+cdvr_status lcdvr_policy_result(lua_State *L, const cdvr_store *st, int *variant, char *reason,
+                                size_t reason_size, cdvr_error *err);
+/* Applies a camera callback's result (a cdvr.Camera, or {eye=, center=, up=, fov=}) at idx
+ * to *cam, keeping its width and height, and validates it. */
+cdvr_status lcdvr_camera_result(lua_State *L, int idx, cdvr_camera *cam, cdvr_error *err);
+/* The name of the default device of a render method (cdvr_render_method_default_device: "cl"
+ * when the method has it and the state's OpenCL device opens, else "cpu", else "gl"), one rule
+ * for cdvr.render, cdvr.player and cdvr.window. */
+const char *lcdvr_default_device(lua_State *L, const char *method_name);
+/* Decodes the chunk group of variant v holding timestep t (from 0), every brick, assembled,
+ * into a new u8 volume of the group's timesteps (the first is *t0, from 0) with the store's
+ * geometry and value window, timing b1 (read), b1' (unzip) and the decode apart: *share gets
+ * read_ms, unzip_ms, decode_ms, bytes and payload_bytes divided by the group's timesteps (each
+ * frame's share, as the player's rows) and bricks_read; its other fields are zero. */
+cdvr_status lcdvr_store_decode_group(const cdvr_store *st, size_t v, size_t t, cdvr_volume **out,
+                                     size_t *t0, cdvr_frame_row *share, cdvr_error *err);
 
 /* Per-type accessors, implemented in the type's binding file. push* takes ownership. */
 /* lcdvr_checkvolume reads every timestep of a lazy volume (cdvr.load_series, l_volume.c)

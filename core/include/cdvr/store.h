@@ -154,6 +154,11 @@ const cdvr_store_info *cdvr_store_get_info(const cdvr_store *st);
 const cdvr_variant_info *cdvr_store_variant(const cdvr_store *st, size_t v);
 /* Index of the variant called name, or -1. */
 int cdvr_store_find_variant(const cdvr_store *st, const char *name);
+/* The variant of best quality (from 0), the default of the player and the window and the
+ * first in share/lua/cdvr/policy.lua's quality order: a raw variant (lossless) first, then
+ * the highest PSNR recorded at encode time (+inf for a lossless one), ties broken by more
+ * stored bytes, then by the lower index. 0 for a store with one variant. */
+int cdvr_store_best_variant(const cdvr_store *st);
 /* Chunk c (from 0) of variant v: chunk c belongs to group c / nbricks and brick c % nbricks. */
 const cdvr_chunk_info *cdvr_store_chunk(const cdvr_store *st, size_t v, size_t c);
 /* Chunk of variant v holding timestep t (from 0) in brick 0; (size_t)-1 if out of range. */
