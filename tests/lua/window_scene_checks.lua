@@ -86,7 +86,7 @@ local function capture_at(t0, sink)
 end
 local from_player, from_window = {}, {}
 local pp = cdvr.player{store = st, tf = tf, width = 32, height = 32, target_fps = 1000, pace = false,
-                       pipelined = false, -- serial: decisions follow the frames played (a pipelined
+                       pipeline = false, -- serial: decisions follow the frames played (a pipelined
                                           -- player plans groups ahead, frames may not be there yet)
                        min_psnr = 30, policy = capture_at(4, from_player)}
 pp:run{frames = 5}
