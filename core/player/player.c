@@ -399,6 +399,30 @@ static void each_lower(const cdvr_player *p, size_t b, void (*fn)(const cdvr_pla
     }
 }
 
+/* Calls fn(p, it, n) for each of the up to 26 neighbours n of brick b inside the grid: with
+ * shading the central differences of a sample in b's cells read one voxel beyond them. */
+static void each_neighbour(const cdvr_player *p, size_t b,
+                           void (*fn)(const cdvr_player *, void *, size_t), void *arg)
+{
+    const size_t *g = cdvr_store_get_info(p->opts.store)->bricks;
+    size_t at[3];
+    brick_at(p, b, at);
+    for (int dz = -1; dz <= 1; dz++)
+        for (int dy = -1; dy <= 1; dy++)
+            for (int dx = -1; dx <= 1; dx++) {
+                long x = (long)at[0] + dx, y = (long)at[1] + dy, z = (long)at[2] + dz;
+                if ((dx | dy | dz) == 0 || x < 0 || y < 0 || z < 0 || (size_t)x >= g[0] ||
+                    (size_t)y >= g[1] || (size_t)z >= g[2])
+                    continue;
+                fn(p, arg, (size_t)x + g[0] * ((size_t)y + g[1] * (size_t)z));
+            }
+}
+
+static int shades(const cdvr_player *p)
+{
+    return p->opts.look.shade.enabled || p->opts.look.gradient_opacity.npoints;
+}
+
 typedef struct value_hull {
     const chunk_item *it;
     int lo, hi;
@@ -431,8 +455,10 @@ static int view_needs(cdvr_player *p, const chunk_item *it, size_t b)
     widen(p, &h, b);
     if (!it->lossless)
         each_lower(p, b, widen, &h);
-    if (p->tf_prefix[h.hi + 1] - p->tf_prefix[h.lo] == 0)
-        return 0; /* every sample in its cells is transparent */
+    if (p->opts.look.blend == CDVR_BLEND_COMPOSITE &&
+        p->tf_prefix[h.hi + 1] - p->tf_prefix[h.lo] == 0)
+        return 0; /* every sample in its cells is transparent (max, min, average and iso see
+                     every value: only the view decides for them) */
     for (size_t j = 0; j < it->nframes; j++)
         if (cdvr_camera_sees_box(&it->cams[j], (const double(*)[3])(p->corners + 24 * b)))
             return 1;
@@ -457,6 +483,8 @@ static void select_bricks(cdvr_player *p, chunk_item *it)
         it->parts[b].needed = 1;
         if (!it->lossless)
             each_lower(p, b, mark_needed, it);
+        if (shades(p)) /* the gradient at its faces reads the neighbours' voxels */
+            each_neighbour(p, b, mark_needed, it);
     }
     it->bricks_read = it->bricks_region = 0;
     for (size_t b = 0; b < p->nbricks; b++) {
@@ -623,6 +651,7 @@ static void render_opts_for(const cdvr_player *p, const cdvr_camera *cam, cdvr_r
     ro->term_alpha = p->opts.term_alpha;
     memcpy(ro->background, p->opts.background, sizeof ro->background);
     ro->threads = p->opts.threads;
+    ro->look = p->opts.look;
 }
 
 /* Brick b's box relative to the region: first voxel lo (in the region) and dims. */
@@ -1368,6 +1397,11 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
     p->stride = opts->frame_stride ? opts->frame_stride : 1;
     p->phase = opts->frame_phase % p->stride;
     cdvr_status rs = set_region(p, err);
+    if (rs == CDVR_OK && p->clipped &&
+        (opts->look.blend != CDVR_BLEND_COMPOSITE || opts->look.shade.enabled ||
+         opts->look.gradient_opacity.npoints))
+        rs = cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "player: a box of the bricks (sort-last) "
+                            "renders only the composite blend mode without shading");
     if (rs == CDVR_OK && p->clipped && !method->bricks)
         rs = cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "player: method '%s' cannot render a "
                             "box of the bricks (sort-last distribution needs a method that "

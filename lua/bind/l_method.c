@@ -172,9 +172,12 @@ static double checked_number(lua_State *L, int idx, const char *key, double def,
     if (type != LUA_TNIL) {
         int ok;
         v = lua_tonumberx(L, -1, &ok);
-        if (!ok || !(v >= lo && v <= hi))
-            luaL_error(L, "%s: option '%s': a number in [%g, %g] expected, got %s", what, key, lo,
-                       hi, ok ? lua_tostring(L, -1) : luaL_typename(L, -1));
+        if (!ok || !(v >= lo && v <= hi)) {
+            char range[64]; /* luaL_error has no %g */
+            snprintf(range, sizeof range, "[%g, %g]", lo, hi);
+            luaL_error(L, "%s: option '%s': a number in %s expected, got %s", what, key, range,
+                       ok ? lua_tostring(L, -1) : luaL_typename(L, -1));
+        }
     }
     lua_pop(L, 1);
     return v;

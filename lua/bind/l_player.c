@@ -574,6 +574,17 @@ static void distribute_option(lua_State *L, lplayer *lp)
         m++;
     if (!modes[m])
         luaL_error(L, "cdvr.player: invalid distribute '%s' (none, time, bricks)", mode);
+    const cdvr_render_method *method = lp->opts.method;
+    unsigned need = m == CDVR_DIST_TIME ? CDVR_METHOD_DIST_TIME
+                  : m == CDVR_DIST_BRICKS ? CDVR_METHOD_DIST_BRICKS : 0;
+    if (need && !(method->distribute & need))
+        luaL_error(L, "cdvr.player: method '%s' cannot be distributed by '%s'", method->name, mode);
+    if (m == CDVR_DIST_BRICKS && (lp->opts.look.blend != CDVR_BLEND_COMPOSITE ||
+                                  lp->opts.look.shade.enabled ||
+                                  lp->opts.look.gradient_opacity.npoints))
+        luaL_error(L, "cdvr.player: distribute='bricks' composites brick images front to back: "
+                      "blend '%s' and shading are not supported there (distribute='time' is)",
+                   cdvr_blend_name(lp->opts.look.blend));
     if (m == CDVR_DIST_BRICKS && cdvr_dist_size() > 1 && lp->has_policy && !lp->capture)
         luaL_error(L, "cdvr.player: distribute='bricks': every rank must read the same variant, so "
                       "a policy cannot adapt per rank (give variant=, or capture with out=)");
@@ -592,7 +603,8 @@ static int l_player(lua_State *L)
                                        "height", "loop", "brick_skip", "frame", "distribute",
                                        NULL};
     luaL_checktype(L, 1, LUA_TTABLE);
-    lcdvr_checkoptions(L, 1, "cdvr.player", keys);
+    const cdvr_render_method *method = lcdvr_method_option(L, 1, "cdvr.player");
+    lcdvr_method_checkoptions(L, 1, method, "cdvr.player", keys);
     lplayer *lp = (lplayer *)lua_newuserdatauv(L, sizeof *lp, UV_COUNT); /* ud */
     memset(lp, 0, sizeof *lp);
     int ud = lua_gettop(L);
@@ -602,17 +614,13 @@ static int l_player(lua_State *L)
     cdvr_store *st = store_and_tf(L, ud, lp);
     const cdvr_store_info *info = cdvr_store_get_info(st);
 
-    static const char *const devices[] = {"cpu", "cl", "auto", NULL};
-    const char *dev = lcdvr_optstringfield(L, 1, "device", "auto");
-    int devi = -1;
-    for (int i = 0; devices[i]; i++)
-        if (strcmp(dev, devices[i]) == 0)
-            devi = i;
-    if (devi < 0)
-        luaL_error(L, "cdvr.player: invalid device '%s' (cpu, cl, auto)", dev);
-    if (devi == 2) /* auto: the scene contract's rule, as the window's default */
-        devi = strcmp(lcdvr_default_device(L, "raycast"), "cl") == 0;
-    lp->opts.device = devi == 1 ? CDVR_DEVICE_CL : CDVR_DEVICE_CPU;
+    /* the method, its device (absent or "auto": the scene contract's rule, as the window's),
+     * its options and the look, all from the method table */
+    lp->opts.method = method;
+    lp->opts.device = lcdvr_method_device(L, 1, method, "cdvr.player");
+    lcdvr_method_params(L, 1, method, "cdvr.player", &lp->opts.method_params);
+    lcdvr_read_look(L, 1, method, "cdvr.player", &lp->opts.look);
+    lp->opts.ctx = lcdvr_render_ctx(L);
     render_options(L, lp, info);
     lp->callback_limit = integer_option(L, "callback_limit", LCDVR_CALLBACK_LIMIT, 1, INT_MAX);
     lp->min_psnr = number_option(L, "min_psnr", NAN, -HUGE_VAL, HUGE_VAL, "a number in dB expected");

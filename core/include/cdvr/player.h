@@ -34,9 +34,13 @@
  * Brick skipping ("model only what a scene needs", opts.brick_skip): when a group is planned,
  * a brick is read and decoded only if
  *   - some value in its chunk's recorded range [value_min, value_max] has alpha > 0 under the
- *     TF (else every sample in its cells is transparent), and
+ *     TF (else every sample in its cells is transparent; composite only: the other blend
+ *     modes see every value), and
  *   - the box of its cells can be seen by the camera of at least one frame of the group
  *     (cdvr_camera_sees_box; no ray of the view crosses it otherwise).
+ * With shading (or gradient opacity) the 26 neighbours of each brick read are read too: the
+ * central differences at a cell on a brick's face read one voxel into the neighbour, which so
+ * holds its real values, as without skipping.
  * A skipped brick's voxels are filled with its value_min (transparent for a TF-skipped
  * brick, never sampled for one out of view), then the read bricks are decoded over them, the
  * lower brick last so it keeps the voxels it owns (store.h). With no brick read the frame is
@@ -128,6 +132,7 @@ typedef struct cdvr_player_opts {
     const cdvr_render_method *method; /* NULL: raycast */
     cdvr_method_params method_params; /* the method's options (all zero with method NULL:
                                          its defaults) */
+    cdvr_look look;              /* blend mode, shading, gradient opacity, iso (render.h) */
     cdvr_render_ctx *ctx;        /* devices for methods that render through it (gl, or a cl
                                     method without render_stream); NULL: the player makes its
                                     own when it needs one */
