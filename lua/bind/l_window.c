@@ -28,11 +28,10 @@
 #define MAX_EVENTS 64
 
 /* User values of the window userdata. */
-enum { UV_VOLUME = 1, UV_STORE, UV_TF, UV_CAMERA, UV_FRAME, UV_POLICY, UV_CAMERA_FN,
-       UV_COUNT = UV_CAMERA_FN };
-
-static const char *const method_names[] = {"raycast", "slice", "splat", NULL};
-static const char *const device_names[] = {"cpu", "cl", NULL};
+/* UV_RENDER: the render options set for the method (its own options, the scene keys it
+ * honours, the look), handed to cdvr.render as they are. */
+enum { UV_VOLUME = 1, UV_STORE, UV_TF, UV_CAMERA, UV_FRAME, UV_POLICY, UV_CAMERA_FN, UV_RENDER,
+       UV_COUNT = UV_RENDER };
 
 /* The box of a scene (dims and index-to-world geometry): a new scene with another box
  * re-frames the camera. */
@@ -44,11 +43,10 @@ typedef struct scene_box {
 
 typedef struct lwindow {
     cdvr_window *win;          /* NULL once closed */
-    int overlay, playing, dirty, method;
-    int device;                /* index in device_names; -1 until set (then the default) */
+    int overlay, playing, dirty;
+    const cdvr_render_method *method; /* renders the scene (cdvr/method.h) */
+    int device;                /* cdvr_device_kind; -1: the method's default device */
     int quit;                  /* Esc or q pressed: closes like the close button */
-    int lod;                   /* 0 off, 1 seed 002's rule, 2 "screen" (cdvr_lod_mode) */
-    double step;               /* cdvr.render's step (0: its default) */
     long t;                    /* timestep shown, from 1 */
     int variant;               /* store scenes: variant shown, from 0 */
     long frame_t;              /* store scenes: first timestep (from 1) of the chunk group
@@ -207,22 +205,94 @@ static cdvr_camera *scene_camera(lua_State *L, int w_idx, lwindow *w, int vol_id
 
 /* ---- options (cdvr.window{...} and w:set{...}) ------------------------------------------ */
 
+/* The window's own keys; the method's options, the scene keys it honours and the look keys
+ * come from the method table (lcdvr_method_checkoptions). */
 static const char *const window_keys[] = {"volume", "store", "tf", "camera", "method", "device",
-                                          "overlay", "t", "variant", "lod", "step", "playing",
-                                          "fps", "policy", "min_psnr", "callback_limit", "width",
-                                          "height", "title", NULL};
+                                          "overlay", "t", "variant", "playing", "fps", "policy",
+                                          "min_psnr", "callback_limit", "width", "height", "title",
+                                          NULL};
 
-static int option_index(lua_State *L, int idx, const char *key, const char *const names[],
-                        int current)
+/* The device the window renders on: the one set, else the method's default (the scene
+ * contract's rule, cdvr_render_method_default_device). */
+static cdvr_device_kind window_device(lua_State *L, const lwindow *w)
 {
-    const char *value = lcdvr_optstringfield(L, idx, key, NULL);
-    if (!value)
-        return current;
-    for (int i = 0; names[i]; i++)
-        if (strcmp(names[i], value) == 0)
-            return i;
-    return luaL_error(L, "window: option '%s': invalid value '%s' (%s, %s%s%s)", key, value,
-                      names[0], names[1], names[2] ? ", " : "", names[2] ? names[2] : "");
+    if (w->device >= 0)
+        return (cdvr_device_kind)w->device;
+    return cdvr_render_method_default_device(w->method, lcdvr_render_ctx(L));
+}
+
+/* The render-options table (UV_RENDER) pushed; made empty on first use. */
+static void push_render_options(lua_State *L, int w_idx)
+{
+    if (lua_getiuservalue(L, w_idx, UV_RENDER) == LUA_TTABLE)
+        return;
+    lua_pop(L, 1);
+    lua_newtable(L);
+    lua_pushvalue(L, -1);
+    lua_setiuservalue(L, w_idx, UV_RENDER);
+}
+
+/* method= and device=, then every option of the table at idx that the method takes into the
+ * render options; a new method drops the options it does not take and a device it lacks. The
+ * result is checked now (params and look), so a bad value raises here, not at the next frame. */
+static void set_render(lua_State *L, int w_idx, int idx, lwindow *w, const cdvr_render_method *m)
+{
+    push_render_options(L, w_idx);                /* render */
+    int render = lua_gettop(L);
+    if (m != w->method) {
+        lua_pushnil(L);
+        while (lua_next(L, render)) {             /* render, key, value */
+            lua_pop(L, 1);
+            if (lua_type(L, -1) == LUA_TSTRING && !lcdvr_method_takes(m, lua_tostring(L, -1))) {
+                lua_pushvalue(L, -1);
+                lua_pushnil(L);
+                lua_rawset(L, render);            /* clearing a field during lua_next is allowed */
+            }
+        }
+        if (w->device >= 0 && !cdvr_render_method_supports(m, (cdvr_device_kind)w->device))
+            w->device = -1;
+        w->method = m;
+    }
+    if (lua_getfield(L, idx, "device") != LUA_TNIL)
+        w->device = (int)lcdvr_method_device(L, idx, m, "window");
+    lua_pop(L, 1);
+    lua_pushnil(L);
+    while (lua_next(L, idx)) {                    /* render, key, value */
+        if (lua_type(L, -2) == LUA_TSTRING && lcdvr_method_takes(m, lua_tostring(L, -2))) {
+            lua_pushvalue(L, -2);
+            lua_insert(L, -2);                    /* render, key, key, value */
+            lua_rawset(L, render);
+        } else {
+            lua_pop(L, 1);
+        }
+    }
+    cdvr_method_params params;
+    cdvr_look look;
+    lcdvr_method_params(L, render, m, "window", &params);
+    lcdvr_read_look(L, render, m, "window", &look);
+    lua_pop(L, 1);
+}
+
+/* A key for the method (its window_key hook): sets the option it names. */
+static void method_key(lua_State *L, int w_idx, lwindow *w, int key)
+{
+    const cdvr_render_method *m = w->method;
+    if (!m->window_key)
+        return;
+    push_render_options(L, w_idx);
+    cdvr_method_params params;
+    lcdvr_method_params(L, -1, m, "window", &params);
+    const char *option;
+    char value[64];
+    if (m->window_key(&params, key, &option, value, sizeof value)) {
+        if (strcmp(value, "true") == 0 || strcmp(value, "false") == 0)
+            lua_pushboolean(L, value[0] == 't');
+        else
+            lua_pushstring(L, value);
+        lua_setfield(L, -2, option);
+        w->dirty = 1;
+    }
+    lua_pop(L, 1);
 }
 
 static void set_variant(lua_State *L, int idx, lwindow *w, const cdvr_store *st)
@@ -392,13 +462,14 @@ static void run_policy(lua_State *L, int w_idx, lwindow *w);
 
 static void apply_options(lua_State *L, int w_idx, int idx, lwindow *w)
 {
-    lcdvr_checkoptions(L, idx, "window", window_keys);
+    const char *name = lcdvr_optstringfield(L, idx, "method", NULL);
+    const cdvr_render_method *m = name ? lcdvr_method_lookup(L, name, "window") : w->method;
+    lcdvr_method_checkoptions(L, idx, m, "window", window_keys);
     int new_scene = set_scene(L, w_idx, idx, w);
     set_tf(L, w_idx, idx);
     set_camera(L, w_idx, idx);
     set_policy(L, w_idx, idx);
-    w->method = option_index(L, idx, "method", method_names, w->method);
-    w->device = option_index(L, idx, "device", device_names, w->device);
+    set_render(L, w_idx, idx, w, m);
     w->callback_limit = lcdvr_optintegerfield(L, idx, "callback_limit", w->callback_limit);
     if (w->callback_limit < 1 || w->callback_limit > INT_MAX)
         luaL_error(L, "window: option 'callback_limit' = %I: must be 1..%d",
@@ -412,22 +483,10 @@ static void apply_options(lua_State *L, int w_idx, int idx, lwindow *w)
         w->min_psnr = lua_tonumber(L, -1);
     lua_pop(L, 1);
     w->overlay = lcdvr_optbooleanfield(L, idx, "overlay", w->overlay);
-    int lod_type = lua_getfield(L, idx, "lod");   /* true, false, "seed" or "screen" */
-    if (lod_type == LUA_TBOOLEAN)
-        w->lod = lua_toboolean(L, -1);
-    else if (lod_type == LUA_TSTRING && strcmp(lua_tostring(L, -1), "seed") == 0)
-        w->lod = 1;
-    else if (lod_type == LUA_TSTRING && strcmp(lua_tostring(L, -1), "screen") == 0)
-        w->lod = 2;
-    else if (lod_type != LUA_TNIL)
-        luaL_error(L, "window: option 'lod': boolean, \"seed\" or \"screen\" expected");
-    lua_pop(L, 1);
     w->playing = lcdvr_optbooleanfield(L, idx, "playing", w->playing);
-    double step = lcdvr_optnumberfield(L, idx, "step", w->step);
     double fps = lcdvr_optnumberfield(L, idx, "fps", w->fps);
-    if (!(step >= 0.0) || !(fps >= 0.0) || !isfinite(step) || !isfinite(fps))
-        luaL_error(L, "window: step and fps must be finite and >= 0");
-    w->step = step;
+    if (!(fps >= 0.0) || !isfinite(fps))
+        luaL_error(L, "window: fps must be finite and >= 0");
     w->fps = fps;
     set_variant(L, idx, w, scene_store(L, w_idx));
     size_t n = scene_timesteps(L, w_idx);
@@ -538,6 +597,10 @@ static void handle_key(lua_State *L, int w_idx, lwindow *w, int key)
             w->dirty = 1;
         }
         break;
+    default: /* letters: the method's keys ('l' lod for slice, 'o' order for splat) */
+        if (key >= 'a' && key <= 'z')
+            method_key(L, w_idx, w, key);
+        break;
     }
 }
 
@@ -621,10 +684,17 @@ static void overlay(lua_State *L, int w_idx, lwindow *w, uint8_t *rgba, int widt
     char line[400], timing[64];
     const cdvr_store *st = scene_store(L, w_idx);
     size_t n = scene_timesteps(L, w_idx);
-    const char *how = w->method == 1   ? "slice (EGL)"
-                      : w->method == 2 ? "splat (cpu)"
-                      : w->device == 1 ? "raycast (cl)"
-                                       : "raycast (cpu)";
+    char how[96], state[48] = "";
+    if (w->method->describe) {
+        push_render_options(L, w_idx);
+        cdvr_method_params params;
+        lcdvr_method_params(L, -1, w->method, "window", &params);
+        lua_pop(L, 1);
+        state[0] = ' ';
+        w->method->describe(&params, state + 1, sizeof state - 1);
+    }
+    snprintf(how, sizeof how, "%s (%s)%s", w->method->name,
+             cdvr_device_name(window_device(L, w)), state);
     double ms = w->last_frame_ms;
     snprintf(timing, sizeof timing, "%.1f ms = %.0f fps", ms, ms > 0.0 ? 1000.0 / ms : 0.0);
     if (!n)
@@ -704,24 +774,21 @@ static void draw(lua_State *L, int w_idx, lwindow *w)
         lua_setfield(L, -2, "tf");
         lcdvr_pushcamera(L, cam);
         lua_setfield(L, -2, "camera");
-        lua_pushstring(L, method_names[w->method]);
+        lua_pushstring(L, w->method->name);
         lua_setfield(L, -2, "method");
         lua_pushinteger(L, t);
         lua_setfield(L, -2, "t");
-        if (w->method == 0) { /* the ray caster's options */
-            lua_pushstring(L, device_names[w->device]);
-            lua_setfield(L, -2, "device");
-            if (w->step > 0.0) {
-                lua_pushnumber(L, w->step);
-                lua_setfield(L, -2, "step");
-            }
-        } else if (w->method == 1) {
-            if (w->lod == 2)
-                lua_pushliteral(L, "screen");
-            else
-                lua_pushboolean(L, w->lod);
-            lua_setfield(L, -2, "lod");
+        lua_pushstring(L, cdvr_device_name(window_device(L, w)));
+        lua_setfield(L, -2, "device");
+        int opts = lua_gettop(L);
+        push_render_options(L, w_idx);            /* ..., opts, render */
+        lua_pushnil(L);
+        while (lua_next(L, -2)) {                 /* ..., opts, render, key, value */
+            lua_pushvalue(L, -2);
+            lua_insert(L, -2);
+            lua_rawset(L, opts);
         }
+        lua_pop(L, 1);                            /* render, volume, opts */
         double render_start = cdvr_now_ms();
         lua_call(L, 2, 1);                        /* image */
         render_ms = cdvr_now_ms() - render_start;
@@ -801,8 +868,8 @@ static int l_window(lua_State *L)
     lwindow *w = (lwindow *)lua_newuserdatauv(L, sizeof *w, UV_COUNT);
     memset(w, 0, sizeof *w);
     w->overlay = 1;
-    w->lod = 1;
     w->t = 1;
+    w->method = cdvr_render_method_find("raycast");
     w->device = -1;
     w->callback_limit = LCDVR_CALLBACK_LIMIT;
     w->min_psnr = NAN;
@@ -810,8 +877,7 @@ static int l_window(lua_State *L)
     luaL_setmetatable(L, LCDVR_WINDOW);
     int w_idx = lua_gettop(L);
     apply_options(L, w_idx, 1, w); /* before opening: bad options leave no window behind */
-    if (w->device < 0) /* the scene contract's rule, the player's device="auto" too */
-        w->device = strcmp(lcdvr_default_device(L, "raycast"), "cl") == 0;
+    w->device = (int)window_device(L, w); /* the scene contract's rule, as the player's */
     cdvr_error err;
     if (cdvr_window_open((int)width, (int)height, title, &w->win, &err) != CDVR_OK)
         return luaL_error(L, "cdvr.window: %s", err.msg);
@@ -904,10 +970,20 @@ static int window_state(lua_State *L)
     }
     lua_pushboolean(L, w->playing);
     lua_setfield(L, -2, "playing");
-    lua_pushstring(L, method_names[w->method]);
+    lua_pushstring(L, w->method->name);
     lua_setfield(L, -2, "method");
-    lua_pushstring(L, device_names[w->device]);
+    lua_pushstring(L, cdvr_device_name(window_device(L, w)));
     lua_setfield(L, -2, "device");
+    lua_newtable(L);                              /* state, options: a copy of the render options */
+    push_render_options(L, 1);
+    lua_pushnil(L);
+    while (lua_next(L, -2)) {                     /* state, options, render, key, value */
+        lua_pushvalue(L, -2);
+        lua_insert(L, -2);
+        lua_rawset(L, -5);
+    }
+    lua_pop(L, 1);
+    lua_setfield(L, -2, "options");
     lua_pushstring(L, w->reason);
     lua_setfield(L, -2, "reason");
     lua_pushnumber(L, w->last_frame_ms > 0.0 ? 1000.0 / w->last_frame_ms : 0.0);

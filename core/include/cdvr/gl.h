@@ -171,7 +171,8 @@ typedef struct cdvr_window cdvr_window;
 typedef enum cdvr_window_event_type {
     CDVR_WINDOW_DRAG = 1,  /* dx, dy: cursor motion in pixels with the left button held */
     CDVR_WINDOW_SCROLL,    /* dy: wheel steps (positive: away from the user) */
-    CDVR_WINDOW_KEY,       /* key: CDVR_KEY_* */
+    CDVR_WINDOW_KEY,       /* key: CDVR_KEY_*, or another letter as its lower-case
+                              character ('a'..'z') */
     CDVR_WINDOW_RESIZE     /* the framebuffer size changed */
 } cdvr_window_event_type;
 

@@ -31,8 +31,9 @@
  *    decoded on the host, on whichever device it renders;
  *  - render_store: one timestep of a stored variant straight from its chunk on the device
  *    (cdvr.render(store, {device="cl"})); without it the chunk is decoded on the host;
- *  - window_key: a key the window hands to the method (slice toggles lod with 'l', splat
- *    cycles its order with 'o'); returns 1 when the params changed;
+ *  - window_key: a key the window hands to the method (slice cycles lod with 'l', splat
+ *    cycles its order with 'o'): names the option to change and its new value as text, which
+ *    the window sets like any option;
  *  - describe: a short text for the window's overlay ("lod seed", "order dda").
  *
  * Adding a method: a file core/render/<folder>/<name>_method.c defining its table, one line in
@@ -175,8 +176,11 @@ struct cdvr_render_method {
                                 const cdvr_store *st, size_t v, size_t t, cdvr_render_opts *opts,
                                 const cdvr_method_params *p, cdvr_render_stats *stats,
                                 cdvr_image **out, cdvr_error *err);
-    /* Optional: the window's key (a printable character, lower case); 1 if p changed. */
-    int (*window_key)(cdvr_method_params *p, int key);
+    /* Optional: the window's key (a printable character, lower case) for the options p: sets
+     * *option to one of the method's option keys and value (n bytes) to its new value as
+     * text, and returns 1; 0 when the key means nothing to the method. */
+    int (*window_key)(const cdvr_method_params *p, int key, const char **option, char *value,
+                      size_t n);
     /* Optional: the method's state in a few words for the window's overlay. */
     void (*describe)(const cdvr_method_params *p, char *out, size_t n);
 };

@@ -113,18 +113,19 @@ static cdvr_status splat_render(cdvr_render_ctx *ctx, cdvr_device_kind device,
 }
 
 /* 'o' cycles the order (window). */
-static int splat_key(cdvr_method_params *p, int key)
+static int splat_key(const cdvr_method_params *p, int key, const char **option, char *value,
+                     size_t n)
 {
     if (key != 'o')
         return 0;
-    splat_params sp = get_params(p);
     static const cdvr_splat_how cycle[] = {CDVR_SPLAT_DDA, CDVR_SPLAT_AXIS, CDVR_SPLAT_SORT,
                                            CDVR_SPLAT_QUICKSORT};
-    size_t n = sizeof cycle / sizeof cycle[0], i = 0;
-    while (i < n && cycle[i] != sp.order)
+    size_t count = sizeof cycle / sizeof cycle[0], i = 0;
+    cdvr_splat_how order = get_params(p).order;
+    while (i < count && cycle[i] != order)
         i++;
-    sp.order = cycle[(i + 1) % n];
-    memcpy(p->bytes, &sp, sizeof sp);
+    *option = "order";
+    snprintf(value, n, "%s", cdvr_splat_how_name(cycle[(i + 1) % count]));
     return 1;
 }
 

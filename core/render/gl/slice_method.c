@@ -93,14 +93,15 @@ static cdvr_status slice_render(cdvr_render_ctx *ctx, cdvr_device_kind device,
 }
 
 /* 'l' cycles the level of detail: seed, screen, off (window). */
-static int slice_key(cdvr_method_params *p, int key)
+static int slice_key(const cdvr_method_params *p, int key, const char **option, char *value,
+                     size_t n)
 {
     if (key != 'l')
         return 0;
-    slice_params sp = get_params(p);
-    sp.lod = sp.lod == CDVR_LOD_SEED ? CDVR_LOD_SCREEN : sp.lod == CDVR_LOD_SCREEN ? CDVR_LOD_OFF
-                                                                                  : CDVR_LOD_SEED;
-    memcpy(p->bytes, &sp, sizeof sp);
+    int lod = get_params(p).lod;
+    *option = "lod";
+    snprintf(value, n, "%s", lod == CDVR_LOD_SEED ? "screen" : lod == CDVR_LOD_SCREEN ? "false"
+                                                                                     : "seed");
     return 1;
 }
 
