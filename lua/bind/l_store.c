@@ -928,7 +928,9 @@ int lcdvr_open_store(lua_State *L)
                    "S=4 T=3 pack=time encoder=lsq stage2=lzo lzo_min_saving=0.1; bricks={bx,by,bz} "
                    "splits each timestep into bricks; threads=0: one per core, the same bytes for "
                    "any count; ranges=true: per-brick value range tables for empty-space "
-                   "skipping); the opened store, or nil, msg on write failure");
+                   "skipping; schedule(t, variant) runs under callback_limit= instructions, "
+                   "default 5e7, and callback_memory= MB, default 256); the opened store, or "
+                   "nil, msg on write failure");
     lcdvr_help_add(L, "cdvr.open(path)", "open a .cdv store (lazy); store or nil, msg");
     lcdvr_help_add(L, "st:info()", "dims, timesteps, window, bytes, ratio and per-variant "
                                    "codec, bpv, psnr, maxerr, chunks, ranges_bytes (the value "

@@ -51,6 +51,7 @@ struct callback_budget {
     size_t memory;               /* the memory budget in bytes */
     size_t saved_limit;          /* the state's limit before this budget */
     int mem_refused;             /* an allocation was refused */
+    int detached;                /* a finalizer's own budget: not counted against the outer */
     const void *chunk;           /* a data file: the only function that may run; else NULL */
     lua_State *L;                /* the thread that runs the callback */
     callback_budget *outer;
@@ -210,7 +211,7 @@ static void budget_end(state_ctx *c, callback_budget *b)
     c->budget = b->outer;
     c->limit = b->saved_limit;
     callback_budget *o = b->outer;
-    if (o && !o->spent) {
+    if (o && !o->spent && !b->detached) {
         o->used += b->used;
         if (o->used >= o->limit)
             budget_spend(o->L, o);
@@ -559,6 +560,8 @@ static int gc_runner(lua_State *L)
     callback_budget *outer = c->budget;
     if (outer && outer->spent)
         return 0;                                  /* the callback is failing already */
+    if (outer && outer->chunk)
+        outer = NULL;      /* run while a data file loads: not the file's, a budget of its own */
     lua_State *co = lua_newthread(L);              /* mt, fins, gc, co */
     lua_pushvalue(L, -2);
     lua_pushvalue(L, 1);
@@ -569,6 +572,7 @@ static int gc_runner(lua_State *L)
     } else {
         lcdvr_limits lim = {LCDVR_CALLBACK_LIMIT, (size_t)LCDVR_CALLBACK_MEMORY_MB << 20};
         budget_begin(c, &own, co, &lim);
+        own.detached = 1;
         lua_sethook(co, budget_hook, LUA_MASKCOUNT, budget_slice(&own));
     }
     int nres = 0;
@@ -779,7 +783,7 @@ int lcdvr_load_data(lua_State *L, const char *path)
     if (f)
         fclose(f);
     if (first == LUA_SIGNATURE[0]) {
-        lua_pushfstring(L, "%s: a precompiled chunk is not a data file (text only)", path);
+        lua_pushfstring(L, "%s: a precompiled (binary) chunk is not a data file (text only)", path);
         return LUA_ERRSYNTAX;
     }
     lim.instructions += DATA_PER_BYTE * (lua_Integer)sb.st_size;
