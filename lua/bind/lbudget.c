@@ -21,6 +21,10 @@
  *                 running callback's budget, or under a budget of its own (the defaults)
  *                 outside callbacks and at lua_close (lcdvr_close).
  * The running budget lives in the allocator's context (lua_getallocf), out of reach of Lua.
+ * Not bounded: native code and blocking system calls (package.loadlib and C modules,
+ * os.execute, io.read), memory that C bindings allocate, and a __gc assigned into a guarded
+ * metatable during a callback and collected before the callback returns (guards are renewed
+ * when a budget starts and before lua_close, not at every assignment).
  */
 #include <errno.h>
 #include <limits.h>
