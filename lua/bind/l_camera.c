@@ -61,13 +61,12 @@ static cdvr_camera default_camera(void)
     return cam;
 }
 
-/* cdvr.camera(path.lua): runs the file (it returns the field table) and builds from that;
- * an unreadable or malformed file raises, naming the file and the reason. */
+/* cdvr.camera(path.lua): loads the data file (lcdvr_load_data: it returns the field table) and
+ * builds from that; an unreadable or malformed file raises, naming the file and the reason. */
 static void camera_from_file(lua_State *L, const char *path)
 {
-    if (luaL_loadfilex(L, path, "t") != LUA_OK)
+    if (lcdvr_load_data(L, path) != LUA_OK)
         luaL_error(L, "cdvr.camera: %s", lua_tostring(L, -1));
-    lua_call(L, 0, 1);
     if (!lua_istable(L, -1))
         luaL_error(L, "%s: camera file must return a table, got %s", path, luaL_typename(L, -1));
     lua_replace(L, 1); /* fields table in place of the path */

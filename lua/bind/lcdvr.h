@@ -98,21 +98,59 @@ void lcdvr_unuse(lua_State *L, int idx);
 int lcdvr_defer_close(lua_State *L, int idx);
 int lcdvr_closing(lua_State *L, int idx);
 
-/* Callback budgets. Calls the function below its nargs arguments in protected mode, with a
- * traceback message handler, under a budget of `limit` Lua VM instructions (a count hook,
- * checked every min(limit, 10000) instructions). The budget covers every coroutine the callback
- * resumes (coroutine.resume, coroutine.wrap and coroutine.close pass the hook on, see
- * lcdvr_open_budget), and once spent every further instruction raises again, so a pcall inside
- * the callback cannot swallow it. Nested budgets (a callback that runs another player) restore
- * the outer one. Returns the lua_pcall status; on error the message with its traceback is on
- * top ("... exceeded its instruction budget (callback_limit = N) ..." when the budget ran out). */
+/* Callback budgets (lbudget.c). A callback (policy, camera, schedule, window policy) and a data
+ * file run under a budget: `instructions` Lua VM instructions (a count hook, checked every
+ * min(limit, 10000); C loops that run none charge it themselves: pattern matching, string.rep,
+ * table.move) and `memory` bytes the Lua state may grow by while it runs (the state's
+ * allocator, lcdvr_newstate). The budget covers every coroutine the callback resumes and every
+ * __gc that runs meanwhile; once spent every further instruction raises again, so a pcall
+ * inside the callback cannot swallow it; debug.* but traceback and getinfo raises inside it.
+ * Nested budgets (a callback that runs another player) restore the outer one and count against
+ * it. */
+#define LCDVR_CALLBACK_LIMIT 50000000  /* default callback_limit, VM instructions */
+#define LCDVR_CALLBACK_MEMORY_MB 256   /* default callback_memory, MB */
+typedef struct lcdvr_limits {
+    lua_Integer instructions;          /* callback_limit */
+    size_t memory;                     /* callback_memory, in bytes */
+} lcdvr_limits;
+/* Calls the function below its nargs arguments in protected mode, with a traceback message
+ * handler, under lim. Returns the lua_pcall status; on error the message with its traceback is
+ * on top: "... exceeded its instruction budget (callback_limit = N instructions) ..." or
+ * "callback exceeded its memory budget (callback_memory = N MB)" when a budget ran out. */
+int lcdvr_pcall_limits(lua_State *L, int nargs, int nres, const lcdvr_limits *lim);
+/* The same with `limit` instructions and the default memory budget. */
 int lcdvr_pcall_budget(lua_State *L, int nargs, int nres, lua_Integer limit);
-/* Replaces coroutine.resume, coroutine.wrap and coroutine.close by versions that pass a running
- * callback budget on to the coroutine they run, and xpcall by one that no longer calls its
- * message handler once the budget is spent (Lua runs that handler with hooks off); otherwise
- * they behave as Lua's own. Called once at start-up, before any script runs, by
- * lcdvr_open_player. */
+/* Reads options callback_limit (instructions, 1 .. INT_MAX) and callback_memory (MB, 1 ..
+ * 2^20) of the options table at idx (absent: the defaults; idx not a table: the defaults);
+ * raises "what: option '...' must be ..." on bad values. The caller lists both keys in its
+ * lcdvr_checkoptions. */
+void lcdvr_limits_options(lua_State *L, int idx, const char *what, lcdvr_limits *out);
+/* Charges steps to the running budget (a C loop that runs no VM instruction); raises the
+ * budget error once it is spent. Does nothing outside a budget. */
+void lcdvr_budget_charge(lua_State *L, lua_Integer steps);
+/* Installs what budgets need, once, before any script runs (the host calls it after
+ * luaL_openlibs; later calls do nothing): coroutine.resume, wrap and close and xpcall that pass
+ * the budget on (xpcall no longer calls its message handler once the budget is spent),
+ * setmetatable and debug.setmetatable that guard __gc, the guarded debug functions, string.rep,
+ * table.move and the step-counting pattern functions (lstrmatch.c: lcdvr_open_strmatch).
+ * Outside a budget all behave as Lua's own, but that getmetatable(x).__gc is a cdvr function
+ * (the real finalizer is kept aside) and debug.getupvalue/setupvalue refuse C functions. */
 void lcdvr_open_budget(lua_State *L);
+void lcdvr_open_strmatch(lua_State *L);
+/* A Lua state whose allocator counts its bytes (needed by budgets), with Lua's panic and
+ * warning functions; NULL when out of memory. lcdvr_close closes it: every remaining __gc runs
+ * under a budget of the default limits; returns how many were stopped by their budget (each
+ * printed on stderr). */
+lua_State *lcdvr_newstate(void);
+int lcdvr_close(lua_State *L);
+/* Data files (cdvr.tf(path), cdvr.camera(path), cdvr.path.load, cdvr.load_lua): loads the
+ * regular file at path as a text chunk (no precompiled chunks) in an empty environment and
+ * runs it under a data budget: no function calls, 100000 + 16 per byte VM instructions, the
+ * default memory budget. Pushes the value it returns and returns LUA_OK, or pushes a message
+ * naming path and the reason and returns the error status. */
+int lcdvr_load_data(lua_State *L, const char *path);
+/* Registers cdvr.load_lua(file) -> value | nil, message (lcdvr_load_data) in the table on top. */
+void lcdvr_open_data(lua_State *L);
 
 /* ---- the scene contract (l_scene.c): what the player and the window share ---------------- */
 
