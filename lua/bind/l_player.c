@@ -461,7 +461,7 @@ static cdvr_status frame_failed(lplayer *lp, const cdvr_frame_row *row, cdvr_err
     if (!lp->capture && !lp->strict)
         return CDVR_OK; /* interactive playback: the row keeps its error, the run goes on */
     lp->stopped = 1;
-    return cdvr_error_set(err, row->status, "%s%s", lp->first_failure,
+    return cdvr_error_set(err, row->status, "p:run: %s%s", lp->first_failure,
                           lp->capture ? "; the capture stops there (cdvr.player{on_error=\"skip\"} writes a "
                                         "marked frame in its place and goes on)" : "");
 }
