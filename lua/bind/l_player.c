@@ -931,9 +931,11 @@ static int player_run(lua_State *L)
     luaL_argcheck(L, frames >= 1, 2, "frames must be at least 1");
     luaL_argcheck(L, first >= 1 && (size_t)first <= info->timesteps, 2, "first timestep out of range");
     lua_settop(L, 1);                             /* callbacks find the player at index 1 */
+    cdvr_error err;
+    if (cdvr_dist_play_begin(lp->dist, (size_t)first - 1, (size_t)frames, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);               /* the ranks disagree (cdvr/dist.h) */
     lp->L = L;
     lp->running = 1;
-    cdvr_error err;
     double t0 = cdvr_now_ms();
     cdvr_status status = cdvr_player_run(lp->player, (size_t)first - 1, (size_t)frames, &err);
     double wall_ms = cdvr_now_ms() - t0;
