@@ -152,10 +152,10 @@ cdvr_status cdvr_atomic_open(cdvr_atomic_file *af, const char *path, cdvr_error 
         release(af);
         return st;
     }
-    cdvr_atomic_clean_stale(af->target_path);
     int fd = open_unnamed(af->target_path);
     af->unnamed = fd >= 0;
     if (fd < 0) {
+        cdvr_atomic_clean_stale(af->target_path); /* where a writer's kill -9 leaves a name */
         if (!make_tmp_name(af)) {
             release(af);
             return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);

@@ -21,8 +21,9 @@
  *  - A named temporary file is registered in the cleanup context (cdvr/cleanup.h) while it
  *    exists, so a cleanup signal (SIGINT, SIGTERM, SIGQUIT, SIGHUP, SIGUSR1, SIGUSR2, SIGPIPE,
  *    SIGALRM, SIGXCPU, SIGXFSZ, SIGVTALRM, SIGPROF) meanwhile removes it.
- *  - Stale temporaries: open removes every "path.tmp.PID.XXXXXX" whose PID names no running
- *    process (a writer killed by SIGKILL on a filesystem without O_TMPFILE). PIDs are those
+ *  - Stale temporaries: on the named path, open first removes every "path.tmp.PID.XXXXXX"
+ *    whose PID names no running process (a writer of path killed by SIGKILL; this costs one
+ *    scan of the directory per file written). PIDs are those
  *    of this machine's PID namespace: writers sharing a directory across namespaces or hosts
  *    may mistake a live writer's file for a stale one.
  *  - Errors name path, never the temporary file (e.g. "out.raw: cannot write: No space left
@@ -52,7 +53,8 @@ cdvr_status cdvr_atomic_open(cdvr_atomic_file *af, const char *path, cdvr_error 
 cdvr_status cdvr_atomic_commit(cdvr_atomic_file *af, int failed, cdvr_error *err);
 
 /* Removes the stale temporaries of target (the file a write lands on: symbolic links already
- * followed): "target.tmp.PID.XXXXXX" where PID names no running process. open calls it. */
+ * followed): "target.tmp.PID.XXXXXX" where PID names no running process. open calls it on
+ * the named path. */
 void cdvr_atomic_clean_stale(const char *target);
 
 #endif
