@@ -1095,8 +1095,8 @@ static cdvr_status consume(cdvr_player *p, chunk_item *it, cdvr_error *err)
         row->status = ferr.status;
         if (ferr.status != CDVR_OK)
             snprintf(row->error, sizeof row->error, "%s", ferr.msg);
-        if (ferr.status == CDVR_OK && img && p->opts.frame_fn)
-            cb = p->opts.frame_fn(p->opts.frame_ud, row, img, err);
+        if (p->opts.frame_fn && (ferr.status != CDVR_OK || img)) /* a failed frame too: img NULL */
+            cb = p->opts.frame_fn(p->opts.frame_ud, row, ferr.status == CDVR_OK ? img : NULL, err);
         cdvr_image_free(img);
         work_ms += cdvr_now_ms() - work_start;
         pace_and_show(p, row);
@@ -1368,6 +1368,29 @@ static void brick_corners(const cdvr_store_info *info, size_t b, double out[8][3
     }
 }
 
+/* Bounded work: the render options every renderer checks (render.h) on the store's box, and
+ * the rates that pace the run (player.h: CDVR_PLAYER_MIN_READ_MBPS, CDVR_PLAYER_MIN_FPS). */
+static cdvr_status check_work_bounds(const cdvr_player_opts *opts, const cdvr_store_info *info,
+                                     cdvr_error *err)
+{
+    cdvr_render_opts ro = {.step = opts->step, .unit = opts->unit, .term_alpha = opts->term_alpha};
+    cdvr_error rerr;
+    cdvr_status st = cdvr_render_opts_check_box(info->dims, info->spacing, &ro, &rerr);
+    if (st != CDVR_OK) {
+        const char *why = strncmp(rerr.msg, "render: ", 8) == 0 ? rerr.msg + 8 : rerr.msg;
+        return cdvr_error_set(err, st, "player: %s", why);
+    }
+    if (isnan(opts->read_mbps) || (opts->read_mbps > 0 && opts->read_mbps < CDVR_PLAYER_MIN_READ_MBPS) ||
+        opts->read_mbps > CDVR_PLAYER_MAX_RATE)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "player: read_mbps %g outside %g..%g MB/s (0: no cap)",
+                              opts->read_mbps, CDVR_PLAYER_MIN_READ_MBPS, CDVR_PLAYER_MAX_RATE);
+    if (isnan(opts->pace_fps) || (opts->pace_fps > 0 && opts->pace_fps < CDVR_PLAYER_MIN_FPS) ||
+        opts->pace_fps > CDVR_PLAYER_MAX_RATE)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "player: pace_fps %g outside %g..%g frames/s (0: no pacing)",
+                              opts->pace_fps, CDVR_PLAYER_MIN_FPS, CDVR_PLAYER_MAX_RATE);
+    return CDVR_OK;
+}
+
 cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, cdvr_error *err)
 {
     *out = NULL;
@@ -1382,6 +1405,9 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
                                                     : cdvr_render_method_find("raycast");
     if (cdvr_render_method_check_device(method, opts->device, err) != CDVR_OK)
         return err ? err->status : CDVR_ERR_UNSUPPORTED;
+    cdvr_status cs = check_work_bounds(opts, info, err);
+    if (cs != CDVR_OK)
+        return cs;
     cdvr_player *p = calloc(1, sizeof *p);
     if (!p)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "player: out of memory");

@@ -42,6 +42,12 @@ typedef struct lplayer {
     int shows_frames;    /* this process shows the frames (frame=, out=; cdvr/dist.h) */
     out_pattern out;
     cdvr_dist_play *dist; /* distribute= (cdvr/dist.h) */
+    /* Failed frames (a damaged chunk, ...): see frame_failed. */
+    int on_error_skip;   /* on_error="skip": a capture writes a marked frame and goes on */
+    int strict;          /* p:run{strict=}: a failed frame is an error of p:run */
+    size_t failed;       /* failed frames of this run */
+    int stopped;         /* the run was stopped by a failed frame (first_failure says which) */
+    char first_failure[CDVR_ERRMSG_MAX + 96];
 } lplayer;
 
 /* Uservalue slots of the player userdata. */
@@ -264,16 +270,9 @@ static int frame_lua(lua_State *L)
     return 0;
 }
 
-/* After each frame: stops the run on Ctrl-C in the console; where this process shows the
- * frames (distribute='bricks': rank 0), hands it to frame= and, with out=, writes the PNG. */
-static cdvr_status frame_cb(void *ud, const cdvr_frame_row *row, const cdvr_image *img, cdvr_error *err)
+/* Hands a frame to frame= and, with out=, writes its PNG. */
+static cdvr_status show_frame(lplayer *lp, const cdvr_frame_row *row, const cdvr_image *img, cdvr_error *err)
 {
-    lplayer *lp = ud;
-    const atomic_int *interrupt = lcdvr_interrupt_flag(lp->L);
-    if (interrupt && atomic_load(interrupt))
-        return cdvr_error_set(err, CDVR_ERR_CANCELLED, "playback interrupted");
-    if (!lp->shows_frames)
-        return CDVR_OK;
     if (lp->frame_callback) {
         frame_ctx c = {lp, row, img, err, CDVR_OK};
         cdvr_status s = run_protected(lp, frame_lua, &c, "frame", err);
@@ -290,6 +289,73 @@ static cdvr_status frame_cb(void *ud, const cdvr_frame_row *row, const cdvr_imag
     if (!make_parent_dirs(path))
         return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot create its directory: %s", path, strerror(errno));
     return cdvr_image_save_png(img, path, err);
+}
+
+/* The frame a capture writes in place of one that could not be made (on_error="skip"): the
+ * background with an opaque red border and a red cross corner to corner, each
+ * max(2, min(width, height) / 32) pixels thick. */
+static cdvr_status marked_frame(const lplayer *lp, cdvr_image **out, cdvr_error *err)
+{
+    int w = lp->opts.camera.width, h = lp->opts.camera.height;
+    cdvr_status s = cdvr_image_create(w, h, out, err);
+    if (s != CDVR_OK)
+        return s;
+    cdvr_image *img = *out;
+    memcpy(img->background, lp->opts.background, sizeof img->background);
+    int thick = (w < h ? w : h) / 32 > 2 ? (w < h ? w : h) / 32 : 2;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            double d1 = fabs((double)x / w - (double)y / h), d2 = fabs((double)x / w + (double)y / h - 1.0);
+            int border = x < thick || y < thick || x >= w - thick || y >= h - thick;
+            int cross = fmin(d1, d2) * (w < h ? w : h) < thick / 2.0;
+            float *px = img->rgba + 4 * ((size_t)y * (size_t)w + (size_t)x);
+            if (border || cross) {
+                px[0] = px[3] = 1.0f; /* premultiplied opaque red */
+                px[1] = px[2] = 0.0f;
+            }
+        }
+    return CDVR_OK;
+}
+
+/* A frame that could not be made (row->error names the chunk and the store). It is counted
+ * and the first is remembered; then a capture with on_error="skip" writes the marked frame in
+ * its place and goes on, while a capture with on_error="stop" (the default) or a strict run
+ * stops here with an error naming the frame, the timestep and the cause. */
+static cdvr_status frame_failed(lplayer *lp, const cdvr_frame_row *row, cdvr_error *err)
+{
+    if (lp->failed++ == 0)
+        snprintf(lp->first_failure, sizeof lp->first_failure, "frame %zu (timestep %zu) could not be made: %s",
+                 row->frame + 1, row->t + 1, row->error[0] ? row->error : cdvr_status_name(row->status));
+    if (lp->capture && lp->on_error_skip) {
+        cdvr_image *img = NULL;
+        cdvr_status s = marked_frame(lp, &img, err);
+        if (s == CDVR_OK)
+            s = show_frame(lp, row, img, err);
+        cdvr_image_free(img);
+        return s;
+    }
+    if (!lp->capture && !lp->strict)
+        return CDVR_OK; /* interactive playback: the row keeps its error, the run goes on */
+    lp->stopped = 1;
+    return cdvr_error_set(err, row->status, "p:run: %s%s", lp->first_failure,
+                          lp->capture ? "; the capture stops there (cdvr.player{on_error=\"skip\"} writes a "
+                                        "marked frame in its place and goes on)" : "");
+}
+
+/* After each frame: stops the run on Ctrl-C in the console; where this process shows the
+ * frames (distribute='bricks': rank 0), hands it to frame= and, with out=, writes the PNG; a
+ * failed frame (img NULL) goes to frame_failed. */
+static cdvr_status frame_cb(void *ud, const cdvr_frame_row *row, const cdvr_image *img, cdvr_error *err)
+{
+    lplayer *lp = ud;
+    const atomic_int *interrupt = lcdvr_interrupt_flag(lp->L);
+    if (interrupt && atomic_load(interrupt))
+        return cdvr_error_set(err, CDVR_ERR_CANCELLED, "playback interrupted");
+    if (!lp->shows_frames)
+        return CDVR_OK;
+    if (!img || row->status != CDVR_OK)
+        return frame_failed(lp, row, err);
+    return show_frame(lp, row, img, err);
 }
 
 /* ---- cdvr.player ------------------------------------------------------------------------ */
@@ -395,6 +461,24 @@ static double number_option(lua_State *L, const char *key, double def, double lo
     return v;
 }
 
+/* A rate option (read_mbps, target_fps): def when absent, 0 for "none" where zero_ok, else
+ * min .. CDVR_PLAYER_MAX_RATE (player.h), so that no rate makes the run wait for ever. */
+static double rate_option(lua_State *L, const char *key, double def, int zero_ok, double min, const char *unit)
+{
+    int absent = lua_getfield(L, 1, key) == LUA_TNIL;
+    lua_pop(L, 1);
+    if (absent)
+        return def;
+    double v = number_option(L, key, def, 0, HUGE_VAL, "a finite number >= 0 expected");
+    if ((v == 0 && !zero_ok) || (v != 0 && !(v >= min && v <= CDVR_PLAYER_MAX_RATE))) {
+        char msg[256];
+        snprintf(msg, sizeof msg, "cdvr.player: option '%s' = %g: %s%g .. %g %s expected (the limits keep the run "
+                 "bounded)", key, v, zero_ok ? "0 (none) or " : "", min, CDVR_PLAYER_MAX_RATE, unit);
+        luaL_error(L, "%s", msg);
+    }
+    return v;
+}
+
 static lua_Integer integer_option(lua_State *L, const char *key, lua_Integer def, lua_Integer lo, lua_Integer hi)
 {
     lua_Integer v = lcdvr_optintegerfield(L, 1, key, def);
@@ -451,7 +535,7 @@ static void render_options(lua_State *L, lplayer *lp, const cdvr_store_info *inf
     lp->opts.pipelined = lcdvr_optbooleanfield(L, 1, "pipeline", 1);
     lp->opts.ring = (int)integer_option(L, "ring", 3, 1, 64);
     lp->opts.cold = lcdvr_optbooleanfield(L, 1, "cold", 0);
-    lp->opts.read_mbps = number_option(L, "read_mbps", 0, 0, DBL_MAX, "a finite number >= 0 expected (0: no cap)");
+    lp->opts.read_mbps = rate_option(L, "read_mbps", 0, 1, CDVR_PLAYER_MIN_READ_MBPS, "MB/s");
     lp->opts.empty_skip = lcdvr_optbooleanfield(L, 1, "empty_skip", 1);
     lp->opts.brick_skip = lcdvr_optbooleanfield(L, 1, "brick_skip", 1);
 }
@@ -460,6 +544,13 @@ static void render_options(lua_State *L, lplayer *lp, const cdvr_store_info *inf
 static int capture_options(lua_State *L, lplayer *lp, const cdvr_store *st)
 {
     const char *out = lcdvr_optstringfield(L, 1, "out", NULL);
+    const char *on_error = lcdvr_optstringfield(L, 1, "on_error", NULL);
+    if (on_error && strcmp(on_error, "stop") != 0 && strcmp(on_error, "skip") != 0)
+        luaL_error(L, "cdvr.player: option 'on_error' = \"%s\": \"stop\" (the default: a frame that cannot "
+                      "be made stops the capture) or \"skip\" (a marked frame in its place) expected", on_error);
+    if (on_error && !out)
+        luaL_error(L, "cdvr.player: option 'on_error' applies to captures (out=), and out= is not set");
+    lp->on_error_skip = on_error && strcmp(on_error, "skip") == 0;
     if (!out)
         return 0;
     char why[96];
@@ -601,7 +692,7 @@ static int l_player(lua_State *L)
                                        "threads", "pipeline", "ring", "cold", "read_mbps",
                                        "empty_skip", "callback_limit", "out", "pace", "width",
                                        "height", "loop", "brick_skip", "frame", "distribute",
-                                       NULL};
+                                       "on_error", NULL};
     luaL_checktype(L, 1, LUA_TTABLE);
     const cdvr_render_method *method = lcdvr_method_option(L, 1, "cdvr.player");
     lcdvr_method_checkoptions(L, 1, method, "cdvr.player", keys);
@@ -628,7 +719,7 @@ static int l_player(lua_State *L)
     lp->variant_why = "best quality (no variant, policy or min_psnr given)";
     lp->capture = capture_options(L, lp, st);
     frame_option(L, ud, lp);
-    double target_fps = number_option(L, "target_fps", 0, DBL_MIN, DBL_MAX, "a finite number > 0 expected");
+    double target_fps = rate_option(L, "target_fps", 0, 0, CDVR_PLAYER_MIN_FPS, "frames/s");
     lp->target_fps = target_fps;
     if (!lp->capture && lcdvr_optbooleanfield(L, 1, "pace", 1))
         lp->opts.pace_fps = target_fps;
@@ -673,30 +764,54 @@ static void push_stage_medians(lua_State *L, const cdvr_frame_row *rows, size_t 
     lua_remove(L, -2);                                                    /* medians */
 }
 
+/* The failed frames of a run, with the report on the stack: report.failed (their number) and,
+ * when one stopped the run, report.error; a strict run with failed frames (on_error="skip":
+ * marked frames written) raises instead, naming the count and the first. */
+static int run_failures(lua_State *L, lplayer *lp, size_t rows)
+{
+    if (lp->strict && lp->failed > 0)
+        return luaL_error(L, "p:run: %d of %d frames could not be made (marked frames were written in their place, "
+                             "on_error=\"skip\"); the first: %s", (int)lp->failed, (int)rows, lp->first_failure);
+    lua_pushinteger(L, (lua_Integer)lp->failed);
+    lua_setfield(L, -2, "failed");
+    if (lp->stopped) {
+        lua_pushstring(L, lp->first_failure);
+        lua_setfield(L, -2, "error");
+    }
+    return 1;
+}
+
 static int player_run(lua_State *L)
 {
     lplayer *lp = checkidleplayer(L, 1, "run");
     const cdvr_store_info *info = cdvr_store_get_info(lp->opts.store);
     lua_Integer frames = (lua_Integer)info->timesteps, first = 1;
+    lp->strict = lp->capture; /* captures never lose a frame silently */
     if (!lua_isnoneornil(L, 2)) {
-        static const char *const keys[] = {"frames", "first", NULL};
+        static const char *const keys[] = {"frames", "first", "strict", NULL};
         luaL_checktype(L, 2, LUA_TTABLE);
         lcdvr_checkoptions(L, 2, "p:run", keys);
         frames = lcdvr_optintegerfield(L, 2, "frames", frames);
         first = lcdvr_optintegerfield(L, 2, "first", 1);
+        lp->strict = lcdvr_optbooleanfield(L, 2, "strict", lp->capture);
     }
+    lp->failed = 0;
+    lp->stopped = 0;
+    lp->first_failure[0] = '\0';
     luaL_argcheck(L, frames >= 1, 2, "frames must be at least 1");
     luaL_argcheck(L, first >= 1 && (size_t)first <= info->timesteps, 2, "first timestep out of range");
     lua_settop(L, 1);                             /* callbacks find the player at index 1 */
+    cdvr_error err;
+    if (cdvr_dist_play_begin(lp->dist, (size_t)first - 1, (size_t)frames, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);               /* the ranks disagree (cdvr/dist.h) */
     lp->L = L;
     lp->running = 1;
-    cdvr_error err;
     double t0 = cdvr_now_ms();
     cdvr_status status = cdvr_player_run(lp->player, (size_t)first - 1, (size_t)frames, &err);
     double wall_ms = cdvr_now_ms() - t0;
     lp->running = 0;
     lp->L = NULL;
-    if (status != CDVR_OK)
+    if (status != CDVR_OK && (lp->strict || !lp->stopped)) /* not strict: a report that says it stopped */
         return lcdvr_raise(L, &err);
     size_t n;
     const cdvr_frame_row *rows;
@@ -743,7 +858,7 @@ static int player_run(lua_State *L)
     lua_setfield(L, -2, "device");
     lua_pushinteger(L, (lua_Integer)cdvr_player_group_length(lp->opts.store));
     lua_setfield(L, -2, "group_length");
-    return 1;
+    return run_failures(L, lp, n);
 }
 
 /* Frees the player and lets go of its store (a deferred st:close() happens now). */

@@ -122,9 +122,21 @@ typedef cdvr_status (*cdvr_camera_fn)(void *ud, size_t t, size_t frame, cdvr_cam
 typedef cdvr_status (*cdvr_composite_fn)(void *ud, const cdvr_frame_row *row,
                                          const cdvr_camera *cam, cdvr_image **img,
                                          double *wait_ms, cdvr_error *err);
-/* Called after each frame with the row and the image (e.g. to write a PNG); may be NULL. */
+/* Called after each frame with the row and the image (e.g. to write a PNG); may be NULL. A
+ * frame that failed (row->status and row->error say why, e.g. a damaged chunk) is passed too,
+ * with img NULL, so that a capture never loses a frame silently; a frame the composite hook
+ * left without an image here (img NULL, row->status CDVR_OK) is not passed. A non-OK return
+ * stops the run with that error (the rows so far are kept). */
 typedef cdvr_status (*cdvr_frame_fn)(void *ud, const cdvr_frame_row *row, const cdvr_image *img,
                                      cdvr_error *err);
+
+/* Bounded work (cdvr_player_create refuses other values, naming the limit): read_mbps is 0 (no
+ * cap) or CDVR_PLAYER_MIN_READ_MBPS .. CDVR_PLAYER_MAX_RATE (1 kB/s at the slowest); pace_fps
+ * is 0 or CDVR_PLAYER_MIN_FPS .. CDVR_PLAYER_MAX_RATE (a frame per 1000 s at the slowest);
+ * step, unit and term_alpha as cdvr_render_opts_check on the store's box. */
+#define CDVR_PLAYER_MIN_READ_MBPS 1e-3
+#define CDVR_PLAYER_MIN_FPS 1e-3
+#define CDVR_PLAYER_MAX_RATE 1e9
 
 typedef struct cdvr_player_opts {
     const cdvr_store *store;

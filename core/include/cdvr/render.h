@@ -178,6 +178,26 @@ typedef struct cdvr_render_opts {
 cdvr_status cdvr_render_check_look(const cdvr_render_opts *opts, cdvr_error *err);
 /* A look with shading on at VTK's defaults (headlight). */
 void cdvr_shading_default(cdvr_shading *sh);
+/* The bounds on render work (cdvr_render_opts_check): a step below 1/64 of the smallest voxel
+ * spacing is refused (64 samples per voxel is far past where the image stops changing; the
+ * default step is 1/2), and so is a step that puts more than 2^24 samples on the box's
+ * diagonal (e.g. a very anisotropic spacing). */
+#define CDVR_RENDER_MIN_STEP_DIVISOR 64
+#define CDVR_RENDER_MAX_RAY_SAMPLES (1u << 24)
+
+/* Checks the options every renderer takes (the CPU ray caster, splatting, OpenCL, GL slicing
+ * and the player call it; bindings may call it early): spacing positive and finite; step
+ * finite and 0 (default) or >= min(spacing) / CDVR_RENDER_MIN_STEP_DIVISOR, and at most
+ * CDVR_RENDER_MAX_RAY_SAMPLES steps along the box's diagonal (the whole volume's box when
+ * opts->clip is set); unit finite and >= 0; term_alpha >= 0 (not NaN). Does not check tf or
+ * camera. Errors (CDVR_ERR_ARG) name the option, its value and the limit, e.g. "render: step
+ * 1e-06 is below 1/64 of the smallest voxel spacing 1 (the limit: step >= 0.015625)". */
+cdvr_status cdvr_render_opts_check(const cdvr_volume *vol, const cdvr_render_opts *opts,
+                                   cdvr_error *err);
+/* The same for a box of dims voxels with this spacing, for callers that hold no volume yet
+ * (a device stream, a player that has only the store's header). */
+cdvr_status cdvr_render_opts_check_box(const size_t dims[3], const double spacing[3],
+                                       const cdvr_render_opts *opts, cdvr_error *err);
 
 /* Resolved step, unit and termination threshold (the defaults above) for a volume. */
 void cdvr_render_resolve(const cdvr_volume *vol, const cdvr_render_opts *opts, double *step,

@@ -576,6 +576,8 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     cam_params cam;
     box_frame box;
     cdvr_status st = check_render_args(s, frame, opts, spacing, origin, img, err);
+    if (!st) /* step, unit, term_alpha: bounded work */
+        st = cdvr_render_opts_check_box(opts->clip ? opts->clip->whole_dims : s->dims, spacing, opts, err);
     if (!st)
         st = camera_params(opts->camera, &cam, err);
     if (st)

@@ -549,17 +549,15 @@ static cdvr_status check_opts(const cdvr_volume *vol, const cdvr_render_opts *op
     cdvr_status st = cdvr_camera_validate(opts->camera, err);
     if (st != CDVR_OK)
         return st;
-    if (!isfinite(opts->step) || opts->step < 0.0 || !isfinite(opts->unit) || opts->unit < 0.0)
-        return cdvr_error_set(err, CDVR_ERR_ARG, "render: step %g and unit %g must be >= 0",
-                              opts->step, opts->unit);
-    if (!(term >= 0.0))
-        return cdvr_error_set(err, CDVR_ERR_ARG, "render: term_alpha %g must be >= 0",
-                              opts->term_alpha);
+    st = cdvr_render_opts_check(vol, opts, err); /* step, unit, term_alpha: bounded work */
+    if (st != CDVR_OK)
+        return st;
     if (box_diagonal(vol) / step > (double)INT_MAX)
         return cdvr_error_set(err, CDVR_ERR_ARG,
                               "render: step %g too small for a box of diagonal %g", step,
                               box_diagonal(vol));
     (void)unit;
+    (void)term;
     return CDVR_OK;
 }
 
