@@ -1,7 +1,6 @@
 /* core/io/io_nrrd.c - NRRD (.nrrd, .nhdr with detached data) through teem. */
 #include "cdvr/volume.h"
 #include "volume_io.h"
-#include "cdvr/regular_file.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -184,14 +183,16 @@ cdvr_status cdvr_volume_load_nrrd(const char *path, cdvr_volume **out, cdvr_erro
 
 cdvr_status cdvr_volume_probe_nrrd(const char *path, cdvr_volume *head, cdvr_error *err)
 {
-    cdvr_status st = cdvr_check_regular_file(path, NULL, err);
+    cdvr_status st = cdvr_nrrd_check_header(path, err); /* the load's header limit too */
     if (st != CDVR_OK)
         return st;
     Nrrd *nrrd = nrrdNew();
     NrrdIoState *nio = nrrdIoStateNew();
     if (!nrrd || !nio) {
-        nrrdNix(nrrd);
-        nrrdIoStateNix(nio);
+        if (nrrd)
+            nrrdNix(nrrd);
+        if (nio)
+            nrrdIoStateNix(nio);
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
     }
     nrrdIoStateSet(nio, nrrdIoStateSkipData, AIR_TRUE);

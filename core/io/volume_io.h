@@ -30,6 +30,9 @@ cdvr_status cdvr_check_readable(const char *path, cdvr_error *err);
  * files or are the header itself, and headers claiming more data than the files can hold
  * (raw: file size; gzip: ratio bound, then one inflate pass; bzip2: one decompression pass). */
 cdvr_status cdvr_nrrd_check(const char *path, cdvr_error *err);
+/* Only the header part of cdvr_nrrd_check (a regular file, a header within the length limit),
+ * for probes that do not read the data. */
+cdvr_status cdvr_nrrd_check_header(const char *path, cdvr_error *err);
 
 /* Cuts teem's biff message (several "[nrrd] function: text" lines, innermost last) in place to
  * its innermost non-empty reason. */
