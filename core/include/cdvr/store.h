@@ -24,6 +24,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "cdvr/crc32c.h" /* the chunk checksums */
 #include "cdvr/codec.h"
 #include "cdvr/error.h"
 #include "cdvr/volume.h"
@@ -257,7 +258,5 @@ size_t cdvr_store_ranges_bytes(const cdvr_store *st, size_t v, size_t c);
 cdvr_status cdvr_store_read_ranges(const cdvr_store *st, size_t v, size_t c, uint8_t *out,
                                    cdvr_error *err);
 
-/* CRC-32C (Castagnoli), initial value 0 for a fresh CRC: crc = cdvr_crc32c(0, buf, n). */
-uint32_t cdvr_crc32c(uint32_t crc, const void *buf, size_t n);
 
 #endif
