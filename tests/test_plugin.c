@@ -3,7 +3,8 @@
  * with a message naming the file and the reason (wrong ABI, no entry symbol, NULL info or
  * codec, name or id clash, missing decode, unresolvable symbol), and so are a text file, a
  * directory, a missing file and a second copy of a loaded plugin; nothing refused stays
- * registered; cdvr_plugin_load_dirs loads what it can and reports each failure once. */
+ * registered; a plugin built for ABI 2 still loads; cdvr_plugin_load_dirs loads what it can and
+ * reports each failure once. (Format plugins: tests/test_format.c.) */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -193,7 +194,7 @@ static void test_load_dirs(const char *tmp)
     char plugins[4096];
     path_in_build(plugins, sizeof plugins, "plugins");
     reports none = {0};
-    size_t want = (size_t)built("example") + (size_t)built("zfp");
+    size_t want = (size_t)built("example") + (size_t)built("zfp") + (size_t)built("format_example");
     CHECK(cdvr_plugin_load_dirs(plugins, collect, &none) == want && none.count == 0,
           "build plugins: %d reports: %s", none.count, none.text[0]);
     CHECK(cdvr_plugin_load_dirs(NULL, collect, &none) == 0, "NULL list");
@@ -223,7 +224,10 @@ int main(void)
         const cdvr_codec *zfp = load_good("plugins/cdvr_zfp.so", "zfp");
         CHECK(zfp && zfp->id == 0x7A667000u, "zfp id");
     }
-    CHECK(cdvr_codec_count() == builtins + (size_t)built("example") + (size_t)built("zfp"),
+    /* a plugin built against ABI 2 (its info has two fields) still loads */
+    const cdvr_codec *abi2 = load_good("tests/plugins_abi2/abi2.so", "abi2");
+    CHECK(abi2 && abi2->id == 0x41424932u, "abi2 id");
+    CHECK(cdvr_codec_count() == builtins + 1 + (size_t)built("example") + (size_t)built("zfp"),
           "%zu codecs", cdvr_codec_count());
     if (built("example"))
         test_copy_clash(tmp);

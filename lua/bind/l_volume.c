@@ -1,5 +1,7 @@
 /* lua/bind/l_volume.c - cdvr.Volume: volumes and series in Lua (cdvr.load, v:dims(), ...). */
 #include "lcdvr.h"
+#include "cdvr/format.h"
+#include "cdvr/plugin.h"
 #include "cdvr/series.h"
 
 #include <math.h>
@@ -952,9 +954,45 @@ static int l_generate(lua_State *L)
     return 1;
 }
 
+/* cdvr.formats(): {{name=, description=, suffixes={...}, magic=, series=, described= (reads
+ * only what opts describe: raw), plugin=file or nil}, ...} in registration order
+ * (cdvr/format.h). */
+static int l_formats(lua_State *L)
+{
+    size_t n = cdvr_format_count();
+    lua_createtable(L, (int)n, 0);
+    for (size_t i = 0; i < n; i++) {
+        const cdvr_format *f = cdvr_format_at(i);
+        lua_createtable(L, 0, 7);
+        lua_pushstring(L, f->name);
+        lua_setfield(L, -2, "name");
+        lua_pushstring(L, f->description);
+        lua_setfield(L, -2, "description");
+        lua_newtable(L);
+        for (int k = 0; f->suffixes[k]; k++) {
+            lua_pushstring(L, f->suffixes[k]);
+            lua_seti(L, -2, k + 1);
+        }
+        lua_setfield(L, -2, "suffixes");
+        lua_pushboolean(L, f->magic != NULL);
+        lua_setfield(L, -2, "magic");
+        lua_pushboolean(L, f->expand != NULL);
+        lua_setfield(L, -2, "series");
+        lua_pushboolean(L, (f->flags & CDVR_FORMAT_DESCRIBED) != 0);
+        lua_setfield(L, -2, "described");
+        const char *file = cdvr_plugin_format_file(f);
+        if (file) {
+            lua_pushstring(L, file);
+            lua_setfield(L, -2, "plugin");
+        }
+        lua_seti(L, -2, (lua_Integer)i + 1);
+    }
+    return 1;
+}
+
 static const luaL_Reg volume_funcs[] = {
     {"load", l_load},         {"load_series", l_load_series}, {"volume", l_volume_new},
-    {"generate", l_generate}, {NULL, NULL}};
+    {"generate", l_generate}, {"formats", l_formats}, {NULL, NULL}};
 
 static const luaL_Reg volume_methods[] = {
     {"dims", volume_dims},   {"type", volume_type}, {"timesteps", volume_timesteps},
@@ -974,8 +1012,11 @@ int lcdvr_open_volume(lua_State *L)
     lcdvr_newclass(L, LCDVR_VOLUME, volume_methods, volume_meta);
     lcdvr_setfuncs(L, volume_funcs);
     lcdvr_help_add(L, "cdvr.load(path [, opts])",
-                   "load .nrrd .nhdr .nii .nii.gz, or raw with opts {dims=, type=, endian=, header=, timesteps=, spacing=}; "
+                   "load .nrrd .nhdr .nii .nii.gz (or any format of cdvr.formats(), by suffix, else by its first bytes), "
+                   "or raw with opts {dims=, type=, endian=, header=, timesteps=, spacing=}; "
                    "a file that cannot be read raises an error naming it and the reason");
+    lcdvr_help_add(L, "cdvr.formats()",
+                   "list of file formats: {name, description, suffixes, magic, series, described, plugin}");
     lcdvr_help_add(L, "cdvr.load_series(pattern_or_list [, opts])",
                    "load files as one series: printf pattern (\"vf_t%03d.nrrd\", opts first=, count= or last=) or a list of names");
     lcdvr_help_add(L, "cdvr.volume{dims=, type=, timesteps=}", "new zero-filled volume");

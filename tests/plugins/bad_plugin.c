@@ -9,6 +9,8 @@
  *   BAD_CLASH_ID    a codec with the built-in PVTC id
  *   BAD_NO_DECODE   a table without decode
  *   BAD_UNDEFINED   needs a symbol nothing defines (dlopen fails)
+ *   BAD_ABI2        not bad: a valid codec "abi2" behind an ABI 2 info (two fields), which
+ *                   this cdvr still loads
  * The codec itself is raw-like and valid unless the case says otherwise. */
 #include <string.h>
 
@@ -97,11 +99,15 @@ static cdvr_status bad_decode(const cdvr_codec_params *p, const size_t dims[3],
 
 #if defined(BAD_CLASH_NAME)
 #define BAD_CODEC_NAME "pvtc"
+#elif defined(BAD_ABI2)
+#define BAD_CODEC_NAME "abi2"
 #else
 #define BAD_CODEC_NAME "bad"
 #endif
 #if defined(BAD_CLASH_ID)
 #define BAD_CODEC_ID CDVR_CODEC_ID_PVTC
+#elif defined(BAD_ABI2)
+#define BAD_CODEC_ID 0x41424932u /* "ABI2" */
 #else
 #define BAD_CODEC_ID 0x42414400u /* "BAD\0" */
 #endif
@@ -125,12 +131,22 @@ static const cdvr_codec bad_codec = {
 };
 
 #if defined(BAD_ABI)
-static const cdvr_plugin_info bad_info = {42u, &bad_codec}; /* never a real ABI version */
+static const cdvr_plugin_info bad_info = {.abi = 42u, .codec = &bad_codec}; /* never real */
 #elif defined(BAD_NULL_CODEC)
-static const cdvr_plugin_info bad_info = {CDVR_PLUGIN_ABI, NULL};
+static const cdvr_plugin_info bad_info = {.abi = CDVR_PLUGIN_ABI, .codec = NULL};
 static const cdvr_codec *const unused_codec = &bad_codec;
+#elif defined(BAD_ABI2)
+/* What a plugin built against ABI 2's header returns: only these two fields exist. */
+static const struct {
+    uint32_t abi;
+    const cdvr_codec *codec;
+} bad_info_v2 = {2u, &bad_codec};
+#define BAD_INFO_PTR ((const cdvr_plugin_info *)(const void *)&bad_info_v2)
 #else
-static const cdvr_plugin_info bad_info = {CDVR_PLUGIN_ABI, &bad_codec};
+static const cdvr_plugin_info bad_info = {.abi = CDVR_PLUGIN_ABI, .codec = &bad_codec};
+#endif
+#ifndef BAD_INFO_PTR
+#define BAD_INFO_PTR (&bad_info)
 #endif
 
 #if defined(BAD_NOSYM)
@@ -150,6 +166,6 @@ CDVR_PLUGIN_EXPORT const cdvr_plugin_info *BAD_ENTRY(void)
     (void)bad_info;
     return NULL;
 #else
-    return &bad_info;
+    return BAD_INFO_PTR;
 #endif
 }
