@@ -45,9 +45,6 @@ cdvr_status cdvr_volume_probe_nrrd(const char *path, cdvr_volume *head, cdvr_err
 cdvr_status cdvr_volume_probe_nifti(const char *path, cdvr_volume *head, cdvr_error *err);
 cdvr_status cdvr_volume_probe_raw(const char *path, const cdvr_raw_opts *opts, cdvr_volume *head,
                                   cdvr_error *err);
-/* The same dispatch on the file name as cdvr_volume_load (raw spacing overrides included). */
-cdvr_status cdvr_volume_probe(const char *path, const cdvr_raw_opts *raw, cdvr_volume *head,
-                              cdvr_error *err);
 
 /* The checks cdvr_volume_load_series makes of each file against the first: the same dims and
  * type; the same spacing (relative 1e-6) unless the caller gives one. Errors name both files. */

@@ -30,7 +30,8 @@ typedef struct cdvr_series_info {
 } cdvr_series_info;
 
 /* Opens count files (raw files need raw; its spacing, when set, overrides every file's),
- * reading their headers. */
+ * reading their headers; a file whose format lists files (cdvr/format.h, expand) stands for
+ * those files. */
 cdvr_status cdvr_series_open(const char *const *paths, size_t count, const cdvr_raw_opts *raw,
                              cdvr_series **out, cdvr_error *err);
 void cdvr_series_close(cdvr_series *s);
