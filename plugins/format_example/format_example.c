@@ -43,7 +43,8 @@ static size_t type_size(cdvr_type t)
 static int parse_type(const char *s, cdvr_type *t)
 {
     static const struct { const char *name; cdvr_type type; } types[] = {
-        {"u8", CDVR_TYPE_U8}, {"u16", CDVR_TYPE_U16}, {"i16", CDVR_TYPE_I16}, {"f32", CDVR_TYPE_F32}};
+        {"u8", CDVR_TYPE_U8}, {"u16", CDVR_TYPE_U16}, {"i16", CDVR_TYPE_I16},
+        {"f32", CDVR_TYPE_F32}};
     for (size_t i = 0; i < sizeof types / sizeof *types; i++)
         if (strcmp(s, types[i].name) == 0) {
             *t = types[i].type;

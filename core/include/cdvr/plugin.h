@@ -12,7 +12,8 @@
  * process ends). plugins/example/ is the smallest complete codec plugin and the guide to writing
  * one; tests/plugins/format_plugin.c the same for a format.
  *
- * ABI versions (what cdvr_plugin_info holds; this cdvr loads CDVR_PLUGIN_ABI_MIN .. CDVR_PLUGIN_ABI):
+ * ABI versions (what cdvr_plugin_info holds; this cdvr loads CDVR_PLUGIN_ABI_MIN ..
+ * CDVR_PLUGIN_ABI):
  *   2  {abi, codec}: one codec (cdvr_codec with encode_part). Still loaded as it is.
  *   3  {abi, codec, codecs, formats}: `codec` may be NULL; `codecs` and `formats` are
  *      NULL-terminated lists (or NULL). At least one codec or format in all.
