@@ -3,7 +3,8 @@
  * with a message naming the file and the reason (wrong ABI, no entry symbol, NULL info or
  * codec, name or id clash, missing decode, unresolvable symbol), and so are a text file, a
  * directory, a missing file and a second copy of a loaded plugin; nothing refused stays
- * registered; a plugin built for ABI 2 still loads; cdvr_plugin_load_dirs loads what it can and
+ * registered; a plugin built for ABI 2 still loads; one refused after its first table keeps
+ * that table and is refused again on every load; cdvr_plugin_load_dirs loads what it can and
  * reports each failure once. (Format plugins: tests/test_format.c.) */
 #include <errno.h>
 #include <stdio.h>
@@ -226,9 +227,22 @@ int main(void)
         CHECK(zfp && zfp->id == 0x7A667000u, "zfp id");
     }
     /* a plugin built against ABI 2 (its info has two fields) still loads */
-    const cdvr_codec *abi2 = load_good("tests/plugins_abi2/abi2.so", "abi2");
+    const cdvr_codec *abi2 = load_good("tests/plugins_more/abi2.so", "abi2");
     CHECK(abi2 && abi2->id == 0x41424932u, "abi2 id");
-    CHECK(cdvr_codec_count() == builtins + 1 + (size_t)built("example") + (size_t)built("zfp"),
+    /* a plugin refused after its first table: that one stays, and every load is refused */
+    char partial[4096];
+    path_in_build(partial, sizeof partial, "tests/plugins_more/partial.so");
+    for (int i = 0; i < 2; i++) {
+        cdvr_error err;
+        const cdvr_codec *got = NULL;
+        CHECK(cdvr_plugin_load(partial, &got, &err) == CDVR_ERR_ARG && !got &&
+                  strstr(err.msg, partial) &&
+                  strstr(err.msg, "format 'partial': suffix .nrrd is already taken by format "
+                                  "'nrrd'"),
+              "partial plugin, load %d: %s", i + 1, err.msg);
+    }
+    CHECK(cdvr_codec_find("partial") != NULL, "the partial plugin's codec stays registered");
+    CHECK(cdvr_codec_count() == builtins + 2 + (size_t)built("example") + (size_t)built("zfp"),
           "%zu codecs", cdvr_codec_count());
     if (built("example"))
         test_copy_clash(tmp);

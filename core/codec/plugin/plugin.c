@@ -18,6 +18,8 @@ typedef struct loaded_plugin {
     const cdvr_plugin_info *raw;  /* what cdvr_plugin_v1 returned */
     cdvr_plugin_info info;        /* normalised to ABI 3 */
     char *path;
+    cdvr_error refusal;           /* status CDVR_OK, or why a table of it was refused (the
+                                     ones before it stay registered): every load says so */
 } loaded_plugin;
 
 static struct {
@@ -70,7 +72,7 @@ static const loaded_plugin *loaded_locked(const cdvr_plugin_info *raw)
 }
 
 /* Caller holds loader.mu. NULL when out of memory (the tables stay registered, unnamed). */
-static const loaded_plugin *remember_locked(const cdvr_plugin_info *raw,
+static loaded_plugin *remember_locked(const cdvr_plugin_info *raw,
                                             const cdvr_plugin_info *info, const char *path)
 {
     if (loader.count == loader.cap) {
@@ -88,7 +90,7 @@ static const loaded_plugin *remember_locked(const cdvr_plugin_info *raw,
         free(copy);
         return NULL;
     }
-    *lp = (loaded_plugin){raw, *info, copy};
+    *lp = (loaded_plugin){raw, *info, copy, {CDVR_OK, ""}};
     loader.items[loader.count++] = lp;
     return lp;
 }
@@ -199,6 +201,9 @@ static cdvr_status register_all_locked(const char *path, const cdvr_plugin_info 
 /* dlopen + dlsym + checks + registration; caller holds loader.mu. */
 static cdvr_status load_locked(const char *path, const loaded_plugin **out, cdvr_error *err)
 {
+    cdvr_error local;
+    if (!err)
+        err = &local; /* a refusal is kept (loaded_plugin.refusal) even when nobody asks */
     void *h = dlopen(path, RTLD_NOW | RTLD_LOCAL);
     if (!h) {
         const char *why = dlerror();
@@ -216,7 +221,10 @@ static cdvr_status load_locked(const char *path, const loaded_plugin **out, cdvr
     const cdvr_plugin_info *raw = entry();
     if (raw && (*out = loaded_locked(raw)) != NULL) {
         dlclose(h); /* the same file loaded again: drops the reference this call added */
-        return CDVR_OK;
+        if ((*out)->refusal.status == CDVR_OK)
+            return CDVR_OK;
+        *err = (*out)->refusal;
+        return (*out)->refusal.status;
     }
     cdvr_plugin_info info;
     size_t done = 0;
@@ -224,10 +232,11 @@ static cdvr_status load_locked(const char *path, const loaded_plugin **out, cdvr
     if (s == CDVR_OK)
         s = register_all_locked(path, &info, &done, err);
     if (s != CDVR_OK) {
+        loaded_plugin *lp;
         if (done == 0)
             dlclose(h); /* nothing of it was registered */
-        else
-            (void)remember_locked(raw, &info, path); /* its registered tables stay: name them */
+        else if ((lp = remember_locked(raw, &info, path)) != NULL)
+            lp->refusal = *err; /* its registered tables stay: name them, refuse it again */
         return s;
     }
     *out = remember_locked(raw, &info, path);
