@@ -28,6 +28,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "cdvr/bricks.h"
 #include "cdvr/skip.h"
 
 #if CDVR_HAVE_OPENCL

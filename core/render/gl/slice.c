@@ -8,7 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cdvr/store.h" /* cdvr_crc32c */
+#include "cdvr/crc32c.h"
 #include "cdvr/timing.h"
 #include "gl_internal.h"
 
