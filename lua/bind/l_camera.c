@@ -267,6 +267,50 @@ static double fit_distance(double r, double fov_deg, double aspect)
     return r / sin(fmin(half_v, half_h));
 }
 
+#define FRAME_FILL 0.9 /* the box's projection spans this fraction of the narrower side */
+
+/* Largest |projected coordinate| / tan(half angle) over the 8 corners of [lo, hi], horizontal
+ * and vertical: 1 means a corner on the image's edge (infinite when a corner is behind the
+ * eye). */
+static double corner_fill(const cdvr_camera *cam, const double lo[3], const double hi[3])
+{
+    double f[3], u[3], r[3];
+    cdvr_camera_basis(cam, f, u, r);
+    double tan_v = tan(0.5 * cam->fov * kPi / 180.0);
+    double tan_h = tan_v * (double)cam->width / cam->height, fill = 0.0;
+    for (int c = 0; c < 8; c++) {
+        double p[3] = {c & 1 ? hi[0] : lo[0], c & 2 ? hi[1] : lo[1], c & 4 ? hi[2] : lo[2]};
+        double d[3] = {p[0] - cam->eye[0], p[1] - cam->eye[1], p[2] - cam->eye[2]};
+        double z = d[0] * f[0] + d[1] * f[1] + d[2] * f[2];
+        if (cam->orthographic)
+            z = 1.0;
+        else if (z <= 1e-12)
+            return INFINITY;
+        double x = (d[0] * r[0] + d[1] * r[1] + d[2] * r[2]) / z;
+        double y = (d[0] * u[0] + d[1] * u[1] + d[2] * u[2]) / z;
+        fill = fmax(fill, fmax(fabs(x) / tan_h, fabs(y) / tan_v));
+    }
+    return fill;
+}
+
+/* The distance at which the box's corners fill FRAME_FILL of the view (bisection: the fill
+ * falls as the eye moves away along the orbit's direction). */
+static double frame_distance(cdvr_camera cam, const double lo[3], const double hi[3],
+                             const double center[3], double radius, double azimuth,
+                             double elevation)
+{
+    double near = 0.0, far = fit_distance(radius, cam.fov, (double)cam.width / cam.height) * 4.0;
+    for (int i = 0; i < 64; i++) {
+        double mid = 0.5 * (near + far);
+        cdvr_camera_orbit(&cam, center, cam.up, mid, azimuth, elevation);
+        if (corner_fill(&cam, lo, hi) > FRAME_FILL)
+            near = mid;
+        else
+            far = mid;
+    }
+    return far;
+}
+
 static int l_orbit_camera(lua_State *L)
 {
     double lo[3], hi[3], center[3], radius2 = 0.0;
@@ -277,7 +321,8 @@ static int l_orbit_camera(lua_State *L)
         lua_replace(L, 2);
     }
     luaL_checktype(L, 2, LUA_TTABLE);
-    static const char *const keys[] = {CAMERA_KEYS, "azimuth", "elevation", "distance", NULL};
+    static const char *const keys[] = {CAMERA_KEYS, "azimuth", "elevation", "distance", "zoom",
+                                       NULL};
     lcdvr_checkoptions(L, 2, "cdvr.orbit_camera", keys);
     for (int a = 0; a < 3; a++) {
         center[a] = 0.5 * (lo[a] + hi[a]);
@@ -289,13 +334,29 @@ static int l_orbit_camera(lua_State *L)
     double aspect = (double)cam.width / cam.height;
     if (!(cam.fov > 0.0 && cam.fov < 180.0))
         return luaL_error(L, "cdvr.orbit_camera: fov %f outside (0, 180)", cam.fov);
-    double distance = lcdvr_optnumberfield(L, 2, "distance", fit_distance(radius, cam.fov, aspect));
+    double azimuth = lcdvr_optnumberfield(L, 2, "azimuth", 0.0);
+    double elevation = lcdvr_optnumberfield(L, 2, "elevation", 0.0);
+    double zoom = lcdvr_optnumberfield(L, 2, "zoom", 1.0);
+    if (!(zoom > 0.0) || !isfinite(zoom) || !isfinite(azimuth) || !isfinite(elevation))
+        return luaL_error(L, "cdvr.orbit_camera: zoom %f must be positive, azimuth and elevation "
+                             "finite", zoom);
+    lua_getfield(L, 2, "distance");
+    int given = !lua_isnil(L, -1);
+    lua_pop(L, 1);
+    double distance = given ? lcdvr_optnumberfield(L, 2, "distance", 1.0)
+                    : cam.orthographic ? fit_distance(radius, cam.fov, aspect)
+                    : frame_distance(cam, lo, hi, center, radius, azimuth, elevation) / zoom;
     if (!(distance > 0.0) || !isfinite(distance))
         return luaL_error(L, "cdvr.orbit_camera: distance %f must be positive", distance);
-    if (cam.orthographic && cam.ortho_height == 0.0)
-        cam.ortho_height = 2.0 * radius / fmin(1.0, aspect);
-    cdvr_camera_orbit(&cam, center, cam.up, distance, lcdvr_optnumberfield(L, 2, "azimuth", 0.0),
-                      lcdvr_optnumberfield(L, 2, "elevation", 0.0));
+    cdvr_camera_orbit(&cam, center, cam.up, distance, azimuth, elevation);
+    if (cam.orthographic && cam.ortho_height == 0.0) { /* the corners at FRAME_FILL too */
+        cam.ortho_height = 2.0;
+        double fill = corner_fill(&cam, lo, hi); /* relative to half-height 1, tan_v 1 */
+        double tan_v = tan(0.5 * cam.fov * kPi / 180.0);
+        cam.ortho_height = 2.0 * fill * tan_v / FRAME_FILL / zoom;
+        if (!(cam.ortho_height > 0.0))
+            cam.ortho_height = 2.0 * radius / fmin(1.0, aspect);
+    }
     check_valid(L, &cam);
     lcdvr_pushcamera(L, &cam);
     return 1;
@@ -321,9 +382,10 @@ int lcdvr_open_camera(lua_State *L)
     lcdvr_setfuncs(L, camera_funcs);
     lcdvr_help_add(L, "cdvr.camera{eye=, center=, up=, fov=, width=, height=, orthographic=, ortho_height=}",
                    "pinhole camera (defaults center {0,0,0}, up {0,0,1}, fov 30, 512x512)");
-    lcdvr_help_add(L, "cdvr.orbit_camera(volume | store | dims, {azimuth=, elevation=, distance=, fov=, width=, height=, up=})",
+    lcdvr_help_add(L, "cdvr.orbit_camera(volume | store | dims, {azimuth=, elevation=, distance=, zoom=, fov=, width=, height=, up=})",
                    "camera around the box centre looking at it; azimuth 0 = +x side for up z; "
-                   "default distance fits the box");
+                   "without distance= the box's corners span 90% of the narrower image side "
+                   "(zoom=2: twice as large)");
     lcdvr_help_add(L, "cam:get()", "table of the camera's fields (also readable as cam.eye, cam.fov, ...)");
     lcdvr_help_add(L, "cdvr.camera(path.lua)", "camera saved by cam:save (raises if unreadable)");
     lcdvr_help_add(L, "cam:save(path)", "write a Lua file cdvr.camera(path) reads back; true or nil, msg");

@@ -89,7 +89,10 @@ local orbit = cdvr.orbit_camera({17, 17, 17}, {azimuth = 90, elevation = 0, widt
 check(near(orbit.center[1], 8) and near(orbit.center[3], 8) and orbit.eye[2] > 8 and near(orbit.eye[1], 8, 1e-9),
       "orbit azimuth 90 puts the eye on +y")
 local dist = orbit.eye[2] - 8
-check(near(dist, math.sqrt(3) * 8 / math.sin(math.rad(15)), 1e-6), "default distance fits the box: " .. dist)
+-- the nearest face's corners (8 off the axis, dist - 8 ahead) at 90% of the half view
+check(near(dist, 8 + 8 / (0.9 * math.tan(math.rad(15))), 1e-6), "default distance frames the box at 90%: " .. dist)
+local zoomed = cdvr.orbit_camera({17, 17, 17}, {azimuth = 90, elevation = 0, width = 33, height = 33, zoom = 2})
+check(near(zoomed.eye[2] - 8, dist / 2, 1e-9), "zoom=2 halves the distance")
 raises(function() cdvr.orbit_camera({17, 17}) end, nil, "orbit with 2 dims")
 raises(function() cdvr.orbit_camera({4, 4, 4}, {elevation = 90}) end, "parallel", "orbit looking along up")
 
