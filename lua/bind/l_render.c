@@ -30,11 +30,19 @@ static const cdvr_volume *u8_frame(lua_State *L, cdvr_volume *vol, size_t *t, do
     return q;
 }
 
-/* One warning per preset and Lua state when an absolute preset shows nothing of the data's
- * window (tf.h: cdvr_tf_misses_window). */
-static void warn_if_preset_misses(lua_State *L, const cdvr_tf *tf, const double window[2])
+/* One warning per preset, data range and Lua state when an absolute preset shows nothing of the data's
+ * range (tf.h: cdvr_tf_misses_window): the min..max of frame t of u8 when given, else the
+ * window. */
+static void warn_if_preset_misses(lua_State *L, const cdvr_tf *tf, const double window[2],
+                                  const cdvr_volume *u8, size_t t)
 {
-    if (!tf->name[0] || !cdvr_tf_misses_window(tf, window[0], window[1]))
+    if (!tf->name[0] || tf->normalized)
+        return;
+    double range[2] = {window[0], window[1]};
+    cdvr_error err;
+    if (u8 && cdvr_tf_percentile_window(u8, t, window, 0.0, 1.0, range, &err) != CDVR_OK)
+        range[0] = window[0], range[1] = window[1];
+    if (!cdvr_tf_misses_window(tf, range[0], range[1]))
         return;
     if (lua_getfield(L, LUA_REGISTRYINDEX, "cdvr.preset_warned") != LUA_TTABLE) {
         lua_pop(L, 1);
@@ -42,15 +50,16 @@ static void warn_if_preset_misses(lua_State *L, const cdvr_tf *tf, const double 
         lua_pushvalue(L, -1);
         lua_setfield(L, LUA_REGISTRYINDEX, "cdvr.preset_warned");
     }
-    if (lua_getfield(L, -1, tf->name) == LUA_TNIL) {
+    const char *key = lua_pushfstring(L, "%s %f %f", tf->name, range[0], range[1]);
+    if (lua_getfield(L, -2, key) == LUA_TNIL) {
         lcdvr_warn(L, "cdvr.render: preset '%s' (%f .. %f) shows nothing of the data's range "
                       "%f .. %f: the image is empty",
-                   tf->name, tf->points[0].value, tf->points[tf->npoints - 1].value, window[0],
-                   window[1]);
+                   tf->name, tf->points[0].value, tf->points[tf->npoints - 1].value, range[0],
+                   range[1]);
         lua_pushboolean(L, 1);
-        lua_setfield(L, -3, tf->name);
+        lua_setfield(L, -4, key);
     }
-    lua_pop(L, 2);
+    lua_pop(L, 3);
 }
 
 /* The TF in opts->tf with its table built over window (tf.h), pushed as a new cdvr.TF that
@@ -63,7 +72,7 @@ static void window_tf(lua_State *L, cdvr_render_opts *o, const double window[2],
     cdvr_error err;
     if (cdvr_tf_apply_window(tf, window, u8, t, NULL, &err) != CDVR_OK)
         lcdvr_raise(L, &err);
-    warn_if_preset_misses(L, tf, window);
+    warn_if_preset_misses(L, tf, window, u8, t);
     lua_replace(L, slot);
     o->tf = tf;
 }
