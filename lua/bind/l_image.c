@@ -123,7 +123,7 @@ static int image_save(lua_State *L)
     int jpeg = has_extension(path, ".jpg") || has_extension(path, ".jpeg");
     if (!png && !jpeg)
         return luaL_error(L, "img:save: cannot write '%s': the extension chooses the format: "
-                             ".png or .jpg/.jpeg", path);
+                             ".png (PNG) or .jpg/.jpeg (JPEG)", path);
     if (jpeg && alpha)
         return luaL_error(L, "img:save: '%s': JPEG has no alpha channel (alpha=true needs .png)",
                           path);
