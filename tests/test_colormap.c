@@ -3,7 +3,9 @@
  * opacity function at its own (the ramp by default), on the union of both point sets;
  * cdvr_tf_percentile_window picks the codes at the 1% and 99% quantiles of a frame's
  * histogram and maps them to data units, and falls back to min..max for a nearly constant
- * frame; an auto_range TF's table follows that window; cdvr_tf_misses_window tells an
+ * frame; an auto_range TF's table follows that window, cdvr_tf_set_window refuses it (a
+ * caller without the data must not ignore it), and cdvr_tf_rescale_auto pins it to data
+ * values of a u16 frame (quantised over its window first); cdvr_tf_misses_window tells an
  * absolute TF that shows nothing of a data range from one that shows something. */
 #include <string.h>
 
@@ -86,9 +88,37 @@ static void test_percentiles(void)
           tf.table[124][3]);
     CHECK(cdvr_tf_apply_window(&tf, window, NULL, 0, used, &err) == CDVR_ERR_ARG,
           "auto without data");
+    CHECK(cdvr_tf_set_window(&tf, -1000, 1550, &err) == CDVR_ERR_UNSUPPORTED &&
+              strstr(err.msg, "range=\"auto\""),
+          "set_window ignored auto: %s", err.msg);
     tf.auto_range = 0; /* not auto: the plain window */
     CHECK_OK(cdvr_tf_apply_window(&tf, window, NULL, 0, used, &err), err);
     CHECK(used[0] == -1000 && fabsf(tf.table[51][3] - 0.2f) < 1e-6f, "plain %g", tf.table[51][3]);
+    cdvr_volume_free(v);
+}
+
+static void test_rescale_auto(void)
+{
+    const size_t dims[3] = {20, 10, 5};
+    cdvr_volume *v = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_volume_create(dims, 2, CDVR_TYPE_U16, &v, &err), err);
+    uint16_t *d = v->data;
+    for (int i = 0; i < 2000; i++)
+        d[i] = (uint16_t)(i < 1000 ? (i / 4) * 10 : 2550); /* frame 0: 0..2490, frame 1: 2550 */
+    const cdvr_tf_point ramp[2] = {{0, 0, 0, 0, 0}, {1, 1, 1, 1, 1}};
+    cdvr_tf tf;
+    CHECK_OK(cdvr_tf_init_normalized(&tf, ramp, 2, 0, &err), err);
+    tf.auto_range = 1;
+    CHECK_OK(cdvr_tf_rescale_auto(&tf, v, 0, &err), err);
+    /* window 0..2550 (both frames): code q = value / 10; p1 = code 2, p99 = code 247 */
+    CHECK(!tf.normalized && !tf.auto_range, "still normalised / auto");
+    CHECK(fabs(tf.points[0].value - 20) < 1e-9 && fabs(tf.points[1].value - 2470) < 1e-9,
+          "pinned to %g .. %g", tf.points[0].value, tf.points[1].value);
+    CHECK(cdvr_tf_rescale_auto(&tf, v, 0, &err) == CDVR_ERR_ARG, "rescaled twice");
+    CHECK_OK(cdvr_tf_init_normalized(&tf, ramp, 2, 0, &err), err);
+    tf.auto_range = 1;
+    CHECK(cdvr_tf_rescale_auto(&tf, v, 2, &err) == CDVR_ERR_ARG, "frame 3 of 2");
     cdvr_volume_free(v);
 }
 
@@ -116,6 +146,7 @@ int main(void)
 {
     test_colormap();
     test_percentiles();
+    test_rescale_auto();
     test_misses();
     return check_finish();
 }

@@ -148,6 +148,12 @@ static cdvr_status check_window(double lo, double hi, const char *what, cdvr_err
 
 cdvr_status cdvr_tf_set_window(cdvr_tf *tf, double lo, double hi, cdvr_error *err)
 {
+    if (tf->normalized && tf->auto_range)
+        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED,
+                              "transfer function%s%s: range=\"auto\" needs the data to take its "
+                              "percentiles from, which is not at hand here: pin it with "
+                              "cdvr.tf(..., {range=\"auto\", volume=v}) or range={lo, hi}",
+                              tf->name[0] ? " " : "", tf->name);
     cdvr_status st = check_window(lo, hi, "value window", err);
     if (st == CDVR_OK)
         build_table(tf, lo, hi);
@@ -334,6 +340,40 @@ cdvr_status cdvr_tf_apply_window(cdvr_tf *tf, const double window[2], const cdvr
     if (used)
         used[0] = w[0], used[1] = w[1];
     return CDVR_OK;
+}
+
+cdvr_status cdvr_tf_rescale_auto(cdvr_tf *tf, const cdvr_volume *vol, size_t t, cdvr_error *err)
+{
+    if (!tf->normalized)
+        return cdvr_error_set(err, CDVR_ERR_ARG,
+                              "transfer function: range=\"auto\" applies to a normalised TF");
+    if (!vol || t >= vol->timesteps)
+        return cdvr_error_set(err, CDVR_ERR_ARG,
+                              "transfer function: range=\"auto\": no frame %zu in the volume",
+                              t + 1);
+    double window[2], w[2];
+    cdvr_volume_window_peek(vol, window);
+    const cdvr_volume *u8 = vol;
+    cdvr_volume *frame = NULL, *q = NULL;
+    size_t ft = t;
+    cdvr_status st = CDVR_OK;
+    if (vol->type != CDVR_TYPE_U8) {
+        st = cdvr_volume_slice_time(vol, t, 1, &frame, err);
+        if (st == CDVR_OK)
+            st = cdvr_volume_quantize(frame, window[0], window[1], &q, NULL, err);
+        u8 = q, ft = 0;
+    }
+    if (st == CDVR_OK)
+        st = cdvr_tf_percentile_window(u8, ft, window, tf->percentiles[0], tf->percentiles[1], w,
+                                       err);
+    cdvr_volume_free(frame);
+    cdvr_volume_free(q);
+    if (st != CDVR_OK)
+        return st;
+    if (w[1] <= w[0])
+        w[1] = w[0] + (window[1] > window[0] ? (window[1] - window[0]) / 255.0 : 1.0);
+    tf->auto_range = 0;
+    return cdvr_tf_rescale(tf, w[0], w[1], err);
 }
 
 int cdvr_tf_misses_window(const cdvr_tf *tf, double lo, double hi)

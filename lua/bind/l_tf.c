@@ -316,7 +316,7 @@ static int load_preset(lua_State *L, const char *name, int opts)
  * opacity unit; opacity= was taken by the colour map already. */
 static void apply_tf_options(lua_State *L, int opts)
 {
-    static const char *const keys[] = {"range", "unit", "opacity", "percentiles", NULL};
+    static const char *const keys[] = {"range", "unit", "opacity", "percentiles", "volume", NULL};
     if (lua_isnoneornil(L, opts))
         return;
     luaL_checktype(L, opts, LUA_TTABLE);
@@ -350,6 +350,16 @@ static void apply_tf_options(lua_State *L, int opts)
         tf->percentiles[0] = pct[0] / 100.0;
         tf->percentiles[1] = pct[1] / 100.0;
     }
+    if (lua_getfield(L, opts, "volume") != LUA_TNIL) { /* resolve range="auto" now */
+        if (!tf->auto_range)
+            luaL_error(L, "cdvr.tf: option 'volume' goes with range=\"auto\" (its percentiles "
+                          "pin the TF to data values)");
+        const cdvr_volume *vol = lcdvr_volume_lazy(L, -1) ? lcdvr_volume_read(L, -1, 0, 1)
+                                                          : lcdvr_checkvolume(L, -1);
+        if (cdvr_tf_rescale_auto(tf, vol, 0, &err) != CDVR_OK)
+            lcdvr_raise(L, &err);
+    }
+    lua_pop(L, 1);
     double unit = lcdvr_optnumberfield(L, opts, "unit", tf->unit);
     if (!(unit >= 0.0) || !isfinite(unit))
         luaL_error(L, "cdvr.tf: option 'unit' must be >= 0 (0 = one voxel), got %f", unit);
@@ -525,7 +535,8 @@ int lcdvr_open_tf(lua_State *L)
                    "plasma, cividis, cool_to_warm, black_body, xray, grayscale; opacity=\"ramp\" (default) "
                    "or {{x, a}, ...}) or a saved .lua file; range={lo, hi} pins a normalised one to data "
                    "values, range=\"auto\" to the 1-99% percentile window of the data rendered "
-                   "(percentiles={lo, hi} in %)");
+                   "(percentiles={lo, hi} in %; with volume=v its first timestep's, pinned to data values now, "
+                   "for the player)");
     lcdvr_help_add(L, "tf:shade()", "a preset's shading {shade=, ambient=, diffuse=, specular=, specular_power=} or nil");
     lcdvr_help_add(L, "tf:name()", "the preset or colour map it came from (or nil), and whether range=\"auto\"");
     lcdvr_help_add(L, "tf:points()", "the control points {{value, r,g,b, a}, ..., unit=, normalized=}");

@@ -218,6 +218,27 @@ if shared then -- the issue's case: ct_bone on Colin27 was all black over the u8
   check(plain < 0.02 and auto > 0.1, ("ct_bone on Colin27: %.3f plain, %.3f with range=auto"):format(plain, auto))
 end
 
+-- range="auto" pinned now (volume=) renders like the auto TF; the player, which classifies a
+-- store's frames without the voxels at hand, refuses an unpinned one and plays a pinned one
+do
+  local v = cdvr.load(cdvr.share_dir .. "/data/neghip_66x66x66_u8.nrrd")
+  local cam = cdvr.orbit_camera(v, {width = 48, height = 48})
+  local pinned = cdvr.tf("inferno", {range = "auto", volume = v})
+  check(not pinned:normalized() and select(2, pinned:name()) == false, "pinned: data units")
+  local a = cdvr.render(v, {tf = cdvr.tf("inferno", {range = "auto"}), camera = cam, device = "cpu"})
+  local b = cdvr.render(v, {tf = pinned, camera = cam, device = "cpu"})
+  check(cdvr.compare(a, b).psnr >= 60, "pinned auto TF renders like the auto one: " .. cdvr.compare(a, b).psnr)
+  local st = cdvr.encode(v, {codec = "raw", path = tmpdir .. "/test_presets.cdv"})
+  raises(function() cdvr.player{store = st, tf = cdvr.tf("inferno", {range = "auto"}), width = 16, height = 16} end,
+         'range="auto" needs the data', "player with an unpinned auto TF")
+  local p = cdvr.player{store = st, tf = pinned, width = 16, height = 16}
+  check(#p:run{frames = 1}.frames == 1, "player plays the pinned TF")
+  p:close()
+  st:close()
+  os.remove(tmpdir .. "/test_presets.cdv")
+  raises(function() cdvr.tf("inferno", {volume = v}) end, 'goes with range="auto"', "volume= without auto")
+end
+
 -- the warning: one line per preset and data range, naming both
 local script = tmpdir .. "/test_presets_warn.lua"
 fh = assert(io.open(script, "w"))

@@ -65,7 +65,9 @@ cdvr_status cdvr_tf_init(cdvr_tf *tf, const cdvr_tf_point *points, size_t npoint
 cdvr_status cdvr_tf_init_normalized(cdvr_tf *tf, const cdvr_tf_point *points, size_t npoints,
                                     double unit, cdvr_error *err);
 /* Rebuilds the table over the value window [lo, hi] (finite, lo <= hi; lo == hi gives every
- * entry TF(lo)), by the formula above. */
+ * entry TF(lo)), by the formula above. An auto_range TF is refused (its window needs the data:
+ * cdvr_tf_apply_window or cdvr_tf_rescale_auto), so a caller that cannot honour range="auto"
+ * says so instead of ignoring it. */
 cdvr_status cdvr_tf_set_window(cdvr_tf *tf, double lo, double hi, cdvr_error *err);
 /* Turns a normalised TF into one in data units over [lo, hi]: each point value p becomes
  * lo + p*(hi - lo) (ParaView's "rescale preset to a range"); the table is rebuilt over
@@ -94,6 +96,11 @@ cdvr_status cdvr_tf_percentile_window(const cdvr_volume *u8, size_t t,
 cdvr_status cdvr_tf_apply_window(cdvr_tf *tf, const double window[2],
                                  const cdvr_volume *u8, size_t t, double used[2],
                                  cdvr_error *err);
+/* range="auto" resolved now, for callers that classify many frames (a player): tf's fractions
+ * become data values over the percentile window of frame t of vol (tf->percentiles; any type:
+ * a frame that is not u8 is quantised over the volume's window first), as cdvr_tf_rescale to
+ * that window; the TF is then in data units and no longer auto_range. */
+cdvr_status cdvr_tf_rescale_auto(cdvr_tf *tf, const cdvr_volume *vol, size_t t, cdvr_error *err);
 /* 1 when a TF in data units shows nothing of data in [lo, hi]: its opacity is 0 at every
  * value of [lo, hi] (it is piecewise linear, so the points inside and both ends decide). 0 for
  * a normalised TF. For the "preset misses the data's range" warning. */
