@@ -207,13 +207,17 @@ static void read_numbers(lua_State *L, int idx, lua_Integer i, double *out, int 
  * fraction of the window); returns the number of points written to a (0 = ramp). */
 static size_t read_opacity(lua_State *L, int opts, double (*a)[2])
 {
-    if (lua_isnoneornil(L, opts) || lua_getfield(L, opts, "opacity") == LUA_TNIL)
+    if (lua_isnoneornil(L, opts))
         return 0;
-    if (lua_type(L, -1) == LUA_TSTRING && strcmp(lua_tostring(L, -1), "ramp") == 0)
+    int type = lua_getfield(L, opts, "opacity");
+    if (type == LUA_TNIL || (type == LUA_TSTRING && strcmp(lua_tostring(L, -1), "ramp") == 0)) {
+        lua_pop(L, 1);
         return 0;
-    if (!lua_istable(L, -1))
-        luaL_error(L, "cdvr.tf: option 'opacity': \"ramp\" or {{x, a}, ...} expected, got %s",
-                   luaL_typename(L, -1));
+    }
+    if (type != LUA_TTABLE)
+        luaL_error(L, "cdvr.tf: option 'opacity': \"ramp\" or {{x, a}, ...} expected, got %s%s%s",
+                   luaL_typename(L, -1), type == LUA_TSTRING ? " " : "",
+                   type == LUA_TSTRING ? lua_tostring(L, -1) : "");
     lua_Integer n = luaL_len(L, -1);
     if (n < 1 || n > CDVR_TF_MAX_POINTS)
         luaL_error(L, "cdvr.tf: option 'opacity': 1 to %d points {x, a} expected",
@@ -275,8 +279,8 @@ static void push_preset(lua_State *L, int idx, const char *path)
 }
 
 /* cdvr.tf(name [, opts]): the preset share/tf/name.lua or the colour map
- * share/colormaps/name.lua; an unknown name lists those that exist. */
-static int load_preset(lua_State *L, const char *name, int opts)
+ * share/colormaps/name.lua (*is_map set to 1); an unknown name lists those that exist. */
+static int load_preset(lua_State *L, const char *name, int opts, int *is_map_out)
 {
     if (!valid_preset_name(name))
         return luaL_error(L, "cdvr.tf: bad preset name '%s' (letters, digits, _ and -)", name);
@@ -293,14 +297,11 @@ static int load_preset(lua_State *L, const char *name, int opts)
         int idx = lua_gettop(L);
         int is_map = lua_getfield(L, idx, "colormap") != LUA_TNIL;
         lua_pop(L, 1);
-        if (is_map) {
+        *is_map_out = is_map;
+        if (is_map)
             push_colormap(L, idx, opts, path);
-        } else {
-            if (!lua_isnoneornil(L, opts) && lua_getfield(L, opts, "opacity") != LUA_TNIL)
-                luaL_error(L, "cdvr.tf: option 'opacity' applies to a colour map (share/colormaps), "
-                              "not to the preset '%s'", name);
+        else
             push_preset(L, idx, path);
-        }
         cdvr_tf *tf = lcdvr_checktf(L, -1);
         snprintf(tf->name, sizeof tf->name, "%s", name);
         return 1;
@@ -314,7 +315,7 @@ static int load_preset(lua_State *L, const char *name, int opts)
  * range={lo, hi} pins a normalised TF to data values, range="auto" makes it follow the data's
  * percentile window (percentiles={lo, hi} in percent, default {1, 99}); unit= sets the
  * opacity unit; opacity= was taken by the colour map already. */
-static void apply_tf_options(lua_State *L, int opts)
+static void apply_tf_options(lua_State *L, int opts, int from_colormap)
 {
     static const char *const keys[] = {"range", "unit", "opacity", "percentiles", "volume", NULL};
     if (lua_isnoneornil(L, opts))
@@ -322,6 +323,12 @@ static void apply_tf_options(lua_State *L, int opts)
     luaL_checktype(L, opts, LUA_TTABLE);
     lcdvr_checkoptions(L, opts, "cdvr.tf", keys);
     cdvr_tf *tf = lcdvr_checktf(L, -1);
+    if (!from_colormap && lua_getfield(L, opts, "opacity") != LUA_TNIL)
+        luaL_error(L, "cdvr.tf: option 'opacity' applies to a colour map (share/colormaps: viridis, "
+                      "...), not to %s%s%s",
+                   tf->name[0] ? "the preset '" : "these points", tf->name,
+                   tf->name[0] ? "'" : "");
+    lua_pop(L, 1);
     double range[2];
     cdvr_error err;
     int type = lua_getfield(L, opts, "range");
@@ -369,17 +376,20 @@ static void apply_tf_options(lua_State *L, int opts)
 static int l_tf(lua_State *L)
 {
     lua_settop(L, 2); /* source, options */
+    int from_colormap = 0;
+    if (!lua_isnil(L, 2))
+        luaL_checktype(L, 2, LUA_TTABLE);
     if (lua_type(L, 1) == LUA_TSTRING) {
         const char *s = lua_tostring(L, 1);
         if (ends_with(s, ".lua"))
             load_tf_file(L, s);
         else
-            load_preset(L, s, 2);
+            load_preset(L, s, 2, &from_colormap);
     } else {
         luaL_checktype(L, 1, LUA_TTABLE);
         push_tf_from_table(L, 1);
     }
-    apply_tf_options(L, 2);
+    apply_tf_options(L, 2, from_colormap);
     return 1;
 }
 

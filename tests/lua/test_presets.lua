@@ -137,6 +137,10 @@ check(not ok and msg:find("unknown preset or colour map 'viridiss'", 1, true) an
       and msg:find("CT-Bone", 1, true) and msg:find("ct_soft", 1, true) and msg:find("cool_to_warm", 1, true),
       "unknown name lists what exists: " .. tostring(msg))
 raises(function() cdvr.tf("CT-Bone", {opacity = "ramp"}) end, "applies to a colour map", "opacity on a preset")
+raises(function() cdvr.tf({{0, 0, 0, 0, 0}, {1, 1, 1, 1, 1}}, {opacity = "ramp"}) end, "applies to a colour map",
+       "opacity on a points table")
+raises(function() cdvr.tf("viridis", 5) end, "table expected", "options not a table")
+raises(function() cdvr.tf("viridis", {opacity = "linear"}) end, "linear", "opacity word")
 raises(function() cdvr.tf("CT-Bone", {range = "auto"}) end, "normalised", "auto on an absolute preset")
 raises(function() cdvr.tf("viridis", {range = "full"}) end, '"auto"', "bad range word")
 raises(function() cdvr.tf("viridis", {opacity = {{0, 2}}}) end, "must be in [0, 1]", "opacity 2")
