@@ -323,12 +323,13 @@ static void apply_tf_options(lua_State *L, int opts, int from_colormap)
     luaL_checktype(L, opts, LUA_TTABLE);
     lcdvr_checkoptions(L, opts, "cdvr.tf", keys);
     cdvr_tf *tf = lcdvr_checktf(L, -1);
-    if (!from_colormap && lua_getfield(L, opts, "opacity") != LUA_TNIL)
+    int has_opacity = lua_getfield(L, opts, "opacity") != LUA_TNIL;
+    lua_pop(L, 1);
+    if (!from_colormap && has_opacity)
         luaL_error(L, "cdvr.tf: option 'opacity' applies to a colour map (share/colormaps: viridis, "
                       "...), not to %s%s%s",
                    tf->name[0] ? "the preset '" : "these points", tf->name,
                    tf->name[0] ? "'" : "");
-    lua_pop(L, 1);
     double range[2];
     cdvr_error err;
     int type = lua_getfield(L, opts, "range");
