@@ -122,27 +122,33 @@ static void png_write(void *context, void *data, int size)
         sink->failed = 1;
 }
 
-/* Writes the encoded PNG into the open temporary file; returns 0 on success. */
-static int write_png_file(FILE *file, const cdvr_image *img, const uint8_t *pixels, int channels)
+/* Writes the encoded PNG (quality 0) or JPEG (quality 1..100) into the open temporary file;
+ * returns 0 on success. */
+static int write_image_file(FILE *file, const cdvr_image *img, const uint8_t *pixels,
+                            int channels, int quality)
 {
     png_sink sink = {file, 0};
-    if (!stbi_write_png_to_func(png_write, &sink, img->width, img->height, channels, pixels,
-                                img->width * channels))
+    int ok = quality > 0 ? stbi_write_jpg_to_func(png_write, &sink, img->width, img->height,
+                                                  channels, pixels, quality)
+                         : stbi_write_png_to_func(png_write, &sink, img->width, img->height,
+                                                  channels, pixels, img->width * channels);
+    if (!ok)
         return -1;
     return sink.failed ? -1 : 0;
 }
 
-static cdvr_status save_png(const cdvr_image *img, const char *path, int channels, cdvr_error *err)
+static cdvr_status save_image(const cdvr_image *img, const char *path, int channels,
+                              int quality, cdvr_error *err)
 {
     if (!img || !path || !*path)
-        return cdvr_error_set(err, CDVR_ERR_ARG, "image: save_png needs an image and a path");
+        return cdvr_error_set(err, CDVR_ERR_ARG, "image: saving needs an image and a path");
     if (img->width > (1 << 28) / img->height)
-        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: image %dx%d too large for PNG", path,
+        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: image %dx%d too large to save", path,
                               img->width, img->height);
     size_t bytes = (size_t)img->width * (size_t)img->height * (size_t)channels;
     uint8_t *pixels = malloc(bytes);
     if (!pixels)
-        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for the PNG", path);
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for the image file", path);
     if (channels == 4)
         cdvr_image_to_rgba8(img, pixels);
     else
@@ -150,9 +156,24 @@ static cdvr_status save_png(const cdvr_image *img, const char *path, int channel
     cdvr_atomic_file af;
     cdvr_status st = cdvr_atomic_open(&af, path, err);
     if (st == CDVR_OK)
-        st = cdvr_atomic_commit(&af, write_png_file(af.f, img, pixels, channels) != 0, err);
+        st = cdvr_atomic_commit(&af, write_image_file(af.f, img, pixels, channels, quality) != 0,
+                                err);
     free(pixels);
     return st;
+}
+
+static cdvr_status save_png(const cdvr_image *img, const char *path, int channels, cdvr_error *err)
+{
+    return save_image(img, path, channels, 0, err);
+}
+
+cdvr_status cdvr_image_save_jpeg(const cdvr_image *img, const char *path, int quality,
+                                 cdvr_error *err)
+{
+    if (quality < 1 || quality > 100)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: JPEG quality %d outside 1..100",
+                              path ? path : "image", quality);
+    return save_image(img, path, 3, quality, err);
 }
 
 cdvr_status cdvr_image_save_png(const cdvr_image *img, const char *path, cdvr_error *err)

@@ -30,14 +30,49 @@ static const cdvr_volume *u8_frame(lua_State *L, cdvr_volume *vol, size_t *t, do
     return q;
 }
 
+/* One warning per preset, data range and Lua state when an absolute preset shows nothing of the data's
+ * range (tf.h: cdvr_tf_misses_window): the min..max of frame t of u8 when given, else the
+ * window. */
+static void warn_if_preset_misses(lua_State *L, const cdvr_tf *tf, const double window[2],
+                                  const cdvr_volume *u8, size_t t)
+{
+    if (!tf->name[0] || tf->normalized)
+        return;
+    double range[2] = {window[0], window[1]};
+    cdvr_error err;
+    if (u8 && cdvr_tf_percentile_window(u8, t, window, 0.0, 1.0, range, &err) != CDVR_OK)
+        range[0] = window[0], range[1] = window[1];
+    if (!cdvr_tf_misses_window(tf, range[0], range[1]))
+        return;
+    if (lua_getfield(L, LUA_REGISTRYINDEX, "cdvr.preset_warned") != LUA_TTABLE) {
+        lua_pop(L, 1);
+        lua_newtable(L);
+        lua_pushvalue(L, -1);
+        lua_setfield(L, LUA_REGISTRYINDEX, "cdvr.preset_warned");
+    }
+    const char *key = lua_pushfstring(L, "%s %f %f", tf->name, range[0], range[1]);
+    if (lua_getfield(L, -2, key) == LUA_TNIL) {
+        lcdvr_warn(L, "cdvr.render: preset '%s' (%f .. %f) shows nothing of the data's range "
+                      "%f .. %f: the image is empty",
+                   tf->name, tf->points[0].value, tf->points[tf->npoints - 1].value, range[0],
+                   range[1]);
+        lua_pushboolean(L, 1);
+        lua_setfield(L, -4, key);
+    }
+    lua_pop(L, 3);
+}
+
 /* The TF in opts->tf with its table built over window (tf.h), pushed as a new cdvr.TF that
- * replaces the caller's in stack slot `slot`. */
-static void window_tf(lua_State *L, cdvr_render_opts *o, const double window[2], int slot)
+ * replaces the caller's in stack slot `slot`; u8 (frame t) is the data for range="auto" (may
+ * be NULL when the TF is not auto_range). */
+static void window_tf(lua_State *L, cdvr_render_opts *o, const double window[2], int slot,
+                      const cdvr_volume *u8, size_t t)
 {
     cdvr_tf *tf = lcdvr_pushtf(L, o->tf);
     cdvr_error err;
-    if (cdvr_tf_set_window(tf, window[0], window[1], &err) != CDVR_OK)
+    if (cdvr_tf_apply_window(tf, window, u8, t, NULL, &err) != CDVR_OK)
         lcdvr_raise(L, &err);
+    warn_if_preset_misses(L, tf, window, u8, t);
     lua_replace(L, slot);
     o->tf = tf;
 }
@@ -174,7 +209,14 @@ static int render_store_direct(lua_State *L, render_call *c, const cdvr_store *s
     o.look = c->look;
     const cdvr_store_info *info = cdvr_store_get_info(st);
     const double window[2] = {info->qlo, info->qhi};
-    window_tf(L, &o, window, 3);
+    cdvr_volume *frame = NULL; /* range="auto": its percentiles from the frame decoded here */
+    if (o.tf->auto_range) {
+        cdvr_error derr;
+        if (cdvr_store_decode(st, v, t, &frame, &derr) != CDVR_OK)
+            return lcdvr_raise(L, &derr);
+        lcdvr_pushvolume(L, frame); /* collected with the call */
+    }
+    window_tf(L, &o, window, 3, frame, 0);
     cdvr_volume box = {.timesteps = 1}; /* the store's geometry, for the view check */
     memcpy(box.dims, info->dims, sizeof box.dims);
     memcpy(box.spacing, info->spacing, sizeof box.spacing);
@@ -261,7 +303,7 @@ static int l_render(lua_State *L)
     o.look = c.look;
     double window[2];
     const cdvr_volume *u8 = u8_frame(L, vol, &frame, window);
-    window_tf(L, &o, window, 3);
+    window_tf(L, &o, window, 3, u8, frame);
     warn_if_missed(L, u8, o.camera);
     cdvr_render_stats stats = {0};
     cdvr_image *img = NULL;

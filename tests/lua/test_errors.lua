@@ -29,10 +29,10 @@ local ok, msg = pcall(function() return cdvr.load("nowhere/x.nii.gz"):dims() end
 check(not ok and not tostring(msg):find("nil value", 1, true) and tostring(msg):find("nowhere/x.nii.gz", 1, true),
       "chained call names the file: " .. tostring(msg))
 
--- img:save: PNG only; RGB unless alpha=true
+-- img:save: PNG or JPEG by the extension (test_presets.lua writes JPEG); RGB unless alpha=true
 local v = cdvr.generate("sphere", {dims = {16, 16, 16}})
 local img = cdvr.render(v, {tf = "hot", camera = cdvr.orbit_camera(v, {width = 24, height = 20})})
-for _, name in ipairs{"frame.jpg", "frame.tiff", "frame", "frame.png.bak"} do
+for _, name in ipairs{"frame.gif", "frame.tiff", "frame", "frame.png.bak"} do
   raises({name, "PNG"}, "img:save " .. name, img.save, img, tmpdir .. "/" .. name)
   check(not io.open(tmpdir .. "/" .. name), name .. " not written")
 end

@@ -37,5 +37,9 @@ void cdvr_image_to_rgb8(const cdvr_image *img, uint8_t *buf);
 cdvr_status cdvr_image_save_png(const cdvr_image *img, const char *path, cdvr_error *err);
 /* The same with an alpha channel: 8-bit RGBA of cdvr_image_to_rgba8 (straight colour). */
 cdvr_status cdvr_image_save_png_rgba(const cdvr_image *img, const char *path, cdvr_error *err);
+/* Writes an 8-bit RGB baseline JPEG of cdvr_image_to_rgb8 through stb_image_write (quality
+ * 1..100, stb's scale; 90 is visually lossless on renders), atomically like the PNG. */
+cdvr_status cdvr_image_save_jpeg(const cdvr_image *img, const char *path, int quality,
+                                 cdvr_error *err);
 
 #endif
