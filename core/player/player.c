@@ -1057,6 +1057,20 @@ static void composite(cdvr_player *p, cdvr_frame_row *row, const cdvr_camera *ca
     }
 }
 
+/* Annotations of a frame shown (player.h): the TF, the frame's camera and timestep. */
+static void annotate_frame(const cdvr_player *p, const cdvr_frame_row *row,
+                           const cdvr_camera *cam, cdvr_image *img, cdvr_error *ferr)
+{
+    cdvr_annotate_opts o = *p->opts.annotate;
+    char text[64];
+    snprintf(text, sizeof text, "t = %zu / %zu", row->t + 1,
+             cdvr_store_get_info(p->opts.store)->timesteps);
+    o.tf = p->opts.tf;
+    o.camera = cam;
+    o.time = p->opts.annotate_time ? text : NULL;
+    cdvr_annotate(img, &o, ferr);
+}
+
 /* Renders the frames of one item. Returns non-OK only for callback failures (stop the run).
  * frame_ms: the work from the end of the previous chunk's last frame to the end of this
  * chunk's last frame, pacing waits excluded, shared equally by the chunk's frames. */
@@ -1089,6 +1103,8 @@ static cdvr_status consume(cdvr_player *p, chunk_item *it, cdvr_error *err)
             img = NULL;
         }
         composite(p, row, &it->cams[j], &img, &ferr);
+        if (img && ferr.status == CDVR_OK && p->opts.annotate)
+            annotate_frame(p, row, &it->cams[j], img, &ferr);
 #if CDVR_HAVE_OPENCL
         if (p->stream)
             row->device_bytes = cdvr_cl_stream_bytes(p->stream);

@@ -73,7 +73,8 @@ const cdvr_render_method *lcdvr_method_option(lua_State *L, int idx, const char 
 }
 
 const char *const lcdvr_look_keys[] = {"blend", "iso", "shade", "ambient", "diffuse", "specular",
-                                       "specular_power", "light", "gradient_opacity", NULL};
+                                       "specular_power", "light", "gradient_opacity",
+                                       "annotate", NULL};
 
 /* The keys an options table may hold for method m: `base` (NULL-terminated), the look keys,
  * the scene keys m honours and m's own options. */
@@ -310,6 +311,42 @@ void lcdvr_read_look(lua_State *L, int idx, const cdvr_render_method *m, const c
     sh->specular = checked_number(L, idx, "specular", sh->specular, 0.0, 1e6, what);
     sh->specular_power = checked_number(L, idx, "specular_power", sh->specular_power, 0.0, 1e6, what);
     read_light(L, idx, sh, what);
+}
+
+/* ---- annotations (cdvr/annotate.h) -------------------------------------------------------- */
+
+int lcdvr_read_annotate(lua_State *L, int idx, const char *what, cdvr_annotate_opts *o,
+                        int *time)
+{
+    memset(o, 0, sizeof *o);
+    *time = 0;
+    if (!lua_istable(L, idx))
+        return 0;
+    idx = lua_absindex(L, idx);
+    int type = lua_getfield(L, idx, "annotate");
+    if (type == LUA_TNIL || (type == LUA_TBOOLEAN && !lua_toboolean(L, -1))) {
+        lua_pop(L, 1);
+        return 0;
+    }
+    if (type == LUA_TBOOLEAN) { /* annotate=true: the bar and the letters */
+        o->colorbar = o->axes = 1;
+        lua_pop(L, 1);
+        return 1;
+    }
+    if (type != LUA_TTABLE)
+        luaL_error(L, "%s: option 'annotate': true or {colorbar=, axes=, title=, time=, unit=, "
+                      "space=} expected, got %s", what, luaL_typename(L, -1));
+    static const char *const keys[] = {"colorbar", "axes", "title", "time", "unit", "space", NULL};
+    lcdvr_checkoptions(L, -1, "annotate", keys);
+    o->colorbar = lcdvr_optbooleanfield(L, -1, "colorbar", 0);
+    o->axes = lcdvr_optbooleanfield(L, -1, "axes", 0);
+    *time = lcdvr_optbooleanfield(L, -1, "time", 0);
+    /* the strings live in the options table, which the caller keeps while it draws */
+    o->title = lcdvr_optstringfield(L, -1, "title", NULL);
+    o->unit = lcdvr_optstringfield(L, -1, "unit", NULL);
+    o->space = lcdvr_optstringfield(L, -1, "space", NULL);
+    lua_pop(L, 1);
+    return o->colorbar || o->axes || *time || (o->title && *o->title);
 }
 
 cdvr_device_kind lcdvr_method_device(lua_State *L, int idx, const cdvr_render_method *m,

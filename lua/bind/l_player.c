@@ -30,6 +30,7 @@ typedef struct out_pattern {
 typedef struct lplayer {
     cdvr_player *player;
     cdvr_player_opts opts;
+    cdvr_annotate_opts annotate; /* opts.annotate points here when annotate= is given */
     lua_State *L;        /* the running state, during p:run only */
     int running;         /* p:run in progress: run and close are refused */
     int holds_store;     /* the store (UV_STORE) is marked in use (lcdvr_use) */
@@ -711,6 +712,8 @@ static int l_player(lua_State *L)
     lp->opts.device = lcdvr_method_device(L, 1, method, "cdvr.player");
     lcdvr_method_params(L, 1, method, "cdvr.player", &lp->opts.method_params);
     lcdvr_read_look(L, 1, method, "cdvr.player", &lp->opts.look);
+    if (lcdvr_read_annotate(L, 1, "cdvr.player", &lp->annotate, &lp->opts.annotate_time))
+        lp->opts.annotate = &lp->annotate; /* its strings stay in the options (UV_OPTS) */
     lp->opts.ctx = lcdvr_render_ctx(L);
     render_options(L, lp, info);
     lp->callback_limit = integer_option(L, "callback_limit", LCDVR_CALLBACK_LIMIT, 1, INT_MAX);

@@ -181,15 +181,29 @@ typedef struct render_call {
     cdvr_method_params params;
     cdvr_look look;
     cdvr_render_ctx *ctx;
+    size_t t, timesteps;        /* the timestep rendered (from 0) of how many */
 } render_call;
 
 /* Pushes the image and its stats (also img:stats()) of a render that filled img and stats. */
 static int push_result(lua_State *L, const render_call *c, cdvr_status status, cdvr_image *img,
-                       const cdvr_render_stats *stats, const cdvr_error *err)
+                       const cdvr_render_stats *stats, const cdvr_error *err,
+                       const cdvr_render_opts *o)
 {
     if (status != CDVR_OK)
         return lcdvr_raise(L, err);
-    lcdvr_pushimage(L, img);
+    lcdvr_pushimage(L, img);                      /* Lua owns it: an error cannot leak it */
+    cdvr_annotate_opts ao;
+    int time;
+    if (lcdvr_read_annotate(L, 2, "cdvr.render", &ao, &time)) {
+        char text[64];
+        snprintf(text, sizeof text, "t = %zu / %zu", c->t + 1, c->timesteps);
+        ao.tf = o->tf;
+        ao.camera = o->camera;
+        ao.time = time ? text : NULL;
+        cdvr_error aerr;
+        if (cdvr_annotate(img, &ao, &aerr) != CDVR_OK)
+            luaL_error(L, "cdvr.render: option 'annotate': %s", aerr.msg);
+    }
     lcdvr_push_render_stats(L, c->method, c->device, stats);
     return finish(L, 2);
 }
@@ -228,7 +242,7 @@ static int render_store_direct(lua_State *L, render_call *c, const cdvr_store *s
     cdvr_error err;
     cdvr_status s = c->method->render_store(c->ctx, c->device, st, v, t, &o, &c->params, &stats,
                                             &img, &err);
-    return push_result(L, c, s, img, &stats, &err);
+    return push_result(L, c, s, img, &stats, &err, &o);
 }
 
 /* Variant of opts.variant (name or 1-based index; default the first). */
@@ -278,6 +292,8 @@ static int l_render(lua_State *L)
         return luaL_error(L, "cdvr.render: t = %I outside 1..%I", (LUAI_UACINT)t,
                           (LUAI_UACINT)timesteps);
     size_t frame = (size_t)t - 1;
+    c.t = frame;
+    c.timesteps = timesteps;
     if (st) {
         size_t v = store_variant(L, st);
         if (c.method->render_store && c.device == CDVR_DEVICE_CL)
@@ -309,7 +325,7 @@ static int l_render(lua_State *L)
     cdvr_image *img = NULL;
     cdvr_error err;
     cdvr_status s = c.method->render(c.ctx, c.device, u8, frame, &o, &c.params, &stats, &img, &err);
-    return push_result(L, &c, s, img, &stats, &err);
+    return push_result(L, &c, s, img, &stats, &err, &o);
 }
 
 int lcdvr_open_render(lua_State *L)

@@ -273,6 +273,31 @@ static void set_render(lua_State *L, int w_idx, int idx, lwindow *w, const cdvr_
     lua_pop(L, 1);
 }
 
+/* Turns annotation `what` (colorbar, axes) of the render options' annotate= on or off. */
+static void toggle_annotation(lua_State *L, int w_idx, lwindow *w, const char *what)
+{
+    push_render_options(L, w_idx);                /* render */
+    int type = lua_getfield(L, -1, "annotate");   /* render, annotate */
+    if (type != LUA_TTABLE) {
+        int all = type == LUA_TBOOLEAN && lua_toboolean(L, -1);
+        lua_pop(L, 1);
+        lua_createtable(L, 0, 2);
+        lua_pushboolean(L, all);
+        lua_setfield(L, -2, "colorbar");
+        lua_pushboolean(L, all);
+        lua_setfield(L, -2, "axes");
+        lua_pushvalue(L, -1);
+        lua_setfield(L, -3, "annotate");
+    }
+    lua_getfield(L, -1, what);                    /* render, annotate, on */
+    int on = lua_toboolean(L, -1);
+    lua_pop(L, 1);
+    lua_pushboolean(L, !on);
+    lua_setfield(L, -2, what);
+    lua_pop(L, 2);
+    w->dirty = 1;
+}
+
 /* A key for the method (its window_key hook): sets the option it names. */
 static void method_key(lua_State *L, int w_idx, lwindow *w, int key)
 {
@@ -597,7 +622,11 @@ static void handle_key(lua_State *L, int w_idx, lwindow *w, int key)
             w->dirty = 1;
         }
         break;
-    default: /* letters: the method's keys ('l' lod for slice, 'o' order for splat) */
+    case 'b': /* the colour bar, and 'a' the orientation letters, on and off */
+    case 'a':
+        toggle_annotation(L, w_idx, w, key == 'b' ? "colorbar" : "axes");
+        break;
+    default: /* other letters: the method's keys ('l' lod for slice, 'o' order for splat) */
         if (key >= 'a' && key <= 'z')
             method_key(L, w_idx, w, key);
         break;

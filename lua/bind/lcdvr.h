@@ -21,6 +21,7 @@
 #include <lua.h>
 #include <lualib.h>
 
+#include "cdvr/annotate.h"
 #include "cdvr/camera.h"
 #include "cdvr/error.h"
 #include "cdvr/image.h"
@@ -274,6 +275,12 @@ cdvr_device_kind lcdvr_method_device(lua_State *L, int idx, const cdvr_render_me
  * raises naming both. iso= implies blend "iso", which shades unless shade=false. */
 void lcdvr_read_look(lua_State *L, int idx, const cdvr_render_method *m, const char *what,
                      cdvr_look *look);
+/* Option annotate= of the table at idx (true: colour bar and letters; or {colorbar=, axes=,
+ * title=, time=, unit=, space=}) into o (tf, camera and time text are the caller's); *time: the
+ * timestep is asked for. Returns 1 when something is to be drawn. The strings stay in the
+ * table: the caller keeps it referenced while it draws. */
+int lcdvr_read_annotate(lua_State *L, int idx, const char *what, cdvr_annotate_opts *o,
+                        int *time);
 /* The look keys (NULL-terminated) every look-taking options table allows. */
 extern const char *const lcdvr_look_keys[];
 /* Pushes a table of a render's figures, with method = m->name and device = the device's name

@@ -57,6 +57,26 @@ for _, dev in ipairs(devices) do
 end
 os.remove(path)
 
+-- annotate= in cdvr.render and the player: the same pixels as img:annotate of the plain image
+local ann = {colorbar = true, axes = true, title = "neghip", time = true}
+local annotated = render{annotate = ann}
+check(cdvr.compare(annotated, plain).psnr < 40, "annotate= draws onto the image")
+local by_hand = render{}
+by_hand:annotate{colorbar = true, axes = true, title = "neghip", time = "t = 1 / 1", tf = tf, volume = v, camera = cam}
+check(cdvr.compare(annotated, by_hand).psnr == math.huge, "annotate= equals img:annotate of the same scene")
+do
+  local path2 = os.tmpname()
+  local st2 = cdvr.encode(v, {variants = {{codec = "raw"}}, path = path2})
+  local got
+  local p = cdvr.player{store = st2, tf = tf, camera = cam, device = "cpu", annotate = ann,
+                        frame = function(_, img) got = img end}
+  p:run{frames = 1}
+  p:close()
+  check(got and cdvr.compare(got, annotated).psnr == math.huge, "the player's frames carry the same annotations")
+  os.remove(path2)
+end
+raises(function() render{annotate = {colourbar = true}} end, "annotate: unknown option 'colourbar'", "annotate keys")
+
 -- refusals, naming the option
 raises(function() render{blend = "maximum"} end, "option 'blend': unknown mode 'maximum'", "unknown blend")
 raises(function() render{blend = "iso"} end, "blend 'iso' needs iso={value=, color=}", "iso without value")

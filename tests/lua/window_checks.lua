@@ -134,6 +134,15 @@ if code ~= 77 then
   check(xinput("key l") == 0 and settle(function() return w:state().options.lod == false end),
         "l cycles lod: screen -> false (" .. tostring(w:state().options.lod) .. ")")
 end
+if code ~= 77 then -- b and a toggle the colour bar and the orientation letters
+  check(xinput("key b") == 0 and settle(function()
+    local a = w:state().options.annotate
+    return a and a.colorbar == true and a.axes == false end), "b turns the colour bar on")
+  check(xinput("key a") == 0 and settle(function() return w:state().options.annotate.axes == true end),
+        "a turns the letters on")
+  check(xinput("key b") == 0 and settle(function() return w:state().options.annotate.colorbar == false end),
+        "b turns the colour bar off")
+end
 w:set{method = "raycast"} -- lod is slice's: dropped
 check(w:state().options.lod == nil and w:state().method == "raycast", "a new method drops the old one's options")
 raises(function() w:set{lod = true} end, "unknown option 'lod'", "raycast takes no lod")

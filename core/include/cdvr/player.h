@@ -73,6 +73,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "cdvr/annotate.h"
 #include "cdvr/camera.h"
 #include "cdvr/error.h"
 #include "cdvr/image.h"
@@ -145,6 +146,10 @@ typedef struct cdvr_player_opts {
     cdvr_method_params method_params; /* the method's options (all zero with method NULL:
                                          its defaults) */
     cdvr_look look;              /* blend mode, shading, gradient opacity, iso (render.h) */
+    const cdvr_annotate_opts *annotate; /* NULL, or drawn onto every frame shown (after the
+                                           composite hook) with the player's TF and the frame's
+                                           camera; annotate_time adds "t = T / N" */
+    int annotate_time;
     cdvr_render_ctx *ctx;        /* devices for methods that render through it (gl, or a cl
                                     method without render_stream); NULL: the player makes its
                                     own when it needs one */
