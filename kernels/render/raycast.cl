@@ -614,11 +614,55 @@ static vec3x point_at(const packet *p, vfloat t, float3 inv_spacing)
                    (p->o.z + t * p->d.z) * inv_spacing.z};
 }
 
-/* Max, min or average of every sample's code (no skipping, no termination). */
+/* Max and min skip bricks that cannot change the lane's extreme: every sample in a brick's
+ * cells lies in its [min, max] (the range includes the upper apron trilinear reads), so a brick
+ * whose max is at most the lane's max so far (min: whose min is at least its min) is stepped
+ * over to its exit face, as the composite march steps over invisible bricks. The result is
+ * exactly the unskipped one. */
+typedef struct extreme_bricks {
+    __global const uchar2 *minmax;
+    int shift, nbx, nby, nbz;
+    vec3x g0, dg, inv_dg;     /* sample i (full segments) at g0 + i dg */
+} extreme_bricks;
+
+/* Lanes `need` look up the brick holding their sample i: one that cannot beat best moves i
+ * past its exit face, one that can sets *end to the first sample past it (the lane then
+ * samples up to there without looking again). */
+static void extreme_step(const extreme_bricks *eb, const volume_geo *v, vint *i, vint *end,
+                         vfloat best, int is_max, vint need)
+{
+    vec3x g = at(eb->g0, eb->dg, *i);
+    vint bx = min(convert_vint(clamp(g.x, 0.0f, v->top.x)) >> eb->shift, eb->nbx - 1);
+    vint by = min(convert_vint(clamp(g.y, 0.0f, v->top.y)) >> eb->shift, eb->nby - 1);
+    vint bz = min(convert_vint(clamp(g.z, 0.0f, v->top.z)) >> eb->shift, eb->nbz - 1);
+    vint idx = bx + eb->nbx * (by + eb->nby * bz);
+    int ids[RAY_PACKET];
+    float lim[RAY_PACKET];
+    vstore16(select((vint)(0), idx, need), 0, ids);
+    for (int k = 0; k < RAY_PACKET; k++) {
+        uchar2 mm = eb->minmax[ids[k]];
+        lim[k] = is_max ? (float)mm.y : (float)mm.x;
+    }
+    vfloat limit = vload16(0, lim);
+    vint dull = is_max ? limit <= best : limit >= best;
+    vint fx = select(bx << eb->shift, (bx + 1) << eb->shift, eb->dg.x >= 0.0f);
+    vint fy = select(by << eb->shift, (by + 1) << eb->shift, eb->dg.y >= 0.0f);
+    vint fz = select(bz << eb->shift, (bz + 1) << eb->shift, eb->dg.z >= 0.0f);
+    vfloat tx = (convert_vfloat(fx) - eb->g0.x) * eb->inv_dg.x;
+    vfloat ty = (convert_vfloat(fy) - eb->g0.y) * eb->inv_dg.y;
+    vfloat tz = (convert_vfloat(fz) - eb->g0.z) * eb->inv_dg.z;
+    vfloat t_exit = fmin(tx, fmin(ty, tz));
+    vint past = max(*i + 1, convert_vint(ceil(t_exit - SKIP_MARGIN)));
+    vint run_end = max(*i + 1, convert_vint(ceil(t_exit)));
+    *i = select(*i, past, need & dull);
+    *end = select(*end, run_end, need & ~dull);
+}
+
+/* Max, min or average of every sample's code (max and min skip dull bricks; no termination). */
 static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spacing,
                            const volume_geo *v, const look_params *lk,
                            __global const float4 *table, __global const float *alpha,
-                           vint *taken)
+                           const extreme_bricks *eb, vint *taken)
 {
     vfloat best = (vfloat)(lk->blend == 2 ? INFINITY : -INFINITY), sum = (vfloat)(0.0f);
     vint count = (vint)(0);
@@ -627,15 +671,44 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
     vstore16(select((vint)(0), n, p->hit), 0, ns);
     for (int k = 0; k < RAY_PACKET; k++)
         nmax = max(nmax, ns[k]);
-    for (int i = 0; i < nmax; i++) {
-        vint ok;
-        vfloat tm;
-        vec3x g = sample_point(p, (vint)(i), n, step, inv_spacing, &ok, &tm);
-        vfloat s = trilinear(v, g);
-        count -= ok;
-        sum += select((vfloat)(0.0f), s, ok);
-        vfloat ext = lk->blend == 1 ? fmax(best, s) : fmin(best, s);
-        best = select(best, ext, ok);
+    if (lk->blend == 3 || !eb->minmax) {
+        for (int i = 0; i < nmax; i++) {
+            vint ok;
+            vfloat tm;
+            vec3x g = sample_point(p, (vint)(i), n, step, inv_spacing, &ok, &tm);
+            vfloat s = trilinear(v, g);
+            count -= ok;
+            sum += select((vfloat)(0.0f), s, ok);
+            vfloat ext = lk->blend == 1 ? fmax(best, s) : fmin(best, s);
+            best = select(best, ext, ok);
+        }
+    } else { /* per-lane sample index: lanes skip dull bricks on their own; the last, shorter
+                segment is always sampled */
+        int is_max = lk->blend == 1;
+        vint i = (vint)(0), end = (vint)(0), live = p->hit & (i < n);
+        while (any(live)) {
+            vint need = live & (i >= end) & (i < n - 1);
+            if (any(need)) {
+                extreme_step(eb, v, &i, &end, best, is_max, need);
+                i = min(i, n - 1);
+            }
+            end = select(end, n, i >= n - 1); /* the last sample needs no look-up */
+            for (int k = 0; k < 4; k++) {
+                vint run = live & (i < end);
+                if (!any(run))
+                    break;
+                vint ok;
+                vfloat tm;
+                vec3x g = sample_point(p, i, n, step, inv_spacing, &ok, &tm);
+                ok &= run;
+                vfloat s = trilinear(v, g);
+                count -= ok;
+                vfloat ext = is_max ? fmax(best, s) : fmin(best, s);
+                best = select(best, ext, ok);
+                i -= run;
+                live &= i < n;
+            }
+        }
     }
     *taken = count;
     vfloat s = lk->blend == 3 ? sum / convert_vfloat(max(count, 1)) : best;
@@ -806,7 +879,7 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
                       int nbx, int nby, int nbz, int skipping, float vlx, float vly,
                       float vlz, float vhx, float vhy, float vhz, __global float4 *image,
                       __global uint *samples, /* per work-item */
-                      look_params look)
+                      look_params look, __global const uchar2 *brick_minmax, int minmax_valid)
 {
     int px0 = get_global_id(0) * PACKET_W, py0 = get_global_id(1) * PACKET_H;
     size_t slot = get_global_id(1) * get_global_size(0) + get_global_id(0);
@@ -841,11 +914,23 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
 #else
     volume_geo v = make_geo(frames + offset, params, 0, quads, X, Y, Z, &clip);
 #endif
-    if (look.blend != 0) { /* max, min, average, iso: every sample, no skipping */
+    if (look.blend != 0) { /* max, min, average, iso: no TF skipping, no termination */
         vint taken;
+        extreme_bricks eb;
+        eb.minmax = minmax_valid && !clip.enabled ? brick_minmax : 0;
+        eb.shift = brick_shift;
+        eb.nbx = nbx;
+        eb.nby = nby;
+        eb.nbz = nbz;
+        eb.g0 = g0;
+        eb.dg = dg;
+        eb.inv_dg = (vec3x){select((vfloat)(INFINITY), 1.0f / dg.x, dg.x != 0.0f),
+                            select((vfloat)(INFINITY), 1.0f / dg.y, dg.y != 0.0f),
+                            select((vfloat)(INFINITY), 1.0f / dg.z, dg.z != 0.0f)};
         rgbax out = look.blend == 4
                         ? march_iso(&p, n, step, inv_spacing, &v, &look, table, V, &taken)
-                        : march_extreme(&p, n, step, inv_spacing, &v, &look, table, alpha, &taken);
+                        : march_extreme(&p, n, step, inv_spacing, &v, &look, table, alpha, &eb,
+                                        &taken);
         store_pixels(image, px, py, cam.width, cam.height, out);
         int8 s8 = taken.lo + taken.hi;
         int4 s4 = s8.lo + s8.hi;

@@ -83,6 +83,8 @@ struct cdvr_cl_stream {
     cl_mem table;                /* 256 float4: rgb + step-corrected alpha (per render) */
     cl_mem alpha_unit;           /* 256 floats: alpha per unit length (shorter last segment) */
     cl_mem brick_minmax;         /* nbricks uchar2: value range per brick incl. apron */
+    int minmax_valid;            /* brick_minmax holds the set-up frame's ranges (the max and
+                                    min blend modes skip by them) */
     cl_mem quads;                /* quads of frame quads_frame for the ray caster (raycast.cl) */
     size_t quads_capacity, quads_frame;
     size_t last_rendered;        /* frame of the last render: a second render of it makes quads */

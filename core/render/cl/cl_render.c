@@ -114,11 +114,13 @@ cdvr_status cdvr_cl_setup(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf, cd
     s->tf = *tf;
     cdvr_status st = CDVR_OK;
     if (s->minmax_frame != frame) {
+        s->minmax_valid = 0;
         st = compute_minmax(s, frame, err);
         if (st)
             return st;
         s->minmax_frame = frame;
     }
+    s->minmax_valid = 1;
     if (cdvr_skip_flags(&s->grid, tf) || s->grid_uploaded != 0) {
         st = use_grid(s, &s->grid, err);
         if (st) {
@@ -155,6 +157,13 @@ cdvr_status cdvr_cl_setup_grid(cdvr_cl_stream *s, size_t frame, const cdvr_tf *t
     if (st)
         return st;
     s->grid_uploaded = 1; /* brick_visible no longer holds s->grid's flags */
+    /* the grid's ranges for the max and min blend modes; brick_minmax then no longer holds
+     * s->grid's (a later cdvr_cl_setup computes them again) */
+    s->minmax_frame = (size_t)-1;
+    cdvr_error ignored; /* without them the max and min modes just take every sample */
+    s->minmax_valid = g->minmax && write_buffer(s->cl, s->brick_minmax, g->minmax,
+                                                2 * s->nbricks, "upload brick ranges",
+                                                &ignored) == CDVR_OK;
     s->setup_frame = frame;
     return CDVR_OK;
 }
@@ -378,6 +387,7 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
                         (cl_int)s->brick_dims[2], s->skipping && !clip};
     cl_float step = (cl_float)rp.step, term_alpha = (cl_float)rp.term_alpha;
     cl_float unit = (cl_float)rp.unit;
+    cl_int minmax_valid = s->minmax_valid && s->setup_frame == frame;
     /* (size, value) of arguments 3.. in kernel order */
     struct {
         size_t size;
@@ -399,7 +409,8 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
                 {sizeof(cl_float), &s->visible_lo[2]}, {sizeof(cl_float), &s->visible_hi[0]},
                 {sizeof(cl_float), &s->visible_hi[1]}, {sizeof(cl_float), &s->visible_hi[2]},
                 {sizeof(cl_mem), &image},     {sizeof(cl_mem), &s->samples},
-                {sizeof *look, look}};
+                {sizeof *look, look},         {sizeof(cl_mem), &s->brick_minmax},
+                {sizeof(cl_int), &minmax_valid}};
     cdvr_status st = set_source_args(k, "raycast", &src, err);
     for (cl_uint i = 0; !st && i < sizeof args / sizeof *args; i++)
         st = cdvr_cl_arg(k, "raycast", 3 + i, args[i].size, args[i].value, err);
