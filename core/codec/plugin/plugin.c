@@ -5,6 +5,7 @@
 #include <dlfcn.h>
 #include <errno.h>
 #include <pthread.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -14,7 +15,8 @@
  * for clash messages and cdvr_plugin_file. The mutex also makes each load atomic, so that
  * two threads loading the same file do not both register it. Never freed: plugins stay. */
 typedef struct loaded_plugin {
-    const cdvr_codec *codec;
+    const cdvr_codec *codec;  /* as registered */
+    const cdvr_codec *own;    /* as the plugin returned it (differs for ABI 2: full_table) */
     char *path;
 } loaded_plugin;
 
@@ -33,8 +35,17 @@ static const char *file_of_locked(const cdvr_codec *codec)
     return NULL;
 }
 
+/* The registered table of a plugin table already loaded, or NULL. Caller holds loader.mu. */
+static const cdvr_codec *registered_locked(const cdvr_codec *own)
+{
+    for (size_t i = 0; own && i < loader.count; i++)
+        if (loader.items[i].own == own)
+            return loader.items[i].codec;
+    return NULL;
+}
+
 /* Caller holds loader.mu. 0 when out of memory (the codec stays registered, unnamed). */
-static int remember_locked(const cdvr_codec *codec, const char *path)
+static int remember_locked(const cdvr_codec *codec, const cdvr_codec *own, const char *path)
 {
     if (loader.count == loader.cap) {
         size_t cap = loader.cap ? 2 * loader.cap : 8;
@@ -47,7 +58,7 @@ static int remember_locked(const cdvr_codec *codec, const char *path)
     char *copy = strdup(path);
     if (!copy)
         return 0;
-    loader.items[loader.count++] = (loaded_plugin){codec, copy};
+    loader.items[loader.count++] = (loaded_plugin){codec, own, copy};
     return 1;
 }
 
@@ -65,10 +76,11 @@ static cdvr_status check_info(const char *path, const cdvr_plugin_info *info, cd
     if (!info)
         return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: %s returned NULL", path,
                               CDVR_PLUGIN_SYMBOL);
-    if (info->abi != CDVR_PLUGIN_ABI)
+    if (info->abi < CDVR_PLUGIN_ABI_OLDEST || info->abi > CDVR_PLUGIN_ABI)
         return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: plugin built for ABI version %u, this "
-                              "cdvr has version %u (rebuild the plugin against this cdvr's "
-                              "cdvr/plugin.h)", path, info->abi, CDVR_PLUGIN_ABI);
+                              "cdvr has version %u and loads version %u too (rebuild the plugin "
+                              "against this cdvr's cdvr/plugin.h)", path, info->abi,
+                              CDVR_PLUGIN_ABI, CDVR_PLUGIN_ABI_OLDEST);
     if (!info->codec)
         return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: %s returned no codec", path,
                               CDVR_PLUGIN_SYMBOL);
@@ -96,6 +108,18 @@ static cdvr_status register_locked(const char *path, const cdvr_codec *codec, cd
     return cdvr_error_set(err, s, "%s: %s", path, rerr.msg);
 }
 
+/* The table to register: the plugin's own, or for an ABI-2 plugin (whose table ends before
+ * `check`) a copy of it with check NULL, never freed. NULL when out of memory. */
+static const cdvr_codec *full_table(const cdvr_plugin_info *info)
+{
+    if (info->abi == CDVR_PLUGIN_ABI)
+        return info->codec;
+    cdvr_codec *copy = calloc(1, sizeof *copy);
+    if (copy)
+        memcpy(copy, info->codec, offsetof(cdvr_codec, check));
+    return copy;
+}
+
 /* dlopen + dlsym + checks + registration; caller holds loader.mu. */
 static cdvr_status load_locked(const char *path, const cdvr_codec **out, cdvr_error *err)
 {
@@ -115,19 +139,25 @@ static cdvr_status load_locked(const char *path, const cdvr_codec **out, cdvr_er
     memcpy(&entry, &sym, sizeof entry); /* object -> function pointer (POSIX guarantees it) */
     const cdvr_plugin_info *info = entry();
     cdvr_status s = check_info(path, info, err);
-    if (s == CDVR_OK && file_of_locked(info->codec)) {
-        *out = info->codec; /* the same file loaded again: dlopen gave the same handle */
+    if (s == CDVR_OK && registered_locked(info->codec)) {
+        *out = registered_locked(info->codec); /* the same file loaded again: dlopen gave the
+                                                  same handle */
         dlclose(h);         /* drops the reference this call added; the first one stays */
         return CDVR_OK;
     }
+    const cdvr_codec *table = s == CDVR_OK ? full_table(info) : NULL;
+    if (s == CDVR_OK && !table)
+        s = cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
     if (s == CDVR_OK)
-        s = register_locked(path, info->codec, err);
+        s = register_locked(path, table, err);
     if (s != CDVR_OK) {
+        if (table && table != info->codec)
+            free((void *)table);
         dlclose(h);
         return s;
     }
-    (void)remember_locked(info->codec, path);
-    *out = info->codec;
+    (void)remember_locked(table, info->codec, path);
+    *out = table;
     return CDVR_OK; /* never dlclose'd: the registry keeps the table */
 }
 

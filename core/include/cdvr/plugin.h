@@ -27,7 +27,10 @@
 #include "cdvr/codec.h"
 #include "cdvr/error.h"
 
-#define CDVR_PLUGIN_ABI 2u /* 2: cdvr_codec.encode_part */
+#define CDVR_PLUGIN_ABI 3u /* 2: cdvr_codec.encode_part; 3: cdvr_codec.check */
+/* The oldest ABI version still loaded: a version-2 table ends before `check`, so the loader
+ * registers a copy of it with check NULL (nothing reads past the plugin's table). */
+#define CDVR_PLUGIN_ABI_OLDEST 2u
 #define CDVR_PLUGIN_SYMBOL "cdvr_plugin_v1"
 
 /* Put before the definition of cdvr_plugin_v1: plugins are built with hidden visibility
@@ -68,8 +71,8 @@ static inline cdvr_status cdvr_plugin_error(cdvr_error *err, cdvr_status status,
 
 /* Loads the plugin at path and registers its codec (*out, may be NULL). Errors, each naming
  * the file: not a readable regular file, cannot be loaded (dlopen's reason: not a shared
- * object, missing library or symbol), no cdvr_plugin_v1 symbol, NULL info, ABI version other
- * than CDVR_PLUGIN_ABI, NULL codec, a codec table the registry refuses (missing functions,
+ * object, missing library or symbol), no cdvr_plugin_v1 symbol, NULL info, ABI version outside
+ * CDVR_PLUGIN_ABI_OLDEST .. CDVR_PLUGIN_ABI, NULL codec, a codec table the registry refuses (missing functions,
  * bad name or id; a name or id clash names the clashing codec and, for a plugin codec, the
  * file it came from). Loading the same file twice returns its codec again. Thread-safe. */
 cdvr_status cdvr_plugin_load(const char *path, const cdvr_codec **out, cdvr_error *err);
