@@ -3,7 +3,9 @@
  * with a message naming the file and the reason (wrong ABI, no entry symbol, NULL info or
  * codec, name or id clash, missing decode, unresolvable symbol), and so are a text file, a
  * directory, a missing file and a second copy of a loaded plugin; nothing refused stays
- * registered; cdvr_plugin_load_dirs loads what it can and reports each failure once. */
+ * registered; cdvr_plugin_load_dirs loads what it can and reports each failure once. A plugin
+ * built for ABI version 2 (its table ends before `check`) still loads, with check NULL: the
+ * loader never reads past its table. */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -228,6 +230,11 @@ int main(void)
     if (built("example"))
         test_copy_clash(tmp);
     test_load_dirs(tmp);
+    {
+        const cdvr_codec *abi2 = load_good("tests/plugins/bad_abi2.so", "abi2");
+        CHECK(abi2 && abi2->check == NULL && abi2->decode, "ABI-2 table: check %p",
+              abi2 ? (void *)abi2->check : NULL);
+    }
 
     char cmd[4200];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmp);

@@ -9,6 +9,9 @@
  *   BAD_CLASH_ID    a codec with the built-in PVTC id
  *   BAD_NO_DECODE   a table without decode
  *   BAD_UNDEFINED   needs a symbol nothing defines (dlopen fails)
+ *   BAD_ABI2        not bad: a valid codec "abi2" that says ABI version 2, whose table
+ *                   (the ABI-2 layout) ends before `check`; what follows it here is a
+ *                   poisoned check, which a loader reading past the table would pick up
  * The codec itself is raw-like and valid unless the case says otherwise. */
 #include <string.h>
 
@@ -95,13 +98,30 @@ static cdvr_status bad_decode(const cdvr_codec_params *p, const size_t dims[3],
     return CDVR_OK;
 }
 
+#if defined(BAD_ABI2)
+/* Past the end of an ABI-2 table: never to be read by the loader. */
+static cdvr_status poisoned_check(const cdvr_codec_params *p, const size_t dims[3],
+                                  const uint8_t *payload, size_t bytes, cdvr_error *err)
+{
+    (void)p;
+    (void)dims;
+    (void)payload;
+    (void)bytes;
+    return cdvr_plugin_error(err, CDVR_ERR_CORRUPT, "the loader read past an ABI-2 table");
+}
+#endif
+
 #if defined(BAD_CLASH_NAME)
 #define BAD_CODEC_NAME "pvtc"
+#elif defined(BAD_ABI2)
+#define BAD_CODEC_NAME "abi2"
 #else
 #define BAD_CODEC_NAME "bad"
 #endif
 #if defined(BAD_CLASH_ID)
 #define BAD_CODEC_ID CDVR_CODEC_ID_PVTC
+#elif defined(BAD_ABI2)
+#define BAD_CODEC_ID 0x41424932u /* "ABI2" */
 #else
 #define BAD_CODEC_ID 0x42414400u /* "BAD\0" */
 #endif
@@ -122,10 +142,15 @@ static const cdvr_codec bad_codec = {
     .decode = bad_decode,
 #endif
     .cl_mode = CDVR_CODEC_CL_NONE,
+#if defined(BAD_ABI2)
+    .check = poisoned_check,
+#endif
 };
 
 #if defined(BAD_ABI)
 static const cdvr_plugin_info bad_info = {42u, &bad_codec}; /* never a real ABI version */
+#elif defined(BAD_ABI2)
+static const cdvr_plugin_info bad_info = {2u, &bad_codec};
 #elif defined(BAD_NULL_CODEC)
 static const cdvr_plugin_info bad_info = {CDVR_PLUGIN_ABI, NULL};
 static const cdvr_codec *const unused_codec = &bad_codec;
