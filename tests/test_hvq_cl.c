@@ -32,8 +32,8 @@ static const char test_kernels[] =
     "{\n"
     "    size_t i = get_global_id(0);\n"
     "    __global const uchar *k = keys + 3 * i;\n"
-    "    ulong v = hvq_find(data, n, 0, m, r, slot_bytes, k[0], k[1], k[2]);\n"
-    "    out[i] = v ? (int)hvq_u8(data, n, v) : -1;\n"
+    "    __global const uchar *v = hvq_find(data, n, 0, m, r, slot_bytes, k[0], k[1], k[2]);\n"
+    "    out[i] = v ? (int)v[0] : -1;\n"
     "}\n";
 
 typedef struct cl_env {
