@@ -44,10 +44,14 @@ static int hvq_rds16(__global const uchar *p)
 /* The payload's size, from the params buffer (little-endian u64 at byte 48). */
 static ulong hvq_payload_bytes(__constant uchar *params)
 {
+#ifdef __ENDIAN_LITTLE__
+    return ((__constant ulong *)params)[CDVR_CL_PARAMS_BYTES / 8]; /* 8-byte aligned */
+#else
     ulong v = 0;
     for (int i = 0; i < 8; i++)
         v |= (ulong)params[CDVR_CL_PARAMS_BYTES + i] << (8 * i);
     return v;
+#endif
 }
 
 /* The value bytes of key (kx, ky, kz) in the hash whose data starts at offset data (sides
