@@ -231,7 +231,7 @@ int main(void)
         test_copy_clash(tmp);
     test_load_dirs(tmp);
     {
-        const cdvr_codec *abi2 = load_good("tests/plugins/bad_abi2.so", "abi2");
+        const cdvr_codec *abi2 = load_good("tests/plugins_abi2/abi2.so", "abi2");
         CHECK(abi2 && abi2->check == NULL && abi2->decode, "ABI-2 table: check %p",
               abi2 ? (void *)abi2->check : NULL);
     }

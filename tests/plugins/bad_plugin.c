@@ -9,7 +9,8 @@
  *   BAD_CLASH_ID    a codec with the built-in PVTC id
  *   BAD_NO_DECODE   a table without decode
  *   BAD_UNDEFINED   needs a symbol nothing defines (dlopen fails)
- *   BAD_ABI2        not bad: a valid codec "abi2" that says ABI version 2, whose table
+ *   BAD_ABI2        not bad (build/tests/plugins_abi2/abi2.so): a valid codec "abi2" that
+ *                   says ABI version 2, whose table
  *                   (the ABI-2 layout) ends before `check`; what follows it here is a
  *                   poisoned check, which a loader reading past the table would pick up
  * The codec itself is raw-like and valid unless the case says otherwise. */
