@@ -22,7 +22,7 @@ static cdvr_status keep_frame(void *ud, const cdvr_frame_row *row, const cdvr_im
 {
     capture *c = ud;
     (void)err;
-    if (row->frame < c->frames)
+    if (img && row->frame < c->frames) /* img NULL: the frame failed (its row says why) */
         memcpy(c->pixels + row->frame * c->px, img->rgba, sizeof(float) * c->px);
     return CDVR_OK;
 }

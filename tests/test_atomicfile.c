@@ -1,7 +1,13 @@
 /* core/base/atomicfile.c and cleanup.c: complete file or nothing under the final name, no temporary
- * left (also when the writer is killed by SIGINT or SIGTERM), symbolic links written through,
- * non-regular files never replaced. */
+ * left: with O_TMPFILE nothing is visible under any name before commit, not even after SIGKILL;
+ * on the named path (CDVR_ATOMIC_NAMED=1, as on a filesystem without O_TMPFILE) every catchable
+ * terminating signal removes the temporary and the process still dies by that signal, and the
+ * temporary a SIGKILL leaves (it carries the pid) is removed by the next writer, while a live
+ * writer's is kept; symbolic links written through, non-regular files never replaced. */
+#define _GNU_SOURCE /* O_TMPFILE */
 #include <dirent.h>
+#include <fcntl.h>
+#include <stdlib.h>
 #include <signal.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -117,31 +123,144 @@ static void check_mode_kept(const char *dir)
     unlink(path);
 }
 
-/* A child opens an atomic file and is killed by sig while writing: it dies by that signal
- * and its temporary file is gone. */
-static void check_signal_cleanup(const char *dir, int sig)
+/* A child opens an atomic file (named: CDVR_ATOMIC_NAMED=1), writes, tells the parent through
+ * a pipe and waits; the parent sends sig. The child must die by sig; *left gets the number of
+ * directory entries the child left beyond those before; *child its pid. */
+static void kill_writer(const char *dir, int sig, int named, int *left, pid_t *child)
 {
     char path[300];
     snprintf(path, sizeof path, "%s/signalled.bin", dir);
-    int before = count_entries(dir);
+    int before = count_entries(dir), fds[2];
+    CHECK(pipe(fds) == 0, "pipe");
     pid_t pid = fork();
     if (pid == 0) {
+        close(fds[0]);
         signal(sig, SIG_DFL);
+        if (named)
+            setenv("CDVR_ATOMIC_NAMED", "1", 1);
+        else
+            unsetenv("CDVR_ATOMIC_NAMED");
         cdvr_atomic_file af;
         if (cdvr_atomic_open(&af, path, NULL) != CDVR_OK)
             _exit(3);
         fputs("partial", af.f);
         fflush(af.f);
-        if (access(af.tmp_path, F_OK) != 0)
-            _exit(4);
-        raise(sig);
-        _exit(5); /* not reached: the signal ends the process */
+        if (named != (af.tmp_path && access(af.tmp_path, F_OK) == 0))
+            _exit(4); /* named: the temporary stands; unnamed: it has no name */
+        if (write(fds[1], "r", 1) != 1)
+            _exit(5);
+        for (;;)
+            pause(); /* until the signal ends the process */
     }
+    close(fds[1]);
+    char c;
+    CHECK(pid > 0 && read(fds[0], &c, 1) == 1, "the writer is writing (signal %d)", sig);
+    close(fds[0]);
+    kill(pid, sig);
     int status = 0;
     CHECK(pid > 0 && waitpid(pid, &status, 0) == pid, "fork/wait");
     CHECK(WIFSIGNALED(status) && WTERMSIG(status) == sig, "child ended by signal %d (status 0x%x)", sig, status);
-    CHECK(count_entries(dir) == before, "no temporary file left after signal %d", sig);
-    CHECK(access(path, F_OK) != 0, "nothing under the final name");
+    CHECK(access(path, F_OK) != 0, "nothing under the final name after signal %d", sig);
+    *left = count_entries(dir) - before;
+    *child = pid;
+}
+
+/* Every catchable terminating signal removes the named temporary. */
+static void check_signal_cleanup(const char *dir)
+{
+    static const int sigs[] = {SIGINT,  SIGTERM, SIGQUIT, SIGHUP,  SIGUSR1,   SIGUSR2,
+                               SIGPIPE, SIGALRM, SIGXCPU, SIGXFSZ, SIGVTALRM, SIGPROF};
+    for (size_t i = 0; i < sizeof sigs / sizeof sigs[0]; i++) {
+        int left;
+        pid_t pid;
+        kill_writer(dir, sigs[i], 1, &left, &pid);
+        CHECK(left == 0, "no temporary file left after signal %d (%d left)", sigs[i], left);
+    }
+}
+
+/* 1 when dir holds an entry whose name starts with prefix. */
+static int has_prefix(const char *dir, const char *prefix)
+{
+    DIR *d = opendir(dir);
+    struct dirent *e;
+    int found = 0;
+    while (d && (e = readdir(d)))
+        found |= strncmp(e->d_name, prefix, strlen(prefix)) == 0;
+    if (d)
+        closedir(d);
+    return found;
+}
+
+/* SIGKILL: with O_TMPFILE nothing is left under any name; on the named path the temporary
+ * stays with the dead pid in its name and the next writer of the same file removes it, but
+ * keeps the temporary of a live process. */
+static void check_sigkill(const char *dir)
+{
+    int fd = open(dir, O_TMPFILE | O_WRONLY, 0600);
+    if (fd >= 0) {
+        close(fd);
+        int left;
+        pid_t pid;
+        kill_writer(dir, SIGKILL, 0, &left, &pid);
+        CHECK(left == 0, "O_TMPFILE: SIGKILL left %d entries", left);
+    } else {
+        printf("note: %s has no O_TMPFILE; the unnamed case is skipped\n", dir);
+    }
+    int left;
+    pid_t pid;
+    kill_writer(dir, SIGKILL, 1, &left, &pid);
+    char stale[64], live[300], path[300];
+    snprintf(stale, sizeof stale, "signalled.bin.tmp.%ld.", (long)pid);
+    CHECK(left == 1 && has_prefix(dir, stale), "named: SIGKILL left %s* (%d entries)", stale, left);
+    snprintf(live, sizeof live, "%s/signalled.bin.tmp.%ld.abcdef", dir, (long)getpid());
+    write_file(live, "mine");
+    snprintf(path, sizeof path, "%s/signalled.bin", dir);
+    cdvr_atomic_file af;
+    cdvr_error err;
+    CHECK_OK(cdvr_atomic_open(&af, path, &err), err);
+    CHECK(!has_prefix(dir, stale), "the next writer removed the dead writer's %s*", stale);
+    CHECK(access(live, F_OK) == 0, "a live writer's temporary is kept");
+    fputs("whole", af.f);
+    CHECK_OK(cdvr_atomic_commit(&af, 0, &err), err);
+    unlink(live);
+    unlink(path);
+}
+
+/* Unnamed (O_TMPFILE) writes: nothing in the directory until commit; commit links the file in
+ * as a new name and also replaces an existing file (through a temporary name renamed over it),
+ * leaving nothing else. */
+static void check_unnamed(const char *dir)
+{
+    int fd = open(dir, O_TMPFILE | O_WRONLY, 0600);
+    if (fd < 0) {
+        printf("note: %s has no O_TMPFILE; unnamed writes are not checked\n", dir);
+        return;
+    }
+    close(fd);
+    unsetenv("CDVR_ATOMIC_NAMED");
+    char path[300], buf[64];
+    snprintf(path, sizeof path, "%s/unnamed.txt", dir);
+    int before = count_entries(dir);
+    for (int round = 0; round < 2; round++) { /* a new file, then a replaced one */
+        cdvr_atomic_file af;
+        cdvr_error err;
+        CHECK_OK(cdvr_atomic_open(&af, path, &err), err);
+        CHECK(af.unnamed && !af.tmp_path, "O_TMPFILE used");
+        fputs(round ? "two" : "one", af.f);
+        CHECK(count_entries(dir) == before + round, "nothing new visible before commit (round %d)", round);
+        CHECK_OK(cdvr_atomic_commit(&af, 0, &err), err);
+        CHECK(read_all(path, buf, sizeof buf) && strcmp(buf, round ? "two" : "one") == 0, "committed (round %d)", round);
+        CHECK(count_entries(dir) == before + 1, "only the file itself (round %d)", round);
+    }
+    cdvr_atomic_file af;
+    cdvr_error err;
+    CHECK_OK(cdvr_atomic_open(&af, path, &err), err);
+    fputs("failed", af.f);
+    CHECK(cdvr_atomic_commit(&af, 1, &err) == CDVR_ERR_IO, "failure reported");
+    CHECK(read_all(path, buf, sizeof buf) && strcmp(buf, "two") == 0 && count_entries(dir) == before + 1,
+          "a failed unnamed write leaves the old file and nothing else");
+    unlink(path);
+    setenv("CDVR_ATOMIC_NAMED", "1", 1);
 }
 
 /* An ignored SIGTERM stays ignored: the writer goes on and commits. */
@@ -168,6 +287,7 @@ static void check_ignored_signal(const char *dir)
 
 int main(void)
 {
+    setenv("CDVR_ATOMIC_NAMED", "1", 1); /* the named path, except where a check says otherwise */
     char dir[] = "atomicfile_test_XXXXXX";
     CHECK(mkdtemp(dir) != NULL, "mkdtemp");
     char path[256], buf[64];
@@ -212,8 +332,9 @@ int main(void)
     check_fifo(dir);
     check_symlinks(dir);
     check_mode_kept(dir);
-    check_signal_cleanup(dir, SIGTERM);
-    check_signal_cleanup(dir, SIGINT);
+    check_signal_cleanup(dir);
+    check_sigkill(dir);
+    check_unnamed(dir);
     check_ignored_signal(dir);
 
     unlink(inner);

@@ -2,7 +2,7 @@
 #include "check.h"
 
 #include "base/crc32c.h"
-#include "cdvr/store.h"
+#include "cdvr/crc32c.h"
 
 #include <stdint.h>
 #include <string.h>

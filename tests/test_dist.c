@@ -2,10 +2,15 @@
  * processes (disjoint boxes covering the grid, balanced, empty parts when there are more
  * processes than bricks) and the blend order (a visibility order: along rays from the eye,
  * perspective or orthographic, from outside and inside the volume, the parts are met in the
- * order given), the view in index coordinates, and the single-process group. */
+ * order given), the view in index coordinates, the single-process group, and the fingerprints
+ * the ranks compare to agree on a camera (every field counts, 30 bits) and the collective-call
+ * deadline (CDVR_MPI_TIMEOUT, else the default). */
 #include "check.h"
 
 #include "cdvr/dist.h"
+#include "dist/dist_internal.h"
+
+#include <stdlib.h>
 
 #include <string.h>
 
@@ -193,8 +198,35 @@ static void test_group(void)
     cdvr_dist_finalize();
 }
 
+static void test_agreement(void)
+{
+    cdvr_camera a = {.eye = {1, 2, 3}, .center = {0, 0, 0}, .up = {0, 0, 1}, .fov = 30, .width = 64, .height = 48};
+    cdvr_camera b = a;
+    uint32_t h = cdvr_dist_camera_hash(&a);
+    CHECK(h == cdvr_dist_camera_hash(&b) && h < (1u << 30), "same camera, same 30-bit fingerprint");
+    b.eye[2] = 3.0000001;
+    CHECK(cdvr_dist_camera_hash(&b) != h, "the eye counts");
+    b = a;
+    b.width = 65;
+    CHECK(cdvr_dist_camera_hash(&b) != h, "the width counts");
+    b = a;
+    b.orthographic = 1;
+    CHECK(cdvr_dist_camera_hash(&b) != h, "the projection counts");
+    unsetenv("CDVR_MPI_TIMEOUT");
+    double def = cdvr_dist_timeout_s();
+    CHECK(def == CDVR_DIST_TIMEOUT_DEFAULT || !cdvr_dist_built(), "default deadline %g", def);
+    if (cdvr_dist_built()) {
+        setenv("CDVR_MPI_TIMEOUT", "2.5", 1);
+        CHECK(cdvr_dist_timeout_s() == 2.5, "CDVR_MPI_TIMEOUT=2.5");
+        setenv("CDVR_MPI_TIMEOUT", "-1", 1);
+        CHECK(cdvr_dist_timeout_s() == CDVR_DIST_TIMEOUT_DEFAULT, "a negative deadline is ignored");
+        unsetenv("CDVR_MPI_TIMEOUT");
+    }
+}
+
 int main(void)
 {
+    test_agreement();
     test_partition();
     test_order();
     test_view();

@@ -5,7 +5,10 @@
 #    render (PSNR >= 50 dB) for a camera outside and one inside the volume, rows gathered on
 #    rank 0, frames in one numbered sequence;
 #  - a rank that cannot open its store, or raises in Lua during a run, ends every rank with a
-#    non-zero status and its own message (MPI_Abort after the report), within a time limit.
+#    non-zero status and its own message (MPI_Abort after the report), within a time limit;
+#  - ranks that disagree on the distribute mode, the store, the camera or the frame count stop
+#    with an error naming what differs, and a rank waiting at a barrier no other rank reaches
+#    reports itself after CDVR_MPI_TIMEOUT seconds (tests/lua/mpi_agree.lua).
 set -uo pipefail
 cdvr=$1
 src=${CDVR_SOURCE_DIR:-$(cd "$(dirname "$0")/.." && pwd)}
@@ -59,4 +62,29 @@ for what in "open" "raise time" "raise bricks"; do
   if grep -q "should have stopped" "$out"; then cat "$out"; fail "$what: rank 0 went on"; fi
   echo "failure '$what': exit $rc with rank 1's message"
 done
+# Disagreement and waits no other rank ends (CDVR_MPI_TIMEOUT=3): every rank ends, non-zero,
+# within the time limit, with a message naming what differs, or naming the waiting rank.
+for what in mode store camera path frames barrier; do
+  out="$tmp/agree-$what.txt"
+  start=$(date +%s)
+  CDVR_MPI_TIMEOUT=3 timeout 120 "$mpirun" "${flags[@]}" -x CDVR_MPI_TIMEOUT -np 2 "$cdvr" \
+    "$src/tests/lua/mpi_agree.lua" "$what" "$tmp" >"$out" 2>&1
+  rc=$?
+  took=$(( $(date +%s) - start ))
+  [ "$rc" -ne 124 ] || { cat "$out"; fail "$what: still running after 120 s (a rank hangs)"; }
+  [ "$rc" -ne 0 ] || { cat "$out"; fail "$what: exit status 0"; }
+  if grep -q "should have stopped" "$out"; then cat "$out"; fail "$what: a rank went on"; fi
+  case $what in
+    mode) want="the distribute mode (rank 0: time, rank 1: bricks)" ;;
+    store) want="the store (rank" ;;
+    camera) want="the camera (rank" ;;
+    path) want="frame 3: the ranks disagree on its camera" ;;
+    frames) want="the frame count (rank 0: 4, rank 1: 5)" ;;
+    barrier) want="rank 1 of 2: cdvr.mpi.barrier(): the other ranks did not come within 3 s" ;;
+  esac
+  grep -qF "$want" "$out" || { cat "$out"; fail "$what: no message with '$want'"; }
+  [ "$what" = barrier ] || [ "$what" = path ] || grep -qF "distribute: the ranks disagree" "$out" || { cat "$out"; fail "$what: no disagreement message"; }
+  echo "disagreement '$what': exit $rc after $took s: $(grep -oF "$want" "$out" | head -1)"
+done
+
 echo "test_mpi: ok"

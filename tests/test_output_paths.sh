@@ -6,8 +6,10 @@
 #    refused with a clear message and left as it was;
 #  - a full file system (a 64 KiB tmpfs, where a mount is allowed: root or `unshare -rm`) gives
 #    an error naming the target, and leaves neither a partial file nor a temporary one;
-#  - SIGINT and SIGTERM sent to a real cdvr process during an encode or a capture remove its
-#    temporary file; the process still ends by that signal (exit 130 / 143).
+#  - every catchable terminating signal (INT TERM QUIT HUP USR1 USR2 PIPE ALRM XCPU XFSZ VTALRM
+#    PROF) sent to a real cdvr process during an encode or a capture removes its temporary file;
+#    the process still ends by that signal (exit 128 + n); SIGKILL leaves nothing under any name
+#    with O_TMPFILE, and without it (CDVR_ATOMIC_NAMED=1) the next writer removes the stale file.
 cdvr=${1:?usage: test_output_paths.sh path/to/cdvr}
 cdvr=$(cd "$(dirname "$cdvr")" && pwd)/$(basename "$cdvr")
 tmp=$(mktemp -d); trap 'umount "$tmp/full" 2>/dev/null; rm -rf "$tmp"' EXIT
@@ -99,11 +101,19 @@ else
   echo "note: ENOSPC case skipped (no tmpfs mount allowed here)"
 fi
 
-# ---- SIGINT / SIGTERM during an encode and a capture --------------------------------------------
-# Background jobs start with SIGINT ignored; `env --default-signal` gives the child the default
-# disposition, as a terminal's foreground job has.
-signal_run() { # signal, expected exit, what (encode|capture)
-  local sig=$1 want=$2 what=$3 code dir
+# ---- signals during an encode and a capture --------------------------------------------------
+# Background jobs start with SIGINT and SIGQUIT ignored; `env --default-signal` gives the child
+# the default disposition of every signal, as a terminal's foreground job has. mode "named"
+# (CDVR_ATOMIC_NAMED=1) takes the path of a filesystem without O_TMPFILE: a visible
+# out.cdv.tmp.PID.XXXXXX; mode "unnamed" is the O_TMPFILE file, seen only as the process's
+# descriptor /proc/PID/fd/N -> "DIR/#INODE (deleted)".
+temp_seen() { # mode, pid
+  if [ "$1" = named ]; then ls "$tmp/sig" 2>/dev/null | grep -q '\.tmp\.'
+  else ls -l "/proc/$2/fd" 2>/dev/null | grep -q "$tmp/sig/#"; fi
+}
+signal_run() { # signal, expected exit, what (encode|capture), mode (named|unnamed)
+  local sig=$1 want=$2 what=$3 mode=$4 code named=0
+  [ "$mode" = named ] && named=1
   rm -rf "$tmp/sig"; mkdir "$tmp/sig"
   if [ "$what" = encode ]; then
     code='local v = cdvr.generate("ml", {dims = {64, 64, 64}, timesteps = 24})
@@ -114,28 +124,45 @@ signal_run() { # signal, expected exit, what (encode|capture)
                                 out = "sig/%03d.png", camera = cdvr.camera{eye = {100, 0, 0}, center = {200, 0, 0}, up = {0, 0, 1}}}
           p:run{frames = 400}'
   fi
-  (cd "$tmp" && exec env --default-signal="$sig" "$cdvr" -e "$code") &
+  (cd "$tmp" && CDVR_ATOMIC_NAMED=$named exec env --default-signal "$cdvr" -e "$code") &
   local pid=$! seen=""
   for _ in $(seq 3000); do  # up to about 30 s for the temporary file to appear
-    if ls "$tmp/sig" 2>/dev/null | grep -q '\.tmp'; then seen=1; break; fi
+    if temp_seen "$mode" $pid; then seen=1; break; fi
     kill -0 $pid 2>/dev/null || break
     sleep 0.01
   done
   kill -s "$sig" $pid 2>/dev/null
   wait $pid; local rc=$?
-  check "$what: a temporary file was seen before SIG$sig" [ -n "$seen" ]
-  check "$what: ended by SIG$sig (exit $rc, want $want)" [ $rc -eq "$want" ]
-  check "$what: SIG$sig left no temporary file ($(ls "$tmp/sig" | tr '\n' ' '))" no_temporaries "$tmp/sig"
-  [ "$what" = encode ] && check "$what: nothing under the final name" [ ! -e "$tmp/sig/out.cdv" ]
+  local left; left=$(ls -A "$tmp/sig" | tr '\n' ' ')
+  check "$what ($mode): a temporary file was seen before SIG$sig" [ -n "$seen" ]
+  check "$what ($mode): ended by SIG$sig (exit $rc, want $want)" [ $rc -eq "$want" ]
+  [ "$what" = encode ] && check "$what ($mode): SIG$sig: nothing under the final name" [ ! -e "$tmp/sig/out.cdv" ]
+  if [ "$sig" != KILL ]; then
+    check "$what ($mode): SIG$sig left no temporary file ($left)" no_temporaries "$tmp/sig"
+  elif [ "$mode" = unnamed ]; then
+    check "$what ($mode): SIGKILL left nothing under any name ($left)" [ -z "$left" ]
+  else # the stale file carries the dead writer's pid; the next writer of out.cdv removes it
+    check "$what ($mode): SIGKILL left out.cdv.tmp.$pid.* ($left)" grep -q "^out\.cdv\.tmp\.$pid\.[^ ]* $" <<<"$left"
+    (cd "$tmp" && CDVR_ATOMIC_NAMED=1 "$cdvr" -e 'cdvr.encode(cdvr.generate("sphere", {dims = {8, 8, 8}}), {path = "sig/out.cdv", progress = false})')
+    left=$(ls -A "$tmp/sig" | tr '\n' ' ')
+    check "$what ($mode): the next writer removed the stale temporary ($left)" [ "$left" = "out.cdv " ]
+  fi
 }
 if env --default-signal=INT true 2>/dev/null; then
-  signal_run INT 130 encode
-  signal_run INT 130 capture
+  for sig in INT TERM QUIT HUP USR1 USR2 PIPE ALRM XCPU XFSZ VTALRM PROF; do
+    n=$(kill -l "$sig")
+    want=$((128 + n))
+    signal_run "$sig" "$want" encode named
+  done
+  signal_run TERM 143 encode unnamed
+  signal_run KILL 137 encode unnamed
+  signal_run KILL 137 encode named
+  signal_run INT 130 capture named
+  signal_run TERM 143 capture named
+  signal_run TERM 143 capture unnamed
 else
-  echo "note: SIGINT cases skipped (env --default-signal missing)"
+  echo "note: signal cases skipped (env --default-signal missing)"
 fi
-signal_run TERM 143 encode
-signal_run TERM 143 capture
 
 echo "$passed passed, $failed failed"
 [ $failed -eq 0 ]

@@ -64,7 +64,7 @@ static cdvr_status keep_frame(void *ud, const cdvr_frame_row *row, const cdvr_im
                               cdvr_error *err)
 {
     capture *c = ud;
-    if (row->frame >= FRAMES)
+    if (row->frame >= FRAMES || !img) /* img NULL: the frame failed (its row says why) */
         return CDVR_OK;
     cdvr_image *copy;
     cdvr_status s = cdvr_image_create(img->width, img->height, &copy, err);

@@ -3,9 +3,10 @@
  * with a message naming the file and the reason (wrong ABI, no entry symbol, NULL info or
  * codec, name or id clash, missing decode, unresolvable symbol), and so are a text file, a
  * directory, a missing file and a second copy of a loaded plugin; nothing refused stays
- * registered; cdvr_plugin_load_dirs loads what it can and reports each failure once. A plugin
- * built for ABI version 2 (its table ends before `check`) still loads, with check NULL: the
- * loader never reads past its table. */
+ * registered; a plugin built for ABI 2 still loads (its table, which ends before `check`, as
+ * a copy with check NULL); one refused after its first table keeps
+ * that table and is refused again on every load; cdvr_plugin_load_dirs loads what it can and
+ * reports each failure once. (Format plugins: tests/test_format.c.) */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -195,7 +196,8 @@ static void test_load_dirs(const char *tmp)
     char plugins[4096];
     path_in_build(plugins, sizeof plugins, "plugins");
     reports none = {0};
-    size_t want = (size_t)built("example") + (size_t)built("zfp");
+    size_t want = (size_t)built("example") + (size_t)built("zfp") +
+                  (size_t)built("format_example");
     CHECK(cdvr_plugin_load_dirs(plugins, collect, &none) == want && none.count == 0,
           "build plugins: %d reports: %s", none.count, none.text[0]);
     CHECK(cdvr_plugin_load_dirs(NULL, collect, &none) == 0, "NULL list");
@@ -225,16 +227,30 @@ int main(void)
         const cdvr_codec *zfp = load_good("plugins/cdvr_zfp.so", "zfp");
         CHECK(zfp && zfp->id == 0x7A667000u, "zfp id");
     }
-    CHECK(cdvr_codec_count() == builtins + (size_t)built("example") + (size_t)built("zfp"),
+    /* a plugin built against ABI 2 (its info has two fields) still loads */
+    const cdvr_codec *abi2 = load_good("tests/plugins_more/abi2.so", "abi2");
+    CHECK(abi2 && abi2->id == 0x41424932u, "abi2 id");
+    /* its table ends before `check` (ABI 4): a copy is registered, with check NULL */
+    CHECK(abi2 && abi2->check == NULL && abi2->decode, "ABI-2 table: check %p",
+          abi2 ? (void *)abi2->check : NULL);
+    /* a plugin refused after its first table: that one stays, and every load is refused */
+    char partial[4096];
+    path_in_build(partial, sizeof partial, "tests/plugins_more/partial.so");
+    for (int i = 0; i < 2; i++) {
+        cdvr_error err;
+        const cdvr_codec *got = NULL;
+        CHECK(cdvr_plugin_load(partial, &got, &err) == CDVR_ERR_ARG && !got &&
+                  strstr(err.msg, partial) &&
+                  strstr(err.msg, "format 'partial': suffix .nrrd is already taken by format "
+                                  "'nrrd'"),
+              "partial plugin, load %d: %s", i + 1, err.msg);
+    }
+    CHECK(cdvr_codec_find("partial") != NULL, "the partial plugin's codec stays registered");
+    CHECK(cdvr_codec_count() == builtins + 2 + (size_t)built("example") + (size_t)built("zfp"),
           "%zu codecs", cdvr_codec_count());
     if (built("example"))
         test_copy_clash(tmp);
     test_load_dirs(tmp);
-    {
-        const cdvr_codec *abi2 = load_good("tests/plugins_abi2/abi2.so", "abi2");
-        CHECK(abi2 && abi2->check == NULL && abi2->decode, "ABI-2 table: check %p",
-              abi2 ? (void *)abi2->check : NULL);
-    }
 
     char cmd[4200];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmp);

@@ -1,5 +1,6 @@
 /* tests/test_store.c - the .cdv store: round trips on the hard cases of DESIGN.md section 9,
- * several variants per store, schedules, stage-2 decisions, every corruption, failed writes. */
+ * several variants per store, schedules, stage-2 decisions, every corruption, failed writes,
+ * the best-variant rule (cdvr_store_best_variant). */
 #include "check.h"
 
 #include "cdvr/pvtc.h"
@@ -771,6 +772,55 @@ static void test_codec_not_loaded(void)
     unlink(renamed);
 }
 
+/* Encodes u8 with the variants vs into best.cdv and returns cdvr_store_best_variant (-1 on
+ * failure). */
+static int best_of(const cdvr_volume *u8, const cdvr_variant_spec *vs, size_t n)
+{
+    cdvr_encode_opts o = opts_for(vs, n);
+    cdvr_error err;
+    cdvr_store *st = NULL;
+    const char *path = tmp_path("best.cdv");
+    int best = -1;
+    CHECK_OK(cdvr_store_encode(u8, &o, path, &err), err);
+    CHECK_OK(cdvr_store_open(path, &st, &err), err);
+    if (st) {
+        best = cdvr_store_best_variant(st);
+        for (size_t v = 0; v < n && best >= 0; v++) /* nothing ranks above it */
+            CHECK(cdvr_store_variant(st, v)->psnr <= cdvr_store_variant(st, (size_t)best)->psnr,
+                  "variant %zu psnr %g above the best's %g", v + 1, cdvr_store_variant(st, v)->psnr,
+                  cdvr_store_variant(st, (size_t)best)->psnr);
+        cdvr_store_close(st);
+    }
+    unlink(path);
+    return best;
+}
+
+/* The default variant (cdvr_store_best_variant): raw first, then the highest PSNR, ties by
+ * more stored bytes, then the lower index; never simply the first variant. */
+static void test_best_variant(void)
+{
+    cdvr_volume *u8 = make_series(16, 12, 12, 6);
+    cdvr_variant_spec lossy_first[] = {
+        spec("S4T3", PVTC, 4, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE),
+        spec("raw", RAW, 0, 0, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE),
+        spec("S1T3", PVTC, 1, 3, CDVR_PACK_TIME, CDVR_ENCODER_LSQ, CDVR_STAGE2_NONE)};
+    CHECK(best_of(u8, lossy_first, 3) == 1, "raw is the best");
+    CHECK(best_of(u8, lossy_first, 1) == 0, "one variant: it");
+    cdvr_variant_spec by_psnr[] = {lossy_first[0], lossy_first[2]};
+    CHECK(best_of(u8, by_psnr, 2) == 1, "S1T3 measures a higher PSNR than S4T3 here");
+    cdvr_variant_spec twins[] = {lossy_first[0], lossy_first[0]};
+    snprintf(twins[1].name, sizeof twins[1].name, "again");
+    CHECK(best_of(u8, twins, 2) == 0, "equal quality and bytes: the lower index");
+    cdvr_volume_free(u8);
+    /* a constant series: every PVTC variant is lossless (psnr +inf), so bytes decide */
+    u8 = make_series(16, 12, 12, 6);
+    memset(u8->data, 77, cdvr_volume_voxels(u8) * u8->timesteps);
+    CHECK(best_of(u8, by_psnr, 2) == 1, "lossless tie: more stored bytes (S1T3)");
+    cdvr_variant_spec small_last[] = {lossy_first[2], lossy_first[0]};
+    CHECK(best_of(u8, small_last, 2) == 0, "lossless tie, other order: S1T3 still");
+    cdvr_volume_free(u8);
+}
+
 int main(void)
 {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/cdvr_test_store_XXXXXX");
@@ -788,6 +838,7 @@ int main(void)
     test_version1();
     test_bricks();
     test_codec_not_loaded();
+    test_best_variant();
     const char *left[] = {"hard.cdv", "s2.cdv", "sched.cdv"};
     for (size_t i = 0; i < sizeof left / sizeof *left; i++)
         unlink(tmp_path(left[i]));

@@ -12,7 +12,9 @@
 
 enum { SLOT_FREE, SLOT_FILLING, SLOT_ACTIVE };
 
-static const int cleanup_signals[] = {SIGINT, SIGTERM, SIGHUP};
+/* Every signal whose default action ends the process and that a handler can catch. */
+static const int cleanup_signals[] = {SIGINT,  SIGTERM, SIGQUIT, SIGHUP,  SIGUSR1,   SIGUSR2,
+                                      SIGPIPE, SIGALRM, SIGXCPU, SIGXFSZ, SIGVTALRM, SIGPROF};
 #define NSIGNALS (sizeof cleanup_signals / sizeof cleanup_signals[0])
 
 /* The one cleanup context of the process: registered temporary files and the signal
@@ -91,17 +93,28 @@ int cdvr_cleanup_register(const char *tmp_path)
     return -1;
 }
 
-int cdvr_cleanup_mkstemp(char *tmpl, int *slot)
+void cdvr_cleanup_block(sigset_t *old)
 {
-    sigset_t block, old;
+    sigset_t block;
     sigemptyset(&block);
     for (size_t k = 0; k < NSIGNALS; k++)
         sigaddset(&block, cleanup_signals[k]);
-    pthread_sigmask(SIG_BLOCK, &block, &old);
+    pthread_sigmask(SIG_BLOCK, &block, old);
+}
+
+void cdvr_cleanup_unblock(const sigset_t *old)
+{
+    pthread_sigmask(SIG_SETMASK, old, NULL); /* a signal that came meanwhile is handled now */
+}
+
+int cdvr_cleanup_mkstemp(char *tmpl, int *slot)
+{
+    sigset_t old;
+    cdvr_cleanup_block(&old);
     int fd = mkstemp(tmpl);
     int saved = errno;
     *slot = fd >= 0 ? cdvr_cleanup_register(tmpl) : -1;
-    pthread_sigmask(SIG_SETMASK, &old, NULL); /* a signal that came meanwhile is handled now */
+    cdvr_cleanup_unblock(&old);
     errno = saved;
     return fd;
 }

@@ -6,7 +6,7 @@
  */
 #include "crc32c.h"
 
-#include "cdvr/store.h"
+#include "cdvr/crc32c.h"
 
 #include <string.h>
 

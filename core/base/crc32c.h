@@ -1,5 +1,5 @@
 /* core/base/crc32c.h - internal: the portable CRC-32C path, exposed so tests can check that it
- * agrees with the hardware path that cdvr_crc32c (cdvr/store.h) picks on x86-64. */
+ * agrees with the hardware path that cdvr_crc32c (cdvr/crc32c.h) picks on x86-64. */
 #ifndef CDVR_CRC32C_INTERNAL_H
 #define CDVR_CRC32C_INTERNAL_H
 

@@ -186,3 +186,54 @@ double cdvr_dist_time_fps(size_t ok_frames, double slowest_wall_ms)
 {
     return slowest_wall_ms > 0 ? 1e3 * (double)ok_frames / slowest_wall_ms : 0.0;
 }
+
+/* ---- what the ranks must agree on ------------------------------------------------------- */
+
+static uint32_t fnv1a(uint32_t h, const void *data, size_t n)
+{
+    const unsigned char *p = data;
+    for (size_t i = 0; i < n; i++)
+        h = (h ^ p[i]) * 16777619u;
+    return h;
+}
+
+#define FNV_START 2166136261u
+#define HASH_FIELD(h, x) ((h) = fnv1a((h), &(x), sizeof(x)))
+
+uint32_t cdvr_dist_store_hash(const cdvr_store *st)
+{
+    const cdvr_store_info *in = cdvr_store_get_info(st);
+    uint32_t h = FNV_START;
+    HASH_FIELD(h, in->dims);
+    HASH_FIELD(h, in->timesteps);
+    HASH_FIELD(h, in->spacing);
+    HASH_FIELD(h, in->origin);
+    HASH_FIELD(h, in->direction);
+    HASH_FIELD(h, in->qlo);
+    HASH_FIELD(h, in->qhi);
+    HASH_FIELD(h, in->nvariants);
+    HASH_FIELD(h, in->bricks);
+    HASH_FIELD(h, in->file_bytes);
+    for (size_t v = 0; v < in->nvariants; v++) {
+        const cdvr_variant_info *vi = cdvr_store_variant(st, v);
+        h = fnv1a(h, vi->name, strlen(vi->name));
+        HASH_FIELD(h, vi->codec_id);
+        HASH_FIELD(h, vi->nchunks);
+    }
+    return h & 0x3fffffff;
+}
+
+uint32_t cdvr_dist_camera_hash(const cdvr_camera *cam)
+{
+    uint32_t h = FNV_START;
+    HASH_FIELD(h, cam->eye);
+    HASH_FIELD(h, cam->center);
+    HASH_FIELD(h, cam->up);
+    HASH_FIELD(h, cam->fov);
+    HASH_FIELD(h, cam->width);
+    HASH_FIELD(h, cam->height);
+    HASH_FIELD(h, cam->orthographic);
+    if (cam->orthographic)
+        HASH_FIELD(h, cam->ortho_height);
+    return h & 0x3fffffff;
+}

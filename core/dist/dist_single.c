@@ -54,6 +54,17 @@ cdvr_status cdvr_dist_play_create(cdvr_dist_mode mode, cdvr_player_opts *opts,
     return CDVR_OK;
 }
 
+cdvr_status cdvr_dist_play_begin(cdvr_dist_play *dp, size_t first, size_t frames, cdvr_error *err)
+{
+    (void)dp, (void)first, (void)frames, (void)err;
+    return CDVR_OK;
+}
+
+double cdvr_dist_timeout_s(void)
+{
+    return CDVR_DIST_TIMEOUT_DEFAULT;
+}
+
 void cdvr_dist_play_free(cdvr_dist_play *dp)
 {
     free(dp);

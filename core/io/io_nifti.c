@@ -2,6 +2,7 @@
 #include "cdvr/regular_file.h"
 #include "cdvr/volume.h"
 #include "volume_io.h"
+#include "cdvr/format.h"
 
 #include <math.h>
 #include <errno.h>
@@ -11,6 +12,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 static double read_u8(const void *p, size_t i) { return ((const uint8_t *)p)[i]; }
 static double read_i8(const void *p, size_t i) { return ((const int8_t *)p)[i]; }
@@ -224,11 +226,29 @@ static cdvr_status check_raw_header(const char *path, cdvr_error *err)
     return st;
 }
 
+/* niftilib finds a file by its name (it appends .nii, .hdr, ... to a name without them), so a
+ * NIfTI file told by its first bytes (cdvr/format.h) must still have one of these. */
+static cdvr_status check_suffix(const char *path, cdvr_error *err)
+{
+    static const char *const suffixes[] = {".nii", ".nii.gz", ".hdr"};
+    size_t n = strlen(path);
+    for (size_t i = 0; i < sizeof suffixes / sizeof *suffixes; i++) {
+        size_t k = strlen(suffixes[i]);
+        if (n >= k && strcasecmp(path + n - k, suffixes[i]) == 0)
+            return CDVR_OK;
+    }
+    return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: a NIfTI file by its first bytes, but "
+                          "niftilib opens NIfTI files only by a name ending in .nii, .nii.gz or "
+                          ".hdr (rename or link it)", path);
+}
+
 /* Opens path's header after the checks niftilib does not make (header only, no voxels). */
 static cdvr_status open_header(const char *path, nifti_image **nim, cdvr_error *err)
 {
     *nim = NULL;
-    cdvr_status st = cdvr_check_readable(path, err);
+    cdvr_status st = check_suffix(path, err);
+    if (st == CDVR_OK)
+        st = cdvr_check_readable(path, err);
     if (st == CDVR_OK)
         st = check_raw_header(path, err);
     if (st != CDVR_OK)
@@ -319,3 +339,52 @@ cdvr_status cdvr_volume_probe_nifti(const char *path, cdvr_volume *head, cdvr_er
     nifti_image_free(nim);
     return st;
 }
+
+/* ---- format table (cdvr/format.h) ----------------------------------------------------------- */
+
+static uint32_t u32_either(const uint8_t *p, int big)
+{
+    return big ? (uint32_t)p[0] << 24 | (uint32_t)p[1] << 16 | (uint32_t)p[2] << 8 | p[3]
+               : (uint32_t)p[3] << 24 | (uint32_t)p[2] << 16 | (uint32_t)p[1] << 8 | p[0];
+}
+
+/* An uncompressed NIfTI-1 header (sizeof_hdr 348, magic "n+1" or "ni1" at byte 344) or NIfTI-2
+ * header (540, "n+2" or "ni2" at byte 4), in either byte order. .nii.gz is told by its name. */
+static int nifti_magic(const uint8_t *head, size_t n)
+{
+    for (int big = 0; big < 2; big++) {
+        uint32_t size = n >= 4 ? u32_either(head, big) : 0;
+        if (size == 348 && n >= 348 &&
+            (memcmp(head + 344, "n+1", 4) == 0 || memcmp(head + 344, "ni1", 4) == 0))
+            return 1;
+        if (size == 540 && n >= 8 &&
+            (memcmp(head + 4, "n+2", 4) == 0 || memcmp(head + 4, "ni2", 4) == 0))
+            return 1;
+    }
+    return 0;
+}
+
+static cdvr_status nifti_probe(const char *path, const cdvr_raw_opts *opts, cdvr_volume *head,
+                               cdvr_error *err)
+{
+    (void)opts;
+    return cdvr_volume_probe_nifti(path, head, err);
+}
+
+static cdvr_status nifti_load(const char *path, const cdvr_raw_opts *opts, cdvr_volume **out,
+                              cdvr_error *err)
+{
+    (void)opts;
+    return cdvr_volume_load_nifti(path, out, err);
+}
+
+static const char *const nifti_suffixes[] = {".nii", ".nii.gz", ".hdr", NULL};
+
+const cdvr_format cdvr_format_nifti = {
+    .name = "nifti",
+    .description = "NIfTI-1 through niftilib (.nii, .nii.gz, .hdr/.img pairs); 3D, or 4D (time)",
+    .suffixes = nifti_suffixes,
+    .magic = nifti_magic,
+    .probe = nifti_probe,
+    .load = nifti_load,
+};

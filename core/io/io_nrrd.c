@@ -1,7 +1,7 @@
 /* core/io/io_nrrd.c - NRRD (.nrrd, .nhdr with detached data) through teem. */
 #include "cdvr/volume.h"
 #include "volume_io.h"
-#include "cdvr/regular_file.h"
+#include "cdvr/format.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -184,14 +184,16 @@ cdvr_status cdvr_volume_load_nrrd(const char *path, cdvr_volume **out, cdvr_erro
 
 cdvr_status cdvr_volume_probe_nrrd(const char *path, cdvr_volume *head, cdvr_error *err)
 {
-    cdvr_status st = cdvr_check_regular_file(path, NULL, err);
+    cdvr_status st = cdvr_nrrd_check_header(path, err); /* the load's header limit too */
     if (st != CDVR_OK)
         return st;
     Nrrd *nrrd = nrrdNew();
     NrrdIoState *nio = nrrdIoStateNew();
     if (!nrrd || !nio) {
-        nrrdNix(nrrd);
-        nrrdIoStateNix(nio);
+        if (nrrd)
+            nrrdNix(nrrd);
+        if (nio)
+            nrrdIoStateNix(nio);
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
     }
     nrrdIoStateSet(nio, nrrdIoStateSkipData, AIR_TRUE);
@@ -215,3 +217,37 @@ cdvr_status cdvr_volume_probe_nrrd(const char *path, cdvr_volume *head, cdvr_err
     nrrdNuke(nrrd);
     return st;
 }
+
+/* ---- format table (cdvr/format.h) ----------------------------------------------------------- */
+
+/* "NRRD000" and the version digit (NRRD0001 .. NRRD0005), as teem writes it. */
+static int nrrd_magic(const uint8_t *head, size_t n)
+{
+    return n >= 8 && memcmp(head, "NRRD000", 7) == 0 && head[7] >= '1' && head[7] <= '9';
+}
+
+static cdvr_status nrrd_probe(const char *path, const cdvr_raw_opts *opts, cdvr_volume *head,
+                              cdvr_error *err)
+{
+    (void)opts;
+    return cdvr_volume_probe_nrrd(path, head, err);
+}
+
+static cdvr_status nrrd_load(const char *path, const cdvr_raw_opts *opts, cdvr_volume **out,
+                             cdvr_error *err)
+{
+    (void)opts;
+    return cdvr_volume_load_nrrd(path, out, err);
+}
+
+static const char *const nrrd_suffixes[] = {".nrrd", ".nhdr", NULL};
+
+const cdvr_format cdvr_format_nrrd = {
+    .name = "nrrd",
+    .description = "NRRD through teem: attached or detached data, raw, ascii, gzip or bzip2; "
+                   "3D, or 4D (time)",
+    .suffixes = nrrd_suffixes,
+    .magic = nrrd_magic,
+    .probe = nrrd_probe,
+    .load = nrrd_load,
+};

@@ -481,6 +481,21 @@ static cdvr_status check_data_files(const char *path, const nrrd_header *h, cons
     return CDVR_OK;
 }
 
+cdvr_status cdvr_nrrd_check_header(const char *path, cdvr_error *err)
+{
+    nrrd_header h;
+    memset(&h, 0, sizeof h);
+    FILE *f;
+    cdvr_status st = cdvr_fopen_regular_file(path, &f, &h.sb, err);
+    if (st != CDVR_OK)
+        return st;
+    st = read_header(path, f, &h, err);
+    fclose(f);
+    free(h.data_file);
+    free(h.text);
+    return st;
+}
+
 cdvr_status cdvr_nrrd_check(const char *path, cdvr_error *err)
 {
     nrrd_header h;
@@ -508,8 +523,10 @@ cdvr_status cdvr_nrrd_check(const char *path, cdvr_error *err)
         st = shape_of(path, nrrd, nio, &shape, err);
     if (st == CDVR_OK)
         st = check_data_files(path, &h, &shape, err);
-    nrrdIoStateNix(nio);
-    nrrdNuke(nrrd);
+    if (nio) /* teem's Nix functions dereference their argument */
+        nrrdIoStateNix(nio);
+    if (nrrd)
+        nrrdNuke(nrrd);
     free(text);
     free(h.data_file);
     free(h.text);

@@ -3,6 +3,7 @@
 #include "cdvr/regular_file.h"
 #include "cdvr/volume.h"
 #include "volume_io.h"
+#include "cdvr/format.h"
 
 #include <errno.h>
 #include <stdio.h>
@@ -151,3 +152,30 @@ cdvr_status cdvr_volume_save_raw(const cdvr_volume *vol, const char *path, int b
     int swap = elem > 1 && (big_endian ? 1 : 0) == cdvr_host_is_little_endian();
     return cdvr_atomic_commit(&af, !write_data(af.f, vol->data, bytes, elem, swap), err);
 }
+
+/* ---- format table (cdvr/format.h) ----------------------------------------------------------- */
+
+static cdvr_status raw_probe(const char *path, const cdvr_raw_opts *opts, cdvr_volume *head,
+                             cdvr_error *err)
+{
+    return cdvr_volume_probe_raw(path, opts, head, err);
+}
+
+static cdvr_status raw_load(const char *path, const cdvr_raw_opts *opts, cdvr_volume **out,
+                            cdvr_error *err)
+{
+    return cdvr_volume_load_raw(path, opts, out, err);
+}
+
+static const char *const raw_suffixes[] = {".raw", ".bin", ".dat", NULL};
+
+/* No magic: a raw file is what the caller says it is (dims, type, endian, header, timesteps). */
+const cdvr_format cdvr_format_raw = {
+    .name = "raw",
+    .description = "voxels without a header (or a header of header= bytes skipped), described "
+                   "by dims, type, endian and timesteps",
+    .suffixes = raw_suffixes,
+    .flags = CDVR_FORMAT_DESCRIBED,
+    .probe = raw_probe,
+    .load = raw_load,
+};

@@ -1,98 +1,12 @@
-/* core/io/io_series.c - cdvr_volume_load (dispatch on the file name) and series of files. */
+/* core/io/io_series.c - series of files loaded into memory (cdvr_volume_load_series); the load of
+ * one file dispatches through the format registry (core/io/format.c). */
 #include "cdvr/volume.h"
 #include "volume_io.h"
+#include "cdvr/format.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <strings.h>
-
-static int has_suffix(const char *path, const char *suffix)
-{
-    size_t n = strlen(path), k = strlen(suffix);
-    return n >= k && strcasecmp(path + n - k, suffix) == 0;
-}
-
-typedef enum { FORMAT_UNKNOWN, FORMAT_RAW, FORMAT_NRRD, FORMAT_NIFTI } file_format;
-
-static file_format format_of(const char *path)
-{
-    static const struct { const char *suffix; file_format format; } suffixes[] = {
-        {".nrrd", FORMAT_NRRD}, {".nhdr", FORMAT_NRRD}, {".nii", FORMAT_NIFTI},
-        {".nii.gz", FORMAT_NIFTI}, {".hdr", FORMAT_NIFTI}, {".raw", FORMAT_RAW},
-        {".bin", FORMAT_RAW},   {".dat", FORMAT_RAW},
-    };
-    for (size_t i = 0; i < sizeof suffixes / sizeof suffixes[0]; i++)
-        if (has_suffix(path, suffixes[i].suffix))
-            return suffixes[i].format;
-    return FORMAT_UNKNOWN;
-}
-
-static void override_spacing(cdvr_volume *vol, const cdvr_raw_opts *raw)
-{
-    for (int i = 0; raw && i < 3; i++)
-        if (raw->spacing[i] > 0)
-            vol->spacing[i] = raw->spacing[i];
-}
-
-/* raw describes a raw file (dims given), rather than only carrying a spacing override. */
-static int describes_raw(const cdvr_raw_opts *raw)
-{
-    return raw && raw->dims[0] > 0;
-}
-
-cdvr_status cdvr_volume_load(const char *path, const cdvr_raw_opts *raw, cdvr_volume **out,
-                             cdvr_error *err)
-{
-    *out = NULL;
-    cdvr_status st;
-    switch (format_of(path)) {
-    case FORMAT_NRRD: st = cdvr_volume_load_nrrd(path, out, err); break;
-    case FORMAT_NIFTI: st = cdvr_volume_load_nifti(path, out, err); break;
-    case FORMAT_RAW:
-        if (!describes_raw(raw))
-            return cdvr_error_set(err, CDVR_ERR_ARG,
-                                  "%s: a raw file needs its dims and type (and endian, header, timesteps)",
-                                  path);
-        return cdvr_volume_load_raw(path, raw, out, err);
-    default:
-        if (describes_raw(raw)) /* any other name with a raw description is read as raw */
-            return cdvr_volume_load_raw(path, raw, out, err);
-        return cdvr_error_set(err, CDVR_ERR_FORMAT,
-                              "%s: unknown file type (.nrrd .nhdr .nii .nii.gz, or raw .raw .bin .dat "
-                              "with dims and type)",
-                              path);
-    }
-    if (st == CDVR_OK)
-        override_spacing(*out, raw);
-    return st;
-}
-
-cdvr_status cdvr_volume_probe(const char *path, const cdvr_raw_opts *raw, cdvr_volume *head,
-                              cdvr_error *err)
-{
-    cdvr_status st;
-    switch (format_of(path)) {
-    case FORMAT_NRRD: st = cdvr_volume_probe_nrrd(path, head, err); break;
-    case FORMAT_NIFTI: st = cdvr_volume_probe_nifti(path, head, err); break;
-    case FORMAT_RAW:
-        if (!describes_raw(raw))
-            return cdvr_error_set(err, CDVR_ERR_ARG,
-                                  "%s: a raw file needs its dims and type (and endian, header, timesteps)",
-                                  path);
-        return cdvr_volume_probe_raw(path, raw, head, err);
-    default:
-        if (describes_raw(raw))
-            return cdvr_volume_probe_raw(path, raw, head, err);
-        return cdvr_error_set(err, CDVR_ERR_FORMAT,
-                              "%s: unknown file type (.nrrd .nhdr .nii .nii.gz, or raw .raw .bin .dat "
-                              "with dims and type)",
-                              path);
-    }
-    if (st == CDVR_OK)
-        override_spacing(head, raw);
-    return st;
-}
 
 cdvr_status cdvr_series_same_shape(const cdvr_volume *first, const cdvr_volume *next,
                                    const char *first_path, const char *path, cdvr_error *err)
@@ -141,12 +55,28 @@ static cdvr_status append_frames(cdvr_volume *series, const cdvr_volume *next, c
     return CDVR_OK;
 }
 
+static cdvr_status load_files(const char *const *paths, size_t count, const cdvr_raw_opts *raw,
+                              cdvr_volume **out, cdvr_error *err);
+
 cdvr_status cdvr_volume_load_series(const char *const *paths, size_t count,
                                     const cdvr_raw_opts *raw, cdvr_volume **out, cdvr_error *err)
 {
     *out = NULL;
     if (count == 0)
         return cdvr_error_set(err, CDVR_ERR_ARG, "series: no files given");
+    char **files;
+    size_t n;
+    cdvr_status st = cdvr_format_expand(paths, count, raw, &files, &n, err);
+    if (st == CDVR_OK)
+        st = load_files((const char *const *)files, n, raw, out, err);
+    cdvr_format_free_paths(files, n);
+    return st;
+}
+
+/* cdvr_volume_load_series of files that need no expansion. */
+static cdvr_status load_files(const char *const *paths, size_t count, const cdvr_raw_opts *raw,
+                              cdvr_volume **out, cdvr_error *err)
+{
     int spacing_given = raw && raw->spacing[0] > 0 && raw->spacing[1] > 0 && raw->spacing[2] > 0;
     cdvr_volume *series;
     cdvr_status st = cdvr_volume_load(paths[0], raw, &series, err);

@@ -1,6 +1,7 @@
 /* core/io/series.c - series of volume files read one file at a time (cdvr/series.h). */
 #include "cdvr/series.h"
 #include "volume_io.h"
+#include "cdvr/format.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -107,12 +108,28 @@ static cdvr_status probe_all(cdvr_series *s, const char *const *paths, size_t co
     return CDVR_OK;
 }
 
+static cdvr_status open_files(const char *const *paths, size_t count, const cdvr_raw_opts *raw,
+                              cdvr_series **out, cdvr_error *err);
+
 cdvr_status cdvr_series_open(const char *const *paths, size_t count, const cdvr_raw_opts *raw,
                              cdvr_series **out, cdvr_error *err)
 {
     *out = NULL;
     if (count == 0)
         return cdvr_error_set(err, CDVR_ERR_ARG, "series: no files given");
+    char **files;
+    size_t n;
+    cdvr_status st = cdvr_format_expand(paths, count, raw, &files, &n, err);
+    if (st == CDVR_OK)
+        st = open_files((const char *const *)files, n, raw, out, err);
+    cdvr_format_free_paths(files, n);
+    return st;
+}
+
+/* cdvr_series_open of files that need no expansion. */
+static cdvr_status open_files(const char *const *paths, size_t count, const cdvr_raw_opts *raw,
+                              cdvr_series **out, cdvr_error *err)
+{
     cdvr_series *s = calloc(1, sizeof *s);
     if (!s)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "series: out of memory");

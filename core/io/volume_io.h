@@ -30,6 +30,9 @@ cdvr_status cdvr_check_readable(const char *path, cdvr_error *err);
  * files or are the header itself, and headers claiming more data than the files can hold
  * (raw: file size; gzip: ratio bound, then one inflate pass; bzip2: one decompression pass). */
 cdvr_status cdvr_nrrd_check(const char *path, cdvr_error *err);
+/* Only the header part of cdvr_nrrd_check (a regular file, a header within the length limit),
+ * for probes that do not read the data. */
+cdvr_status cdvr_nrrd_check_header(const char *path, cdvr_error *err);
 
 /* Cuts teem's biff message (several "[nrrd] function: text" lines, innermost last) in place to
  * its innermost non-empty reason. */
@@ -42,9 +45,6 @@ cdvr_status cdvr_volume_probe_nrrd(const char *path, cdvr_volume *head, cdvr_err
 cdvr_status cdvr_volume_probe_nifti(const char *path, cdvr_volume *head, cdvr_error *err);
 cdvr_status cdvr_volume_probe_raw(const char *path, const cdvr_raw_opts *opts, cdvr_volume *head,
                                   cdvr_error *err);
-/* The same dispatch on the file name as cdvr_volume_load (raw spacing overrides included). */
-cdvr_status cdvr_volume_probe(const char *path, const cdvr_raw_opts *raw, cdvr_volume *head,
-                              cdvr_error *err);
 
 /* The checks cdvr_volume_load_series makes of each file against the first: the same dims and
  * type; the same spacing (relative 1e-6) unless the caller gives one. Errors name both files. */

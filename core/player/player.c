@@ -28,6 +28,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "cdvr/bricks.h"
 #include "cdvr/skip.h"
 
 #if CDVR_HAVE_OPENCL
@@ -85,7 +86,11 @@ typedef struct item_queue {
 typedef cdvr_status (*caller_fn)(cdvr_player *p, chunk_item *it, cdvr_error *err);
 
 struct cdvr_player {
-    cdvr_player_opts opts;
+    cdvr_player_opts opts;   /* opts.method resolved (never NULL) */
+    int on_stream;           /* frames live on the cl stream and the method's render_stream
+                                renders them (else frames are decoded on the host and the
+                                method's render draws them on its device) */
+    cdvr_render_ctx *own_ctx;/* made here when opts.ctx is NULL and the method needs one */
     size_t group_len;
     size_t stride, phase;    /* frames k with k % stride == phase are this player's */
     size_t nbricks;
@@ -395,6 +400,30 @@ static void each_lower(const cdvr_player *p, size_t b, void (*fn)(const cdvr_pla
     }
 }
 
+/* Calls fn(p, it, n) for each of the up to 26 neighbours n of brick b inside the grid: with
+ * shading the central differences of a sample in b's cells read one voxel beyond them. */
+static void each_neighbour(const cdvr_player *p, size_t b,
+                           void (*fn)(const cdvr_player *, void *, size_t), void *arg)
+{
+    const size_t *g = cdvr_store_get_info(p->opts.store)->bricks;
+    size_t at[3];
+    brick_at(p, b, at);
+    for (int dz = -1; dz <= 1; dz++)
+        for (int dy = -1; dy <= 1; dy++)
+            for (int dx = -1; dx <= 1; dx++) {
+                long x = (long)at[0] + dx, y = (long)at[1] + dy, z = (long)at[2] + dz;
+                if ((dx | dy | dz) == 0 || x < 0 || y < 0 || z < 0 || (size_t)x >= g[0] ||
+                    (size_t)y >= g[1] || (size_t)z >= g[2])
+                    continue;
+                fn(p, arg, (size_t)x + g[0] * ((size_t)y + g[1] * (size_t)z));
+            }
+}
+
+static int shades(const cdvr_player *p)
+{
+    return p->opts.look.shade.enabled || p->opts.look.gradient_opacity.npoints;
+}
+
 typedef struct value_hull {
     const chunk_item *it;
     int lo, hi;
@@ -427,8 +456,10 @@ static int view_needs(cdvr_player *p, const chunk_item *it, size_t b)
     widen(p, &h, b);
     if (!it->lossless)
         each_lower(p, b, widen, &h);
-    if (p->tf_prefix[h.hi + 1] - p->tf_prefix[h.lo] == 0)
-        return 0; /* every sample in its cells is transparent */
+    if (p->opts.look.blend == CDVR_BLEND_COMPOSITE &&
+        p->tf_prefix[h.hi + 1] - p->tf_prefix[h.lo] == 0)
+        return 0; /* every sample in its cells is transparent (max, min, average and iso see
+                     every value: only the view decides for them) */
     for (size_t j = 0; j < it->nframes; j++)
         if (cdvr_camera_sees_box(&it->cams[j], (const double(*)[3])(p->corners + 24 * b)))
             return 1;
@@ -453,6 +484,8 @@ static void select_bricks(cdvr_player *p, chunk_item *it)
         it->parts[b].needed = 1;
         if (!it->lossless)
             each_lower(p, b, mark_needed, it);
+        if (shades(p)) /* the gradient at its faces reads the neighbours' voxels */
+            each_neighbour(p, b, mark_needed, it);
     }
     it->bricks_read = it->bricks_region = 0;
     for (size_t b = 0; b < p->nbricks; b++) {
@@ -468,7 +501,7 @@ static void select_bricks(cdvr_player *p, chunk_item *it)
 static int wants_grids(const cdvr_player *p, const chunk_item *it)
 {
 #if CDVR_HAVE_OPENCL
-    if (p->opts.device != CDVR_DEVICE_CL || !p->opts.empty_skip || p->clipped ||
+    if (!p->on_stream || !p->opts.empty_skip || p->clipped ||
         it->bricks_read != p->nbricks)
         return 0;
     for (size_t b = 0; b < p->nbricks; b++) {
@@ -619,6 +652,7 @@ static void render_opts_for(const cdvr_player *p, const cdvr_camera *cam, cdvr_r
     ro->term_alpha = p->opts.term_alpha;
     memcpy(ro->background, p->opts.background, sizeof ro->background);
     ro->threads = p->opts.threads;
+    ro->look = p->opts.look;
 }
 
 /* Brick b's box relative to the region: first voxel lo (in the region) and dims. */
@@ -707,7 +741,7 @@ static cdvr_status decode_host(cdvr_player *p, int w, chunk_item *it, size_t cou
  * whose first group the device decoded faster on the host. */
 static int decodes_on_host(cdvr_player *p, const chunk_item *it)
 {
-    if (p->opts.device != CDVR_DEVICE_CL)
+    if (!p->on_stream)
         return 1;
     const cdvr_chunk_info *ch = cdvr_store_chunk(p->opts.store, (size_t)it->variant, it->chunk);
     if (!ch->codec || ch->codec->cl_mode == CDVR_CODEC_CL_NONE || p->nbricks > 1)
@@ -873,7 +907,7 @@ static cdvr_status upload_decode(cdvr_player *p, chunk_item *it, double *upload_
     *decode_ms = it->host_decode_ms;
     if (it->slot >= 0) {
 #if CDVR_HAVE_OPENCL
-        if (p->opts.device == CDVR_DEVICE_CL) {
+        if (p->on_stream) {
             double t0 = cdvr_now_ms();
             cdvr_status s = cdvr_cl_use_host_frames(p->stream, p->slots[it->slot], ch->count, err);
             *upload_ms = cdvr_now_ms() - t0;
@@ -936,20 +970,15 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
         ro.clip = &clip;
     }
 #if CDVR_HAVE_OPENCL
-    if (p->opts.device == CDVR_DEVICE_CL) {
+    if (p->on_stream) {
         double t0 = cdvr_now_ms();
-        cdvr_status s = CDVR_ERR_ARG;
-        if (f < it->ngrids) /* flags made in the pipeline: upload them */
-            s = cdvr_cl_setup_grid(p->stream, f, p->opts.tf, &it->grids[f], err);
-        if (s == CDVR_ERR_ARG)
-            s = cdvr_cl_setup(p->stream, f, p->opts.tf, err);
-        double t1 = cdvr_now_ms();
+        const cdvr_skip_grid *grid = f < it->ngrids ? &it->grids[f] : NULL;
+        cdvr_status s = cdvr_image_create(cam->width, cam->height, img, err);
         if (s == CDVR_OK)
-            s = cdvr_image_create(cam->width, cam->height, img, err);
-        if (s == CDVR_OK)
-            s = cdvr_cl_render(p->stream, f, &ro, info->spacing, info->origin, info->direction, *img, err);
-        *setup_ms = t1 - t0;
-        *render_ms = cdvr_now_ms() - t1;
+            s = p->opts.method->render_stream(p->stream, f, grid, &ro, &p->opts.method_params,
+                                              info->spacing, info->origin, info->direction,
+                                              *img, setup_ms, err);
+        *render_ms = cdvr_now_ms() - t0 - *setup_ms;
         return s;
     }
 #endif
@@ -961,8 +990,10 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
     frame.timesteps = 1;
     frame.type = CDVR_TYPE_U8;
     frame.data = p->slots[it->slot] + f * p->voxels;
+    cdvr_render_ctx *ctx = p->opts.ctx ? p->opts.ctx : p->own_ctx;
     double t0 = cdvr_now_ms();
-    cdvr_status s = cdvr_render_cpu(&frame, 0, &ro, img, err);
+    cdvr_status s = p->opts.method->render(ctx, p->opts.device, &frame, 0, &ro,
+                                           &p->opts.method_params, NULL, img, err);
     *render_ms = cdvr_now_ms() - t0;
     return s;
 }
@@ -1065,8 +1096,8 @@ static cdvr_status consume(cdvr_player *p, chunk_item *it, cdvr_error *err)
         row->status = ferr.status;
         if (ferr.status != CDVR_OK)
             snprintf(row->error, sizeof row->error, "%s", ferr.msg);
-        if (ferr.status == CDVR_OK && img && p->opts.frame_fn)
-            cb = p->opts.frame_fn(p->opts.frame_ud, row, img, err);
+        if (p->opts.frame_fn && (ferr.status != CDVR_OK || img)) /* a failed frame too: img NULL */
+            cb = p->opts.frame_fn(p->opts.frame_ud, row, ferr.status == CDVR_OK ? img : NULL, err);
         cdvr_image_free(img);
         work_ms += cdvr_now_ms() - work_start;
         pace_and_show(p, row);
@@ -1338,6 +1369,29 @@ static void brick_corners(const cdvr_store_info *info, size_t b, double out[8][3
     }
 }
 
+/* Bounded work: the render options every renderer checks (render.h) on the store's box, and
+ * the rates that pace the run (player.h: CDVR_PLAYER_MIN_READ_MBPS, CDVR_PLAYER_MIN_FPS). */
+static cdvr_status check_work_bounds(const cdvr_player_opts *opts, const cdvr_store_info *info,
+                                     cdvr_error *err)
+{
+    cdvr_render_opts ro = {.step = opts->step, .unit = opts->unit, .term_alpha = opts->term_alpha};
+    cdvr_error rerr;
+    cdvr_status st = cdvr_render_opts_check_box(info->dims, info->spacing, &ro, &rerr);
+    if (st != CDVR_OK) {
+        const char *why = strncmp(rerr.msg, "render: ", 8) == 0 ? rerr.msg + 8 : rerr.msg;
+        return cdvr_error_set(err, st, "player: %s", why);
+    }
+    if (isnan(opts->read_mbps) || (opts->read_mbps > 0 && opts->read_mbps < CDVR_PLAYER_MIN_READ_MBPS) ||
+        opts->read_mbps > CDVR_PLAYER_MAX_RATE)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "player: read_mbps %g outside %g..%g MB/s (0: no cap)",
+                              opts->read_mbps, CDVR_PLAYER_MIN_READ_MBPS, CDVR_PLAYER_MAX_RATE);
+    if (isnan(opts->pace_fps) || (opts->pace_fps > 0 && opts->pace_fps < CDVR_PLAYER_MIN_FPS) ||
+        opts->pace_fps > CDVR_PLAYER_MAX_RATE)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "player: pace_fps %g outside %g..%g frames/s (0: no pacing)",
+                              opts->pace_fps, CDVR_PLAYER_MIN_FPS, CDVR_PLAYER_MAX_RATE);
+    return CDVR_OK;
+}
+
 cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, cdvr_error *err)
 {
     *out = NULL;
@@ -1348,10 +1402,21 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
         return cdvr_error_set(err, CDVR_ERR_ARG, "player: variant %d out of range 1..%zu", opts->variant + 1, info->nvariants);
     if (cdvr_camera_validate(&opts->camera, err) != CDVR_OK)
         return err ? err->status : CDVR_ERR_ARG;
+    const cdvr_render_method *method = opts->method ? opts->method
+                                                    : cdvr_render_method_find("raycast");
+    if (cdvr_render_method_check_device(method, opts->device, err) != CDVR_OK)
+        return err ? err->status : CDVR_ERR_UNSUPPORTED;
+    cdvr_status cs = check_work_bounds(opts, info, err);
+    if (cs != CDVR_OK)
+        return cs;
     cdvr_player *p = calloc(1, sizeof *p);
     if (!p)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "player: out of memory");
     p->opts = *opts;
+    p->opts.method = method;
+    if (!opts->method)
+        method->params_default(&p->opts.method_params);
+    p->on_stream = opts->device == CDVR_DEVICE_CL && method->render_stream != NULL;
     if (p->opts.ring <= 0)
         p->opts.ring = 3;
     p->group_len = cdvr_player_group_length(opts->store);
@@ -1359,6 +1424,15 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
     p->stride = opts->frame_stride ? opts->frame_stride : 1;
     p->phase = opts->frame_phase % p->stride;
     cdvr_status rs = set_region(p, err);
+    if (rs == CDVR_OK && p->clipped &&
+        (opts->look.blend != CDVR_BLEND_COMPOSITE || opts->look.shade.enabled ||
+         opts->look.gradient_opacity.npoints))
+        rs = cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "player: a box of the bricks (sort-last) "
+                            "renders only the composite blend mode without shading");
+    if (rs == CDVR_OK && p->clipped && !method->bricks)
+        rs = cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "player: method '%s' cannot render a "
+                            "box of the bricks (sort-last distribution needs a method that "
+                            "honours clipping: raycast)", method->name);
     if (rs != CDVR_OK) {
         free(p);
         return rs;
@@ -1386,7 +1460,14 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
     }
     for (size_t b = 0; b < p->nbricks; b++)
         brick_corners(info, b, (double(*)[3])(p->corners + 24 * b));
-    if (opts->device == CDVR_DEVICE_CL) {
+    if (!p->on_stream && opts->device != CDVR_DEVICE_CPU && !opts->ctx) {
+        cdvr_status s = cdvr_render_ctx_create(&p->own_ctx, err);
+        if (s != CDVR_OK) {
+            cdvr_player_free(p);
+            return s;
+        }
+    }
+    if (p->on_stream) {
 #if CDVR_HAVE_OPENCL
         cdvr_status s = cdvr_cl_open(&p->cl, err);
         if (s == CDVR_OK)
@@ -1436,6 +1517,7 @@ void cdvr_player_free(cdvr_player *p)
     cdvr_cl_stream_free(p->stream);
     cdvr_cl_close(p->cl);
 #endif
+    cdvr_render_ctx_free(p->own_ctx);
     pthread_mutex_destroy(&p->mu);
     pthread_cond_destroy(&p->cv);
     free(p);

@@ -7,7 +7,7 @@
  * neighbouring entries of four earlier rows), and only the neighbour at x - 1 (x + 1
  * backward) needs a sequential sweep. Same result as visiting brick by brick. */
 #include "cdvr/skip.h"
-#include "cdvr/store.h"
+#include "cdvr/bricks.h"
 
 #include <math.h>
 #include <stdlib.h>

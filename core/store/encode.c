@@ -12,6 +12,7 @@
  * and renamed over the final name (cdvr_atomic_file); on any failure it is removed.
  */
 #include "cdvr/atomicfile.h"
+#include "cdvr/bricks.h"
 #include "store_format.h"
 
 #include "codec/stage2/stage2.h"

@@ -196,31 +196,6 @@ cdvr_status cdvr_store_alloc(size_t nvariants, size_t nchunks, const char *path,
     return CDVR_OK;
 }
 
-int cdvr_brick_box(const size_t vol_dims[3], const size_t bricks[3], size_t b, size_t lo[3],
-                   size_t dims[3])
-{
-    size_t idx = b;
-    for (int a = 0; a < 3; a++) {
-        size_t n = bricks[a], N = vol_dims[a];
-        if (n == 0 || N == 0 || (N > 1 && n > N - 1) || (N == 1 && n != 1))
-            return 0;
-        size_t i = idx % n;
-        idx /= n;
-        if (N == 1) {
-            lo[a] = 0;
-            dims[a] = 1;
-            continue;
-        }
-        /* c_i = floor(i (N-1) / n) = i q + floor(i r / n) with N-1 = q n + r: exact, and
-         * i r < n^2 cannot overflow (n <= cells; callers bound the brick count) */
-        size_t cells = N - 1, q = cells / n, r = cells % n;
-        size_t c0 = i * q + i * r / n, c1 = (i + 1) * q + (i + 1) * r / n;
-        lo[a] = c0;
-        dims[a] = c1 - c0 + 1;
-    }
-    return idx == 0;
-}
-
 void cdvr_store_brick_box(const cdvr_store_info *info, size_t b, size_t lo[3], size_t dims[3])
 {
     if (!cdvr_brick_box(info->dims, info->bricks, b, lo, dims)) {
@@ -234,12 +209,8 @@ void cdvr_store_brick_box(const cdvr_store_info *info, size_t b, size_t lo[3], s
 void cdvr_store_brick_owned(const cdvr_store_info *info, size_t b, size_t lo[3],
                             size_t dims[3])
 {
-    cdvr_store_brick_box(info, b, lo, dims);
-    for (int a = 0; a < 3; a++)
-        if (lo[a] > 0 && dims[a] > 1) {
-            lo[a]++;
-            dims[a]--;
-        }
+    if (!cdvr_brick_owned(info->dims, info->bricks, b, lo, dims))
+        cdvr_store_brick_box(info, b, lo, dims); /* the whole volume */
 }
 
 /* ---- metadata writer -------------------------------------------------------------------- */
@@ -944,6 +915,27 @@ int cdvr_store_find_variant(const cdvr_store *st, const char *name)
     return -1;
 }
 
+/* The quality a variant is ranked by: a raw variant is lossless (+inf), else its recorded
+ * PSNR (+inf when lossless; a NaN, never written by the encoder, ranks below everything). */
+static double variant_quality(const cdvr_variant_info *var)
+{
+    if (var->codec_id == CDVR_CODEC_ID_RAW)
+        return HUGE_VAL;
+    return isnan(var->psnr) ? -HUGE_VAL : var->psnr;
+}
+
+int cdvr_store_best_variant(const cdvr_store *st)
+{
+    int best = 0;
+    for (size_t v = 1; v < st->info.nvariants; v++) {
+        const cdvr_variant_info *a = &st->variants[v], *b = &st->variants[best];
+        double qa = variant_quality(a), qb = variant_quality(b);
+        if (qa > qb || (qa == qb && a->bytes > b->bytes))
+            best = (int)v;
+    }
+    return best;
+}
+
 const cdvr_chunk_info *cdvr_store_chunk(const cdvr_store *st, size_t v, size_t c)
 {
     if (v >= st->info.nvariants || c >= st->variants[v].nchunks)
@@ -1153,26 +1145,6 @@ cdvr_status cdvr_store_load_payload(const cdvr_store *st, size_t v, size_t c, ui
         *payload = NULL;
     }
     return s;
-}
-
-void cdvr_brick_place(uint8_t *frame, const size_t vol_dims[3], const uint8_t *brick,
-                      const size_t lo[3], const size_t dims[3])
-{
-    const size_t *vd = vol_dims;
-    for (size_t z = 0; z < dims[2]; z++)
-        for (size_t y = 0; y < dims[1]; y++)
-            memcpy(frame + lo[0] + vd[0] * ((lo[1] + y) + vd[1] * (lo[2] + z)),
-                   brick + dims[0] * (y + dims[1] * z), dims[0]);
-}
-
-void cdvr_brick_extract(const uint8_t *frame, const size_t vol_dims[3], const size_t lo[3],
-                        const size_t dims[3], uint8_t *brick)
-{
-    const size_t *vd = vol_dims;
-    for (size_t z = 0; z < dims[2]; z++)
-        for (size_t y = 0; y < dims[1]; y++)
-            memcpy(brick + dims[0] * (y + dims[1] * z),
-                   frame + lo[0] + vd[0] * ((lo[1] + y) + vd[1] * (lo[2] + z)), dims[0]);
 }
 
 /* Decodes brick chunk c (timestep t inside it) into the volume of dims vd at the brick's

@@ -50,4 +50,21 @@ typedef struct cdvr_cl_clip {
     cdvr_cl_i32 own_far[3], enabled;
 } cdvr_cl_clip;
 
+/* Blend mode, shading and gradient opacity of render.h (cdvr_look) in the ray caster's terms
+ * (cdvr_cl_render converts them): light is the world direction towards the light (unit) when
+ * headlight is 0; grad_to_world = D^-T (row-major) takes box-frame gradients to world; codes
+ * times value_per_code are data units; iso_code is the iso value as a code. */
+#define CDVR_CL_GO_MAX 16
+typedef struct cdvr_cl_look {
+    cdvr_cl_i32 blend, shade, headlight, go_points;
+    cdvr_cl_f32 ambient, diffuse, specular, power;
+    cdvr_cl_f32 light[3];
+    cdvr_cl_f32 grad_to_world[9];
+    cdvr_cl_f32 spacing[3];
+    cdvr_cl_f32 value_per_code;
+    cdvr_cl_f32 go_mag[CDVR_CL_GO_MAX], go_factor[CDVR_CL_GO_MAX];
+    cdvr_cl_f32 iso_code, iso_rgb[3], iso_alpha;
+    cdvr_cl_i32 iso_tf_color;
+} cdvr_cl_look;
+
 #endif

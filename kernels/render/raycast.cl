@@ -48,6 +48,7 @@ typedef struct vec3x {
 typedef cdvr_cl_camera cam_params; /* kernels/common/cl_shared.h */
 typedef cdvr_cl_box_frame box_frame; /* render.h step 0, kernels/common/cl_shared.h */
 typedef cdvr_cl_clip clip_params;    /* clipped rendering, render.h */
+typedef cdvr_cl_look look_params;    /* blend modes and shading, render.h */
 
 /* Voxels are read from a dense u8 frame, or, when the program is built with
  * -DCDVR_FETCH=name, through a codec's per-sample fetch function (cdvr/codec.h): vol is then
@@ -293,6 +294,102 @@ static void composite(rgbax *acc, rgbax c)
     acc->a += w;
 }
 
+/* ---- shading, gradient opacity and the other blend modes (render.h) ----------------------- */
+
+static vec3x clamp_grid(const volume_geo *v, vec3x g)
+{
+    return (vec3x){clamp(g.x, 0.0f, v->top.x), clamp(g.y, 0.0f, v->top.y),
+                   clamp(g.z, 0.0f, v->top.z)};
+}
+
+/* One axis of the central difference: (s(g+) - s(g-)) / ((g+ - g-) spacing), 0 where g+ == g-. */
+#define CENTRAL(AX, SP)                                                                        \
+    do {                                                                                       \
+        vec3x gp = g, gm = g;                                                                  \
+        gp.AX = fmin(g.AX + 1.0f, v->top.AX);                                                  \
+        gm.AX = fmax(g.AX - 1.0f, 0.0f);                                                       \
+        vfloat h = gp.AX - gm.AX;                                                              \
+        vfloat diff = trilinear(v, gp) - trilinear(v, gm);                                     \
+        dq.AX = select((vfloat)(0.0f), diff / (h * (SP)), h > 0.0f);                           \
+    } while (0)
+
+/* World gradient (codes per world unit) at grid position g (clamped like render_cpu.c). */
+static vec3x gradient(const volume_geo *v, const look_params *lk, vec3x g)
+{
+    g = clamp_grid(v, g);
+    vec3x dq;
+    CENTRAL(x, lk->spacing[0]);
+    CENTRAL(y, lk->spacing[1]);
+    CENTRAL(z, lk->spacing[2]);
+    const float *m = lk->grad_to_world;
+    return (vec3x){m[0] * dq.x + m[1] * dq.y + m[2] * dq.z, m[3] * dq.x + m[4] * dq.y + m[5] * dq.z,
+                   m[6] * dq.x + m[7] * dq.y + m[8] * dq.z};
+}
+
+static vfloat length3x(vec3x a)
+{
+    return sqrt(a.x * a.x + a.y * a.y + a.z * a.z);
+}
+
+/* rgb' = min(1, rgb (ambient + diffuse |n.L|) + specular |n.H|^power), two-sided. */
+static void shade_rgb(const look_params *lk, vec3x G, vec3x V, rgbax *c)
+{
+    vfloat len = length3x(G);
+    vint ok = len >= 1e-12f;
+    vfloat inv = select((vfloat)(0.0f), 1.0f / len, ok);
+    vec3x n = {G.x * inv, G.y * inv, G.z * inv};
+    vec3x L = lk->headlight ? V : (vec3x){(vfloat)lk->light[0], (vfloat)lk->light[1],
+                                          (vfloat)lk->light[2]};
+    vec3x H = {L.x + V.x, L.y + V.y, L.z + V.z};
+    vfloat hl = length3x(H);
+    vfloat ndl = fabs(n.x * L.x + n.y * L.y + n.z * L.z);
+    vfloat ndh = select((vfloat)(0.0f), fabs(n.x * H.x + n.y * H.y + n.z * H.z) / hl, hl > 0.0f);
+    vfloat spec = select((vfloat)(0.0f), lk->specular * pow(ndh, lk->power), ndh > 0.0f);
+    vfloat k = lk->ambient + lk->diffuse * ndl;
+    c->r = fmin(c->r * k + spec, 1.0f);
+    c->g = fmin(c->g * k + spec, 1.0f);
+    c->b = fmin(c->b * k + spec, 1.0f);
+}
+
+static vfloat go_factor(const look_params *lk, vfloat m)
+{
+    int n = lk->go_points;
+    vfloat f = (vfloat)(lk->go_factor[n - 1]);
+    for (int i = n - 1; i >= 1; i--) {
+        float lo = lk->go_mag[i - 1], w = lk->go_mag[i] - lo;
+        vfloat t = w > 0.0f ? (m - lo) / w : (vfloat)(1.0f);
+        f = select(f, mix((vfloat)(lk->go_factor[i - 1]), (vfloat)(lk->go_factor[i]), t),
+                   m <= lk->go_mag[i]);
+    }
+    return select(f, (vfloat)(lk->go_factor[0]), m <= lk->go_mag[0]);
+}
+
+#define RAW_ALPHA0(k) alpha[i0.s##k]
+#define RAW_ALPHA1(k) alpha[i0.s##k + 1]
+
+/* Shading and gradient opacity of composite samples c at g on lanes `on` (opacity > 0): the
+ * alpha becomes 1 - (1 - a * factor)^(ds/unit) from the table's alpha per unit. */
+static void look_sample(const volume_geo *v, const look_params *lk, vec3x g, vint i0,
+                        vfloat fr, vfloat ds, float unit, __global const float *alpha, vec3x V,
+                        vint on, rgbax *c)
+{
+    vec3x G = gradient(v, lk, g);
+    if (lk->go_points) {
+        vfloat raw = mix((vfloat)(L16(RAW_ALPHA0)), (vfloat)(L16(RAW_ALPHA1)), fr);
+        vfloat a = raw * go_factor(lk, length3x(G) * lk->value_per_code);
+        vfloat corrected = select((vfloat)(0.0f), 1.0f - pow(1.0f - a, ds / unit), a > 0.0f);
+        c->a = select(c->a, corrected, on);
+    }
+    if (lk->shade) {
+        rgbax shaded = *c;
+        shade_rgb(lk, G, V, &shaded);
+        on &= c->a > 0.0f;
+        c->r = select(c->r, shaded.r, on);
+        c->g = select(c->g, shaded.g, on);
+        c->b = select(c->b, shaded.b, on);
+    }
+}
+
 typedef struct bricks {
     __global const uchar *dist; /* per brick: d if invisible, 128 + d if visible (see host) */
     int shift, nbx, nby, nbz;   /* brick edge 1 << shift */
@@ -374,12 +471,14 @@ static vint owned(const clip_params *c, vec3x g)
  * sample outside the owned cells (clipped rendering) advances the lane but adds nothing. */
 static void sample_steps(march *m, vint run, const volume_geo *v, const clip_params *clip,
                          vec3x g0, vec3x dg, __global const float4 *table, float term_alpha,
-                         rgbax *acc)
+                         const look_params *lk, __global const float *alpha, float step,
+                         float unit, vec3x V, rgbax *acc)
 {
     vfloat s[UNROLL];
     vint own[UNROLL];
+    vint i_first = m->i;
     for (int k = 0; k < UNROLL; k++) { /* independent loads, before any compositing */
-        vec3x g = at(g0, dg, m->i + k);
+        vec3x g = at(g0, dg, i_first + k);
         own[k] = owned(clip, g);
         s[k] = trilinear(v, g);
     }
@@ -391,6 +490,13 @@ static void sample_steps(march *m, vint run, const volume_geo *v, const clip_par
         vfloat fr;
         rgbax c = classify(s[k], table, &i0, &fr);
         c.a = select((vfloat)(0.0f), c.a, keep);
+        if (lk->shade | lk->go_points) {
+            vint on = keep & (c.a > 0.0f);
+            if (any(on))
+                look_sample(v, lk, at(g0, dg, i_first + k), i0, fr, (vfloat)(step), unit, alpha,
+                            V, on, &c);
+            c.a = select((vfloat)(0.0f), c.a, on);
+        }
         composite(acc, c);
         m->i -= live;
         m->taken -= keep;
@@ -409,7 +515,9 @@ static void sample_steps(march *m, vint run, const volume_geo *v, const clip_par
 
 static void march_full(march *m, int skipping, const bricks *b, const volume_geo *v,
                        const clip_params *clip, vec3x g0, vec3x dg,
-                       __global const float4 *table, float term_alpha, rgbax *acc)
+                       __global const float4 *table, float term_alpha, const look_params *lk,
+                       __global const float *alpha, float step, float unit, vec3x V,
+                       rgbax *acc)
 {
     while (any(m->active)) {
         if (skipping) {
@@ -421,7 +529,8 @@ static void march_full(march *m, int skipping, const bricks *b, const volume_geo
         }
         vint run = m->active & (m->i < m->end);
         if (any(run))
-            sample_steps(m, run, v, clip, g0, dg, table, term_alpha, acc);
+            sample_steps(m, run, v, clip, g0, dg, table, term_alpha, lk, alpha, step, unit, V,
+                         acc);
     }
 }
 
@@ -429,7 +538,7 @@ static void march_full(march *m, int skipping, const bricks *b, const volume_geo
 static void last_segment(const packet *p, vint n, vint last, float step, float unit,
                          const volume_geo *v, const clip_params *clip, float3 inv_spacing,
                          __global const float4 *table, __global const float *alpha,
-                         rgbax *acc, vint *taken)
+                         const look_params *lk, vec3x V, rgbax *acc, vint *taken)
 {
     vfloat ts = p->t_near + convert_vfloat(n - 1) * step;
     vfloat ds = p->t_far - ts;
@@ -456,8 +565,142 @@ static void last_segment(const packet *p, vint n, vint last, float step, float u
         a = select(a, 1.0f - pow(1.0f - a, ds / unit), partial);
     c.a = select(a, c.a, ds >= step);
     c.a = select((vfloat)(0.0f), c.a, last & (c.a > 0.0f));
+    if (lk->shade | lk->go_points) {
+        vint on = last & (c.a > 0.0f);
+        if (any(on))
+            look_sample(v, lk, g, i0, fr, ds, unit, alpha, V, on, &c);
+        c.a = select((vfloat)(0.0f), c.a, on);
+    }
     composite(acc, c);
     *taken -= last;
+}
+
+/* The TF at codes s without unit correction (max, min, average, the iso colour). */
+static rgbax table_at(vfloat s, __global const float4 *table)
+{
+    vint i0;
+    vfloat fr;
+    s = clamp(s, 0.0f, 255.0f);
+    rgbax c = classify(s, table, &i0, &fr); /* rgb lerped; alpha from the step table: redone */
+    return c;
+}
+
+#define TABLE_RAW0(k) alpha[i0.s##k]
+#define TABLE_RAW1(k) alpha[i0.s##k + 1]
+static vfloat raw_alpha(vfloat s, __global const float *alpha)
+{
+    s = clamp(s, 0.0f, 255.0f);
+    vint i0 = min(convert_vint(s), 254);
+    vfloat fr = s - convert_vfloat(i0);
+    return mix((vfloat)(L16(TABLE_RAW0)), (vfloat)(L16(TABLE_RAW1)), fr);
+}
+
+/* Sample i (from 0) of each lane: the midpoint of segment i (the shorter last one included),
+ * as render_cpu.c's sample_at computes it; *ok: lanes where segment i exists. */
+static vec3x sample_point(const packet *p, vint i, vint n, float step, float3 inv_spacing,
+                          vint *ok, vfloat *tm)
+{
+    vfloat ts = p->t_near + convert_vfloat(i) * step;
+    vfloat ds = select((vfloat)(step), p->t_far - ts, i >= n - 1);
+    *ok = p->hit & (i < n) & (ds > 0.0f);
+    *tm = ts + 0.5f * ds;
+    return (vec3x){(p->o.x + *tm * p->d.x) * inv_spacing.x, (p->o.y + *tm * p->d.y) * inv_spacing.y,
+                   (p->o.z + *tm * p->d.z) * inv_spacing.z};
+}
+
+static vec3x point_at(const packet *p, vfloat t, float3 inv_spacing)
+{
+    return (vec3x){(p->o.x + t * p->d.x) * inv_spacing.x, (p->o.y + t * p->d.y) * inv_spacing.y,
+                   (p->o.z + t * p->d.z) * inv_spacing.z};
+}
+
+/* Max, min or average of every sample's code (no skipping, no termination). */
+static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spacing,
+                           const volume_geo *v, const look_params *lk,
+                           __global const float4 *table, __global const float *alpha,
+                           vint *taken)
+{
+    vfloat best = (vfloat)(lk->blend == 2 ? INFINITY : -INFINITY), sum = (vfloat)(0.0f);
+    vint count = (vint)(0);
+    int nmax = 0;
+    int ns[RAY_PACKET];
+    vstore16(select((vint)(0), n, p->hit), 0, ns);
+    for (int k = 0; k < RAY_PACKET; k++)
+        nmax = max(nmax, ns[k]);
+    for (int i = 0; i < nmax; i++) {
+        vint ok;
+        vfloat tm;
+        vec3x g = sample_point(p, (vint)(i), n, step, inv_spacing, &ok, &tm);
+        vfloat s = trilinear(v, g);
+        count -= ok;
+        sum += select((vfloat)(0.0f), s, ok);
+        vfloat ext = lk->blend == 1 ? fmax(best, s) : fmin(best, s);
+        best = select(best, ext, ok);
+    }
+    *taken = count;
+    vfloat s = lk->blend == 3 ? sum / convert_vfloat(max(count, 1)) : best;
+    s = select((vfloat)(0.0f), s, count > 0);
+    rgbax c = table_at(s, table);
+    vfloat a = select((vfloat)(0.0f), raw_alpha(s, alpha), count > 0);
+    return (rgbax){c.r * a, c.g * a, c.b * a, a};
+}
+
+/* The first crossing of the iso code per lane, refined by two regula-falsi steps, shaded. */
+static rgbax march_iso(const packet *p, vint n, float step, float3 inv_spacing,
+                       const volume_geo *v, const look_params *lk,
+                       __global const float4 *table, vec3x V, vint *taken)
+{
+    float c = lk->iso_code;
+    vfloat prev = (vfloat)(0.0f), t_prev = (vfloat)(0.0f), t_hit = (vfloat)(0.0f);
+    vint found = (vint)(0), count = (vint)(0);
+    vfloat ta = (vfloat)(0.0f), tb = (vfloat)(0.0f), sa = (vfloat)(0.0f), sb = (vfloat)(0.0f);
+    int nmax = 0;
+    int ns[RAY_PACKET];
+    vstore16(select((vint)(0), n, p->hit), 0, ns);
+    for (int k = 0; k < RAY_PACKET; k++)
+        nmax = max(nmax, ns[k]);
+    for (int i = 0; i < nmax && !all(found | ~(p->hit & ((vint)(i) < n))); i++) {
+        vint ok;
+        vfloat tm;
+        vec3x g = sample_point(p, (vint)(i), n, step, inv_spacing, &ok, &tm);
+        ok &= ~found;
+        vfloat s = trilinear(v, g);
+        count -= ok;
+        vint hit = ok & (s == c | ((vint)(i) > 0 & (prev - c) * (s - c) < 0.0f));
+        ta = select(ta, t_prev, hit);
+        tb = select(tb, tm, hit);
+        sa = select(sa, prev, hit);
+        sb = select(sb, s, hit);
+        t_hit = select(t_hit, tm, hit);
+        found |= hit;
+        prev = select(prev, s, ok);
+        t_prev = select(t_prev, tm, ok);
+    }
+    *taken = count;
+    if (!any(found))
+        return (rgbax){(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
+    vint refine = found & (sb != c);
+    for (int k = 0; k < 2; k++) {
+        refine &= sb != sa;
+        if (!any(refine))
+            break;
+        vfloat t = ta + (c - sa) * (tb - ta) / (sb - sa);
+        t_hit = select(t_hit, t, refine);
+        vfloat st = trilinear(v, point_at(p, t, inv_spacing));
+        vint lower = (sa - c) * (st - c) <= 0.0f;
+        tb = select(tb, t, refine & lower);
+        sb = select(sb, st, refine & lower);
+        ta = select(ta, t, refine & ~lower);
+        sa = select(sa, st, refine & ~lower);
+    }
+    rgbax col = table_at((vfloat)(c), table);
+    if (!lk->iso_tf_color)
+        col = (rgbax){(vfloat)(lk->iso_rgb[0]), (vfloat)(lk->iso_rgb[1]), (vfloat)(lk->iso_rgb[2]),
+                      (vfloat)(1.0f)};
+    if (lk->shade)
+        shade_rgb(lk, gradient(v, lk, point_at(p, t_hit, inv_spacing)), V, &col);
+    vfloat a = select((vfloat)(0.0f), (vfloat)(lk->iso_alpha), found);
+    return (rgbax){col.r * a, col.g * a, col.b * a, a};
 }
 
 static volume_geo make_geo(__global const uchar *vol, __constant uchar *params, int frame,
@@ -562,7 +805,8 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
                       float unit, __global const uchar *brick_visible, int brick_shift,
                       int nbx, int nby, int nbz, int skipping, float vlx, float vly,
                       float vlz, float vhx, float vhy, float vhz, __global float4 *image,
-                      __global uint *samples) /* per work-item */
+                      __global uint *samples, /* per work-item */
+                      look_params look)
 {
     int px0 = get_global_id(0) * PACKET_W, py0 = get_global_id(1) * PACKET_H;
     size_t slot = get_global_id(1) * get_global_size(0) + get_global_id(0);
@@ -575,6 +819,7 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     packet p;
     camera_rays(&cam, px, py, &p);
     p.hit = px < cam.width & py < cam.height;
+    vec3x V = {-p.d.x, -p.d.y, -p.d.z}; /* towards the eye, world (shading) */
     to_box_frame(&box, &p);
     float3 inv_spacing = (float3)(isx, isy, isz);
     intersect_box(&p, (float3)(0.0f), (float3)(hx, hy, hz));
@@ -596,6 +841,17 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
 #else
     volume_geo v = make_geo(frames + offset, params, 0, quads, X, Y, Z, &clip);
 #endif
+    if (look.blend != 0) { /* max, min, average, iso: every sample, no skipping */
+        vint taken;
+        rgbax out = look.blend == 4
+                        ? march_iso(&p, n, step, inv_spacing, &v, &look, table, V, &taken)
+                        : march_extreme(&p, n, step, inv_spacing, &v, &look, table, alpha, &taken);
+        store_pixels(image, px, py, cam.width, cam.height, out);
+        int8 s8 = taken.lo + taken.hi;
+        int4 s4 = s8.lo + s8.hi;
+        samples[slot] = (uint)(s4.s0 + s4.s1 + s4.s2 + s4.s3);
+        return;
+    }
     bricks b = make_bricks(brick_visible, brick_shift, nbx, nby, nbz, dg);
     march m;
     m.i = (vint)(0);
@@ -623,9 +879,10 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     m.done = (vint)(0);
     m.taken = (vint)(0);
     rgbax acc = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
-    march_full(&m, skipping, &b, &v, &clip, g0, dg, table, term_alpha, &acc);
-    last_segment(&p, n, last & ~m.done, step, unit, &v, &clip, inv_spacing, table, alpha,
-                 &acc, &m.taken);
+    march_full(&m, skipping, &b, &v, &clip, g0, dg, table, term_alpha, &look, alpha, step, unit,
+               V, &acc);
+    last_segment(&p, n, last & ~m.done, step, unit, &v, &clip, inv_spacing, table, alpha, &look,
+                 V, &acc, &m.taken);
     store_pixels(image, px, py, cam.width, cam.height, acc);
     int8 t8 = m.taken.lo + m.taken.hi;
     int4 t4 = t8.lo + t8.hi;

@@ -1,5 +1,5 @@
 /* lua/bind/l_camera.c - cdvr.Camera: cdvr.camera{...}, cdvr.orbit_camera(volume, {...}),
- * cam:get(), cam:set{...}; fields readable as cam.eye, cam.fov, ... */
+ * (or a store, or a box table), cam:get(), cam:set{...}; fields readable as cam.eye, cam.fov, ... */
 #include "lcdvr.h"
 
 #include <errno.h>
@@ -61,13 +61,12 @@ static cdvr_camera default_camera(void)
     return cam;
 }
 
-/* cdvr.camera(path.lua): runs the file (it returns the field table) and builds from that;
- * an unreadable or malformed file raises, naming the file and the reason. */
+/* cdvr.camera(path.lua): loads the data file (lcdvr_load_data: it returns the field table) and
+ * builds from that; an unreadable or malformed file raises, naming the file and the reason. */
 static void camera_from_file(lua_State *L, const char *path)
 {
-    if (luaL_loadfilex(L, path, "t") != LUA_OK)
+    if (lcdvr_load_data(L, path) != LUA_OK)
         luaL_error(L, "cdvr.camera: %s", lua_tostring(L, -1));
-    lua_call(L, 0, 1);
     if (!lua_istable(L, -1))
         luaL_error(L, "%s: camera file must return a table, got %s", path, luaL_typename(L, -1));
     lua_replace(L, 1); /* fields table in place of the path */
@@ -211,7 +210,7 @@ static int camera_gc(lua_State *L)
     return 0;
 }
 
-/* World bounds of the first argument: a volume (its oriented box), {x, y, z} dims, or
+/* World bounds of the first argument: a volume or a store (its oriented box), {x, y, z} dims, or
  * {dims=, spacing=, origin=[, direction=]}. */
 static void read_box(lua_State *L, double lo[3], double hi[3])
 {
@@ -222,8 +221,16 @@ static void read_box(lua_State *L, double lo[3], double hi[3])
         box = *v;
         for (int a = 0; a < 3; a++)
             dims[a] = (double)v->dims[a];
+    } else if (luaL_testudata(L, 1, LCDVR_STORE)) { /* its box, as st:info() gives it */
+        const cdvr_store_info *info = cdvr_store_get_info(lcdvr_checkstore(L, 1));
+        for (int a = 0; a < 3; a++) {
+            dims[a] = (double)info->dims[a];
+            box.spacing[a] = info->spacing[a];
+            box.origin[a] = info->origin[a];
+        }
+        memcpy(box.direction, info->direction, sizeof box.direction);
     } else {
-        luaL_argexpected(L, lua_istable(L, 1), 1, "cdvr.Volume or dims table");
+        luaL_argexpected(L, lua_istable(L, 1), 1, "cdvr.Volume, cdvr.Store or dims table");
         if (!lcdvr_numberarrayfield(L, 1, "dims", dims, 3)) {
             if (luaL_len(L, 1) != 3)
                 luaL_argerror(L, 1, "dims {x, y, z} expected");
@@ -314,7 +321,7 @@ int lcdvr_open_camera(lua_State *L)
     lcdvr_setfuncs(L, camera_funcs);
     lcdvr_help_add(L, "cdvr.camera{eye=, center=, up=, fov=, width=, height=, orthographic=, ortho_height=}",
                    "pinhole camera (defaults center {0,0,0}, up {0,0,1}, fov 30, 512x512)");
-    lcdvr_help_add(L, "cdvr.orbit_camera(volume | dims, {azimuth=, elevation=, distance=, fov=, width=, height=, up=})",
+    lcdvr_help_add(L, "cdvr.orbit_camera(volume | store | dims, {azimuth=, elevation=, distance=, fov=, width=, height=, up=})",
                    "camera around the box centre looking at it; azimuth 0 = +x side for up z; "
                    "default distance fits the box");
     lcdvr_help_add(L, "cam:get()", "table of the camera's fields (also readable as cam.eye, cam.fov, ...)");

@@ -4,7 +4,9 @@
  *                            "decode"|"fetch"|"none", variant= (default variant name),
  *                            plugin= (file, plugin codecs only), params={{key=, default=,
  *                            description=}, ...}}, built-ins first, then in load order
- *   cdvr.plugin.load(path)   loads and registers a codec plugin; returns its codec name
+ *   cdvr.plugin.load(path)   loads a plugin and registers its codecs and formats; returns the
+ *                            name of its (first) codec, or of its first format, and
+ *                            {codecs={names}, formats={names}}
  *   cdvr.codec_chunk(codec, params [, dims])
  *                            what one chunk of those parameters holds: {timesteps=,
  *                            payload_bytes= (0 when data dependent), bound_bytes=, variant=}
@@ -120,15 +122,40 @@ static int l_codec_chunk(lua_State *L)
     return 1;
 }
 
+/* t[i] = name for the table on top. */
+static void set_index(lua_State *L, const char *name, int i)
+{
+    lua_pushstring(L, name);
+    lua_seti(L, -2, i);
+}
+
+/* Returns the name of the plugin's first codec, or of its first format for a plugin of formats
+ * only, then a list of all it registered: {codecs={names}, formats={names}}. */
 static int l_plugin_load(lua_State *L)
 {
     const char *path = luaL_checkstring(L, 1);
-    const cdvr_codec *codec;
+    const cdvr_plugin_info *info;
     cdvr_error err;
-    if (cdvr_plugin_load(path, &codec, &err) != CDVR_OK)
+    if (cdvr_plugin_load_info(path, &info, &err) != CDVR_OK)
         return lcdvr_raise(L, &err);
-    lua_pushstring(L, codec->name);
-    return 1;
+    lua_newtable(L);                                   /* what */
+    lua_newtable(L);                                   /* what, codecs */
+    int n = 0;
+    if (info->codec)
+        set_index(L, info->codec->name, ++n);
+    for (size_t i = 0; info->codecs && info->codecs[i]; i++)
+        set_index(L, info->codecs[i]->name, ++n);
+    lua_setfield(L, -2, "codecs");                     /* what */
+    lua_newtable(L);                                   /* what, formats */
+    int m = 0;
+    for (size_t i = 0; info->formats && info->formats[i]; i++)
+        set_index(L, info->formats[i]->name, ++m);
+    lua_setfield(L, -2, "formats");                    /* what */
+    lua_pushstring(L, info->codec ? info->codec->name
+                      : info->codecs && info->codecs[0] ? info->codecs[0]->name
+                      : info->formats[0]->name);       /* what, name */
+    lua_insert(L, -2);                                 /* name, what */
+    return 2;
 }
 
 int lcdvr_open_codec(lua_State *L)
@@ -148,7 +175,8 @@ int lcdvr_open_codec(lua_State *L)
                    "one chunk of a codec with these parameters: {timesteps=, payload_bytes=, "
                    "bound_bytes=, variant=} (dims default {4, 4, 4})");
     lcdvr_help_add(L, "cdvr.plugin.load(path)",
-                   "load a codec plugin (.so) and register its codec; returns the codec name "
-                   "(CDVR_PLUGIN_PATH: loaded at start-up)");
+                   "load a plugin (.so) and register its codecs and file formats; returns the "
+                   "name of its codec (or of its format, for a format plugin) and "
+                   "{codecs={...}, formats={...}} (CDVR_PLUGIN_PATH: loaded at start-up)");
     return 0;
 }

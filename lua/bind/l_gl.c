@@ -1,46 +1,12 @@
-/* lua/bind/l_gl.c - 2D-texture slicing for cdvr.render{method="slice"} and the level-of-detail
- * plan cdvr.lod_plan{...} (cdvr/gl.h, seed 002). The slicer's EGL context is created on first
- * use and kept for the Lua state (registry), with the slice textures of the last frame. */
+/* lua/bind/l_gl.c - the level-of-detail plan cdvr.lod_plan{...} of 2D-texture slicing
+ * (cdvr/gl.h, seed 002) and cdvr.have_gl. Slicing itself is the "slice" render method
+ * (core/render/gl/slice_method.c), drawn through the state's render context (l_method.c). */
 #include <math.h>
 #include <string.h>
 
 #include "cdvr/gl.h"
 #include "cdvr/timing.h"
 #include "lcdvr.h"
-
-#define LCDVR_SLICER "cdvr.Slicer"          /* the metatable */
-#define SLICER_KEY "cdvr.slicer_instance"    /* registry: the state's slicer */
-
-typedef struct lslicer {
-    cdvr_gl *gl;
-} lslicer;
-
-static int slicer_gc(lua_State *L)
-{
-    lslicer *ud = (lslicer *)luaL_checkudata(L, 1, LCDVR_SLICER);
-    cdvr_gl_free(ud->gl);
-    ud->gl = NULL;
-    return 0;
-}
-
-/* The state's slicer, created on first use (raises when no EGL context can be made). */
-static cdvr_gl *get_slicer(lua_State *L)
-{
-    if (lua_getfield(L, LUA_REGISTRYINDEX, SLICER_KEY) == LUA_TUSERDATA) {
-        cdvr_gl *gl = ((lslicer *)lua_touserdata(L, -1))->gl;
-        lua_pop(L, 1);
-        return gl;
-    }
-    lua_pop(L, 1);
-    lslicer *ud = (lslicer *)lua_newuserdatauv(L, sizeof *ud, 0);
-    ud->gl = NULL;
-    luaL_setmetatable(L, LCDVR_SLICER);
-    cdvr_error err;
-    if (cdvr_gl_create(&ud->gl, &err) != CDVR_OK)
-        luaL_error(L, "cdvr.render{method=\"slice\"}: %s", err.msg);
-    lua_setfield(L, LUA_REGISTRYINDEX, SLICER_KEY);
-    return ud->gl;
-}
 
 static void setnumber(lua_State *L, const char *key, double v)
 {
@@ -71,60 +37,6 @@ static int lod_mode(lua_State *L, int idx, const char *what)
     }
     lua_pop(L, 1);
     return mode;
-}
-
-static const char *lod_name(int mode)
-{
-    return mode == CDVR_LOD_OFF ? "off" : mode == CDVR_LOD_SCREEN ? "screen" : "seed";
-}
-
-static void push_slice_stats(lua_State *L, const cdvr_gl *gl, const cdvr_slice_stats *s,
-                             int lod, double ms)
-{
-    lua_createtable(L, 0, 16);
-    lua_pushliteral(L, "slice");
-    lua_setfield(L, -2, "method");
-    lua_pushstring(L, cdvr_gl_renderer(gl));
-    lua_setfield(L, -2, "device");
-    lua_pushstring(L, lod_name(lod));
-    lua_setfield(L, -2, "lod");
-    setnumber(L, "ms", ms);
-    setnumber(L, "upload_ms", s->upload_ms);
-    setnumber(L, "draw_ms", s->draw_ms);
-    setinteger(L, "axis", s->axis + 1);
-    setinteger(L, "slices", (lua_Integer)s->slices);
-    setinteger(L, "min_level", s->min_level);
-    setinteger(L, "max_level", s->max_level);
-    setnumber(L, "nearest", s->nearest);
-    setinteger(L, "texture_bytes", (lua_Integer)s->texture_bytes);
-    setinteger(L, "full_bytes", (lua_Integer)s->full_bytes);
-    setinteger(L, "uploaded_bytes", (lua_Integer)s->uploaded_bytes);
-}
-
-int lcdvr_render_slice(lua_State *L, const cdvr_volume *vol, size_t t, void *render_opts)
-{
-    const cdvr_render_opts *opts = render_opts;
-    /* step, term and threads are the ray caster's: slicing steps by the slice spacing, composites
-     * every slice and draws through GL */
-    static const char *const keys[] = {"method", "device", "t", "variant", "tf", "camera",
-                                       "unit", "background", "lod", NULL};
-    lcdvr_checkoptions(L, 2, "cdvr.render{method=\"slice\"}", keys);
-    const char *device = lcdvr_optstringfield(L, 2, "device", "cpu");
-    if (strcmp(device, "cpu") != 0)
-        luaL_error(L, "cdvr.render: method 'slice' draws through EGL; device '%s' is for raycast",
-                   device);
-    int lod = lod_mode(L, 2, "cdvr.render");
-    cdvr_gl *gl = get_slicer(L);
-    double start = cdvr_now_ms();
-    cdvr_slice_stats stats;
-    cdvr_image *img;
-    cdvr_error err;
-    if (cdvr_gl_slice(gl, vol, t, opts, lod, &stats, &img, &err) != CDVR_OK)
-        return lcdvr_raise(L, &err);
-    double ms = cdvr_now_ms() - start;
-    lcdvr_pushimage(L, img);
-    push_slice_stats(L, gl, &stats, lod, ms);
-    return 2;
 }
 
 /* ---- cdvr.lod_plan ----------------------------------------------------------------------- */
@@ -240,11 +152,9 @@ static int l_lod_plan(lua_State *L)
 }
 
 static const luaL_Reg gl_funcs[] = {{"lod_plan", l_lod_plan}, {NULL, NULL}};
-static const luaL_Reg slicer_meta[] = {{"__gc", slicer_gc}, {NULL, NULL}};
 
 int lcdvr_open_gl(lua_State *L)
 {
-    lcdvr_newclass(L, LCDVR_SLICER, NULL, slicer_meta);
     lcdvr_setfuncs(L, gl_funcs);
     lua_pushboolean(L, CDVR_HAVE_GL);
     lua_setfield(L, -2, "have_gl");

@@ -34,7 +34,8 @@ int lcdvr_open_mpi(lua_State *L)
     lua_setfield(L, -2, "mpi");                   /* cdvr */
     lcdvr_help_add(L, "cdvr.mpi.rank()", "this process's rank in an mpirun run (0 .. size-1; 0 without MPI)");
     lcdvr_help_add(L, "cdvr.mpi.size()", "number of processes of the run (1 without MPI)");
-    lcdvr_help_add(L, "cdvr.mpi.barrier()", "wait until every process gets here (nothing in one process)");
+    lcdvr_help_add(L, "cdvr.mpi.barrier()", "wait until every process gets here (nothing in one process); a rank "
+                   "waiting longer than CDVR_MPI_TIMEOUT seconds (default 1800) reports itself and ends the run");
     lcdvr_help_add(L, "cdvr.mpi.built", "true when this cdvr was built with MPI and IceT (-DCDVR_WITH_MPI=ON)");
     return 0;
 }

@@ -3,7 +3,9 @@
  *
  * Callbacks (policy, camera) run on the calling thread under an instruction budget
  * (`callback_limit`, default 5e7 VM instructions): a callback that runs too long or raises
- * stops playback with its traceback instead of stalling it.
+ * stops playback with its traceback instead of stalling it. The policy's stats, the budgeted
+ * call, the default variant and device are the scene contract it shares with the window
+ * (l_scene.c).
  */
 #include <errno.h>
 #include <float.h>
@@ -35,10 +37,17 @@ typedef struct lplayer {
     int has_policy;      /* policy= given: it decides, also when capturing (stats.capture) */
     const char *variant_why; /* why opts.variant (a literal) */
     lua_Integer callback_limit;
+    double target_fps, min_psnr; /* for stats: target_fps 0 and min_psnr NaN when not given */
     int frame_callback;  /* frame= given (UV_FRAME) */
     int shows_frames;    /* this process shows the frames (frame=, out=; cdvr/dist.h) */
     out_pattern out;
     cdvr_dist_play *dist; /* distribute= (cdvr/dist.h) */
+    /* Failed frames (a damaged chunk, ...): see frame_failed. */
+    int on_error_skip;   /* on_error="skip": a capture writes a marked frame and goes on */
+    int strict;          /* p:run{strict=}: a failed frame is an error of p:run */
+    size_t failed;       /* failed frames of this run */
+    int stopped;         /* the run was stopped by a failed frame (first_failure says which) */
+    char first_failure[CDVR_ERRMSG_MAX + 96];
 } lplayer;
 
 /* Uservalue slots of the player userdata. */
@@ -63,19 +72,12 @@ static lplayer *checkidleplayer(lua_State *L, int idx, const char *what)
 
 /* ---- callbacks ---------------------------------------------------------------------------- */
 
-/* Calls the function below its nargs arguments under the callback budget; leaves nres results
- * and returns CDVR_OK, or fills err with "what: message and traceback". */
+/* Calls the function below its nargs arguments under the callback budget (the scene
+ * contract, lcdvr_call_callback). */
 static cdvr_status call_budgeted(lplayer *lp, lua_State *L, int nargs, int nres, const char *what,
                                  cdvr_error *err)
 {
-    if (lcdvr_pcall_budget(L, nargs, nres, lp->callback_limit) != LUA_OK) {
-        const atomic_int *interrupt = lcdvr_interrupt_flag(L); /* Ctrl-C in the console */
-        cdvr_status why = interrupt && atomic_load(interrupt) ? CDVR_ERR_CANCELLED : CDVR_ERR_ARG;
-        cdvr_error_set(err, why, "%s: %s", what, lua_tostring(L, -1));
-        lua_pop(L, 1);
-        return why;
-    }
-    return CDVR_OK;
+    return lcdvr_call_callback(L, nargs, nres, lp->callback_limit, what, err);
 }
 
 /* Runs fn(ctx, player) in protected mode on the running state, so that no Lua error (memory
@@ -101,70 +103,6 @@ static void setnum(lua_State *L, const char *key, double v)
     lua_setfield(L, -2, key);
 }
 
-/* Pushes one frame row as a table. */
-static void push_row(lua_State *L, const cdvr_store *st, const cdvr_frame_row *r)
-{
-    lua_createtable(L, 0, 22);
-    lua_pushinteger(L, (lua_Integer)r->frame + 1);
-    lua_setfield(L, -2, "frame");
-    lua_pushinteger(L, (lua_Integer)r->t + 1);
-    lua_setfield(L, -2, "t");
-    lua_pushstring(L, cdvr_store_variant(st, (size_t)r->variant)->name);
-    lua_setfield(L, -2, "variant");
-    setnum(L, "read_ms", r->read_ms);
-    setnum(L, "unzip_ms", r->unzip_ms);
-    setnum(L, "upload_ms", r->upload_ms);
-    setnum(L, "decode_ms", r->decode_ms);
-    setnum(L, "setup_ms", r->setup_ms);
-    setnum(L, "render_ms", r->render_ms);
-    setnum(L, "frame_ms", r->frame_ms);
-    setnum(L, "interval_ms", r->interval_ms);
-    setnum(L, "bytes", (double)r->bytes);
-    setnum(L, "payload_bytes", (double)r->payload_bytes);
-    setnum(L, "device_bytes", (double)r->device_bytes);
-    setnum(L, "composite_ms", r->composite_ms);
-    setnum(L, "wait_ms", r->wait_ms);
-    lua_pushinteger(L, (lua_Integer)r->bricks_read);
-    lua_setfield(L, -2, "bricks_read");
-    lua_pushinteger(L, (lua_Integer)r->bricks_skipped);
-    lua_setfield(L, -2, "bricks_skipped");
-    lua_pushinteger(L, r->rank);
-    lua_setfield(L, -2, "rank");
-    if (r->group_start) {
-        lua_pushstring(L, r->reason);
-        lua_setfield(L, -2, "reason");
-    }
-    if (r->status != CDVR_OK) {
-        lua_pushstring(L, r->error);
-        lua_setfield(L, -2, "error");
-    }
-}
-
-static void push_variants(lua_State *L, const cdvr_store *st)
-{
-    const cdvr_store_info *info = cdvr_store_get_info(st);
-    lua_createtable(L, (int)info->nvariants, 0);
-    for (size_t v = 0; v < info->nvariants; v++) {
-        const cdvr_variant_info *var = cdvr_store_variant(st, v);
-        const cdvr_chunk_info *ch0 = cdvr_store_chunk(st, v, 0);
-        lua_createtable(L, 0, 10);
-        lua_pushstring(L, var->name);
-        lua_setfield(L, -2, "name");
-        lua_pushstring(L, var->codec_name);
-        lua_setfield(L, -2, "codec");
-        if (var->codec)
-            lcdvr_push_params(L, var->codec, &ch0->params);
-        lua_pushstring(L, var->stage2 == CDVR_STAGE2_LZO ? "lzo" : "none");
-        lua_setfield(L, -2, "stage2");
-        setnum(L, "bytes_per_timestep", (double)var->bytes / (double)info->timesteps);
-        setnum(L, "payload_bytes_per_timestep", (double)var->payload_bytes / (double)info->timesteps);
-        setnum(L, "psnr", var->psnr);
-        lua_pushinteger(L, (lua_Integer)lcdvr_chunk_timesteps(st, v));
-        lua_setfield(L, -2, "group");
-        lua_rawseti(L, -2, (lua_Integer)v + 1);
-    }
-}
-
 typedef struct decide_ctx {
     lplayer *lp;
     cdvr_player *player;
@@ -183,49 +121,15 @@ static int decide_lua(lua_State *L)
     lplayer *lp = c->lp;
     const cdvr_store *st = lp->opts.store;
     lua_getiuservalue(L, 2, UV_POLICY);           /* policy */
-    lua_createtable(L, 0, 10);                    /* policy, stats */
-    lua_getiuservalue(L, 2, UV_OPTS);             /* policy, stats, opts */
-    lua_getfield(L, -1, "target_fps");
-    lua_setfield(L, -3, "target_fps");
-    lua_getfield(L, -1, "min_psnr");
-    lua_setfield(L, -3, "min_psnr");
-    lua_pop(L, 1);                                /* policy, stats */
-    lua_pushinteger(L, (lua_Integer)c->t + 1);
-    lua_setfield(L, -2, "t");
-    lua_pushinteger(L, (lua_Integer)c->group + 1);
-    lua_setfield(L, -2, "group");
-    lua_pushboolean(L, lp->opts.pipelined);
-    lua_setfield(L, -2, "pipelined");
-    lua_pushboolean(L, lp->capture);
-    lua_setfield(L, -2, "capture");
+    lcdvr_policy_view view = {c->t, c->group, lp->target_fps, lp->min_psnr, lp->opts.pipelined,
+                              lp->capture};
     size_t nrows;
     const cdvr_frame_row *rows = cdvr_player_rows(c->player, &nrows);
-    if (nrows) {
-        lua_pushstring(L, cdvr_store_variant(st, (size_t)rows[nrows - 1].variant)->name);
-        lua_setfield(L, -2, "current");
-    }
-    size_t first = nrows > 16 ? nrows - 16 : 0;
-    lua_createtable(L, (int)(nrows - first), 0);  /* policy, stats, frames */
-    for (size_t i = first; i < nrows; i++) {
-        push_row(L, st, &rows[i]);
-        lua_rawseti(L, -2, (lua_Integer)(i - first + 1));
-    }
-    lua_setfield(L, -2, "frames");
-    push_variants(L, st);
-    lua_setfield(L, -2, "variants");              /* policy, stats */
+    lcdvr_push_policy_stats(L, st, &view, rows, nrows); /* policy, stats */
     c->status = call_budgeted(lp, L, 1, 2, "policy", c->err);
     if (c->status != CDVR_OK)
         return 0;
-    /* name [, reason] */
-    const char *name = lua_tostring(L, -2);
-    int v = name ? cdvr_store_find_variant(st, name) : -1;
-    if (v < 0) {
-        c->status = cdvr_error_set(c->err, CDVR_ERR_ARG, "policy returned %s, not a variant of %s",
-                                   name ? name : luaL_typename(L, -2), cdvr_store_path(st));
-        return 0;
-    }
-    c->variant = v;
-    snprintf(c->reason, c->reason_size, "%s", lua_isstring(L, -1) ? lua_tostring(L, -1) : "policy");
+    c->status = lcdvr_policy_result(L, st, &c->variant, c->reason, c->reason_size, c->err);
     return 0;
 }
 
@@ -253,11 +157,6 @@ static cdvr_status decide_cb(void *ud, cdvr_player *player, size_t t, size_t gro
     return c.status;
 }
 
-static int read_vec3(lua_State *L, int idx, const char *key, double out[3])
-{
-    return lcdvr_numberarrayfield(L, idx, key, out, 3);
-}
-
 typedef struct camera_ctx {
     lplayer *lp;
     size_t t, frame;
@@ -277,22 +176,7 @@ static int camera_lua(lua_State *L)
     c->status = call_budgeted(c->lp, L, 2, 1, "camera", c->err);
     if (c->status != CDVR_OK)
         return 0;
-    cdvr_camera *ucam = luaL_testudata(L, -1, LCDVR_CAMERA);
-    if (ucam) {
-        int w = cam->width, h = cam->height;
-        *cam = *ucam;
-        cam->width = w;
-        cam->height = h;
-    } else if (lua_istable(L, -1)) {
-        read_vec3(L, -1, "eye", cam->eye);
-        read_vec3(L, -1, "center", cam->center);
-        read_vec3(L, -1, "up", cam->up);
-        cam->fov = lcdvr_optnumberfield(L, -1, "fov", cam->fov);
-    } else {
-        c->status = cdvr_error_set(c->err, CDVR_ERR_ARG,
-                                   "camera function returned %s (cdvr.Camera or {eye=,center=,up=,fov=} expected)",
-                                   luaL_typename(L, -1));
-    }
+    c->status = lcdvr_camera_result(L, -1, cam, c->err);
     return 0;
 }
 
@@ -301,9 +185,7 @@ static cdvr_status camera_cb(void *ud, size_t t, size_t frame, cdvr_camera *cam,
     lplayer *lp = ud;
     camera_ctx c = {lp, t, frame, cam, err, CDVR_OK};
     cdvr_status s = run_protected(lp, camera_lua, &c, "camera", err);
-    if (s == CDVR_OK)
-        s = c.status;
-    return s == CDVR_OK ? cdvr_camera_validate(cam, err) : s;
+    return s == CDVR_OK ? c.status : s;
 }
 
 static int make_parent_dirs(char *path)
@@ -376,7 +258,7 @@ static int frame_lua(lua_State *L)
     frame_ctx *c = (frame_ctx *)lua_touserdata(L, 1);
     const cdvr_image *img = c->img;
     lua_getiuservalue(L, 2, UV_FRAME);            /* fn */
-    push_row(L, c->lp->opts.store, c->row);       /* fn, row */
+    lcdvr_push_frame_row(L, c->lp->opts.store, c->row);       /* fn, row */
     cdvr_image *copy;
     c->status = cdvr_image_create(img->width, img->height, &copy, c->err);
     if (c->status != CDVR_OK)
@@ -388,16 +270,9 @@ static int frame_lua(lua_State *L)
     return 0;
 }
 
-/* After each frame: stops the run on Ctrl-C in the console; where this process shows the
- * frames (distribute='bricks': rank 0), hands it to frame= and, with out=, writes the PNG. */
-static cdvr_status frame_cb(void *ud, const cdvr_frame_row *row, const cdvr_image *img, cdvr_error *err)
+/* Hands a frame to frame= and, with out=, writes its PNG. */
+static cdvr_status show_frame(lplayer *lp, const cdvr_frame_row *row, const cdvr_image *img, cdvr_error *err)
 {
-    lplayer *lp = ud;
-    const atomic_int *interrupt = lcdvr_interrupt_flag(lp->L);
-    if (interrupt && atomic_load(interrupt))
-        return cdvr_error_set(err, CDVR_ERR_CANCELLED, "playback interrupted");
-    if (!lp->shows_frames)
-        return CDVR_OK;
     if (lp->frame_callback) {
         frame_ctx c = {lp, row, img, err, CDVR_OK};
         cdvr_status s = run_protected(lp, frame_lua, &c, "frame", err);
@@ -416,6 +291,73 @@ static cdvr_status frame_cb(void *ud, const cdvr_frame_row *row, const cdvr_imag
     return cdvr_image_save_png(img, path, err);
 }
 
+/* The frame a capture writes in place of one that could not be made (on_error="skip"): the
+ * background with an opaque red border and a red cross corner to corner, each
+ * max(2, min(width, height) / 32) pixels thick. */
+static cdvr_status marked_frame(const lplayer *lp, cdvr_image **out, cdvr_error *err)
+{
+    int w = lp->opts.camera.width, h = lp->opts.camera.height;
+    cdvr_status s = cdvr_image_create(w, h, out, err);
+    if (s != CDVR_OK)
+        return s;
+    cdvr_image *img = *out;
+    memcpy(img->background, lp->opts.background, sizeof img->background);
+    int thick = (w < h ? w : h) / 32 > 2 ? (w < h ? w : h) / 32 : 2;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            double d1 = fabs((double)x / w - (double)y / h), d2 = fabs((double)x / w + (double)y / h - 1.0);
+            int border = x < thick || y < thick || x >= w - thick || y >= h - thick;
+            int cross = fmin(d1, d2) * (w < h ? w : h) < thick / 2.0;
+            float *px = img->rgba + 4 * ((size_t)y * (size_t)w + (size_t)x);
+            if (border || cross) {
+                px[0] = px[3] = 1.0f; /* premultiplied opaque red */
+                px[1] = px[2] = 0.0f;
+            }
+        }
+    return CDVR_OK;
+}
+
+/* A frame that could not be made (row->error names the chunk and the store). It is counted
+ * and the first is remembered; then a capture with on_error="skip" writes the marked frame in
+ * its place and goes on, while a capture with on_error="stop" (the default) or a strict run
+ * stops here with an error naming the frame, the timestep and the cause. */
+static cdvr_status frame_failed(lplayer *lp, const cdvr_frame_row *row, cdvr_error *err)
+{
+    if (lp->failed++ == 0)
+        snprintf(lp->first_failure, sizeof lp->first_failure, "frame %zu (timestep %zu) could not be made: %s",
+                 row->frame + 1, row->t + 1, row->error[0] ? row->error : cdvr_status_name(row->status));
+    if (lp->capture && lp->on_error_skip) {
+        cdvr_image *img = NULL;
+        cdvr_status s = marked_frame(lp, &img, err);
+        if (s == CDVR_OK)
+            s = show_frame(lp, row, img, err);
+        cdvr_image_free(img);
+        return s;
+    }
+    if (!lp->capture && !lp->strict)
+        return CDVR_OK; /* interactive playback: the row keeps its error, the run goes on */
+    lp->stopped = 1;
+    return cdvr_error_set(err, row->status, "p:run: %s%s", lp->first_failure,
+                          lp->capture ? "; the capture stops there (cdvr.player{on_error=\"skip\"} writes a "
+                                        "marked frame in its place and goes on)" : "");
+}
+
+/* After each frame: stops the run on Ctrl-C in the console; where this process shows the
+ * frames (distribute='bricks': rank 0), hands it to frame= and, with out=, writes the PNG; a
+ * failed frame (img NULL) goes to frame_failed. */
+static cdvr_status frame_cb(void *ud, const cdvr_frame_row *row, const cdvr_image *img, cdvr_error *err)
+{
+    lplayer *lp = ud;
+    const atomic_int *interrupt = lcdvr_interrupt_flag(lp->L);
+    if (interrupt && atomic_load(interrupt))
+        return cdvr_error_set(err, CDVR_ERR_CANCELLED, "playback interrupted");
+    if (!lp->shows_frames)
+        return CDVR_OK;
+    if (!img || row->status != CDVR_OK)
+        return frame_failed(lp, row, err);
+    return show_frame(lp, row, img, err);
+}
+
 /* ---- cdvr.player ------------------------------------------------------------------------ */
 
 static int is_callable(lua_State *L, int idx)
@@ -429,29 +371,11 @@ static int is_callable(lua_State *L, int idx)
     return 0;
 }
 
-/* Best quality (policy.lua's order): highest encode-time PSNR (a raw variant counts as
- * lossless), ties broken by more stored bytes. */
-static int best_variant(const cdvr_store *st)
-{
-    const cdvr_store_info *info = cdvr_store_get_info(st);
-    int best = 0;
-    double best_q = -HUGE_VAL;
-    for (size_t v = 0; v < info->nvariants; v++) {
-        const cdvr_variant_info *var = cdvr_store_variant(st, v);
-        double q = var->codec_id == CDVR_CODEC_ID_RAW ? HUGE_VAL : isnan(var->psnr) ? -HUGE_VAL : var->psnr;
-        if (q > best_q || (q == best_q && var->bytes > cdvr_store_variant(st, (size_t)best)->bytes)) {
-            best = (int)v;
-            best_q = q;
-        }
-    }
-    return best;
-}
-
 /* variant= (name or index, 0-based result); absent: the best quality. */
 static int variant_option(lua_State *L, const cdvr_store *st)
 {
     int t = lua_getfield(L, 1, "variant");
-    int v = best_variant(st);
+    int v = cdvr_store_best_variant(st);
     if (t == LUA_TNUMBER) {
         v = (int)lua_tointeger(L, -1) - 1;
     } else if (t == LUA_TSTRING) {
@@ -537,6 +461,24 @@ static double number_option(lua_State *L, const char *key, double def, double lo
     return v;
 }
 
+/* A rate option (read_mbps, target_fps): def when absent, 0 for "none" where zero_ok, else
+ * min .. CDVR_PLAYER_MAX_RATE (player.h), so that no rate makes the run wait for ever. */
+static double rate_option(lua_State *L, const char *key, double def, int zero_ok, double min, const char *unit)
+{
+    int absent = lua_getfield(L, 1, key) == LUA_TNIL;
+    lua_pop(L, 1);
+    if (absent)
+        return def;
+    double v = number_option(L, key, def, 0, HUGE_VAL, "a finite number >= 0 expected");
+    if ((v == 0 && !zero_ok) || (v != 0 && !(v >= min && v <= CDVR_PLAYER_MAX_RATE))) {
+        char msg[256];
+        snprintf(msg, sizeof msg, "cdvr.player: option '%s' = %g: %s%g .. %g %s expected (the limits keep the run "
+                 "bounded)", key, v, zero_ok ? "0 (none) or " : "", min, CDVR_PLAYER_MAX_RATE, unit);
+        luaL_error(L, "%s", msg);
+    }
+    return v;
+}
+
 static lua_Integer integer_option(lua_State *L, const char *key, lua_Integer def, lua_Integer lo, lua_Integer hi)
 {
     lua_Integer v = lcdvr_optintegerfield(L, 1, key, def);
@@ -593,7 +535,7 @@ static void render_options(lua_State *L, lplayer *lp, const cdvr_store_info *inf
     lp->opts.pipelined = lcdvr_optbooleanfield(L, 1, "pipeline", 1);
     lp->opts.ring = (int)integer_option(L, "ring", 3, 1, 64);
     lp->opts.cold = lcdvr_optbooleanfield(L, 1, "cold", 0);
-    lp->opts.read_mbps = number_option(L, "read_mbps", 0, 0, DBL_MAX, "a finite number >= 0 expected (0: no cap)");
+    lp->opts.read_mbps = rate_option(L, "read_mbps", 0, 1, CDVR_PLAYER_MIN_READ_MBPS, "MB/s");
     lp->opts.empty_skip = lcdvr_optbooleanfield(L, 1, "empty_skip", 1);
     lp->opts.brick_skip = lcdvr_optbooleanfield(L, 1, "brick_skip", 1);
 }
@@ -602,6 +544,13 @@ static void render_options(lua_State *L, lplayer *lp, const cdvr_store_info *inf
 static int capture_options(lua_State *L, lplayer *lp, const cdvr_store *st)
 {
     const char *out = lcdvr_optstringfield(L, 1, "out", NULL);
+    const char *on_error = lcdvr_optstringfield(L, 1, "on_error", NULL);
+    if (on_error && strcmp(on_error, "stop") != 0 && strcmp(on_error, "skip") != 0)
+        luaL_error(L, "cdvr.player: option 'on_error' = \"%s\": \"stop\" (the default: a frame that cannot "
+                      "be made stops the capture) or \"skip\" (a marked frame in its place) expected", on_error);
+    if (on_error && !out)
+        luaL_error(L, "cdvr.player: option 'on_error' applies to captures (out=), and out= is not set");
+    lp->on_error_skip = on_error && strcmp(on_error, "skip") == 0;
     if (!out)
         return 0;
     char why[96];
@@ -716,6 +665,17 @@ static void distribute_option(lua_State *L, lplayer *lp)
         m++;
     if (!modes[m])
         luaL_error(L, "cdvr.player: invalid distribute '%s' (none, time, bricks)", mode);
+    const cdvr_render_method *method = lp->opts.method;
+    unsigned need = m == CDVR_DIST_TIME ? CDVR_METHOD_DIST_TIME
+                  : m == CDVR_DIST_BRICKS ? CDVR_METHOD_DIST_BRICKS : 0;
+    if (need && !(method->distribute & need))
+        luaL_error(L, "cdvr.player: method '%s' cannot be distributed by '%s'", method->name, mode);
+    if (m == CDVR_DIST_BRICKS && (lp->opts.look.blend != CDVR_BLEND_COMPOSITE ||
+                                  lp->opts.look.shade.enabled ||
+                                  lp->opts.look.gradient_opacity.npoints))
+        luaL_error(L, "cdvr.player: distribute='bricks' composites brick images front to back: "
+                      "blend '%s' and shading are not supported there (distribute='time' is)",
+                   cdvr_blend_name(lp->opts.look.blend));
     if (m == CDVR_DIST_BRICKS && cdvr_dist_size() > 1 && lp->has_policy && !lp->capture)
         luaL_error(L, "cdvr.player: distribute='bricks': every rank must read the same variant, so "
                       "a policy cannot adapt per rank (give variant=, or capture with out=)");
@@ -732,9 +692,10 @@ static int l_player(lua_State *L)
                                        "threads", "pipeline", "ring", "cold", "read_mbps",
                                        "empty_skip", "callback_limit", "out", "pace", "width",
                                        "height", "loop", "brick_skip", "frame", "distribute",
-                                       NULL};
+                                       "on_error", NULL};
     luaL_checktype(L, 1, LUA_TTABLE);
-    lcdvr_checkoptions(L, 1, "cdvr.player", keys);
+    const cdvr_render_method *method = lcdvr_method_option(L, 1, "cdvr.player");
+    lcdvr_method_checkoptions(L, 1, method, "cdvr.player", keys);
     lplayer *lp = (lplayer *)lua_newuserdatauv(L, sizeof *lp, UV_COUNT); /* ud */
     memset(lp, 0, sizeof *lp);
     int ud = lua_gettop(L);
@@ -744,22 +705,22 @@ static int l_player(lua_State *L)
     cdvr_store *st = store_and_tf(L, ud, lp);
     const cdvr_store_info *info = cdvr_store_get_info(st);
 
-    static const char *const devices[] = {"cpu", "cl", "auto", NULL};
-    const char *dev = lcdvr_optstringfield(L, 1, "device", "auto");
-    int devi = -1;
-    for (int i = 0; devices[i]; i++)
-        if (strcmp(dev, devices[i]) == 0)
-            devi = i;
-    if (devi < 0)
-        luaL_error(L, "cdvr.player: invalid device '%s' (cpu, cl, auto)", dev);
-    lp->opts.device = devi == 1 || (devi == 2 && CDVR_HAVE_OPENCL) ? CDVR_DEVICE_CL : CDVR_DEVICE_CPU;
+    /* the method, its device (absent or "auto": the scene contract's rule, as the window's),
+     * its options and the look, all from the method table */
+    lp->opts.method = method;
+    lp->opts.device = lcdvr_method_device(L, 1, method, "cdvr.player");
+    lcdvr_method_params(L, 1, method, "cdvr.player", &lp->opts.method_params);
+    lcdvr_read_look(L, 1, method, "cdvr.player", &lp->opts.look);
+    lp->opts.ctx = lcdvr_render_ctx(L);
     render_options(L, lp, info);
-    lp->callback_limit = integer_option(L, "callback_limit", 50000000, 1, INT_MAX);
+    lp->callback_limit = integer_option(L, "callback_limit", LCDVR_CALLBACK_LIMIT, 1, INT_MAX);
+    lp->min_psnr = number_option(L, "min_psnr", NAN, -HUGE_VAL, HUGE_VAL, "a number in dB expected");
     lp->opts.variant = variant_option(L, st);
     lp->variant_why = "best quality (no variant, policy or min_psnr given)";
     lp->capture = capture_options(L, lp, st);
     frame_option(L, ud, lp);
-    double target_fps = number_option(L, "target_fps", 0, DBL_MIN, DBL_MAX, "a finite number > 0 expected");
+    double target_fps = rate_option(L, "target_fps", 0, 0, CDVR_PLAYER_MIN_FPS, "frames/s");
+    lp->target_fps = target_fps;
     if (!lp->capture && lcdvr_optbooleanfield(L, 1, "pace", 1))
         lp->opts.pace_fps = target_fps;
     lp->opts.loop = lcdvr_optbooleanfield(L, 1, "loop", 0);
@@ -803,30 +764,54 @@ static void push_stage_medians(lua_State *L, const cdvr_frame_row *rows, size_t 
     lua_remove(L, -2);                                                    /* medians */
 }
 
+/* The failed frames of a run, with the report on the stack: report.failed (their number) and,
+ * when one stopped the run, report.error; a strict run with failed frames (on_error="skip":
+ * marked frames written) raises instead, naming the count and the first. */
+static int run_failures(lua_State *L, lplayer *lp, size_t rows)
+{
+    if (lp->strict && lp->failed > 0)
+        return luaL_error(L, "p:run: %d of %d frames could not be made (marked frames were written in their place, "
+                             "on_error=\"skip\"); the first: %s", (int)lp->failed, (int)rows, lp->first_failure);
+    lua_pushinteger(L, (lua_Integer)lp->failed);
+    lua_setfield(L, -2, "failed");
+    if (lp->stopped) {
+        lua_pushstring(L, lp->first_failure);
+        lua_setfield(L, -2, "error");
+    }
+    return 1;
+}
+
 static int player_run(lua_State *L)
 {
     lplayer *lp = checkidleplayer(L, 1, "run");
     const cdvr_store_info *info = cdvr_store_get_info(lp->opts.store);
     lua_Integer frames = (lua_Integer)info->timesteps, first = 1;
+    lp->strict = lp->capture; /* captures never lose a frame silently */
     if (!lua_isnoneornil(L, 2)) {
-        static const char *const keys[] = {"frames", "first", NULL};
+        static const char *const keys[] = {"frames", "first", "strict", NULL};
         luaL_checktype(L, 2, LUA_TTABLE);
         lcdvr_checkoptions(L, 2, "p:run", keys);
         frames = lcdvr_optintegerfield(L, 2, "frames", frames);
         first = lcdvr_optintegerfield(L, 2, "first", 1);
+        lp->strict = lcdvr_optbooleanfield(L, 2, "strict", lp->capture);
     }
+    lp->failed = 0;
+    lp->stopped = 0;
+    lp->first_failure[0] = '\0';
     luaL_argcheck(L, frames >= 1, 2, "frames must be at least 1");
     luaL_argcheck(L, first >= 1 && (size_t)first <= info->timesteps, 2, "first timestep out of range");
     lua_settop(L, 1);                             /* callbacks find the player at index 1 */
+    cdvr_error err;
+    if (cdvr_dist_play_begin(lp->dist, (size_t)first - 1, (size_t)frames, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);               /* the ranks disagree (cdvr/dist.h) */
     lp->L = L;
     lp->running = 1;
-    cdvr_error err;
     double t0 = cdvr_now_ms();
     cdvr_status status = cdvr_player_run(lp->player, (size_t)first - 1, (size_t)frames, &err);
     double wall_ms = cdvr_now_ms() - t0;
     lp->running = 0;
     lp->L = NULL;
-    if (status != CDVR_OK)
+    if (status != CDVR_OK && (lp->strict || !lp->stopped)) /* not strict: a report that says it stopped */
         return lcdvr_raise(L, &err);
     size_t n;
     const cdvr_frame_row *rows;
@@ -855,7 +840,7 @@ static int player_run(lua_State *L)
     lua_createtable(L, (int)n, 0);                /* why, report, frames */
     for (size_t i = 0; i < n; i++) {
         int r = rows[i].rank >= 0 && rows[i].rank < ranks ? rows[i].rank : 0;
-        push_row(L, lp->opts.store, &rows[i]);
+        lcdvr_push_frame_row(L, lp->opts.store, &rows[i]);
         if (rows[i].group_start)
             why[r] = rows[i].reason;
         lua_pushstring(L, why[r] ? why[r] : "");
@@ -873,7 +858,7 @@ static int player_run(lua_State *L)
     lua_setfield(L, -2, "device");
     lua_pushinteger(L, (lua_Integer)cdvr_player_group_length(lp->opts.store));
     lua_setfield(L, -2, "group_length");
-    return 1;
+    return run_failures(L, lp, n);
 }
 
 /* Frees the player and lets go of its store (a deferred st:close() happens now). */
@@ -942,7 +927,7 @@ int lcdvr_open_player(lua_State *L)
                    "playback of a store: reader, stage-2 and device threads; camera = cdvr.Camera, path or function(frame, t); "
                    "policy = function(stats) or 'fixed'|'open_loop'|'closed_loop'; target_fps, variant, pipeline, cold, read_mbps, "
                    "out='frames/%04d.png' (capture: deterministic, never adapts; with policy= the policy's capture rule, else variant=, "
-                   "min_psnr= or the best quality), frame=function(row, image), device='cl'|'cpu', pace (default true with target_fps); "
+                   "min_psnr= or the best quality), frame=function(row, image), device='cl'|'cpu'|'auto' (default auto: cl when an OpenCL device opens), pace (default true with target_fps); "
                    "variant default: best quality; loop=true wraps past the last timestep (default: playback stops there, report.stopped "
                    "says so); brick_skip (default true: bricks the TF hides or the view misses are not read); "
                    "distribute='time'|'bricks' (mpirun: frames or bricks shared by the ranks)");

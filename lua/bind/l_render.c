@@ -1,6 +1,8 @@
-/* lua/bind/l_render.c - cdvr.render(volume, {...}): the CPU reference ray caster, the OpenCL
- * renderer with device="cl", or 2D-texture slicing with method="slice" (l_gl.c). */
-#include "cdvr/timing.h"
+/* lua/bind/l_render.c - cdvr.render(volume or store, {...}): reads the scene (TF over the
+ * frame's value window, camera, common options), then renders through the method table
+ * (cdvr/method.h, l_method.c): the method named by method= on its device, never a branch on
+ * which method it is. */
+#include "cdvr/method.h"
 #include "cdvr/render.h"
 #include "lcdvr.h"
 
@@ -115,17 +117,6 @@ static void read_options(lua_State *L, cdvr_render_opts *o, int box)
     o->cancel = lcdvr_interrupt_flag(L);
 }
 
-static void push_stats(lua_State *L, const cdvr_render_opts *o, double ms)
-{
-    lua_createtable(L, 0, 4);
-    lua_pushinteger(L, (lua_Integer)o->samples);
-    lua_setfield(L, -2, "samples");
-    lua_pushnumber(L, ms);
-    lua_setfield(L, -2, "ms");
-    lua_pushliteral(L, "raycast");
-    lua_setfield(L, -2, "method");
-}
-
 /* The image and stats table on top: the stats become the image's img:stats() as well. */
 static int finish(lua_State *L, int nres)
 {
@@ -134,19 +125,10 @@ static int finish(lua_State *L, int nres)
     return nres;
 }
 
-/* Index of string option `key` of the options table (argument 2) in list; raises if unknown. */
-static int option_index(lua_State *L, const char *key, const char *def,
-                        const char *const list[])
-{
-    const char *value = lcdvr_optstringfield(L, 2, key, def);
-    for (int i = 0; list[i]; i++)
-        if (strcmp(list[i], value) == 0)
-            return i;
-    return luaL_error(L, "cdvr.render: option '%s': invalid value '%s'", key, value);
-}
+/* Every method takes these; the scene keys and the method's own options come from its table. */
+static const char *const base_keys[] = {"tf", "camera", "device", "method", "t", "variant",
+                                        "background", NULL};
 
-/* cdvr.render(st, {t=, variant=, ...}) on the cl device: the chunk goes to the device as it
- * is (decode kernel, or the compressed domain for fetch-mode codecs). Stack: st, opts. */
 /* One warning line when no pixel's ray hits the box of vol (render.h). */
 static void warn_if_missed(lua_State *L, const cdvr_volume *vol, const cdvr_camera *cam)
 {
@@ -157,7 +139,31 @@ static void warn_if_missed(lua_State *L, const cdvr_volume *vol, const cdvr_came
                    cam->center[2]);
 }
 
-static int render_store_cl(lua_State *L, const cdvr_store *st, size_t v, size_t t)
+/* What cdvr.render was asked: the method, its device and options (read from argument 2). */
+typedef struct render_call {
+    const cdvr_render_method *method;
+    cdvr_device_kind device;
+    cdvr_method_params params;
+    cdvr_look look;
+    cdvr_render_ctx *ctx;
+} render_call;
+
+/* Pushes the image and its stats (also img:stats()) of a render that filled img and stats. */
+static int push_result(lua_State *L, const render_call *c, cdvr_status status, cdvr_image *img,
+                       const cdvr_render_stats *stats, const cdvr_error *err)
+{
+    if (status != CDVR_OK)
+        return lcdvr_raise(L, err);
+    lcdvr_pushimage(L, img);
+    lcdvr_push_render_stats(L, c->method, c->device, stats);
+    return finish(L, 2);
+}
+
+/* cdvr.render(st, {t=, variant=, ...}) by a method that renders a stored chunk on its device
+ * (the chunk goes to the device as it is: decode kernel, or the compressed domain for
+ * fetch-mode codecs). Stack: st, opts. */
+static int render_store_direct(lua_State *L, render_call *c, const cdvr_store *st, size_t v,
+                               size_t t)
 {
     lua_settop(L, 4);           /* st, opts, (tf), (camera) */
     lua_getfield(L, 1, "info"); /* st:info(): the box of the default camera */
@@ -165,16 +171,22 @@ static int render_store_cl(lua_State *L, const cdvr_store *st, size_t v, size_t 
     lua_call(L, 1, 1);          /* st, opts, tf, camera, info */
     cdvr_render_opts o = {0};
     read_options(L, &o, 5);
-    const double window[2] = {cdvr_store_get_info(st)->qlo, cdvr_store_get_info(st)->qhi};
-    window_tf(L, &o, window, 3);
+    o.look = c->look;
     const cdvr_store_info *info = cdvr_store_get_info(st);
+    const double window[2] = {info->qlo, info->qhi};
+    window_tf(L, &o, window, 3);
     cdvr_volume box = {.timesteps = 1}; /* the store's geometry, for the view check */
     memcpy(box.dims, info->dims, sizeof box.dims);
     memcpy(box.spacing, info->spacing, sizeof box.spacing);
     memcpy(box.origin, info->origin, sizeof box.origin);
     memcpy(box.direction, info->direction, sizeof box.direction);
     warn_if_missed(L, &box, o.camera);
-    return lcdvr_render_cl_store(L, st, v, t, &o);
+    cdvr_render_stats stats = {0};
+    cdvr_image *img = NULL;
+    cdvr_error err;
+    cdvr_status s = c->method->render_store(c->ctx, c->device, st, v, t, &o, &c->params, &stats,
+                                            &img, &err);
+    return push_result(L, c, s, img, &stats, &err);
 }
 
 /* Variant of opts.variant (name or 1-based index; default the first). */
@@ -199,22 +211,25 @@ static size_t store_variant(lua_State *L, const cdvr_store *st)
     return v;
 }
 
+/* The method, device and options of argument 2, checked against the method's table. */
+static void read_call(lua_State *L, render_call *c)
+{
+    c->method = lcdvr_method_option(L, 2, "cdvr.render");
+    lcdvr_method_checkoptions(L, 2, c->method, "cdvr.render", base_keys);
+    c->device = lcdvr_method_device(L, 2, c->method, "cdvr.render");
+    lcdvr_method_params(L, 2, c->method, "cdvr.render", &c->params);
+    lcdvr_read_look(L, 2, c->method, "cdvr.render", &c->look);
+    c->ctx = lcdvr_render_ctx(L);
+}
+
 static int l_render(lua_State *L)
 {
     const cdvr_store *st = luaL_testudata(L, 1, LCDVR_STORE) ? lcdvr_checkstore(L, 1) : NULL;
     const cdvr_volume *head = st ? NULL : lcdvr_volume_header(L, 1);
     cdvr_volume *vol = NULL;
     luaL_checktype(L, 2, LUA_TTABLE);
-    static const char *const devices[] = {"cpu", "cl", NULL};
-    static const char *const methods[] = {"raycast", "slice", "splat", NULL};
-    int device = option_index(L, "device", "cpu", devices);
-    int method = option_index(L, "method", "raycast", methods);
-    if (method == 0) { /* the other methods' bindings check their own options */
-        static const char *const keys[] = {"tf", "camera", "step", "unit", "term", "threads",
-                                           "background", "device", "method", "t", "variant",
-                                           "skip", NULL};
-        lcdvr_checkoptions(L, 2, "cdvr.render", keys);
-    }
+    render_call c;
+    read_call(L, &c);
     size_t timesteps = st ? cdvr_store_get_info(st)->timesteps : head->timesteps;
     lua_Integer t = lcdvr_optintegerfield(L, 2, "t", 1);
     if (t < 1 || (size_t)t > timesteps)
@@ -223,9 +238,9 @@ static int l_render(lua_State *L)
     size_t frame = (size_t)t - 1;
     if (st) {
         size_t v = store_variant(L, st);
-        if (device == 1 && method == 0)
-            return render_store_cl(L, st, v, frame);
-        cdvr_volume *decoded; /* the cpu decodes the timestep, then renders it as a volume */
+        if (c.method->render_store && c.device == CDVR_DEVICE_CL)
+            return render_store_direct(L, &c, st, v, frame);
+        cdvr_volume *decoded; /* decode the timestep on the host, then render it as a volume */
         cdvr_error err;
         if (cdvr_store_decode(st, v, frame, &decoded, &err) != CDVR_OK)
             return lcdvr_raise(L, &err);
@@ -243,33 +258,16 @@ static int l_render(lua_State *L)
     lua_settop(L, 4); /* slots 3, 4 hold the TF and camera while rendering */
     cdvr_render_opts o = {0};
     read_options(L, &o, 1);
+    o.look = c.look;
     double window[2];
     const cdvr_volume *u8 = u8_frame(L, vol, &frame, window);
     window_tf(L, &o, window, 3);
     warn_if_missed(L, u8, o.camera);
-    if (method == 2) {
-        int nres = lcdvr_render_splat(L, u8, frame, &o, device);
-        lua_pushliteral(L, "splat");
-        lua_setfield(L, -2, "method");
-        return finish(L, nres);
-    }
-    if (method == 1)
-        return finish(L, lcdvr_render_slice(L, u8, frame, &o));
-    if (device == 1) {
-        int nres = lcdvr_render_cl(L, u8, frame, &o);
-        lua_pushliteral(L, "raycast");
-        lua_setfield(L, -2, "method");
-        return finish(L, nres);
-    }
-    double start = cdvr_now_ms();
-    cdvr_image *img;
+    cdvr_render_stats stats = {0};
+    cdvr_image *img = NULL;
     cdvr_error err;
-    if (cdvr_render_cpu(u8, frame, &o, &img, &err) != CDVR_OK)
-        return lcdvr_raise(L, &err);
-    double ms = cdvr_now_ms() - start;
-    lcdvr_pushimage(L, img);
-    push_stats(L, &o, ms);
-    return finish(L, 2);
+    cdvr_status s = c.method->render(c.ctx, c.device, u8, frame, &o, &c.params, &stats, &img, &err);
+    return push_result(L, &c, s, img, &stats, &err);
 }
 
 int lcdvr_open_render(lua_State *L)
@@ -277,12 +275,13 @@ int lcdvr_open_render(lua_State *L)
     lua_pushvalue(L, -1); /* the cdvr table: cdvr.tf and cdvr.orbit_camera for defaults */
     lua_pushcclosure(L, l_render, 1);
     lua_setfield(L, -2, "render");
-    lcdvr_help_add(L, "cdvr.render(volume, {tf=, camera=, step=, unit=, device=, method=, lod=, t=, threads=, background=, term=})",
-                   "image and stats (also img:stats()); method \"raycast\" (default; device \"cpu\" or "
-                   "\"cl\"), \"slice\" (2D textures through EGL; lod=true (seed 002's rule), \"screen\" or "
-                   "false) or \"splat\"; camera defaults to cdvr.orbit_camera(volume); the TF is classified "
-                   "over the volume's value window (v:window(): the series' range, or the quantize/store "
-                   "window), non-u8 frames are quantized over it; term = early-termination alpha (0.99, >= 1 off)");
+    lcdvr_help_add(L, "cdvr.render(volume, {tf=, camera=, method=, device=, t=, background=, step=, unit=, term=, threads=, ...})",
+                   "image and stats (also img:stats()); method \"raycast\" (default), \"slice\" or \"splat\" "
+                   "(cdvr.methods() lists each with its devices and options); device defaults to cl when "
+                   "the method has it and an OpenCL device opens, else cpu (gl for slice); camera defaults "
+                   "to cdvr.orbit_camera(volume); the TF is classified over the volume's value window "
+                   "(v:window(): the series' range, or the quantize/store window), non-u8 frames are "
+                   "quantized over it; term = early-termination alpha (0.99, >= 1 off)");
     lcdvr_help_add(L, "cdvr.render(store, {t=, variant=, device=, ...})",
                    "render timestep t of a store variant: device \"cl\" renders the chunk on the "
                    "device (in the compressed domain for fetch-mode codecs such as hvq), \"cpu\" "

@@ -1,5 +1,5 @@
 /* lua/bind/l_splat.c - splatting in Lua: cdvr.splat_order (the cdvr.SplatOrder object: #o,
- * o[i]), cdvr.splat_order_quality, and cdvr.render{method="splat"} (called from l_render.c). */
+ * o[i]) and cdvr.splat_order_quality; the splat render method is core/render/cpu/splat_method.c. */
 #include "cdvr/render.h"
 #include "cdvr/splat.h"
 #include "cdvr/timing.h"
@@ -263,56 +263,6 @@ static int l_splat_order_quality(lua_State *L)
 }
 
 /* ---- cdvr.render{method = "splat"} ------------------------------------------------------ */
-
-int lcdvr_render_splat(lua_State *L, const cdvr_volume *vol, size_t t, const void *render_opts,
-                       int device)
-{
-    static const char *const keys[] = {"method", "device", "t", "variant", "tf", "camera",
-                                       "unit", "threads", "background", "order", "threshold",
-                                       "radius", "sigma", NULL};
-    lcdvr_checkoptions(L, 2, "cdvr.render{method=\"splat\"}", keys);
-    if (device != 0)
-        return luaL_error(L, "cdvr.render: method 'splat' runs on the CPU only (device 'cl' is "
-                             "not implemented for splatting; see README)");
-    const cdvr_render_opts *ro = render_opts;
-    cdvr_splat_opts o;
-    memset(&o, 0, sizeof o);
-    o.tf = ro->tf;
-    o.camera = ro->camera;
-    o.unit = ro->unit;
-    o.threads = ro->threads;
-    memcpy(o.background, ro->background, sizeof o.background);
-    const char *order_name = lcdvr_optstringfield(L, 2, "order", "dda");
-    if (!cdvr_splat_how_parse(order_name, &o.order))
-        return luaL_error(L, "cdvr.render: option 'order': invalid value '%s' (dda, axis, sort "
-                             "or quicksort)", order_name);
-    lua_getfield(L, 2, "threshold");
-    o.has_threshold = !lua_isnil(L, -1);
-    lua_pop(L, 1);
-    o.threshold = lcdvr_optnumberfield(L, 2, "threshold", 0.0);
-    o.radius = lcdvr_optnumberfield(L, 2, "radius", CDVR_SPLAT_DEFAULT_RADIUS);
-    o.sigma = lcdvr_optnumberfield(L, 2, "sigma", CDVR_SPLAT_DEFAULT_SIGMA);
-    if (!(o.radius > 0.0) || !(o.sigma > 0.0) || isnan(o.threshold))
-        return luaL_error(L, "cdvr.render: splat radius %f and sigma %f must be > 0, threshold a "
-                             "number", o.radius, o.sigma);
-    double start = cdvr_now_ms();
-    cdvr_image *img;
-    cdvr_error err;
-    if (cdvr_render_splat(vol, t, &o, &img, &err) != CDVR_OK)
-        return lcdvr_raise(L, &err);
-    double ms = cdvr_now_ms() - start;
-    lcdvr_pushimage(L, img);
-    lua_createtable(L, 0, 4);
-    lua_pushnumber(L, ms);
-    lua_setfield(L, -2, "ms");
-    lua_pushnumber(L, o.order_ms);
-    lua_setfield(L, -2, "order_ms");
-    lua_pushinteger(L, (lua_Integer)o.splats);
-    lua_setfield(L, -2, "splats");
-    lua_pushinteger(L, (lua_Integer)o.fragments);
-    lua_setfield(L, -2, "fragments");
-    return 2;
-}
 
 static const luaL_Reg order_methods[] = {{"dims", order_dims}, {NULL, NULL}};
 

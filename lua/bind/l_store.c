@@ -43,7 +43,8 @@ static const char *const stage2_names[] = {"none", "lzo", NULL};
 static const char *const variant_keys[] = {"codec", "name", "stage2", "lzo_min_saving", NULL};
 /* Keys only the top-level options table takes. */
 static const char *const top_keys[] = {"path", "schedule", "progress", "variants", "bricks",
-                                        "threads", "ranges", NULL};
+                                        "threads", "ranges", "callback_limit", "callback_memory",
+                                        NULL};
 
 static int in_list(const char *const list[], const char *key)
 {
@@ -262,6 +263,7 @@ static cdvr_variant_spec *parse_variants(lua_State *L, int idx, size_t *n)
 typedef struct encode_ctx {
     lua_State *L;
     int schedule_idx;            /* stack index of the Lua schedule, 0 if none */
+    lcdvr_limits limits;         /* the schedule's budget (callback_limit, callback_memory) */
     const cdvr_variant_spec *specs;
     size_t nvariants;
     size_t *chunks;              /* chunks per variant, counted during planning */
@@ -316,7 +318,7 @@ static cdvr_status lua_schedule(void *ud, size_t variant, size_t t0, cdvr_codec_
     lua_pushvalue(L, ctx->schedule_idx);
     lua_pushinteger(L, (lua_Integer)t0 + 1);
     lua_pushinteger(L, (lua_Integer)variant + 1);
-    if (lua_pcall(L, 2, 1, 0) != LUA_OK) {
+    if (lcdvr_pcall_limits(L, 2, 1, &ctx->limits) != LUA_OK) {
         ctx->lua_failed = 1;
         cdvr_status s = cdvr_error_set(err, CDVR_ERR_ARG, "schedule: %s",
                                        lua_isstring(L, -1) ? lua_tostring(L, -1) : "error");
@@ -388,6 +390,7 @@ static int l_encode(lua_State *L)
         return luaL_error(L, "option 'schedule': function expected, got %s", luaL_typename(L, -1));
     int schedule_idx = sched_type == LUA_TFUNCTION ? lua_gettop(L) : 0;
     encode_ctx ctx = {.L = L, .schedule_idx = schedule_idx};
+    lcdvr_limits_options(L, 2, "cdvr.encode", &ctx.limits);
     ctx.show_progress = lcdvr_optbooleanfield(L, 2, "progress", 1) && isatty(2);
     ctx.specs = parse_variants(L, 2, &ctx.nvariants);
     ctx.chunks = lua_newuserdatauv(L, ctx.nvariants * sizeof *ctx.chunks, 0);
@@ -925,7 +928,9 @@ int lcdvr_open_store(lua_State *L)
                    "S=4 T=3 pack=time encoder=lsq stage2=lzo lzo_min_saving=0.1; bricks={bx,by,bz} "
                    "splits each timestep into bricks; threads=0: one per core, the same bytes for "
                    "any count; ranges=true: per-brick value range tables for empty-space "
-                   "skipping); the opened store, or nil, msg on write failure");
+                   "skipping; schedule(t, variant) runs under callback_limit= instructions, "
+                   "default 5e7, and callback_memory= MB, default 256); the opened store, or "
+                   "nil, msg on write failure");
     lcdvr_help_add(L, "cdvr.open(path)", "open a .cdv store (lazy); store or nil, msg");
     lcdvr_help_add(L, "st:info()", "dims, timesteps, window, bytes, ratio and per-variant "
                                    "codec, bpv, psnr, maxerr, chunks, ranges_bytes (the value "

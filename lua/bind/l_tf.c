@@ -113,13 +113,13 @@ static int valid_preset_name(const char *name)
     return 1;
 }
 
-/* Runs a Lua file that returns a points table and builds the TF from it; an unreadable or
- * malformed file raises (its message names the file and the reason), as loaders do. */
+/* Loads a data file that returns a points table (lcdvr_load_data: empty environment, no
+ * calls, budgeted) and builds the TF from it; an unreadable or malformed file raises (its
+ * message names the file and the reason), as loaders do. */
 static int load_tf_file(lua_State *L, const char *path)
 {
-    if (luaL_loadfilex(L, path, "t") != LUA_OK)
+    if (lcdvr_load_data(L, path) != LUA_OK)
         return luaL_error(L, "cdvr.tf: %s", lua_tostring(L, -1));
-    lua_call(L, 0, 1);
     if (!lua_istable(L, -1))
         return luaL_error(L, "%s: transfer function file must return a table, got %s", path,
                           luaL_typename(L, -1));

@@ -1,5 +1,7 @@
 /* lua/bind/l_volume.c - cdvr.Volume: volumes and series in Lua (cdvr.load, v:dims(), ...). */
 #include "lcdvr.h"
+#include "cdvr/format.h"
+#include "cdvr/plugin.h"
 #include "cdvr/series.h"
 
 #include <math.h>
@@ -26,13 +28,11 @@ typedef struct lazy_source {
 
 typedef struct lazy_volume {
     lazy_source *src;
+    cdvr_series_view view;       /* the series, or the u8 codes of its values over a window */
     cdvr_volume head;            /* dims, timesteps, type, geometry, window; no voxels */
-    int quantized;               /* u8 codes of the source's values over [qlo, qhi] */
-    double qlo, qhi;
     int range_known;             /* v:range of the codes (quantized) */
     double range_lo, range_hi;
-    double enc_lo, enc_hi;       /* window of the encode source (lcdvr_volume_source) */
-    int enc_quantize;
+    cdvr_series_source enc;      /* what the encode source reads (lcdvr_volume_source) */
 } lazy_volume;
 
 typedef struct lvolume {
@@ -68,22 +68,14 @@ static void range_progress(void *ud, size_t done, size_t total)
     fflush(stderr);
 }
 
-/* The window of a lazy volume (see above); reads every file once when it is the range. */
+/* Range passes over the files show progress on stderr when it is a terminal. */
+#define PROGRESS (isatty(2) ? range_progress : NULL)
+
+/* The window of a lazy volume (see above), cached in its head. */
 static cdvr_status lazy_window(lazy_volume *lv, double w[2], cdvr_error *err)
 {
-    if (lv->quantized) {
-        w[0] = lv->qlo;
-        w[1] = lv->qhi;
-        return CDVR_OK;
-    }
-    if (lv->head.type == CDVR_TYPE_U8) {
-        w[0] = 0;
-        w[1] = 255;
-        return CDVR_OK;
-    }
-    cdvr_status st = cdvr_series_range(lv->src->series, &w[0], &w[1],
-                                       isatty(2) ? range_progress : NULL, NULL, err);
-    if (st == CDVR_OK) {
+    cdvr_status st = cdvr_series_view_window(&lv->view, w, PROGRESS, NULL, err);
+    if (st == CDVR_OK && !lv->view.quantized && lv->head.type != CDVR_TYPE_U8) {
         lv->head.window[0] = w[0];
         lv->head.window[1] = w[1];
     }
@@ -94,24 +86,9 @@ static cdvr_status lazy_window(lazy_volume *lv, double w[2], cdvr_error *err)
 static cdvr_status lazy_read(lazy_volume *lv, size_t t, size_t count, cdvr_volume **out,
                              cdvr_error *err)
 {
-    *out = NULL;
     double w[2];
-    cdvr_volume *raw = NULL;
-    cdvr_status st = lazy_window(lv, w, err);
-    if (st == CDVR_OK)
-        st = cdvr_series_read(lv->src->series, t, count, &raw, err);
-    if (st == CDVR_OK && lv->quantized) {
-        st = cdvr_volume_quantize(raw, lv->qlo, lv->qhi, out, NULL, err);
-        cdvr_volume_free(raw);
-        raw = NULL;
-    } else if (st == CDVR_OK) {
-        *out = raw;
-    }
-    if (*out) {
-        (*out)->window[0] = w[0];
-        (*out)->window[1] = w[1];
-    }
-    return st;
+    cdvr_status st = lazy_window(lv, w, err); /* caches the window in head */
+    return st == CDVR_OK ? cdvr_series_view_read(&lv->view, t, count, out, NULL, NULL, err) : st;
 }
 
 /* Reads every timestep of a lazy volume into memory: from now on it is an ordinary volume. */
@@ -172,23 +149,6 @@ cdvr_volume *lcdvr_volume_read(lua_State *L, int idx, size_t t, size_t count)
     return out;
 }
 
-/* Encode source frame t: the series' voxels of t as u8 (copied, or quantised). */
-static cdvr_status lazy_frame(void *ud, size_t t, uint8_t *out, cdvr_error *err)
-{
-    lazy_volume *lv = ud;
-    const void *voxels;
-    cdvr_status st = cdvr_series_frame(lv->src->series, t, &voxels, err);
-    size_t n = lv->head.dims[0] * lv->head.dims[1] * lv->head.dims[2];
-    if (st != CDVR_OK)
-        return st;
-    if (!lv->enc_quantize) {
-        memcpy(out, voxels, n);
-        return CDVR_OK;
-    }
-    return cdvr_quantize_values(voxels, cdvr_series_get_info(lv->src->series)->type, n,
-                                lv->enc_lo, lv->enc_hi, out, NULL, err);
-}
-
 void lcdvr_volume_source(lua_State *L, int idx, cdvr_encode_source *src, cdvr_encode_opts *o)
 {
     lvolume *ud = checkopen(L, idx);
@@ -197,23 +157,12 @@ void lcdvr_volume_source(lua_State *L, int idx, cdvr_encode_source *src, cdvr_en
         luaL_error(L, "internal error: lcdvr_volume_source on a volume in memory");
     double w[2];
     cdvr_error err;
-    if (lazy_window(lv, w, &err) != CDVR_OK)
+    if (lazy_window(lv, w, &err) != CDVR_OK ||
+        cdvr_series_encode_source(&lv->view, &lv->enc, src, o, NULL, NULL, &err) != CDVR_OK)
         lcdvr_raise(L, &err);
-    const cdvr_series_info *in = cdvr_series_get_info(lv->src->series);
-    lv->enc_quantize = lv->quantized || in->type != CDVR_TYPE_U8;
-    lv->enc_lo = w[0];
-    lv->enc_hi = w[1];
-    o->qlo = w[0];
-    o->qhi = w[1];
-    o->source_type = in->type;
-    memset(src, 0, sizeof *src);
-    memcpy(src->dims, in->dims, sizeof src->dims);
-    memcpy(src->spacing, lv->head.spacing, sizeof src->spacing);
+    memcpy(src->spacing, lv->head.spacing, sizeof src->spacing); /* the volume's geometry */
     memcpy(src->origin, lv->head.origin, sizeof src->origin);
     cdvr_volume_direction(&lv->head, src->direction);
-    src->timesteps = in->timesteps;
-    src->frame = lazy_frame;
-    src->frame_ud = lv;
 }
 
 void lcdvr_pushvolume(lua_State *L, cdvr_volume *vol)
@@ -286,27 +235,10 @@ static int volume_timesteps(lua_State *L)
 static cdvr_status lazy_code_range(lazy_volume *lv, double *lo, double *hi, cdvr_error *err)
 {
     if (!lv->range_known) {
-        const cdvr_series_info *in = cdvr_series_get_info(lv->src->series);
-        size_t n = in->dims[0] * in->dims[1] * in->dims[2];
-        uint8_t *codes = malloc(n), mn = 255, mx = 0;
-        if (!codes)
-            return cdvr_error_set(err, CDVR_ERR_NOMEM, "range: no memory for a frame");
-        cdvr_status st = CDVR_OK;
-        for (size_t t = 0; st == CDVR_OK && t < in->timesteps; t++) {
-            const void *voxels;
-            st = cdvr_series_frame(lv->src->series, t, &voxels, err);
-            if (st == CDVR_OK)
-                st = cdvr_quantize_values(voxels, in->type, n, lv->qlo, lv->qhi, codes, NULL, err);
-            for (size_t i = 0; st == CDVR_OK && i < n; i++) {
-                mn = codes[i] < mn ? codes[i] : mn;
-                mx = codes[i] > mx ? codes[i] : mx;
-            }
-        }
-        free(codes);
+        cdvr_status st = cdvr_series_view_scan(&lv->view, NULL, &lv->range_lo, &lv->range_hi,
+                                               err);
         if (st != CDVR_OK)
             return st;
-        lv->range_lo = mn;
-        lv->range_hi = mx;
         lv->range_known = 1;
     }
     *lo = lv->range_lo;
@@ -322,11 +254,10 @@ static int volume_range(lua_State *L)
     cdvr_status st = CDVR_OK;
     if (ud->vol)
         cdvr_volume_range(ud->vol, &lo, &hi);
-    else if (ud->lazy->quantized)
+    else if (ud->lazy->view.quantized)
         st = lazy_code_range(ud->lazy, &lo, &hi, &err);
     else
-        st = cdvr_series_range(ud->lazy->src->series, &lo, &hi,
-                               isatty(2) ? range_progress : NULL, NULL, &err);
+        st = cdvr_series_range(ud->lazy->src->series, &lo, &hi, PROGRESS, NULL, &err);
     if (st != CDVR_OK)
         return lcdvr_raise(L, &err);
     lua_pushnumber(L, lo);
@@ -367,13 +298,13 @@ static int volume_get(lua_State *L)
         return lcdvr_raise(L, &err);
     cdvr_type type = cdvr_series_get_info(lv->src->series)->type;
     size_t i = (size_t)c[0] + v->dims[0] * ((size_t)c[1] + v->dims[1] * (size_t)c[2]);
-    if (!lv->quantized) {
+    if (!lv->view.quantized) {
         lua_pushnumber(L, value_of(voxels, type, i));
         return 1;
     }
     uint8_t code;
     const uint8_t *at = (const uint8_t *)voxels + i * cdvr_type_size(type);
-    if (cdvr_quantize_values(at, type, 1, lv->qlo, lv->qhi, &code, NULL, &err) != CDVR_OK)
+    if (cdvr_quantize_values(at, type, 1, lv->view.lo, lv->view.hi, &code, NULL, &err) != CDVR_OK)
         return lcdvr_raise(L, &err);
     lua_pushnumber(L, code);
     return 1;
@@ -538,19 +469,10 @@ static int lazy_report_index(lua_State *L)
     lvolume *ud = tolvolume(L, lua_upvalueindex(1));
     if (ud->closed)
         return luaL_error(L, "quantize report: its volume is closed");
-    lazy_volume *lv = ud->lazy;
-    const cdvr_series_info *in = cdvr_series_get_info(lv->src->series);
-    size_t n = in->dims[0] * in->dims[1] * in->dims[2];
-    uint8_t *codes = lua_newuserdatauv(L, n, 0);
     cdvr_quantize_report r = {0};
     cdvr_error err;
-    for (size_t t = 0; t < in->timesteps; t++) {
-        const void *voxels;
-        if (cdvr_series_frame(lv->src->series, t, &voxels, &err) != CDVR_OK ||
-            cdvr_quantize_values(voxels, in->type, n, lv->qlo, lv->qhi, codes, &r, &err) != CDVR_OK)
-            return lcdvr_raise(L, &err);
-    }
-    lua_pop(L, 1);
+    if (cdvr_series_view_scan(&ud->lazy->view, &r, NULL, NULL, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
     lua_pushnil(L);
     lua_setmetatable(L, 1); /* counted once: the fields are plain from now on */
     static const char *const names[] = {"clipped", "clipped_low", "clipped_high", "nan", "inf"};
@@ -577,8 +499,7 @@ static int quantize_lazy(lua_State *L, lvolume *ud)
     int has_hi = !lua_isnoneornil(L, 2) && lua_getfield(L, 2, "hi") != LUA_TNIL;
     lua_settop(L, 2);
     if ((!has_lo || !has_hi) &&
-        cdvr_series_range(src->src->series, &lo, &hi, isatty(2) ? range_progress : NULL, NULL,
-                          &err) != CDVR_OK)
+        cdvr_series_range(src->src->series, &lo, &hi, PROGRESS, NULL, &err) != CDVR_OK)
         return lcdvr_raise(L, &err);
     if (!lua_isnoneornil(L, 2)) {
         lo = lcdvr_optnumberfield(L, 2, "lo", lo);
@@ -593,9 +514,9 @@ static int quantize_lazy(lua_State *L, lvolume *ud)
     lv->src->refs++;
     lv->head = src->head;
     lv->head.type = CDVR_TYPE_U8;
-    lv->head.window[0] = lv->qlo = lo;
-    lv->head.window[1] = lv->qhi = hi;
-    lv->quantized = 1;
+    lv->view = (cdvr_series_view){lv->src->series, 1, lo, hi};
+    lv->head.window[0] = lo;
+    lv->head.window[1] = hi;
     push_lazy(L, lv);                                  /* q */
     lua_newtable(L);                                   /* q, report */
     lua_createtable(L, 0, 1);                          /* q, report, mt */
@@ -611,7 +532,7 @@ static int volume_quantize(lua_State *L)
     static const char *const keys[] = {"lo", "hi", NULL};
     lcdvr_checkoptions(L, 2, "v:quantize", keys);
     lvolume *ud = checkopen(L, 1);
-    if (!ud->vol && !ud->lazy->quantized)
+    if (!ud->vol && !ud->lazy->view.quantized)
         return quantize_lazy(L, ud);
     const cdvr_volume *v = lcdvr_checkvolume(L, 1);
     double lo, hi;
@@ -758,72 +679,11 @@ static int l_load(lua_State *L)
     return push_load_result(L, st, vol, &err);
 }
 
-/* A series pattern: prefix, one integer conversion (%d, %i or %u with optional 0 flag and
- * width), suffix; "%%" is a literal percent. */
-typedef struct series_pattern {
-    const char *text;
-    size_t conv_start, conv_end; /* the conversion is text[conv_start, conv_end) */
-    int zero_pad, width;
-} series_pattern;
-
-static void parse_pattern(lua_State *L, const char *text, series_pattern *p)
-{
-    int found = 0;
-    memset(p, 0, sizeof *p);
-    p->text = text;
-    for (size_t i = 0; text[i]; i++) {
-        if (text[i] != '%')
-            continue;
-        if (text[i + 1] == '%') {
-            i++;
-            continue;
-        }
-        size_t j = i + 1;
-        p->zero_pad = text[j] == '0';
-        j += (size_t)p->zero_pad;
-        p->width = 0;
-        while (text[j] >= '0' && text[j] <= '9' && p->width < 100)
-            p->width = p->width * 10 + (text[j++] - '0');
-        if (found || !strchr("diu", text[j]) || text[j] == '\0' || p->width >= 100)
-            luaL_error(L, "series pattern '%s': exactly one integer conversion (%%d, %%03d, ...) expected",
-                       text);
-        found = 1;
-        p->conv_start = i;
-        p->conv_end = j + 1;
-        i = j;
-    }
-    if (!found)
-        luaL_error(L, "series pattern '%s': no integer conversion (%%d, %%03d, ...)", text);
-}
-
-static void add_literal(luaL_Buffer *b, const char *s, size_t n)
-{
-    for (size_t i = 0; i < n; i++) {
-        luaL_addchar(b, s[i]);
-        if (s[i] == '%' && i + 1 < n && s[i + 1] == '%')
-            i++;
-    }
-}
-
-static void push_series_name(lua_State *L, const series_pattern *p, lua_Integer n)
-{
-    char number[64];
-    snprintf(number, sizeof number, p->zero_pad ? "%0*lld" : "%*lld", p->width, (long long)n);
-    luaL_Buffer b;
-    luaL_buffinit(L, &b);
-    add_literal(&b, p->text, p->conv_start);
-    luaL_addstring(&b, number);
-    add_literal(&b, p->text + p->conv_end, strlen(p->text + p->conv_end));
-    luaL_pushresult(&b);
-}
-
-/* Pushes a list of file names from a pattern and opts first/count/last and returns 1. Without
- * count or last, takes files from `first` while they exist; when there is none, pushes a
- * message instead and returns 0. */
+/* Pushes a list of file names from a pattern (cdvr_series_pattern) and opts first/count/last
+ * and returns 1. Without count or last, takes files from `first` while they exist; when there is
+ * none, pushes a message instead and returns 0. */
 static int series_names_from_pattern(lua_State *L, const char *pattern, int opts)
 {
-    series_pattern p;
-    parse_pattern(L, pattern, &p);
     int has_opts = lua_istable(L, opts);
     lua_Integer first = has_opts ? lcdvr_optintegerfield(L, opts, "first", 0) : 0;
     lua_Integer count = has_opts ? lcdvr_optintegerfield(L, opts, "count", -1) : -1;
@@ -833,20 +693,23 @@ static int series_names_from_pattern(lua_State *L, const char *pattern, int opts
     if (count == 0 || count > 1000000 || (has_opts && count < 0 && last < first - 1))
         luaL_error(L, "series '%s': count must be 1..1000000 (got first=%d count=%d last=%d)", pattern,
                    (int)first, (int)count, (int)last);
-    lua_newtable(L);
-    for (lua_Integer i = 0; count < 0 || i < count; i++) {
-        push_series_name(L, &p, first + i);
-        if (count < 0 && access(lua_tostring(L, -1), F_OK) != 0) {
-            if (i > 0) {
-                lua_pop(L, 1);
-                break;
-            }
-            lua_pushfstring(L, "%s: no such file (series pattern %s, first=%d)", lua_tostring(L, -1),
-                            pattern, (int)first);
-            return 0;
-        }
-        lua_seti(L, -2, i + 1);
+    char **names = NULL;
+    size_t n = 0;
+    cdvr_error err;
+    cdvr_status st = cdvr_series_pattern(pattern, first, count > 0 ? (size_t)count : 0, &names, &n,
+                                         &err);
+    if (st == CDVR_ERR_IO) { /* no first file */
+        lua_pushstring(L, err.msg);
+        return 0;
     }
+    if (st != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    lua_createtable(L, (int)n, 0);
+    for (size_t i = 0; i < n; i++) {
+        lua_pushstring(L, names[i]); /* (a memory error here leaks names: never in practice) */
+        lua_seti(L, -2, (lua_Integer)i + 1);
+    }
+    cdvr_format_free_paths(names, n);
     return 1;
 }
 
@@ -890,6 +753,7 @@ static int l_load_series(lua_State *L)
     src->series = series;
     src->refs = 1;
     lv->src = src;
+    lv->view = (cdvr_series_view){series, 0, 0, 0};
     const cdvr_series_info *in = cdvr_series_get_info(series);
     cdvr_volume *h = &lv->head;
     memcpy(h->dims, in->dims, sizeof h->dims);
@@ -952,9 +816,45 @@ static int l_generate(lua_State *L)
     return 1;
 }
 
+/* cdvr.formats(): {{name=, description=, suffixes={...}, magic=, series=, described= (reads
+ * only what opts describe: raw), plugin=file or nil}, ...} in registration order
+ * (cdvr/format.h). */
+static int l_formats(lua_State *L)
+{
+    size_t n = cdvr_format_count();
+    lua_createtable(L, (int)n, 0);
+    for (size_t i = 0; i < n; i++) {
+        const cdvr_format *f = cdvr_format_at(i);
+        lua_createtable(L, 0, 7);
+        lua_pushstring(L, f->name);
+        lua_setfield(L, -2, "name");
+        lua_pushstring(L, f->description);
+        lua_setfield(L, -2, "description");
+        lua_newtable(L);
+        for (int k = 0; f->suffixes[k]; k++) {
+            lua_pushstring(L, f->suffixes[k]);
+            lua_seti(L, -2, k + 1);
+        }
+        lua_setfield(L, -2, "suffixes");
+        lua_pushboolean(L, f->magic != NULL);
+        lua_setfield(L, -2, "magic");
+        lua_pushboolean(L, f->expand != NULL);
+        lua_setfield(L, -2, "series");
+        lua_pushboolean(L, (f->flags & CDVR_FORMAT_DESCRIBED) != 0);
+        lua_setfield(L, -2, "described");
+        const char *file = cdvr_plugin_format_file(f);
+        if (file) {
+            lua_pushstring(L, file);
+            lua_setfield(L, -2, "plugin");
+        }
+        lua_seti(L, -2, (lua_Integer)i + 1);
+    }
+    return 1;
+}
+
 static const luaL_Reg volume_funcs[] = {
     {"load", l_load},         {"load_series", l_load_series}, {"volume", l_volume_new},
-    {"generate", l_generate}, {NULL, NULL}};
+    {"generate", l_generate}, {"formats", l_formats}, {NULL, NULL}};
 
 static const luaL_Reg volume_methods[] = {
     {"dims", volume_dims},   {"type", volume_type}, {"timesteps", volume_timesteps},
@@ -974,8 +874,11 @@ int lcdvr_open_volume(lua_State *L)
     lcdvr_newclass(L, LCDVR_VOLUME, volume_methods, volume_meta);
     lcdvr_setfuncs(L, volume_funcs);
     lcdvr_help_add(L, "cdvr.load(path [, opts])",
-                   "load .nrrd .nhdr .nii .nii.gz, or raw with opts {dims=, type=, endian=, header=, timesteps=, spacing=}; "
+                   "load .nrrd .nhdr .nii .nii.gz (or any format of cdvr.formats(), by suffix, else by its first bytes), "
+                   "or raw with opts {dims=, type=, endian=, header=, timesteps=, spacing=}; "
                    "a file that cannot be read raises an error naming it and the reason");
+    lcdvr_help_add(L, "cdvr.formats()",
+                   "list of file formats: {name, description, suffixes, magic, series, described, plugin}");
     lcdvr_help_add(L, "cdvr.load_series(pattern_or_list [, opts])",
                    "load files as one series: printf pattern (\"vf_t%03d.nrrd\", opts first=, count= or last=) or a list of names");
     lcdvr_help_add(L, "cdvr.volume{dims=, type=, timesteps=}", "new zero-filled volume");

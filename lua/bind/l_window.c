@@ -2,14 +2,17 @@
  * a transfer function, a camera, a method and device, a timestep) and re-renders it when any of
  * them changes (DESIGN.md section 11). It is a viewer: every frame is rendered by cdvr.render
  * (the CPU or OpenCL ray caster, or the EGL slicer) exactly as a script would, then shown as
- * pixels; the window only adds the overlay line. Mouse drag orbits, the wheel zooms, left/right
- * step timesteps (home/end: first/last), up/down step variants, space plays and pauses.
+ * pixels; the window only adds the overlay. Mouse drag orbits, the wheel zooms, left/right
+ * step timesteps (home/end: first/last), up/down step variants, space plays and pauses, r
+ * resets the view, Esc or q closes. What it shares with the player (policy stats, callback
+ * budget, default variant and device) is the scene contract of l_scene.c.
  *
  * A window holds references (user values) to the volume, store, TF, camera and policy it
  * shows, so they live as long as it does. Open windows are kept in the registry until closed
  * (a window on screen does not vanish with its last Lua reference); the console drives them
  * between input lines with lcdvr_window_tick, a script with w:frame().
  */
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -22,33 +25,44 @@
 
 #define LCDVR_WINDOW "cdvr.Window"
 #define WINDOWS_KEY "cdvr.windows" /* registry: {window = true} for every open window */
-#define ROWS 16
 #define MAX_EVENTS 64
 
 /* User values of the window userdata. */
-enum { UV_VOLUME = 1, UV_STORE, UV_TF, UV_CAMERA, UV_FRAME, UV_POLICY, UV_COUNT = UV_POLICY };
+/* UV_RENDER: the render options set for the method (its own options, the scene keys it
+ * honours, the look), handed to cdvr.render as they are. */
+enum { UV_VOLUME = 1, UV_STORE, UV_TF, UV_CAMERA, UV_FRAME, UV_POLICY, UV_CAMERA_FN, UV_RENDER,
+       UV_COUNT = UV_RENDER };
 
-static const char *const method_names[] = {"raycast", "slice", "splat", NULL};
-static const char *const device_names[] = {"cpu", "cl", NULL};
-
-typedef struct frame_row {
-    long t;
-    int variant;
-    double decode_ms, render_ms, frame_ms;
-} frame_row;
+/* The box of a scene (dims and index-to-world geometry): a new scene with another box
+ * re-frames the camera. */
+typedef struct scene_box {
+    int set;
+    size_t dims[3];
+    double spacing[3], origin[3], direction[9];
+} scene_box;
 
 typedef struct lwindow {
     cdvr_window *win;          /* NULL once closed */
-    int overlay, playing, dirty, method, device;
-    int lod;                   /* 0 off, 1 seed 002's rule, 2 "screen" (cdvr_lod_mode) */
-    double step;               /* cdvr.render's step (0: its default) */
+    int overlay, playing, dirty;
+    const cdvr_render_method *method; /* renders the scene (cdvr/method.h) */
+    int device;                /* cdvr_device_kind; -1: the method's default device */
+    int quit;                  /* Esc or q pressed: closes like the close button */
     long t;                    /* timestep shown, from 1 */
     int variant;               /* store scenes: variant shown, from 0 */
-    long frame_t;              /* timestep decoded into UV_FRAME, 0 for none */
+    long frame_t;              /* store scenes: first timestep (from 1) of the chunk group
+                                  decoded into UV_FRAME, 0 for none */
+    long frame_count;          /* its timesteps */
     int frame_variant;
+    cdvr_frame_row frame_share;/* each frame's share of that group's read, unzip and decode */
     double fps;                /* playback pace in timesteps per second, 0: as fast as it renders */
-    double last_step_ms, last_show_ms, shown_fps;
-    frame_row rows[ROWS];      /* the last frames, oldest first (policy stats) */
+    double last_step_ms;
+    double last_frame_ms, last_render_ms; /* the last frame drawn: its whole time, its render */
+    lua_Integer callback_limit;/* instruction budget of the policy and camera callbacks */
+    double min_psnr;           /* the policy's quality floor (stats.min_psnr), NaN: none */
+    size_t frames;             /* frames drawn (the camera callback's frame number) */
+    int decided;               /* the policy chose the variant for the next frame's group */
+    scene_box box;             /* of the scene shown */
+    cdvr_frame_row rows[LCDVR_POLICY_ROWS]; /* store scenes: the last frames, oldest first */
     int nrows;
     char reason[160];          /* why the variant shown was chosen */
     char error[CDVR_ERRMSG_MAX]; /* the last frame's error, reported once */
@@ -100,11 +114,13 @@ static size_t scene_timesteps(lua_State *L, int w_idx)
 }
 
 /* Pushes the volume to render and sets *t (from 1) to its frame: the scene's volume at w->t,
- * or the store's timestep w->t of the variant shown, decoded once (cdvr_store_decode). Pushes
- * nil when there is no scene. */
-static void push_scene_volume(lua_State *L, int w_idx, lwindow *w, long *t, double *decode_ms)
+ * or, for a store, the chunk group of the variant shown that holds timestep w->t, decoded
+ * once for all its timesteps (lcdvr_store_decode_group: read, unzip and decode timed apart;
+ * *share gets this frame's share of them, as the player's rows). Pushes nil when there is no
+ * scene. */
+static void push_scene_volume(lua_State *L, int w_idx, lwindow *w, long *t, cdvr_frame_row *share)
 {
-    *decode_ms = 0.0;
+    memset(share, 0, sizeof *share);
     *t = 1;
     if (lua_getiuservalue(L, w_idx, UV_VOLUME) == LUA_TUSERDATA) {
         *t = w->t;
@@ -116,24 +132,55 @@ static void push_scene_volume(lua_State *L, int w_idx, lwindow *w, long *t, doub
         lua_pushnil(L);
         return;
     }
-    if (w->frame_t != w->t || w->frame_variant != w->variant) {
-        double start = cdvr_now_ms();
+    if (w->frame_t == 0 || w->t < w->frame_t || w->t >= w->frame_t + w->frame_count ||
+        w->frame_variant != w->variant) {
         cdvr_volume *vol;
         cdvr_error err;
-        if (cdvr_store_decode(st, (size_t)w->variant, (size_t)w->t - 1, &vol, &err) != CDVR_OK)
+        size_t t0;
+        if (lcdvr_store_decode_group(st, (size_t)w->variant, (size_t)w->t - 1, &vol, &t0,
+                                     &w->frame_share, &err) != CDVR_OK)
             lcdvr_raise(L, &err);
         lcdvr_pushvolume(L, vol);
         lua_setiuservalue(L, w_idx, UV_FRAME);
-        w->frame_t = w->t;
+        w->frame_t = (long)t0 + 1;
+        w->frame_count = (long)vol->timesteps;
         w->frame_variant = w->variant;
-        *decode_ms = cdvr_now_ms() - start;
     }
+    *share = w->frame_share;
+    *t = w->t - w->frame_t + 1;
     lua_getiuservalue(L, w_idx, UV_FRAME);
 }
 
+/* Calls the camera function (camera=function(frame, t)) for the frame about to be drawn under
+ * the callback budget and applies its result to cam; raises its error. */
+static void call_camera_fn(lua_State *L, int w_idx, lwindow *w, cdvr_camera *cam)
+{
+    if (lua_getiuservalue(L, w_idx, UV_CAMERA_FN) == LUA_TNIL) {
+        lua_pop(L, 1);
+        return;
+    }
+    lua_pushinteger(L, (lua_Integer)w->frames + 1);
+    lua_pushinteger(L, w->t);
+    cdvr_error err;
+    cdvr_status s = lcdvr_call_callback(L, 2, 1, w->callback_limit, "window: camera", &err);
+    if (s == CDVR_OK) {
+        cdvr_camera next = *cam;
+        s = lcdvr_camera_result(L, -1, &next, &err);
+        lua_pop(L, 1);
+        if (s == CDVR_OK)
+            *cam = next;
+    }
+    if (s != CDVR_OK) {
+        w->playing = 0;
+        lcdvr_raise(L, &err);
+    }
+}
+
 /* The window's camera, sized to the framebuffer: the one set, else cdvr.orbit_camera of the
- * volume on top of the stack. Returns it (owned by the window's user value). */
-static cdvr_camera *scene_camera(lua_State *L, int w_idx, int vol_idx, int width, int height)
+ * volume at vol_idx, moved by the camera function when there is one. Returns it (owned by the
+ * window's user value). */
+static cdvr_camera *scene_camera(lua_State *L, int w_idx, lwindow *w, int vol_idx, int width,
+                                 int height)
 {
     if (lua_getiuservalue(L, w_idx, UV_CAMERA) != LUA_TUSERDATA) {
         lua_pop(L, 1);
@@ -152,26 +199,100 @@ static cdvr_camera *scene_camera(lua_State *L, int w_idx, int vol_idx, int width
     lua_pop(L, 1);
     cam->width = width;
     cam->height = height;
+    call_camera_fn(L, w_idx, w, cam);
     return cam;
 }
 
 /* ---- options (cdvr.window{...} and w:set{...}) ------------------------------------------ */
 
+/* The window's own keys; the method's options, the scene keys it honours and the look keys
+ * come from the method table (lcdvr_method_checkoptions). */
 static const char *const window_keys[] = {"volume", "store", "tf", "camera", "method", "device",
-                                          "overlay", "t", "variant", "lod", "step", "playing",
-                                          "fps", "policy", "width", "height", "title", NULL};
+                                          "overlay", "t", "variant", "playing", "fps", "policy",
+                                          "min_psnr", "callback_limit", "width", "height", "title",
+                                          NULL};
 
-static int option_index(lua_State *L, int idx, const char *key, const char *const names[],
-                        int current)
+/* The device the window renders on: the one set, else the method's default (the scene
+ * contract's rule, cdvr_render_method_default_device). */
+static cdvr_device_kind window_device(lua_State *L, const lwindow *w)
 {
-    const char *value = lcdvr_optstringfield(L, idx, key, NULL);
-    if (!value)
-        return current;
-    for (int i = 0; names[i]; i++)
-        if (strcmp(names[i], value) == 0)
-            return i;
-    return luaL_error(L, "window: option '%s': invalid value '%s' (%s, %s%s%s)", key, value,
-                      names[0], names[1], names[2] ? ", " : "", names[2] ? names[2] : "");
+    if (w->device >= 0)
+        return (cdvr_device_kind)w->device;
+    return cdvr_render_method_default_device(w->method, lcdvr_render_ctx(L));
+}
+
+/* The render-options table (UV_RENDER) pushed; made empty on first use. */
+static void push_render_options(lua_State *L, int w_idx)
+{
+    if (lua_getiuservalue(L, w_idx, UV_RENDER) == LUA_TTABLE)
+        return;
+    lua_pop(L, 1);
+    lua_newtable(L);
+    lua_pushvalue(L, -1);
+    lua_setiuservalue(L, w_idx, UV_RENDER);
+}
+
+/* method= and device=, then every option of the table at idx that the method takes into the
+ * render options; a new method drops the options it does not take and a device it lacks. The
+ * result is checked now (params and look), so a bad value raises here, not at the next frame. */
+static void set_render(lua_State *L, int w_idx, int idx, lwindow *w, const cdvr_render_method *m)
+{
+    push_render_options(L, w_idx);                /* render */
+    int render = lua_gettop(L);
+    if (m != w->method) {
+        lua_pushnil(L);
+        while (lua_next(L, render)) {             /* render, key, value */
+            lua_pop(L, 1);
+            if (lua_type(L, -1) == LUA_TSTRING && !lcdvr_method_takes(m, lua_tostring(L, -1))) {
+                lua_pushvalue(L, -1);
+                lua_pushnil(L);
+                lua_rawset(L, render);            /* clearing a field during lua_next is allowed */
+            }
+        }
+        if (w->device >= 0 && !cdvr_render_method_supports(m, (cdvr_device_kind)w->device))
+            w->device = -1;
+        w->method = m;
+    }
+    if (lua_getfield(L, idx, "device") != LUA_TNIL)
+        w->device = (int)lcdvr_method_device(L, idx, m, "window");
+    lua_pop(L, 1);
+    lua_pushnil(L);
+    while (lua_next(L, idx)) {                    /* render, key, value */
+        if (lua_type(L, -2) == LUA_TSTRING && lcdvr_method_takes(m, lua_tostring(L, -2))) {
+            lua_pushvalue(L, -2);
+            lua_insert(L, -2);                    /* render, key, key, value */
+            lua_rawset(L, render);
+        } else {
+            lua_pop(L, 1);
+        }
+    }
+    cdvr_method_params params;
+    cdvr_look look;
+    lcdvr_method_params(L, render, m, "window", &params);
+    lcdvr_read_look(L, render, m, "window", &look);
+    lua_pop(L, 1);
+}
+
+/* A key for the method (its window_key hook): sets the option it names. */
+static void method_key(lua_State *L, int w_idx, lwindow *w, int key)
+{
+    const cdvr_render_method *m = w->method;
+    if (!m->window_key)
+        return;
+    push_render_options(L, w_idx);
+    cdvr_method_params params;
+    lcdvr_method_params(L, -1, m, "window", &params);
+    const char *option;
+    char value[64];
+    if (m->window_key(&params, key, &option, value, sizeof value)) {
+        if (strcmp(value, "true") == 0 || strcmp(value, "false") == 0)
+            lua_pushboolean(L, value[0] == 't');
+        else
+            lua_pushstring(L, value);
+        lua_setfield(L, -2, option);
+        w->dirty = 1;
+    }
+    lua_pop(L, 1);
 }
 
 static void set_variant(lua_State *L, int idx, lwindow *w, const cdvr_store *st)
@@ -204,31 +325,67 @@ static void set_variant(lua_State *L, int idx, lwindow *w, const cdvr_store *st)
              cdvr_store_variant(st, (size_t)v)->name);
 }
 
-/* volume= / store= (one replaces the other) */
-static void set_scene(lua_State *L, int w_idx, int idx, lwindow *w)
+/* Records the box of the new scene; 1 when it differs from the one shown before. */
+static int new_box(lwindow *w, const size_t dims[3], const double spacing[3],
+                   const double origin[3], const double direction[9])
 {
+    scene_box *b = &w->box;
+    int changed = !b->set || memcmp(b->dims, dims, sizeof b->dims) != 0 ||
+                  memcmp(b->spacing, spacing, sizeof b->spacing) != 0 ||
+                  memcmp(b->origin, origin, sizeof b->origin) != 0 ||
+                  memcmp(b->direction, direction, sizeof b->direction) != 0;
+    b->set = 1;
+    memcpy(b->dims, dims, sizeof b->dims);
+    memcpy(b->spacing, spacing, sizeof b->spacing);
+    memcpy(b->origin, origin, sizeof b->origin);
+    memcpy(b->direction, direction, sizeof b->direction);
+    return changed;
+}
+
+/* volume= / store= (one replaces the other). A scene of another box (dims, spacing, origin,
+ * direction) drops the camera, so the next frame frames it (cdvr.orbit_camera), unless the
+ * same call sets camera= (applied after this). A store shows its best variant
+ * (cdvr_store_best_variant, the player's default too) until variant= or a policy says.
+ * Returns 1 when the call named a scene. */
+static int set_scene(lua_State *L, int w_idx, int idx, lwindow *w)
+{
+    int reframe = 0, named = 0;
     if (lua_getfield(L, idx, "volume") != LUA_TNIL) {
+        lcdvr_checkoption(L, -1, "window", "volume", LCDVR_VOLUME);
+        const cdvr_volume *vol = lcdvr_volume_header(L, -1);
+        reframe = new_box(w, vol->dims, vol->spacing, vol->origin, vol->direction);
+        named = 1;
         lcdvr_checkvolume(L, -1);
         lua_setiuservalue(L, w_idx, UV_VOLUME);
         lua_pushnil(L);
         lua_setiuservalue(L, w_idx, UV_STORE);
         w->frame_t = 0;
+        w->nrows = 0;
         snprintf(w->reason, sizeof w->reason, "-");
     } else {
         lua_pop(L, 1);
     }
     if (lua_getfield(L, idx, "store") != LUA_TNIL) {
+        lcdvr_checkoption(L, -1, "window", "store", LCDVR_STORE);
         const cdvr_store *st = lcdvr_checkstore(L, -1);
+        const cdvr_store_info *info = cdvr_store_get_info(st);
+        reframe = new_box(w, info->dims, info->spacing, info->origin, info->direction);
+        named = 1;
         lua_setiuservalue(L, w_idx, UV_STORE);
         lua_pushnil(L);
         lua_setiuservalue(L, w_idx, UV_VOLUME);
         w->frame_t = 0;
-        w->variant = 0;
-        snprintf(w->reason, sizeof w->reason, "fixed: %s (the first variant)",
-                 cdvr_store_variant(st, 0)->name);
+        w->nrows = 0;
+        w->variant = cdvr_store_best_variant(st);
+        snprintf(w->reason, sizeof w->reason, "best quality");
     } else {
         lua_pop(L, 1);
     }
+    if (reframe) {
+        lua_pushnil(L);
+        lua_setiuservalue(L, w_idx, UV_CAMERA);
+    }
+    return named;
 }
 
 /* tf= a cdvr.TF, a preset name or a points table (through cdvr.tf) */
@@ -249,12 +406,23 @@ static void set_tf(lua_State *L, int w_idx, int idx)
 }
 
 /* camera= a cdvr.Camera (copied: dragging in the window does not move the script's camera),
- * or false for cdvr.orbit_camera of the scene */
+ * false for cdvr.orbit_camera of the scene, or a function(frame, t) (or a callable, such as a
+ * cdvr.path) called before each frame as the player's camera callback, under the budget */
 static void set_camera(lua_State *L, int w_idx, int idx)
 {
     int type = lua_getfield(L, idx, "camera");
     if (type == LUA_TNIL) {
         lua_pop(L, 1);
+        return;
+    }
+    int callable = type == LUA_TFUNCTION;
+    if (!callable && type != LUA_TBOOLEAN && !luaL_testudata(L, -1, LCDVR_CAMERA) &&
+        luaL_getmetafield(L, -1, "__call") != LUA_TNIL) {
+        lua_pop(L, 1);
+        callable = 1;
+    }
+    if (callable) {
+        lua_setiuservalue(L, w_idx, UV_CAMERA_FN);
         return;
     }
     if (type == LUA_TBOOLEAN && !lua_toboolean(L, -1))
@@ -263,15 +431,21 @@ static void set_camera(lua_State *L, int w_idx, int idx)
         lcdvr_pushcamera(L, lcdvr_checkcamera(L, -1));
     lua_setiuservalue(L, w_idx, UV_CAMERA);
     lua_pop(L, 1);
+    lua_pushnil(L);
+    lua_setiuservalue(L, w_idx, UV_CAMERA_FN);
 }
 
-/* policy= a function or a cdvr.policy name (through cdvr.policy.get) */
+/* policy= a function, a cdvr.policy name (through cdvr.policy.get), or false for none */
 static void set_policy(lua_State *L, int w_idx, int idx)
 {
     int type = lua_getfield(L, idx, "policy");
     if (type == LUA_TNIL) {
         lua_pop(L, 1);
         return;
+    }
+    if (type == LUA_TBOOLEAN && !lua_toboolean(L, -1)) {
+        lua_pop(L, 1);
+        lua_pushnil(L);
     }
     if (type == LUA_TSTRING) {
         push_cdvr_function(L, "policy");
@@ -280,44 +454,62 @@ static void set_policy(lua_State *L, int w_idx, int idx)
         lua_insert(L, -2);
         lua_call(L, 1, 1);
     }
-    luaL_argexpected(L, lua_isfunction(L, -1) || lua_isnil(L, -1), idx, "policy function or name");
+    luaL_argexpected(L, lua_isfunction(L, -1) || lua_isnil(L, -1), idx, "policy function, name or false");
     lua_setiuservalue(L, w_idx, UV_POLICY);
 }
 
+static void run_policy(lua_State *L, int w_idx, lwindow *w);
+
 static void apply_options(lua_State *L, int w_idx, int idx, lwindow *w)
 {
-    lcdvr_checkoptions(L, idx, "window", window_keys);
-    set_scene(L, w_idx, idx, w);
+    const char *name = lcdvr_optstringfield(L, idx, "method", NULL);
+    const cdvr_render_method *m = name ? lcdvr_method_lookup(L, name, "window") : w->method;
+    lcdvr_method_checkoptions(L, idx, m, "window", window_keys);
+    int new_scene = set_scene(L, w_idx, idx, w);
     set_tf(L, w_idx, idx);
     set_camera(L, w_idx, idx);
     set_policy(L, w_idx, idx);
-    w->method = option_index(L, idx, "method", method_names, w->method);
-    w->device = option_index(L, idx, "device", device_names, w->device);
-    w->overlay = lcdvr_optbooleanfield(L, idx, "overlay", w->overlay);
-    int lod_type = lua_getfield(L, idx, "lod");   /* true, false, "seed" or "screen" */
-    if (lod_type == LUA_TBOOLEAN)
-        w->lod = lua_toboolean(L, -1);
-    else if (lod_type == LUA_TSTRING && strcmp(lua_tostring(L, -1), "seed") == 0)
-        w->lod = 1;
-    else if (lod_type == LUA_TSTRING && strcmp(lua_tostring(L, -1), "screen") == 0)
-        w->lod = 2;
-    else if (lod_type != LUA_TNIL)
-        luaL_error(L, "window: option 'lod': boolean, \"seed\" or \"screen\" expected");
+    set_render(L, w_idx, idx, w, m);
+    w->callback_limit = lcdvr_optintegerfield(L, idx, "callback_limit", w->callback_limit);
+    if (w->callback_limit < 1 || w->callback_limit > INT_MAX)
+        luaL_error(L, "window: option 'callback_limit' = %I: must be 1..%d",
+                   (LUAI_UACINT)w->callback_limit, INT_MAX);
+    int floor_type = lua_getfield(L, idx, "min_psnr"); /* a number, or false for none */
+    if (floor_type == LUA_TBOOLEAN && !lua_toboolean(L, -1))
+        w->min_psnr = NAN;
+    else if (floor_type != LUA_TNIL && (!lua_isnumber(L, -1) || isnan(lua_tonumber(L, -1))))
+        luaL_error(L, "window: option 'min_psnr': a number in dB or false expected");
+    else if (floor_type != LUA_TNIL)
+        w->min_psnr = lua_tonumber(L, -1);
     lua_pop(L, 1);
+    w->overlay = lcdvr_optbooleanfield(L, idx, "overlay", w->overlay);
     w->playing = lcdvr_optbooleanfield(L, idx, "playing", w->playing);
-    double step = lcdvr_optnumberfield(L, idx, "step", w->step);
     double fps = lcdvr_optnumberfield(L, idx, "fps", w->fps);
-    if (!(step >= 0.0) || !(fps >= 0.0) || !isfinite(step) || !isfinite(fps))
-        luaL_error(L, "window: step and fps must be finite and >= 0");
-    w->step = step;
+    if (!(fps >= 0.0) || !isfinite(fps))
+        luaL_error(L, "window: fps must be finite and >= 0");
     w->fps = fps;
     set_variant(L, idx, w, scene_store(L, w_idx));
     size_t n = scene_timesteps(L, w_idx);
-    lua_Integer t = lcdvr_optintegerfield(L, idx, "t", w->t);
+    /* a new scene keeps the timestep shown where it has it, else shows its last */
+    lua_Integer t = lcdvr_optintegerfield(L, idx, "t", new_scene && n && (size_t)w->t > n ? (long)n : w->t);
     if (n && (t < 1 || (size_t)t > n))
         luaL_error(L, "window: t = %I outside 1..%I", (LUAI_UACINT)t, (LUAI_UACINT)n);
     w->t = n ? (long)t : 1;
     w->dirty = 1;
+    /* a new store or policy: the policy chooses the first group's variant, as in the player
+     * (unless variant= says which) */
+    int asked = 0;
+    static const char *const decide_keys[] = {"store", "policy", "variant"};
+    for (int i = 0; i < 3; i++) {
+        int present = lua_getfield(L, idx, decide_keys[i]) != LUA_TNIL;
+        lua_pop(L, 1);
+        if (present)
+            asked = i < 2 ? 1 : -1;
+        if (asked < 0)
+            break;
+    }
+    if (asked > 0)
+        run_policy(L, w_idx, w);
 }
 
 /* ---- interaction ------------------------------------------------------------------------- */
@@ -386,6 +578,13 @@ static void handle_key(lua_State *L, int w_idx, lwindow *w, int key)
     case CDVR_KEY_HOME: step_time(w, -(long)n, n); break;
     case CDVR_KEY_END: step_time(w, (long)n, n); break;
     case CDVR_KEY_SPACE: w->playing = !w->playing; w->last_step_ms = cdvr_now_ms(); break;
+    case CDVR_KEY_ESCAPE:
+    case CDVR_KEY_Q: w->quit = 1; break;
+    case CDVR_KEY_R: /* the scene's default view (cdvr.orbit_camera) again */
+        lua_pushnil(L);
+        lua_setiuservalue(L, w_idx, UV_CAMERA);
+        w->dirty = 1;
+        break;
     case CDVR_KEY_UP:
     case CDVR_KEY_DOWN:
         if (st) {
@@ -397,6 +596,10 @@ static void handle_key(lua_State *L, int w_idx, lwindow *w, int key)
             lua_setiuservalue(L, w_idx, UV_POLICY); /* the user's choice overrides a policy */
             w->dirty = 1;
         }
+        break;
+    default: /* letters: the method's keys ('l' lod for slice, 'o' order for splat) */
+        if (key >= 'a' && key <= 'z')
+            method_key(L, w_idx, w, key);
         break;
     }
 }
@@ -426,61 +629,9 @@ static void handle_events(lua_State *L, int w_idx, lwindow *w)
 
 /* ---- playback and the policy ------------------------------------------------------------- */
 
-static void push_policy_stats(lua_State *L, int w_idx, lwindow *w, const cdvr_store *st,
-                              size_t group)
-{
-    lua_createtable(L, 0, 8);                     /* stats */
-    lua_pushinteger(L, w->t);
-    lua_setfield(L, -2, "t");
-    lua_pushinteger(L, (lua_Integer)((size_t)(w->t - 1) / group + 1));
-    lua_setfield(L, -2, "group");
-    lua_pushstring(L, cdvr_store_variant(st, (size_t)w->variant)->name);
-    lua_setfield(L, -2, "current");
-    lua_pushboolean(L, 0);
-    lua_setfield(L, -2, "capture");
-    if (w->fps > 0.0) {
-        lua_pushnumber(L, w->fps);
-        lua_setfield(L, -2, "target_fps");
-    }
-    lua_createtable(L, w->nrows, 0);              /* stats, frames */
-    for (int i = 0; i < w->nrows; i++) {
-        const frame_row *r = &w->rows[i];
-        lua_createtable(L, 0, 8);
-        lua_pushinteger(L, r->t);
-        lua_setfield(L, -2, "t");
-        lua_pushstring(L, cdvr_store_variant(st, (size_t)r->variant)->name);
-        lua_setfield(L, -2, "variant");
-        lua_pushnumber(L, r->decode_ms);          /* read + unzip + decode, on this thread */
-        lua_setfield(L, -2, "decode_ms");
-        lua_pushnumber(L, r->render_ms);
-        lua_setfield(L, -2, "render_ms");
-        lua_pushnumber(L, r->frame_ms);
-        lua_setfield(L, -2, "frame_ms");
-        lua_rawseti(L, -2, i + 1);
-    }
-    lua_setfield(L, -2, "frames");
-    const cdvr_store_info *info = cdvr_store_get_info(st);
-    lua_createtable(L, (int)info->nvariants, 0);  /* stats, variants */
-    for (size_t v = 0; v < info->nvariants; v++) {
-        const cdvr_variant_info *var = cdvr_store_variant(st, v);
-        lua_createtable(L, 0, 6);
-        lua_pushstring(L, var->name);
-        lua_setfield(L, -2, "name");
-        lua_pushstring(L, var->codec_name);
-        lua_setfield(L, -2, "codec");
-        lua_pushnumber(L, (double)var->bytes / (double)info->timesteps);
-        lua_setfield(L, -2, "bytes_per_timestep");
-        lua_pushnumber(L, (double)var->payload_bytes / (double)info->timesteps);
-        lua_setfield(L, -2, "payload_bytes_per_timestep");
-        lua_pushnumber(L, var->psnr);
-        lua_setfield(L, -2, "psnr");
-        lua_rawseti(L, -2, (lua_Integer)v + 1);
-    }
-    lua_setfield(L, -2, "variants");
-    (void)w_idx;
-}
-
-/* At a group boundary of a store scene with a policy: the policy picks the variant. */
+/* At a group boundary of a store scene with a policy: the policy picks the variant. It gets
+ * the player's stats (lcdvr_push_policy_stats, from the window's frame rows) and runs under
+ * the same budget; an error stops playback and raises. */
 static void run_policy(lua_State *L, int w_idx, lwindow *w)
 {
     const cdvr_store *st = scene_store(L, w_idx);
@@ -493,16 +644,18 @@ static void run_policy(lua_State *L, int w_idx, lwindow *w)
         lua_pop(L, 1);
         return;
     }
-    push_policy_stats(L, w_idx, w, st, group);
-    lua_call(L, 1, 2);                            /* name, reason */
-    const char *name = lua_tostring(L, -2);
-    int v = name ? cdvr_store_find_variant(st, name) : -1;
-    if (v < 0)
-        luaL_error(L, "window: policy returned %s, not a variant of %s",
-                   name ? name : luaL_typename(L, -2), cdvr_store_path(st));
-    w->variant = v;
-    snprintf(w->reason, sizeof w->reason, "%s", lua_isstring(L, -1) ? lua_tostring(L, -1) : "policy");
-    lua_pop(L, 2);
+    lcdvr_policy_view view = {(size_t)w->t - 1, (size_t)(w->t - 1) / group, w->fps, w->min_psnr,
+                              0, 0};
+    lcdvr_push_policy_stats(L, st, &view, w->rows, (size_t)w->nrows);
+    cdvr_error err;
+    cdvr_status s = lcdvr_call_callback(L, 1, 2, w->callback_limit, "window: policy", &err);
+    if (s == CDVR_OK)
+        s = lcdvr_policy_result(L, st, &w->variant, w->reason, sizeof w->reason, &err);
+    if (s != CDVR_OK) {
+        w->playing = 0;
+        lcdvr_raise(L, &err);
+    }
+    w->decided = 1;
 }
 
 /* Playing: the next timestep when its time has come (fps pacing, or every frame), looping. */
@@ -522,44 +675,69 @@ static void advance(lua_State *L, int w_idx, lwindow *w)
 
 /* ---- drawing ------------------------------------------------------------------------------ */
 
+/* The overlay: what is shown and how, with the last frame's time (ms) and the rate that time
+ * gives (not the time since the frame before: an idle window keeps its figure), wrapped to
+ * the window's width. */
 static void overlay(lua_State *L, int w_idx, lwindow *w, uint8_t *rgba, int width, int height)
 {
     static const uint8_t white[3] = {255, 255, 255};
-    char line[256];
+    char line[400], timing[64];
     const cdvr_store *st = scene_store(L, w_idx);
     size_t n = scene_timesteps(L, w_idx);
-    const char *how = w->method == 1   ? "slice (EGL)"
-                      : w->method == 2 ? "splat (cpu)"
-                      : w->device == 1 ? "raycast (cl)"
-                                       : "raycast (cpu)";
+    char how[96], state[48] = "";
+    if (w->method->describe) {
+        push_render_options(L, w_idx);
+        cdvr_method_params params;
+        lcdvr_method_params(L, -1, w->method, "window", &params);
+        lua_pop(L, 1);
+        state[0] = ' ';
+        w->method->describe(&params, state + 1, sizeof state - 1);
+    }
+    snprintf(how, sizeof how, "%s (%s)%s", w->method->name,
+             cdvr_device_name(window_device(L, w)), state);
+    double ms = w->last_frame_ms;
+    snprintf(timing, sizeof timing, "%.1f ms = %.0f fps", ms, ms > 0.0 ? 1000.0 / ms : 0.0);
     if (!n)
-        snprintf(line, sizeof line, "no scene: w:set{volume=v, tf=...} or {store=st}");
+        snprintf(line, sizeof line, "no scene: window:set{volume=v, tf=...} or window:set{store=st}");
     else if (st)
-        snprintf(line, sizeof line, "%.1f fps  t %ld/%zu%s  %s  %s  %s", w->shown_fps, w->t, n,
+        snprintf(line, sizeof line, "t %ld/%zu%s  %s  %s  %s  %s", w->t, n,
                  w->playing ? " playing" : "", cdvr_store_variant(st, (size_t)w->variant)->name,
-                 w->reason, how);
+                 w->reason, how, timing);
     else
-        snprintf(line, sizeof line, "%.1f fps  t %ld/%zu%s  volume  %s", w->shown_fps, w->t, n,
-                 w->playing ? " playing" : "", how);
-    cdvr_overlay_text(rgba, width, height, 6, 6, 2, line, white);
+        snprintf(line, sizeof line, "t %ld/%zu%s  volume  %s  %s", w->t, n,
+                 w->playing ? " playing" : "", how, timing);
+    cdvr_overlay_lines(rgba, width, height, 6, 6, 2, line, white);
 }
 
-static void note_frame(lwindow *w, long t, double decode_ms, double render_ms, double start)
+/* Records the frame just drawn: its time for the overlay and w:state(), and, for a store
+ * scene, its row for the policy (cdvr_frame_row, as the player's: share holds its part of
+ * the group's read, unzip and decode). */
+static void note_frame(lwindow *w, int store_scene, const cdvr_frame_row *share,
+                       double render_ms, double start)
 {
     double now = cdvr_now_ms();
-    if (w->last_show_ms > 0.0 && now > w->last_show_ms)
-        w->shown_fps = 1000.0 / (now - w->last_show_ms);
-    w->last_show_ms = now;
-    if (w->nrows == ROWS) {
-        memmove(w->rows, w->rows + 1, (ROWS - 1) * sizeof *w->rows);
+    w->last_frame_ms = now - start;
+    w->last_render_ms = render_ms;
+    size_t frame = w->frames++;
+    if (!store_scene)
+        return;
+    if (w->nrows == LCDVR_POLICY_ROWS) {
+        memmove(w->rows, w->rows + 1, (LCDVR_POLICY_ROWS - 1) * sizeof *w->rows);
         w->nrows--;
     }
-    frame_row *r = &w->rows[w->nrows++];
-    r->t = t;
+    cdvr_frame_row *r = &w->rows[w->nrows++];
+    *r = *share;
+    r->frame = frame;
+    r->t = (size_t)w->t - 1;
     r->variant = w->variant;
-    r->decode_ms = decode_ms;
     r->render_ms = render_ms;
     r->frame_ms = now - start;
+    r->interval_ms = r->frame_ms;
+    r->status = CDVR_OK;
+    r->group_start = w->decided;
+    if (w->decided)
+        snprintf(r->reason, sizeof r->reason, "%s", w->reason);
+    w->decided = 0;
 }
 
 /* Renders the scene through cdvr.render and shows it (with the overlay); raises on error.
@@ -567,14 +745,16 @@ static void note_frame(lwindow *w, long t, double decode_ms, double render_ms, d
 static void draw(lua_State *L, int w_idx, lwindow *w)
 {
     int top = lua_gettop(L);
-    double start = cdvr_now_ms(), decode_ms, render_ms = 0.0;
+    double start = cdvr_now_ms(), render_ms = 0.0;
     int width, height;
     cdvr_window_size(w->win, &width, &height);
     if (width <= 0 || height <= 0)
         return;
     long t;
-    push_scene_volume(L, w_idx, w, &t, &decode_ms); /* volume or nil */
+    cdvr_frame_row share;
+    push_scene_volume(L, w_idx, w, &t, &share); /* volume or nil */
     int vol_idx = lua_gettop(L);
+    int store_scene = scene_store(L, w_idx) != NULL;
     uint8_t *rgba = NULL;
     if (lua_isnil(L, vol_idx)) {
         rgba = lua_newuserdatauv(L, (size_t)width * (size_t)height * 4, 0);
@@ -583,6 +763,7 @@ static void draw(lua_State *L, int w_idx, lwindow *w)
             rgba[4 * i + 3] = 255;
         }
     } else {
+        cdvr_camera *cam = scene_camera(L, w_idx, w, vol_idx, width, height);
         push_cdvr_function(L, "render");
         lua_pushvalue(L, vol_idx);
         lua_createtable(L, 0, 8);                 /* render, volume, opts */
@@ -591,26 +772,23 @@ static void draw(lua_State *L, int w_idx, lwindow *w)
             lua_pushliteral(L, "grayscale");
         }
         lua_setfield(L, -2, "tf");
-        lcdvr_pushcamera(L, scene_camera(L, w_idx, vol_idx, width, height));
+        lcdvr_pushcamera(L, cam);
         lua_setfield(L, -2, "camera");
-        lua_pushstring(L, method_names[w->method]);
+        lua_pushstring(L, w->method->name);
         lua_setfield(L, -2, "method");
         lua_pushinteger(L, t);
         lua_setfield(L, -2, "t");
-        if (w->method == 0) { /* the ray caster's options */
-            lua_pushstring(L, device_names[w->device]);
-            lua_setfield(L, -2, "device");
-            if (w->step > 0.0) {
-                lua_pushnumber(L, w->step);
-                lua_setfield(L, -2, "step");
-            }
-        } else if (w->method == 1) {
-            if (w->lod == 2)
-                lua_pushliteral(L, "screen");
-            else
-                lua_pushboolean(L, w->lod);
-            lua_setfield(L, -2, "lod");
+        lua_pushstring(L, cdvr_device_name(window_device(L, w)));
+        lua_setfield(L, -2, "device");
+        int opts = lua_gettop(L);
+        push_render_options(L, w_idx);            /* ..., opts, render */
+        lua_pushnil(L);
+        while (lua_next(L, -2)) {                 /* ..., opts, render, key, value */
+            lua_pushvalue(L, -2);
+            lua_insert(L, -2);
+            lua_rawset(L, opts);
         }
+        lua_pop(L, 1);                            /* render, volume, opts */
         double render_start = cdvr_now_ms();
         lua_call(L, 2, 1);                        /* image */
         render_ms = cdvr_now_ms() - render_start;
@@ -618,7 +796,7 @@ static void draw(lua_State *L, int w_idx, lwindow *w)
         rgba = lua_newuserdatauv(L, (size_t)img->width * (size_t)img->height * 4, 0);
         cdvr_image_to_rgba8(img, rgba);
     }
-    note_frame(w, w->t, decode_ms, render_ms, start);
+    note_frame(w, store_scene, &share, render_ms, start);
     if (w->overlay)
         overlay(L, w_idx, w, rgba, width, height);
     cdvr_error err;
@@ -628,11 +806,17 @@ static void draw(lua_State *L, int w_idx, lwindow *w)
     lua_settop(L, top);
 }
 
+/* The user closed the window: its close button, Esc or q. */
+static int wants_close(const lwindow *w)
+{
+    return w->quit || cdvr_window_should_close(w->win);
+}
+
 /* One frame: events, playback, and a redraw if anything changed (force: always). */
 static void frame(lua_State *L, int w_idx, lwindow *w, int force)
 {
     handle_events(L, w_idx, w);
-    if (cdvr_window_should_close(w->win))
+    if (wants_close(w))
         return;
     advance(L, w_idx, w);
     if (force || w->dirty)
@@ -684,12 +868,16 @@ static int l_window(lua_State *L)
     lwindow *w = (lwindow *)lua_newuserdatauv(L, sizeof *w, UV_COUNT);
     memset(w, 0, sizeof *w);
     w->overlay = 1;
-    w->lod = 1;
     w->t = 1;
+    w->method = cdvr_render_method_find("raycast");
+    w->device = -1;
+    w->callback_limit = LCDVR_CALLBACK_LIMIT;
+    w->min_psnr = NAN;
     snprintf(w->reason, sizeof w->reason, "-");
     luaL_setmetatable(L, LCDVR_WINDOW);
     int w_idx = lua_gettop(L);
     apply_options(L, w_idx, 1, w); /* before opening: bad options leave no window behind */
+    w->device = (int)window_device(L, w); /* the scene contract's rule, as the player's */
     cdvr_error err;
     if (cdvr_window_open((int)width, (int)height, title, &w->win, &err) != CDVR_OK)
         return luaL_error(L, "cdvr.window: %s", err.msg);
@@ -724,7 +912,7 @@ static int window_frame(lua_State *L)
     lwindow *w = checkwindow(L, 1);
     lua_settop(L, 1);
     frame(L, 1, w, 1);
-    if (cdvr_window_should_close(w->win)) {
+    if (wants_close(w)) {
         window_close(L);
         lua_pushboolean(L, 0);
         return 1;
@@ -765,7 +953,8 @@ static int window_camera(lua_State *L)
     return 1;
 }
 
-/* w:state() -> {t=, variant=, playing=, method=, device=, reason=, fps=, width=, height=} */
+/* w:state() -> {t=, variant=, playing=, method=, device=, reason=, fps=, frame_ms=,
+ * render_ms=, width=, height=}: fps is the last frame's rate (1000 / frame_ms). */
 static int window_state(lua_State *L)
 {
     lwindow *w = checkwindow(L, 1);
@@ -781,14 +970,28 @@ static int window_state(lua_State *L)
     }
     lua_pushboolean(L, w->playing);
     lua_setfield(L, -2, "playing");
-    lua_pushstring(L, method_names[w->method]);
+    lua_pushstring(L, w->method->name);
     lua_setfield(L, -2, "method");
-    lua_pushstring(L, device_names[w->device]);
+    lua_pushstring(L, cdvr_device_name(window_device(L, w)));
     lua_setfield(L, -2, "device");
+    lua_newtable(L);                              /* state, options: a copy of the render options */
+    push_render_options(L, 1);
+    lua_pushnil(L);
+    while (lua_next(L, -2)) {                     /* state, options, render, key, value */
+        lua_pushvalue(L, -2);
+        lua_insert(L, -2);
+        lua_rawset(L, -5);
+    }
+    lua_pop(L, 1);
+    lua_setfield(L, -2, "options");
     lua_pushstring(L, w->reason);
     lua_setfield(L, -2, "reason");
-    lua_pushnumber(L, w->shown_fps);
+    lua_pushnumber(L, w->last_frame_ms > 0.0 ? 1000.0 / w->last_frame_ms : 0.0);
     lua_setfield(L, -2, "fps");
+    lua_pushnumber(L, w->last_frame_ms);
+    lua_setfield(L, -2, "frame_ms");
+    lua_pushnumber(L, w->last_render_ms);
+    lua_setfield(L, -2, "render_ms");
     lua_pushinteger(L, width);
     lua_setfield(L, -2, "width");
     lua_pushinteger(L, height);
@@ -821,7 +1024,7 @@ static int tick_one(lua_State *L)
     if (changed)
         w->dirty = 1;
     frame(L, 1, w, 0);
-    if (cdvr_window_should_close(w->win))
+    if (wants_close(w))
         window_close(L);
     return 0;
 }
@@ -905,8 +1108,10 @@ int lcdvr_open_window(lua_State *L)
     lcdvr_setfuncs(L, window_funcs);
     lcdvr_help_add(L, "cdvr.window{volume= | store=, tf=, camera=, method=, device=, overlay=, t=, variant=, ...}",
                    "open a window showing the scene (needs a display and GL); more keys: lod, step, "
-                   "playing, fps, policy, width, height, title; drag orbits, wheel zooms, "
-                   "left/right step t, up/down step variants, space plays");
+                   "playing, fps, policy, min_psnr, callback_limit, width, height, title; camera = cdvr.Camera, false "
+                   "(frame the scene) or function(frame, t); defaults as cdvr.player: the store's best "
+                   "variant, device cl when OpenCL has a device; drag orbits, wheel zooms, left/right "
+                   "step t, up/down step variants, space plays, r resets the view, Esc or q closes");
     lcdvr_help_add(L, "w:set{...}", "change the window's scene (any cdvr.window key but width, height, title)");
     lcdvr_help_add(L, "w:frame()", "process events and draw one frame now; false once the user closed it");
     lcdvr_help_add(L, "w:read()", "the window's framebuffer (last frame shown) as an image");

@@ -24,6 +24,8 @@
 #include "cdvr/camera.h"
 #include "cdvr/error.h"
 #include "cdvr/image.h"
+#include "cdvr/method.h"
+#include "cdvr/player.h"
 #include "cdvr/store.h"
 #include "cdvr/tf.h"
 #include "cdvr/volume.h"
@@ -96,21 +98,108 @@ void lcdvr_unuse(lua_State *L, int idx);
 int lcdvr_defer_close(lua_State *L, int idx);
 int lcdvr_closing(lua_State *L, int idx);
 
-/* Callback budgets. Calls the function below its nargs arguments in protected mode, with a
- * traceback message handler, under a budget of `limit` Lua VM instructions (a count hook,
- * checked every min(limit, 10000) instructions). The budget covers every coroutine the callback
- * resumes (coroutine.resume, coroutine.wrap and coroutine.close pass the hook on, see
- * lcdvr_open_budget), and once spent every further instruction raises again, so a pcall inside
- * the callback cannot swallow it. Nested budgets (a callback that runs another player) restore
- * the outer one. Returns the lua_pcall status; on error the message with its traceback is on
- * top ("... exceeded its instruction budget (callback_limit = N) ..." when the budget ran out). */
+/* Callback budgets (lbudget.c). A callback (policy, camera, schedule, window policy) and a data
+ * file run under a budget: `instructions` Lua VM instructions (a count hook, checked every
+ * min(limit, 10000); C loops that run none charge it themselves: pattern matching, string.rep,
+ * table.move) and `memory` bytes the Lua state may grow by while it runs (the state's
+ * allocator, lcdvr_newstate). The budget covers every coroutine the callback resumes and every
+ * __gc that runs meanwhile; once spent every further instruction raises again, so a pcall
+ * inside the callback cannot swallow it; debug.* but traceback and getinfo raises inside it.
+ * Nested budgets (a callback that runs another player) restore the outer one and count against
+ * it. */
+#define LCDVR_CALLBACK_LIMIT 50000000  /* default callback_limit, VM instructions */
+#define LCDVR_CALLBACK_MEMORY_MB 256   /* default callback_memory, MB */
+typedef struct lcdvr_limits {
+    lua_Integer instructions;          /* callback_limit */
+    size_t memory;                     /* callback_memory, in bytes */
+} lcdvr_limits;
+/* Calls the function below its nargs arguments in protected mode, with a traceback message
+ * handler, under lim. Returns the lua_pcall status; on error the message with its traceback is
+ * on top: "... exceeded its instruction budget (callback_limit = N instructions) ..." or
+ * "callback exceeded its memory budget (callback_memory = N MB)" when a budget ran out. */
+int lcdvr_pcall_limits(lua_State *L, int nargs, int nres, const lcdvr_limits *lim);
+/* The same with `limit` instructions and the default memory budget. */
 int lcdvr_pcall_budget(lua_State *L, int nargs, int nres, lua_Integer limit);
-/* Replaces coroutine.resume, coroutine.wrap and coroutine.close by versions that pass a running
- * callback budget on to the coroutine they run, and xpcall by one that no longer calls its
- * message handler once the budget is spent (Lua runs that handler with hooks off); otherwise
- * they behave as Lua's own. Called once at start-up, before any script runs, by
- * lcdvr_open_player. */
+/* Reads options callback_limit (instructions, 1 .. INT_MAX) and callback_memory (MB, 1 ..
+ * 2^20) of the options table at idx (absent: the defaults; idx not a table: the defaults);
+ * raises "what: option '...' must be ..." on bad values. The caller lists both keys in its
+ * lcdvr_checkoptions. */
+void lcdvr_limits_options(lua_State *L, int idx, const char *what, lcdvr_limits *out);
+/* Charges steps to the running budget (a C loop that runs no VM instruction); raises the
+ * budget error once it is spent. Does nothing outside a budget. */
+void lcdvr_budget_charge(lua_State *L, lua_Integer steps);
+/* Installs what budgets need, once, before any script runs (the host calls it after
+ * luaL_openlibs; later calls do nothing): coroutine.resume, wrap and close and xpcall that pass
+ * the budget on (xpcall no longer calls its message handler once the budget is spent),
+ * setmetatable and debug.setmetatable that guard __gc, the guarded debug functions, string.rep,
+ * table.move and the step-counting pattern functions (lstrmatch.c: lcdvr_open_strmatch).
+ * Outside a budget all behave as Lua's own, but that getmetatable(x).__gc is a cdvr function
+ * (the real finalizer is kept aside) and debug.getupvalue/setupvalue refuse C functions. */
 void lcdvr_open_budget(lua_State *L);
+void lcdvr_open_strmatch(lua_State *L);
+/* A Lua state whose allocator counts its bytes (needed by budgets), with Lua's panic and
+ * warning functions; NULL when out of memory. lcdvr_close closes it: every remaining __gc runs
+ * under a budget of the default limits; returns how many were stopped by their budget (each
+ * printed on stderr). */
+lua_State *lcdvr_newstate(void);
+int lcdvr_close(lua_State *L);
+/* Data files (cdvr.tf(path), cdvr.camera(path), cdvr.path.load, cdvr.load_lua): loads the
+ * regular file at path as a text chunk (no precompiled chunks) in an empty environment and
+ * runs it under a data budget: no function calls, 100000 + 16 per byte VM instructions, the
+ * default memory budget. Pushes the value it returns and returns LUA_OK, or pushes a message
+ * naming path and the reason and returns the error status. */
+int lcdvr_load_data(lua_State *L, const char *path);
+/* Registers cdvr.load_lua(file) -> value | nil, message (lcdvr_load_data) in the table on top. */
+void lcdvr_open_data(lua_State *L);
+
+/* ---- the scene contract (l_scene.c): what the player and the window share ---------------- */
+
+/* The callback budget both give their policy and camera callbacks (option callback_limit). */
+#define LCDVR_CALLBACK_LIMIT 50000000
+/* Frame rows a policy sees (stats.frames): the last ones, oldest first. */
+#define LCDVR_POLICY_ROWS 16
+
+/* What a policy is told besides the store and the rows. */
+typedef struct lcdvr_policy_view {
+    size_t t, group;         /* the next timestep to show and its group, from 0 */
+    double target_fps;       /* > 0: stats.target_fps; else absent */
+    double min_psnr;         /* NaN: absent */
+    int pipelined, capture;
+} lcdvr_policy_view;
+
+/* Pushes one frame row as a table (policy stats.frames[i], the player's report rows). */
+void lcdvr_push_frame_row(lua_State *L, const cdvr_store *st, const cdvr_frame_row *r);
+/* Pushes stats.variants: {name=, codec=, <codec parameters>, stage2=, bytes_per_timestep=,
+ * payload_bytes_per_timestep=, psnr=, group=} per variant. */
+void lcdvr_push_store_variants(lua_State *L, const cdvr_store *st);
+/* Pushes the policy's stats table (share/lua/cdvr/policy.lua documents it): view's fields,
+ * current (the variant of the last row), best (cdvr_store_best_variant), frames (the last
+ * LCDVR_POLICY_ROWS rows) and variants. */
+void lcdvr_push_policy_stats(lua_State *L, const cdvr_store *st, const lcdvr_policy_view *view,
+                             const cdvr_frame_row *rows, size_t nrows);
+/* Calls the function below its nargs arguments under a budget of `limit` instructions
+ * (lcdvr_pcall_budget); leaves nres results and returns CDVR_OK, or pops the error and fills
+ * err with "what: message and traceback" (CDVR_ERR_CANCELLED after Ctrl-C in the console). */
+cdvr_status lcdvr_call_callback(lua_State *L, int nargs, int nres, lua_Integer limit,
+                                const char *what, cdvr_error *err);
+/* Reads a policy's two results (name [, reason], on top; popped) into *variant (from 0) and
+ * reason, or fills err ("policy returned X, not a variant of <store>"). */
+cdvr_status lcdvr_policy_result(lua_State *L, const cdvr_store *st, int *variant, char *reason,
+                                size_t reason_size, cdvr_error *err);
+/* Applies a camera callback's result (a cdvr.Camera, or {eye=, center=, up=, fov=}) at idx
+ * to *cam, keeping its width and height, and validates it. */
+cdvr_status lcdvr_camera_result(lua_State *L, int idx, cdvr_camera *cam, cdvr_error *err);
+/* The name of the default device of a render method (cdvr_render_method_default_device: "cl"
+ * when the method has it and the state's OpenCL device opens, else "cpu", else "gl"), one rule
+ * for cdvr.render, cdvr.player and cdvr.window. */
+const char *lcdvr_default_device(lua_State *L, const char *method_name);
+/* Decodes the chunk group of variant v holding timestep t (from 0), every brick, assembled,
+ * into a new u8 volume of the group's timesteps (the first is *t0, from 0) with the store's
+ * geometry and value window, timing b1 (read), b1' (unzip) and the decode apart: *share gets
+ * read_ms, unzip_ms, decode_ms, bytes and payload_bytes divided by the group's timesteps (each
+ * frame's share, as the player's rows) and bricks_read; its other fields are zero. */
+cdvr_status lcdvr_store_decode_group(const cdvr_store *st, size_t v, size_t t, cdvr_volume **out,
+                                     size_t *t0, cdvr_frame_row *share, cdvr_error *err);
 
 /* Per-type accessors, implemented in the type's binding file. push* takes ownership. */
 /* lcdvr_checkvolume reads every timestep of a lazy volume (cdvr.load_series, l_volume.c)
@@ -158,9 +247,39 @@ void lcdvr_setimagestats(lua_State *L, int idx);
 const atomic_int *lcdvr_interrupt_flag(lua_State *L);
 void lcdvr_set_interrupt_flag(lua_State *L, atomic_int *flag);
 
-/* 2D-texture slicing for cdvr.render{method="slice"} (l_gl.c): lod= is read from the options
- * table (argument 2). Pushes the image and its stats table, or raises. */
-int lcdvr_render_slice(lua_State *L, const cdvr_volume *vol, size_t t, void *render_opts);
+/* Render methods (l_method.c, cdvr/method.h). The state's render context (OpenCL device and
+ * stream, EGL slicer), made on first use and kept in the registry. */
+cdvr_render_ctx *lcdvr_render_ctx(lua_State *L);
+/* The method called name, or raises "what: option 'method': unknown method 'x' (methods: ...)". */
+const cdvr_render_method *lcdvr_method_lookup(lua_State *L, const char *name, const char *what);
+/* The method of option `method` of the table at idx (default "raycast"). */
+const cdvr_render_method *lcdvr_method_option(lua_State *L, int idx, const char *what);
+/* lcdvr_checkoptions for the table at idx with the keys `base` (NULL-terminated) plus the
+ * scene keys and own options of method m. */
+void lcdvr_method_checkoptions(lua_State *L, int idx, const cdvr_render_method *m,
+                               const char *what, const char *const base[]);
+/* 1 when m takes key (a scene key it honours or one of its options). */
+int lcdvr_method_takes(const cdvr_render_method *m, const char *key);
+/* m's options from the table at idx (the defaults for absent keys; not a table: all defaults);
+ * wrong types and bad values raise naming `what` and the option. */
+void lcdvr_method_params(lua_State *L, int idx, const cdvr_render_method *m, const char *what,
+                         cdvr_method_params *out);
+/* Option `device` of the table at idx for m: absent or "auto" -> the default device rule
+ * (cdvr_render_method_default_device); a device m does not list raises. */
+cdvr_device_kind lcdvr_method_device(lua_State *L, int idx, const cdvr_render_method *m,
+                                     const char *what);
+/* The look options of the table at idx (blend=, iso={value=, color=, opacity=}, shade=,
+ * ambient=, diffuse=, specular=, specular_power=, light={dir=} | {headlight=true},
+ * gradient_opacity={{magnitude, opacity}, ...}) for method m: a blend mode or shading m lacks
+ * raises naming both. iso= implies blend "iso", which shades unless shade=false. */
+void lcdvr_read_look(lua_State *L, int idx, const cdvr_render_method *m, const char *what,
+                     cdvr_look *look);
+/* The look keys (NULL-terminated) every look-taking options table allows. */
+extern const char *const lcdvr_look_keys[];
+/* Pushes a table of a render's figures, with method = m->name and device = the device's name
+ * unless the method named it more closely (the OpenCL device, the GL renderer). */
+void lcdvr_push_render_stats(lua_State *L, const cdvr_render_method *m, cdvr_device_kind device,
+                             const cdvr_render_stats *stats);
 
 /* Windows (l_window.c), driven by the console between input lines: processes every open
  * window's events and playback and redraws what changed (all of them when `changed`: a console
@@ -170,20 +289,6 @@ int lcdvr_window_tick(lua_State *L, int changed, int *printed);
 /* Opens the console's window (cdvr -i with a display) as the global `window`; returns 0 and
  * prints one notice line when there is no display or no GL. */
 int lcdvr_window_console(lua_State *L);
-
-/* OpenCL rendering for cdvr.render{device="cl"} (l_device.c). Pushes the image or raises. */
-int lcdvr_render_cl(lua_State *L, const cdvr_volume *vol, size_t t, void *render_opts);
-
-/* OpenCL render of timestep t (from 0) of variant v of a store (l_device.c): the chunk goes
- * to the device and is decoded there, or rendered in the compressed domain by a fetch-mode
- * codec. Pushes image and stats, or raises. */
-int lcdvr_render_cl_store(lua_State *L, const cdvr_store *st, size_t v, size_t t,
-                          void *render_opts);
-
-/* cdvr.render{method="splat"} (l_splat.c): reads the splat options of the table at index 2
- * beside the common ones in render_opts (a cdvr_render_opts); pushes the image and stats. */
-int lcdvr_render_splat(lua_State *L, const cdvr_volume *vol, size_t t, const void *render_opts,
-                       int device);
 
 /* OpenCL decode for st:decode(t, variant, {device="cl"}) (l_device.c): decodes timestep t
  * (from 0) of variant v with the decode kernel and pushes a new u8 volume, or raises. */
@@ -195,6 +300,7 @@ int lcdvr_open_image(lua_State *L);
 int lcdvr_open_tf(lua_State *L);
 int lcdvr_open_camera(lua_State *L);
 int lcdvr_open_render(lua_State *L);
+int lcdvr_open_method(lua_State *L);
 int lcdvr_open_compare(lua_State *L);
 int lcdvr_open_store(lua_State *L);
 int lcdvr_open_device(lua_State *L);

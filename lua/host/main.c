@@ -201,11 +201,13 @@ static int open_cdvr(lua_State *L)
     lua_pushcfunction(L, l_help_add);
     lua_setfield(L, -2, "help_add");
     lcdvr_help_add(L, "cdvr.help([filter])", "list every function with a one-line description");
+    lcdvr_open_data(L);
     lcdvr_open_volume(L);
     lcdvr_open_image(L);
     lcdvr_open_tf(L);
     lcdvr_open_camera(L);
     lcdvr_open_render(L);
+    lcdvr_open_method(L);
     lcdvr_open_compare(L);
     lcdvr_open_store(L);
     lcdvr_open_device(L);
@@ -651,12 +653,13 @@ int main(int argc, char **argv)
         fprintf(stderr, "cdvr: %s\n", derr.msg);
         return 1;
     }
-    lua_State *L = luaL_newstate();
+    lua_State *L = lcdvr_newstate(); /* its allocator bounds what callbacks allocate */
     if (!L) {
         fprintf(stderr, "cdvr: cannot create Lua state: not enough memory\n");
         return 1;
     }
     luaL_openlibs(L);
+    lcdvr_open_budget(L); /* before any Lua code: budgeted coroutines, guarded __gc, debug */
     int status = report(L, open_cdvr(L));
     create_arg_table(L, argv, argc, script ? script : argc - 1);
     for (int k = 1; status == LUA_OK && k < (script ? script : argc); k++) {
@@ -672,7 +675,8 @@ int main(int argc, char **argv)
         console(L);
     if (status != LUA_OK)
         cdvr_dist_abort(1); /* mpirun: end every rank, none waits for this one */
-    lua_close(L);
+    if (lcdvr_close(L) > 0) /* a __gc stopped by its budget (printed) */
+        status = LUA_ERRRUN;
     cdvr_dist_finalize();
     return status == LUA_OK ? 0 : 1;
 }

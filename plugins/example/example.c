@@ -210,7 +210,7 @@ static const cdvr_codec rle_codec = {
                                       see cdvr/codec.h for CL_DECODE and CL_FETCH */
 };
 
-static const cdvr_plugin_info rle_plugin = {CDVR_PLUGIN_ABI, &rle_codec};
+static const cdvr_plugin_info rle_plugin = {.abi = CDVR_PLUGIN_ABI, .codec = &rle_codec};
 
 /* The one exported symbol. cdvr calls it once after dlopen. */
 CDVR_PLUGIN_EXPORT const cdvr_plugin_info *cdvr_plugin_v1(void);

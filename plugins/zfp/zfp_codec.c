@@ -403,7 +403,7 @@ static const cdvr_codec zfp_codec = {
     .cl_mode = CDVR_CODEC_CL_NONE,
 };
 
-static const cdvr_plugin_info zfp_plugin = {CDVR_PLUGIN_ABI, &zfp_codec};
+static const cdvr_plugin_info zfp_plugin = {.abi = CDVR_PLUGIN_ABI, .codec = &zfp_codec};
 
 CDVR_PLUGIN_EXPORT const cdvr_plugin_info *cdvr_plugin_v1(void);
 CDVR_PLUGIN_EXPORT const cdvr_plugin_info *cdvr_plugin_v1(void)

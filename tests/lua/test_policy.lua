@@ -55,6 +55,18 @@ do
   assert(p(stats{ current = "raw", frames = { frame(1, "raw") } }) == "S4T2")
   expect_error("no variant named nope", policy.fixed("nope"), stats{})
   assert(policy.fixed()(stats{}) == "raw", "fixed without a name: best quality")
+  -- stats.best (cdvr_store_best_variant, from the player or the window) heads the quality
+  -- order, so the named policies start where the player and the window do
+  local tie = variants()
+  tie[5] = { name = "raw2", codec = "raw", stage2 = "none", bytes_per_timestep = 400000,
+             payload_bytes_per_timestep = 400000, group = 1 }
+  assert(policy.fixed()(stats{variants = tie}) == "raw", "tie by name without stats.best")
+  assert(policy.fixed()(stats{variants = tie, best = "raw2"}) == "raw2", "stats.best decides a tie")
+  expect_error("stats.best %(nope%) is not a variant", policy.fixed(), stats{best = "nope"})
+  -- a raw variant is lossless whatever psnr it lists (as the store's rule)
+  local listed = variants()
+  listed[4].psnr = 20
+  assert(policy.fixed()(stats{variants = listed}) == "raw", "raw ranks first")
   expect_error("string expected", policy.fixed, 3)
   expect_error("stats.variants is empty", p, { variants = {} })
 end

@@ -54,7 +54,7 @@ check(cdvr.compare(img, simg).psnr > 30, "slicing close to ray casting: " .. cdv
 raises(function() cdvr.render(vol, {tf = tf, camera = cam, method = "slice", lod = "yes"}) end,
        "\"screen\" expected, got yes", "lod must be a boolean, seed or screen")
 raises(function() cdvr.render(vol, {tf = tf, camera = cam, method = "slices"}) end,
-       "invalid value 'slices'", "unknown method")
+       "unknown method 'slices' (methods: raycast, slice, splat)", "unknown method")
 raises(function() cdvr.render(vol, {tf = tf, camera = cam, method = "slice", t = 2}) end,
        "t = 2", "timestep out of range")
 -- a float series is quantized over its range first, like the ray caster does

@@ -135,7 +135,7 @@ local scam = cdvr.orbit_camera(series, {azimuth = 50, elevation = 30, width = 32
 local from_store = cdvr.render(st_raw, {method = "splat", tf = tf, camera = scam, t = 2, variant = "raw"})
 local from_volume = cdvr.render(series, {method = "splat", tf = tf, camera = scam, t = 2})
 check(cdvr.compare(from_store, from_volume).psnr == math.huge, "store and volume give the same splat image")
-raises(function() cdvr.render(st_raw, {method = "splat", tf = tf, device = "cl"}) end, "CPU only",
+raises(function() cdvr.render(st_raw, {method = "splat", tf = tf, device = "cl"}) end, "renders on cpu, not cl",
        "store splat on OpenCL")
 st_raw:close()
 os.remove(store_path)
@@ -152,7 +152,7 @@ raises(function() cdvr.render(blob, {method = "splat", tf = tf, sigma = -1}) end
 raises(function() cdvr.render(blob, {method = "splat", tf = tf, radius = 40}) end,
        "radius", "radius too large")
 raises(function() cdvr.render(blob, {method = "splat", tf = tf, device = "cl"}) end,
-       "CPU only", "splat on OpenCL")
+       "renders on cpu, not cl", "splat on OpenCL")
 raises(function() cdvr.render(blob, {method = "splat", tf = tf, threshold = "high"}) end,
        "number expected", "threshold of the wrong type")
 

@@ -125,10 +125,33 @@ else
   w:set{store = st, t = 1}
 end
 
+-- the method table: the options follow the method, the look reaches the renderer, and the
+-- method's own keys ('l' cycles slice's lod) reach it
+w:set{volume = vol, method = "slice", lod = "screen", t = 1}
+check(w:state().method == "slice" and w:state().device == "gl", "slice in the window: " .. w:state().device)
+raises(function() w:set{step = 0.5} end, "unknown option 'step'", "slice takes no step")
+if code ~= 77 then
+  check(xinput("key l") == 0 and settle(function() return w:state().options.lod == false end),
+        "l cycles lod: screen -> false (" .. tostring(w:state().options.lod) .. ")")
+end
+w:set{method = "raycast"} -- lod is slice's: dropped
+check(w:state().options.lod == nil and w:state().method == "raycast", "a new method drops the old one's options")
+raises(function() w:set{lod = true} end, "unknown option 'lod'", "raycast takes no lod")
+w:set{step = 0.4, shade = true}
+w:frame()
+local shaded = w:read()
+w:set{shade = false}
+w:frame()
+check(psnr(shaded, w:read()) < 40, "shade= reaches the renderer: " .. psnr(shaded, w:read()) .. " dB")
+w:set{blend = "max"}
+w:frame()
+check(psnr(shaded, w:read()) < 40 and w:state().options.blend == "max", "blend= in the window")
+w:set{blend = "composite", step = 0, store = st, t = 1}
+
 -- misuse
 raises(function() w:set{tf = 3} end, nil, "tf of the wrong type")
 raises(function() w:set{methd = "slice"} end, "did you mean 'method'", "misspelled key")
-raises(function() w:set{method = "mip"} end, "invalid value 'mip'", "unknown method")
+raises(function() w:set{method = "mip"} end, "unknown method 'mip' (methods: raycast, slice, splat)", "unknown method")
 raises(function() w:set{t = 9} end, "outside 1..4", "timestep out of range")
 raises(function() w:set{variant = "nope"} end, "no variant 'nope'", "unknown variant")
 raises(function() w:set{width = 3} end, "fixed when the window opens", "width after opening")

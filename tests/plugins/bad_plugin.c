@@ -9,10 +9,11 @@
  *   BAD_CLASH_ID    a codec with the built-in PVTC id
  *   BAD_NO_DECODE   a table without decode
  *   BAD_UNDEFINED   needs a symbol nothing defines (dlopen fails)
- *   BAD_ABI2        not bad (build/tests/plugins_abi2/abi2.so): a valid codec "abi2" that
- *                   says ABI version 2, whose table
- *                   (the ABI-2 layout) ends before `check`; what follows it here is a
- *                   poisoned check, which a loader reading past the table would pick up
+ *   BAD_ABI2        not bad: a valid codec "abi2" behind an ABI 2 info (two fields), which
+ *                   this cdvr still loads; its table here ends with a poisoned `check`
+ *                   (ABI 4), which a loader reading past an ABI 2 table would pick up
+ *   BAD_PARTIAL     ABI 3: a valid codec "partial", then a format whose suffix .nrrd clashes
+ *                   with the built-in NRRD format (the codec stays registered)
  * The codec itself is raw-like and valid unless the case says otherwise. */
 #include <string.h>
 
@@ -99,23 +100,12 @@ static cdvr_status bad_decode(const cdvr_codec_params *p, const size_t dims[3],
     return CDVR_OK;
 }
 
-#if defined(BAD_ABI2)
-/* Past the end of an ABI-2 table: never to be read by the loader. */
-static cdvr_status poisoned_check(const cdvr_codec_params *p, const size_t dims[3],
-                                  const uint8_t *payload, size_t bytes, cdvr_error *err)
-{
-    (void)p;
-    (void)dims;
-    (void)payload;
-    (void)bytes;
-    return cdvr_plugin_error(err, CDVR_ERR_CORRUPT, "the loader read past an ABI-2 table");
-}
-#endif
-
 #if defined(BAD_CLASH_NAME)
 #define BAD_CODEC_NAME "pvtc"
 #elif defined(BAD_ABI2)
 #define BAD_CODEC_NAME "abi2"
+#elif defined(BAD_PARTIAL)
+#define BAD_CODEC_NAME "partial"
 #else
 #define BAD_CODEC_NAME "bad"
 #endif
@@ -123,8 +113,20 @@ static cdvr_status poisoned_check(const cdvr_codec_params *p, const size_t dims[
 #define BAD_CODEC_ID CDVR_CODEC_ID_PVTC
 #elif defined(BAD_ABI2)
 #define BAD_CODEC_ID 0x41424932u /* "ABI2" */
+#elif defined(BAD_PARTIAL)
+#define BAD_CODEC_ID 0x50415254u /* "PART" */
 #else
 #define BAD_CODEC_ID 0x42414400u /* "BAD\0" */
+#endif
+
+#if defined(BAD_ABI2)
+/* Past the end of an ABI-2 table: never to be read by the loader. */
+static cdvr_status poisoned_check(const cdvr_codec_params *p, const size_t dims[3],
+                                  const uint8_t *payload, size_t bytes, cdvr_error *err)
+{
+    (void)p, (void)dims, (void)payload, (void)bytes;
+    return cdvr_plugin_error(err, CDVR_ERR_CORRUPT, "the loader read past an ABI-2 table");
+}
 #endif
 
 static const cdvr_codec bad_codec = {
@@ -149,14 +151,42 @@ static const cdvr_codec bad_codec = {
 };
 
 #if defined(BAD_ABI)
-static const cdvr_plugin_info bad_info = {42u, &bad_codec}; /* never a real ABI version */
-#elif defined(BAD_ABI2)
-static const cdvr_plugin_info bad_info = {2u, &bad_codec};
+static const cdvr_plugin_info bad_info = {.abi = 42u, .codec = &bad_codec}; /* never real */
 #elif defined(BAD_NULL_CODEC)
-static const cdvr_plugin_info bad_info = {CDVR_PLUGIN_ABI, NULL};
+static const cdvr_plugin_info bad_info = {.abi = CDVR_PLUGIN_ABI, .codec = NULL};
 static const cdvr_codec *const unused_codec = &bad_codec;
+#elif defined(BAD_ABI2)
+/* What a plugin built against ABI 2's header returns: only these two fields exist. */
+static const struct {
+    uint32_t abi;
+    const cdvr_codec *codec;
+} bad_info_v2 = {2u, &bad_codec};
+#define BAD_INFO_PTR ((const cdvr_plugin_info *)(const void *)&bad_info_v2)
+#elif defined(BAD_PARTIAL)
+static cdvr_status bad_probe(const char *path, const cdvr_raw_opts *o, cdvr_volume *h,
+                             cdvr_error *err)
+{
+    (void)o, (void)h;
+    return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: never", path);
+}
+static cdvr_status bad_read(const char *path, const cdvr_raw_opts *o, const cdvr_volume *h,
+                            void *voxels, cdvr_error *err)
+{
+    (void)o, (void)h, (void)voxels;
+    return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: never", path);
+}
+static const char *const bad_suffixes[] = {".nrrd", NULL};
+static const cdvr_format bad_format = {.name = "partial", .description = "clashes",
+                                       .suffixes = bad_suffixes, .probe = bad_probe,
+                                       .read = bad_read};
+static const cdvr_format *const bad_formats[] = {&bad_format, NULL};
+static const cdvr_plugin_info bad_info = {.abi = CDVR_PLUGIN_ABI, .codec = &bad_codec,
+                                          .formats = bad_formats};
 #else
-static const cdvr_plugin_info bad_info = {CDVR_PLUGIN_ABI, &bad_codec};
+static const cdvr_plugin_info bad_info = {.abi = CDVR_PLUGIN_ABI, .codec = &bad_codec};
+#endif
+#ifndef BAD_INFO_PTR
+#define BAD_INFO_PTR (&bad_info)
 #endif
 
 #if defined(BAD_NOSYM)
@@ -176,6 +206,6 @@ CDVR_PLUGIN_EXPORT const cdvr_plugin_info *BAD_ENTRY(void)
     (void)bad_info;
     return NULL;
 #else
-    return &bad_info;
+    return BAD_INFO_PTR;
 #endif
 }

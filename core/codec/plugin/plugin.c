@@ -1,4 +1,4 @@
-/* core/codec/plugin/plugin.c - loading codec plugins (cdvr/plugin.h) with dlopen. */
+/* core/codec/plugin/plugin.c - loading codec and format plugins (cdvr/plugin.h) with dlopen. */
 #include "cdvr/plugin.h"
 
 #include <dirent.h>
@@ -11,85 +11,164 @@
 #include <string.h>
 #include <sys/stat.h>
 
-/* The plugins loaded so far (the loader context): which file each registered codec came from,
- * for clash messages and cdvr_plugin_file. The mutex also makes each load atomic, so that
- * two threads loading the same file do not both register it. Never freed: plugins stay. */
+/* The plugins loaded so far (the loader context): the file each came from and what it provides
+ * (as an ABI 3 info: the raw info, entry point and the copy below), for clash messages,
+ * cdvr_plugin_file and loading a file twice. The mutex also makes each load atomic, so that two
+ * threads loading the same file do not both register it. Never freed: plugins stay. */
 typedef struct loaded_plugin {
-    const cdvr_codec *codec;  /* as registered */
-    const cdvr_codec *own;    /* as the plugin returned it (differs for ABI 2: full_table) */
+    const cdvr_plugin_info *raw;  /* what cdvr_plugin_v1 returned */
+    cdvr_plugin_info info;        /* normalised to ABI 3 */
     char *path;
+    cdvr_error refusal;           /* status CDVR_OK, or why a table of it was refused (the
+                                     ones before it stay registered): every load says so */
 } loaded_plugin;
 
 static struct {
     pthread_mutex_t mu;
-    loaded_plugin *items;
+    loaded_plugin **items;       /* each allocated alone: the infos handed out stay put */
     size_t count, cap;
 } loader = {PTHREAD_MUTEX_INITIALIZER, NULL, 0, 0};
 
+/* The codecs of an info: codec, then codecs[]; i from 0, NULL past the end. */
+static const cdvr_codec *codec_at(const cdvr_plugin_info *info, size_t i)
+{
+    if (info->codec && i-- == 0)
+        return info->codec;
+    for (size_t k = 0; info->codecs && info->codecs[k]; k++)
+        if (k == i)
+            return info->codecs[k];
+    return NULL;
+}
+
+static const cdvr_format *format_at(const cdvr_plugin_info *info, size_t i)
+{
+    for (size_t k = 0; info->formats && info->formats[k]; k++)
+        if (k == i)
+            return info->formats[k];
+    return NULL;
+}
+
 /* Caller holds loader.mu. */
-static const char *file_of_locked(const cdvr_codec *codec)
+static const char *file_of_locked(const cdvr_codec *codec, const cdvr_format *format)
 {
-    for (size_t i = 0; codec && i < loader.count; i++)
-        if (loader.items[i].codec == codec)
-            return loader.items[i].path;
+    for (size_t i = 0; (codec || format) && i < loader.count; i++) {
+        const cdvr_plugin_info *info = &loader.items[i]->info;
+        for (size_t k = 0; codec && codec_at(info, k); k++)
+            if (codec_at(info, k) == codec)
+                return loader.items[i]->path;
+        for (size_t k = 0; format && format_at(info, k); k++)
+            if (format_at(info, k) == format)
+                return loader.items[i]->path;
+    }
     return NULL;
 }
 
-/* The registered table of a plugin table already loaded, or NULL. Caller holds loader.mu. */
-static const cdvr_codec *registered_locked(const cdvr_codec *own)
+/* Caller holds loader.mu. */
+static const loaded_plugin *loaded_locked(const cdvr_plugin_info *raw)
 {
-    for (size_t i = 0; own && i < loader.count; i++)
-        if (loader.items[i].own == own)
-            return loader.items[i].codec;
+    for (size_t i = 0; i < loader.count; i++)
+        if (loader.items[i]->raw == raw)
+            return loader.items[i];
     return NULL;
 }
 
-/* Caller holds loader.mu. 0 when out of memory (the codec stays registered, unnamed). */
-static int remember_locked(const cdvr_codec *codec, const cdvr_codec *own, const char *path)
+/* Caller holds loader.mu. NULL when out of memory (the tables stay registered, unnamed). */
+static loaded_plugin *remember_locked(const cdvr_plugin_info *raw,
+                                            const cdvr_plugin_info *info, const char *path)
 {
     if (loader.count == loader.cap) {
         size_t cap = loader.cap ? 2 * loader.cap : 8;
-        loaded_plugin *items = realloc(loader.items, cap * sizeof *items);
+        loaded_plugin **items = realloc(loader.items, cap * sizeof *items);
         if (!items)
-            return 0;
+            return NULL;
         loader.items = items;
         loader.cap = cap;
     }
+    loaded_plugin *lp = malloc(sizeof *lp);
     char *copy = strdup(path);
-    if (!copy)
-        return 0;
-    loader.items[loader.count++] = (loaded_plugin){codec, own, copy};
-    return 1;
+    if (!lp || !copy) {
+        free(lp);
+        free(copy);
+        return NULL;
+    }
+    *lp = (loaded_plugin){raw, *info, copy, {CDVR_OK, ""}};
+    loader.items[loader.count++] = lp;
+    return lp;
 }
 
 const char *cdvr_plugin_file(const cdvr_codec *codec)
 {
     pthread_mutex_lock(&loader.mu);
-    const char *path = file_of_locked(codec);
+    const char *path = file_of_locked(codec, NULL);
     pthread_mutex_unlock(&loader.mu);
     return path;
 }
 
-/* Checks what cdvr_plugin_v1 returned, before anything reads the codec table. */
-static cdvr_status check_info(const char *path, const cdvr_plugin_info *info, cdvr_error *err)
+const char *cdvr_plugin_format_file(const cdvr_format *format)
+{
+    pthread_mutex_lock(&loader.mu);
+    const char *path = file_of_locked(NULL, format);
+    pthread_mutex_unlock(&loader.mu);
+    return path;
+}
+
+/* Checks what cdvr_plugin_v1 returned, before anything reads a table, and copies it into *out
+ * as an ABI 3 info (an ABI 2 info has only abi and codec: nothing past them is read). */
+static cdvr_status check_info(const char *path, const cdvr_plugin_info *info,
+                              cdvr_plugin_info *out, cdvr_error *err)
 {
     if (!info)
         return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: %s returned NULL", path,
                               CDVR_PLUGIN_SYMBOL);
-    if (info->abi < CDVR_PLUGIN_ABI_OLDEST || info->abi > CDVR_PLUGIN_ABI)
+    if (info->abi < CDVR_PLUGIN_ABI_MIN || info->abi > CDVR_PLUGIN_ABI)
         return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: plugin built for ABI version %u, this "
-                              "cdvr has version %u and loads version %u too (rebuild the plugin "
-                              "against this cdvr's cdvr/plugin.h)", path, info->abi,
-                              CDVR_PLUGIN_ABI, CDVR_PLUGIN_ABI_OLDEST);
-    if (!info->codec)
-        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: %s returned no codec", path,
+                              "cdvr loads version %u to %u (rebuild the plugin against this "
+                              "cdvr's cdvr/plugin.h)", path, info->abi, CDVR_PLUGIN_ABI_MIN,
+                              CDVR_PLUGIN_ABI);
+    memset(out, 0, sizeof *out);
+    out->abi = info->abi;
+    out->codec = info->codec;
+    if (info->abi >= 3) {
+        out->codecs = info->codecs;
+        out->formats = info->formats;
+    }
+    if (!codec_at(out, 0) && !format_at(out, 0))
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, info->abi >= 3 ? "%s: %s returned no codec "
+                              "and no format" : "%s: %s returned no codec", path,
                               CDVR_PLUGIN_SYMBOL);
+    return CDVR_OK;
+}
+
+/* A plugin built before ABI 4 has codec tables that end before `check`: out's codecs become
+ * full-size copies with check NULL, so that nothing reads past the plugin's tables. The copies
+ * are never freed (registered tables stay). CDVR_ERR_NOMEM naming the file. */
+static cdvr_status widen_codecs(const char *path, cdvr_plugin_info *out, cdvr_error *err)
+{
+    if (out->abi >= 4)
+        return CDVR_OK;
+    size_t n = 0;
+    while (codec_at(out, n))
+        n++;
+    cdvr_codec *copies = n ? calloc(n, sizeof *copies) : NULL;
+    const cdvr_codec **list = n ? calloc(n + 1, sizeof *list) : NULL;
+    if (n && (!copies || !list)) {
+        free(copies);
+        free(list);
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
+    }
+    for (size_t k = 0; k < n; k++) {
+        memcpy(&copies[k], codec_at(out, k), offsetof(cdvr_codec, check));
+        list[k] = &copies[k];
+    }
+    out->codec = NULL;
+    out->codecs = list;
     return CDVR_OK;
 }
 
 /* Registers codec; on a refusal the message names the file and, for a clash with a plugin
  * codec, the file that one came from. Caller holds loader.mu. */
-static cdvr_status register_locked(const char *path, const cdvr_codec *codec, cdvr_error *err)
+static cdvr_status register_codec_locked(const char *path, const cdvr_codec *codec,
+                                         cdvr_error *err)
 {
     cdvr_error rerr;
     cdvr_status s = cdvr_codec_register(codec, &rerr);
@@ -101,28 +180,57 @@ static cdvr_status register_locked(const char *path, const cdvr_codec *codec, cd
         if (!other)
             other = cdvr_codec_by_id(codec->id);
     }
-    const char *other_file = file_of_locked(other);
+    const char *other_file = file_of_locked(other, NULL);
     if (other_file)
         return cdvr_error_set(err, s, "%s: %s (codec '%s' was loaded from %s)", path, rerr.msg,
                               other->name, other_file);
     return cdvr_error_set(err, s, "%s: %s", path, rerr.msg);
 }
 
-/* The table to register: the plugin's own, or for an ABI-2 plugin (whose table ends before
- * `check`) a copy of it with check NULL, never freed. NULL when out of memory. */
-static const cdvr_codec *full_table(const cdvr_plugin_info *info)
+/* The same for a format (a name or suffix clash names the other format's file). */
+static cdvr_status register_format_locked(const char *path, const cdvr_format *format,
+                                          cdvr_error *err)
 {
-    if (info->abi == CDVR_PLUGIN_ABI)
-        return info->codec;
-    cdvr_codec *copy = calloc(1, sizeof *copy);
-    if (copy)
-        memcpy(copy, info->codec, offsetof(cdvr_codec, check));
-    return copy;
+    cdvr_error rerr;
+    cdvr_status s = cdvr_format_register(format, &rerr);
+    if (s == CDVR_OK)
+        return CDVR_OK;
+    const cdvr_format *other = NULL;
+    const char *by = strstr(rerr.msg, "by format '");
+    char name[CDVR_FORMAT_NAME_MAX] = "";
+    if (by && sscanf(by, "by format '%15[a-z0-9_]'", name) == 1)
+        other = cdvr_format_find(name);
+    else if (strstr(rerr.msg, "already registered") && format->name)
+        other = cdvr_format_find(format->name);
+    const char *other_file = file_of_locked(NULL, other);
+    if (other_file)
+        return cdvr_error_set(err, s, "%s: %s (format '%s' was loaded from %s)", path, rerr.msg,
+                              other->name, other_file);
+    return cdvr_error_set(err, s, "%s: %s", path, rerr.msg);
+}
+
+/* Registers every codec and format of info, stopping at the first refusal; *done counts
+ * the tables registered. Caller holds loader.mu. */
+static cdvr_status register_all_locked(const char *path, const cdvr_plugin_info *info,
+                                       size_t *done, cdvr_error *err)
+{
+    cdvr_status s = CDVR_OK;
+    *done = 0;
+    for (size_t k = 0; s == CDVR_OK && codec_at(info, k); k++)
+        if ((s = register_codec_locked(path, codec_at(info, k), err)) == CDVR_OK)
+            (*done)++;
+    for (size_t k = 0; s == CDVR_OK && format_at(info, k); k++)
+        if ((s = register_format_locked(path, format_at(info, k), err)) == CDVR_OK)
+            (*done)++;
+    return s;
 }
 
 /* dlopen + dlsym + checks + registration; caller holds loader.mu. */
-static cdvr_status load_locked(const char *path, const cdvr_codec **out, cdvr_error *err)
+static cdvr_status load_locked(const char *path, const loaded_plugin **out, cdvr_error *err)
 {
+    cdvr_error local;
+    if (!err)
+        err = &local; /* a refusal is kept (loaded_plugin.refusal) even when nobody asks */
     void *h = dlopen(path, RTLD_NOW | RTLD_LOCAL);
     if (!h) {
         const char *why = dlerror();
@@ -137,33 +245,38 @@ static cdvr_status load_locked(const char *path, const cdvr_codec **out, cdvr_er
     }
     cdvr_plugin_entry_fn entry;
     memcpy(&entry, &sym, sizeof entry); /* object -> function pointer (POSIX guarantees it) */
-    const cdvr_plugin_info *info = entry();
-    cdvr_status s = check_info(path, info, err);
-    if (s == CDVR_OK && registered_locked(info->codec)) {
-        *out = registered_locked(info->codec); /* the same file loaded again: dlopen gave the
-                                                  same handle */
-        dlclose(h);         /* drops the reference this call added; the first one stays */
-        return CDVR_OK;
+    const cdvr_plugin_info *raw = entry();
+    if (raw && (*out = loaded_locked(raw)) != NULL) {
+        dlclose(h); /* the same file loaded again: drops the reference this call added */
+        if ((*out)->refusal.status == CDVR_OK)
+            return CDVR_OK;
+        *err = (*out)->refusal;
+        return (*out)->refusal.status;
     }
-    const cdvr_codec *table = s == CDVR_OK ? full_table(info) : NULL;
-    if (s == CDVR_OK && !table)
-        s = cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
+    cdvr_plugin_info info;
+    size_t done = 0;
+    cdvr_status s = check_info(path, raw, &info, err);
     if (s == CDVR_OK)
-        s = register_locked(path, table, err);
+        s = widen_codecs(path, &info, err);
+    if (s == CDVR_OK)
+        s = register_all_locked(path, &info, &done, err);
     if (s != CDVR_OK) {
-        if (table && table != info->codec)
-            free((void *)table);
-        dlclose(h);
+        loaded_plugin *lp;
+        if (done == 0)
+            dlclose(h); /* nothing of it was registered */
+        else if ((lp = remember_locked(raw, &info, path)) != NULL)
+            lp->refusal = *err; /* its registered tables stay: name them, refuse it again */
         return s;
     }
-    (void)remember_locked(table, info->codec, path);
-    *out = table;
-    return CDVR_OK; /* never dlclose'd: the registry keeps the table */
+    *out = remember_locked(raw, &info, path);
+    if (!*out)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
+    return CDVR_OK; /* never dlclose'd: the registries keep its tables */
 }
 
-cdvr_status cdvr_plugin_load(const char *path, const cdvr_codec **out, cdvr_error *err)
+cdvr_status cdvr_plugin_load_info(const char *path, const cdvr_plugin_info **out,
+                                  cdvr_error *err)
 {
-    const cdvr_codec *codec = NULL;
     if (out)
         *out = NULL;
     if (!path || !*path)
@@ -182,11 +295,24 @@ cdvr_status cdvr_plugin_load(const char *path, const cdvr_codec **out, cdvr_erro
             return cdvr_error_set(err, CDVR_ERR_ARG, "plugin: path too long");
         path = local;
     }
+    const loaded_plugin *lp = NULL;
     pthread_mutex_lock(&loader.mu);
-    cdvr_status s = load_locked(path, &codec, err);
+    cdvr_status s = load_locked(path, &lp, err);
+    const cdvr_plugin_info *info = lp ? &lp->info : NULL; /* items may move: copy under mu */
     pthread_mutex_unlock(&loader.mu);
     if (s == CDVR_OK && out)
-        *out = codec;
+        *out = info;
+    return s;
+}
+
+cdvr_status cdvr_plugin_load(const char *path, const cdvr_codec **out, cdvr_error *err)
+{
+    if (out)
+        *out = NULL;
+    const cdvr_plugin_info *info;
+    cdvr_status s = cdvr_plugin_load_info(path, &info, err);
+    if (s == CDVR_OK && out)
+        *out = codec_at(info, 0);
     return s;
 }
 

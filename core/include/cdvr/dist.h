@@ -13,6 +13,14 @@
  * rank: the host prints the failing rank's message, then calls cdvr_dist_abort (MPI_Abort),
  * so no rank waits forever in a collective call for a rank that has gone.
  *
+ * No rank waits for ever where no other rank will come either: cdvr's own collective calls
+ * (cdvr_dist_barrier, the agreement checks below, each frame's composite check and the
+ * gathering of rows) are nonblocking calls polled against a deadline of cdvr_dist_timeout_s()
+ * (CDVR_MPI_TIMEOUT seconds in the environment, default CDVR_DIST_TIMEOUT_DEFAULT); past it
+ * the rank prints "cdvr: rank R of N: WHAT: the other ranks did not come within T s ..." and
+ * ends the run (MPI_Abort). Set it above the longest time a rank may legitimately wait for
+ * the others (e.g. rank 0 encoding the store while the others wait at a barrier).
+ *
  * Distributed playback (cdvr.player{distribute=}):
  *  - CDVR_DIST_TIME: rank r of N plays the frames k = r, r+N, r+2N, ... of the run (frame
  *    numbers, timesteps and output names stay those of the whole run, so the frames of all
@@ -56,8 +64,12 @@ int cdvr_dist_built(void);
 /* This process's rank (0 .. size-1) and the number of processes (1 without MPI). */
 int cdvr_dist_rank(void);
 int cdvr_dist_size(void);
-/* Waits until every process gets here (nothing in a group of one). */
+/* Waits until every process gets here (nothing in a group of one); a rank that waits longer
+ * than cdvr_dist_timeout_s() reports itself and ends the run (see above). */
 void cdvr_dist_barrier(void);
+/* The deadline of a collective call: CDVR_MPI_TIMEOUT (seconds, > 0) or the default. */
+#define CDVR_DIST_TIMEOUT_DEFAULT 1800.0
+double cdvr_dist_timeout_s(void);
 /* After a fatal error on this process, whose message is already printed: in a group of more
  * than one, ends every process with exit status `code` (MPI_Abort; does not return). In a
  * group of one it returns, and the caller exits as usual. */
@@ -113,6 +125,17 @@ typedef struct cdvr_dist_play cdvr_dist_play;
  * deterministic capture rule). */
 cdvr_status cdvr_dist_play_create(cdvr_dist_mode mode, cdvr_player_opts *opts,
                                   cdvr_dist_play **out, cdvr_error *err);
+/* Agreement. In a group of several processes and a mode other than CDVR_DIST_NONE,
+ * cdvr_dist_play_create first checks, in one collective call before any other, that every
+ * rank asks for the same mode, store (header, size and variants: cdvr_dist_store_hash) and
+ * initial camera; cdvr_dist_play_begin, called by every rank before cdvr_player_run, checks
+ * mode, store, camera, the first timestep (from 0) and the frame count again the same way. A
+ * disagreement is the same CDVR_ERR_ARG on every rank, naming what differs and the ranks
+ * ("distribute: the ranks disagree at ...: the distribute mode (rank 0: time, rank 1:
+ * bricks)"); stores and cameras are compared by fingerprint. In CDVR_DIST_BRICKS every
+ * frame's composite also checks that all ranks render the same camera (the frame fails
+ * otherwise). A rank that never comes (it made no such player) is the timeout above. */
+cdvr_status cdvr_dist_play_begin(cdvr_dist_play *dp, size_t first, size_t frames, cdvr_error *err);
 void cdvr_dist_play_free(cdvr_dist_play *dp);
 /* 1 if this process shows or writes the run's frames (CDVR_DIST_BRICKS: rank 0 only). */
 int cdvr_dist_play_shows_frames(const cdvr_dist_play *dp);

@@ -171,12 +171,13 @@ typedef struct cdvr_window cdvr_window;
 typedef enum cdvr_window_event_type {
     CDVR_WINDOW_DRAG = 1,  /* dx, dy: cursor motion in pixels with the left button held */
     CDVR_WINDOW_SCROLL,    /* dy: wheel steps (positive: away from the user) */
-    CDVR_WINDOW_KEY,       /* key: CDVR_KEY_* */
+    CDVR_WINDOW_KEY,       /* key: CDVR_KEY_*, or another letter as its lower-case
+                              character ('a'..'z') */
     CDVR_WINDOW_RESIZE     /* the framebuffer size changed */
 } cdvr_window_event_type;
 
 enum { CDVR_KEY_LEFT = 1, CDVR_KEY_RIGHT, CDVR_KEY_UP, CDVR_KEY_DOWN, CDVR_KEY_SPACE,
-       CDVR_KEY_HOME, CDVR_KEY_END };
+       CDVR_KEY_HOME, CDVR_KEY_END, CDVR_KEY_ESCAPE, CDVR_KEY_Q, CDVR_KEY_R };
 
 typedef struct cdvr_window_event {
     cdvr_window_event_type type;
@@ -209,6 +210,12 @@ const uint8_t *cdvr_window_pixels(const cdvr_window *win, int *width, int *heigh
 /* Draws one line of text (stb_easy_font's glyphs, scaled by `scale` pixels per unit) in
  * opaque colour rgb at (x, y) (top-left) on a darkened band, into an 8-bit RGBA image. */
 void cdvr_overlay_text(uint8_t *rgba, int width, int height, int x, int y, int scale,
+                       const char *text, const uint8_t rgb[3]);
+/* The same text wrapped to the image: broken into lines that fit between x and the right
+ * edge, before two spaces (fields) where one field fits, else before a space (a word wider
+ * than the line is cut and ends in '~'), drawn from (x, y) down,
+ * one under the other, while they start inside the image. Returns the number of lines drawn. */
+int cdvr_overlay_lines(uint8_t *rgba, int width, int height, int x, int y, int scale,
                        const char *text, const uint8_t rgb[3]);
 
 #endif

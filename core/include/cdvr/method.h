@@ -7,7 +7,7 @@
  * (cpu, cl), "slice" (gl: 2D textures through EGL) and "splat" (cpu).
  *
  * Options. Every method reads the scene's common options from cdvr_render_opts (render.h):
- * tf, camera and background always, and those of step, unit, term, threads and skip that its
+ * tf, camera and background always, and those of step, unit, term and threads that its
  * `scene_keys` names. Its own options (lod, order, ...) are listed in `options` with their
  * type, default and one-line documentation (cdvr.methods() and cdvr.help show them; Lua
  * refuses every other key), and are kept in a `cdvr_method_params` blob whose layout the
@@ -31,9 +31,14 @@
  *    decoded on the host, on whichever device it renders;
  *  - render_store: one timestep of a stored variant straight from its chunk on the device
  *    (cdvr.render(store, {device="cl"})); without it the chunk is decoded on the host;
- *  - window_key: a key the window hands to the method (slice toggles lod with 'l', splat
- *    cycles its order with 'o'); returns 1 when the params changed;
+ *  - window_key: a key the window hands to the method (slice cycles lod with 'l', splat
+ *    cycles its order with 'o'): names the option to change and its new value as text, which
+ *    the window sets like any option;
  *  - describe: a short text for the window's overlay ("lod seed", "order dda").
+ *
+ * Adding a method: a file core/render/<folder>/<name>_method.c defining its table, one line in
+ * the built-in list of core/render/method.c, and that folder's CMakeLists.txt. Nothing else
+ * names a method.
  *
  * Threads: the table is immutable; a cdvr_render_ctx and what it opened belong to one thread
  * at a time.
@@ -71,15 +76,7 @@ const char *cdvr_device_name(cdvr_device_kind kind);
 /* The kind called name; -1 for an unknown name. */
 int cdvr_device_parse(const char *name);
 
-/* Blend modes (VTK's BlendMode). Only composite exists yet; the bit set says what a method
- * supports, so a later mode is refused clearly by methods that lack it. */
-typedef enum cdvr_blend {
-    CDVR_BLEND_COMPOSITE = 0,
-    CDVR_BLEND_MAX = 1,
-    CDVR_BLEND_MIN = 2,
-    CDVR_BLEND_AVERAGE = 3,
-    CDVR_BLEND_ISO = 4
-} cdvr_blend;
+/* Blend modes: cdvr_blend of render.h; the bit set says what a method supports. */
 #define CDVR_BLEND_BIT(mode) (1u << (mode))
 
 /* Common scene options a method honours (scene_keys bits); the rest of cdvr_render_opts
@@ -88,11 +85,10 @@ typedef enum cdvr_blend {
 #define CDVR_SCENE_UNIT 0x02u    /* opts->unit */
 #define CDVR_SCENE_TERM 0x04u    /* opts->term_alpha */
 #define CDVR_SCENE_THREADS 0x08u /* opts->threads */
-#define CDVR_SCENE_SKIP 0x10u    /* empty-space skipping on/off (cl ray caster: skip=) */
 
 /* Distribution modes (cdvr/dist.h) a method can run in. */
-#define CDVR_DIST_TIME 0x1u      /* whole frames per rank */
-#define CDVR_DIST_BRICKS 0x2u    /* sort-last: a box of every frame per rank (needs clip) */
+#define CDVR_METHOD_DIST_TIME 0x1u      /* whole frames per rank */
+#define CDVR_METHOD_DIST_BRICKS 0x2u    /* sort-last: a box of every frame per rank (needs clip) */
 
 typedef enum cdvr_method_option_type {
     CDVR_MOPT_NUMBER = 0,   /* finite number */
@@ -114,12 +110,27 @@ typedef struct cdvr_method_params {
     _Alignas(8) unsigned char bytes[CDVR_METHOD_PARAMS_MAX];
 } cdvr_method_params;
 
-/* Receives a render's figures for img:stats() (ms, samples, order_ms, ...). */
-typedef struct cdvr_stats_sink {
-    void (*number)(void *ud, const char *key, double value);
-    void (*string)(void *ud, const char *key, const char *value);
-    void *ud;
-} cdvr_stats_sink;
+/* A render's figures for img:stats() (ms, samples, order_ms, device, ...): a fixed list filled
+ * in C (no Lua call runs inside a render), pushed by the binding afterwards. */
+#define CDVR_RENDER_STATS_MAX 32
+typedef enum cdvr_stat_kind { CDVR_STAT_NUMBER = 0, CDVR_STAT_INTEGER, CDVR_STAT_STRING } cdvr_stat_kind;
+typedef struct cdvr_render_stat {
+    char key[24];
+    cdvr_stat_kind kind;
+    double number;          /* NUMBER */
+    long long integer;      /* INTEGER */
+    char string[128];       /* STRING */
+} cdvr_render_stat;
+typedef struct cdvr_render_stats {
+    size_t count;
+    cdvr_render_stat items[CDVR_RENDER_STATS_MAX];
+} cdvr_render_stats;
+
+/* Set key (replacing an earlier value of key); NULL stats is allowed; past
+ * CDVR_RENDER_STATS_MAX entries new keys are dropped. */
+void cdvr_render_stats_number(cdvr_render_stats *s, const char *key, double value);
+void cdvr_render_stats_integer(cdvr_render_stats *s, const char *key, long long value);
+void cdvr_render_stats_string(cdvr_render_stats *s, const char *key, const char *value);
 
 typedef struct cdvr_render_ctx cdvr_render_ctx;
 
@@ -132,7 +143,7 @@ struct cdvr_render_method {
     unsigned blends;                     /* CDVR_BLEND_BIT set (composite at least) */
     int shading;                         /* 1 when it shades (none yet) */
     int bricks;                          /* 1 when it honours opts->clip (sort-last boxes) */
-    unsigned distribute;                 /* CDVR_DIST_* set */
+    unsigned distribute;                 /* CDVR_METHOD_DIST_* set */
     unsigned scene_keys;                 /* CDVR_SCENE_* set */
     const cdvr_method_option *options;   /* own keys, terminated by {NULL} */
 
@@ -148,7 +159,7 @@ struct cdvr_render_method {
      * figures through stats (may be NULL): at least "ms". */
     cdvr_status (*render)(cdvr_render_ctx *ctx, cdvr_device_kind device, const cdvr_volume *vol,
                           size_t t, cdvr_render_opts *opts, const cdvr_method_params *p,
-                          const cdvr_stats_sink *stats, cdvr_image **out, cdvr_error *err);
+                          cdvr_render_stats *stats, cdvr_image **out, cdvr_error *err);
 
     /* Optional: device frame `frame` of an OpenCL stream (cdvr/device.h) with the volume's
      * geometry; grid (may be NULL) holds brick flags made on the host for opts->tf. Fills
@@ -163,10 +174,13 @@ struct cdvr_render_method {
      * (opts->tf built over the store's window). */
     cdvr_status (*render_store)(cdvr_render_ctx *ctx, cdvr_device_kind device,
                                 const cdvr_store *st, size_t v, size_t t, cdvr_render_opts *opts,
-                                const cdvr_method_params *p, const cdvr_stats_sink *stats,
+                                const cdvr_method_params *p, cdvr_render_stats *stats,
                                 cdvr_image **out, cdvr_error *err);
-    /* Optional: the window's key (a printable character, lower case); 1 if p changed. */
-    int (*window_key)(cdvr_method_params *p, int key);
+    /* Optional: the window's key (a printable character, lower case) for the options p: sets
+     * *option to one of the method's option keys and value (n bytes) to its new value as
+     * text, and returns 1; 0 when the key means nothing to the method. */
+    int (*window_key)(const cdvr_method_params *p, int key, const char **option, char *value,
+                      size_t n);
     /* Optional: the method's state in a few words for the window's overlay. */
     void (*describe)(const cdvr_method_params *p, char *out, size_t n);
 };
@@ -228,6 +242,13 @@ cdvr_status cdvr_render_ctx_upload(cdvr_render_ctx *ctx, cdvr_cl_stream *s,
                                    const cdvr_volume *vol, size_t t, cdvr_error *err);
 /* Forgets the uploaded frame (the stream's frame 0 was overwritten by someone else). */
 void cdvr_render_ctx_forget_frame(cdvr_render_ctx *ctx);
+/* Makes the frames of the chunk holding timestep t (from 0) of variant v of a store on the
+ * context's stream for the store's dims: the codec's decode kernel, its fetch mode (frames
+ * stay compressed), or a host decode + upload for codecs without device code and for bricked
+ * stores. *frame gets the device frame of t. Errors name the store, variant and chunk. */
+cdvr_status cdvr_render_ctx_load_chunk(cdvr_render_ctx *ctx, const cdvr_store *st, size_t v,
+                                       size_t t, cdvr_cl_stream **stream, size_t *frame,
+                                       cdvr_error *err);
 /* The EGL slicer, created on first use. */
 cdvr_status cdvr_render_ctx_gl(cdvr_render_ctx *ctx, cdvr_gl **out, cdvr_error *err);
 

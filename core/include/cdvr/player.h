@@ -34,9 +34,13 @@
  * Brick skipping ("model only what a scene needs", opts.brick_skip): when a group is planned,
  * a brick is read and decoded only if
  *   - some value in its chunk's recorded range [value_min, value_max] has alpha > 0 under the
- *     TF (else every sample in its cells is transparent), and
+ *     TF (else every sample in its cells is transparent; composite only: the other blend
+ *     modes see every value), and
  *   - the box of its cells can be seen by the camera of at least one frame of the group
  *     (cdvr_camera_sees_box; no ray of the view crosses it otherwise).
+ * With shading (or gradient opacity) the 26 neighbours of each brick read are read too: the
+ * central differences at a cell on a brick's face read one voxel into the neighbour, which so
+ * holds its real values, as without skipping.
  * A skipped brick's voxels are filled with its value_min (transparent for a TF-skipped
  * brick, never sampled for one out of view), then the read bricks are decoded over them, the
  * lower brick last so it keeps the voxels it owns (store.h). With no brick read the frame is
@@ -72,6 +76,7 @@
 #include "cdvr/camera.h"
 #include "cdvr/error.h"
 #include "cdvr/image.h"
+#include "cdvr/method.h"
 #include "cdvr/render.h"
 #include "cdvr/store.h"
 #include "cdvr/tf.h"
@@ -117,15 +122,32 @@ typedef cdvr_status (*cdvr_camera_fn)(void *ud, size_t t, size_t frame, cdvr_cam
 typedef cdvr_status (*cdvr_composite_fn)(void *ud, const cdvr_frame_row *row,
                                          const cdvr_camera *cam, cdvr_image **img,
                                          double *wait_ms, cdvr_error *err);
-/* Called after each frame with the row and the image (e.g. to write a PNG); may be NULL. */
+/* Called after each frame with the row and the image (e.g. to write a PNG); may be NULL. A
+ * frame that failed (row->status and row->error say why, e.g. a damaged chunk) is passed too,
+ * with img NULL, so that a capture never loses a frame silently; a frame the composite hook
+ * left without an image here (img NULL, row->status CDVR_OK) is not passed. A non-OK return
+ * stops the run with that error (the rows so far are kept). */
 typedef cdvr_status (*cdvr_frame_fn)(void *ud, const cdvr_frame_row *row, const cdvr_image *img,
                                      cdvr_error *err);
 
-typedef enum cdvr_device_kind { CDVR_DEVICE_CPU = 0, CDVR_DEVICE_CL = 1 } cdvr_device_kind;
+/* Bounded work (cdvr_player_create refuses other values, naming the limit): read_mbps is 0 (no
+ * cap) or CDVR_PLAYER_MIN_READ_MBPS .. CDVR_PLAYER_MAX_RATE (1 kB/s at the slowest); pace_fps
+ * is 0 or CDVR_PLAYER_MIN_FPS .. CDVR_PLAYER_MAX_RATE (a frame per 1000 s at the slowest);
+ * step, unit and term_alpha as cdvr_render_opts_check on the store's box. */
+#define CDVR_PLAYER_MIN_READ_MBPS 1e-3
+#define CDVR_PLAYER_MIN_FPS 1e-3
+#define CDVR_PLAYER_MAX_RATE 1e9
 
 typedef struct cdvr_player_opts {
     const cdvr_store *store;
-    cdvr_device_kind device;
+    cdvr_device_kind device;     /* one of the method's devices (cdvr/method.h) */
+    const cdvr_render_method *method; /* NULL: raycast */
+    cdvr_method_params method_params; /* the method's options (all zero with method NULL:
+                                         its defaults) */
+    cdvr_look look;              /* blend mode, shading, gradient opacity, iso (render.h) */
+    cdvr_render_ctx *ctx;        /* devices for methods that render through it (gl, or a cl
+                                    method without render_stream); NULL: the player makes its
+                                    own when it needs one */
     const cdvr_tf *tf;
     cdvr_camera camera;          /* initial camera (also used when camera_fn is NULL) */
     double step, unit, term_alpha;

@@ -36,6 +36,40 @@
  *     A >= term_alpha (early termination).
  *  6. The pixel stores premultiplied (C, A); the background is composited later (image.h).
  *
+ * Blend modes (opts->look.blend, VTK's BlendMode; steps 4-5 above are "composite", the default):
+ *  - CDVR_BLEND_MAX / MIN: over the samples of steps 2-3 (the owned ones when clipped) the
+ *    largest / smallest code s; the pixel is the TF at s, its opacity taken as it is (no unit
+ *    or step correction, as VTK's MIP): C = rgb(s) * a(s), A = a(s) (lerped table entries,
+ *    step 4's i0 and f). A ray that takes no sample stays (0, 0).
+ *  - CDVR_BLEND_AVERAGE: the same with the mean of the samples' codes (float sum / count).
+ *  - CDVR_BLEND_ISO: the first crossing of the iso code c = (iso_value - lo) * 255 / (hi - lo)
+ *    (the TF's window [lo, hi], hi > lo) along the samples: the first i >= 1 with
+ *    (s_{i-1} - c) and (s_i - c) of opposite signs or s_i == c (or s_0 == c). The hit
+ *    parameter is refined between the two sample midpoints by two regula-falsi steps on the
+ *    trilinear field: t = t_a + (c - s_a) (t_b - t_a) / (s_b - s_a), s(t) sampled, and the
+ *    bracket [t_a, t_b] narrowed to the side that still crosses. The pixel is iso_color (the
+ *    TF's rgb at c when iso_color_set is 0) with opacity iso_opacity (0 -> 1), shaded at the
+ *    hit when look.shade.enabled: C = rgb' * a, A = a. No early termination, no clipping
+ *    (a clipped iso render is an error: a crossing may straddle two boxes).
+ *  Max, min and average ignore shading and gradient opacity; none of them may be clipped.
+ *
+ * Shading (opts->look.shade, VTK's vtkVolumeProperty; composite and iso): at a sample with
+ * opacity > 0 the gradient of the data is taken by central differences of the trilinear field
+ * one voxel apart along each index axis: with g the sample's grid position, for axis a
+ * g+ = min(g_a + 1, dims_a - 1), g- = max(g_a - 1, 0), dq_a = (s(g+) - s(g-)) / ((g+ - g-)
+ * spacing_a) (0 when g+ == g-): codes per world unit along the box-frame axes; the world
+ * gradient is G = D^-T dq (the direction matrix honoured; G = D dq for a rotation). With
+ * V = -(world ray direction), L = V for the headlight (light_fixed 0) else -light_dir
+ * normalised (light_dir: the direction the light travels), H = normalize(L + V), and
+ * n = G / |G| (n = 0 when |G| < 1e-12: no NaN), two-sided lighting as VTK's renderers:
+ *     rgb' = min(1, rgb * (ambient + diffuse |n.L|) + specular |n.H|^specular_power)
+ * (0^power is 0: a zero gradient keeps only the ambient term). Alpha is unchanged by shading.
+ * Gradient opacity (opts->look.gradient_opacity, VTK's GradientOpacity; composite only): the
+ * sample's opacity a (step 4's lerp of the table, before the unit correction) is multiplied by
+ * the piecewise-linear function of |G| (hi - lo) / 255 (data units per world unit) through the
+ * points (constant beyond the end points), then corrected for the segment as
+ * 1 - (1 - a * factor)^(ds/unit) for every segment, full or not.
+ *
  * Clipped rendering (opts->clip; sort-last compositing of boxes of one volume, cdvr/dist.h):
  * the volume passed holds only voxels offset .. offset + dims - 1 of a whole volume of
  * whole_dims voxels; its origin, spacing and direction are the whole volume's. Steps 0-2
@@ -74,6 +108,51 @@ typedef struct cdvr_render_clip {
     size_t own_hi[3];
 } cdvr_render_clip;
 
+/* Blend modes (VTK's BlendMode), the values of cdvr_render_opts.blend. */
+typedef enum cdvr_blend {
+    CDVR_BLEND_COMPOSITE = 0,
+    CDVR_BLEND_MAX = 1,
+    CDVR_BLEND_MIN = 2,
+    CDVR_BLEND_AVERAGE = 3,
+    CDVR_BLEND_ISO = 4
+} cdvr_blend;
+#define CDVR_BLEND_COUNT 5
+/* "composite", "max", "min", "average", "iso"; NULL for other values. */
+const char *cdvr_blend_name(int blend);
+/* The mode called name; -1 for an unknown name. */
+int cdvr_blend_parse(const char *name);
+
+/* Shading as VTK's volume property (see above); zeros: off. */
+typedef struct cdvr_shading {
+    int enabled;
+    double ambient, diffuse, specular, specular_power; /* VTK: 0.1, 0.7, 0.2, 10 */
+    int light_fixed;        /* 0: a headlight; 1: a directional light along light_dir */
+    double light_dir[3];    /* world direction the light travels (light_fixed) */
+} cdvr_shading;
+#define CDVR_SHADE_AMBIENT 0.1
+#define CDVR_SHADE_DIFFUSE 0.7
+#define CDVR_SHADE_SPECULAR 0.2
+#define CDVR_SHADE_SPECULAR_POWER 10.0
+
+#define CDVR_GRADIENT_OPACITY_MAX 16
+/* Opacity factor against gradient magnitude (data units per world unit); npoints 0: off. */
+typedef struct cdvr_gradient_opacity {
+    size_t npoints;
+    double magnitude[CDVR_GRADIENT_OPACITY_MAX]; /* increasing */
+    double factor[CDVR_GRADIENT_OPACITY_MAX];    /* in [0, 1] */
+} cdvr_gradient_opacity;
+
+/* How samples become a pixel beyond the TF: blend mode, shading, gradient opacity (above). */
+typedef struct cdvr_look {
+    int blend;                /* cdvr_blend (0: composite) */
+    cdvr_shading shade;       /* composite and iso */
+    cdvr_gradient_opacity gradient_opacity; /* composite */
+    double iso_value;         /* CDVR_BLEND_ISO: data units */
+    int iso_color_set;        /* 1: iso_color, else the TF's colour at iso_value */
+    float iso_color[3];
+    double iso_opacity;       /* 0 -> 1 */
+} cdvr_look;
+
 typedef struct cdvr_render_opts {
     const cdvr_tf *tf;
     const cdvr_camera *camera;
@@ -86,7 +165,39 @@ typedef struct cdvr_render_opts {
     uint64_t samples;   /* out: samples taken (for samples/second) */
     const atomic_int *cancel; /* optional: once *cancel != 0 (e.g. set by a SIGINT handler)
                                  the render stops and fails with CDVR_ERR_CANCELLED */
+    cdvr_look look;           /* blend mode, shading, gradient opacity, iso (zeros: plain
+                                 composite) */
 } cdvr_render_opts;
+
+/* Checks the blend, shading, gradient-opacity and iso options for a TF built over window
+ * [lo, hi] (tf->window): an unknown blend mode, coefficients that are negative or not finite,
+ * a zero light_dir, unsorted or out-of-range gradient-opacity points, an iso value that is not
+ * finite or a window of zero width for iso, and clipping with a blend other than composite or
+ * with shading (central differences reach past a box's one-voxel overlap) are CDVR_ERR_ARG
+ * naming the option and the value. Every renderer calls it. */
+cdvr_status cdvr_render_check_look(const cdvr_render_opts *opts, cdvr_error *err);
+/* A look with shading on at VTK's defaults (headlight). */
+void cdvr_shading_default(cdvr_shading *sh);
+/* The bounds on render work (cdvr_render_opts_check): a step below 1/64 of the smallest voxel
+ * spacing is refused (64 samples per voxel is far past where the image stops changing; the
+ * default step is 1/2), and so is a step that puts more than 2^24 samples on the box's
+ * diagonal (e.g. a very anisotropic spacing). */
+#define CDVR_RENDER_MIN_STEP_DIVISOR 64
+#define CDVR_RENDER_MAX_RAY_SAMPLES (1u << 24)
+
+/* Checks the options every renderer takes (the CPU ray caster, splatting, OpenCL, GL slicing
+ * and the player call it; bindings may call it early): spacing positive and finite; step
+ * finite and 0 (default) or >= min(spacing) / CDVR_RENDER_MIN_STEP_DIVISOR, and at most
+ * CDVR_RENDER_MAX_RAY_SAMPLES steps along the box's diagonal (the whole volume's box when
+ * opts->clip is set); unit finite and >= 0; term_alpha >= 0 (not NaN). Does not check tf or
+ * camera. Errors (CDVR_ERR_ARG) name the option, its value and the limit, e.g. "render: step
+ * 1e-06 is below 1/64 of the smallest voxel spacing 1 (the limit: step >= 0.015625)". */
+cdvr_status cdvr_render_opts_check(const cdvr_volume *vol, const cdvr_render_opts *opts,
+                                   cdvr_error *err);
+/* The same for a box of dims voxels with this spacing, for callers that hold no volume yet
+ * (a device stream, a player that has only the store's header). */
+cdvr_status cdvr_render_opts_check_box(const size_t dims[3], const double spacing[3],
+                                       const cdvr_render_opts *opts, cdvr_error *err);
 
 /* Resolved step, unit and termination threshold (the defaults above) for a volume. */
 void cdvr_render_resolve(const cdvr_volume *vol, const cdvr_render_opts *opts, double *step,

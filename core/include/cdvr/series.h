@@ -17,6 +17,7 @@
 #include <stdint.h>
 
 #include "cdvr/error.h"
+#include "cdvr/store.h" /* cdvr_encode_source, cdvr_encode_opts */
 #include "cdvr/volume.h"
 
 typedef struct cdvr_series cdvr_series;
@@ -30,7 +31,8 @@ typedef struct cdvr_series_info {
 } cdvr_series_info;
 
 /* Opens count files (raw files need raw; its spacing, when set, overrides every file's),
- * reading their headers. */
+ * reading their headers; a file whose format lists files (cdvr/format.h, expand) stands for
+ * those files. */
 cdvr_status cdvr_series_open(const char *const *paths, size_t count, const cdvr_raw_opts *raw,
                              cdvr_series **out, cdvr_error *err);
 void cdvr_series_close(cdvr_series *s);
@@ -50,6 +52,73 @@ cdvr_status cdvr_series_read(cdvr_series *s, size_t t0, size_t count, cdvr_volum
 cdvr_status cdvr_series_range(cdvr_series *s, double *lo, double *hi,
                               void (*progress)(void *ud, size_t done, size_t total), void *ud,
                               cdvr_error *err);
+
+
+/* Progress of a pass over the files: done of total files. */
+typedef void (*cdvr_series_progress_fn)(void *ud, size_t done, size_t total);
+
+/* ---- file names from a pattern -------------------------------------------------------------
+ * A pattern is a printf-like name with exactly one integer conversion: %d, %i or %u with an
+ * optional 0 flag and a width below 100 ("vf_t%03d.nrrd"); "%%" is a literal percent. */
+
+/* The names for the numbers first .. first + count - 1; with count 0, the names from first on
+ * while those files exist (at least the first must: CDVR_ERR_IO "NAME: no such file (series
+ * pattern P, first=N)"). *out is a malloc'd array of *n malloc'd strings
+ * (cdvr_format_free_paths). A bad pattern or a count above 1000000 is CDVR_ERR_ARG naming the
+ * pattern. */
+cdvr_status cdvr_series_pattern(const char *pattern, long long first, size_t count, char ***out,
+                                size_t *n, cdvr_error *err);
+
+/* ---- a series as u8 codes, and as the source of an out-of-core encode ----------------------
+ * A view is a series seen either as its values or, quantized, as the u8 codes of its values
+ * over [lo, hi] (the formula of cdvr_volume_quantize). What cdvr.load_series and v:quantize of
+ * it give in Lua; a C caller encodes a series out of core with
+ *     cdvr_series_view v = {series, 0, 0, 0};
+ *     cdvr_series_source state;
+ *     cdvr_encode_source src;
+ *     cdvr_series_encode_source(&v, &state, &src, &opts, NULL, NULL, &err);
+ *     cdvr_store_encode_source(&src, &opts, "out.cdv", &err);
+ * which holds only the files of the timesteps in flight and writes the store that
+ * cdvr_store_encode of the series loaded into memory and quantised over the same window
+ * writes, byte for byte. */
+typedef struct cdvr_series_view {
+    cdvr_series *series;
+    int quantized;               /* 1: u8 codes over [lo, hi] */
+    double lo, hi;
+} cdvr_series_view;
+
+/* The view's value window (cdvr/volume.h): [lo, hi] when quantized, [0, 255] for a u8 series,
+ * else the range of every timestep (cdvr_series_range: the first call reads every file). */
+cdvr_status cdvr_series_view_window(const cdvr_series_view *v, double w[2],
+                                    cdvr_series_progress_fn progress, void *ud, cdvr_error *err);
+/* Timesteps [t0, t0 + count) as a new volume in memory (u8 codes when quantized), with the
+ * series' geometry and the view's window. */
+cdvr_status cdvr_series_view_read(const cdvr_series_view *v, size_t t0, size_t count,
+                                  cdvr_volume **out, cdvr_series_progress_fn progress, void *ud,
+                                  cdvr_error *err);
+
+/* One pass over the timesteps of a quantized view (CDVR_ERR_ARG for one that is not): adds the
+ * counts of cdvr_volume_quantize to *report and gives the range of the codes in *lo, *hi (each
+ * may be NULL). */
+cdvr_status cdvr_series_view_scan(const cdvr_series_view *v, cdvr_quantize_report *report,
+                                  double *lo, double *hi, cdvr_error *err);
+
+/* What the frames of an encode source read (the caller keeps it while the encode runs). */
+typedef struct cdvr_series_source {
+    cdvr_series *series;
+    int quantize;                /* 0: the u8 voxels as they are */
+    double lo, hi;               /* window of the codes */
+} cdvr_series_source;
+
+/* Fills src for cdvr_store_encode_source: the series' dims, timesteps and geometry (of its
+ * first file), frames read one at a time through state: a u8 series that is not quantized as
+ * it is, every other one quantised over the view's window (cdvr_series_view_window, which may
+ * read every file once). Sets opts->qlo, qhi (that window) and source_type (the series' type);
+ * leaves the rest of opts alone. */
+cdvr_status cdvr_series_encode_source(const cdvr_series_view *v, cdvr_series_source *state,
+                                      cdvr_encode_source *src, cdvr_encode_opts *opts,
+                                      cdvr_series_progress_fn progress, void *ud,
+                                      cdvr_error *err);
 
 /* Quantises count values of `type` at in into out as cdvr_volume_quantize does (same
  * formula, same report counts, which are added to *report when it is not NULL). */

@@ -24,6 +24,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "cdvr/bricks.h" /* the brick and range-brick geometry */
+#include "cdvr/crc32c.h" /* the chunk checksums */
 #include "cdvr/codec.h"
 #include "cdvr/error.h"
 #include "cdvr/volume.h"
@@ -154,33 +156,23 @@ const cdvr_store_info *cdvr_store_get_info(const cdvr_store *st);
 const cdvr_variant_info *cdvr_store_variant(const cdvr_store *st, size_t v);
 /* Index of the variant called name, or -1. */
 int cdvr_store_find_variant(const cdvr_store *st, const char *name);
+/* The variant of best quality (from 0), the default of the player and the window and the
+ * first in share/lua/cdvr/policy.lua's quality order: a raw variant (lossless) first, then
+ * the highest PSNR recorded at encode time (+inf for a lossless one), ties broken by more
+ * stored bytes, then by the lower index. 0 for a store with one variant. */
+int cdvr_store_best_variant(const cdvr_store *st);
 /* Chunk c (from 0) of variant v: chunk c belongs to group c / nbricks and brick c % nbricks. */
 const cdvr_chunk_info *cdvr_store_chunk(const cdvr_store *st, size_t v, size_t c);
 /* Chunk of variant v holding timestep t (from 0) in brick 0; (size_t)-1 if out of range. */
 size_t cdvr_store_chunk_for_time(const cdvr_store *st, size_t v, size_t t);
 /* Chunk of variant v holding timestep t in brick b; (size_t)-1 if out of range. */
 size_t cdvr_store_chunk_for(const cdvr_store *st, size_t v, size_t t, size_t b);
-/* Voxel box of brick b: first voxel lo[3] and dims[3]. Along an axis of N voxels split into n
- * bricks, brick i owns the cells [c_i, c_{i+1}) with c_i = floor(i (N-1) / n) and holds the
- * voxels c_i .. c_{i+1} (neighbours share their boundary voxel, which the lower brick owns:
- * assembled volumes take its value there, and encode-time errors count it there); N = 1
- * gives one voxel. */
+/* Voxel box of brick b of the store's grid (cdvr_brick_box, cdvr/bricks.h); the whole volume
+ * when the grid is invalid. */
 void cdvr_store_brick_box(const cdvr_store_info *info, size_t b, size_t lo[3], size_t dims[3]);
-/* The voxels brick b owns: its box without the first voxel along each axis where it starts
- * after voxel 0 (that one belongs to the brick below). */
+/* The voxels brick b of the store's grid owns (cdvr_brick_owned). */
 void cdvr_store_brick_owned(const cdvr_store_info *info, size_t b, size_t lo[3],
                             size_t dims[3]);
-/* The same rule for any grid (the encoder and readers share it); 0 if the grid is invalid
- * (a count of 0, or more bricks than cells along an axis with more than one voxel). */
-int cdvr_brick_box(const size_t vol_dims[3], const size_t bricks[3], size_t b, size_t lo[3],
-                   size_t dims[3]);
-
-/* Copies a brick's voxels (dims, first voxel lo) into / out of a u8 frame of vol_dims. */
-void cdvr_brick_place(uint8_t *frame, const size_t vol_dims[3], const uint8_t *brick,
-                      const size_t lo[3], const size_t dims[3]);
-void cdvr_brick_extract(const uint8_t *frame, const size_t vol_dims[3], const size_t lo[3],
-                        const size_t dims[3], uint8_t *brick);
-
 /* The codec of variant v, or CDVR_ERR_UNSUPPORTED "codec 'zfp' is not loaded (load its
  * plugin: cdvr.plugin.load)" naming the file and variant. */
 cdvr_status cdvr_store_variant_codec(const cdvr_store *st, size_t v, const cdvr_codec **out,
@@ -216,40 +208,6 @@ cdvr_status cdvr_store_decode(const cdvr_store *st, size_t v, size_t t, cdvr_vol
 cdvr_status cdvr_store_decode_brick(const cdvr_store *st, size_t v, size_t t, size_t b,
                                     cdvr_volume **out, cdvr_error *err);
 
-/* ---- value ranges per range brick ----------------------------------------------------------
- * For empty-space skipping the encoder records, per chunk and per timestep of it, the range
- * of the decoded values of each range brick: along each axis of N voxels, range brick g
- * (from 0) holds voxels E*g .. min(E*g + E, N - 1) with E = 2^shift, i.e. its cube plus the
- * upper one-voxel apron trilinear interpolation reads (the ray caster's skipping bricks,
- * shift CDVR_RANGE_SHIFT). The volume has ceil(N / E) of them per axis (cdvr_range_grid).
- * The chunk of store brick b holds the window of range bricks that meet the voxels b owns
- * (cdvr_store_brick_owned; cdvr_range_window), each with its range over those voxels; a
- * whole range brick's range is the smallest min and largest max over the store bricks it
- * meets (cdvr_range_merge), which is exactly its range in the assembled volume. Table
- * layout: per frame of the chunk (count of them), per window brick (x fastest, then y, z),
- * two bytes: min, max. */
-#define CDVR_RANGE_SHIFT 2
-
-/* Range bricks per axis of a volume. */
-void cdvr_range_grid(const size_t vol_dims[3], unsigned shift, size_t n[3]);
-/* Window of range bricks meeting the voxel box lo .. lo + bd - 1: first brick g0 and counts n
- * per axis. */
-void cdvr_range_window(const size_t vol_dims[3], const size_t lo[3], const size_t bd[3],
-                       unsigned shift, size_t g0[3], size_t n[3]);
-/* Bytes of one frame's window table: 2 * n0 * n1 * n2. */
-size_t cdvr_range_window_bytes(const size_t vol_dims[3], const size_t lo[3],
-                               const size_t bd[3], unsigned shift);
-/* Window table of one frame of the voxel box (first voxel lo, bd voxels per axis) into out.
- * voxels points at the box's first voxel; rows and planes of the box are row_stride and
- * plane_stride bytes apart. */
-cdvr_status cdvr_range_compute(const uint8_t *voxels, size_t row_stride, size_t plane_stride,
-                               const size_t vol_dims[3], const size_t lo[3], const size_t bd[3],
-                               unsigned shift, uint8_t *out, cdvr_error *err);
-/* Folds a window table into the grid's table (2 bytes per brick of the grid, preset to
- * min 255, max 0): min of the mins, max of the maxes. */
-void cdvr_range_merge(const uint8_t *window, const size_t g0[3], const size_t n[3],
-                      const size_t grid[3], uint8_t *grid_minmax);
-
 /* Bytes of chunk c's range table (count frames of its window), 0 when it has none. */
 size_t cdvr_store_ranges_bytes(const cdvr_store *st, size_t v, size_t c);
 /* Reads chunk c's range table into out (cdvr_store_ranges_bytes): pread, CRC-32C check, LZO
@@ -257,7 +215,5 @@ size_t cdvr_store_ranges_bytes(const cdvr_store *st, size_t v, size_t c);
 cdvr_status cdvr_store_read_ranges(const cdvr_store *st, size_t v, size_t c, uint8_t *out,
                                    cdvr_error *err);
 
-/* CRC-32C (Castagnoli), initial value 0 for a fresh CRC: crc = cdvr_crc32c(0, buf, n). */
-uint32_t cdvr_crc32c(uint32_t crc, const void *buf, size_t n);
 
 #endif

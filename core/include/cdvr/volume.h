@@ -122,13 +122,21 @@ cdvr_status cdvr_volume_save_raw(const cdvr_volume *vol, const char *path, int b
 cdvr_status cdvr_volume_load_nrrd(const char *path, cdvr_volume **out, cdvr_error *err);
 /* .nii / .nii.gz through niftilib. 3D, or 4D (timesteps = dim[4]). */
 cdvr_status cdvr_volume_load_nifti(const char *path, cdvr_volume **out, cdvr_error *err);
-/* Dispatch on the extension; raw needs opts (NULL -> error naming the missing dims/type). opts
- * with dims 0 describe no raw file and only carry spacing (> 0: overrides the file's). */
+/* Loads path through the format registry (cdvr/format.h: by suffix, a raw description, then
+ * the first bytes; an unknown file is refused listing the formats known); raw needs opts (NULL
+ * -> error naming the missing dims/type). opts with dims 0 describe no raw file and only carry
+ * spacing (> 0: overrides the file's). */
 cdvr_status cdvr_volume_load(const char *path, const cdvr_raw_opts *raw, cdvr_volume **out,
                              cdvr_error *err);
+/* What cdvr_volume_load of the same file gives (dims, timesteps, type after the loaders'
+ * conversions, spacing with raw's override, origin, direction) without reading the voxels; the
+ * same choice of format (cdvr/format.h). head->data is left alone, the rest is overwritten. */
+cdvr_status cdvr_volume_probe(const char *path, const cdvr_raw_opts *raw, cdvr_volume *head,
+                              cdvr_error *err);
 /* Loads count files (each 3D, or 4D) and concatenates their timesteps; dims, type and spacing
  * must agree (the error names the first file that differs), unless raw gives all three spacings,
- * which then apply to the whole series. */
+ * which then apply to the whole series. A file whose format lists files (cdvr_format.expand, e.g.
+ * a list file) stands for those files. */
 cdvr_status cdvr_volume_load_series(const char *const *paths, size_t count,
                                     const cdvr_raw_opts *raw, cdvr_volume **out,
                                     cdvr_error *err);

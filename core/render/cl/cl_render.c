@@ -300,13 +300,61 @@ static clip_params clip_params_of(const cdvr_render_clip *c)
     return k;
 }
 
+/* The look of render.h in the kernel's terms (cl_shared.h), for the stream's TF window and the
+ * volume's direction (invertible: checked) and spacing. */
+static cdvr_cl_look look_of(const cdvr_look *look, const cdvr_tf *tf, const double direction[9],
+                            const double spacing[3])
+{
+    cdvr_cl_look k;
+    memset(&k, 0, sizeof k);
+    const cdvr_shading *sh = &look->shade;
+    k.blend = look->blend;
+    k.shade = sh->enabled;
+    k.headlight = !sh->light_fixed;
+    k.ambient = (cl_float)sh->ambient;
+    k.diffuse = (cl_float)sh->diffuse;
+    k.specular = (cl_float)sh->specular;
+    k.power = (cl_float)sh->specular_power;
+    double len = sqrt(sh->light_dir[0] * sh->light_dir[0] + sh->light_dir[1] * sh->light_dir[1] +
+                      sh->light_dir[2] * sh->light_dir[2]);
+    for (int a = 0; a < 3; a++) {
+        k.light[a] = len > 0.0 ? (cl_float)(-sh->light_dir[a] / len) : 0.0f;
+        k.spacing[a] = (cl_float)spacing[a];
+    }
+    double D[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, inv[9];
+    int any = 0;
+    for (int i = 0; direction && i < 9; i++)
+        any |= direction[i] != 0.0;
+    if (any)
+        memcpy(D, direction, sizeof D);
+    if (!cdvr_mat3_inverse(D, inv))
+        memcpy(inv, D, sizeof inv);
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 3; c++)
+            k.grad_to_world[3 * r + c] = (cl_float)inv[3 * c + r]; /* (D^-1)^T */
+    double width = tf->window[1] - tf->window[0];
+    k.value_per_code = (cl_float)(width / 255.0);
+    k.go_points = (cl_int)look->gradient_opacity.npoints;
+    for (int i = 0; i < k.go_points && i < CDVR_CL_GO_MAX; i++) {
+        k.go_mag[i] = (cl_float)look->gradient_opacity.magnitude[i];
+        k.go_factor[i] = (cl_float)look->gradient_opacity.factor[i];
+    }
+    k.iso_code = width > 0.0 ? (cl_float)((look->iso_value - tf->window[0]) * 255.0 / width) : 0.0f;
+    k.iso_tf_color = !look->iso_color_set;
+    for (int c = 0; c < 3; c++)
+        k.iso_rgb[c] = look->iso_color[c];
+    k.iso_alpha = look->iso_opacity > 0.0 ? (cl_float)look->iso_opacity : 1.0f;
+    return k;
+}
+
 /* Sets the ray-cast kernel's arguments (in the order of kernels/render/raycast.cl). A clipped
  * render casts the whole volume's rays and skips no empty space (the brick grid describes
  * the stream's own voxels only). */
 static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_params rp,
                                     const cam_params *cam, const cdvr_render_clip *clip,
-                                    const double spacing[3], const box_frame *box, cl_mem image,
-                                    cl_kernel *kernel, cdvr_error *err)
+                                    const double spacing[3], const box_frame *box,
+                                    const cdvr_cl_look *look, cl_mem image, cl_kernel *kernel,
+                                    cdvr_error *err)
 {
     voxel_source src;
     cdvr_status sst = source_of(s, frame, &src, err);
@@ -350,7 +398,8 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
                 {sizeof(cl_float), &s->visible_lo[0]}, {sizeof(cl_float), &s->visible_lo[1]},
                 {sizeof(cl_float), &s->visible_lo[2]}, {sizeof(cl_float), &s->visible_hi[0]},
                 {sizeof(cl_float), &s->visible_hi[1]}, {sizeof(cl_float), &s->visible_hi[2]},
-                {sizeof(cl_mem), &image},     {sizeof(cl_mem), &s->samples}};
+                {sizeof(cl_mem), &image},     {sizeof(cl_mem), &s->samples},
+                {sizeof *look, look}};
     cdvr_status st = set_source_args(k, "raycast", &src, err);
     for (cl_uint i = 0; !st && i < sizeof args / sizeof *args; i++)
         st = cdvr_cl_arg(k, "raycast", 3 + i, args[i].size, args[i].value, err);
@@ -527,6 +576,8 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     cam_params cam;
     box_frame box;
     cdvr_status st = check_render_args(s, frame, opts, spacing, origin, img, err);
+    if (!st) /* step, unit, term_alpha: bounded work */
+        st = cdvr_render_opts_check_box(opts->clip ? opts->clip->whole_dims : s->dims, spacing, opts, err);
     if (!st)
         st = camera_params(opts->camera, &cam, err);
     if (st)
@@ -534,6 +585,11 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     if (!make_box_frame(origin, direction, &box))
         return cdvr_error_set(err, CDVR_ERR_ARG,
                               "OpenCL render: volume direction matrix is singular or not finite");
+    cdvr_render_opts checked = *opts; /* the look is checked against the stream's TF window */
+    checked.tf = &s->tf;
+    st = cdvr_render_check_look(&checked, err);
+    if (st)
+        return st;
     render_params rp = resolve(opts, &s->tf, spacing);
     if (!(rp.step > 0) || !(rp.unit > 0))
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL render: step %g and unit %g must be > 0",
@@ -560,7 +616,8 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     make_quads_if_rerendered(s, frame);
     cl_mem host_image = wrap_host_image(s->cl, img, pixels);
     cl_kernel kernel;
-    st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box,
+    cdvr_cl_look look = look_of(&opts->look, &s->tf, direction, spacing);
+    st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box, &look,
                           host_image ? host_image : s->image, &kernel, err);
     if (!st)
         st = cast_and_read(s, kernel, global, local, host_image, img, pixels, err);

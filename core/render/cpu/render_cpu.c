@@ -25,6 +25,20 @@ typedef struct render_job {
     const cdvr_tf *tf;
     float alpha_step[256]; /* a_c[i] = 1 - (1 - a[i])^(step/unit) */
     const cdvr_camera *camera;
+    /* blend modes and shading (render.h) */
+    int blend;
+    int shade;                 /* shading on */
+    float ambient, diffuse, specular, power;
+    int headlight;
+    float light[3];            /* world, towards the light (unit), when not a headlight */
+    float dir[9];              /* D: box-frame directions to world */
+    float grad_to_world[9];    /* D^-T: box-frame gradients to world */
+    float spacing[3];
+    float value_per_code;      /* (hi - lo) / 255 of the TF's window */
+    int go_points;             /* gradient opacity points, 0: off */
+    float go_mag[CDVR_GRADIENT_OPACITY_MAX], go_factor[CDVR_GRADIENT_OPACITY_MAX];
+    float iso_code, iso_rgb[3], iso_alpha;
+    int iso_tf_color;          /* the TF's colour at the iso code */
     const atomic_int *cancel; /* NULL, or stop before the next row once nonzero */
     cdvr_image *img;
     atomic_int next_row;
@@ -168,9 +182,207 @@ static void owned_segments(const render_job *job, const float o[3], const float 
     *stop = s < 0.0 ? 0 : s > (double)n ? n : (long)s;
 }
 
-/* Steps 2 and 5 for one ray; returns the number of samples taken. */
+/* ---- shading (render.h) ------------------------------------------------------------------ */
+
+/* World gradient G (codes per world unit) at grid position g by central differences of the
+ * trilinear field one voxel apart (render.h). */
+static void gradient(const render_job *job, const float g[3], float G[3])
+{
+    float dq[3];
+    for (int a = 0; a < 3; a++) {
+        float gp[3] = {g[0], g[1], g[2]}, gm[3] = {g[0], g[1], g[2]};
+        float top = (float)(job->dims[a] - 1);
+        gp[a] = fminf(g[a] + 1.0f, top);
+        gm[a] = fmaxf(g[a] - 1.0f, 0.0f);
+        float h = gp[a] - gm[a];
+        dq[a] = h > 0.0f ? (sample_volume(job, gp) - sample_volume(job, gm)) / (h * job->spacing[a])
+                         : 0.0f;
+    }
+    const float *m = job->grad_to_world;
+    for (int r = 0; r < 3; r++)
+        G[r] = m[3 * r] * dq[0] + m[3 * r + 1] * dq[1] + m[3 * r + 2] * dq[2];
+}
+
+static float length3(const float v[3])
+{
+    return sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+}
+
+/* rgb' = min(1, rgb (ambient + diffuse |n.L|) + specular |n.H|^power), two-sided; V towards
+ * the eye (unit). */
+static void shade_rgb(const render_job *job, const float G[3], const float V[3], float rgb[3])
+{
+    float len = length3(G), ndl = 0.0f, ndh = 0.0f;
+    if (len >= 1e-12f) {
+        const float *L = job->headlight ? V : job->light;
+        float H[3] = {L[0] + V[0], L[1] + V[1], L[2] + V[2]};
+        float hl = length3(H);
+        float n[3] = {G[0] / len, G[1] / len, G[2] / len};
+        ndl = fabsf(n[0] * L[0] + n[1] * L[1] + n[2] * L[2]);
+        ndh = hl > 0.0f ? fabsf(n[0] * H[0] + n[1] * H[1] + n[2] * H[2]) / hl : 0.0f;
+    }
+    float spec = ndh > 0.0f ? job->specular * powf(ndh, job->power) : 0.0f;
+    float k = job->ambient + job->diffuse * ndl;
+    for (int c = 0; c < 3; c++)
+        rgb[c] = fminf(rgb[c] * k + spec, 1.0f);
+}
+
+/* Gradient opacity factor at magnitude m (data units per world unit). */
+static float go_factor(const render_job *job, float m)
+{
+    int n = job->go_points;
+    if (m <= job->go_mag[0])
+        return job->go_factor[0];
+    for (int i = 1; i < n; i++)
+        if (m <= job->go_mag[i]) {
+            float w = job->go_mag[i] - job->go_mag[i - 1];
+            float f = w > 0.0f ? (m - job->go_mag[i - 1]) / w : 1.0f;
+            return lerpf(job->go_factor[i - 1], job->go_factor[i], f);
+        }
+    return job->go_factor[n - 1];
+}
+
+/* Shading and gradient opacity of a composite sample at grid position g (rgba from classify,
+ * a > 0): rgb shaded, alpha multiplied by the factor and corrected for ds (render.h). */
+static void look_sample(const render_job *job, const float g[3], float s, float ds,
+                        const float V[3], float rgba[4])
+{
+    float G[3];
+    gradient(job, g, G);
+    if (job->go_points) {
+        int i0 = (int)s;
+        if (i0 > 254)
+            i0 = 254;
+        float a = lerpf(job->tf->table[i0][3], job->tf->table[i0 + 1][3], s - (float)i0);
+        a *= go_factor(job, length3(G) * job->value_per_code);
+        rgba[3] = a > 0.0f ? 1.0f - powf(1.0f - a, ds / job->unit) : 0.0f;
+    }
+    if (job->shade && rgba[3] > 0.0f)
+        shade_rgb(job, G, V, rgba);
+}
+
+/* The TF at code s without unit correction (max, min, average, iso colour). */
+static void table_at(const render_job *job, float s, float rgba[4])
+{
+    int i0 = (int)s;
+    if (i0 > 254)
+        i0 = 254;
+    if (i0 < 0)
+        i0 = 0;
+    float f = s - (float)i0;
+    const float *lo = job->tf->table[i0], *hi = job->tf->table[i0 + 1];
+    for (int c = 0; c < 4; c++)
+        rgba[c] = lerpf(lo[c], hi[c], f);
+}
+
+/* ---- blend modes other than composite --------------------------------------------------- */
+
+/* Sample i (of n from t_near) of a ray: its code, and its parameter in *tm. */
+static float sample_at(const render_job *job, const float o[3], const float d[3], float t_near,
+                       float t_far, long i, long n, float *tm, float g[3])
+{
+    float ts = t_near + (float)i * job->step;
+    float ds = i < n - 1 ? job->step : t_far - ts;
+    *tm = ts + 0.5f * ds;
+    float p[3];
+    for (int a = 0; a < 3; a++)
+        p[a] = o[a] + *tm * d[a];
+    grid_position(job, p, g);
+    return sample_volume(job, g);
+}
+
+/* Max, min or average of the samples' codes; returns the samples taken. */
+static uint64_t march_extreme(const render_job *job, const float o[3], const float d[3],
+                              float t_near, float t_far, long n, float out[4])
+{
+    float best = job->blend == CDVR_BLEND_MIN ? INFINITY : -INFINITY;
+    double sum = 0.0;
+    uint64_t taken = 0;
+    for (long i = 0; i < n; i++) {
+        float tm, g[3];
+        float ts = t_near + (float)i * job->step;
+        if (i == n - 1 && t_far - ts <= 0.0f)
+            break;
+        float s = sample_at(job, o, d, t_near, t_far, i, n, &tm, g);
+        taken++;
+        sum += s;
+        best = job->blend == CDVR_BLEND_MAX ? fmaxf(best, s) : fminf(best, s);
+    }
+    if (!taken)
+        return 0;
+    float s = job->blend == CDVR_BLEND_AVERAGE ? (float)(sum / (double)taken) : best, rgba[4];
+    table_at(job, s, rgba);
+    for (int c = 0; c < 3; c++)
+        out[c] = rgba[c] * rgba[3];
+    out[3] = rgba[3];
+    return taken;
+}
+
+/* The point at parameter t on the ray, as a grid position, and its code. */
+static float field_at(const render_job *job, const float o[3], const float d[3], float t,
+                      float g[3])
+{
+    float p[3];
+    for (int a = 0; a < 3; a++)
+        p[a] = o[a] + t * d[a];
+    grid_position(job, p, g);
+    return sample_volume(job, g);
+}
+
+/* The first crossing of the iso code, refined by two regula-falsi steps (render.h). */
+static uint64_t march_iso(const render_job *job, const float o[3], const float d[3],
+                          float t_near, float t_far, long n, const float V[3], float out[4])
+{
+    float c = job->iso_code, prev = 0.0f, t_prev = 0.0f;
+    uint64_t taken = 0;
+    for (long i = 0; i < n; i++) {
+        float tm, g[3];
+        float ts = t_near + (float)i * job->step;
+        if (i == n - 1 && t_far - ts <= 0.0f)
+            break;
+        float s = sample_at(job, o, d, t_near, t_far, i, n, &tm, g);
+        taken++;
+        int hit = s == c || (i > 0 && (prev - c) * (s - c) < 0.0f);
+        if (!hit) {
+            prev = s;
+            t_prev = tm;
+            continue;
+        }
+        float ta = t_prev, tb = tm, sa = prev, sb = s, t = tm;
+        for (int k = 0; k < 2 && s != c && sb != sa; k++) {
+            t = ta + (c - sa) * (tb - ta) / (sb - sa);
+            float st = field_at(job, o, d, t, g);
+            if ((sa - c) * (st - c) <= 0.0f) {
+                tb = t;
+                sb = st;
+            } else {
+                ta = t;
+                sa = st;
+            }
+        }
+        field_at(job, o, d, t, g);
+        float rgba[4];
+        table_at(job, c, rgba);
+        if (!job->iso_tf_color)
+            for (int k = 0; k < 3; k++)
+                rgba[k] = job->iso_rgb[k];
+        if (job->shade) {
+            float G[3];
+            gradient(job, g, G);
+            shade_rgb(job, G, V, rgba);
+        }
+        for (int k = 0; k < 3; k++)
+            out[k] = rgba[k] * job->iso_alpha;
+        out[3] = job->iso_alpha;
+        return taken;
+    }
+    return taken;
+}
+
+/* Steps 2 and 5 for one ray; returns the number of samples taken. V: towards the eye, world
+ * (for shading). */
 static uint64_t march_ray(const render_job *job, const float o[3], const float d[3],
-                          float out[4])
+                          const float V[3], float out[4])
 {
     float t_near, t_far;
     out[0] = out[1] = out[2] = out[3] = 0.0f;
@@ -180,6 +392,11 @@ static uint64_t march_ray(const render_job *job, const float o[3], const float d
     long n = (long)ceilf(length / step);
     if (n < 1)
         n = 1;
+    if (job->blend == CDVR_BLEND_ISO)
+        return march_iso(job, o, d, t_near, t_far, n, V, out);
+    if (job->blend != CDVR_BLEND_COMPOSITE)
+        return march_extreme(job, o, d, t_near, t_far, n, out);
+    int looks = job->shade || job->go_points;
     float C[3] = {0.0f, 0.0f, 0.0f}, A = 0.0f;
     long i, first = 0, stop = n;
     if (job->clipped)
@@ -197,7 +414,10 @@ static uint64_t march_ray(const render_job *job, const float o[3], const float d
         if (job->clipped && !owned(job, g))
             continue;
         taken++;
-        classify(job, sample_volume(job, g), ds, ds >= step, rgba);
+        float sv = sample_volume(job, g);
+        classify(job, sv, ds, ds >= step, rgba);
+        if (looks && rgba[3] > 0.0f)
+            look_sample(job, g, sv, ds, V, rgba);
         if (rgba[3] > 0.0f) {
             float w = (1.0f - A) * rgba[3];
             for (int c = 0; c < 3; c++)
@@ -234,7 +454,8 @@ static uint64_t render_row(const render_job *job, int y)
         float o[3], d[3];
         cdvr_camera_ray(job->camera, x, y, od, dd);
         to_box_frame(job, od, dd, o, d);
-        samples += march_ray(job, o, d, cdvr_image_pixel(job->img, x, y));
+        float V[3] = {(float)-dd[0], (float)-dd[1], (float)-dd[2]}; /* |dd| = 1 */
+        samples += march_ray(job, o, d, V, cdvr_image_pixel(job->img, x, y));
     }
     return samples;
 }
@@ -328,18 +549,52 @@ static cdvr_status check_opts(const cdvr_volume *vol, const cdvr_render_opts *op
     cdvr_status st = cdvr_camera_validate(opts->camera, err);
     if (st != CDVR_OK)
         return st;
-    if (!isfinite(opts->step) || opts->step < 0.0 || !isfinite(opts->unit) || opts->unit < 0.0)
-        return cdvr_error_set(err, CDVR_ERR_ARG, "render: step %g and unit %g must be >= 0",
-                              opts->step, opts->unit);
-    if (!(term >= 0.0))
-        return cdvr_error_set(err, CDVR_ERR_ARG, "render: term_alpha %g must be >= 0",
-                              opts->term_alpha);
+    st = cdvr_render_opts_check(vol, opts, err); /* step, unit, term_alpha: bounded work */
+    if (st != CDVR_OK)
+        return st;
     if (box_diagonal(vol) / step > (double)INT_MAX)
         return cdvr_error_set(err, CDVR_ERR_ARG,
                               "render: step %g too small for a box of diagonal %g", step,
                               box_diagonal(vol));
     (void)unit;
+    (void)term;
     return CDVR_OK;
+}
+
+/* Blend mode, shading and gradient opacity of opts (checked) into the job. */
+static void setup_look(render_job *job, const cdvr_render_opts *opts, const double D[9])
+{
+    const cdvr_look *look = &opts->look;
+    const cdvr_shading *sh = &look->shade;
+    const cdvr_tf *tf = opts->tf;
+    job->blend = look->blend;
+    job->shade = sh->enabled;
+    job->ambient = (float)sh->ambient;
+    job->diffuse = (float)sh->diffuse;
+    job->specular = (float)sh->specular;
+    job->power = (float)sh->specular_power;
+    job->headlight = !sh->light_fixed;
+    double len = sqrt(sh->light_dir[0] * sh->light_dir[0] + sh->light_dir[1] * sh->light_dir[1] +
+                      sh->light_dir[2] * sh->light_dir[2]);
+    for (int a = 0; a < 3; a++)
+        job->light[a] = len > 0.0 ? (float)(-sh->light_dir[a] / len) : 0.0f;
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 3; c++) {
+            job->dir[3 * r + c] = (float)D[3 * r + c];
+            job->grad_to_world[3 * r + c] = (float)job->inv_dir[3 * c + r]; /* (D^-1)^T */
+        }
+    job->value_per_code = (float)((tf->window[1] - tf->window[0]) / 255.0);
+    job->go_points = (int)look->gradient_opacity.npoints;
+    for (int i = 0; i < job->go_points; i++) {
+        job->go_mag[i] = (float)look->gradient_opacity.magnitude[i];
+        job->go_factor[i] = (float)look->gradient_opacity.factor[i];
+    }
+    double width = tf->window[1] - tf->window[0];
+    job->iso_code = width > 0.0 ? (float)((look->iso_value - tf->window[0]) * 255.0 / width) : 0.0f;
+    job->iso_tf_color = !look->iso_color_set;
+    for (int c = 0; c < 3; c++)
+        job->iso_rgb[c] = look->iso_color[c];
+    job->iso_alpha = look->iso_opacity > 0.0 ? (float)look->iso_opacity : 1.0f;
 }
 
 static void setup_job(render_job *job, const cdvr_volume *vol, size_t t,
@@ -359,6 +614,7 @@ static void setup_job(render_job *job, const cdvr_volume *vol, size_t t,
         job->dims[a] = (int)whole;
         job->origin[a] = vol->origin[a];
         job->inv_spacing[a] = (float)(1.0 / vol->spacing[a]);
+        job->spacing[a] = (float)vol->spacing[a];
         job->box_hi[a] = (float)((double)(whole - 1) * vol->spacing[a]);
         job->offset[a] = clip ? clip->offset[a] : 0;
         job->own_lo[a] = clip ? (float)clip->own_lo[a] : 0.0f;
@@ -372,6 +628,7 @@ static void setup_job(render_job *job, const cdvr_volume *vol, size_t t,
     for (int i = 0; i < 256; i++)
         job->alpha_step[i] = (float)(1.0 - pow(1.0 - opts->tf->table[i][3], step / unit));
     job->camera = opts->camera;
+    setup_look(job, opts, D);
     job->cancel = opts->cancel;
     job->img = img;
     atomic_init(&job->next_row, 0);
@@ -428,6 +685,8 @@ cdvr_status cdvr_render_cpu(const cdvr_volume *vol, size_t t, cdvr_render_opts *
     double step, unit, term;
     cdvr_render_resolve(vol, opts, &step, &unit, &term);
     st = check_opts(vol, opts, step, unit, term, err);
+    if (st == CDVR_OK)
+        st = cdvr_render_check_look(opts, err);
     if (st != CDVR_OK)
         return st;
     cdvr_image *img;

@@ -562,6 +562,9 @@ cdvr_status cdvr_render_splat(const cdvr_volume *vol, size_t t, cdvr_splat_opts 
         return cdvr_error_set(err, CDVR_ERR_ARG, "splat render: NULL volume or options");
     double radius = 0.0, sigma = 0.0;
     cdvr_status st = check_inputs(vol, t, opts, &radius, &sigma, err);
+    cdvr_render_opts ro = {.tf = opts->tf, .camera = opts->camera, .unit = opts->unit};
+    if (st == CDVR_OK)
+        st = cdvr_render_opts_check(vol, &ro, err); /* unit (splats take no step) */
     if (st != CDVR_OK)
         return st;
     splat_job *job = calloc(1, sizeof *job);
@@ -578,10 +581,6 @@ cdvr_status cdvr_render_splat(const cdvr_volume *vol, size_t t, cdvr_splat_opts 
     }
     mat_inverse(job->m, det, job->minv);
     job->camera = opts->camera;
-    cdvr_render_opts ro;
-    memset(&ro, 0, sizeof ro);
-    ro.tf = opts->tf;
-    ro.unit = opts->unit;
     double step_unused, unit, term_unused;
     cdvr_render_resolve(vol, &ro, &step_unused, &unit, &term_unused);
     classify_table(job, opts->tf, unit, radius, sigma);

@@ -1,7 +1,9 @@
-/* core/render/gl/overlay.c - one line of text on an 8-bit RGBA image (the window's overlay),
- * with stb_easy_font's segment glyphs rasterised as rectangles on the CPU. No GL needed. */
+/* core/render/gl/overlay.c - text on an 8-bit RGBA image (the window's overlay): one line, or
+ * a line wrapped to the image's width, with stb_easy_font's segment glyphs rasterised as
+ * rectangles on the CPU. No GL needed. */
 #include "cdvr/gl.h"
 
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -73,4 +75,56 @@ void cdvr_overlay_text(uint8_t *rgba, int width, int height, int x, int y, int s
         fill_rect(rgba, width, height, x0, y0, x1, y1, rgb);
     }
     free(quads);
+}
+
+/* Width in pixels of the first n characters of s, drawn at `scale` (with `tail` appended). */
+static int prefix_width(const char *s, size_t n, const char *tail, int scale)
+{
+    char buf[OVERLAY_MAX_CHARS + 8];
+    if (n > OVERLAY_MAX_CHARS)
+        n = OVERLAY_MAX_CHARS;
+    memcpy(buf, s, n);
+    snprintf(buf + n, sizeof buf - n, "%s", tail);
+    return stb_easy_font_width(buf) * scale;
+}
+
+int cdvr_overlay_lines(uint8_t *rgba, int width, int height, int x, int y, int scale,
+                       const char *text, const uint8_t rgb[3])
+{
+    if (scale < 1)
+        scale = 1;
+    int avail = width - x - 2 * scale, lines = 0;
+    const char *s = text;
+    while (*s && y < height) {
+        while (*s == ' ')
+            s++;
+        if (!*s)
+            break;
+        size_t n = strlen(s), fit = 0;
+        /* break before two spaces (between fields) where a field fits, else before one */
+        for (int gap = 2; gap >= 1 && fit == 0; gap--)
+            for (size_t k = 1; k <= n && k <= OVERLAY_MAX_CHARS; k++) {
+                if (k < n && strncmp(s + k, "  ", (size_t)gap) != 0)
+                    continue;
+                if (prefix_width(s, k, "", scale) > avail)
+                    break;
+                fit = k;
+            }
+        char line[OVERLAY_MAX_CHARS + 8];
+        size_t used = fit;
+        if (fit == 0) { /* one word wider than the window: cut it, marked with '~' */
+            size_t word = strcspn(s, " "), k = word < OVERLAY_MAX_CHARS ? word : OVERLAY_MAX_CHARS;
+            while (k > 1 && prefix_width(s, k, "~", scale) > avail)
+                k--;
+            snprintf(line, sizeof line, "%.*s~", (int)k, s);
+            used = word;
+        } else {
+            snprintf(line, sizeof line, "%.*s", (int)fit, s);
+        }
+        cdvr_overlay_text(rgba, width, height, x, y, scale, line, rgb);
+        y += stb_easy_font_height(line) * scale + 2 * scale;
+        s += used;
+        lines++;
+    }
+    return lines;
 }

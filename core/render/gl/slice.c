@@ -8,7 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cdvr/store.h" /* cdvr_crc32c */
+#include "cdvr/crc32c.h"
 #include "cdvr/timing.h"
 #include "gl_internal.h"
 
@@ -711,8 +711,9 @@ static cdvr_status check_input(const cdvr_gl *gl, const cdvr_volume *vol, size_t
     cdvr_status st = cdvr_volume_check_geometry(vol, "GL slicing", err);
     if (st != CDVR_OK)
         return st;
-    if (!isfinite(opts->unit) || opts->unit < 0.0)
-        return cdvr_error_set(err, CDVR_ERR_ARG, "GL slicing: unit %g must be >= 0", opts->unit);
+    st = cdvr_render_opts_check(vol, opts, err); /* step, unit, term_alpha: bounded work */
+    if (st != CDVR_OK)
+        return st;
     return cdvr_camera_validate(opts->camera, err);
 }
 

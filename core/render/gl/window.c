@@ -110,13 +110,19 @@ static void on_key(GLFWwindow *glfw, int key, int scancode, int action, int mods
     static const int keys[][2] = {{GLFW_KEY_LEFT, CDVR_KEY_LEFT},   {GLFW_KEY_RIGHT, CDVR_KEY_RIGHT},
                                   {GLFW_KEY_UP, CDVR_KEY_UP},       {GLFW_KEY_DOWN, CDVR_KEY_DOWN},
                                   {GLFW_KEY_SPACE, CDVR_KEY_SPACE}, {GLFW_KEY_HOME, CDVR_KEY_HOME},
-                                  {GLFW_KEY_END, CDVR_KEY_END}};
-    for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++)
-        if (keys[i][0] == key) {
-            cdvr_window *w = glfwGetWindowUserPointer(glfw);
-            cdvr_window_event ev = {CDVR_WINDOW_KEY, 0.0, 0.0, keys[i][1]};
-            push_event(w, &ev);
-        }
+                                  {GLFW_KEY_END, CDVR_KEY_END},     {GLFW_KEY_ESCAPE, CDVR_KEY_ESCAPE},
+                                  {GLFW_KEY_Q, CDVR_KEY_Q},         {GLFW_KEY_R, CDVR_KEY_R}};
+    int code = 0;
+    for (size_t i = 0; i < sizeof keys / sizeof keys[0] && !code; i++)
+        if (keys[i][0] == key)
+            code = keys[i][1];
+    if (!code && key >= GLFW_KEY_A && key <= GLFW_KEY_Z) /* other letters: lower case */
+        code = 'a' + (key - GLFW_KEY_A);
+    if (code) {
+        cdvr_window *w = glfwGetWindowUserPointer(glfw);
+        cdvr_window_event ev = {CDVR_WINDOW_KEY, 0.0, 0.0, code};
+        push_event(w, &ev);
+    }
 }
 
 static void on_resize(GLFWwindow *glfw, int width, int height)

@@ -413,7 +413,7 @@ end
 -- loader, like cdvr.load and cdvr.tf(path.lua)).
 function path.load(file)
   local tbl, err = serialize.load_lua(file)
-  if tbl == nil then error("cdvr.path.load: " .. tostring(err), 2) end
+  if tbl == nil then error("cdvr.path.load: " .. tostring(err):gsub("^load_lua: ", ""), 2) end
   local ok, p = pcall(path.from, tbl)
   if not ok then
     error(string.format("cdvr.path.load: %s: not a camera path: %s", file, p), 2)

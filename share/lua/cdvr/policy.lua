@@ -9,6 +9,8 @@
 --     target_fps = number or nil,
 --     t = next timestep to read (1-based), group = group index (1-based),
 --     current = name of the variant used for the last group (nil at the start),
+--     best = name of the store's best-quality variant (cdvr_store_best_variant: the default
+--            variant of the player and the window; optional, then the order below decides),
 --     capture = true when frames are being written (then never choose below the user's
 --               quality),
 --     min_psnr = number or nil (quality floor the user set),
@@ -74,9 +76,12 @@ end
 
 local function positive(x) return type(x) == "number" and x > 0 and x < INF end
 
+-- The quality order of cdvr_store_best_variant (cdvr/store.h), whose pick the player and the
+-- window pass as stats.best: a raw variant is lossless, else the recorded psnr (inf when
+-- lossless), a variant without one below every measured one.
 local function quality(v)
-  if v.psnr ~= nil then return v.psnr end
   if v.codec == "raw" then return INF end
+  if v.psnr ~= nil then return v.psnr end
   return -INF
 end
 
@@ -146,6 +151,19 @@ local function check_stats(stats, who)
     error(string.format("%s: stats.current must be a variant name, got %s", who, type(stats.current)), 3)
   end
   table.sort(by_quality, better)
+  -- the store's own best (stats.best, cdvr_store_best_variant) heads the quality order: the
+  -- same default as the player's and the window's, whatever the ties above decided
+  local best = stats.best ~= nil and by_name[stats.best]
+  if stats.best ~= nil and not best then
+    error(string.format("%s: stats.best (%s) is not a variant", who, tostring(stats.best)), 3)
+  end
+  for i = 2, best and #by_quality or 0 do
+    if by_quality[i] == best then
+      table.remove(by_quality, i)
+      table.insert(by_quality, 1, best)
+      break
+    end
+  end
   return by_quality, by_name
 end
 

@@ -16,7 +16,7 @@ cdvr.load_lua = serialize.load_lua
 
 local HELP = {
   { "cdvr.save_lua(value, file)", "write a value as a plain Lua file `return {...}` (objects via :totable())" },
-  { "cdvr.load_lua(file)", "load a plain Lua data file (empty environment) -> value or nil, message" },
+  { "cdvr.load_lua(file)", "load a plain Lua data file (text, empty environment, no calls, budgeted) -> value or nil, message; code: dofile" },
   { "cdvr.path.orbit{center=, distance=, period=, ...}", "camera path turning around center (up, elevation, start, fov)" },
   { "cdvr.path.keyframes{ {time=, eye=, center=}, ... }", "camera path through keys, Catmull-Rom (loop, spline, period)" },
   { "cdvr.path.fn(function(t) ... end)", "camera path from a Lua function returning {eye=, center=, up=, fov=}" },

@@ -12,10 +12,11 @@
 -- nil, message. The file is written under a temporary name and renamed, so a failed save never
 -- leaves a partial file under the final name.
 --
--- load_lua runs the file as a text chunk in an empty environment. A data file needs no
--- function calls, so any call (string methods included) is refused, and the chunk runs under
--- an instruction budget proportional to its size: a hostile or corrupt file can neither stall
--- nor reach anything.
+-- load_lua runs the file as a text chunk (no precompiled chunks) in an empty environment. A
+-- data file needs no function calls, so any call (string methods included) is refused, and the
+-- chunk runs under an instruction budget proportional to its size and the callback memory
+-- budget: a hostile or corrupt file can neither stall, nor exhaust memory, nor reach anything.
+-- To run a file as code, use dofile (e.g. cdvr.tf(dofile(path))).
 local serialize = {}
 
 local KEYWORDS = {}
@@ -216,56 +217,8 @@ function serialize.save_lua(value, file)
   return true
 end
 
-local BASE_BUDGET = 100000    -- VM instructions a data file may run, plus PER_BYTE per byte
-local PER_BYTE = 16
-local HOOK_EVERY = 1000
-
--- Runs chunk in its own coroutine with no calls allowed and an instruction budget.
-local function run_guarded(chunk, budget, file)
-  local co = coroutine.create(chunk)
-  local executed = 0
-  debug.sethook(co, function(event)
-    if event == "count" then
-      executed = executed + HOOK_EVERY
-      if executed > budget then
-        error(string.format("%s: data file runs too long (not plain data)", file), 0)
-      end
-    elseif debug.getinfo(2, "f").func ~= chunk then
-      error(string.format("%s: data file calls a function (not plain data)", file), 0)
-    end
-  end, "c", HOOK_EVERY)
-  local ok, result = coroutine.resume(co)
-  if not ok then
-    return nil, result
-  end
-  return result
-end
-
-function serialize.load_lua(file)
-  if type(file) ~= "string" then
-    error(string.format("bad argument #1 to 'load_lua' (string expected, got %s)", type(file)), 2)
-  end
-  local fh, open_err = io.open(file, "rb")
-  if not fh then
-    return nil, string.format("load_lua: %s", open_err)
-  end
-  local text, read_err = fh:read("a")
-  fh:close()
-  if not text then
-    return nil, string.format("load_lua: cannot read %s: %s", file, read_err)
-  end
-  local chunk, syntax_err = load(text, "@" .. file, "t", {})
-  if not chunk then
-    return nil, string.format("load_lua: %s", syntax_err)
-  end
-  local value, run_err = run_guarded(chunk, BASE_BUDGET + PER_BYTE * #text, file)
-  if run_err then
-    return nil, string.format("load_lua: %s", run_err)
-  end
-  if value == nil then
-    return nil, string.format("load_lua: %s returns no value", file)
-  end
-  return value
-end
+-- The data loader is cdvr's (lcdvr_load_data, lua/bind/lbudget.c): the same one cdvr.tf(path)
+-- and cdvr.camera(path) use.
+serialize.load_lua = require("cdvr").load_lua
 
 return serialize

@@ -1,4 +1,4 @@
-/* core/store/ranges.c - value ranges per range brick (store.h): the grid, the window of range
+/* core/base/ranges.c - value ranges per range brick (cdvr/bricks.h): the grid, the window of range
  * bricks a voxel box meets, their ranges over one frame of it, and the merge of windows into
  * the grid of the whole volume.
  *
@@ -7,7 +7,7 @@
  * when E*g <= hi and E*g + E >= lo, i.e. g from ceil(lo / E) - 1 (at least 0) to hi / E.
  * Ranges are computed separably: per voxel row, the min and max of each brick's x span; then
  * each row is folded into the one or two bricks along y and z whose spans hold it. */
-#include "cdvr/store.h"
+#include "cdvr/bricks.h"
 
 #include <stdlib.h>
 #include <string.h>

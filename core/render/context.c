@@ -1,0 +1,222 @@
+/* core/render/context.c - the devices a render uses (cdvr_render_ctx, cdvr/method.h): the
+ * OpenCL device with one stream reused while the frame dims stay the same, a host copy of
+ * the frame last uploaded (so rendering the same frame twice uploads nothing), and the EGL
+ * slicer. Each is opened on first use; a failed OpenCL open is remembered, so the default
+ * device rule asks the driver once. */
+#include "cdvr/method.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "cdvr/device.h"
+#include "cdvr/gl.h"
+#include "cdvr/store.h"
+
+struct cdvr_render_ctx {
+    cdvr_cl *cl;
+    int cl_failed;               /* cdvr_cl_open failed: cl_error says why */
+    cdvr_error cl_error;
+    cdvr_cl_stream *stream;
+    size_t stream_dims[3];
+    uint8_t *frame_copy;         /* host copy of the voxels of the stream's frame 0, or NULL */
+    size_t frame_bytes;
+    cdvr_gl *gl;
+};
+
+cdvr_status cdvr_render_ctx_create(cdvr_render_ctx **out, cdvr_error *err)
+{
+    *out = calloc(1, sizeof **out);
+    if (!*out)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "render context: out of memory");
+    return CDVR_OK;
+}
+
+void cdvr_render_ctx_forget_frame(cdvr_render_ctx *ctx)
+{
+    free(ctx->frame_copy);
+    ctx->frame_copy = NULL;
+    ctx->frame_bytes = 0;
+}
+
+void cdvr_render_ctx_free(cdvr_render_ctx *ctx)
+{
+    if (!ctx)
+        return;
+    cdvr_render_ctx_forget_frame(ctx);
+#if CDVR_HAVE_OPENCL
+    cdvr_cl_stream_free(ctx->stream);
+    cdvr_cl_close(ctx->cl);
+#endif
+    cdvr_gl_free(ctx->gl);
+    free(ctx);
+}
+
+cdvr_status cdvr_render_ctx_gl(cdvr_render_ctx *ctx, cdvr_gl **out, cdvr_error *err)
+{
+    if (!ctx->gl) {
+        cdvr_status s = cdvr_gl_create(&ctx->gl, err);
+        if (s != CDVR_OK)
+            return s;
+    }
+    *out = ctx->gl;
+    return CDVR_OK;
+}
+
+#if CDVR_HAVE_OPENCL
+
+cdvr_status cdvr_render_ctx_cl(cdvr_render_ctx *ctx, cdvr_cl **out, cdvr_error *err)
+{
+    if (!ctx->cl && !ctx->cl_failed && cdvr_cl_open(&ctx->cl, &ctx->cl_error) != CDVR_OK)
+        ctx->cl_failed = 1;
+    if (ctx->cl_failed) {
+        if (err)
+            *err = ctx->cl_error;
+        return ctx->cl_error.status;
+    }
+    *out = ctx->cl;
+    return CDVR_OK;
+}
+
+int cdvr_render_ctx_has_cl(cdvr_render_ctx *ctx)
+{
+    cdvr_cl *cl;
+    return cdvr_render_ctx_cl(ctx, &cl, NULL) == CDVR_OK;
+}
+
+cdvr_status cdvr_render_ctx_stream(cdvr_render_ctx *ctx, const size_t dims[3],
+                                   cdvr_cl_stream **out, cdvr_error *err)
+{
+    cdvr_cl *cl;
+    cdvr_status s = cdvr_render_ctx_cl(ctx, &cl, err);
+    if (s != CDVR_OK)
+        return s;
+    if (!ctx->stream || memcmp(ctx->stream_dims, dims, sizeof ctx->stream_dims) != 0) {
+        cdvr_cl_stream_free(ctx->stream);
+        ctx->stream = NULL;
+        cdvr_render_ctx_forget_frame(ctx);
+        s = cdvr_cl_stream_create(cl, dims, &ctx->stream, err);
+        if (s != CDVR_OK)
+            return s;
+        memcpy(ctx->stream_dims, dims, sizeof ctx->stream_dims);
+    }
+    *out = ctx->stream;
+    return CDVR_OK;
+}
+
+/* A volume may be edited in place (v:set) between renders, so the voxels are compared with a
+ * host copy of what was uploaded (memcmp is exact and faster than hashing the frame). */
+cdvr_status cdvr_render_ctx_upload(cdvr_render_ctx *ctx, cdvr_cl_stream *s,
+                                   const cdvr_volume *vol, size_t t, cdvr_error *err)
+{
+    const uint8_t *voxels = cdvr_volume_frame(vol, t);
+    size_t bytes = cdvr_volume_voxels(vol);
+    if (ctx->frame_copy && ctx->frame_bytes == bytes && !memcmp(ctx->frame_copy, voxels, bytes))
+        return CDVR_OK;
+    cdvr_render_ctx_forget_frame(ctx);
+    cdvr_status st = cdvr_cl_upload_frames(s, voxels, 1, err);
+    if (st != CDVR_OK)
+        return st;
+    ctx->frame_copy = malloc(bytes ? bytes : 1);
+    if (ctx->frame_copy) { /* without a copy the next render uploads again */
+        memcpy(ctx->frame_copy, voxels, bytes);
+        ctx->frame_bytes = bytes;
+    }
+    return CDVR_OK;
+}
+
+static cdvr_status decode_on_host(cdvr_cl_stream *s, const cdvr_store *st, size_t v, size_t t,
+                                  cdvr_error *err)
+{
+    cdvr_volume *vol;
+    cdvr_status status = cdvr_store_decode(st, v, t, &vol, err);
+    if (status != CDVR_OK)
+        return status;
+    status = cdvr_cl_upload_frames(s, vol->data, 1, err);
+    cdvr_volume_free(vol);
+    return status;
+}
+
+cdvr_status cdvr_render_ctx_load_chunk(cdvr_render_ctx *ctx, const cdvr_store *st, size_t v,
+                                       size_t t, cdvr_cl_stream **stream, size_t *frame,
+                                       cdvr_error *err)
+{
+    const cdvr_store_info *info = cdvr_store_get_info(st);
+    size_t c = cdvr_store_chunk_for_time(st, v, t);
+    const cdvr_chunk_info *chunk = c != (size_t)-1 ? cdvr_store_chunk(st, v, c) : NULL;
+    if (!chunk)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: no variant %d timestep %d",
+                              cdvr_store_path(st), (int)v + 1, (int)t + 1);
+    const cdvr_codec *codec;
+    cdvr_status status = cdvr_store_variant_codec(st, v, &codec, err);
+    if (status == CDVR_OK)
+        status = cdvr_render_ctx_stream(ctx, info->dims, stream, err);
+    if (status != CDVR_OK)
+        return status;
+    cdvr_render_ctx_forget_frame(ctx); /* the stream's frames are about to be replaced */
+    *frame = 0;
+    if (info->nbricks > 1 || codec->cl_mode == CDVR_CODEC_CL_NONE)
+        return decode_on_host(*stream, st, v, t, err);
+    uint8_t *payload;
+    status = cdvr_store_load_payload(st, v, c, &payload, err);
+    if (status != CDVR_OK)
+        return status;
+    status = cdvr_cl_upload(*stream, payload, (size_t)chunk->payload_bytes, err);
+    free(payload);
+    if (status == CDVR_OK)
+        status = cdvr_cl_decode(*stream, chunk->codec, &chunk->params, chunk->count, err);
+    if (status != CDVR_OK) {
+        cdvr_error inner = *err;
+        return cdvr_error_set(err, status, "%s: variant %s chunk %d: %s", cdvr_store_path(st),
+                              cdvr_store_variant(st, v)->name, (int)c + 1, inner.msg);
+    }
+    *frame = t - chunk->t0;
+    return CDVR_OK;
+}
+
+#else /* no OpenCL in this build */
+
+static cdvr_status no_cl(cdvr_error *err)
+{
+    return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED,
+                          "device 'cl': OpenCL support is not built into this cdvr");
+}
+
+cdvr_status cdvr_render_ctx_cl(cdvr_render_ctx *ctx, cdvr_cl **out, cdvr_error *err)
+{
+    (void)ctx;
+    *out = NULL;
+    return no_cl(err);
+}
+
+int cdvr_render_ctx_has_cl(cdvr_render_ctx *ctx)
+{
+    (void)ctx;
+    return 0;
+}
+
+cdvr_status cdvr_render_ctx_stream(cdvr_render_ctx *ctx, const size_t dims[3],
+                                   cdvr_cl_stream **out, cdvr_error *err)
+{
+    (void)ctx; (void)dims;
+    *out = NULL;
+    return no_cl(err);
+}
+
+cdvr_status cdvr_render_ctx_upload(cdvr_render_ctx *ctx, cdvr_cl_stream *s,
+                                   const cdvr_volume *vol, size_t t, cdvr_error *err)
+{
+    (void)ctx; (void)s; (void)vol; (void)t;
+    return no_cl(err);
+}
+
+cdvr_status cdvr_render_ctx_load_chunk(cdvr_render_ctx *ctx, const cdvr_store *st, size_t v,
+                                       size_t t, cdvr_cl_stream **stream, size_t *frame,
+                                       cdvr_error *err)
+{
+    (void)ctx; (void)st; (void)v; (void)t;
+    *stream = NULL;
+    *frame = 0;
+    return no_cl(err);
+}
+
+#endif

@@ -1,0 +1,80 @@
+-- tests/lua/test_look.lua - blend modes and shading from Lua (cdvr.render, cdvr.player), through
+-- the method table.
+-- Proves: the look options reach the renderers (shade, MIP, iso change the image; iso= implies
+-- blend "iso"); the player's frames equal the renders of their timesteps alone for every look,
+-- on a bricked store with brick skipping on, on the cpu and cl devices (shading reads the 26
+-- neighbours of every brick it renders, so a skipped brick never feeds a gradient; max, min
+-- and iso do not skip by the TF); bad and unsupported options are refused naming them;
+-- cdvr.methods() lists raycast's blend modes and shading; the player refuses what bricks mode
+-- cannot composite.
+local checks = dofile((arg[0]:match("^(.*)/") or ".") .. "/checks.lua")
+local check, raises = checks.check, checks.raises
+
+local v = cdvr.load(cdvr.share_dir .. "/data/neghip_66x66x66_u8.nrrd")
+local tf = cdvr.tf{{0, 0, 0, 0, 0}, {60, 0, 0, 0, 0}, {120, 0.9, 0.6, 0.3, 0.5}, {255, 1, 1, 1, 1}}
+local cam = cdvr.orbit_camera(v, {azimuth = 30, elevation = 20, width = 64, height = 64})
+local devices = {"cpu"}
+if cdvr.cl_info() then devices[2] = "cl" end
+
+local function render(opts)
+  local o = {tf = tf, camera = cam, device = "cpu"}
+  for k, x in pairs(opts) do o[k] = x end
+  return cdvr.render(v, o)
+end
+
+local plain = render{}
+check(cdvr.compare(plain, render{shade = true}).psnr < 40, "shading changes the image")
+check(cdvr.compare(plain, render{blend = "max"}).psnr < 40, "max changes the image")
+local iso = render{iso = {value = 120, color = {0.9, 0.8, 0.6}}}
+check(cdvr.compare(iso, render{blend = "iso", iso = {value = 120, color = {0.9, 0.8, 0.6}}}).psnr == math.huge,
+      "iso= implies blend iso")
+check(cdvr.compare(iso, render{iso = {value = 120, color = {0.9, 0.8, 0.6}}, shade = false}).psnr < 60,
+      "iso surfaces are shaded unless shade=false")
+local _, stats = render{shade = true, light = {dir = {1, 0, 0}}, specular = 0.5, specular_power = 20}
+check(stats.method == "raycast" and stats.device == "cpu", "stats name method and device")
+
+-- the player: every look, bricked store, skipping on: frames equal the renders alone
+local path = os.tmpname()
+local st = cdvr.encode(v, {variants = {{codec = "raw"}}, bricks = {4, 4, 4}, path = path})
+local looks = {{}, {shade = true}, {shade = true, gradient_opacity = {{0, 0}, {30, 1}}},
+               {blend = "max"}, {blend = "min"}, {blend = "average"}, {iso = {value = 120}}}
+for _, dev in ipairs(devices) do
+  for _, look in ipairs(looks) do
+    local got
+    local o = {store = st, tf = tf, camera = cam, device = dev, frame = function(_, img) got = img end}
+    local r = {tf = tf, camera = cam, device = dev}
+    local name = {}
+    for k, x in pairs(look) do o[k] = x; r[k] = x; name[#name + 1] = k end
+    local p = cdvr.player(o)
+    local rep = p:run{frames = 1}
+    p:close()
+    local alone = cdvr.render(st:decode(1), r)
+    local what = dev .. " " .. (table.concat(name, "+") ~= "" and table.concat(name, "+") or "plain")
+    check(got and cdvr.compare(got, alone).psnr == math.huge,
+          what .. ": the played frame equals the render alone (" .. (got and cdvr.compare(got, alone).psnr or "no frame") .. " dB)")
+    check(rep.frames[1].error == nil, what .. ": no error " .. tostring(rep.frames[1].error))
+  end
+end
+os.remove(path)
+
+-- refusals, naming the option
+raises(function() render{blend = "maximum"} end, "option 'blend': unknown mode 'maximum'", "unknown blend")
+raises(function() render{blend = "iso"} end, "blend 'iso' needs iso={value=, color=}", "iso without value")
+raises(function() render{iso = {value = 1}, blend = "max"} end, "option 'iso' is for blend 'iso'", "iso with max")
+raises(function() render{iso = {colour = {1, 1, 1}, value = 3}} end, "iso: unknown option 'colour'", "iso keys")
+raises(function() render{shade = true, ambient = -1} end, "option 'ambient'", "negative ambient")
+raises(function() render{shade = true, light = {dir = {0, 0, 0}}} end, "light dir (0, 0, 0)", "zero light")
+raises(function() render{gradient_opacity = {{5, 1}, {1, 0}}} end, "sorted by magnitude", "unsorted gradient opacity")
+raises(function() render{method = "splat", shade = true} end, "method 'splat' does not shade", "splat shading")
+raises(function() render{method = "splat", blend = "max"} end, "method 'splat' has no blend mode 'max'", "splat max")
+
+-- cdvr.methods() says what each method supports
+for _, m in ipairs(cdvr.methods()) do
+  if m.name == "raycast" then
+    check(m.shading == true and #m.blends == 5 and m.blends[2] == "max", "raycast: shading and 5 blend modes")
+  else
+    check(m.shading == false and #m.blends == 1, m.name .. ": composite only")
+  end
+end
+
+checks.finish()

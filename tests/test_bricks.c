@@ -1,0 +1,160 @@
+/* tests/test_bricks.c - brick geometry (cdvr/bricks.h, core/base/bricks.c, core/base/ranges.c):
+ *  - store bricks: for many volume sizes and grids, the boxes of a grid overlap their neighbours
+ *    by exactly one voxel, start at c_i = floor(i (N-1) / n), and the owned boxes are disjoint
+ *    and cover every voxel once; invalid grids (0 bricks, more bricks than cells, several
+ *    bricks along a one-voxel axis, b past the end) are refused; N = 1 gives one voxel;
+ *  - place and extract are inverse copies of a box between a frame and a brick buffer;
+ *  - range bricks: the grid is ceil(N / 4) per axis; the window of a box holds exactly the
+ *    range bricks whose voxels (cube plus upper apron) meet it; ranges computed over each store
+ *    brick's owned voxels and merged equal the ranges computed over the whole frame.
+ * The store's own use of them (cdvr_store_brick_box, chunk tables) is tests/test_store.c's. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "cdvr/bricks.h"
+#include "check.h"
+
+static void test_boxes(void)
+{
+    const size_t sizes[] = {1, 2, 3, 5, 17, 64, 100};
+    int errors = 0;
+    for (size_t si = 0; si < sizeof sizes / sizeof *sizes; si++)
+        for (size_t n = 1; n <= 9; n++) {
+            size_t N = sizes[si], vol[3] = {N, 1, 1}, grid[3] = {n, 1, 1}, lo[3], d[3];
+            int valid = N == 1 ? n == 1 : n <= N - 1;
+            CHECK(cdvr_brick_box(vol, grid, 0, lo, d) == valid, "N=%zu n=%zu valid %d", N, n,
+                  valid);
+            if (!valid)
+                continue;
+            size_t covered = 0, prev_end = 0;
+            for (size_t i = 0; i < n; i++) {
+                size_t olo[3], od[3];
+                errors += !cdvr_brick_box(vol, grid, i, lo, d);
+                errors += !cdvr_brick_owned(vol, grid, i, olo, od);
+                size_t c0 = N == 1 ? 0 : i * (N - 1) / n;
+                errors += lo[0] != c0;
+                errors += i > 0 && lo[0] != prev_end;  /* shares the lower brick's last voxel */
+                errors += olo[0] != covered;           /* owned boxes tile the axis in order */
+                covered += od[0];
+                prev_end = lo[0] + d[0] - 1;
+                errors += lo[1] != 0 || d[1] != 1 || d[2] != 1;
+            }
+            errors += covered != N || prev_end != N - 1;
+            CHECK(cdvr_brick_box(vol, grid, n, lo, d) == 0, "b past the end (N=%zu n=%zu)", N, n);
+        }
+    CHECK(errors == 0, "%d box errors", errors);
+    size_t vol[3] = {10, 7, 1}, lo[3], d[3];
+    CHECK(!cdvr_brick_box(vol, (size_t[3]){0, 1, 1}, 0, lo, d), "0 bricks");
+    CHECK(!cdvr_brick_box(vol, (size_t[3]){1, 1, 2}, 0, lo, d), "2 bricks over one voxel");
+    CHECK(!cdvr_brick_owned(vol, (size_t[3]){1, 7, 1}, 0, lo, d), "more bricks than cells");
+    /* a 3D grid: brick 5 of 2 x 3 x 1 is x=1, y=2 */
+    CHECK(cdvr_brick_box(vol, (size_t[3]){2, 3, 1}, 5, lo, d) && lo[0] == 4 && d[0] == 6 &&
+              lo[1] == 4 && d[1] == 3 && lo[2] == 0 && d[2] == 1,
+          "brick 5: lo %zu %zu %zu dims %zu %zu %zu", lo[0], lo[1], lo[2], d[0], d[1], d[2]);
+    CHECK(cdvr_brick_owned(vol, (size_t[3]){2, 3, 1}, 5, lo, d) && lo[0] == 5 && d[0] == 5 &&
+              lo[1] == 5 && d[1] == 2, "owned of brick 5");
+}
+
+static void test_copies(void)
+{
+    size_t vol[3] = {7, 5, 4}, lo[3] = {2, 1, 1}, d[3] = {4, 3, 2};
+    uint8_t frame[7 * 5 * 4], brick[4 * 3 * 2], back[7 * 5 * 4];
+    for (size_t i = 0; i < sizeof frame; i++)
+        frame[i] = (uint8_t)(i * 7 + 3);
+    cdvr_brick_extract(frame, vol, lo, d, brick);
+    int errors = 0;
+    for (size_t z = 0; z < d[2]; z++)
+        for (size_t y = 0; y < d[1]; y++)
+            for (size_t x = 0; x < d[0]; x++)
+                errors += brick[x + d[0] * (y + d[1] * z)] !=
+                          frame[(lo[0] + x) + vol[0] * ((lo[1] + y) + vol[1] * (lo[2] + z))];
+    CHECK(errors == 0, "extract: %d wrong voxels", errors);
+    memset(back, 0, sizeof back);
+    cdvr_brick_place(back, vol, brick, lo, d);
+    errors = 0;
+    for (size_t z = 0; z < vol[2]; z++)
+        for (size_t y = 0; y < vol[1]; y++)
+            for (size_t x = 0; x < vol[0]; x++) {
+                size_t i = x + vol[0] * (y + vol[1] * z);
+                int inside = x >= lo[0] && x < lo[0] + d[0] && y >= lo[1] && y < lo[1] + d[1] &&
+                             z >= lo[2] && z < lo[2] + d[2];
+                errors += back[i] != (inside ? frame[i] : 0);
+            }
+    CHECK(errors == 0, "place: %d wrong voxels", errors);
+}
+
+/* Ranges of every range brick over the whole frame, directly from the definition. */
+static void reference_ranges(const uint8_t *frame, const size_t vol[3], const size_t grid[3],
+                             uint8_t *out)
+{
+    for (size_t gz = 0; gz < grid[2]; gz++)
+        for (size_t gy = 0; gy < grid[1]; gy++)
+            for (size_t gx = 0; gx < grid[0]; gx++) {
+                size_t g[3] = {gx, gy, gz}, lo[3], hi[3];
+                for (int a = 0; a < 3; a++) {
+                    lo[a] = 4 * g[a];
+                    hi[a] = 4 * g[a] + 4 < vol[a] - 1 ? 4 * g[a] + 4 : vol[a] - 1;
+                }
+                uint8_t mn = 255, mx = 0;
+                for (size_t z = lo[2]; z <= hi[2]; z++)
+                    for (size_t y = lo[1]; y <= hi[1]; y++)
+                        for (size_t x = lo[0]; x <= hi[0]; x++) {
+                            uint8_t v = frame[x + vol[0] * (y + vol[1] * z)];
+                            mn = v < mn ? v : mn;
+                            mx = v > mx ? v : mx;
+                        }
+                size_t i = gx + grid[0] * (gy + grid[1] * gz);
+                out[2 * i] = mn;
+                out[2 * i + 1] = mx;
+            }
+}
+
+static void test_ranges(void)
+{
+    size_t vol[3] = {19, 13, 9}, grid[3], bricks[3] = {3, 2, 2};
+    cdvr_range_grid(vol, CDVR_RANGE_SHIFT, grid);
+    CHECK(grid[0] == 5 && grid[1] == 4 && grid[2] == 3, "grid %zu %zu %zu", grid[0], grid[1],
+          grid[2]);
+    size_t n = vol[0] * vol[1] * vol[2], ng = grid[0] * grid[1] * grid[2];
+    uint8_t *frame = malloc(n), *want = malloc(2 * ng), *merged = malloc(2 * ng);
+    uint32_t seed = 12345;
+    for (size_t i = 0; i < n; i++) {
+        seed = seed * 1664525u + 1013904223u;
+        frame[i] = (uint8_t)(seed >> 24);
+    }
+    reference_ranges(frame, vol, grid, want);
+    for (size_t i = 0; i < ng; i++)
+        merged[2 * i] = 255, merged[2 * i + 1] = 0;
+    cdvr_error err;
+    for (size_t b = 0; b < bricks[0] * bricks[1] * bricks[2]; b++) {
+        size_t lo[3], d[3], g0[3], gn[3];
+        CHECK(cdvr_brick_owned(vol, bricks, b, lo, d), "brick %zu", b);
+        cdvr_range_window(vol, lo, d, CDVR_RANGE_SHIFT, g0, gn);
+        size_t bytes = cdvr_range_window_bytes(vol, lo, d, CDVR_RANGE_SHIFT);
+        CHECK(bytes == 2 * gn[0] * gn[1] * gn[2], "window bytes");
+        for (int a = 0; a < 3; a++) /* the window holds exactly the bricks meeting the box */
+            CHECK(4 * g0[a] <= lo[a] && 4 * g0[a] + 4 >= lo[a] &&
+                      4 * (g0[a] + gn[a] - 1) <= lo[a] + d[a] - 1 &&
+                      (g0[a] + gn[a] == grid[a] || 4 * (g0[a] + gn[a]) > lo[a] + d[a] - 1),
+                  "brick %zu axis %d: window %zu+%zu for box %zu+%zu", b, a, g0[a], gn[a],
+                  lo[a], d[a]);
+        uint8_t *table = malloc(bytes);
+        const uint8_t *first = frame + lo[0] + vol[0] * (lo[1] + vol[1] * lo[2]);
+        CHECK_OK(cdvr_range_compute(first, vol[0], vol[0] * vol[1], vol, lo, d, CDVR_RANGE_SHIFT,
+                                    table, &err), err);
+        cdvr_range_merge(table, g0, gn, grid, merged);
+        free(table);
+    }
+    CHECK(memcmp(merged, want, 2 * ng) == 0, "merged brick ranges equal the whole frame's");
+    free(frame);
+    free(want);
+    free(merged);
+}
+
+int main(void)
+{
+    test_boxes();
+    test_copies();
+    test_ranges();
+    return check_finish();
+}
