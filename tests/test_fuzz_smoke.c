@@ -1,6 +1,7 @@
 /* tests/test_fuzz_smoke.c - runs the libFuzzer targets of tests/fuzz/ (store reader, PVTC
- * chunk decoder, codec-table decoders with the zfp and rle plugins, the hvq decoder, LZO
- * stage 2, NRRD/NIfTI/raw loaders) without libFuzzer: a deterministic
+ * chunk decoder, codec-table decoders with the zfp and rle plugins, the hvq decoder, the hvq
+ * OpenCL decode/fetch path when a device exists (PoCL here), LZO stage 2, NRRD/NIfTI/raw
+ * loaders) without libFuzzer: a deterministic
  * corpus of valid inputs built here, then thousands of seeded mutations of each (bit flips,
  * byte sets, truncations, insertions, copies). In the sanitizer build any out-of-bounds access
  * fails the test; in every build a target's differential check (FUZZ_ASSERT) aborts it. */
@@ -32,6 +33,9 @@
 #undef LLVMFuzzerTestOneInput
 #define LLVMFuzzerTestOneInput fuzz_hvq_input
 #include "fuzz/fuzz_hvq.c"
+#undef LLVMFuzzerTestOneInput
+#define LLVMFuzzerTestOneInput fuzz_hvq_cl_input
+#include "fuzz/fuzz_hvq_cl.c"
 #undef LLVMFuzzerTestOneInput
 
 typedef int (*fuzz_target)(const uint8_t *data, size_t size);
@@ -119,7 +123,7 @@ typedef struct target_totals {
     const char *name;
     size_t seeds, accepted, rejected;
 } target_totals;
-static target_totals smoke_totals[8];
+static target_totals smoke_totals[9];
 
 static void add_totals(const char *name, size_t accepted, size_t rejected)
 {
@@ -337,6 +341,35 @@ static int make_hvq_seed(bytes *seed, const uint8_t head[4], const size_t dims[3
     return ok;
 }
 
+/* The crafted payload of issue 21 (n1 = 0xffffffff, huge hash offsets, residual hash side
+ * 65535) made from an hvq seed: the device refuses it, and unchecked it renders without
+ * reading outside the payload (the target's own checks). */
+static void fuzz_hvq_cl_crafted(const bytes *seed)
+{
+    bytes m = {malloc(seed->n), seed->n, seed->n};
+    if (!m.p)
+        return;
+    memcpy(m.p, seed->p, seed->n);
+    uint8_t *payload = m.p + 4;
+    size_t dims[3] = {1 + m.p[1] % 40u, 1 + m.p[2] % 40u, 1 + m.p[3] % 40u};
+    uint64_t nb = ((dims[0] + 3) / 4) * ((dims[1] + 3) / 4) * ((dims[2] + 3) / 4);
+    uint64_t c1 = (32 + nb + 7) & ~(uint64_t)7;
+    uint64_t dir = (c1 + 16 * fuzz_le(payload + 16, 4) + 128 * fuzz_le(payload + 20, 4) + 7) &
+                   ~(uint64_t)7;
+    CHECK(!(m.p[0] & 1) && dir + 32 <= m.n - 4, "crafted hvq payload: directory at %llu",
+          (unsigned long long)dir);
+    if (!(m.p[0] & 1) && dir + 32 <= m.n - 4) {
+        fuzz_put_le(payload + 16, 0xffffffffu, 4);
+        fuzz_put_le(payload + dir + 8, 0x7ffffffffff00000ull, 8);
+        fuzz_put_le(payload + dir + 16, 65535, 2);
+        fuzz_put_le(payload + dir + 24, 0x7fffffff00000000ull, 8);
+        fuzz_outcome_counts = (fuzz_outcomes){0, 0};
+        fuzz_hvq_cl_input(m.p, m.n);
+        CHECK(fuzz_outcome_counts.rejected == 1, "the crafted hvq payload is not refused");
+    }
+    free(m.p);
+}
+
 static int make_lzo_seed(bytes *seed)
 {
     cdvr_volume *vol = make_series();
@@ -465,6 +498,12 @@ int main(void)
             if (make_hvq_seed(&seed, hvq_seeds[i].head, hvq_seeds[i].dims, &p, hvq_seeds[i].kind))
                 fuzz_seed("hvq", fuzz_hvq_input, &seed, hvq_seeds[i].mutations, 4,
                           8000u + (uint32_t)i);
+            /* the OpenCL decode/fetch path (PoCL here), on as many mutants */
+            if (fuzz_hvq_cl_device() && seed.n)
+                fuzz_seed("hvq_cl", fuzz_hvq_cl_input, &seed, hvq_seeds[i].mutations, 4,
+                          9000u + (uint32_t)i);
+            if (fuzz_hvq_cl_device() && i == 0 && seed.n > 4)
+                fuzz_hvq_cl_crafted(&seed);
         }
     }
     seed.n = 0;

@@ -26,12 +26,13 @@ static const char test_kernels[] =
     "    out[i] = hvq_fetch(payload, params, dims, (int)(i % X), (int)(i / X % Y),\n"
     "                       (int)(i / X / Y));\n"
     "}\n"
-    "__kernel void hvq_find_keys(__global const uchar *data, uint m, uint r, uint slot_bytes,\n"
-    "                            __global const uchar *keys, __global int *out)\n"
+    "__kernel void hvq_find_keys(__global const uchar *data, ulong n, uint m, uint r,\n"
+    "                            uint slot_bytes, __global const uchar *keys,\n"
+    "                            __global int *out)\n"
     "{\n"
     "    size_t i = get_global_id(0);\n"
     "    __global const uchar *k = keys + 3 * i;\n"
-    "    __global const uchar *v = hvq_find(data, m, r, slot_bytes, k[0], k[1], k[2]);\n"
+    "    __global const uchar *v = hvq_find(data, n, 0, m, r, slot_bytes, k[0], k[1], k[2]);\n"
     "    out[i] = v ? (int)v[0] : -1;\n"
     "}\n";
 
@@ -153,8 +154,12 @@ static int device_fetch_all(cl_env *env, const uint8_t *payload, size_t bytes,
     cl_int e1, e2, e3;
     cl_mem pay = clCreateBuffer(env->ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, bytes,
                                 (void *)payload, &e1);
-    cl_mem par = clCreateBuffer(env->ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR,
-                                sizeof params->bytes, (void *)params->bytes, &e2);
+    uint8_t pbuf[56]; /* the blob, then the payload's size (cdvr/codec.h) */
+    memcpy(pbuf, params->bytes, 48);
+    for (int i = 0; i < 8; i++)
+        pbuf[48 + i] = (uint8_t)((uint64_t)bytes >> (8 * i));
+    cl_mem par = clCreateBuffer(env->ctx, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, sizeof pbuf,
+                                pbuf, &e2);
     cl_mem res = clCreateBuffer(env->ctx, CL_MEM_WRITE_ONLY, n, NULL, &e3);
     int ok = e1 == CL_SUCCESS && e2 == CL_SUCCESS && e3 == CL_SUCCESS;
     CHECK(ok, "clCreateBuffer: %d %d %d", e1, e2, e3);
@@ -358,12 +363,14 @@ static void wide_offsets(cl_env *env)
     int ok = e1 == CL_SUCCESS && e2 == CL_SUCCESS && e3 == CL_SUCCESS;
     CHECK(ok, "clCreateBuffer: %d %d %d", e1, e2, e3);
     cl_uint args[3] = {m, r, slot_bytes};
+    cl_ulong nbytes = bytes;
     if (ok) {
         SET_ARG(env->find_keys, "hvq_find_keys", 0, sizeof dbuf, &dbuf);
+        SET_ARG(env->find_keys, "hvq_find_keys", 1, sizeof nbytes, &nbytes);
         for (int a = 0; a < 3; a++)
-            SET_ARG(env->find_keys, "hvq_find_keys", 1 + a, sizeof args[a], &args[a]);
-        SET_ARG(env->find_keys, "hvq_find_keys", 4, sizeof kbuf, &kbuf);
-        SET_ARG(env->find_keys, "hvq_find_keys", 5, sizeof obuf, &obuf);
+            SET_ARG(env->find_keys, "hvq_find_keys", 2 + a, sizeof args[a], &args[a]);
+        SET_ARG(env->find_keys, "hvq_find_keys", 5, sizeof kbuf, &kbuf);
+        SET_ARG(env->find_keys, "hvq_find_keys", 6, sizeof obuf, &obuf);
     }
     size_t n = 8;
     if (ok) {

@@ -3,7 +3,8 @@
  * with a message naming the file and the reason (wrong ABI, no entry symbol, NULL info or
  * codec, name or id clash, missing decode, unresolvable symbol), and so are a text file, a
  * directory, a missing file and a second copy of a loaded plugin; nothing refused stays
- * registered; a plugin built for ABI 2 still loads; one refused after its first table keeps
+ * registered; a plugin built for ABI 2 still loads (its table, which ends before `check`, as
+ * a copy with check NULL); one refused after its first table keeps
  * that table and is refused again on every load; cdvr_plugin_load_dirs loads what it can and
  * reports each failure once. (Format plugins: tests/test_format.c.) */
 #include <errno.h>
@@ -229,6 +230,9 @@ int main(void)
     /* a plugin built against ABI 2 (its info has two fields) still loads */
     const cdvr_codec *abi2 = load_good("tests/plugins_more/abi2.so", "abi2");
     CHECK(abi2 && abi2->id == 0x41424932u, "abi2 id");
+    /* its table ends before `check` (ABI 4): a copy is registered, with check NULL */
+    CHECK(abi2 && abi2->check == NULL && abi2->decode, "ABI-2 table: check %p",
+          abi2 ? (void *)abi2->check : NULL);
     /* a plugin refused after its first table: that one stays, and every load is refused */
     char partial[4096];
     path_in_build(partial, sizeof partial, "tests/plugins_more/partial.so");

@@ -23,6 +23,10 @@ typedef int32_t cdvr_cl_i32;
 /* Bytes of the codec parameter blob handed to decode kernels and fetch functions
  * (CDVR_CODEC_PARAMS_MAX in cdvr/codec.h). */
 #define CDVR_CL_PARAMS_BYTES 48
+/* The params buffer of decode kernels and fetch functions: the blob, then at byte
+ * CDVR_CL_PARAMS_BYTES the payload's size in bytes (little-endian u64), which fetch functions
+ * clamp their reads below (cdvr/codec.h). */
+#define CDVR_CL_PARAMS_BUFFER_BYTES 56
 
 /* The camera of render.h, in float (cdvr_cl_render converts it). */
 typedef struct cdvr_cl_camera {

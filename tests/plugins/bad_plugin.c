@@ -10,7 +10,8 @@
  *   BAD_NO_DECODE   a table without decode
  *   BAD_UNDEFINED   needs a symbol nothing defines (dlopen fails)
  *   BAD_ABI2        not bad: a valid codec "abi2" behind an ABI 2 info (two fields), which
- *                   this cdvr still loads
+ *                   this cdvr still loads; its table here ends with a poisoned `check`
+ *                   (ABI 4), which a loader reading past an ABI 2 table would pick up
  *   BAD_PARTIAL     ABI 3: a valid codec "partial", then a format whose suffix .nrrd clashes
  *                   with the built-in NRRD format (the codec stays registered)
  * The codec itself is raw-like and valid unless the case says otherwise. */
@@ -118,6 +119,16 @@ static cdvr_status bad_decode(const cdvr_codec_params *p, const size_t dims[3],
 #define BAD_CODEC_ID 0x42414400u /* "BAD\0" */
 #endif
 
+#if defined(BAD_ABI2)
+/* Past the end of an ABI-2 table: never to be read by the loader. */
+static cdvr_status poisoned_check(const cdvr_codec_params *p, const size_t dims[3],
+                                  const uint8_t *payload, size_t bytes, cdvr_error *err)
+{
+    (void)p, (void)dims, (void)payload, (void)bytes;
+    return cdvr_plugin_error(err, CDVR_ERR_CORRUPT, "the loader read past an ABI-2 table");
+}
+#endif
+
 static const cdvr_codec bad_codec = {
     .name = BAD_CODEC_NAME,
     .id = BAD_CODEC_ID,
@@ -134,6 +145,9 @@ static const cdvr_codec bad_codec = {
     .decode = bad_decode,
 #endif
     .cl_mode = CDVR_CODEC_CL_NONE,
+#if defined(BAD_ABI2)
+    .check = poisoned_check,
+#endif
 };
 
 #if defined(BAD_ABI)

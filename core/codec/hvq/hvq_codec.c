@@ -249,6 +249,15 @@ static cdvr_status hvq_describe(const cdvr_codec_params *blob, const size_t dims
     return CDVR_OK;
 }
 
+/* The check before the device (codec.h): the whole-payload check the C decoder runs. */
+static cdvr_status hvq_payload_check(const cdvr_codec_params *blob, const size_t dims[3],
+                                     const uint8_t *payload, size_t bytes, cdvr_error *err)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_from_blob(blob, &p);
+    return cdvr_hvq_check(&p, dims, payload, bytes, NULL, err);
+}
+
 const cdvr_codec cdvr_codec_hvq = {
     .name = "hvq",
     .id = CDVR_CODEC_ID_HVQ,
@@ -267,4 +276,5 @@ const cdvr_codec cdvr_codec_hvq = {
     .cl_mode = CDVR_CODEC_CL_FETCH,
     .cl_file = "codec/hvq_fetch.cl",
     .cl_function = "hvq_fetch",
+    .check = hvq_payload_check,
 };

@@ -5,6 +5,7 @@
 #include <dlfcn.h>
 #include <errno.h>
 #include <pthread.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -138,6 +139,32 @@ static cdvr_status check_info(const char *path, const cdvr_plugin_info *info,
     return CDVR_OK;
 }
 
+/* A plugin built before ABI 4 has codec tables that end before `check`: out's codecs become
+ * full-size copies with check NULL, so that nothing reads past the plugin's tables. The copies
+ * are never freed (registered tables stay). CDVR_ERR_NOMEM naming the file. */
+static cdvr_status widen_codecs(const char *path, cdvr_plugin_info *out, cdvr_error *err)
+{
+    if (out->abi >= 4)
+        return CDVR_OK;
+    size_t n = 0;
+    while (codec_at(out, n))
+        n++;
+    cdvr_codec *copies = n ? calloc(n, sizeof *copies) : NULL;
+    const cdvr_codec **list = n ? calloc(n + 1, sizeof *list) : NULL;
+    if (n && (!copies || !list)) {
+        free(copies);
+        free(list);
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
+    }
+    for (size_t k = 0; k < n; k++) {
+        memcpy(&copies[k], codec_at(out, k), offsetof(cdvr_codec, check));
+        list[k] = &copies[k];
+    }
+    out->codec = NULL;
+    out->codecs = list;
+    return CDVR_OK;
+}
+
 /* Registers codec; on a refusal the message names the file and, for a clash with a plugin
  * codec, the file that one came from. Caller holds loader.mu. */
 static cdvr_status register_codec_locked(const char *path, const cdvr_codec *codec,
@@ -229,6 +256,8 @@ static cdvr_status load_locked(const char *path, const loaded_plugin **out, cdvr
     cdvr_plugin_info info;
     size_t done = 0;
     cdvr_status s = check_info(path, raw, &info, err);
+    if (s == CDVR_OK)
+        s = widen_codecs(path, &info, err);
     if (s == CDVR_OK)
         s = register_all_locked(path, &info, &done, err);
     if (s != CDVR_OK) {

@@ -37,10 +37,16 @@
  *        uchar NAME(__global const uchar *payload, __constant uchar *params, int4 dims,
  *                   int x, int y, int z)
  *    dims = (X, Y, Z, frame within the chunk); 0 <= x < X, 0 <= y < Y, 0 <= z < Z. The
- *    function must return exactly what the C decoder gives for that voxel.
+ *    function must return exactly what the C decoder gives for that voxel, and must never
+ *    read outside the payload, whatever its bytes: it clamps every offset it computes from
+ *    payload bytes below the payload's size (kernels/codec/hvq_fetch.cl).
  *  The source is cl_source (text; what plugins use) or cl_file (a path under the kernel
  *  directory, e.g. "codec/pvtc_decode.cl"). The params buffer holds the chunk's blob
- *  (CDVR_CODEC_PARAMS_MAX bytes).
+ *  (CDVR_CODEC_PARAMS_MAX bytes) followed by the payload's size in bytes, a little-endian
+ *  u64 at byte CDVR_CODEC_PARAMS_MAX (56 bytes in all: CDVR_CL_PARAMS_BUFFER_BYTES of
+ *  kernels/common/cl_shared.h).
+ *  Before either mode sees a chunk, cdvr_cl_decode runs the codec's `check` hook (below) on
+ *  it, when the codec has one.
  *
  * Threads: every function of a codec table must be safe to call from several threads at
  * once on different chunks (the encoder runs chunks in parallel).
@@ -150,6 +156,18 @@ struct cdvr_codec {
     cdvr_status (*encode_part)(const cdvr_codec_params *p, const size_t dims[3],
                                const uint8_t *const *frames, size_t count, size_t part,
                                size_t nparts, uint8_t *out, size_t out_cap, cdvr_error *err);
+
+    /* Optional (may be NULL; plugin ABI 3): checks a payload of `bytes` for these parameters
+     * and chunk dims before it reaches a device, against every rule the codec's device code
+     * relies on, above all the bounds of every index that code computes from payload bytes.
+     * CDVR_OK, or CDVR_ERR_CORRUPT naming the rule broken. cdvr_cl_decode (cdvr/device.h)
+     * runs it on every uploaded chunk and refuses the chunk when it fails; a fetch-mode codec
+     * should have one, since its fetch function reads the payload at every sample and cannot
+     * report an error from there. Device code must still never read outside its buffers
+     * whatever the payload holds (the check is the place for a clear error, not the only
+     * guard). */
+    cdvr_status (*check)(const cdvr_codec_params *p, const size_t dims[3],
+                         const uint8_t *payload, size_t bytes, cdvr_error *err);
 };
 
 /* ---- registry ------------------------------------------------------------------------------

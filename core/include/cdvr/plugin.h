@@ -17,6 +17,10 @@
  *   2  {abi, codec}: one codec (cdvr_codec with encode_part). Still loaded as it is.
  *   3  {abi, codec, codecs, formats}: `codec` may be NULL; `codecs` and `formats` are
  *      NULL-terminated lists (or NULL). At least one codec or format in all.
+ *   4  as 3; cdvr_codec ends with `check` (the payload check before the device). The codec
+ *      tables of a version 2 or 3 plugin end before it: cdvr registers full-size copies of
+ *      them with check NULL (so an ABI 2/3 plugin's info, from cdvr_plugin_load_info, lists
+ *      those copies, in `codecs`).
  * A version outside that range is refused naming both versions. The ABI version covers the
  * layouts of cdvr_plugin_info, cdvr_codec, cdvr_codec_params, cdvr_codec_shape, cdvr_format,
  * cdvr_volume, cdvr_raw_opts and cdvr_error.
@@ -38,7 +42,8 @@
 #include "cdvr/error.h"
 #include "cdvr/format.h"
 
-#define CDVR_PLUGIN_ABI 3u     /* 3: lists of codecs and formats; 2: cdvr_codec.encode_part */
+#define CDVR_PLUGIN_ABI 4u     /* 4: cdvr_codec.check; 3: lists of codecs and formats;
+                                  2: cdvr_codec.encode_part */
 #define CDVR_PLUGIN_ABI_MIN 2u /* the oldest version this cdvr still loads */
 #define CDVR_PLUGIN_SYMBOL "cdvr_plugin_v1"
 

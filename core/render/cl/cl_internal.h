@@ -73,7 +73,7 @@ struct cdvr_cl_stream {
     size_t nbricks;
     cl_mem payload;              /* uploaded chunk */
     size_t payload_capacity, payload_bytes;
-    cl_mem params;               /* the chunk's codec parameter blob (CDVR_CL_PARAMS_BYTES) */
+    cl_mem params;               /* the chunk's parameter blob + payload size (cl_shared.h) */
     cl_mem frames;               /* decoded u8 frames, contiguous */
     size_t frame_capacity, frames_valid;
     cl_mem host_frames;          /* frames in the caller's memory (cdvr_cl_use_host_frames), */

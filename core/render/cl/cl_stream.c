@@ -69,10 +69,10 @@ cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_str
         st = cdvr_cl_ensure_buffer(cl, &s->alpha_unit, &cap, 256 * sizeof(float),
                                    CL_MEM_READ_ONLY, "alpha table", err);
     if (!st) /* zeros: dense frames read no parameters, but the argument must be a buffer */
-        st = cdvr_cl_ensure_buffer(cl, &s->params, &cap, CDVR_CL_PARAMS_BYTES, CL_MEM_READ_ONLY,
-                                   "codec parameters", err);
+        st = cdvr_cl_ensure_buffer(cl, &s->params, &cap, CDVR_CL_PARAMS_BUFFER_BYTES,
+                                   CL_MEM_READ_ONLY, "codec parameters", err);
     if (!st) {
-        static const unsigned char zeros[CDVR_CL_PARAMS_BYTES];
+        static const unsigned char zeros[CDVR_CL_PARAMS_BUFFER_BYTES];
         st = cdvr_cl_check(clEnqueueWriteBuffer(cl->queue, s->params, CL_TRUE, 0, sizeof zeros,
                                                 zeros, 0, NULL, NULL),
                            "clear codec parameters", err);
@@ -287,6 +287,34 @@ cdvr_cl_decode_path cdvr_cl_last_decode_path(const cdvr_cl_stream *s)
     return s->last_decode_path;
 }
 
+/* The codec's check hook (cdvr/codec.h) on the uploaded payload, read through a map (no copy
+ * on CPU devices, whose payload buffer lives in host memory): a chunk it refuses never
+ * reaches a kernel. */
+static cdvr_status check_payload(cdvr_cl_stream *s, const cdvr_codec *codec,
+                                 const cdvr_codec_params *params, cdvr_error *err)
+{
+    if (!codec->check)
+        return CDVR_OK;
+    cl_int code;
+    cl_command_queue q = s->cl->queue;
+    void *in = clEnqueueMapBuffer(q, s->payload, CL_TRUE, CL_MAP_READ, 0, s->payload_bytes, 0,
+                                  NULL, NULL, &code);
+    if (code != CL_SUCCESS)
+        return cdvr_cl_check(code, "map chunk payload for its check", err);
+    cdvr_error cerr;
+    cdvr_status st = codec->check(params, s->dims, in, s->payload_bytes, &cerr);
+    if (st)
+        cdvr_error_set(err, st, "OpenCL decode: codec %s refuses the %zu-byte chunk of "
+                       "%zux%zux%zu before the device: %s", codec->name, s->payload_bytes,
+                       s->dims[0], s->dims[1], s->dims[2], cerr.msg);
+    code = clEnqueueUnmapMemObject(q, s->payload, in, 0, NULL, NULL);
+    if (code == CL_SUCCESS)
+        code = clFinish(q);
+    if (!st)
+        st = cdvr_cl_check(code, "unmap chunk payload", err);
+    return st;
+}
+
 cdvr_status cdvr_cl_decode(cdvr_cl_stream *s, const cdvr_codec *codec,
                            const cdvr_codec_params *params, size_t count, cdvr_error *err)
 {
@@ -307,12 +335,18 @@ cdvr_status cdvr_cl_decode(cdvr_cl_stream *s, const cdvr_codec *codec,
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL decode: %s chunk of %zux%zux%zu needs "
                               "%zu bytes, got %zu", codec->name, s->dims[0], s->dims[1],
                               s->dims[2], shape.payload_bytes, s->payload_bytes);
+    st = check_payload(s, codec, params, err);
+    if (st)
+        return st;
     cdvr_cl_codec_program *cp;
     st = cdvr_cl_get_codec_program(s->cl, codec, &cp, err);
+    unsigned char pbuf[CDVR_CL_PARAMS_BUFFER_BYTES];
+    memcpy(pbuf, params->bytes, CDVR_CL_PARAMS_BYTES);
+    for (int i = 0; i < 8; i++) /* the payload's size, which fetch functions clamp below */
+        pbuf[CDVR_CL_PARAMS_BYTES + i] = (unsigned char)((uint64_t)s->payload_bytes >> (8 * i));
     if (!st)
-        st = cdvr_cl_check(clEnqueueWriteBuffer(s->cl->queue, s->params, CL_TRUE, 0,
-                                                CDVR_CL_PARAMS_BYTES, params->bytes, 0, NULL,
-                                                NULL),
+        st = cdvr_cl_check(clEnqueueWriteBuffer(s->cl->queue, s->params, CL_TRUE, 0, sizeof pbuf,
+                                                pbuf, 0, NULL, NULL),
                            "upload codec parameters", err);
     if (!st && codec->cl_mode == CDVR_CODEC_CL_DECODE) {
         cdvr_cl_decode_path path = CDVR_CL_DECODE_KERNEL;
@@ -373,7 +407,7 @@ cdvr_status cdvr_cl_use_host_frames(cdvr_cl_stream *s, const uint8_t *frames, si
 
 uint64_t cdvr_cl_stream_bytes(const cdvr_cl_stream *s)
 {
-    uint64_t b = (uint64_t)s->payload_capacity + s->frame_capacity + CDVR_CL_PARAMS_BYTES;
+    uint64_t b = (uint64_t)s->payload_capacity + s->frame_capacity + CDVR_CL_PARAMS_BUFFER_BYTES;
     b += s->quads_capacity;
     b += 256 * 4 * sizeof(float) + 256 * sizeof(float); /* TF tables */
     b += 3 * (uint64_t)s->nbricks;                       /* brick min/max + flags */
