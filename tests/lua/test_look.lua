@@ -57,6 +57,18 @@ for _, dev in ipairs(devices) do
 end
 os.remove(path)
 
+-- hvq in the compressed domain (cl reads every sample, gradients too, through its fetch)
+if devices[2] then
+  local hpath = os.tmpname()
+  local hst = cdvr.encode(v, {variants = {{codec = "hvq"}}, path = hpath})
+  for _, look in ipairs{{shade = true}, {blend = "max"}, {iso = {value = 120}}} do
+    local a = cdvr.render(hst, {tf = tf, camera = cam, device = "cl", shade = look.shade, blend = look.blend, iso = look.iso})
+    local b = cdvr.render(hst, {tf = tf, camera = cam, device = "cpu", shade = look.shade, blend = look.blend, iso = look.iso})
+    check(cdvr.compare(a, b).psnr >= 50, "hvq on cl (fetch) against its cpu decode: " .. cdvr.compare(a, b).psnr .. " dB")
+  end
+  os.remove(hpath)
+end
+
 -- annotate= in cdvr.render and the player: the same pixels as img:annotate of the plain image
 local ann = {colorbar = true, axes = true, title = "neghip", time = true}
 local annotated = render{annotate = ann}
