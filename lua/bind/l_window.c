@@ -425,10 +425,12 @@ static void set_camera(lua_State *L, int w_idx, int idx)
         lua_setiuservalue(L, w_idx, UV_CAMERA_FN);
         return;
     }
-    if (type == LUA_TBOOLEAN && !lua_toboolean(L, -1))
+    if (type == LUA_TBOOLEAN && !lua_toboolean(L, -1)) {
         lua_pushnil(L);
-    else
+    } else {
+        lcdvr_checkoption(L, -1, "window", "camera", LCDVR_CAMERA);
         lcdvr_pushcamera(L, lcdvr_checkcamera(L, -1));
+    }
     lua_setiuservalue(L, w_idx, UV_CAMERA);
     lua_pop(L, 1);
     lua_pushnil(L);
@@ -454,7 +456,9 @@ static void set_policy(lua_State *L, int w_idx, int idx)
         lua_insert(L, -2);
         lua_call(L, 1, 1);
     }
-    luaL_argexpected(L, lua_isfunction(L, -1) || lua_isnil(L, -1), idx, "policy function, name or false");
+    if (!lua_isfunction(L, -1) && !lua_isnil(L, -1))
+        luaL_error(L, "window: option 'policy': policy function, name or false expected, got %s",
+                   luaL_typename(L, -1));
     lua_setiuservalue(L, w_idx, UV_POLICY);
 }
 
