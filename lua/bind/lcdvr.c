@@ -334,6 +334,8 @@ void *lcdvr_checkoption(lua_State *L, int idx, const char *what, const char *key
     if (!p) {
         const char *got = luaL_getmetafield(L, idx, "__name") == LUA_TSTRING ? lua_tostring(L, -1)
                                                                               : luaL_typename(L, idx);
+        if (!what)
+            what = lcdvr_push_funcname(L);
         luaL_error(L, "%s: option '%s': %s expected, got %s", what, key, tname, got);
     }
     return p;

@@ -101,7 +101,7 @@ void lcdvr_checkoptions_array(lua_State *L, int idx, const char *what, const cha
 
 /* The userdata of metatable tname in option `key` of the value at idx (an options table field
  * already pushed, usually -1); raises "what: option 'key': tname expected, got <type>" (never
- * "bad argument #-1"). */
+ * "bad argument #-1"); what NULL: the running function's name (lcdvr_push_funcname). */
 void *lcdvr_checkoption(lua_State *L, int idx, const char *what, const char *key, const char *tname);
 
 /* Object lifetimes. A binding whose C object uses another object's C data beyond one call (a

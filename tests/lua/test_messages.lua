@@ -151,7 +151,7 @@ local calls = {
   ["w:frame"] = {window = true, method = "frame"},
   ["w:read"] = {window = true, method = "read"},
   ["w:set"] = {window = true, method = "set", args = {{t = 1}}, opts = 2,
-               keys = {"volume", "store", "tf", "camera", "method", "device", "overlay", "t", "variant", "lod",
+               keys = {"volume", "store", "tf", "camera", "method", "device", "overlay", "t", "variant",
                        "step", "playing", "fps", "policy", "min_psnr", "callback_limit"}},
   ["w:state"] = {window = true, method = "state"},
 }
@@ -321,6 +321,27 @@ check(help_of("cdvr.encode"):find("raises", 1, true), "cdvr.encode's help: " .. 
 do
   local ok, msg = img:save(tmp .. "/no/dir/i.png")
   check(ok == nil and tostring(msg):find("i.png", 1, true), "img:save returns nil, msg: " .. tostring(msg))
+end
+
+-- error objects with __tostring keep their text: in callbacks and in the host
+do
+  local E = setmetatable({}, {__tostring = function() return "an error object's own text" end})
+  local bad = cdvr.player{store = st, tf = tf, camera = cam, width = 8, height = 8, device = "cpu",
+                          policy = function() error(E) end}
+  local ok, msg = pcall(bad.run, bad, {frames = 1})
+  check(not ok and tostring(msg):find("an error object's own text", 1, true), "policy error object: " .. tostring(msg))
+  bad:close()
+  raises("an error object's own text", cdvr.encode, vol, {path = tmp .. "/eo.cdv", progress = false,
+                                                          schedule = function() error(E) end})
+  local bin = os.getenv("CDVR_BINARY_DIR")
+  if bin then
+    local f = assert(io.popen(("%q -e %q 2>&1"):format(bin .. "/cdvr",
+      'error(setmetatable({}, {__tostring = function() return "host error object" end}))')))
+    local out = f:read("a")
+    f:close()
+    check(out:find("cdvr: host error object", 1, true) and out:find("stack traceback", 1, true) and
+          not out:find("not a string", 1, true), "host error object: " .. out)
+  end
 end
 
 if win then win:close() end
