@@ -362,6 +362,7 @@ static void apply_tf_options(lua_State *L, int opts, int from_colormap)
         if (!tf->auto_range)
             luaL_error(L, "cdvr.tf: option 'volume' goes with range=\"auto\" (its percentiles "
                           "pin the TF to data values)");
+        lcdvr_checkoption(L, -1, "cdvr.tf", "volume", LCDVR_VOLUME);
         const cdvr_volume *vol = lcdvr_volume_lazy(L, -1) ? lcdvr_volume_read(L, -1, 0, 1)
                                                           : lcdvr_checkvolume(L, -1);
         if (cdvr_tf_rescale_auto(tf, vol, 0, &err) != CDVR_OK)

@@ -273,6 +273,9 @@ local function raises(want, f, ...)
 end
 raises("cdvr.plugin.load", cdvr.plugin.load, nil)
 raises("cdvr.Volume.get", vol.get, 3)
+raises("cdvr.tf: option 'volume': cdvr.Volume expected, got number", cdvr.tf, "hot", {range = "auto", volume = 3})
+raises("img:annotate: option 'volume': cdvr.Volume expected, got boolean", img.annotate, img, {volume = true})
+raises("cdvr.codec_chunk: dims[2]: number expected, got string", cdvr.codec_chunk, "pvtc", {}, {1, "x", 1})
 if win then raises("option 'store'", win.set, win, {store = false}) end
 -- spacing 1e300: the box, not "up parallel"
 do
