@@ -305,7 +305,7 @@ end
 -- help states the rule: every line of a loader, opener or saver says raise or nil, msg
 for _, line in ipairs(lines) do
   if line:find("^cdvr%.open") or line:find("^cdvr%.load[%(_]") or line:find("^cdvr%.encode") or
-     line:find(":save") or line:find("^cdvr%.camera%(path") then
+     line:find(":save") or line:find("^cdvr%.camera%(path") or line:find("^cdvr%.tf%(") then
     check(line:find("raises", 1, true) or line:find("nil, msg", 1, true) or line:find("nil, message", 1, true),
           "help line does not say how it fails: " .. line)
   end
