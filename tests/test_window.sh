@@ -2,7 +2,7 @@
 # The window (DESIGN.md section 11) under a virtual X display (xvfb-run): the scene checks of
 # tests/lua/window_checks.lua and tests/lua/window_scene_checks.lua (what the window shares
 # with the player: policy stats, callback budgets, default variant and device; keys r, q,
-# Esc; re-framing), a console session through a pseudo-terminal that opens a window,
+# Esc; re-framing), tests/lua/test_messages.lua with a window open (its misuse messages), a console session through a pseudo-terminal that opens a window,
 # changes the TF (the change shows in the next frame) and quits with status 0; without a display
 # `cdvr -i` prints one notice and stays a console, and cdvr.window raises a clear error.
 # Skips (77) when xvfb-run or python3 is missing; in a build without GL it checks the errors.
@@ -40,6 +40,9 @@ check "window scene checks" [ $rc -eq 0 ]
 # with the budget error, never hang the window
 timeout 300 xvfb-run -a "$cdvr" "$src/tests/lua/window_scene_checks.lua"; rc=$?
 check "window scene contract checks (rc $rc)" [ $rc -eq 0 ]
+# misuse messages of cdvr.window and the w: methods (the rest of tests/lua/test_messages.lua too)
+timeout 300 xvfb-run -a "$cdvr" "$src/tests/lua/test_messages.lua" >/dev/null; rc=$?
+check "messages with a window (rc $rc)" [ $rc -eq 0 ]
 
 # the console beside a window: a TF typed in the console shows in the next frame
 xvfb-run -a python3 "$src/tests/pty_session.py" --timeout 120 -- \

@@ -57,10 +57,21 @@ cdvr_status cdvr_camera_validate(const cdvr_camera *cam, cdvr_error *err)
         f[i] = cam->center[i] - cam->eye[i];
         up[i] = cam->up[i];
     }
-    if (normalize3(f) == 0.0)
+    double dist = normalize3(f);
+    if (dist == 0.0)
         return cdvr_error_set(err, CDVR_ERR_ARG, "camera: eye equals center (%g, %g, %g)",
                               cam->eye[0], cam->eye[1], cam->eye[2]);
-    if (normalize3(up) == 0.0)
+    if (!isfinite(dist)) /* the view direction would be lost (not "up parallel") */
+        return cdvr_error_set(err, CDVR_ERR_ARG,
+                              "camera: eye (%g, %g, %g) and center (%g, %g, %g) are too far apart: "
+                              "their distance overflows (a box or distance too large)",
+                              cam->eye[0], cam->eye[1], cam->eye[2], cam->center[0],
+                              cam->center[1], cam->center[2]);
+    double up_len = normalize3(up);
+    if (!isfinite(up_len))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "camera: up (%g, %g, %g) is too long: its length "
+                              "overflows", cam->up[0], cam->up[1], cam->up[2]);
+    if (up_len == 0.0)
         return cdvr_error_set(err, CDVR_ERR_ARG, "camera: up vector is zero");
     cross3(f, up, side);
     if (sqrt(dot3(side, side)) < 1e-9)

@@ -29,7 +29,7 @@ static int size_field(lua_State *L, int idx, const char *key, int def)
 {
     lua_Integer n = lcdvr_optintegerfield(L, idx, key, def);
     if (n < 1 || n > 65536)
-        luaL_error(L, "camera: %s must be 1..65536, got %I", key, (LUAI_UACINT)n);
+        lcdvr_error(L, "option '%s' must be 1..65536, got %I", key, (LUAI_UACINT)n);
     return (int)n;
 }
 
@@ -212,6 +212,9 @@ static int camera_gc(lua_State *L)
 
 /* World bounds of the first argument: a volume or a store (its oriented box), {x, y, z} dims, or
  * {dims=, spacing=, origin=[, direction=]}. */
+#define BOX_LIMIT 1e100 /* largest |box coordinate| a camera is made for */
+#define ZOOM_LIMIT 1e6  /* largest zoom= (beyond, the eye meets the centre) */
+
 static void read_box(lua_State *L, double lo[3], double hi[3])
 {
     cdvr_volume box = {.spacing = {1, 1, 1}, .direction = {1, 0, 0, 0, 1, 0, 0, 0, 1}};
@@ -257,6 +260,13 @@ static void read_box(lua_State *L, double lo[3], double hi[3])
         if (!isfinite(box.direction[i]))
             luaL_argerror(L, 1, "direction must be finite");
     cdvr_volume_bounds(&box, lo, hi);
+    for (int a = 0; a < 3; a++) /* a camera around it must have finite distances */
+        if (!(fabs(lo[a]) <= BOX_LIMIT && fabs(hi[a]) <= BOX_LIMIT))
+            lcdvr_error(L, "the box [%f, %f] x [%f, %f] x [%f, %f] (spacing %f, %f, %f, origin "
+                           "%f, %f, %f) is not finite or too large for a camera (|coordinates| "
+                           "<= 1e100)", lo[0], hi[0], lo[1], hi[1], lo[2], hi[2], box.spacing[0],
+                        box.spacing[1], box.spacing[2], box.origin[0], box.origin[1],
+                        box.origin[2]);
 }
 
 /* Distance at which a sphere of radius r fills the narrower of the two view angles. */
@@ -337,9 +347,11 @@ static int l_orbit_camera(lua_State *L)
     double azimuth = lcdvr_optnumberfield(L, 2, "azimuth", 0.0);
     double elevation = lcdvr_optnumberfield(L, 2, "elevation", 0.0);
     double zoom = lcdvr_optnumberfield(L, 2, "zoom", 1.0);
-    if (!(zoom > 0.0) || !isfinite(zoom) || !isfinite(azimuth) || !isfinite(elevation))
-        return luaL_error(L, "cdvr.orbit_camera: zoom %f must be positive, azimuth and elevation "
-                             "finite", zoom);
+    if (!(zoom > 0.0 && zoom <= ZOOM_LIMIT))
+        return luaL_error(L, "cdvr.orbit_camera: option 'zoom' = %f must be in (0, 1e6]", zoom);
+    if (!isfinite(azimuth) || !isfinite(elevation))
+        return luaL_error(L, "cdvr.orbit_camera: options 'azimuth' = %f and 'elevation' = %f "
+                             "must be finite", azimuth, elevation);
     lua_getfield(L, 2, "distance");
     int given = !lua_isnil(L, -1);
     lua_pop(L, 1);
@@ -347,7 +359,8 @@ static int l_orbit_camera(lua_State *L)
                     : cam.orthographic ? fit_distance(radius, cam.fov, aspect)
                     : frame_distance(cam, lo, hi, center, radius, azimuth, elevation) / zoom;
     if (!(distance > 0.0) || !isfinite(distance))
-        return luaL_error(L, "cdvr.orbit_camera: distance %f must be positive", distance);
+        return luaL_error(L, "cdvr.orbit_camera: option 'distance' = %f must be positive and finite",
+                          distance);
     cdvr_camera_orbit(&cam, center, cam.up, distance, azimuth, elevation);
     if (cam.orthographic && cam.ortho_height == 0.0) { /* the corners at FRAME_FILL too */
         cam.ortho_height = 2.0;

@@ -98,10 +98,15 @@ static int l_codec_chunk(lua_State *L)
         luaL_checktype(L, 3, LUA_TTABLE);
         for (int i = 0; i < 3; i++) {
             lua_geti(L, 3, i + 1);
-            d[i] = luaL_checknumber(L, -1);
+            int isnum = 0;
+            d[i] = lua_tonumberx(L, -1, &isnum);
+            if (!isnum)
+                luaL_error(L, "cdvr.codec_chunk: dims[%d]: number expected, got %s", i + 1,
+                           luaL_typename(L, -1));
             lua_pop(L, 1);
-            luaL_argcheck(L, d[i] >= 1 && d[i] <= 1e9 && d[i] == (double)(size_t)d[i], 3,
-                          "dims must be integers >= 1");
+            if (!(d[i] >= 1 && d[i] <= 1e9 && d[i] == (double)(size_t)d[i]))
+                luaL_error(L, "cdvr.codec_chunk: dims[%d] = %f: integers 1..1e9 expected", i + 1,
+                           d[i]);
         }
     }
     size_t dims[3] = {(size_t)d[0], (size_t)d[1], (size_t)d[2]};
@@ -167,6 +172,7 @@ int lcdvr_open_codec(lua_State *L)
     lua_newtable(L);                                 /* cdvr, plugin */
     lua_pushcfunction(L, l_plugin_load);
     lua_setfield(L, -2, "load");
+    lcdvr_name_table(L, -1, "cdvr.plugin");
     lua_setfield(L, -2, "plugin");                   /* cdvr */
     lcdvr_help_add(L, "cdvr.codecs()",
                    "list of registered codecs: {name, id, description, cl_mode, variant, plugin, "

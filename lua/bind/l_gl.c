@@ -71,6 +71,7 @@ static void read_box(lua_State *L, int idx, double lo[3], double hi[3])
 static void read_grid(lua_State *L, cdvr_grid *g)
 {
     if (lua_getfield(L, 1, "volume") != LUA_TNIL) {
+        lcdvr_checkoption(L, -1, "cdvr.lod_plan", "volume", LCDVR_VOLUME);
         cdvr_grid_of_volume(lcdvr_checkvolume(L, -1), g);
         lua_pop(L, 1);
         return;
@@ -108,11 +109,13 @@ static int l_lod_plan(lua_State *L)
     cdvr_grid g;
     read_grid(L, &g);
     lua_Integer bpv = lcdvr_optintegerfield(L, 1, "bytes_per_voxel", 1);
-    luaL_argcheck(L, bpv >= 1 && bpv <= 64, 1, "bytes_per_voxel must be 1..64");
+    if (bpv < 1 || bpv > 64)
+        luaL_error(L, "cdvr.lod_plan: option 'bytes_per_voxel' must be 1..64, got %I", (LUAI_UACINT)bpv);
     int lod = lod_mode(L, 1, "cdvr.lod_plan");
     double eye[3], min_nearest = 0.0;
     int axis;
     if (lua_getfield(L, 1, "camera") != LUA_TNIL) {
+        lcdvr_checkoption(L, -1, "cdvr.lod_plan", "camera", LCDVR_CAMERA);
         const cdvr_camera *cam = lcdvr_checkcamera(L, -1);
         axis = cdvr_slice_axis(&g, cam);
         memcpy(eye, cam->eye, sizeof eye);

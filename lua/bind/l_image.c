@@ -147,6 +147,7 @@ static int image_save(lua_State *L)
 static int annotate_window(lua_State *L, int opts, double w[2], size_t *n)
 {
     if (lua_getfield(L, opts, "volume") != LUA_TNIL) {
+        lcdvr_checkoption(L, -1, "img:annotate", "volume", LCDVR_VOLUME);
         const cdvr_volume *h = lcdvr_volume_header(L, -1);
         *n = h->timesteps;
         w[0] = h->window[0], w[1] = h->window[1];
@@ -157,6 +158,7 @@ static int annotate_window(lua_State *L, int opts, double w[2], size_t *n)
     }
     lua_pop(L, 1);
     if (lua_getfield(L, opts, "store") != LUA_TNIL) {
+        lcdvr_checkoption(L, -1, "img:annotate", "store", LCDVR_STORE);
         const cdvr_store_info *info = cdvr_store_get_info(lcdvr_checkstore(L, -1));
         *n = info->timesteps;
         w[0] = info->qlo, w[1] = info->qhi;
@@ -178,7 +180,8 @@ static const cdvr_tf *annotate_tf(lua_State *L, int opts, int has_w, const doubl
     if (type == LUA_TSTRING || type == LUA_TTABLE) {
         lua_getfield(L, lua_upvalueindex(1), "tf");
         lua_insert(L, -2);
-        lua_call(L, 1, 1);
+        if (lua_pcall(L, 1, 1, 0) != LUA_OK)
+            luaL_error(L, "img:annotate: option 'tf': %s", luaL_tolstring(L, -1, NULL));
     }
     lcdvr_checkoption(L, -1, "img:annotate", "tf", LCDVR_TF);
     cdvr_tf *tf = lcdvr_pushtf(L, lcdvr_checktf(L, -1));
@@ -237,7 +240,9 @@ static int image_annotate(lua_State *L)
     }
     o.axes = lcdvr_optbooleanfield(L, 2, "axes", 0);
     if (o.axes) {
-        lua_getfield(L, 2, "camera");
+        if (lua_getfield(L, 2, "camera") == LUA_TNIL)
+            luaL_error(L, "img:annotate: option 'axes': axes=true needs camera= (the camera the "
+                          "image was rendered with)");
         lcdvr_checkoption(L, -1, "img:annotate", "camera", LCDVR_CAMERA);
         o.camera = lcdvr_checkcamera(L, -1); /* stays on the stack */
     }

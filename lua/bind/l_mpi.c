@@ -31,6 +31,7 @@ int lcdvr_open_mpi(lua_State *L)
     luaL_newlib(L, mpi_funcs);                    /* cdvr, mpi */
     lua_pushboolean(L, cdvr_dist_built());
     lua_setfield(L, -2, "built");
+    lcdvr_name_table(L, -1, "cdvr.mpi");
     lua_setfield(L, -2, "mpi");                   /* cdvr */
     lcdvr_help_add(L, "cdvr.mpi.rank()", "this process's rank in an mpirun run (0 .. size-1; 0 without MPI)");
     lcdvr_help_add(L, "cdvr.mpi.size()", "number of processes of the run (1 without MPI)");

@@ -436,7 +436,8 @@ static int resolve_policy(lua_State *L, int ud, const cdvr_store *st, int varian
         lua_getfield(L, -1, "get");
         lua_pushvalue(L, -3);
         push_policy_options(L, st, variant);
-        lua_call(L, 2, 1);                        /* name, module, policy fn */
+        if (lua_pcall(L, 2, 1, 0) != LUA_OK)      /* name, module, policy fn */
+            luaL_error(L, "cdvr.player: option 'policy': %s", luaL_tolstring(L, -1, NULL));
         lua_replace(L, -3);
         lua_pop(L, 1);                            /* policy fn */
     }

@@ -113,7 +113,7 @@ static void check_vec3(lua_State *L, int idx, const char *what, double out[3])
         lua_pop(L, 1);
     }
     if (!ok)
-        luaL_error(L, "%s must be 3 finite numbers", what);
+        lcdvr_error(L, "%s must be 3 finite numbers", what);
 }
 
 /* dir: {x, y, z} (orthographic view direction) or {eye = {x, y, z}} (perspective). */

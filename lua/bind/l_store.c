@@ -71,7 +71,7 @@ static int optionfield(lua_State *L, int idx, const char *key, const char *const
         luaL_addstring(&b, names[i]);
     }
     luaL_pushresult(&b);
-    return luaL_error(L, "option '%s': invalid value '%s' (expected %s)", key, s,
+    return lcdvr_error(L, "option '%s': invalid value '%s' (expected %s)", key, s,
                       lua_tostring(L, -1));
 }
 
@@ -92,7 +92,7 @@ static const cdvr_codec *codecfield(lua_State *L, int idx, const cdvr_codec *def
         luaL_addstring(&b, cdvr_codec_at(i)->name);
     }
     luaL_pushresult(&b);
-    return (const cdvr_codec *)(intptr_t)luaL_error(
+    return (const cdvr_codec *)(intptr_t)lcdvr_error(
         L, "option 'codec': unknown codec '%s' (loaded: %s; plugins load with "
            "cdvr.plugin.load)", name, lua_tostring(L, -1));
 }
@@ -116,7 +116,7 @@ static const char *param_text(lua_State *L, const char *key)
     case LUA_TBOOLEAN:
         return lua_pushstring(L, lua_toboolean(L, -1) ? "true" : "false");
     default:
-        return (const char *)(intptr_t)luaL_error(L, "option '%s': a number, string or boolean "
+        return (const char *)(intptr_t)lcdvr_error(L, "option '%s': a number, string or boolean "
                                                      "expected, got %s", key,
                                                   luaL_typename(L, -1));
     }
@@ -193,12 +193,12 @@ static void parse_spec(lua_State *L, int idx, const top_defaults *top, cdvr_vari
     out->stage2 = (cdvr_stage2)optionfield(L, from, "stage2", stage2_names, (int)top->stage2);
     out->lzo_min_saving = lcdvr_optnumberfield(L, from, "lzo_min_saving", top->lzo_min_saving);
     if (!(out->lzo_min_saving >= 0 && out->lzo_min_saving <= 1))
-        luaL_error(L, "option 'lzo_min_saving': %f is not in [0, 1]", out->lzo_min_saving);
+        lcdvr_error(L, "option 'lzo_min_saving': %f is not in [0, 1]", out->lzo_min_saving);
     const char *name = idx ? lcdvr_optstringfield(L, idx, "name", "") : "";
     if (!idx)
         name = lcdvr_optstringfield(L, top->idx, "name", "");
     if (strlen(name) >= CDVR_NAME_MAX)
-        luaL_error(L, "option 'name': '%s' is longer than %d bytes", name, CDVR_NAME_MAX - 1);
+        lcdvr_error(L, "option 'name': '%s' is longer than %d bytes", name, CDVR_NAME_MAX - 1);
     memcpy(out->name, name, strlen(name));
     if (!out->name[0]) /* the core's default name, known here for progress */
         out->codec->variant_name(&out->params, out->name, sizeof out->name);
@@ -240,16 +240,16 @@ static cdvr_variant_spec *parse_variants(lua_State *L, int idx, size_t *n)
     top.lzo_min_saving = lcdvr_optnumberfield(L, idx, "lzo_min_saving", top.lzo_min_saving);
     int t = lua_getfield(L, idx, "variants");
     if (t != LUA_TNIL && t != LUA_TTABLE)
-        luaL_error(L, "option 'variants': table expected, got %s", luaL_typename(L, -1));
+        lcdvr_error(L, "option 'variants': table expected, got %s", luaL_typename(L, -1));
     *n = t == LUA_TTABLE ? (size_t)luaL_len(L, -1) : 1;
     if (*n < 1 || *n > 256)
-        luaL_error(L, "option 'variants': %d entries (expected 1..256)", (int)*n);
+        lcdvr_error(L, "option 'variants': %d entries (expected 1..256)", (int)*n);
     cdvr_variant_spec *specs = lua_newuserdatauv(L, *n * sizeof *specs, 0);
     if (t != LUA_TTABLE)
         parse_spec(L, 0, &top, &specs[0]);
     for (size_t i = 0; t == LUA_TTABLE && i < *n; i++) {
         if (lua_geti(L, -2, (lua_Integer)i + 1) != LUA_TTABLE)
-            luaL_error(L, "option 'variants': entry %d is not a table", (int)i + 1);
+            lcdvr_error(L, "option 'variants': entry %d is not a table", (int)i + 1);
         parse_spec(L, lua_gettop(L), &top, &specs[i]);
         lua_pop(L, 1);
     }
@@ -387,7 +387,7 @@ static int l_encode(lua_State *L)
     path = lua_tostring(L, -1);
     int sched_type = lua_getfield(L, 2, "schedule");
     if (sched_type != LUA_TNIL && sched_type != LUA_TFUNCTION)
-        return luaL_error(L, "option 'schedule': function expected, got %s", luaL_typename(L, -1));
+        return lcdvr_error(L, "option 'schedule': function expected, got %s", luaL_typename(L, -1));
     int schedule_idx = sched_type == LUA_TFUNCTION ? lua_gettop(L) : 0;
     encode_ctx ctx = {.L = L, .schedule_idx = schedule_idx};
     lcdvr_limits_options(L, 2, "cdvr.encode", &ctx.limits);
@@ -424,9 +424,7 @@ static int l_encode(lua_State *L)
     cdvr_status s = lazy ? cdvr_store_encode_source(&src, &o, path, &err)
                          : cdvr_store_encode(u8, &o, path, &err);
     lcdvr_unuse(L, 1);
-    if (s == CDVR_ERR_IO)
-        return lcdvr_fail(L, &err);
-    if (s != CDVR_OK)
+    if (s != CDVR_OK) /* an encoder opens what it wrote: it raises, as cdvr.open (lcdvr.h) */
         return lcdvr_raise(L, &err);
     cdvr_store *st = NULL;
     if (cdvr_store_open(path, &st, &err) != CDVR_OK)
@@ -929,9 +927,10 @@ int lcdvr_open_store(lua_State *L)
                    "splits each timestep into bricks; threads=0: one per core, the same bytes for "
                    "any count; ranges=true: per-brick value range tables for empty-space "
                    "skipping; schedule(t, variant) runs under callback_limit= instructions, "
-                   "default 5e7, and callback_memory= MB, default 256); the opened store, or "
-                   "nil, msg on write failure");
-    lcdvr_help_add(L, "cdvr.open(path)", "open a .cdv store (lazy); store or nil, msg");
+                   "default 5e7, and callback_memory= MB, default 256); the opened store; raises "
+                   "when it cannot write the file (the message names it)");
+    lcdvr_help_add(L, "cdvr.open(path)", "open a .cdv store (lazy); the store, or raises naming "
+                                         "the file and the reason");
     lcdvr_help_add(L, "st:info()", "dims, timesteps, window, bytes, ratio and per-variant "
                                    "codec, bpv, psnr, maxerr, chunks, ranges_bytes (the value "
                                    "range tables for empty-space skipping)");

@@ -362,6 +362,7 @@ static void apply_tf_options(lua_State *L, int opts, int from_colormap)
         if (!tf->auto_range)
             luaL_error(L, "cdvr.tf: option 'volume' goes with range=\"auto\" (its percentiles "
                           "pin the TF to data values)");
+        lcdvr_checkoption(L, -1, "cdvr.tf", "volume", LCDVR_VOLUME);
         const cdvr_volume *vol = lcdvr_volume_lazy(L, -1) ? lcdvr_volume_read(L, -1, 0, 1)
                                                           : lcdvr_checkvolume(L, -1);
         if (cdvr_tf_rescale_auto(tf, vol, 0, &err) != CDVR_OK)
@@ -547,7 +548,7 @@ int lcdvr_open_tf(lua_State *L)
                    "or {{x, a}, ...}) or a saved .lua file; range={lo, hi} pins a normalised one to data "
                    "values, range=\"auto\" to the 1-99% percentile window of the data rendered "
                    "(percentiles={lo, hi} in %; with volume=v its first timestep's, pinned to data values now, "
-                   "for the player)");
+                   "for the player); a .lua file that cannot be read or is not a TF raises naming it");
     lcdvr_help_add(L, "tf:shade()", "a preset's shading {shade=, ambient=, diffuse=, specular=, specular_power=} or nil");
     lcdvr_help_add(L, "tf:name()", "the preset or colour map it came from (or nil), and whether range=\"auto\"");
     lcdvr_help_add(L, "tf:points()", "the control points {{value, r,g,b, a}, ..., unit=, normalized=}");

@@ -559,7 +559,7 @@ static int check_endian(lua_State *L, int idx)
     for (int i = 0; names[i]; i++)
         if (strcmp(e, names[i]) == 0)
             return i;
-    return luaL_error(L, "option 'endian': \"little\" or \"big\" expected, got \"%s\"", e);
+    return lcdvr_error(L, "option 'endian': \"little\" or \"big\" expected, got \"%s\"", e);
 }
 
 static int volume_save_raw(lua_State *L)
@@ -590,7 +590,7 @@ static int dims_field(lua_State *L, int idx, size_t dims[3])
         return 0;
     for (int i = 0; i < 3; i++) {
         if (!(d[i] >= 1 && d[i] <= 9007199254740992.0 && d[i] == floor(d[i])))
-            luaL_error(L, "option 'dims'[%d]: positive integer expected, got %f", i + 1, d[i]);
+            lcdvr_error(L, "option 'dims'[%d]: positive integer expected, got %f", i + 1, d[i]);
         dims[i] = (size_t)d[i];
     }
     return 1;
@@ -601,9 +601,9 @@ static cdvr_type type_field(lua_State *L, int idx, const char *def)
     const char *name = lcdvr_optstringfield(L, idx, "type", def);
     cdvr_type type;
     if (!name)
-        luaL_error(L, "option 'type' is required (u8, u16, i16, f32)");
+        lcdvr_error(L, "option 'type' is required (u8, u16, i16, f32)");
     if (!cdvr_type_parse(name, &type))
-        luaL_error(L, "option 'type': unknown voxel type '%s' (u8, u16, i16, f32)", name);
+        lcdvr_error(L, "option 'type': unknown voxel type '%s' (u8, u16, i16, f32)", name);
     return type;
 }
 
@@ -611,7 +611,7 @@ static size_t count_field(lua_State *L, int idx, const char *key, lua_Integer de
 {
     lua_Integer n = lcdvr_optintegerfield(L, idx, key, def);
     if (n < min)
-        luaL_error(L, "option '%s': must be >= %d, got %d", key, (int)min, (int)n);
+        lcdvr_error(L, "option '%s': must be >= %d, got %d", key, (int)min, (int)n);
     return (size_t)n;
 }
 
@@ -623,7 +623,7 @@ static void spacing_field(lua_State *L, int idx, double out[3])
         return;
     for (int i = 0; i < 3; i++) {
         if (!(s[i] > 0 && isfinite(s[i])))
-            luaL_error(L, "option 'spacing'[%d]: positive number expected", i + 1);
+            lcdvr_error(L, "option 'spacing'[%d]: positive number expected", i + 1);
         out[i] = s[i];
     }
 }
@@ -644,7 +644,7 @@ static int raw_opts(lua_State *L, int idx, cdvr_raw_opts *raw)
     if (!has_dims && !has_type)
         return 0;
     if (!has_dims)
-        luaL_error(L, "option 'dims' is required for a raw file");
+        lcdvr_error(L, "option 'dims' is required for a raw file");
     raw->type = type_field(L, idx, NULL);
     raw->big_endian = check_endian(L, idx);
     raw->header_bytes = count_field(L, idx, "header", 0, 0);
@@ -778,7 +778,7 @@ static int l_volume_new(lua_State *L)
     lcdvr_checkoptions(L, 1, "cdvr.volume", keys);
     size_t dims[3];
     if (!dims_field(L, 1, dims))
-        return luaL_error(L, "option 'dims' is required");
+        return lcdvr_error(L, "option 'dims' is required");
     cdvr_type type = type_field(L, 1, "u8");
     size_t timesteps = count_field(L, 1, "timesteps", 1, 1);
     cdvr_volume *vol;
@@ -807,6 +807,11 @@ static int l_generate(lua_State *L)
         o.radius = lcdvr_optnumberfield(L, 2, "radius", 0.0);
         o.fM = lcdvr_optnumberfield(L, 2, "fM", 0.0);
         o.alpha = lcdvr_optnumberfield(L, 2, "alpha", 0.0);
+        const char *const num_keys[] = {"value", "radius", "fM", "alpha"};
+        const double nums[] = {o.value, o.radius, o.fM, o.alpha};
+        for (int i = 0; i < 4; i++)
+            if (!isfinite(nums[i]))
+                luaL_error(L, "cdvr.generate: option '%s' must be finite, got %f", num_keys[i], nums[i]);
     }
     cdvr_volume *vol;
     cdvr_error err;
@@ -880,7 +885,7 @@ int lcdvr_open_volume(lua_State *L)
     lcdvr_help_add(L, "cdvr.formats()",
                    "list of file formats: {name, description, suffixes, magic, series, described, plugin}");
     lcdvr_help_add(L, "cdvr.load_series(pattern_or_list [, opts])",
-                   "load files as one series: printf pattern (\"vf_t%03d.nrrd\", opts first=, count= or last=) or a list of names");
+                   "load files as one series: printf pattern (\"vf_t%03d.nrrd\", opts first=, count= or last=) or a list of names; raises naming a file that cannot be read");
     lcdvr_help_add(L, "cdvr.volume{dims=, type=, timesteps=}", "new zero-filled volume");
     lcdvr_help_add(L, "cdvr.generate(name [, opts])",
                    "test field \"box\", \"sphere\", \"ml\" (Marschner-Lobb) or \"ramp\"; opts dims=, timesteps=, type=, value=, radius=, fM=, alpha=");

@@ -205,6 +205,12 @@ static cdvr_camera *scene_camera(lua_State *L, int w_idx, lwindow *w, int vol_id
 
 /* ---- options (cdvr.window{...} and w:set{...}) ------------------------------------------ */
 
+/* Who reads the options table at idx, for messages: cdvr.window{...} (idx 1) or w:set{...}. */
+static const char *opts_what(int idx)
+{
+    return idx == 1 ? "cdvr.window" : "w:set";
+}
+
 /* The window's own keys; the method's options, the scene keys it honours and the look keys
  * come from the method table (lcdvr_method_checkoptions). */
 static const char *const window_keys[] = {"volume", "store", "tf", "camera", "method", "device",
@@ -254,7 +260,7 @@ static void set_render(lua_State *L, int w_idx, int idx, lwindow *w, const cdvr_
         w->method = m;
     }
     if (lua_getfield(L, idx, "device") != LUA_TNIL)
-        w->device = (int)lcdvr_method_device(L, idx, m, "window");
+        w->device = (int)lcdvr_method_device(L, idx, m, opts_what(idx));
     lua_pop(L, 1);
     lua_pushnil(L);
     while (lua_next(L, idx)) {                    /* render, key, value */
@@ -268,8 +274,8 @@ static void set_render(lua_State *L, int w_idx, int idx, lwindow *w, const cdvr_
     }
     cdvr_method_params params;
     cdvr_look look;
-    lcdvr_method_params(L, render, m, "window", &params);
-    lcdvr_read_look(L, render, m, "window", &look);
+    lcdvr_method_params(L, render, m, opts_what(idx), &params);
+    lcdvr_read_look(L, render, m, opts_what(idx), &look);
     lua_pop(L, 1);
 }
 
@@ -328,21 +334,21 @@ static void set_variant(lua_State *L, int idx, lwindow *w, const cdvr_store *st)
         return;
     }
     if (!st)
-        luaL_error(L, "window: option 'variant' needs a store scene");
+        lcdvr_error(L, "option 'variant' needs a store scene");
     size_t n = cdvr_store_get_info(st)->nvariants;
     int v = -1;
     if (type == LUA_TSTRING) {
         v = cdvr_store_find_variant(st, lua_tostring(L, -1));
         if (v < 0)
-            luaL_error(L, "window: store %s has no variant '%s'", cdvr_store_path(st),
+            lcdvr_error(L, "store %s has no variant '%s'", cdvr_store_path(st),
                        lua_tostring(L, -1));
     } else if (lua_isinteger(L, -1)) {
         lua_Integer i = lua_tointeger(L, -1);
         if (i < 1 || (size_t)i > n)
-            luaL_error(L, "window: variant %I outside 1..%I", (LUAI_UACINT)i, (LUAI_UACINT)n);
+            lcdvr_error(L, "variant %I outside 1..%I", (LUAI_UACINT)i, (LUAI_UACINT)n);
         v = (int)i - 1;
     } else {
-        luaL_error(L, "window: option 'variant': name or index expected");
+        lcdvr_error(L, "option 'variant': name or index expected");
     }
     lua_pop(L, 1);
     w->variant = v;
@@ -376,7 +382,7 @@ static int set_scene(lua_State *L, int w_idx, int idx, lwindow *w)
 {
     int reframe = 0, named = 0;
     if (lua_getfield(L, idx, "volume") != LUA_TNIL) {
-        lcdvr_checkoption(L, -1, "window", "volume", LCDVR_VOLUME);
+        lcdvr_checkoption(L, -1, NULL, "volume", LCDVR_VOLUME);
         const cdvr_volume *vol = lcdvr_volume_header(L, -1);
         reframe = new_box(w, vol->dims, vol->spacing, vol->origin, vol->direction);
         named = 1;
@@ -391,7 +397,7 @@ static int set_scene(lua_State *L, int w_idx, int idx, lwindow *w)
         lua_pop(L, 1);
     }
     if (lua_getfield(L, idx, "store") != LUA_TNIL) {
-        lcdvr_checkoption(L, -1, "window", "store", LCDVR_STORE);
+        lcdvr_checkoption(L, -1, NULL, "store", LCDVR_STORE);
         const cdvr_store *st = lcdvr_checkstore(L, -1);
         const cdvr_store_info *info = cdvr_store_get_info(st);
         reframe = new_box(w, info->dims, info->spacing, info->origin, info->direction);
@@ -424,9 +430,10 @@ static void set_tf(lua_State *L, int w_idx, int idx)
     if (type == LUA_TSTRING || type == LUA_TTABLE) {
         push_cdvr_function(L, "tf");
         lua_insert(L, -2);
-        lua_call(L, 1, 1);
+        if (lua_pcall(L, 1, 1, 0) != LUA_OK)
+            lcdvr_error(L, "option 'tf': %s", luaL_tolstring(L, -1, NULL));
     }
-    lcdvr_checktf(L, -1);
+    lcdvr_checkoption(L, -1, NULL, "tf", LCDVR_TF);
     lua_setiuservalue(L, w_idx, UV_TF);
 }
 
@@ -450,10 +457,12 @@ static void set_camera(lua_State *L, int w_idx, int idx)
         lua_setiuservalue(L, w_idx, UV_CAMERA_FN);
         return;
     }
-    if (type == LUA_TBOOLEAN && !lua_toboolean(L, -1))
+    if (type == LUA_TBOOLEAN && !lua_toboolean(L, -1)) {
         lua_pushnil(L);
-    else
+    } else {
+        lcdvr_checkoption(L, -1, NULL, "camera", LCDVR_CAMERA);
         lcdvr_pushcamera(L, lcdvr_checkcamera(L, -1));
+    }
     lua_setiuservalue(L, w_idx, UV_CAMERA);
     lua_pop(L, 1);
     lua_pushnil(L);
@@ -477,9 +486,12 @@ static void set_policy(lua_State *L, int w_idx, int idx)
         lua_getfield(L, -1, "get");
         lua_remove(L, -2);
         lua_insert(L, -2);
-        lua_call(L, 1, 1);
+        if (lua_pcall(L, 1, 1, 0) != LUA_OK)
+            lcdvr_error(L, "option 'policy': %s", luaL_tolstring(L, -1, NULL));
     }
-    luaL_argexpected(L, lua_isfunction(L, -1) || lua_isnil(L, -1), idx, "policy function, name or false");
+    if (!lua_isfunction(L, -1) && !lua_isnil(L, -1))
+        lcdvr_error(L, "option 'policy': policy function, name or false expected, got %s",
+                   luaL_typename(L, -1));
     lua_setiuservalue(L, w_idx, UV_POLICY);
 }
 
@@ -488,8 +500,8 @@ static void run_policy(lua_State *L, int w_idx, lwindow *w);
 static void apply_options(lua_State *L, int w_idx, int idx, lwindow *w)
 {
     const char *name = lcdvr_optstringfield(L, idx, "method", NULL);
-    const cdvr_render_method *m = name ? lcdvr_method_lookup(L, name, "window") : w->method;
-    lcdvr_method_checkoptions(L, idx, m, "window", window_keys);
+    const cdvr_render_method *m = name ? lcdvr_method_lookup(L, name, opts_what(idx)) : w->method;
+    lcdvr_method_checkoptions(L, idx, m, opts_what(idx), window_keys);
     int new_scene = set_scene(L, w_idx, idx, w);
     set_tf(L, w_idx, idx);
     set_camera(L, w_idx, idx);
@@ -497,13 +509,13 @@ static void apply_options(lua_State *L, int w_idx, int idx, lwindow *w)
     set_render(L, w_idx, idx, w, m);
     w->callback_limit = lcdvr_optintegerfield(L, idx, "callback_limit", w->callback_limit);
     if (w->callback_limit < 1 || w->callback_limit > INT_MAX)
-        luaL_error(L, "window: option 'callback_limit' = %I: must be 1..%d",
+        lcdvr_error(L, "option 'callback_limit' = %I: must be 1..%d",
                    (LUAI_UACINT)w->callback_limit, INT_MAX);
     int floor_type = lua_getfield(L, idx, "min_psnr"); /* a number, or false for none */
     if (floor_type == LUA_TBOOLEAN && !lua_toboolean(L, -1))
         w->min_psnr = NAN;
     else if (floor_type != LUA_TNIL && (!lua_isnumber(L, -1) || isnan(lua_tonumber(L, -1))))
-        luaL_error(L, "window: option 'min_psnr': a number in dB or false expected");
+        lcdvr_error(L, "option 'min_psnr': a number in dB or false expected");
     else if (floor_type != LUA_TNIL)
         w->min_psnr = lua_tonumber(L, -1);
     lua_pop(L, 1);
@@ -511,14 +523,14 @@ static void apply_options(lua_State *L, int w_idx, int idx, lwindow *w)
     w->playing = lcdvr_optbooleanfield(L, idx, "playing", w->playing);
     double fps = lcdvr_optnumberfield(L, idx, "fps", w->fps);
     if (!(fps >= 0.0) || !isfinite(fps))
-        luaL_error(L, "window: fps must be finite and >= 0");
+        lcdvr_error(L, "option 'fps' = %f must be finite and >= 0", fps);
     w->fps = fps;
     set_variant(L, idx, w, scene_store(L, w_idx));
     size_t n = scene_timesteps(L, w_idx);
     /* a new scene keeps the timestep shown where it has it, else shows its last */
     lua_Integer t = lcdvr_optintegerfield(L, idx, "t", new_scene && n && (size_t)w->t > n ? (long)n : w->t);
     if (n && (t < 1 || (size_t)t > n))
-        luaL_error(L, "window: t = %I outside 1..%I", (LUAI_UACINT)t, (LUAI_UACINT)n);
+        lcdvr_error(L, "option 't' = %I outside 1..%I", (LUAI_UACINT)t, (LUAI_UACINT)n);
     w->t = n ? (long)t : 1;
     w->dirty = 1;
     /* a new store or policy: the policy chooses the first group's variant, as in the player

@@ -222,12 +222,18 @@ static void budget_end(state_ctx *c, callback_budget *b)
     }
 }
 
+/* The error object as text (its __tostring: luaL_tolstring; "(error object is a table
+ * value)" without one), with the traceback. */
 static int traceback_handler(lua_State *L)
 {
     const char *msg = lua_tostring(L, 1);
-    if (!msg && luaL_callmeta(L, 1, "__tostring") && lua_type(L, -1) == LUA_TSTRING)
-        msg = lua_tostring(L, -1);
-    luaL_traceback(L, L, msg ? msg : "(error object is not a string)", 1);
+    if (!msg && luaL_getmetafield(L, 1, "__tostring") != LUA_TNIL) {
+        lua_pop(L, 1);
+        msg = luaL_tolstring(L, 1, NULL);
+    }
+    if (!msg)
+        msg = lua_pushfstring(L, "(error object is a %s value)", luaL_typename(L, 1));
+    luaL_traceback(L, L, msg, 1);
     return 1;
 }
 

@@ -5,11 +5,29 @@
 #include <stdarg.h>
 #include <string.h>
 
+/* 1 when msg starts with "<name>:" for name = fname or its last component ("render:" in
+ * cdvr.render, "cdvr.tf:" in cdvr.tf): the message names its function already. */
+static int names_function(const char *msg, const char *fname)
+{
+    const char *last = strrchr(fname, '.');
+    const char *names[2] = {fname, last ? last + 1 : fname};
+    for (int i = 0; i < 2; i++) {
+        size_t n = strlen(names[i]);
+        if (strncmp(msg, names[i], n) == 0 && msg[n] == ':')
+            return 1;
+    }
+    return 0;
+}
+
 int lcdvr_raise(lua_State *L, const cdvr_error *err)
 {
     if (err->status == CDVR_ERR_CANCELLED)
         return luaL_error(L, "interrupted!");
-    return luaL_error(L, "%s", err->msg[0] ? err->msg : cdvr_status_name(err->status));
+    const char *msg = err->msg[0] ? err->msg : cdvr_status_name(err->status);
+    const char *fname = lcdvr_push_funcname(L);
+    if (names_function(msg, fname))
+        return luaL_error(L, "%s", msg);
+    return luaL_error(L, "%s: %s", fname, msg);
 }
 
 static const char *const INTERRUPT_KEY = "cdvr.interrupt";
@@ -66,7 +84,17 @@ void lcdvr_newclass(lua_State *L, const char *name, const luaL_Reg *methods, con
     lua_newtable(L);             /* mt, methods */
     if (methods)
         luaL_setfuncs(L, methods, 0);
+    lcdvr_name_table(L, -1, name);
     lua_setfield(L, -2, "__index"); /* mt */
+    lua_pop(L, 1);
+}
+
+void lcdvr_name_table(lua_State *L, int idx, const char *name)
+{
+    idx = lua_absindex(L, idx);
+    luaL_getsubtable(L, LUA_REGISTRYINDEX, LUA_LOADED_TABLE);
+    lua_pushvalue(L, idx);
+    lua_setfield(L, -2, name);
     lua_pop(L, 1);
 }
 
@@ -89,6 +117,68 @@ void lcdvr_help_add(lua_State *L, const char *name, const char *description)
     lua_pop(L, 1);
 }
 
+/* Pushes the function at stack level `level`: its table name (package.loaded[mod][key] ->
+ * "mod.key", "cdvr.render", "cdvr.Volume.get"), else the name it was called by, else "cdvr". */
+static const char *push_funcname(lua_State *L, int level)
+{
+    lua_Debug ar;
+    if (!lua_getstack(L, level, &ar) || !lua_getinfo(L, "nf", &ar)) {
+        lua_pushliteral(L, "cdvr");
+        return lua_tostring(L, -1);
+    }
+    int fn = lua_gettop(L);
+    luaL_getsubtable(L, LUA_REGISTRYINDEX, LUA_LOADED_TABLE);
+    lua_pushnil(L);
+    while (lua_next(L, fn + 1)) {                  /* fn, loaded, mod, table */
+        if (lua_type(L, -2) == LUA_TSTRING && lua_istable(L, -1) &&
+            strcmp(lua_tostring(L, -2), "_G") != 0) {
+            lua_pushnil(L);
+            while (lua_next(L, -2)) {              /* ..., mod, table, key, value */
+                if (lua_rawequal(L, -1, fn) && lua_type(L, -2) == LUA_TSTRING) {
+                    const char *name = lua_pushfstring(L, "%s.%s", lua_tostring(L, -4),
+                                                       lua_tostring(L, -2));
+                    lua_replace(L, fn);
+                    lua_settop(L, fn);
+                    return name;
+                }
+                lua_pop(L, 1);
+            }
+        }
+        lua_pop(L, 1);
+    }
+    lua_settop(L, fn - 1);
+    if (ar.name)
+        return lua_pushstring(L, ar.name);
+    lua_pushliteral(L, "cdvr");
+    return lua_tostring(L, -1);
+}
+
+const char *lcdvr_push_funcname(lua_State *L)
+{
+    return push_funcname(L, 0);
+}
+
+int lcdvr_error(lua_State *L, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    const char *msg = lua_pushvfstring(L, fmt, ap);
+    va_end(ap);
+    const char *fname = lcdvr_push_funcname(L);
+    return luaL_error(L, "%s: %s", fname, msg);
+}
+
+/* Raises "<function>: option '<key>': <message>" (the running C function's name). */
+static int option_error(lua_State *L, const char *key, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    const char *msg = lua_pushvfstring(L, fmt, ap);
+    va_end(ap);
+    const char *fname = lcdvr_push_funcname(L);
+    return luaL_error(L, "%s: option '%s': %s", fname, key, msg);
+}
+
 static int field_present(lua_State *L, int idx, const char *key, int type, const char *tname)
 {
     int t = lua_getfield(L, idx, key);
@@ -97,7 +187,7 @@ static int field_present(lua_State *L, int idx, const char *key, int type, const
         return 0;
     }
     if (t != type && !(type == LUA_TNUMBER && lua_isnumber(L, -1)))
-        luaL_error(L, "option '%s': %s expected, got %s", key, tname, luaL_typename(L, -1));
+        option_error(L, key, "%s expected, got %s", tname, luaL_typename(L, -1));
     return 1; /* value left on the stack */
 }
 
@@ -119,7 +209,7 @@ lua_Integer lcdvr_optintegerfield(lua_State *L, int idx, const char *key, lua_In
     int isint = 0;
     lua_Integer n = lua_tointegerx(L, -1, &isint);
     if (!isint)
-        luaL_error(L, "option '%s': integer expected, got %s", key, lua_tostring(L, -1));
+        option_error(L, key, "integer expected, got %s", lua_tostring(L, -1));
     lua_pop(L, 1);
     return n;
 }
@@ -151,11 +241,11 @@ int lcdvr_numberarrayfield(lua_State *L, int idx, const char *key, double *out, 
     if (!field_present(L, idx, key, LUA_TTABLE, "table"))
         return 0;
     if ((int)luaL_len(L, -1) != n)
-        luaL_error(L, "option '%s': %d numbers expected, got %d", key, n, (int)luaL_len(L, -1));
+        option_error(L, key, "%d numbers expected, got %d", n, (int)luaL_len(L, -1));
     for (int i = 0; i < n; i++) {
         lua_geti(L, -1, i + 1);
         if (!lua_isnumber(L, -1))
-            luaL_error(L, "option '%s'[%d]: number expected, got %s", key, i + 1, luaL_typename(L, -1));
+            option_error(L, key, "[%d]: number expected, got %s", i + 1, luaL_typename(L, -1));
         out[i] = lua_tonumber(L, -1);
         lua_pop(L, 1);
     }
@@ -244,6 +334,8 @@ void *lcdvr_checkoption(lua_State *L, int idx, const char *what, const char *key
     if (!p) {
         const char *got = luaL_getmetafield(L, idx, "__name") == LUA_TSTRING ? lua_tostring(L, -1)
                                                                               : luaL_typename(L, idx);
+        if (!what)
+            what = lcdvr_push_funcname(L);
         luaL_error(L, "%s: option '%s': %s expected, got %s", what, key, tname, got);
     }
     return p;

@@ -6,10 +6,16 @@
  * type, liolib.c style: __gc, __close, __tostring, __name, methods behind __index) and adds
  * one-line help entries with lcdvr_help_add. It leaves the stack as it found it.
  *
- * Errors: misuse (bad argument types or values) raises; so do loaders and openers whose file
- * cannot be read (cdvr.load, cdvr.load_series, cdvr.open: the message names the file and the
- * reason); savers return nil, message on I/O failure (lcdvr_fail); other core failures raise
- * with the core's message (lcdvr_raise).
+ * Errors, one rule: misuse (bad argument types or values) raises, naming the function and the
+ * option or argument (lcdvr_error, lcdvr_checkoption: never Lua's "bad argument #-1" or
+ * "to '?'"); so do loaders and openers whose file cannot be read (cdvr.load,
+ * cdvr.load_series, cdvr.open, cdvr.tf(path), cdvr.camera(path); cdvr.encode too, which
+ * opens the store it wrote: the message names the file and the reason); savers (img:save,
+ * v:save_raw, tf:save, cam:save) return nil, message on I/O failure (lcdvr_fail,
+ * lcdvr_save_file); other core failures raise with the core's message, prefixed with the
+ * function's name (lcdvr_raise). Every help line of a loader, opener or saver says which
+ * ("raises ..." or "true or nil, msg"). Two documented exceptions return nil, message:
+ * cdvr.cl_info (a query: no device is not misuse) and cdvr.load_lua (share/lua).
  */
 #ifndef CDVR_LCDVR_H
 #define CDVR_LCDVR_H
@@ -39,7 +45,8 @@
 #define LCDVR_PLAYER "cdvr.Player"
 
 /* Raises a Lua error with the core's message ("interrupted!" for CDVR_ERR_CANCELLED, as the
- * console's Ctrl-C). Never returns. */
+ * console's Ctrl-C), prefixed with the running function's name ("cdvr.orbit_camera: camera:
+ * width must be ...", lcdvr_push_funcname) unless it starts with it. Never returns. */
 int lcdvr_raise(lua_State *L, const cdvr_error *err);
 /* Pushes nil and the message; returns 2 (for `return lcdvr_fail(L, &err);`). */
 int lcdvr_fail(lua_State *L, const cdvr_error *err);
@@ -57,13 +64,26 @@ int lcdvr_save_file(lua_State *L, const char *path, int (*write)(FILE *f, const 
 /* Creates metatable `name` with __name, __index = methods table; `meta` adds metamethods
  * (__gc, __close, __tostring, ...). Leaves the stack unchanged. */
 void lcdvr_newclass(lua_State *L, const char *name, const luaL_Reg *methods, const luaL_Reg *meta);
+/* Names the function table at idx for messages: package.loaded[name] = table, so that Lua's
+ * "bad argument" messages of a function called without a name (through pcall, from C) say
+ * 'cdvr.plugin.load' or 'cdvr.Volume.get', never '?'. lcdvr_newclass names its methods table
+ * with the class name; a subtable of cdvr (cdvr.plugin, cdvr.mpi) is named by its opener. */
+void lcdvr_name_table(lua_State *L, int idx, const char *name);
 /* Registers funcs into the table on top of the stack (the cdvr table). */
 void lcdvr_setfuncs(lua_State *L, const luaL_Reg *funcs);
 /* Adds a help line for `name` (e.g. "cdvr.load(path [, opts])") to cdvr.help(). */
 void lcdvr_help_add(lua_State *L, const char *name, const char *description);
 
+/* Pushes and returns the name of the running C function for messages: "cdvr.render",
+ * "cdvr.Volume.get" (its name in package.loaded, see lcdvr_name_table), else the name it was
+ * called by, else "cdvr". */
+const char *lcdvr_push_funcname(lua_State *L);
+/* Raises "<function>: <message>" (lcdvr_push_funcname; lua_pushfstring formats), for
+ * messages that do not name their function themselves ("option 'x': ..."). Never returns. */
+int lcdvr_error(lua_State *L, const char *fmt, ...);
 /* Optional table fields (table at index idx): return the default when absent or nil,
- * raise when present with the wrong type. */
+ * raise when present with the wrong type: "<function>: option 'key': number expected, got
+ * string" (lcdvr_push_funcname). */
 lua_Number lcdvr_optnumberfield(lua_State *L, int idx, const char *key, lua_Number def);
 lua_Integer lcdvr_optintegerfield(lua_State *L, int idx, const char *key, lua_Integer def);
 const char *lcdvr_optstringfield(lua_State *L, int idx, const char *key, const char *def);
@@ -82,7 +102,7 @@ void lcdvr_checkoptions_array(lua_State *L, int idx, const char *what, const cha
 
 /* The userdata of metatable tname in option `key` of the value at idx (an options table field
  * already pushed, usually -1); raises "what: option 'key': tname expected, got <type>" (never
- * "bad argument #-1"). */
+ * "bad argument #-1"); what NULL: the running function's name (lcdvr_push_funcname). */
 void *lcdvr_checkoption(lua_State *L, int idx, const char *what, const char *key, const char *tname);
 
 /* Object lifetimes. A binding whose C object uses another object's C data beyond one call (a
