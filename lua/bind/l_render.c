@@ -85,14 +85,15 @@ static void read_background(lua_State *L, int idx, float bg[4])
         lua_pop(L, 1);
         return;
     }
-    luaL_argcheck(L, lua_istable(L, -1), idx, "background must be {r, g, b [, a]}");
-    lua_Integer n = luaL_len(L, -1);
-    luaL_argcheck(L, n == 3 || n == 4, idx, "background must be {r, g, b [, a]}");
+    lua_Integer n = lua_istable(L, -1) ? luaL_len(L, -1) : 0;
+    if (n != 3 && n != 4)
+        luaL_error(L, "cdvr.render: option 'background': {r, g, b [, a]} expected");
     for (lua_Integer i = 1; i <= n; i++) {
         lua_geti(L, -1, i);
         int ok;
         lua_Number c = lua_tonumberx(L, -1, &ok);
-        luaL_argcheck(L, ok && c >= 0.0 && c <= 1.0, idx, "background entries must be in [0, 1]");
+        if (!ok || !(c >= 0.0 && c <= 1.0))
+            luaL_error(L, "cdvr.render: option 'background': entries must be numbers in [0, 1]");
         bg[i - 1] = (float)c;
         lua_pop(L, 1);
     }
@@ -108,7 +109,8 @@ static const cdvr_tf *read_tf(lua_State *L, int idx)
     if (type == LUA_TSTRING || type == LUA_TTABLE) {
         lua_getfield(L, lua_upvalueindex(1), "tf");
         lua_insert(L, -2);
-        lua_call(L, 1, 1);
+        if (lua_pcall(L, 1, 1, 0) != LUA_OK) /* name the option, then cdvr.tf's reason */
+            luaL_error(L, "cdvr.render: option 'tf': %s", lua_tostring(L, -1));
         if (lua_isnil(L, -1))
             luaL_error(L, "cdvr.render: option 'tf': cannot load transfer function");
     }
