@@ -107,7 +107,21 @@ typedef struct cdvr_raw_opts {
     int big_endian;
     size_t header_bytes;
     double spacing[3]; /* 0 -> 1 */
+    /* Limits for every loader (not only raw; appended fields, so older plugins still read the
+     * ones above). A NRRD header's detached data files must lie under the header's directory
+     * (after realpath: symlinks and '..' resolved) unless allow_outside is nonzero; the refusal
+     * names the path. max_bytes caps the voxel bytes a file may claim (after conversion, all
+     * timesteps): a larger claim is refused before anything is allocated or inflated; 0 means
+     * cdvr_load_max_bytes_default(). */
+    int allow_outside;
+    uint64_t max_bytes;
 } cdvr_raw_opts;
+
+/* The default max_bytes of cdvr_raw_opts: half the physical memory (sysconf), at least 64 MiB;
+ * 1 TiB when the memory size cannot be told. */
+uint64_t cdvr_load_max_bytes_default(void);
+/* opts->max_bytes, or the default when opts is NULL or gives 0. */
+uint64_t cdvr_load_max_bytes(const cdvr_raw_opts *opts);
 
 cdvr_status cdvr_volume_load_raw(const char *path, const cdvr_raw_opts *opts,
                                  cdvr_volume **out, cdvr_error *err);
