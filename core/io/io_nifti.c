@@ -325,7 +325,7 @@ static cdvr_status check_raw_header(const char *path, cdvr_error *err)
     else if (!isfinite(h->vox_offset) || h->vox_offset < 0 || h->vox_offset != floorf(h->vox_offset) ||
              (one_file && h->vox_offset < 352) || h->vox_offset > 2147483647.0f ||
              (one_file && sized && !nifti_is_gzfile(path) && h->vox_offset > (double)sb.st_size))
-        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI vox_offset %.17g is not a byte offset "
+        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI vox_offset %.7g is not a byte offset "
                             "(a whole number%s, within the file)", path, (double)h->vox_offset,
                             one_file ? " >= 352" : " >= 0");
     if (st == CDVR_OK)

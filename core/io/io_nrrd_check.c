@@ -392,6 +392,42 @@ static cdvr_status add_file(cdvr_nrrd_source *s, const char *file, size_t cap, c
     return CDVR_OK;
 }
 
+/* teem's rule for the number of data files (subdim: the dimension of each file's piece; given
+ * after LIST or as FORMAT's fourth number, else the array's dimension - 1): with subdim < dim
+ * there is one file per piece (the product of the sizes of axes subdim .. dim-1); with subdim ==
+ * dim the files are slabs along the slowest axis, at most one per slice (and here: the same
+ * number of slices each, as the data are read). */
+static cdvr_status check_file_count(const cdvr_nrrd_source *s, uint64_t count, const char *sub,
+                                    cdvr_error *err)
+{
+    const Nrrd *n = s->nrrd;
+    unsigned dim = n->dim, d = dim - 1;
+    char *end;
+    long given = sub ? strtol(sub, &end, 10) : 0;
+    if (sub && end != sub) {
+        if (given < 1 || given > (long)dim)
+            return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD data file subdimension %ld is "
+                                  "not 1..%u", s->path, given, dim);
+        d = (unsigned)given;
+    }
+    if (d < dim) {
+        uint64_t pieces = 1;
+        for (unsigned ax = d; ax < dim; ax++)
+            pieces *= n->axis[ax].size; /* <= elements: no overflow (shape_of checked) */
+        if (pieces != count)
+            return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD data files: %llu named, the "
+                                  "sizes need %llu (of %u-D pieces)", s->path,
+                                  (unsigned long long)count, (unsigned long long)pieces, d);
+        return CDVR_OK;
+    }
+    size_t slices = n->axis[dim - 1].size;
+    if (count > slices || slices % count != 0)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD data files: %llu slabs of the %zu "
+                              "slices of axis %u (a slab count must divide them)", s->path,
+                              (unsigned long long)count, slices, dim - 1);
+    return CDVR_OK;
+}
+
 /* Resolves the data files the header names (none: attached data). */
 static cdvr_status resolve_files(cdvr_nrrd_source *s, cdvr_error *err)
 {
@@ -416,6 +452,9 @@ static cdvr_status resolve_files(cdvr_nrrd_source *s, cdvr_error *err)
         if (count == 0 || count > CDVR_NRRD_FILES_MAX)
             return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD data file LIST names %zu files "
                                   "(the limit is 1..%d)", path, count, CDVR_NRRD_FILES_MAX);
+        cdvr_status cs = check_file_count(s, count, v + 4, err);
+        if (cs != CDVR_OK)
+            return cs;
         for (const char *p = s->h.list; p < s->h.text + s->h.len; p += strlen(p) + 1) {
             size_t len = strlen(p);
             if (len == 0)
@@ -449,6 +488,16 @@ static cdvr_status resolve_files(cdvr_nrrd_source *s, cdvr_error *err)
     if (count > CDVR_NRRD_FILES_MAX)
         return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD data file pattern names %llu files "
                               "(the limit is %d)", path, (unsigned long long)count, CDVR_NRRD_FILES_MAX);
+    long sub_n;
+    int fields = sscanf(v + flen, "%ld %ld %ld %ld", &lo, &hi, &step, &sub_n);
+    cdvr_status cs = check_file_count(s, count, NULL, err);
+    if (fields == 4) {
+        char sub[32];
+        snprintf(sub, sizeof sub, "%ld", sub_n);
+        cs = check_file_count(s, count, sub, err);
+    }
+    if (cs != CDVR_OK)
+        return cs;
     for (uint64_t i = 0; i < count; i++) {
         char name[PATH_MAX];
         if (!format_name(v, flen, lo + (long)i * step, name, sizeof name) ||
