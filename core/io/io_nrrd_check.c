@@ -1,31 +1,36 @@
-/* core/io/io_nrrd_check.c - refuses hostile NRRD files before teem touches their data.
+/* core/io/io_nrrd_check.c - the NRRD header and its data files, checked before anything is read
+ * (io_nrrd.h), and the reader of raw, gzip and bzip2 data straight into the volume.
  *
  * teem trusts the header: nrrdLoad allocates (and zeroes) what "sizes" claims before reading a
  * byte, so a 100-byte file can claim 8 GB; it opens detached data files with fopen, so a FIFO
- * blocks forever, "-" reads standard input and /dev/zero never ends; and it leaks inside libbz2
- * (3.6 MB) and its gzip reader when a stream is corrupt. cdvr_nrrd_check runs before nrrdLoad:
+ * blocks forever, "-" reads standard input and /dev/zero never ends, and any path (/etc/shadow,
+ * ../../x) is read as voxels; a LIST of 200000 files takes it minutes; it leaks inside libbz2
+ * and its gzip reader when a stream is corrupt; and nrrdLoad's buffer is a second copy of the
+ * volume. So:
  *
  *  1. The header is read here, from a regular file (at most CDVR_NRRD_HEADER_MAX bytes), and
  *     parsed by teem from that text (nrrdStringRead, skipData) with the "data file" field taken
  *     out, so teem opens nothing. The data files are resolved here as teem does
- *     (nrrdIoStateDataFileIterNext): a single name, "LIST" (the remaining lines), or
+ *     (nrrdIoStateDataFileIterNext): a single name, "LIST [subdim]" (the remaining lines), or
  *     "FORMAT min max step [subdim]" (FORMAT with exactly one %d-like conversion); names not
- *     starting with '/' are relative to the header's directory.
- *  2. Every data file must be a regular file other than the header itself ("-", standard input,
- *     is refused).
- *  3. Each file's data must be able to hold its share of what the header claims
- *     (elements x element size / number of files), before anything is allocated:
+ *     starting with '/' are relative to the header's directory; at most CDVR_NRRD_FILES_MAX,
+ *     as many as teem's subdimension rule asks for (check_file_count).
+ *  2. Every data file must lie under the header's directory once both are resolved by realpath
+ *     (symlinks, ".."), unless the load options say allow_outside; and be a regular file other
+ *     than the header itself ("-", standard input, is refused).
+ *  3. The claim (elements x element size, and the volume it makes) must be within max_bytes
+ *     (cdvr_load_max_bytes), and each file's data must be able to hold its share (elements x
+ *     element size / number of files), before anything is allocated:
  *       raw    bytes after the header (attached data) and byte skip >= claimed bytes
  *       ascii  at least one byte per value;  hex: two bytes per data byte
  *       zrl    at most 256 data bytes per stored byte
- *       gzip   at most 1032 bytes per stored byte (deflate's largest ratio), then the stream
- *              is inflated once (nothing kept) until it has produced byte skip + claimed bytes
- *       bzip2  the stream is decompressed once the same way (bzip2's ratio has no useful bound)
- *     A gzip or bzip2 stream that is corrupt or ends early is refused here, so teem never reads
- *     one (and never leaks on one). The price is one extra decompression pass for compressed
- *     NRRDs; raw ones (the common case) cost a stat.
- * The file can still change between this check and nrrdLoad; this guards against mistakes and
- * broken files, not against a concurrent attacker.
+ *       gzip   at most 1032 bytes per stored byte (deflate's largest ratio)
+ *  4. Raw, gzip and bzip2 data are read here (cdvr_nrrd_stream) in pieces into the caller's
+ *     sink (io_nrrd.c converts them into the volume's buffer): a stream stops at the claimed
+ *     size, and one that ends earlier, goes on past it or is corrupt is refused naming the file.
+ *     teem reads only ascii, hex and zrl data (after these checks).
+ * The file can still change between these checks and the read; this guards against mistakes and
+ * broken or hostile files, not against a concurrent attacker.
  */
 #include "cdvr/regular_file.h"
 #include "cdvr/volume.h"
