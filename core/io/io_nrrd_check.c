@@ -25,6 +25,8 @@
  *       ascii  at least one byte per value;  hex: two bytes per data byte
  *       zrl    at most 256 data bytes per stored byte
  *       gzip   at most 1032 bytes per stored byte (deflate's largest ratio)
+ *       bzip2  (no useful ratio bound) a claim beyond 1032 per stored byte is decompressed
+ *              once, nothing kept, before the volume is allocated
  *  4. Raw, gzip and bzip2 data are read here (cdvr_nrrd_stream) in pieces into the caller's
  *     sink (io_nrrd.c converts them into the volume's buffer): a stream stops at the claimed
  *     size, and one that ends earlier, goes on past it or is corrupt is refused naming the file.
@@ -279,6 +281,9 @@ static int skip_lines(FILE *f, unsigned lines)
     return 1;
 }
 
+static cdvr_status count_bzip2(const char *path, const char *file, uint64_t offset,
+                               const nrrd_shape *s, uint64_t need, cdvr_error *err);
+
 /* Checks data file `file` (its share: `want` bytes) holding data from `offset` on: a regular
  * file, not the header itself, able to hold its share (compressed: within the ratio bound; the
  * stream itself is checked as it is read). */
@@ -307,6 +312,8 @@ static cdvr_status check_data_file(const char *path, const nrrd_header *h, const
     else if (s->encoding == nrrdEncodingGzip)
         have = avail > UINT64_MAX / 1032 ? UINT64_MAX : avail * 1032;
     uint64_t need = compressed ? want + skip : want;
+    if (s->encoding == nrrdEncodingBzip2 && (avail > UINT64_MAX / 1032 || avail * 1032 < need))
+        return count_bzip2(path, file, offset, s, need, err);
     if (s->encoding != nrrdEncodingBzip2 && have < need)
         return cdvr_error_set(err, CDVR_ERR_FORMAT,
                               "%s: NRRD header claims %llu bytes of data (%s, %s encoding), but %s holds only %llu "
@@ -441,14 +448,18 @@ static cdvr_status resolve_files(cdvr_nrrd_source *s, cdvr_error *err)
     if (!v)
         return CDVR_OK;
     if (!s->allow_outside) {
-        char *real = realpath(path, NULL), *slash = real ? strrchr(real, '/') : NULL;
-        if (!real)
-            return cdvr_error_set(err, CDVR_ERR_IO, "%s: %s", path, strerror(errno));
-        if (slash == real)
-            slash[1] = '\0'; /* the root directory */
-        else if (slash)
-            *slash = '\0';
-        s->dir = real;
+        /* the directory relative names are taken from (the header as named: through a
+         * symbolic link to a header, its names are relative to the link's directory) */
+        const char *slash = strrchr(path, '/');
+        char here[PATH_MAX];
+        if (!slash)
+            snprintf(here, sizeof here, ".");
+        else if (slash == path)
+            snprintf(here, sizeof here, "/");
+        else if (snprintf(here, sizeof here, "%.*s", (int)(slash - path), path) >= (int)sizeof here)
+            return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: path too long", path);
+        if (!(s->dir = realpath(here, NULL)))
+            return cdvr_error_set(err, CDVR_ERR_IO, "%s: %s: %s", path, here, strerror(errno));
     }
     if (s->h.list) {
         size_t count = 0;
@@ -706,6 +717,41 @@ static const char *bunzip_to(FILE *f, uint64_t want, data_sink *k, unsigned char
     }
     BZ2_bzDecompressEnd(&b);
     return why;
+}
+
+static int discard(void *ud, const unsigned char *p, size_t n)
+{
+    (void)ud, (void)p, (void)n;
+    return 1;
+}
+
+/* bzip2 has no useful ratio bound: a stream claiming more than 1032 times its stored bytes
+ * (beyond any gzip) is decompressed once, nothing kept, before the volume is allocated. */
+static cdvr_status count_bzip2(const char *path, const char *file, uint64_t offset,
+                               const nrrd_shape *s, uint64_t need, cdvr_error *err)
+{
+    FILE *f;
+    cdvr_status st = cdvr_fopen_regular_file(file, &f, NULL, err);
+    if (st != CDVR_OK)
+        return st;
+    unsigned char *buf = malloc(2 * STREAM_BUF);
+    data_sink k = {discard, NULL, 0};
+    uint64_t produced = 0;
+    int failed = 0;
+    const char *why = "out of memory";
+    if (buf && fseeko(f, (off_t)offset, SEEK_SET) == 0 && skip_lines(f, s->line_skip))
+        why = bunzip_to(f, need, &k, buf, buf + STREAM_BUF, &produced, &failed);
+    else if (buf)
+        why = "the file ends before the data";
+    free(buf);
+    fclose(f);
+    if (why)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: corrupt bzip2 data in %s: %s", path, file, why);
+    if (produced < need)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                              "%s: NRRD header claims %llu bytes of data (%s), but the bzip2 data in %s end after %llu bytes",
+                              path, (unsigned long long)need, s->what, file, (unsigned long long)produced);
+    return CDVR_OK;
 }
 
 /* Streams one data file's share (want bytes after the byte skip) to the sink. */
