@@ -10,12 +10,15 @@
  *    naming the limit; a gzip stream that holds more than the header claims is refused; a claim
  *    above max_bytes is refused before anything is inflated (and the default is half the
  *    physical memory);
- *  - NRRD loads (raw, gzip, f64 -> f32) peak at one copy of the volume;
+ *  - NRRD loads (raw, gzip, f64 -> f32) peak at one copy of the volume, and the reader that
+ *    fills it honours line skip, byte skip (also -1), endian, gzip, bzip2 over a LIST, and ascii
+ *    and hex (read by teem);
  *  - NIfTI vox_offset 1e18, 100, 352.5 and a bad magic are refused, 368 is honoured; a singular
  *    sform and pixdim 0/NaN/inf are refused; NRRD zero space directions, NaN spacing and a double
  *    beyond f32 are refused, a -1 spacing is honoured (axis backwards); a store whose direction
  *    matrix is all zero is refused naming the file.
  */
+#include <bzlib.h>
 #include <errno.h>
 #include <math.h>
 #include <signal.h>
@@ -257,6 +260,27 @@ static int c_copy_raw(void) { return one_copy("big.nrrd", 64u << 20); }
 static int c_copy_gz(void) { return one_copy("big_gz.nrrd", 64u << 20); }
 static int c_copy_f64(void) { return one_copy("big_f64.nrrd", 16u << 20); }
 
+/* u16 value i * 7 + 3 for 4x4x4 voxels, in files of every encoding the reader handles */
+static int c_encodings(void)
+{
+    const char *names[] = {"enc_skip.nrrd", "enc_skip_end.nhdr", "enc_gz_skip.nrrd",
+                           "enc_bz_list.nhdr", "enc_ascii.nrrd", "enc_hex.nrrd"};
+    for (int f = 0; f < 6; f++) {
+        cdvr_volume *v = loads(at(names[f]), NULL);
+        int ok = v && v->type == CDVR_TYPE_U16 && cdvr_volume_voxels(v) == 64;
+        for (int i = 0; ok && i < 64; i++)
+            ok = ((uint16_t *)v->data)[i] == (uint16_t)(i * 7 + 3);
+        cdvr_volume_free(v);
+        if (!ok) {
+            size_t n = strlen(msg_);
+            snprintf(msg_ + n, sizeof msg_ - n, " (%s: wrong values)", names[f]);
+            return 0;
+        }
+    }
+    snprintf(msg_, sizeof msg_, "6 encodings read the same values");
+    return 1;
+}
+
 /* ---- item 5: fields honoured or refused ---------------------------------------------------- */
 
 static int c_off_1e18(void) { return refused(at("off1e18.nii"), NULL, "vox_offset 1e+18", NULL); }
@@ -475,6 +499,48 @@ static void make_files(void)
         put("big_f64.nrrd", hd, strlen(hd), d, 32u << 20);
         free(p);
     }
+    /* the reader's encodings: u16 i * 7 + 3, little and big endian */
+    {
+        unsigned char le[128], be[128], text[1024], hex[300];
+        size_t tn = 0, hn = 0, gn;
+        for (int i = 0; i < 64; i++) {
+            unsigned x = (unsigned)(i * 7 + 3);
+            le[2 * i] = (unsigned char)x, le[2 * i + 1] = (unsigned char)(x >> 8);
+            be[2 * i] = (unsigned char)(x >> 8), be[2 * i + 1] = (unsigned char)x;
+            tn += (size_t)snprintf((char *)text + tn, sizeof text - tn, "%u\n", x);
+        }
+        for (int i = 0; i < 128; i++)
+            hn += (size_t)snprintf((char *)hex + hn, sizeof hex - hn, "%02x", le[i]);
+        const char *u16 = "NRRD0004\ntype: ushort\ndimension: 3\nsizes: 4 4 4\n";
+        unsigned char buf[512];
+        snprintf(hdr, sizeof hdr, "%sencoding: raw\nendian: big\nline skip: 2\nbyte skip: 3\n\n"
+                 "junk line\nanother\nxyz", u16);
+        put("enc_skip.nrrd", hdr, strlen(hdr), be, 128);
+        memset(buf, 'j', 10);
+        memcpy(buf + 10, le, 128);
+        put("enc_end.raw", buf, 138, NULL, 0);
+        snprintf(hdr, sizeof hdr, "%sencoding: raw\nendian: little\nbyte skip: -1\ndata file: enc_end.raw\n", u16);
+        put_text("enc_skip_end.nhdr", hdr);
+        memset(buf, 'k', 5);
+        memcpy(buf + 5, le, 128);
+        unsigned char *g = gzip_of(buf, 133, &gn);
+        snprintf(hdr, sizeof hdr, "%sencoding: gzip\nendian: little\nbyte skip: 5\n\n", u16);
+        put("enc_gz_skip.nrrd", hdr, strlen(hdr), g, gn);
+        free(g);
+        for (int half = 0; half < 2; half++) {
+            char bz[512];
+            unsigned bn = sizeof bz;
+            if (BZ2_bzBuffToBuffCompress(bz, &bn, (char *)le + 64 * half, 64, 9, 0, 0) != BZ_OK)
+                exit(2);
+            put(half ? "enc_bz2.bz2" : "enc_bz1.bz2", bz, bn, NULL, 0);
+        }
+        snprintf(hdr, sizeof hdr, "%sencoding: bzip2\nendian: little\ndata file: LIST 3\nenc_bz1.bz2\nenc_bz2.bz2\n", u16);
+        put_text("enc_bz_list.nhdr", hdr);
+        snprintf(hdr, sizeof hdr, "%sencoding: ascii\n\n", u16);
+        put("enc_ascii.nrrd", hdr, strlen(hdr), text, tn);
+        snprintf(hdr, sizeof hdr, "%sencoding: hex\nendian: little\n\n", u16);
+        put("enc_hex.nrrd", hdr, strlen(hdr), hex, hn);
+    }
     /* item 5 */
     float one[3] = {1, 1, 1}, p0[3] = {1, 0, 1}, pnan[3] = {NAN, 1, 1}, pinf[3] = {1, 1, INFINITY};
     put_nifti("off1e18.nii", "n+1", 1e18f, one, 0);
@@ -521,6 +587,7 @@ int main(void)
         {"one copy: raw", c_copy_raw, 20, 512},
         {"one copy: gzip", c_copy_gz, 20, 512},
         {"one copy: f64 -> f32", c_copy_f64, 20, 512},
+        {"encodings read right", c_encodings, 10, 512},
         {"NIfTI vox_offset 1e18", c_off_1e18, 10, 512},
         {"NIfTI vox_offset 100", c_off_100, 10, 512},
         {"NIfTI vox_offset 352.5", c_off_frac, 10, 512},

@@ -592,6 +592,10 @@ cdvr_status cdvr_nrrd_open(const char *path, const cdvr_raw_opts *opts, int head
                             "physical memory)", path,
                             (unsigned long long)(s->shape.bytes > vbytes ? s->shape.bytes : vbytes),
                             s->shape.what, (unsigned long long)max);
+    if (st == CDVR_OK && s->shape.byte_skip < 0 && s->shape.encoding != nrrdEncodingRaw)
+        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD byte skip %ld (data at the end of the "
+                            "file) needs raw encoding, not %s", path, s->shape.byte_skip,
+                            s->shape.encoding->name);
     if (st == CDVR_OK)
         st = resolve_files(s, err);
     if (st == CDVR_OK && !header_only) {

@@ -131,7 +131,10 @@ cdvr_status cdvr_volume_save_raw(const cdvr_volume *vol, const char *path, int b
                                  cdvr_error *err);
 
 /* Loaders keep u8, u16, i16 and f32 as they are; other file types (i8, u32, i32, i64, u64,
- * f64) become f32, each value rounded to the nearest float (beyond float's range: +-Inf). */
+ * f64) become f32, each value rounded to the nearest float; a finite value beyond float's range
+ * (it would become +-Inf) is refused naming the value and its index, and NaN and +-Inf stay as
+ * they are. Header fields the loaders cannot honour are refused naming the field and its value
+ * (README: what the readers refuse), never replaced by a default. */
 /* .nrrd / .nhdr through teem. 3D (or 4D: the 4th axis becomes timesteps). */
 cdvr_status cdvr_volume_load_nrrd(const char *path, cdvr_volume **out, cdvr_error *err);
 /* .nii / .nii.gz through niftilib. 3D, or 4D (timesteps = dim[4]). */
