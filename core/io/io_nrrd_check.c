@@ -376,9 +376,11 @@ void cdvr_nrrd_close(cdvr_nrrd_source *s)
     free(s);
 }
 
-/* Adds a data file, refusing one outside the header's directory (after realpath) unless allowed. */
+/* Adds a data file, refusing one outside the header's directory (after realpath) unless
+ * allowed; a confined file is kept by its resolved name, so what is read is what was checked. */
 static cdvr_status add_file(cdvr_nrrd_source *s, const char *file, size_t cap, cdvr_error *err)
 {
+    char *keep = NULL;
     if (!s->allow_outside) {
         char *real = realpath(file, NULL);
         if (!real)
@@ -394,13 +396,15 @@ static cdvr_status add_file(cdvr_nrrd_source *s, const char *file, size_t cap, c
             free(real);
             return st;
         }
-        free(real);
+        keep = real;
     }
-    if (!s->files && !(s->files = calloc(cap, sizeof *s->files)))
+    if (!keep && !(keep = strdup(file)))
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", s->path);
-    if (!(s->files[s->nfiles] = strdup(file)))
+    if (!s->files && !(s->files = calloc(cap, sizeof *s->files))) {
+        free(keep);
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", s->path);
-    s->nfiles++;
+    }
+    s->files[s->nfiles++] = keep;
     return CDVR_OK;
 }
 
