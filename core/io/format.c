@@ -7,6 +7,7 @@
  * below and one name in core/io/CMakeLists.txt. */
 #include "cdvr/format.h"
 #include "cdvr/regular_file.h"
+#include "volume_io.h"
 
 #include <errno.h>
 #include <pthread.h>
@@ -14,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <unistd.h>
 
 extern const cdvr_format cdvr_format_nrrd;
 extern const cdvr_format cdvr_format_nifti;
@@ -222,6 +224,22 @@ void cdvr_format_list(char *out, size_t n)
     }
 }
 
+/* ---- load limits ---------------------------------------------------------------------------- */
+
+uint64_t cdvr_load_max_bytes_default(void)
+{
+    long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGESIZE);
+    if (pages <= 0 || size <= 0)
+        return (uint64_t)1 << 40;
+    uint64_t half = (uint64_t)pages * (uint64_t)size / 2;
+    return half < ((uint64_t)64 << 20) ? (uint64_t)64 << 20 : half;
+}
+
+uint64_t cdvr_load_max_bytes(const cdvr_raw_opts *opts)
+{
+    return opts && opts->max_bytes ? opts->max_bytes : cdvr_load_max_bytes_default();
+}
+
 /* ---- dispatch ------------------------------------------------------------------------------- */
 
 /* opts describes a raw file (dims given), rather than only carrying a spacing override. */
@@ -316,6 +334,13 @@ static cdvr_status load_by_read(const cdvr_format *f, const char *path, const cd
     cdvr_volume head;
     preset_header(&head);
     cdvr_status st = f->probe(path, opts, &head, err);
+    size_t bytes = 0;
+    if (st == CDVR_OK && cdvr_volume_bytes_for(head.dims, head.timesteps, head.type, &bytes) &&
+        bytes > cdvr_load_max_bytes(opts))
+        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: format '%s' claims %zu bytes of voxels, "
+                            "more than max_bytes %llu (a load option; the default is half the "
+                            "physical memory)", path, f->name, bytes,
+                            (unsigned long long)cdvr_load_max_bytes(opts));
     if (st == CDVR_OK)
         st = cdvr_volume_create(head.dims, head.timesteps, head.type, out, err);
     if (st != CDVR_OK)

@@ -6,6 +6,8 @@
 
 #include <math.h>
 #include <errno.h>
+#include <float.h>
+#include <limits.h>
 #include <sys/stat.h>
 #include <stdint.h>
 #include <nifti1_io.h>
@@ -166,8 +168,14 @@ static cdvr_status load_voxels(const char *path, const nifti_image *nim, cdvr_vo
     cdvr_status st = read_nifti_data(path, nim, buf, bytes, err);
     float *dst = vol->data;
     for (size_t i = 0; st == CDVR_OK && i < count; i++) {
-        double v = reader(buf, i);
-        dst[i] = cdvr_double_to_f32(scaled ? v * slope + inter : v);
+        double v = reader(buf, i), w = scaled ? v * slope + inter : v;
+        if (isfinite(w) && fabs(w) > FLT_MAX)
+            st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI value %g (%s %g, voxel %zu from "
+                                "0, scl_slope %g, scl_inter %g) is beyond the range of f32, the "
+                                "type cdvr loads it as", path, w,
+                                nifti_datatype_string(nim->datatype), v, i, scaled ? slope : 1.0,
+                                scaled ? inter : 0.0);
+        dst[i] = (float)w;
     }
     free(buf);
     return st;
@@ -202,10 +210,95 @@ static cdvr_status check_data_size(const char *path, const nifti_image *nim, cdv
                           path, nim->nx, nim->ny, nim->nz, nim->nt, nifti_datatype_string(nim->datatype), need, have);
 }
 
+#define NIFTI_EXTENSIONS_MAX 1024 /* niftilib reads extensions in quadratic time */
+
+/* Counts the header extensions from the file's bytes (niftilib reads each with a realloc of the
+ * list: 100000 of them take over a minute), up to one past the limit. */
+static cdvr_status count_extensions(const char *path, const nifti_1_header *h, int swapped,
+                                    cdvr_error *err)
+{
+    znzFile fp = znzopen(path, "rb", nifti_is_gzfile(path));
+    if (znz_isnull(fp))
+        return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot open", path);
+    unsigned char ext[4] = {0, 0, 0, 0};
+    size_t count = 0;
+    long pos = 352, end = h->magic[1] == '+' ? (long)h->vox_offset : LONG_MAX;
+    if (znzseek(fp, 348, SEEK_SET) >= 0 && znzread(ext, 1, 4, fp) == 4 && ext[0] != 0) {
+        while (count <= NIFTI_EXTENSIONS_MAX && pos + 8 <= end) {
+            int32_t sz[2];
+            if (znzread(sz, 1, 8, fp) != 8)
+                break;
+            if (swapped)
+                nifti_swap_4bytes(2, sz);
+            if (sz[0] < 16 || sz[0] % 16 != 0 || sz[0] > end - pos)
+                break; /* niftilib stops at the first bad one too */
+            count++;
+            pos += sz[0];
+            if (znzseek(fp, pos, SEEK_SET) < 0)
+                break;
+        }
+    }
+    znzclose(fp);
+    if (count > NIFTI_EXTENSIONS_MAX)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI header has more than %d "
+                              "extensions (the limit)", path, NIFTI_EXTENSIONS_MAX);
+    return CDVR_OK;
+}
+
+static int nifti_is_hdr(const char *path)
+{
+    size_t n = strlen(path);
+    return n >= 4 && strcasecmp(path + n - 4, ".hdr") == 0;
+}
+
+/* The geometry fields that niftilib replaces silently (a singular sform by the qform or the
+ * identity, pixdim <= 0 or not finite by 1): refused when they are the ones used. */
+static cdvr_status check_geometry_fields(const char *path, const nifti_1_header *h,
+                                         cdvr_error *err)
+{
+    if (h->sform_code > 0) {
+        double M[9], inv[9];
+        const float *rows[3] = {h->srow_x, h->srow_y, h->srow_z};
+        int finite = 1;
+        for (int r = 0; r < 3; r++)
+            for (int c = 0; c < 4; c++) {
+                finite &= isfinite(rows[r][c]);
+                if (c < 3)
+                    M[3 * r + c] = rows[r][c];
+            }
+        if (!finite || !cdvr_mat3_inverse(M, inv))
+            return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI sform (sform_code %d) is %s: "
+                                  "srow_x %g %g %g, srow_y %g %g %g, srow_z %g %g %g", path,
+                                  h->sform_code, finite ? "singular" : "not finite",
+                                  M[0], M[1], M[2], M[3], M[4], M[5], M[6], M[7], M[8]);
+        return CDVR_OK;
+    }
+    int axes = h->dim[0] < 3 ? h->dim[0] : 3;
+    for (int i = 1; i <= axes; i++) {
+        double p = h->pixdim[i];
+        if (!isfinite(p) || p == 0 || (h->qform_code > 0 && p < 0))
+            return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI pixdim[%d] = %g is not a "
+                                  "voxel size (%s)", path, i, p,
+                                  h->qform_code > 0 ? "the qform needs it > 0" : "finite, nonzero");
+    }
+    if (h->qform_code > 0) {
+        double b = h->quatern_b, c = h->quatern_c, d = h->quatern_d;
+        if (!isfinite(b) || !isfinite(c) || !isfinite(d) || b * b + c * c + d * d > 1.0 + 1e-6 ||
+            !isfinite(h->qoffset_x) || !isfinite(h->qoffset_y) || !isfinite(h->qoffset_z))
+            return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI qform (qform_code %d) is not a "
+                                  "rotation: quatern %g %g %g, qoffset %g %g %g", path,
+                                  h->qform_code, b, c, d, (double)h->qoffset_x,
+                                  (double)h->qoffset_y, (double)h->qoffset_z);
+    }
+    return CDVR_OK;
+}
+
 /* Refuses what niftilib lets through in the raw header (it reads dim[0] = 0 as a 1x1x1 volume,
- * clamps a negative or NaN vox_offset, and takes any sizeof_hdr): sizeof_hdr must be 348 (540
- * is NIfTI-2, which niftilib's NIfTI-1 reader misreads), dim[0] 1..7, vox_offset finite and
- * >= 0. */
+ * clamps a negative, NaN or small vox_offset to 352 and truncates a fractional one, loads a file
+ * with a bad magic, and takes any sizeof_hdr): sizeof_hdr must be 348 (540 is NIfTI-2, which
+ * niftilib's NIfTI-1 reader misreads), the magic "n+1" or "ni1" (all zero only in a .hdr:
+ * ANALYZE 7.5), dim[0] 1..7, vox_offset a whole number of bytes, >= 352 in a .nii, within the
+ * file; at most NIFTI_EXTENSIONS_MAX extensions; the geometry fields as check_geometry_fields. */
 static cdvr_status check_raw_header(const char *path, cdvr_error *err)
 {
     int swapped = 0;
@@ -213,15 +306,32 @@ static cdvr_status check_raw_header(const char *path, cdvr_error *err)
     if (!h)
         return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: cannot read a NIfTI-1 header", path);
     cdvr_status st = CDVR_OK;
+    int one_file = h->magic[1] == '+';
+    int zero_magic = !h->magic[0] && !h->magic[1] && !h->magic[2] && !h->magic[3];
+    struct stat sb;
+    int sized = stat(path, &sb) == 0;
     if (h->sizeof_hdr != 348)
         st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI sizeof_hdr is %d, not 348%s", path, h->sizeof_hdr,
                             h->sizeof_hdr == 540 ? " (540 is NIfTI-2's; cdvr reads NIfTI-1)" : "");
+    else if (!(memcmp(h->magic, "n+1", 4) == 0 || memcmp(h->magic, "ni1", 4) == 0 ||
+               (zero_magic && nifti_is_hdr(path))))
+        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI magic is \"%.4s\" (bytes %02x %02x "
+                            "%02x %02x), not \"n+1\" or \"ni1\"", path, h->magic,
+                            (unsigned char)h->magic[0], (unsigned char)h->magic[1],
+                            (unsigned char)h->magic[2], (unsigned char)h->magic[3]);
     else if (h->dim[0] < 1 || h->dim[0] > 7)
         st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI dim[0] = %d (the number of dimensions) is not 1..7",
                             path, h->dim[0]);
-    else if (!isfinite(h->vox_offset) || h->vox_offset < 0)
-        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI vox_offset %g is not a byte offset", path,
-                            (double)h->vox_offset);
+    else if (!isfinite(h->vox_offset) || h->vox_offset < 0 || h->vox_offset != floorf(h->vox_offset) ||
+             (one_file && h->vox_offset < 352) || h->vox_offset > 2147483647.0f ||
+             (one_file && sized && !nifti_is_gzfile(path) && h->vox_offset > (double)sb.st_size))
+        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI vox_offset %.7g is not a byte offset "
+                            "(a whole number%s, within the file)", path, (double)h->vox_offset,
+                            one_file ? " >= 352" : " >= 0");
+    if (st == CDVR_OK)
+        st = check_geometry_fields(path, h, err);
+    if (st == CDVR_OK)
+        st = count_extensions(path, h, swapped, err);
     free(h);
     return st;
 }
@@ -272,7 +382,7 @@ typedef struct {
 /* Fills head's dims, timesteps and type from the header, and vals; checks the data size
  * against the file. */
 static cdvr_status describe(const char *path, const nifti_image *nim, cdvr_volume *head,
-                            nifti_values *vals, cdvr_error *err)
+                            nifti_values *vals, uint64_t max_bytes, cdvr_error *err)
 {
     vals->reader = nifti_reader(nim->datatype, &head->type, &vals->native);
     if (!vals->reader)
@@ -284,15 +394,22 @@ static cdvr_status describe(const char *path, const nifti_image *nim, cdvr_volum
     cdvr_status st = nifti_shape(path, nim, head->dims, &head->timesteps, err);
     if (st == CDVR_OK)
         st = check_data_size(path, nim, err);
+    size_t bytes;
+    if (st == CDVR_OK && (!cdvr_volume_bytes_for(head->dims, head->timesteps, head->type, &bytes) ||
+                          bytes > max_bytes || (uint64_t)nim->nvox * (uint64_t)nim->nbyper > max_bytes))
+        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI header claims %dx%dx%dx%d %s, more "
+                            "than max_bytes %llu (a load option; the default is half the physical "
+                            "memory)", path, nim->nx, nim->ny, nim->nz, nim->nt,
+                            nifti_datatype_string(nim->datatype), (unsigned long long)max_bytes);
     return st;
 }
 
-static cdvr_status nifti_to_volume(const char *path, const nifti_image *nim, cdvr_volume **out,
-                                   cdvr_error *err)
+static cdvr_status nifti_to_volume(const char *path, const nifti_image *nim, uint64_t max_bytes,
+                                   cdvr_volume **out, cdvr_error *err)
 {
     cdvr_volume head = {0};
     nifti_values vals;
-    cdvr_status st = describe(path, nim, &head, &vals, err);
+    cdvr_status st = describe(path, nim, &head, &vals, max_bytes, err);
     if (st == CDVR_OK)
         st = cdvr_volume_create(head.dims, head.timesteps, head.type, out, err);
     if (st != CDVR_OK)
@@ -314,16 +431,22 @@ static cdvr_status nifti_to_volume(const char *path, const nifti_image *nim, cdv
     return CDVR_OK;
 }
 
-cdvr_status cdvr_volume_load_nifti(const char *path, cdvr_volume **out, cdvr_error *err)
+static cdvr_status load_nifti(const char *path, const cdvr_raw_opts *opts, cdvr_volume **out,
+                              cdvr_error *err)
 {
     *out = NULL;
     nifti_image *nim;
     cdvr_status st = open_header(path, &nim, err);
     if (st != CDVR_OK)
         return st;
-    st = nifti_to_volume(path, nim, out, err);
+    st = nifti_to_volume(path, nim, cdvr_load_max_bytes(opts), out, err);
     nifti_image_free(nim);
     return st;
+}
+
+cdvr_status cdvr_volume_load_nifti(const char *path, cdvr_volume **out, cdvr_error *err)
+{
+    return load_nifti(path, NULL, out, err);
 }
 
 cdvr_status cdvr_volume_probe_nifti(const char *path, cdvr_volume *head, cdvr_error *err)
@@ -333,7 +456,7 @@ cdvr_status cdvr_volume_probe_nifti(const char *path, cdvr_volume *head, cdvr_er
     if (st != CDVR_OK)
         return st;
     nifti_values vals;
-    st = describe(path, nim, head, &vals, err);
+    st = describe(path, nim, head, &vals, UINT64_MAX, err); /* a probe allocates nothing */
     if (st == CDVR_OK)
         nifti_geometry(nim, head);
     nifti_image_free(nim);
@@ -374,8 +497,7 @@ static cdvr_status nifti_probe(const char *path, const cdvr_raw_opts *opts, cdvr
 static cdvr_status nifti_load(const char *path, const cdvr_raw_opts *opts, cdvr_volume **out,
                               cdvr_error *err)
 {
-    (void)opts;
-    return cdvr_volume_load_nifti(path, out, err);
+    return load_nifti(path, opts, out, err);
 }
 
 static const char *const nifti_suffixes[] = {".nii", ".nii.gz", ".hdr", NULL};

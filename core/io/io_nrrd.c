@@ -2,11 +2,12 @@
 #include "cdvr/volume.h"
 #include "volume_io.h"
 #include "cdvr/format.h"
+#include "io_nrrd.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <teem/nrrd.h>
 
 static double read_i8(const void *p, size_t i) { return ((const signed char *)p)[i]; }
 static double read_i32(const void *p, size_t i) { return ((const int32_t *)p)[i]; }
@@ -83,15 +84,36 @@ static void cross3(const double a[3], const double b[3], double out[3])
  * vector normalised (negative and oblique directions kept), origin = "space origin". Without
  * a space: "spacings" (a negative spacing is the axis running backwards: direction -1), origin
  * 0. A 2D image (dims[2] = 1) gets the cross product of its two directions as the third. Axes
- * without a direction keep the identity column; missing or non-finite values keep the
- * defaults (spacing 1, origin 0). A singular set of directions is an error. */
-static cdvr_status nrrd_geometry(const char *path, const Nrrd *nrrd, cdvr_volume *vol,
-                                 cdvr_error *err)
+ * without a direction or spacing ("none", or no such field) keep the identity column and
+ * spacing 1. Refused, naming the field and the value: a zero or non-finite direction vector, a
+ * spacing given as 0, NaN or infinite, a non-finite space origin, and a singular set of
+ * directions (parallel axes). */
+static cdvr_status nrrd_geometry(const char *path, const Nrrd *nrrd, const NrrdIoState *nio,
+                                 cdvr_volume *vol, cdvr_error *err)
 {
     unsigned n = nrrd->dim < 3 ? nrrd->dim : 3;
     int has_dir[3] = {0, 0, 0};
     double cols[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
     for (unsigned ax = 0; ax < n; ax++) {
+        const double *sd = nrrd->axis[ax].spaceDirection;
+        if (nrrd->spaceDim > 0 && nio->seen[nrrdField_space_directions] && !isnan(sd[0])) {
+            double len2 = 0;
+            int finite = 1;
+            for (unsigned r = 0; r < nrrd->spaceDim; r++) {
+                finite &= isfinite(sd[r]);
+                len2 += sd[r] * sd[r];
+            }
+            if (!finite || !(len2 > 0) || !isfinite(len2))
+                return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD space directions of axis "
+                                      "%u is (%g,%g,%g): %s", path, ax, sd[0],
+                                      nrrd->spaceDim > 1 ? sd[1] : 0.0,
+                                      nrrd->spaceDim > 2 ? sd[2] : 0.0,
+                                      finite && len2 == 0 ? "a zero vector" : "not finite");
+        }
+        double sp = nrrd->axis[ax].spacing;
+        if (nio->seen[nrrdField_spacings] && nrrd->spaceDim == 0 && (!isfinite(sp) || sp == 0))
+            return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD spacings of axis %u is %g: a "
+                                  "spacing must be finite and nonzero", path, ax, sp);
         double spacing = AIR_NAN, direction[NRRD_SPACE_DIM_MAX];
         int status = nrrdSpacingCalculate(nrrd, ax, &spacing, direction);
         if (!isfinite(spacing) || spacing == 0)
@@ -125,48 +147,108 @@ static cdvr_status nrrd_geometry(const char *path, const Nrrd *nrrd, cdvr_volume
                               "%s: NRRD space directions are degenerate (the axes do not span "
                               "3D space)",
                               path);
+    if (nio->seen[nrrdField_space_origin])
+        for (unsigned i = 0; i < nrrd->spaceDim && i < 3; i++)
+            if (!isfinite(nrrd->spaceOrigin[i]))
+                return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD space origin[%u] is %g: "
+                                      "not finite", path, i, nrrd->spaceOrigin[i]);
     for (unsigned i = 0; i < nrrd->spaceDim && i < 3; i++)
         if (isfinite(nrrd->spaceOrigin[i]))
             vol->origin[i] = nrrd->spaceOrigin[i];
     return CDVR_OK;
 }
 
-static cdvr_status nrrd_to_volume(const char *path, const Nrrd *nrrd, cdvr_volume **out,
-                                  cdvr_error *err)
+/* ---- the data, read once into the volume ---------------------------------------------------- */
+
+static void swap_n(unsigned char *p, size_t count, size_t size)
 {
-    cdvr_type type;
-    cdvr_value_reader reader;
-    if (!map_type(nrrd->type, &type, &reader))
-        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD type '%s' is not supported", path,
-                              airEnumStr(nrrdType, nrrd->type));
-    size_t dims[3] = {0, 0, 0}, timesteps = 0;
-    cdvr_status st = nrrd_shape(path, nrrd, dims, &timesteps, err);
-    if (st == CDVR_OK)
-        st = cdvr_volume_create(dims, timesteps, type, out, err);
-    if (st != CDVR_OK)
-        return st;
-    size_t count = cdvr_volume_voxels(*out) * timesteps;
-    if (reader)
-        cdvr_convert_to_f32((*out)->data, nrrd->data, count, reader);
-    else
-        memcpy((*out)->data, nrrd->data, count * cdvr_type_size(type));
-    st = nrrd_geometry(path, nrrd, *out, err);
-    if (st != CDVR_OK) {
-        cdvr_volume_free(*out);
-        *out = NULL;
-    }
-    return st;
+    for (size_t i = 0; i < count; i++, p += size)
+        for (size_t a = 0, b = size - 1; a < b; a++, b--) {
+            unsigned char t = p[a];
+            p[a] = p[b];
+            p[b] = t;
+        }
 }
 
-cdvr_status cdvr_volume_load_nrrd(const char *path, cdvr_volume **out, cdvr_error *err)
+/* Turns the file's bytes, in pieces of any length, into the volume's values. */
+typedef struct value_sink {
+    unsigned char *dst;            /* the volume's voxels */
+    size_t esize;                  /* bytes per file value */
+    int swap;
+    cdvr_value_reader reader;      /* NULL: the values are kept as they are */
+    uint64_t done, count;          /* values written, values in all */
+    unsigned char carry[8];        /* a value split between pieces */
+    size_t carry_n;
+    const char *path, *tname;
+    cdvr_error *err;
+} value_sink;
+
+/* n whole values at p (n <= 512 when converting). */
+static int put_values(value_sink *k, const unsigned char *p, size_t n)
 {
-    *out = NULL;
-    cdvr_status st = cdvr_nrrd_check(path, err);
-    if (st != CDVR_OK)
-        return st;
+    if (n > k->count - k->done)
+        return cdvr_error_set(k->err, CDVR_ERR_FORMAT, "%s: more NRRD data than the header "
+                              "claims", k->path) && 0;
+    if (!k->reader) {
+        unsigned char *d = k->dst + k->done * k->esize;
+        memcpy(d, p, n * k->esize);
+        if (k->swap)
+            swap_n(d, n, k->esize);
+        k->done += n;
+        return 1;
+    }
+    uint64_t tmp[512];
+    memcpy(tmp, p, n * k->esize);
+    if (k->swap)
+        swap_n((unsigned char *)tmp, n, k->esize);
+    float *d = (float *)k->dst + k->done;
+    for (size_t i = 0; i < n; i++) {
+        double v = k->reader(tmp, i);
+        if (isfinite(v) && fabs(v) > FLT_MAX)
+            return cdvr_error_set(k->err, CDVR_ERR_FORMAT, "%s: NRRD value %g (%s, value %llu "
+                                  "from 0) is beyond the range of f32, the type cdvr loads %s "
+                                  "as", k->path, v, k->tname, (unsigned long long)(k->done + i),
+                                  k->tname) && 0;
+        d[i] = (float)v;
+    }
+    k->done += n;
+    return 1;
+}
+
+static int sink_bytes(void *ud, const unsigned char *p, size_t n)
+{
+    value_sink *k = ud;
+    if (k->carry_n) {
+        size_t take = k->esize - k->carry_n < n ? k->esize - k->carry_n : n;
+        memcpy(k->carry + k->carry_n, p, take);
+        k->carry_n += take;
+        p += take;
+        n -= take;
+        if (k->carry_n < k->esize)
+            return 1;
+        k->carry_n = 0;
+        if (!put_values(k, k->carry, 1))
+            return 0;
+    }
+    size_t whole = n / k->esize, step = k->reader ? 512 : whole ? whole : 1;
+    for (size_t i = 0; i < whole; i += step) {
+        size_t m = whole - i < step ? whole - i : step;
+        if (!put_values(k, p + i * k->esize, m))
+            return 0;
+    }
+    k->carry_n = n - whole * k->esize;
+    memcpy(k->carry, p + whole * k->esize, k->carry_n);
+    return 1;
+}
+
+/* Data of an encoding teem reads (ascii, hex, zrl): teem loads them (after the checks
+ * cdvr_nrrd_open made) and the values are copied. */
+static cdvr_status load_by_teem(const char *path, value_sink *k, cdvr_error *err)
+{
     Nrrd *nrrd = nrrdNew();
     if (!nrrd)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
+    cdvr_status st = CDVR_OK;
     if (nrrdLoad(nrrd, path, NULL)) {
         char *msg = biffGetDone(NRRD);
         if (msg)
@@ -174,48 +256,96 @@ cdvr_status cdvr_volume_load_nrrd(const char *path, cdvr_volume **out, cdvr_erro
         st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: cannot read NRRD: %s", path,
                             msg && *msg ? msg : "unknown teem error");
         free(msg);
-        nrrdNuke(nrrd);
-        return st;
+    } else if (nrrdElementNumber(nrrd) != k->count || nrrdElementSize(nrrd) != k->esize) {
+        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: the NRRD file changed while it was read",
+                            path);
+    } else {
+        k->swap = 0; /* teem has put the values in host order */
+        if (!sink_bytes(k, nrrd->data, k->count * k->esize))
+            st = CDVR_ERR_FORMAT;
     }
-    st = nrrd_to_volume(path, nrrd, out, err);
     nrrdNuke(nrrd);
     return st;
 }
 
-cdvr_status cdvr_volume_probe_nrrd(const char *path, cdvr_volume *head, cdvr_error *err)
+static cdvr_status load_nrrd(const char *path, const cdvr_raw_opts *opts, cdvr_volume **out,
+                             cdvr_error *err)
 {
-    cdvr_status st = cdvr_nrrd_check_header(path, err); /* the load's header limit too */
+    *out = NULL;
+    cdvr_nrrd_source *src;
+    cdvr_status st = cdvr_nrrd_open(path, opts, 0, &src, err);
     if (st != CDVR_OK)
         return st;
-    Nrrd *nrrd = nrrdNew();
-    NrrdIoState *nio = nrrdIoStateNew();
-    if (!nrrd || !nio) {
-        if (nrrd)
-            nrrdNix(nrrd);
-        if (nio)
-            nrrdIoStateNix(nio);
-        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
-    }
-    nrrdIoStateSet(nio, nrrdIoStateSkipData, AIR_TRUE);
-    if (nrrdLoad(nrrd, path, nio)) {
-        char *msg = biffGetDone(NRRD);
-        if (msg)
-            cdvr_teem_reason(msg);
-        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: cannot read NRRD header: %s", path,
-                            msg && *msg ? msg : "unknown teem error");
-        free(msg);
-    }
+    const Nrrd *nrrd = cdvr_nrrd_header(src);
+    cdvr_type type;
     cdvr_value_reader reader;
-    if (st == CDVR_OK && !map_type(nrrd->type, &head->type, &reader))
+    size_t dims[3] = {0, 0, 0}, timesteps = 0;
+    cdvr_volume head;
+    memset(&head, 0, sizeof head);
+    for (int a = 0; a < 3; a++) {
+        head.spacing[a] = 1;
+        head.direction[4 * a] = 1;
+    }
+    if (!map_type(nrrd->type, &type, &reader))
+        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD type '%s' is not supported", path,
+                            airEnumStr(nrrdType, nrrd->type));
+    if (st == CDVR_OK)
+        st = nrrd_shape(path, nrrd, dims, &timesteps, err);
+    if (st == CDVR_OK)
+        st = nrrd_geometry(path, nrrd, cdvr_nrrd_io(src), &head, err);
+    if (st == CDVR_OK)
+        st = cdvr_volume_create(dims, timesteps, type, out, err);
+    if (st == CDVR_OK) {
+        memcpy((*out)->spacing, head.spacing, sizeof head.spacing);
+        memcpy((*out)->origin, head.origin, sizeof head.origin);
+        memcpy((*out)->direction, head.direction, sizeof head.direction);
+        value_sink k = {(*out)->data, nrrdElementSize(nrrd), cdvr_nrrd_swap(src), reader, 0,
+                        (uint64_t)cdvr_volume_voxels(*out) * timesteps, {0}, 0, path,
+                        airEnumStr(nrrdType, nrrd->type), err};
+        if (cdvr_nrrd_streamable(src))
+            st = cdvr_nrrd_stream(src, sink_bytes, &k, err);
+        else
+            st = load_by_teem(path, &k, err);
+        if (st == CDVR_OK && k.done != k.count)
+            st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD data hold %llu of %llu values",
+                                path, (unsigned long long)k.done, (unsigned long long)k.count);
+        if (st != CDVR_OK) {
+            cdvr_volume_free(*out);
+            *out = NULL;
+        }
+    }
+    cdvr_nrrd_close(src);
+    return st;
+}
+
+cdvr_status cdvr_volume_load_nrrd(const char *path, cdvr_volume **out, cdvr_error *err)
+{
+    return load_nrrd(path, NULL, out, err);
+}
+
+static cdvr_status probe_nrrd(const char *path, const cdvr_raw_opts *opts, cdvr_volume *head,
+                              cdvr_error *err)
+{
+    cdvr_nrrd_source *src;
+    cdvr_status st = cdvr_nrrd_open(path, opts, 1, &src, err);
+    if (st != CDVR_OK)
+        return st;
+    const Nrrd *nrrd = cdvr_nrrd_header(src);
+    cdvr_value_reader reader;
+    if (!map_type(nrrd->type, &head->type, &reader))
         st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD type '%s' is not supported", path,
                             airEnumStr(nrrdType, nrrd->type));
     if (st == CDVR_OK)
         st = nrrd_shape(path, nrrd, head->dims, &head->timesteps, err);
     if (st == CDVR_OK)
-        st = nrrd_geometry(path, nrrd, head, err);
-    nrrdIoStateNix(nio);
-    nrrdNuke(nrrd);
+        st = nrrd_geometry(path, nrrd, cdvr_nrrd_io(src), head, err);
+    cdvr_nrrd_close(src);
     return st;
+}
+
+cdvr_status cdvr_volume_probe_nrrd(const char *path, cdvr_volume *head, cdvr_error *err)
+{
+    return probe_nrrd(path, NULL, head, err);
 }
 
 /* ---- format table (cdvr/format.h) ----------------------------------------------------------- */
@@ -229,15 +359,13 @@ static int nrrd_magic(const uint8_t *head, size_t n)
 static cdvr_status nrrd_probe(const char *path, const cdvr_raw_opts *opts, cdvr_volume *head,
                               cdvr_error *err)
 {
-    (void)opts;
-    return cdvr_volume_probe_nrrd(path, head, err);
+    return probe_nrrd(path, opts, head, err);
 }
 
 static cdvr_status nrrd_load(const char *path, const cdvr_raw_opts *opts, cdvr_volume **out,
                              cdvr_error *err)
 {
-    (void)opts;
-    return cdvr_volume_load_nrrd(path, out, err);
+    return load_nrrd(path, opts, out, err);
 }
 
 static const char *const nrrd_suffixes[] = {".nrrd", ".nhdr", NULL};

@@ -1,35 +1,43 @@
-/* core/io/io_nrrd_check.c - refuses hostile NRRD files before teem touches their data.
+/* core/io/io_nrrd_check.c - the NRRD header and its data files, checked before anything is read
+ * (io_nrrd.h), and the reader of raw, gzip and bzip2 data straight into the volume.
  *
  * teem trusts the header: nrrdLoad allocates (and zeroes) what "sizes" claims before reading a
  * byte, so a 100-byte file can claim 8 GB; it opens detached data files with fopen, so a FIFO
- * blocks forever, "-" reads standard input and /dev/zero never ends; and it leaks inside libbz2
- * (3.6 MB) and its gzip reader when a stream is corrupt. cdvr_nrrd_check runs before nrrdLoad:
+ * blocks forever, "-" reads standard input and /dev/zero never ends, and any path (/etc/shadow,
+ * ../../x) is read as voxels; a LIST of 200000 files takes it minutes; it leaks inside libbz2
+ * and its gzip reader when a stream is corrupt; and nrrdLoad's buffer is a second copy of the
+ * volume. So:
  *
  *  1. The header is read here, from a regular file (at most CDVR_NRRD_HEADER_MAX bytes), and
  *     parsed by teem from that text (nrrdStringRead, skipData) with the "data file" field taken
  *     out, so teem opens nothing. The data files are resolved here as teem does
- *     (nrrdIoStateDataFileIterNext): a single name, "LIST" (the remaining lines), or
+ *     (nrrdIoStateDataFileIterNext): a single name, "LIST [subdim]" (the remaining lines), or
  *     "FORMAT min max step [subdim]" (FORMAT with exactly one %d-like conversion); names not
- *     starting with '/' are relative to the header's directory.
- *  2. Every data file must be a regular file other than the header itself ("-", standard input,
- *     is refused).
- *  3. Each file's data must be able to hold its share of what the header claims
- *     (elements x element size / number of files), before anything is allocated:
+ *     starting with '/' are relative to the header's directory; at most CDVR_NRRD_FILES_MAX,
+ *     as many as teem's subdimension rule asks for (check_file_count).
+ *  2. Every data file must lie under the header's directory once both are resolved by realpath
+ *     (symlinks, ".."), unless the load options say allow_outside; and be a regular file other
+ *     than the header itself ("-", standard input, is refused).
+ *  3. The claim (elements x element size, and the volume it makes) must be within max_bytes
+ *     (cdvr_load_max_bytes), and each file's data must be able to hold its share (elements x
+ *     element size / number of files), before anything is allocated:
  *       raw    bytes after the header (attached data) and byte skip >= claimed bytes
  *       ascii  at least one byte per value;  hex: two bytes per data byte
  *       zrl    at most 256 data bytes per stored byte
- *       gzip   at most 1032 bytes per stored byte (deflate's largest ratio), then the stream
- *              is inflated once (nothing kept) until it has produced byte skip + claimed bytes
- *       bzip2  the stream is decompressed once the same way (bzip2's ratio has no useful bound)
- *     A gzip or bzip2 stream that is corrupt or ends early is refused here, so teem never reads
- *     one (and never leaks on one). The price is one extra decompression pass for compressed
- *     NRRDs; raw ones (the common case) cost a stat.
- * The file can still change between this check and nrrdLoad; this guards against mistakes and
- * broken files, not against a concurrent attacker.
+ *       gzip   at most 1032 bytes per stored byte (deflate's largest ratio)
+ *       bzip2  (no useful ratio bound) a claim beyond 1032 per stored byte is decompressed
+ *              once, nothing kept, before the volume is allocated
+ *  4. Raw, gzip and bzip2 data are read here (cdvr_nrrd_stream) in pieces into the caller's
+ *     sink (io_nrrd.c converts them into the volume's buffer): a stream stops at the claimed
+ *     size, and one that ends earlier, goes on past it or is corrupt is refused naming the file.
+ *     teem reads only ascii, hex and zrl data (after these checks).
+ * The file can still change between these checks and the read; this guards against mistakes and
+ * broken or hostile files, not against a concurrent attacker.
  */
 #include "cdvr/regular_file.h"
 #include "cdvr/volume.h"
 #include "volume_io.h"
+#include "io_nrrd.h"
 
 #include <bzlib.h>
 #include <ctype.h>
@@ -39,12 +47,11 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 #include <teem/nrrd.h>
 #include <unistd.h>
 #include <zlib.h>
 
-#define CDVR_NRRD_HEADER_MAX (4u << 20) /* header bytes (with a LIST of data files) */
-#define CDVR_NRRD_FILES_MAX 1000000     /* detached data files */
 #define STREAM_BUF (64u << 10)
 
 /* ---- teem's error chain ------------------------------------------------------------------ */
@@ -255,14 +262,12 @@ static int data_path(const char *header, const char *name, size_t len, char *out
 {
     const char *slash = strrchr(header, '/');
     int n;
-    if (name[0] == '/' || (len > 1 && name[1] == ':') || !slash)
+    if (name[0] == '/' || !slash)
         n = snprintf(out, size, "%.*s", (int)len, name);
     else
         n = snprintf(out, size, "%.*s/%.*s", (int)(slash - header), header, (int)len, name);
     return n > 0 && (size_t)n < size;
 }
-
-/* ---- the checks per data file ----------------------------------------------------------- */
 
 /* Skips line_skip lines of f; 0 when the file ends first. */
 static int skip_lines(FILE *f, unsigned lines)
@@ -276,118 +281,12 @@ static int skip_lines(FILE *f, unsigned lines)
     return 1;
 }
 
-typedef struct stream_result {
-    uint64_t produced;
-    const char *error;             /* the library's reason, or NULL */
-} stream_result;
+static cdvr_status count_bzip2(const char *path, const char *file, uint64_t offset,
+                               const nrrd_shape *s, uint64_t need, cdvr_error *err);
 
-/* Inflates gzip (or zlib) data from f until `want` bytes came out, the data end or fail;
- * concatenated gzip members continue, as teem's reader does. */
-static void inflate_count(FILE *f, uint64_t want, unsigned char *in, unsigned char *out, stream_result *r)
-{
-    z_stream z;
-    memset(&z, 0, sizeof z);
-    if (inflateInit2(&z, 15 + 32) != Z_OK) {
-        r->error = "zlib cannot start";
-        return;
-    }
-    int eof = 0;
-    while (r->produced < want) {
-        if (z.avail_in == 0 && !eof) {
-            z.avail_in = (uInt)fread(in, 1, STREAM_BUF, f);
-            z.next_in = in;
-            eof = z.avail_in == 0;
-        }
-        z.next_out = out;
-        z.avail_out = STREAM_BUF;
-        int rc = inflate(&z, Z_NO_FLUSH);
-        r->produced += STREAM_BUF - z.avail_out;
-        if (rc == Z_STREAM_END) {  /* end of a gzip member: another may follow */
-            if (z.avail_in == 0 && !eof) {
-                z.avail_in = (uInt)fread(in, 1, STREAM_BUF, f);
-                z.next_in = in;
-            }
-            if (z.avail_in == 0)
-                break;
-            inflateReset(&z);
-        } else if (rc == Z_BUF_ERROR && eof) {
-            break;                 /* the data end in the middle of the stream */
-        } else if (rc != Z_OK && rc != Z_BUF_ERROR) {
-            r->error = z.msg ? z.msg : "corrupt data";
-            break;
-        }
-    }
-    inflateEnd(&z);
-}
-
-/* Decompresses bzip2 data from f until `want` bytes came out, the stream ends or fails. */
-static void bunzip_count(FILE *f, uint64_t want, unsigned char *in, unsigned char *out, stream_result *r)
-{
-    bz_stream b;
-    memset(&b, 0, sizeof b);
-    if (BZ2_bzDecompressInit(&b, 0, 0) != BZ_OK) {
-        r->error = "libbz2 cannot start";
-        return;
-    }
-    int eof = 0;
-    while (r->produced < want) {
-        if (b.avail_in == 0 && !eof) {
-            b.avail_in = (unsigned)fread(in, 1, STREAM_BUF, f);
-            b.next_in = (char *)in;
-            eof = b.avail_in == 0;
-        }
-        b.next_out = (char *)out;
-        b.avail_out = STREAM_BUF;
-        int rc = BZ2_bzDecompress(&b);
-        r->produced += STREAM_BUF - b.avail_out;
-        if (rc == BZ_STREAM_END)
-            break;
-        if (rc != BZ_OK) {
-            r->error = rc == BZ_DATA_ERROR_MAGIC ? "not bzip2 data" : rc == BZ_MEM_ERROR ? "out of memory" : "corrupt data";
-            break;
-        }
-        if (eof && b.avail_out == STREAM_BUF)
-            break;                 /* no input left and nothing came out: the data end */
-    }
-    BZ2_bzDecompressEnd(&b);
-}
-
-/* Decompresses once, keeping nothing: the stream must produce `want` bytes without error. */
-static cdvr_status check_stream(const char *path, const char *file, uint64_t offset, const nrrd_shape *s,
-                                uint64_t want, cdvr_error *err)
-{
-    int bzip = s->encoding == nrrdEncodingBzip2;
-    const char *kind = bzip ? "bzip2" : "gzip";
-    FILE *f;
-    cdvr_status st = cdvr_fopen_regular_file(file, &f, NULL, err);
-    if (st != CDVR_OK)
-        return st;
-    unsigned char *buf = malloc(2 * STREAM_BUF);
-    if (!buf) {
-        fclose(f);
-        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
-    }
-    stream_result r = {0, NULL};
-    int skipped = fseeko(f, (off_t)offset, SEEK_SET) == 0 && skip_lines(f, s->line_skip);
-    if (skipped && bzip)
-        bunzip_count(f, want, buf, buf + STREAM_BUF, &r);
-    else if (skipped)
-        inflate_count(f, want, buf, buf + STREAM_BUF, &r);
-    free(buf);
-    fclose(f);
-    if (!skipped)
-        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: %s ends before the %u lines to skip", path, file,
-                              s->line_skip);
-    if (r.error)
-        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: corrupt %s data in %s: %s", path, kind, file, r.error);
-    if (r.produced < want)
-        return cdvr_error_set(err, CDVR_ERR_FORMAT,
-                              "%s: NRRD header claims %llu bytes of data (%s), but the %s data in %s end after %llu bytes",
-                              path, (unsigned long long)want, s->what, kind, file, (unsigned long long)r.produced);
-    return CDVR_OK;
-}
-
-/* Checks data file `file` (its share: `want` bytes) holding data from `offset` on. */
+/* Checks data file `file` (its share: `want` bytes) holding data from `offset` on: a regular
+ * file, not the header itself, able to hold its share (compressed: within the ratio bound; the
+ * stream itself is checked as it is read). */
 static cdvr_status check_data_file(const char *path, const nrrd_header *h, const char *file, int attached,
                                    const nrrd_shape *s, uint64_t want, cdvr_error *err)
 {
@@ -413,37 +312,176 @@ static cdvr_status check_data_file(const char *path, const nrrd_header *h, const
     else if (s->encoding == nrrdEncodingGzip)
         have = avail > UINT64_MAX / 1032 ? UINT64_MAX : avail * 1032;
     uint64_t need = compressed ? want + skip : want;
+    if (s->encoding == nrrdEncodingBzip2 && (avail > UINT64_MAX / 1032 || avail * 1032 < need))
+        return count_bzip2(path, file, offset, s, need, err);
     if (s->encoding != nrrdEncodingBzip2 && have < need)
         return cdvr_error_set(err, CDVR_ERR_FORMAT,
                               "%s: NRRD header claims %llu bytes of data (%s, %s encoding), but %s holds only %llu "
                               "bytes after the header and skips%s",
                               path, (unsigned long long)need, s->what, s->encoding->name, file, (unsigned long long)avail,
                               s->encoding == nrrdEncodingGzip ? " (gzip expands at most 1032 times)" : "");
-    if (compressed)
-        return check_stream(path, file, offset, s, need, err);
     return CDVR_OK;
 }
 
-/* Checks every data file named by the header. */
-static cdvr_status check_data_files(const char *path, const nrrd_header *h, const nrrd_shape *s, cdvr_error *err)
+/* ---- the source: header + data files ------------------------------------------------------ */
+
+struct cdvr_nrrd_source {
+    const char *path;              /* the header (the caller's string) */
+    nrrd_header h;
+    Nrrd *nrrd;
+    NrrdIoState *nio;
+    nrrd_shape shape;
+    char **files;                  /* data files as teem would open them; attached: NULL */
+    size_t nfiles;
+    char *dir;                     /* realpath of the header's directory */
+    int allow_outside;
+};
+
+const Nrrd *cdvr_nrrd_header(const cdvr_nrrd_source *s)
 {
+    return s->nrrd;
+}
+
+const NrrdIoState *cdvr_nrrd_io(const cdvr_nrrd_source *s)
+{
+    return s->nio;
+}
+
+int cdvr_nrrd_streamable(const cdvr_nrrd_source *s)
+{
+    const NrrdEncoding *e = s->shape.encoding;
+    return e == nrrdEncodingRaw || e == nrrdEncodingGzip || e == nrrdEncodingBzip2;
+}
+
+int cdvr_nrrd_swap(const cdvr_nrrd_source *s)
+{
+    return nrrdElementSize(s->nrrd) > 1 && s->nio->endian != airEndianUnknown &&
+           s->nio->endian != airMyEndian();
+}
+
+void cdvr_nrrd_close(cdvr_nrrd_source *s)
+{
+    if (!s)
+        return;
+    if (s->nio) /* teem's Nix functions dereference their argument */
+        nrrdIoStateNix(s->nio);
+    if (s->nrrd)
+        nrrdNuke(s->nrrd);
+    for (size_t i = 0; i < s->nfiles; i++)
+        free(s->files[i]);
+    free(s->files);
+    free(s->dir);
+    free(s->h.data_file);
+    free(s->h.text);
+    free(s);
+}
+
+/* Adds a data file, refusing one outside the header's directory (after realpath) unless
+ * allowed; a confined file is kept by its resolved name, so what is read is what was checked. */
+static cdvr_status add_file(cdvr_nrrd_source *s, const char *file, size_t cap, cdvr_error *err)
+{
+    char *keep = NULL;
+    if (!s->allow_outside) {
+        char *real = realpath(file, NULL);
+        if (!real)
+            return cdvr_error_set(err, CDVR_ERR_IO, "%s: NRRD data file %s: %s", s->path, file,
+                                  strerror(errno));
+        size_t n = strlen(s->dir);
+        int inside = strncmp(real, s->dir, n) == 0 && (real[n] == '/' || (n == 1 && s->dir[0] == '/'));
+        if (!inside) {
+            cdvr_status st = cdvr_error_set(err, CDVR_ERR_ARG, "%s: NRRD data file %s (%s) is "
+                                            "outside the header's directory %s (load option "
+                                            "allow_outside=true reads it)", s->path, file, real,
+                                            s->dir);
+            free(real);
+            return st;
+        }
+        keep = real;
+    }
+    if (!keep && !(keep = strdup(file)))
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", s->path);
+    if (!s->files && !(s->files = calloc(cap, sizeof *s->files))) {
+        free(keep);
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", s->path);
+    }
+    s->files[s->nfiles++] = keep;
+    return CDVR_OK;
+}
+
+/* teem's rule for the number of data files (subdim: the dimension of each file's piece; given
+ * after LIST or as FORMAT's fourth number, else the array's dimension - 1): with subdim < dim
+ * there is one file per piece (the product of the sizes of axes subdim .. dim-1); with subdim ==
+ * dim the files are slabs along the slowest axis, at most one per slice (and here: the same
+ * number of slices each, as the data are read). */
+static cdvr_status check_file_count(const cdvr_nrrd_source *s, uint64_t count, const char *sub,
+                                    cdvr_error *err)
+{
+    const Nrrd *n = s->nrrd;
+    unsigned dim = n->dim, d = dim - 1;
+    char *end;
+    long given = sub ? strtol(sub, &end, 10) : 0;
+    if (sub && end != sub) {
+        if (given < 1 || given > (long)dim)
+            return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD data file subdimension %ld is "
+                                  "not 1..%u", s->path, given, dim);
+        d = (unsigned)given;
+    }
+    if (d < dim) {
+        uint64_t pieces = 1;
+        for (unsigned ax = d; ax < dim; ax++)
+            pieces *= n->axis[ax].size; /* <= elements: no overflow (shape_of checked) */
+        if (pieces != count)
+            return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD data files: %llu named, the "
+                                  "sizes need %llu (of %u-D pieces)", s->path,
+                                  (unsigned long long)count, (unsigned long long)pieces, d);
+        return CDVR_OK;
+    }
+    size_t slices = n->axis[dim - 1].size;
+    if (count > slices || slices % count != 0)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD data files: %llu slabs of the %zu "
+                              "slices of axis %u (a slab count must divide them)", s->path,
+                              (unsigned long long)count, slices, dim - 1);
+    return CDVR_OK;
+}
+
+/* Resolves the data files the header names (none: attached data). */
+static cdvr_status resolve_files(cdvr_nrrd_source *s, cdvr_error *err)
+{
+    const char *path = s->path, *v = s->h.data_file;
     char file[PATH_MAX];
-    if (!h->data_file) /* attached */
-        return check_data_file(path, h, path, 1, s, s->bytes, err);
-    const char *v = h->data_file;
-    if (h->list) {
+    if (!v)
+        return CDVR_OK;
+    if (!s->allow_outside) {
+        /* the directory relative names are taken from (the header as named: through a
+         * symbolic link to a header, its names are relative to the link's directory) */
+        const char *slash = strrchr(path, '/');
+        char here[PATH_MAX];
+        if (!slash)
+            snprintf(here, sizeof here, ".");
+        else if (slash == path)
+            snprintf(here, sizeof here, "/");
+        else if (snprintf(here, sizeof here, "%.*s", (int)(slash - path), path) >= (int)sizeof here)
+            return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: path too long", path);
+        if (!(s->dir = realpath(here, NULL)))
+            return cdvr_error_set(err, CDVR_ERR_IO, "%s: %s: %s", path, here, strerror(errno));
+    }
+    if (s->h.list) {
         size_t count = 0;
-        for (const char *p = h->list; p < h->text + h->len; p += strlen(p) + 1)
+        for (const char *p = s->h.list; p < s->h.text + s->h.len; p += strlen(p) + 1)
             count += strlen(p) > 0;
         if (count == 0 || count > CDVR_NRRD_FILES_MAX)
-            return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD data file LIST names %zu files", path, count);
-        for (const char *p = h->list; p < h->text + h->len; p += strlen(p) + 1) {
+            return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD data file LIST names %zu files "
+                                  "(the limit is 1..%d)", path, count, CDVR_NRRD_FILES_MAX);
+        cdvr_status cs = check_file_count(s, count, v + 4, err);
+        if (cs != CDVR_OK)
+            return cs;
+        for (const char *p = s->h.list; p < s->h.text + s->h.len; p += strlen(p) + 1) {
             size_t len = strlen(p);
             if (len == 0)
                 continue;
             if (!data_path(path, p, len, file, sizeof file))
                 return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD data file name too long", path);
-            cdvr_status st = check_data_file(path, h, file, 0, s, s->bytes / count, err);
+            cdvr_status st = add_file(s, file, count, err);
             if (st != CDVR_OK)
                 return st;
         }
@@ -454,81 +492,348 @@ static cdvr_status check_data_files(const char *path, const nrrd_header *h, cons
     if (!is_name_format(v)) {
         if (!data_path(path, v, strlen(v), file, sizeof file))
             return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD data file name too long", path);
-        return check_data_file(path, h, file, 0, s, s->bytes, err);
+        return add_file(s, file, 1, err);
     }
     size_t flen = strcspn(v, " \t");
     const char *pct = memchr(v, '%', flen);
     const char *conv = pct ? pct + 1 + strspn(pct + 1, "0123456789") : NULL;
     long lo, hi, step;
     if (!pct || *conv != 'd' || memchr(conv, '%', flen - (size_t)(conv - v)) || conv - pct - 1 > 3 ||
-        sscanf(v + flen, "%ld %ld %ld", &lo, &hi, &step) != 3 || step == 0 || (hi - lo) / step < 0)
+        sscanf(v + flen, "%ld %ld %ld", &lo, &hi, &step) != 3 || step == 0 || (hi - lo) / step < 0 ||
+        lo < -1000000000L || lo > 1000000000L || hi < -1000000000L || hi > 1000000000L)
         return cdvr_error_set(err, CDVR_ERR_FORMAT,
                               "%s: NRRD data file '%s': expected FORMAT min max step with one %%d-like conversion",
                               path, v);
     uint64_t count = (uint64_t)((hi - lo) / step) + 1;
     if (count > CDVR_NRRD_FILES_MAX)
-        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD data file pattern names %llu files", path,
-                              (unsigned long long)count);
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD data file pattern names %llu files "
+                              "(the limit is %d)", path, (unsigned long long)count, CDVR_NRRD_FILES_MAX);
+    long sub_n;
+    int fields = sscanf(v + flen, "%ld %ld %ld %ld", &lo, &hi, &step, &sub_n);
+    cdvr_status cs = check_file_count(s, count, NULL, err);
+    if (fields == 4) {
+        char sub[32];
+        snprintf(sub, sizeof sub, "%ld", sub_n);
+        cs = check_file_count(s, count, sub, err);
+    }
+    if (cs != CDVR_OK)
+        return cs;
     for (uint64_t i = 0; i < count; i++) {
         char name[PATH_MAX];
         if (!format_name(v, flen, lo + (long)i * step, name, sizeof name) ||
             !data_path(path, name, strlen(name), file, sizeof file))
             return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD data file name too long", path);
-        cdvr_status st = check_data_file(path, h, file, 0, s, s->bytes / count, err);
+        cdvr_status st = add_file(s, file, (size_t)count, err);
         if (st != CDVR_OK)
             return st;
     }
     return CDVR_OK;
 }
 
-cdvr_status cdvr_nrrd_check_header(const char *path, cdvr_error *err)
+/* Checks every data file (cheap checks: stat; compressed streams are checked as they are read). */
+static cdvr_status check_data_files(const cdvr_nrrd_source *s, cdvr_error *err)
 {
-    nrrd_header h;
-    memset(&h, 0, sizeof h);
-    FILE *f;
-    cdvr_status st = cdvr_fopen_regular_file(path, &f, &h.sb, err);
-    if (st != CDVR_OK)
-        return st;
-    st = read_header(path, f, &h, err);
-    fclose(f);
-    free(h.data_file);
-    free(h.text);
-    return st;
+    if (!s->files)
+        return check_data_file(s->path, &s->h, s->path, 1, &s->shape, s->shape.bytes, err);
+    for (size_t i = 0; i < s->nfiles; i++) {
+        cdvr_status st = check_data_file(s->path, &s->h, s->files[i], 0, &s->shape,
+                                         s->shape.bytes / s->nfiles, err);
+        if (st != CDVR_OK)
+            return st;
+    }
+    return CDVR_OK;
 }
 
-cdvr_status cdvr_nrrd_check(const char *path, cdvr_error *err)
+/* The voxel bytes of the volume a load makes (types other than u8/u16/i16/f32 become f32). */
+static uint64_t volume_bytes(const Nrrd *nrrd, uint64_t elements)
 {
-    nrrd_header h;
-    memset(&h, 0, sizeof h);
+    switch (nrrd->type) {
+    case nrrdTypeUChar: return elements;
+    case nrrdTypeUShort:
+    case nrrdTypeShort: return elements > UINT64_MAX / 2 ? UINT64_MAX : 2 * elements;
+    default: return elements > UINT64_MAX / 4 ? UINT64_MAX : 4 * elements;
+    }
+}
+
+cdvr_status cdvr_nrrd_open(const char *path, const cdvr_raw_opts *opts, int header_only,
+                           cdvr_nrrd_source **out, cdvr_error *err)
+{
+    *out = NULL;
+    cdvr_nrrd_source *s = calloc(1, sizeof *s);
+    if (!s)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
+    s->path = path;
+    s->allow_outside = opts && opts->allow_outside;
     FILE *f;
-    cdvr_status st = cdvr_fopen_regular_file(path, &f, &h.sb, err);
-    if (st != CDVR_OK)
+    cdvr_status st = cdvr_fopen_regular_file(path, &f, &s->h.sb, err);
+    if (st != CDVR_OK) {
+        free(s);
         return st;
-    st = read_header(path, f, &h, err);
+    }
+    st = read_header(path, f, &s->h, err);
     fclose(f);
-    char *text = st == CDVR_OK ? header_for_teem(&h) : NULL;
+    char *text = st == CDVR_OK ? header_for_teem(&s->h) : NULL;
     if (st == CDVR_OK && !text)
         st = cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
-    Nrrd *nrrd = st == CDVR_OK ? nrrdNew() : NULL;
-    NrrdIoState *nio = st == CDVR_OK ? nrrdIoStateNew() : NULL;
-    if (st == CDVR_OK && (!nrrd || !nio))
-        st = cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
     if (st == CDVR_OK) {
-        nio->skipData = 1;
-        if (nrrdStringRead(nrrd, text, nio))
+        s->nrrd = nrrdNew();
+        s->nio = nrrdIoStateNew();
+        if (!s->nrrd || !s->nio)
+            st = cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
+    }
+    if (st == CDVR_OK) {
+        s->nio->skipData = 1;
+        if (nrrdStringRead(s->nrrd, text, s->nio))
             st = teem_error(path, "cannot read NRRD header", err);
     }
-    nrrd_shape shape;
-    if (st == CDVR_OK)
-        st = shape_of(path, nrrd, nio, &shape, err);
-    if (st == CDVR_OK)
-        st = check_data_files(path, &h, &shape, err);
-    if (nio) /* teem's Nix functions dereference their argument */
-        nrrdIoStateNix(nio);
-    if (nrrd)
-        nrrdNuke(nrrd);
     free(text);
-    free(h.data_file);
-    free(h.text);
+    if (st == CDVR_OK)
+        st = shape_of(path, s->nrrd, s->nio, &s->shape, err);
+    uint64_t max = cdvr_load_max_bytes(opts), vbytes = st == CDVR_OK ? volume_bytes(s->nrrd, s->shape.elements) : 0;
+    if (st == CDVR_OK && (s->shape.bytes > max || vbytes > max))
+        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD header claims %llu bytes of data (%s), "
+                            "more than max_bytes %llu (a load option; the default is half the "
+                            "physical memory)", path,
+                            (unsigned long long)(s->shape.bytes > vbytes ? s->shape.bytes : vbytes),
+                            s->shape.what, (unsigned long long)max);
+    if (st == CDVR_OK && s->shape.byte_skip < 0 && s->shape.encoding != nrrdEncodingRaw)
+        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD byte skip %ld (data at the end of the "
+                            "file) needs raw encoding, not %s", path, s->shape.byte_skip,
+                            s->shape.encoding->name);
+    if (st == CDVR_OK)
+        st = resolve_files(s, err);
+    if (st == CDVR_OK && !header_only) {
+        st = check_data_files(s, err);
+    }
+    if (st != CDVR_OK) {
+        cdvr_nrrd_close(s);
+        return st;
+    }
+    *out = s;
+    return CDVR_OK;
+}
+
+/* ---- reading the data -------------------------------------------------------------------- */
+
+typedef struct data_sink {
+    int (*fn)(void *ud, const unsigned char *p, size_t n);
+    void *ud;
+    uint64_t skip;                 /* decompressed bytes still to drop (byte skip) */
+} data_sink;
+
+static int feed(data_sink *k, const unsigned char *p, size_t n)
+{
+    if (k->skip) {
+        size_t d = k->skip < n ? (size_t)k->skip : n;
+        k->skip -= d;
+        p += d;
+        n -= d;
+    }
+    return n == 0 || k->fn(k->ud, p, n);
+}
+
+/* Inflates (gzip or zlib, concatenated members continue as in teem's reader) until want bytes
+ * came out; then the stream must end there. Returns the reason of a failure or NULL. */
+static const char *inflate_to(FILE *f, uint64_t want, data_sink *k, unsigned char *in,
+                              unsigned char *out, uint64_t *produced, int *sink_failed)
+{
+    z_stream z;
+    memset(&z, 0, sizeof z);
+    if (inflateInit2(&z, 15 + 32) != Z_OK)
+        return "zlib cannot start";
+    const char *why = NULL;
+    int eof = 0, ended = 0;
+    while (!why) {
+        if (z.avail_in == 0 && !eof) {
+            z.avail_in = (uInt)fread(in, 1, STREAM_BUF, f);
+            z.next_in = in;
+            eof = z.avail_in == 0;
+        }
+        uint64_t left = want - *produced;
+        uInt room = left == 0 ? 1 : left < STREAM_BUF ? (uInt)left : STREAM_BUF; /* 1: probe for more */
+        z.next_out = out;
+        z.avail_out = room;
+        int rc = inflate(&z, Z_NO_FLUSH);
+        size_t got = room - z.avail_out;
+        if (left == 0 && got > 0) {
+            why = "the stream holds more data than the header claims";
+            break;
+        }
+        *produced += got;
+        if (got && !feed(k, out, got)) {
+            *sink_failed = 1;
+            break;
+        }
+        if (rc == Z_STREAM_END) { /* end of a gzip member: another may follow */
+            if (z.avail_in == 0 && !eof) {
+                z.avail_in = (uInt)fread(in, 1, STREAM_BUF, f);
+                z.next_in = in;
+                eof = z.avail_in == 0;
+            }
+            if (z.avail_in == 0) {
+                ended = 1;
+                break;
+            }
+            inflateReset(&z);
+        } else if (rc == Z_BUF_ERROR && eof && z.avail_in == 0) {
+            break; /* the data end in the middle of the stream */
+        } else if (rc != Z_OK && rc != Z_BUF_ERROR) {
+            why = z.msg ? z.msg : "corrupt data";
+        }
+    }
+    (void)ended;
+    inflateEnd(&z);
+    return why;
+}
+
+static const char *bunzip_to(FILE *f, uint64_t want, data_sink *k, unsigned char *in,
+                             unsigned char *out, uint64_t *produced, int *sink_failed)
+{
+    bz_stream b;
+    memset(&b, 0, sizeof b);
+    if (BZ2_bzDecompressInit(&b, 0, 0) != BZ_OK)
+        return "libbz2 cannot start";
+    const char *why = NULL;
+    int eof = 0;
+    while (!why) {
+        if (b.avail_in == 0 && !eof) {
+            b.avail_in = (unsigned)fread(in, 1, STREAM_BUF, f);
+            b.next_in = (char *)in;
+            eof = b.avail_in == 0;
+        }
+        uint64_t left = want - *produced;
+        unsigned room = left == 0 ? 1 : left < STREAM_BUF ? (unsigned)left : STREAM_BUF;
+        b.next_out = (char *)out;
+        b.avail_out = room;
+        int rc = BZ2_bzDecompress(&b);
+        size_t got = room - b.avail_out;
+        if (left == 0 && got > 0) {
+            why = "the stream holds more data than the header claims";
+            break;
+        }
+        *produced += got;
+        if (got && !feed(k, out, got)) {
+            *sink_failed = 1;
+            break;
+        }
+        if (rc == BZ_STREAM_END)
+            break;
+        if (rc != BZ_OK)
+            why = rc == BZ_DATA_ERROR_MAGIC ? "not bzip2 data" : rc == BZ_MEM_ERROR ? "out of memory" : "corrupt data";
+        else if (eof && got == 0 && b.avail_in == 0)
+            break; /* no input left and nothing came out: the data end */
+    }
+    BZ2_bzDecompressEnd(&b);
+    return why;
+}
+
+static int discard(void *ud, const unsigned char *p, size_t n)
+{
+    (void)ud, (void)p, (void)n;
+    return 1;
+}
+
+/* bzip2 has no useful ratio bound: a stream claiming more than 1032 times its stored bytes
+ * (beyond any gzip) is decompressed once, nothing kept, before the volume is allocated. */
+static cdvr_status count_bzip2(const char *path, const char *file, uint64_t offset,
+                               const nrrd_shape *s, uint64_t need, cdvr_error *err)
+{
+    FILE *f;
+    cdvr_status st = cdvr_fopen_regular_file(file, &f, NULL, err);
+    if (st != CDVR_OK)
+        return st;
+    unsigned char *buf = malloc(2 * STREAM_BUF);
+    data_sink k = {discard, NULL, 0};
+    uint64_t produced = 0;
+    int failed = 0;
+    const char *why = "out of memory";
+    if (buf && fseeko(f, (off_t)offset, SEEK_SET) == 0 && skip_lines(f, s->line_skip))
+        why = bunzip_to(f, need, &k, buf, buf + STREAM_BUF, &produced, &failed);
+    else if (buf)
+        why = "the file ends before the data";
+    free(buf);
+    fclose(f);
+    if (why)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: corrupt bzip2 data in %s: %s", path, file, why);
+    if (produced < need)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                              "%s: NRRD header claims %llu bytes of data (%s), but the bzip2 data in %s end after %llu bytes",
+                              path, (unsigned long long)need, s->what, file, (unsigned long long)produced);
+    return CDVR_OK;
+}
+
+/* Streams one data file's share (want bytes after the byte skip) to the sink. */
+static cdvr_status stream_file(const cdvr_nrrd_source *s, const char *file, int attached,
+                               uint64_t want, data_sink *k, unsigned char *buf, cdvr_error *err)
+{
+    const nrrd_shape *sh = &s->shape;
+    FILE *f;
+    struct stat sb;
+    cdvr_status st = cdvr_fopen_regular_file(file, &f, &sb, err);
+    if (st != CDVR_OK)
+        return st;
+    uint64_t offset = attached ? s->h.data_offset : 0;
+    int ok = fseeko(f, (off_t)offset, SEEK_SET) == 0 && skip_lines(f, sh->line_skip);
+    if (!ok) {
+        fclose(f);
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: %s ends before the %u lines to skip",
+                              s->path, file, sh->line_skip);
+    }
+    int sink_failed = 0;
+    uint64_t produced = 0, skip = sh->byte_skip > 0 ? (uint64_t)sh->byte_skip : 0;
+    const char *why = NULL, *kind = "raw";
+    if (sh->encoding == nrrdEncodingRaw) {
+        if (sh->byte_skip < 0) /* -1: the data are the file's last bytes */
+            ok = (uint64_t)sb.st_size >= want && fseeko(f, (off_t)((uint64_t)sb.st_size - want), SEEK_SET) == 0;
+        else
+            ok = fseeko(f, (off_t)skip, SEEK_CUR) == 0;
+        while (ok && produced < want) {
+            size_t n = want - produced < STREAM_BUF ? (size_t)(want - produced) : STREAM_BUF;
+            size_t got = fread(buf, 1, n, f);
+            produced += got;
+            if (got && !feed(k, buf, got)) {
+                sink_failed = 1;
+                break;
+            }
+            if (got < n)
+                break;
+        }
+    } else {
+        k->skip = skip;
+        kind = sh->encoding == nrrdEncodingBzip2 ? "bzip2" : "gzip";
+        if (sh->encoding == nrrdEncodingBzip2)
+            why = bunzip_to(f, want + skip, k, buf, buf + STREAM_BUF, &produced, &sink_failed);
+        else
+            why = inflate_to(f, want + skip, k, buf, buf + STREAM_BUF, &produced, &sink_failed);
+        produced = produced > skip ? produced - skip : 0;
+    }
+    fclose(f);
+    if (sink_failed)
+        return CDVR_ERR_FORMAT; /* the sink's message is in err */
+    if (why)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: corrupt %s data in %s: %s", s->path, kind,
+                              file, why);
+    if (produced < want)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT,
+                              "%s: NRRD header claims %llu bytes of data (%s), but the %s data in %s end after %llu bytes",
+                              s->path, (unsigned long long)want, sh->what, kind, file,
+                              (unsigned long long)produced);
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_nrrd_stream(const cdvr_nrrd_source *s,
+                             int (*sink)(void *ud, const unsigned char *p, size_t n), void *ud,
+                             cdvr_error *err)
+{
+    unsigned char *buf = malloc(2 * STREAM_BUF);
+    if (!buf)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", s->path);
+    data_sink k = {sink, ud, 0};
+    cdvr_status st = CDVR_OK;
+    if (!s->files)
+        st = stream_file(s, s->path, 1, s->shape.bytes, &k, buf, err);
+    for (size_t i = 0; s->files && st == CDVR_OK && i < s->nfiles; i++)
+        st = stream_file(s, s->files[i], 0, s->shape.bytes / s->nfiles, &k, buf, err);
+    free(buf);
     return st;
 }

@@ -28,6 +28,12 @@ static cdvr_status check_raw_opts(const char *path, const cdvr_raw_opts *opts, s
                               "%s: dims %zux%zux%zu x %zu timesteps of %s overflow the address space",
                               path, opts->dims[0], opts->dims[1], opts->dims[2], timesteps,
                               cdvr_type_name(opts->type));
+    if (*data_bytes > cdvr_load_max_bytes(opts))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: dims %zux%zux%zu x %zu timesteps of %s are "
+                              "%zu bytes, more than max_bytes %llu (a load option; the default is "
+                              "half the physical memory)", path, opts->dims[0], opts->dims[1],
+                              opts->dims[2], timesteps, cdvr_type_name(opts->type), *data_bytes,
+                              (unsigned long long)cdvr_load_max_bytes(opts));
     return CDVR_OK;
 }
 

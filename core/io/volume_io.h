@@ -26,14 +26,6 @@ void cdvr_convert_to_f32(float *dst, const void *src, size_t count, cdvr_value_r
  * cdvr/regular_file.h), else CDVR_ERR_IO naming path and reason. */
 cdvr_status cdvr_check_readable(const char *path, cdvr_error *err);
 
-/* Refuses a NRRD file before teem reads it (io_nrrd_check.c): data files that are not regular
- * files or are the header itself, and headers claiming more data than the files can hold
- * (raw: file size; gzip: ratio bound, then one inflate pass; bzip2: one decompression pass). */
-cdvr_status cdvr_nrrd_check(const char *path, cdvr_error *err);
-/* Only the header part of cdvr_nrrd_check (a regular file, a header within the length limit),
- * for probes that do not read the data. */
-cdvr_status cdvr_nrrd_check_header(const char *path, cdvr_error *err);
-
 /* Cuts teem's biff message (several "[nrrd] function: text" lines, innermost last) in place to
  * its innermost non-empty reason. */
 void cdvr_teem_reason(char *msg);

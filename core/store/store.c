@@ -432,6 +432,13 @@ static cdvr_status check_header_values(const char *path, const header_fields *h,
         h->qhi < h->qlo)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: spacing, origin, direction or window "
                               "not finite (or window hi < lo)", path);
+    double inv[9]; /* an all-zero matrix would otherwise render as the identity */
+    if (!cdvr_mat3_inverse(h->direction, inv))
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: direction matrix %g %g %g / %g %g %g / "
+                              "%g %g %g is singular (all zero or its columns do not span 3D)",
+                              path, h->direction[0], h->direction[1], h->direction[2],
+                              h->direction[3], h->direction[4], h->direction[5], h->direction[6],
+                              h->direction[7], h->direction[8]);
     if (h->source_type > CDVR_TYPE_F32)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: unknown source type %u", path,
                               h->source_type);

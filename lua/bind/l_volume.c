@@ -628,6 +628,28 @@ static void spacing_field(lua_State *L, int idx, double out[3])
     }
 }
 
+/* The readers' limits (cdvr_raw_opts): allow_outside (boolean: a NRRD header may name data
+ * files outside its directory) and max_bytes (positive integer: the voxel bytes a file may
+ * claim; default half the physical memory). */
+static void limit_fields(lua_State *L, int idx, cdvr_raw_opts *raw)
+{
+    lua_getfield(L, idx, "allow_outside");
+    if (!lua_isnil(L, -1) && !lua_isboolean(L, -1))
+        luaL_error(L, "option 'allow_outside': boolean expected, got %s", luaL_typename(L, -1));
+    raw->allow_outside = lua_toboolean(L, -1);
+    lua_pop(L, 1);
+    lua_getfield(L, idx, "max_bytes");
+    if (!lua_isnil(L, -1)) {
+        int isnum = 0;
+        lua_Integer n = lua_tointegerx(L, -1, &isnum);
+        if (!isnum || n < 1)
+            luaL_error(L, "option 'max_bytes': positive integer expected, got %s",
+                       luaL_tolstring(L, -1, NULL));
+        raw->max_bytes = (uint64_t)n;
+    }
+    lua_pop(L, 1);
+}
+
 /* Reads the raw/loader options of table idx (may be none). Returns 1 when raw dims and type
  * were given (both are then required), 0 otherwise; spacing is filled either way. */
 static int raw_opts(lua_State *L, int idx, cdvr_raw_opts *raw)
@@ -637,6 +659,7 @@ static int raw_opts(lua_State *L, int idx, cdvr_raw_opts *raw)
         return 0;
     luaL_checktype(L, idx, LUA_TTABLE);
     spacing_field(L, idx, raw->spacing);
+    limit_fields(L, idx, raw);
     int has_dims = dims_field(L, idx, raw->dims);
     lua_getfield(L, idx, "type");
     int has_type = !lua_isnil(L, -1);
@@ -664,14 +687,15 @@ static int push_load_result(lua_State *L, cdvr_status st, cdvr_volume *vol, cons
 
 static int l_load(lua_State *L)
 {
-    static const char *const keys[] = {"dims", "type", "endian", "header", "timesteps", "spacing", NULL};
+    static const char *const keys[] = {"dims", "type", "endian", "header", "timesteps", "spacing",
+                                       "allow_outside", "max_bytes", NULL};
     lcdvr_checkoptions(L, 2, "cdvr.load", keys);
     const char *path = luaL_checkstring(L, 1);
     cdvr_raw_opts raw;
     int has_raw = raw_opts(L, 2, &raw);
     cdvr_volume *vol = NULL;
     cdvr_error err;
-    cdvr_status st = cdvr_volume_load(path, has_raw ? &raw : NULL, &vol, &err);
+    cdvr_status st = cdvr_volume_load(path, &raw, &vol, &err); /* dims 0: limits + spacing only */
     if (st == CDVR_OK && !has_raw)
         for (int i = 0; i < 3; i++)
             if (raw.spacing[i] > 0)
@@ -716,7 +740,8 @@ static int series_names_from_pattern(lua_State *L, const char *pattern, int opts
 static int l_load_series(lua_State *L)
 {
     static const char *const keys[] = {"dims", "type", "endian", "header", "timesteps", "spacing",
-                                       "first", "count", "last", NULL};
+                                       "first", "count", "last", "allow_outside", "max_bytes",
+                                       NULL};
     lcdvr_checkoptions(L, 2, "cdvr.load_series", keys);
     cdvr_raw_opts raw;
     int has_raw = raw_opts(L, 2, &raw);
@@ -881,6 +906,8 @@ int lcdvr_open_volume(lua_State *L)
     lcdvr_help_add(L, "cdvr.load(path [, opts])",
                    "load .nrrd .nhdr .nii .nii.gz (or any format of cdvr.formats(), by suffix, else by its first bytes), "
                    "or raw with opts {dims=, type=, endian=, header=, timesteps=, spacing=}; "
+                   "allow_outside=true lets a NRRD header name data files outside its directory, max_bytes= caps the "
+                   "voxel bytes a file may claim (default half the physical memory); "
                    "a file that cannot be read raises an error naming it and the reason");
     lcdvr_help_add(L, "cdvr.formats()",
                    "list of file formats: {name, description, suffixes, magic, series, described, plugin}");

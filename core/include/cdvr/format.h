@@ -38,9 +38,14 @@
  *  - flags: CDVR_FORMAT_DESCRIBED when the format reads only what the caller describes (raw:
  *    dims and type in cdvr_raw_opts); then a file without a description is refused naming what
  *    is missing.
- * opts (cdvr_raw_opts: the raw description and a spacing override) is passed to every function
- * and may be NULL; formats that read their geometry from the file ignore it: the registry
- * applies a given spacing (> 0 per axis) over what the file says, after probe and load.
+ * opts (cdvr_raw_opts: the raw description, a spacing override and the readers' limits) is
+ * passed to every function and may be NULL; formats that read their geometry from the file ignore
+ * the description: the registry applies a given spacing (> 0 per axis) over what the file says,
+ * after probe and load. The limits bind every format: a file may read only files under its own
+ * directory (after realpath) unless opts->allow_outside, and a claim of more than
+ * cdvr_load_max_bytes(opts) voxel bytes is refused before anything is allocated or inflated (the
+ * registry checks it for a format with `read`, from the probe). A header field a format cannot
+ * honour is refused naming the field and its value, never replaced by a default.
  * Errors name the file and the reason (cdvr/error.h); a format never aborts on bad input and
  * must not read outside what the file's header justifies (they are fuzzed). Every function of a
  * table must be safe to call from several threads at once on different files.

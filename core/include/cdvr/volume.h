@@ -107,7 +107,21 @@ typedef struct cdvr_raw_opts {
     int big_endian;
     size_t header_bytes;
     double spacing[3]; /* 0 -> 1 */
+    /* Limits for every loader (not only raw; appended fields, so older plugins still read the
+     * ones above). A NRRD header's detached data files must lie under the header's directory
+     * (after realpath: symlinks and '..' resolved) unless allow_outside is nonzero; the refusal
+     * names the path. max_bytes caps the voxel bytes a file may claim (after conversion, all
+     * timesteps): a larger claim is refused before anything is allocated or inflated; 0 means
+     * cdvr_load_max_bytes_default(). */
+    int allow_outside;
+    uint64_t max_bytes;
 } cdvr_raw_opts;
+
+/* The default max_bytes of cdvr_raw_opts: half the physical memory (sysconf), at least 64 MiB;
+ * 1 TiB when the memory size cannot be told. */
+uint64_t cdvr_load_max_bytes_default(void);
+/* opts->max_bytes, or the default when opts is NULL or gives 0. */
+uint64_t cdvr_load_max_bytes(const cdvr_raw_opts *opts);
 
 cdvr_status cdvr_volume_load_raw(const char *path, const cdvr_raw_opts *opts,
                                  cdvr_volume **out, cdvr_error *err);
@@ -117,7 +131,10 @@ cdvr_status cdvr_volume_save_raw(const cdvr_volume *vol, const char *path, int b
                                  cdvr_error *err);
 
 /* Loaders keep u8, u16, i16 and f32 as they are; other file types (i8, u32, i32, i64, u64,
- * f64) become f32, each value rounded to the nearest float (beyond float's range: +-Inf). */
+ * f64) become f32, each value rounded to the nearest float; a finite value beyond float's range
+ * (it would become +-Inf) is refused naming the value and its index, and NaN and +-Inf stay as
+ * they are. Header fields the loaders cannot honour are refused naming the field and its value
+ * (README: what the readers refuse), never replaced by a default. */
 /* .nrrd / .nhdr through teem. 3D (or 4D: the 4th axis becomes timesteps). */
 cdvr_status cdvr_volume_load_nrrd(const char *path, cdvr_volume **out, cdvr_error *err);
 /* .nii / .nii.gz through niftilib. 3D, or 4D (timesteps = dim[4]). */
