@@ -635,7 +635,7 @@ static void limit_fields(lua_State *L, int idx, cdvr_raw_opts *raw)
 {
     lua_getfield(L, idx, "allow_outside");
     if (!lua_isnil(L, -1) && !lua_isboolean(L, -1))
-        luaL_error(L, "option 'allow_outside': boolean expected, got %s", luaL_typename(L, -1));
+        lcdvr_error(L, "option 'allow_outside': boolean expected, got %s", luaL_typename(L, -1));
     raw->allow_outside = lua_toboolean(L, -1);
     lua_pop(L, 1);
     lua_getfield(L, idx, "max_bytes");
@@ -643,7 +643,7 @@ static void limit_fields(lua_State *L, int idx, cdvr_raw_opts *raw)
         int isnum = 0;
         lua_Integer n = lua_tointegerx(L, -1, &isnum);
         if (!isnum || n < 1)
-            luaL_error(L, "option 'max_bytes': positive integer expected, got %s",
+            lcdvr_error(L, "option 'max_bytes': positive integer expected, got %s",
                        luaL_tolstring(L, -1, NULL));
         raw->max_bytes = (uint64_t)n;
     }
