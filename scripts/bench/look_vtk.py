@@ -13,7 +13,9 @@ SetBlendModeToMinimumIntensity (blend="min"). cdvr runs as a subprocess that ren
 so the renderers are interleaved: each round renders every (renderer, case) once, and the median
 of the rounds is reported. CSV on stdout; images in --out (VTK's ray-cast image before its
 display resampling, see vs_vtk.py, and cdvr's), PSNR of each cdvr image against VTK's image of
-the same case. Installs and re-executes as vs_vtk.py does (python3-vtk9 under xvfb-run).
+the same case (and against vtkGPUVolumeRayCastMapper's window image with --gpu: its shading is
+the gradient of the data at each sample, as cdvr's, where the fixed-point mapper shades with
+quantised precomputed normals). Installs and re-executes as vs_vtk.py does (python3-vtk9 under xvfb-run).
 Run from the repository root after building.
 """
 import argparse
@@ -206,6 +208,10 @@ def loadavg():
         return "nan"
 
 
+def fmt_db(x):
+    return "inf" if x == float("inf") else "nan" if x != x else f"{x:.2f}"
+
+
 def median(xs):
     s = sorted(xs)
     n = len(s)
@@ -225,7 +231,7 @@ def main():
     os.makedirs(args.out, exist_ok=True)
     tty = sys.stderr.isatty()
     print("volume,case,renderer,size,step,repeats,median_ms,time_ratio_to_vtk_fixed_point,"
-          "psnr_vs_vtk_fixed_point_db,load_before,load_after")
+          "psnr_vs_vtk_fixed_point_db,psnr_vs_vtk_gpu_db,load_before,load_after")
     for name in args.volumes.split(","):
         path, tf = VOLUMES[name]
         raw = os.path.join(args.out, f"{name}.raw")
@@ -268,9 +274,10 @@ def main():
                 ms = median(times[(case, rname)])
                 png = os.path.join(args.out, f"{name}_{case}_{rname}.png")
                 p = vs_vtk.psnr(png, ref_png)
+                gpu_png = os.path.join(args.out, f"{name}_{case}_vtk_gpu.png")
+                g = vs_vtk.psnr(png, gpu_png) if "vtk_gpu" in renderers else float("nan")
                 print(f"{name},{case},{rname},{args.size},{STEP},{args.repeats},{ms:.2f},"
-                      f"{ms / ref_ms:.3f},{'inf' if p == float('inf') else f'{p:.2f}'},"
-                      f"{load_before},{load_after}")
+                      f"{ms / ref_ms:.3f},{fmt_db(p)},{fmt_db(g)},{load_before},{load_after}")
                 sys.stdout.flush()
     print(f"# images in {args.out}; {os.cpu_count()} cores", file=sys.stderr)
 
