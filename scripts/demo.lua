@@ -47,9 +47,10 @@ local series = assert(cdvr.load(data))
 local nx, ny, nz = series:dims()
 local lo, hi = series:range()
 -- Timestep 1 is the M0 (proton density) image, twice as bright as the labelled timesteps
--- (max about 2839 against 975..1415): a window over all of it would leave those dark. The
--- window [0, 1500] keeps every labelled timestep and clips M0's brightest voxels.
-local wlo, whi = 0, math.min(hi, 1500)
+-- (max about 2839 against 975..1415, most of their brain below 1100): a window over all of it
+-- would leave those dark. The window [0, 1100] shows every labelled timestep in the colour
+-- map's bright half, clipping their hottest voxels and much of M0 (the count is printed).
+local wlo, whi = 0, math.min(hi, 1100)
 local q, qinfo = series:quantize{lo = wlo, hi = whi}
 print(("data: %s  %dx%dx%d x %d timesteps (%s), range [%.1f, %.1f], window [%g, %g], %d values clipped, %d NaN"):format(
   data:match("[^/]+$"), nx, ny, nz, series:timesteps(), series:type(), lo, hi, wlo, whi, qinfo.clipped, qinfo.nan))
