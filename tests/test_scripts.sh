@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The user-facing scripts run end to end: report.lua on a small series (CSV header and rows,
-# PNG chart), regress.lua against share/regress/reference.lua, demo.lua (short).
+# PNG chart), regress.lua against share/regress/reference.lua, demo.lua (short: its stills, JPEG
+# and frames are written, the bundled CT loads in HU).
 cdvr=${1:?usage: test_scripts.sh path/to/cdvr}
 src=${CDVR_SOURCE_DIR:-$(cd "$(dirname "$0")/.." && pwd)}
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
@@ -43,9 +44,14 @@ sed 's/value = \([0-9.]*\)/value = \1 + 5/' share/regress/reference.lua > "$tmp/
 check "regress.lua fails on moved figures" [ $? -ne 0 ]
 check "regress.lua names the moved check" grep -q "MOVED ml/S1T3/volume_psnr" "$tmp/moved.err"
 
-"$cdvr" scripts/demo.lua --frames 6 --out "$tmp/demo" >"$tmp/demo.out" 2>&1
+"$cdvr" scripts/demo.lua --frames 6 --size 256 --out "$tmp/demo" >"$tmp/demo.out" 2>&1
 check "demo.lua exit 0" [ $? -eq 0 ]
 check "demo frames written" [ -s "$tmp/demo/0006.png" ]
+for f in head_ct head_ct_flat head_ct_mip asl_t02; do
+  check "demo $f.png is a PNG" [ "$(head -c 8 "$tmp/demo/$f.png" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ]
+done
+check "demo head_ct.jpg is a JPEG" [ "$(head -c 3 "$tmp/demo/head_ct.jpg" | od -An -tx1 | tr -d ' \n')" = "ffd8ff" ]
+check "demo CT in HU" grep -q '^data: headsq_64x64x93_i16.nrrd  64x64x93 i16, -1024 .. 2902 HU$' "$tmp/demo.out"
 check "demo table printed" grep -q '^S1T3 ' "$tmp/demo.out"
 
 echo "$passed passed, $failed failed"
