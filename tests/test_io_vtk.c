@@ -470,10 +470,13 @@ static void test_hostile(void)
     memcpy(msg + n - 10, app, sizeof app - 1);
     memcpy(msg + n - 10 + sizeof app - 1, "</VTKFile>", 10);
     write_text(path, msg, (size_t)n + sizeof app - 1);
-    expect_refused("appended count beyond the file", path, "the file holds");
-    /* zlib: 2^40 blocks claimed */
-    n = snprintf(msg, sizeof msg, pre, "compressor=\"vtkZLibDataCompressor\"", "0", "0",
-                 "binary", "0", "AAAAAAAAAQAAAAAAAAAAAAAAAAAAAAAAAAA=", "");
+    expect_refused("appended count beyond the file", path, "the file holds for them");
+    /* zlib: 2^40 blocks claimed (a small extent: the header itself is refused) */
+    n = snprintf(msg, sizeof msg, "<VTKFile type=\"ImageData\" header_type=\"UInt64\" "
+                 "compressor=\"vtkZLibDataCompressor\"><ImageData WholeExtent=\"0 3 0 0 0 0\">"
+                 "<Piece Extent=\"0 3 0 0 0 0\"><PointData><DataArray type=\"Float32\" Name=\"a\" "
+                 "format=\"binary\">AAAAAAAAAQAAAAAAAAAAAAAAAAAAAAAAAAA=</DataArray></PointData>"
+                 "</Piece></ImageData></VTKFile>");
     write_text(path, msg, (size_t)n);
     expect_refused("zlib block count", path, "compression header");
     /* an appended offset past the end */
@@ -484,7 +487,13 @@ static void test_hostile(void)
     /* ASCII with too few values */
     n = snprintf(msg, sizeof msg, pre, "", "0", "0", "ascii", "0", "1 2 3", "");
     write_text(path, msg, (size_t)n);
-    expect_refused("ascii short", path, "missing");
+    expect_refused("ascii beyond the file", path, "the file holds for them");
+    n = snprintf(msg, sizeof msg, "<VTKFile type=\"ImageData\"><ImageData WholeExtent=\"0 3 0 0 "
+                 "0 0\"><Piece Extent=\"0 3 0 0 0 0\"><PointData><DataArray type=\"Int16\" "
+                 "Name=\"a\" format=\"ascii\">1 2 3    </DataArray></PointData></Piece></ImageData>"
+                 "</VTKFile>");
+    write_text(path, msg, (size_t)n);
+    expect_refused("ascii short", path, "value 3 of 4 is missing");
     /* a DOCTYPE (entity expansion) */
     n = snprintf(msg, sizeof msg, "<!DOCTYPE a [<!ENTITY x \"xx\">]><VTKFile type=\"ImageData\"/>");
     write_text(path, msg, (size_t)n);

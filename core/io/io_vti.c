@@ -479,6 +479,34 @@ static cdvr_status read_compressed(const vti_parse *v, src *s, uint8_t *buf, siz
     return st;
 }
 
+/* Before allocating: the bytes the file holds for the chosen array bound what its extent may
+ * claim (ASCII: two bytes a value; raw: the exact size; compressed: zlib's largest ratio). */
+static cdvr_status vti_size_check(const vti_parse *v, const cdvr_io_map *map, const cdvr_volume *head)
+{
+    size_t count = head->dims[0] * head->dims[1] * head->dims[2]; /* checked by vti_geometry */
+    size_t bytes = count * cdvr_io_etype_size(v->type), avail, need = bytes;
+    if (v->format == FMT_ASCII) {
+        avail = v->text_n;
+        need = count > avail / 2 + 1 ? SIZE_MAX : 0;
+    } else {
+        size_t at = v->format == FMT_APPENDED ? v->appended_at : 0;
+        if (v->format == FMT_APPENDED && v->offset > map->n - at)
+            return block_error(v, "the appended offset is past the end of the file", v->offset,
+                               map->n - at);
+        at += v->format == FMT_APPENDED ? (size_t)v->offset : 0;
+        int text = v->format == FMT_BINARY || v->appended_base64;
+        avail = v->format == FMT_BINARY ? cdvr_io_base64_bound(0, v->text_n)
+                : text ? cdvr_io_base64_bound(at, map->n) : map->n - at;
+        if (v->compressor != COMP_NONE)
+            need = bytes / 1032;
+    }
+    if (need > avail)
+        return cdvr_error_set(v->err, CDVR_ERR_FORMAT, "%s: DataArray '%s': the extent's %zu "
+                              "values (%zu bytes) cannot be in the %zu bytes the file holds for "
+                              "them", v->path, v->name, count, bytes, avail);
+    return CDVR_OK;
+}
+
 /* The chosen array's voxels into vol. */
 static cdvr_status vti_voxels(const vti_parse *v, const cdvr_io_map *map, cdvr_volume *vol)
 {
@@ -575,6 +603,8 @@ static cdvr_status vti_load_file(const char *path, const char *array, cdvr_volum
     st = vti_header(&v, &map);
     if (st == CDVR_OK)
         st = vti_geometry(&v, &head, err);
+    if (st == CDVR_OK)
+        st = vti_size_check(&v, &map, &head);
     if (st == CDVR_OK)
         st = cdvr_volume_create(head.dims, 1, head.type, &vol, err);
     if (st == CDVR_OK) {
