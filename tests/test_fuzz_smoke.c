@@ -436,13 +436,29 @@ static int make_raw_seed(bytes *seed)
 
 /* VTK seeds (fuzz_vtk.c): sel 0 a .vti of 5x3x2 Int16 (kind 0: ascii, 1: base64 inline, 2:
  * appended raw; the active scalars the second array), sel 1 a legacy .vtk (kind 3: BINARY, 4:
- * ASCII). */
+ * ASCII), sel 2 a MetaImage .mha (kind 5: raw big endian, 6: zlib). */
 static int make_vtk_seed(bytes *seed, int kind)
 {
     char text[2048];
-    uint8_t sel = kind >= 3;
+    uint8_t sel = kind >= 5 ? 2 : kind >= 3;
     int n = 0;
-    if (kind < 3) {
+    if (kind >= 5) {
+        n = snprintf(text, sizeof text, "ObjectType = Image\nNDims = 3\nBinaryData = True\n"
+                     "BinaryDataByteOrderMSB = True\nCompressedData = %s\nTransformMatrix = 0 1 "
+                     "0 -1 0 0 0 0 1\nOffset = 1 2 3\nElementSpacing = 0.5 1 2\nDimSize = 5 3 2\n"
+                     "ElementType = MET_SHORT\nElementDataFile = LOCAL\n",
+                     kind == 6 ? "True" : "False");
+        uint8_t raw[60], packed[128];
+        for (int i = 0; i < 30; i++) {
+            raw[2 * i] = (uint8_t)(((i * 1111 - 9000) >> 8) & 0xff);
+            raw[2 * i + 1] = (uint8_t)((i * 1111 - 9000) & 0xff);
+        }
+        uLongf zn = sizeof packed;
+        if (kind == 6 && compress2(packed, &zn, raw, sizeof raw, 9) != Z_OK)
+            return 0;
+        memcpy(text + n, kind == 6 ? packed : raw, kind == 6 ? zn : sizeof raw);
+        n += kind == 6 ? (int)zn : (int)sizeof raw;
+    } else if (kind < 3) {
         static const char *const fmt[] = {"ascii", "binary", "appended"};
         n = snprintf(text, sizeof text, "<?xml version=\"1.0\"?>\n<VTKFile type=\"ImageData\" "
                      "version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt32\">\n"
@@ -592,10 +608,10 @@ int main(void)
         check_loader_seed(&seed, ".raw", 9, 2);
         fuzz_seed("load", fuzz_load_input, &seed, 1000, 1, 6000u);
     }
-    for (int kind = 0; kind < 5; kind++) {
+    for (int kind = 0; kind < 7; kind++) {
         seed.n = 0;
         if (make_vtk_seed(&seed, kind)) {
-            check_loader_seed(&seed, kind < 3 ? ".vti" : ".vtk", 1, 1);
+            check_loader_seed(&seed, kind < 3 ? ".vti" : kind < 5 ? ".vtk" : ".mha", 1, 1);
             fuzz_seed("vtk", fuzz_vtk_input, &seed, 800, 1, 10000u + (uint32_t)kind);
         }
     }

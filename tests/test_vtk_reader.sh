@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# cdvr's VTK loaders (core/io/io_vti.c, io_vtk.c) against VTK itself: python3-vtk writes .vti
-# files in every mode its writer has (ascii, base64 inline, appended raw and base64; no, zlib and
-# LZ4 compression; UInt32 and UInt64 headers) and legacy .vtk (ASCII, BINARY), of odd dims, an
+# cdvr's VTK and MetaImage loaders (core/io/io_vti.c, io_vtk.c, io_mha.c) against VTK itself:
+# python3-vtk writes .vti files in every mode its writer has (ascii, base64 inline, appended raw
+# and base64; no, zlib and LZ4 compression; UInt32 and UInt64 headers), legacy .vtk (ASCII,
+# BINARY) and MetaImage (.mhd + .raw, .mha and .mhd + .zraw compressed), of odd dims, an
 # extent that does not start at 0, an oblique direction and five scalar types; VTK's own readers
 # read them back and give the world position and value of corner and inner voxels; cdvr.load of
 # the same file must give the same positions (1e-9) and values (exactly; float64 and int32 as
@@ -60,6 +61,14 @@ for t in types:
         w.SetFileTypeToBinary() if binary else w.SetFileTypeToASCII()
         assert w.Write() == 1
         files.append((path, t, vtk.vtkStructuredPointsReader()))
+    for suffix, comp in ((".mhd", 0), (".mha", 1), (".mhd", 1)):
+        path = "%s/f%02d%s" % (tmp, i, suffix); i += 1
+        w = vtk.vtkMetaImageWriter()
+        w.SetFileName(path)
+        w.SetInputData(image(t))
+        w.SetCompression(comp)
+        w.Write()
+        files.append((path, t, vtk.vtkMetaImageReader()))
 for path, t, r in files:
     r.SetFileName(path)
     r.Update()

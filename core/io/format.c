@@ -20,6 +20,7 @@ extern const cdvr_format cdvr_format_nifti;
 extern const cdvr_format cdvr_format_raw;
 extern const cdvr_format cdvr_format_vti;
 extern const cdvr_format cdvr_format_vtk;
+extern const cdvr_format cdvr_format_mha;
 
 #define REGISTRY_MAX 64
 
@@ -103,7 +104,8 @@ static void register_builtins(void)
 {
     static const cdvr_format *const builtins[] = {&cdvr_format_nrrd, &cdvr_format_nifti,
                                                      &cdvr_format_raw,
-                                                     &cdvr_format_vti, &cdvr_format_vtk};
+                                                     &cdvr_format_vti, &cdvr_format_vtk,
+                                                     &cdvr_format_mha};
     pthread_mutex_lock(&registry.mu);
     for (size_t i = 0; i < sizeof builtins / sizeof *builtins; i++)
         (void)add_locked(builtins[i], NULL); /* built-ins are valid: test_format checks */

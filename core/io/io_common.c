@@ -169,7 +169,7 @@ cdvr_status cdvr_io_inflate(const char *path, const char *what, const uint8_t *s
 {
     z_stream z;
     memset(&z, 0, sizeof z);
-    if (inflateInit(&z) != Z_OK)
+    if (inflateInit2(&z, 15 + 32) != Z_OK) /* zlib or gzip, told by the header */
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: %s: cannot start zlib", path, what);
     size_t in_done = 0, out_done = 0;
     int rc = Z_OK;

@@ -57,7 +57,7 @@ void cdvr_io_store_double(cdvr_volume *vol, size_t at, double v, cdvr_io_range *
 /* For a converted type: sets vol->window to r (or [0, 0] when no finite value). */
 void cdvr_io_finish(cdvr_volume *vol, cdvr_io_etype t, const cdvr_io_range *r);
 
-/* Inflates a zlib stream src[0..n) into exactly dst_n bytes at dst; a stream that is corrupt,
+/* Inflates a zlib (or gzip) stream src[0..n) into exactly dst_n bytes at dst; a stream that is corrupt,
  * ends early or holds more is CDVR_ERR_FORMAT naming path and what. */
 cdvr_status cdvr_io_inflate(const char *path, const char *what, const uint8_t *src, size_t n,
                             uint8_t *dst, size_t dst_n, cdvr_error *err);

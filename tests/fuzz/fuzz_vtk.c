@@ -3,7 +3,7 @@
  * temporary file -> cdvr_volume_probe and cdvr_volume_load by extension; errors are tolerated,
  * crashes and disagreements between the probe and the load are not. How to run: README.
  *
- * Input: 1 selector byte, then the file. selector % 2: 0 .vti, 1 .vtk. */
+ * Input: 1 selector byte, then the file. selector % 3: 0 .vti, 1 .vtk, 2 .mha. */
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -12,14 +12,14 @@
 #include "cdvr/volume.h"
 #include "fuzz_common.h"
 
-static const char *const VTK_SUFFIX[2] = {".vti", ".vtk"};
+static const char *const VTK_SUFFIX[3] = {".vti", ".vtk", ".mha"};
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     if (size < 1)
         return 0;
     char path[256];
-    if (!fuzz_write_temp(data + 1, size - 1, VTK_SUFFIX[data[0] % 2], path))
+    if (!fuzz_write_temp(data + 1, size - 1, VTK_SUFFIX[data[0] % 3], path))
         return 0;
     cdvr_volume head, *vol = NULL;
     cdvr_error err;
