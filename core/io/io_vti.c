@@ -537,6 +537,20 @@ static cdvr_status vti_voxels(const vti_parse *v, const cdvr_io_map *map, cdvr_v
         s = (src){map->p, map->n, v->appended_at + (size_t)v->offset, v->appended_base64};
     }
     size_t bytes = count * esize; /* checked by vti_geometry (count * 8 fits) */
+    if (!s.base64 && v->compressor == COMP_NONE) { /* straight from the mapping: one copy */
+        size_t h = v->header64 ? 8 : 4;
+        uint8_t hb[8];
+        if (!src_read(&s, hb, h, 0))
+            return block_error(v, "the block header is cut", h, src_left(&s));
+        if (header_word(v, hb) != bytes)
+            return block_error(v, "the block's byte count is not the extent's", header_word(v, hb),
+                               bytes);
+        if (src_left(&s) < bytes)
+            return block_error(v, "the block is longer than the file", bytes, src_left(&s));
+        cdvr_io_store(vol, 0, s.p + s.pos, v->type, v->big_endian, count, &range);
+        cdvr_io_finish(vol, v->type, &range);
+        return CDVR_OK;
+    }
     uint8_t *buf = malloc(bytes);
     if (!buf)
         return cdvr_error_set(v->err, CDVR_ERR_NOMEM, "%s: out of memory", v->path);
