@@ -5,9 +5,12 @@
  * files give their spacing (1/XResolution, 1/YResolution, spacing=) and frames= as timesteps;
  * uint32 and float64 become float32 with the window computed in double; pages that differ, RGB
  * pages, a header claiming more pixels than the file holds and a FIFO are refused naming the
- * file. */
+ * file. Stacks (cdvr/tiff.h): a directory and a glob pattern of one file per slice (one with two
+ * pages) load in natural order (s2 before s10), dot files and other names skipped; a slice of
+ * another size, an empty directory and a pattern matching nothing are refused. */
 #include "check.h"
 #include "cdvr/format.h"
+#include "cdvr/tiff.h"
 #include "cdvr/volume.h"
 
 #include <stdint.h>
@@ -204,6 +207,77 @@ static void test_hostile(void)
     unlink(path);
 }
 
+/* Slices s1, s2 (two pages), s10 of 6x4 u16, each page a constant: its slice number. */
+static void test_stack(void)
+{
+    char dir[256], path[512], pattern[512];
+    snprintf(dir, sizeof dir, "%s/stack", tmpdir);
+    mkdir(dir, 0700);
+    const struct { const char *name; uint32_t pages, w; } files[] = {
+        {"s10.tif", 1, 6}, {"s1.tif", 1, 6}, {"s2.tiff", 2, 6}, {".s0.tif", 1, 3}};
+    uint16_t first_value[] = {4, 1, 2, 0};
+    for (int f = 0; f < 4; f++) {
+        snprintf(path, sizeof path, "%s/%s", dir, files[f].name);
+        TIFF *t = TIFFOpen(path, "w");
+        for (uint32_t p = 0; p < files[f].pages; p++) {
+            uint16_t row[6];
+            for (int i = 0; i < 6; i++)
+                row[i] = (uint16_t)(first_value[f] + p);
+            TIFFSetField(t, TIFFTAG_IMAGEWIDTH, files[f].w);
+            TIFFSetField(t, TIFFTAG_IMAGELENGTH, 4);
+            TIFFSetField(t, TIFFTAG_BITSPERSAMPLE, 16);
+            TIFFSetField(t, TIFFTAG_SAMPLESPERPIXEL, 1);
+            TIFFSetField(t, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
+            for (uint32_t y = 0; y < 4; y++)
+                TIFFWriteScanline(t, row, y, 0);
+            TIFFWriteDirectory(t);
+        }
+        TIFFClose(t);
+    }
+    snprintf(path, sizeof path, "%s/notes.txt", dir);
+    FILE *nf = fopen(path, "w");
+    fputs("not a slice", nf);
+    fclose(nf);
+    snprintf(pattern, sizeof pattern, "%s/s*.tif*", dir);
+    const char *wheres[] = {dir, pattern};
+    for (int k = 0; k < 2; k++) {
+        cdvr_volume *vol = NULL, head;
+        cdvr_error err;
+        size_t nfiles = 0;
+        cdvr_status st = cdvr_tiff_probe_stack(wheres[k], &head, &nfiles, &err);
+        CHECK(st == CDVR_OK && head.dims[0] == 6 && head.dims[1] == 4 && head.dims[2] == 4 &&
+              nfiles == 3 && head.type == CDVR_TYPE_U16, "stack probe %s: %s", wheres[k],
+              err.msg);
+        st = cdvr_tiff_load_stack(wheres[k], &vol, &err);
+        CHECK(st == CDVR_OK, "stack %s: %s", wheres[k], err.msg);
+        if (st == CDVR_OK) {
+            int ordered = vol->dims[2] == 4;
+            for (size_t z = 0; ordered && z < 4; z++)
+                ordered = cdvr_volume_get(vol, 5, 3, z, 0) == (double)(z + 1);
+            CHECK(ordered, "stack %s: slices not in natural order", wheres[k]);
+            cdvr_volume_free(vol);
+        }
+    }
+    /* a slice of another size; an empty directory; a pattern matching nothing */
+    cdvr_volume *vol = NULL;
+    cdvr_error err;
+    snprintf(path, sizeof path, "%s/s3.tif", dir);
+    char src[512];
+    snprintf(src, sizeof src, "%s/.s0.tif", dir);
+    CHECK(rename(src, path) == 0, "rename");
+    cdvr_status st = cdvr_tiff_load_stack(dir, &vol, &err);
+    CHECK(st == CDVR_ERR_FORMAT && strstr(err.msg, "s3.tif") && strstr(err.msg, "must agree"),
+          "stack of mixed sizes: %s", err.msg);
+    snprintf(path, sizeof path, "%s/empty", tmpdir);
+    mkdir(path, 0700);
+    st = cdvr_tiff_load_stack(path, &vol, &err);
+    CHECK(st == CDVR_ERR_FORMAT && strstr(err.msg, "no .tif"), "empty dir: %s", err.msg);
+    snprintf(path, sizeof path, "%s/none_*.tif", tmpdir);
+    st = cdvr_tiff_load_stack(path, &vol, &err);
+    CHECK(st != CDVR_OK && vol == NULL && strstr(err.msg, "no file matches"), "no match: %s",
+          err.msg);
+}
+
 int main(void)
 {
     if (!mkdtemp(tmpdir)) {
@@ -229,6 +303,7 @@ int main(void)
                           "spacing=2.5\n"};
     check_case(&frames, 2, ij);
     test_hostile();
+    test_stack();
     char cmd[512];
     snprintf(cmd, sizeof cmd, "rm -rf %s", tmpdir);
     CHECK(system(cmd) == 0, "cleanup");

@@ -12,13 +12,20 @@
  * handler, never to stderr, and name the file. */
 #include "cdvr/format.h"
 #include "cdvr/regular_file.h"
+#include "cdvr/tiff.h"
 #include "io_common.h"
 #include "volume_io.h"
 
+#include <ctype.h>
+#include <dirent.h>
+#include <errno.h>
+#include <glob.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
+#include <sys/stat.h>
 #include <tiffio.h>
 #include <unistd.h>
 
@@ -242,6 +249,30 @@ static int read_page(TIFF *tif, const tiff_shape *s, uint8_t *page, uint8_t *tmp
     return 1;
 }
 
+/* The pages of an open file (its shape s) into vol from element `at` on. */
+static cdvr_status tiff_read_pages(const char *path, TIFF *tif, tiff_ctx *ctx,
+                                   const tiff_shape *s, cdvr_volume *vol, size_t at,
+                                   cdvr_io_range *range, cdvr_error *err)
+{
+    size_t es = cdvr_io_etype_size(s->type), plane = (size_t)s->w * s->h;
+    size_t tile_n = TIFFIsTiled(tif) ? (size_t)TIFFTileSize(tif) : 0;
+    uint8_t *page = malloc(plane * es), *tmp = malloc(tile_n ? tile_n : 1);
+    cdvr_status st = page && tmp ? CDVR_OK
+                                 : cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
+    size_t n = s->pages * s->timesteps;
+    for (size_t p = 0; st == CDVR_OK && p < n; p++) {
+        if (!TIFFSetDirectory(tif, (tdir_t)p) || !read_page(tif, s, page, tmp, tile_n))
+            st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: TIFF page %zu cannot be read: %s",
+                                path, p, ctx->msg[0] ? ctx->msg : "bad strips or tiles");
+        else
+            cdvr_io_store(vol, at + p * plane, page, s->type, !cdvr_host_is_little_endian(),
+                          plane, range);
+    }
+    free(page);
+    free(tmp);
+    return st;
+}
+
 static cdvr_status tiff_load(const char *path, const cdvr_raw_opts *opts, cdvr_volume **out,
                              cdvr_error *err)
 {
@@ -254,30 +285,15 @@ static cdvr_status tiff_load(const char *path, const cdvr_raw_opts *opts, cdvr_v
     if (st != CDVR_OK)
         return st;
     cdvr_volume head = {.spacing = {1, 1, 1}}, *vol = NULL;
+    cdvr_io_range range;
+    cdvr_io_range_init(&range);
     st = tiff_shape_of(path, tif, &s, err);
     if (st == CDVR_OK) {
         tiff_head(&s, &head);
         st = cdvr_volume_create(head.dims, head.timesteps, head.type, &vol, err);
     }
-    size_t es = cdvr_io_etype_size(s.type), plane = (size_t)s.w * s.h;
-    size_t tile_n = TIFFIsTiled(tif) ? (size_t)TIFFTileSize(tif) : 0;
-    uint8_t *page = st == CDVR_OK ? malloc(plane * es) : NULL;
-    uint8_t *tmp = st == CDVR_OK ? malloc(tile_n ? tile_n : 1) : NULL;
-    if (st == CDVR_OK && (!page || !tmp))
-        st = cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
-    cdvr_io_range range;
-    cdvr_io_range_init(&range);
-    size_t n = s.pages * s.timesteps;
-    for (size_t p = 0; st == CDVR_OK && p < n; p++) {
-        if (!TIFFSetDirectory(tif, (tdir_t)p) || !read_page(tif, &s, page, tmp, tile_n))
-            st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: TIFF page %zu cannot be read: %s",
-                                path, p, ctx.msg[0] ? ctx.msg : "bad strips or tiles");
-        else
-            cdvr_io_store(vol, p * plane, page, s.type, !cdvr_host_is_little_endian(), plane,
-                          &range);
-    }
-    free(page);
-    free(tmp);
+    if (st == CDVR_OK)
+        st = tiff_read_pages(path, tif, &ctx, &s, vol, 0, &range, err);
     TIFFClose(tif);
     if (st != CDVR_OK) {
         cdvr_volume_free(vol);
@@ -285,6 +301,233 @@ static cdvr_status tiff_load(const char *path, const cdvr_raw_opts *opts, cdvr_v
     }
     memcpy(vol->spacing, head.spacing, sizeof head.spacing);
     cdvr_io_finish(vol, s.type, &range);
+    *out = vol;
+    return CDVR_OK;
+}
+
+/* ---- stacks: one file per slice (cdvr/tiff.h) ------------------------------------------- */
+
+/* Natural order: runs of digits compare by value ("s2" before "s10"). */
+static int natural_cmp(const char *a, const char *b)
+{
+    while (*a && *b) {
+        if (isdigit((unsigned char)*a) && isdigit((unsigned char)*b)) {
+            while (*a == '0')
+                a++;
+            while (*b == '0')
+                b++;
+            size_t na = 0, nb = 0;
+            while (isdigit((unsigned char)a[na]))
+                na++;
+            while (isdigit((unsigned char)b[nb]))
+                nb++;
+            if (na != nb)
+                return na < nb ? -1 : 1;
+            int c = strncmp(a, b, na);
+            if (c)
+                return c;
+            a += na;
+            b += nb;
+        } else {
+            if (*a != *b)
+                return (unsigned char)*a < (unsigned char)*b ? -1 : 1;
+            a++;
+            b++;
+        }
+    }
+    return *a ? 1 : *b ? -1 : 0;
+}
+
+static int natural_qsort(const void *a, const void *b)
+{
+    return natural_cmp(*(char *const *)a, *(char *const *)b);
+}
+
+static int tiff_name(const char *name)
+{
+    size_t n = strlen(name);
+    return name[0] != '.' && ((n > 4 && strcasecmp(name + n - 4, ".tif") == 0) ||
+                              (n > 5 && strcasecmp(name + n - 5, ".tiff") == 0));
+}
+
+#define STACK_FILES_MAX 100000
+
+/* The files of a directory (its .tif/.tiff) or a glob pattern, in natural order. */
+static cdvr_status stack_files(const char *where, char ***out, size_t *count, cdvr_error *err)
+{
+    struct stat sb;
+    *out = NULL;
+    *count = 0;
+    if (stat(where, &sb) == 0 && S_ISDIR(sb.st_mode)) {
+        DIR *d = opendir(where);
+        if (!d)
+            return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot open the directory: %s", where,
+                                  strerror(errno));
+        struct dirent *e;
+        char **list = NULL;
+        size_t n = 0;
+        cdvr_status st = CDVR_OK;
+        while (st == CDVR_OK && (e = readdir(d)) != NULL) {
+            if (!tiff_name(e->d_name))
+                continue;
+            char **grown = n < STACK_FILES_MAX ? realloc(list, (n + 1) * sizeof *list) : NULL;
+            size_t len = strlen(where) + strlen(e->d_name) + 2;
+            char *path = grown ? malloc(len) : NULL;
+            if (!path) {
+                st = n >= STACK_FILES_MAX
+                         ? cdvr_error_set(err, CDVR_ERR_ARG, "%s: more than %d TIFF files",
+                                          where, STACK_FILES_MAX)
+                         : cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", where);
+                list = grown ? grown : list;
+                break;
+            }
+            list = grown;
+            snprintf(path, len, "%s/%s", where, e->d_name);
+            list[n++] = path;
+        }
+        closedir(d);
+        *out = list;
+        *count = n;
+        if (st == CDVR_OK && n == 0)
+            st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: a directory with no .tif or .tiff "
+                                "file", where);
+        if (st == CDVR_OK)
+            qsort(list, n, sizeof *list, natural_qsort);
+        return st;
+    }
+    glob_t g;
+    int rc = glob(where, 0, NULL, &g);
+    if (rc != 0) {
+        if (rc != GLOB_NOMATCH)
+            globfree(&g);
+        return cdvr_error_set(err, rc == GLOB_NOMATCH ? CDVR_ERR_IO : CDVR_ERR_NOMEM,
+                              "%s: %s", where, rc == GLOB_NOMATCH ? "no file matches (not a "
+                              "directory or a pattern of TIFF files)" : "cannot expand the pattern");
+    }
+    char **list = g.gl_pathc <= STACK_FILES_MAX ? calloc(g.gl_pathc, sizeof *list) : NULL;
+    size_t n = 0;
+    for (size_t i = 0; list && i < g.gl_pathc; i++)
+        if ((list[n] = strdup(g.gl_pathv[i])) != NULL)
+            n++;
+    size_t want = g.gl_pathc;
+    globfree(&g);
+    *out = list;
+    *count = n;
+    if (!list || n != want)
+        return cdvr_error_set(err, list ? CDVR_ERR_NOMEM : CDVR_ERR_ARG, "%s: %zu files%s",
+                              where, want, list ? ": out of memory" : ": too many");
+    qsort(list, n, sizeof *list, natural_qsort);
+    return CDVR_OK;
+}
+
+static void free_files(char **list, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        free(list[i]);
+    free(list);
+}
+
+/* Opens file i of a stack and takes its shape; every page of it is a slice. */
+static cdvr_status stack_open(const char *path, tiff_ctx *ctx, TIFF **tif, tiff_shape *s,
+                              cdvr_error *err)
+{
+    memset(s, 0, sizeof *s);
+    cdvr_status st = tiff_open(path, ctx, tif, &s->file_bytes, err);
+    if (st != CDVR_OK)
+        return st;
+    st = tiff_shape_of(path, *tif, s, err);
+    s->pages *= s->timesteps; /* a stack's files are slices, not frames */
+    s->timesteps = 1;
+    if (st != CDVR_OK)
+        TIFFClose(*tif);
+    return st;
+}
+
+static cdvr_status stack_shape(char **files, size_t n, tiff_shape *first, size_t *slices,
+                               cdvr_error *err)
+{
+    *slices = 0;
+    for (size_t i = 0; i < n; i++) {
+        tiff_ctx ctx = {""};
+        TIFF *tif;
+        tiff_shape s;
+        cdvr_status st = stack_open(files[i], &ctx, &tif, &s, err);
+        if (st != CDVR_OK)
+            return st;
+        TIFFClose(tif);
+        if (i == 0)
+            *first = s;
+        else if (s.w != first->w || s.h != first->h || s.type != first->type)
+            return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: %ux%u %s, but %s is %ux%u %s (the "
+                                  "slices of a stack must agree)", files[i], s.w, s.h,
+                                  cdvr_io_etype_name(s.type), files[0], first->w, first->h,
+                                  cdvr_io_etype_name(first->type));
+        *slices += s.pages;
+    }
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_tiff_probe_stack(const char *where, cdvr_volume *head, size_t *files,
+                                  cdvr_error *err)
+{
+    char **list;
+    size_t n, slices;
+    tiff_shape first;
+    cdvr_status st = stack_files(where, &list, &n, err);
+    if (st == CDVR_OK)
+        st = stack_shape(list, n, &first, &slices, err);
+    if (st == CDVR_OK) {
+        memset(head, 0, sizeof *head);
+        tiff_head(&first, head);
+        head->dims[2] = slices;
+        head->timesteps = 1;
+        head->direction[0] = head->direction[4] = head->direction[8] = 1;
+        if (files)
+            *files = n;
+    }
+    free_files(list, n);
+    return st;
+}
+
+cdvr_status cdvr_tiff_load_stack(const char *where, cdvr_volume **out, cdvr_error *err)
+{
+    *out = NULL;
+    cdvr_volume head;
+    cdvr_status st = cdvr_tiff_probe_stack(where, &head, NULL, err);
+    char **list = NULL;
+    size_t n = 0, at = 0;
+    cdvr_volume *vol = NULL;
+    if (st == CDVR_OK)
+        st = stack_files(where, &list, &n, err);
+    if (st == CDVR_OK)
+        st = cdvr_volume_create(head.dims, 1, head.type, &vol, err);
+    cdvr_io_range range;
+    cdvr_io_range_init(&range);
+    cdvr_io_etype type = CDVR_IO_U8;
+    for (size_t i = 0; st == CDVR_OK && i < n; i++) {
+        tiff_ctx ctx = {""};
+        TIFF *tif;
+        tiff_shape s;
+        st = stack_open(list[i], &ctx, &tif, &s, err);
+        if (st != CDVR_OK)
+            break;
+        if (s.w != head.dims[0] || s.h != head.dims[1] || at + s.pages > head.dims[2])
+            st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: changed while the stack was read",
+                                list[i]);
+        else
+            st = tiff_read_pages(list[i], tif, &ctx, &s, vol, at * head.dims[0] * head.dims[1],
+                                 &range, err);
+        at += s.pages;
+        type = s.type;
+        TIFFClose(tif);
+    }
+    free_files(list, n);
+    if (st != CDVR_OK) {
+        cdvr_volume_free(vol);
+        return st;
+    }
+    memcpy(vol->spacing, head.spacing, sizeof head.spacing);
+    cdvr_io_finish(vol, type, &range);
     *out = vol;
     return CDVR_OK;
 }
