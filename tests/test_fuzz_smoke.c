@@ -1,7 +1,7 @@
 /* tests/test_fuzz_smoke.c - runs the libFuzzer targets of tests/fuzz/ (store reader, PVTC
  * chunk decoder, codec-table decoders with the zfp and rle plugins, the hvq decoder, the hvq
  * OpenCL decode/fetch path when a device exists (PoCL here), LZO stage 2, NRRD/NIfTI/raw
- * loaders) without libFuzzer: a deterministic
+ * loaders, the VTK .vti/.vtk header parsers) without libFuzzer: a deterministic
  * corpus of valid inputs built here, then thousands of seeded mutations of each (bit flips,
  * byte sets, truncations, insertions, copies). In the sanitizer build any out-of-bounds access
  * fails the test; in every build a target's differential check (FUZZ_ASSERT) aborts it. */
@@ -27,6 +27,9 @@
 #undef LLVMFuzzerTestOneInput
 #define LLVMFuzzerTestOneInput fuzz_load_input
 #include "fuzz/fuzz_load.c"
+#undef LLVMFuzzerTestOneInput
+#define LLVMFuzzerTestOneInput fuzz_vtk_input
+#include "fuzz/fuzz_vtk.c"
 #undef LLVMFuzzerTestOneInput
 #define LLVMFuzzerTestOneInput fuzz_codec_input
 #include "fuzz/fuzz_codec.c"
@@ -431,6 +434,84 @@ static int make_raw_seed(bytes *seed)
     return bytes_append(seed, head, sizeof head) && bytes_append(seed, data, sizeof data);
 }
 
+/* VTK seeds (fuzz_vtk.c): sel 0 a .vti of 5x3x2 Int16 (kind 0: ascii, 1: base64 inline, 2:
+ * appended raw; the active scalars the second array), sel 1 a legacy .vtk (kind 3: BINARY, 4:
+ * ASCII), sel 2 a MetaImage .mha (kind 5: raw big endian, 6: zlib). */
+static int make_vtk_seed(bytes *seed, int kind)
+{
+    char text[2048];
+    uint8_t sel = kind >= 5 ? 2 : kind >= 3;
+    int n = 0;
+    if (kind >= 5) {
+        n = snprintf(text, sizeof text, "ObjectType = Image\nNDims = 3\nBinaryData = True\n"
+                     "BinaryDataByteOrderMSB = True\nCompressedData = %s\nTransformMatrix = 0 1 "
+                     "0 -1 0 0 0 0 1\nOffset = 1 2 3\nElementSpacing = 0.5 1 2\nDimSize = 5 3 2\n"
+                     "ElementType = MET_SHORT\nElementDataFile = LOCAL\n",
+                     kind == 6 ? "True" : "False");
+        uint8_t raw[60], packed[128];
+        for (int i = 0; i < 30; i++) {
+            raw[2 * i] = (uint8_t)(((i * 1111 - 9000) >> 8) & 0xff);
+            raw[2 * i + 1] = (uint8_t)((i * 1111 - 9000) & 0xff);
+        }
+        uLongf zn = sizeof packed;
+        if (kind == 6 && compress2(packed, &zn, raw, sizeof raw, 9) != Z_OK)
+            return 0;
+        memcpy(text + n, kind == 6 ? packed : raw, kind == 6 ? zn : sizeof raw);
+        n += kind == 6 ? (int)zn : (int)sizeof raw;
+    } else if (kind < 3) {
+        static const char *const fmt[] = {"ascii", "binary", "appended"};
+        n = snprintf(text, sizeof text, "<?xml version=\"1.0\"?>\n<VTKFile type=\"ImageData\" "
+                     "version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt32\">\n"
+                     "<ImageData WholeExtent=\"1 5 0 2 0 1\" Origin=\"1 2 3\" Spacing=\"0.5 1 2\" "
+                     "Direction=\"0 -1 0 1 0 0 0 0 1\">\n<Piece Extent=\"1 5 0 2 0 1\">\n"
+                     "<PointData Scalars=\"b\">\n<DataArray type=\"UInt8\" Name=\"a\" "
+                     "format=\"ascii\">1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 "
+                     "24 25 26 27 28 29 30</DataArray>\n<DataArray type=\"Int16\" Name=\"b\" "
+                     "format=\"%s\"%s>", fmt[kind], kind == 2 ? " offset=\"0\"" : "");
+        uint8_t raw[4 + 60];
+        fuzz_put_le(raw, 60, 4);
+        for (int i = 0; i < 30; i++)
+            fuzz_put_le(raw + 4 + 2 * i, (uint64_t)(i * 1111 - 9000), 2);
+        if (kind == 0)
+            for (int i = 0; i < 30; i++)
+                n += snprintf(text + n, sizeof text - (size_t)n, " %d", i * 1111 - 9000);
+        if (kind == 1) {
+            static const char a[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+            for (int i = 0; i < 64; i += 3) {
+                uint32_t v = (uint32_t)raw[i] << 16 | (i + 1 < 64 ? (uint32_t)raw[i + 1] << 8 : 0) |
+                             (i + 2 < 64 ? raw[i + 2] : 0);
+                text[n++] = a[v >> 18];
+                text[n++] = a[(v >> 12) & 63];
+                text[n++] = i + 1 < 64 ? a[(v >> 6) & 63] : '=';
+                text[n++] = i + 2 < 64 ? a[v & 63] : '=';
+            }
+        }
+        n += snprintf(text + n, sizeof text - (size_t)n, "</DataArray>\n</PointData>\n</Piece>\n"
+                      "</ImageData>\n%s", kind == 2 ? "<AppendedData encoding=\"raw\">\n_" : "");
+        if (kind == 2) {
+            memcpy(text + n, raw, sizeof raw);
+            n += (int)sizeof raw;
+            n += snprintf(text + n, sizeof text - (size_t)n, "\n</AppendedData>\n");
+        }
+        n += snprintf(text + n, sizeof text - (size_t)n, "</VTKFile>\n");
+    } else {
+        n = snprintf(text, sizeof text, "# vtk DataFile Version 3.0\nseed\n%s\nDATASET "
+                     "STRUCTURED_POINTS\nDIMENSIONS 5 3 2\nORIGIN 1 2 3\nSPACING 0.5 1 2\n"
+                     "POINT_DATA 30\nSCALARS a short 1\nLOOKUP_TABLE default\n",
+                     kind == 3 ? "BINARY" : "ASCII");
+        for (int i = 0; i < 30; i++) {
+            int v = i * 1111 - 9000;
+            if (kind == 3) {
+                text[n++] = (char)((v >> 8) & 0xff);
+                text[n++] = (char)(v & 0xff);
+            } else
+                n += snprintf(text + n, sizeof text - (size_t)n, "%d ", v);
+        }
+        text[n++] = '\n';
+    }
+    return bytes_append(seed, &sel, 1) && bytes_append(seed, text, (size_t)n);
+}
+
 /* The seeds themselves load: the loader target is not rejecting everything up front. */
 static void check_loader_seed(const bytes *seed, const char *suffix, size_t skip, size_t timesteps)
 {
@@ -526,6 +607,13 @@ int main(void)
     if (make_raw_seed(&seed)) {
         check_loader_seed(&seed, ".raw", 9, 2);
         fuzz_seed("load", fuzz_load_input, &seed, 1000, 1, 6000u);
+    }
+    for (int kind = 0; kind < 7; kind++) {
+        seed.n = 0;
+        if (make_vtk_seed(&seed, kind)) {
+            check_loader_seed(&seed, kind < 3 ? ".vti" : kind < 5 ? ".vtk" : ".mha", 1, 1);
+            fuzz_seed("vtk", fuzz_vtk_input, &seed, 800, 1, 10000u + (uint32_t)kind);
+        }
     }
     free(seed.p);
     check_totals();

@@ -20,6 +20,10 @@
 extern const cdvr_format cdvr_format_nrrd;
 extern const cdvr_format cdvr_format_nifti;
 extern const cdvr_format cdvr_format_raw;
+extern const cdvr_format cdvr_format_vti;
+extern const cdvr_format cdvr_format_vtk;
+extern const cdvr_format cdvr_format_mha;
+extern const cdvr_format cdvr_format_tiff;
 
 #define REGISTRY_MAX 64
 
@@ -102,7 +106,9 @@ static cdvr_status add_locked(const cdvr_format *f, cdvr_error *err)
 static void register_builtins(void)
 {
     static const cdvr_format *const builtins[] = {&cdvr_format_nrrd, &cdvr_format_nifti,
-                                                     &cdvr_format_raw};
+                                                     &cdvr_format_raw,
+                                                     &cdvr_format_vti, &cdvr_format_vtk,
+                                                     &cdvr_format_mha, &cdvr_format_tiff};
     pthread_mutex_lock(&registry.mu);
     for (size_t i = 0; i < sizeof builtins / sizeof *builtins; i++)
         (void)add_locked(builtins[i], NULL); /* built-ins are valid: test_format checks */
