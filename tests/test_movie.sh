@@ -8,7 +8,8 @@
 #    dropped when the scope ends by an error;
 #  - a capture killed meanwhile (SIGKILL, or SIGTERM with a named temporary file) leaves no file
 #    under the final name, and SIGTERM no temporary either;
-#  - an unwritable path and an unknown container are clear errors at cdvr.player{}.
+#  - an unwritable path and an unknown container are clear errors at cdvr.player{};
+#  - scripts/movie.lua turns the bundled 4D NIfTI into a movie with the frames and rate asked.
 # Skipped (77) in a build without FFmpeg (cdvr.has_movie false).
 cdvr=${1:?usage: test_movie.sh path/to/cdvr}
 cdvr=$(cd "$(dirname "$cdvr")" && pwd)/$(basename "$cdvr")
@@ -89,6 +90,15 @@ check "crf for FFV1: refused" grep -q "false.*m.mkv: crf applies to h264 and vp9
 check "fps= without a movie: refused" grep -q "false.*option 'fps' applies to a movie out=" loop.log
 check "cdvr.movie unknown container" grep -q "false.*m.avi: unknown movie container '.avi'" loop.log
 ls | grep -q '\.tmp\.' && check "no temporary files left" false
+
+# scripts/movie.lua: a 4D file to a movie in one line
+src=${CDVR_SOURCE_DIR:-$(cd "$(dirname "$0")/.." && pwd)}
+"$cdvr" "$src/scripts/movie.lua" "$src/share/data/mpld_asl_64x64x24x25_f32.nii.gz" asl.mkv --frames 6 \
+  --width 64 --height 48 --fps 10 --annotate > script.log 2>&1; rc=$?
+check "scripts/movie.lua (rc $rc: $(tail -3 script.log))" [ $rc -eq 0 ]
+check "scripts/movie.lua: 6 frames at 10 fps" "$bin/test_movie" compare asl.mkv - 6 0 10
+"$cdvr" "$src/scripts/movie.lua" x.nii asl.mkv --frame 6 > script.log 2>&1
+check "scripts/movie.lua: unknown option named" grep -q "unknown option --frame" script.log
 
 # a killed capture: frame= says when frames are being written
 cat > kill.lua <<'LUA'

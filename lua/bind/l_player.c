@@ -13,6 +13,7 @@
 #include <math.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "cdvr/dist.h"
 #include "cdvr/movie.h"
@@ -50,6 +51,10 @@ typedef struct lplayer {
     cdvr_movie_opts movie_opts; /* fps 0: the target fps or 25 at p:run */
     char movie_preset[16];
     cdvr_movie *movie;          /* during p:run */
+    /* capture progress on stderr when it is a terminal (progress=false: never) */
+    int progress, progress_shown;
+    size_t run_frames;          /* frames asked of this p:run */
+    double run_t0;
     cdvr_dist_play *dist; /* distribute= (cdvr/dist.h) */
     /* Failed frames (a damaged chunk, ...): see frame_failed. */
     int on_error_skip;   /* on_error="skip": a capture writes a marked frame and goes on */
@@ -279,6 +284,19 @@ static int frame_lua(lua_State *L)
     return 0;
 }
 
+/* "\rcapture NAME: n/N frames, F fps, ETA S s" after each written frame (stderr is a terminal). */
+static void show_progress(lplayer *lp, size_t done)
+{
+    if (!lp->progress)
+        return;
+    double s = (cdvr_now_ms() - lp->run_t0) / 1000.0, fps = s > 0 ? (double)done / s : 0;
+    double eta = fps > 0 && lp->run_frames > done ? (double)(lp->run_frames - done) / fps : 0;
+    fprintf(stderr, "\rcapture %s: %zu/%zu frames, %.1f fps, ETA %.0f s  ",
+            lp->to_movie ? lp->movie_path : "frames", done, lp->run_frames, fps, eta);
+    fflush(stderr);
+    lp->progress_shown = 1;
+}
+
 /* Hands a frame to frame= and, with out=, writes its PNG. */
 static cdvr_status show_frame(lplayer *lp, const cdvr_frame_row *row, const cdvr_image *img, cdvr_error *err)
 {
@@ -296,14 +314,20 @@ static cdvr_status show_frame(lplayer *lp, const cdvr_frame_row *row, const cdvr
         if ((int64_t)row->frame != cdvr_movie_frames(lp->movie))
             return cdvr_error_set(err, CDVR_ERR_ARG, "%s: frame %zu arrived as frame %lld of the movie",
                                   lp->movie_path, row->frame + 1, (long long)cdvr_movie_frames(lp->movie) + 1);
-        return cdvr_movie_add_image(lp->movie, img, err);
+        cdvr_status s = cdvr_movie_add_image(lp->movie, img, err);
+        if (s == CDVR_OK)
+            show_progress(lp, row->frame + 1);
+        return s;
     }
     char number[128], path[2200];
     snprintf(number, sizeof number, lp->out.conversion, (int)row->frame + 1);
     snprintf(path, sizeof path, "%s%s%s", lp->out.prefix, number, lp->out.suffix);
     if (!make_parent_dirs(path))
         return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot create its directory: %s", path, strerror(errno));
-    return cdvr_image_save_png(img, path, err);
+    cdvr_status s = cdvr_image_save_png(img, path, err);
+    if (s == CDVR_OK)
+        show_progress(lp, row->frame + 1);
+    return s;
 }
 
 /* The frame a capture writes in place of one that could not be made (on_error="skip"): the
@@ -612,6 +636,7 @@ static int capture_options(lua_State *L, lplayer *lp, const cdvr_store *st)
                    out, why);
     }
     movie_options(L, lp, lp->to_movie);
+    lp->progress = lcdvr_optbooleanfield(L, 1, "progress", 1) && isatty(STDERR_FILENO);
     double min_psnr = number_option(L, "min_psnr", -HUGE_VAL, -HUGE_VAL, HUGE_VAL, "a number in dB expected");
     lua_getfield(L, 1, "variant");
     int user_variant = !lua_isnil(L, -1);
@@ -748,7 +773,7 @@ static int l_player(lua_State *L)
                                        "threads", "pipeline", "ring", "cold", "read_mbps",
                                        "empty_skip", "callback_limit", "out", "pace", "width",
                                        "height", "loop", "brick_skip", "frame", "distribute",
-                                       "on_error", "fps", "crf", "preset", NULL};
+                                       "on_error", "fps", "crf", "preset", "progress", NULL};
     luaL_checktype(L, 1, LUA_TTABLE);
     const cdvr_render_method *method = lcdvr_method_option(L, 1, "cdvr.player");
     lcdvr_method_checkoptions(L, 1, method, "cdvr.player", keys);
@@ -901,6 +926,9 @@ static int player_run(lua_State *L)
         return lcdvr_raise(L, &err);               /* the ranks disagree (cdvr/dist.h) */
     if (open_movie(lp, &err) != CDVR_OK)
         return lcdvr_raise(L, &err);
+    lp->run_frames = (size_t)frames;
+    lp->run_t0 = cdvr_now_ms();
+    lp->progress_shown = 0;
     lp->L = L;
     lp->running = 1;
     double t0 = cdvr_now_ms();
@@ -908,6 +936,8 @@ static int player_run(lua_State *L)
     double wall_ms = cdvr_now_ms() - t0;
     lp->running = 0;
     lp->L = NULL;
+    if (lp->progress_shown)
+        fputc('\n', stderr);
     cdvr_error movie_err;
     if (finish_movie(lp, status == CDVR_OK, &movie_err) != CDVR_OK)
         return lcdvr_raise(L, &movie_err);
@@ -1028,7 +1058,7 @@ int lcdvr_open_player(lua_State *L)
                    "policy = function(stats) or 'fixed'|'open_loop'|'closed_loop'; target_fps, variant, pipeline, cold, read_mbps, "
                    "out='frames/%04d.png' (capture: deterministic, never adapts; with policy= the policy's capture rule, else variant=, "
                    "min_psnr= or the best quality), or out='movie.mp4'|.webm|.mkv|.gif (one movie per run, cdvr.movie's codecs; "
-                   "fps= (default target_fps or 25), crf=, preset=), frame=function(row, image), device='cl'|'cpu'|'auto' (default auto: cl when an OpenCL device opens), pace (default true with target_fps); "
+                   "fps= (default target_fps or 25), crf=, preset=; progress=true: frames, fps and ETA on a terminal), frame=function(row, image), device='cl'|'cpu'|'auto' (default auto: cl when an OpenCL device opens), pace (default true with target_fps); "
                    "variant default: best quality; loop=true wraps past the last timestep (default: playback stops there, report.stopped "
                    "says so); brick_skip (default true: bricks the TF hides or the view misses are not read); "
                    "distribute='time'|'bricks' (mpirun: frames or bricks shared by the ranks)");
