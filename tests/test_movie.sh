@@ -9,6 +9,7 @@
 #  - a capture killed meanwhile (SIGKILL, or SIGTERM with a named temporary file) leaves no file
 #    under the final name, and SIGTERM no temporary either;
 #  - an unwritable path and an unknown container are clear errors at cdvr.player{};
+#  - progress (frames of total, fps, ETA) on stderr when it is a terminal, nothing otherwise;
 #  - scripts/movie.lua turns the bundled 4D NIfTI into a movie with the frames and rate asked.
 # Skipped (77) in a build without FFmpeg (cdvr.has_movie false).
 cdvr=${1:?usage: test_movie.sh path/to/cdvr}
@@ -99,6 +100,18 @@ check "scripts/movie.lua (rc $rc: $(tail -3 script.log))" [ $rc -eq 0 ]
 check "scripts/movie.lua: 6 frames at 10 fps" "$bin/test_movie" compare asl.mkv - 6 0 10
 "$cdvr" "$src/scripts/movie.lua" x.nii asl.mkv --frame 6 > script.log 2>&1
 check "scripts/movie.lua: unknown option named" grep -q "unknown option --frame" script.log
+
+# progress on a terminal (script(1) gives the capture a pseudo-terminal), none otherwise
+cat > prog.lua <<'LUA'
+dofile("scene.lua")
+capture("prog.mp4")
+LUA
+if command -v script >/dev/null; then
+  script -qc "'$cdvr' prog.lua" /dev/null > pty.log 2>&1
+  check "progress on a terminal: $(tr '\r' '\n' < pty.log | tail -2 | head -1)" grep -q "capture prog.mp4: 10/10 frames, .* fps, ETA 0 s" pty.log
+fi
+"$cdvr" prog.lua 2> nopty.log
+check "no progress when stderr is not a terminal" [ ! -s nopty.log ]
 
 # a killed capture: frame= says when frames are being written
 cat > kill.lua <<'LUA'
