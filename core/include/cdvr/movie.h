@@ -43,8 +43,9 @@ typedef struct cdvr_movie_opts {
     int crf;            /* H.264 0..51, VP9 0..63; -1: the codec's default (H.264 18, VP9 31) */
     const char *preset; /* H.264 preset (ultrafast .. veryslow); NULL: "medium" */
     int width, height;  /* frame size; 0 and 0: the first frame's size */
-    int threads;        /* encoder threads, >= 1 (default 1); the output does not depend on it
-                         * for H.264 and FFV1 (x264 is deterministic, FFV1 slices are fixed) */
+    int threads;        /* encoder threads, 1..64 (default 1). The same frames and thread count
+                         * give the same file; FFV1 files do not depend on it, H.264 files do
+                         * (x264's frame threads change its decisions: measured 1 vs 4) */
 } cdvr_movie_opts;
 
 /* 1 where this build writes movies (FFmpeg found), else 0. */
