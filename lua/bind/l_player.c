@@ -13,8 +13,10 @@
 #include <math.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "cdvr/dist.h"
+#include "cdvr/movie.h"
 #include "cdvr/timing.h"
 #include "cdvr/player.h"
 #include "lcdvr.h"
@@ -42,6 +44,17 @@ typedef struct lplayer {
     int frame_callback;  /* frame= given (UV_FRAME) */
     int shows_frames;    /* this process shows the frames (frame=, out=; cdvr/dist.h) */
     out_pattern out;
+    /* out= naming a movie container (cdvr/movie.h): one movie per p:run, opened before the run,
+     * committed after it, dropped when it fails */
+    int to_movie;
+    char movie_path[1024];
+    cdvr_movie_opts movie_opts; /* fps 0: the target fps or 25 at p:run */
+    char movie_preset[16];
+    cdvr_movie *movie;          /* during p:run */
+    /* capture progress on stderr when it is a terminal (progress=false: never) */
+    int progress, progress_shown;
+    size_t run_frames;          /* frames asked of this p:run */
+    double run_t0;
     cdvr_dist_play *dist; /* distribute= (cdvr/dist.h) */
     /* Failed frames (a damaged chunk, ...): see frame_failed. */
     int on_error_skip;   /* on_error="skip": a capture writes a marked frame and goes on */
@@ -271,6 +284,19 @@ static int frame_lua(lua_State *L)
     return 0;
 }
 
+/* "\rcapture NAME: n/N frames, F fps, ETA S s" after each written frame (stderr is a terminal). */
+static void show_progress(lplayer *lp, size_t done)
+{
+    if (!lp->progress)
+        return;
+    double s = (cdvr_now_ms() - lp->run_t0) / 1000.0, fps = s > 0 ? (double)done / s : 0;
+    double eta = fps > 0 && lp->run_frames > done ? (double)(lp->run_frames - done) / fps : 0;
+    fprintf(stderr, "\rcapture %s: %zu/%zu frames, %.1f fps, ETA %.0f s  ",
+            lp->to_movie ? lp->movie_path : "frames", done, lp->run_frames, fps, eta);
+    fflush(stderr);
+    lp->progress_shown = 1;
+}
+
 /* Hands a frame to frame= and, with out=, writes its PNG. */
 static cdvr_status show_frame(lplayer *lp, const cdvr_frame_row *row, const cdvr_image *img, cdvr_error *err)
 {
@@ -284,12 +310,24 @@ static cdvr_status show_frame(lplayer *lp, const cdvr_frame_row *row, const cdvr
     }
     if (!lp->capture)
         return CDVR_OK;
+    if (lp->to_movie) {
+        if ((int64_t)row->frame != cdvr_movie_frames(lp->movie))
+            return cdvr_error_set(err, CDVR_ERR_ARG, "%s: frame %zu arrived as frame %lld of the movie",
+                                  lp->movie_path, row->frame + 1, (long long)cdvr_movie_frames(lp->movie) + 1);
+        cdvr_status s = cdvr_movie_add_image(lp->movie, img, err);
+        if (s == CDVR_OK)
+            show_progress(lp, row->frame + 1);
+        return s;
+    }
     char number[128], path[2200];
     snprintf(number, sizeof number, lp->out.conversion, (int)row->frame + 1);
     snprintf(path, sizeof path, "%s%s%s", lp->out.prefix, number, lp->out.suffix);
     if (!make_parent_dirs(path))
         return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot create its directory: %s", path, strerror(errno));
-    return cdvr_image_save_png(img, path, err);
+    cdvr_status s = cdvr_image_save_png(img, path, err);
+    if (s == CDVR_OK)
+        show_progress(lp, row->frame + 1);
+    return s;
 }
 
 /* The frame a capture writes in place of one that could not be made (on_error="skip"): the
@@ -542,6 +580,29 @@ static void render_options(lua_State *L, lplayer *lp, const cdvr_store_info *inf
     lp->opts.brick_skip = lcdvr_optbooleanfield(L, 1, "brick_skip", 1);
 }
 
+/* fps=, crf=, preset= of a movie out= (refused otherwise); the codec's checks come at p:run. */
+static void movie_options(lua_State *L, lplayer *lp, int movie)
+{
+    static const char *const keys[] = {"fps", "crf", "preset", NULL};
+    for (int i = 0; keys[i] && !movie; i++) {
+        if (lua_getfield(L, 1, keys[i]) != LUA_TNIL)
+            luaL_error(L, "cdvr.player: option '%s' applies to a movie out= (.mp4, .webm, .mkv, .gif)", keys[i]);
+        lua_pop(L, 1);
+    }
+    if (!movie)
+        return;
+    lp->movie_opts = cdvr_movie_defaults();
+    lp->movie_opts.fps = number_option(L, "fps", 0, CDVR_PLAYER_MIN_FPS, 1000, "frames/s (0, 1000] expected");
+    lp->movie_opts.crf = (int)integer_option(L, "crf", -1, -1, 63);
+    const char *preset = lcdvr_optstringfield(L, 1, "preset", NULL);
+    if (preset && strlen(preset) >= sizeof lp->movie_preset)
+        luaL_error(L, "cdvr.player: option 'preset' = \"%s\": unknown preset", preset);
+    if (preset) {
+        snprintf(lp->movie_preset, sizeof lp->movie_preset, "%s", preset);
+        lp->movie_opts.preset = lp->movie_preset;
+    }
+}
+
 /* out=: capture settings (pattern, capture floor); returns 1 when capturing. */
 static int capture_options(lua_State *L, lplayer *lp, const cdvr_store *st)
 {
@@ -553,13 +614,30 @@ static int capture_options(lua_State *L, lplayer *lp, const cdvr_store *st)
     if (on_error && !out)
         luaL_error(L, "cdvr.player: option 'on_error' applies to captures (out=), and out= is not set");
     lp->on_error_skip = on_error && strcmp(on_error, "skip") == 0;
-    if (!out)
+    if (!out) {
+        movie_options(L, lp, 0);
         return 0;
+    }
     char why[96];
-    if (!parse_out_pattern(out, &lp->out, why, sizeof why))
+    if (cdvr_movie_is_movie_path(out)) {
+        if (strchr(out, '%'))
+            luaL_error(L, "cdvr.player: option 'out' = \"%s\": a movie file (its extension) with a frame number "
+                          "conversion; give \"movie.mp4\" for one movie or \"frames/%%04d.png\" for PNG frames", out);
+        if (strlen(out) >= sizeof lp->movie_path)
+            luaL_error(L, "cdvr.player: option 'out': longer than %d bytes", (int)sizeof lp->movie_path - 1);
+        if (!cdvr_movie_available())
+            luaL_error(L, "cdvr.player: option 'out' = \"%s\": this cdvr was built without FFmpeg (libavformat, "
+                          "libavcodec, libswscale, libavutil) and writes no movies (cdvr.has_movie is false)", out);
+        snprintf(lp->movie_path, sizeof lp->movie_path, "%s", out);
+        lp->to_movie = 1;
+    } else if (!parse_out_pattern(out, &lp->out, why, sizeof why)) {
         luaL_error(L, "cdvr.player: option 'out' = \"%s\": %s; out= needs exactly one integer conversion "
-                      "for the frame number (%%d, %%04d, %%5d, ...; %%%% for a literal %%)",
+                      "for the frame number (%%d, %%04d, %%5d, ...; %%%% for a literal %%), or a movie file "
+                      "(.mp4, .webm, .mkv, .gif)",
                    out, why);
+    }
+    movie_options(L, lp, lp->to_movie);
+    lp->progress = lcdvr_optbooleanfield(L, 1, "progress", 1) && isatty(STDERR_FILENO);
     double min_psnr = number_option(L, "min_psnr", -HUGE_VAL, -HUGE_VAL, HUGE_VAL, "a number in dB expected");
     lua_getfield(L, 1, "variant");
     int user_variant = !lua_isnil(L, -1);
@@ -687,6 +765,8 @@ static void distribute_option(lua_State *L, lplayer *lp)
     lp->shows_frames = cdvr_dist_play_shows_frames(lp->dist); /* bricks: rank 0's composite */
 }
 
+static cdvr_status open_movie(lplayer *lp, cdvr_error *err);
+
 static int l_player(lua_State *L)
 {
     static const char *const keys[] = {"store", "tf", "camera", "policy", "target_fps", "min_psnr",
@@ -694,7 +774,7 @@ static int l_player(lua_State *L)
                                        "threads", "pipeline", "ring", "cold", "read_mbps",
                                        "empty_skip", "callback_limit", "out", "pace", "width",
                                        "height", "loop", "brick_skip", "frame", "distribute",
-                                       "on_error", NULL};
+                                       "on_error", "fps", "crf", "preset", "progress", NULL};
     luaL_checktype(L, 1, LUA_TTABLE);
     const cdvr_render_method *method = lcdvr_method_option(L, 1, "cdvr.player");
     lcdvr_method_checkoptions(L, 1, method, "cdvr.player", keys);
@@ -737,9 +817,18 @@ static int l_player(lua_State *L)
     lp->opts.frame_fn = frame_cb; /* Ctrl-C in the console, frame= and out= */
     lp->opts.frame_ud = lp;
     distribute_option(L, lp);
-
     cdvr_error err;
     cdvr_error_clear(&err);
+    if (lp->to_movie && cdvr_dist_size() > 1 && lua_getfield(L, 1, "distribute") != LUA_TNIL &&
+        strcmp(lcdvr_optstringfield(L, 1, "distribute", "none"), "time") == 0)
+        luaL_error(L, "cdvr.player: a movie out= with distribute='time' over %d ranks: each rank has part of the "
+                      "frames; write PNG frames (out='frames/%%04d.png') or use distribute='bricks'", cdvr_dist_size());
+    if (lp->to_movie) { /* the options and the path are checked now, not at the first p:run */
+        if (open_movie(lp, &err) != CDVR_OK)
+            return lcdvr_raise(L, &err);
+        cdvr_movie_abort(lp->movie);
+        lp->movie = NULL;
+    }
     if (cdvr_player_create(&lp->opts, &lp->player, &err) != CDVR_OK)
         return lcdvr_raise(L, &err);
     lua_settop(L, ud);
@@ -785,6 +874,34 @@ static int run_failures(lua_State *L, lplayer *lp, size_t rows)
     return 1;
 }
 
+/* Opens the movie of a movie out= for a run (frames of the camera's size; fps= or the target
+ * fps, else 25) where this process shows the frames. */
+static cdvr_status open_movie(lplayer *lp, cdvr_error *err)
+{
+    if (!lp->to_movie || !lp->shows_frames)
+        return CDVR_OK;
+    cdvr_movie_opts o = lp->movie_opts;
+    if (o.fps <= 0)
+        o.fps = lp->target_fps > 0 ? lp->target_fps : 25;
+    o.width = lp->opts.camera.width;
+    o.height = lp->opts.camera.height;
+    return cdvr_movie_open(lp->movie_path, &o, &lp->movie, err);
+}
+
+/* After the run: commits the movie when the run succeeded (ok), else drops it. */
+static cdvr_status finish_movie(lplayer *lp, int ok, cdvr_error *err)
+{
+    cdvr_movie *m = lp->movie;
+    lp->movie = NULL;
+    if (!m)
+        return CDVR_OK;
+    if (!ok) {
+        cdvr_movie_abort(m);
+        return CDVR_OK;
+    }
+    return cdvr_movie_close(m, err);
+}
+
 static int player_run(lua_State *L)
 {
     lplayer *lp = checkidleplayer(L, 1, "run");
@@ -808,6 +925,11 @@ static int player_run(lua_State *L)
     cdvr_error err;
     if (cdvr_dist_play_begin(lp->dist, (size_t)first - 1, (size_t)frames, &err) != CDVR_OK)
         return lcdvr_raise(L, &err);               /* the ranks disagree (cdvr/dist.h) */
+    if (open_movie(lp, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    lp->run_frames = (size_t)frames;
+    lp->run_t0 = cdvr_now_ms();
+    lp->progress_shown = 0;
     lp->L = L;
     lp->running = 1;
     double t0 = cdvr_now_ms();
@@ -815,6 +937,11 @@ static int player_run(lua_State *L)
     double wall_ms = cdvr_now_ms() - t0;
     lp->running = 0;
     lp->L = NULL;
+    if (lp->progress_shown)
+        fputc('\n', stderr);
+    cdvr_error movie_err;
+    if (finish_movie(lp, status == CDVR_OK, &movie_err) != CDVR_OK)
+        return lcdvr_raise(L, &movie_err);
     if (status != CDVR_OK && (lp->strict || !lp->stopped)) /* not strict: a report that says it stopped */
         return lcdvr_raise(L, &err);
     size_t n;
@@ -931,7 +1058,8 @@ int lcdvr_open_player(lua_State *L)
                    "playback of a store: reader, stage-2 and device threads; camera = cdvr.Camera, path or function(frame, t); "
                    "policy = function(stats) or 'fixed'|'open_loop'|'closed_loop'; target_fps, variant, pipeline, cold, read_mbps, "
                    "out='frames/%04d.png' (capture: deterministic, never adapts; with policy= the policy's capture rule, else variant=, "
-                   "min_psnr= or the best quality), frame=function(row, image), device='cl'|'cpu'|'auto' (default auto: cl when an OpenCL device opens), pace (default true with target_fps); "
+                   "min_psnr= or the best quality), or out='movie.mp4'|.webm|.mkv|.gif (one movie per run, cdvr.movie's codecs; "
+                   "fps= (default target_fps or 25), crf=, preset=; progress=true: frames, fps and ETA on a terminal), frame=function(row, image), device='cl'|'cpu'|'auto' (default auto: cl when an OpenCL device opens), pace (default true with target_fps); "
                    "variant default: best quality; loop=true wraps past the last timestep (default: playback stops there, report.stopped "
                    "says so); brick_skip (default true: bricks the TF hides or the view misses are not read); "
                    "distribute='time'|'bricks' (mpirun: frames or bricks shared by the ranks)");

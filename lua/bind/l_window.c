@@ -4,7 +4,10 @@
  * (the CPU or OpenCL ray caster, or the EGL slicer) exactly as a script would, then shown as
  * pixels; the window only adds the overlay. Mouse drag orbits, the wheel zooms, left/right
  * step timesteps (home/end: first/last), up/down step variants, space plays and pauses, r
- * resets the view, Esc or q closes. What it shares with the player (policy stats, callback
+ * resets the view, m starts and stops recording the frames drawn to a movie (mp4, cdvr/movie.h),
+ * p saves the next frame as a PNG (both without the overlay, at the window's size, named
+ * cdvr-movie-/cdvr-shot-DATE-TIME in the working directory, the path printed), Esc or q
+ * closes. What it shares with the player (policy stats, callback
  * budget, default variant and device) is the scene contract of l_scene.c.
  *
  * A window holds references (user values) to the volume, store, TF, camera and policy it
@@ -17,8 +20,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "cdvr/gl.h"
+#include "cdvr/movie.h"
 #include "cdvr/player.h"
 #include "cdvr/timing.h"
 #include "lcdvr.h"
@@ -66,6 +71,11 @@ typedef struct lwindow {
     int nrows;
     char reason[160];          /* why the variant shown was chosen */
     char error[CDVR_ERRMSG_MAX]; /* the last frame's error, reported once */
+    /* 'm' records the frames drawn (without the overlay) to a movie, 'p' saves the next one as
+     * a PNG; both in the working directory, their paths printed (cdvr/movie.h) */
+    cdvr_movie *movie;
+    char movie_path[64], shot_path[64];
+    int shot_pending, shots;
 } lwindow;
 
 static lwindow *towindow(lua_State *L, int idx)
@@ -605,6 +615,85 @@ static void step_time(lwindow *w, long delta, size_t n)
     w->dirty = 1;
 }
 
+static int access_exists(const char *path)
+{
+    FILE *f = fopen(path, "rb");
+    if (f)
+        fclose(f);
+    return f != NULL;
+}
+
+/* "cdvr-KIND-YYYYmmdd-HHMMSS[-N].EXT" in the working directory. */
+static void stamped_name(char *buf, size_t size, const char *kind, int n, const char *ext)
+{
+    char stamp[32];
+    time_t now = time(NULL);
+    struct tm tm;
+    strftime(stamp, sizeof stamp, "%Y%m%d-%H%M%S", localtime_r(&now, &tm));
+    if (n > 0)
+        snprintf(buf, size, "cdvr-%s-%s-%d.%s", kind, stamp, n, ext);
+    else
+        snprintf(buf, size, "cdvr-%s-%s.%s", kind, stamp, ext);
+}
+
+/* Stops a recording: the movie is committed and its path printed (or the failure). */
+static void stop_recording(lwindow *w)
+{
+    if (!w->movie)
+        return;
+    long long n = (long long)cdvr_movie_frames(w->movie);
+    cdvr_error err;
+    if (cdvr_movie_close(w->movie, &err) == CDVR_OK)
+        printf("cdvr: movie %s written (%lld frames)\n", w->movie_path, n);
+    else
+        fprintf(stderr, "cdvr: window: recording failed: %s\n", err.msg);
+    fflush(stdout);
+    w->movie = NULL;
+}
+
+/* 'm': starts recording to a new movie (mp4, at the playback fps or 25), or stops it. */
+static void toggle_recording(lwindow *w)
+{
+    if (w->movie) {
+        stop_recording(w);
+        return;
+    }
+    stamped_name(w->movie_path, sizeof w->movie_path, "movie", 0, "mp4");
+    for (int n = 1; n < 100 && access_exists(w->movie_path); n++)
+        stamped_name(w->movie_path, sizeof w->movie_path, "movie", n, "mp4");
+    cdvr_movie_opts o = cdvr_movie_defaults();
+    o.fps = w->fps > 0 ? w->fps : 25;
+    cdvr_error err;
+    if (cdvr_movie_open(w->movie_path, &o, &w->movie, &err) != CDVR_OK) {
+        fprintf(stderr, "cdvr: window: cannot record: %s\n", err.msg);
+        w->movie = NULL;
+        return;
+    }
+    printf("cdvr: recording to %s (m stops)\n", w->movie_path);
+    fflush(stdout);
+    w->dirty = 1;
+}
+
+/* The frame just rendered (img: without the overlay) into the recording and the screenshot. */
+static void capture_frame(lwindow *w, const cdvr_image *img)
+{
+    cdvr_error err;
+    if (w->movie && cdvr_movie_add_image(w->movie, img, &err) != CDVR_OK) {
+        fprintf(stderr, "cdvr: window: recording stopped: %s\n", err.msg);
+        cdvr_movie_abort(w->movie);
+        w->movie = NULL;
+    }
+    if (!w->shot_pending)
+        return;
+    w->shot_pending = 0;
+    stamped_name(w->shot_path, sizeof w->shot_path, "shot", ++w->shots, "png");
+    if (cdvr_image_save_png(img, w->shot_path, &err) == CDVR_OK)
+        printf("cdvr: screenshot %s\n", w->shot_path);
+    else
+        fprintf(stderr, "cdvr: window: screenshot failed: %s\n", err.msg);
+    fflush(stdout);
+}
+
 static void handle_key(lua_State *L, int w_idx, lwindow *w, int key)
 {
     size_t n = scene_timesteps(L, w_idx);
@@ -633,6 +722,13 @@ static void handle_key(lua_State *L, int w_idx, lwindow *w, int key)
             lua_setiuservalue(L, w_idx, UV_POLICY); /* the user's choice overrides a policy */
             w->dirty = 1;
         }
+        break;
+    case 'm': /* start or stop recording */
+        toggle_recording(w);
+        break;
+    case 'p': /* a screenshot of the next frame */
+        w->shot_pending = 1;
+        w->dirty = 1;
         break;
     case 'b': /* the colour bar, and 'a' the orientation letters, on and off */
     case 'a':
@@ -834,6 +930,7 @@ static void draw(lua_State *L, int w_idx, lwindow *w)
         lua_call(L, 2, 1);                        /* image */
         render_ms = cdvr_now_ms() - render_start;
         const cdvr_image *img = lcdvr_checkimage(L, -1);
+        capture_frame(w, img);
         rgba = lua_newuserdatauv(L, (size_t)img->width * (size_t)img->height * 4, 0);
         cdvr_image_to_rgba8(img, rgba);
     }
@@ -881,6 +978,7 @@ static void forget_window(lua_State *L, int w_idx)
 static int window_close(lua_State *L)
 {
     lwindow *w = towindow(L, 1);
+    stop_recording(w); /* closing the window ends a recording: the movie is kept */
     if (w->win) {
         cdvr_window_close(w->win);
         w->win = NULL;
@@ -1027,6 +1125,14 @@ static int window_state(lua_State *L)
     lua_setfield(L, -2, "options");
     lua_pushstring(L, w->reason);
     lua_setfield(L, -2, "reason");
+    if (w->movie) {
+        lua_pushstring(L, w->movie_path);
+        lua_setfield(L, -2, "recording");
+    }
+    if (w->shot_path[0]) {
+        lua_pushstring(L, w->shot_path);
+        lua_setfield(L, -2, "screenshot");
+    }
     lua_pushnumber(L, w->last_frame_ms > 0.0 ? 1000.0 / w->last_frame_ms : 0.0);
     lua_setfield(L, -2, "fps");
     lua_pushnumber(L, w->last_frame_ms);
@@ -1152,7 +1258,8 @@ int lcdvr_open_window(lua_State *L)
                    "playing, fps, policy, min_psnr, callback_limit, width, height, title; camera = cdvr.Camera, false "
                    "(frame the scene) or function(frame, t); defaults as cdvr.player: the store's best "
                    "variant, device cl when OpenCL has a device; drag orbits, wheel zooms, left/right "
-                   "step t, up/down step variants, space plays, r resets the view, Esc or q closes");
+                   "step t, up/down step variants, space plays, r resets the view, m records a movie (again: stops; the path is printed), "
+                   "p saves a screenshot PNG (both without the overlay), Esc or q closes");
     lcdvr_help_add(L, "w:set{...}", "change the window's scene (any cdvr.window key but width, height, title)");
     lcdvr_help_add(L, "w:frame()", "process events and draw one frame now; false once the user closed it");
     lcdvr_help_add(L, "w:read()", "the window's framebuffer (last frame shown) as an image");

@@ -337,5 +337,6 @@ int lcdvr_open_codec(lua_State *L);
 int lcdvr_open_gl(lua_State *L);
 int lcdvr_open_window(lua_State *L);
 int lcdvr_open_mpi(lua_State *L);
+int lcdvr_open_movie(lua_State *L);
 
 #endif

@@ -222,6 +222,7 @@ static int open_cdvr(lua_State *L)
     lcdvr_open_gl(L);
     lcdvr_open_window(L);
     lcdvr_open_mpi(L);
+    lcdvr_open_movie(L);
 
     lua_pushvalue(L, -1);
     lua_setglobal(L, "cdvr");

@@ -122,6 +122,25 @@ else
   check(xinput("key Left") == 0 and settle(function() return w:state().t == 2 end), "left arrow")
   check(xinput("key space") == 0 and settle(function() return w:state().playing end), "space plays")
   check(xinput("key space") == 0 and settle(function() return not w:state().playing end), "space pauses")
+  -- m records the frames drawn to a movie and stops (the movie is committed), p saves a PNG
+  if cdvr.has_movie then
+    check(xinput("key m") == 0 and settle(function() return w:state().recording ~= nil end), "m starts recording")
+    local movie = w:state().recording
+    w:set{t = 3}
+    w:frame()
+    check(movie:match("^cdvr%-movie%-%d+%-%d+.*%.mp4$") and io.open(movie) == nil, "nothing under " .. movie .. " while recording")
+    check(xinput("key m") == 0 and settle(function() return w:state().recording == nil end), "m stops recording")
+    local f = io.open(movie, "rb")
+    check(f and #f:read("a") > 0, "the recording is written: " .. movie)
+    if f then f:close() end
+    os.remove(movie)
+  end
+  check(xinput("key p") == 0 and settle(function() return w:state().screenshot ~= nil end), "p saves a screenshot")
+  local shot = w:state().screenshot or "none"
+  local png = io.open(shot, "rb")
+  check(png and png:read(8) == "\137PNG\r\n\26\n", "the screenshot is a PNG: " .. shot)
+  if png then png:close() end
+  os.remove(shot)
   w:set{store = st, t = 1}
 end
 
