@@ -64,7 +64,10 @@ static int l_movie(lua_State *L)
     luaL_setmetatable(L, LCDVR_MOVIE);
     cdvr_error err;
     cdvr_error_clear(&err);
-    if (cdvr_movie_open(path, &o, &lm->m, &err) != CDVR_OK)
+    cdvr_status st = cdvr_movie_open(path, &o, &lm->m, &err);
+    if (st == CDVR_ERR_ARG) /* a bad path= or option value: name the option */
+        return luaL_error(L, "cdvr.movie: option 'path' or its options: %s", err.msg);
+    if (st != CDVR_OK)
         return lcdvr_raise(L, &err);
     return 1;
 }

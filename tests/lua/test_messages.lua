@@ -97,6 +97,9 @@ local calls = {
   ["cdvr.schedule.fixed"] = {cdvr.schedule.fixed, {S = 4, T = 3}, opts = 1},
   ["cdvr.schedule.from_changes"] = {cdvr.schedule.from_changes, {1, 2, 3}, {}, opts = 2},
   ["cdvr.schedule.quantile"] = {cdvr.schedule.quantile, {1, 2, 3}, 0.5},
+  ["cdvr.movie{"] = cdvr.has_movie and {cdvr.movie, {path = tmp .. "/m.mkv", width = 8, height = 8}, opts = 1}
+                   or {skip = "no FFmpeg in this build"},
+  ["m:add(img)"] = {skip = "a movie's methods: their argument checks are tests/test_movie.sh's"},
   ["cdvr.splat_order"] = {cdvr.splat_order, {4, 4, 4}, {1, 0, 0}, "axis"},
   ["cdvr.splat_order_quality"] = {cdvr.splat_order_quality, {4, 4, 4}, {1, 0, 0}, "axis", {}, opts = 4},
   ["cdvr.tf"] = {cdvr.tf, "hot", {}, opts = 2},
