@@ -39,7 +39,7 @@ typedef struct lplayer {
     int capture;         /* out= set: quality never adapts, frames are deterministic */
     int has_policy;      /* policy= given: it decides, also when capturing (stats.capture) */
     const char *variant_why; /* why opts.variant (a literal) */
-    lua_Integer callback_limit;
+    lcdvr_limits limits; /* callback_limit, callback_memory */
     double target_fps, min_psnr; /* for stats: target_fps 0 and min_psnr NaN when not given */
     int frame_callback;  /* frame= given (UV_FRAME) */
     int shows_frames;    /* this process shows the frames (frame=, out=; cdvr/dist.h) */
@@ -91,7 +91,7 @@ static lplayer *checkidleplayer(lua_State *L, int idx, const char *what)
 static cdvr_status call_budgeted(lplayer *lp, lua_State *L, int nargs, int nres, const char *what,
                                  cdvr_error *err)
 {
-    return lcdvr_call_callback(L, nargs, nres, lp->callback_limit, what, err);
+    return lcdvr_call_callback(L, nargs, nres, &lp->limits, what, err);
 }
 
 /* Runs fn(ctx, player) in protected mode on the running state, so that no Lua error (memory
@@ -772,7 +772,7 @@ static int l_player(lua_State *L)
     static const char *const keys[] = {"store", "tf", "camera", "policy", "target_fps", "min_psnr",
                                        "variant", "device", "step", "unit", "term", "background",
                                        "threads", "pipeline", "ring", "cold", "read_mbps",
-                                       "empty_skip", "callback_limit", "out", "pace", "width",
+                                       "empty_skip", "callback_limit", "callback_memory", "out", "pace", "width",
                                        "height", "loop", "brick_skip", "frame", "distribute",
                                        "on_error", "fps", "crf", "preset", "progress", NULL};
     luaL_checktype(L, 1, LUA_TTABLE);
@@ -797,7 +797,7 @@ static int l_player(lua_State *L)
         lp->opts.annotate = &lp->annotate; /* its strings stay in the options (UV_OPTS) */
     lp->opts.ctx = lcdvr_render_ctx(L);
     render_options(L, lp, info);
-    lp->callback_limit = integer_option(L, "callback_limit", LCDVR_CALLBACK_LIMIT, 1, INT_MAX);
+    lcdvr_limits_options(L, 1, "cdvr.player", &lp->limits);
     lp->min_psnr = number_option(L, "min_psnr", NAN, -HUGE_VAL, HUGE_VAL, "a number in dB expected");
     lp->opts.variant = variant_option(L, st);
     lp->variant_why = "best quality (no variant, policy or min_psnr given)";

@@ -3,7 +3,7 @@
  *   - the policy's `stats` table (share/lua/cdvr/policy.lua documents it), built from frame
  *     rows (cdvr_frame_row) by one function;
  *   - the policy and camera callbacks, called under the instruction budget
- *     (lcdvr_pcall_budget, `callback_limit`), and their results read the same way;
+ *     (lcdvr_pcall_limits: `callback_limit`, `callback_memory`), and their results read the same way;
  *   - the default variant (cdvr_store_best_variant) and the default device
  *     (lcdvr_default_device);
  *   - a store frame decoded with its read, unzip and decode timed apart (the window; the
@@ -118,10 +118,10 @@ void lcdvr_push_policy_stats(lua_State *L, const cdvr_store *st, const lcdvr_pol
     lua_setfield(L, -2, "variants");
 }
 
-cdvr_status lcdvr_call_callback(lua_State *L, int nargs, int nres, lua_Integer limit,
+cdvr_status lcdvr_call_callback(lua_State *L, int nargs, int nres, const lcdvr_limits *lim,
                                 const char *what, cdvr_error *err)
 {
-    if (lcdvr_pcall_budget(L, nargs, nres, limit) != LUA_OK) {
+    if (lcdvr_pcall_limits(L, nargs, nres, lim) != LUA_OK) {
         const atomic_int *interrupt = lcdvr_interrupt_flag(L); /* Ctrl-C in the console */
         cdvr_status why = interrupt && atomic_load(interrupt) ? CDVR_ERR_CANCELLED : CDVR_ERR_ARG;
         cdvr_error_set(err, why, "%s: %s", what, lua_tostring(L, -1));

@@ -62,7 +62,8 @@ typedef struct lwindow {
     double fps;                /* playback pace in timesteps per second, 0: as fast as it renders */
     double last_step_ms;
     double last_frame_ms, last_render_ms; /* the last frame drawn: its whole time, its render */
-    lua_Integer callback_limit;/* instruction budget of the policy and camera callbacks */
+    lcdvr_limits limits;       /* budget of the policy and camera callbacks: callback_limit,
+                                  callback_memory */
     double min_psnr;           /* the policy's quality floor (stats.min_psnr), NaN: none */
     size_t frames;             /* frames drawn (the camera callback's frame number) */
     int decided;               /* the policy chose the variant for the next frame's group */
@@ -172,7 +173,7 @@ static void call_camera_fn(lua_State *L, int w_idx, lwindow *w, cdvr_camera *cam
     lua_pushinteger(L, (lua_Integer)w->frames + 1);
     lua_pushinteger(L, w->t);
     cdvr_error err;
-    cdvr_status s = lcdvr_call_callback(L, 2, 1, w->callback_limit, "window: camera", &err);
+    cdvr_status s = lcdvr_call_callback(L, 2, 1, &w->limits, "window: camera", &err);
     if (s == CDVR_OK) {
         cdvr_camera next = *cam;
         s = lcdvr_camera_result(L, -1, &next, &err);
@@ -225,7 +226,7 @@ static const char *opts_what(int idx)
  * come from the method table (lcdvr_method_checkoptions). */
 static const char *const window_keys[] = {"volume", "store", "tf", "camera", "method", "device",
                                           "overlay", "t", "variant", "playing", "fps", "policy",
-                                          "min_psnr", "callback_limit", "width", "height", "title",
+                                          "min_psnr", "callback_limit", "callback_memory", "width", "height", "title",
                                           NULL};
 
 /* The device the window renders on: the one set, else the method's default (the scene
@@ -517,10 +518,15 @@ static void apply_options(lua_State *L, int w_idx, int idx, lwindow *w)
     set_camera(L, w_idx, idx);
     set_policy(L, w_idx, idx);
     set_render(L, w_idx, idx, w, m);
-    w->callback_limit = lcdvr_optintegerfield(L, idx, "callback_limit", w->callback_limit);
-    if (w->callback_limit < 1 || w->callback_limit > INT_MAX)
-        lcdvr_error(L, "option 'callback_limit' = %I: must be 1..%d",
-                   (LUAI_UACINT)w->callback_limit, INT_MAX);
+    lua_Integer limit = lcdvr_optintegerfield(L, idx, "callback_limit", w->limits.instructions);
+    if (limit < 1 || limit > INT_MAX)
+        lcdvr_error(L, "option 'callback_limit' = %I: must be 1..%d", (LUAI_UACINT)limit, INT_MAX);
+    w->limits.instructions = limit;
+    lua_Number mb = lcdvr_optnumberfield(L, idx, "callback_memory",
+                                         (lua_Number)(w->limits.memory >> 20));
+    if (!(mb >= 1 && mb <= 1 << 20))
+        lcdvr_error(L, "option 'callback_memory' must be 1 .. %d MB", 1 << 20);
+    w->limits.memory = (size_t)(mb * 1048576.0);
     int floor_type = lua_getfield(L, idx, "min_psnr"); /* a number, or false for none */
     if (floor_type == LUA_TBOOLEAN && !lua_toboolean(L, -1))
         w->min_psnr = NAN;
@@ -785,7 +791,7 @@ static void run_policy(lua_State *L, int w_idx, lwindow *w)
                               0, 0};
     lcdvr_push_policy_stats(L, st, &view, w->rows, (size_t)w->nrows);
     cdvr_error err;
-    cdvr_status s = lcdvr_call_callback(L, 1, 2, w->callback_limit, "window: policy", &err);
+    cdvr_status s = lcdvr_call_callback(L, 1, 2, &w->limits, "window: policy", &err);
     if (s == CDVR_OK)
         s = lcdvr_policy_result(L, st, &w->variant, w->reason, sizeof w->reason, &err);
     if (s != CDVR_OK) {
@@ -1010,7 +1016,8 @@ static int l_window(lua_State *L)
     w->t = 1;
     w->method = cdvr_render_method_find("raycast");
     w->device = -1;
-    w->callback_limit = LCDVR_CALLBACK_LIMIT;
+    w->limits.instructions = LCDVR_CALLBACK_LIMIT;
+    w->limits.memory = (size_t)LCDVR_CALLBACK_MEMORY_MB << 20;
     w->min_psnr = NAN;
     snprintf(w->reason, sizeof w->reason, "-");
     luaL_setmetatable(L, LCDVR_WINDOW);

@@ -201,7 +201,7 @@ void lcdvr_push_policy_stats(lua_State *L, const cdvr_store *st, const lcdvr_pol
 /* Calls the function below its nargs arguments under a budget of `limit` instructions
  * (lcdvr_pcall_budget); leaves nres results and returns CDVR_OK, or pops the error and fills
  * err with "what: message and traceback" (CDVR_ERR_CANCELLED after Ctrl-C in the console). */
-cdvr_status lcdvr_call_callback(lua_State *L, int nargs, int nres, lua_Integer limit,
+cdvr_status lcdvr_call_callback(lua_State *L, int nargs, int nres, const lcdvr_limits *lim,
                                 const char *what, cdvr_error *err);
 /* Reads a policy's two results (name [, reason], on top; popped) into *variant (from 0) and
  * reason, or fills err ("policy returned X, not a variant of <store>"). */

@@ -89,6 +89,20 @@ do
 end
 raises(function() render{annotate = {colourbar = true}} end, "annotate: unknown option 'colourbar'", "annotate keys")
 
+-- the player's callbacks run under callback_memory as well as callback_limit
+do
+  local mpath = os.tmpname()
+  local mst = cdvr.encode(v, {variants = {{codec = "raw"}}, path = mpath})
+  local p = cdvr.player{store = mst, tf = tf, width = 16, height = 16, device = "cpu", callback_memory = 8,
+                        policy = function(s) local t = {} for i = 1, 1e7 do t[i] = i end return s.variants[1].name end}
+  raises(function() p:run{frames = 1} end, "callback exceeded its memory budget (callback_memory = 8 MB)",
+         "player policy over its memory budget")
+  p:close()
+  raises(function() cdvr.player{store = mst, tf = tf, callback_memory = 0} end, "option 'callback_memory'",
+         "callback_memory checked")
+  os.remove(mpath)
+end
+
 -- refusals, naming the option
 raises(function() render{blend = "maximum"} end, "option 'blend': unknown mode 'maximum'", "unknown blend")
 raises(function() render{blend = "iso"} end, "blend 'iso' needs iso={value=, color=}", "iso without value")

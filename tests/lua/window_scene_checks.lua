@@ -162,6 +162,10 @@ w:frame()
 check(seen[#seen] == 2 and math.abs(w:camera().eye[1] - path_cam.eye[1]) < 1e-9 and w:camera().width == 160,
       "camera callback applied, sized to the window")
 w:set{camera = false, callback_limit = 50000000}
+w:set{callback_memory = 8, t = 3}
+raises_all(function() w:set{policy = function() local t = {} for i = 1, 1e7 do t[i] = i end end, t = 4} end,
+           {"policy", "memory budget", "callback_memory = 8 MB"}, "a policy over the window's memory budget")
+w:set{policy = false, callback_memory = 256}
 
 -- ---- re-framing: a new box re-frames unless the call gives a camera ---------------------------
 local function near(a, b)
