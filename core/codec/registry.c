@@ -4,6 +4,7 @@
  * guarded by a mutex because plugins may be loaded while other threads look codecs up. The
  * built-ins are registered on first use (pthread_once). */
 #include "cdvr/codec.h"
+#include "cdvr/names.h"
 
 #include <pthread.h>
 #include <stdio.h>
@@ -24,14 +25,7 @@ static struct {
 
 int cdvr_codec_name_valid(const char *name)
 {
-    size_t n = name ? strnlen(name, CDVR_CODEC_NAME_MAX) : 0;
-    if (n == 0 || n >= CDVR_CODEC_NAME_MAX)
-        return 0;
-    for (size_t i = 0; i < n; i++)
-        if (!((name[i] >= 'a' && name[i] <= 'z') || (name[i] >= '0' && name[i] <= '9') ||
-              name[i] == '_'))
-            return 0;
-    return 1;
+    return cdvr_name_valid(name, CDVR_CODEC_NAME_MAX);
 }
 
 static cdvr_status check_table(const cdvr_codec *c, cdvr_error *err)

@@ -6,6 +6,7 @@
  * (core/io/io_NAME.c defining `const cdvr_format cdvr_format_NAME`) plus one line in `builtins`
  * below and one name in core/io/CMakeLists.txt. */
 #include "cdvr/format.h"
+#include "cdvr/names.h"
 #include "cdvr/regular_file.h"
 #include "volume_io.h"
 
@@ -34,23 +35,11 @@ static struct {
     size_t count;
 } registry = {PTHREAD_MUTEX_INITIALIZER, PTHREAD_ONCE_INIT, {NULL}, 0};
 
-static int name_valid(const char *name)
-{
-    size_t n = name ? strnlen(name, CDVR_FORMAT_NAME_MAX) : 0;
-    if (n == 0 || n >= CDVR_FORMAT_NAME_MAX)
-        return 0;
-    for (size_t i = 0; i < n; i++)
-        if (!((name[i] >= 'a' && name[i] <= 'z') || (name[i] >= '0' && name[i] <= '9') ||
-              name[i] == '_'))
-            return 0;
-    return 1;
-}
-
 static cdvr_status check_table(const cdvr_format *f, cdvr_error *err)
 {
     if (!f)
         return cdvr_error_set(err, CDVR_ERR_ARG, "format table is NULL");
-    if (!name_valid(f->name))
+    if (!cdvr_name_valid(f->name, CDVR_FORMAT_NAME_MAX))
         return cdvr_error_set(err, CDVR_ERR_ARG, "format name '%s' is not 1..%d characters of "
                               "[a-z0-9_]", f->name ? f->name : "(null)", CDVR_FORMAT_NAME_MAX - 1);
     const char *missing = !f->description ? "description" : !f->suffixes ? "suffixes"

@@ -6,6 +6,7 @@
  * built-ins are registered on first use (pthread_once); incomplete or clashing tables are
  * refused naming what is wrong. */
 #include "cdvr/method.h"
+#include "cdvr/names.h"
 
 #include <math.h>
 #include <pthread.h>
@@ -43,18 +44,6 @@ int cdvr_device_parse(const char *name)
 
 /* ---- registry ------------------------------------------------------------------------------ */
 
-static int name_valid(const char *name)
-{
-    size_t n = name ? strnlen(name, 32) : 0;
-    if (n == 0 || n >= 32)
-        return 0;
-    for (size_t i = 0; i < n; i++)
-        if (!((name[i] >= 'a' && name[i] <= 'z') || (name[i] >= '0' && name[i] <= '9') ||
-              name[i] == '_'))
-            return 0;
-    return 1;
-}
-
 static cdvr_status check_options(const cdvr_render_method *m, cdvr_error *err)
 {
     for (const cdvr_method_option *o = m->options; o->key; o++) {
@@ -72,7 +61,7 @@ static cdvr_status check_table(const cdvr_render_method *m, cdvr_error *err)
 {
     if (!m)
         return cdvr_error_set(err, CDVR_ERR_ARG, "render method table is NULL");
-    if (!name_valid(m->name))
+    if (!cdvr_name_valid(m->name, CDVR_METHOD_NAME_MAX))
         return cdvr_error_set(err, CDVR_ERR_ARG, "render method name '%s' is not 1..31 "
                               "characters of [a-z0-9_]", m->name ? m->name : "(null)");
     const char *missing = !m->description ? "description" : !m->options ? "options"

@@ -105,6 +105,7 @@ typedef struct cdvr_method_option {
     const char *doc;        /* one line */
 } cdvr_method_option;
 
+#define CDVR_METHOD_NAME_MAX 32   /* method names: 1..31 bytes of [a-z0-9_] */
 #define CDVR_METHOD_PARAMS_MAX 128
 typedef struct cdvr_method_params {
     _Alignas(8) unsigned char bytes[CDVR_METHOD_PARAMS_MAX];

@@ -309,9 +309,9 @@ static clip_params clip_params_of(const cdvr_render_clip *c)
     return k;
 }
 
-/* The look of render.h in the kernel's terms (cl_shared.h), for the stream's TF window and the
- * volume's direction (invertible: checked) and spacing. */
-static cdvr_cl_look look_of(const cdvr_look *look, const cdvr_tf *tf, const double direction[9],
+/* The look of render.h in the kernel's terms (cl_shared.h), for the stream's TF window, the
+ * volume's box frame (its D^-1, made by make_box_frame) and spacing. */
+static cdvr_cl_look look_of(const cdvr_look *look, const cdvr_tf *tf, const box_frame *box,
                             const double spacing[3])
 {
     cdvr_cl_look k;
@@ -330,17 +330,9 @@ static cdvr_cl_look look_of(const cdvr_look *look, const cdvr_tf *tf, const doub
         k.light[a] = len > 0.0 ? (cl_float)(-sh->light_dir[a] / len) : 0.0f;
         k.spacing[a] = (cl_float)spacing[a];
     }
-    double D[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, inv[9];
-    int any = 0;
-    for (int i = 0; direction && i < 9; i++)
-        any |= direction[i] != 0.0;
-    if (any)
-        memcpy(D, direction, sizeof D);
-    if (!cdvr_mat3_inverse(D, inv))
-        memcpy(inv, D, sizeof inv);
-    for (int r = 0; r < 3; r++)
+    for (int r = 0; r < 3; r++) /* (D^-1)^T from the box frame's D^-1 */
         for (int c = 0; c < 3; c++)
-            k.grad_to_world[3 * r + c] = (cl_float)inv[3 * c + r]; /* (D^-1)^T */
+            k.grad_to_world[3 * r + c] = box->inv_dir[3 * c + r];
     double width = tf->window[1] - tf->window[0];
     k.value_per_code = (cl_float)(width / 255.0);
     k.go_points = (cl_int)look->gradient_opacity.npoints;
@@ -627,7 +619,7 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     make_quads_if_rerendered(s, frame);
     cl_mem host_image = wrap_host_image(s->cl, img, pixels);
     cl_kernel kernel;
-    cdvr_cl_look look = look_of(&opts->look, &s->tf, direction, spacing);
+    cdvr_cl_look look = look_of(&opts->look, &s->tf, &box, spacing);
     st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box, &look,
                           host_image ? host_image : s->image, &kernel, err);
     if (!st)
