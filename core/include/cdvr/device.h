@@ -134,7 +134,9 @@ cdvr_status cdvr_cl_setup(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf, cd
 
 /* b4 from a grid the caller made (cdvr/skip.h: bricks of cdvr_cl_brick_edge() voxels over
  * the stream's dims, flags made for tf, e.g. from a store's range tables on another thread):
- * its flags are uploaded as they are. CDVR_ERR_ARG when the grid does not fit. */
+ * its flags are uploaded as they are. CDVR_ERR_ARG when the grid does not fit. The grid must
+ * stay allocated and unchanged until the frame's cdvr_cl_render: a max or min render uploads
+ * its min/max ranges then (composite never needs them). */
 cdvr_status cdvr_cl_setup_grid(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf,
                                const cdvr_skip_grid *g, cdvr_error *err);
 

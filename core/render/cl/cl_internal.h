@@ -83,6 +83,8 @@ struct cdvr_cl_stream {
     cl_mem table;                /* 256 float4: rgb + step-corrected alpha (per render) */
     cl_mem alpha_unit;           /* 256 floats: alpha per unit length (shorter last segment) */
     cl_mem brick_minmax;         /* nbricks uchar2: value range per brick incl. apron */
+    const uint8_t *pending_minmax; /* cdvr_cl_setup_grid's grid ranges, not uploaded yet (only
+                                    a max or min render uploads them) */
     int minmax_valid;            /* brick_minmax holds the set-up frame's ranges (the max and
                                     min blend modes skip by them) */
     cl_mem quads;                /* quads of frame quads_frame for the ray caster (raycast.cl) */

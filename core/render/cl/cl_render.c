@@ -121,6 +121,7 @@ cdvr_status cdvr_cl_setup(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf, cd
         s->minmax_frame = frame;
     }
     s->minmax_valid = 1;
+    s->pending_minmax = NULL;
     if (cdvr_skip_flags(&s->grid, tf) || s->grid_uploaded != 0) {
         st = use_grid(s, &s->grid, err);
         if (st) {
@@ -157,13 +158,12 @@ cdvr_status cdvr_cl_setup_grid(cdvr_cl_stream *s, size_t frame, const cdvr_tf *t
     if (st)
         return st;
     s->grid_uploaded = 1; /* brick_visible no longer holds s->grid's flags */
-    /* the grid's ranges for the max and min blend modes; brick_minmax then no longer holds
-     * s->grid's (a later cdvr_cl_setup computes them again) */
+    /* the grid's ranges, uploaded only when a max or min render of this frame asks for them
+     * (pending_minmax: the caller keeps g until then); brick_minmax no longer holds s->grid's
+     * (a later cdvr_cl_setup computes them again) */
     s->minmax_frame = (size_t)-1;
-    cdvr_error ignored; /* without them the max and min modes just take every sample */
-    s->minmax_valid = g->minmax && write_buffer(s->cl, s->brick_minmax, g->minmax,
-                                                2 * s->nbricks, "upload brick ranges",
-                                                &ignored) == CDVR_OK;
+    s->minmax_valid = 0;
+    s->pending_minmax = g->minmax;
     s->setup_frame = frame;
     return CDVR_OK;
 }
@@ -379,6 +379,13 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
                         (cl_int)s->brick_dims[2], s->skipping && !clip};
     cl_float step = (cl_float)rp.step, term_alpha = (cl_float)rp.term_alpha;
     cl_float unit = (cl_float)rp.unit;
+    if ((look->blend == CDVR_BLEND_MAX || look->blend == CDVR_BLEND_MIN) && !s->minmax_valid &&
+        s->pending_minmax) {
+        cdvr_error ignored; /* without the ranges max and min just take every sample */
+        s->minmax_valid = write_buffer(s->cl, s->brick_minmax, s->pending_minmax, 2 * s->nbricks,
+                                       "upload brick ranges", &ignored) == CDVR_OK;
+        s->pending_minmax = NULL;
+    }
     cl_int minmax_valid = s->minmax_valid && s->setup_frame == frame;
     /* (size, value) of arguments 3.. in kernel order */
     struct {

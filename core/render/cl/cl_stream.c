@@ -113,6 +113,8 @@ static void invalidate_frames(cdvr_cl_stream *s)
     s->fetch = NULL;
     s->setup_frame = (size_t)-1;
     s->minmax_frame = (size_t)-1;
+    s->minmax_valid = 0;
+    s->pending_minmax = NULL;
     s->quads_frame = s->last_rendered = (size_t)-1;
 }
 
