@@ -19,6 +19,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "cdvr/format.h"
@@ -115,7 +116,7 @@ static void test_registry(void)
 
     static const char *const sfx[] = {".tst", NULL}, *const bad_sfx[] = {"tst", NULL},
                              *const nii[] = {".xyz", ".NII", NULL}, *const none[] = {NULL};
-    cdvr_format t = {"tst", "test format", sfx, 0, NULL, ok_probe, NULL, ok_read, NULL};
+    cdvr_format t = {"tst", "test format", sfx, 0, NULL, ok_probe, NULL, ok_read, NULL, NULL};
     cdvr_format f = t;
     expect_refused(NULL, "format table is NULL");
     f.name = "Bad Name";
@@ -267,9 +268,9 @@ static void test_read_and_expand(void)
 {
     static const char *const tfmt_sfx[] = {".tfmt", NULL}, *const tlst_sfx[] = {".tlst", NULL};
     static const cdvr_format tfmt = {"tfmt", "test: read only", tfmt_sfx, 0, tfmt_magic,
-                                     tfmt_probe, NULL, tfmt_read, NULL};
+                                     tfmt_probe, NULL, tfmt_read, NULL, NULL};
     static const cdvr_format tlst = {"tlst", "test: a list", tlst_sfx, 0, NULL,
-                                     tfmt_probe, NULL, tfmt_read, tlst_expand};
+                                     tfmt_probe, NULL, tfmt_read, tlst_expand, NULL};
     cdvr_error err;
     CHECK_OK(cdvr_format_register(&tfmt, &err), err);
     CHECK_OK(cdvr_format_register(&tlst, &err), err);
@@ -376,6 +377,66 @@ static void test_plugin(void)
               strstr(err.msg, "open it as a series"), "%s", err.msg);
 }
 
+/* ---- directories (rule 0) and FILE:NAME paths (rule 1b) ------------------------------------
+ * "tdir" reads a directory that holds a file "tdir.marker"; "tsub" reads "x.tsub:NAME". */
+
+static int tdir_accepts(const char *path)
+{
+    char marker[600];
+    snprintf(marker, sizeof marker, "%s/tdir.marker", path);
+    return access(marker, F_OK) == 0;
+}
+
+static cdvr_status t1_probe(const char *path, const cdvr_raw_opts *o, cdvr_volume *h,
+                            cdvr_error *err)
+{
+    (void)path, (void)o, (void)err;
+    h->dims[0] = h->dims[1] = h->dims[2] = 1;
+    h->timesteps = 1;
+    h->type = CDVR_TYPE_U8;
+    return CDVR_OK;
+}
+
+static void test_dirs_and_subpaths(void)
+{
+    static const char *const no_suffix[] = {NULL}, *const tsub_suffix[] = {".tsub", NULL};
+    static const cdvr_format tdir = {.name = "tdir", .description = "test directories",
+                                     .suffixes = no_suffix, .magic = never, .probe = t1_probe,
+                                     .read = ok_read, .accepts_dir = tdir_accepts};
+    static const cdvr_format tsub = {.name = "tsub", .description = "test FILE:NAME",
+                                     .suffixes = tsub_suffix, .flags = CDVR_FORMAT_SUBPATH,
+                                     .probe = t1_probe, .read = ok_read};
+    cdvr_error err;
+    CHECK_OK(cdvr_format_register(&tdir, &err), err);
+    CHECK_OK(cdvr_format_register(&tsub, &err), err);
+    const cdvr_format *f = NULL;
+    CHECK(mkdir(tmp("plain_dir"), 0700) == 0 && mkdir(tmp("marked_dir"), 0700) == 0, "mkdir");
+    write_text(tmp("marked_dir/tdir.marker"), "");
+    CHECK(cdvr_format_for(tmp("plain_dir"), NULL, &f, &err) == CDVR_ERR_FORMAT && !f &&
+              strstr(err.msg, "plain_dir: is a directory that no format reads") &&
+              strstr(err.msg, "tdir"), "plain directory: %s", err.msg);
+    CHECK(cdvr_format_for(tmp("marked_dir"), NULL, &f, &err) == CDVR_OK && f == &tdir,
+          "directory read by tdir: %s", err.msg);
+    cdvr_volume *v = NULL;
+    CHECK_OK(cdvr_volume_load(tmp("marked_dir"), NULL, &v, &err), err);
+    CHECK(v && v->dims[0] == 1, "directory loaded");
+    cdvr_volume_free(v);
+
+    write_text(tmp("x.tsub"), "");
+    char path[700], file[700], name[700];
+    snprintf(path, sizeof path, "%s:/group/data:set", tmp("x.tsub"));
+    CHECK(cdvr_format_for(path, NULL, &f, &err) == CDVR_OK && f == &tsub, "subpath: %s", err.msg);
+    CHECK(cdvr_format_split_subpath(&tsub, path, file, name, sizeof file) &&
+              strcmp(file, tmp("x.tsub")) == 0 && strcmp(name, "/group/data:set") == 0,
+          "split: %s | %s", file, name);
+    CHECK(cdvr_format_split_subpath(&tsub, tmp("x.tsub"), file, name, sizeof file) &&
+              strcmp(file, tmp("x.tsub")) == 0 && name[0] == '\0', "no name");
+    CHECK(!cdvr_format_split_subpath(&tsub, path, file, name, 8), "too long for the buffers");
+    snprintf(path, sizeof path, "%s:u", tmp("missing.tsub"));
+    CHECK(cdvr_format_for(path, NULL, &f, &err) == CDVR_ERR_FORMAT && !f, "missing FILE: %s",
+          err.msg);
+}
+
 int main(void)
 {
     if (!mkdtemp(dir)) {
@@ -385,6 +446,7 @@ int main(void)
     test_registry();
     test_dispatch();
     test_read_and_expand();
+    test_dirs_and_subpaths();
     test_plugin();
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);

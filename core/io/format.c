@@ -16,6 +16,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 extern const cdvr_format cdvr_format_nrrd;
@@ -261,10 +262,60 @@ static int read_head(const char *path, uint8_t *head, size_t *n, char *why, size
     return !bad;
 }
 
+/* Rule 0 of cdvr/format.h: the first format that reads the directory, or a refusal naming
+ * those that read directories. */
+static cdvr_status format_for_dir(const char *path, const cdvr_format **out, cdvr_error *err)
+{
+    char readers[CDVR_ERRMSG_MAX / 2] = "";
+    size_t len = 0, count = cdvr_format_count();
+    for (size_t i = 0; i < count; i++) {
+        const cdvr_format *f = cdvr_format_at(i);
+        if (!f->accepts_dir)
+            continue;
+        if (f->accepts_dir(path)) {
+            *out = f;
+            return CDVR_OK;
+        }
+        append(readers, sizeof readers, &len, len ? ", " : "");
+        append(readers, sizeof readers, &len, f->name);
+    }
+    return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: is a directory that no format reads "
+                          "(formats that read directories: %s)", path,
+                          readers[0] ? readers : "none");
+}
+
+/* Rule 1b: a FILE:NAME path whose FILE ends in a suffix of a CDVR_FORMAT_SUBPATH format and
+ * exists. */
+static const cdvr_format *format_for_subpath(const char *path)
+{
+    if (!strchr(path, ':'))
+        return NULL;
+    size_t count = cdvr_format_count(), n = strlen(path) + 1;
+    char *file = malloc(n), *name = malloc(n);
+    const cdvr_format *found = NULL;
+    struct stat st;
+    for (size_t i = 0; file && name && !found && i < count; i++) {
+        const cdvr_format *f = cdvr_format_at(i);
+        if ((f->flags & CDVR_FORMAT_SUBPATH) &&
+            cdvr_format_split_subpath(f, path, file, name, n) && name[0] &&
+            stat(file, &st) == 0 && S_ISREG(st.st_mode))
+            found = f;
+    }
+    free(file);
+    free(name);
+    return found;
+}
+
 cdvr_status cdvr_format_for(const char *path, const cdvr_raw_opts *opts,
                             const cdvr_format **out, cdvr_error *err)
 {
+    struct stat st;
+    *out = NULL;
+    if (stat(path, &st) == 0 && S_ISDIR(st.st_mode))
+        return format_for_dir(path, out, err);
     *out = cdvr_format_by_suffix(path);
+    if (!*out)
+        *out = format_for_subpath(path);
     if (!*out && describes(opts)) /* any other name with a raw description is read as raw */
         *out = cdvr_format_find("raw");
     if (*out)

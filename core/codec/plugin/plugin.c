@@ -165,6 +165,32 @@ static cdvr_status widen_codecs(const char *path, cdvr_plugin_info *out, cdvr_er
     return CDVR_OK;
 }
 
+/* The same for formats: a plugin built before ABI 5 has format tables that end before
+ * `accepts_dir`, so out's formats become full-size copies with accepts_dir NULL. */
+static cdvr_status widen_formats(const char *path, cdvr_plugin_info *out, cdvr_error *err)
+{
+    if (out->abi >= 5)
+        return CDVR_OK;
+    size_t n = 0;
+    while (format_at(out, n))
+        n++;
+    if (!n)
+        return CDVR_OK;
+    cdvr_format *copies = calloc(n, sizeof *copies);
+    const cdvr_format **list = calloc(n + 1, sizeof *list);
+    if (!copies || !list) {
+        free(copies);
+        free(list);
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
+    }
+    for (size_t k = 0; k < n; k++) {
+        memcpy(&copies[k], format_at(out, k), offsetof(cdvr_format, accepts_dir));
+        list[k] = &copies[k];
+    }
+    out->formats = list;
+    return CDVR_OK;
+}
+
 /* Registers codec; on a refusal the message names the file and, for a clash with a plugin
  * codec, the file that one came from. Caller holds loader.mu. */
 static cdvr_status register_codec_locked(const char *path, const cdvr_codec *codec,
@@ -258,6 +284,8 @@ static cdvr_status load_locked(const char *path, const loaded_plugin **out, cdvr
     cdvr_status s = check_info(path, raw, &info, err);
     if (s == CDVR_OK)
         s = widen_codecs(path, &info, err);
+    if (s == CDVR_OK)
+        s = widen_formats(path, &info, err);
     if (s == CDVR_OK)
         s = register_all_locked(path, &info, &done, err);
     if (s != CDVR_OK) {

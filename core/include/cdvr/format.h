@@ -3,12 +3,17 @@
  * A format turns a file into a cdvr_volume (cdvr/volume.h). cdvr_volume_load, the header probe
  * that out-of-core series use (cdvr/series.h), cdvr.load and cdvr.load_series only ever go
  * through a `cdvr_format` table; none of them names a format. Built-in formats: "nrrd" (teem),
- * "nifti" (niftilib), "raw" (the caller describes the file); plugins (cdvr/plugin.h, ABI 3) add
+ * "nifti" (niftilib), "raw" (the caller describes the file) and more; plugins (cdvr/plugin.h) add
  * more at run time, so a loader written against a C++ library stays out of core.
  *
  * Which format reads a file (cdvr_format_for):
+ *  0. a directory: the first format, in registration order, whose accepts_dir(dir) is 1; a
+ *     directory no format accepts is refused: CDVR_ERR_FORMAT, "PATH: is a directory that no
+ *     format reads", naming the formats that read directories;
  *  1. its name: the format with the longest suffix that ends the name, compared without regard
  *     to case (".nii.gz" before a plugin's ".gz");
+ *  1b. else, for a name holding ':', the longest prefix FILE before a ':' that ends in a suffix
+ *     of a CDVR_FORMAT_SUBPATH format and names an existing file: that format;
  *  2. else, when the caller describes a raw file (cdvr_raw_opts with dims): raw, whatever the
  *     name (as cdvr.load always did);
  *  3. else its first bytes (at most CDVR_FORMAT_MAGIC_MAX, fewer for a short file): the first
@@ -37,7 +42,12 @@
  *    gives timesteps > 1 and a series of it is the series of its timesteps.
  *  - flags: CDVR_FORMAT_DESCRIBED when the format reads only what the caller describes (raw:
  *    dims and type in cdvr_raw_opts); then a file without a description is refused naming what
- *    is missing.
+ *    is missing. CDVR_FORMAT_SUBPATH when the format reads an object inside a file named as
+ *    FILE:NAME (HDF5 `scan.h5:/group/dataset`, NetCDF `flow.nc:u`): see rule 1b below; its
+ *    functions get the whole string and split it themselves (cdvr_format_split_subpath);
+ *  - accepts_dir, optional (ABI 5): 1 when the format reads the directory dir as one volume or
+ *    series (DICOM files, a TIFF stack); see rule 0 below. probe/load/read then get the
+ *    directory's path.
  * opts (cdvr_raw_opts: the raw description, a spacing override and the readers' limits) is
  * passed to every function and may be NULL; formats that read their geometry from the file ignore
  * the description: the registry applies a given spacing (> 0 per axis) over what the file says,
@@ -62,6 +72,7 @@
 #define CDVR_FORMAT_NAME_MAX 16    /* format names: 1..15 bytes of [a-z0-9_] */
 #define CDVR_FORMAT_MAGIC_MAX 512  /* first bytes a magic test sees, at most */
 #define CDVR_FORMAT_DESCRIBED 1u   /* flag: reads only what cdvr_raw_opts describes (raw) */
+#define CDVR_FORMAT_SUBPATH 2u     /* flag: reads FILE:NAME (an object inside FILE) */
 
 typedef struct cdvr_format {
     const char *name;                /* registry key, e.g. "nrrd" */
@@ -86,7 +97,50 @@ typedef struct cdvr_format {
      * returns CDVR_ERR_NOMEM). */
     cdvr_status (*expand)(const char *path, int (*add)(void *ud, const char *file), void *ud,
                           cdvr_error *err);
+    /* ABI 5 and later (a plugin of an older ABI gets a copy with NULL here). Optional: 1 when
+     * this format reads the directory dir (rule 0 above). Must not read voxels. */
+    int (*accepts_dir)(const char *dir);
 } cdvr_format;
+
+/* Splits "FILE:NAME" for a CDVR_FORMAT_SUBPATH format (inline: plugins may use it): the
+ * longest prefix before a ':' that ends in one of f's suffixes (case-insensitive) goes to
+ * file (n bytes), the rest to name (n bytes; "" when path has no such ':', then file is path).
+ * Returns 0 when either part does not fit. */
+static inline int cdvr_format_split_subpath(const cdvr_format *f, const char *path, char *file,
+                                            char *name, size_t n)
+{
+    size_t len = 0, cut = 0;
+    while (path[len])
+        len++;
+    for (size_t i = len; i-- > 0 && !cut;) {
+        if (path[i] != ':')
+            continue;
+        for (const char *const *s = f->suffixes; *s && !cut; s++) {
+            size_t k = 0;
+            while ((*s)[k])
+                k++;
+            int match = k <= i;
+            for (size_t j = 0; match && j < k; j++) {
+                char a = path[i - k + j], b = (*s)[j];
+                a = (char)(a >= 'A' && a <= 'Z' ? a + 32 : a);
+                b = (char)(b >= 'A' && b <= 'Z' ? b + 32 : b);
+                match = a == b;
+            }
+            if (match)
+                cut = i;
+        }
+    }
+    size_t file_len = cut ? cut : len, name_len = cut ? len - cut - 1 : 0;
+    if (file_len >= n || name_len >= n)
+        return 0;
+    for (size_t i = 0; i < file_len; i++)
+        file[i] = path[i];
+    file[file_len] = '\0';
+    for (size_t i = 0; i < name_len; i++)
+        name[i] = path[cut + 1 + i];
+    name[name_len] = '\0';
+    return 1;
+}
 
 /* ---- registry -------------------------------------------------------------------------------
  * One process-wide table (built-ins first, registered on first use; thread-safe). */

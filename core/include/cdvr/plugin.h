@@ -21,6 +21,9 @@
  *      tables of a version 2 or 3 plugin end before it: cdvr registers full-size copies of
  *      them with check NULL (so an ABI 2/3 plugin's info, from cdvr_plugin_load_info, lists
  *      those copies, in `codecs`).
+ *   5  as 4; cdvr_format ends with `accepts_dir` (directories read as one volume). The
+ *      format tables of a version 2 to 4 plugin end before it: cdvr registers full-size
+ *      copies with accepts_dir NULL (listed in the info's `formats`).
  * A version outside that range is refused naming both versions. The ABI version covers the
  * layouts of cdvr_plugin_info, cdvr_codec, cdvr_codec_params, cdvr_codec_shape, cdvr_format,
  * cdvr_volume, cdvr_raw_opts and cdvr_error.
@@ -42,7 +45,7 @@
 #include "cdvr/error.h"
 #include "cdvr/format.h"
 
-#define CDVR_PLUGIN_ABI 4u     /* 4: cdvr_codec.check; 3: lists of codecs and formats;
+#define CDVR_PLUGIN_ABI 5u     /* 5: cdvr_format.accepts_dir; 4: cdvr_codec.check; 3: lists of codecs and formats;
                                   2: cdvr_codec.encode_part */
 #define CDVR_PLUGIN_ABI_MIN 2u /* the oldest version this cdvr still loads */
 #define CDVR_PLUGIN_SYMBOL "cdvr_plugin_v1"
