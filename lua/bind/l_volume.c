@@ -629,8 +629,8 @@ static void spacing_field(lua_State *L, int idx, double out[3])
 }
 
 /* The readers' limits (cdvr_raw_opts): allow_outside (boolean: a NRRD header may name data
- * files outside its directory) and max_bytes (positive integer: the voxel bytes a file may
- * claim; default half the physical memory). */
+ * files outside its directory), max_bytes (positive integer: the voxel bytes a file may
+ * claim; default half the physical memory) and select (the object inside the file). */
 static void limit_fields(lua_State *L, int idx, cdvr_raw_opts *raw)
 {
     lua_getfield(L, idx, "allow_outside");
@@ -647,6 +647,12 @@ static void limit_fields(lua_State *L, int idx, cdvr_raw_opts *raw)
                        luaL_tolstring(L, -1, NULL));
         raw->max_bytes = (uint64_t)n;
     }
+    lua_pop(L, 1);
+    lua_getfield(L, idx, "select");
+    if (!lua_isnil(L, -1) && lua_type(L, -1) != LUA_TSTRING)
+        lcdvr_error(L, "option 'select': string expected (an array, series, dataset or "
+                       "variable name), got %s", luaL_typename(L, -1));
+    raw->select = lua_tostring(L, -1); /* the string stays in the options table (arg idx) */
     lua_pop(L, 1);
 }
 
@@ -688,7 +694,7 @@ static int push_load_result(lua_State *L, cdvr_status st, cdvr_volume *vol, cons
 static int l_load(lua_State *L)
 {
     static const char *const keys[] = {"dims", "type", "endian", "header", "timesteps", "spacing",
-                                       "allow_outside", "max_bytes", NULL};
+                                       "allow_outside", "max_bytes", "select", NULL};
     lcdvr_checkoptions(L, 2, "cdvr.load", keys);
     const char *path = luaL_checkstring(L, 1);
     cdvr_raw_opts raw;
@@ -740,7 +746,7 @@ static int series_names_from_pattern(lua_State *L, const char *pattern, int opts
 static int l_load_series(lua_State *L)
 {
     static const char *const keys[] = {"dims", "type", "endian", "header", "timesteps", "spacing",
-                                       "first", "count", "last", "allow_outside", "max_bytes",
+                                       "first", "count", "last", "allow_outside", "max_bytes", "select",
                                        NULL};
     lcdvr_checkoptions(L, 2, "cdvr.load_series", keys);
     cdvr_raw_opts raw;
@@ -907,7 +913,8 @@ int lcdvr_open_volume(lua_State *L)
                    "load .nrrd .nhdr .nii .nii.gz (or any format of cdvr.formats(), by suffix, else by its first bytes), "
                    "or raw with opts {dims=, type=, endian=, header=, timesteps=, spacing=}; "
                    "allow_outside=true lets a NRRD header name data files outside its directory, max_bytes= caps the "
-                   "voxel bytes a file may claim (default half the physical memory); "
+                   "voxel bytes a file may claim (default half the physical memory); select= names the object inside "
+                   "the file (array, DICOM series, HDF5 dataset, NetCDF variable); "
                    "a file that cannot be read raises an error naming it and the reason");
     lcdvr_help_add(L, "cdvr.formats()",
                    "list of file formats: {name, description, suffixes, magic, series, described, plugin}");

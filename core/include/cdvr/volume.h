@@ -115,6 +115,12 @@ typedef struct cdvr_raw_opts {
      * cdvr_load_max_bytes_default(). */
     int allow_outside;
     uint64_t max_bytes;
+    /* ABI 5 and later. The object to read inside the file or directory, for formats that hold
+     * several (NULL or "": the format's default, which it documents): a VTK file's array name,
+     * a DICOM directory's SeriesInstanceUID or SeriesDescription, an HDF5 dataset or NetCDF
+     * variable (where the path gives none as FILE:NAME). A format that holds one object ignores
+     * it; a name the file does not hold is refused, listing the names it does. */
+    const char *select;
 } cdvr_raw_opts;
 
 /* The default max_bytes of cdvr_raw_opts: half the physical memory (sysconf), at least 64 MiB;
