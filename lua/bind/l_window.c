@@ -20,6 +20,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <time.h>
 
 #include "cdvr/gl.h"
@@ -31,6 +32,7 @@
 #define LCDVR_WINDOW "cdvr.Window"
 #define WINDOWS_KEY "cdvr.windows" /* registry: {window = true} for every open window */
 #define MAX_EVENTS 64
+#define SHOT_SCALE_MAX 8 /* screenshots: at most 8 times the window's size */
 
 /* User values of the window userdata. */
 /* UV_RENDER: the render options set for the method (its own options, the scene keys it
@@ -77,6 +79,8 @@ typedef struct lwindow {
     cdvr_movie *movie;
     char movie_path[64], shot_path[64];
     int shot_pending, shots;
+    int shot_scale;            /* screenshot_scale=: 'p' renders the shot at this many times the
+                                  window's size (1: the frame shown) */
 } lwindow;
 
 static lwindow *towindow(lua_State *L, int idx)
@@ -227,7 +231,7 @@ static const char *opts_what(int idx)
 static const char *const window_keys[] = {"volume", "store", "tf", "camera", "method", "device",
                                           "overlay", "t", "variant", "playing", "fps", "policy",
                                           "min_psnr", "callback_limit", "callback_memory", "width", "height", "title",
-                                          NULL};
+                                          "screenshot_scale", NULL};
 
 /* The device the window renders on: the one set, else the method's default (the scene
  * contract's rule, cdvr_render_method_default_device). */
@@ -535,6 +539,11 @@ static void apply_options(lua_State *L, int w_idx, int idx, lwindow *w)
     else if (floor_type != LUA_TNIL)
         w->min_psnr = lua_tonumber(L, -1);
     lua_pop(L, 1);
+    lua_Integer shot_scale = lcdvr_optintegerfield(L, idx, "screenshot_scale", w->shot_scale);
+    if (shot_scale < 1 || shot_scale > SHOT_SCALE_MAX)
+        lcdvr_error(L, "option 'screenshot_scale' = %I: must be 1..%d", (LUAI_UACINT)shot_scale,
+                    SHOT_SCALE_MAX);
+    w->shot_scale = (int)shot_scale;
     w->overlay = lcdvr_optbooleanfield(L, idx, "overlay", w->overlay);
     w->playing = lcdvr_optbooleanfield(L, idx, "playing", w->playing);
     double fps = lcdvr_optnumberfield(L, idx, "fps", w->fps);
@@ -680,7 +689,22 @@ static void toggle_recording(lwindow *w)
     w->dirty = 1;
 }
 
-/* The frame just rendered (img: without the overlay) into the recording and the screenshot. */
+/* Saves img as a screenshot: to path, or to a new cdvr-shot-... .png in the working directory
+ * when path is NULL (w->shot_path then names it); the suffix chooses PNG or JPEG. */
+static cdvr_status save_shot(lwindow *w, const cdvr_image *img, const char *path, cdvr_error *err)
+{
+    if (!path) {
+        stamped_name(w->shot_path, sizeof w->shot_path, "shot", ++w->shots, "png");
+        path = w->shot_path;
+    }
+    size_t n = strlen(path);
+    int jpeg = (n > 4 && strcasecmp(path + n - 4, ".jpg") == 0) ||
+               (n > 5 && strcasecmp(path + n - 5, ".jpeg") == 0);
+    return jpeg ? cdvr_image_save_jpeg(img, path, 92, err) : cdvr_image_save_png(img, path, err);
+}
+
+/* The frame just rendered (img: without the overlay) into the recording and, at scale 1, the
+ * screenshot ('p'; a larger scale is rendered again by draw). */
 static void capture_frame(lwindow *w, const cdvr_image *img)
 {
     cdvr_error err;
@@ -689,11 +713,10 @@ static void capture_frame(lwindow *w, const cdvr_image *img)
         cdvr_movie_abort(w->movie);
         w->movie = NULL;
     }
-    if (!w->shot_pending)
+    if (!w->shot_pending || w->shot_scale > 1)
         return;
     w->shot_pending = 0;
-    stamped_name(w->shot_path, sizeof w->shot_path, "shot", ++w->shots, "png");
-    if (cdvr_image_save_png(img, w->shot_path, &err) == CDVR_OK)
+    if (save_shot(w, img, NULL, &err) == CDVR_OK)
         printf("cdvr: screenshot %s\n", w->shot_path);
     else
         fprintf(stderr, "cdvr: window: screenshot failed: %s\n", err.msg);
@@ -885,6 +908,50 @@ static void note_frame(lwindow *w, int store_scene, const cdvr_frame_row *share,
 
 /* Renders the scene through cdvr.render and shows it (with the overlay); raises on error.
  * Stack: the window at w_idx; leaves the stack as it found it. */
+/* cdvr.render of the scene's volume (at vol_idx; timestep t of it) with the window's TF, method,
+ * device and render options through camera cam; pushes the image. */
+static void render_scene(lua_State *L, int w_idx, lwindow *w, int vol_idx, long t,
+                         const cdvr_camera *cam)
+{
+    push_cdvr_function(L, "render");
+    lua_pushvalue(L, vol_idx);
+    lua_createtable(L, 0, 8);                     /* render, volume, opts */
+    if (lua_getiuservalue(L, w_idx, UV_TF) != LUA_TUSERDATA) {
+        lua_pop(L, 1);
+        lua_pushliteral(L, "grayscale");
+    }
+    lua_setfield(L, -2, "tf");
+    lcdvr_pushcamera(L, cam);
+    lua_setfield(L, -2, "camera");
+    lua_pushstring(L, w->method->name);
+    lua_setfield(L, -2, "method");
+    lua_pushinteger(L, t);
+    lua_setfield(L, -2, "t");
+    lua_pushstring(L, cdvr_device_name(window_device(L, w)));
+    lua_setfield(L, -2, "device");
+    int opts = lua_gettop(L);
+    push_render_options(L, w_idx);                /* ..., opts, render */
+    lua_pushnil(L);
+    while (lua_next(L, -2)) {                     /* ..., opts, render, key, value */
+        lua_pushvalue(L, -2);
+        lua_insert(L, -2);
+        lua_rawset(L, opts);
+    }
+    lua_pop(L, 1);                                /* render, volume, opts */
+    lua_call(L, 2, 1);                            /* image */
+}
+
+/* The scene through cam at scale times its size (no overlay), pushed as an image. */
+static const cdvr_image *render_scaled(lua_State *L, int w_idx, lwindow *w, int vol_idx, long t,
+                                       const cdvr_camera *cam, int scale)
+{
+    cdvr_camera big = *cam;
+    big.width = cam->width * scale;
+    big.height = cam->height * scale;
+    render_scene(L, w_idx, w, vol_idx, t, &big);
+    return lcdvr_checkimage(L, -1);
+}
+
 static void draw(lua_State *L, int w_idx, lwindow *w)
 {
     int top = lua_gettop(L);
@@ -905,40 +972,26 @@ static void draw(lua_State *L, int w_idx, lwindow *w)
             rgba[4 * i] = rgba[4 * i + 1] = rgba[4 * i + 2] = 24;
             rgba[4 * i + 3] = 255;
         }
+        w->shot_pending = 0; /* nothing to shoot */
     } else {
         cdvr_camera *cam = scene_camera(L, w_idx, w, vol_idx, width, height);
-        push_cdvr_function(L, "render");
-        lua_pushvalue(L, vol_idx);
-        lua_createtable(L, 0, 8);                 /* render, volume, opts */
-        if (lua_getiuservalue(L, w_idx, UV_TF) != LUA_TUSERDATA) {
-            lua_pop(L, 1);
-            lua_pushliteral(L, "grayscale");
-        }
-        lua_setfield(L, -2, "tf");
-        lcdvr_pushcamera(L, cam);
-        lua_setfield(L, -2, "camera");
-        lua_pushstring(L, w->method->name);
-        lua_setfield(L, -2, "method");
-        lua_pushinteger(L, t);
-        lua_setfield(L, -2, "t");
-        lua_pushstring(L, cdvr_device_name(window_device(L, w)));
-        lua_setfield(L, -2, "device");
-        int opts = lua_gettop(L);
-        push_render_options(L, w_idx);            /* ..., opts, render */
-        lua_pushnil(L);
-        while (lua_next(L, -2)) {                 /* ..., opts, render, key, value */
-            lua_pushvalue(L, -2);
-            lua_insert(L, -2);
-            lua_rawset(L, opts);
-        }
-        lua_pop(L, 1);                            /* render, volume, opts */
         double render_start = cdvr_now_ms();
-        lua_call(L, 2, 1);                        /* image */
+        render_scene(L, w_idx, w, vol_idx, t, cam); /* ..., image */
         render_ms = cdvr_now_ms() - render_start;
         const cdvr_image *img = lcdvr_checkimage(L, -1);
         capture_frame(w, img);
         rgba = lua_newuserdatauv(L, (size_t)img->width * (size_t)img->height * 4, 0);
         cdvr_image_to_rgba8(img, rgba);
+        if (w->shot_pending) { /* 'p' with screenshot_scale > 1 */
+            cdvr_error err;
+            w->shot_pending = 0;
+            const cdvr_image *shot = render_scaled(L, w_idx, w, vol_idx, t, cam, w->shot_scale);
+            if (save_shot(w, shot, NULL, &err) == CDVR_OK)
+                printf("cdvr: screenshot %s (%dx%d)\n", w->shot_path, shot->width, shot->height);
+            else
+                fprintf(stderr, "cdvr: window: screenshot failed: %s\n", err.msg);
+            fflush(stdout);
+        }
     }
     note_frame(w, store_scene, &share, render_ms, start);
     if (w->overlay)
@@ -1013,6 +1066,7 @@ static int l_window(lua_State *L)
     lwindow *w = (lwindow *)lua_newuserdatauv(L, sizeof *w, UV_COUNT);
     memset(w, 0, sizeof *w);
     w->overlay = 1;
+    w->shot_scale = 1;
     w->t = 1;
     w->method = cdvr_render_method_find("raycast");
     w->device = -1;
@@ -1086,6 +1140,46 @@ static int window_read(lua_State *L)
         img->rgba[4 * i + 3] = 1.0f;
     }
     lcdvr_pushimage(L, img);
+    return 1;
+}
+
+/* w:screenshot([path] [, {scale=}]) -> path: the scene shown (the timestep, camera, TF and
+ * annotations of the window, without the overlay) rendered at scale (1..SHOT_SCALE_MAX,
+ * default screenshot_scale=) times the window's size and saved as PNG, or JPEG for .jpg; path
+ * defaults to a new cdvr-shot-... .png in the working directory. */
+static int window_screenshot(lua_State *L)
+{
+    static const char *const keys[] = {"scale", NULL};
+    lwindow *w = checkwindow(L, 1);
+    if (lua_istable(L, 2)) { /* w:screenshot{scale=}: no path */
+        lua_settop(L, 2);
+        lua_pushnil(L);
+        lua_insert(L, 2);                        /* w, nil, opts */
+    }
+    const char *path = luaL_optstring(L, 2, NULL);
+    lcdvr_checkoptions(L, 3, "w:screenshot", keys);
+    lua_Integer scale = w->shot_scale;
+    if (lua_istable(L, 3))
+        scale = lcdvr_optintegerfield(L, 3, "scale", scale);
+    if (scale < 1 || scale > SHOT_SCALE_MAX)
+        return luaL_error(L, "w:screenshot: scale = %I: must be 1..%d", (LUAI_UACINT)scale,
+                          SHOT_SCALE_MAX);
+    lua_settop(L, 3);
+    int width, height;
+    cdvr_window_size(w->win, &width, &height);
+    long t;
+    cdvr_frame_row share;
+    push_scene_volume(L, 1, w, &t, &share);      /* w, path, opts, volume or nil */
+    if (lua_isnil(L, 4))
+        return luaL_error(L, "w:screenshot: the window shows no volume or store (w:set{volume=})");
+    if (width <= 0 || height <= 0)
+        return luaL_error(L, "w:screenshot: the window has no size (minimised?)");
+    cdvr_camera *cam = scene_camera(L, 1, w, 4, width, height);
+    const cdvr_image *shot = render_scaled(L, 1, w, 4, t, cam, (int)scale);
+    cdvr_error err;
+    if (save_shot(w, shot, path, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    lua_pushstring(L, path ? path : w->shot_path);
     return 1;
 }
 
@@ -1248,6 +1342,7 @@ int lcdvr_window_console(lua_State *L)
 static const luaL_Reg window_methods[] = {
     {"set", window_set},       {"frame", window_frame}, {"read", window_read},
     {"camera", window_camera}, {"state", window_state}, {"close", window_close},
+    {"screenshot", window_screenshot},
     {NULL, NULL}};
 
 static const luaL_Reg window_meta[] = {
@@ -1262,11 +1357,13 @@ int lcdvr_open_window(lua_State *L)
     lcdvr_setfuncs(L, window_funcs);
     lcdvr_help_add(L, "cdvr.window{volume= | store=, tf=, camera=, method=, device=, overlay=, t=, variant=, ...}",
                    "open a window showing the scene (needs a display and GL); more keys: lod, step, "
-                   "playing, fps, policy, min_psnr, callback_limit, width, height, title; camera = cdvr.Camera, false "
+                   "playing, fps, policy, min_psnr, callback_limit, callback_memory, screenshot_scale, width, height, title; camera = cdvr.Camera, false "
                    "(frame the scene) or function(frame, t); defaults as cdvr.player: the store's best "
                    "variant, device cl when OpenCL has a device; drag orbits, wheel zooms, left/right "
                    "step t, up/down step variants, space plays, r resets the view, m records a movie (again: stops; the path is printed), "
-                   "p saves a screenshot PNG (both without the overlay), Esc or q closes");
+                   "p saves a screenshot PNG (both without the overlay; screenshot_scale= renders it larger), Esc or q closes");
+    lcdvr_help_add(L, "w:screenshot([path] [, {scale=}])",
+                   "render the scene shown (no overlay) at scale (1..8) times the window's size to a PNG (.jpg: JPEG); returns the path");
     lcdvr_help_add(L, "w:set{...}", "change the window's scene (any cdvr.window key but width, height, title)");
     lcdvr_help_add(L, "w:frame()", "process events and draw one frame now; false once the user closed it");
     lcdvr_help_add(L, "w:read()", "the window's framebuffer (last frame shown) as an image");

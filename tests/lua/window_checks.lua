@@ -141,6 +141,36 @@ else
   check(png and png:read(8) == "\137PNG\r\n\26\n", "the screenshot is a PNG: " .. shot)
   if png then png:close() end
   os.remove(shot)
+  -- screenshots at a scale of the window's size: the p key (screenshot_scale=) and w:screenshot
+  local function png_size(path)
+    local f = io.open(path, "rb")
+    if not f then return 0, 0 end
+    local head = f:read(24); f:close()
+    return string.unpack(">I4I4", head, 17)
+  end
+  local ww, wh = w:state().width, w:state().height
+  w:set{screenshot_scale = 2}
+  check(xinput("key p") == 0 and settle(function() local s = w:state().screenshot; return s and s ~= shot end),
+        "p saves a scaled screenshot")
+  local big = w:state().screenshot or "none"
+  local bw, bh = png_size(big)
+  check(bw == 2 * ww and bh == 2 * wh, ("screenshot_scale=2: %dx%d from a %dx%d window"):format(bw, bh, ww, wh))
+  os.remove(big)
+  local named = os.tmpname() .. ".png"
+  check(w:screenshot(named, {scale = 3}) == named, "w:screenshot returns its path")
+  bw, bh = png_size(named)
+  check(bw == 3 * ww and bh == 3 * wh, ("w:screenshot scale=3: %dx%d"):format(bw, bh))
+  os.remove(named)
+  local jpg = os.tmpname() .. ".jpg"
+  w:screenshot(jpg)
+  local jf = io.open(jpg, "rb")
+  check(jf and jf:read(2) == "\255\216", "w:screenshot to .jpg writes a JPEG")
+  if jf then jf:close() end
+  os.remove(jpg)
+  raises(function() w:screenshot{scale = 9} end, "scale = 9: must be 1..8", "scale beyond 8")
+  raises(function() w:screenshot{zoom = 2} end, "unknown option 'zoom'", "w:screenshot option check")
+  raises(function() w:set{screenshot_scale = 0} end, "'screenshot_scale' = 0: must be 1..8", "screenshot_scale 0")
+  w:set{screenshot_scale = 1}
   w:set{store = st, t = 1}
 end
 
