@@ -8,7 +8,18 @@
  * Conversion: yuv420p (H.264, VP9) through libswscale (BT.601, limited range, as tagged in the
  * stream), after padding odd sizes by repeating the last column/row; FFV1 takes bgr0, a byte
  * shuffle of the RGB (lossless); GIF takes pal8 with the fixed palette of movie.h.
+ *
+ * Threads: the conversion, the encoder and the muxer run on one encoder thread per movie, so a
+ * capture renders frame n+1 while frame n is encoded. add copies the frame into the padded
+ * buffer `pad` and hands it over (waiting while the thread still encodes the one before: at most
+ * one frame in flight); the thread works on `work`. The frames reach the encoder in order on one
+ * thread, so the output does not depend on the timing (the determinism movie.h promises). An
+ * encoder error stops the thread and is returned by the next add or by close (naming the frame).
+ *
+ *   caller: [fill pad] -> handover (swap pad <-> work) -> [fill pad] -> handover ...
+ *   thread:                     [convert work, encode, mux] ...    [convert, encode, mux]
  */
+#include <pthread.h>
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
@@ -60,7 +71,18 @@ struct cdvr_movie {
     AVFrame *frame;
     AVPacket *pkt;
     struct SwsContext *sws;
-    uint8_t *pad, *rgb;         /* the padded RGB frame (ew x eh x 3); RGBA -> RGB scratch */
+    uint8_t *pad, *rgb;         /* the padded RGB frame (ew x eh x 3) the caller fills; RGBA ->
+                                   RGB scratch */
+    uint8_t *work;              /* the padded frame the encoder thread converts */
+    pthread_t thread;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    int thread_on;              /* the thread runs (join it) */
+    int busy;                   /* work holds a frame the thread has not finished */
+    int stop;                   /* the thread ends once it is not busy */
+    int64_t work_pts;           /* the frame number in work */
+    cdvr_status thread_status;  /* the thread's first failure (it then stops encoding) */
+    cdvr_error thread_err;
     int width, height;          /* the frames' size (0: not known yet) */
     int ew, eh;                 /* the encoded size */
     int64_t frames;
@@ -190,6 +212,8 @@ static void encoder_options(const cdvr_movie *m, AVDictionary **d)
 }
 
 /* Opens the muxer and the encoder for frames of width x height and writes the header. */
+static void *encoder_thread(void *arg);
+
 static cdvr_status start(cdvr_movie *m, int width, int height, cdvr_error *err)
 {
     const AVCodec *c = avcodec_find_encoder_by_name(m->codec->encoder);
@@ -215,7 +239,8 @@ static cdvr_status start(cdvr_movie *m, int width, int height, cdvr_error *err)
     m->frame = av_frame_alloc();
     m->pkt = av_packet_alloc();
     m->pad = malloc((size_t)m->ew * (size_t)m->eh * 3);
-    if (!m->st || !m->enc || !m->frame || !m->pkt || !m->pad)
+    m->work = malloc((size_t)m->ew * (size_t)m->eh * 3);
+    if (!m->st || !m->enc || !m->frame || !m->pkt || !m->pad || !m->work)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", m->path);
     AVCodecContext *e = m->enc;
     AVRational rate = av_d2q(m->opts.fps, 1001000);
@@ -251,6 +276,10 @@ static cdvr_status start(cdvr_movie *m, int width, int height, cdvr_error *err)
         if (!m->sws)
             return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: cannot create the colour converter", m->path);
     }
+    if ((r = pthread_create(&m->thread, NULL, encoder_thread, m)) != 0)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: cannot start the encoder thread: %s", m->path,
+                              strerror(r));
+    m->thread_on = 1;
     m->started = 1;
     return CDVR_OK;
 }
@@ -276,6 +305,8 @@ cdvr_status cdvr_movie_open(const char *path, const cdvr_movie_opts *opts, cdvr_
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
     }
     m->container = c, m->codec = codec, m->opts = o;
+    pthread_mutex_init(&m->mu, NULL);
+    pthread_cond_init(&m->cv, NULL);
     snprintf(m->preset, sizeof m->preset, "%s", o.preset ? o.preset : "medium");
     m->opts.preset = m->preset;
     m->opts.codec = codec->name;
@@ -337,14 +368,13 @@ static cdvr_status encode(cdvr_movie *m, AVFrame *frame, cdvr_error *err)
     return CDVR_OK;
 }
 
-/* Fills m->frame from the padded RGB frame. */
-static cdvr_status convert(cdvr_movie *m, cdvr_error *err)
+/* Fills m->frame from the padded RGB frame src. */
+static cdvr_status convert(cdvr_movie *m, const uint8_t *src, cdvr_error *err)
 {
     int r = av_frame_make_writable(m->frame);
     if (r < 0)
         return ff_fail(m, "cannot allocate a frame", r, err);
     AVFrame *f = m->frame;
-    const uint8_t *src = m->pad;
     if (m->sws) {
         const uint8_t *planes[1] = {src};
         int strides[1] = {3 * m->ew};
@@ -367,7 +397,66 @@ static cdvr_status convert(cdvr_movie *m, cdvr_error *err)
     return CDVR_OK;
 }
 
-/* Adds one RGB8 frame (rows of 3 * width bytes). */
+/* The encoder thread: converts, encodes and muxes each frame handed over in work. */
+static void *encoder_thread(void *arg)
+{
+    cdvr_movie *m = arg;
+    pthread_mutex_lock(&m->mu);
+    for (;;) {
+        while (!m->busy && !m->stop)
+            pthread_cond_wait(&m->cv, &m->mu);
+        if (!m->busy)
+            break;
+        int failed = m->thread_status != CDVR_OK;
+        pthread_mutex_unlock(&m->mu);
+        cdvr_error err;
+        cdvr_status s = CDVR_OK;
+        if (!failed && (s = convert(m, m->work, &err)) == CDVR_OK) {
+            m->frame->pts = m->work_pts;
+            s = encode(m, m->frame, &err);
+        }
+        pthread_mutex_lock(&m->mu);
+        if (s != CDVR_OK) {
+            m->thread_status = s;
+            m->thread_err = err;
+            size_t n = strlen(err.msg); /* the frame's number after the message, where it fits */
+            if (n + 32 < sizeof m->thread_err.msg)
+                snprintf(m->thread_err.msg + n, sizeof m->thread_err.msg - n, " (frame %lld)",
+                         (long long)m->work_pts + 1);
+        }
+        m->busy = 0;
+        pthread_cond_broadcast(&m->cv);
+    }
+    pthread_mutex_unlock(&m->mu);
+    return NULL;
+}
+
+/* Waits until the thread has finished the frame in work; its failure, if any. Caller holds mu. */
+static cdvr_status wait_idle_locked(cdvr_movie *m, cdvr_error *err)
+{
+    while (m->busy)
+        pthread_cond_wait(&m->cv, &m->mu);
+    if (m->thread_status != CDVR_OK && err)
+        *err = m->thread_err;
+    return m->thread_status;
+}
+
+/* Ends the encoder thread once it has finished its frame; the thread's failure, if any. */
+static cdvr_status stop_thread(cdvr_movie *m, cdvr_error *err)
+{
+    if (!m->thread_on)
+        return CDVR_OK;
+    pthread_mutex_lock(&m->mu);
+    cdvr_status s = wait_idle_locked(m, err);
+    m->stop = 1;
+    pthread_cond_broadcast(&m->cv);
+    pthread_mutex_unlock(&m->mu);
+    pthread_join(m->thread, NULL);
+    m->thread_on = 0;
+    return s;
+}
+
+/* Adds one RGB8 frame (rows of 3 * width bytes): padded into pad, then handed to the thread. */
 static cdvr_status add_rgb(cdvr_movie *m, const uint8_t *rgb, int width, int height, cdvr_error *err)
 {
     cdvr_status s;
@@ -383,13 +472,17 @@ static cdvr_status add_rgb(cdvr_movie *m, const uint8_t *rgb, int width, int hei
         if (m->ew > width)
             memcpy(d + row, d + row - 3, 3);
     }
-    if ((s = convert(m, err)) != CDVR_OK)
-        return s;
-    m->frame->pts = m->frames;
-    if ((s = encode(m, m->frame, err)) != CDVR_OK)
-        return s;
-    m->frames++;
-    return CDVR_OK;
+    pthread_mutex_lock(&m->mu);
+    s = wait_idle_locked(m, err);
+    if (s == CDVR_OK) {
+        uint8_t *t = m->work;
+        m->work = m->pad, m->pad = t;
+        m->work_pts = m->frames++;
+        m->busy = 1;
+        pthread_cond_broadcast(&m->cv);
+    }
+    pthread_mutex_unlock(&m->mu);
+    return s;
 }
 
 static cdvr_status check_size(const cdvr_movie *m, int width, int height, cdvr_error *err)
@@ -432,6 +525,7 @@ cdvr_status cdvr_movie_add_image(cdvr_movie *m, const cdvr_image *img, cdvr_erro
 /* Frees everything of libav and the buffers (not the atomic file). */
 static void release(cdvr_movie *m)
 {
+    stop_thread(m, NULL);
     if (m->fmt)
         m->fmt->pb = NULL;
     avformat_free_context(m->fmt);
@@ -444,6 +538,7 @@ static void release(cdvr_movie *m)
     av_packet_free(&m->pkt);
     sws_freeContext(m->sws);
     free(m->pad);
+    free(m->work);
     free(m->rgb);
 }
 
@@ -454,6 +549,8 @@ void cdvr_movie_abort(cdvr_movie *m)
     release(m);
     if (m->af_open)
         cdvr_atomic_commit(&m->af, 1, NULL); /* failed: removes the temporary file */
+    pthread_cond_destroy(&m->cv);
+    pthread_mutex_destroy(&m->mu);
     free(m->path);
     free(m);
 }
@@ -463,6 +560,8 @@ cdvr_status cdvr_movie_close(cdvr_movie *m, cdvr_error *err)
     cdvr_status s = CDVR_OK;
     if (m->frames == 0)
         s = cdvr_error_set(err, CDVR_ERR_ARG, "%s: no frame was added; nothing written", m->path);
+    if (s == CDVR_OK)
+        s = stop_thread(m, err); /* every frame encoded: the flush below runs here */
     if (s == CDVR_OK)
         s = encode(m, NULL, err);
     int r;
@@ -479,6 +578,8 @@ cdvr_status cdvr_movie_close(cdvr_movie *m, cdvr_error *err)
     }
     release(m);
     s = cdvr_atomic_commit(&m->af, 0, err);
+    pthread_cond_destroy(&m->cv);
+    pthread_mutex_destroy(&m->mu);
     free(m->path);
     free(m);
     return s;

@@ -157,6 +157,7 @@ local calls = {
                keys = {"volume", "store", "tf", "camera", "method", "device", "overlay", "t", "variant",
                        "step", "playing", "fps", "policy", "min_psnr", "callback_limit"}},
   ["w:state"] = {window = true, method = "state"},
+  ["w:screenshot"] = {window = true, method = "screenshot", args = {tmp .. "/shot.png", {scale = 1}}, opts = 3},
 }
 
 -- help line -> its key in calls: the name, or the longest key the line starts with
