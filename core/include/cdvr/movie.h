@@ -21,6 +21,9 @@
  * size. Every frame must have the size of the first (or of opts width/height).
  * Determinism: the muxer and encoders run in bit-exact mode (no version strings, dates or
  * random UIDs in the file) with a fixed thread count, so the same frames give the same file.
+ * Threads: each movie converts, encodes and muxes on its own encoder thread, one frame behind
+ * the caller (add returns once the frame is copied and the previous one is encoded), so a
+ * capture renders while it encodes; an encoder failure is returned by the next add or by close.
  * Writing goes through cdvr_atomic_file (cdvr/atomicfile.h): the data goes to a temporary
  * file that close links in under path; abort, a failed write or close, a cleanup signal
  * (SIGINT, SIGTERM, ...) or the death of the process leaves nothing under path.
