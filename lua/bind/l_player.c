@@ -418,9 +418,9 @@ static int variant_option(lua_State *L, const cdvr_store *st)
     if (t == LUA_TNUMBER) {
         v = (int)lua_tointeger(L, -1) - 1;
     } else if (t == LUA_TSTRING) {
-        v = cdvr_store_find_variant(st, lua_tostring(L, -1));
+        v = lcdvr_find_variant(L, -1, st);
         if (v < 0)
-            luaL_error(L, "cdvr.player: store %s has no variant '%s'", cdvr_store_path(st), lua_tostring(L, -1));
+            luaL_error(L, "cdvr.player: store %s has no variant %s", cdvr_store_path(st), lcdvr_push_quoted(L, -1));
     } else if (t != LUA_TNIL) {
         luaL_error(L, "cdvr.player: option 'variant': name or index expected");
     }

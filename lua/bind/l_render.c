@@ -254,10 +254,10 @@ static size_t store_variant(lua_State *L, const cdvr_store *st)
     int type = lua_getfield(L, 2, "variant");
     size_t v = 0;
     if (type == LUA_TSTRING) {
-        int found = cdvr_store_find_variant(st, lua_tostring(L, -1));
+        int found = lcdvr_find_variant(L, -1, st);
         if (found < 0)
-            luaL_error(L, "cdvr.render: %s has no variant '%s'", cdvr_store_path(st),
-                       lua_tostring(L, -1));
+            luaL_error(L, "cdvr.render: %s has no variant %s", cdvr_store_path(st),
+                       lcdvr_push_quoted(L, -1));
         v = (size_t)found;
     } else if (type != LUA_TNIL) {
         lua_Integer i = lua_tointeger(L, -1);

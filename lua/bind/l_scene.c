@@ -131,15 +131,46 @@ cdvr_status lcdvr_call_callback(lua_State *L, int nargs, int nres, const lcdvr_l
     return CDVR_OK;
 }
 
+int lcdvr_find_variant(lua_State *L, int idx, const cdvr_store *st)
+{
+    size_t len = 0;
+    const char *name = lua_type(L, idx) == LUA_TSTRING ? lua_tolstring(L, idx, &len) : NULL;
+    return name && strlen(name) == len ? cdvr_store_find_variant(st, name) : -1;
+}
+
+const char *lcdvr_push_quoted(lua_State *L, int idx)
+{
+    if (lua_type(L, idx) != LUA_TSTRING)
+        return lua_pushstring(L, luaL_typename(L, idx));
+    size_t len;
+    const char *s = lua_tolstring(L, idx, &len);
+    luaL_Buffer b;
+    luaL_buffinit(L, &b);                         /* ..., buffer */
+    luaL_addchar(&b, '"');
+    for (size_t i = 0; i < len && i < 64; i++) {
+        unsigned char c = (unsigned char)s[i];
+        char esc[8];
+        if (c >= 32 && c < 127 && c != '"' && c != '\\') {
+            luaL_addchar(&b, (char)c);
+        } else {
+            snprintf(esc, sizeof esc, "\\%u", c);
+            luaL_addstring(&b, esc);
+        }
+    }
+    luaL_addstring(&b, len > 64 ? "\"..." : "\"");
+    luaL_pushresult(&b);                          /* ..., quoted */
+    return lua_tostring(L, -1);
+}
+
 cdvr_status lcdvr_policy_result(lua_State *L, const cdvr_store *st, int *variant, char *reason,
                                 size_t reason_size, cdvr_error *err)
 {
-    const char *name = lua_tostring(L, -2);
-    int v = name ? cdvr_store_find_variant(st, name) : -1;
+    int v = lcdvr_find_variant(L, -2, st);
     cdvr_status s = CDVR_OK;
     if (v < 0) {
         s = cdvr_error_set(err, CDVR_ERR_ARG, "policy returned %s, not a variant of %s",
-                           name ? name : luaL_typename(L, -2), cdvr_store_path(st));
+                           lcdvr_push_quoted(L, -2), cdvr_store_path(st));
+        lua_pop(L, 1);
     } else {
         *variant = v;
         snprintf(reason, reason_size, "%s", lua_isstring(L, -1) ? lua_tostring(L, -1) : "policy");

@@ -453,9 +453,9 @@ static size_t checkvariant(lua_State *L, const cdvr_store *st, int idx)
     if (lua_isnoneornil(L, idx))
         return 0;
     if (lua_type(L, idx) == LUA_TSTRING) {
-        int v = cdvr_store_find_variant(st, lua_tostring(L, idx));
+        int v = lcdvr_find_variant(L, idx, st);
         if (v < 0)
-            luaL_argerror(L, idx, lua_pushfstring(L, "no variant '%s' in %s", lua_tostring(L, idx),
+            luaL_argerror(L, idx, lua_pushfstring(L, "no variant %s in %s", lcdvr_push_quoted(L, idx),
                                                   cdvr_store_path(st)));
         return (size_t)v;
     }

@@ -353,10 +353,10 @@ static void set_variant(lua_State *L, int idx, lwindow *w, const cdvr_store *st)
     size_t n = cdvr_store_get_info(st)->nvariants;
     int v = -1;
     if (type == LUA_TSTRING) {
-        v = cdvr_store_find_variant(st, lua_tostring(L, -1));
+        v = lcdvr_find_variant(L, -1, st);
         if (v < 0)
-            lcdvr_error(L, "store %s has no variant '%s'", cdvr_store_path(st),
-                       lua_tostring(L, -1));
+            lcdvr_error(L, "store %s has no variant %s", cdvr_store_path(st),
+                        lcdvr_push_quoted(L, -1));
     } else if (lua_isinteger(L, -1)) {
         lua_Integer i = lua_tointeger(L, -1);
         if (i < 1 || (size_t)i > n)

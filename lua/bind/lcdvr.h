@@ -205,6 +205,12 @@ cdvr_status lcdvr_call_callback(lua_State *L, int nargs, int nres, const lcdvr_l
                                 const char *what, cdvr_error *err);
 /* Reads a policy's two results (name [, reason], on top; popped) into *variant (from 0) and
  * reason, or fills err ("policy returned X, not a variant of <store>"). */
+/* The variant a Lua value names (the string at idx, matched over its whole length: a name with
+ * an embedded zero byte names none), or -1. */
+int lcdvr_find_variant(lua_State *L, int idx, const cdvr_store *st);
+/* Pushes the value at idx for a message: a string quoted with its zero bytes and control
+ * characters escaped ("S4T3\0junk"), else its type name. Returns the pushed text. */
+const char *lcdvr_push_quoted(lua_State *L, int idx);
 cdvr_status lcdvr_policy_result(lua_State *L, const cdvr_store *st, int *variant, char *reason,
                                 size_t reason_size, cdvr_error *err);
 /* Applies a camera callback's result (a cdvr.Camera, or {eye=, center=, up=, fov=}) at idx

@@ -140,6 +140,16 @@ do
   local c = cdvr.player{store = st, tf = tf, camera = function() return 42 end}
   ok, msg = pcall(c.run, c, {frames = 1})
   assert(not ok and msg:find("camera"), msg)
+  -- a name is matched over its whole length: "S4T3\0junk" is no variant (issue 21 item 5)
+  local z = cdvr.player{store = st, tf = tf, camera = cam, policy = function() return "S4T3\0junk" end}
+  ok, msg = pcall(z.run, z, {frames = 1})
+  assert(not ok and msg:find('policy returned "S4T3\\0junk", not a variant of', 1, true), msg)
+  ok, msg = pcall(cdvr.player, {store = st, tf = tf, variant = "S4T3\0"})
+  assert(not ok and msg:find('has no variant "S4T3\\0"', 1, true), msg)
+  ok, msg = pcall(cdvr.render, st, {tf = tf, camera = cam, variant = "raw\0x"})
+  assert(not ok and msg:find('has no variant "raw\\0x"', 1, true), msg)
+  ok, msg = pcall(st.decode, st, 1, "raw\0")
+  assert(not ok and msg:find('no variant "raw\\0"', 1, true), msg)
 end
 
 -- 6. a corrupt chunk: its frames get error rows, the rest plays (serial and pipelined)

@@ -72,7 +72,7 @@ local ok, cl = pcall(st.decode, st, 4, "S4T3", {device = "cl"})
 if ok then check(cdvr.compare(cl, st:decode(4, "S4T3")).mse == 0, "cl decode bit-exact") end
 raises("timestep out of range", st.decode, st, 6)
 raises("timestep out of range", st.decode, st, 0)
-raises("no variant 'nope'", st.decode, st, 1, "nope")
+raises('no variant "nope"', st.decode, st, 1, "nope")
 raises("variant index out of range", st.decode, st, 1, 9)
 raises("invalid value 'gpu'", st.decode, st, 1, 1, {device = "gpu"})
 

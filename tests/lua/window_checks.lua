@@ -211,7 +211,7 @@ raises(function() w:set{tf = 3} end, nil, "tf of the wrong type")
 raises(function() w:set{methd = "slice"} end, "did you mean 'method'", "misspelled key")
 raises(function() w:set{method = "mip"} end, "unknown method 'mip' (methods: raycast, slice, splat)", "unknown method")
 raises(function() w:set{t = 9} end, "outside 1..4", "timestep out of range")
-raises(function() w:set{variant = "nope"} end, "no variant 'nope'", "unknown variant")
+raises(function() w:set{variant = "nope"} end, 'no variant "nope"', "unknown variant")
 raises(function() w:set{width = 3} end, "fixed when the window opens", "width after opening")
 raises(function() cdvr.window{volume = vol, devize = "cpu"} end, "did you mean 'device'", "misspelled open key")
 
