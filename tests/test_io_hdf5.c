@@ -8,7 +8,8 @@
  * dataset and a conflicting select= are refused naming the file and the datasets; a dims claim
  * above max_bytes is refused before reading; a FIFO is refused without blocking; probe reads the
  * header only (it succeeds on a file whose chunk is corrupt, which load then refuses naming the
- * dataset); loads from several threads at once agree (the library lock).
+ * dataset); an external link and a file cut short are refused; loads from several threads at
+ * once agree (the library lock).
  * `test_io_hdf5 --write DIR` writes DIR/lua.h5 for tests/lua/test_hdf5_netcdf.lua. */
 #include "check.h"
 #include "cdvr/format.h"
@@ -394,6 +395,37 @@ static void test_bad_spacing(void)
           "2-number element_size_um refused: %s", err.msg);
 }
 
+/* Hostile files: an external link (another file read through this one) and a contiguous
+ * dataset cut short. */
+static void test_hostile(void)
+{
+    char p[512], q[600], other[512];
+    at(other, sizeof other, "target.h5");
+    write_simple(other);
+    at(p, sizeof p, "elink.h5");
+    hid_t f = H5Fcreate(p, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    H5Lcreate_external(other, "/volume", f, "ext", H5P_DEFAULT, H5P_DEFAULT);
+    H5Fclose(f);
+    cdvr_error err;
+    cdvr_volume *v = NULL;
+    snprintf(q, sizeof q, "%s:/ext", p);
+    cdvr_status st = cdvr_volume_load(q, NULL, &v, &err);
+    CHECK(st != CDVR_OK && !v && strstr(err.msg, "elink.h5") && strstr(err.msg, "/ext") &&
+          strstr(err.msg, "external links are not followed"), "external link refused: %s",
+          err.msg);
+    st = cdvr_volume_load(p, NULL, &v, &err);
+    CHECK(st != CDVR_OK && strstr(err.msg, "no 3D or 4D"), "external link not a candidate: %s",
+          err.msg);
+    at(p, sizeof p, "cut.h5");
+    write_simple(p);
+    struct stat sb;
+    stat(p, &sb);
+    CHECK(truncate(p, sb.st_size - 60) == 0, "truncate");
+    st = cdvr_volume_load(p, NULL, &v, &err);
+    CHECK(st != CDVR_OK && !v && strstr(err.msg, "cut.h5"), "a file cut short refused: %s",
+          err.msg);
+}
+
 typedef struct job {
     const char *path;
     int ok;
@@ -451,6 +483,7 @@ int main(int argc, char **argv)
     test_limits();
     test_probe_header_only();
     test_bad_spacing();
+    test_hostile();
     test_threads();
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
