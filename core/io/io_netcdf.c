@@ -15,8 +15,8 @@
  * origin (the first value) when uniform: every step within a relative 1e-6 of the mean step; a
  * non-uniform axis is refused naming the variable and its worst step. Axes without one: unit
  * spacing, origin 0.
- * Values: byte, ubyte, short, ushort, float kept as i8->f32, u8, i16, u16, f32; int, uint,
- * int64, uint64 and double become f32 with the window computed in double. A variable with
+ * Values: ubyte, short, ushort and float are kept (u8, i16, u16, f32); byte, int, uint, int64,
+ * uint64 and double become f32 with the window computed in double. A variable with
  * _FillValue or missing_value (up to 8 values) becomes f32 and those values NaN; scale_factor
  * and add_offset (CF packing) are applied in double (f32 volume). valid_range / valid_min /
  * valid_max are not read.
