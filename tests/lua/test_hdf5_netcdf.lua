@@ -1,6 +1,6 @@
 -- tests/lua/test_hdf5_netcdf.lua - HDF5 and NetCDF files from Lua (core/io/io_hdf5.c,
 -- io_netcdf.c): cdvr.load("x.h5:/g/d") and cdvr.load("x.h5", {select = "/g/d"}) give the 4D
--- dataset as a series of 2, voxel for voxel, with the group's spacing and the dataset's origin;
+-- dataset as a series of 2, voxel for voxel (and cdvr.load_series of two such files, 4), with the group's spacing and the dataset's origin;
 -- without a name the file's two 3D/4D datasets are listed; a missing name lists the datasets;
 -- NetCDF: "x.nc:u" and select= (series along the unlimited time), a classic file's coordinate
 -- variables as spacing/origin/direction, fill values as NaN. The files are written with libhdf5
@@ -57,6 +57,8 @@ check(sx == 1.5 and sy == 2.5 and sz == 3.5 and ox == 10 and oy == 20 and oz == 
 local x0, x1, y0, y1, z0, z1 = a:bounds()
 check(x0 == 10 and x1 == 16 and y0 == 20 and y1 == 35 and z0 == 30 and z1 == 37, "h5 world box")
 series_ok(cdvr.load(h5, {select = "/g/d"}), f_h5, "h5 select=/g/d")
+local s = cdvr.load_series({h5, h5 .. ":/g/d"}, {select = "/g/d"})
+check(s:timesteps() == 4 and s:get(4, 6, 2, 4) == f_h5(209), "h5 load_series with select=")
 local o = cdvr.load(h5, {select = "/other"})
 check(o:type() == "u8" and o:get(4, 6, 2) == (104 * 7) % 256, "h5 select=/other (chunked u8)")
 raises_all(function() cdvr.load(h5) end, {"lua.h5", "3D/4D datasets", "/g/d", "/other"},
