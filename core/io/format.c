@@ -26,6 +26,8 @@ extern const cdvr_format cdvr_format_vti;
 extern const cdvr_format cdvr_format_vtk;
 extern const cdvr_format cdvr_format_mha;
 extern const cdvr_format cdvr_format_tiff;
+extern const cdvr_format cdvr_format_hdf5;
+extern const cdvr_format cdvr_format_netcdf;
 
 #define REGISTRY_MAX 64
 
@@ -98,7 +100,9 @@ static void register_builtins(void)
     static const cdvr_format *const builtins[] = {&cdvr_format_nrrd, &cdvr_format_nifti,
                                                      &cdvr_format_raw,
                                                      &cdvr_format_vti, &cdvr_format_vtk,
-                                                     &cdvr_format_mha, &cdvr_format_tiff};
+                                                     &cdvr_format_mha, &cdvr_format_tiff,
+                                                     &cdvr_format_hdf5, /* io_hdf5.c */
+                                                     &cdvr_format_netcdf};
     pthread_mutex_lock(&registry.mu);
     for (size_t i = 0; i < sizeof builtins / sizeof *builtins; i++)
         (void)add_locked(builtins[i], NULL); /* built-ins are valid: test_format checks */
