@@ -4,6 +4,17 @@
  * libcdvr symbol (cdvr/plugin.h): it gives `read`, not `load`, reports errors with
  * cdvr_plugin_error, and exports only cdvr_plugin_v1 (extern "C"); -z defs checks it.
  *
+ * Two parts. This file is the plugin: the format table, the magic and accepts_dir tests (its own
+ * few bytes of reading), and probe/read, which run the helper build/plugins/cdvr_dicom_helper
+ * (dicom_helper.cpp, found beside this .so through dladdr) and read its answer from a pipe: the
+ * header, or the header then the voxels slice by slice straight into the registry's buffer. All
+ * of GDCM runs in the helper, because Debian's GDCM is built with assert() enabled and aborts on
+ * some hostile files (a mutated file meta group, an element length past the end; measured: about
+ * one mutated file in four aborted a process that called GDCM directly); a helper that aborts,
+ * crashes or answers out of protocol is an error naming the path, GDCM's last stderr line and the
+ * signal, never the end of the program. The cost is one process per probe and per read (the
+ * registry probes then reads: each scans the headers once).
+ *
  * Format "dicom": suffix .dcm; magic "DICM" at byte 128 (the Part 10 preamble); accepts_dir: a
  * directory of which one of its first 64 regular files (name order) has that preamble (nothing
  * else is read there, no voxels). What it reads:
@@ -58,135 +69,38 @@
  * plugin cannot call libcdvr; the registry checks the same claim again before it allocates). The
  * path given must be a regular file or a directory (special files refused); in a directory only
  * regular files are read, and each must resolve (realpath) under the directory unless
- * opts->allow_outside. Every entry point catches C++ exceptions.
+ * opts->allow_outside. Every entry point catches C++ exceptions (the helper's and the plugin's).
  */
 #include <dirent.h>
+#include <dlfcn.h>
 #include <errno.h>
-#include <stdarg.h>
 #include <fcntl.h>
-#include <limits.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
 #include <stdlib.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
-#include <cmath>
 #include <cstring>
-#include <map>
-#include <memory>
 #include <new>
 #include <string>
 #include <vector>
-
-#include <gdcmImage.h>
-#include <gdcmImageReader.h>
-#include <gdcmScanner.h>
-#include <gdcmTag.h>
-#include <gdcmTrace.h>
-#include <gdcmTransferSyntax.h>
 
 extern "C" {
 #include "cdvr/plugin.h"
 }
 
+extern char **environ;
+
 namespace {
 
 const size_t kDirProbeEntries = 64; /* accepts_dir looks at this many regular files, at most */
-const double kGapTolerance = 0.01;  /* relative: uneven slice gaps */
+const size_t kLineMax = 1024;       /* the helper's header line, at most */
 
-const gdcm::Tag tSeriesUID(0x0020, 0x000e), tSeriesDesc(0x0008, 0x103e),
-    tIPP(0x0020, 0x0032), tIOP(0x0020, 0x0037), tRows(0x0028, 0x0010), tCols(0x0028, 0x0011),
-    tPixelSpacing(0x0028, 0x0030), tSlope(0x0028, 0x1053), tIntercept(0x0028, 0x1052),
-    tBitsAlloc(0x0028, 0x0100), tBitsStored(0x0028, 0x0101), tPixelRep(0x0028, 0x0103),
-    tSamples(0x0028, 0x0002), tFrames(0x0028, 0x0008), tPhotometric(0x0028, 0x0004),
-    tSliceThickness(0x0018, 0x0050), tSpacingBetween(0x0018, 0x0088),
-    tTransferSyntax(0x0002, 0x0010);
-
-/* One file of a series, as its header says. */
-struct Slice {
-    std::string path;
-    double ipp[3], iop[6], ps[2], slope, intercept, pos;
-    unsigned rows, cols, bits_alloc, bits_stored, pixel_rep, samples;
-    bool native; /* uncompressed transfer syntax */
-};
-
-struct Series {
-    std::string uid, description;
-    std::vector<Slice> slices;
-};
-
-/* What probe found: the series chosen, sorted, with its geometry and output type. */
-struct Plan {
-    Series series;
-    size_t dims[3];
-    double spacing[3], origin[3], direction[9];
-    cdvr_type type;
-};
-
-std::string trim(const char *s)
-{
-    std::string v = s ? s : "";
-    while (!v.empty() && (v.back() == ' ' || v.back() == '\0'))
-        v.pop_back();
-    size_t i = 0;
-    while (i < v.size() && v[i] == ' ')
-        i++;
-    return v.substr(i);
-}
-
-/* A backslash-separated list of n decimal numbers (DS); false when it is not exactly that. */
-bool parse_numbers(const std::string &s, double *out, size_t n)
-{
-    const char *p = s.c_str();
-    for (size_t i = 0; i < n; i++) {
-        char *end;
-        out[i] = strtod(p, &end);
-        if (end == p || !std::isfinite(out[i]))
-            return false;
-        while (*end == ' ')
-            end++;
-        if (i + 1 < n && *end != '\\')
-            return false;
-        p = end + (i + 1 < n);
-    }
-    return *p == '\0';
-}
-
-bool parse_uint(const std::string &s, unsigned *out)
-{
-    char *end;
-    if (s.empty() || s[0] == '-')
-        return false;
-    unsigned long v = strtoul(s.c_str(), &end, 10);
-    while (*end == ' ')
-        end++;
-    if (end == s.c_str() || *end || v > 0xffffffffUL)
-        return false;
-    *out = (unsigned)v;
-    return true;
-}
-
-/* cdvr_load_max_bytes(opts) without libcdvr (cdvr/volume.h, core/io/format.c). */
-uint64_t max_bytes(const cdvr_raw_opts *opts)
-{
-    if (opts && opts->max_bytes)
-        return opts->max_bytes;
-    long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGESIZE);
-    if (pages <= 0 || size <= 0)
-        return (uint64_t)1 << 40;
-    uint64_t half = (uint64_t)pages * (uint64_t)size / 2;
-    return half < ((uint64_t)64 << 20) ? (uint64_t)64 << 20 : half;
-}
-
-size_t type_size(cdvr_type t)
-{
-    return t == CDVR_TYPE_U8 ? 1 : t == CDVR_TYPE_F32 ? 4 : 2;
-}
-
-const char *type_name(cdvr_type t)
-{
-    return t == CDVR_TYPE_U8 ? "u8" : t == CDVR_TYPE_U16 ? "u16" : t == CDVR_TYPE_I16 ? "i16" : "f32";
-}
+/* ---- what the plugin reads itself: the preamble ------------------------------------------------ */
 
 /* 1 when the regular file at path has "DICM" at byte 128 (opened non-blocking: a FIFO that
  * slipped in between the stat and the open never blocks). */
@@ -203,7 +117,7 @@ bool has_preamble(const char *path)
     return ok;
 }
 
-/* The regular files of dir in name order (at most limit; 0: all). */
+/* The first `limit` regular files of dir in name order. */
 bool list_dir(const std::string &dir, size_t limit, std::vector<std::string> &out)
 {
     DIR *d = opendir(dir.c_str());
@@ -220,428 +134,275 @@ bool list_dir(const std::string &dir, size_t limit, std::vector<std::string> &ou
         struct stat st;
         if (stat(p.c_str(), &st) == 0 && S_ISREG(st.st_mode))
             out.push_back(p);
-        if (limit && out.size() >= limit)
+        if (out.size() >= limit)
             break;
     }
     return true;
 }
 
-std::string dir_of(const std::string &path)
+/* cdvr_load_max_bytes(opts) without libcdvr (cdvr/volume.h, core/io/format.c). */
+uint64_t max_bytes(const cdvr_raw_opts *opts)
 {
-    size_t slash = path.find_last_of('/');
-    if (slash == std::string::npos)
-        return ".";
-    return slash == 0 ? "/" : path.substr(0, slash);
+    if (opts && opts->max_bytes)
+        return opts->max_bytes;
+    long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGESIZE);
+    if (pages <= 0 || size <= 0)
+        return (uint64_t)1 << 40;
+    uint64_t half = (uint64_t)pages * (uint64_t)size / 2;
+    return half < ((uint64_t)64 << 20) ? (uint64_t)64 << 20 : half;
 }
 
-/* ---- the header of each file (gdcm::Scanner reads the tags, stops before the pixels) ------- */
+size_t type_size(int t)
+{
+    return t == CDVR_TYPE_U8 ? 1 : t == CDVR_TYPE_F32 ? 4 : 2;
+}
 
-class Reader {
+/* build/plugins/cdvr_dicom_helper: beside this shared object. */
+std::string helper_path()
+{
+    Dl_info info;
+    if (!dladdr((void *)&has_preamble, &info) || !info.dli_fname)
+        return "cdvr_dicom_helper";
+    std::string so = info.dli_fname;
+    size_t slash = so.find_last_of('/');
+    return (slash == std::string::npos ? std::string(".") : so.substr(0, slash)) +
+           "/cdvr_dicom_helper";
+}
+
+/* ---- the helper: one process, its stdout read through a buffer, its stderr's tail kept -------- */
+
+class Helper {
   public:
-    Reader(const char *path, const cdvr_raw_opts *opts, cdvr_error *err)
-        : path_(path), opts_(opts), err_(err)
-    {
-    }
-    cdvr_status plan(Plan &out);
+    ~Helper() { finish(); }
+    cdvr_status start(const char *mode, const char *path, const cdvr_raw_opts *opts,
+                      cdvr_error *err);
+    bool line(std::string &out);             /* up to '\n' (dropped); false at EOF or too long */
+    bool exact(char *dst, size_t n);         /* n bytes */
+    std::string rest();                      /* what is left, up to EOF (bounded) */
+    /* Waits for the process; the failure as text ("" when it exited 0). */
+    std::string finish();
 
   private:
-    const char *path_;
-    const cdvr_raw_opts *opts_;
-    cdvr_error *err_;
-    gdcm::Scanner scanner_;
-
-    cdvr_status fail(cdvr_status st, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
-    cdvr_status files(std::string &dir, std::string &select, std::vector<std::string> &out);
-    cdvr_status slice(const std::string &file, Slice &s);
-    cdvr_status choose(std::map<std::string, Series> &all, const std::string &dir,
-                       const std::string &select, Series &out);
-    cdvr_status geometry(const std::string &dir, Plan &p);
-    cdvr_status value_type(Plan &p);
+    pid_t pid_ = -1;
+    int out_ = -1, err_ = -1;
+    std::vector<char> buf_;
+    size_t pos_ = 0;
+    bool eof_ = false;
+    std::string tail_;
+    bool fill();
 };
 
-cdvr_status Reader::fail(cdvr_status st, const char *fmt, ...)
+cdvr_status Helper::start(const char *mode, const char *path, const cdvr_raw_opts *opts,
+                          cdvr_error *err)
 {
-    if (err_) {
-        char msg[CDVR_ERRMSG_MAX];
-        va_list ap;
-        va_start(ap, fmt);
-        vsnprintf(msg, sizeof msg, fmt, ap);
-        va_end(ap);
-        cdvr_plugin_error(err_, st, "%s", msg);
+    int po[2], pe[2];
+    if (pipe2(po, O_CLOEXEC) != 0)
+        return cdvr_plugin_error(err, CDVR_ERR_IO, "%s: pipe: %s", path, strerror(errno));
+    if (pipe2(pe, O_CLOEXEC) != 0) {
+        close(po[0]);
+        close(po[1]);
+        return cdvr_plugin_error(err, CDVR_ERR_IO, "%s: pipe: %s", path, strerror(errno));
     }
-    return st;
+    std::string helper = helper_path(), allow = opts && opts->allow_outside ? "1" : "0",
+                cap = std::to_string((unsigned long long)max_bytes(opts)),
+                select = opts && opts->select ? opts->select : "";
+    std::string m = mode, p = path;
+    char *argv[] = {&helper[0], &m[0], &p[0], &select[0], &allow[0], &cap[0], NULL};
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
+    posix_spawn_file_actions_adddup2(&fa, po[1], 1);
+    posix_spawn_file_actions_adddup2(&fa, pe[1], 2);
+    int rc = posix_spawn(&pid_, helper.c_str(), &fa, NULL, argv, environ);
+    posix_spawn_file_actions_destroy(&fa);
+    close(po[1]);
+    close(pe[1]);
+    out_ = po[0];
+    err_ = pe[0];
+    if (rc != 0) {
+        pid_ = -1;
+        return cdvr_plugin_error(err, CDVR_ERR_UNSUPPORTED, "%s: cannot run the dicom plugin's "
+                                 "helper %s (%s; it is built beside the plugin)", path,
+                                 helper.c_str(), strerror(rc));
+    }
+    return CDVR_OK;
 }
 
-/* The files to scan, the directory they are in and the default select. */
-cdvr_status Reader::files(std::string &dir, std::string &select, std::vector<std::string> &out)
+/* More of stdout into buf_ (false at EOF), keeping the last line of stderr meanwhile. */
+bool Helper::fill()
 {
-    struct stat st;
-    if (stat(path_, &st) != 0)
-        return fail(CDVR_ERR_IO, "%s: cannot open (%s)", path_, strerror(errno));
-    select = opts_ && opts_->select ? trim(opts_->select) : "";
-    if (S_ISDIR(st.st_mode))
-        dir = path_;
-    else if (S_ISREG(st.st_mode)) {
-        dir = dir_of(path_);
-        if (select.empty()) { /* the file's own series */
-            gdcm::Scanner one;
-            one.AddTag(tSeriesUID);
-            if (!one.Scan(std::vector<std::string>{path_}) || !one.IsKey(path_))
-                return fail(CDVR_ERR_FORMAT, "%s: not a DICOM file GDCM can read", path_);
-            select = trim(one.GetValue(path_, tSeriesUID));
-            if (select.empty())
-                return fail(CDVR_ERR_FORMAT, "%s: no SeriesInstanceUID (0020,000E)", path_);
+    while (!eof_) {
+        struct pollfd fds[2] = {{out_, POLLIN, 0}, {err_, POLLIN, 0}};
+        if (poll(fds, err_ >= 0 ? 2 : 1, -1) < 0) {
+            if (errno == EINTR)
+                continue;
+            return false;
         }
-    } else
-        return fail(CDVR_ERR_IO, "%s: not a regular file or directory", path_);
-    std::vector<std::string> all;
-    if (!list_dir(dir, 0, all))
-        return fail(CDVR_ERR_IO, "%s: cannot list the directory %s", path_, dir.c_str());
-    char *base = realpath(dir.c_str(), NULL);
-    if (!base)
-        return fail(CDVR_ERR_IO, "%s: cannot resolve %s", path_, dir.c_str());
-    std::string root = std::string(base) + (strcmp(base, "/") ? "/" : "");
-    free(base);
-    for (const std::string &f : all) {
-        char *real = realpath(f.c_str(), NULL);
-        bool inside = real && strncmp(real, root.c_str(), root.size()) == 0;
-        free(real);
-        if (inside || (opts_ && opts_->allow_outside))
-            out.push_back(f);
-        else if (!real && (!opts_ || !opts_->allow_outside))
-            return fail(CDVR_ERR_IO, "%s: cannot resolve %s", path_, f.c_str());
-        else
-            return fail(CDVR_ERR_IO, "%s: %s lies outside the directory (a symlink; allow_outside "
-                        "reads it)", path_, f.c_str());
-    }
-    return CDVR_OK;
-}
-
-/* The header fields of one scanned file. */
-cdvr_status Reader::slice(const std::string &file, Slice &s)
-{
-    const char *f = file.c_str();
-    auto tag = [&](const gdcm::Tag &t) { return trim(scanner_.GetValue(f, t)); };
-    auto bad = [&](const char *name, const gdcm::Tag &t, const std::string &v) {
-        return fail(CDVR_ERR_FORMAT, "%s: %s (%04X,%04X) is %s%s%s", f, name, t.GetGroup(),
-                    t.GetElement(), v.empty() ? "missing" : "'", v.c_str(), v.empty() ? "" : "'");
-    };
-    s.path = file;
-    std::string v;
-    if (!parse_numbers(v = tag(tIPP), s.ipp, 3))
-        return bad("ImagePositionPatient", tIPP, v);
-    if (!parse_numbers(v = tag(tIOP), s.iop, 6))
-        return bad("ImageOrientationPatient", tIOP, v);
-    if (!parse_numbers(v = tag(tPixelSpacing), s.ps, 2) || !(s.ps[0] > 0) || !(s.ps[1] > 0))
-        return bad("PixelSpacing", tPixelSpacing, v);
-    if (!parse_uint(v = tag(tRows), &s.rows) || s.rows == 0 || s.rows > 65535)
-        return bad("Rows", tRows, v);
-    if (!parse_uint(v = tag(tCols), &s.cols) || s.cols == 0 || s.cols > 65535)
-        return bad("Columns", tCols, v);
-    if (!parse_uint(v = tag(tBitsAlloc), &s.bits_alloc) ||
-        (s.bits_alloc != 8 && s.bits_alloc != 16 && s.bits_alloc != 32))
-        return bad("BitsAllocated (8, 16 or 32)", tBitsAlloc, v);
-    if (!parse_uint(v = tag(tBitsStored), &s.bits_stored) || s.bits_stored == 0 ||
-        s.bits_stored > s.bits_alloc)
-        return bad("BitsStored", tBitsStored, v);
-    if (!parse_uint(v = tag(tPixelRep), &s.pixel_rep) || s.pixel_rep > 1)
-        return bad("PixelRepresentation", tPixelRep, v);
-    v = tag(tSamples);
-    if (!parse_uint(v, &s.samples) || s.samples != 1)
-        return bad("SamplesPerPixel (only 1: grey values)", tSamples, v);
-    v = tag(tPhotometric);
-    if (v != "MONOCHROME2" && v != "MONOCHROME1")
-        return bad("PhotometricInterpretation (MONOCHROME1 or 2)", tPhotometric, v);
-    unsigned frames = 1;
-    v = tag(tFrames);
-    if (!v.empty() && (!parse_uint(v, &frames) || frames != 1))
-        return fail(CDVR_ERR_FORMAT, "%s: NumberOfFrames (0028,0008) is '%s': cdvr reads one "
-                    "frame per DICOM file", f, v.c_str());
-    s.slope = 1;
-    s.intercept = 0;
-    if (!(v = tag(tSlope)).empty() && (!parse_numbers(v, &s.slope, 1) || s.slope == 0))
-        return bad("RescaleSlope", tSlope, v);
-    if (!(v = tag(tIntercept)).empty() && !parse_numbers(v, &s.intercept, 1))
-        return bad("RescaleIntercept", tIntercept, v);
-    gdcm::TransferSyntax ts(gdcm::TransferSyntax::GetTSType(tag(tTransferSyntax).c_str()));
-    s.native = ts.IsValid() && !ts.IsEncapsulated();
-    if (s.native) { /* the pixels it claims must fit in the file */
-        struct stat st;
-        double need = (double)s.rows * s.cols * (s.bits_alloc / 8);
-        if (stat(f, &st) != 0 || (double)st.st_size < need)
-            return fail(CDVR_ERR_FORMAT, "%s: Rows %u x Columns %u x %u bits claim %.0f bytes of "
-                        "pixels, the file holds %lld bytes", f, s.rows, s.cols, s.bits_alloc,
-                        need, (long long)st.st_size);
-    }
-    return CDVR_OK;
-}
-
-/* The series select names (or the only one); a refusal lists the series. */
-cdvr_status Reader::choose(std::map<std::string, Series> &all, const std::string &dir,
-                           const std::string &select, Series &out)
-{
-    if (all.empty())
-        return fail(CDVR_ERR_FORMAT, "%s: no DICOM image series in %s", path_, dir.c_str());
-    std::vector<Series *> hits;
-    for (auto &kv : all)
-        if (select.empty() || kv.second.uid == select || kv.second.description == select)
-            hits.push_back(&kv.second);
-    if (hits.size() == 1) {
-        out = std::move(*hits[0]);
-        return CDVR_OK;
-    }
-    std::string list;
-    for (auto &kv : all) {
-        const Series &s = kv.second;
-        char one[320];
-        snprintf(one, sizeof one, "%s%s '%s' %zu slices %ux%ux%zu", list.empty() ? "" : "; ",
-                 s.uid.c_str(), s.description.c_str(), s.slices.size(), s.slices[0].cols,
-                 s.slices[0].rows, s.slices.size());
-        list += one;
-    }
-    if (select.empty())
-        return fail(CDVR_ERR_ARG, "%s: holds %zu DICOM series; choose one with select "
-                    "(SeriesInstanceUID or SeriesDescription): %s", path_, all.size(),
-                    list.c_str());
-    if (hits.empty())
-        return fail(CDVR_ERR_ARG, "%s: no DICOM series '%s' (select); the series: %s", path_,
-                    select.c_str(), list.c_str());
-    return fail(CDVR_ERR_ARG, "%s: %zu series have the SeriesDescription '%s'; select one by "
-                "its SeriesInstanceUID: %s", path_, hits.size(), select.c_str(), list.c_str());
-}
-
-double dot(const double *a, const double *b)
-{
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-
-/* Sorting, spacing and the direction matrix (the top of this file). */
-cdvr_status Reader::geometry(const std::string &dir, Plan &p)
-{
-    std::vector<Slice> &sl = p.series.slices;
-    const Slice &a = sl[0];
-    double r[3] = {a.iop[0], a.iop[1], a.iop[2]}, c[3] = {a.iop[3], a.iop[4], a.iop[5]};
-    double lr = std::sqrt(dot(r, r)), lc = std::sqrt(dot(c, c));
-    if (std::fabs(lr - 1) > 1e-3 || std::fabs(lc - 1) > 1e-3 || std::fabs(dot(r, c)) > 1e-3)
-        return fail(CDVR_ERR_FORMAT, "%s: ImageOrientationPatient (0020,0037) %g\\%g\\%g\\%g\\%g\\%g "
-                    "is not two orthogonal unit vectors", a.path.c_str(), a.iop[0], a.iop[1],
-                    a.iop[2], a.iop[3], a.iop[4], a.iop[5]);
-    for (int i = 0; i < 3; i++) {
-        r[i] /= lr;
-        c[i] /= lc;
-    }
-    double n[3] = {r[1] * c[2] - r[2] * c[1], r[2] * c[0] - r[0] * c[2], r[0] * c[1] - r[1] * c[0]};
-    for (Slice &s : sl) {
-        for (int i = 0; i < 6; i++)
-            if (std::fabs(s.iop[i] - a.iop[i]) > 1e-4)
-                return fail(CDVR_ERR_FORMAT, "%s: ImageOrientationPatient (0020,0037) differs "
-                            "from %s's in the same series", s.path.c_str(), a.path.c_str());
-        if (s.rows != a.rows || s.cols != a.cols)
-            return fail(CDVR_ERR_FORMAT, "%s: Rows x Columns %ux%u differ from %s's %ux%u",
-                        s.path.c_str(), s.rows, s.cols, a.path.c_str(), a.rows, a.cols);
-        if (std::fabs(s.ps[0] - a.ps[0]) > 1e-4 * a.ps[0] ||
-            std::fabs(s.ps[1] - a.ps[1]) > 1e-4 * a.ps[1])
-            return fail(CDVR_ERR_FORMAT, "%s: PixelSpacing (0028,0030) %g\\%g differs from %s's",
-                        s.path.c_str(), s.ps[0], s.ps[1], a.path.c_str());
-        if (s.bits_alloc != a.bits_alloc || s.pixel_rep != a.pixel_rep)
-            return fail(CDVR_ERR_FORMAT, "%s: BitsAllocated / PixelRepresentation %u/%u differ "
-                        "from %s's %u/%u", s.path.c_str(), s.bits_alloc, s.pixel_rep,
-                        a.path.c_str(), a.bits_alloc, a.pixel_rep);
-        s.pos = dot(s.ipp, n);
-    }
-    std::sort(sl.begin(), sl.end(), [](const Slice &x, const Slice &y) {
-        return x.pos < y.pos || (x.pos == y.pos && x.path < y.path);
-    });
-    size_t k = sl.size();
-    double dz = 1;
-    if (k > 1) {
-        dz = (sl[k - 1].pos - sl[0].pos) / (double)(k - 1);
-        size_t worst = 0;
-        double off = -1;
-        for (size_t i = 0; i + 1 < k; i++) {
-            double gap = sl[i + 1].pos - sl[i].pos;
-            if (gap <= 1e-6 * (std::fabs(dz) + 1))
-                return fail(CDVR_ERR_FORMAT, "%s: %s and %s lie at the same position %g along "
-                            "the slice normal (ImagePositionPatient)", path_, sl[i].path.c_str(),
-                            sl[i + 1].path.c_str(), sl[i].pos);
-            if (std::fabs(gap - dz) > off) {
-                off = std::fabs(gap - dz);
-                worst = i;
+        char chunk[65536];
+        if (err_ >= 0 && (fds[1].revents & (POLLIN | POLLHUP | POLLERR))) {
+            ssize_t n = read(err_, chunk, sizeof chunk);
+            if (n > 0) {
+                tail_.append(chunk, (size_t)n);
+                if (tail_.size() > 4096)
+                    tail_.erase(0, tail_.size() - 4096);
+            } else if (n == 0 || errno != EINTR) {
+                close(err_);
+                err_ = -1;
             }
         }
-        if (off > kGapTolerance * dz)
-            return fail(CDVR_ERR_FORMAT, "%s: uneven slice spacing: %s and %s are %g mm apart, "
-                        "the mean gap is %g mm (more than 1%% off)", path_,
-                        sl[worst].path.c_str(), sl[worst + 1].path.c_str(),
-                        sl[worst + 1].pos - sl[worst].pos, dz);
-        double tol = 0.01 * std::min(a.ps[0], a.ps[1]);
-        for (size_t i = 1; i < k; i++) {
-            double d = sl[i].pos - sl[0].pos, shift = 0;
-            for (int j = 0; j < 3; j++) {
-                double e = sl[i].ipp[j] - sl[0].ipp[j] - d * n[j];
-                shift += e * e;
+        if (fds[0].revents & (POLLIN | POLLHUP | POLLERR)) {
+            ssize_t n = read(out_, chunk, sizeof chunk);
+            if (n > 0) {
+                if (pos_ == buf_.size()) {
+                    buf_.clear();
+                    pos_ = 0;
+                }
+                buf_.insert(buf_.end(), chunk, chunk + n);
+                return true;
             }
-            if (std::sqrt(shift) > tol)
-                return fail(CDVR_ERR_FORMAT, "%s: %s is shifted %g mm in its plane from the "
-                            "stack of %s (ImagePositionPatient; a gantry tilt is not read)", path_,
-                            sl[i].path.c_str(), std::sqrt(shift), sl[0].path.c_str());
+            if (n == 0 || errno != EINTR)
+                eof_ = true;
         }
-    } else { /* one slice: the thickness the header gives */
-        std::string v = trim(scanner_.GetValue(a.path.c_str(), tSpacingBetween));
-        if (v.empty())
-            v = trim(scanner_.GetValue(a.path.c_str(), tSliceThickness));
-        double t;
-        if (!v.empty() && parse_numbers(v, &t, 1) && t > 0)
-            dz = t;
     }
-    (void)dir;
-    p.dims[0] = a.cols;
-    p.dims[1] = a.rows;
-    p.dims[2] = k;
-    p.spacing[0] = a.ps[1];
-    p.spacing[1] = a.ps[0];
-    p.spacing[2] = dz;
-    for (int i = 0; i < 3; i++) {
-        p.origin[i] = sl[0].ipp[i];
-        p.direction[3 * i + 0] = r[i];
-        p.direction[3 * i + 1] = c[i];
-        p.direction[3 * i + 2] = n[i];
-    }
-    return CDVR_OK;
+    return false;
 }
 
-/* The output type (the top of this file), from the header only. */
-cdvr_status Reader::value_type(Plan &p)
+bool Helper::line(std::string &out)
 {
-    const Slice &a = p.series.slices[0];
-    bool rescaled = false, integral = true, fits = true;
-    for (const Slice &s : p.series.slices) {
-        if (s.bits_stored != a.bits_stored)
-            return fail(CDVR_ERR_FORMAT, "%s: BitsStored (0028,0101) %u differs from %s's %u",
-                        s.path.c_str(), s.bits_stored, a.path.c_str(), a.bits_stored);
-        rescaled |= s.slope != 1 || s.intercept != 0;
-        integral &= s.slope == std::floor(s.slope) && s.intercept == std::floor(s.intercept) &&
-                    std::fabs(s.slope) < 65536 && std::fabs(s.intercept) < 65536;
-        double lo = s.pixel_rep ? -std::ldexp(1, (int)s.bits_stored - 1) : 0;
-        double hi = s.pixel_rep ? std::ldexp(1, (int)s.bits_stored - 1) - 1
-                                : std::ldexp(1, (int)s.bits_stored) - 1;
-        double y0 = s.slope * lo + s.intercept, y1 = s.slope * hi + s.intercept;
-        fits &= std::min(y0, y1) >= -32768 && std::max(y0, y1) <= 32767;
-    }
-    if (a.bits_alloc == 32)
-        p.type = CDVR_TYPE_F32;
-    else if (rescaled)
-        p.type = integral && fits ? CDVR_TYPE_I16 : CDVR_TYPE_F32;
-    else if (a.pixel_rep)
-        p.type = CDVR_TYPE_I16;
-    else
-        p.type = a.bits_alloc == 8 ? CDVR_TYPE_U8 : CDVR_TYPE_U16;
-    double bytes = (double)p.dims[0] * p.dims[1] * p.dims[2] * type_size(p.type);
-    uint64_t cap = max_bytes(opts_);
-    if (bytes > (double)cap)
-        return fail(CDVR_ERR_FORMAT, "%s: the DICOM series claims %.0f bytes of voxels (%zux%zux%zu "
-                    "%s), more than max_bytes %llu (a load option; the default is half the "
-                    "physical memory)", path_, bytes, p.dims[0], p.dims[1], p.dims[2],
-                    type_name(p.type), (unsigned long long)cap);
-    return CDVR_OK;
-}
-
-cdvr_status Reader::plan(Plan &out)
-{
-    std::string dir, select;
-    std::vector<std::string> list;
-    cdvr_status st = files(dir, select, list);
-    if (st != CDVR_OK)
-        return st;
-    for (const gdcm::Tag &t : {tSeriesUID, tSeriesDesc, tIPP, tIOP, tRows, tCols, tPixelSpacing,
-                               tSlope, tIntercept, tBitsAlloc, tBitsStored, tPixelRep, tSamples,
-                               tFrames, tPhotometric, tSliceThickness, tSpacingBetween,
-                               tTransferSyntax})
-        scanner_.AddTag(t);
-    if (!scanner_.Scan(list))
-        return fail(CDVR_ERR_IO, "%s: GDCM cannot scan the files of %s", path_, dir.c_str());
-    std::map<std::string, Series> all;
-    for (const std::string &f : list) {
-        if (!scanner_.IsKey(f.c_str()))
-            continue; /* not DICOM */
-        std::string uid = trim(scanner_.GetValue(f.c_str(), tSeriesUID));
-        if (uid.empty() || !scanner_.GetValue(f.c_str(), tRows))
-            continue; /* not an image of a series (DICOMDIR, a report) */
-        Series &s = all[uid];
-        s.uid = uid;
-        if (s.slices.empty())
-            s.description = trim(scanner_.GetValue(f.c_str(), tSeriesDesc));
-        s.slices.emplace_back();
-        if ((st = slice(f, s.slices.back())) != CDVR_OK)
-            return st;
-    }
-    Plan p;
-    if ((st = choose(all, dir, select, p.series)) != CDVR_OK ||
-        (st = geometry(dir, p)) != CDVR_OK || (st = value_type(p)) != CDVR_OK)
-        return st;
-    out = std::move(p);
-    return CDVR_OK;
-}
-
-/* ---- voxels ----------------------------------------------------------------------------------- */
-
-/* One decoded slice (s's header) into out, count values of type t. */
-template <typename T>
-void convert(const char *buf, const Slice &s, size_t count, T *out)
-{
-    unsigned bytes = s.bits_alloc / 8;
-    uint32_t mask = s.bits_stored >= 32 ? 0xffffffffu : (1u << s.bits_stored) - 1;
-    uint32_t sign = s.bits_stored >= 32 ? 0x80000000u : 1u << (s.bits_stored - 1);
-    for (size_t i = 0; i < count; i++) {
-        uint32_t u = 0;
-        if (bytes == 1)
-            u = (uint8_t)buf[i];
-        else if (bytes == 2) {
-            uint16_t v;
-            memcpy(&v, buf + 2 * i, 2);
-            u = v;
-        } else
-            memcpy(&u, buf + 4 * i, 4);
-        u &= mask;
-        double x = s.pixel_rep && (u & sign) ? (double)u - std::ldexp(1, (int)s.bits_stored)
-                                             : (double)u;
-        out[i] = (T)(s.slope * x + s.intercept);
+    for (;;) {
+        auto begin = buf_.begin() + (long)pos_;
+        auto nl = std::find(begin, buf_.end(), '\n');
+        if (nl != buf_.end()) {
+            out.assign(begin, nl);
+            pos_ = (size_t)(nl - buf_.begin()) + 1;
+            return true;
+        }
+        if (buf_.size() - pos_ > kLineMax || !fill())
+            return false;
     }
 }
 
-cdvr_status read_slice(const Slice &s, cdvr_type type, void *dst, cdvr_error *err)
+bool Helper::exact(char *dst, size_t n)
 {
-    gdcm::ImageReader reader;
-    reader.SetFileName(s.path.c_str());
-    if (!reader.Read())
-        return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: GDCM cannot read the image",
-                                 s.path.c_str());
-    const gdcm::Image &im = reader.GetImage();
-    const unsigned *d = im.GetDimensions();
-    size_t count = (size_t)s.rows * s.cols, want = count * (s.bits_alloc / 8);
-    gdcm::PixelFormat pf = im.GetPixelFormat();
-    if (d[0] != s.cols || d[1] != s.rows || (im.GetNumberOfDimensions() > 2 && d[2] != 1) ||
-        pf.GetBitsAllocated() != s.bits_alloc || pf.GetSamplesPerPixel() != 1)
-        return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: the image GDCM decodes (%ux%u, %u "
-                                 "bits) is not the %ux%u, %u bits its header gave",
-                                 s.path.c_str(), d[0], d[1], (unsigned)pf.GetBitsAllocated(),
-                                 s.cols, s.rows, s.bits_alloc);
-    if (im.GetBufferLength() != want)
-        return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: the pixel data holds %lu bytes, Rows "
-                                 "x Columns x BitsAllocated claim %zu", s.path.c_str(),
-                                 im.GetBufferLength(), want);
-    std::vector<char> buf(want);
-    if (!im.GetBuffer(buf.data()))
-        return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: GDCM cannot decode the pixel data "
-                                 "(transfer syntax %s)", s.path.c_str(),
-                                 gdcm::TransferSyntax::GetTSString(im.GetTransferSyntax()));
-    switch (type) {
-    case CDVR_TYPE_U8: convert(buf.data(), s, count, (uint8_t *)dst); break;
-    case CDVR_TYPE_U16: convert(buf.data(), s, count, (uint16_t *)dst); break;
-    case CDVR_TYPE_I16: convert(buf.data(), s, count, (int16_t *)dst); break;
-    case CDVR_TYPE_F32: convert(buf.data(), s, count, (float *)dst); break;
+    while (n > 0) {
+        if (pos_ == buf_.size() && !fill())
+            return false;
+        size_t k = std::min(n, buf_.size() - pos_);
+        memcpy(dst, buf_.data() + pos_, k);
+        pos_ += k;
+        dst += k;
+        n -= k;
     }
-    return CDVR_OK;
+    return true;
+}
+
+std::string Helper::rest()
+{
+    while (buf_.size() - pos_ < CDVR_ERRMSG_MAX && fill()) {
+    }
+    return std::string(buf_.begin() + (long)pos_,
+                       buf_.begin() + (long)std::min(buf_.size(), pos_ + CDVR_ERRMSG_MAX));
+}
+
+std::string Helper::finish()
+{
+    if (pid_ < 0)
+        return "";
+    if (!eof_)
+        kill(pid_, SIGKILL); /* stopped reading early: it has nothing more to say */
+    if (out_ >= 0)
+        close(out_);
+    while (err_ >= 0) { /* the rest of stderr (bounded by the process ending) */
+        char chunk[4096];
+        ssize_t n = read(err_, chunk, sizeof chunk);
+        if (n > 0) {
+            tail_.append(chunk, (size_t)n);
+            if (tail_.size() > 4096)
+                tail_.erase(0, tail_.size() - 4096);
+        } else if (n == 0 || errno != EINTR) {
+            close(err_);
+            err_ = -1;
+        }
+    }
+    out_ = -1;
+    int status = 0;
+    pid_t r;
+    while ((r = waitpid(pid_, &status, 0)) < 0 && errno == EINTR) {
+    }
+    pid_ = -1;
+    /* GDCM's last non-empty stderr line, printable characters only */
+    std::string last;
+    size_t end = tail_.find_last_not_of("\r\n \t");
+    if (end != std::string::npos) {
+        size_t begin = tail_.find_last_of('\n', end);
+        last = tail_.substr(begin == std::string::npos ? 0 : begin + 1, end + 1 -
+                            (begin == std::string::npos ? 0 : begin + 1));
+        for (char &c : last)
+            if ((unsigned char)c < 32 || (unsigned char)c > 126)
+                c = '?';
+        if (last.size() > 200)
+            last = last.substr(0, 200) + "...";
+    }
+    char what[320] = "";
+    if (r < 0)
+        return ""; /* SIGCHLD ignored by the program: the protocol alone tells */
+    if (WIFSIGNALED(status))
+        snprintf(what, sizeof what, "killed by signal %d%s%s", WTERMSIG(status),
+                 last.empty() ? "" : ": ", last.c_str());
+    else if (WIFEXITED(status) && WEXITSTATUS(status) != 0)
+        snprintf(what, sizeof what, "exit status %d%s%s", WEXITSTATUS(status),
+                 last.empty() ? "" : ": ", last.c_str());
+    return what;
+}
+
+/* The failure of a helper that did not answer "OK"/"D"/"END" where expected. */
+cdvr_status helper_failed(Helper &h, const char *path, const std::string &got, cdvr_error *err)
+{
+    int status = 0;
+    if (got.compare(0, 4, "ERR ") == 0 && sscanf(got.c_str() + 4, "%d", &status) == 1 &&
+        status > CDVR_OK && status <= CDVR_ERR_CANCELLED) {
+        std::string msg = h.rest();
+        h.finish();
+        return cdvr_plugin_error(err, (cdvr_status)status, "%s", msg.c_str());
+    }
+    std::string why = h.finish(), said;
+    for (char c : got.substr(0, 80))
+        said += (unsigned char)c < 32 || (unsigned char)c > 126 ? '?' : c;
+    return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: GDCM failed on the DICOM files (the "
+                             "helper process %s%s%s%s)", path,
+                             why.empty() ? "gave no answer" : why.c_str(),
+                             said.empty() ? "" : "; it said '", said.c_str(),
+                             said.empty() ? "" : "'");
+}
+
+/* The header line "OK X Y Z TYPE s*3 o*3 d*9" into head. */
+bool parse_header(const std::string &line, cdvr_volume *head)
+{
+    if (line.compare(0, 3, "OK ") != 0)
+        return false;
+    const char *p = line.c_str() + 3;
+    char *end;
+    double v[19];
+    for (int i = 0; i < 19; i++, p = end) {
+        v[i] = strtod(p, &end);
+        if (end == p)
+            return false;
+    }
+    if (*p)
+        return false;
+    for (int i = 0; i < 3; i++)
+        if (!(v[i] >= 1 && v[i] <= 65535.0 * 65535.0 && v[i] == (double)(size_t)v[i]))
+            return false;
+    if (!(v[3] >= 0 && v[3] <= 3 && v[3] == (int)v[3]))
+        return false;
+    for (int i = 0; i < 3; i++)
+        head->dims[i] = (size_t)v[i];
+    head->timesteps = 1;
+    head->type = (cdvr_type)(int)v[3];
+    memcpy(head->spacing, v + 4, sizeof head->spacing);
+    memcpy(head->origin, v + 7, sizeof head->origin);
+    memcpy(head->direction, v + 10, sizeof head->direction);
+    return true;
 }
 
 /* ---- the table ---------------------------------------------------------------------------------- */
@@ -665,27 +426,62 @@ int dicom_accepts_dir(const char *dir)
     return 0;
 }
 
+cdvr_status probe_series(const char *path, const cdvr_raw_opts *opts, cdvr_volume *head,
+                  cdvr_error *err)
+{
+    Helper h;
+    cdvr_status st = h.start("probe", path, opts, err);
+    std::string got;
+    if (st == CDVR_OK && (!h.line(got) || !parse_header(got, head)))
+        st = helper_failed(h, path, got, err);
+    return st;
+}
+
+cdvr_status read_series(const char *path, const cdvr_raw_opts *opts, const cdvr_volume *head,
+                 void *voxels, cdvr_error *err)
+{
+    Helper h;
+    cdvr_status st = h.start("read", path, opts, err);
+    if (st != CDVR_OK)
+        return st;
+    std::string got;
+    cdvr_volume now;
+    memset(&now, 0, sizeof now);
+    if (!h.line(got) || !parse_header(got, &now))
+        return helper_failed(h, path, got, err);
+    if (memcmp(now.dims, head->dims, sizeof now.dims) != 0 || now.type != head->type ||
+        head->timesteps != 1)
+        return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: changed since it was probed", path);
+    size_t frame = now.dims[0] * now.dims[1] * type_size(now.type);
+    char want[64];
+    snprintf(want, sizeof want, "D %zu", frame);
+    for (size_t k = 0; k < now.dims[2]; k++) {
+        if (!h.line(got) || got != want)
+            return helper_failed(h, path, got, err);
+        if (!h.exact((char *)voxels + k * frame, frame))
+            return helper_failed(h, path, "", err);
+    }
+    if (!h.line(got) || got != "END")
+        return helper_failed(h, path, got, err);
+    std::string why = h.rest(); /* nothing after END; waits for the helper's stdout to close */
+    if (!why.empty())
+        return helper_failed(h, path, why, err);
+    why = h.finish();
+    if (!why.empty())
+        return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: the dicom helper failed after its "
+                                 "answer (%s)", path, why.c_str());
+    return CDVR_OK;
+}
+
 cdvr_status dicom_probe(const char *path, const cdvr_raw_opts *opts, cdvr_volume *head,
                         cdvr_error *err)
 {
     try {
-        Plan p;
-        cdvr_status st = Reader(path, opts, err).plan(p);
-        if (st != CDVR_OK)
-            return st;
-        memcpy(head->dims, p.dims, sizeof p.dims);
-        head->timesteps = 1;
-        head->type = p.type;
-        memcpy(head->spacing, p.spacing, sizeof p.spacing);
-        memcpy(head->origin, p.origin, sizeof p.origin);
-        memcpy(head->direction, p.direction, sizeof p.direction);
-        return CDVR_OK;
+        return probe_series(path, opts, head, err);
     } catch (const std::bad_alloc &) {
         return cdvr_plugin_error(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
-    } catch (const std::exception &e) {
-        return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: GDCM: %s", path, e.what());
     } catch (...) {
-        return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: GDCM failed", path);
+        return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: the dicom plugin failed", path);
     }
 }
 
@@ -693,24 +489,11 @@ cdvr_status dicom_read(const char *path, const cdvr_raw_opts *opts, const cdvr_v
                        void *voxels, cdvr_error *err)
 {
     try {
-        Plan p;
-        cdvr_status st = Reader(path, opts, err).plan(p);
-        if (st != CDVR_OK)
-            return st;
-        if (memcmp(p.dims, head->dims, sizeof p.dims) != 0 || p.type != head->type ||
-            head->timesteps != 1)
-            return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: changed since it was probed",
-                                     path);
-        size_t frame = p.dims[0] * p.dims[1] * type_size(p.type);
-        for (size_t k = 0; k < p.dims[2] && st == CDVR_OK; k++)
-            st = read_slice(p.series.slices[k], p.type, (char *)voxels + k * frame, err);
-        return st;
+        return read_series(path, opts, head, voxels, err);
     } catch (const std::bad_alloc &) {
         return cdvr_plugin_error(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
-    } catch (const std::exception &e) {
-        return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: GDCM: %s", path, e.what());
     } catch (...) {
-        return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: GDCM failed", path);
+        return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: the dicom plugin failed", path);
     }
 }
 

@@ -7,11 +7,15 @@
  * as ITK gives them; every voxel value after RescaleSlope/Intercept, as i16 where the header says
  * it fits and f32 otherwise; JPEG-LS decoded to the same voxels; two series in one directory
  * chosen by SeriesInstanceUID or SeriesDescription and refused without select listing both; a
- * .dcm file opens its own series; uneven slices, a Rows claim larger than the file, max_bytes,
+ * .dcm file opens its own series; a description two series share refused (the UID then works);
+ * uneven slices, an in-plane shift (gantry tilt), a missing PixelSpacing, a Rows claim larger
+ * than the file, max_bytes,
  * a FIFO, a symlink out of the directory and a directory without DICOM files refused, each
- * naming what is wrong.
+ * naming what is wrong; 48 mutated copies of a slice never end this process (GDCM, which
+ * asserts on some of them, runs in the plugin's helper process).
  */
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -173,7 +177,24 @@ static void test_refusals(void)
     CHECK(st == CDVR_ERR_FORMAT && strstr(err.msg, "hostile/f1.dcm") &&
               strstr(err.msg, "Rows 7000") && strstr(err.msg, "the file holds"),
           "Rows claiming more than the file: %s", err.msg);
+    st = cdvr_volume_load(at("tilt"), NULL, &v, &err);
+    CHECK(st == CDVR_ERR_FORMAT && strstr(err.msg, "shifted") && strstr(err.msg, "gantry tilt"),
+          "in-plane shift: %s", err.msg);
+    st = cdvr_volume_load(at("notag"), NULL, &v, &err);
+    CHECK(st == CDVR_ERR_FORMAT && strstr(err.msg, "notag/f2.dcm: PixelSpacing (0028,0030) is "
+                                          "missing"),
+          "missing tag: %s", err.msg);
     cdvr_raw_opts o;
+    memset(&o, 0, sizeof o);
+    o.select = "dup";
+    st = cdvr_volume_load(at("same_desc"), &o, &v, &err);
+    CHECK(st == CDVR_ERR_ARG && strstr(err.msg, "2 series have the SeriesDescription 'dup'"),
+          "a description two series share: %s", err.msg);
+    o.select = "1.2.826.0.1.3680043.9.7777.9";
+    CHECK_OK(cdvr_volume_load(at("same_desc"), &o, &v, &err), err);
+    CHECK(v && v->type == CDVR_TYPE_U16 && cdvr_volume_get(v, 1, 0, 0, 0) == 101, "then by UID");
+    cdvr_volume_free(v);
+    v = NULL;
     memset(&o, 0, sizeof o);
     o.max_bytes = 100;
     st = cdvr_volume_load(at("oblique"), &o, &v, &err);
@@ -216,6 +237,65 @@ static void test_refusals(void)
     cdvr_volume_free(v);
 }
 
+/* Mutated copies of one slice beside an intact one: every load returns (GDCM runs in the
+ * helper process, so its assertions on hostile bytes end only the helper), and an error names
+ * the folder or the file. Deterministic (an LCG); the count of helper aborts is printed. */
+static void test_mutations(void)
+{
+    FILE *f = fopen(at("oblique/f1.dcm"), "rb");
+    static uint8_t orig[1 << 16], buf[1 << 16];
+    size_t n = f ? fread(orig, 1, sizeof orig, f) : 0;
+    if (f)
+        fclose(f);
+    CHECK(n > 200 && n < sizeof orig, "oblique/f1.dcm: %zu bytes", n);
+    mkdir(at("mutated"), 0777);
+    uint32_t seed = 12345;
+    int aborted = 0, loaded = 0, refused = 0;
+    for (int it = 0; it < 48 && n > 200; it++) {
+        memcpy(buf, orig, n);
+        size_t len = n;
+        seed = seed * 1664525u + 1013904223u;
+        int edits = 1 + (int)(seed >> 29);
+        for (int e = 0; e < edits; e++) {
+            seed = seed * 1664525u + 1013904223u;
+            size_t at_byte = (seed >> 8) % n;
+            seed = seed * 1664525u + 1013904223u;
+            buf[at_byte] = (uint8_t)(seed >> 24);
+        }
+        seed = seed * 1664525u + 1013904223u;
+        if ((seed >> 28) < 4) /* a quarter cut short */
+            len = (seed >> 4) % n;
+        FILE *w = fopen(at("mutated/a.dcm"), "wb");
+        if (w) {
+            fwrite(buf, 1, len, w);
+            fclose(w);
+        }
+        if (it == 0) {
+            FILE *in = fopen(at("oblique/f2.dcm"), "rb"), *out = fopen(at("mutated/b.dcm"), "wb");
+            size_t k = in ? fread(buf, 1, sizeof buf, in) : 0;
+            if (out && k)
+                fwrite(buf, 1, k, out);
+            if (in)
+                fclose(in);
+            if (out)
+                fclose(out);
+        }
+        cdvr_error err;
+        cdvr_volume *v = NULL;
+        cdvr_status st = cdvr_volume_load(at("mutated"), NULL, &v, &err);
+        if (st == CDVR_OK)
+            loaded++;
+        else {
+            refused++;
+            aborted += strstr(err.msg, "killed by signal") != NULL;
+            CHECK(strstr(err.msg, "mutated"), "mutation %d: %s", it, err.msg);
+        }
+        cdvr_volume_free(v);
+    }
+    printf("mutated slices: %d loaded, %d refused (%d of them aborted GDCM in the helper)\n",
+           loaded, refused, aborted);
+}
+
 int main(int argc, char **argv)
 {
     if (argc != 2) {
@@ -239,5 +319,6 @@ int main(int argc, char **argv)
     test_series();
     test_select();
     test_refusals();
+    test_mutations();
     return check_finish();
 }

@@ -4,7 +4,8 @@
  *
  * Each case is a folder of OUTDIR. Voxel values are exact functions of the spatial index (x the
  * column, y the row, k the slice in position order along the normal), which the C and Lua sides
- * of the test recompute; files are named in an order unrelated to k (f<(4k+3) mod N>.dcm) so the
+ * of the test recompute; files are named in an order unrelated to k (f<(N+1-k) mod N>.dcm, N
+ * slices; s... for the sagittal series, d... for the second "dup" one) so the
  * loader must sort by ImagePositionPatient.
  *   oblique/  CT, 5 columns x 7 rows x 9 slices, u16 BitsStored 12, stored (3*(x+5y+35k)) % 4096,
  *             RescaleSlope 2, RescaleIntercept -1024 (so i16: 2*stored - 1024), oblique
@@ -21,6 +22,9 @@
  *   uneven/   5x7x4 at positions 0, 1, 2, 3.5 along z (refused: the worst gap is the last).
  *   hostile/  5x7x3 like float/, then f1.dcm (slice 0) rewritten with Rows 7000 (the pixels
  *             stay 5x7): more pixels than the file holds.
+ *   same_desc/ two series (...7777.8 like float/, ...7777.9 like axial) both described "dup".
+ *   tilt/     like float/, slice k shifted 2k mm along the rows (a gantry tilt).
+ *   notag/    like float/, f2.dcm without PixelSpacing.
  */
 #include <cmath>
 #include <cstdio>
@@ -49,6 +53,8 @@ struct Case {
     std::vector<double> positions;           /* along the normal; empty: k * spacing[2] */
     bool jpegls;
     int (*value)(unsigned x, unsigned y, unsigned k);
+    double tilt = 0;          /* slice k shifted k * tilt mm along r (in its plane) */
+    std::string prefix = "f"; /* of the file names */
 };
 
 int v_oblique(unsigned x, unsigned y, unsigned k) { return (int)((3 * (x + 5 * y + 35 * k)) % 4096); }
@@ -74,7 +80,7 @@ bool write_slice(const Case &cs, unsigned k, const std::string &file)
     double d = cs.positions.empty() ? k * cs.spacing[2] : cs.positions[k];
     double origin[3], dircos[6] = {cs.r[0], cs.r[1], cs.r[2], cs.c[0], cs.c[1], cs.c[2]};
     for (int i = 0; i < 3; i++)
-        origin[i] = cs.origin[i] + d * n[i];
+        origin[i] = cs.origin[i] + d * n[i] + k * cs.tilt * cs.r[i];
     for (unsigned i = 0; i < 3; i++) /* SetOrigin(double[3]) keeps only 2 values of a 2D image */
         im.SetOrigin(i, origin[i]);
     im.SetDirectionCosines(dircos);
@@ -132,8 +138,7 @@ bool write_case(const std::string &out, const Case &cs)
     mkdir(dir.c_str(), 0777);
     for (unsigned k = 0; k < cs.slices; k++) {
         char name[64];
-        snprintf(name, sizeof name, "/%s%u.dcm", cs.uid.substr(cs.uid.size() - 1) == "4" ? "s" : "f",
-                 (cs.slices + 1 - k) % cs.slices);
+        snprintf(name, sizeof name, "/%s%u.dcm", cs.prefix.c_str(), (cs.slices + 1 - k) % cs.slices);
         if (!write_slice(cs, k, dir + name))
             return false;
     }
@@ -150,6 +155,21 @@ bool make_hostile(const std::string &out)
         return false;
     gdcm::Attribute<0x0028, 0x0010> rows = {7000};
     r.GetFile().GetDataSet().Replace(rows.GetAsDataElement());
+    gdcm::Writer w;
+    w.SetFile(r.GetFile());
+    w.SetFileName(file.c_str());
+    return w.Write();
+}
+
+/* notag/f2.dcm without PixelSpacing. */
+bool drop_spacing(const std::string &out)
+{
+    std::string file = out + "/notag/f2.dcm";
+    gdcm::Reader r;
+    r.SetFileName(file.c_str());
+    if (!r.Read())
+        return false;
+    r.GetFile().GetDataSet().Remove(gdcm::Tag(0x0028, 0x0030));
     gdcm::Writer w;
     w.SetFile(r.GetFile());
     w.SetFileName(file.c_str());
@@ -179,6 +199,7 @@ int main(int argc, char **argv)
                   {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 2}, {}, false, v_axial};
     Case sagittal = {"two", "1.2.826.0.1.3680043.9.7777.4", "sagittal", 6, 4, 4, true, 16, 1, 0,
                      {5, -3, 8}, {0, 1, 0}, {0, 0, -1}, {0.5, 0.5, 3}, {}, false, v_sagittal};
+    sagittal.prefix = "s";
     Case flt = {"float", "1.2.826.0.1.3680043.9.7777.5", "float", 5, 7, 3, false, 16, 0.5, 0.25,
                 {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 1}, {}, false, v_plain};
     Case uneven = flt;
@@ -189,11 +210,23 @@ int main(int argc, char **argv)
     Case hostile = flt;
     hostile.dir = "hostile";
     hostile.uid = "1.2.826.0.1.3680043.9.7777.7";
-    for (const Case *cs : {&oblique, &jpegls, &axial, &sagittal, &flt, &uneven, &hostile})
+    Case dup1 = flt, dup2 = axial, tilt = flt, notag = flt;
+    dup1.dir = dup2.dir = "same_desc";
+    dup1.description = dup2.description = "dup";
+    dup1.uid = "1.2.826.0.1.3680043.9.7777.8";
+    dup2.uid = "1.2.826.0.1.3680043.9.7777.9";
+    dup2.prefix = "d";
+    tilt.dir = "tilt";
+    tilt.uid = "1.2.826.0.1.3680043.9.7777.10";
+    tilt.tilt = 2;
+    notag.dir = "notag";
+    notag.uid = "1.2.826.0.1.3680043.9.7777.11";
+    for (const Case *cs : {&oblique, &jpegls, &axial, &sagittal, &flt, &uneven, &hostile, &dup1,
+                           &dup2, &tilt, &notag})
         if (!write_case(out, *cs))
             return 1;
-    if (!make_hostile(out)) {
-        fprintf(stderr, "dicom_write: cannot make hostile/f1.dcm\n");
+    if (!make_hostile(out) || !drop_spacing(out)) {
+        fprintf(stderr, "dicom_write: cannot make hostile/f1.dcm or notag/f2.dcm\n");
         return 1;
     }
     return 0;
