@@ -16,6 +16,7 @@ packages=(build-essential cmake pkg-config liblua5.4-dev libteem-dev libniftiio-
           libglfw3-dev libegl-dev libgl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri
           xvfb xauth libxtst6 python3
           python3-vtk9 # tests/test_vtk_reader.sh: VTK's readers as the reference
+          libgdcm-dev libgdcm-tools # plugins/dicom (C++ on GDCM; gdcmdump to inspect files)
           libopenmpi-dev openmpi-bin paraview-dev paraview) # MPI ranks + IceT (CDVR_WITH_MPI)
 
 missing=()

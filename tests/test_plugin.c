@@ -196,8 +196,10 @@ static void test_load_dirs(const char *tmp)
     char plugins[4096];
     path_in_build(plugins, sizeof plugins, "plugins");
     reports none = {0};
-    size_t want = (size_t)built("example") + (size_t)built("zfp") +
-                  (size_t)built("format_example");
+    size_t want = 0; /* every plugin the build made (CDVR_BUILT_PLUGINS: names, space-separated) */
+    for (const char *p = getenv("CDVR_BUILT_PLUGINS"); p && *(p += strspn(p, " "));
+         p += strcspn(p, " "))
+        want++;
     CHECK(cdvr_plugin_load_dirs(plugins, collect, &none) == want && none.count == 0,
           "build plugins: %d reports: %s", none.count, none.text[0]);
     CHECK(cdvr_plugin_load_dirs(NULL, collect, &none) == 0, "NULL list");
