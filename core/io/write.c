@@ -249,24 +249,18 @@ static void put_u64(uint8_t *p, uint64_t v)
     memcpy(p, &v, 8); /* host order: byte_order says which */
 }
 
-/* The appended block: uncompressed [UInt64 bytes][data], or compressed [UInt64 blocks][UInt64
- * block size][UInt64 last block size][UInt64 x blocks: compressed sizes][blocks]. */
-static cdvr_status vti_block(const char *path, const cdvr_volume *vol, size_t bytes,
-                             int compress, uint8_t **out, size_t *out_n, cdvr_error *err)
+/* The compressed appended block: [UInt64 blocks][UInt64 block size][UInt64 last block size]
+ * [UInt64 x blocks: compressed sizes][blocks] (uncompressed, write_vti writes [UInt64 bytes]
+ * [data] straight from the volume). */
+static cdvr_status vti_zblock(const char *path, const cdvr_volume *vol, size_t bytes,
+                              uint8_t **out, size_t *out_n, cdvr_error *err)
 {
-    size_t nb = compress ? (bytes + VTI_BLOCK - 1) / VTI_BLOCK : 0;
-    size_t head = compress ? 8 * (3 + nb) : 8;
-    size_t cap = compress ? head + nb * (size_t)compressBound(VTI_BLOCK) : head + bytes;
-    uint8_t *b = malloc(cap ? cap : 1);
+    size_t nb = (bytes + VTI_BLOCK - 1) / VTI_BLOCK;
+    size_t head = 8 * (3 + nb);
+    size_t cap = head + nb * (size_t)compressBound(VTI_BLOCK);
+    uint8_t *b = malloc(cap);
     if (!b)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: cannot allocate %zu bytes", path, cap);
-    if (!compress) {
-        put_u64(b, bytes);
-        memcpy(b + 8, vol->data, bytes);
-        *out = b;
-        *out_n = head + bytes;
-        return CDVR_OK;
-    }
     put_u64(b, nb);
     put_u64(b + 8, VTI_BLOCK);
     put_u64(b + 16, bytes % VTI_BLOCK);
@@ -295,15 +289,14 @@ static cdvr_status write_vti(const cdvr_volume *vol, const char *path, int compr
                               "one has %zu timesteps: save its frames one by one (v:frame(t)), "
                               "or save as .nrrd, .nii or .mha (4D)", path, vol->timesteps);
     size_t bytes = cdvr_volume_frame_bytes(vol);
-    uint8_t *block = NULL;
+    uint8_t *block = NULL, size[8];
     size_t block_n = 0;
-    cdvr_status st = vti_block(path, vol, bytes, compress, &block, &block_n, err);
+    cdvr_status st = compress ? vti_zblock(path, vol, bytes, &block, &block_n, err) : CDVR_OK;
     if (st != CDVR_OK)
         return st;
+    put_u64(size, bytes);
     double D[9];
     cdvr_volume_direction(vol, D);
-    double w[2];
-    cdvr_volume_window_peek(vol, w);
     cdvr_atomic_file af;
     st = cdvr_atomic_open(&af, path, err);
     if (st == CDVR_OK) {
@@ -320,13 +313,12 @@ static cdvr_status write_vti(const cdvr_volume *vol, const char *path, int compr
                 vol->spacing[2], D[0], D[1], D[2], D[3], D[4], D[5], D[6], D[7], D[8]);
         fprintf(f, "    <Piece Extent=\"0 %zu 0 %zu 0 %zu\">\n      <PointData "
                    "Scalars=\"scalars\">\n        <DataArray type=\"%s\" Name=\"scalars\" "
-                   "NumberOfComponents=\"1\" format=\"appended\" RangeMin=\"%.17g\" "
-                   "RangeMax=\"%.17g\" offset=\"0\"/>\n      </PointData>\n      <CellData>\n"
+                   "NumberOfComponents=\"1\" format=\"appended\" offset=\"0\"/>\n      </PointData>\n      <CellData>\n"
                    "      </CellData>\n    </Piece>\n  </ImageData>\n"
                    "  <AppendedData encoding=\"raw\">\n   _",
-                vol->dims[0] - 1, vol->dims[1] - 1, vol->dims[2] - 1, vtk_type(vol->type), w[0],
-                w[1]);
-        int ok = cdvr_write_all(f, block, block_n);
+                vol->dims[0] - 1, vol->dims[1] - 1, vol->dims[2] - 1, vtk_type(vol->type));
+        int ok = block ? cdvr_write_all(f, block, block_n)
+                       : cdvr_write_all(f, size, 8) && cdvr_write_all(f, vol->data, bytes);
         fprintf(f, "\n  </AppendedData>\n</VTKFile>\n");
         st = cdvr_atomic_commit(&af, !ok || ferror(f), err);
     }

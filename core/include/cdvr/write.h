@@ -26,7 +26,9 @@
  *                   the voxels (LOCAL), .mhd names NAME.raw (NAME.zraw with compress) beside it;
  *                   compress: CompressedData = True, one zlib stream, CompressedDataSize. 4D:
  *                   NDims 4 (the 4th axis time, spacing 1).
- * Voxels are written in the machine's byte order, which every header records.
+ * Voxels are written in the machine's byte order, which every header records. The value window
+ * of a u8 volume (what its codes stand for, e.g. a decoded store frame's) is not stored: the
+ * files hold the codes.
  *
  * Every file goes through cdvr/atomicfile.h: nothing stands under a name until it is complete,
  * and a failed save leaves nothing new (for a header with a detached data file the data file is
@@ -56,7 +58,7 @@ typedef struct cdvr_save_opts {
 cdvr_status cdvr_volume_save(const cdvr_volume *vol, const char *path, const cdvr_save_opts *opts,
                              cdvr_error *err);
 
-/* "'.nrrd .nhdr .nii .nii.gz .vti .mha .mhd" for messages and help. */
+/* ".nrrd .nhdr .nii .nii.gz .vti .mha .mhd" for messages and help. */
 const char *cdvr_save_suffixes(void);
 
 #endif
