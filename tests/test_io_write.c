@@ -3,7 +3,8 @@
  * compressed and not, 3D and 4D (where the format holds a series), odd dims 5x7x3 with an
  * oblique direction (right- and left-handed) and a non-zero origin, load(save(v)) gives the same
  * voxels (byte for byte), dims, timesteps, type, spacing, origin and direction (NIfTI: within
- * float32, its header's precision), and the probe agrees. Refusals: a directory or FIFO target
+ * float32, its header's precision; its qform equals its sform, qfac -1 when left-handed), and
+ * the probe agrees. Refusals: a directory or FIFO target
  * (and a .nhdr/.mhd whose data file name is a directory) is refused and left as it was; a .vti
  * series, an unknown suffix and contradictory compress options are refused; a save that fails
  * part way (RLIMIT_FSIZE) leaves nothing in the directory. */
@@ -12,6 +13,7 @@
 #include "cdvr/volume.h"
 
 #include <dirent.h>
+#include <nifti1_io.h>
 #include <math.h>
 #include <signal.h>
 #include <stdint.h>
@@ -174,6 +176,19 @@ static void round_trip(const fmt *f, cdvr_type type, size_t t, int compress, int
                      f->data_tail[compress]);
             struct stat sb;
             CHECK(stat(data, &sb) == 0 && S_ISREG(sb.st_mode), "%s: no data file %s", what, data);
+        }
+        if (strstr(f->suffix, ".nii")) { /* the qform is the sform (an orthonormal D) */
+            nifti_image *nim = nifti_image_read(path, 0);
+            CHECK(nim && nim->qform_code == 1 && nim->sform_code == 1, "%s: codes", what);
+            double worst = 0;
+            for (int r = 0; nim && r < 3; r++)
+                for (int c = 0; c < 4; c++)
+                    worst = fmax(worst, fabs(nim->qto_xyz.m[r][c] - nim->sto_xyz.m[r][c]));
+            CHECK(nim && worst < 1e-5, "%s: qform differs from the sform by %g", what, worst);
+            CHECK(nim && (nim->qfac < 0) == (left != 0), "%s: qfac %g", what,
+                  nim ? nim->qfac : 0.0);
+            if (nim)
+                nifti_image_free(nim);
         }
         cdvr_volume *back = NULL;
         st = cdvr_volume_load(path, NULL, &back, &err);
