@@ -4,8 +4,8 @@
 # raw/zlib, MHA raw/zlib and multi-page TIFF raw/deflate, loaded and probed in rotated order,
 # medians, MB/s, ratio to NRRD raw, load average). A C program rather than Lua: the header probe
 # (cdvr_volume_probe) has no Lua binding, and the TIFF is written with libtiff's C API.
-# Outside the CMake build: compiles against BUILD_DIR/libcdvr_core.a with the libraries CMake
-# linked the tests with.
+# Outside the CMake build: compiles against BUILD_DIR/libcdvr_core.a with the flags and libraries
+# CMake linked the tests with (so a sanitizer build works too).
 #
 #   scripts/bench/load_formats.sh [BUILD_DIR] [N] [REPS]     (defaults: build, 256, 5)
 set -euo pipefail
@@ -16,7 +16,8 @@ reps=${3:-5}
 link="$build/CMakeFiles/test_io_write.dir/link.txt"
 [ -f "$link" ] || { echo "load_formats.sh: $link missing: build cdvr first" >&2; exit 1; }
 libs=$(sed -e 's/.* -o test_io_write //' -e "s#libcdvr_core.a#$build/libcdvr_core.a#" "$link")
+flags=$(sed -e 's# CMakeFiles/.*##' -e 's#^[^ ]* ##' "$link") # the build's link flags (-fsanitize=...)
 out=$(mktemp -d); trap 'rm -rf "$out"' EXIT
 # shellcheck disable=SC2086
-gcc -std=c11 -O2 -I"$src/core/include" "$src/scripts/bench/load_formats.c" $libs -o "$out/load_formats"
+gcc -std=c11 $flags -O2 -I"$src/core/include" "$src/scripts/bench/load_formats.c" $libs -o "$out/load_formats"
 "$out/load_formats" "$out" "$n" "$reps"
