@@ -297,7 +297,7 @@ static cdvr_status vti_header(vti_parse *v, const cdvr_io_map *map)
     XML_SetElementHandler(v->xp, on_start, on_end);
     XML_SetCharacterDataHandler(v->xp, on_text);
     XML_SetStartDoctypeDeclHandler(v->xp, on_doctype);
-    const size_t CHUNK = (size_t)1 << 30;
+    const size_t CHUNK = (size_t)1 << 16; /* expat copies what a stopped parse left of its buffer */
     size_t done = 0;
     enum XML_Status xs = XML_STATUS_OK;
     do {

@@ -3,6 +3,7 @@
 #include "cdvr/format.h"
 #include "cdvr/plugin.h"
 #include "cdvr/series.h"
+#include "cdvr/write.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -580,6 +581,34 @@ static int volume_save_raw(lua_State *L)
     return 1;
 }
 
+/* v:save(path [, {compress=}]): cdvr_volume_save (cdvr/write.h); a lazy series (cdvr.load_series)
+ * is read into memory first (all its timesteps). I/O failures return nil, msg; misuse (an unknown
+ * suffix, a .vti series, compress= against the suffix) raises. */
+static int volume_save(lua_State *L)
+{
+    static const char *const keys[] = {"compress", NULL};
+    lcdvr_checkoptions(L, 3, "v:save", keys);
+    const cdvr_volume *v = lcdvr_checkvolume(L, 1);
+    const char *path = luaL_checkstring(L, 2);
+    cdvr_save_opts o = {-1};
+    if (!lua_isnoneornil(L, 3)) {
+        luaL_checktype(L, 3, LUA_TTABLE);
+        lua_getfield(L, 3, "compress");
+        int given = !lua_isnil(L, -1);
+        lua_pop(L, 1);
+        if (given)
+            o.compress = lcdvr_optbooleanfield(L, 3, "compress", 0);
+    }
+    cdvr_error err;
+    cdvr_status st = cdvr_volume_save(v, path, &o, &err);
+    if (st == CDVR_ERR_IO)
+        return lcdvr_fail(L, &err);
+    if (st != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    lua_pushboolean(L, 1);
+    return 1;
+}
+
 /* ---- constructors and loaders -------------------------------------------------------------- */
 
 /* dims={x,y,z} as positive integers; returns 0 if absent. */
@@ -899,6 +928,7 @@ static const luaL_Reg volume_methods[] = {
     {"direction", volume_direction}, {"bounds", volume_bounds}, {"to_world", volume_to_world},
     {"window", volume_window},
     {"bytes", volume_bytes}, {"quantize", volume_quantize}, {"save_raw", volume_save_raw},
+    {"save", volume_save},
     {NULL, NULL}};
 
 static const luaL_Reg volume_meta[] = {
@@ -938,6 +968,9 @@ int lcdvr_open_volume(lua_State *L)
     lcdvr_help_add(L, "v:bytes()", "size of the voxel data in bytes (all timesteps)");
     lcdvr_help_add(L, "v:quantize{lo=, hi=}",
                    "u8 volume over window [lo, hi] (default: range) and report {clipped=, clipped_low=, clipped_high=, nan=, inf=}");
+    lcdvr_help_add(L, "v:save(path [, {compress=}])",
+                   "write .nrrd .nhdr .nii .nii.gz .vti .mha .mhd (by suffix; geometry kept, 4D except .vti); "
+                   "compress=true: gzip/zlib; true or nil, msg");
     lcdvr_help_add(L, "v:save_raw(path [, {endian=}])", "write the voxels as raw (little endian by default); true or nil, msg");
     lcdvr_help_add(L, "#v", "number of timesteps");
     lcdvr_help_add(L, "v:dims()", "x, y, z dimensions of a volume");

@@ -143,6 +143,7 @@ local calls = {
   ["v:quantize"] = {vol.quantize, vol, {lo = 0, hi = 1}, opts = 2},
   ["v:range"] = {vol.range, vol},
   ["v:save_raw"] = {vol.save_raw, vol, tmp .. "/w.raw", {endian = "big"}, opts = 3},
+  ["v:save"] = {vol.save, vol, tmp .. "/w.nrrd", {compress = true}, opts = 3},
   ["v:set"] = {vol.set, cdvr.volume{dims = {4, 4, 4}}, 1, 1, 1, 1, 7},
   ["v:spacing"] = {vol.spacing, vol},
   ["v:timesteps"] = {vol.timesteps, vol},

@@ -132,7 +132,9 @@ uint64_t cdvr_load_max_bytes(const cdvr_raw_opts *opts);
 cdvr_status cdvr_volume_load_raw(const char *path, const cdvr_raw_opts *opts,
                                  cdvr_volume **out, cdvr_error *err);
 /* Writes all timesteps' voxels, no header, to `path` (little endian unless big_endian),
- * through a temporary file in the same directory that is renamed over `path` at the end. */
+ * through a temporary file in the same directory that is renamed over `path` at the end.
+ * Exchange formats with their geometry (NRRD, NIfTI, VTI, MetaImage): cdvr_volume_save in
+ * cdvr/write.h. */
 cdvr_status cdvr_volume_save_raw(const cdvr_volume *vol, const char *path, int big_endian,
                                  cdvr_error *err);
 
