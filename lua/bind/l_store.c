@@ -906,6 +906,8 @@ static int store_bench_unpack(lua_State *L)
 {
     const cdvr_store *st = lcdvr_checkstore(L, 1);
     size_t v = checkvariant(L, st, 2), repeats = checkrepeats(L, 3);
+    lua_Integer threads = luaL_optinteger(L, 4, 0);
+    luaL_argcheck(L, threads >= 0 && threads <= 256, 4, "threads: 0 (one per core) .. 256");
     const cdvr_variant_info *vi = cdvr_store_variant(st, v);
     uint8_t **stored = load_all_stored(L, st, v, 0);
     size_t max_payload = 1;
@@ -919,7 +921,8 @@ static int store_bench_unpack(lua_State *L)
         double t0 = cdvr_now_ms();
         for (size_t c = 0; c < vi->nchunks; c++) {
             cdvr_error err;
-            if (cdvr_store_unpack_chunk(st, v, c, stored[c], out, &err) != CDVR_OK)
+            if (cdvr_store_unpack_chunk_threads(st, v, c, stored[c], out, (int)threads,
+                                                &err) != CDVR_OK)
                 return lcdvr_raise(L, &err);
         }
         double dt = (cdvr_now_ms() - t0) / 1e3;
@@ -975,8 +978,10 @@ int lcdvr_open_store(lua_State *L)
     lcdvr_help_add(L, "st:close()", "close the store file");
     lcdvr_help_add(L, "st:bench_decode([variant] [, repeats])",
                    "median MB/s (output bytes) of the C decoder over all chunks, single thread");
-    lcdvr_help_add(L, "st:bench_unpack([variant] [, repeats])",
-                   "median MB/s (payload bytes) of undoing stage 2 (LZO) over all chunks");
+    lcdvr_help_add(L, "st:bench_unpack([variant] [, repeats] [, threads])",
+                   "median MB/s (payload bytes) of undoing stage 2 (LZO, LZ4, zstd) over all "
+                   "chunks, each chunk's segments on `threads` threads (0, the default: one per "
+                   "core, as the player)");
     lcdvr_help_add(L, "cdvr.bench_memcpy(bytes [, repeats [, piece]])", "median memcpy MB/s for a buffer size (piece: copy into one reused buffer of that size)");
     lcdvr_help_add(L, "cdvr.clock()", "monotonic time in seconds");
     return 0;
