@@ -480,21 +480,15 @@ static cdvr_status s2_unpack(unsigned codec, const uint8_t *in, size_t n, uint8_
     return cdvr_lzo_decompress(in, n, out, expect, err);
 }
 
-/* AUTO: the modelled b1 + b1' of every candidate (NONE: the read and the player's copy; the
- * others: the read of the packed bytes and the best of two single-thread unpacks of this
+/* AUTO: the modelled b1 + b1' of every candidate (NONE: the read alone, the player keeps the
+ * stored bytes as the payload; the others: the read of the packed bytes and the best of two single-thread unpacks of this
  * chunk, checked against the payload), the smallest kept in bufs.packed. */
 static cdvr_status s2_choose(const cdvr_variant_info *vi, chunk_job *job, size_t payload,
                              unsigned *codec, size_t *packed, cdvr_error *err)
 {
     job_bufs *b = &job->bufs;
-    double per_byte_ms = 1.0 / (vi->stage2_read_mbps * 1e3), best = 0;
-    for (int run = 0; run < 2; run++) {
-        double t0 = cdvr_now_ms();
-        memcpy(b->unpacked, b->payload, payload);
-        double dt = cdvr_now_ms() - t0;
-        best = run == 0 || dt < best ? dt : best;
-    }
-    best += (double)payload * per_byte_ms;
+    double per_byte_ms = 1.0 / (vi->stage2_read_mbps * 1e3);
+    double best = (double)payload * per_byte_ms; /* NONE: the player takes the bytes as read */
     *codec = 0;
     for (unsigned c = CDVR_S2_LZO; c < CDVR_S2_CODECS; c++) {
         size_t n = 0;

@@ -40,8 +40,8 @@
  *   AUTO  per chunk, the one of NONE, LZO, LZ4, ZSTD whose modelled b1 + b1' is the smallest:
  *         stored bytes / stage2_read_mbps (the disk read rate, default
  *         CDVR_STAGE2_READ_MBPS) + the time this machine takes to unpack that very chunk on
- *         one thread (measured at encode: the best of two runs; NONE costs the copy the
- *         player makes). The choice is recorded per chunk (cdvr_chunk_info.stage2), so an
+ *         one thread (measured at encode: the best of two runs; NONE costs the read alone,
+ *         the player keeps the stored bytes as the payload). The choice is recorded per chunk (cdvr_chunk_info.stage2), so an
  *         AUTO store depends on the machine and load at encode time, unlike the others.
  * A chunk's stage 2 is kept only where it pays: for LZO, LZ4 and ZSTD when it saves at least
  * lzo_min_saving of the chunk (AUTO: where the model says so). LZ4 and ZSTD chunks, and LZO
