@@ -103,7 +103,8 @@ typedef struct cdvr_encode_opts {
     cdvr_type source_type;         /* type before quantisation, recorded */
     size_t bricks[3];              /* brick grid; 0 -> 1 */
     int threads;                   /* encode threads: 0 one per online core, 1 only the calling
-                                      thread; the output is the same byte for byte */
+                                      thread; the output is the same byte for byte (but for
+                                      stage 2 AUTO, whose choices follow measured times) */
     int no_range_tables;           /* 1: record no range tables (smaller store; playback then
                                       computes each frame's brick ranges itself) */
 } cdvr_encode_opts;
