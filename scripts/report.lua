@@ -1,5 +1,6 @@
 -- scripts/report.lua DATASET... [--out DIR] [--frames N] [--width W] [--device cl|cpu|auto]
 --                   [--zfp RATES] [--timesteps N] [--first I] [--count N] [--read-mbps M]
+--                   [--stage2 none|lzo|lz4|zstd|auto]
 -- Speed against error (DESIGN.md §8). For each dataset (a directory of NRRD files, a printf
 -- pattern, a 4D NIfTI or a single volume): encode every PVTC variant (S 1/4, T 2/3, time and
 -- space packing), raw, and, when the zfp plugin is loaded, zfp at each rate of --zfp (bits per
@@ -8,7 +9,11 @@
 --   fps / frame_ms : median over the played frames (pipelined player);
 --   image_psnr     : mean over the path's frames of the PSNR of the render of the decoded
 --                    variant against the render of the uncompressed data (same camera);
---   volume_psnr, maxerr : measured at encode time over all timesteps.
+--   volume_psnr, maxerr : measured at encode time over all timesteps;
+--   stage2         : the stage 2 of the variant's chunks (--stage2, default none; auto models
+--                    read at --read-mbps, default 500 MB/s, + unpack per chunk and records
+--                    its choice: "auto:lz4=5/none=1" counts the chunks of each choice);
+--   unpack_mb_s    : payload MB/s of undoing it (st:bench_unpack, all cores, median of 3).
 -- --timesteps N keeps the first N timesteps of each dataset (for quick runs); a printf
 -- pattern ("vf_t%03d.nrrd") starts at index --first (default 0) and takes --count files or as
 -- many as exist; --read-mbps M plays through an emulated disk of M MB/s (the out-of-core case
@@ -63,7 +68,8 @@ local function measure(spec, name, rows)
   local q = vol:quantize{lo = lo, hi = hi}
   local tmp = os.tmpname()
   common.progress("%s: encoding %d configurations", name, #configs)
-  local st = cdvr.encode(q, {variants = configs, stage2 = "none", path = tmp})
+  local st = cdvr.encode(q, {variants = configs, stage2 = opt.stage2 or "none", path = tmp,
+                             stage2_read_mbps = tonumber(opt["read-mbps"])})
   local info = st:info()
   -- the oriented box in world coordinates, as the store gives it back
   local x0, x1, y0, y1, z0, z1 = st:decode(1):bounds()
@@ -94,10 +100,19 @@ local function measure(spec, name, rows)
       nfinite = nfinite + (cmp.psnr == math.huge and 0 or 1)
     end
     local image_psnr = nfinite == 0 and math.huge or psnr_sum / nfinite
+    local stage2 = var.stage2
+    if stage2 == "auto" then
+      local parts = {}
+      for _, c in ipairs{"none", "lzo", "lz4", "zstd"} do
+        if var.stage2_chunks[c] > 0 then parts[#parts + 1] = c .. "=" .. var.stage2_chunks[c] end
+      end
+      stage2 = "auto:" .. table.concat(parts, "/")
+    end
     rows[#rows + 1] = {dataset = name, config = var.name, codec = var.codec,
                        bpv = 8 * var.bytes / info.raw_bytes, ratio = var.bytes / info.raw_bytes,
                        fps = r.fps, frame_ms = r.median.frame_ms, image_psnr = image_psnr,
-                       volume_psnr = var.psnr, maxerr = var.maxerr}
+                       volume_psnr = var.psnr, maxerr = var.maxerr, stage2 = stage2,
+                       unpack_mb_s = st:bench_unpack(var.name, 3)}
   end
   st:close()
   os.remove(tmp)
@@ -123,11 +138,12 @@ end
 common.progress_done()
 
 local csv = assert(io.open(opt.out .. "/report.csv", "w"))
-csv:write("dataset,config,codec,bpv,ratio,fps,frame_ms,image_psnr,volume_psnr,maxerr\n")
+csv:write("dataset,config,codec,bpv,ratio,fps,frame_ms,image_psnr,volume_psnr,maxerr,stage2,unpack_mb_s\n")
 local function fmt(x) return x == math.huge and "inf" or ("%.4f"):format(x) end
 for _, r in ipairs(rows) do
-  csv:write(("%s,%s,%s,%s,%s,%s,%s,%s,%s,%s\n"):format(r.dataset, r.config, r.codec, fmt(r.bpv),
-    fmt(r.ratio), fmt(r.fps), fmt(r.frame_ms), fmt(r.image_psnr), fmt(r.volume_psnr), fmt(r.maxerr)))
+  csv:write(("%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s\n"):format(r.dataset, r.config, r.codec, fmt(r.bpv),
+    fmt(r.ratio), fmt(r.fps), fmt(r.frame_ms), fmt(r.image_psnr), fmt(r.volume_psnr), fmt(r.maxerr),
+    r.stage2, fmt(r.unpack_mb_s)))
 end
 csv:close()
 io.write(io.open(opt.out .. "/report.csv"):read("a"))

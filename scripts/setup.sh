@@ -10,7 +10,7 @@ cd "$(dirname "$0")/.."
 mode=${1:-demo}
 packages=(build-essential cmake pkg-config liblua5.4-dev libteem-dev libniftiio-dev libznz-dev
           libnifti2-dev zlib1g-dev libzfp-dev libbz2-dev
-          liblzo2-dev libexpat1-dev liblz4-dev libtiff-dev libhdf5-dev libnetcdf-dev opencl-headers ocl-icd-opencl-dev pocl-opencl-icd clinfo libstb-dev
+          liblzo2-dev libexpat1-dev liblz4-dev libzstd-dev libtiff-dev libhdf5-dev libnetcdf-dev opencl-headers ocl-icd-opencl-dev pocl-opencl-icd clinfo libstb-dev
           libreadline-dev gnuplot-nox
           libavformat-dev libavcodec-dev libswscale-dev libavutil-dev # movies (core/movie)
           libglfw3-dev libegl-dev libgl-dev libopengl-dev libegl-mesa0 libgl1-mesa-dri

@@ -204,14 +204,17 @@ static cdvr_volume *make_series(void)
     return vol;
 }
 
-/* Store seed: mode byte + a store with four variants (two with LZO, one raw). */
+/* Store seed: mode byte + a store with four variants (LZO, LZ4 in 128-byte segments, raw with
+ * zstd in 256-byte segments, none), so mutations reach the segment tables too. */
 static int make_store_seed(bytes *seed, uint8_t mode)
 {
     cdvr_variant_spec specs[4];
     memset(specs, 0, sizeof specs);
     specs[0] = spec_pvtc(1, 3, CDVR_PACK_TIME, CDVR_ENCODER_BBOX, CDVR_STAGE2_LZO, 0.0);
-    specs[1] = spec_pvtc(4, 2, CDVR_PACK_SPACE, CDVR_ENCODER_BBOX, CDVR_STAGE2_LZO, 0.0);
-    specs[2] = spec_codec("raw", CDVR_STAGE2_LZO, 0.0);
+    specs[1] = spec_pvtc(4, 2, CDVR_PACK_SPACE, CDVR_ENCODER_BBOX, CDVR_STAGE2_LZ4, 0.0);
+    specs[1].stage2_segment = 128;
+    specs[2] = spec_codec("raw", CDVR_STAGE2_ZSTD, 0.0);
+    specs[2].stage2_segment = 256;
     specs[3] = spec_pvtc(4, 3, CDVR_PACK_TIME, CDVR_ENCODER_BBOX, CDVR_STAGE2_NONE, -1.0);
     cdvr_encode_opts opts = {.variants = specs, .nvariants = 4, .qlo = 0, .qhi = 1,
                              .source_type = CDVR_TYPE_U8};
@@ -235,13 +238,15 @@ static int make_store_seed(bytes *seed, uint8_t mode)
     /* the seed is what the store target wants: it opens, LZO chunks included */
     cdvr_store *opened = NULL;
     if (ok && cdvr_store_open(path, &opened, &err) == CDVR_OK) {
-        size_t lzo_chunks = 0;
+        size_t lzo_chunks = 0, segmented = 0;
         for (size_t v = 0; v < 4; v++)
-            for (size_t c = 0; c < cdvr_store_variant(opened, v)->nchunks; c++)
-                lzo_chunks += (size_t)cdvr_store_chunk(opened, v, c)->stage2;
-        CHECK(cdvr_store_get_info(opened)->nvariants == 4 && lzo_chunks > 0,
-              "store seed: %zu variants, %zu LZO chunks", cdvr_store_get_info(opened)->nvariants,
-              lzo_chunks);
+            for (size_t c = 0; c < cdvr_store_variant(opened, v)->nchunks; c++) {
+                lzo_chunks += cdvr_store_chunk(opened, v, c)->stage2 == CDVR_STAGE2_LZO;
+                segmented += (size_t)cdvr_store_chunk(opened, v, c)->stage2_segmented;
+            }
+        CHECK(cdvr_store_get_info(opened)->nvariants == 4 && lzo_chunks > 0 && segmented > 0,
+              "store seed: %zu variants, %zu LZO chunks, %zu segmented",
+              cdvr_store_get_info(opened)->nvariants, lzo_chunks, segmented);
         cdvr_store_close(opened);
     } else {
         CHECK(0, "store seed does not open: %s", ok ? err.msg : "no bytes");

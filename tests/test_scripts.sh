@@ -12,10 +12,10 @@ cd "$src" || exit 1
 "$cdvr" scripts/report.lua share/data/mpld_asl_64x64x24x25_f32.nii.gz --timesteps 6 --frames 6 \
   --width 48 --out "$tmp/report" >"$tmp/report.out" 2>"$tmp/report.err"
 check "report.lua exit 0" [ $? -eq 0 ]
-check "report.csv header" [ "$(head -1 "$tmp/report/report.csv")" = "dataset,config,codec,bpv,ratio,fps,frame_ms,image_psnr,volume_psnr,maxerr" ]
+check "report.csv header" [ "$(head -1 "$tmp/report/report.csv")" = "dataset,config,codec,bpv,ratio,fps,frame_ms,image_psnr,volume_psnr,maxerr,stage2,unpack_mb_s" ]
 check "report.csv rows (raw + 8 PVTC variants + 4 zfp rates)" [ "$(tail -n +2 "$tmp/report/report.csv" | wc -l)" -eq 13 ]
 check "report.csv zfp2 row" grep -q '^mpld_asl_64x64x24x25_f32,zfp2,zfp,2.0000,0.2500,' "$tmp/report/report.csv"
-check "report.csv raw is lossless" grep -q '^mpld_asl_64x64x24x25_f32,raw,raw,8.0000,1.0000,.*,inf,inf,0.0000$' "$tmp/report/report.csv"
+check "report.csv raw is lossless" grep -q '^mpld_asl_64x64x24x25_f32,raw,raw,8.0000,1.0000,.*,inf,inf,0.0000,none,[0-9.]*$' "$tmp/report/report.csv"
 check "report.csv S4T3 ratio 5/48" grep -q '^mpld_asl_64x64x24x25_f32,S4T3,pvtc,0.8333,0.1042,' "$tmp/report/report.csv"
 check "report.png is a PNG" [ "$(head -c 8 "$tmp/report/report.png" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ]
 
@@ -30,6 +30,11 @@ check "failed.txt names it" grep -q "missing_7.nrrd" "$tmp/multi/failed.txt"
 check "rows of both good datasets" [ "$(grep -c '^mpld_asl_64x64x24x25_f32,' "$tmp/multi/report.csv")" -eq 9 ] && \
   [ "$(grep -c '^ng,' "$tmp/multi/report.csv")" -eq 9 ]
 check "the pattern started at --first (2 timesteps)" grep -q '^ng,raw,raw,8.0000,1.0000,' "$tmp/multi/report.csv"
+# --stage2 auto: each variant's stage-2 choice (chunks per codec) and its unpack speed
+"$cdvr" scripts/report.lua share/data/neghip_66x66x66_u8.nrrd --frames 2 --width 16 --zfp none \
+  --stage2 auto --out "$tmp/auto" >"$tmp/auto.out" 2>"$tmp/auto.err"
+check "report.lua --stage2 auto exit 0" [ $? -eq 0 ]
+check "--stage2 auto: the choice per variant" grep -q '^neghip_66x66x66_u8,raw,raw,.*,auto:[a-z0-9=/]*,[0-9.]*$' "$tmp/auto/report.csv"
 check "one legend entry per dataset" [ "$(grep -c 'with points.* title "' "$tmp/multi/report.gp")" -eq 2 ]
 check "a colour per dataset" [ "$(grep -o 'lc rgb "#[0-9a-f]*"' "$tmp/multi/report.gp" | sort -u | wc -l)" -eq 2 ]
 check "multi-dataset report.png is a PNG" [ "$(head -c 8 "$tmp/multi/report.png" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ]

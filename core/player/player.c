@@ -591,7 +591,8 @@ static int plan_and_read(cdvr_player *p, chunk_item *it, int threaded)
 static void prepare(cdvr_player *p, int w, chunk_item *it);
 static void pass_turn(cdvr_player *p, const chunk_item *it);
 
-/* b1' of every needed chunk of the group. */
+/* b1' of every needed chunk of the group (a chunk without stage 2 swaps its buffers; a
+ * segmented one is unpacked on all cores, cdvr_store_unpack_chunk). */
 static void unzip_chunks(cdvr_player *p, chunk_item *it)
 {
     if (it->err.status != CDVR_OK)
@@ -603,6 +604,15 @@ static void unzip_chunks(cdvr_player *p, chunk_item *it)
         if (!part->needed)
             continue;
         const cdvr_chunk_info *ch = cdvr_store_chunk(st, (size_t)it->variant, part->chunk);
+        if (!ch->stage2) { /* the stored bytes are the payload: take the buffer, no copy */
+            uint8_t *b = part->payload;
+            size_t cap = part->payload_cap;
+            part->payload = part->stored;
+            part->payload_cap = part->stored_cap;
+            part->stored = b;
+            part->stored_cap = cap;
+            continue;
+        }
         if (!grow(&part->payload, &part->payload_cap, ch->payload_bytes)) {
             cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate %llu bytes",
                            cdvr_store_path(st), part->chunk + 1,

@@ -5,7 +5,8 @@
  * size of the metadata is known. The write pass walks the series forward in time: it asks
  * the frame source for each timestep once, keeps only the frames that groups still in
  * flight need, and encodes the group of whichever variant ends first (all bricks of it),
- * applies stage 2 where it pays, writes the stored bytes after the metadata, decodes the
+ * applies stage 2 where it pays (or, for AUTO, the stage 2 of the smallest modelled read +
+ * unpack time, store.h), writes the stored bytes after the metadata, decodes the
  * payload again to measure the variant's volume PSNR and max error (peak 255, as
  * cdvr_compare; each voxel counted once, in the brick that owns it) and the chunk's value
  * range, and reports progress. Finally the metadata goes to offset 0, the file is fsync'ed
@@ -16,6 +17,7 @@
 #include "store_format.h"
 
 #include "codec/stage2/stage2.h"
+#include "cdvr/timing.h"
 
 #include <errno.h>
 #include <pthread.h>
@@ -55,8 +57,17 @@ static cdvr_status resolve_variant(const char *path, const cdvr_variant_spec *sp
 {
     if (!spec->codec)
         return cdvr_error_set(err, CDVR_ERR_ARG, "%s: a variant has no codec", path);
-    if (spec->stage2 != CDVR_STAGE2_NONE && spec->stage2 != CDVR_STAGE2_LZO)
-        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: bad stage2 %d", path, (int)spec->stage2);
+    if ((unsigned)spec->stage2 > CDVR_STAGE2_AUTO)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: bad stage2 %d (none, lzo, lz4, zstd or "
+                              "auto)", path, (int)spec->stage2);
+    double mbps = spec->stage2_read_mbps == 0 ? CDVR_STAGE2_READ_MBPS : spec->stage2_read_mbps;
+    size_t segment = spec->stage2_segment ? spec->stage2_segment : CDVR_STAGE2_SEGMENT;
+    if (!(mbps > 0 && mbps < 1e12))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: stage2_read_mbps %g must be > 0", path,
+                              spec->stage2_read_mbps);
+    if (segment < CDVR_STAGE2_SEGMENT_MIN || segment > CDVR_STAGE2_SEGMENT_MAX)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: stage2_segment %zu is not in %u..%u", path,
+                              segment, CDVR_STAGE2_SEGMENT_MIN, CDVR_STAGE2_SEGMENT_MAX);
     double saving = spec->lzo_min_saving < 0 ? CDVR_LZO_MIN_SAVING : spec->lzo_min_saving;
     if (!(saving <= 1.0))
         return cdvr_error_set(err, CDVR_ERR_ARG, "%s: lzo_min_saving %g is not in [0, 1]", path,
@@ -78,6 +89,8 @@ static cdvr_status resolve_variant(const char *path, const cdvr_variant_spec *sp
     vi->params = spec->params;
     vi->stage2 = spec->stage2;
     vi->lzo_min_saving = saving;
+    vi->stage2_read_mbps = mbps;
+    vi->stage2_segment = segment;
     return CDVR_OK;
 }
 
@@ -269,8 +282,9 @@ static cdvr_status window_need(frame_window *w, size_t from, size_t to, cdvr_err
 
 /* Buffers of one chunk in flight, kept for the next chunk that uses the job. */
 typedef struct job_bufs {
-    uint8_t *payload, *packed, *bricks, *decoded, *ranges, *ranges_packed;
+    uint8_t *payload, *packed, *bricks, *decoded, *ranges, *ranges_packed, *trial, *unpacked;
     size_t payload_cap, packed_cap, bricks_cap, decoded_cap, ranges_cap, ranges_packed_cap;
+    size_t trial_cap, unpacked_cap; /* AUTO: a candidate's stored bytes, its unpacked bytes */
 } job_bufs;
 
 /* One chunk being encoded: the codec runs in nparts parts (encode_part), or in one call, then
@@ -331,6 +345,8 @@ static void bufs_free(job_bufs *b)
     free(b->decoded);
     free(b->ranges);
     free(b->ranges_packed);
+    free(b->trial);
+    free(b->unpacked);
 }
 
 /* First local index along an axis that the brick starting at voxel lo owns: a voxel two
@@ -426,26 +442,129 @@ static cdvr_status measure_chunk(const cdvr_store *st, chunk_job *job, cdvr_erro
     return s;
 }
 
+/* ---- stage 2 of a chunk (store.h) ------------------------------------------------------ */
+
+/* LZO chunks of one segment keep the unsegmented layout of seed-001 stores; everything else
+ * with stage 2 is segmented. */
+static int s2_segmented(unsigned codec, size_t payload, size_t seg)
+{
+    return codec != CDVR_S2_LZO || payload > seg;
+}
+
+/* Output bytes any stage-2 codec may need for n payload bytes; 0 on overflow. */
+static size_t s2_capacity(size_t n, size_t seg)
+{
+    size_t cap = cdvr_lzo_bound(n);
+    for (unsigned c = CDVR_S2_LZO; c < CDVR_S2_CODECS; c++) {
+        size_t b = cdvr_s2_bound(c, n, seg);
+        if (b == 0)
+            return 0;
+        cap = b > cap ? b : cap;
+    }
+    return cap;
+}
+
+static cdvr_status s2_pack(unsigned codec, const uint8_t *in, size_t n, size_t seg,
+                           uint8_t *out, size_t cap, size_t *out_n, cdvr_error *err)
+{
+    if (s2_segmented(codec, n, seg))
+        return cdvr_s2_pack(codec, in, n, seg, out, cap, out_n, err);
+    return cdvr_lzo_compress(in, n, out, cap, out_n, err);
+}
+
+static cdvr_status s2_unpack(unsigned codec, const uint8_t *in, size_t n, uint8_t *out,
+                             size_t expect, size_t seg, cdvr_error *err)
+{
+    if (s2_segmented(codec, expect, seg))
+        return cdvr_s2_unpack(codec, in, n, out, expect, 1, err);
+    return cdvr_lzo_decompress(in, n, out, expect, err);
+}
+
+/* AUTO: the modelled b1 + b1' of every candidate (NONE: the read alone, the player keeps the
+ * stored bytes as the payload; the others: the read of the packed bytes and the best of two single-thread unpacks of this
+ * chunk, checked against the payload), the smallest kept in bufs.packed. */
+static cdvr_status s2_choose(const cdvr_variant_info *vi, chunk_job *job, size_t payload,
+                             unsigned *codec, size_t *packed, cdvr_error *err)
+{
+    job_bufs *b = &job->bufs;
+    double per_byte_ms = 1.0 / (vi->stage2_read_mbps * 1e3);
+    double best = (double)payload * per_byte_ms; /* NONE: the player takes the bytes as read */
+    *codec = 0;
+    for (unsigned c = CDVR_S2_LZO; c < CDVR_S2_CODECS; c++) {
+        size_t n = 0;
+        cdvr_status s = s2_pack(c, b->payload, payload, vi->stage2_segment, b->trial,
+                                b->trial_cap, &n, err);
+        if (s != CDVR_OK)
+            return s;
+        if (n >= payload)
+            continue;
+        double unpack = 0;
+        for (int run = 0; run < 2; run++) {
+            double t0 = cdvr_now_ms();
+            s = s2_unpack(c, b->trial, n, b->unpacked, payload, vi->stage2_segment, err);
+            double dt = cdvr_now_ms() - t0;
+            if (s != CDVR_OK)
+                return s;
+            unpack = run == 0 || dt < unpack ? dt : unpack;
+        }
+        if (memcmp(b->unpacked, b->payload, payload) != 0)
+            return cdvr_error_set(err, CDVR_ERR_IO, "stage 2 %s does not give the payload back "
+                                  "(internal error)", cdvr_s2_name(c));
+        double t = (double)n * per_byte_ms + unpack;
+        if (t < best) {
+            uint8_t *tb = b->packed;
+            size_t tc = b->packed_cap;
+            b->packed = b->trial;
+            b->packed_cap = b->trial_cap;
+            b->trial = tb;
+            b->trial_cap = tc;
+            best = t;
+            *codec = c;
+            *packed = n;
+        }
+    }
+    return CDVR_OK;
+}
+
+/* Stage 2 of the chunk: ci->stage2, stage2_segmented and stored_bytes; the stored bytes are
+ * bufs.packed when stage 2 applies, else bufs.payload. */
+static cdvr_status apply_stage2(const cdvr_variant_info *vi, chunk_job *job, size_t payload,
+                                cdvr_error *err)
+{
+    cdvr_chunk_info *ci = job->ci;
+    unsigned codec = 0;
+    size_t packed = 0;
+    cdvr_status s = CDVR_OK;
+    if (vi->stage2 == CDVR_STAGE2_AUTO) {
+        s = s2_choose(vi, job, payload, &codec, &packed, err);
+    } else if (vi->stage2 != CDVR_STAGE2_NONE) {
+        s = s2_pack((unsigned)vi->stage2, job->bufs.payload, payload, vi->stage2_segment,
+                    job->bufs.packed, job->bufs.packed_cap, &packed, err);
+        codec = s == CDVR_OK && cdvr_lzo_keep(payload, packed, vi->lzo_min_saving)
+                    ? (unsigned)vi->stage2 : 0;
+    }
+    if (s != CDVR_OK)
+        return s;
+    ci->payload_bytes = payload;
+    ci->stage2 = (int)codec;
+    ci->stage2_segmented = codec && s2_segmented(codec, payload, vi->stage2_segment);
+    ci->stored_bytes = codec ? packed : payload;
+    return CDVR_OK;
+}
+
 static cdvr_status finish_job(const cdvr_store *st, chunk_job *job, cdvr_error *err)
 {
     cdvr_chunk_info *ci = job->ci;
     const cdvr_variant_info *vi = &st->variants[job->variant];
-    size_t payload = job->payload_bytes, packed = 0, table_packed = 0;
+    size_t payload = job->payload_bytes, table_packed = 0;
     if (payload == 0 || payload > job->shape.bound_bytes ||
         (job->shape.payload_bytes && payload != job->shape.payload_bytes))
         return cdvr_error_set(err, CDVR_ERR_ARG, "%s: codec %s wrote %zu bytes (size %zu, bound "
                               "%zu)", st->path, ci->codec->name, payload,
                               job->shape.payload_bytes, job->shape.bound_bytes);
-    cdvr_status s = CDVR_OK;
-    if (vi->stage2 == CDVR_STAGE2_LZO)
-        s = cdvr_lzo_compress(job->bufs.payload, payload, job->bufs.packed, job->bufs.packed_cap,
-                              &packed, err);
+    cdvr_status s = apply_stage2(vi, job, payload, err);
     if (s != CDVR_OK)
         return s;
-    ci->payload_bytes = payload;
-    ci->stage2 = vi->stage2 == CDVR_STAGE2_LZO && cdvr_lzo_keep(payload, packed,
-                                                                 vi->lzo_min_saving);
-    ci->stored_bytes = ci->stage2 ? packed : payload;
     ci->crc32c = cdvr_crc32c(0, ci->stage2 ? job->bufs.packed : job->bufs.payload,
                              (size_t)ci->stored_bytes);
     s = measure_chunk(st, job, err);
@@ -690,13 +809,19 @@ static cdvr_status prepare_job(write_ctx *wc, const frame_window *win, size_t v,
     if (s != CDVR_OK)
         return s;
     size_t voxels = job->bd[0] * job->bd[1] * job->bd[2], decoded, window;
+    const cdvr_variant_info *vi = &st->variants[v];
+    int s2_auto = vi->stage2 == CDVR_STAGE2_AUTO;
+    size_t s2_cap = s2_capacity(job->shape.bound_bytes, vi->stage2_segment);
     size_t own_lo[3], own_bd[3];
     cdvr_store_brick_owned(&st->info, ci->brick, own_lo, own_bd);
     window = cdvr_range_window_bytes(st->info.dims, own_lo, own_bd, CDVR_RANGE_SHIFT);
     job->ranges_bytes = wc->opts->no_range_tables ? 0 : window * ci->count;
     if (!cdvr_size_mul(voxels, ci->count, &decoded) ||
         !reserve(&job->bufs.payload, &job->bufs.payload_cap, job->shape.bound_bytes) ||
-        !reserve(&job->bufs.packed, &job->bufs.packed_cap, cdvr_lzo_bound(job->shape.bound_bytes)) ||
+        s2_cap == 0 || !reserve(&job->bufs.packed, &job->bufs.packed_cap, s2_cap) ||
+        (s2_auto && (!reserve(&job->bufs.trial, &job->bufs.trial_cap, s2_cap) ||
+                     !reserve(&job->bufs.unpacked, &job->bufs.unpacked_cap,
+                              job->shape.bound_bytes))) ||
         !reserve(&job->bufs.decoded, &job->bufs.decoded_cap, decoded) ||
         !reserve(&job->bufs.ranges, &job->bufs.ranges_cap, job->ranges_bytes) ||
         !reserve(&job->bufs.ranges_packed, &job->bufs.ranges_packed_cap,

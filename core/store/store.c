@@ -27,13 +27,17 @@
  *     0  u8[32] name, NUL padded (non-empty, NUL-terminated, unique in the store)
  *    32  u8[16] codec name, NUL padded ([a-z0-9_], 1..15 bytes)
  *    48  u32    codec id
- *    52  u32    stage 2 (0 none, 1 lzo)
+ *    52  u32    stage 2 (0 none, 1 lzo, 2 lz4, 3 zstd, 4 auto: per chunk, see store.h)
  *    56  u64    nchunks (>= 1, a multiple of the bricks per timestep)
  *    64  f64    lzo_min_saving used at encode time
  *    72  f64    psnr (volume PSNR at encode time, peak 255; +Inf if lossless)
  *    80  f64    maxerr
  *    88  u8[48] codec parameter blob given at encode time (cdvr/codec.h)
- *   136  u8[24] reserved, 0
+ *   136  f64    stage-2 read rate in MB/s the auto model used (>= 0; 0: not recorded, as
+ *               in stores written before stage 2 beyond LZO, whose bytes 136..159 are 0)
+ *   144  u32    stage-2 segment bytes used at encode time (0: not recorded, else
+ *               CDVR_STAGE2_SEGMENT_MIN..CDVR_STAGE2_SEGMENT_MAX)
+ *   148  u8[12] reserved, 0
  *  CHUNK INDEX (128 bytes per chunk; variant 1's chunks, then variant 2's, ...; within a
  *  variant by time group, and within a group by brick)
  *     0  u64    t0 (first timestep, from 0)
@@ -41,7 +45,13 @@
  *    16  u32    brick index (from 0, x fastest)
  *    20  u32    codec id
  *    24  u8[48] codec parameter blob of this chunk
- *    72  u32    stage-2 flag (1: stored bytes are LZO1X of the payload)
+ *    72  u32    stage 2 of the chunk: bits 0..7 the codec (0 none: stored bytes = payload;
+ *               1 LZO1X-1, 2 LZ4, 3 zstd; never 4: auto records its choice), bit 8 segmented
+ *               (the stored bytes are a segment table and independently packed segments,
+ *               core/codec/stage2/stage2.h: u32 segment bytes, u32 n, u32[n] stored bytes of
+ *               each, the segments; required for lz4 and zstd, optional for lzo, never with
+ *               none), other bits 0. Stores before this field grew hold 0 or 1 (LZO, one
+ *               block), which read as before.
  *    76  u32    CRC-32C of the stored bytes
  *    80  u64    offset of the stored bytes
  *    88  u64    stored bytes
@@ -268,7 +278,9 @@ static void put_variant(wcursor *w, const cdvr_variant_info *v)
     put_f64(w, v->psnr);
     put_f64(w, v->maxerr);
     put_bytes(w, v->params.bytes, CDVR_CODEC_PARAMS_MAX);
-    put_zeros(w, 24);
+    put_f64(w, v->stage2_read_mbps);
+    put_u32(w, (uint32_t)v->stage2_segment);
+    put_zeros(w, 12);
 }
 
 static void put_chunk(wcursor *w, const cdvr_chunk_info *c)
@@ -278,7 +290,7 @@ static void put_chunk(wcursor *w, const cdvr_chunk_info *c)
     put_u32(w, (uint32_t)c->brick);
     put_u32(w, c->codec_id);
     put_bytes(w, c->params.bytes, CDVR_CODEC_PARAMS_MAX);
-    put_u32(w, c->stage2 ? 1u : 0u);
+    put_u32(w, (uint32_t)c->stage2 | (c->stage2_segmented ? 0x100u : 0u));
     put_u32(w, c->crc32c);
     put_u64(w, c->offset);
     put_u64(w, c->stored_bytes);
@@ -494,7 +506,7 @@ static cdvr_status check_variant_common(const cdvr_store *st, size_t v, uint64_t
     cdvr_variant_info *vi = &st->variants[v];
     if (memchr(vi->name, 0, CDVR_NAME_MAX) == NULL || vi->name[0] == '\0')
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %zu: bad name", st->path, v + 1);
-    if (stage2 > CDVR_STAGE2_LZO)
+    if (stage2 > (st->info.version == 1 ? CDVR_STAGE2_LZO : CDVR_STAGE2_AUTO))
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s: bad stage 2 %u", st->path,
                               vi->name, stage2);
     if (nchunks == 0 || nchunks % st->info.nbricks || nchunks > st->nchunks_total ||
@@ -531,11 +543,19 @@ static cdvr_status parse_variant_v2(const cdvr_store *st, rcursor *r, size_t v, 
     vi->psnr = get_f64(r);
     vi->maxerr = get_f64(r);
     get_bytes(r, vi->params.bytes, CDVR_CODEC_PARAMS_MAX);
-    get_bytes(r, reserved, sizeof reserved);
-    for (size_t i = 0; i < sizeof reserved; i++)
+    vi->stage2_read_mbps = get_f64(r);
+    uint32_t segment = get_u32(r);
+    get_bytes(r, reserved, 12);
+    for (size_t i = 0; i < 12; i++)
         if (reserved[i])
             return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %zu: reserved bytes set",
                                   st->path, v + 1);
+    if (!(vi->stage2_read_mbps >= 0 && vi->stage2_read_mbps < HUGE_VAL) ||
+        (segment && (segment < CDVR_STAGE2_SEGMENT_MIN || segment > CDVR_STAGE2_SEGMENT_MAX)))
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %zu: bad stage-2 read rate %g "
+                              "or segment bytes %u", st->path, v + 1, vi->stage2_read_mbps,
+                              segment);
+    vi->stage2_segment = segment;
     if (!memchr(vi->codec_name, 0, CDVR_CODEC_NAME_MAX) ||
         !cdvr_codec_name_valid(vi->codec_name) || memchr(vi->name, 0, CDVR_NAME_MAX) == NULL)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %zu: bad name or codec name",
@@ -566,7 +586,9 @@ static cdvr_status parse_chunk_v2(const cdvr_store *st, rcursor *r, size_t v,
     ci->ranges_crc32c = get_u32(r);
     ci->ranges_offset = get_u64(r);
     ci->ranges_stored_bytes = get_u64(r);
-    int reserved = flag > 1 || tail[2] > 3;
+    unsigned s2 = flag & 0xffu, segmented = (flag >> 8) & 1u;
+    int reserved = (flag >> 9) != 0 || s2 > CDVR_STAGE2_ZSTD || (s2 == 0 && segmented) ||
+                   (s2 > CDVR_STAGE2_LZO && !segmented) || tail[2] > 3;
     if (tail[2] & 1) {
         ci->ranges_shift = tail[3];
         ci->ranges_stage2 = (tail[2] & 2) != 0;
@@ -575,7 +597,8 @@ static cdvr_status parse_chunk_v2(const cdvr_store *st, rcursor *r, size_t v,
         reserved |= tail[2] != 0 || tail[3] != 0 || ci->ranges_crc32c != 0 ||
                     ci->ranges_offset != 0 || ci->ranges_stored_bytes != 0;
     }
-    ci->stage2 = (int)(flag & 1);
+    ci->stage2 = (int)s2;
+    ci->stage2_segmented = (int)segmented;
     if (reserved)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s: a chunk has reserved "
                               "bits set", st->path, st->variants[v].name);
@@ -686,8 +709,9 @@ static cdvr_status check_chunk(const cdvr_store *st, size_t v, size_t c, size_t 
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: payload of %llu bytes", pre,
                               (unsigned long long)ci->payload_bytes);
     }
-    if (ci->stage2 ? (vi->stage2 != CDVR_STAGE2_LZO || ci->stored_bytes >= ci->payload_bytes ||
-                      ci->stored_bytes == 0)
+    if (ci->stage2 ? ((vi->stage2 != (cdvr_stage2)ci->stage2 && vi->stage2 != CDVR_STAGE2_AUTO) ||
+                      ci->stored_bytes >= ci->payload_bytes || ci->stored_bytes == 0 ||
+                      (ci->stage2_segmented && ci->stored_bytes < 12))
                    : ci->stored_bytes != ci->payload_bytes)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: stored %llu bytes with stage-2 flag "
                               "%d does not fit payload %llu", pre,
@@ -801,6 +825,7 @@ static cdvr_status parse_tables(cdvr_store *st, const uint8_t *meta, size_t meta
             }
             vi->bytes += ci->stored_bytes;
             vi->payload_bytes += ci->payload_bytes;
+            vi->stage2_chunks[ci->stage2 & 3]++;
             vi->ranges_bytes += ci->ranges_stored_bytes;
         }
         if (s == CDVR_OK && next_t0 != st->info.timesteps)
@@ -1045,8 +1070,14 @@ void cdvr_store_drop_cache(const cdvr_store *st, size_t v, size_t c)
                             POSIX_FADV_DONTNEED);
 }
 
-cdvr_status cdvr_store_unpack_chunk(const cdvr_store *st, size_t v, size_t c,
-                                    const uint8_t *stored, uint8_t *out, cdvr_error *err)
+const char *cdvr_stage2_name(int stage2)
+{
+    return stage2 == CDVR_STAGE2_AUTO ? "auto" : cdvr_s2_name((unsigned)stage2);
+}
+
+cdvr_status cdvr_store_unpack_chunk_threads(const cdvr_store *st, size_t v, size_t c,
+                                            const uint8_t *stored, uint8_t *out, int threads,
+                                            cdvr_error *err)
 {
     const cdvr_chunk_info *ci;
     cdvr_status s = chunk_lookup(st, v, c, &ci, err);
@@ -1057,11 +1088,23 @@ cdvr_status cdvr_store_unpack_chunk(const cdvr_store *st, size_t v, size_t c,
         return CDVR_OK;
     }
     cdvr_error lerr;
-    if (cdvr_lzo_decompress(stored, (size_t)ci->stored_bytes, out, (size_t)ci->payload_bytes,
-                            &lerr) != CDVR_OK)
-        return cdvr_error_set(err, lerr.status, "%s: variant %s chunk %zu: %s", st->path,
-                              st->variants[v].name, c + 1, lerr.msg);
+    if (ci->stage2_segmented)
+        s = cdvr_s2_unpack((unsigned)ci->stage2, stored, (size_t)ci->stored_bytes, out,
+                           (size_t)ci->payload_bytes, threads, &lerr);
+    else
+        s = cdvr_lzo_decompress(stored, (size_t)ci->stored_bytes, out,
+                                (size_t)ci->payload_bytes, &lerr);
+    if (s != CDVR_OK)
+        return cdvr_error_set(err, lerr.status, "%s: variant %s chunk %zu: stage 2 %s: %s",
+                              st->path, st->variants[v].name, c + 1,
+                              cdvr_s2_name((unsigned)ci->stage2), lerr.msg);
     return CDVR_OK;
+}
+
+cdvr_status cdvr_store_unpack_chunk(const cdvr_store *st, size_t v, size_t c,
+                                    const uint8_t *stored, uint8_t *out, cdvr_error *err)
+{
+    return cdvr_store_unpack_chunk_threads(st, v, c, stored, out, 0, err);
 }
 
 cdvr_status cdvr_store_decode_chunk(const cdvr_store *st, size_t v, size_t c,

@@ -74,7 +74,7 @@ void lcdvr_push_store_variants(lua_State *L, const cdvr_store *st)
         lua_setfield(L, -2, "codec");
         if (var->codec)
             lcdvr_push_params(L, var->codec, &ch0->params);
-        lua_pushstring(L, var->stage2 == CDVR_STAGE2_LZO ? "lzo" : "none");
+        lua_pushstring(L, cdvr_stage2_name(var->stage2));
         lua_setfield(L, -2, "stage2");
         setnum(L, "bytes_per_timestep", (double)var->bytes / (double)info->timesteps);
         setnum(L, "payload_bytes_per_timestep", (double)var->payload_bytes / (double)info->timesteps);

@@ -37,10 +37,11 @@ static void pushstore(lua_State *L, cdvr_store *st)
 
 /* ---- option parsing (cdvr.encode) ------------------------------------------------------- */
 
-static const char *const stage2_names[] = {"none", "lzo", NULL};
+static const char *const stage2_names[] = {"none", "lzo", "lz4", "zstd", "auto", NULL};
 
 /* Keys of a variant table that are not codec parameters. */
-static const char *const variant_keys[] = {"codec", "name", "stage2", "lzo_min_saving", NULL};
+static const char *const variant_keys[] = {"codec", "name", "stage2", "lzo_min_saving",
+                                           "stage2_read_mbps", "stage2_segment", NULL};
 /* Keys only the top-level options table takes. */
 static const char *const top_keys[] = {"path", "schedule", "progress", "variants", "bricks",
                                         "threads", "ranges", "callback_limit", "callback_memory",
@@ -172,6 +173,8 @@ typedef struct top_defaults {
     const cdvr_codec *codec;    /* codec= at the top, or the default */
     cdvr_stage2 stage2;
     double lzo_min_saving;
+    double stage2_read_mbps;
+    lua_Integer stage2_segment;
 } top_defaults;
 
 /* Fills *out from the variant table at idx (0: the top-level table is the only variant):
@@ -194,6 +197,16 @@ static void parse_spec(lua_State *L, int idx, const top_defaults *top, cdvr_vari
     out->lzo_min_saving = lcdvr_optnumberfield(L, from, "lzo_min_saving", top->lzo_min_saving);
     if (!(out->lzo_min_saving >= 0 && out->lzo_min_saving <= 1))
         lcdvr_error(L, "option 'lzo_min_saving': %f is not in [0, 1]", out->lzo_min_saving);
+    out->stage2_read_mbps = lcdvr_optnumberfield(L, from, "stage2_read_mbps",
+                                                 top->stage2_read_mbps);
+    if (!(out->stage2_read_mbps > 0 && out->stage2_read_mbps < 1e12))
+        lcdvr_error(L, "option 'stage2_read_mbps': %f must be a read rate > 0 in MB/s",
+                    out->stage2_read_mbps);
+    lua_Integer seg = lcdvr_optintegerfield(L, from, "stage2_segment", top->stage2_segment);
+    if (seg < CDVR_STAGE2_SEGMENT_MIN || seg > CDVR_STAGE2_SEGMENT_MAX)
+        lcdvr_error(L, "option 'stage2_segment': %I bytes is not in %d..%d", seg,
+                    (int)CDVR_STAGE2_SEGMENT_MIN, (int)CDVR_STAGE2_SEGMENT_MAX);
+    out->stage2_segment = (size_t)seg;
     const char *name = idx ? lcdvr_optstringfield(L, idx, "name", "") : "";
     if (!idx)
         name = lcdvr_optstringfield(L, top->idx, "name", "");
@@ -234,10 +247,14 @@ static void check_top_keys(lua_State *L, int idx, const cdvr_variant_spec *specs
 static cdvr_variant_spec *parse_variants(lua_State *L, int idx, size_t *n)
 {
     top_defaults top = {.idx = idx, .stage2 = CDVR_STAGE2_LZO,
-                        .lzo_min_saving = CDVR_LZO_MIN_SAVING};
+                        .lzo_min_saving = CDVR_LZO_MIN_SAVING,
+                        .stage2_read_mbps = CDVR_STAGE2_READ_MBPS,
+                        .stage2_segment = CDVR_STAGE2_SEGMENT};
     top.codec = codecfield(L, idx, cdvr_codec_find(CDVR_CODEC_DEFAULT));
     top.stage2 = (cdvr_stage2)optionfield(L, idx, "stage2", stage2_names, (int)top.stage2);
     top.lzo_min_saving = lcdvr_optnumberfield(L, idx, "lzo_min_saving", top.lzo_min_saving);
+    top.stage2_read_mbps = lcdvr_optnumberfield(L, idx, "stage2_read_mbps", top.stage2_read_mbps);
+    top.stage2_segment = lcdvr_optintegerfield(L, idx, "stage2_segment", top.stage2_segment);
     int t = lua_getfield(L, idx, "variants");
     if (t != LUA_TNIL && t != LUA_TTABLE)
         lcdvr_error(L, "option 'variants': table expected, got %s", luaL_typename(L, -1));
@@ -594,6 +611,14 @@ static void push_variant_info(lua_State *L, const cdvr_store *st, size_t v)
     if (vi->codec)
         lcdvr_push_params(L, vi->codec, &vi->params);
     setstr(L, "stage2", stage2_names[vi->stage2]);
+    lua_createtable(L, 0, 4); /* chunks per stage 2 actually stored (what auto chose) */
+    for (int c = 0; c < 4; c++)
+        setint(L, stage2_names[c], (lua_Integer)vi->stage2_chunks[c]);
+    lua_setfield(L, -2, "stage2_chunks");
+    if (vi->stage2_read_mbps > 0)
+        setnum(L, "stage2_read_mbps", vi->stage2_read_mbps);
+    if (vi->stage2_segment)
+        setint(L, "stage2_segment", (lua_Integer)vi->stage2_segment);
     setint(L, "bytes", (lua_Integer)vi->bytes);
     setint(L, "payload_bytes", (lua_Integer)vi->payload_bytes);
     setint(L, "ranges_bytes", (lua_Integer)vi->ranges_bytes);
@@ -740,6 +765,9 @@ static int store_chunk(lua_State *L)
     setint(L, "payload_bytes", (lua_Integer)ci->payload_bytes);
     lua_pushboolean(L, ci->stage2);
     lua_setfield(L, -2, "stage2");
+    setstr(L, "stage2_codec", stage2_names[ci->stage2 & 3]);
+    lua_pushboolean(L, ci->stage2_segmented);
+    lua_setfield(L, -2, "stage2_segmented");
     return 2;
 }
 
@@ -878,6 +906,8 @@ static int store_bench_unpack(lua_State *L)
 {
     const cdvr_store *st = lcdvr_checkstore(L, 1);
     size_t v = checkvariant(L, st, 2), repeats = checkrepeats(L, 3);
+    lua_Integer threads = luaL_optinteger(L, 4, 0);
+    luaL_argcheck(L, threads >= 0 && threads <= 256, 4, "threads: 0 (one per core) .. 256");
     const cdvr_variant_info *vi = cdvr_store_variant(st, v);
     uint8_t **stored = load_all_stored(L, st, v, 0);
     size_t max_payload = 1;
@@ -891,7 +921,8 @@ static int store_bench_unpack(lua_State *L)
         double t0 = cdvr_now_ms();
         for (size_t c = 0; c < vi->nchunks; c++) {
             cdvr_error err;
-            if (cdvr_store_unpack_chunk(st, v, c, stored[c], out, &err) != CDVR_OK)
+            if (cdvr_store_unpack_chunk_threads(st, v, c, stored[c], out, (int)threads,
+                                                &err) != CDVR_OK)
                 return lcdvr_raise(L, &err);
         }
         double dt = (cdvr_now_ms() - t0) / 1e3;
@@ -921,9 +952,12 @@ int lcdvr_open_store(lua_State *L)
     lcdvr_newclass(L, LCDVR_STORE, store_methods, store_meta);
     lcdvr_setfuncs(L, store_funcs);
     lcdvr_help_add(L, "cdvr.encode(volume, {path=, codec=, S=, T=, pack=, encoder=, stage2=, "
-                      "lzo_min_saving=, name=, variants=, schedule=, progress=, bricks=, threads=, ranges=})",
+                      "lzo_min_saving=, stage2_read_mbps=, stage2_segment=, name=, variants=, schedule=, progress=, bricks=, threads=, ranges=})",
                    "encode a series into a .cdv store (written atomically; defaults codec=pvtc "
-                   "S=4 T=3 pack=time encoder=lsq stage2=lzo lzo_min_saving=0.1; bricks={bx,by,bz} "
+                   "S=4 T=3 pack=time encoder=lsq stage2=lzo lzo_min_saving=0.1; stage2=none|lzo|lz4|"
+                   "zstd|auto (auto: per chunk the smallest modelled read at stage2_read_mbps=500 "
+                   "MB/s + unpack time measured here; stage2_segment=1048576 payload bytes per "
+                   "independently packed segment); bricks={bx,by,bz} "
                    "splits each timestep into bricks; threads=0: one per core, the same bytes for "
                    "any count; ranges=true: per-brick value range tables for empty-space "
                    "skipping; schedule(t, variant) runs under callback_limit= instructions, "
@@ -938,13 +972,16 @@ int lcdvr_open_store(lua_State *L)
                    "u8 volume of timestep t (from 1) of a variant (name or index, default 1); "
                    "brick=b reads and decodes only brick b (st:info().bricks[b]), placed where it lies");
     lcdvr_help_add(L, "st:chunk(i [, variant])", "payload bytes of chunk i after stage 2, and "
-                                                 "{t0=, timesteps=, S=, T=, pack=, stored_bytes=, stage2=}");
+                                                 "{t0=, timesteps=, S=, T=, pack=, stored_bytes=, stage2=, "
+                                                 "stage2_codec=, stage2_segmented=}");
     lcdvr_help_add(L, "st:variants()", "list of variant names");
     lcdvr_help_add(L, "st:close()", "close the store file");
     lcdvr_help_add(L, "st:bench_decode([variant] [, repeats])",
                    "median MB/s (output bytes) of the C decoder over all chunks, single thread");
-    lcdvr_help_add(L, "st:bench_unpack([variant] [, repeats])",
-                   "median MB/s (payload bytes) of undoing stage 2 (LZO) over all chunks");
+    lcdvr_help_add(L, "st:bench_unpack([variant] [, repeats] [, threads])",
+                   "median MB/s (payload bytes) of undoing stage 2 (LZO, LZ4, zstd) over all "
+                   "chunks, each chunk's segments on `threads` threads (0, the default: one per "
+                   "core, as the player)");
     lcdvr_help_add(L, "cdvr.bench_memcpy(bytes [, repeats [, piece]])", "median memcpy MB/s for a buffer size (piece: copy into one reused buffer of that size)");
     lcdvr_help_add(L, "cdvr.clock()", "monotonic time in seconds");
     return 0;

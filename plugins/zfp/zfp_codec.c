@@ -43,13 +43,22 @@
  * 16 bits per voxel to come back exactly; nothing guarantees losslessness at any rate.
  *
  * Threads: every function works on its own zfp_stream and buffers; zfp's serial code keeps no
- * global state, so chunks may be encoded and decoded in parallel.
+ * global state, so chunks may be encoded and decoded in parallel. One chunk is decoded on
+ * several threads too: fixed rate puts block k at bit k * maxbits, so each thread opens its
+ * own zfp stream on the (read-only) payload, seeks to the first block of its slab of z block
+ * rows (stream_rseek) and decodes that slab into its own part of the frame: the same bytes as
+ * the serial decode for any thread count. Threads: CDVR_ZFP_THREADS when set to a number > 0
+ * (at most one per z block row), else one per online core, each given at least 4096 blocks
+ * (smaller frames decode on the calling thread). Encode stays serial (the encode pool runs
+ * chunks in parallel).
  */
 #include <math.h>
+#include <pthread.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include <zfp.h>
 
@@ -283,12 +292,13 @@ static uint8_t to_u8(int32_t i)
     return (uint8_t)(v < 0 ? 0 : v > 255 ? 255 : v);
 }
 
+/* Decodes the z block rows [z0, z1) (the stream positioned at the first block of row z0). */
 static void decode_blocks(zfp_stream *zfp, const zfpc_geometry *g, const size_t dims[3],
-                          uint8_t *frame)
+                          uint8_t *frame, size_t z0, size_t z1)
 {
     const size_t X = dims[0], XY = dims[0] * dims[1];
     int32_t blk[64];
-    for (size_t bz = 0; bz < g->blocks[2]; bz++)
+    for (size_t bz = z0; bz < z1; bz++)
         for (size_t by = 0; by < g->blocks[1]; by++)
             for (size_t bx = 0; bx < g->blocks[0]; bx++) {
                 size_t nx = extent(dims[0], bx), ny = extent(dims[1], by);
@@ -317,6 +327,80 @@ static zfp_stream *open_on(unsigned maxbits, void *buf, size_t bytes, bitstream 
     zfp_stream_set_bit_stream(zfp, *bs);
     zfp_stream_rewind(zfp);
     return zfp;
+}
+
+/* ---- parallel decode ------------------------------------------------------------------------ */
+
+#define MAX_DECODE_THREADS 64
+#define MIN_BLOCKS_PER_THREAD 4096
+
+typedef struct slab_job {
+    const zfpc_geometry *g;
+    const size_t *dims;
+    uint8_t *buf, *frame;
+    size_t z0, z1;
+    int ok;
+} slab_job;
+
+static void *slab_main(void *arg)
+{
+    slab_job *j = arg;
+    bitstream *bs = NULL;
+    zfp_stream *zfp = open_on(j->g->maxbits, j->buf, j->g->stream_bytes, &bs);
+    j->ok = zfp != NULL;
+    if (zfp) {
+        size_t first = j->z0 * j->g->blocks[0] * j->g->blocks[1];
+        stream_rseek(bs, (bitstream_offset)first * j->g->maxbits);
+        decode_blocks(zfp, j->g, j->dims, j->frame, j->z0, j->z1);
+    }
+    zfp_stream_close(zfp);
+    stream_close(bs);
+    return NULL;
+}
+
+static size_t decode_threads(const zfpc_geometry *g)
+{
+    size_t rows = g->blocks[2], n = 0;
+    const char *env = getenv("CDVR_ZFP_THREADS");
+    char *end = NULL;
+    long e = env ? strtol(env, &end, 10) : 0;
+    if (env && end != env && *end == '\0' && e > 0) {
+        n = (size_t)e;
+    } else {
+        long c = sysconf(_SC_NPROCESSORS_ONLN);
+        size_t blocks = g->blocks[0] * g->blocks[1] * rows;
+        n = c > 0 ? (size_t)c : 1;
+        if (n > blocks / MIN_BLOCKS_PER_THREAD)
+            n = blocks / MIN_BLOCKS_PER_THREAD;
+    }
+    n = n > rows ? rows : n;
+    n = n > MAX_DECODE_THREADS ? MAX_DECODE_THREADS : n;
+    return n ? n : 1;
+}
+
+/* Decodes the whole payload buf into frame on decode_threads() threads; 0 when out of memory. */
+static int decode_parallel(const zfpc_geometry *g, const size_t dims[3], uint8_t *buf,
+                           uint8_t *frame)
+{
+    size_t nt = decode_threads(g), rows = g->blocks[2], started = 1;
+    slab_job jobs[MAX_DECODE_THREADS];
+    pthread_t tids[MAX_DECODE_THREADS];
+    for (size_t k = 0; k < nt; k++)
+        jobs[k] = (slab_job){g, dims, buf, frame, rows * k / nt, rows * (k + 1) / nt, 0};
+    for (size_t k = 1; k < nt; k++) {
+        if (pthread_create(&tids[k], NULL, slab_main, &jobs[k]) != 0)
+            break;
+        started++;
+    }
+    for (size_t k = 0; k < nt; k++) /* the caller: slab 0 and any no thread took */
+        if (k == 0 || k >= started)
+            slab_main(&jobs[k]);
+    int ok = 1;
+    for (size_t k = 1; k < started; k++)
+        pthread_join(tids[k], NULL);
+    for (size_t k = 0; k < nt; k++)
+        ok &= jobs[k].ok;
+    return ok;
 }
 
 static cdvr_status zfpc_encode(const cdvr_codec_params *p, const size_t dims[3],
@@ -375,15 +459,10 @@ static cdvr_status zfpc_decode(const cdvr_codec_params *p, const size_t dims[3],
     uint8_t *buf = copy ? calloc(1, g.stream_bytes) : (uint8_t *)(uintptr_t)in;
     for (size_t i = 0; copy && buf && i < in_bytes; i++)
         buf[stream_index(i)] = in[i];
-    bitstream *bs = NULL;
-    zfp_stream *zfp = buf ? open_on(g.maxbits, buf, g.stream_bytes, &bs) : NULL;
-    if (zfp)
-        decode_blocks(zfp, &g, dims, frames[0]);
-    zfp_stream_close(zfp);
-    stream_close(bs);
+    int ok = buf && decode_parallel(&g, dims, buf, frames[0]);
     if (copy)
         free(buf);
-    return zfp ? CDVR_OK : cdvr_plugin_error(err, CDVR_ERR_NOMEM, "codec zfp: out of memory");
+    return ok ? CDVR_OK : cdvr_plugin_error(err, CDVR_ERR_NOMEM, "codec zfp: out of memory");
 }
 
 static const cdvr_codec zfp_codec = {

@@ -15,7 +15,12 @@
 -- length N takes its first N files, or --series-for-N gives another pattern per length.
 --
 -- Options: --old EXE (baseline executable), --new EXE (default: the cdvr running this script),
---   --variants raw,S4T3,S1T3 (names: raw or SxTy),
+--   --variants raw,S4T3,S1T3 (names: raw, SxTy or zfpR, zfp at rate R: the zfp plugin beside
+--   each executable),
+--   --stage2 none|lzo|lz4|zstd|auto (the new executable's stores only; the old one keeps its
+--   default, lzo), --stage2-read-mbps M (auto's modelled disk rate),
+--   --rounds R (playback: R rounds alternating old, new, old, new, ...; the ratio is that of
+--   the medians; each row has the 1-minute load average before it ran),
 --   --encoder lsq|bbox, --sizes 512,64, --frames 30, --device cl|cpu, --threads 0,
 --   --out DIR (stores; default a fresh directory under /tmp, removed at the end unless --keep),
 --   --skip encode|playback, --repeats 1 (playback repeats; medians of fps and stages).
@@ -38,14 +43,23 @@ end
 local lengths, sizes, variants = split(opt.timesteps, tonumber), split(opt.sizes, tonumber),
                                  split(opt.variants)
 local D, frames, repeats = tonumber(opt.dims), tonumber(opt.frames), tonumber(opt.repeats)
+local rounds = tonumber(opt.rounds or "1")
 local outdir = opt.out or os.tmpname() .. "_scale"
 os.execute(("mkdir -p '%s'"):format(outdir))
 
-local function variant_spec(name)
-  if name == "raw" then return ('{codec="raw", name="raw"}') end
+local function stage2_opts(exe)
+  if exe.name ~= "new" or not opt.stage2 then return "" end
+  return (', stage2=%q'):format(opt.stage2) ..
+         (opt["stage2-read-mbps"] and (", stage2_read_mbps=" .. opt["stage2-read-mbps"]) or "")
+end
+
+local function variant_spec(name, exe)
+  if name == "raw" then return ('{codec="raw", name="raw"%s}'):format(stage2_opts(exe)) end
+  local rate = name:match("^zfp([%d.]+)$")
+  if rate then return ('{codec="zfp", rate=%s, name=%q%s}'):format(rate, name, stage2_opts(exe)) end
   local S, T = name:match("^S(%d)T(%d)$")
   assert(S, "variant " .. name .. ": raw or SxTy expected")
-  return ('{S=%s, T=%s, encoder=%q, name=%q}'):format(S, T, opt.encoder, name)
+  return ('{S=%s, T=%s, encoder=%q, name=%q%s}'):format(S, T, opt.encoder, name, stage2_opts(exe))
 end
 
 -- Runs lua code in a child process of exe; returns its last stdout line split at commas.
@@ -97,7 +111,7 @@ local st = assert(cdvr.encode(s, {path=%q, variants={%s}, progress=false%s}))
 local dt = cdvr.clock() - t0
 local v = st:info().variants[1]
 print(("OK,%%.3f,%%.4f,%%.0f,%%.1f,%%.0f"):format(dt, v.psnr, v.bytes, vmhwm_mb(), v.ranges_bytes or 0))
-]]):format(series_pattern(n), n, D, D, D, path, variant_spec(var), threads))
+]]):format(series_pattern(n), n, D, D, D, path, variant_spec(var, exe), threads))
         if r then
           local mbs = n * D ^ 3 / 1e6 / r[1]
           print(("encode,%s,%d,%s,%.2f,%.2f,%.1f,%.3f,%.0f,%.0f"):format(exe.name, n, var, r[1],
@@ -119,12 +133,20 @@ local tf_points = "{0, 0,0,0, 0}, {40, 0.2,0.1,0.5, 0}, {90, 0.9,0.5,0.2, 0.05},
 local fps_of = {} -- fps_of[exe][n][var][size], setup share too
 print()
 print("section,exe,timesteps,variant,size,fps,read_ms,unzip_ms,upload_ms,decode_ms,setup_ms," ..
-      "render_ms,frame_ms,setup_share,peak_rss_mb")
+      "render_ms,frame_ms,setup_share,peak_rss_mb,round,loadavg")
+local function loadavg()
+  local f = io.open("/proc/loadavg")
+  local l = f and f:read("l") or ""
+  if f then f:close() end
+  return tonumber(l:match("^(%S+)")) or 0 / 0
+end
 for _, n in ipairs(opt.skip == "playback" and {} or lengths) do
   for _, var in ipairs(variants) do
     for _, size in ipairs(sizes) do
+      for round = 1, rounds do
       for _, exe in ipairs(exes) do
-        common.progress("play %s %d timesteps %s %dx%d ...", exe.name, n, var, size, size)
+        common.progress("play %s %d timesteps %s %dx%d round %d ...", exe.name, n, var, size, size, round)
+        local load = loadavg()
         local c = D / 2 - 0.5
         local r, msg = child(exe.path, ([[
 local st = assert(cdvr.open(%q))
@@ -150,20 +172,31 @@ print("OK," .. table.concat(out, ",") .. (",%%.1f"):format(vmhwm_mb()))
            size, size, var, opt.device, math.min(frames, 6), repeats, frames))
         if r then
           local share = r[7] > 0 and r[6] / r[8] or 0 / 0
-          print(("playback,%s,%d,%s,%d,%.2f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.1f"):format(
-            exe.name, n, var, size, r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], share, r[9]))
+          print(("playback,%s,%d,%s,%d,%.2f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.1f,%d,%.2f"):format(
+            exe.name, n, var, size, r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], share, r[9],
+            round, load))
           fps_of[exe.name] = fps_of[exe.name] or {}
-          fps_of[exe.name][n .. var .. size] = r[1]
+          local key = n .. var .. size
+          fps_of[exe.name][key] = fps_of[exe.name][key] or {}
+          table.insert(fps_of[exe.name][key], r[1])
         else
           print(("playback,%s,%d,%s,%d,nan  # %s"):format(exe.name, n, var, size,
                                                         (msg or ""):gsub("\n", " | ")))
         end
         io.stdout:flush()
       end
+      end
     end
   end
 end
 common.progress_done()
+
+local function median(list)
+  if not list or #list == 0 then return nil end
+  local v = {table.unpack(list)}
+  table.sort(v)
+  return #v % 2 == 1 and v[(#v + 1) // 2] or (v[#v // 2] + v[#v // 2 + 1]) / 2
+end
 
 if opt.old and fps_of.new and fps_of.old then
   print()
@@ -171,7 +204,7 @@ if opt.old and fps_of.new and fps_of.old then
   for _, n in ipairs(lengths) do
     for _, var in ipairs(variants) do
       for _, size in ipairs(sizes) do
-        local a, b = fps_of.new[n .. var .. size], fps_of.old[n .. var .. size]
+        local a, b = median(fps_of.new[n .. var .. size]), median(fps_of.old[n .. var .. size])
         if a and b then print(("fps,%d,%s,%d,%.2f"):format(n, var, size, a / b)) end
       end
     end

@@ -5,6 +5,7 @@
  * Input: 1 mode byte, then the file.
  *   mode bit 0: recompute the chunk CRCs and the metadata CRC before writing the file, so that
  *               mutations get past the CRC checks into the parsers and decoders behind them
+ *               (stage-2 segment tables of LZ4 and zstd chunks included: cdvr_s2_unpack)
  *   mode bit 1: set the header's file size to the real one (truncations, insertions)
  * Chunks whose payload or frames exceed FUZZ_MAX_BYTES are skipped (memory, not safety). */
 #include <stdint.h>

@@ -124,7 +124,7 @@ raises("unknown codec 'zip' (loaded: raw, pvtc", cdvr.encode, src, {path = tmp("
 raises("S = '3', must be 1 or 4", cdvr.encode, src, {path = tmp("x.cdv"), S = 3})
 raises("pack = 'diagonal', must be \"time\" or \"space\"", cdvr.encode, src, {path = tmp("x.cdv"), pack = "diagonal"})
 raises("encoder = 'magic'", cdvr.encode, src, {path = tmp("x.cdv"), encoder = "magic"})
-raises("option 'stage2'", cdvr.encode, src, {path = tmp("x.cdv"), stage2 = "zstd"})
+raises("option 'stage2': invalid value 'brotli' (expected none, lzo, lz4, zstd, auto)", cdvr.encode, src, {path = tmp("x.cdv"), stage2 = "brotli"})
 raises("lzo_min_saving", cdvr.encode, src, {path = tmp("x.cdv"), lzo_min_saving = 2})
 raises("'path' is required", cdvr.encode, src, {})
 raises("two variants are called S4T3", cdvr.encode, src, {path = tmp("x.cdv"), variants = {{}, {}}})

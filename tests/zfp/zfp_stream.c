@@ -86,6 +86,49 @@ static void check_one(const cdvr_codec *zfp, const char *rate, const size_t dims
     free(back);
 }
 
+/* The decode on several threads (slabs of z block rows, each seeking to its first block) gives
+ * the serial decode's bytes, for rates whose blocks end inside a byte too. */
+static void check_parallel(const cdvr_codec *zfp, const char *rate, const size_t dims[3])
+{
+    size_t n = dims[0] * dims[1] * dims[2];
+    uint8_t *v = malloc(n), *serial = malloc(n), *par = malloc(n);
+    uint32_t h = 777u;
+    for (size_t i = 0; i < n; i++) {
+        h ^= h << 13, h ^= h >> 17, h ^= h << 5;
+        v[i] = (uint8_t)((i % dims[0]) * 5 + (h & 15));
+    }
+    cdvr_codec_params p;
+    cdvr_codec_shape shape;
+    cdvr_error err;
+    const char *k[1] = {"rate"}, *val[1] = {rate};
+    CHECK_OK(cdvr_codec_params_parse(zfp, k, val, 1, &p, &err), err);
+    CHECK_OK(cdvr_codec_shape_of(zfp, &p, dims, &shape, &err), err);
+    uint8_t *payload = malloc(shape.bound_bytes);
+    size_t bytes = 0;
+    const uint8_t *in[1] = {v};
+    uint8_t *out[1] = {serial};
+    CHECK_OK(zfp->encode(&p, dims, in, 1, payload, shape.bound_bytes, &bytes, &err), err);
+    setenv("CDVR_ZFP_THREADS", "1", 1);
+    CHECK_OK(zfp->decode(&p, dims, payload, bytes, out, 1, &err), err);
+    static const char *const threads[] = {"2", "3", "7", "64", "1000"};
+    for (size_t t = 0; t < sizeof threads / sizeof threads[0]; t++) {
+        setenv("CDVR_ZFP_THREADS", threads[t], 1);
+        memset(par, 0xA5, n);
+        out[0] = par;
+        CHECK_OK(zfp->decode(&p, dims, payload, bytes, out, 1, &err), err);
+        CHECK(memcmp(par, serial, n) == 0, "rate %s %zux%zux%zu: %s threads decode differently "
+              "from one", rate, dims[0], dims[1], dims[2], threads[t]);
+    }
+    unsetenv("CDVR_ZFP_THREADS");
+    out[0] = par;
+    CHECK_OK(zfp->decode(&p, dims, payload, bytes, out, 1, &err), err); /* automatic count */
+    CHECK(memcmp(par, serial, n) == 0, "rate %s: the automatic thread count differs", rate);
+    free(payload);
+    free(v);
+    free(serial);
+    free(par);
+}
+
 int main(void)
 {
     const char *bin = getenv("CDVR_BINARY_DIR");
@@ -102,6 +145,11 @@ int main(void)
         for (size_t r = 0; r < sizeof rates / sizeof rates[0]; r++)
             for (int pattern = 0; pattern < 3; pattern++)
                 check_one(zfp, rates[r], dims[d], pattern);
+    static const size_t pdims[][3] = {{37, 21, 45}, {128, 64, 96}, {4, 4, 4}};
+    static const char *const prates[] = {"0.5", "1.515625", "2", "16"};
+    for (size_t d = 0; d < sizeof pdims / sizeof pdims[0]; d++)
+        for (size_t r = 0; r < sizeof prates / sizeof prates[0]; r++)
+            check_parallel(zfp, prates[r], pdims[d]);
     /* the mapping's rounding and clamping at its edges */
     CHECK(reference_u8(0) == 128 && reference_u8((1 << 22) - 1) == 128 &&
               reference_u8(1 << 22) == 129 && reference_u8(-(1 << 22)) == 128 &&

@@ -25,4 +25,42 @@ cdvr_status cdvr_lzo_decompress(const uint8_t *in, size_t n, uint8_t *out, size_
  * payload, so a stored LZO chunk always saves at least one byte). */
 int cdvr_lzo_keep(size_t payload, size_t compressed, double min_saving);
 
+/* ---- stage 2 beyond LZO (stage2_seg.c) ------------------------------------------------------
+ * Codecs by the number the chunk index records (store.c): 1 LZO1X-1, 2 LZ4 (LZ4_compress_default),
+ * 3 zstd (level CDVR_ZSTD_LEVEL). A segmented stored chunk is the payload cut into segments of
+ * seg bytes (the last one shorter), each compressed on its own, behind a segment table:
+ *     0  u32     seg: payload bytes per segment (>= 1)
+ *     4  u32     n: number of segments, = ceil(payload / seg)
+ *     8  u32[n]  stored bytes of each segment (each >= 1)
+ *  8+4n  the n compressed segments, back to back; 8 + 4n + their sum = the chunk's stored bytes
+ * so a reader unpacks the segments of one chunk on several threads. */
+#define CDVR_S2_LZO 1
+#define CDVR_S2_LZ4 2
+#define CDVR_S2_ZSTD 3
+#define CDVR_S2_CODECS 4        /* codec numbers are < this */
+#define CDVR_ZSTD_LEVEL 3
+
+/* "none", "lzo", "lz4", "zstd" (codec 0..3), "?" otherwise. */
+const char *cdvr_s2_name(unsigned codec);
+
+/* Worst-case bytes of a segmented chunk of n payload bytes cut into seg-byte segments; 0 on
+ * overflow or a bad argument. */
+size_t cdvr_s2_bound(unsigned codec, size_t n, size_t seg);
+
+/* Compresses in[0..n) into out (out_cap >= cdvr_s2_bound) as a segmented chunk. */
+cdvr_status cdvr_s2_pack(unsigned codec, const uint8_t *in, size_t n, size_t seg, uint8_t *out,
+                         size_t out_cap, size_t *out_n, cdvr_error *err);
+
+/* Undoes a segmented chunk: in[0..n) -> exactly expect bytes into out, on up to `threads`
+ * threads (0: one per online core; never more than the segments). Checks the segment table
+ * against n and expect before anything is decoded (a table claiming more than the chunk ->
+ * CDVR_ERR_CORRUPT); the output is the same for every thread count. */
+cdvr_status cdvr_s2_unpack(unsigned codec, const uint8_t *in, size_t n, uint8_t *out,
+                           size_t expect, int threads, cdvr_error *err);
+
+/* Decompresses one unsegmented LZO chunk or one segment of the given codec: exactly expect
+ * bytes (CDVR_ERR_CORRUPT otherwise). */
+cdvr_status cdvr_s2_decompress(unsigned codec, const uint8_t *in, size_t n, uint8_t *out,
+                               size_t expect, cdvr_error *err);
+
 #endif

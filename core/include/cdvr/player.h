@@ -2,7 +2,7 @@
  *
  * Stages per frame (seed 000 Table 4):
  *   b1  read    chunk bytes from disk (pread, CRC check; optional cold cache, bandwidth cap)
- *   b1' unzip   stage-2 decode (LZO) on the CPU
+ *   b1' unzip   stage-2 decode (LZO, LZ4, zstd; one chunk's segments on all cores) on the CPU
  *   b2  upload  host -> device copy of the chunk payload
  *   b3  decode  decode kernel (or C decoder on the cpu device)
  *   b4  setup   per-frame setup: TF table, brick min/max grid for empty-space skipping

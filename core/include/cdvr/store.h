@@ -6,8 +6,8 @@
  * sequence of chunk groups in time order; a group covers timesteps [t0, t0+count) and holds
  * one chunk per brick. Each chunk records its own codec id and parameter blob (so a
  * schedule may change the parameters per group; cdvr/codec.h), its file offset, stored size,
- * payload size (after undoing stage 2), CRC-32C of the stored bytes, the stage-2 flag and the
- * range of its decoded values. Readers check bounds and CRC before decoding; every error names
+ * payload size (after undoing stage 2), CRC-32C of the stored bytes, its stage-2 codec and
+ * the range of its decoded values. Readers check bounds and CRC before decoding; every error names
  * the file, the variant, the chunk and the reason. A store written with a codec that is not
  * loaded (a plugin) opens and lists it; reading that variant fails with "codec 'zfp' is not
  * loaded (load its plugin: cdvr.plugin.load)".
@@ -15,7 +15,7 @@
  * Playback uses the three steps separately (b1, b1', decode), which are safe to call from
  * different threads on one open store:
  *   cdvr_store_read_chunk   -> stored bytes (pread + CRC check)            (b1)
- *   cdvr_store_unpack_chunk -> codec payload (LZO1X decompress if flagged) (b1')
+ *   cdvr_store_unpack_chunk -> codec payload (undoes the chunk's stage 2)   (b1')
  *   cdvr_store_decode_chunk -> u8 frames of the chunk's brick (C decoder)  (b3 on the CPU)
  */
 #ifndef CDVR_STORE_H
@@ -32,7 +32,34 @@
 
 #define CDVR_NAME_MAX CDVR_VARIANT_NAME_MAX
 
-typedef enum cdvr_stage2 { CDVR_STAGE2_NONE = 0, CDVR_STAGE2_LZO = 1 } cdvr_stage2;
+/* Stage 2 (DESIGN.md 4.2) over each chunk's codec payload, on the CPU at playback.
+ *   NONE  stored as is.
+ *   LZO   LZO1X-1 (seed 001; stores of the seed keep reading bit-identically).
+ *   LZ4   LZ4 (LZ4_compress_default), the fastest to unpack.
+ *   ZSTD  zstd level 3, the smallest.
+ *   AUTO  per chunk, the one of NONE, LZO, LZ4, ZSTD whose modelled b1 + b1' is the smallest:
+ *         stored bytes / stage2_read_mbps (the disk read rate, default
+ *         CDVR_STAGE2_READ_MBPS) + the time this machine takes to unpack that very chunk on
+ *         one thread (measured at encode: the best of two runs; NONE costs the read alone,
+ *         the player keeps the stored bytes as the payload). The choice is recorded per chunk (cdvr_chunk_info.stage2), so an
+ *         AUTO store depends on the machine and load at encode time, unlike the others.
+ * A chunk's stage 2 is kept only where it pays: for LZO, LZ4 and ZSTD when it saves at least
+ * lzo_min_saving of the chunk (AUTO: where the model says so). LZ4 and ZSTD chunks, and LZO
+ * ones larger than one segment, are cut into segments of stage2_segment payload bytes
+ * (default CDVR_STAGE2_SEGMENT), packed independently, so cdvr_store_unpack_chunk unpacks one
+ * chunk on all cores (byte layout: core/codec/stage2/stage2.h, store.c). */
+typedef enum cdvr_stage2 {
+    CDVR_STAGE2_NONE = 0,
+    CDVR_STAGE2_LZO = 1,
+    CDVR_STAGE2_LZ4 = 2,
+    CDVR_STAGE2_ZSTD = 3,
+    CDVR_STAGE2_AUTO = 4 /* a variant's setting only; a chunk records what AUTO chose */
+} cdvr_stage2;
+
+#define CDVR_STAGE2_READ_MBPS 500.0          /* AUTO's disk read rate, MB/s (10^6 bytes) */
+#define CDVR_STAGE2_SEGMENT (1u << 20)       /* payload bytes per segment */
+#define CDVR_STAGE2_SEGMENT_MIN 64u
+#define CDVR_STAGE2_SEGMENT_MAX (1u << 30)
 
 /* The codec a variant uses when none is named. */
 #define CDVR_CODEC_DEFAULT "pvtc"
@@ -45,6 +72,8 @@ typedef struct cdvr_variant_spec {
     cdvr_stage2 stage2;
     double lzo_min_saving;         /* stage 2 kept only if it saves at least this fraction of
                                       the chunk (default CDVR_LZO_MIN_SAVING); <0 -> default */
+    double stage2_read_mbps;       /* AUTO's read rate in MB/s; 0 -> CDVR_STAGE2_READ_MBPS */
+    size_t stage2_segment;         /* segment bytes; 0 -> CDVR_STAGE2_SEGMENT */
 } cdvr_variant_spec;
 
 #define CDVR_LZO_MIN_SAVING 0.10
@@ -74,7 +103,8 @@ typedef struct cdvr_encode_opts {
     cdvr_type source_type;         /* type before quantisation, recorded */
     size_t bricks[3];              /* brick grid; 0 -> 1 */
     int threads;                   /* encode threads: 0 one per online core, 1 only the calling
-                                      thread; the output is the same byte for byte */
+                                      thread; the output is the same byte for byte (but for
+                                      stage 2 AUTO, whose choices follow measured times) */
     int no_range_tables;           /* 1: record no range tables (smaller store; playback then
                                       computes each frame's brick ranges itself) */
 } cdvr_encode_opts;
@@ -100,7 +130,8 @@ typedef struct cdvr_chunk_info {
     uint64_t stored_bytes;         /* bytes on disk */
     uint64_t payload_bytes;        /* bytes after undoing stage 2 */
     uint32_t crc32c;               /* of the stored bytes */
-    int stage2;                    /* 1 if LZO applies to this chunk */
+    int stage2;                    /* its stage 2: 0 none, 1 LZO, 2 LZ4, 3 zstd (cdvr_stage2) */
+    int stage2_segmented;          /* 1: the stored bytes are segments behind a table */
     uint8_t value_min, value_max;  /* range of the decoded voxels of the chunk's timesteps */
     /* Range table (value ranges per range brick, see below), stored after the chunk's bytes;
      * ranges_shift 0: the chunk has none (version 1 stores and older version 2 ones). */
@@ -124,6 +155,9 @@ typedef struct cdvr_variant_info {
     uint64_t ranges_bytes;         /* stored bytes of the chunks' range tables */
     double psnr, maxerr;           /* volume PSNR / max error measured at encode time */
     double lzo_min_saving;
+    double stage2_read_mbps;       /* AUTO's read rate at encode time (0: not recorded) */
+    size_t stage2_segment;         /* segment bytes at encode time (0: not recorded) */
+    size_t stage2_chunks[4];       /* chunks stored with stage 2 none, LZO, LZ4, zstd */
 } cdvr_variant_info;
 
 typedef struct cdvr_store_info {
@@ -183,9 +217,16 @@ cdvr_status cdvr_store_read_chunk(const cdvr_store *st, size_t v, size_t c, uint
                                   cdvr_error *err);
 /* Drops the chunk's pages from the page cache (posix_fadvise DONTNEED), for cold reads. */
 void cdvr_store_drop_cache(const cdvr_store *st, size_t v, size_t c);
-/* b1': undoes stage 2: out holds payload_bytes. Copies if the chunk has no stage 2. */
+/* b1': undoes stage 2: out holds payload_bytes. Copies if the chunk has no stage 2. A
+ * segmented chunk is unpacked on one thread per online core (at most one per segment). */
 cdvr_status cdvr_store_unpack_chunk(const cdvr_store *st, size_t v, size_t c,
                                     const uint8_t *stored, uint8_t *out, cdvr_error *err);
+/* The same on at most `threads` threads (0: one per online core); the same bytes for any. */
+cdvr_status cdvr_store_unpack_chunk_threads(const cdvr_store *st, size_t v, size_t c,
+                                            const uint8_t *stored, uint8_t *out, int threads,
+                                            cdvr_error *err);
+/* "none", "lzo", "lz4", "zstd", "auto" for a cdvr_stage2; "?" otherwise. */
+const char *cdvr_stage2_name(int stage2);
 /* b1 + b1' in one call: a new malloc'ed buffer (*payload, freed by the caller) holding chunk c's
  * payload_bytes after the CRC check and stage 2. */
 cdvr_status cdvr_store_load_payload(const cdvr_store *st, size_t v, size_t c, uint8_t **payload,
