@@ -26,6 +26,7 @@ extern const cdvr_format cdvr_format_vti;
 extern const cdvr_format cdvr_format_vtk;
 extern const cdvr_format cdvr_format_mha;
 extern const cdvr_format cdvr_format_tiff;
+extern const cdvr_format cdvr_format_pvd;
 
 #define REGISTRY_MAX 64
 
@@ -98,7 +99,8 @@ static void register_builtins(void)
     static const cdvr_format *const builtins[] = {&cdvr_format_nrrd, &cdvr_format_nifti,
                                                      &cdvr_format_raw,
                                                      &cdvr_format_vti, &cdvr_format_vtk,
-                                                     &cdvr_format_mha, &cdvr_format_tiff};
+                                                     &cdvr_format_mha, &cdvr_format_tiff,
+                                                     &cdvr_format_pvd};
     pthread_mutex_lock(&registry.mu);
     for (size_t i = 0; i < sizeof builtins / sizeof *builtins; i++)
         (void)add_locked(builtins[i], NULL); /* built-ins are valid: test_format checks */
@@ -394,6 +396,7 @@ static cdvr_status load_by_read(const cdvr_format *f, const char *path, const cd
     memcpy((*out)->spacing, head.spacing, sizeof head.spacing);
     memcpy((*out)->origin, head.origin, sizeof head.origin);
     memcpy((*out)->direction, head.direction, sizeof head.direction);
+    memcpy((*out)->source_type, head.source_type, sizeof head.source_type);
     st = f->read(path, opts, *out, (*out)->data, err);
     if (st != CDVR_OK) {
         cdvr_volume_free(*out);
