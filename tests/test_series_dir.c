@@ -206,6 +206,14 @@ static void test_pvd(void)
     CHECK(st != CDVR_OK && s == NULL && strstr(err.msg, "outside.vti"),
           "pvd naming ../outside.vti refused: %s", err.msg);
     cdvr_series_close(s);
+    /* allowed when the caller says so (a raw_opts of zero dims only carries the option) */
+    cdvr_raw_opts o;
+    memset(&o, 0, sizeof o);
+    o.allow_outside = 1;
+    s = NULL;
+    CHECK_OK(cdvr_series_open_path(tmp("pvd/bad.pvd"), &o, &s, &err), err);
+    CHECK(s && cdvr_series_get_info(s)->timesteps == 1, "allow_outside opens ../outside.vti");
+    cdvr_series_close(s);
 }
 
 /* ---- TIFF ----------------------------------------------------------------------------------- */
@@ -251,6 +259,26 @@ static void test_tiff(void)
               "TIFF directory in natural slice order");
     CHECK(v && strcmp(v->source_type, "uint16") == 0 && !cdvr_volume_converted(v),
           "TIFF stack source_type uint16, not converted");
+    cdvr_volume_free(v);
+
+    /* a directory of stack directories: a series, one stack per timestep */
+    mkdir_(tmp("lapse"));
+    mkdir_(tmp("lapse/t1"));
+    mkdir_(tmp("lapse/t2"));
+    mkdir_(tmp("lapse/t10"));
+    static const char *const sub[3] = {"lapse/t1", "lapse/t2", "lapse/t10"};
+    for (int i = 0; i < 3; i++) {
+        char name[64];
+        for (int z = 0; z < 2; z++) {
+            snprintf(name, sizeof name, "%s/s%d.tif", sub[i], z);
+            write_tiff_page(tmp(name), (uint16_t)(10 * (i + 1) + z), NULL);
+        }
+    }
+    v = NULL;
+    CHECK_OK(cdvr_volume_load_series_path(tmp("lapse"), NULL, &v, &err), err);
+    CHECK(v && v->timesteps == 3 && v->dims[2] == 2 && cdvr_volume_get(v, 0, 0, 1, 0) == 11 &&
+              cdvr_volume_get(v, 0, 0, 0, 1) == 20 && cdvr_volume_get(v, 0, 0, 1, 2) == 31,
+          "a directory of TIFF stack directories: 3 timesteps in natural order");
     cdvr_volume_free(v);
 
     /* OME-TIFF: 3 pages, PhysicalSize in nm / um / mm */

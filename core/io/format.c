@@ -7,6 +7,7 @@
  * below and one name in core/io/CMakeLists.txt. */
 #include "cdvr/format.h"
 #include "cdvr/names.h"
+#include "cdvr/pvd.h"
 #include "cdvr/regular_file.h"
 #include "volume_io.h"
 
@@ -490,7 +491,8 @@ cdvr_status cdvr_format_expand(const char *const *paths, size_t count, const cdv
             continue;
         }
         size_t before = l.count;
-        st = f->expand(paths[i], add_path, &l, err);
+        st = f == &cdvr_format_pvd ? cdvr_pvd_expand(paths[i], opts, add_path, &l, err) /* allow_outside */
+                                   : f->expand(paths[i], add_path, &l, err);
         if (st == CDVR_OK && l.failed)
             st = cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory for its list of files",
                                 paths[i]);

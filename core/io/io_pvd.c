@@ -297,18 +297,25 @@ cdvr_status cdvr_pvd_read(const char *path, const cdvr_raw_opts *opts, cdvr_pvd_
 
 /* ---- format table --------------------------------------------------------------------------- */
 
-static cdvr_status pvd_expand(const char *path, int (*add)(void *ud, const char *file), void *ud,
-                              cdvr_error *err)
+cdvr_status cdvr_pvd_expand(const char *path, const cdvr_raw_opts *opts,
+                            int (*add)(void *ud, const char *file), void *ud, cdvr_error *err)
 {
     cdvr_pvd_entry *e;
     size_t n;
-    cdvr_status st = cdvr_pvd_read(path, NULL, &e, &n, err);
+    cdvr_status st = cdvr_pvd_read(path, opts, &e, &n, err);
+    if (st != CDVR_OK)
+        return st;
     for (size_t i = 0; st == CDVR_OK && i < n; i++)
         if (!add(ud, e[i].file))
             st = cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
-    if (st == CDVR_OK)
-        cdvr_pvd_free(e, n);
+    cdvr_pvd_free(e, n);
     return st;
+}
+
+static cdvr_status pvd_expand(const char *path, int (*add)(void *ud, const char *file), void *ud,
+                              cdvr_error *err)
+{
+    return cdvr_pvd_expand(path, NULL, add, ud, err);
 }
 
 /* The whole collection: its files' headers (dims, type of the first; timesteps of all). */

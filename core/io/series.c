@@ -128,7 +128,7 @@ static double *series_times(const char *const *paths, size_t count, const cdvr_r
         size_t n = 0;
         cdvr_error ignored;
         if (cdvr_format_for(paths[i], raw, &f, &ignored) != CDVR_OK || f != pvd ||
-            cdvr_pvd_read(paths[i], NULL, &e, &n, &ignored) != CDVR_OK || n > files - k) {
+            cdvr_pvd_read(paths[i], raw, &e, &n, &ignored) != CDVR_OK || n > files - k) {
             cdvr_pvd_free(e, n);
             free(t);
             return NULL;

@@ -74,6 +74,16 @@ do
   end
 end
 
+-- a DataSet outside the collection's directory: refused, read with allow_outside=true
+vti(tmp .. "/outside.vti", 7)
+write(p .. "/out.pvd", '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1"><Collection>\n' ..
+                       '<DataSet timestep="0" part="0" file="../outside.vti"/></Collection></VTKFile>\n')
+raises(function() return cdvr.load_series(p .. "/out.pvd") end, "outside.vti", "a .pvd naming ../outside.vti")
+do
+  local ok, v = pcall(cdvr.load_series, p .. "/out.pvd", {allow_outside = true})
+  check(ok and v:get(0, 0, 0, 1) == 7 and v:times()[1] == 0, "allow_outside=true reads it: " .. tostring(v))
+end
+
 -- float64: converted
 do
   write(tmp .. "/f64.nrrd", "NRRD0004\ntype: double\ndimension: 3\nsizes: 2 1 1\nendian: little\n" ..

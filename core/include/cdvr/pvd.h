@@ -36,5 +36,9 @@ cdvr_status cdvr_pvd_read(const char *path, const cdvr_raw_opts *opts, cdvr_pvd_
 cdvr_status cdvr_pvd_parse(const char *path, const char *text, size_t len, cdvr_pvd_entry **out,
                            size_t *n, cdvr_error *err);
 void cdvr_pvd_free(cdvr_pvd_entry *entries, size_t n);
+/* The format's expand with the load options (allow_outside): cdvr_format_expand calls it for
+ * .pvd files, since the format table's expand takes no options. */
+cdvr_status cdvr_pvd_expand(const char *path, const cdvr_raw_opts *opts,
+                            int (*add)(void *ud, const char *file), void *ud, cdvr_error *err);
 
 #endif
