@@ -25,7 +25,7 @@
 
 /* ---- what a TIFF's ImageDescription says (ImageJ and OME-XML) --------------------------------
  * The loaders' parsers of the first page's ImageDescription, reachable for tests and fuzzing
- * (tests/fuzz/fuzz_tiff_desc.c). They never read past len and refuse, naming the field and its
+ * (tests/fuzz/fuzz_desc.c). They never read past len and refuse, naming the field and its
  * value, what the loader could not honour. */
 typedef struct cdvr_tiff_desc {
     double spacing[3];     /* per axis, > 0 when the description gives it, else 0 */
