@@ -31,6 +31,9 @@
 #define LLVMFuzzerTestOneInput fuzz_vtk_input
 #include "fuzz/fuzz_vtk.c"
 #undef LLVMFuzzerTestOneInput
+#define LLVMFuzzerTestOneInput fuzz_desc_input
+#include "fuzz/fuzz_desc.c"
+#undef LLVMFuzzerTestOneInput
 #define LLVMFuzzerTestOneInput fuzz_codec_input
 #include "fuzz/fuzz_codec.c"
 #undef LLVMFuzzerTestOneInput
@@ -126,7 +129,7 @@ typedef struct target_totals {
     const char *name;
     size_t seeds, accepted, rejected;
 } target_totals;
-static target_totals smoke_totals[9];
+static target_totals smoke_totals[12];
 
 static void add_totals(const char *name, size_t accepted, size_t rejected)
 {
@@ -619,6 +622,19 @@ int main(void)
             check_loader_seed(&seed, kind < 3 ? ".vti" : kind < 5 ? ".vtk" : ".mha", 1, 1);
             fuzz_seed("vtk", fuzz_vtk_input, &seed, 800, 1, 10000u + (uint32_t)kind);
         }
+    }
+    static const char *const desc_seed[3] = { /* fuzz_desc.c: .pvd, OME-XML, ImageJ */
+        "\0<?xml version=\"1.0\"?><VTKFile type=\"Collection\" version=\"0.1\"><Collection>"
+        "<DataSet timestep=\"1.5\" part=\"0\" file=\"b.vti\"/>"
+        "<DataSet timestep=\"0.5\" part=\"0\" file=\"a.vti\"/></Collection></VTKFile>",
+        "\1<?xml version=\"1.0\"?><OME><Image ID=\"Image:0\"><Pixels DimensionOrder=\"XYZCT\" "
+        "SizeX=\"4\" SizeY=\"3\" SizeZ=\"3\" SizeC=\"1\" SizeT=\"1\" PhysicalSizeX=\"500\" "
+        "PhysicalSizeXUnit=\"nm\" PhysicalSizeY=\"0.25\" PhysicalSizeZ=\"2\"/></Image></OME>",
+        "\2ImageJ=1.52\nimages=3\nslices=3\nunit=micron\nspacing=2.5\n"};
+    for (int k = 0; k < 3; k++) {
+        seed.n = 0;
+        if (bytes_append(&seed, desc_seed[k], 1 + strlen(desc_seed[k] + 1)))
+            fuzz_seed("desc", fuzz_desc_input, &seed, 800, 1, 11000u + (uint32_t)k);
     }
     free(seed.p);
     check_totals();

@@ -7,6 +7,7 @@
  * below and one name in core/io/CMakeLists.txt. */
 #include "cdvr/format.h"
 #include "cdvr/names.h"
+#include "cdvr/pvd.h"
 #include "cdvr/regular_file.h"
 #include "volume_io.h"
 
@@ -28,6 +29,7 @@ extern const cdvr_format cdvr_format_mha;
 extern const cdvr_format cdvr_format_tiff;
 extern const cdvr_format cdvr_format_hdf5;
 extern const cdvr_format cdvr_format_netcdf;
+extern const cdvr_format cdvr_format_pvd;
 
 #define REGISTRY_MAX 64
 
@@ -102,7 +104,8 @@ static void register_builtins(void)
                                                      &cdvr_format_vti, &cdvr_format_vtk,
                                                      &cdvr_format_mha, &cdvr_format_tiff,
                                                      &cdvr_format_hdf5, /* io_hdf5.c */
-                                                     &cdvr_format_netcdf};
+                                                     &cdvr_format_netcdf,
+                                                     &cdvr_format_pvd};
     pthread_mutex_lock(&registry.mu);
     for (size_t i = 0; i < sizeof builtins / sizeof *builtins; i++)
         (void)add_locked(builtins[i], NULL); /* built-ins are valid: test_format checks */
@@ -398,6 +401,7 @@ static cdvr_status load_by_read(const cdvr_format *f, const char *path, const cd
     memcpy((*out)->spacing, head.spacing, sizeof head.spacing);
     memcpy((*out)->origin, head.origin, sizeof head.origin);
     memcpy((*out)->direction, head.direction, sizeof head.direction);
+    memcpy((*out)->source_type, head.source_type, sizeof head.source_type);
     st = f->read(path, opts, *out, (*out)->data, err);
     if (st != CDVR_OK) {
         cdvr_volume_free(*out);
@@ -491,7 +495,8 @@ cdvr_status cdvr_format_expand(const char *const *paths, size_t count, const cdv
             continue;
         }
         size_t before = l.count;
-        st = f->expand(paths[i], add_path, &l, err);
+        st = f == &cdvr_format_pvd ? cdvr_pvd_expand(paths[i], opts, add_path, &l, err) /* allow_outside */
+                                   : f->expand(paths[i], add_path, &l, err);
         if (st == CDVR_OK && l.failed)
             st = cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory for its list of files",
                                 paths[i]);

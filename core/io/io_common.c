@@ -70,6 +70,12 @@ const char *cdvr_io_etype_name(cdvr_io_etype t) { return ETYPES[t].name; }
 cdvr_type cdvr_io_etype_volume_type(cdvr_io_etype t) { return ETYPES[t].vtype; }
 int cdvr_io_etype_converted(cdvr_io_etype t) { return ETYPES[t].converted; }
 
+void cdvr_io_set_type(cdvr_volume *head, cdvr_io_etype t)
+{
+    head->type = ETYPES[t].vtype;
+    cdvr_volume_set_source_type(head, ETYPES[t].name);
+}
+
 void cdvr_io_range_init(cdvr_io_range *r)
 {
     r->lo = INFINITY;
@@ -156,6 +162,7 @@ void cdvr_io_store_double(cdvr_volume *vol, size_t at, double v, cdvr_io_range *
 
 void cdvr_io_finish(cdvr_volume *vol, cdvr_io_etype t, const cdvr_io_range *r)
 {
+    cdvr_volume_set_source_type(vol, ETYPES[t].name);
     if (!ETYPES[t].converted)
         return;
     vol->window[0] = r->lo <= r->hi ? r->lo : 0;

@@ -42,6 +42,10 @@ cdvr_type cdvr_io_etype_volume_type(cdvr_io_etype t);
 /* 1 when the element type is converted to f32 on load (its window then computed in double). */
 int cdvr_io_etype_converted(cdvr_io_etype t);
 
+/* Sets head->type to the type t loads as and head->source_type to t's name (probes and loads
+ * alike, so a lazy series reports a conversion before reading a voxel). */
+void cdvr_io_set_type(cdvr_volume *head, cdvr_io_etype t);
+
 /* Running range of converted values (finite ones); lo > hi while empty. */
 typedef struct cdvr_io_range {
     double lo, hi;
@@ -54,7 +58,8 @@ void cdvr_io_store(cdvr_volume *vol, size_t at, const void *src, cdvr_io_etype t
                    size_t count, cdvr_io_range *r);
 /* Stores one value given as double (ASCII data): rounded and clamped for integer volume types. */
 void cdvr_io_store_double(cdvr_volume *vol, size_t at, double v, cdvr_io_range *r);
-/* For a converted type: sets vol->window to r (or [0, 0] when no finite value). */
+/* Sets vol->source_type to t's name and, for a converted type, vol->window to r (or [0, 0]
+ * when no finite value). */
 void cdvr_io_finish(cdvr_volume *vol, cdvr_io_etype t, const cdvr_io_range *r);
 
 /* Inflates a zlib (or gzip) stream src[0..n) into exactly dst_n bytes at dst; a stream that is corrupt,

@@ -218,7 +218,7 @@ static cdvr_status mha_geometry(const mha_head *h, cdvr_volume *head)
             head->dims[i] = h->dims[i];
         else
             head->timesteps = h->dims[i];
-    head->type = cdvr_io_etype_volume_type(h->type);
+    cdvr_io_set_type(head, h->type);
     double m[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
     for (int c = 0; c < n && c < 3; c++) {
         head->spacing[c] = h->spacing[c];

@@ -167,8 +167,13 @@ static cdvr_status load_voxels(const char *path, const nifti_image *nim, cdvr_vo
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: cannot allocate %zu bytes", path, bytes);
     cdvr_status st = read_nifti_data(path, nim, buf, bytes, err);
     float *dst = vol->data;
+    double lo = INFINITY, hi = -INFINITY;
     for (size_t i = 0; st == CDVR_OK && i < count; i++) {
         double v = reader(buf, i), w = scaled ? v * slope + inter : v;
+        if (isfinite(w)) {
+            lo = w < lo ? w : lo;
+            hi = w > hi ? w : hi;
+        }
         if (isfinite(w) && fabs(w) > FLT_MAX)
             st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI value %g (%s %g, voxel %zu from "
                                 "0, scl_slope %g, scl_inter %g) is beyond the range of f32, the "
@@ -178,6 +183,8 @@ static cdvr_status load_voxels(const char *path, const nifti_image *nim, cdvr_vo
         dst[i] = (float)w;
     }
     free(buf);
+    vol->window[0] = lo <= hi ? lo : 0; /* the window in double (cdvr/volume.h) */
+    vol->window[1] = lo <= hi ? hi : 0;
     return st;
 }
 
@@ -372,6 +379,24 @@ static cdvr_status open_header(const char *path, nifti_image **nim, cdvr_error *
     return CDVR_OK;
 }
 
+/* The file type name of a NIfTI datatype (cdvr_volume.source_type), or NULL. */
+static const char *nifti_file_type(int datatype)
+{
+    switch (datatype) {
+    case DT_UINT8: return "uint8";
+    case DT_INT8: return "int8";
+    case DT_UINT16: return "uint16";
+    case DT_INT16: return "int16";
+    case DT_UINT32: return "uint32";
+    case DT_INT32: return "int32";
+    case DT_UINT64: return "uint64";
+    case DT_INT64: return "int64";
+    case DT_FLOAT32: return "float32";
+    case DT_FLOAT64: return "float64";
+    default: return NULL;
+    }
+}
+
 /* How the header's values become ours: the datatype's reader and the scaling. */
 typedef struct {
     cdvr_value_reader reader;
@@ -391,6 +416,7 @@ static cdvr_status describe(const char *path, const nifti_image *nim, cdvr_volum
     vals->scaled = nifti_scaling(nim, &vals->slope, &vals->inter);
     if (vals->scaled)
         head->type = CDVR_TYPE_F32;
+    cdvr_volume_set_source_type(head, nifti_file_type(nim->datatype));
     cdvr_status st = nifti_shape(path, nim, head->dims, &head->timesteps, err);
     if (st == CDVR_OK)
         st = check_data_size(path, nim, err);
@@ -428,6 +454,7 @@ static cdvr_status nifti_to_volume(const char *path, const nifti_image *nim, uin
         return st;
     }
     nifti_geometry(nim, *out);
+    memcpy((*out)->source_type, head.source_type, sizeof head.source_type);
     return CDVR_OK;
 }
 

@@ -16,6 +16,24 @@ static double read_i64(const void *p, size_t i) { return (double)((const int64_t
 static double read_u64(const void *p, size_t i) { return (double)((const uint64_t *)p)[i]; }
 static double read_f64(const void *p, size_t i) { return ((const double *)p)[i]; }
 
+/* The file type name of a teem type (cdvr_volume.source_type). */
+static const char *nrrd_file_type(int nrrd_type)
+{
+    switch (nrrd_type) {
+    case nrrdTypeChar: return "int8";
+    case nrrdTypeUChar: return "uint8";
+    case nrrdTypeShort: return "int16";
+    case nrrdTypeUShort: return "uint16";
+    case nrrdTypeInt: return "int32";
+    case nrrdTypeUInt: return "uint32";
+    case nrrdTypeLLong: return "int64";
+    case nrrdTypeULLong: return "uint64";
+    case nrrdTypeFloat: return "float32";
+    case nrrdTypeDouble: return "float64";
+    default: return NULL;
+    }
+}
+
 /* Our type for a teem type; *reader is set when the values must be converted to f32. */
 static int map_type(int nrrd_type, cdvr_type *type, cdvr_value_reader *reader)
 {
@@ -181,6 +199,7 @@ typedef struct value_sink {
     size_t carry_n;
     const char *path, *tname;
     cdvr_error *err;
+    double lo, hi;                 /* range of the converted values, in double */
 } value_sink;
 
 /* n whole values at p (n <= 512 when converting). */
@@ -209,6 +228,10 @@ static int put_values(value_sink *k, const unsigned char *p, size_t n)
                                   "from 0) is beyond the range of f32, the type cdvr loads %s "
                                   "as", k->path, v, k->tname, (unsigned long long)(k->done + i),
                                   k->tname) && 0;
+        if (isfinite(v)) {
+            k->lo = v < k->lo ? v : k->lo;
+            k->hi = v > k->hi ? v : k->hi;
+        }
         d[i] = (float)v;
     }
     k->done += n;
@@ -301,7 +324,7 @@ static cdvr_status load_nrrd(const char *path, const cdvr_raw_opts *opts, cdvr_v
         memcpy((*out)->direction, head.direction, sizeof head.direction);
         value_sink k = {(*out)->data, nrrdElementSize(nrrd), cdvr_nrrd_swap(src), reader, 0,
                         (uint64_t)cdvr_volume_voxels(*out) * timesteps, {0}, 0, path,
-                        airEnumStr(nrrdType, nrrd->type), err};
+                        airEnumStr(nrrdType, nrrd->type), err, INFINITY, -INFINITY};
         if (cdvr_nrrd_streamable(src))
             st = cdvr_nrrd_stream(src, sink_bytes, &k, err);
         else
@@ -309,6 +332,11 @@ static cdvr_status load_nrrd(const char *path, const cdvr_raw_opts *opts, cdvr_v
         if (st == CDVR_OK && k.done != k.count)
             st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD data hold %llu of %llu values",
                                 path, (unsigned long long)k.done, (unsigned long long)k.count);
+        cdvr_volume_set_source_type(*out, nrrd_file_type(nrrd->type));
+        if (st == CDVR_OK && reader) { /* converted: the window in double (cdvr/volume.h) */
+            (*out)->window[0] = k.lo <= k.hi ? k.lo : 0;
+            (*out)->window[1] = k.lo <= k.hi ? k.hi : 0;
+        }
         if (st != CDVR_OK) {
             cdvr_volume_free(*out);
             *out = NULL;
@@ -339,6 +367,8 @@ static cdvr_status probe_nrrd(const char *path, const cdvr_raw_opts *opts, cdvr_
         st = nrrd_shape(path, nrrd, head->dims, &head->timesteps, err);
     if (st == CDVR_OK)
         st = nrrd_geometry(path, nrrd, cdvr_nrrd_io(src), head, err);
+    if (st == CDVR_OK)
+        cdvr_volume_set_source_type(head, nrrd_file_type(nrrd->type));
     cdvr_nrrd_close(src);
     return st;
 }

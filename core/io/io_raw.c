@@ -107,6 +107,7 @@ cdvr_status cdvr_volume_load_raw(const char *path, const cdvr_raw_opts *opts, cd
     if (elem > 1 && (opts->big_endian ? 1 : 0) == cdvr_host_is_little_endian())
         cdvr_swap_bytes(vol->data, data_bytes / elem, elem);
     apply_spacing(vol, opts->spacing);
+    cdvr_volume_set_source_type(vol, cdvr_type_file_name(opts->type));
     *out = vol;
     return CDVR_OK;
 }
@@ -123,6 +124,7 @@ cdvr_status cdvr_volume_probe_raw(const char *path, const cdvr_raw_opts *opts, c
     memcpy(head->dims, opts->dims, sizeof head->dims);
     head->timesteps = timesteps;
     head->type = opts->type;
+    cdvr_volume_set_source_type(head, cdvr_type_file_name(opts->type));
     apply_spacing(head, opts->spacing);
     return CDVR_OK;
 }

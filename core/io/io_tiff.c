@@ -12,6 +12,7 @@
  * handler, never to stderr, and name the file. */
 #include "cdvr/format.h"
 #include "cdvr/regular_file.h"
+#include "cdvr/series.h"
 #include "cdvr/tiff.h"
 #include "io_common.h"
 #include "volume_io.h"
@@ -55,6 +56,7 @@ typedef struct tiff_shape {
     double spacing[3];
     size_t file_bytes;
     int compressed;
+    int t_before_z;   /* OME DimensionOrder: page t + T*z holds slice z of frame t */
 } tiff_shape;
 
 static cdvr_status tiff_open(const char *path, tiff_ctx *ctx, TIFF **out, size_t *file_bytes,
@@ -106,42 +108,44 @@ static int page_type(TIFF *tif, cdvr_io_etype *t)
     }
 }
 
-/* "key=value" of an ImageJ description as a number; 0 when absent. */
-static int imagej_number(const char *desc, const char *key, double *v)
-{
-    size_t k = strlen(key);
-    for (const char *p = desc; p && *p; p = strchr(p, '\n') ? strchr(p, '\n') + 1 : NULL)
-        if (strncmp(p, key, k) == 0 && p[k] == '=') {
-            char *end;
-            *v = strtod(p + k + 1, &end);
-            return end != p + k + 1;
-        }
-    return 0;
-}
-
-static void imagej_geometry(TIFF *tif, tiff_shape *s)
+/* The geometry the first page's ImageDescription gives: ImageJ (x, y spacing 1/XResolution,
+ * 1/YResolution; spacing=; frames= with slices= as timesteps) or OME-XML (cdvr/tiff.h); an
+ * OME-XML description the loader cannot honour is an error. */
+static cdvr_status description_geometry(const char *path, TIFF *tif, tiff_shape *s,
+                                        cdvr_error *err)
 {
     char *desc = NULL;
-    if (!TIFFGetField(tif, TIFFTAG_IMAGEDESCRIPTION, &desc) || !desc ||
-        strncmp(desc, "ImageJ=", 7) != 0)
-        return;
-    float xr = 0, yr = 0;
-    double z, slices, frames, channels;
-    if (TIFFGetField(tif, TIFFTAG_XRESOLUTION, &xr) && xr > 0 && 1.0 / xr < 1e30)
-        s->spacing[0] = 1.0 / xr;
-    if (TIFFGetField(tif, TIFFTAG_YRESOLUTION, &yr) && yr > 0 && 1.0 / yr < 1e30)
-        s->spacing[1] = 1.0 / yr;
-    if (imagej_number(desc, "spacing", &z) && z > 0 && z < 1e30)
-        s->spacing[2] = z;
-    if (imagej_number(desc, "frames", &frames) && frames > 1 &&
-        !(imagej_number(desc, "channels", &channels) && channels > 1)) {
-        if (!imagej_number(desc, "slices", &slices))
-            slices = 1;
-        if (slices >= 1 && slices * frames == (double)s->pages) {
-            s->timesteps = (size_t)frames;
-            s->pages = (size_t)slices;
+    if (!TIFFGetField(tif, TIFFTAG_IMAGEDESCRIPTION, &desc) || !desc)
+        return CDVR_OK;
+    size_t len = strlen(desc);
+    cdvr_tiff_desc d;
+    if (cdvr_tiff_imagej_parse(desc, len, &d)) {
+        float xr = 0, yr = 0;
+        if (TIFFGetField(tif, TIFFTAG_XRESOLUTION, &xr) && xr > 0 && 1.0 / xr < 1e30)
+            s->spacing[0] = 1.0 / xr;
+        if (TIFFGetField(tif, TIFFTAG_YRESOLUTION, &yr) && yr > 0 && 1.0 / yr < 1e30)
+            s->spacing[1] = 1.0 / yr;
+        if (d.spacing[2] > 0)
+            s->spacing[2] = d.spacing[2];
+        size_t slices = d.slices ? d.slices : 1;
+        if (d.frames > 1 && d.channels <= 1 && slices * d.frames == s->pages) {
+            s->timesteps = d.frames;
+            s->pages = slices;
         }
+        return CDVR_OK;
     }
+    if (!strstr(desc, "<OME") && !strstr(desc, ":OME"))
+        return CDVR_OK;
+    cdvr_status st = cdvr_tiff_ome_parse(path, desc, len, s->pages, &d, err);
+    if (st != CDVR_OK)
+        return st;
+    for (int a = 0; a < 3; a++)
+        if (d.spacing[a] > 0)
+            s->spacing[a] = d.spacing[a];
+    s->timesteps = d.frames;
+    s->pages = d.slices;
+    s->t_before_z = d.t_before_z && d.frames > 1 && d.slices > 1;
+    return CDVR_OK;
 }
 
 /* Every page's shape, checked against the first's and the file. */
@@ -186,8 +190,7 @@ static cdvr_status tiff_shape_of(const char *path, TIFF *tif, tiff_shape *s, cdv
                               cdvr_io_etype_name(s->type), s->pages, total, s->file_bytes,
                               s->compressed ? ", compressed" : "");
     TIFFSetDirectory(tif, 0);
-    imagej_geometry(tif, s);
-    return CDVR_OK;
+    return description_geometry(path, tif, s, err);
 }
 
 static void tiff_head(const tiff_shape *s, cdvr_volume *head)
@@ -196,14 +199,26 @@ static void tiff_head(const tiff_shape *s, cdvr_volume *head)
     head->dims[1] = s->h;
     head->dims[2] = s->pages;
     head->timesteps = s->timesteps;
-    head->type = cdvr_io_etype_volume_type(s->type);
+    cdvr_io_set_type(head, s->type);
     memcpy(head->spacing, s->spacing, sizeof s->spacing);
+}
+
+static int is_dir(const char *path)
+{
+    struct stat sb;
+    return stat(path, &sb) == 0 && S_ISDIR(sb.st_mode);
 }
 
 static cdvr_status tiff_probe(const char *path, const cdvr_raw_opts *opts, cdvr_volume *head,
                               cdvr_error *err)
 {
     (void)opts;
+    if (is_dir(path)) { /* a stack (accepts_dir) */
+        void *data = head->data;
+        cdvr_status st = cdvr_tiff_probe_stack(path, head, NULL, err);
+        head->data = data;
+        return st;
+    }
     tiff_ctx ctx = {""};
     TIFF *tif;
     tiff_shape s = {0};
@@ -261,11 +276,13 @@ static cdvr_status tiff_read_pages(const char *path, TIFF *tif, tiff_ctx *ctx,
                                  : cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
     size_t n = s->pages * s->timesteps;
     for (size_t p = 0; st == CDVR_OK && p < n; p++) {
+        /* slot of page p: p itself, or with T before Z slice p / T of frame p % T */
+        size_t slot = s->t_before_z ? p / s->timesteps + s->pages * (p % s->timesteps) : p;
         if (!TIFFSetDirectory(tif, (tdir_t)p) || !read_page(tif, s, page, tmp, tile_n))
             st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: TIFF page %zu cannot be read: %s",
                                 path, p, ctx->msg[0] ? ctx->msg : "bad strips or tiles");
         else
-            cdvr_io_store(vol, at + p * plane, page, s->type, !cdvr_host_is_little_endian(),
+            cdvr_io_store(vol, at + slot * plane, page, s->type, !cdvr_host_is_little_endian(),
                           plane, range);
     }
     free(page);
@@ -278,6 +295,8 @@ static cdvr_status tiff_load(const char *path, const cdvr_raw_opts *opts, cdvr_v
 {
     (void)opts;
     *out = NULL;
+    if (is_dir(path))
+        return cdvr_tiff_load_stack(path, out, err);
     tiff_ctx ctx = {""};
     TIFF *tif;
     tiff_shape s = {0};
@@ -307,40 +326,9 @@ static cdvr_status tiff_load(const char *path, const cdvr_raw_opts *opts, cdvr_v
 
 /* ---- stacks: one file per slice (cdvr/tiff.h) ------------------------------------------- */
 
-/* Natural order: runs of digits compare by value ("s2" before "s10"). */
-static int natural_cmp(const char *a, const char *b)
-{
-    while (*a && *b) {
-        if (isdigit((unsigned char)*a) && isdigit((unsigned char)*b)) {
-            while (*a == '0')
-                a++;
-            while (*b == '0')
-                b++;
-            size_t na = 0, nb = 0;
-            while (isdigit((unsigned char)a[na]))
-                na++;
-            while (isdigit((unsigned char)b[nb]))
-                nb++;
-            if (na != nb)
-                return na < nb ? -1 : 1;
-            int c = strncmp(a, b, na);
-            if (c)
-                return c;
-            a += na;
-            b += nb;
-        } else {
-            if (*a != *b)
-                return (unsigned char)*a < (unsigned char)*b ? -1 : 1;
-            a++;
-            b++;
-        }
-    }
-    return *a ? 1 : *b ? -1 : 0;
-}
-
 static int natural_qsort(const void *a, const void *b)
 {
-    return natural_cmp(*(char *const *)a, *(char *const *)b);
+    return cdvr_series_natural_cmp(*(char *const *)a, *(char *const *)b);
 }
 
 static int tiff_name(const char *name)
@@ -438,6 +426,7 @@ static cdvr_status stack_open(const char *path, tiff_ctx *ctx, TIFF **tif, tiff_
     st = tiff_shape_of(path, *tif, s, err);
     s->pages *= s->timesteps; /* a stack's files are slices, not frames */
     s->timesteps = 1;
+    s->t_before_z = 0;        /* in the file's page order */
     if (st != CDVR_OK)
         TIFFClose(*tif);
     return st;
@@ -539,14 +528,30 @@ static int tiff_magic(const uint8_t *h, size_t n)
                       (h[0] == 'M' && h[1] == 'M' && h[2] == 0 && (h[3] == 42 || h[3] == 43)));
 }
 
+/* A directory holding a .tif or .tiff file (not hidden) is a stack. */
+static int tiff_accepts_dir(const char *dir)
+{
+    DIR *d = opendir(dir);
+    if (!d)
+        return 0;
+    struct dirent *e;
+    int found = 0;
+    while (!found && (e = readdir(d)) != NULL)
+        found = tiff_name(e->d_name);
+    closedir(d);
+    return found;
+}
+
 static const char *const tiff_suffixes[] = {".tif", ".tiff", NULL};
 
 const cdvr_format cdvr_format_tiff = {
     .name = "tiff",
     .description = "TIFF through libtiff: the pages of a multi-page file as z slices, 8 to 64 "
-                   "bits integer or float, strips or tiles, ImageJ spacing and frames",
+                   "bits integer or float, strips or tiles, ImageJ and OME-TIFF spacing and "
+                   "frames; a directory of .tif files as a stack",
     .suffixes = tiff_suffixes,
     .magic = tiff_magic,
     .probe = tiff_probe,
     .load = tiff_load,
+    .accepts_dir = tiff_accepts_dir,
 };

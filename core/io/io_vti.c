@@ -335,7 +335,7 @@ static cdvr_status vti_geometry(const vti_parse *v, cdvr_volume *head, cdvr_erro
         head->spacing[i] = v->spacing[i];
     }
     head->timesteps = 1;
-    head->type = cdvr_io_etype_volume_type(v->type);
+    cdvr_io_set_type(head, v->type);
     double start[3];
     for (int c = 0; c < 3; c++)
         start[c] = (double)v->ext[2 * c] * v->spacing[c];
@@ -665,6 +665,12 @@ cdvr_status cdvr_vti_load(const char *path, const char *array, cdvr_volume **out
                         : cdvr_vtk_legacy_load(path, array, out, info, err);
 }
 
+/* The array the load option select= names (cdvr_raw_opts.select), or NULL: the default. */
+static const char *selected_array(const cdvr_raw_opts *opts)
+{
+    return opts && opts->select && opts->select[0] ? opts->select : NULL;
+}
+
 /* "<?xml" or "<VTKFile" and, within the first bytes, type="ImageData". */
 static int vti_magic(const uint8_t *head, size_t n)
 {
@@ -683,15 +689,13 @@ static int vti_magic(const uint8_t *head, size_t n)
 static cdvr_status vti_probe(const char *path, const cdvr_raw_opts *opts, cdvr_volume *head,
                              cdvr_error *err)
 {
-    (void)opts;
-    return vti_probe_file(path, NULL, head, NULL, err);
+    return vti_probe_file(path, selected_array(opts), head, NULL, err);
 }
 
 static cdvr_status vti_load(const char *path, const cdvr_raw_opts *opts, cdvr_volume **out,
                             cdvr_error *err)
 {
-    (void)opts;
-    return vti_load_file(path, NULL, out, NULL, err);
+    return vti_load_file(path, selected_array(opts), out, NULL, err);
 }
 
 static const char *const vti_suffixes[] = {".vti", NULL};
@@ -699,7 +703,7 @@ static const char *const vti_suffixes[] = {".vti", NULL};
 const cdvr_format cdvr_format_vti = {
     .name = "vti",
     .description = "VTK XML ImageData through expat: ascii, base64 or appended raw data, zlib "
-                   "or LZ4, the active scalars (64-bit and int32 types as float32, window in "
+                   "or LZ4, the active scalars or select= (64-bit and int32 types as float32, window in "
                    "double)",
     .suffixes = vti_suffixes,
     .magic = vti_magic,

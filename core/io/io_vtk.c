@@ -214,7 +214,7 @@ static cdvr_status vtk_geometry(const vtk_parse *v, cdvr_volume *head)
 {
     memcpy(head->dims, v->dims, sizeof head->dims);
     head->timesteps = 1;
-    head->type = cdvr_io_etype_volume_type(v->type);
+    cdvr_io_set_type(head, v->type);
     memcpy(head->spacing, v->spacing, sizeof head->spacing);
     memcpy(head->origin, v->origin, sizeof head->origin);
     return cdvr_io_set_direction(v->path, "DIRECTION", v->dir, head, v->err);
@@ -313,6 +313,12 @@ cdvr_status cdvr_vtk_legacy_load(const char *path, const char *array, cdvr_volum
 
 /* ---- format table ------------------------------------------------------------------------ */
 
+/* The array the load option select= names (cdvr_raw_opts.select), or NULL: the default. */
+static const char *selected_array(const cdvr_raw_opts *opts)
+{
+    return opts && opts->select && opts->select[0] ? opts->select : NULL;
+}
+
 static int vtk_magic(const uint8_t *head, size_t n)
 {
     static const char key[] = "# vtk DataFile Version";
@@ -322,15 +328,13 @@ static int vtk_magic(const uint8_t *head, size_t n)
 static cdvr_status vtk_probe(const char *path, const cdvr_raw_opts *opts, cdvr_volume *head,
                              cdvr_error *err)
 {
-    (void)opts;
-    return cdvr_vtk_legacy_probe(path, NULL, head, NULL, err);
+    return cdvr_vtk_legacy_probe(path, selected_array(opts), head, NULL, err);
 }
 
 static cdvr_status vtk_load(const char *path, const cdvr_raw_opts *opts, cdvr_volume **out,
                             cdvr_error *err)
 {
-    (void)opts;
-    return cdvr_vtk_legacy_load(path, NULL, out, NULL, err);
+    return cdvr_vtk_legacy_load(path, selected_array(opts), out, NULL, err);
 }
 
 static const char *const vtk_suffixes[] = {".vtk", NULL};
@@ -338,7 +342,7 @@ static const char *const vtk_suffixes[] = {".vtk", NULL};
 const cdvr_format cdvr_format_vtk = {
     .name = "vtk",
     .description = "legacy VTK STRUCTURED_POINTS, ASCII or BINARY, the first point-data "
-                   "SCALARS (64-bit and int32 types as float32, window in double)",
+                   "SCALARS or select= (64-bit and int32 types as float32, window in double)",
     .suffixes = vtk_suffixes,
     .magic = vtk_magic,
     .probe = vtk_probe,

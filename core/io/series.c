@@ -2,6 +2,7 @@
 #include "cdvr/series.h"
 #include "volume_io.h"
 #include "cdvr/format.h"
+#include "cdvr/pvd.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -18,6 +19,7 @@ struct cdvr_series {
     size_t held_file;
     int range_known;
     double range_lo, range_hi;
+    double *times;               /* per timestep, or NULL (cdvr_series_times) */
 };
 
 static void free_paths(char **paths, size_t n)
@@ -33,6 +35,7 @@ void cdvr_series_close(cdvr_series *s)
         return;
     free_paths(s->paths, s->info.files);
     free(s->first_t);
+    free(s->times);
     cdvr_volume_free(s->held);
     free(s);
 }
@@ -111,6 +114,41 @@ static cdvr_status probe_all(cdvr_series *s, const char *const *paths, size_t co
 static cdvr_status open_files(const char *const *paths, size_t count, const cdvr_raw_opts *raw,
                               cdvr_series **out, cdvr_error *err);
 
+/* The time values of files (one timestep each) when every path is a ParaView collection
+ * (cdvr/pvd.h) and they give one value per file; else NULL. */
+static double *series_times(const char *const *paths, size_t count, const cdvr_raw_opts *raw,
+                            size_t files)
+{
+    const cdvr_format *pvd = cdvr_format_find("pvd");
+    double *t = pvd ? malloc(files * sizeof *t) : NULL;
+    size_t k = 0;
+    for (size_t i = 0; t && i < count; i++) {
+        const cdvr_format *f = NULL;
+        cdvr_pvd_entry *e = NULL;
+        size_t n = 0;
+        cdvr_error ignored;
+        if (cdvr_format_for(paths[i], raw, &f, &ignored) != CDVR_OK || f != pvd ||
+            cdvr_pvd_read(paths[i], raw, &e, &n, &ignored) != CDVR_OK || n > files - k) {
+            cdvr_pvd_free(e, n);
+            free(t);
+            return NULL;
+        }
+        for (size_t j = 0; j < n; j++)
+            t[k++] = e[j].time;
+        cdvr_pvd_free(e, n);
+    }
+    if (t && k != files) {
+        free(t);
+        return NULL;
+    }
+    return t;
+}
+
+const double *cdvr_series_times(const cdvr_series *s)
+{
+    return s->times;
+}
+
 cdvr_status cdvr_series_open(const char *const *paths, size_t count, const cdvr_raw_opts *raw,
                              cdvr_series **out, cdvr_error *err)
 {
@@ -123,6 +161,8 @@ cdvr_status cdvr_series_open(const char *const *paths, size_t count, const cdvr_
     if (st == CDVR_OK)
         st = open_files((const char *const *)files, n, raw, out, err);
     cdvr_format_free_paths(files, n);
+    if (st == CDVR_OK && (*out)->info.timesteps == n)
+        (*out)->times = series_times(paths, count, raw, n);
     return st;
 }
 
@@ -158,6 +198,7 @@ static cdvr_status open_files(const char *const *paths, size_t count, const cdvr
     memcpy(in->origin, s->first.origin, sizeof in->origin);
     memcpy(in->direction, s->first.direction, sizeof in->direction);
     in->type = s->first.type;
+    memcpy(in->source_type, s->first.source_type, sizeof in->source_type);
     in->timesteps = s->first_t[count];
     *out = s;
     return CDVR_OK;
@@ -224,6 +265,7 @@ cdvr_status cdvr_series_read(cdvr_series *s, size_t t0, size_t count, cdvr_volum
     memcpy(v->spacing, in->spacing, sizeof v->spacing);
     memcpy(v->origin, in->origin, sizeof v->origin);
     memcpy(v->direction, in->direction, sizeof v->direction);
+    memcpy(v->source_type, in->source_type, sizeof v->source_type);
     *out = v;
     return CDVR_OK;
 }

@@ -84,6 +84,25 @@ cdvr_status cdvr_volume_create(const size_t dims[3], size_t timesteps, cdvr_type
     return CDVR_OK;
 }
 
+const char *cdvr_type_file_name(cdvr_type type)
+{
+    static const char *const names[] = {"uint8", "uint16", "int16", "float32"};
+    return (unsigned)type < 4 ? names[type] : "?";
+}
+
+int cdvr_volume_converted(const cdvr_volume *vol)
+{
+    return vol->source_type[0] && strncmp(vol->source_type, cdvr_type_file_name(vol->type),
+                                          sizeof vol->source_type) != 0;
+}
+
+void cdvr_volume_set_source_type(cdvr_volume *vol, const char *name)
+{
+    memset(vol->source_type, 0, sizeof vol->source_type);
+    if (name)
+        strncpy(vol->source_type, name, sizeof vol->source_type - 1);
+}
+
 void cdvr_volume_free(cdvr_volume *vol)
 {
     if (vol) {
@@ -253,6 +272,7 @@ cdvr_status cdvr_volume_slice_time(const cdvr_volume *vol, size_t t0, size_t cou
     memcpy((*out)->spacing, vol->spacing, sizeof vol->spacing);
     memcpy((*out)->origin, vol->origin, sizeof vol->origin);
     memcpy((*out)->direction, vol->direction, sizeof vol->direction);
+    memcpy((*out)->source_type, vol->source_type, sizeof vol->source_type);
     cdvr_volume_window_peek(vol, (*out)->window);
     memcpy((*out)->data, cdvr_volume_frame(vol, t0), count * cdvr_volume_frame_bytes(vol));
     return CDVR_OK;

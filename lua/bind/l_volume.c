@@ -9,6 +9,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 /* ---- lazy volumes -------------------------------------------------------------------------
@@ -206,9 +207,63 @@ static int volume_tostring(lua_State *L)
         return 1;
     }
     const cdvr_volume *v = ud->vol ? ud->vol : &ud->lazy->head;
-    lua_pushfstring(L, "cdvr.Volume %dx%dx%d x %d %s%s (%p)", (int)v->dims[0], (int)v->dims[1],
-                    (int)v->dims[2], (int)v->timesteps, cdvr_type_name(v->type),
+    char conv[48] = "";
+    if (cdvr_volume_converted(v))
+        snprintf(conv, sizeof conv, ", converted from %s", v->source_type);
+    lua_pushfstring(L, "cdvr.Volume %dx%dx%d x %d %s%s%s (%p)", (int)v->dims[0], (int)v->dims[1],
+                    (int)v->dims[2], (int)v->timesteps, cdvr_type_name(v->type), conv,
                     ud->vol ? "" : ", read from its files as needed", (void *)ud);
+    return 1;
+}
+
+/* The time values of a series from ParaView collections (cdvr_series_times), or NULL. */
+static const double *volume_time_values(lvolume *ud)
+{
+    return ud->lazy ? cdvr_series_times(ud->lazy->src->series) : NULL;
+}
+
+/* v:times(): {t1, t2, ...} of a series read from .pvd collections, else nil. */
+static int volume_times(lua_State *L)
+{
+    lvolume *ud = checkopen(L, 1);
+    const double *t = volume_time_values(ud);
+    const cdvr_volume *v = lcdvr_volume_header(L, 1);
+    if (!t) {
+        lua_pushnil(L);
+        return 1;
+    }
+    lua_createtable(L, (int)v->timesteps, 0);
+    for (size_t i = 0; i < v->timesteps; i++) {
+        lua_pushnumber(L, t[i]);
+        lua_seti(L, -2, (lua_Integer)i + 1);
+    }
+    return 1;
+}
+
+/* v:info(): {type=, source_type=, converted=, lazy=, files=, times=} (see the help text). */
+static int volume_info(lua_State *L)
+{
+    lvolume *ud = checkopen(L, 1);
+    const cdvr_volume *v = lcdvr_volume_header(L, 1);
+    lua_createtable(L, 0, 6);
+    lua_pushstring(L, cdvr_type_name(v->type));
+    lua_setfield(L, -2, "type");
+    if (v->source_type[0]) {
+        lua_pushstring(L, v->source_type);
+        lua_setfield(L, -2, "source_type");
+    }
+    lua_pushboolean(L, cdvr_volume_converted(v));
+    lua_setfield(L, -2, "converted");
+    lua_pushboolean(L, ud->vol == NULL);
+    lua_setfield(L, -2, "lazy");
+    if (ud->lazy) {
+        lua_pushinteger(L, (lua_Integer)cdvr_series_get_info(ud->lazy->src->series)->files);
+        lua_setfield(L, -2, "files");
+    }
+    if (volume_time_values(ud)) {
+        volume_times(L);
+        lua_setfield(L, -2, "times");
+    }
     return 1;
 }
 
@@ -515,6 +570,7 @@ static int quantize_lazy(lua_State *L, lvolume *ud)
     lv->src->refs++;
     lv->head = src->head;
     lv->head.type = CDVR_TYPE_U8;
+    cdvr_volume_set_source_type(&lv->head, NULL); /* codes, as cdvr_volume_quantize gives */
     lv->view = (cdvr_series_view){lv->src->series, 1, lo, hi};
     lv->head.window[0] = lo;
     lv->head.window[1] = hi;
@@ -772,6 +828,31 @@ static int series_names_from_pattern(lua_State *L, const char *pattern, int opts
     return 1;
 }
 
+/* Pushes the files of a directory, a glob pattern or one name (cdvr_series_names); the options
+ * first/count/last belong to printf patterns only. */
+static void series_names_from_path(lua_State *L, const char *where, int opts)
+{
+    static const char *const pattern_keys[] = {"first", "count", "last"};
+    for (int i = 0; i < 3 && lua_istable(L, opts); i++) {
+        if (lua_getfield(L, opts, pattern_keys[i]) != LUA_TNIL)
+            luaL_error(L, "cdvr.load_series '%s': option '%s' is for a printf pattern "
+                       "(\"t%%03d.nrrd\"), not a directory, glob pattern or file", where,
+                       pattern_keys[i]);
+        lua_pop(L, 1);
+    }
+    char **names = NULL;
+    size_t n = 0;
+    cdvr_error err;
+    if (cdvr_series_names(where, 0, 0, &names, &n, &err) != CDVR_OK)
+        lcdvr_raise(L, &err);
+    lua_createtable(L, (int)(n < INT32_MAX ? n : 0), 0);
+    for (size_t i = 0; i < n; i++) {
+        lua_pushstring(L, names[i]); /* (a memory error here leaks names: never in practice) */
+        lua_seti(L, -2, (lua_Integer)i + 1);
+    }
+    cdvr_format_free_paths(names, n);
+}
+
 static int l_load_series(lua_State *L)
 {
     static const char *const keys[] = {"dims", "type", "endian", "header", "timesteps", "spacing",
@@ -780,9 +861,16 @@ static int l_load_series(lua_State *L)
     lcdvr_checkoptions(L, 2, "cdvr.load_series", keys);
     cdvr_raw_opts raw;
     int has_raw = raw_opts(L, 2, &raw);
-    if (lua_type(L, 1) == LUA_TSTRING) {
+    struct stat sb;
+    int pattern_opts = lua_istable(L, 2) && (lcdvr_optintegerfield(L, 2, "first", -1) != -1 ||
+                                             lcdvr_optintegerfield(L, 2, "count", -1) != -1 ||
+                                             lcdvr_optintegerfield(L, 2, "last", -1) != -1);
+    if (lua_type(L, 1) == LUA_TSTRING && stat(lua_tostring(L, 1), &sb) != 0 &&
+        (strchr(lua_tostring(L, 1), '%') || pattern_opts)) {
         if (!series_names_from_pattern(L, lua_tostring(L, 1), 2))
             return lua_error(L); /* the message names the first missing file */
+    } else if (lua_type(L, 1) == LUA_TSTRING) {
+        series_names_from_path(L, lua_tostring(L, 1), 2);
     } else {
         luaL_checktype(L, 1, LUA_TTABLE);
         lua_pushvalue(L, 1);
@@ -825,6 +913,7 @@ static int l_load_series(lua_State *L)
             h->spacing[i] = raw.spacing[i];
     h->timesteps = in->timesteps;
     h->type = in->type;
+    memcpy(h->source_type, in->source_type, sizeof h->source_type);
     h->window[0] = in->type == CDVR_TYPE_U8 ? 0 : NAN;
     h->window[1] = in->type == CDVR_TYPE_U8 ? 255 : NAN;
     push_lazy(L, lv);
@@ -927,6 +1016,7 @@ static const luaL_Reg volume_methods[] = {
     {"spacing", volume_spacing}, {"origin", volume_origin}, {"frame", volume_frame},
     {"direction", volume_direction}, {"bounds", volume_bounds}, {"to_world", volume_to_world},
     {"window", volume_window},
+    {"info", volume_info}, {"times", volume_times},
     {"bytes", volume_bytes}, {"quantize", volume_quantize}, {"save_raw", volume_save_raw},
     {"save", volume_save},
     {NULL, NULL}};
@@ -949,7 +1039,14 @@ int lcdvr_open_volume(lua_State *L)
     lcdvr_help_add(L, "cdvr.formats()",
                    "list of file formats: {name, description, suffixes, magic, series, described, plugin}");
     lcdvr_help_add(L, "cdvr.load_series(pattern_or_list [, opts])",
-                   "load files as one series: printf pattern (\"vf_t%03d.nrrd\", opts first=, count= or last=) or a list of names; raises naming a file that cannot be read");
+                   "load files as one series: printf pattern (\"vf_t%03d.nrrd\", opts first=, count= or last=), a "
+                   "directory (its files of one format in natural order: t2 before t10; or its TIFF-stack "
+                   "subdirectories, one per timestep), a glob pattern (\"run/*.vti\", ?, [...]: natural order), a "
+                   ".pvd collection (times kept: v:times()) or a list of names; raises naming a file that cannot be read");
+    lcdvr_help_add(L, "v:info()",
+                   "{type=, source_type= (the file's element type, e.g. \"float64\"), converted= (true when the "
+                   "values became f32), lazy=, files= (a series), times= (a .pvd series)}");
+    lcdvr_help_add(L, "v:times()", "time values of a series read from .pvd collections (one per timestep), else nil");
     lcdvr_help_add(L, "cdvr.volume{dims=, type=, timesteps=}", "new zero-filled volume");
     lcdvr_help_add(L, "cdvr.generate(name [, opts])",
                    "test field \"box\", \"sphere\", \"ml\" (Marschner-Lobb) or \"ramp\"; opts dims=, timesteps=, type=, value=, radius=, fM=, alpha=");

@@ -28,6 +28,7 @@ typedef struct cdvr_series_info {
     size_t files;
     cdvr_type type;
     double spacing[3], origin[3], direction[9]; /* of the first file */
+    char source_type[16];      /* the first file's element type (cdvr_volume.source_type) */
 } cdvr_series_info;
 
 /* Opens count files (raw files need raw; its spacing, when set, overrides every file's),
@@ -68,6 +69,47 @@ typedef void (*cdvr_series_progress_fn)(void *ud, size_t done, size_t total);
  * pattern. */
 cdvr_status cdvr_series_pattern(const char *pattern, long long first, size_t count, char ***out,
                                 size_t *n, cdvr_error *err);
+
+/* ---- file names from a directory, a glob pattern or a single name ---------------------------
+ * Natural order: runs of digits compare by their value, the rest byte by byte ("t2" before
+ * "t10", "slice9" before "slice10"); names equal that way ("t02", "t2") by strcmp. */
+int cdvr_series_natural_cmp(const char *a, const char *b);
+
+/* 1 when s holds a printf integer conversion (%d, %03d, ...: the pattern rule above). */
+int cdvr_series_is_pattern(const char *s);
+
+/* The paths matching a glob(3) pattern (*, ?, [...]; a leading wildcard matches no hidden
+ * name), in natural order. None matching: CDVR_ERR_IO "P: no file matches the pattern". Matches
+ * may be directories (a series of TIFF stacks, one directory per timestep). */
+cdvr_status cdvr_series_glob(const char *pattern, char ***out, size_t *n, cdvr_error *err);
+
+/* The timesteps of a directory, in natural order, hidden names (".x") skipped: its files whose
+ * suffix is that of one known format (cdvr_format_by_suffix: "t1.nrrd", "t2.nrrd", ...), or its
+ * subdirectories that one format reads (cdvr/format.h rule 0: TIFF stacks, one per timestep).
+ * Files of no known suffix and subdirectories no format reads are passed over. Refused,
+ * CDVR_ERR_FORMAT, saying what the directory holds: one holding several formats ("holds 3 nrrd
+ * files, 2 vti files: give a glob pattern of one suffix"), or none (empty, or only other
+ * files). */
+cdvr_status cdvr_series_dir(const char *dir, char ***out, size_t *n, cdvr_error *err);
+
+/* The files of a series given as one string: an existing directory (cdvr_series_dir), an
+ * existing file (itself: a 4D file, a .pvd collection), a printf pattern (cdvr_series_pattern
+ * with first and count), else a glob pattern when it holds *, ? or [ (cdvr_series_glob), else
+ * the name itself (its load reports it missing). *out as for cdvr_series_pattern. */
+cdvr_status cdvr_series_names(const char *where, long long first, size_t count, char ***out,
+                              size_t *n, cdvr_error *err);
+
+/* cdvr_series_open and cdvr_volume_load_series of the files cdvr_series_names(where, 0, 0)
+ * gives: cdvr_series_open_path("run/t_*.vti", NULL, &s, &err), a directory, a .pvd file. */
+cdvr_status cdvr_series_open_path(const char *where, const cdvr_raw_opts *raw,
+                                  cdvr_series **out, cdvr_error *err);
+cdvr_status cdvr_volume_load_series_path(const char *where, const cdvr_raw_opts *raw,
+                                         cdvr_volume **out, cdvr_error *err);
+
+/* Time values of the series (a ParaView collection's timestep= of each DataSet, cdvr/pvd.h):
+ * info->timesteps values, or NULL when the files give none (files that are
+ * not all from .pvd collections, or a file of several timesteps). Valid while s is open. */
+const double *cdvr_series_times(const cdvr_series *s);
 
 /* ---- a series as u8 codes, and as the source of an out-of-core encode ----------------------
  * A view is a series seen either as its values or, quantized, as the u8 codes of its values

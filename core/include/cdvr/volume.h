@@ -47,12 +47,25 @@ typedef struct cdvr_volume {
     double direction[9]; /* row-major; column c = world direction of index axis c */
     double window[2];    /* value window [lo, hi] in data units (see above) */
     void *data;
+    /* Appended (ABI 5; plugins read the fields above only): the element type of the file the
+     * volume was loaded from, "uint8" "int8" "uint16" "int16" "uint32" "int32" "uint64" "int64"
+     * "float32" "float64", set by every built-in loader and probe; "" when not loaded from a
+     * file (cdvr_volume_create) or the format does not say (a plugin). A type other than the
+     * volume's (cdvr_volume_converted) means its values were converted to f32 on load. */
+    char source_type[16];
 } cdvr_volume;
 
 /* Bytes per voxel of a type (1, 2, 2, 4). */
 size_t cdvr_type_size(cdvr_type type);
 /* "u8", "u16", "i16", "f32". */
 const char *cdvr_type_name(cdvr_type type);
+/* The file type name of a volume type ("uint8", "uint16", "int16", "float32"). */
+const char *cdvr_type_file_name(cdvr_type type);
+/* 1 when vol->source_type names a file type other than vol->type's (the loader converted the
+ * file's values to f32, with the window computed in double: "converted from float64"). */
+int cdvr_volume_converted(const cdvr_volume *vol);
+/* Sets vol->source_type (cut to 15 bytes; NULL clears it). */
+void cdvr_volume_set_source_type(cdvr_volume *vol, const char *name);
 /* Parses a type name (also accepts "uint8", "uchar", "uint16", "int16", "short", "float", "float32");
  * returns 1 on success. */
 int cdvr_type_parse(const char *name, cdvr_type *type);
@@ -139,9 +152,12 @@ cdvr_status cdvr_volume_save_raw(const cdvr_volume *vol, const char *path, int b
                                  cdvr_error *err);
 
 /* Loaders keep u8, u16, i16 and f32 as they are; other file types (i8, u32, i32, i64, u64,
- * f64) become f32, each value rounded to the nearest float; a finite value beyond float's range
- * (it would become +-Inf) is refused naming the value and its index, and NaN and +-Inf stay as
- * they are. Header fields the loaders cannot honour are refused naming the field and its value
+ * f64) become f32, each value rounded to the nearest float, the value window the range of the
+ * file's values computed in double, and source_type names the file's type (never silent:
+ * tostring(v) and v:info() in Lua say "converted from float64"); a finite value beyond float's
+ * range is refused by the NRRD and NIfTI loaders naming the value and its index, and becomes
+ * +-Inf in the VTK, MetaImage and TIFF loaders (their window, computed in double, keeps it, as
+ * VTK's readers do); NaN and +-Inf stay as they are. Header fields the loaders cannot honour are refused naming the field and its value
  * (README: what the readers refuse), never replaced by a default. */
 /* .nrrd / .nhdr through teem. 3D (or 4D: the 4th axis becomes timesteps). */
 cdvr_status cdvr_volume_load_nrrd(const char *path, cdvr_volume **out, cdvr_error *err);
