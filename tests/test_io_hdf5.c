@@ -275,6 +275,8 @@ static void test_converted(void)
         cdvr_volume_window(vol, w);
         CHECK(vol->type == CDVR_TYPE_F32 && bad == 0 && w[0] == v[0] && w[1] == v[104],
               "f64 -> f32, %zu differ, window [%.17g, %.17g] in double", bad, w[0], w[1]);
+        CHECK(strcmp(vol->source_type, "float64") == 0 && cdvr_volume_converted(vol),
+              "the conversion is reported: source_type '%s'", vol->source_type);
         cdvr_volume_free(vol);
     }
     o.select = "/i8";

@@ -242,6 +242,8 @@ static void test_nc4(void)
         CHECK(v->type == CDVR_TYPE_F32 && bad == 0 && nans == 21 && w[0] == lo && w[1] == hi,
               "fill -> NaN (%zu of 21), scale/offset (%zu differ), window [%g, %g]", nans, bad,
               w[0], w[1]);
+        CHECK(v->source_type[0] && cdvr_volume_converted(v),
+              "the conversion is reported: source_type '%s'", v->source_type);
         cdvr_volume_free(v);
     }
     snprintf(q, sizeof q, "%s:w", p);

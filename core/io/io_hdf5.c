@@ -516,7 +516,7 @@ static cdvr_status header(h5_ctx *c, hid_t did, const char *name, h5_info *in,
     head->dims[1] = (size_t)in->d[r - 2];
     head->dims[2] = (size_t)in->d[r - 3];
     head->timesteps = r == 4 ? (size_t)in->d[0] : 1;
-    head->type = cdvr_io_etype_volume_type(in->etype);
+    cdvr_io_set_type(head, in->etype); /* type and source_type */
     size_t bytes;
     for (int i = 0; i < r; i++)
         if (in->d[i] == 0 || in->d[i] > SIZE_MAX)

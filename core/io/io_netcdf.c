@@ -336,7 +336,9 @@ static cdvr_status header(const ncv_ctx *c, ncv_var *v, size_t file_bytes, cdvr_
                               "%g / add_offset %g are not finite", c->file, v->name, v->scale,
                               v->offset);
     int convert = cdvr_io_etype_converted(v->etype) || v->nfill || v->scaled;
-    head->type = convert ? CDVR_TYPE_F32 : cdvr_io_etype_volume_type(v->etype);
+    cdvr_io_set_type(head, v->etype); /* source_type: the file's type */
+    if (convert)
+        head->type = CDVR_TYPE_F32; /* fill values or scale/offset: f32 */
     size_t bytes;
     if (!cdvr_volume_bytes_for(head->dims, head->timesteps, CDVR_TYPE_F32, &bytes) ||
         bytes / 4 > SIZE_MAX / 8)
@@ -476,6 +478,7 @@ static cdvr_status ncv_run(const char *path, const cdvr_raw_opts *opts, cdvr_vol
         memcpy(vol->spacing, local.spacing, sizeof local.spacing);
         memcpy(vol->origin, local.origin, sizeof local.origin);
         memcpy(vol->direction, local.direction, sizeof local.direction);
+        memcpy(vol->source_type, local.source_type, sizeof local.source_type);
         *out = vol;
     } else
         *head = local;
