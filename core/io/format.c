@@ -348,13 +348,24 @@ static void override_spacing(cdvr_volume *vol, const cdvr_raw_opts *opts)
             vol->spacing[i] = opts->spacing[i];
 }
 
-static void preset_header(cdvr_volume *h)
+void cdvr_volume_header_preset(cdvr_volume *h)
 {
     memset(h, 0, sizeof *h);
     for (int a = 0; a < 3; a++) {
         h->spacing[a] = 1;
         h->direction[4 * a] = 1;
     }
+}
+
+cdvr_status cdvr_load_check_claim(const char *file, const char *what, size_t bytes,
+                                  const cdvr_raw_opts *opts, cdvr_error *err)
+{
+    if (bytes <= cdvr_load_max_bytes(opts))
+        return CDVR_OK;
+    return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: %s claims %zu bytes of voxels, more than "
+                          "max_bytes %llu (a load option; the default is half the physical "
+                          "memory)", file, what, bytes,
+                          (unsigned long long)cdvr_load_max_bytes(opts));
 }
 
 static cdvr_status check_described(const cdvr_format *f, const char *path,
@@ -370,7 +381,7 @@ cdvr_status cdvr_format_probe(const cdvr_format *f, const char *path, const cdvr
                               cdvr_volume *head, cdvr_error *err)
 {
     void *data = head->data;
-    preset_header(head);
+    cdvr_volume_header_preset(head);
     head->data = data;
     cdvr_status st = check_described(f, path, opts, err);
     if (st == CDVR_OK)
@@ -385,15 +396,13 @@ static cdvr_status load_by_read(const cdvr_format *f, const char *path, const cd
                                 cdvr_volume **out, cdvr_error *err)
 {
     cdvr_volume head;
-    preset_header(&head);
+    cdvr_volume_header_preset(&head);
     cdvr_status st = f->probe(path, opts, &head, err);
     size_t bytes = 0;
-    if (st == CDVR_OK && cdvr_volume_bytes_for(head.dims, head.timesteps, head.type, &bytes) &&
-        bytes > cdvr_load_max_bytes(opts))
-        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: format '%s' claims %zu bytes of voxels, "
-                            "more than max_bytes %llu (a load option; the default is half the "
-                            "physical memory)", path, f->name, bytes,
-                            (unsigned long long)cdvr_load_max_bytes(opts));
+    char what[CDVR_FORMAT_NAME_MAX + 16];
+    snprintf(what, sizeof what, "format '%s'", f->name);
+    if (st == CDVR_OK && cdvr_volume_bytes_for(head.dims, head.timesteps, head.type, &bytes))
+        st = cdvr_load_check_claim(path, what, bytes, opts, err);
     if (st == CDVR_OK)
         st = cdvr_volume_create(head.dims, head.timesteps, head.type, out, err);
     if (st != CDVR_OK)

@@ -654,12 +654,10 @@ static cdvr_status h5_run(const char *path, const cdvr_raw_opts *opts, cdvr_volu
         st = header(&c, did, name, &in, file_bytes, &local);
     size_t bytes = 0;
     if (st == CDVR_OK && out) {
+        char what[H5_NAME_MAX + 24];
+        snprintf(what, sizeof what, "HDF5: dataset '%s'", name);
         cdvr_volume_bytes_for(local.dims, local.timesteps, local.type, &bytes); /* checked */
-        if (bytes > cdvr_load_max_bytes(opts))
-            st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: HDF5: dataset '%s' claims %zu bytes "
-                                "of voxels, more than max_bytes %llu (a load option; the default "
-                                "is half the physical memory)", sp.file, name, bytes,
-                                (unsigned long long)cdvr_load_max_bytes(opts));
+        st = cdvr_load_check_claim(sp.file, what, bytes, opts, err);
     }
     if (st == CDVR_OK && out)
         st = cdvr_volume_create(local.dims, local.timesteps, local.type, &vol, err);
@@ -701,11 +699,7 @@ static cdvr_status h5_load(const char *path, const cdvr_raw_opts *opts, cdvr_vol
 {
     *out = NULL;
     cdvr_volume head;
-    memset(&head, 0, sizeof head);
-    for (int a = 0; a < 3; a++) {
-        head.spacing[a] = 1;
-        head.direction[4 * a] = 1;
-    }
+    cdvr_volume_header_preset(&head);
     return h5_run(path, opts, &head, out, err);
 }
 

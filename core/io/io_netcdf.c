@@ -454,12 +454,10 @@ static cdvr_status ncv_run(const char *path, const cdvr_raw_opts *opts, cdvr_vol
         st = header(&c, v, file_bytes, &local);
     size_t bytes = 0;
     if (st == CDVR_OK && out) {
+        char what[sizeof v->name + 24];
+        snprintf(what, sizeof what, "NetCDF: variable '%s'", v->name);
         cdvr_volume_bytes_for(local.dims, local.timesteps, local.type, &bytes); /* checked */
-        if (bytes > cdvr_load_max_bytes(opts))
-            st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NetCDF: variable '%s' claims %zu "
-                                "bytes of voxels, more than max_bytes %llu (a load option; the "
-                                "default is half the physical memory)", sp.file, v->name, bytes,
-                                (unsigned long long)cdvr_load_max_bytes(opts));
+        st = cdvr_load_check_claim(sp.file, what, bytes, opts, err);
     }
     if (st == CDVR_OK && out)
         st = cdvr_volume_create(local.dims, local.timesteps, local.type, &vol, err);
@@ -496,11 +494,7 @@ static cdvr_status ncv_load(const char *path, const cdvr_raw_opts *opts, cdvr_vo
 {
     *out = NULL;
     cdvr_volume head;
-    memset(&head, 0, sizeof head);
-    for (int a = 0; a < 3; a++) {
-        head.spacing[a] = 1;
-        head.direction[4 * a] = 1;
-    }
+    cdvr_volume_header_preset(&head);
     return ncv_run(path, opts, &head, out, err);
 }
 

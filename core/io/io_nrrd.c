@@ -304,11 +304,7 @@ static cdvr_status load_nrrd(const char *path, const cdvr_raw_opts *opts, cdvr_v
     cdvr_value_reader reader;
     size_t dims[3] = {0, 0, 0}, timesteps = 0;
     cdvr_volume head;
-    memset(&head, 0, sizeof head);
-    for (int a = 0; a < 3; a++) {
-        head.spacing[a] = 1;
-        head.direction[4 * a] = 1;
-    }
+    cdvr_volume_header_preset(&head);
     if (!map_type(nrrd->type, &type, &reader))
         st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD type '%s' is not supported", path,
                             airEnumStr(nrrdType, nrrd->type));

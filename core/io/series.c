@@ -40,15 +40,6 @@ void cdvr_series_close(cdvr_series *s)
     free(s);
 }
 
-static void preset_header(cdvr_volume *h)
-{
-    memset(h, 0, sizeof *h);
-    for (int a = 0; a < 3; a++) {
-        h->spacing[a] = 1;
-        h->direction[4 * a] = 1;
-    }
-}
-
 /* Whether a file read now still looks as its header did at open. */
 static cdvr_status check_unchanged(const cdvr_series *s, size_t i, const cdvr_volume *v,
                                    cdvr_error *err)
@@ -94,7 +85,7 @@ static cdvr_status probe_all(cdvr_series *s, const char *const *paths, size_t co
     size_t total = 0;
     for (size_t i = 0; i < count; i++) {
         cdvr_volume head;
-        preset_header(&head);
+        cdvr_volume_header_preset(&head);
         cdvr_status st = cdvr_volume_probe(paths[i], raw, &head, err);
         if (st == CDVR_OK && i > 0)
             st = cdvr_series_same_shape(&s->first, &head, paths[0], paths[i], err);

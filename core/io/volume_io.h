@@ -8,6 +8,15 @@
 /* Byte count of dims[0]*dims[1]*dims[2]*timesteps voxels of `type`; 0 on overflow. */
 int cdvr_volume_bytes_for(const size_t dims[3], size_t timesteps, cdvr_type type, size_t *bytes);
 
+/* A header before a probe: everything 0 but spacing 1 and direction identity. */
+void cdvr_volume_header_preset(cdvr_volume *head);
+
+/* CDVR_ERR_FORMAT when `bytes` of voxels (what the header of `file` claims for `what`, e.g.
+ * "format 'tiff'" or "HDF5: dataset '/d'") exceed cdvr_load_max_bytes(opts), checked before
+ * anything is allocated or read; the message names file, what, both sizes and the option. */
+cdvr_status cdvr_load_check_claim(const char *file, const char *what, size_t bytes,
+                                  const cdvr_raw_opts *opts, cdvr_error *err);
+
 /* Reverses the byte order of `count` elements of `elem_size` bytes (2 or 4) in place. */
 void cdvr_swap_bytes(void *data, size_t count, size_t elem_size);
 
