@@ -116,7 +116,7 @@ static void test_registry(void)
 
     static const char *const sfx[] = {".tst", NULL}, *const bad_sfx[] = {"tst", NULL},
                              *const nii[] = {".xyz", ".NII", NULL}, *const none[] = {NULL};
-    cdvr_format t = {"tst", "test format", sfx, 0, NULL, ok_probe, NULL, ok_read, NULL, NULL};
+    cdvr_format t = {"tst", "test format", sfx, 0, NULL, ok_probe, NULL, ok_read, NULL, NULL, NULL};
     cdvr_format f = t;
     expect_refused(NULL, "format table is NULL");
     f.name = "Bad Name";
@@ -268,9 +268,9 @@ static void test_read_and_expand(void)
 {
     static const char *const tfmt_sfx[] = {".tfmt", NULL}, *const tlst_sfx[] = {".tlst", NULL};
     static const cdvr_format tfmt = {"tfmt", "test: read only", tfmt_sfx, 0, tfmt_magic,
-                                     tfmt_probe, NULL, tfmt_read, NULL, NULL};
+                                     tfmt_probe, NULL, tfmt_read, NULL, NULL, NULL};
     static const cdvr_format tlst = {"tlst", "test: a list", tlst_sfx, 0, NULL,
-                                     tfmt_probe, NULL, tfmt_read, tlst_expand, NULL};
+                                     tfmt_probe, NULL, tfmt_read, tlst_expand, NULL, NULL};
     cdvr_error err;
     CHECK_OK(cdvr_format_register(&tfmt, &err), err);
     CHECK_OK(cdvr_format_register(&tlst, &err), err);

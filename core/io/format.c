@@ -7,7 +7,6 @@
  * below and one name in core/io/CMakeLists.txt. */
 #include "cdvr/format.h"
 #include "cdvr/names.h"
-#include "cdvr/pvd.h"
 #include "cdvr/regular_file.h"
 #include "volume_io.h"
 
@@ -496,7 +495,8 @@ cdvr_status cdvr_format_expand(const char *const *paths, size_t count, const cdv
     for (size_t i = 0; st == CDVR_OK && i < count; i++) {
         const cdvr_format *f = NULL;
         cdvr_error ignored;
-        if (cdvr_format_for(paths[i], opts, &f, &ignored) != CDVR_OK || !f->expand) {
+        if (cdvr_format_for(paths[i], opts, &f, &ignored) != CDVR_OK ||
+            (!f->expand && !f->expand_opts)) {
             if (!add_path(&l, paths[i]))
                 st = cdvr_error_set(err, CDVR_ERR_NOMEM, "series: out of memory");
             else
@@ -504,8 +504,8 @@ cdvr_status cdvr_format_expand(const char *const *paths, size_t count, const cdv
             continue;
         }
         size_t before = l.count;
-        st = f == &cdvr_format_pvd ? cdvr_pvd_expand(paths[i], opts, add_path, &l, err) /* allow_outside */
-                                   : f->expand(paths[i], add_path, &l, err);
+        st = f->expand_opts ? f->expand_opts(paths[i], opts, add_path, &l, err)
+                            : f->expand(paths[i], add_path, &l, err);
         if (st == CDVR_OK && l.failed)
             st = cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory for its list of files",
                                 paths[i]);

@@ -312,12 +312,6 @@ cdvr_status cdvr_pvd_expand(const char *path, const cdvr_raw_opts *opts,
     return st;
 }
 
-static cdvr_status pvd_expand(const char *path, int (*add)(void *ud, const char *file), void *ud,
-                              cdvr_error *err)
-{
-    return cdvr_pvd_expand(path, NULL, add, ud, err);
-}
-
 /* The whole collection: its files' headers (dims, type of the first; timesteps of all). */
 static cdvr_status pvd_probe(const char *path, const cdvr_raw_opts *opts, cdvr_volume *head,
                              cdvr_error *err)
@@ -363,5 +357,5 @@ const cdvr_format cdvr_format_pvd = {
     .magic = pvd_magic,
     .probe = pvd_probe,
     .load = pvd_load,
-    .expand = pvd_expand,
+    .expand_opts = cdvr_pvd_expand,
 };

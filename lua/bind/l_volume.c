@@ -992,7 +992,7 @@ static int l_formats(lua_State *L)
         lua_setfield(L, -2, "suffixes");
         lua_pushboolean(L, f->magic != NULL);
         lua_setfield(L, -2, "magic");
-        lua_pushboolean(L, f->expand != NULL);
+        lua_pushboolean(L, f->expand != NULL || f->expand_opts != NULL);
         lua_setfield(L, -2, "series");
         lua_pushboolean(L, (f->flags & CDVR_FORMAT_DESCRIBED) != 0);
         lua_setfield(L, -2, "described");

@@ -166,7 +166,8 @@ static cdvr_status widen_codecs(const char *path, cdvr_plugin_info *out, cdvr_er
 }
 
 /* The same for formats: a plugin built before ABI 5 has format tables that end before
- * `accepts_dir`, so out's formats become full-size copies with accepts_dir NULL. */
+ * `accepts_dir`, so out's formats become full-size copies with accepts_dir and expand_opts
+ * NULL. */
 static cdvr_status widen_formats(const char *path, cdvr_plugin_info *out, cdvr_error *err)
 {
     if (out->abi >= 5)

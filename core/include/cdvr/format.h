@@ -45,6 +45,8 @@
  *    is missing. CDVR_FORMAT_SUBPATH when the format reads an object inside a file named as
  *    FILE:NAME (HDF5 `scan.h5:/group/dataset`, NetCDF `flow.nc:u`): see rule 1b below; its
  *    functions get the whole string and split it themselves (cdvr_format_split_subpath);
+ *  - expand_opts, optional (ABI 5): expand given the caller's cdvr_raw_opts (a list whose
+ *    files must obey allow_outside); used instead of expand where both are given;
  *  - accepts_dir, optional (ABI 5): 1 when the format reads the directory dir as one volume or
  *    series (DICOM files, a TIFF stack); see rule 0 below. probe/load/read then get the
  *    directory's path.
@@ -100,6 +102,12 @@ typedef struct cdvr_format {
     /* ABI 5 and later (a plugin of an older ABI gets a copy with NULL here). Optional: 1 when
      * this format reads the directory dir (rule 0 above). Must not read voxels. */
     int (*accepts_dir)(const char *dir);
+    /* ABI 5 and later, optional: expand with the caller's load options (the list's files obey
+     * allow_outside and the limits as the file itself does). Where given, it is used instead
+     * of expand. */
+    cdvr_status (*expand_opts)(const char *path, const cdvr_raw_opts *opts,
+                               int (*add)(void *ud, const char *file), void *ud,
+                               cdvr_error *err);
 } cdvr_format;
 
 /* Splits "FILE:NAME" for a CDVR_FORMAT_SUBPATH format (inline: plugins may use it): the

@@ -22,9 +22,10 @@
  *      them with check NULL (so an ABI 2/3 plugin's info, from cdvr_plugin_load_info, lists
  *      those copies, in `codecs`).
  *   5  as 4; cdvr_format ends with `accepts_dir` (directories read as one volume) and
- *      cdvr_raw_opts with `select` (the object inside a file: array, series, dataset). The
+ *      `expand_opts` (a list file expanded with the load options), and
+ *      cdvr_raw_opts ends with `select` (the object inside a file: array, series, dataset). The
  *      format tables of a version 2 to 4 plugin end before it: cdvr registers full-size
- *      copies with accepts_dir NULL (listed in the info's `formats`).
+ *      copies with accepts_dir and expand_opts NULL (listed in the info's `formats`).
  * A version outside that range is refused naming both versions. The ABI version covers the
  * layouts of cdvr_plugin_info, cdvr_codec, cdvr_codec_params, cdvr_codec_shape, cdvr_format,
  * cdvr_volume, cdvr_raw_opts and cdvr_error.

@@ -5,7 +5,7 @@
  *       <Collection>
  *         <DataSet timestep="0.5" part="0" file="run/run_0000.vti"/>
  *         ...
- * Format "pvd" (cdvr/format.h) reads it as the series of its DataSet files (its `expand`):
+ * Format "pvd" (cdvr/format.h) reads it as the series of its DataSet files (its `expand_opts`):
  * cdvr.load_series("run.pvd") and cdvr_series_open of it open those files, in the order of
  * their timestep values (ParaView's; equal values keep the file's order), and keep the values
  * (cdvr_series_times, Lua v:times()); cdvr.load of it loads every file into one volume. File
@@ -36,8 +36,7 @@ cdvr_status cdvr_pvd_read(const char *path, const cdvr_raw_opts *opts, cdvr_pvd_
 cdvr_status cdvr_pvd_parse(const char *path, const char *text, size_t len, cdvr_pvd_entry **out,
                            size_t *n, cdvr_error *err);
 void cdvr_pvd_free(cdvr_pvd_entry *entries, size_t n);
-/* The format's expand with the load options (allow_outside): cdvr_format_expand calls it for
- * .pvd files, since the format table's expand takes no options. */
+/* The format's expand_opts: the DataSet files, confined by the load options (allow_outside). */
 cdvr_status cdvr_pvd_expand(const char *path, const cdvr_raw_opts *opts,
                             int (*add)(void *ud, const char *file), void *ud, cdvr_error *err);
 
