@@ -184,7 +184,7 @@ static void test_dispatch(void)
     cdvr_volume_free(b);
 
     /* a raw description reads any name as raw (the NRRD's bytes, header included) */
-    cdvr_raw_opts raw = {{sizeof file, 1, 1}, 1, CDVR_TYPE_U8, 0, 0, {0, 0, 0}, 0, 0, NULL};
+    cdvr_raw_opts raw = {{sizeof file, 1, 1}, 1, CDVR_TYPE_U8, 0, 0, {0, 0, 0}, 0, 0, NULL, 0};
     CHECK_OK(cdvr_volume_load(tmp("a_nrrd_without_suffix"), &raw, &a, &err), err);
     CHECK(a && a->dims[0] == sizeof file && ((uint8_t *)a->data)[0] == 'N', "raw by request");
     cdvr_volume_free(a);
@@ -282,7 +282,7 @@ static void test_read_and_expand(void)
               ((uint16_t *)v->data)[2] == 102 && isnan(v->window[0]),
           "read through the registry");
     cdvr_volume_free(v);
-    cdvr_raw_opts spacing = {{0, 0, 0}, 0, CDVR_TYPE_U8, 0, 0, {2, 0, 0}, 0, 0, NULL};
+    cdvr_raw_opts spacing = {{0, 0, 0}, 0, CDVR_TYPE_U8, 0, 0, {2, 0, 0}, 0, 0, NULL, 0};
     CHECK_OK(cdvr_volume_load(tmp("two"), &spacing, &v, &err), err);
     CHECK(v && v->dims[0] == 2 && v->spacing[0] == 2 && v->spacing[1] == 1, "spacing override");
     cdvr_volume_free(v);

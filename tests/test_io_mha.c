@@ -29,7 +29,7 @@ static double value(int type, size_t i)
     case T_F32: return (float)(0.25 * (double)i - 7.5);
     case T_U16: return (double)((i * 977) % 65536);
     case T_I16: return (double)((long)(i * 131) % 60000 - 30000);
-    case T_F64: return 1e300 * ((double)i - 30.0) + 0.125 * (double)i;
+    case T_F64: return 1e36 * ((double)i - 30.0) + 0.125 * (double)i; /* within f32 (test_io_f32_rule: beyond) */
     case T_I32: return (double)((long long)i * 50000001LL - 2000000000LL);
     default: return (double)(i * 7 % 256);
     }

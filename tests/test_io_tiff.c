@@ -32,7 +32,7 @@ typedef struct tcase {
 static double value(const tcase *c, size_t i)
 {
     if (c->fmt == SAMPLEFORMAT_IEEEFP)
-        return c->bits == 32 ? (double)(float)(0.25 * (double)i - 7.5) : 1e200 * ((double)i - 3) + 0.5;
+        return c->bits == 32 ? (double)(float)(0.25 * (double)i - 7.5) : 1e33 * ((double)i - 3) + 0.5; /* within f32 */
     if (c->fmt == SAMPLEFORMAT_INT)
         return c->bits == 16 ? (double)((long)(i * 131) % 60000 - 30000) : (double)(i % 200) - 100;
     return c->bits == 8 ? (double)(i * 7 % 256) : c->bits == 16 ? (double)(i * 977 % 65536)

@@ -89,7 +89,7 @@ local list, vols = arg[1], {}
 for line in io.lines(list) do
   local path, i, j, k = line:match("(%S+) (%d+) (%d+) (%d+)")
   i, j, k = tonumber(i), tonumber(j), tonumber(k)
-  vols[path] = vols[path] or cdvr.load(path)
+  vols[path] = vols[path] or cdvr.load(path, {f32_overflow = "inf"}) -- VTK gives +-Inf too
   local v = vols[path]
   local x, y, z = v:to_world(i, j, k)
   local val = v:get(i, j, k)

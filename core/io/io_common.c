@@ -76,10 +76,11 @@ void cdvr_io_set_type(cdvr_volume *head, cdvr_io_etype t)
     cdvr_volume_set_source_type(head, ETYPES[t].name);
 }
 
-void cdvr_io_range_init(cdvr_io_range *r)
+void cdvr_io_range_init(cdvr_io_range *r, const cdvr_raw_opts *opts)
 {
     r->lo = INFINITY;
     r->hi = -INFINITY;
+    cdvr_f32_guard_init(&r->guard, opts);
 }
 
 static void range_add(cdvr_io_range *r, double v)
@@ -135,7 +136,7 @@ void cdvr_io_store(cdvr_volume *vol, size_t at, const void *src, cdvr_io_etype t
     for (size_t i = 0; i < count; i++) {
         double v = element(src, t, swap, i);
         range_add(r, v);
-        dst[i] = cdvr_double_to_f32(v);
+        dst[i] = cdvr_f32_guard_put(&r->guard, v, (uint64_t)(at + i));
     }
 }
 
@@ -148,7 +149,7 @@ void cdvr_io_store_double(cdvr_volume *vol, size_t at, double v, cdvr_io_range *
     case CDVR_TYPE_I16: lo = -32768; hi = 32767; break;
     case CDVR_TYPE_F32:
         range_add(r, v);
-        ((float *)vol->data)[at] = cdvr_double_to_f32(v);
+        ((float *)vol->data)[at] = cdvr_f32_guard_put(&r->guard, v, (uint64_t)at);
         return;
     }
     v = isnan(v) ? 0 : v < lo ? lo : v > hi ? hi : floor(v + 0.5);
@@ -160,13 +161,15 @@ void cdvr_io_store_double(cdvr_volume *vol, size_t at, double v, cdvr_io_range *
         ((int16_t *)vol->data)[at] = (int16_t)v;
 }
 
-void cdvr_io_finish(cdvr_volume *vol, cdvr_io_etype t, const cdvr_io_range *r)
+cdvr_status cdvr_io_finish(cdvr_volume *vol, cdvr_io_etype t, const cdvr_io_range *r,
+                           const char *path, const char *what, cdvr_error *err)
 {
     cdvr_volume_set_source_type(vol, ETYPES[t].name);
     if (!ETYPES[t].converted)
-        return;
+        return CDVR_OK;
     vol->window[0] = r->lo <= r->hi ? r->lo : 0;
     vol->window[1] = r->lo <= r->hi ? r->hi : 0;
+    return cdvr_f32_guard_finish(&r->guard, path, what, ETYPES[t].name, vol, err);
 }
 
 /* ---- zlib ------------------------------------------------------------------------------------ */

@@ -18,6 +18,7 @@
 
 #include "cdvr/error.h"
 #include "cdvr/volume.h"
+#include "volume_io.h"
 
 typedef struct cdvr_io_map {
     const uint8_t *p; /* NULL for an empty file */
@@ -46,11 +47,13 @@ int cdvr_io_etype_converted(cdvr_io_etype t);
  * alike, so a lazy series reports a conversion before reading a voxel). */
 void cdvr_io_set_type(cdvr_volume *head, cdvr_io_etype t);
 
-/* Running range of converted values (finite ones); lo > hi while empty. */
+/* Running range of converted values (finite ones; lo > hi while empty) and the values beyond
+ * f32 (cdvr_f32_guard: refused or accepted as +-Inf by opts, the rule of volume_io.h). */
 typedef struct cdvr_io_range {
     double lo, hi;
+    cdvr_f32_guard guard;
 } cdvr_io_range;
-void cdvr_io_range_init(cdvr_io_range *r);
+void cdvr_io_range_init(cdvr_io_range *r, const cdvr_raw_opts *opts);
 
 /* Stores count elements of type t from src (file byte order big_endian) into vol's data from
  * element `at` on (vol->type must be cdvr_io_etype_volume_type(t)); converted values extend r. */
@@ -59,8 +62,10 @@ void cdvr_io_store(cdvr_volume *vol, size_t at, const void *src, cdvr_io_etype t
 /* Stores one value given as double (ASCII data): rounded and clamped for integer volume types. */
 void cdvr_io_store_double(cdvr_volume *vol, size_t at, double v, cdvr_io_range *r);
 /* Sets vol->source_type to t's name and, for a converted type, vol->window to r (or [0, 0]
- * when no finite value). */
-void cdvr_io_finish(cdvr_volume *vol, cdvr_io_etype t, const cdvr_io_range *r);
+ * when no finite value); then the f32 rule (cdvr_f32_guard_finish: values beyond f32 refused
+ * naming path, `what` (e.g. "VTK") and the first voxel, unless the options accept +-Inf). */
+cdvr_status cdvr_io_finish(cdvr_volume *vol, cdvr_io_etype t, const cdvr_io_range *r,
+                           const char *path, const char *what, cdvr_error *err);
 
 /* Inflates a zlib (or gzip) stream src[0..n) into exactly dst_n bytes at dst; a stream that is corrupt,
  * ends early or holds more is CDVR_ERR_FORMAT naming path and what. */

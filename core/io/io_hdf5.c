@@ -160,6 +160,7 @@ void cdvr_subpath_done(cdvr_subpath *s)
 
 typedef struct h5_ctx {
     const char *file;
+    const cdvr_raw_opts *opts; /* the load options (the f32 rule), or NULL */
     cdvr_error *err;
     hid_t fid, lapl, dapl; /* link and dataset access lists that refuse external links */
 } h5_ctx;
@@ -576,7 +577,7 @@ static cdvr_status read_voxels(h5_ctx *c, hid_t did, const char *name, const h5_
         return cdvr_error_set(c->err, CDVR_ERR_NOMEM, "%s: out of memory", c->file);
     }
     cdvr_io_range range;
-    cdvr_io_range_init(&range);
+    cdvr_io_range_init(&range, c->opts);
     cdvr_status st = CDVR_OK;
     for (size_t p = 0; st == CDVR_OK && p < planes;) {
         size_t t = p / Z, z = p % Z, k = Z - z < per ? Z - z : per;
@@ -610,7 +611,7 @@ static cdvr_status read_voxels(h5_ctx *c, hid_t did, const char *name, const h5_
     H5Sclose(fsp);
     free(buf);
     if (st == CDVR_OK)
-        cdvr_io_finish(vol, in->etype, &range);
+        st = cdvr_io_finish(vol, in->etype, &range, c->file, "HDF5", c->err);
     return st;
 }
 
@@ -625,7 +626,7 @@ static cdvr_status h5_run(const char *path, const cdvr_raw_opts *opts, cdvr_volu
         return st;
     struct stat sb;
     size_t file_bytes = fstat(sp.fd, &sb) == 0 ? (size_t)sb.st_size : 0;
-    h5_ctx c = {sp.file, err, -1, -1, -1};
+    h5_ctx c = {sp.file, opts, err, -1, -1, -1};
     char name[H5_NAME_MAX] = "";
     hid_t fapl = -1, did = -1;
     h5_info in;

@@ -298,7 +298,6 @@ static cdvr_status mha_probe_file(const char *path, const cdvr_raw_opts *opts, c
 static cdvr_status mha_load_file(const char *path, const cdvr_raw_opts *opts, cdvr_volume **out,
                                  cdvr_error *err)
 {
-    (void)opts;
     *out = NULL;
     cdvr_io_map map, dmap = {NULL, 0};
     cdvr_status st = cdvr_io_map_open(path, &map, err);
@@ -331,14 +330,16 @@ static cdvr_status mha_load_file(const char *path, const cdvr_raw_opts *opts, cd
         st = cdvr_io_inflate(path, "MetaImage data", dm->p + at, n, buf, bytes, err);
     if (st == CDVR_OK) {
         cdvr_io_range range;
-        cdvr_io_range_init(&range);
+        cdvr_io_range_init(&range, opts);
         memcpy(vol->spacing, head.spacing, sizeof head.spacing);
         memcpy(vol->origin, head.origin, sizeof head.origin);
         memcpy(vol->direction, head.direction, sizeof head.direction);
         cdvr_io_store(vol, 0, buf ? buf : dm->p + at, h.type, h.big_endian, count, &range);
-        cdvr_io_finish(vol, h.type, &range);
+        st = cdvr_io_finish(vol, h.type, &range, path, "MetaImage", err);
+    }
+    if (st == CDVR_OK)
         *out = vol;
-    } else
+    else
         cdvr_volume_free(vol);
     free(buf);
     cdvr_io_map_close(&dmap);

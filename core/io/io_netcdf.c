@@ -45,6 +45,7 @@
 
 typedef struct ncv_ctx {
     const char *file;
+    const cdvr_raw_opts *opts; /* the load options (the f32 rule), or NULL */
     cdvr_error *err;
     int ncid;
 } ncv_ctx;
@@ -385,6 +386,8 @@ static cdvr_status read_values(const ncv_ctx *c, const ncv_var *v, cdvr_volume *
         return cdvr_error_set(c->err, CDVR_ERR_NOMEM, "%s: out of memory", c->file);
     float *dst = vol->data;
     double lo = INFINITY, hi = -INFINITY;
+    cdvr_f32_guard guard;
+    cdvr_f32_guard_init(&guard, c->opts);
     cdvr_status st = CDVR_OK;
     for (size_t p = 0; st == CDVR_OK && p < planes;) {
         size_t outer = p / inner, z = p % inner, k = inner - z < per ? inner - z : per;
@@ -414,13 +417,17 @@ static cdvr_status read_values(const ncv_ctx *c, const ncv_var *v, cdvr_volume *
                 lo = x < lo ? x : lo;
                 hi = x > hi ? x : hi;
             }
-            dst[p * plane + i] = cdvr_double_to_f32(x);
+            dst[p * plane + i] = cdvr_f32_guard_put(&guard, x, p * plane + i);
         }
         p += k;
     }
     free(buf);
     vol->window[0] = lo <= hi ? lo : 0;
     vol->window[1] = lo <= hi ? hi : 0;
+    if (st == CDVR_OK)
+        st = cdvr_f32_guard_finish(&guard, c->file, v->scaled ? "NetCDF (after scale_factor, "
+                                   "add_offset)" : "NetCDF", cdvr_io_etype_name(v->etype), vol,
+                                   c->err);
     return st;
 }
 
@@ -434,7 +441,7 @@ static cdvr_status ncv_run(const char *path, const cdvr_raw_opts *opts, cdvr_vol
         return st;
     struct stat sb;
     size_t file_bytes = fstat(sp.fd, &sb) == 0 ? (size_t)sb.st_size : 0;
-    ncv_ctx c = {sp.file, err, -1};
+    ncv_ctx c = {sp.file, opts, err, -1};
     ncv_var *v = calloc(1, sizeof *v);
     cdvr_volume local = *head, *vol = NULL;
     if (!v) {

@@ -155,7 +155,7 @@ static cdvr_status read_nifti_data(const char *path, const nifti_image *nim, voi
  * buffer of file values converted (and scaled) to f32. */
 static cdvr_status load_voxels(const char *path, const nifti_image *nim, cdvr_volume *vol,
                                cdvr_value_reader reader, int native, int scaled, double slope,
-                               double inter, cdvr_error *err)
+                               double inter, const cdvr_raw_opts *opts, cdvr_error *err)
 {
     size_t count = cdvr_volume_voxels(vol) * vol->timesteps, bytes;
     if (nim->nbyper <= 0 || !cdvr_size_mul(count, (size_t)nim->nbyper, &bytes))
@@ -168,23 +168,22 @@ static cdvr_status load_voxels(const char *path, const nifti_image *nim, cdvr_vo
     cdvr_status st = read_nifti_data(path, nim, buf, bytes, err);
     float *dst = vol->data;
     double lo = INFINITY, hi = -INFINITY;
+    cdvr_f32_guard guard;
+    cdvr_f32_guard_init(&guard, opts);
     for (size_t i = 0; st == CDVR_OK && i < count; i++) {
         double v = reader(buf, i), w = scaled ? v * slope + inter : v;
         if (isfinite(w)) {
             lo = w < lo ? w : lo;
             hi = w > hi ? w : hi;
         }
-        if (isfinite(w) && fabs(w) > FLT_MAX)
-            st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI value %g (%s %g, voxel %zu from "
-                                "0, scl_slope %g, scl_inter %g) is beyond the range of f32, the "
-                                "type cdvr loads it as", path, w,
-                                nifti_datatype_string(nim->datatype), v, i, scaled ? slope : 1.0,
-                                scaled ? inter : 0.0);
-        dst[i] = (float)w;
+        dst[i] = cdvr_f32_guard_put(&guard, w, i);
     }
     free(buf);
     vol->window[0] = lo <= hi ? lo : 0; /* the window in double (cdvr/volume.h) */
     vol->window[1] = lo <= hi ? hi : 0;
+    if (st == CDVR_OK)
+        st = cdvr_f32_guard_finish(&guard, path, scaled ? "NIfTI (after scl_slope, scl_inter)" : "NIfTI",
+                                   vol->source_type, vol, err);
     return st;
 }
 
@@ -430,12 +429,12 @@ static cdvr_status describe(const char *path, const nifti_image *nim, cdvr_volum
     return st;
 }
 
-static cdvr_status nifti_to_volume(const char *path, const nifti_image *nim, uint64_t max_bytes,
-                                   cdvr_volume **out, cdvr_error *err)
+static cdvr_status nifti_to_volume(const char *path, const nifti_image *nim,
+                                   const cdvr_raw_opts *opts, cdvr_volume **out, cdvr_error *err)
 {
     cdvr_volume head = {0};
     nifti_values vals;
-    cdvr_status st = describe(path, nim, &head, &vals, max_bytes, err);
+    cdvr_status st = describe(path, nim, &head, &vals, cdvr_load_max_bytes(opts), err);
     if (st == CDVR_OK)
         st = cdvr_volume_create(head.dims, head.timesteps, head.type, out, err);
     if (st != CDVR_OK)
@@ -446,8 +445,9 @@ static cdvr_status nifti_to_volume(const char *path, const nifti_image *nim, uin
         return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NIfTI voxel count %zu does not match its dims",
                               path, nim->nvox);
     }
+    memcpy((*out)->source_type, head.source_type, sizeof head.source_type); /* names the type */
     st = load_voxels(path, nim, *out, vals.reader, vals.native, vals.scaled, vals.slope, vals.inter,
-                     err);
+                     opts, err);
     if (st != CDVR_OK) {
         cdvr_volume_free(*out);
         *out = NULL;
@@ -466,7 +466,7 @@ static cdvr_status load_nifti(const char *path, const cdvr_raw_opts *opts, cdvr_
     cdvr_status st = open_header(path, &nim, err);
     if (st != CDVR_OK)
         return st;
-    st = nifti_to_volume(path, nim, cdvr_load_max_bytes(opts), out, err);
+    st = nifti_to_volume(path, nim, opts, out, err);
     nifti_image_free(nim);
     return st;
 }

@@ -200,6 +200,7 @@ typedef struct value_sink {
     const char *path, *tname;
     cdvr_error *err;
     double lo, hi;                 /* range of the converted values, in double */
+    cdvr_f32_guard guard;          /* values beyond f32 (volume_io.h) */
 } value_sink;
 
 /* n whole values at p (n <= 512 when converting). */
@@ -223,16 +224,11 @@ static int put_values(value_sink *k, const unsigned char *p, size_t n)
     float *d = (float *)k->dst + k->done;
     for (size_t i = 0; i < n; i++) {
         double v = k->reader(tmp, i);
-        if (isfinite(v) && fabs(v) > FLT_MAX)
-            return cdvr_error_set(k->err, CDVR_ERR_FORMAT, "%s: NRRD value %g (%s, value %llu "
-                                  "from 0) is beyond the range of f32, the type cdvr loads %s "
-                                  "as", k->path, v, k->tname, (unsigned long long)(k->done + i),
-                                  k->tname) && 0;
         if (isfinite(v)) {
             k->lo = v < k->lo ? v : k->lo;
             k->hi = v > k->hi ? v : k->hi;
         }
-        d[i] = (float)v;
+        d[i] = cdvr_f32_guard_put(&k->guard, v, k->done + i);
     }
     k->done += n;
     return 1;
@@ -320,7 +316,8 @@ static cdvr_status load_nrrd(const char *path, const cdvr_raw_opts *opts, cdvr_v
         memcpy((*out)->direction, head.direction, sizeof head.direction);
         value_sink k = {(*out)->data, nrrdElementSize(nrrd), cdvr_nrrd_swap(src), reader, 0,
                         (uint64_t)cdvr_volume_voxels(*out) * timesteps, {0}, 0, path,
-                        airEnumStr(nrrdType, nrrd->type), err, INFINITY, -INFINITY};
+                        airEnumStr(nrrdType, nrrd->type), err, INFINITY, -INFINITY, {0}};
+        cdvr_f32_guard_init(&k.guard, opts);
         if (cdvr_nrrd_streamable(src))
             st = cdvr_nrrd_stream(src, sink_bytes, &k, err);
         else
@@ -332,6 +329,7 @@ static cdvr_status load_nrrd(const char *path, const cdvr_raw_opts *opts, cdvr_v
         if (st == CDVR_OK && reader) { /* converted: the window in double (cdvr/volume.h) */
             (*out)->window[0] = k.lo <= k.hi ? k.lo : 0;
             (*out)->window[1] = k.lo <= k.hi ? k.hi : 0;
+            st = cdvr_f32_guard_finish(&k.guard, path, "NRRD", (*out)->source_type, *out, err);
         }
         if (st != CDVR_OK) {
             cdvr_volume_free(*out);

@@ -52,6 +52,7 @@ static cdvr_status append_frames(cdvr_volume *series, const cdvr_volume *next, c
     memcpy((unsigned char *)data + old_bytes, next->data, bytes - old_bytes);
     series->data = data;
     series->timesteps = timesteps;
+    series->beyond_f32 += next->beyond_f32;
     return CDVR_OK;
 }
 

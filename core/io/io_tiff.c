@@ -290,13 +290,15 @@ static cdvr_status tiff_read_pages(const char *path, TIFF *tif, tiff_ctx *ctx,
     return st;
 }
 
+static cdvr_status load_stack(const char *where, const cdvr_raw_opts *opts, cdvr_volume **out,
+                              cdvr_error *err);
+
 static cdvr_status tiff_load(const char *path, const cdvr_raw_opts *opts, cdvr_volume **out,
                              cdvr_error *err)
 {
-    (void)opts;
     *out = NULL;
     if (is_dir(path))
-        return cdvr_tiff_load_stack(path, out, err);
+        return load_stack(path, opts, out, err);
     tiff_ctx ctx = {""};
     TIFF *tif;
     tiff_shape s = {0};
@@ -305,7 +307,7 @@ static cdvr_status tiff_load(const char *path, const cdvr_raw_opts *opts, cdvr_v
         return st;
     cdvr_volume head = {.spacing = {1, 1, 1}}, *vol = NULL;
     cdvr_io_range range;
-    cdvr_io_range_init(&range);
+    cdvr_io_range_init(&range, opts);
     st = tiff_shape_of(path, tif, &s, err);
     if (st == CDVR_OK) {
         tiff_head(&s, &head);
@@ -319,7 +321,11 @@ static cdvr_status tiff_load(const char *path, const cdvr_raw_opts *opts, cdvr_v
         return st;
     }
     memcpy(vol->spacing, head.spacing, sizeof head.spacing);
-    cdvr_io_finish(vol, s.type, &range);
+    st = cdvr_io_finish(vol, s.type, &range, path, "TIFF", err);
+    if (st != CDVR_OK) {
+        cdvr_volume_free(vol);
+        return st;
+    }
     *out = vol;
     return CDVR_OK;
 }
@@ -478,7 +484,8 @@ cdvr_status cdvr_tiff_probe_stack(const char *where, cdvr_volume *head, size_t *
     return st;
 }
 
-cdvr_status cdvr_tiff_load_stack(const char *where, cdvr_volume **out, cdvr_error *err)
+static cdvr_status load_stack(const char *where, const cdvr_raw_opts *opts, cdvr_volume **out,
+                              cdvr_error *err)
 {
     *out = NULL;
     cdvr_volume head;
@@ -491,7 +498,7 @@ cdvr_status cdvr_tiff_load_stack(const char *where, cdvr_volume **out, cdvr_erro
     if (st == CDVR_OK)
         st = cdvr_volume_create(head.dims, 1, head.type, &vol, err);
     cdvr_io_range range;
-    cdvr_io_range_init(&range);
+    cdvr_io_range_init(&range, opts);
     cdvr_io_etype type = CDVR_IO_U8;
     for (size_t i = 0; st == CDVR_OK && i < n; i++) {
         tiff_ctx ctx = {""};
@@ -516,9 +523,18 @@ cdvr_status cdvr_tiff_load_stack(const char *where, cdvr_volume **out, cdvr_erro
         return st;
     }
     memcpy(vol->spacing, head.spacing, sizeof head.spacing);
-    cdvr_io_finish(vol, type, &range);
+    st = cdvr_io_finish(vol, type, &range, where, "TIFF", err);
+    if (st != CDVR_OK) {
+        cdvr_volume_free(vol);
+        return st;
+    }
     *out = vol;
     return CDVR_OK;
+}
+
+cdvr_status cdvr_tiff_load_stack(const char *where, cdvr_volume **out, cdvr_error *err)
+{
+    return load_stack(where, NULL, out, err);
 }
 
 /* "II*\0", "MM\0*" (classic) and the BigTIFF forms (43). */

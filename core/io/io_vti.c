@@ -34,6 +34,7 @@ enum { COMP_NONE, COMP_ZLIB, COMP_LZ4 };
 
 typedef struct vti_parse {
     const char *path, *want; /* want: the array asked for, or NULL */
+    const cdvr_raw_opts *opts; /* the load options (the f32 rule), or NULL */
     int probe;               /* stop at the chosen DataArray */
     cdvr_error *err;
     cdvr_status st;
@@ -512,7 +513,7 @@ static cdvr_status vti_voxels(const vti_parse *v, const cdvr_io_map *map, cdvr_v
 {
     size_t count = cdvr_volume_voxels(vol), esize = cdvr_io_etype_size(v->type);
     cdvr_io_range range;
-    cdvr_io_range_init(&range);
+    cdvr_io_range_init(&range, v->opts);
     if (v->format == FMT_ASCII) {
         size_t pos = 0;
         double x;
@@ -526,8 +527,7 @@ static cdvr_status vti_voxels(const vti_parse *v, const cdvr_io_map *map, cdvr_v
         if (cdvr_io_ascii_number(v->text, v->text_n, &pos, &x))
             return cdvr_error_set(v->err, CDVR_ERR_FORMAT, "%s: DataArray '%s' holds more than "
                                   "the extent's %zu values", v->path, v->name, count);
-        cdvr_io_finish(vol, v->type, &range);
-        return CDVR_OK;
+        return cdvr_io_finish(vol, v->type, &range, v->path, "VTK", v->err);
     }
     src s = {v->text, v->text_n, 0, 1};
     if (v->format == FMT_APPENDED) {
@@ -548,8 +548,7 @@ static cdvr_status vti_voxels(const vti_parse *v, const cdvr_io_map *map, cdvr_v
         if (src_left(&s) < bytes)
             return block_error(v, "the block is longer than the file", bytes, src_left(&s));
         cdvr_io_store(vol, 0, s.p + s.pos, v->type, v->big_endian, count, &range);
-        cdvr_io_finish(vol, v->type, &range);
-        return CDVR_OK;
+        return cdvr_io_finish(vol, v->type, &range, v->path, "VTK", v->err);
     }
     uint8_t *buf = malloc(bytes);
     if (!buf)
@@ -558,7 +557,7 @@ static cdvr_status vti_voxels(const vti_parse *v, const cdvr_io_map *map, cdvr_v
                                                 : read_compressed(v, &s, buf, bytes);
     if (st == CDVR_OK) {
         cdvr_io_store(vol, 0, buf, v->type, v->big_endian, count, &range);
-        cdvr_io_finish(vol, v->type, &range);
+        st = cdvr_io_finish(vol, v->type, &range, v->path, "VTK", v->err);
     }
     free(buf);
     return st;
@@ -603,15 +602,15 @@ static cdvr_status vti_probe_file(const char *path, const char *array, cdvr_volu
     return st;
 }
 
-static cdvr_status vti_load_file(const char *path, const char *array, cdvr_volume **out,
-                                 cdvr_vti_info *info, cdvr_error *err)
+static cdvr_status vti_load_file(const char *path, const char *array, const cdvr_raw_opts *opts,
+                                 cdvr_volume **out, cdvr_vti_info *info, cdvr_error *err)
 {
     *out = NULL;
     cdvr_io_map map;
     cdvr_status st = cdvr_io_map_open(path, &map, err);
     if (st != CDVR_OK)
         return st;
-    vti_parse v = {.path = path, .want = array, .err = err};
+    vti_parse v = {.path = path, .want = array, .opts = opts, .err = err};
     cdvr_volume head, *vol = NULL;
     preset(&head);
     st = vti_header(&v, &map);
@@ -647,8 +646,8 @@ static int is_vti(const char *path)
 
 cdvr_status cdvr_vtk_legacy_probe(const char *path, const char *array, cdvr_volume *head,
                                   cdvr_vti_info *info, cdvr_error *err);
-cdvr_status cdvr_vtk_legacy_load(const char *path, const char *array, cdvr_volume **out,
-                                 cdvr_vti_info *info, cdvr_error *err);
+cdvr_status cdvr_vtk_legacy_load(const char *path, const char *array, const cdvr_raw_opts *opts,
+                                 cdvr_volume **out, cdvr_vti_info *info, cdvr_error *err);
 
 cdvr_status cdvr_vti_probe(const char *path, const char *array, cdvr_volume *head,
                            cdvr_vti_info *info, cdvr_error *err)
@@ -661,8 +660,8 @@ cdvr_status cdvr_vti_probe(const char *path, const char *array, cdvr_volume *hea
 cdvr_status cdvr_vti_load(const char *path, const char *array, cdvr_volume **out,
                           cdvr_vti_info *info, cdvr_error *err)
 {
-    return is_vti(path) ? vti_load_file(path, array, out, info, err)
-                        : cdvr_vtk_legacy_load(path, array, out, info, err);
+    return is_vti(path) ? vti_load_file(path, array, NULL, out, info, err)
+                        : cdvr_vtk_legacy_load(path, array, NULL, out, info, err);
 }
 
 /* The array the load option select= names (cdvr_raw_opts.select), or NULL: the default. */
@@ -695,7 +694,7 @@ static cdvr_status vti_probe(const char *path, const cdvr_raw_opts *opts, cdvr_v
 static cdvr_status vti_load(const char *path, const cdvr_raw_opts *opts, cdvr_volume **out,
                             cdvr_error *err)
 {
-    return vti_load_file(path, selected_array(opts), out, NULL, err);
+    return vti_load_file(path, selected_array(opts), opts, out, NULL, err);
 }
 
 static const char *const vti_suffixes[] = {".vti", NULL};

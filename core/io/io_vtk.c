@@ -31,6 +31,7 @@
 
 typedef struct vtk_parse {
     const char *path, *want;
+    const cdvr_raw_opts *opts; /* the load options (the f32 rule), or NULL */
     cdvr_error *err;
     const cdvr_io_map *map;
     size_t pos; /* next byte of the file */
@@ -224,7 +225,7 @@ static cdvr_status vtk_voxels(vtk_parse *v, cdvr_volume *vol)
 {
     size_t count = v->points, esize = cdvr_io_etype_size(v->type);
     cdvr_io_range range;
-    cdvr_io_range_init(&range);
+    cdvr_io_range_init(&range, v->opts);
     if (v->binary) {
         if (count > (v->map->n - v->data_at) / esize)
             return cdvr_error_set(v->err, CDVR_ERR_FORMAT, "%s: legacy VTK: SCALARS '%s' need "
@@ -242,8 +243,7 @@ static cdvr_status vtk_voxels(vtk_parse *v, cdvr_volume *vol)
             cdvr_io_store_double(vol, i, x, &range);
         }
     }
-    cdvr_io_finish(vol, v->type, &range);
-    return CDVR_OK;
+    return cdvr_io_finish(vol, v->type, &range, v->path, "legacy VTK", v->err);
 }
 
 static void fill_info(const vtk_parse *v, cdvr_vti_info *info)
@@ -272,15 +272,15 @@ cdvr_status cdvr_vtk_legacy_probe(const char *path, const char *array, cdvr_volu
     return st;
 }
 
-cdvr_status cdvr_vtk_legacy_load(const char *path, const char *array, cdvr_volume **out,
-                                 cdvr_vti_info *info, cdvr_error *err)
+cdvr_status cdvr_vtk_legacy_load(const char *path, const char *array, const cdvr_raw_opts *opts,
+                                 cdvr_volume **out, cdvr_vti_info *info, cdvr_error *err)
 {
     *out = NULL;
     cdvr_io_map map;
     cdvr_status st = cdvr_io_map_open(path, &map, err);
     if (st != CDVR_OK)
         return st;
-    vtk_parse v = {.path = path, .want = array, .err = err, .map = &map};
+    vtk_parse v = {.path = path, .want = array, .opts = opts, .err = err, .map = &map};
     cdvr_volume head = {.spacing = {1, 1, 1}}, *vol = NULL;
     st = vtk_header(&v);
     if (st == CDVR_OK)
@@ -334,7 +334,7 @@ static cdvr_status vtk_probe(const char *path, const cdvr_raw_opts *opts, cdvr_v
 static cdvr_status vtk_load(const char *path, const cdvr_raw_opts *opts, cdvr_volume **out,
                             cdvr_error *err)
 {
-    return cdvr_vtk_legacy_load(path, selected_array(opts), out, NULL, err);
+    return cdvr_vtk_legacy_load(path, selected_array(opts), opts, out, NULL, err);
 }
 
 static const char *const vtk_suffixes[] = {".vtk", NULL};

@@ -273,6 +273,7 @@ cdvr_status cdvr_volume_slice_time(const cdvr_volume *vol, size_t t0, size_t cou
     memcpy((*out)->origin, vol->origin, sizeof vol->origin);
     memcpy((*out)->direction, vol->direction, sizeof vol->direction);
     memcpy((*out)->source_type, vol->source_type, sizeof vol->source_type);
+    (*out)->beyond_f32 = vol->beyond_f32;
     cdvr_volume_window_peek(vol, (*out)->window);
     memcpy((*out)->data, cdvr_volume_frame(vol, t0), count * cdvr_volume_frame_bytes(vol));
     return CDVR_OK;
@@ -315,6 +316,32 @@ float cdvr_double_to_f32(double v)
     if (v < -FLT_MAX)
         return -INFINITY;
     return (float)v;
+}
+
+void cdvr_f32_guard_init(cdvr_f32_guard *g, const cdvr_raw_opts *opts)
+{
+    memset(g, 0, sizeof *g);
+    g->accept_inf = opts && opts->f32_overflow_inf;
+}
+
+cdvr_status cdvr_f32_guard_finish(const cdvr_f32_guard *g, const char *file, const char *what,
+                                  const char *source_type, cdvr_volume *vol, cdvr_error *err)
+{
+    if (!g->beyond || g->accept_inf) {
+        vol->beyond_f32 = g->beyond;
+        return CDVR_OK;
+    }
+    size_t plane = vol->dims[0] * vol->dims[1], frame = plane * vol->dims[2];
+    uint64_t at = g->first_at, in = frame ? at % frame : 0;
+    return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: %s value %g (%s, voxel (%llu,%llu,%llu) of "
+                          "timestep %llu from 0) is beyond the range of f32, the type cdvr loads "
+                          "%s as (%llu such value%s); load with f32_overflow = \"inf\" to accept "
+                          "them as +-Inf", file, what, g->first, source_type,
+                          (unsigned long long)(vol->dims[0] ? in % vol->dims[0] : 0),
+                          (unsigned long long)(vol->dims[0] ? in / vol->dims[0] % vol->dims[1] : 0),
+                          (unsigned long long)(plane ? in / plane : 0),
+                          (unsigned long long)(frame ? at / frame : 0), source_type,
+                          (unsigned long long)g->beyond, g->beyond == 1 ? "" : "s");
 }
 
 void cdvr_convert_to_f32(float *dst, const void *src, size_t count, cdvr_value_reader read)

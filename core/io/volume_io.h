@@ -3,6 +3,9 @@
 #ifndef CDVR_VOLUME_IO_H
 #define CDVR_VOLUME_IO_H
 
+#include <float.h>
+#include <math.h>
+
 #include "cdvr/volume.h"
 
 /* Byte count of dims[0]*dims[1]*dims[2]*timesteps voxels of `type`; 0 on overflow. */
@@ -24,8 +27,34 @@ void cdvr_swap_bytes(void *data, size_t count, size_t elem_size);
 int cdvr_host_is_little_endian(void);
 
 /* v as f32: values beyond float's range become +-Inf, NaN stays NaN, the rest round to
- * nearest. This is the rule for every type converted to f32 on load (i8, u32, i32, f64, ...). */
+ * nearest. Loaders do not call it alone: cdvr_f32_guard_put below refuses such values unless
+ * the load options accept +-Inf. */
 float cdvr_double_to_f32(double v);
+
+/* The one rule for values beyond f32 (cdvr_raw_opts.f32_overflow_inf): a loader that converts
+ * a file's values to f32 passes each through cdvr_f32_guard_put (which counts the finite ones
+ * beyond FLT_MAX and gives cdvr_double_to_f32 of it) and ends with cdvr_f32_guard_finish. */
+typedef struct cdvr_f32_guard {
+    int accept_inf;    /* opts->f32_overflow_inf */
+    uint64_t beyond;   /* finite values beyond f32 seen */
+    uint64_t first_at; /* element index (from 0, over all timesteps) of the first one */
+    double first;      /* its value */
+} cdvr_f32_guard;
+void cdvr_f32_guard_init(cdvr_f32_guard *g, const cdvr_raw_opts *opts);
+static inline float cdvr_f32_guard_put(cdvr_f32_guard *g, double v, uint64_t at)
+{
+    if (fabs(v) > FLT_MAX && isfinite(v) && g->beyond++ == 0) {
+        g->first_at = at;
+        g->first = v;
+    }
+    return cdvr_double_to_f32(v);
+}
+/* After the last value: when values went beyond f32 and the options did not accept them,
+ * CDVR_ERR_FORMAT: "FILE: WHAT value V (SOURCE_TYPE, voxel (x,y,z) of timestep t) is beyond the
+ * range of f32, ... (N such values); load with f32_overflow = \"inf\" ..." (what e.g. "NRRD",
+ * source_type the file's element type name); else sets vol->beyond_f32 to the count. */
+cdvr_status cdvr_f32_guard_finish(const cdvr_f32_guard *g, const char *file, const char *what,
+                                  const char *source_type, cdvr_volume *vol, cdvr_error *err);
 
 /* Converts `count` values from a source array (read through `read`) to f32 in dst. */
 typedef double (*cdvr_value_reader)(const void *src, size_t i);

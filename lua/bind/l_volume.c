@@ -207,9 +207,12 @@ static int volume_tostring(lua_State *L)
         return 1;
     }
     const cdvr_volume *v = ud->vol ? ud->vol : &ud->lazy->head;
-    char conv[48] = "";
+    char conv[96] = "";
     if (cdvr_volume_converted(v))
         snprintf(conv, sizeof conv, ", converted from %s", v->source_type);
+    if (v->beyond_f32)
+        snprintf(conv + strlen(conv), sizeof conv - strlen(conv), ", %llu values beyond f32 as +-Inf",
+                 (unsigned long long)v->beyond_f32);
     lua_pushfstring(L, "cdvr.Volume %dx%dx%d x %d %s%s%s (%p)", (int)v->dims[0], (int)v->dims[1],
                     (int)v->dims[2], (int)v->timesteps, cdvr_type_name(v->type), conv,
                     ud->vol ? "" : ", read from its files as needed", (void *)ud);
@@ -254,6 +257,10 @@ static int volume_info(lua_State *L)
     }
     lua_pushboolean(L, cdvr_volume_converted(v));
     lua_setfield(L, -2, "converted");
+    if (v->beyond_f32) {
+        lua_pushinteger(L, (lua_Integer)v->beyond_f32);
+        lua_setfield(L, -2, "beyond_f32");
+    }
     lua_pushboolean(L, ud->vol == NULL);
     lua_setfield(L, -2, "lazy");
     if (ud->lazy) {
@@ -739,6 +746,19 @@ static void limit_fields(lua_State *L, int idx, cdvr_raw_opts *raw)
                        "variable name), got %s", luaL_typename(L, -1));
     raw->select = lua_tostring(L, -1); /* the string stays in the options table (arg idx) */
     lua_pop(L, 1);
+    static const char *const overflow[] = {"refuse", "inf", NULL};
+    lua_getfield(L, idx, "f32_overflow");
+    if (!lua_isnil(L, -1)) {
+        const char *o = lua_type(L, -1) == LUA_TSTRING ? lua_tostring(L, -1) : NULL;
+        int k = 0;
+        while (o && overflow[k] && strcmp(o, overflow[k]) != 0)
+            k++;
+        if (!o || !overflow[k])
+            lcdvr_error(L, "option 'f32_overflow': \"refuse\" or \"inf\" expected, got %s",
+                        luaL_tolstring(L, -1, NULL));
+        raw->f32_overflow_inf = k == 1;
+    }
+    lua_pop(L, 1);
 }
 
 /* Reads the raw/loader options of table idx (may be none). Returns 1 when raw dims and type
@@ -779,7 +799,7 @@ static int push_load_result(lua_State *L, cdvr_status st, cdvr_volume *vol, cons
 static int l_load(lua_State *L)
 {
     static const char *const keys[] = {"dims", "type", "endian", "header", "timesteps", "spacing",
-                                       "allow_outside", "max_bytes", "select", NULL};
+                                       "allow_outside", "max_bytes", "select", "f32_overflow", NULL};
     lcdvr_checkoptions(L, 2, "cdvr.load", keys);
     const char *path = luaL_checkstring(L, 1);
     cdvr_raw_opts raw;
@@ -856,7 +876,7 @@ static void series_names_from_path(lua_State *L, const char *where, int opts)
 static int l_load_series(lua_State *L)
 {
     static const char *const keys[] = {"dims", "type", "endian", "header", "timesteps", "spacing",
-                                       "first", "count", "last", "allow_outside", "max_bytes", "select",
+                                       "first", "count", "last", "allow_outside", "max_bytes", "select", "f32_overflow",
                                        NULL};
     lcdvr_checkoptions(L, 2, "cdvr.load_series", keys);
     cdvr_raw_opts raw;
@@ -1034,7 +1054,8 @@ int lcdvr_open_volume(lua_State *L)
                    "or raw with opts {dims=, type=, endian=, header=, timesteps=, spacing=}; "
                    "allow_outside=true lets a NRRD header name data files outside its directory, max_bytes= caps the "
                    "voxel bytes a file may claim (default half the physical memory); select= names the object inside "
-                   "the file (array, DICOM series, HDF5 dataset, NetCDF variable); "
+                   "the file (array, DICOM series, HDF5 dataset, NetCDF variable); f32_overflow=\"inf\" loads a value beyond "
+                   "f32 (of a float64 file) as +-Inf instead of refusing it (v:info().beyond_f32 counts them); "
                    "a file that cannot be read raises an error naming it and the reason");
     lcdvr_help_add(L, "cdvr.formats()",
                    "list of file formats: {name, description, suffixes, magic, series, described, plugin}");
@@ -1045,7 +1066,8 @@ int lcdvr_open_volume(lua_State *L)
                    ".pvd collection (times kept: v:times()) or a list of names; raises naming a file that cannot be read");
     lcdvr_help_add(L, "v:info()",
                    "{type=, source_type= (the file's element type, e.g. \"float64\"), converted= (true when the "
-                   "values became f32), lazy=, files= (a series), times= (a .pvd series)}");
+                   "values became f32), beyond_f32= (values loaded as +-Inf, f32_overflow=\"inf\"), lazy=, files= (a series), "
+                   "times= (a .pvd series)}");
     lcdvr_help_add(L, "v:times()", "time values of a series read from .pvd collections (one per timestep), else nil");
     lcdvr_help_add(L, "cdvr.volume{dims=, type=, timesteps=}", "new zero-filled volume");
     lcdvr_help_add(L, "cdvr.generate(name [, opts])",

@@ -39,5 +39,23 @@ raises(function() cdvr.load(hdr, {max_bytes = 0}) end,
 raises(function() cdvr.load(hdr, {max_bytes = 1.5}) end,
        "option 'max_bytes': positive integer expected", "max_bytes not an integer")
 
+-- the f32 rule (issue 23 item 8): a float64 value beyond f32 is refused unless f32_overflow="inf"
+write("big.nrrd", "NRRD0004\ntype: double\ndimension: 3\nsizes: 2 1 1\nendian: little\n" ..
+      "encoding: raw\n\n" .. string.pack("<dd", 1e300, -2.5))
+local big = dir .. "/big.nrrd"
+raises(function() cdvr.load(big) end, 'value 1e+300 (float64, voxel (0,0,0) of timestep 0 from 0) ' ..
+       'is beyond the range of f32', "a value beyond f32 refused")
+raises(function() cdvr.load_series({big, big}):get(0, 0, 0, 2) end, 'f32_overflow = "inf"',
+       "a lazy series refuses too when it reads the frame")
+local b = cdvr.load(big, {f32_overflow = "inf"})
+check(b:get(0, 0, 0) == math.huge and b:get(1, 0, 0) == -2.5, "f32_overflow=inf: +Inf and the rest")
+check(b:info().beyond_f32 == 1 and b:info().source_type == "float64", "v:info().beyond_f32")
+check(tostring(b):find("1 values beyond f32 as +-Inf", 1, true), "tostring names it: " .. tostring(b))
+raises(function() cdvr.load(big, {f32_overflow = "refuse"}) end, "beyond the range of f32",
+       "f32_overflow=refuse is the default")
+raises(function() cdvr.load(big, {f32_overflow = true}) end,
+       'option \'f32_overflow\': "refuse" or "inf" expected, got true', "f32_overflow type")
+check(cdvr.load_series({big, big}, {f32_overflow = "inf"}):get(0, 0, 0, 2) == math.huge,
+      "load_series passes f32_overflow to each file")
 os.execute("rm -rf " .. dir)
 checks.finish()

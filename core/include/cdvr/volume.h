@@ -53,6 +53,9 @@ typedef struct cdvr_volume {
      * file (cdvr_volume_create) or the format does not say (a plugin). A type other than the
      * volume's (cdvr_volume_converted) means its values were converted to f32 on load. */
     char source_type[16];
+    /* Appended: how many finite file values lay beyond f32's range and were loaded as +-Inf
+     * because the load options accepted that (cdvr_raw_opts.f32_overflow_inf); 0 otherwise. */
+    uint64_t beyond_f32;
 } cdvr_volume;
 
 /* Bytes per voxel of a type (1, 2, 2, 4). */
@@ -134,6 +137,11 @@ typedef struct cdvr_raw_opts {
      * variable (where the path gives none as FILE:NAME). A format that holds one object ignores
      * it; a name the file does not hold is refused, listing the names it does. */
     const char *select;
+    /* Values beyond f32 (one rule for every loader that converts a file's f64, i64, u64, ... to
+     * f32): a finite value whose magnitude exceeds FLT_MAX is refused (CDVR_ERR_FORMAT naming
+     * the file, the voxel, the value and its file type) unless f32_overflow_inf is nonzero; then
+     * it loads as +-Inf and the count is kept in cdvr_volume.beyond_f32. Appended field. */
+    int f32_overflow_inf;
 } cdvr_raw_opts;
 
 /* The default max_bytes of cdvr_raw_opts: half the physical memory (sysconf), at least 64 MiB;
