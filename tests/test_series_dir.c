@@ -195,6 +195,40 @@ static void test_pvd(void)
     CHECK(v && v->timesteps == 3, "pvd loaded into memory");
     cdvr_volume_free(v);
 
+    /* a directory holding a .pvd next to its .vti files loads through the .pvd (its order and
+     * times), not refused as mixed; two .pvd files are refused naming the count */
+    mkdir_(tmp("pvddir"));
+    write_vti(tmp("pvddir/a.vti"), 3);
+    write_vti(tmp("pvddir/b.vti"), 4);
+    write_vti(tmp("pvddir/c.vti"), 5);
+    write_text(tmp("pvddir/run.pvd"),
+               "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n"
+               "  <Collection>\n"
+               "    <DataSet timestep=\"7\" part=\"0\" file=\"c.vti\"/>\n"
+               "    <DataSet timestep=\"9\" part=\"0\" file=\"a.vti\"/>\n"
+               "  </Collection>\n</VTKFile>\n");
+    s = NULL;
+    CHECK_OK(cdvr_series_open_path(tmp("pvddir"), NULL, &s, &err), err);
+    if (s) {
+        const double *t = cdvr_series_times(s);
+        cdvr_volume *w = NULL;
+        CHECK_OK(cdvr_series_read(s, 0, 2, &w, &err), err);
+        CHECK(cdvr_series_get_info(s)->timesteps == 2 && t && t[0] == 7 && t[1] == 9 && w &&
+                  cdvr_volume_get(w, 0, 0, 0, 0) == 5 && cdvr_volume_get(w, 0, 0, 0, 1) == 3,
+              "a directory with a .pvd: the .pvd's two datasets in its order, times kept");
+        cdvr_volume_free(w);
+        cdvr_series_close(s);
+    }
+    write_text(tmp("pvddir/other.pvd"),
+               "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n"
+               "  <Collection>\n    <DataSet timestep=\"1\" part=\"0\" file=\"b.vti\"/>\n"
+               "  </Collection>\n</VTKFile>\n");
+    s = NULL;
+    cdvr_status st_two = cdvr_series_open_path(tmp("pvddir"), NULL, &s, &err);
+    CHECK(st_two == CDVR_ERR_FORMAT && !s && strstr(err.msg, "2 pvd collections") &&
+              strstr(err.msg, "pvddir"), "two .pvd files refused: %s", err.msg);
+    cdvr_series_close(s);
+
     write_vti(tmp("outside.vti"), 7);
     write_text(tmp("pvd/bad.pvd"),
                "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n"

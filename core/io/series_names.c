@@ -224,6 +224,30 @@ static void describe(const dir_scan *s, char *out, size_t n)
     }
 }
 
+/* The kind of a collection file (a format that expands to a list of files, .pvd) in the
+ * directory, or NULL: such a file, next to the files it lists, stands for the series. */
+static const dir_kind *collection_kind(const dir_scan *s)
+{
+    for (size_t i = 0; i < s->nkinds; i++)
+        if (!s->kinds[i].is_dir && (s->kinds[i].format->expand || s->kinds[i].format->expand_opts))
+            return &s->kinds[i];
+    return NULL;
+}
+
+/* Keeps in l only the files of format f (the collection), freeing the others. */
+static void keep_only(name_list *l, const cdvr_format *const *kinds, const unsigned char *dirs,
+                      const cdvr_format *f)
+{
+    size_t kept = 0;
+    for (size_t i = 0; i < l->count; i++) {
+        if (kinds[i] == f && !dirs[i])
+            l->items[kept++] = l->items[i];
+        else
+            free(l->items[i]);
+    }
+    l->count = kept;
+}
+
 cdvr_status cdvr_series_dir(const char *dir, char ***out, size_t *n, cdvr_error *err)
 {
     *out = NULL;
@@ -286,9 +310,18 @@ cdvr_status cdvr_series_dir(const char *dir, char ***out, size_t *n, cdvr_error 
                                 SERIES_NAMES_MAX);
     }
     closedir(d);
+    const dir_kind *coll = collection_kind(&s);
+    if (st == CDVR_OK && coll && coll->count > 1)
+        st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: the directory holds %zu %s collections "
+                            "(%s ...); give the one to load", dir, coll->count,
+                            coll->format->name, coll->example);
+    else if (st == CDVR_OK && coll)
+        keep_only(&l, kinds, dirs, coll->format);
     free(kinds);
     free(dirs);
-    if (st == CDVR_OK && s.nkinds > 1) {
+    if (st == CDVR_OK && coll) {
+        /* the collection names the series (its other files are its datasets) */
+    } else if (st == CDVR_OK && s.nkinds > 1) {
         char what[CDVR_ERRMSG_MAX / 2];
         describe(&s, what, sizeof what);
         st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: the directory holds several formats: %s; "
