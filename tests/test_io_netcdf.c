@@ -9,7 +9,10 @@
  * lacks, a time dimension that is not first and a conflicting select= are refused naming the
  * variables; a claim above max_bytes is refused before reading; a FIFO is refused without
  * blocking; probe reads the header only (it answers for a netCDF-4 file whose chunk is
- * corrupt, which load refuses).
+ * corrupt, which load refuses); a classic, 64-bit offset or CDF-5 file one byte shorter than
+ * its header implies is refused (load and probe), one missing only its last padding loads;
+ * valid_range / valid_min / valid_max make stored values outside NaN; without a name, the only
+ * 3D variable of a subgroup loads, and several in subgroups are listed with their paths.
  * `test_io_netcdf --write DIR` writes DIR/lua.nc for tests/lua/test_hdf5_netcdf.lua. */
 #include "check.h"
 #include "cdvr/format.h"
@@ -350,6 +353,195 @@ static void test_probe_header_only(void)
           "load of it refused: %s", err.msg);
 }
 
+
+/* A file of `format` (NC_CLASSIC_MODEL-less flags: 0, NC_64BIT_OFFSET, NC_64BIT_DATA) with a
+ * fixed variable f(z=2, y=3, x=4) float, and when recs > 0 an unlimited dimension with nrec
+ * record variables r0.. (time, y=3, x=odd) short: the last record variable ends unpadded
+ * (3 * odd * 2 bytes is not a multiple of 4) unless it is the only one (records packed). */
+static void write_sized(const char *path, int format, size_t recs, int nrec, int odd)
+{
+    int nc, dt, dz, dy, dx, dxo, v;
+    NC(nc_create(path, NC_CLOBBER | format, &nc));
+    NC(nc_def_dim(nc, "z", 2, &dz));
+    NC(nc_def_dim(nc, "y", 3, &dy));
+    NC(nc_def_dim(nc, "x", 4, &dx));
+    NC(nc_def_dim(nc, "xo", (size_t)odd, &dxo));
+    float title = 1.5f;
+    NC(nc_put_att_float(nc, NC_GLOBAL, "some_attribute", NC_FLOAT, 1, &title));
+    NC(nc_put_att_text(nc, NC_GLOBAL, "title", 5, "sized"));
+    int d3[3] = {dz, dy, dx};
+    NC(nc_def_var(nc, "f", NC_FLOAT, 3, d3, &v));
+    NC(nc_put_att_text(nc, v, "units", 1, "K"));
+    if (recs) {
+        NC(nc_def_dim(nc, "time", NC_UNLIMITED, &dt));
+        int dr[3] = {dt, dy, dxo};
+        for (int k = 0; k < nrec; k++) {
+            char name[16];
+            snprintf(name, sizeof name, "r%d", k);
+            NC(nc_def_var(nc, name, NC_SHORT, 3, dr, &v));
+        }
+    }
+    NC(nc_enddef(nc));
+    float f[24];
+    for (int i = 0; i < 24; i++)
+        f[i] = (float)i;
+    NC(nc_put_var_float(nc, 0, f));
+    short r[64];
+    for (int i = 0; i < 64; i++)
+        r[i] = (short)(i + 1);
+    for (int k = 0; k < nrec && recs; k++) {
+        size_t start[3] = {0, 0, 0}, count[3] = {recs, 3, (size_t)odd};
+        NC(nc_put_vara_short(nc, 1 + k, start, count, r));
+    }
+    NC(nc_close(nc));
+}
+
+/* Cuts `cut` bytes off the end of path. */
+static void cut_file(const char *path, off_t cut)
+{
+    struct stat sb;
+    CHECK(stat(path, &sb) == 0 && truncate(path, sb.st_size - cut) == 0, "truncate %s", path);
+}
+
+static void test_truncated(void)
+{
+    static const struct {
+        const char *name;
+        int format, nrec, odd;
+        size_t recs;
+    } cases[] = {
+        {"cdf1 fixed", 0, 0, 5, 0},
+        {"cdf2 two records", NC_64BIT_OFFSET, 2, 5, 3},
+        {"cdf5 one record (packed)", NC_64BIT_DATA, 1, 5, 3},
+        {"cdf1 two records, even", 0, 2, 4, 2},
+    };
+    char p[512], q[600];
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        at(p, sizeof p, "sized.nc");
+        write_sized(p, cases[i].format, cases[i].recs, cases[i].nrec, cases[i].odd);
+        cdvr_error err;
+        cdvr_volume *vol = NULL;
+        snprintf(q, sizeof q, "%s:%s", p, cases[i].nrec ? "r0" : "f");
+        cdvr_status st = cdvr_volume_load(q, NULL, &vol, &err);
+        CHECK(st == CDVR_OK, "%s: the whole file loads: %s", cases[i].name, err.msg);
+        if (st == CDVR_OK && cases[i].nrec)
+            CHECK(vol->timesteps == cases[i].recs && cdvr_volume_get(vol, 0, 0, 0, 0) == 1 &&
+                      cdvr_volume_get(vol, (size_t)cases[i].odd - 1, 2, 0, cases[i].recs - 1) ==
+                          (double)(3 * cases[i].odd * cases[i].recs),
+                  "%s: record values", cases[i].name);
+        cdvr_volume_free(vol);
+        /* the last item's padding may be missing (other writers); one byte of data may not */
+        int pad = cases[i].nrec == 2 && cases[i].odd % 2 ? 2 : 0;
+        if (pad) {
+            cut_file(p, pad);
+            vol = NULL;
+            st = cdvr_volume_load(q, NULL, &vol, &err);
+            CHECK(st == CDVR_OK, "%s: without the last padding loads: %s", cases[i].name, err.msg);
+            cdvr_volume_free(vol);
+        }
+        cut_file(p, 1);
+        vol = NULL;
+        st = cdvr_volume_load(q, NULL, &vol, &err);
+        CHECK(st == CDVR_ERR_FORMAT && !vol && strstr(err.msg, "sized.nc") &&
+                  strstr(err.msg, "truncated") && strstr(err.msg, "header implies"),
+              "%s: one byte short refused: %s", cases[i].name, st == CDVR_OK ? "loaded" : err.msg);
+        cdvr_volume_free(vol);
+        cdvr_volume head;
+        st = cdvr_volume_probe(q, NULL, &head, &err);
+        CHECK(st == CDVR_ERR_FORMAT && strstr(err.msg, "truncated"), "%s: probe refuses too",
+              cases[i].name);
+        unlink(p);
+    }
+}
+
+/* valid_range / valid_min / valid_max (stored units, before scale_factor) to NaN, and a
+ * variable found in a subgroup when no name is given. */
+static void test_valid_and_groups(void)
+{
+    char p[512];
+    at(p, sizeof p, "valid.nc");
+    int nc, dz, dy, dx, v, g, h;
+    NC(nc_create(p, NC_CLOBBER | NC_NETCDF4, &nc));
+    NC(nc_def_dim(nc, "z", 2, &dz));
+    NC(nc_def_dim(nc, "y", 3, &dy));
+    NC(nc_def_dim(nc, "x", 4, &dx));
+    int d3[3] = {dz, dy, dx};
+    NC(nc_def_grp(nc, "obs", &g));
+    NC(nc_def_grp(g, "deep", &h));
+    NC(nc_def_var(h, "a", NC_SHORT, 3, d3, &v)); /* the file's only 3D variable */
+    short range[2] = {2, 20};
+    double scale = 0.5;
+    NC(nc_put_att_short(h, v, "valid_range", NC_SHORT, 2, range));
+    NC(nc_put_att_double(h, v, "scale_factor", NC_DOUBLE, 1, &scale));
+    int vm, vx;
+    NC(nc_def_var(h, "m", NC_FLOAT, 1, &dx, &vm));
+    NC(nc_def_var(h, "n", NC_FLOAT, 1, &dx, &vx));
+    NC(nc_enddef(nc));
+    short a[24];
+    for (int i = 0; i < 24; i++)
+        a[i] = (short)i;
+    NC(nc_put_var_short(h, v, a));
+    NC(nc_close(nc));
+    cdvr_error err;
+    cdvr_volume *vol = NULL;
+    cdvr_status st = cdvr_volume_load(p, NULL, &vol, &err);
+    CHECK_OK(st, err);
+    if (st == CDVR_OK) {
+        size_t bad = 0;
+        for (int i = 0; i < 24; i++) {
+            double got = cdvr_volume_get(vol, (size_t)i % 4, (size_t)i / 4 % 3, (size_t)i / 12, 0);
+            bad += i < 2 || i > 20 ? !isnan(got) : got != 0.5 * i;
+        }
+        CHECK(bad == 0 && vol->type == CDVR_TYPE_F32, "subgroup /obs/deep/a: valid_range [2, 20] "
+              "in stored units, scaled after: %zu voxels differ", bad);
+        double w[2];
+        cdvr_volume_window(vol, w);
+        CHECK(w[0] == 1 && w[1] == 10, "window of the valid values [%g, %g]", w[0], w[1]);
+    }
+    cdvr_volume_free(vol);
+    /* valid_min alone; a valid_max below valid_min refused */
+    NC(nc_open(p, NC_WRITE, &nc));
+    NC(nc_inq_grp_full_ncid(nc, "/obs/deep", &h));
+    NC(nc_inq_varid(h, "a", &v));
+    NC(nc_redef(nc));
+    NC(nc_del_att(h, v, "valid_range"));
+    short lo = 5;
+    NC(nc_put_att_short(h, v, "valid_min", NC_SHORT, 1, &lo));
+    NC(nc_close(nc));
+    vol = NULL;
+    st = cdvr_volume_load(p, NULL, &vol, &err);
+    CHECK(st == CDVR_OK && isnan(cdvr_volume_get(vol, 0, 1, 0, 0)) &&
+              cdvr_volume_get(vol, 1, 1, 0, 0) == 2.5 && cdvr_volume_get(vol, 3, 2, 1, 0) == 11.5,
+          "valid_min 5: below NaN, the rest kept");
+    cdvr_volume_free(vol);
+    NC(nc_open(p, NC_WRITE, &nc));
+    NC(nc_inq_grp_full_ncid(nc, "/obs/deep", &h));
+    NC(nc_redef(nc));
+    short hi = 4;
+    NC(nc_put_att_short(h, v, "valid_max", NC_SHORT, 1, &hi));
+    NC(nc_close(nc));
+    vol = NULL;
+    st = cdvr_volume_load(p, NULL, &vol, &err);
+    CHECK(st == CDVR_ERR_FORMAT && strstr(err.msg, "valid range [5, 4]") && strstr(err.msg, "/obs/deep/a"),
+          "an empty valid range refused: %s", st == CDVR_OK ? "loaded" : err.msg);
+    cdvr_volume_free(vol);
+    /* a second 3D variable in another subgroup: several candidates listed with their paths */
+    NC(nc_open(p, NC_WRITE, &nc));
+    NC(nc_redef(nc));
+    NC(nc_inq_dimid(nc, "z", &dz));
+    NC(nc_inq_dimid(nc, "y", &dy));
+    NC(nc_inq_dimid(nc, "x", &dx));
+    int g2, d3b[3] = {dz, dy, dx};
+    NC(nc_def_grp(nc, "other", &g2));
+    NC(nc_def_var(g2, "b", NC_FLOAT, 3, d3b, &v));
+    NC(nc_close(nc));
+    vol = NULL;
+    st = cdvr_volume_load(p, NULL, &vol, &err);
+    CHECK(st != CDVR_OK && strstr(err.msg, "/obs/deep/a(") && strstr(err.msg, "/other/b("),
+          "two candidates in subgroups listed with their paths: %s", st == CDVR_OK ? "loaded" : err.msg);
+    cdvr_volume_free(vol);
+}
+
 int main(int argc, char **argv)
 {
     if (argc == 3 && strcmp(argv[1], "--write") == 0) { /* tests/lua/test_hdf5_netcdf.lua */
@@ -368,6 +560,8 @@ int main(int argc, char **argv)
     test_nc4();
     test_big_claim();
     test_probe_header_only();
+    test_truncated();
+    test_valid_and_groups();
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
     if (system(cmd) != 0)

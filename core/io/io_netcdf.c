@@ -18,8 +18,12 @@
  * Values: ubyte, short, ushort and float are kept (u8, i16, u16, f32); byte, int, uint, int64,
  * uint64 and double become f32 with the window computed in double. A variable with
  * _FillValue or missing_value (up to 8 values) becomes f32 and those values NaN; scale_factor
- * and add_offset (CF packing) are applied in double (f32 volume). valid_range / valid_min /
- * valid_max are not read.
+ * and add_offset (CF packing) are applied in double (f32 volume). valid_range, else valid_min /
+ * valid_max (CF: in the stored units, before scale_factor) make values outside NaN (f32 volume).
+ * Without a name (FILE:NAME or select=), the only 3D/4D variable of the root group and its
+ * subgroups (netCDF-4; listed with their group paths when there are several).
+ * A classic file shorter than its header implies is refused before any value is read
+ * (check_classic_size).
  * probe reads the header and the coordinate variables, never the variable's values. A load
  * checks the claim against cdvr_load_max_bytes(opts) before allocating (and, for the classic
  * formats, which store values uncompressed, against the file's size). The path is checked as
@@ -31,6 +35,7 @@
 #include "io_common.h"
 #include "volume_io.h"
 
+#include <limits.h>
 #include <math.h>
 #include <netcdf.h>
 #include <stdio.h>
@@ -58,8 +63,9 @@ typedef struct ncv_var {
     nc_type type;
     cdvr_io_etype etype;
     int numeric, series;        /* series: the first dimension is the timesteps */
-    int nfill, scaled;
+    int nfill, scaled, ranged; /* ranged: valid_range, valid_min or valid_max given */
     double fill[NCV_FILL_MAX], scale, offset;
+    double vmin, vmax;         /* the valid range of stored values ([-inf, inf] when none) */
 } ncv_var;
 
 static int nc_etype(nc_type t, cdvr_io_etype *e)
@@ -109,31 +115,39 @@ static void describe_var(int grp, int varid, char *out, size_t n)
 
 typedef struct ncv_list {
     size_t count;
-    int first;
+    int first, first_grp;
     char text[NCV_LIST_MAX + 8];
     size_t len;
 } ncv_list;
 
-/* The root group's variables (only the 3D/4D numeric ones when only_candidates). */
-static void list_vars(const ncv_ctx *c, int only_candidates, ncv_list *l)
+#define NCV_GROUP_DEPTH 32
+
+/* The variables of group grp and, recursively, its subgroups (netCDF-4; a classic file has
+ * only the root), only the 3D/4D numeric ones when only_candidates; a subgroup's variables are
+ * listed with their group path ("/g/u(...)"). */
+static void list_group(int grp, int depth, int only_candidates, ncv_list *l)
 {
-    memset(l, 0, sizeof *l);
-    l->first = -1;
+    char path[NCV_NAME_MAX] = "";
+    size_t plen = 0;
+    if (depth > 0 && nc_inq_grpname_full(grp, &plen, NULL) == NC_NOERR && plen < sizeof path)
+        nc_inq_grpname_full(grp, NULL, path);
     int nvars = 0;
-    nc_inq_nvars(c->ncid, &nvars);
+    nc_inq_nvars(grp, &nvars);
     for (int v = 0; v < nvars; v++) {
         int ndims = 0;
         nc_type t = NC_NAT;
         cdvr_io_etype e;
-        if (nc_inq_var(c->ncid, v, NULL, &t, &ndims, NULL, NULL) != NC_NOERR)
+        if (nc_inq_var(grp, v, NULL, &t, &ndims, NULL, NULL) != NC_NOERR)
             continue;
         if (only_candidates && !((ndims == 3 || ndims == 4) && nc_etype(t, &e)))
             continue;
-        char item[NCV_NAME_MAX + 128], d[NCV_NAME_MAX + 120];
-        describe_var(c->ncid, v, d, sizeof d);
-        snprintf(item, sizeof item, "%s%s", l->count ? ", " : "", d);
-        if (l->first < 0)
+        char item[2 * NCV_NAME_MAX + 128], d[NCV_NAME_MAX + 120];
+        describe_var(grp, v, d, sizeof d);
+        snprintf(item, sizeof item, "%s%s%s%s", l->count ? ", " : "", path, depth ? "/" : "", d);
+        if (l->count == 0) {
             l->first = v;
+            l->first_grp = grp;
+        }
         l->count++;
         size_t k = strlen(item);
         if (l->len + k <= NCV_LIST_MAX) {
@@ -144,6 +158,21 @@ static void list_vars(const ncv_ctx *c, int only_candidates, ncv_list *l)
             l->len = NCV_LIST_MAX + 4;
         }
     }
+    int ngrps = 0;
+    if (depth >= NCV_GROUP_DEPTH || nc_inq_grps(grp, &ngrps, NULL) != NC_NOERR || ngrps <= 0)
+        return;
+    int *ids = malloc((size_t)ngrps * sizeof *ids);
+    if (ids && nc_inq_grps(grp, NULL, ids) == NC_NOERR)
+        for (int i = 0; i < ngrps; i++)
+            list_group(ids[i], depth + 1, only_candidates, l);
+    free(ids);
+}
+
+static void list_vars(const ncv_ctx *c, int only_candidates, ncv_list *l)
+{
+    memset(l, 0, sizeof *l);
+    l->first = -1;
+    list_group(c->ncid, 0, only_candidates, l);
 }
 
 static cdvr_status find_var(const ncv_ctx *c, const char *want, ncv_var *v)
@@ -152,9 +181,19 @@ static cdvr_status find_var(const ncv_ctx *c, const char *want, ncv_var *v)
     v->grp = c->ncid;
     if (!want[0]) {
         list_vars(c, 1, &l);
-        if (l.count == 1) {
+        if (l.count == 1) { /* in the root group or a subgroup */
+            char base[NC_MAX_NAME + 1] = "";
+            size_t plen = 0;
+            v->grp = l.first_grp;
             v->varid = l.first;
-            nc_inq_varname(c->ncid, v->varid, v->name);
+            nc_inq_varname(v->grp, v->varid, base);
+            if (v->grp != c->ncid && nc_inq_grpname_full(v->grp, &plen, NULL) == NC_NOERR &&
+                plen + strlen(base) + 2 < sizeof v->name) {
+                nc_inq_grpname_full(v->grp, NULL, v->name);
+                strcat(v->name, "/");
+            } else
+                v->name[0] = '\0';
+            strcat(v->name, base);
             return CDVR_OK;
         }
         if (l.count == 0) {
@@ -276,6 +315,171 @@ static cdvr_status coordinate(const ncv_ctx *c, const ncv_var *v, int d, int a, 
     return CDVR_OK;
 }
 
+/* ---- the size a classic file's header implies ------------------------------------------------
+ * libnetcdf reads a classic (CDF-1, CDF-2 or CDF-5) file that was cut short without complaint
+ * (its reads past the end give zeros), so the loader checks the size first: the header as the
+ * format encodes it (its length follows from the names, dimensions, attributes and variables
+ * libnetcdf reports), then the fixed-size variables (each padded to 4 bytes) and numrecs
+ * records (the record variables, each padded, unpadded when there is only one). A file must
+ * hold that much (the last item's padding aside); writers that leave free space after the
+ * header (h_minfree) only make it larger, so the bound never refuses a whole file. */
+
+typedef struct classic_sizes {
+    unsigned long long word; /* NON_NEG: 4, CDF-5 8 */
+    unsigned long long header, fixed, record, last_pad;
+} classic_sizes;
+
+static unsigned long long pad4(unsigned long long n) { return (n + 3) / 4 * 4; }
+
+static unsigned long long name_bytes(const classic_sizes *z, const char *name)
+{
+    return z->word + pad4(strlen(name));
+}
+
+static size_t type_bytes(nc_type t)
+{
+    switch (t) {
+    case NC_BYTE: case NC_CHAR: case NC_UBYTE: return 1;
+    case NC_SHORT: case NC_USHORT: return 2;
+    case NC_INT: case NC_UINT: case NC_FLOAT: return 4;
+    default: return 8;
+    }
+}
+
+/* The attribute list of varid (NC_GLOBAL for the file's). */
+static int atts_bytes(int nc, int varid, const classic_sizes *z, unsigned long long *out)
+{
+    int natts = 0;
+    if (nc_inq_varnatts(nc, varid, &natts) != NC_NOERR)
+        return 0;
+    unsigned long long n = 4 + z->word; /* tag and count (ABSENT: ZERO ZERO) */
+    for (int i = 0; i < natts; i++) {
+        char name[NC_MAX_NAME + 1];
+        nc_type t;
+        size_t len;
+        if (nc_inq_attname(nc, varid, i, name) != NC_NOERR ||
+            nc_inq_att(nc, varid, name, &t, &len) != NC_NOERR)
+            return 0;
+        n += name_bytes(z, name) + 4 + z->word + pad4((unsigned long long)len * type_bytes(t));
+    }
+    *out = n;
+    return 1;
+}
+
+static int classic_size(int nc, int format, classic_sizes *z)
+{
+    memset(z, 0, sizeof *z);
+    z->word = format == NC_FORMAT_CDF5 ? 8 : 4;
+    int ndims = 0, nvars = 0, unlim = -1;
+    size_t numrecs = 0;
+    if (nc_inq(nc, &ndims, &nvars, NULL, &unlim) != NC_NOERR)
+        return 0;
+    if (unlim >= 0 && nc_inq_dimlen(nc, unlim, &numrecs) != NC_NOERR)
+        return 0;
+    unsigned long long h = 4 + z->word + 4 + z->word, a; /* magic, numrecs, dim list head */
+    for (int d = 0; d < ndims; d++) {
+        char name[NC_MAX_NAME + 1];
+        if (nc_inq_dimname(nc, d, name) != NC_NOERR)
+            return 0;
+        h += name_bytes(z, name) + z->word;
+    }
+    if (!atts_bytes(nc, NC_GLOBAL, z, &a))
+        return 0;
+    h += a + 4 + z->word; /* global attributes, variable list head */
+    unsigned long long begin = format == NC_FORMAT_CLASSIC ? 4 : 8, last_fixed = 0, last_rec = 0;
+    int nrec = 0;
+    for (int v = 0; v < nvars; v++) {
+        char name[NC_MAX_NAME + 1];
+        nc_type t;
+        int nd, dims[NC_MAX_VAR_DIMS];
+        if (nc_inq_var(nc, v, name, &t, &nd, dims, NULL) != NC_NOERR || !atts_bytes(nc, v, z, &a))
+            return 0;
+        h += name_bytes(z, name) + z->word + (unsigned long long)nd * z->word + a + 4 + z->word +
+             begin;
+        unsigned long long len = type_bytes(t);
+        int record = nd > 0 && dims[0] == unlim;
+        for (int i = record; i < nd; i++) {
+            size_t dl;
+            if (nc_inq_dimlen(nc, dims[i], &dl) != NC_NOERR || (dl && len > ULLONG_MAX / 8 / dl))
+                return 0;
+            len *= dl;
+        }
+        if (record) {
+            nrec++;
+            z->record += pad4(len);
+            last_rec = len;
+        } else {
+            z->fixed += pad4(len);
+            last_fixed = len;
+        }
+    }
+    /* the file ends with the last record (its last record variable) or the last fixed one;
+     * its padding may be missing. One record variable: records packed, no padding. */
+    if (nrec == 1)
+        z->record = last_rec;
+    z->last_pad = nrec && numrecs ? (nrec == 1 ? 0 : pad4(last_rec) - last_rec)
+                                  : pad4(last_fixed) - last_fixed;
+    z->header = h;
+    if (z->record && numrecs > (ULLONG_MAX / 2 - z->fixed - h) / z->record)
+        return 0;
+    z->record *= numrecs;
+    return 1;
+}
+
+/* CDVR_ERR_FORMAT when a classic file is shorter than its header implies (truncated). */
+static cdvr_status check_classic_size(const ncv_ctx *c, size_t file_bytes)
+{
+    int format = 0;
+    nc_inq_format(c->ncid, &format);
+    if (format != NC_FORMAT_CLASSIC && format != NC_FORMAT_64BIT_OFFSET &&
+        format != NC_FORMAT_CDF5)
+        return CDVR_OK; /* netCDF-4: HDF5 checks its own structure */
+    classic_sizes z;
+    if (!classic_size(c->ncid, format, &z))
+        return cdvr_error_set(c->err, CDVR_ERR_FORMAT, "%s: NetCDF: the header's sizes cannot "
+                              "be told or overflow", c->file);
+    unsigned long long need = z.header + z.fixed + z.record;
+    if ((unsigned long long)file_bytes + z.last_pad >= need)
+        return CDVR_OK;
+    return cdvr_error_set(c->err, CDVR_ERR_FORMAT, "%s: NetCDF: the file is truncated: its "
+                          "header implies at least %llu bytes (header %llu, fixed-size data "
+                          "%llu, records %llu), the file holds %zu", c->file, need, z.header,
+                          z.fixed, z.record, file_bytes);
+}
+
+/* CF valid_range (two numbers), else valid_min and/or valid_max, in the stored (packed) units:
+ * values outside become NaN as missing ones do. A range whose ends are NaN or reversed is
+ * refused. (The default range NUG derives from _FillValue alone is not applied.) */
+static cdvr_status valid_range(const ncv_ctx *c, ncv_var *v)
+{
+    double r[2];
+    int n = 0, k;
+    v->vmin = -INFINITY;
+    v->vmax = INFINITY;
+    v->ranged = 0;
+    if ((k = att_numbers(c, v, "valid_range", r, 2, &n)) < 0)
+        return c->err ? c->err->status : CDVR_ERR_FORMAT;
+    if (k && n != 2)
+        return cdvr_error_set(c->err, CDVR_ERR_FORMAT, "%s: NetCDF: variable '%s': valid_range "
+                              "has %d value, not 2", c->file, v->name, n);
+    if (k) {
+        v->vmin = r[0];
+        v->vmax = r[1];
+    } else {
+        if ((k = att_numbers(c, v, "valid_min", &v->vmin, 1, &n)) < 0)
+            return c->err ? c->err->status : CDVR_ERR_FORMAT;
+        v->ranged |= k;
+        if ((k = att_numbers(c, v, "valid_max", &v->vmax, 1, &n)) < 0)
+            return c->err ? c->err->status : CDVR_ERR_FORMAT;
+    }
+    v->ranged |= k;
+    if (v->ranged && !(v->vmin <= v->vmax))
+        return cdvr_error_set(c->err, CDVR_ERR_FORMAT, "%s: NetCDF: variable '%s': valid range "
+                              "[%g, %g] is empty or not a number", c->file, v->name, v->vmin,
+                              v->vmax);
+    return CDVR_OK;
+}
+
 /* The volume the variable makes into head; v's shape and value attributes. */
 static cdvr_status header(const ncv_ctx *c, ncv_var *v, size_t file_bytes, cdvr_volume *head)
 {
@@ -316,6 +520,7 @@ static cdvr_status header(const ncv_ctx *c, ncv_var *v, size_t file_bytes, cdvr_
     head->timesteps = s0 ? v->len[0] : 1;
     /* value attributes */
     int n = 0, k;
+    cdvr_status st;
     v->nfill = 0;
     v->scale = 1;
     v->offset = 0;
@@ -332,11 +537,13 @@ static cdvr_status header(const ncv_ctx *c, ncv_var *v, size_t file_bytes, cdvr_
     if ((k = att_numbers(c, v, "add_offset", &v->offset, 1, &n)) < 0)
         return c->err ? c->err->status : CDVR_ERR_FORMAT;
     v->scaled |= k;
+    if ((st = valid_range(c, v)) != CDVR_OK)
+        return st;
     if (v->scaled && !(isfinite(v->scale) && isfinite(v->offset)))
         return cdvr_error_set(c->err, CDVR_ERR_FORMAT, "%s: NetCDF: variable '%s': scale_factor "
                               "%g / add_offset %g are not finite", c->file, v->name, v->scale,
                               v->offset);
-    int convert = cdvr_io_etype_converted(v->etype) || v->nfill || v->scaled;
+    int convert = cdvr_io_etype_converted(v->etype) || v->nfill || v->scaled || v->ranged;
     cdvr_io_set_type(head, v->etype); /* source_type: the file's type */
     if (convert)
         head->type = CDVR_TYPE_F32; /* fill values or scale/offset: f32 */
@@ -370,7 +577,7 @@ static cdvr_status read_values(const ncv_ctx *c, const ncv_var *v, cdvr_volume *
     size_t start[4] = {0}, count[4];
     for (int i = 0; i < r; i++)
         count[i] = v->len[i];
-    if (!v->nfill && !v->scaled && !cdvr_io_etype_converted(v->etype)) {
+    if (!v->nfill && !v->scaled && !v->ranged && !cdvr_io_etype_converted(v->etype)) {
         rc = nc_get_vara(v->grp, v->varid, start, count, vol->data); /* the volume's type */
         if (rc == NC_NOERR)
             return CDVR_OK;
@@ -408,7 +615,7 @@ static cdvr_status read_values(const ncv_ctx *c, const ncv_var *v, cdvr_volume *
             int fill = 0;
             for (int f = 0; f < v->nfill; f++)
                 fill |= x == v->fill[f];
-            if (fill) {
+            if (fill || x < v->vmin || x > v->vmax) {
                 dst[p * plane + i] = NAN;
                 continue;
             }
@@ -455,6 +662,8 @@ static cdvr_status ncv_run(const char *path, const cdvr_raw_opts *opts, cdvr_vol
                             sp.file, nc_strerror(rc));
         c.ncid = -1;
     }
+    if (st == CDVR_OK)
+        st = check_classic_size(&c, file_bytes);
     if (st == CDVR_OK)
         st = find_var(&c, sp.name, v);
     if (st == CDVR_OK)
