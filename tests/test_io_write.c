@@ -5,8 +5,10 @@
  * voxels (byte for byte), dims, timesteps, type, spacing, origin and direction (NIfTI: within
  * float32, its header's precision; its qform equals its sform, qfac -1 when left-handed), and
  * the probe agrees. Refusals: a directory or FIFO target
- * (and a .nhdr/.mhd whose data file name is a directory) is refused and left as it was; a .vti
- * series, an unknown suffix and contradictory compress options are refused; a save that fails
+ * (and a .nhdr/.mhd whose data file name is a directory) is refused and left as it was; a
+ * series saved as .vti or .pvd is numbered .vti files and a .pvd with its times, loading back
+ * voxel for voxel (a frame name that is a directory: refused, nothing left); an unknown suffix
+ * and contradictory compress options are refused; a save that fails
  * part way (RLIMIT_FSIZE) leaves nothing in the directory. */
 #include "check.h"
 #include "cdvr/write.h"
@@ -164,7 +166,7 @@ static void round_trip(const fmt *f, cdvr_type type, size_t t, int compress, int
     snprintf(what, sizeof what, "%s%s", name, left ? " (left-handed)" : "");
     cdvr_volume *v = make(type, t, left);
     cdvr_error err;
-    cdvr_save_opts o = {compress};
+    cdvr_save_opts o = {compress, NULL};
     cdvr_status st = cdvr_volume_save(v, path, &o, &err);
     CHECK_OK(st, err);
     if (st == CDVR_OK) {
@@ -249,16 +251,21 @@ static void refusals(void)
         CHECK(entries() == 1, "%s: %d entries left", detached[i][0], entries());
         rmdir(data);
     }
-    /* a .vti series, an unknown suffix, contradictory compress */
+    /* a .vti series whose second frame's name is a directory: refused, the first frame gone */
+    path_of(path, sizeof path, "s_0001.vti");
+    mkdir(path, 0755);
     path_of(path, sizeof path, "s.vti");
     cdvr_status st = cdvr_volume_save(s, path, NULL, &err);
-    CHECK(st == CDVR_ERR_UNSUPPORTED && strstr(err.msg, "s.vti") && strstr(err.msg, "timesteps"),
-          "vti series: %d %s", (int)st, err.msg);
+    CHECK(st == CDVR_ERR_IO && strstr(err.msg, "s_0001.vti") && entries() == 1,
+          "vti series over a directory: %d %s, %d entries", (int)st, err.msg, entries());
+    path_of(path, sizeof path, "s_0001.vti");
+    rmdir(path);
+    /* an unknown suffix, contradictory compress */
     path_of(path, sizeof path, "v.png");
     st = cdvr_volume_save(v, path, NULL, &err);
     CHECK(st == CDVR_ERR_ARG && strstr(err.msg, "v.png") && strstr(err.msg, ".mhd"), "png: %s",
           err.msg);
-    cdvr_save_opts on = {1}, off = {0};
+    cdvr_save_opts on = {1, NULL}, off = {0, NULL};
     path_of(path, sizeof path, "v.nii");
     st = cdvr_volume_save(v, path, &on, &err);
     CHECK(st == CDVR_ERR_ARG && strstr(err.msg, ".nii.gz"), "nii compress: %s", err.msg);
@@ -305,6 +312,43 @@ static void refusals(void)
     cdvr_volume_free(s);
 }
 
+/* A series saved as .vti or .pvd: NAME_0000.vti ... and NAME.pvd with the times given (else
+ * 0, 1, ...); cdvr_volume_load of the .pvd gives the series back voxel for voxel. */
+static void test_pvd_series(void)
+{
+    cdvr_error err;
+    char path[512], pvd[512];
+    for (int compress = 0; compress < 2; compress++)
+        for (int k = 0; k < 2; k++) {
+            rm_all();
+            cdvr_volume *s = make(k ? CDVR_TYPE_F32 : CDVR_TYPE_U16, 3, k);
+            double times[3] = {0.5, 2.25, 7};
+            cdvr_save_opts o = {compress, k ? times : NULL};
+            path_of(path, sizeof path, k ? "run.pvd" : "run.vti");
+            path_of(pvd, sizeof pvd, "run.pvd");
+            cdvr_status st = cdvr_volume_save(s, path, &o, &err);
+            CHECK_OK(st, err);
+            CHECK(entries() == 4, "%s: run.pvd and three .vti files (%d entries)", path, entries());
+            char frame[512];
+            path_of(frame, sizeof frame, "run_0002.vti");
+            CHECK(file_has(frame, "<ImageData"), "%s: run_0002.vti written", path);
+            CHECK(file_has(pvd, k ? "timestep=\"2.25\"" : "timestep=\"1\"") &&
+                      file_has(pvd, "file=\"run_0001.vti\""),
+                  "%s: the .pvd lists the frames with their times", path);
+            cdvr_volume *back = NULL;
+            st = cdvr_volume_load(pvd, NULL, &back, &err);
+            CHECK_OK(st, err);
+            if (st == CDVR_OK) {
+                same_geometry(path, back, s, 0);
+                CHECK(memcmp(back->data, s->data, cdvr_volume_frame_bytes(s) * 3) == 0,
+                      "%s: voxels differ", path);
+            }
+            cdvr_volume_free(back);
+            cdvr_volume_free(s);
+        }
+    rm_all();
+}
+
 int main(void)
 {
     if (!mkdtemp(tmpdir))
@@ -324,6 +368,7 @@ int main(void)
         rm_all();
     }
     refusals();
+    test_pvd_series();
     rm_all();
     rmdir(tmpdir);
     return check_finish();

@@ -284,10 +284,8 @@ static cdvr_status vti_zblock(const char *path, const cdvr_volume *vol, size_t b
 static cdvr_status write_vti(const cdvr_volume *vol, const char *path, int compress,
                              cdvr_error *err)
 {
-    if (vol->timesteps > 1)
-        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "%s: a .vti holds one volume and this "
-                              "one has %zu timesteps: save its frames one by one (v:frame(t)), "
-                              "or save as .nrrd, .nii or .mha (4D)", path, vol->timesteps);
+    if (vol->timesteps > 1) /* write_pvd gives it frames */
+        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "%s: a .vti holds one volume", path);
     size_t bytes = cdvr_volume_frame_bytes(vol);
     uint8_t *block = NULL, size[8];
     size_t block_n = 0;
@@ -326,6 +324,65 @@ static cdvr_status write_vti(const cdvr_volume *vol, const char *path, int compr
     return st;
 }
 
+/* ---- a series as numbered .vti files and a .pvd collection ---------------------------------- */
+
+/* base_0007.vti (width digits, 4..20) into out. */
+static void frame_name(char *out, size_t n, const char *base, int width, size_t t)
+{
+    char num[24];
+    snprintf(num, sizeof num, "%0*zu", width < 4 ? 4 : width > 20 ? 20 : width, t);
+    snprintf(out, n, "%s_%s.vti", base, num);
+}
+
+/* NAME.pvd (or NAME.vti of a series) -> NAME_0000.vti ... (width: at least 4 digits, more when
+ * the count needs them) beside it, each a one-timestep .vti, then NAME.pvd listing them with
+ * their times (times[t], else t). A failure removes the files written so far. */
+static cdvr_status write_pvd(const cdvr_volume *vol, const char *path, size_t suffix_len,
+                             int compress, const double *times, cdvr_error *err)
+{
+    char *pvd = cdvr_write_sibling(path, suffix_len, ".pvd");
+    char *base = cdvr_write_sibling(path, suffix_len, "");
+    size_t nt = vol->timesteps, name_max = base ? strlen(base) + 32 : 0;
+    char *name = base ? malloc(name_max) : NULL;
+    int width = 4;
+    for (size_t k = nt - 1; k >= 10000; k /= 10)
+        width++;
+    cdvr_status st = pvd && base && name ? cdvr_write_check_target(pvd, err)
+                                         : cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
+    size_t written = 0;
+    for (; st == CDVR_OK && written < nt; written++) {
+        cdvr_volume frame = *vol;
+        frame.timesteps = 1;
+        frame.data = cdvr_volume_frame(vol, written);
+        frame_name(name, name_max, base, width, written);
+        st = cdvr_write_check_target(name, err);
+        if (st == CDVR_OK)
+            st = write_vti(&frame, name, compress, err);
+    }
+    cdvr_atomic_file af;
+    if (st == CDVR_OK && (st = cdvr_atomic_open(&af, pvd, err)) == CDVR_OK) {
+        FILE *f = af.f;
+        fprintf(f, "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n"
+                   "  <Collection>\n");
+        for (size_t t = 0; t < nt; t++) {
+            frame_name(name, name_max, cdvr_write_basename(base), width, t);
+            fprintf(f, "    <DataSet timestep=\"%.17g\" group=\"\" part=\"0\" file=\"%s\"/>\n",
+                    times ? times[t] : (double)t, name);
+        }
+        fprintf(f, "  </Collection>\n</VTKFile>\n");
+        st = cdvr_atomic_commit(&af, ferror(f) != 0, err);
+    }
+    if (st != CDVR_OK && name) /* nothing half-written stays: the frames go again */
+        for (size_t t = 0; t < written; t++) {
+            frame_name(name, name_max, base, width, t);
+            unlink(name);
+        }
+    free(name);
+    free(base);
+    free(pvd);
+    return st;
+}
+
 /* ---- the table ------------------------------------------------------------------------------ */
 
 typedef struct writer {
@@ -338,12 +395,12 @@ static const writer writers[] = {
     {".nrrd", cdvr_write_nrrd, 0},    {".nhdr", cdvr_write_nrrd, 0},
     {".nii.gz", cdvr_write_nifti, 1}, {".nii", cdvr_write_nifti, -1},
     {".vti", write_vti, 0},           {".mha", write_mha_local, 0},
-    {".mhd", write_mhd, 0},
+    {".mhd", write_mhd, 0},           {".pvd", write_vti, 0}, /* write_pvd, see below */
 };
 
 const char *cdvr_save_suffixes(void)
 {
-    return ".nrrd .nhdr .nii .nii.gz .vti .mha .mhd";
+    return ".nrrd .nhdr .nii .nii.gz .vti .pvd .mha .mhd";
 }
 
 static const writer *writer_for(const char *path)
@@ -387,6 +444,10 @@ cdvr_status cdvr_volume_save(const cdvr_volume *vol, const char *path, const cdv
     else if (!compress && w->compress_default > 0)
         return cdvr_error_set(err, CDVR_ERR_ARG, "%s: compress=false: a .nii.gz file is gzip; "
                               "name it .nii for a plain one", path);
+    size_t n = strlen(path);
+    int pvd = strcasecmp(path + n - 4, ".pvd") == 0;
+    if (pvd || (w->write == write_vti && vol->timesteps > 1)) /* a .vti series: NAME.pvd */
+        return write_pvd(vol, path, 4, compress ? 1 : 0, opts ? opts->times : NULL, err);
     if ((st = cdvr_write_check_target(path, err)) != CDVR_OK)
         return st;
     return w->write(vol, path, compress ? 1 : 0, err);

@@ -645,15 +645,17 @@ static int volume_save_raw(lua_State *L)
 }
 
 /* v:save(path [, {compress=}]): cdvr_volume_save (cdvr/write.h); a lazy series (cdvr.load_series)
- * is read into memory first (all its timesteps). I/O failures return nil, msg; misuse (an unknown
- * suffix, a .vti series, compress= against the suffix) raises. */
+ * is read into memory first (all its timesteps); a series from .pvd files passes its times (a
+ * .pvd or .vti series target writes them). I/O failures return nil, msg; misuse (an unknown
+ * suffix, compress= against the suffix) raises. */
 static int volume_save(lua_State *L)
 {
     static const char *const keys[] = {"compress", NULL};
     lcdvr_checkoptions(L, 3, "v:save", keys);
+    const double *times = volume_time_values(checkopen(L, 1)); /* a .pvd series keeps them */
     const cdvr_volume *v = lcdvr_checkvolume(L, 1);
     const char *path = luaL_checkstring(L, 2);
-    cdvr_save_opts o = {-1};
+    cdvr_save_opts o = {-1, times};
     if (!lua_isnoneornil(L, 3)) {
         luaL_checktype(L, 3, LUA_TTABLE);
         lua_getfield(L, 3, "compress");
@@ -1088,7 +1090,9 @@ int lcdvr_open_volume(lua_State *L)
     lcdvr_help_add(L, "v:quantize{lo=, hi=}",
                    "u8 volume over window [lo, hi] (default: range) and report {clipped=, clipped_low=, clipped_high=, nan=, inf=}");
     lcdvr_help_add(L, "v:save(path [, {compress=}])",
-                   "write .nrrd .nhdr .nii .nii.gz .vti .mha .mhd (by suffix; geometry kept, 4D except .vti); "
+                   "write .nrrd .nhdr .nii .nii.gz .vti .pvd .mha .mhd (by suffix; geometry kept, 4D; a series as .vti or "
+                   ".pvd: NAME_0000.vti ... and NAME.pvd with its times); the value window of a u8 volume is kept "
+                   "(NRRD old min/max, MetaImage/VTI/NIfTI a cdvr key); "
                    "compress=true: gzip/zlib; true or nil, msg");
     lcdvr_help_add(L, "v:save_raw(path [, {endian=}])", "write the voxels as raw (little endian by default); true or nil, msg");
     lcdvr_help_add(L, "#v", "number of timesteps");

@@ -18,8 +18,13 @@
  *   .vti            VTK XML ImageData, written by cdvr (no XML library needed): Origin, Spacing,
  *                   Direction (row-major D), one point-data array "scalars" appended raw
  *                   (header_type UInt64), or vtkZLibDataCompressor blocks of 32 KiB with
- *                   compress. A series (timesteps > 1) is refused: save its frames one by one
- *                   (v:frame(t)).
+ *                   compress. A series (timesteps > 1) named NAME.vti is written as NAME.pvd
+ *                   (below): a .vti holds one volume.
+ *   .pvd            a ParaView collection (cdvr/pvd.h): NAME_0000.vti, NAME_0001.vti, ... (at
+ *                   least 4 digits) beside NAME.pvd, one .vti per timestep as above, and the
+ *                   .pvd listing them with their times (opts->times, else 0, 1, ...); a failed
+ *                   save removes the frames it wrote. Loads back with cdvr.load_series(NAME.pvd),
+ *                   times kept.
  *   .mha / .mhd     MetaImage as ITK writes it: ObjectType, NDims, DimSize, ElementSpacing,
  *                   Offset, TransformMatrix (the direction of index axis 0, then of axis 1, ...:
  *                   ITK's order), ElementType MET_UCHAR/MET_USHORT/MET_SHORT/MET_FLOAT; .mha holds
@@ -49,16 +54,18 @@ typedef struct cdvr_save_opts {
     /* 1: zlib/gzip (see above); 0: uncompressed; -1: the suffix's default (.nii.gz gzip, the
      * others uncompressed). A NULL opts means -1. */
     int compress;
+    /* Appended: the time of each timestep (timesteps values) for a .pvd collection, or NULL
+     * (0, 1, 2, ...). Other formats ignore it. */
+    const double *times;
 } cdvr_save_opts;
 
 /* Saves vol (all timesteps) to path in the format its suffix names (above). An unknown suffix
- * is CDVR_ERR_ARG listing the suffixes; a series in a format that holds one volume
- * (.vti) CDVR_ERR_UNSUPPORTED; a geometry that cdvr_volume_check_geometry refuses CDVR_ERR_ARG;
+ * is CDVR_ERR_ARG listing the suffixes; a geometry that cdvr_volume_check_geometry refuses CDVR_ERR_ARG;
  * I/O failures CDVR_ERR_IO naming the file. */
 cdvr_status cdvr_volume_save(const cdvr_volume *vol, const char *path, const cdvr_save_opts *opts,
                              cdvr_error *err);
 
-/* ".nrrd .nhdr .nii .nii.gz .vti .mha .mhd" for messages and help. */
+/* ".nrrd .nhdr .nii .nii.gz .vti .pvd .mha .mhd" for messages and help. */
 const char *cdvr_save_suffixes(void);
 
 #endif
