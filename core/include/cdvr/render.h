@@ -167,6 +167,9 @@ typedef struct cdvr_render_opts {
                                  the render stops and fails with CDVR_ERR_CANCELLED */
     cdvr_look look;           /* blend mode, shading, gradient opacity, iso (zeros: plain
                                  composite) */
+    int no_skip;              /* CPU: 1 takes every sample; 0 (default) jumps samples whose
+                                 brick has zero opacity (render_cpu.c; same image, same
+                                 samples count) */
 } cdvr_render_opts;
 
 /* Checks the blend, shading, gradient-opacity and iso options for a TF built over window

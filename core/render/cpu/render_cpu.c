@@ -1,6 +1,8 @@
 /* core/render/cpu/render_cpu.c - the multithreaded CPU reference ray caster (cdvr/render.h). Every step
  * below follows the numbered algorithm in render.h; the OpenCL kernel copies it. */
 #include "cdvr/render.h"
+#include "cdvr/bricks.h"
+#include "cdvr/skip.h"
 
 #include <limits.h>
 #include <math.h>
@@ -39,6 +41,9 @@ typedef struct render_job {
     float go_mag[CDVR_GRADIENT_OPACITY_MAX], go_factor[CDVR_GRADIENT_OPACITY_MAX];
     float iso_code, iso_rgb[3], iso_alpha;
     int iso_tf_color;          /* the TF's colour at the iso code */
+    /* empty-space skipping (composite, not clipped): the brick flags of cdvr/skip.h */
+    const uint8_t *skip_flags; /* NULL: every sample is taken */
+    int skip_shift, skip_nb[3];
     const atomic_int *cancel; /* NULL, or stop before the next row once nonzero */
     cdvr_image *img;
     atomic_int next_row;
@@ -96,12 +101,24 @@ static float lerpf(float a, float b, float f)
     return a + f * (b - a);
 }
 
+/* max(x, lo) and min(x, hi) as compares the compiler keeps inline (fmaxf/fminf are calls at
+ * -O2 for their NaN rules); a NaN x gives lo (hi), as fmaxf(NaN, lo) (fminf(NaN, hi)) does. */
+static inline float max_f(float x, float lo)
+{
+    return x > lo ? x : lo;
+}
+
+static inline float min_f(float x, float hi)
+{
+    return x < hi ? x : hi;
+}
+
 /* Step 3, first half: grid coordinates of box-frame position p, clamped. */
 static void grid_position(const render_job *job, const float p[3], float g[3])
 {
     for (int a = 0; a < 3; a++) {
         float top = (float)(job->dims[a] - 1);
-        g[a] = fminf(fmaxf(p[a] * job->inv_spacing[a], 0.0f), top);
+        g[a] = min_f(max_f(p[a] * job->inv_spacing[a], 0.0f), top);
     }
 }
 
@@ -115,23 +132,26 @@ static int owned(const render_job *job, const float g[3])
 }
 
 /* Step 3, second half: trilinear interpolation at grid position g (of the whole volume). */
-static float sample_volume(const render_job *job, const float g[3])
+static inline float sample_volume(const render_job *job, const float g[3])
 {
     size_t lo[3], hi[3];
     float f[3];
     for (int a = 0; a < 3; a++) {
         int i0 = (int)g[a];
+        int i1 = i0 + 1 < job->dims[a] ? i0 + 1 : i0;
         lo[a] = (size_t)i0 - job->offset[a];
-        hi[a] = (size_t)(i0 + 1 < job->dims[a] ? i0 + 1 : i0) - job->offset[a];
+        hi[a] = (size_t)i1 - job->offset[a];
         f[a] = g[a] - (float)i0;
     }
     const uint8_t *v = job->voxels;
     size_t y0 = lo[1] * job->stride_y, y1 = hi[1] * job->stride_y;
     size_t z0 = lo[2] * job->stride_z, z1 = hi[2] * job->stride_z;
-    float c00 = lerpf(v[lo[0] + y0 + z0], v[hi[0] + y0 + z0], f[0]);
-    float c10 = lerpf(v[lo[0] + y1 + z0], v[hi[0] + y1 + z0], f[0]);
-    float c01 = lerpf(v[lo[0] + y0 + z1], v[hi[0] + y0 + z1], f[0]);
-    float c11 = lerpf(v[lo[0] + y1 + z1], v[hi[0] + y1 + z1], f[0]);
+    const uint8_t *r00 = v + y0 + z0, *r10 = v + y1 + z0, *r01 = v + y0 + z1, *r11 = v + y1 + z1;
+    /* the eight loads first, independent of each other, then the lerps */
+    float a0 = r00[lo[0]], a1 = r00[hi[0]], b0 = r10[lo[0]], b1 = r10[hi[0]];
+    float c0 = r01[lo[0]], c1 = r01[hi[0]], d0 = r11[lo[0]], d1 = r11[hi[0]];
+    float c00 = lerpf(a0, a1, f[0]), c10 = lerpf(b0, b1, f[0]);
+    float c01 = lerpf(c0, c1, f[0]), c11 = lerpf(d0, d1, f[0]);
     return lerpf(lerpf(c00, c10, f[1]), lerpf(c01, c11, f[1]), f[2]);
 }
 
@@ -192,8 +212,8 @@ static void gradient(const render_job *job, const float g[3], float G[3])
     for (int a = 0; a < 3; a++) {
         float gp[3] = {g[0], g[1], g[2]}, gm[3] = {g[0], g[1], g[2]};
         float top = (float)(job->dims[a] - 1);
-        gp[a] = fminf(g[a] + 1.0f, top);
-        gm[a] = fmaxf(g[a] - 1.0f, 0.0f);
+        gp[a] = min_f(g[a] + 1.0f, top);
+        gm[a] = max_f(g[a] - 1.0f, 0.0f);
         float h = gp[a] - gm[a];
         dq[a] = h > 0.0f ? (sample_volume(job, gp) - sample_volume(job, gm)) / (h * job->spacing[a])
                          : 0.0f;
@@ -224,7 +244,7 @@ static void shade_rgb(const render_job *job, const float G[3], const float V[3],
     float spec = ndh > 0.0f ? job->specular * powf(ndh, job->power) : 0.0f;
     float k = job->ambient + job->diffuse * ndl;
     for (int c = 0; c < 3; c++)
-        rgb[c] = fminf(rgb[c] * k + spec, 1.0f);
+        rgb[c] = min_f(rgb[c] * k + spec, 1.0f);
 }
 
 /* Gradient opacity factor at magnitude m (data units per world unit). */
@@ -306,7 +326,7 @@ static uint64_t march_extreme(const render_job *job, const float o[3], const flo
         float s = sample_at(job, o, d, t_near, t_far, i, n, &tm, g);
         taken++;
         sum += s;
-        best = job->blend == CDVR_BLEND_MAX ? fmaxf(best, s) : fminf(best, s);
+        best = job->blend == CDVR_BLEND_MAX ? max_f(best, s) : min_f(best, s);
     }
     if (!taken)
         return 0;
@@ -379,30 +399,78 @@ static uint64_t march_iso(const render_job *job, const float o[3], const float d
     return taken;
 }
 
-/* Steps 2 and 5 for one ray; returns the number of samples taken. V: towards the eye, world
- * (for shading). */
-static uint64_t march_ray(const render_job *job, const float o[3], const float d[3],
-                          const float V[3], float out[4])
+/* ---- empty-space skipping (composite) ----------------------------------------------------
+ * A sample whose brick's value range has zero opacity in the TF adds nothing (steps 4-5: both
+ * table entries around any value of the range have alpha 0, so the lerped alpha is exactly 0
+ * and the sample is not composited), so it need not be interpolated. The flags of cdvr/skip.h
+ * say, for an invisible brick, that the cube of bricks within code - 1 of it is invisible too:
+ * the ray jumps to its first sample whose nominal midpoint (t_near + (j + 1/2) step, in
+ * double) is not short of the cube's exit face pulled in by a margin (0.01 voxel plus 1e-5 of
+ * the coordinates' size, about 80 float ulps), so the samples jumped lie inside the cube
+ * whatever the rounding of step 3's float positions (a few ulps). The sample landed on is
+ * taken as usual (its own brick is looked up again). Images are those without skipping, bit
+ * for bit; the samples jumped are still counted in opts->samples (the definition's count). */
+
+/* Per ray: the box-frame ray in grid coordinates, in double. */
+typedef struct grid_ray {
+    double o[3], d[3], inv_d[3]; /* inv_d: +-inf where d is 0 */
+} grid_ray;
+
+static void grid_ray_of(const render_job *job, const float o[3], const float d[3], grid_ray *r)
 {
-    float t_near, t_far;
-    out[0] = out[1] = out[2] = out[3] = 0.0f;
-    if (!intersect_box(job, o, d, &t_near, &t_far))
-        return 0;
-    float length = t_far - t_near, step = job->step;
-    long n = (long)ceilf(length / step);
-    if (n < 1)
-        n = 1;
-    if (job->blend == CDVR_BLEND_ISO)
-        return march_iso(job, o, d, t_near, t_far, n, V, out);
-    if (job->blend != CDVR_BLEND_COMPOSITE)
-        return march_extreme(job, o, d, t_near, t_far, n, out);
+    for (int a = 0; a < 3; a++) {
+        r->o[a] = (double)o[a] * (double)job->inv_spacing[a];
+        r->d[a] = (double)d[a] * (double)job->inv_spacing[a];
+        r->inv_d[a] = 1.0 / r->d[a];
+    }
+}
+
+/* The flag byte of the brick holding grid position g (clamped to the volume: step 3). */
+static inline int brick_code(const render_job *job, const float g[3])
+{
+    int sh = job->skip_shift;
+    size_t bx = (size_t)((int)g[0] >> sh), by = (size_t)((int)g[1] >> sh);
+    size_t bz = (size_t)((int)g[2] >> sh);
+    return job->skip_flags[bx + (size_t)job->skip_nb[0] * (by + (size_t)job->skip_nb[1] * bz)];
+}
+
+/* Sample i at grid position g lies in an invisible brick of the given code: the index of the
+ * first sample after it that may lie outside the invisible cube around that brick. */
+static long skip_target(const render_job *job, const grid_ray *r, const float g[3], int code,
+                        float t_near, long i)
+{
+    int sh = job->skip_shift, reach = (code > 1 ? code : 1) - 1;
+    double t_exit = INFINITY;
+    for (int a = 0; a < 3; a++) {
+        if (r->d[a] == 0.0)
+            continue;
+        long b = (long)((int)g[a] >> sh);
+        double face = r->d[a] > 0.0 ? (double)((b + reach + 1) << sh) : (double)((b - reach) << sh);
+        double m = 0.01 + 1e-5 * (fabs(r->o[a]) + fabs(face));
+        face += r->d[a] > 0.0 ? -m : m;
+        double t = (face - r->o[a]) * r->inv_d[a];
+        t_exit = t < t_exit ? t : t_exit;
+    }
+    double j = ceil((t_exit - (double)t_near) / (double)job->step - 0.5);
+    if (!(j > (double)(i + 1)))
+        return i + 1;
+    return j > (double)(LONG_MAX / 2) ? LONG_MAX / 2 : (long)j;
+}
+
+/* Steps 2-5 of a composite ray from segment `first` to before `stop`; returns the samples
+ * of the definition taken (those jumped by skipping included). */
+static uint64_t march_composite(const render_job *job, const float o[3], const float d[3],
+                                const float V[3], float t_near, float t_far, long n, long first,
+                                long stop, float out[4])
+{
     int looks = job->shade || job->go_points;
-    float C[3] = {0.0f, 0.0f, 0.0f}, A = 0.0f;
-    long i, first = 0, stop = n;
-    if (job->clipped)
-        owned_segments(job, o, d, t_near, n, &first, &stop);
+    int skipping = job->skip_flags != NULL;
+    float C[3] = {0.0f, 0.0f, 0.0f}, A = 0.0f, step = job->step;
+    grid_ray gr;
+    if (skipping)
+        grid_ray_of(job, o, d, &gr);
     uint64_t taken = 0;
-    for (i = first; i < stop; i++) {
+    for (long i = first; i < stop; i++) {
         float ts = t_near + (float)i * step;
         float ds = i < n - 1 ? step : t_far - ts;
         if (ds <= 0.0f)
@@ -413,6 +481,18 @@ static uint64_t march_ray(const render_job *job, const float o[3], const float d
         grid_position(job, p, g);
         if (job->clipped && !owned(job, g))
             continue;
+        if (skipping) {
+            int code = brick_code(job, g);
+            if (code < 128) { /* invisible: sample i and those up to the cube's face add nothing */
+                long next = skip_target(job, &gr, g, code, t_near, i);
+                next = next < stop ? next : stop;
+                taken += (uint64_t)(next - i);
+                if (next == n && t_far - (t_near + (float)(n - 1) * step) <= 0.0f)
+                    taken--; /* the definition stops before an empty last segment */
+                i = next - 1;
+                continue;
+            }
+        }
         taken++;
         float sv = sample_volume(job, g);
         classify(job, sv, ds, ds >= step, rgba);
@@ -432,6 +512,29 @@ static uint64_t march_ray(const render_job *job, const float o[3], const float d
     out[2] = C[2];
     out[3] = A;
     return taken;
+}
+
+/* Steps 2 and 5 for one ray; returns the number of samples taken. V: towards the eye, world
+ * (for shading). */
+static uint64_t march_ray(const render_job *job, const float o[3], const float d[3],
+                          const float V[3], float out[4])
+{
+    float t_near, t_far;
+    out[0] = out[1] = out[2] = out[3] = 0.0f;
+    if (!intersect_box(job, o, d, &t_near, &t_far))
+        return 0;
+    float length = t_far - t_near, step = job->step;
+    long n = (long)ceilf(length / step);
+    if (n < 1)
+        n = 1;
+    if (job->blend == CDVR_BLEND_ISO)
+        return march_iso(job, o, d, t_near, t_far, n, V, out);
+    if (job->blend != CDVR_BLEND_COMPOSITE)
+        return march_extreme(job, o, d, t_near, t_far, n, out);
+    long first = 0, stop = n;
+    if (job->clipped)
+        owned_segments(job, o, d, t_near, n, &first, &stop);
+    return march_composite(job, o, d, V, t_near, t_far, n, first, stop, out);
 }
 
 /* Step 0: the world ray (double) in the box frame, rounded to float. */
@@ -671,6 +774,31 @@ int cdvr_render_view_hits(const cdvr_volume *vol, const cdvr_camera *cam)
     return hit;
 }
 
+/* Empty-space skipping for a composite render of a whole volume: the brick flags of its frame
+ * under the TF (cdvr/skip.h, bricks of 2^CDVR_RANGE_SHIFT voxels) into the job. Returns 1 when
+ * the grid was made (free it), 0 when the render takes every sample (clipped, another blend
+ * mode, opts->no_skip, or no memory: skipping is only a saving). */
+static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render_opts *opts,
+                      cdvr_skip_grid *grid)
+{
+    job->skip_flags = NULL;
+    if (opts->no_skip || job->clipped || job->blend != CDVR_BLEND_COMPOSITE)
+        return 0;
+    cdvr_error ignored;
+    if (cdvr_skip_grid_init(grid, vol->dims, CDVR_RANGE_SHIFT, &ignored) != CDVR_OK)
+        return 0;
+    if (cdvr_skip_minmax_from_frame(grid, job->voxels, &ignored) != CDVR_OK) {
+        cdvr_skip_grid_free(grid);
+        return 0;
+    }
+    cdvr_skip_flags(grid, opts->tf);
+    job->skip_flags = grid->flags;
+    job->skip_shift = (int)grid->shift;
+    for (int a = 0; a < 3; a++)
+        job->skip_nb[a] = (int)grid->dims[a];
+    return 1;
+}
+
 cdvr_status cdvr_render_cpu(const cdvr_volume *vol, size_t t, cdvr_render_opts *opts,
                             cdvr_image **out, cdvr_error *err)
 {
@@ -701,7 +829,11 @@ cdvr_status cdvr_render_cpu(const cdvr_volume *vol, size_t t, cdvr_render_opts *
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "render: no memory for the job");
     }
     setup_job(job, vol, t, opts, step, unit, term, img);
+    cdvr_skip_grid grid;
+    int skipping = skip_setup(job, vol, opts, &grid);
     run_workers(job, thread_count(opts, img->height));
+    if (skipping)
+        cdvr_skip_grid_free(&grid);
     opts->samples = (uint64_t)atomic_load(&job->samples);
     free(job);
     if (opts->cancel && atomic_load(opts->cancel)) {
