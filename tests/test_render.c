@@ -3,8 +3,11 @@
  * real CT volume written as PNG. */
 #include "check.h"
 #include "cdvr/render.h"
+#include "cdvr/skip.h"
+#include "render/cpu/brick_range.h"
 
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 
 static cdvr_volume *make_volume(size_t x, size_t y, size_t z)
@@ -438,8 +441,47 @@ static void test_skipping_is_exact(void)
     cdvr_volume_free(v);
 }
 
+/* The threaded brick ranges equal cdvr_range_compute's (through cdvr_skip_minmax_from_frame)
+ * for odd and even sizes, one voxel thick axes, shifts 1..3 and 1..7 threads. */
+static void test_brick_ranges(void)
+{
+    static const size_t sizes[][3] = {{45, 38, 33}, {33, 17, 1}, {1, 9, 20}, {64, 16, 8}, {70, 3, 5}};
+    for (size_t k = 0; k < sizeof sizes / sizeof sizes[0]; k++) {
+        const size_t *d = sizes[k];
+        size_t n = d[0] * d[1] * d[2];
+        uint8_t *frame = malloc(n);
+        if (!frame)
+            return;
+        uint32_t state = 99u + (uint32_t)k;
+        for (size_t i = 0; i < n; i++) {
+            state = state * 1664525u + 1013904223u;
+            frame[i] = (uint8_t)(64 + (state >> 26)); /* 64..127: min and max both matter */
+        }
+        frame[n / 2] = 3;
+        frame[n / 3] = 250;
+        for (unsigned shift = 1; shift <= 3; shift++) {
+            cdvr_skip_grid g;
+            cdvr_error err;
+            CHECK_OK(cdvr_skip_grid_init(&g, d, shift, &err), err);
+            CHECK_OK(cdvr_skip_minmax_from_frame(&g, frame, &err), err);
+            uint8_t *mine = malloc(2 * g.nbricks);
+            for (int threads = 1; mine && threads <= 7; threads += 2) {
+                memset(mine, 0xAA, 2 * g.nbricks);
+                CHECK_OK(cdvr_cpu_brick_ranges(frame, d, shift, threads, mine, &err), err);
+                CHECK(memcmp(mine, g.minmax, 2 * g.nbricks) == 0,
+                      "%zux%zux%zu shift %u threads %d: brick ranges differ", d[0], d[1], d[2],
+                      shift, threads);
+            }
+            free(mine);
+            cdvr_skip_grid_free(&g);
+        }
+        free(frame);
+    }
+}
+
 int main(void)
 {
+    test_brick_ranges();
     test_skipping_is_exact();
     test_analytic_box();
     test_zero_and_full_opacity();

@@ -3,6 +3,7 @@
 #include "cdvr/render.h"
 #include "cdvr/bricks.h"
 #include "cdvr/skip.h"
+#include "render/cpu/brick_range.h"
 
 #include <limits.h>
 #include <math.h>
@@ -27,6 +28,8 @@ typedef struct render_job {
     const cdvr_tf *tf;
     float alpha_step[256]; /* a_c[i] = 1 - (1 - a[i])^(step/unit) */
     const cdvr_camera *camera;
+    double cam_f[3], cam_u[3], cam_r[3]; /* cdvr_camera_basis, once per render */
+    double cam_tan;            /* tan(fov / 2) as cdvr_camera_ray computes it */
     /* blend modes and shading (render.h) */
     int blend;
     int shade;                 /* shading on */
@@ -549,13 +552,40 @@ static void to_box_frame(const render_job *job, const double od[3], const double
     }
 }
 
+/* cdvr_camera_ray's ray through pixel (x, y), the same arithmetic in the same order, with the
+ * camera's basis and tan(fov / 2) computed once per render (job) instead of per pixel. */
+static void pixel_ray(const render_job *job, int x, int y, double origin[3], double dir[3])
+{
+    const cdvr_camera *cam = job->camera;
+    double aspect = (double)cam->width / (double)cam->height;
+    double sx = (2.0 * (x + 0.5) / cam->width - 1.0) * aspect;
+    double sy = -(2.0 * (y + 0.5) / cam->height - 1.0);
+    const double *f = job->cam_f, *u = job->cam_u, *r = job->cam_r;
+    if (cam->orthographic) {
+        double half = 0.5 * cam->ortho_height;
+        for (int i = 0; i < 3; i++) {
+            origin[i] = cam->eye[i] + (sx * r[i] + sy * u[i]) * half;
+            dir[i] = f[i];
+        }
+        return;
+    }
+    for (int i = 0; i < 3; i++) {
+        origin[i] = cam->eye[i];
+        dir[i] = f[i] + (sx * r[i] + sy * u[i]) * job->cam_tan;
+    }
+    double len = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+    if (len > 0.0)
+        for (int i = 0; i < 3; i++)
+            dir[i] /= len;
+}
+
 static uint64_t render_row(const render_job *job, int y)
 {
     uint64_t samples = 0;
     for (int x = 0; x < job->img->width; x++) {
         double od[3], dd[3];
         float o[3], d[3];
-        cdvr_camera_ray(job->camera, x, y, od, dd);
+        pixel_ray(job, x, y, od, dd);
         to_box_frame(job, od, dd, o, d);
         float V[3] = {(float)-dd[0], (float)-dd[1], (float)-dd[2]}; /* |dd| = 1 */
         samples += march_ray(job, o, d, V, cdvr_image_pixel(job->img, x, y));
@@ -731,6 +761,8 @@ static void setup_job(render_job *job, const cdvr_volume *vol, size_t t,
     for (int i = 0; i < 256; i++)
         job->alpha_step[i] = (float)(1.0 - pow(1.0 - opts->tf->table[i][3], step / unit));
     job->camera = opts->camera;
+    cdvr_camera_basis(opts->camera, job->cam_f, job->cam_u, job->cam_r);
+    job->cam_tan = tan(0.5 * opts->camera->fov * 3.14159265358979323846 / 180.0);
     setup_look(job, opts, D);
     job->cancel = opts->cancel;
     job->img = img;
@@ -779,7 +811,7 @@ int cdvr_render_view_hits(const cdvr_volume *vol, const cdvr_camera *cam)
  * the grid was made (free it), 0 when the render takes every sample (clipped, another blend
  * mode, opts->no_skip, or no memory: skipping is only a saving). */
 static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render_opts *opts,
-                      cdvr_skip_grid *grid)
+                      int threads, cdvr_skip_grid *grid)
 {
     job->skip_flags = NULL;
     if (opts->no_skip || job->clipped || job->blend != CDVR_BLEND_COMPOSITE)
@@ -787,7 +819,8 @@ static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render
     cdvr_error ignored;
     if (cdvr_skip_grid_init(grid, vol->dims, CDVR_RANGE_SHIFT, &ignored) != CDVR_OK)
         return 0;
-    if (cdvr_skip_minmax_from_frame(grid, job->voxels, &ignored) != CDVR_OK) {
+    if (cdvr_cpu_brick_ranges(job->voxels, vol->dims, grid->shift, threads, grid->minmax,
+                              &ignored) != CDVR_OK) {
         cdvr_skip_grid_free(grid);
         return 0;
     }
@@ -830,8 +863,9 @@ cdvr_status cdvr_render_cpu(const cdvr_volume *vol, size_t t, cdvr_render_opts *
     }
     setup_job(job, vol, t, opts, step, unit, term, img);
     cdvr_skip_grid grid;
-    int skipping = skip_setup(job, vol, opts, &grid);
-    run_workers(job, thread_count(opts, img->height));
+    int nthreads = thread_count(opts, img->height);
+    int skipping = skip_setup(job, vol, opts, nthreads, &grid);
+    run_workers(job, nthreads);
     if (skipping)
         cdvr_skip_grid_free(&grid);
     opts->samples = (uint64_t)atomic_load(&job->samples);
