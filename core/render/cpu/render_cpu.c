@@ -11,6 +11,11 @@
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <unistd.h>
+#include <string.h>
+
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 #define MAX_THREADS 256
 
@@ -27,6 +32,7 @@ typedef struct render_job {
     float step, unit, term_alpha;
     const cdvr_tf *tf;
     float alpha_step[256]; /* a_c[i] = 1 - (1 - a[i])^(step/unit) */
+    float code_value[256];     /* (float)i: a load instead of an int-to-float conversion */
     const cdvr_camera *camera;
     double cam_f[3], cam_u[3], cam_r[3]; /* cdvr_camera_basis, once per render */
     double cam_tan;            /* tan(fov / 2) as cdvr_camera_ray computes it */
@@ -47,6 +53,7 @@ typedef struct render_job {
     /* empty-space skipping (composite, not clipped): the brick flags of cdvr/skip.h */
     const uint8_t *skip_flags; /* NULL: every sample is taken */
     int skip_shift, skip_nb[3];
+    int lanes;                 /* plain composite rays four at a time (SSE2) */
     const atomic_int *cancel; /* NULL, or stop before the next row once nonzero */
     cdvr_image *img;
     atomic_int next_row;
@@ -151,8 +158,9 @@ static inline float sample_volume(const render_job *job, const float g[3])
     size_t z0 = lo[2] * job->stride_z, z1 = hi[2] * job->stride_z;
     const uint8_t *r00 = v + y0 + z0, *r10 = v + y1 + z0, *r01 = v + y0 + z1, *r11 = v + y1 + z1;
     /* the eight loads first, independent of each other, then the lerps */
-    float a0 = r00[lo[0]], a1 = r00[hi[0]], b0 = r10[lo[0]], b1 = r10[hi[0]];
-    float c0 = r01[lo[0]], c1 = r01[hi[0]], d0 = r11[lo[0]], d1 = r11[hi[0]];
+    const float *cv = job->code_value;
+    float a0 = cv[r00[lo[0]]], a1 = cv[r00[hi[0]]], b0 = cv[r10[lo[0]]], b1 = cv[r10[hi[0]]];
+    float c0 = cv[r01[lo[0]]], c1 = cv[r01[hi[0]]], d0 = cv[r11[lo[0]]], d1 = cv[r11[hi[0]]];
     float c00 = lerpf(a0, a1, f[0]), c10 = lerpf(b0, b1, f[0]);
     float c01 = lerpf(c0, c1, f[0]), c11 = lerpf(d0, d1, f[0]);
     return lerpf(lerpf(c00, c10, f[1]), lerpf(c01, c11, f[1]), f[2]);
@@ -579,10 +587,216 @@ static void pixel_ray(const render_job *job, int x, int y, double origin[3], dou
             dir[i] /= len;
 }
 
+/* ---- four rays at a time (SSE2) -------------------------------------------------------------
+ * The plain composite march (no shading, no gradient opacity, not clipped) of four
+ * neighbouring pixels in lock-step: each lane keeps its own segment index, so the lanes take
+ * exactly the samples, in the same order, with the same float operations as march_composite
+ * (IEEE single precision, the same operand order, no fused multiply-add: maxps/minps are
+ * max_f/min_f, cvttps2dq is the (int) truncation, cvtdq2ps is exact for the at most 2^24
+ * segments of a ray); voxel, brick and table reads are per lane. Lanes that jump empty space
+ * or have finished add zero weight, which leaves C and A bit for bit unchanged. The shorter
+ * last segment's alpha (powf) is taken per lane as classify does. */
+#ifdef __SSE2__
+#define LANES 4
+
+typedef struct lanes {
+    int live[LANES];         /* still marching */
+    int i[LANES], n[LANES];  /* segment index, segments */
+    uint64_t taken[LANES];
+    grid_ray gr[LANES];
+    float t_near[LANES], t_far[LANES];
+    float o[3][LANES], d[3][LANES];
+} lanes;
+
+static inline __m128 lerp4(__m128 a, __m128 b, __m128 f)
+{
+    return _mm_add_ps(a, _mm_mul_ps(f, _mm_sub_ps(b, a)));
+}
+
+/* Lane k's eight voxels at grid position g (already clamped) into v[0..7][k]. */
+static inline void gather_lane(const render_job *job, const int i0[3], float v[8][LANES], int k)
+{
+    size_t lo[3], hi[3];
+    for (int a = 0; a < 3; a++) {
+        int i1 = i0[a] + 1 < job->dims[a] ? i0[a] + 1 : i0[a];
+        lo[a] = (size_t)i0[a];
+        hi[a] = (size_t)i1;
+    }
+    const uint8_t *vox = job->voxels;
+    const float *cv = job->code_value;
+    size_t y0 = lo[1] * job->stride_y, y1 = hi[1] * job->stride_y;
+    size_t z0 = lo[2] * job->stride_z, z1 = hi[2] * job->stride_z;
+    const uint8_t *r00 = vox + y0 + z0, *r10 = vox + y1 + z0, *r01 = vox + y0 + z1,
+                  *r11 = vox + y1 + z1;
+    v[0][k] = cv[r00[lo[0]]];
+    v[1][k] = cv[r00[hi[0]]];
+    v[2][k] = cv[r10[lo[0]]];
+    v[3][k] = cv[r10[hi[0]]];
+    v[4][k] = cv[r01[lo[0]]];
+    v[5][k] = cv[r01[hi[0]]];
+    v[6][k] = cv[r11[lo[0]]];
+    v[7][k] = cv[r11[hi[0]]];
+}
+
+/* One step of every live lane; returns the lanes still live. */
+static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
+{
+    const __m128 step = _mm_set1_ps(job->step), zero = _mm_setzero_ps();
+    __m128i iv = _mm_loadu_si128((const __m128i *)L->i);
+    __m128 ts = _mm_add_ps(_mm_loadu_ps(L->t_near), _mm_mul_ps(_mm_cvtepi32_ps(iv), step));
+    __m128i last = _mm_sub_epi32(_mm_loadu_si128((const __m128i *)L->n), _mm_set1_epi32(1));
+    __m128 is_full = _mm_castsi128_ps(_mm_cmplt_epi32(iv, last));
+    __m128 ds = _mm_or_ps(_mm_and_ps(is_full, step),
+                          _mm_andnot_ps(is_full, _mm_sub_ps(_mm_loadu_ps(L->t_far), ts)));
+    __m128 tm = _mm_add_ps(ts, _mm_mul_ps(_mm_set1_ps(0.5f), ds));
+    float g[3][LANES], dsv[LANES];
+    int gi[3][LANES];
+    _mm_storeu_ps(dsv, ds);
+    __m128 gv[3];
+    for (int a = 0; a < 3; a++) {
+        __m128 p = _mm_add_ps(_mm_loadu_ps(L->o[a]), _mm_mul_ps(tm, _mm_loadu_ps(L->d[a])));
+        __m128 top = _mm_set1_ps((float)(job->dims[a] - 1));
+        gv[a] = _mm_min_ps(_mm_max_ps(_mm_mul_ps(p, _mm_set1_ps(job->inv_spacing[a])), zero), top);
+        _mm_storeu_ps(g[a], gv[a]);
+        _mm_storeu_si128((__m128i *)gi[a], _mm_cvttps_epi32(gv[a]));
+    }
+    float v[8][LANES];
+    int sampling[LANES];
+    for (int k = 0; k < LANES; k++) {
+        sampling[k] = 0;
+        for (int c = 0; c < 8; c++)
+            v[c][k] = 0.0f;
+        if (!L->live[k])
+            continue;
+        if (!(dsv[k] > 0.0f)) { /* the definition stops before an empty last segment */
+            L->live[k] = 0;
+            continue;
+        }
+        float gk[3] = {g[0][k], g[1][k], g[2][k]};
+        if (job->skip_flags) {
+            int code = brick_code(job, gk);
+            if (code < 128) {
+                long next = skip_target(job, &L->gr[k], gk, code, L->t_near[k], L->i[k]);
+                int n = L->n[k];
+                next = next < n ? next : n;
+                L->taken[k] += (uint64_t)(next - L->i[k]);
+                if (next == n && L->t_far[k] - (L->t_near[k] + (float)(n - 1) * job->step) <= 0.0f)
+                    L->taken[k]--;
+                L->i[k] = (int)next;
+                L->live[k] = next < n;
+                continue;
+            }
+        }
+        int i0[3] = {gi[0][k], gi[1][k], gi[2][k]};
+        gather_lane(job, i0, v, k);
+        sampling[k] = 1;
+    }
+    if (!(sampling[0] | sampling[1] | sampling[2] | sampling[3]))
+        return L->live[0] | L->live[1] | L->live[2] | L->live[3];
+    __m128 f[3];
+    for (int a = 0; a < 3; a++)
+        f[a] = _mm_sub_ps(gv[a], _mm_cvtepi32_ps(_mm_loadu_si128((const __m128i *)gi[a])));
+    __m128 c00 = lerp4(_mm_loadu_ps(v[0]), _mm_loadu_ps(v[1]), f[0]);
+    __m128 c10 = lerp4(_mm_loadu_ps(v[2]), _mm_loadu_ps(v[3]), f[0]);
+    __m128 c01 = lerp4(_mm_loadu_ps(v[4]), _mm_loadu_ps(v[5]), f[0]);
+    __m128 c11 = lerp4(_mm_loadu_ps(v[6]), _mm_loadu_ps(v[7]), f[0]);
+    __m128 s = lerp4(lerp4(c00, c10, f[1]), lerp4(c01, c11, f[1]), f[2]);
+    /* step 4: i0 = min((int)s, 254) as the truncation of min(s, 254) */
+    __m128i si = _mm_cvttps_epi32(_mm_min_ps(s, _mm_set1_ps(254.0f)));
+    __m128 fr = _mm_sub_ps(s, _mm_cvtepi32_ps(si));
+    int ti[LANES];
+    float sv[LANES], a0[LANES], a1[LANES], rgb0[3][LANES], rgb1[3][LANES];
+    _mm_storeu_si128((__m128i *)ti, si);
+    _mm_storeu_ps(sv, s);
+    for (int k = 0; k < LANES; k++) {
+        const float *lo = job->tf->table[ti[k]], *hi = job->tf->table[ti[k] + 1];
+        a0[k] = job->alpha_step[ti[k]];
+        a1[k] = job->alpha_step[ti[k] + 1];
+        for (int c = 0; c < 3; c++) {
+            rgb0[c][k] = lo[c];
+            rgb1[c][k] = hi[c];
+        }
+    }
+    float alpha[LANES];
+    _mm_storeu_ps(alpha, lerp4(_mm_loadu_ps(a0), _mm_loadu_ps(a1), fr));
+    for (int k = 0; k < LANES; k++) {
+        if (!sampling[k])
+            alpha[k] = 0.0f;
+        else if (!(dsv[k] >= job->step)) { /* the shorter last segment (classify) */
+            float rgba[4];
+            classify(job, sv[k], dsv[k], 0, rgba);
+            alpha[k] = rgba[3];
+        }
+    }
+    __m128 a = _mm_loadu_ps(alpha);
+    __m128 w = _mm_mul_ps(_mm_sub_ps(_mm_set1_ps(1.0f), *A), a);
+    for (int c = 0; c < 3; c++)
+        C[c] = _mm_add_ps(C[c], _mm_mul_ps(w, lerp4(_mm_loadu_ps(rgb0[c]), _mm_loadu_ps(rgb1[c]), fr)));
+    *A = _mm_add_ps(*A, w);
+    float Av[LANES];
+    _mm_storeu_ps(Av, *A);
+    for (int k = 0; k < LANES; k++) {
+        if (!sampling[k])
+            continue;
+        L->taken[k]++;
+        L->i[k]++;
+        if ((alpha[k] > 0.0f && (Av[k] >= job->term_alpha || Av[k] >= 1.0f)) || L->i[k] >= L->n[k])
+            L->live[k] = 0;
+    }
+    return L->live[0] | L->live[1] | L->live[2] | L->live[3];
+}
+
+/* Pixels x .. x + 3 of row y (x + 3 < width) by the four-lane march; returns their samples. */
+static uint64_t render_lanes(const render_job *job, int x, int y)
+{
+    lanes L;
+    memset(&L, 0, sizeof L);
+    for (int k = 0; k < LANES; k++) {
+        double od[3], dd[3];
+        float o[3], d[3], t_near = 0.0f, t_far = 0.0f;
+        pixel_ray(job, x + k, y, od, dd);
+        to_box_frame(job, od, dd, o, d);
+        for (int a = 0; a < 3; a++) {
+            L.o[a][k] = o[a];
+            L.d[a][k] = d[a];
+        }
+        if (!intersect_box(job, o, d, &t_near, &t_far))
+            continue;
+        long n = (long)ceilf((t_far - t_near) / job->step);
+        L.n[k] = n < 1 ? 1 : (int)n;
+        L.t_near[k] = t_near;
+        L.t_far[k] = t_far;
+        L.live[k] = 1;
+        if (job->skip_flags)
+            grid_ray_of(job, o, d, &L.gr[k]);
+    }
+    __m128 C[3] = {_mm_setzero_ps(), _mm_setzero_ps(), _mm_setzero_ps()}, A = _mm_setzero_ps();
+    while (lanes_step(job, &L, C, &A))
+        ;
+    float out[4][LANES];
+    for (int c = 0; c < 3; c++)
+        _mm_storeu_ps(out[c], C[c]);
+    _mm_storeu_ps(out[3], A);
+    uint64_t samples = 0;
+    for (int k = 0; k < LANES; k++) {
+        float *px = cdvr_image_pixel(job->img, x + k, y);
+        for (int c = 0; c < 4; c++)
+            px[c] = out[c][k];
+        samples += L.taken[k];
+    }
+    return samples;
+}
+#endif
+
 static uint64_t render_row(const render_job *job, int y)
 {
     uint64_t samples = 0;
-    for (int x = 0; x < job->img->width; x++) {
+    int x = 0;
+#ifdef __SSE2__
+    for (; job->lanes && x + LANES <= job->img->width; x += LANES)
+        samples += render_lanes(job, x, y);
+#endif
+    for (; x < job->img->width; x++) {
         double od[3], dd[3];
         float o[3], d[3];
         pixel_ray(job, x, y, od, dd);
@@ -759,6 +973,8 @@ static void setup_job(render_job *job, const cdvr_volume *vol, size_t t,
     job->term_alpha = (float)term;
     job->tf = opts->tf;
     for (int i = 0; i < 256; i++)
+        job->code_value[i] = (float)i;
+    for (int i = 0; i < 256; i++)
         job->alpha_step[i] = (float)(1.0 - pow(1.0 - opts->tf->table[i][3], step / unit));
     job->camera = opts->camera;
     cdvr_camera_basis(opts->camera, job->cam_f, job->cam_u, job->cam_r);
@@ -806,14 +1022,39 @@ int cdvr_render_view_hits(const cdvr_volume *vol, const cdvr_camera *cam)
     return hit;
 }
 
+/* The flags of cdvr/skip.h that the march reads: an invisible brick's code (its chessboard
+ * distance to the nearest visible brick, at most CDVR_SKIP_REACH_MAX), and 128 for every
+ * visible brick (the march never needs a visible brick's reach), which saves
+ * cdvr_skip_flags's second distance transform. */
+static void invisible_reach(cdvr_skip_grid *g, const cdvr_tf *tf)
+{
+    int prefix[257];
+    prefix[0] = 0;
+    for (int i = 0; i < 256; i++)
+        prefix[i + 1] = prefix[i] + (tf->table[i][3] > 0.0f);
+    uint8_t *visible = g->scratch;
+    for (size_t b = 0; b < g->nbricks; b++) {
+        int lo = g->minmax[2 * b], hi = g->minmax[2 * b + 1];
+        visible[b] = lo <= hi && prefix[hi + 1] - prefix[lo] > 0;
+    }
+    cdvr_skip_distance(visible, g->flags, g->dims);
+    for (size_t b = 0; b < g->nbricks; b++) {
+        int d = g->flags[b];
+        g->flags[b] = (uint8_t)(visible[b] ? 128 : d > CDVR_SKIP_REACH_MAX ? CDVR_SKIP_REACH_MAX : d);
+    }
+}
+
 /* Empty-space skipping for a composite render of a whole volume: the brick flags of its frame
  * under the TF (cdvr/skip.h, bricks of 2^CDVR_RANGE_SHIFT voxels) into the job. Returns 1 when
  * the grid was made (free it), 0 when the render takes every sample (clipped, another blend
- * mode, opts->no_skip, or no memory: skipping is only a saving). */
+ * mode, opts->no_skip, or no memory: skipping is only a saving). Also chooses the four-lane
+ * march for plain composite renders unless opts->no_skip. */
 static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render_opts *opts,
                       int threads, cdvr_skip_grid *grid)
 {
     job->skip_flags = NULL;
+    job->lanes = !opts->no_skip && job->blend == CDVR_BLEND_COMPOSITE && !job->shade &&
+                 !job->go_points && !job->clipped;
     if (opts->no_skip || job->clipped || job->blend != CDVR_BLEND_COMPOSITE)
         return 0;
     cdvr_error ignored;
@@ -824,7 +1065,7 @@ static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render
         cdvr_skip_grid_free(grid);
         return 0;
     }
-    cdvr_skip_flags(grid, opts->tf);
+    invisible_reach(grid, opts->tf);
     job->skip_flags = grid->flags;
     job->skip_shift = (int)grid->shift;
     for (int a = 0; a < 3; a++)
