@@ -52,6 +52,7 @@ typedef struct render_job {
     int iso_tf_color;          /* the TF's colour at the iso code */
     /* empty-space skipping (composite, not clipped): the brick flags of cdvr/skip.h */
     const uint8_t *skip_flags; /* NULL: every sample is taken */
+    const uint8_t *skip_minmax; /* max, min: brick ranges (NULL: every sample is taken) */
     int skip_shift, skip_nb[3];
     int lanes;                 /* plain composite rays four at a time (SSE2) */
     const atomic_int *cancel; /* NULL, or stop before the next row once nonzero */
@@ -322,22 +323,120 @@ static float sample_at(const render_job *job, const float o[3], const float d[3]
     return sample_volume(job, g);
 }
 
-/* Max, min or average of the samples' codes; returns the samples taken. */
+/* ---- empty-space skipping -------------------------------------------------------------
+ * A sample whose brick's value range has zero opacity in the TF adds nothing (steps 4-5: both
+ * table entries around any value of the range have alpha 0, so the lerped alpha is exactly 0
+ * and the sample is not composited), so it need not be interpolated. The flags of cdvr/skip.h
+ * say, for an invisible brick, that the cube of bricks within code - 1 of it is invisible too:
+ * the ray jumps to its first sample whose nominal midpoint (t_near + (j + 1/2) step, in
+ * double) is not short of the cube's exit face pulled in by a margin (0.01 voxel plus 1e-5 of
+ * the coordinates' size, about 80 float ulps), so the samples jumped lie inside the cube
+ * whatever the rounding of step 3's float positions (a few ulps). The sample landed on is
+ * taken as usual (its own brick is looked up again). Images are those without skipping, bit
+ * for bit; the samples jumped are still counted in opts->samples (the definition's count). */
+
+/* Per ray: the box-frame ray in grid coordinates, in double. */
+typedef struct grid_ray {
+    double o[3], d[3], inv_d[3]; /* inv_d: +-inf where d is 0 */
+} grid_ray;
+
+static void grid_ray_of(const render_job *job, const float o[3], const float d[3], grid_ray *r)
+{
+    for (int a = 0; a < 3; a++) {
+        r->o[a] = (double)o[a] * (double)job->inv_spacing[a];
+        r->d[a] = (double)d[a] * (double)job->inv_spacing[a];
+        r->inv_d[a] = 1.0 / r->d[a];
+    }
+}
+
+/* The flag byte of the brick holding grid position g (clamped to the volume: step 3). */
+static inline int brick_code(const render_job *job, const float g[3])
+{
+    int sh = job->skip_shift;
+    size_t bx = (size_t)((int)g[0] >> sh), by = (size_t)((int)g[1] >> sh);
+    size_t bz = (size_t)((int)g[2] >> sh);
+    return job->skip_flags[bx + (size_t)job->skip_nb[0] * (by + (size_t)job->skip_nb[1] * bz)];
+}
+
+/* Sample i at grid position g lies in an invisible brick of the given code: the index of the
+ * first sample after it that may lie outside the invisible cube around that brick. */
+static long skip_target(const render_job *job, const grid_ray *r, const float g[3], int code,
+                        float t_near, long i)
+{
+    int sh = job->skip_shift, reach = (code > 1 ? code : 1) - 1;
+    double t_exit = INFINITY;
+    for (int a = 0; a < 3; a++) {
+        if (r->d[a] == 0.0)
+            continue;
+        long b = (long)((int)g[a] >> sh);
+        double face = r->d[a] > 0.0 ? (double)((b + reach + 1) << sh) : (double)((b - reach) << sh);
+        double m = 0.01 + 1e-5 * (fabs(r->o[a]) + fabs(face));
+        face += r->d[a] > 0.0 ? -m : m;
+        double t = (face - r->o[a]) * r->inv_d[a];
+        t_exit = t < t_exit ? t : t_exit;
+    }
+    double j = ceil((t_exit - (double)t_near) / (double)job->step - 0.5);
+    if (!(j > (double)(i + 1)))
+        return i + 1;
+    return j > (double)(LONG_MAX / 2) ? LONG_MAX / 2 : (long)j;
+}
+
+/* Max and min jump the bricks that cannot change the extreme so far: every sample in a brick
+ * lies in its value range, so a brick whose max is at most the best max (min: whose min is at
+ * least the best min) is jumped to its exit face as the composite march jumps an invisible
+ * cube of reach 0 (skip_target): the result is exactly the unskipped one. */
+/* The value range [min, max] of the brick holding grid position g. */
+static inline void brick_range(const render_job *job, const float g[3], int *lo, int *hi)
+{
+    int sh = job->skip_shift;
+    size_t bx = (size_t)((int)g[0] >> sh), by = (size_t)((int)g[1] >> sh);
+    size_t bz = (size_t)((int)g[2] >> sh);
+    const uint8_t *mm =
+        job->skip_minmax + 2 * (bx + (size_t)job->skip_nb[0] * (by + (size_t)job->skip_nb[1] * bz));
+    *lo = mm[0];
+    *hi = mm[1];
+}
+
+/* Max, min or average of the samples' codes; returns the samples taken (jumped included). */
 static uint64_t march_extreme(const render_job *job, const float o[3], const float d[3],
                               float t_near, float t_far, long n, float out[4])
 {
     float best = job->blend == CDVR_BLEND_MIN ? INFINITY : -INFINITY;
     double sum = 0.0;
     uint64_t taken = 0;
+    int is_max = job->blend == CDVR_BLEND_MAX;
+    int skipping = job->skip_minmax && job->blend != CDVR_BLEND_AVERAGE;
+    grid_ray gr;
+    if (skipping)
+        grid_ray_of(job, o, d, &gr);
     for (long i = 0; i < n; i++) {
         float tm, g[3];
         float ts = t_near + (float)i * job->step;
         if (i == n - 1 && t_far - ts <= 0.0f)
             break;
+        if (skipping) {
+            float p[3];
+            float ds = i < n - 1 ? job->step : t_far - ts;
+            float tmid = ts + 0.5f * ds;
+            for (int a = 0; a < 3; a++)
+                p[a] = o[a] + tmid * d[a];
+            grid_position(job, p, g);
+            int lo, hi;
+            brick_range(job, g, &lo, &hi);
+            if (is_max ? (float)hi <= best : (float)lo >= best) {
+                long next = skip_target(job, &gr, g, 1, t_near, i);
+                next = next < n ? next : n;
+                taken += (uint64_t)(next - i);
+                if (next == n && t_far - (t_near + (float)(n - 1) * job->step) <= 0.0f)
+                    taken--; /* the definition stops before an empty last segment */
+                i = next - 1;
+                continue;
+            }
+        }
         float s = sample_at(job, o, d, t_near, t_far, i, n, &tm, g);
         taken++;
         sum += s;
-        best = job->blend == CDVR_BLEND_MAX ? max_f(best, s) : min_f(best, s);
+        best = is_max ? max_f(best, s) : job->blend == CDVR_BLEND_MIN ? min_f(best, s) : best;
     }
     if (!taken)
         return 0;
@@ -408,64 +507,6 @@ static uint64_t march_iso(const render_job *job, const float o[3], const float d
         return taken;
     }
     return taken;
-}
-
-/* ---- empty-space skipping (composite) ----------------------------------------------------
- * A sample whose brick's value range has zero opacity in the TF adds nothing (steps 4-5: both
- * table entries around any value of the range have alpha 0, so the lerped alpha is exactly 0
- * and the sample is not composited), so it need not be interpolated. The flags of cdvr/skip.h
- * say, for an invisible brick, that the cube of bricks within code - 1 of it is invisible too:
- * the ray jumps to its first sample whose nominal midpoint (t_near + (j + 1/2) step, in
- * double) is not short of the cube's exit face pulled in by a margin (0.01 voxel plus 1e-5 of
- * the coordinates' size, about 80 float ulps), so the samples jumped lie inside the cube
- * whatever the rounding of step 3's float positions (a few ulps). The sample landed on is
- * taken as usual (its own brick is looked up again). Images are those without skipping, bit
- * for bit; the samples jumped are still counted in opts->samples (the definition's count). */
-
-/* Per ray: the box-frame ray in grid coordinates, in double. */
-typedef struct grid_ray {
-    double o[3], d[3], inv_d[3]; /* inv_d: +-inf where d is 0 */
-} grid_ray;
-
-static void grid_ray_of(const render_job *job, const float o[3], const float d[3], grid_ray *r)
-{
-    for (int a = 0; a < 3; a++) {
-        r->o[a] = (double)o[a] * (double)job->inv_spacing[a];
-        r->d[a] = (double)d[a] * (double)job->inv_spacing[a];
-        r->inv_d[a] = 1.0 / r->d[a];
-    }
-}
-
-/* The flag byte of the brick holding grid position g (clamped to the volume: step 3). */
-static inline int brick_code(const render_job *job, const float g[3])
-{
-    int sh = job->skip_shift;
-    size_t bx = (size_t)((int)g[0] >> sh), by = (size_t)((int)g[1] >> sh);
-    size_t bz = (size_t)((int)g[2] >> sh);
-    return job->skip_flags[bx + (size_t)job->skip_nb[0] * (by + (size_t)job->skip_nb[1] * bz)];
-}
-
-/* Sample i at grid position g lies in an invisible brick of the given code: the index of the
- * first sample after it that may lie outside the invisible cube around that brick. */
-static long skip_target(const render_job *job, const grid_ray *r, const float g[3], int code,
-                        float t_near, long i)
-{
-    int sh = job->skip_shift, reach = (code > 1 ? code : 1) - 1;
-    double t_exit = INFINITY;
-    for (int a = 0; a < 3; a++) {
-        if (r->d[a] == 0.0)
-            continue;
-        long b = (long)((int)g[a] >> sh);
-        double face = r->d[a] > 0.0 ? (double)((b + reach + 1) << sh) : (double)((b - reach) << sh);
-        double m = 0.01 + 1e-5 * (fabs(r->o[a]) + fabs(face));
-        face += r->d[a] > 0.0 ? -m : m;
-        double t = (face - r->o[a]) * r->inv_d[a];
-        t_exit = t < t_exit ? t : t_exit;
-    }
-    double j = ceil((t_exit - (double)t_near) / (double)job->step - 0.5);
-    if (!(j > (double)(i + 1)))
-        return i + 1;
-    return j > (double)(LONG_MAX / 2) ? LONG_MAX / 2 : (long)j;
 }
 
 /* Steps 2-5 of a composite ray from segment `first` to before `stop`; returns the samples
@@ -1053,9 +1094,11 @@ static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render
                       int threads, cdvr_skip_grid *grid)
 {
     job->skip_flags = NULL;
+    job->skip_minmax = NULL;
     job->lanes = !opts->no_skip && job->blend == CDVR_BLEND_COMPOSITE && !job->shade &&
                  !job->go_points && !job->clipped;
-    if (opts->no_skip || job->clipped || job->blend != CDVR_BLEND_COMPOSITE)
+    int extreme = job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN;
+    if (opts->no_skip || job->clipped || (job->blend != CDVR_BLEND_COMPOSITE && !extreme))
         return 0;
     cdvr_error ignored;
     if (cdvr_skip_grid_init(grid, vol->dims, CDVR_RANGE_SHIFT, &ignored) != CDVR_OK)
@@ -1065,9 +1108,13 @@ static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render
         cdvr_skip_grid_free(grid);
         return 0;
     }
-    invisible_reach(grid, opts->tf);
-    job->skip_flags = grid->flags;
     job->skip_shift = (int)grid->shift;
+    if (extreme)
+        job->skip_minmax = grid->minmax;
+    else {
+        invisible_reach(grid, opts->tf);
+        job->skip_flags = grid->flags;
+    }
     for (int a = 0; a < 3; a++)
         job->skip_nb[a] = (int)grid->dims[a];
     return 1;
