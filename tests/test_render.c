@@ -3,8 +3,11 @@
  * real CT volume written as PNG. */
 #include "check.h"
 #include "cdvr/render.h"
+#include "cdvr/skip.h"
+#include "render/cpu/brick_range.h"
 
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 
 static cdvr_volume *make_volume(size_t x, size_t y, size_t z)
@@ -378,8 +381,112 @@ static void test_engine_png(void)
     cdvr_volume_free(v);
 }
 
+/* Empty-space skipping and the four-lane march change nothing: blobs of noise in a volume of
+ * low values, a TF with zero opacity below 60, eyes outside and inside the volume, oblique and
+ * axis-parallel rays, composite shaded and not, max and min (which jump dull bricks),
+ * anisotropic spacing: the image and the samples count equal those with opts.no_skip (one
+ * ray at a time, every sample), bit for bit, and the scene has empty and visible stretches. */
+static void test_skipping_is_exact(void)
+{
+    cdvr_volume *v = make_volume(45, 38, 33);
+    if (!v)
+        return;
+    v->spacing[0] = 0.8;
+    v->spacing[2] = 1.3;
+    uint8_t *d = v->data;
+    uint32_t state = 777u;
+    for (size_t z = 0; z < 33; z++)
+        for (size_t y = 0; y < 38; y++)
+            for (size_t x = 0; x < 45; x++) {
+                state = state * 1664525u + 1013904223u;
+                double r1 = hypot(hypot((double)x - 12, (double)y - 10), (double)z - 9);
+                double r2 = hypot(hypot((double)x - 33, (double)y - 27), (double)z - 22);
+                int inside = r1 < 7.5 || r2 < 5.2 || (x == 40 && y == 5);
+                d[x + 45 * (y + 38 * z)] = inside ? (uint8_t)(state >> 24) : (uint8_t)(z & 3);
+            }
+    cdvr_tf_point pts[] = {{0, 0, 0, 0, 0}, {59, 0, 0, 0, 0}, {60, 1, 0.5, 0, 0.05},
+                           {255, 0.2, 0.4, 1, 0.9}};
+    cdvr_tf tf;
+    cdvr_error err;
+    CHECK_OK(cdvr_tf_init(&tf, pts, 4, 1.0, &err), err);
+    double eyes[][3] = {{-40, -55, 70}, {17.5, 18.5, 100}, {20, 20, 20}, {80, 30.3, 10}};
+    double center[3] = {17.6, 18.5, 20.8};
+    for (int e = 0; e < 4; e++)
+        for (int kind = 0; kind < 4; kind++) { /* composite, shaded composite, max, min */
+            int shade = kind == 1;
+            cdvr_camera cam = camera(eyes[e], center, 48);
+            if (e == 1)
+                cam.up[0] = 1, cam.up[2] = 0; /* looking down z: rays parallel to it at the centre */
+            cdvr_render_opts a = options(&tf, &cam, e == 3 ? 0.37 : 0.5, 0.0);
+            if (shade)
+                cdvr_shading_default(&a.look.shade);
+            a.look.blend = kind == 2 ? CDVR_BLEND_MAX : kind == 3 ? CDVR_BLEND_MIN
+                                                                  : CDVR_BLEND_COMPOSITE;
+            cdvr_render_opts b = a;
+            b.no_skip = 1;
+            cdvr_image *ia = render(v, &a), *ib = render(v, &b);
+            if (ia && ib) {
+                size_t n = (size_t)48 * 48 * 4;
+                int lit = 0;
+                for (size_t i = 3; i < n; i += 4)
+                    lit += ib->rgba[i] > 0.0f;
+                CHECK(memcmp(ia->rgba, ib->rgba, n * sizeof(float)) == 0,
+                      "eye %d case %d: skipping changed the image", e, kind);
+                CHECK(a.samples == b.samples, "eye %d case %d: %llu samples with skipping, %llu "
+                      "without", e, kind, (unsigned long long)a.samples,
+                      (unsigned long long)b.samples);
+                if (kind < 3) /* min is the low background: nothing lit */
+                    CHECK(lit > 40 && lit < 48 * 48 - 40, "eye %d case %d: %d pixels lit: scene "
+                          "too weak", e, kind, lit);
+            }
+            cdvr_image_free(ia);
+            cdvr_image_free(ib);
+        }
+    cdvr_volume_free(v);
+}
+
+/* The threaded brick ranges equal cdvr_range_compute's (through cdvr_skip_minmax_from_frame)
+ * for odd and even sizes, one voxel thick axes, shifts 1..3 and 1..7 threads. */
+static void test_brick_ranges(void)
+{
+    static const size_t sizes[][3] = {{45, 38, 33}, {33, 17, 1}, {1, 9, 20}, {64, 16, 8}, {70, 3, 5}};
+    for (size_t k = 0; k < sizeof sizes / sizeof sizes[0]; k++) {
+        const size_t *d = sizes[k];
+        size_t n = d[0] * d[1] * d[2];
+        uint8_t *frame = malloc(n);
+        if (!frame)
+            return;
+        uint32_t state = 99u + (uint32_t)k;
+        for (size_t i = 0; i < n; i++) {
+            state = state * 1664525u + 1013904223u;
+            frame[i] = (uint8_t)(64 + (state >> 26)); /* 64..127: min and max both matter */
+        }
+        frame[n / 2] = 3;
+        frame[n / 3] = 250;
+        for (unsigned shift = 1; shift <= 3; shift++) {
+            cdvr_skip_grid g;
+            cdvr_error err;
+            CHECK_OK(cdvr_skip_grid_init(&g, d, shift, &err), err);
+            CHECK_OK(cdvr_skip_minmax_from_frame(&g, frame, &err), err);
+            uint8_t *mine = malloc(2 * g.nbricks);
+            for (int threads = 1; mine && threads <= 7; threads += 2) {
+                memset(mine, 0xAA, 2 * g.nbricks);
+                CHECK_OK(cdvr_cpu_brick_ranges(frame, d, shift, threads, mine, &err), err);
+                CHECK(memcmp(mine, g.minmax, 2 * g.nbricks) == 0,
+                      "%zux%zux%zu shift %u threads %d: brick ranges differ", d[0], d[1], d[2],
+                      shift, threads);
+            }
+            free(mine);
+            cdvr_skip_grid_free(&g);
+        }
+        free(frame);
+    }
+}
+
 int main(void)
 {
+    test_brick_ranges();
+    test_skipping_is_exact();
     test_analytic_box();
     test_zero_and_full_opacity();
     test_early_termination_and_threads();

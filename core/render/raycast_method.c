@@ -9,12 +9,12 @@
 #include "cdvr/timing.h"
 
 typedef struct raycast_params {
-    int skip; /* empty-space skipping on the cl device */
+    int skip; /* empty-space skipping */
 } raycast_params;
 
 static const cdvr_method_option raycast_options[] = {
     {"skip", CDVR_MOPT_BOOLEAN, "true", NULL,
-     "empty-space skipping by brick min/max on the cl device (false: every sample is taken)"},
+     "empty-space skipping by brick min/max (false: every sample is taken; the image is the same)"},
     {NULL, 0, NULL, NULL, NULL}};
 
 static raycast_params get_params(const cdvr_method_params *p)
@@ -182,6 +182,7 @@ static cdvr_status raycast_render(cdvr_render_ctx *ctx, cdvr_device_kind device,
 {
     if (device == CDVR_DEVICE_CL)
         return render_cl(ctx, vol, t, opts, p, stats, out, err);
+    opts->no_skip = !get_params(p).skip;
     return render_cpu(vol, t, opts, stats, out, err);
 }
 

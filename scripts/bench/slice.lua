@@ -1,20 +1,21 @@
 -- scripts/bench/slice.lua [--size N] [--runs N] [--data DIR]: 2D-texture slicing with and
 -- without the per-slice level of detail of seed 002, against the CPU ray caster, on the engine
--- CT and Colin27, all in the same run.
+-- CT and Colin27, and against the OpenCL ray cast (the CPU one where this cdvr has no OpenCL),
+-- all in the same run, the steady frames interleaved.
 --
 -- View: the seed's setup along the z stack, the eye on the stack's axis (0.3 half-extents off
 -- centre in y) at distance D * h before the first slice, h = half the z extent (the seed's box
 -- [-1, 1] has h = 1), D = 0.5 .. 1.5, looking at the centre, fov 90, N x N pixels (512).
 -- Per view: the slicer's first frame (textures built and uploaded; the stack is evicted before by
--- slicing a 2x2x2 volume) and its steady frame time (median of --runs frames with the textures
--- reused), with LOD and without; the ray caster's median frame time at matched sampling (step =
--- slice spacing, default early termination). Images: PSNR of LOD against no LOD, and of each
+-- slicing a 2x2x2 volume), then --runs rounds that each render one steady frame with LOD, one
+-- without and one ray cast at matched sampling (step = slice spacing, default early
+-- termination), the order rotated every round (first ray-cast frame untimed); medians. Images: PSNR of LOD against no LOD, and of each
 -- against the ray caster.
 -- CSV on stdout (progress on stderr when it is a terminal):
 --   dataset,D,size,lod_bytes,full_bytes,bytes_saved_pct,lod_first_ms,nolod_first_ms,lod_ms,
 --   nolod_ms,ray_ms,lod_over_nolod_time,nolod_over_ray_time,psnr_lod_vs_nolod,
---   psnr_nolod_vs_ray,psnr_lod_vs_ray,levels,renderer
-local common = dofile((debug.getinfo(1, "S").source:match("^@(.*/)") or "./") .. "common.lua")
+--   psnr_nolod_vs_ray,psnr_lod_vs_ray,levels,renderer,ray_device
+local common = dofile((arg and arg[0] and arg[0]:match("^(.*/)") or "./") .. "common.lua")
 
 local _, opt = common.parse_args(arg, {size = "512", runs = "5"})
 local SIZE, RUNS = assert(math.tointeger(tonumber(opt.size))), assert(math.tointeger(tonumber(opt.runs)))
@@ -47,20 +48,30 @@ local function camera_at(v, D)
                      fov = 90, width = SIZE, height = SIZE}
 end
 
--- median frame time of `runs` calls of render(), after the first (which is returned too)
-local function timed(render, runs)
-  local first_img, first = render()
-  local ms = {}
-  for i = 1, runs do
-    local _, s = render()
-    ms[i] = s.ms
+-- The renderers' steady frame times, interleaved: `runs` rounds, each calling every renderer
+-- once, the order rotated by one per round; medians (ms) and each renderer's last image.
+local function interleaved(renderers, runs)
+  local ms, last = {}, {}
+  for i = 1, #renderers do ms[i] = {} end
+  for r = 1, runs do
+    for j = 0, #renderers - 1 do
+      local i = (r - 1 + j) % #renderers + 1
+      local img, s = renderers[i]()
+      ms[i][#ms[i] + 1], last[i] = s.ms, img
+    end
   end
-  return first_img, first, common.median(ms)
+  local med = {}
+  for i = 1, #renderers do med[i] = common.median(ms[i]) end
+  return med, last
 end
+
+-- The OpenCL ray cast where this cdvr has it, else the CPU one.
+local RAY_DEVICE = pcall(cdvr.render, evict, {tf = cdvr.tf("ct_bone"), camera = evict_cam,
+                                              device = "cl"}) and "cl" or "cpu"
 
 print("dataset,D,size,lod_bytes,full_bytes,bytes_saved_pct,lod_first_ms,nolod_first_ms,lod_ms," ..
       "nolod_ms,ray_ms,lod_over_nolod_time,nolod_over_ray_time,psnr_lod_vs_nolod," ..
-      "psnr_nolod_vs_ray,psnr_lod_vs_ray,levels,renderer")
+      "psnr_nolod_vs_ray,psnr_lod_vs_ray,levels,renderer,ray_device")
 for _, ds in ipairs(datasets) do
   if not common.exists(ds.path) then
     io.stderr:write("slice.lua: missing " .. ds.path .. " (set CDVR_SHARED_DATA)\n")
@@ -74,21 +85,25 @@ for _, ds in ipairs(datasets) do
     local function slice(lod)
       return function() return cdvr.render(v, {tf = tf, camera = cam, method = "slice", lod = lod}) end
     end
+    local function ray()
+      return cdvr.render(v, {tf = tf, camera = cam, step = step, device = RAY_DEVICE})
+    end
     cdvr.render(evict, {tf = tf, camera = evict_cam, method = "slice"})
-    local lod_img, lod_first, lod_ms = timed(slice(true), RUNS)
+    local _, lod_first = slice(true)()
     cdvr.render(evict, {tf = tf, camera = evict_cam, method = "slice"})
-    local full_img, full_first, full_ms = timed(slice(false), RUNS)
-    local ray_img, _, ray_ms = timed(function()
-      return cdvr.render(v, {tf = tf, camera = cam, step = step})
-    end, math.max(1, RUNS // 2))
+    local _, full_first = slice(false)()
+    ray() -- first frame: kernel build, upload
+    local med, last = interleaved({slice(true), slice(false), ray}, RUNS)
+    local lod_img, full_img, ray_img = last[1], last[2], last[3]
+    local lod_ms, full_ms, ray_ms = med[1], med[2], med[3]
     local p_lod = cdvr.compare(full_img, lod_img).psnr
     local p_full_ray = cdvr.compare(ray_img, full_img).psnr
     local p_lod_ray = cdvr.compare(ray_img, lod_img).psnr
     local ls, fs = lod_img:stats(), full_img:stats()
-    print(string.format("%s,%.2f,%d,%d,%d,%.1f,%.1f,%.1f,%.1f,%.1f,%.1f,%.3f,%.3f,%.2f,%.2f,%.2f,%d..%d,%q",
+    print(string.format("%s,%.2f,%d,%d,%d,%.1f,%.1f,%.1f,%.1f,%.1f,%.1f,%.3f,%.3f,%.2f,%.2f,%.2f,%d..%d,%q,%s",
       ds.name, D, SIZE, ls.texture_bytes, fs.texture_bytes, 100 * (1 - ls.texture_bytes / fs.texture_bytes),
       lod_first.ms, full_first.ms, lod_ms, full_ms, ray_ms, lod_ms / full_ms, full_ms / ray_ms,
-      p_lod, p_full_ray, p_lod_ray, ls.min_level, ls.max_level, ls.device))
+      p_lod, p_full_ray, p_lod_ray, ls.min_level, ls.max_level, ls.device, RAY_DEVICE))
     progress("%s D=%.2f: LOD %.0f%% fewer bytes, %.1f dB vs no LOD", ds.name, D,
              100 * (1 - ls.texture_bytes / fs.texture_bytes), p_lod)
     io.stdout:flush()

@@ -10,7 +10,11 @@
 --   fill:    frames per second of the splat renderer (W x W, all cores) against the fill ratio
 --            (voxels above a threshold) on the engine CT and neghip, median over --views views;
 --            x = fill ratio measured, value = fps, ratio = fps / quicksort fps at that fill;
---            extra columns: median frame and ordering ms. Seed beside: Table 3 (skull 256^3)
+--            extra columns: median frame and ordering ms. The OpenCL ray cast (order
+--            "raycast_cl"; the CPU one, "raycast_cpu", where this cdvr has no OpenCL) of the same
+--            view with the TF's opacity zeroed up to the threshold, step 1, is interleaved with
+--            the splat orders (every view renders each once, the order rotated per view, first
+--            ray-cast frame untimed); metric fps_over_raycast = splat fps / ray-cast fps. Seed beside: Table 3 (skull 256^3)
 --            for the engine, Table 2 (hydrogenAtom 128^3) for neghip, at the same row.
 --   popping: PSNR (dB) between splat images at azimuths 44 and 46 degrees (elevation 10) per
 --            order (metric psnr_44_46), the same for 44.9 and 45.1 (psnr_44.9_45.1: the view
@@ -18,7 +22,7 @@
 --            the exact sort at the same view (psnr_vs_sort, x = azimuth): the axis order
 --            switches sheets at 45 degrees.
 -- Columns: section,dataset,order,x,metric,value,ratio,frame_ms,order_ms,seed_value,seed_ratio
-local common = dofile((debug.getinfo(1, "S").source:match("^@(.*/)") or "./") .. "common.lua")
+local common = dofile((arg and arg[0] and arg[0]:match("^(.*/)") or "./") .. "common.lua")
 
 local _, opt = common.parse_args(arg, {views = "3", dirs = "15", width = "512",
                                        orders = "dda,quicksort,sort,axis",
@@ -127,27 +131,62 @@ end
 local FILL_TF = cdvr.tf{ {0, 0, 0, 0, 0}, {1, 0.3, 0.3, 0.6, 0.004}, {128, 0.9, 0.6, 0.3, 0.05},
                          {255, 1, 1, 1, 0.6} }
 
+-- The OpenCL ray cast where this cdvr has it, else the CPU one.
+local RAY_DEVICE = pcall(cdvr.render, cdvr.generate("box", {dims = {2, 2, 2}}),
+                         {tf = FILL_TF, camera = cdvr.camera{eye = {0, 0, 5}, center = {0, 0, 0},
+                                                             up = {0, 1, 0}, width = 4, height = 4},
+                          device = "cl"}) and "cl" or "cpu"
+local RAY = "raycast_" .. RAY_DEVICE
+
+-- FILL_TF with zero opacity at and below the splat threshold (what the splatter drops).
+local function thresholded_tf(thr)
+  local pts = {{0, 0, 0, 0, 0}, {thr, 0, 0, 0, 0}}
+  for _, p in ipairs{{thr + 1, 0.3, 0.3, 0.6, 0.004}, {128, 0.9, 0.6, 0.3, 0.05}, {255, 1, 1, 1, 0.6}} do
+    if p[1] > thr then pts[#pts + 1] = p end
+  end
+  if #pts == 2 then pts[#pts + 1] = {255, 0, 0, 0, 0} end
+  return cdvr.tf(pts)
+end
+
 local function fill_section(name, v, seed_table)
   for idx, s in ipairs(seed_table) do
     local thr, fill = threshold_for(v, s[1])
-    local fps = {}
-    for _, how in ipairs(ORDERS) do
-      local frames, orders = {}, {}
-      for k = 1, VIEWS do
+    local ray_tf = thresholded_tf(thr)
+    local hows = {}
+    for i, how in ipairs(ORDERS) do hows[i] = how end
+    hows[#hows + 1] = RAY
+    local frames, orders = {}, {}
+    for _, how in ipairs(hows) do frames[how], orders[how] = {}, {} end
+    for k = 1, VIEWS do
+      local cam = common.view(v, 20 + 45 * (k - 1), 25, WIDTH, WIDTH)
+      if k == 1 then cdvr.render(v, {tf = ray_tf, camera = cam, step = 1, device = RAY_DEVICE}) end
+      for j = 0, #hows - 1 do
+        local how = hows[(k - 1 + j) % #hows + 1]
         progress("fill %s %.3f %s view %d", name, fill, how, k)
-        local cam = common.view(v, 20 + 45 * (k - 1), 25, WIDTH, WIDTH)
-        local _, st = cdvr.render(v, {method = "splat", order = how, tf = FILL_TF, camera = cam,
-                                      threshold = thr})
-        frames[k], orders[k] = st.ms, st.order_ms
+        local st
+        if how == RAY then
+          _, st = cdvr.render(v, {tf = ray_tf, camera = cam, step = 1, device = RAY_DEVICE})
+        else
+          _, st = cdvr.render(v, {method = "splat", order = how, tf = FILL_TF, camera = cam,
+                                  threshold = thr})
+        end
+        frames[how][k], orders[how][k] = st.ms, st.order_ms or 0
       end
-      local ms = median(frames)
-      fps[how] = {1000 / ms, ms, median(orders)}
     end
-    for _, how in ipairs(ORDERS) do
+    local fps = {}
+    for _, how in ipairs(hows) do
+      local ms = median(frames[how])
+      fps[how] = {1000 / ms, ms, median(orders[how])}
+    end
+    for _, how in ipairs(hows) do
       local f = fps[how]
       local seed = how == "dda" and s[2] or how == "quicksort" and s[3] or nil
       row("fill", name, how, string.format("%.4f", fill), "fps", f[1],
           fps.quicksort and f[1] / fps.quicksort[1], f[2], f[3], seed, seed and seed / s[3])
+      if how ~= RAY then
+        row("fill", name, how, string.format("%.4f", fill), "fps_over_raycast", f[1] / fps[RAY][1],
+            nil, f[2], f[3])
+      end
     end
     progress("")
     local _ = idx

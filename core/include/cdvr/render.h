@@ -167,6 +167,11 @@ typedef struct cdvr_render_opts {
                                  the render stops and fails with CDVR_ERR_CANCELLED */
     cdvr_look look;           /* blend mode, shading, gradient opacity, iso (zeros: plain
                                  composite) */
+    int no_skip;              /* CPU: 1 takes every sample, one ray at a time (the plain
+                                 loop); 0 (default) jumps samples whose brick has zero
+                                 opacity and marches plain composite rays four at a time
+                                 (render_cpu.c; the same image bit for bit, the same
+                                 samples count) */
 } cdvr_render_opts;
 
 /* Checks the blend, shading, gradient-opacity and iso options for a TF built over window

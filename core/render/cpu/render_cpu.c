@@ -1,6 +1,9 @@
 /* core/render/cpu/render_cpu.c - the multithreaded CPU reference ray caster (cdvr/render.h). Every step
  * below follows the numbered algorithm in render.h; the OpenCL kernel copies it. */
 #include "cdvr/render.h"
+#include "cdvr/bricks.h"
+#include "cdvr/skip.h"
+#include "render/cpu/brick_range.h"
 
 #include <limits.h>
 #include <math.h>
@@ -8,6 +11,11 @@
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <unistd.h>
+#include <string.h>
+
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 #define MAX_THREADS 256
 
@@ -24,7 +32,10 @@ typedef struct render_job {
     float step, unit, term_alpha;
     const cdvr_tf *tf;
     float alpha_step[256]; /* a_c[i] = 1 - (1 - a[i])^(step/unit) */
+    float code_value[256];     /* (float)i: a load instead of an int-to-float conversion */
     const cdvr_camera *camera;
+    double cam_f[3], cam_u[3], cam_r[3]; /* cdvr_camera_basis, once per render */
+    double cam_tan;            /* tan(fov / 2) as cdvr_camera_ray computes it */
     /* blend modes and shading (render.h) */
     int blend;
     int shade;                 /* shading on */
@@ -39,6 +50,11 @@ typedef struct render_job {
     float go_mag[CDVR_GRADIENT_OPACITY_MAX], go_factor[CDVR_GRADIENT_OPACITY_MAX];
     float iso_code, iso_rgb[3], iso_alpha;
     int iso_tf_color;          /* the TF's colour at the iso code */
+    /* empty-space skipping (composite, not clipped): the brick flags of cdvr/skip.h */
+    const uint8_t *skip_flags; /* NULL: every sample is taken */
+    const uint8_t *skip_minmax; /* max, min: brick ranges (NULL: every sample is taken) */
+    int skip_shift, skip_nb[3];
+    int lanes;                 /* plain composite rays four at a time (SSE2) */
     const atomic_int *cancel; /* NULL, or stop before the next row once nonzero */
     cdvr_image *img;
     atomic_int next_row;
@@ -96,12 +112,24 @@ static float lerpf(float a, float b, float f)
     return a + f * (b - a);
 }
 
+/* max(x, lo) and min(x, hi) as compares the compiler keeps inline (fmaxf/fminf are calls at
+ * -O2 for their NaN rules); a NaN x gives lo (hi), as fmaxf(NaN, lo) (fminf(NaN, hi)) does. */
+static inline float max_f(float x, float lo)
+{
+    return x > lo ? x : lo;
+}
+
+static inline float min_f(float x, float hi)
+{
+    return x < hi ? x : hi;
+}
+
 /* Step 3, first half: grid coordinates of box-frame position p, clamped. */
 static void grid_position(const render_job *job, const float p[3], float g[3])
 {
     for (int a = 0; a < 3; a++) {
         float top = (float)(job->dims[a] - 1);
-        g[a] = fminf(fmaxf(p[a] * job->inv_spacing[a], 0.0f), top);
+        g[a] = min_f(max_f(p[a] * job->inv_spacing[a], 0.0f), top);
     }
 }
 
@@ -115,23 +143,27 @@ static int owned(const render_job *job, const float g[3])
 }
 
 /* Step 3, second half: trilinear interpolation at grid position g (of the whole volume). */
-static float sample_volume(const render_job *job, const float g[3])
+static inline float sample_volume(const render_job *job, const float g[3])
 {
     size_t lo[3], hi[3];
     float f[3];
     for (int a = 0; a < 3; a++) {
         int i0 = (int)g[a];
+        int i1 = i0 + 1 < job->dims[a] ? i0 + 1 : i0;
         lo[a] = (size_t)i0 - job->offset[a];
-        hi[a] = (size_t)(i0 + 1 < job->dims[a] ? i0 + 1 : i0) - job->offset[a];
+        hi[a] = (size_t)i1 - job->offset[a];
         f[a] = g[a] - (float)i0;
     }
     const uint8_t *v = job->voxels;
     size_t y0 = lo[1] * job->stride_y, y1 = hi[1] * job->stride_y;
     size_t z0 = lo[2] * job->stride_z, z1 = hi[2] * job->stride_z;
-    float c00 = lerpf(v[lo[0] + y0 + z0], v[hi[0] + y0 + z0], f[0]);
-    float c10 = lerpf(v[lo[0] + y1 + z0], v[hi[0] + y1 + z0], f[0]);
-    float c01 = lerpf(v[lo[0] + y0 + z1], v[hi[0] + y0 + z1], f[0]);
-    float c11 = lerpf(v[lo[0] + y1 + z1], v[hi[0] + y1 + z1], f[0]);
+    const uint8_t *r00 = v + y0 + z0, *r10 = v + y1 + z0, *r01 = v + y0 + z1, *r11 = v + y1 + z1;
+    /* the eight loads first, independent of each other, then the lerps */
+    const float *cv = job->code_value;
+    float a0 = cv[r00[lo[0]]], a1 = cv[r00[hi[0]]], b0 = cv[r10[lo[0]]], b1 = cv[r10[hi[0]]];
+    float c0 = cv[r01[lo[0]]], c1 = cv[r01[hi[0]]], d0 = cv[r11[lo[0]]], d1 = cv[r11[hi[0]]];
+    float c00 = lerpf(a0, a1, f[0]), c10 = lerpf(b0, b1, f[0]);
+    float c01 = lerpf(c0, c1, f[0]), c11 = lerpf(d0, d1, f[0]);
     return lerpf(lerpf(c00, c10, f[1]), lerpf(c01, c11, f[1]), f[2]);
 }
 
@@ -192,8 +224,8 @@ static void gradient(const render_job *job, const float g[3], float G[3])
     for (int a = 0; a < 3; a++) {
         float gp[3] = {g[0], g[1], g[2]}, gm[3] = {g[0], g[1], g[2]};
         float top = (float)(job->dims[a] - 1);
-        gp[a] = fminf(g[a] + 1.0f, top);
-        gm[a] = fmaxf(g[a] - 1.0f, 0.0f);
+        gp[a] = min_f(g[a] + 1.0f, top);
+        gm[a] = max_f(g[a] - 1.0f, 0.0f);
         float h = gp[a] - gm[a];
         dq[a] = h > 0.0f ? (sample_volume(job, gp) - sample_volume(job, gm)) / (h * job->spacing[a])
                          : 0.0f;
@@ -224,7 +256,7 @@ static void shade_rgb(const render_job *job, const float G[3], const float V[3],
     float spec = ndh > 0.0f ? job->specular * powf(ndh, job->power) : 0.0f;
     float k = job->ambient + job->diffuse * ndl;
     for (int c = 0; c < 3; c++)
-        rgb[c] = fminf(rgb[c] * k + spec, 1.0f);
+        rgb[c] = min_f(rgb[c] * k + spec, 1.0f);
 }
 
 /* Gradient opacity factor at magnitude m (data units per world unit). */
@@ -291,22 +323,120 @@ static float sample_at(const render_job *job, const float o[3], const float d[3]
     return sample_volume(job, g);
 }
 
-/* Max, min or average of the samples' codes; returns the samples taken. */
+/* ---- empty-space skipping -------------------------------------------------------------
+ * A sample whose brick's value range has zero opacity in the TF adds nothing (steps 4-5: both
+ * table entries around any value of the range have alpha 0, so the lerped alpha is exactly 0
+ * and the sample is not composited), so it need not be interpolated. The flags of cdvr/skip.h
+ * say, for an invisible brick, that the cube of bricks within code - 1 of it is invisible too:
+ * the ray jumps to its first sample whose nominal midpoint (t_near + (j + 1/2) step, in
+ * double) is not short of the cube's exit face pulled in by a margin (0.01 voxel plus 1e-5 of
+ * the coordinates' size, about 80 float ulps), so the samples jumped lie inside the cube
+ * whatever the rounding of step 3's float positions (a few ulps). The sample landed on is
+ * taken as usual (its own brick is looked up again). Images are those without skipping, bit
+ * for bit; the samples jumped are still counted in opts->samples (the definition's count). */
+
+/* Per ray: the box-frame ray in grid coordinates, in double. */
+typedef struct grid_ray {
+    double o[3], d[3], inv_d[3]; /* inv_d: +-inf where d is 0 */
+} grid_ray;
+
+static void grid_ray_of(const render_job *job, const float o[3], const float d[3], grid_ray *r)
+{
+    for (int a = 0; a < 3; a++) {
+        r->o[a] = (double)o[a] * (double)job->inv_spacing[a];
+        r->d[a] = (double)d[a] * (double)job->inv_spacing[a];
+        r->inv_d[a] = 1.0 / r->d[a];
+    }
+}
+
+/* The flag byte of the brick holding grid position g (clamped to the volume: step 3). */
+static inline int brick_code(const render_job *job, const float g[3])
+{
+    int sh = job->skip_shift;
+    size_t bx = (size_t)((int)g[0] >> sh), by = (size_t)((int)g[1] >> sh);
+    size_t bz = (size_t)((int)g[2] >> sh);
+    return job->skip_flags[bx + (size_t)job->skip_nb[0] * (by + (size_t)job->skip_nb[1] * bz)];
+}
+
+/* Sample i at grid position g lies in an invisible brick of the given code: the index of the
+ * first sample after it that may lie outside the invisible cube around that brick. */
+static long skip_target(const render_job *job, const grid_ray *r, const float g[3], int code,
+                        float t_near, long i)
+{
+    int sh = job->skip_shift, reach = (code > 1 ? code : 1) - 1;
+    double t_exit = INFINITY;
+    for (int a = 0; a < 3; a++) {
+        if (r->d[a] == 0.0)
+            continue;
+        long b = (long)((int)g[a] >> sh);
+        double face = r->d[a] > 0.0 ? (double)((b + reach + 1) << sh) : (double)((b - reach) << sh);
+        double m = 0.01 + 1e-5 * (fabs(r->o[a]) + fabs(face));
+        face += r->d[a] > 0.0 ? -m : m;
+        double t = (face - r->o[a]) * r->inv_d[a];
+        t_exit = t < t_exit ? t : t_exit;
+    }
+    double j = ceil((t_exit - (double)t_near) / (double)job->step - 0.5);
+    if (!(j > (double)(i + 1)))
+        return i + 1;
+    return j > (double)(LONG_MAX / 2) ? LONG_MAX / 2 : (long)j;
+}
+
+/* Max and min jump the bricks that cannot change the extreme so far: every sample in a brick
+ * lies in its value range, so a brick whose max is at most the best max (min: whose min is at
+ * least the best min) is jumped to its exit face as the composite march jumps an invisible
+ * cube of reach 0 (skip_target): the result is exactly the unskipped one. */
+/* The value range [min, max] of the brick holding grid position g. */
+static inline void brick_range(const render_job *job, const float g[3], int *lo, int *hi)
+{
+    int sh = job->skip_shift;
+    size_t bx = (size_t)((int)g[0] >> sh), by = (size_t)((int)g[1] >> sh);
+    size_t bz = (size_t)((int)g[2] >> sh);
+    const uint8_t *mm =
+        job->skip_minmax + 2 * (bx + (size_t)job->skip_nb[0] * (by + (size_t)job->skip_nb[1] * bz));
+    *lo = mm[0];
+    *hi = mm[1];
+}
+
+/* Max, min or average of the samples' codes; returns the samples taken (jumped included). */
 static uint64_t march_extreme(const render_job *job, const float o[3], const float d[3],
                               float t_near, float t_far, long n, float out[4])
 {
     float best = job->blend == CDVR_BLEND_MIN ? INFINITY : -INFINITY;
     double sum = 0.0;
     uint64_t taken = 0;
+    int is_max = job->blend == CDVR_BLEND_MAX;
+    int skipping = job->skip_minmax && job->blend != CDVR_BLEND_AVERAGE;
+    grid_ray gr;
+    if (skipping)
+        grid_ray_of(job, o, d, &gr);
     for (long i = 0; i < n; i++) {
         float tm, g[3];
         float ts = t_near + (float)i * job->step;
         if (i == n - 1 && t_far - ts <= 0.0f)
             break;
+        if (skipping) {
+            float p[3];
+            float ds = i < n - 1 ? job->step : t_far - ts;
+            float tmid = ts + 0.5f * ds;
+            for (int a = 0; a < 3; a++)
+                p[a] = o[a] + tmid * d[a];
+            grid_position(job, p, g);
+            int lo, hi;
+            brick_range(job, g, &lo, &hi);
+            if (is_max ? (float)hi <= best : (float)lo >= best) {
+                long next = skip_target(job, &gr, g, 1, t_near, i);
+                next = next < n ? next : n;
+                taken += (uint64_t)(next - i);
+                if (next == n && t_far - (t_near + (float)(n - 1) * job->step) <= 0.0f)
+                    taken--; /* the definition stops before an empty last segment */
+                i = next - 1;
+                continue;
+            }
+        }
         float s = sample_at(job, o, d, t_near, t_far, i, n, &tm, g);
         taken++;
         sum += s;
-        best = job->blend == CDVR_BLEND_MAX ? fmaxf(best, s) : fminf(best, s);
+        best = is_max ? max_f(best, s) : job->blend == CDVR_BLEND_MIN ? min_f(best, s) : best;
     }
     if (!taken)
         return 0;
@@ -379,30 +509,20 @@ static uint64_t march_iso(const render_job *job, const float o[3], const float d
     return taken;
 }
 
-/* Steps 2 and 5 for one ray; returns the number of samples taken. V: towards the eye, world
- * (for shading). */
-static uint64_t march_ray(const render_job *job, const float o[3], const float d[3],
-                          const float V[3], float out[4])
+/* Steps 2-5 of a composite ray from segment `first` to before `stop`; returns the samples
+ * of the definition taken (those jumped by skipping included). */
+static uint64_t march_composite(const render_job *job, const float o[3], const float d[3],
+                                const float V[3], float t_near, float t_far, long n, long first,
+                                long stop, float out[4])
 {
-    float t_near, t_far;
-    out[0] = out[1] = out[2] = out[3] = 0.0f;
-    if (!intersect_box(job, o, d, &t_near, &t_far))
-        return 0;
-    float length = t_far - t_near, step = job->step;
-    long n = (long)ceilf(length / step);
-    if (n < 1)
-        n = 1;
-    if (job->blend == CDVR_BLEND_ISO)
-        return march_iso(job, o, d, t_near, t_far, n, V, out);
-    if (job->blend != CDVR_BLEND_COMPOSITE)
-        return march_extreme(job, o, d, t_near, t_far, n, out);
     int looks = job->shade || job->go_points;
-    float C[3] = {0.0f, 0.0f, 0.0f}, A = 0.0f;
-    long i, first = 0, stop = n;
-    if (job->clipped)
-        owned_segments(job, o, d, t_near, n, &first, &stop);
+    int skipping = job->skip_flags != NULL;
+    float C[3] = {0.0f, 0.0f, 0.0f}, A = 0.0f, step = job->step;
+    grid_ray gr;
+    if (skipping)
+        grid_ray_of(job, o, d, &gr);
     uint64_t taken = 0;
-    for (i = first; i < stop; i++) {
+    for (long i = first; i < stop; i++) {
         float ts = t_near + (float)i * step;
         float ds = i < n - 1 ? step : t_far - ts;
         if (ds <= 0.0f)
@@ -413,6 +533,18 @@ static uint64_t march_ray(const render_job *job, const float o[3], const float d
         grid_position(job, p, g);
         if (job->clipped && !owned(job, g))
             continue;
+        if (skipping) {
+            int code = brick_code(job, g);
+            if (code < 128) { /* invisible: sample i and those up to the cube's face add nothing */
+                long next = skip_target(job, &gr, g, code, t_near, i);
+                next = next < stop ? next : stop;
+                taken += (uint64_t)(next - i);
+                if (next == n && t_far - (t_near + (float)(n - 1) * step) <= 0.0f)
+                    taken--; /* the definition stops before an empty last segment */
+                i = next - 1;
+                continue;
+            }
+        }
         taken++;
         float sv = sample_volume(job, g);
         classify(job, sv, ds, ds >= step, rgba);
@@ -434,6 +566,29 @@ static uint64_t march_ray(const render_job *job, const float o[3], const float d
     return taken;
 }
 
+/* Steps 2 and 5 for one ray; returns the number of samples taken. V: towards the eye, world
+ * (for shading). */
+static uint64_t march_ray(const render_job *job, const float o[3], const float d[3],
+                          const float V[3], float out[4])
+{
+    float t_near, t_far;
+    out[0] = out[1] = out[2] = out[3] = 0.0f;
+    if (!intersect_box(job, o, d, &t_near, &t_far))
+        return 0;
+    float length = t_far - t_near, step = job->step;
+    long n = (long)ceilf(length / step);
+    if (n < 1)
+        n = 1;
+    if (job->blend == CDVR_BLEND_ISO)
+        return march_iso(job, o, d, t_near, t_far, n, V, out);
+    if (job->blend != CDVR_BLEND_COMPOSITE)
+        return march_extreme(job, o, d, t_near, t_far, n, out);
+    long first = 0, stop = n;
+    if (job->clipped)
+        owned_segments(job, o, d, t_near, n, &first, &stop);
+    return march_composite(job, o, d, V, t_near, t_far, n, first, stop, out);
+}
+
 /* Step 0: the world ray (double) in the box frame, rounded to float. */
 static void to_box_frame(const render_job *job, const double od[3], const double dd[3],
                          float o[3], float d[3])
@@ -446,13 +601,246 @@ static void to_box_frame(const render_job *job, const double od[3], const double
     }
 }
 
+/* cdvr_camera_ray's ray through pixel (x, y), the same arithmetic in the same order, with the
+ * camera's basis and tan(fov / 2) computed once per render (job) instead of per pixel. */
+static void pixel_ray(const render_job *job, int x, int y, double origin[3], double dir[3])
+{
+    const cdvr_camera *cam = job->camera;
+    double aspect = (double)cam->width / (double)cam->height;
+    double sx = (2.0 * (x + 0.5) / cam->width - 1.0) * aspect;
+    double sy = -(2.0 * (y + 0.5) / cam->height - 1.0);
+    const double *f = job->cam_f, *u = job->cam_u, *r = job->cam_r;
+    if (cam->orthographic) {
+        double half = 0.5 * cam->ortho_height;
+        for (int i = 0; i < 3; i++) {
+            origin[i] = cam->eye[i] + (sx * r[i] + sy * u[i]) * half;
+            dir[i] = f[i];
+        }
+        return;
+    }
+    for (int i = 0; i < 3; i++) {
+        origin[i] = cam->eye[i];
+        dir[i] = f[i] + (sx * r[i] + sy * u[i]) * job->cam_tan;
+    }
+    double len = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+    if (len > 0.0)
+        for (int i = 0; i < 3; i++)
+            dir[i] /= len;
+}
+
+/* ---- four rays at a time (SSE2) -------------------------------------------------------------
+ * The plain composite march (no shading, no gradient opacity, not clipped) of four
+ * neighbouring pixels in lock-step: each lane keeps its own segment index, so the lanes take
+ * exactly the samples, in the same order, with the same float operations as march_composite
+ * (IEEE single precision, the same operand order, no fused multiply-add: maxps/minps are
+ * max_f/min_f, cvttps2dq is the (int) truncation, cvtdq2ps is exact for the at most 2^24
+ * segments of a ray); voxel, brick and table reads are per lane. Lanes that jump empty space
+ * or have finished add zero weight, which leaves C and A bit for bit unchanged. The shorter
+ * last segment's alpha (powf) is taken per lane as classify does. */
+#ifdef __SSE2__
+#define LANES 4
+
+typedef struct lanes {
+    int live[LANES];         /* still marching */
+    int i[LANES], n[LANES];  /* segment index, segments */
+    uint64_t taken[LANES];
+    grid_ray gr[LANES];
+    float t_near[LANES], t_far[LANES];
+    float o[3][LANES], d[3][LANES];
+} lanes;
+
+static inline __m128 lerp4(__m128 a, __m128 b, __m128 f)
+{
+    return _mm_add_ps(a, _mm_mul_ps(f, _mm_sub_ps(b, a)));
+}
+
+/* Lane k's eight voxels at grid position g (already clamped) into v[0..7][k]. */
+static inline void gather_lane(const render_job *job, const int i0[3], float v[8][LANES], int k)
+{
+    size_t lo[3], hi[3];
+    for (int a = 0; a < 3; a++) {
+        int i1 = i0[a] + 1 < job->dims[a] ? i0[a] + 1 : i0[a];
+        lo[a] = (size_t)i0[a];
+        hi[a] = (size_t)i1;
+    }
+    const uint8_t *vox = job->voxels;
+    const float *cv = job->code_value;
+    size_t y0 = lo[1] * job->stride_y, y1 = hi[1] * job->stride_y;
+    size_t z0 = lo[2] * job->stride_z, z1 = hi[2] * job->stride_z;
+    const uint8_t *r00 = vox + y0 + z0, *r10 = vox + y1 + z0, *r01 = vox + y0 + z1,
+                  *r11 = vox + y1 + z1;
+    v[0][k] = cv[r00[lo[0]]];
+    v[1][k] = cv[r00[hi[0]]];
+    v[2][k] = cv[r10[lo[0]]];
+    v[3][k] = cv[r10[hi[0]]];
+    v[4][k] = cv[r01[lo[0]]];
+    v[5][k] = cv[r01[hi[0]]];
+    v[6][k] = cv[r11[lo[0]]];
+    v[7][k] = cv[r11[hi[0]]];
+}
+
+/* One step of every live lane; returns the lanes still live. */
+static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
+{
+    const __m128 step = _mm_set1_ps(job->step), zero = _mm_setzero_ps();
+    __m128i iv = _mm_loadu_si128((const __m128i *)L->i);
+    __m128 ts = _mm_add_ps(_mm_loadu_ps(L->t_near), _mm_mul_ps(_mm_cvtepi32_ps(iv), step));
+    __m128i last = _mm_sub_epi32(_mm_loadu_si128((const __m128i *)L->n), _mm_set1_epi32(1));
+    __m128 is_full = _mm_castsi128_ps(_mm_cmplt_epi32(iv, last));
+    __m128 ds = _mm_or_ps(_mm_and_ps(is_full, step),
+                          _mm_andnot_ps(is_full, _mm_sub_ps(_mm_loadu_ps(L->t_far), ts)));
+    __m128 tm = _mm_add_ps(ts, _mm_mul_ps(_mm_set1_ps(0.5f), ds));
+    float g[3][LANES], dsv[LANES];
+    int gi[3][LANES];
+    _mm_storeu_ps(dsv, ds);
+    __m128 gv[3];
+    for (int a = 0; a < 3; a++) {
+        __m128 p = _mm_add_ps(_mm_loadu_ps(L->o[a]), _mm_mul_ps(tm, _mm_loadu_ps(L->d[a])));
+        __m128 top = _mm_set1_ps((float)(job->dims[a] - 1));
+        gv[a] = _mm_min_ps(_mm_max_ps(_mm_mul_ps(p, _mm_set1_ps(job->inv_spacing[a])), zero), top);
+        _mm_storeu_ps(g[a], gv[a]);
+        _mm_storeu_si128((__m128i *)gi[a], _mm_cvttps_epi32(gv[a]));
+    }
+    float v[8][LANES];
+    int sampling[LANES];
+    for (int k = 0; k < LANES; k++) {
+        sampling[k] = 0;
+        for (int c = 0; c < 8; c++)
+            v[c][k] = 0.0f;
+        if (!L->live[k])
+            continue;
+        if (!(dsv[k] > 0.0f)) { /* the definition stops before an empty last segment */
+            L->live[k] = 0;
+            continue;
+        }
+        float gk[3] = {g[0][k], g[1][k], g[2][k]};
+        if (job->skip_flags) {
+            int code = brick_code(job, gk);
+            if (code < 128) {
+                long next = skip_target(job, &L->gr[k], gk, code, L->t_near[k], L->i[k]);
+                int n = L->n[k];
+                next = next < n ? next : n;
+                L->taken[k] += (uint64_t)(next - L->i[k]);
+                if (next == n && L->t_far[k] - (L->t_near[k] + (float)(n - 1) * job->step) <= 0.0f)
+                    L->taken[k]--;
+                L->i[k] = (int)next;
+                L->live[k] = next < n;
+                continue;
+            }
+        }
+        int i0[3] = {gi[0][k], gi[1][k], gi[2][k]};
+        gather_lane(job, i0, v, k);
+        sampling[k] = 1;
+    }
+    if (!(sampling[0] | sampling[1] | sampling[2] | sampling[3]))
+        return L->live[0] | L->live[1] | L->live[2] | L->live[3];
+    __m128 f[3];
+    for (int a = 0; a < 3; a++)
+        f[a] = _mm_sub_ps(gv[a], _mm_cvtepi32_ps(_mm_loadu_si128((const __m128i *)gi[a])));
+    __m128 c00 = lerp4(_mm_loadu_ps(v[0]), _mm_loadu_ps(v[1]), f[0]);
+    __m128 c10 = lerp4(_mm_loadu_ps(v[2]), _mm_loadu_ps(v[3]), f[0]);
+    __m128 c01 = lerp4(_mm_loadu_ps(v[4]), _mm_loadu_ps(v[5]), f[0]);
+    __m128 c11 = lerp4(_mm_loadu_ps(v[6]), _mm_loadu_ps(v[7]), f[0]);
+    __m128 s = lerp4(lerp4(c00, c10, f[1]), lerp4(c01, c11, f[1]), f[2]);
+    /* step 4: i0 = min((int)s, 254) as the truncation of min(s, 254) */
+    __m128i si = _mm_cvttps_epi32(_mm_min_ps(s, _mm_set1_ps(254.0f)));
+    __m128 fr = _mm_sub_ps(s, _mm_cvtepi32_ps(si));
+    int ti[LANES];
+    float sv[LANES], a0[LANES], a1[LANES], rgb0[3][LANES], rgb1[3][LANES];
+    _mm_storeu_si128((__m128i *)ti, si);
+    _mm_storeu_ps(sv, s);
+    for (int k = 0; k < LANES; k++) {
+        const float *lo = job->tf->table[ti[k]], *hi = job->tf->table[ti[k] + 1];
+        a0[k] = job->alpha_step[ti[k]];
+        a1[k] = job->alpha_step[ti[k] + 1];
+        for (int c = 0; c < 3; c++) {
+            rgb0[c][k] = lo[c];
+            rgb1[c][k] = hi[c];
+        }
+    }
+    float alpha[LANES];
+    _mm_storeu_ps(alpha, lerp4(_mm_loadu_ps(a0), _mm_loadu_ps(a1), fr));
+    for (int k = 0; k < LANES; k++) {
+        if (!sampling[k])
+            alpha[k] = 0.0f;
+        else if (!(dsv[k] >= job->step)) { /* the shorter last segment (classify) */
+            float rgba[4];
+            classify(job, sv[k], dsv[k], 0, rgba);
+            alpha[k] = rgba[3];
+        }
+    }
+    __m128 a = _mm_loadu_ps(alpha);
+    __m128 w = _mm_mul_ps(_mm_sub_ps(_mm_set1_ps(1.0f), *A), a);
+    for (int c = 0; c < 3; c++)
+        C[c] = _mm_add_ps(C[c], _mm_mul_ps(w, lerp4(_mm_loadu_ps(rgb0[c]), _mm_loadu_ps(rgb1[c]), fr)));
+    *A = _mm_add_ps(*A, w);
+    float Av[LANES];
+    _mm_storeu_ps(Av, *A);
+    for (int k = 0; k < LANES; k++) {
+        if (!sampling[k])
+            continue;
+        L->taken[k]++;
+        L->i[k]++;
+        if ((alpha[k] > 0.0f && (Av[k] >= job->term_alpha || Av[k] >= 1.0f)) || L->i[k] >= L->n[k])
+            L->live[k] = 0;
+    }
+    return L->live[0] | L->live[1] | L->live[2] | L->live[3];
+}
+
+/* Pixels x .. x + 3 of row y (x + 3 < width) by the four-lane march; returns their samples. */
+static uint64_t render_lanes(const render_job *job, int x, int y)
+{
+    lanes L;
+    memset(&L, 0, sizeof L);
+    for (int k = 0; k < LANES; k++) {
+        double od[3], dd[3];
+        float o[3], d[3], t_near = 0.0f, t_far = 0.0f;
+        pixel_ray(job, x + k, y, od, dd);
+        to_box_frame(job, od, dd, o, d);
+        for (int a = 0; a < 3; a++) {
+            L.o[a][k] = o[a];
+            L.d[a][k] = d[a];
+        }
+        if (!intersect_box(job, o, d, &t_near, &t_far))
+            continue;
+        long n = (long)ceilf((t_far - t_near) / job->step);
+        L.n[k] = n < 1 ? 1 : (int)n;
+        L.t_near[k] = t_near;
+        L.t_far[k] = t_far;
+        L.live[k] = 1;
+        if (job->skip_flags)
+            grid_ray_of(job, o, d, &L.gr[k]);
+    }
+    __m128 C[3] = {_mm_setzero_ps(), _mm_setzero_ps(), _mm_setzero_ps()}, A = _mm_setzero_ps();
+    while (lanes_step(job, &L, C, &A))
+        ;
+    float out[4][LANES];
+    for (int c = 0; c < 3; c++)
+        _mm_storeu_ps(out[c], C[c]);
+    _mm_storeu_ps(out[3], A);
+    uint64_t samples = 0;
+    for (int k = 0; k < LANES; k++) {
+        float *px = cdvr_image_pixel(job->img, x + k, y);
+        for (int c = 0; c < 4; c++)
+            px[c] = out[c][k];
+        samples += L.taken[k];
+    }
+    return samples;
+}
+#endif
+
 static uint64_t render_row(const render_job *job, int y)
 {
     uint64_t samples = 0;
-    for (int x = 0; x < job->img->width; x++) {
+    int x = 0;
+#ifdef __SSE2__
+    for (; job->lanes && x + LANES <= job->img->width; x += LANES)
+        samples += render_lanes(job, x, y);
+#endif
+    for (; x < job->img->width; x++) {
         double od[3], dd[3];
         float o[3], d[3];
-        cdvr_camera_ray(job->camera, x, y, od, dd);
+        pixel_ray(job, x, y, od, dd);
         to_box_frame(job, od, dd, o, d);
         float V[3] = {(float)-dd[0], (float)-dd[1], (float)-dd[2]}; /* |dd| = 1 */
         samples += march_ray(job, o, d, V, cdvr_image_pixel(job->img, x, y));
@@ -626,8 +1014,12 @@ static void setup_job(render_job *job, const cdvr_volume *vol, size_t t,
     job->term_alpha = (float)term;
     job->tf = opts->tf;
     for (int i = 0; i < 256; i++)
+        job->code_value[i] = (float)i;
+    for (int i = 0; i < 256; i++)
         job->alpha_step[i] = (float)(1.0 - pow(1.0 - opts->tf->table[i][3], step / unit));
     job->camera = opts->camera;
+    cdvr_camera_basis(opts->camera, job->cam_f, job->cam_u, job->cam_r);
+    job->cam_tan = tan(0.5 * opts->camera->fov * 3.14159265358979323846 / 180.0);
     setup_look(job, opts, D);
     job->cancel = opts->cancel;
     job->img = img;
@@ -671,6 +1063,63 @@ int cdvr_render_view_hits(const cdvr_volume *vol, const cdvr_camera *cam)
     return hit;
 }
 
+/* The flags of cdvr/skip.h that the march reads: an invisible brick's code (its chessboard
+ * distance to the nearest visible brick, at most CDVR_SKIP_REACH_MAX), and 128 for every
+ * visible brick (the march never needs a visible brick's reach), which saves
+ * cdvr_skip_flags's second distance transform. */
+static void invisible_reach(cdvr_skip_grid *g, const cdvr_tf *tf)
+{
+    int prefix[257];
+    prefix[0] = 0;
+    for (int i = 0; i < 256; i++)
+        prefix[i + 1] = prefix[i] + (tf->table[i][3] > 0.0f);
+    uint8_t *visible = g->scratch;
+    for (size_t b = 0; b < g->nbricks; b++) {
+        int lo = g->minmax[2 * b], hi = g->minmax[2 * b + 1];
+        visible[b] = lo <= hi && prefix[hi + 1] - prefix[lo] > 0;
+    }
+    cdvr_skip_distance(visible, g->flags, g->dims);
+    for (size_t b = 0; b < g->nbricks; b++) {
+        int d = g->flags[b];
+        g->flags[b] = (uint8_t)(visible[b] ? 128 : d > CDVR_SKIP_REACH_MAX ? CDVR_SKIP_REACH_MAX : d);
+    }
+}
+
+/* Empty-space skipping for a composite render of a whole volume: the brick flags of its frame
+ * under the TF (cdvr/skip.h, bricks of 2^CDVR_RANGE_SHIFT voxels) into the job. Returns 1 when
+ * the grid was made (free it), 0 when the render takes every sample (clipped, another blend
+ * mode, opts->no_skip, or no memory: skipping is only a saving). Also chooses the four-lane
+ * march for plain composite renders unless opts->no_skip. */
+static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render_opts *opts,
+                      int threads, cdvr_skip_grid *grid)
+{
+    job->skip_flags = NULL;
+    job->skip_minmax = NULL;
+    job->lanes = !opts->no_skip && job->blend == CDVR_BLEND_COMPOSITE && !job->shade &&
+                 !job->go_points && !job->clipped;
+    int extreme = job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN;
+    if (opts->no_skip || job->clipped || (job->blend != CDVR_BLEND_COMPOSITE && !extreme))
+        return 0;
+    cdvr_error ignored;
+    if (cdvr_skip_grid_init(grid, vol->dims, CDVR_RANGE_SHIFT, &ignored) != CDVR_OK)
+        return 0;
+    if (cdvr_cpu_brick_ranges(job->voxels, vol->dims, grid->shift, threads, grid->minmax,
+                              &ignored) != CDVR_OK) {
+        cdvr_skip_grid_free(grid);
+        return 0;
+    }
+    job->skip_shift = (int)grid->shift;
+    if (extreme)
+        job->skip_minmax = grid->minmax;
+    else {
+        invisible_reach(grid, opts->tf);
+        job->skip_flags = grid->flags;
+    }
+    for (int a = 0; a < 3; a++)
+        job->skip_nb[a] = (int)grid->dims[a];
+    return 1;
+}
+
 cdvr_status cdvr_render_cpu(const cdvr_volume *vol, size_t t, cdvr_render_opts *opts,
                             cdvr_image **out, cdvr_error *err)
 {
@@ -701,7 +1150,12 @@ cdvr_status cdvr_render_cpu(const cdvr_volume *vol, size_t t, cdvr_render_opts *
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "render: no memory for the job");
     }
     setup_job(job, vol, t, opts, step, unit, term, img);
-    run_workers(job, thread_count(opts, img->height));
+    cdvr_skip_grid grid;
+    int nthreads = thread_count(opts, img->height);
+    int skipping = skip_setup(job, vol, opts, nthreads, &grid);
+    run_workers(job, nthreads);
+    if (skipping)
+        cdvr_skip_grid_free(&grid);
     opts->samples = (uint64_t)atomic_load(&job->samples);
     free(job);
     if (opts->cancel && atomic_load(opts->cancel)) {

@@ -1,0 +1,128 @@
+/* core/render/cpu/brick_range.c - brick value ranges of a dense u8 frame on several threads
+ * (brick_range.h). For each row of bricks (by, bz), the voxel rows it covers (apron
+ * included) are folded element-wise into one row of column minima and maxima, 16 bytes at a
+ * time, and each brick then takes the range of its E + 1 columns: every voxel is read about
+ * ((E + 1) / E)^2 times, by whole-row vector operations. */
+#include "render/cpu/brick_range.h"
+
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
+
+#define MAX_THREADS 256
+
+typedef struct range_job {
+    const uint8_t *frame;
+    size_t dims[3], nb[3];
+    unsigned shift;
+    uint8_t *minmax;
+    size_t next_plane; /* brick planes handed out in order, under lock */
+    pthread_mutex_t lock;
+} range_job;
+
+/* lo[x] = min(lo[x], row[x]), hi[x] = max(hi[x], row[x]) for x < n. */
+static void fold_row(const uint8_t *restrict row, uint8_t *restrict lo, uint8_t *restrict hi,
+                     size_t n)
+{
+    size_t x = 0;
+#ifdef __SSE2__
+    for (; x + 16 <= n; x += 16) {
+        __m128i v = _mm_loadu_si128((const __m128i *)(row + x));
+        __m128i l = _mm_loadu_si128((const __m128i *)(lo + x));
+        __m128i h = _mm_loadu_si128((const __m128i *)(hi + x));
+        _mm_storeu_si128((__m128i *)(lo + x), _mm_min_epu8(l, v));
+        _mm_storeu_si128((__m128i *)(hi + x), _mm_max_epu8(h, v));
+    }
+#endif
+    for (; x < n; x++) {
+        lo[x] = row[x] < lo[x] ? row[x] : lo[x];
+        hi[x] = row[x] > hi[x] ? row[x] : hi[x];
+    }
+}
+
+/* Last voxel index of brick g along an axis of n voxels. */
+static size_t brick_last(size_t g, unsigned shift, size_t n)
+{
+    size_t last = (g << shift) + ((size_t)1 << shift);
+    return last < n - 1 ? last : n - 1;
+}
+
+/* The ranges of the bricks of brick plane bz; lo, hi: one row of scratch each. */
+static void plane_ranges(range_job *job, size_t bz, uint8_t *lo, uint8_t *hi)
+{
+    const size_t *d = job->dims, *nb = job->nb;
+    unsigned sh = job->shift;
+    size_t z0 = bz << sh, z1 = brick_last(bz, sh, d[2]);
+    for (size_t by = 0; by < nb[1]; by++) {
+        size_t y0 = by << sh, y1 = brick_last(by, sh, d[1]);
+        memset(lo, 255, d[0]);
+        memset(hi, 0, d[0]);
+        for (size_t z = z0; z <= z1; z++)
+            for (size_t y = y0; y <= y1; y++)
+                fold_row(job->frame + d[0] * (y + d[1] * z), lo, hi, d[0]);
+        uint8_t *out = job->minmax + 2 * nb[0] * (by + nb[1] * bz);
+        for (size_t bx = 0; bx < nb[0]; bx++) {
+            size_t x0 = bx << sh, x1 = brick_last(bx, sh, d[0]);
+            uint8_t mn = 255, mx = 0;
+            for (size_t x = x0; x <= x1; x++) {
+                mn = lo[x] < mn ? lo[x] : mn;
+                mx = hi[x] > mx ? hi[x] : mx;
+            }
+            out[2 * bx] = mn;
+            out[2 * bx + 1] = mx;
+        }
+    }
+}
+
+static void *range_worker(void *arg)
+{
+    range_job *job = arg;
+    uint8_t *lo = malloc(2 * job->dims[0]);
+    if (!lo) /* takes no plane: the others do them */
+        return NULL;
+    for (;;) {
+        pthread_mutex_lock(&job->lock);
+        size_t bz = job->next_plane++;
+        pthread_mutex_unlock(&job->lock);
+        if (bz >= job->nb[2])
+            break;
+        plane_ranges(job, bz, lo, lo + job->dims[0]);
+    }
+    free(lo);
+    return NULL;
+}
+
+cdvr_status cdvr_cpu_brick_ranges(const uint8_t *frame, const size_t dims[3], unsigned shift,
+                                  int threads, uint8_t *minmax, cdvr_error *err)
+{
+    range_job job = {.frame = frame, .shift = shift, .minmax = minmax};
+    for (int a = 0; a < 3; a++) {
+        job.dims[a] = dims[a];
+        job.nb[a] = (dims[a] + ((size_t)1 << shift) - 1) >> shift;
+    }
+    if (pthread_mutex_init(&job.lock, NULL) != 0)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick ranges: no mutex");
+    int n = threads < 1 ? 1 : threads > MAX_THREADS ? MAX_THREADS : threads;
+    if ((size_t)n > job.nb[2])
+        n = (int)job.nb[2];
+    pthread_t tid[MAX_THREADS];
+    int started = 0;
+    for (int i = 1; i < n; i++) {
+        if (pthread_create(&tid[started], NULL, range_worker, &job) != 0)
+            break;
+        started++;
+    }
+    range_worker(&job);
+    for (int i = 0; i < started; i++)
+        pthread_join(tid[i], NULL);
+    pthread_mutex_destroy(&job.lock);
+    /* a worker without scratch takes no plane: planes remain only if all of them failed */
+    if (job.next_plane < job.nb[2])
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick ranges: no memory for %zu-voxel rows",
+                              dims[0]);
+    return CDVR_OK;
+}
