@@ -35,7 +35,10 @@
 -- Timing model (open_loop, and closed_loop's step-up prediction), from the recent frames:
 --   read   = bytes_per_timestep / (median of bytes / read_ms)
 --   unzip  = payload_bytes_per_timestep / (median of payload_bytes / unzip_ms), only for a
---            variant with stage 2 that actually shrank its chunks
+--            variant with stage 2 that actually shrank its chunks; the median over the frames
+--            of variants with the same stage 2 (lzo, lz4, zstd, auto unpack at very different
+--            rates) when policy.measure knows the variants and some were measured, else over
+--            all frames
 --   upload = payload_bytes_per_timestep / (median of payload_bytes / upload_ms)
 --   decode = median decode_ms of that variant's frames (every variant outputs one timestep
 --            per frame), else of all frames
@@ -253,9 +256,34 @@ local function field_median(frames, field, variant)
   return median(values)
 end
 
+-- Unzip rate (payload bytes per ms) of the frames of variants with each stage 2, from the
+-- variants list ({name=, stage2=}); stage 2 name -> rate.
+local function unzip_rates(frames, variants)
+  local stage2_of, by_stage2 = {}, {}
+  for _, v in ipairs(variants) do
+    if type(v) == "table" and type(v.name) == "string" and type(v.stage2) == "string" then
+      stage2_of[v.name] = v.stage2
+    end
+  end
+  for _, f in ipairs(frames) do
+    local s2 = stage2_of[f.variant]
+    if s2 then
+      by_stage2[s2] = by_stage2[s2] or {}
+      table.insert(by_stage2[s2], f)
+    end
+  end
+  local rates = {}
+  for s2, list in pairs(by_stage2) do rates[s2] = rate_median(list, "payload_bytes", "unzip_ms") end
+  return rates
+end
+
 -- Bandwidths (bytes per ms) and variant-independent times measured on frames; nil if none.
-function policy.measure(frames)
+-- variants (optional, stats.variants) gives unzip rates per stage 2.
+function policy.measure(frames, variants)
   if type(frames) ~= "table" or #frames == 0 then return nil end
+  if variants ~= nil and type(variants) ~= "table" then
+    error(string.format("bad argument #2 to 'measure' (table of variants expected, got %s)", type(variants)), 2)
+  end
   for i, f in ipairs(frames) do
     if type(f) ~= "table" then
       error(string.format("bad argument #1 to 'measure' (frames[%d] must be a table, got %s)", i, type(f)), 2)
@@ -270,6 +298,7 @@ function policy.measure(frames)
     render = field_median(frames, "render_ms") or 0,
     frames = frames,
   }
+  m.unzip_by_stage2 = variants and unzip_rates(frames, variants) or {}
   m.decode = {}
   return m
 end
@@ -299,7 +328,8 @@ function policy.stages(v, m)
   end
   return {
     read = per(stored_bytes(v), m.read),
-    unzip = uses_stage2(v) and per(payload_bytes(v), m.unzip) or 0,
+    unzip = uses_stage2(v) and per(payload_bytes(v), (m.unzip_by_stage2 or {})[v.stage2] or m.unzip)
+      or 0,
     upload = per(payload_bytes(v), m.upload),
     decode = m.decode[v.name] or 0,
     setup = m.setup,
@@ -383,7 +413,7 @@ function policy.open_loop(opts)
     local name, ctx = settle_or_context("open_loop", stats, opts)
     if name then return name, ctx end
     local allowed, fps = ctx.allowed, ctx.fps
-    local m = policy.measure(stats.frames)
+    local m = policy.measure(stats.frames, stats.variants)
     if m == nil then
       return allowed[1].name, "open_loop: no measurements yet, best quality " .. allowed[1].name
     end
@@ -445,7 +475,7 @@ end
 -- never given up for a gain the model does not predict (e.g. when rendering, which no
 -- variant changes, is the slowest stage).
 local function step_down(state, stats, allowed, cur, measured, pipelined)
-  local m = policy.measure(stats.frames)
+  local m = policy.measure(stats.frames, stats.variants)
   local cur_model = m and policy.predict(cur, m, pipelined) or 0
   local best, best_ms
   for _, v in ipairs(allowed) do
@@ -466,7 +496,7 @@ end
 -- Time of `up` predicted from cur's measured median: the timing model's ratio when stage
 -- timings exist, else the stored-bytes ratio; never below what up measured recently.
 local function predict_up(state, stats, up, cur, measured_ms, pipelined)
-  local m = policy.measure(stats.frames)
+  local m = policy.measure(stats.frames, stats.variants)
   local cur_model = m and policy.predict(cur, m, pipelined) or 0
   local ratio
   if cur_model > 0 then
