@@ -6,7 +6,8 @@
  * (cdvr_skip_grid_expand) is conservative and its flags keep their meaning; and on the
  * OpenCL device, setup from the recorded ranges (cdvr_cl_setup_grid) renders every pixel
  * exactly as setup from the device's own min/max kernel, taking the same samples with 4^3
- * tables and at least as many with coarser ones. */
+ * tables and at least as many with coarser ones; a store written with 4^3 LZO tables before
+ * (tests/data/v2_lzo_store.cdv) reads them as the ranges of its decoded frames. */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -275,6 +276,48 @@ static void test_store_grid(unsigned shift)
     cdvr_volume_free(vol);
 }
 
+/* A store written before 8^3 tables (tests/data/v2_lzo_store.cdv: 4^3 tables, LZO) still
+ * gives, from its tables, exactly the ranges of its decoded frames. */
+static void test_old_tables(void)
+{
+    const char *src = getenv("CDVR_SOURCE_DIR");
+    char path[4096];
+    snprintf(path, sizeof path, "%s/tests/data/v2_lzo_store.cdv", src ? src : "..");
+    cdvr_store *st = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_store_open(path, &st, &err), err);
+    if (!st)
+        return;
+    const cdvr_store_info *in = cdvr_store_get_info(st);
+    cdvr_skip_grid from_tables, from_frame;
+    CHECK_OK(cdvr_skip_grid_init(&from_tables, in->dims, CDVR_RANGE_SHIFT, &err), err);
+    CHECK_OK(cdvr_skip_grid_init(&from_frame, in->dims, CDVR_RANGE_SHIFT, &err), err);
+    for (size_t v = 0; v < in->nvariants; v++)
+        for (size_t t = 0; t < in->timesteps; t++) {
+            size_t c = cdvr_store_chunk_for(st, v, t, 0);
+            const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, c);
+            CHECK(ci->ranges_shift == CDVR_RANGE_SHIFT && ci->ranges_stage2 == CDVR_RANGES_LZO,
+                  "fixture: 4^3 LZO tables expected (shift %u, stage 2 %d)", ci->ranges_shift,
+                  ci->ranges_stage2);
+            size_t n = cdvr_store_ranges_bytes(st, v, c), per = 2 * from_tables.nbricks;
+            uint8_t *table = malloc(n ? n : 1);
+            CHECK_OK(cdvr_store_read_ranges(st, v, c, table, &err), err);
+            CHECK(n == per * ci->count, "fixture table of %zu bytes", n);
+            cdvr_volume *dec = NULL;
+            CHECK_OK(cdvr_store_decode(st, v, t, &dec, &err), err);
+            if (dec && n == per * ci->count) {
+                CHECK_OK(cdvr_skip_minmax_from_frame(&from_frame, dec->data, &err), err);
+                CHECK(memcmp(table + per * (t - ci->t0), from_frame.minmax, per) == 0,
+                      "fixture variant %zu timestep %zu: tables differ from the frame", v, t);
+            }
+            cdvr_volume_free(dec);
+            free(table);
+        }
+    cdvr_skip_grid_free(&from_tables);
+    cdvr_skip_grid_free(&from_frame);
+    cdvr_store_close(st);
+}
+
 int main(void)
 {
     test_distance();
@@ -282,5 +325,6 @@ int main(void)
     test_store_grid(CDVR_RANGE_SHIFT);
     test_store_grid(3);
     test_store_grid(4);
+    test_old_tables();
     return check_finish();
 }
