@@ -134,6 +134,13 @@ do
   assert(all > 5 and all < 20 and math.abs(policy.stages(zstd, pm).unzip - all) < 1e-9, all)
   -- without the variants: one rate for all
   assert(math.abs(policy.stages(lz4, policy.measure(mixed)).unzip - all) < 1e-9)
+  -- the skip grids (grid_ms) run on the unzip worker: pipelined max(read, unzip + grid, device)
+  local gridded = { { variant = "lz4", read_ms = 5, unzip_ms = 5, grid_ms = 4, upload_ms = 0,
+                      decode_ms = 0, setup_ms = 0, render_ms = 7, frame_ms = 20, bytes = 50000,
+                      payload_bytes = 100000 } }
+  local gm = policy.measure(gridded, { lz4 })
+  assert(math.abs(policy.predict(lz4, gm, true) - 9) < 1e-9, policy.predict(lz4, gm, true))
+  assert(math.abs(policy.predict(lz4, gm, false) - 21) < 1e-9, policy.predict(lz4, gm, false))
   local ok, err = pcall(policy.measure, mixed, "lzo")
   assert(not ok and err:find("bad argument #2 to 'measure'"), err)
 

@@ -15,7 +15,7 @@
 --               quality),
 --     min_psnr = number or nil (quality floor the user set),
 --     pipelined = true when the player overlaps stages (optional; default false),
---     frames = { last rows, oldest first, at most 16: {t=, variant=, read_ms=, unzip_ms=,
+--     frames = { last rows, oldest first, at most 16: {t=, variant=, read_ms=, unzip_ms=, grid_ms=,
 --                upload_ms=, decode_ms=, setup_ms=, render_ms=, frame_ms=, bytes= (stored
 --                bytes read for this frame's chunk share), payload_bytes=} },
 --     variants = { {name=, codec=, S=, T=, pack=, stage2=, bytes_per_timestep= (stored),
@@ -42,10 +42,12 @@
 --   upload = payload_bytes_per_timestep / (median of payload_bytes / upload_ms)
 --   decode = median decode_ms of that variant's frames (every variant outputs one timestep
 --            per frame), else of all frames
+--   grid   = median grid_ms over all frames (the skip grids made from the range tables, on
+--            the unzip worker; 0 for rows without it)
 --   setup, render = medians over all frames (they do not depend on the variant)
 -- (policy.stages(v, m) gives these per-stage predictions, policy.predict(v, m) their total.)
 -- Serial player: the sum. Pipelined player (cdvr/player.h: reader thread, unzip thread, and
--- the device thread doing upload..render): max(read, unzip, upload+decode+setup+render).
+-- the device thread doing upload..render): max(read, unzip+grid, upload+decode+setup+render).
 -- A stage never measured yet counts as 0 ms (the next group measures it).
 --
 --   policy.fixed([name])
@@ -295,6 +297,7 @@ function policy.measure(frames, variants)
     upload = rate_median(frames, "payload_bytes", "upload_ms"),
     decode_all = field_median(frames, "decode_ms"),
     setup = field_median(frames, "setup_ms") or 0,
+    grid = field_median(frames, "grid_ms") or 0,
     render = field_median(frames, "render_ms") or 0,
     frames = frames,
   }
@@ -332,6 +335,7 @@ function policy.stages(v, m)
       or 0,
     upload = per(payload_bytes(v), m.upload),
     decode = m.decode[v.name] or 0,
+    grid = m.grid or 0,
     setup = m.setup,
     render = m.render,
   }
@@ -343,9 +347,9 @@ function policy.predict(v, m, pipelined)
   local st = policy.stages(v, m)
   local device = st.upload + st.decode + st.setup + st.render
   if pipelined then
-    return math.max(st.read, st.unzip, device)
+    return math.max(st.read, st.unzip + st.grid, device)
   end
-  return st.read + st.unzip + device
+  return st.read + st.unzip + st.grid + device
 end
 
 -- ---- fixed --------------------------------------------------------------------------------
