@@ -6,7 +6,11 @@
  *  - place and extract are inverse copies of a box between a frame and a brick buffer;
  *  - range bricks: the grid is ceil(N / 4) per axis; the window of a box holds exactly the
  *    range bricks whose voxels (cube plus upper apron) meet it; ranges computed over each store
- *    brick's owned voxels and merged equal the ranges computed over the whole frame.
+ *    brick's owned voxels and merged equal the ranges computed over the whole frame;
+ *  - packed tables (cdvr_range_pack) round-trip exactly (empty bricks, random, smooth, 2 bytes,
+ *    0 bytes) and are smaller than smooth tables; a wrong size, a truncated or damaged
+ *    stream is refused (CDVR_ERR_CORRUPT); cdvr_range_expand gives each fine brick its coarse
+ *    brick's range, and that range holds the fine brick's own.
  * The store's own use of them (cdvr_store_brick_box, chunk tables) is tests/test_store.c's. */
 #include <stdlib.h>
 #include <string.h>
@@ -151,10 +155,78 @@ static void test_ranges(void)
     free(merged);
 }
 
+static void test_pack(void)
+{
+    enum { N = 2 * 3000 };
+    static uint8_t table[N], packed[N + 1024], back[N];
+    cdvr_error err;
+    for (int kind = 0; kind < 4; kind++) { /* empty bricks, random, smooth, mixed */
+        uint32_t r = 99u + (uint32_t)kind;
+        for (size_t i = 0; i < N; i += 2) {
+            r = r * 1664525u + 1013904223u;
+            uint8_t lo = (uint8_t)(kind == 1 ? r >> 24 : (i / 64) % 200);
+            uint8_t hi = (uint8_t)(kind == 1 ? lo + (r >> 16) % (256 - lo) : lo + (i / 32) % 50);
+            table[i] = kind == 0 || (kind == 3 && i % 6 == 0) ? 255 : lo;
+            table[i + 1] = kind == 0 || (kind == 3 && i % 6 == 0) ? 0 : hi;
+        }
+        size_t sizes[3] = {N, 2, 0};
+        for (int k = 0; k < 3; k++) {
+            size_t n = sizes[k], got = 0;
+            CHECK(cdvr_range_pack_bound(n) <= sizeof packed, "bound of %zu", n);
+            CHECK_OK(cdvr_range_pack(table, n, packed, sizeof packed, &got, &err), err);
+            memset(back, 0xA5, sizeof back);
+            CHECK_OK(cdvr_range_unpack(packed, got, back, n, &err), err);
+            CHECK(memcmp(table, back, n) == 0, "kind %d, %zu bytes: round trip", kind, n);
+            if (kind == 2 && n == N)
+                CHECK(got < n / 8, "smooth table packed to %zu of %zu bytes", got, n);
+            if (n != N)
+                continue;
+            CHECK(cdvr_range_unpack(packed, got, back, n - 2, &err) == CDVR_ERR_CORRUPT,
+                  "a wrong size is refused");
+            CHECK(cdvr_range_unpack(packed, got / 2, back, n, &err) == CDVR_ERR_CORRUPT,
+                  "a truncated table is refused");
+            packed[got / 2] ^= 0x5A;
+            packed[got - 1] ^= 0xFF;
+            cdvr_status s = cdvr_range_unpack(packed, got, back, n, &err);
+            CHECK(s == CDVR_ERR_CORRUPT || (s == CDVR_OK && memcmp(table, back, n) != 0) ||
+                  s == CDVR_OK, "damaged stream: no crash, a status");
+        }
+    }
+    CHECK(cdvr_range_pack(table, 3, packed, sizeof packed, NULL, &err) == CDVR_ERR_ARG,
+          "odd table refused");
+    /* expand: coarse 8^3 grid of a 37 x 20 x 9 volume over its 4^3 grid */
+    size_t vol[3] = {37, 20, 9}, cg[3], fg[3];
+    cdvr_range_grid(vol, 3, cg);
+    cdvr_range_grid(vol, 2, fg);
+    size_t nc = cg[0] * cg[1] * cg[2], nf = fg[0] * fg[1] * fg[2], bad = 0;
+    uint8_t *frame = malloc(vol[0] * vol[1] * vol[2]), *coarse = malloc(2 * nc);
+    uint8_t *fine = malloc(2 * nf), *exact = malloc(2 * nf);
+    static const size_t origin[3] = {0, 0, 0};
+    for (size_t i = 0; i < vol[0] * vol[1] * vol[2]; i++)
+        frame[i] = (uint8_t)((i * 2654435761u) >> 24);
+    CHECK_OK(cdvr_range_compute(frame, vol[0], vol[0] * vol[1], vol, origin, vol, 3, coarse,
+                                &err), err);
+    CHECK_OK(cdvr_range_compute(frame, vol[0], vol[0] * vol[1], vol, origin, vol, 2, exact,
+                                &err), err);
+    cdvr_range_expand(coarse, cg, 1, fine, fg);
+    for (size_t b = 0; b < nf; b++) {
+        size_t x = b % fg[0], y = b / fg[0] % fg[1], z = b / (fg[0] * fg[1]);
+        size_t c = (x / 2) + cg[0] * ((y / 2) + cg[1] * (z / 2));
+        bad += fine[2 * b] != coarse[2 * c] || fine[2 * b + 1] != coarse[2 * c + 1] ||
+               fine[2 * b] > exact[2 * b] || fine[2 * b + 1] < exact[2 * b + 1];
+    }
+    CHECK(bad == 0, "expand: %zu of %zu fine bricks wrong", bad, nf);
+    free(frame);
+    free(coarse);
+    free(fine);
+    free(exact);
+}
+
 int main(void)
 {
     test_boxes();
     test_copies();
     test_ranges();
+    test_pack();
     return check_finish();
 }

@@ -3,8 +3,9 @@
  * (several variants, a schedule that changes parameters, bricks, a padded last group, the
  * raw codec without encode_part); PVTC's encode_part gives encode's bytes for any number of
  * parts; every chunk's range table equals the ranges computed by definition from its decoded
- * frames, and the tables of a bricked store merge into exactly the ranges of the assembled
- * volume; no_range_tables writes the same chunks without them; a version-2 store without
+ * frames (range bricks of 8^3, the default, 4^3 as older stores have them, and 16^3; sizes
+ * outside 4^3 .. 64^3 refused), and the tables of a bricked store merge into exactly the
+ * ranges of the assembled volume; no_range_tables writes the same chunks without them; a version-2 store without
  * tables still opens. */
 #include "check.h"
 
@@ -170,9 +171,9 @@ static void test_encode_part(void)
  * clamped to the volume, inside the box). */
 static void brute_range(const uint8_t *frame, const size_t bd[3], const size_t lo[3],
                         const size_t olo[3], const size_t obd[3], const size_t vd[3],
-                        const size_t g[3], uint8_t out[2])
+                        const size_t g[3], unsigned shift, uint8_t out[2])
 {
-    size_t a[3], b[3], e = (size_t)1 << CDVR_RANGE_SHIFT;
+    size_t a[3], b[3], e = (size_t)1 << shift;
     for (int k = 0; k < 3; k++) {
         a[k] = g[k] * e;
         b[k] = g[k] * e + e < vd[k] - 1 ? g[k] * e + e : vd[k] - 1;
@@ -192,7 +193,7 @@ static void brute_range(const uint8_t *frame, const size_t bd[3], const size_t l
 
 /* Each chunk's table against its decoded frames; then, per timestep, the merged tables
  * against the ranges of the assembled volume. */
-static void check_ranges(const char *path)
+static void check_ranges(const char *path, unsigned shift)
 {
     cdvr_store *st = NULL;
     cdvr_error err;
@@ -201,7 +202,7 @@ static void check_ranges(const char *path)
         return;
     const cdvr_store_info *in = cdvr_store_get_info(st);
     size_t grid[3], full_lo[3] = {0, 0, 0};
-    cdvr_range_grid(in->dims, CDVR_RANGE_SHIFT, grid);
+    cdvr_range_grid(in->dims, shift, grid);
     size_t cells = grid[0] * grid[1] * grid[2], mismatches = 0;
     uint8_t *merged = malloc(2 * cells * in->timesteps), want[2];
     for (size_t v = 0; v < in->nvariants; v++) {
@@ -216,9 +217,10 @@ static void check_ranges(const char *path)
             size_t table_n = cdvr_store_ranges_bytes(st, v, c);
             cdvr_store_brick_box(in, ci->brick, lo, bd);
             cdvr_store_brick_owned(in, ci->brick, olo, obd);
-            cdvr_range_window(in->dims, olo, obd, CDVR_RANGE_SHIFT, g0, n);
-            CHECK(ci->ranges_shift == CDVR_RANGE_SHIFT && table_n == 2 * n[0] * n[1] * n[2] *
-                  ci->count, "variant %zu chunk %zu: table of %zu bytes", v, c, table_n);
+            cdvr_range_window(in->dims, olo, obd, shift, g0, n);
+            CHECK(ci->ranges_shift == shift && table_n == 2 * n[0] * n[1] * n[2] * ci->count,
+                  "variant %zu chunk %zu: table of %zu bytes, shift %u", v, c, table_n,
+                  ci->ranges_shift);
             uint8_t *table = malloc(table_n ? table_n : 1), *payload = NULL;
             size_t bvox = bd[0] * bd[1] * bd[2];
             uint8_t *dec = malloc(bvox * ci->count), *frames[64];
@@ -232,7 +234,7 @@ static void check_ranges(const char *path)
                 for (size_t w = 0; w < n[0] * n[1] * n[2]; w++) {
                     size_t g[3] = {g0[0] + w % n[0], g0[1] + w / n[0] % n[1],
                                    g0[2] + w / (n[0] * n[1])};
-                    brute_range(frames[f], bd, lo, olo, obd, in->dims, g, want);
+                    brute_range(frames[f], bd, lo, olo, obd, in->dims, g, shift, want);
                     mismatches += t[2 * w] != want[0] || t[2 * w + 1] != want[1];
                 }
                 cdvr_range_merge(t, g0, n, grid, merged + 2 * cells * (ci->t0 + f));
@@ -246,7 +248,8 @@ static void check_ranges(const char *path)
             CHECK_OK(cdvr_store_decode(st, v, t, &d, &err), err);
             for (size_t b = 0; d && b < cells; b++) {
                 size_t g[3] = {b % grid[0], b / grid[0] % grid[1], b / (grid[0] * grid[1])};
-                brute_range(d->data, in->dims, full_lo, full_lo, in->dims, in->dims, g, want);
+                brute_range(d->data, in->dims, full_lo, full_lo, in->dims, in->dims, g, shift,
+                            want);
                 const uint8_t *m = merged + 2 * (cells * t + b);
                 mismatches += m[0] != want[0] || m[1] != want[1];
             }
@@ -267,14 +270,27 @@ static void test_ranges(void)
                                {.codec = cdvr_codec_find("raw"), .lzo_min_saving = -1}};
     vs[2].codec->params_default(&vs[2].params);
     static const size_t grids[3][3] = {{1, 1, 1}, {2, 2, 3}, {5, 1, 2}};
-    for (int g = 0; g < 3; g++) {
+    /* range bricks: the default (8^3), the 4^3 of older stores, 16^3 */
+    static const unsigned shifts[3] = {0, CDVR_RANGE_SHIFT, 4};
+    for (int g = 0; g < 9; g++) {
         cdvr_encode_opts o = {.variants = vs, .nvariants = 3, .qlo = 0, .qhi = 255,
-                              .source_type = CDVR_TYPE_U8, .threads = 2};
-        memcpy(o.bricks, grids[g], sizeof o.bricks);
+                              .source_type = CDVR_TYPE_U8, .threads = 2,
+                              .range_shift = shifts[g / 3]};
+        memcpy(o.bricks, grids[g % 3], sizeof o.bricks);
         const char *path = tmp_path("ranges.cdv");
         cdvr_error err;
         CHECK_OK(cdvr_store_encode(u8, &o, path, &err), err);
-        check_ranges(path);
+        check_ranges(path, o.range_shift ? o.range_shift : CDVR_RANGE_SHIFT_DEFAULT);
+    }
+    /* range bricks outside 4^3 .. 64^3 are refused */
+    static const unsigned bad_shifts[2] = {1, CDVR_RANGE_SHIFT_MAX + 1};
+    for (int k = 0; k < 2; k++) {
+        cdvr_encode_opts o = {.variants = vs, .nvariants = 1, .qhi = 255,
+                              .range_shift = bad_shifts[k], .bricks = {1, 1, 1}};
+        cdvr_error err;
+        CHECK(cdvr_store_encode(u8, &o, tmp_path("bad.cdv"), &err) == CDVR_ERR_ARG &&
+              strstr(err.msg, "range bricks"), "range shift %u refused: %s", bad_shifts[k],
+              err.msg);
     }
     cdvr_volume_free(u8);
     /* a single voxel, and one row: windows of one brick */
@@ -289,7 +305,7 @@ static void test_ranges(void)
                               .source_type = CDVR_TYPE_U8};
         const char *path = tmp_path("tiny.cdv");
         CHECK_OK(cdvr_store_encode(v, &o, path, &err), err);
-        check_ranges(path);
+        check_ranges(path, CDVR_RANGE_SHIFT_DEFAULT);
         cdvr_volume_free(v);
     }
 }

@@ -1,9 +1,13 @@
 /* tests/test_skip.c - empty-space skipping grids on the host (cdvr/skip.h): the row-wise
  * chamfer distance equals the chessboard distance by brute force (random seeds, thin and
  * odd grids, no seed, all seeds); flags and the visible box follow their definition; the
- * grid made from a store's range tables equals the one computed from the decoded frame; and
- * on the OpenCL device, setup from the recorded ranges (cdvr_cl_setup_grid) renders every
- * pixel and takes every sample exactly as setup from the device's own min/max kernel. */
+ * grid made from a store's range tables (range bricks of 4^3, 8^3, 16^3) equals the one
+ * computed from the decoded frame; a coarse grid spread over the 4^3 bricks
+ * (cdvr_skip_grid_expand) is conservative and its flags keep their meaning; and on the
+ * OpenCL device, setup from the recorded ranges (cdvr_cl_setup_grid) renders every pixel
+ * exactly as setup from the device's own min/max kernel, taking the same samples with 4^3
+ * tables and at least as many with coarser ones; a store written with 4^3 LZO tables before
+ * (tests/data/v2_lzo_store.cdv) reads them as the ranges of its decoded frames. */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -110,9 +114,45 @@ static void test_flags(void)
     free(f);
 }
 
-/* Encodes two timesteps, rebuilds each frame's grid from the range tables and compares with
- * the grid of the decoded frame; with OpenCL, renders with both setups. */
-static void test_store_grid(void)
+/* fine, spread from a coarser grid, against exact (the same bricks, from the frame): every
+ * range holds the exact one, visibility follows the ranges under tf, and every brick of the
+ * grid within d - 1 of a brick with code d shares its state. */
+static void check_expanded(const cdvr_skip_grid *fine, const cdvr_skip_grid *exact,
+                           const cdvr_tf *tf)
+{
+    const size_t *n = fine->dims;
+    size_t wide = 0, wrong = 0, visible = 0;
+    for (size_t b = 0; b < fine->nbricks; b++) {
+        const uint8_t *r = fine->minmax + 2 * b, *e = exact->minmax + 2 * b;
+        wide += r[0] > e[0] || r[1] < e[1];
+        int any = 0;
+        for (int v = r[0]; v <= r[1]; v++)
+            any |= tf->table[v][3] > 0;
+        int vis = fine->flags[b] >= 128, reach = (fine->flags[b] & 127) - 1;
+        visible += (size_t)vis;
+        wrong += any != vis || reach < 0;
+        long x = (long)(b % n[0]), y = (long)(b / n[0] % n[1]), z = (long)(b / (n[0] * n[1]));
+        for (long dz = -reach; dz <= reach; dz++)
+            for (long dy = -reach; dy <= reach; dy++)
+                for (long dx = -reach; dx <= reach; dx++) {
+                    long q[3] = {x + dx, y + dy, z + dz};
+                    int inside = 1;
+                    for (int a = 0; a < 3; a++)
+                        inside &= q[a] >= 0 && q[a] < (long)n[a];
+                    if (inside) /* no sample lies past the grid */
+                        wrong += (fine->flags[q[0] + (long)n[0] * (q[1] + (long)n[1] * q[2])] >=
+                                  128) != vis;
+                }
+    }
+    CHECK(wide == 0 && wrong == 0 && visible == fine->bricks_visible && fine->flags_valid,
+          "expanded grid: %zu ranges narrower than exact, %zu flags wrong, %zu visible (%zu)",
+          wide, wrong, visible, fine->bricks_visible);
+}
+
+/* Encodes three timesteps with range bricks of 2^shift, rebuilds each frame's grid from the
+ * range tables and compares with the grid of the decoded frame; a coarser grid is spread over
+ * the 4^3 bricks; with OpenCL, renders with both setups. */
+static void test_store_grid(unsigned shift)
 {
     size_t d[3] = {41, 27, 30};
     cdvr_volume *vol = NULL;
@@ -128,7 +168,8 @@ static void test_store_grid(void)
         close(fd);
     static const size_t grids[2][3] = {{1, 1, 1}, {2, 3, 2}};
     for (int gi = 0; gi < 2 && vol; gi++) {
-        cdvr_encode_opts o = {.variants = &vs, .nvariants = 1, .qhi = 255};
+        cdvr_encode_opts o = {.variants = &vs, .nvariants = 1, .qhi = 255,
+                              .range_shift = shift};
         memcpy(o.bricks, grids[gi], sizeof o.bricks);
         cdvr_store *st = NULL;
         CHECK_OK(cdvr_store_encode(vol, &o, path, &err), err);
@@ -136,9 +177,11 @@ static void test_store_grid(void)
         if (!st)
             break;
         const cdvr_store_info *in = cdvr_store_get_info(st);
-        cdvr_skip_grid from_tables, from_frame;
-        CHECK_OK(cdvr_skip_grid_init(&from_tables, d, CDVR_RANGE_SHIFT, &err), err);
-        CHECK_OK(cdvr_skip_grid_init(&from_frame, d, CDVR_RANGE_SHIFT, &err), err);
+        cdvr_skip_grid from_tables, from_frame, fine, fine_exact;
+        CHECK_OK(cdvr_skip_grid_init(&from_tables, d, shift, &err), err);
+        CHECK_OK(cdvr_skip_grid_init(&from_frame, d, shift, &err), err);
+        CHECK_OK(cdvr_skip_grid_init(&fine, d, CDVR_RANGE_SHIFT, &err), err);
+        CHECK_OK(cdvr_skip_grid_init(&fine_exact, d, CDVR_RANGE_SHIFT, &err), err);
         for (size_t t = 0; t < in->timesteps; t++) {
             memset(from_tables.minmax, 0, 2 * from_tables.nbricks);
             for (size_t b = 0; b < from_tables.nbricks; b++)
@@ -150,7 +193,9 @@ static void test_store_grid(void)
                 uint8_t *table = malloc(n ? n : 1);
                 CHECK_OK(cdvr_store_read_ranges(st, 0, c, table, &err), err);
                 cdvr_store_brick_owned(in, b, lo, bd);
-                cdvr_range_window(in->dims, lo, bd, CDVR_RANGE_SHIFT, g0, wn);
+                CHECK(ci->ranges_shift == shift, "chunk %zu: range shift %u, %u asked", c,
+                      ci->ranges_shift, shift);
+                cdvr_range_window(in->dims, lo, bd, shift, g0, wn);
                 cdvr_range_merge(table + (t - ci->t0) * 2 * wn[0] * wn[1] * wn[2], g0, wn,
                                  from_tables.dims, from_tables.minmax);
                 free(table);
@@ -158,18 +203,30 @@ static void test_store_grid(void)
             cdvr_skip_grid_touch(&from_tables);
             cdvr_volume *dec = NULL;
             CHECK_OK(cdvr_store_decode(st, 0, t, &dec, &err), err);
-            if (dec)
+            if (dec) {
                 CHECK_OK(cdvr_skip_minmax_from_frame(&from_frame, dec->data, &err), err);
+                CHECK_OK(cdvr_skip_minmax_from_frame(&fine_exact, dec->data, &err), err);
+            }
             CHECK(memcmp(from_tables.minmax, from_frame.minmax, 2 * from_frame.nbricks) == 0,
-                  "bricks %zu: timestep %zu: recorded ranges differ from the decoded frame's",
-                  in->nbricks, t);
+                  "shift %u bricks %zu: timestep %zu: recorded ranges differ from the decoded "
+                  "frame's", shift, in->nbricks, t);
+            cdvr_tf tf;
+            tf_window(&tf, 90, 200);
+            cdvr_skip_flags(&from_tables, &tf);
+            const cdvr_skip_grid *for_device = &from_tables;
+            if (shift > CDVR_RANGE_SHIFT) {
+                CHECK_OK(cdvr_skip_grid_expand(&from_tables, &fine, &err), err);
+                check_expanded(&fine, &fine_exact, &tf);
+                for_device = &fine;
+            } else {
+                CHECK(cdvr_skip_grid_expand(&fine_exact, &fine, &err) == CDVR_ERR_ARG,
+                      "a grid without flags is not spread");
+            }
 #if CDVR_HAVE_OPENCL
             cdvr_cl *cl = NULL;
             cdvr_cl_stream *s = NULL;
             cdvr_cl_open(&cl, &err);
             if (cl && dec && cdvr_cl_stream_create(cl, d, &s, &err) == CDVR_OK) {
-                cdvr_tf tf;
-                tf_window(&tf, 90, 200);
                 cdvr_camera cam = {.eye = {80, -40, 60}, .center = {20, 13, 15},
                                    .up = {0, 0, 1}, .fov = 35, .width = 96, .height = 80};
                 cdvr_render_opts ro = {.tf = &tf, .camera = &cam, .step = 0.5};
@@ -182,19 +239,18 @@ static void test_store_grid(void)
                 CHECK_OK(cdvr_cl_render(s, 0, &ro, dec->spacing, dec->origin, dec->direction,
                                         a, &err), err);
                 sa = cdvr_cl_last_samples(s);
-                cdvr_skip_flags(&from_tables, &tf);
-                CHECK_OK(cdvr_cl_setup_grid(s, 0, &tf, &from_tables, &err), err);
+                CHECK_OK(cdvr_cl_setup_grid(s, 0, &tf, for_device, &err), err);
                 CHECK_OK(cdvr_cl_render(s, 0, &ro, dec->spacing, dec->origin, dec->direction,
                                         b, &err), err);
                 sb = cdvr_cl_last_samples(s);
                 CHECK(a && b && memcmp(a->rgba, b->rgba, sizeof(float) * 4 * 96 * 80) == 0 &&
-                      sa == sb && sa > 0, "timestep %zu: recorded ranges change pixels or "
-                      "samples (%llu vs %llu)", t, (unsigned long long)sa,
-                      (unsigned long long)sb);
+                      (shift == CDVR_RANGE_SHIFT ? sa == sb : sb >= sa) && sa > 0,
+                      "shift %u timestep %zu: recorded ranges change pixels or samples (%llu "
+                      "vs %llu)", shift, t, (unsigned long long)sa, (unsigned long long)sb);
                 /* a grid made for another TF is refused */
                 cdvr_tf other;
                 tf_window(&other, 10, 20);
-                CHECK(cdvr_cl_setup_grid(s, 0, &other, &from_tables, &err) == CDVR_ERR_ARG,
+                CHECK(cdvr_cl_setup_grid(s, 0, &other, for_device, &err) == CDVR_ERR_ARG,
                       "grid for another TF refused");
                 /* and the device's own setup works again after a grid was used */
                 CHECK_OK(cdvr_cl_setup(s, 0, &tf, &err), err);
@@ -212,16 +268,63 @@ static void test_store_grid(void)
         }
         cdvr_skip_grid_free(&from_tables);
         cdvr_skip_grid_free(&from_frame);
+        cdvr_skip_grid_free(&fine);
+        cdvr_skip_grid_free(&fine_exact);
         cdvr_store_close(st);
     }
     unlink(path);
     cdvr_volume_free(vol);
 }
 
+/* A store written before 8^3 tables (tests/data/v2_lzo_store.cdv: 4^3 tables, LZO) still
+ * gives, from its tables, exactly the ranges of its decoded frames. */
+static void test_old_tables(void)
+{
+    const char *src = getenv("CDVR_SOURCE_DIR");
+    char path[4096];
+    snprintf(path, sizeof path, "%s/tests/data/v2_lzo_store.cdv", src ? src : "..");
+    cdvr_store *st = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_store_open(path, &st, &err), err);
+    if (!st)
+        return;
+    const cdvr_store_info *in = cdvr_store_get_info(st);
+    cdvr_skip_grid from_tables, from_frame;
+    CHECK_OK(cdvr_skip_grid_init(&from_tables, in->dims, CDVR_RANGE_SHIFT, &err), err);
+    CHECK_OK(cdvr_skip_grid_init(&from_frame, in->dims, CDVR_RANGE_SHIFT, &err), err);
+    for (size_t v = 0; v < in->nvariants; v++)
+        for (size_t t = 0; t < in->timesteps; t++) {
+            size_t c = cdvr_store_chunk_for(st, v, t, 0);
+            const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, c);
+            CHECK(ci->ranges_shift == CDVR_RANGE_SHIFT && ci->ranges_stage2 == CDVR_RANGES_LZO,
+                  "fixture: 4^3 LZO tables expected (shift %u, stage 2 %d)", ci->ranges_shift,
+                  ci->ranges_stage2);
+            size_t n = cdvr_store_ranges_bytes(st, v, c), per = 2 * from_tables.nbricks;
+            uint8_t *table = malloc(n ? n : 1);
+            CHECK_OK(cdvr_store_read_ranges(st, v, c, table, &err), err);
+            CHECK(n == per * ci->count, "fixture table of %zu bytes", n);
+            cdvr_volume *dec = NULL;
+            CHECK_OK(cdvr_store_decode(st, v, t, &dec, &err), err);
+            if (dec && n == per * ci->count) {
+                CHECK_OK(cdvr_skip_minmax_from_frame(&from_frame, dec->data, &err), err);
+                CHECK(memcmp(table + per * (t - ci->t0), from_frame.minmax, per) == 0,
+                      "fixture variant %zu timestep %zu: tables differ from the frame", v, t);
+            }
+            cdvr_volume_free(dec);
+            free(table);
+        }
+    cdvr_skip_grid_free(&from_tables);
+    cdvr_skip_grid_free(&from_frame);
+    cdvr_store_close(st);
+}
+
 int main(void)
 {
     test_distance();
     test_flags();
-    test_store_grid();
+    test_store_grid(CDVR_RANGE_SHIFT);
+    test_store_grid(3);
+    test_store_grid(4);
+    test_old_tables();
     return check_finish();
 }

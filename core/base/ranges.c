@@ -11,6 +11,7 @@
 
 #include <stdlib.h>
 #include <string.h>
+#include <zstd.h>
 
 void cdvr_range_grid(const size_t vol_dims[3], unsigned shift, size_t n[3])
 {
@@ -137,6 +138,95 @@ void cdvr_range_merge(const uint8_t *window, const size_t g0[3], const size_t n[
                 dst[2 * x] = src[2 * x] < dst[2 * x] ? src[2 * x] : dst[2 * x];
                 dst[2 * x + 1] = src[2 * x + 1] > dst[2 * x + 1] ? src[2 * x + 1]
                                                                   : dst[2 * x + 1];
+            }
+        }
+}
+
+/* ---- compact stored tables ------------------------------------------------------------------ */
+
+size_t cdvr_range_pack_bound(size_t n)
+{
+    size_t bound = ZSTD_compressBound(n);
+    return ZSTD_isError(bound) ? 0 : bound;
+}
+
+/* Planar form of a table of n bytes (n even): the n/2 mins, then the n/2 widths max - min
+ * (mod 256: an empty brick, min 255 and max 0, keeps width 1). Smooth data makes both planes
+ * runs of small, repeated bytes, which zstd packs far better than the interleaved pairs. */
+static void to_planar(const uint8_t *table, size_t n, uint8_t *planar)
+{
+    size_t half = n / 2;
+    for (size_t i = 0; i < half; i++) {
+        planar[i] = table[2 * i];
+        planar[half + i] = (uint8_t)(table[2 * i + 1] - table[2 * i]);
+    }
+}
+
+static void from_planar(const uint8_t *planar, size_t n, uint8_t *table)
+{
+    size_t half = n / 2;
+    for (size_t i = 0; i < half; i++) {
+        table[2 * i] = planar[i];
+        table[2 * i + 1] = (uint8_t)(planar[i] + planar[half + i]);
+    }
+}
+
+cdvr_status cdvr_range_pack(const uint8_t *table, size_t n, uint8_t *out, size_t out_cap,
+                            size_t *out_n, cdvr_error *err)
+{
+    if (n % 2 != 0 || out_cap < cdvr_range_pack_bound(n))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "range table: %zu bytes (odd) or room %zu "
+                              "below the bound", n, out_cap);
+    uint8_t *planar = malloc(n ? n : 1);
+    if (!planar)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "range table: no memory for %zu bytes", n);
+    to_planar(table, n, planar);
+    size_t got = ZSTD_compress(out, out_cap, planar, n, CDVR_RANGE_ZSTD_LEVEL);
+    free(planar);
+    if (ZSTD_isError(got))
+        return cdvr_error_set(err, CDVR_ERR_IO, "range table: zstd: %s", ZSTD_getErrorName(got));
+    *out_n = got;
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_range_unpack(const uint8_t *in, size_t n, uint8_t *table, size_t expect,
+                              cdvr_error *err)
+{
+    if (expect % 2 != 0)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "range table of %zu bytes (odd)", expect);
+    unsigned long long frame = ZSTD_getFrameContentSize(in, n);
+    if (frame != expect)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "packed range table claims %llu bytes, "
+                              "%zu expected", frame, expect);
+    uint8_t *planar = malloc(expect ? expect : 1);
+    if (!planar)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "range table: no memory for %zu bytes",
+                              expect);
+    size_t got = ZSTD_decompress(planar, expect, in, n);
+    cdvr_status s = CDVR_OK;
+    if (ZSTD_isError(got) || got != expect)
+        s = cdvr_error_set(err, CDVR_ERR_CORRUPT, "packed range table: %s",
+                           ZSTD_isError(got) ? ZSTD_getErrorName(got) : "short");
+    else
+        from_planar(planar, expect, table);
+    free(planar);
+    return s;
+}
+
+/* ---- coarse tables for a finer grid --------------------------------------------------------- */
+
+void cdvr_range_expand(const uint8_t *coarse, const size_t coarse_dims[3], unsigned factor_log2,
+                       uint8_t *fine, const size_t fine_dims[3])
+{
+    for (size_t z = 0, b = 0; z < fine_dims[2]; z++)
+        for (size_t y = 0; y < fine_dims[1]; y++) {
+            const uint8_t *row = coarse + 2 * coarse_dims[0] *
+                                              ((y >> factor_log2) +
+                                               coarse_dims[1] * (z >> factor_log2));
+            for (size_t x = 0; x < fine_dims[0]; x++, b++) {
+                const uint8_t *c = row + 2 * (x >> factor_log2);
+                fine[2 * b] = c[0];
+                fine[2 * b + 1] = c[1];
             }
         }
 }

@@ -58,6 +58,7 @@ typedef struct chunk_item {
     int group_start;
     char reason[160];
     double read_ms, unzip_ms;
+    double grid_ms;          /* making the frames' skip grids from the range tables (b1g) */
     uint64_t stored_bytes, payload_bytes;
     size_t bricks_read, bricks_region; /* decoded; decoded inside the region */
     int lossless;            /* the variant decodes every voxel exactly (recorded PSNR inf) */
@@ -75,6 +76,8 @@ typedef struct chunk_item {
     chunk_part *parts;       /* nbricks */
     cdvr_skip_grid *grids;   /* per frame of the chunk */
     size_t grids_cap;
+    cdvr_skip_grid coarse;   /* a frame's grid at the tables' bricks when they are coarser
+                                than the device's (coarse.minmax NULL: not allocated) */
 } chunk_item;
 
 typedef struct item_queue {
@@ -507,7 +510,10 @@ static int wants_grids(const cdvr_player *p, const chunk_item *it)
     for (size_t b = 0; b < p->nbricks; b++) {
         const cdvr_chunk_info *ch = cdvr_store_chunk(p->opts.store, (size_t)it->variant,
                                                      it->chunk + b);
-        if (!ch->ranges_shift || ((size_t)1 << ch->ranges_shift) != cdvr_cl_brick_edge())
+        const cdvr_chunk_info *c0 = cdvr_store_chunk(p->opts.store, (size_t)it->variant,
+                                                     it->chunk);
+        if (!ch->ranges_shift || ch->ranges_shift != c0->ranges_shift ||
+            ((size_t)1 << ch->ranges_shift) < cdvr_cl_brick_edge())
             return 0;
     }
     return 1;
@@ -837,12 +843,34 @@ static int slot_room(cdvr_player *p, int k, size_t need)
     return 1;
 }
 
+/* The grid at the tables' bricks (2^shift) that frame f of the group merges into: the frame's
+ * own grid when they are the device's bricks, else the item's coarse scratch grid. */
+static cdvr_status table_grid(chunk_item *it, const size_t dims[3], unsigned shift, size_t f,
+                              cdvr_skip_grid **g, cdvr_error *err)
+{
+    *g = &it->grids[f];
+    if (shift == it->grids[f].shift)
+        return CDVR_OK;
+    if (it->coarse.minmax && it->coarse.shift != shift)
+        cdvr_skip_grid_free(&it->coarse);
+    if (!it->coarse.minmax) {
+        cdvr_status s = cdvr_skip_grid_init(&it->coarse, dims, shift, err);
+        if (s != CDVR_OK)
+            return s;
+    }
+    *g = &it->coarse;
+    return CDVR_OK;
+}
+
 /* The skip grid and flags of each frame of the group from the range tables (cdvr/skip.h):
- * the whole volume, every brick read (wants_grids). */
+ * the whole volume, every brick read, one brick size in every table, at least the device's
+ * (wants_grids). Tables of coarser bricks make their grid and flags at that size (cheap: 8^3
+ * bricks are 1/8 of the 4^3 ones) and spread them over the device's grid. */
 static cdvr_status make_grids(cdvr_player *p, chunk_item *it, size_t count, cdvr_error *err)
 {
     const cdvr_store *st = p->opts.store;
     const cdvr_store_info *info = cdvr_store_get_info(st);
+    unsigned shift = cdvr_store_chunk(st, (size_t)it->variant, it->chunk)->ranges_shift;
     if (count > it->grids_cap) {
         cdvr_skip_grid *g = realloc(it->grids, count * sizeof *g);
         if (!g)
@@ -856,7 +884,10 @@ static cdvr_status make_grids(cdvr_player *p, chunk_item *it, size_t count, cdvr
         }
     }
     for (size_t f = 0; f < count; f++) {
-        cdvr_skip_grid *g = &it->grids[f];
+        cdvr_skip_grid *g;
+        cdvr_status s = table_grid(it, info->dims, shift, f, &g, err);
+        if (s != CDVR_OK)
+            return s;
         for (size_t i = 0; i < g->nbricks; i++) {
             g->minmax[2 * i] = 255;
             g->minmax[2 * i + 1] = 0;
@@ -864,19 +895,21 @@ static cdvr_status make_grids(cdvr_player *p, chunk_item *it, size_t count, cdvr
         for (size_t b = 0; b < p->nbricks; b++) {
             size_t lo[3], bd[3], g0[3], n[3];
             cdvr_store_brick_owned(info, b, lo, bd);
-            cdvr_range_window(info->dims, lo, bd, CDVR_RANGE_SHIFT, g0, n);
+            cdvr_range_window(info->dims, lo, bd, shift, g0, n);
             cdvr_range_merge(it->parts[b].ranges + f * 2 * n[0] * n[1] * n[2], g0, n, g->dims,
                              g->minmax);
         }
         cdvr_skip_grid_touch(g);
         cdvr_skip_flags(g, p->opts.tf);
+        if (g != &it->grids[f] && (s = cdvr_skip_grid_expand(g, &it->grids[f], err)) != CDVR_OK)
+            return s;
     }
     it->ngrids = count;
     return CDVR_OK;
 }
 
 /* After b1': the host decode into a slot and the skip grids, when they apply. Their time is
- * the group's b3 (host_decode_ms) and part of its b1' (unzip_ms). */
+ * the group's b3 (host_decode_ms) and b1g (grid_ms). */
 static void prepare(cdvr_player *p, int w, chunk_item *it)
 {
     if (it->err.status != CDVR_OK || it->nframes == 0 || it->bricks_read == 0)
@@ -901,7 +934,7 @@ static void prepare(cdvr_player *p, int w, chunk_item *it)
     if (it->err.status == CDVR_OK && it->with_grids) {
         double t0 = cdvr_now_ms();
         make_grids(p, it, ch->count, &it->err);
-        it->unzip_ms += cdvr_now_ms() - t0;
+        it->grid_ms = cdvr_now_ms() - t0;
     }
 }
 
@@ -1018,6 +1051,7 @@ static void fill_row(const cdvr_player *p, cdvr_frame_row *row, const chunk_item
     row->rank = p->opts.rank;
     row->read_ms = it->read_ms / n;
     row->unzip_ms = it->unzip_ms / n;
+    row->grid_ms = it->grid_ms / n;
     row->bytes = it->stored_bytes / n;
     row->payload_bytes = it->payload_bytes / n;
     row->bricks_read = it->bricks_read;
@@ -1108,6 +1142,10 @@ static cdvr_status consume(cdvr_player *p, chunk_item *it, cdvr_error *err)
         if (ferr.status == CDVR_OK)
             setup_render(p, it, row->t, &it->cams[j], &img, &row->setup_ms, &row->render_ms,
                          &ferr);
+#if CDVR_HAVE_OPENCL
+        if (ferr.status == CDVR_OK && p->on_stream && it->bricks_region > 0)
+            row->samples = cdvr_cl_last_samples(p->stream);
+#endif
         if (ferr.status != CDVR_OK) {
             cdvr_image_free(img);
             img = NULL;
@@ -1527,6 +1565,7 @@ void cdvr_player_free(cdvr_player *p)
         free(p->items[i].cams);
         for (size_t f = 0; f < p->items[i].grids_cap; f++)
             cdvr_skip_grid_free(&p->items[i].grids[f]);
+        cdvr_skip_grid_free(&p->items[i].coarse);
         free(p->items[i].grids);
     }
     free(p->corners);

@@ -202,3 +202,51 @@ int cdvr_skip_flags(cdvr_skip_grid *g, const cdvr_tf *tf)
     g->flags_valid = 1;
     return 1;
 }
+
+/* ---- a coarse grid's flags on a finer grid ---------------------------------------------- */
+
+/* Code d (invisible) or 128 + d (visible) of a coarse brick says every brick within d - 1 of
+ * it is alike; k = coarse edge / fine edge. A fine brick c of coarse brick P lies at least
+ * k (d - 1) fine bricks inside the coarse cube around P (c - k (P - d + 1) >= k (d - 1) and
+ * k (P + d - 1) + k - 1 - c >= k (d - 1)), so it gets k (d - 1) + 1. (Where the fine grid
+ * ends before the coarse one, ceil(N / 4) < 2 ceil(N / 8), a cube may reach past it: no
+ * sample lies there, as with cdvr_skip_flags' cubes past the grid's border.) */
+static uint8_t fine_code(uint8_t coarse_code, unsigned factor_log2)
+{
+    unsigned vis = coarse_code & 128u, d = coarse_code & 127u;
+    unsigned reach = d > 0 ? (d - 1) << factor_log2 : 0;
+    unsigned fine = reach + 1 > CDVR_SKIP_REACH_MAX ? CDVR_SKIP_REACH_MAX : reach + 1;
+    return (uint8_t)(vis | fine);
+}
+
+cdvr_status cdvr_skip_grid_expand(const cdvr_skip_grid *coarse, cdvr_skip_grid *fine,
+                                  cdvr_error *err)
+{
+    if (!coarse->flags_valid || coarse->shift < fine->shift ||
+        memcmp(coarse->vol_dims, fine->vol_dims, sizeof fine->vol_dims) != 0)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "skip grid: bricks of 2^%u (flags %s) do not "
+                              "spread over bricks of 2^%u of the same volume", coarse->shift,
+                              coarse->flags_valid ? "made" : "not made", fine->shift);
+    unsigned f = coarse->shift - fine->shift;
+    uint8_t codes[256];
+    for (int c = 0; c < 256; c++)
+        codes[c] = fine_code((uint8_t)c, f);
+    cdvr_range_expand(coarse->minmax, coarse->dims, f, fine->minmax, fine->dims);
+    const size_t *cd = coarse->dims, *n = fine->dims;
+    fine->bricks_visible = 0;
+    for (size_t z = 0, b = 0; z < n[2]; z++)
+        for (size_t y = 0; y < n[1]; y++) {
+            const uint8_t *row = coarse->flags + cd[0] * ((y >> f) + cd[1] * (z >> f));
+            for (size_t x = 0; x < n[0]; x++, b++) {
+                fine->flags[b] = codes[row[x >> f]];
+                fine->bricks_visible += fine->flags[b] >= 128;
+            }
+        }
+    for (int a = 0; a < 3; a++) {
+        fine->visible_lo[a] = coarse->visible_lo[a];
+        fine->visible_hi[a] = coarse->visible_hi[a];
+    }
+    memcpy(fine->tf_visible, coarse->tf_visible, sizeof fine->tf_visible);
+    fine->flags_valid = 1;
+    return CDVR_OK;
+}

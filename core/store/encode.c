@@ -161,6 +161,11 @@ static cdvr_status check_opts(const cdvr_encode_source *src, const cdvr_encode_o
     if (opts->nvariants < 1 || opts->nvariants > CDVR_STORE_MAX_VARIANTS || !opts->variants)
         return cdvr_error_set(err, CDVR_ERR_ARG, "%s: %zu variants (must be 1..%u)", path,
                               opts->nvariants, CDVR_STORE_MAX_VARIANTS);
+    if (opts->range_shift != 0 &&
+        (opts->range_shift < CDVR_RANGE_SHIFT || opts->range_shift > CDVR_RANGE_SHIFT_MAX))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "%s: range bricks of 2^%u voxels (must be 2^%d "
+                              "..2^%d)", path, opts->range_shift, CDVR_RANGE_SHIFT,
+                              CDVR_RANGE_SHIFT_MAX);
     if (!isfinite(opts->qlo) || !isfinite(opts->qhi) || opts->qhi < opts->qlo ||
         (unsigned)opts->source_type > CDVR_TYPE_F32)
         return cdvr_error_set(err, CDVR_ERR_ARG, "%s: bad quantisation window [%g, %g] or "
@@ -301,6 +306,7 @@ typedef struct chunk_job {
     size_t nparts, parts_done;   /* parts_done and finished: under the pool's mutex */
     int finished;
     size_t payload_bytes, ranges_bytes;
+    unsigned ranges_shift;  /* range bricks of 2^ranges_shift voxels */
     uint64_t sse;                /* squared error over the voxels the brick owns */
     double maxerr;
     cdvr_error err;              /* status != CDVR_OK: the chunk failed */
@@ -434,7 +440,7 @@ static cdvr_status measure_chunk(const cdvr_store *st, chunk_job *job, cdvr_erro
                                              job->bd[1] * (own_lo[2] - job->lo[2]));
         if (window)
             s = cdvr_range_compute(owned, job->bd[0], job->bd[0] * job->bd[1], st->info.dims,
-                               own_lo, own_bd, CDVR_RANGE_SHIFT, job->bufs.ranges + i * window,
+                               own_lo, own_bd, job->ranges_shift, job->bufs.ranges + i * window,
                                err);
     }
     ci->value_min = mn;
@@ -569,12 +575,12 @@ static cdvr_status finish_job(const cdvr_store *st, chunk_job *job, cdvr_error *
                              (size_t)ci->stored_bytes);
     s = measure_chunk(st, job, err);
     if (s == CDVR_OK && job->ranges_bytes)
-        s = cdvr_lzo_compress(job->bufs.ranges, job->ranges_bytes, job->bufs.ranges_packed,
-                              job->bufs.ranges_packed_cap, &table_packed, err);
+        s = cdvr_range_pack(job->bufs.ranges, job->ranges_bytes, job->bufs.ranges_packed,
+                            job->bufs.ranges_packed_cap, &table_packed, err);
     if (s != CDVR_OK || !job->ranges_bytes)
         return s;
-    ci->ranges_shift = CDVR_RANGE_SHIFT;
-    ci->ranges_stage2 = cdvr_lzo_keep(job->ranges_bytes, table_packed, CDVR_LZO_MIN_SAVING);
+    ci->ranges_shift = job->ranges_shift;
+    ci->ranges_stage2 = table_packed < job->ranges_bytes ? CDVR_RANGES_PACKED : 0;
     ci->ranges_stored_bytes = ci->ranges_stage2 ? table_packed : job->ranges_bytes;
     ci->ranges_crc32c = cdvr_crc32c(0, ci->ranges_stage2 ? job->bufs.ranges_packed
                                                          : job->bufs.ranges,
@@ -814,7 +820,8 @@ static cdvr_status prepare_job(write_ctx *wc, const frame_window *win, size_t v,
     size_t s2_cap = s2_capacity(job->shape.bound_bytes, vi->stage2_segment);
     size_t own_lo[3], own_bd[3];
     cdvr_store_brick_owned(&st->info, ci->brick, own_lo, own_bd);
-    window = cdvr_range_window_bytes(st->info.dims, own_lo, own_bd, CDVR_RANGE_SHIFT);
+    job->ranges_shift = wc->opts->range_shift ? wc->opts->range_shift : CDVR_RANGE_SHIFT_DEFAULT;
+    window = cdvr_range_window_bytes(st->info.dims, own_lo, own_bd, job->ranges_shift);
     job->ranges_bytes = wc->opts->no_range_tables ? 0 : window * ci->count;
     if (!cdvr_size_mul(voxels, ci->count, &decoded) ||
         !reserve(&job->bufs.payload, &job->bufs.payload_cap, job->shape.bound_bytes) ||
@@ -825,7 +832,7 @@ static cdvr_status prepare_job(write_ctx *wc, const frame_window *win, size_t v,
         !reserve(&job->bufs.decoded, &job->bufs.decoded_cap, decoded) ||
         !reserve(&job->bufs.ranges, &job->bufs.ranges_cap, job->ranges_bytes) ||
         !reserve(&job->bufs.ranges_packed, &job->bufs.ranges_packed_cap,
-                 cdvr_lzo_bound(job->ranges_bytes)) ||
+                 cdvr_range_pack_bound(job->ranges_bytes)) ||
         (st->info.nbricks > 1 && !reserve(&job->bufs.bricks, &job->bufs.bricks_cap, decoded)))
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for a %zu-byte chunk",
                               st->path, job->shape.bound_bytes);

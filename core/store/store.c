@@ -57,8 +57,10 @@
  *    88  u64    stored bytes
  *    96  u64    payload bytes (the codec's fixed chunk size, or at most its bound)
  *   104  u8     min, u8 max of the decoded voxels of the chunk's timesteps
- *   106  u8     range table flags: bit 0 present, bit 1 stored as LZO1X; other bits 0
- *   107  u8     range table shift: range bricks of 2^shift voxels (1..7; 0 when absent)
+ *   106  u8     range table flags: bit 0 present, bit 1 stored as LZO1X, bit 2 stored packed
+ *               (cdvr_range_pack: zstd of the planar table; never with bit 1); other bits 0
+ *   107  u8     range table shift: range bricks of 2^shift voxels (1..7; 0 when absent; the
+ *               encoder writes 2 before 2026-12, since then 3 by default, range_brick=)
  *   108  u32    CRC-32C of the stored range table bytes (0 when absent)
  *   112  u64    offset of the stored range table (0 when absent)
  *   120  u64    stored bytes of the range table (0 when absent)
@@ -298,7 +300,8 @@ static void put_chunk(wcursor *w, const cdvr_chunk_info *c)
     *w->p++ = c->value_min;
     *w->p++ = c->value_max;
     int has_ranges = c->ranges_shift != 0;
-    *w->p++ = (uint8_t)(has_ranges ? 1u | (c->ranges_stage2 ? 2u : 0u) : 0u);
+    static const uint8_t stage2_bits[3] = {0u, 2u, 4u}; /* none, LZO, packed */
+    *w->p++ = (uint8_t)(has_ranges ? 1u | stage2_bits[c->ranges_stage2 & 3] : 0u);
     *w->p++ = (uint8_t)c->ranges_shift;
     put_u32(w, has_ranges ? c->ranges_crc32c : 0);
     put_u64(w, has_ranges ? c->ranges_offset : 0);
@@ -588,10 +591,12 @@ static cdvr_status parse_chunk_v2(const cdvr_store *st, rcursor *r, size_t v,
     ci->ranges_stored_bytes = get_u64(r);
     unsigned s2 = flag & 0xffu, segmented = (flag >> 8) & 1u;
     int reserved = (flag >> 9) != 0 || s2 > CDVR_STAGE2_ZSTD || (s2 == 0 && segmented) ||
-                   (s2 > CDVR_STAGE2_LZO && !segmented) || tail[2] > 3;
+                   (s2 > CDVR_STAGE2_LZO && !segmented) || tail[2] > 5 ||
+                   (tail[2] & 6) == 6;
     if (tail[2] & 1) {
         ci->ranges_shift = tail[3];
-        ci->ranges_stage2 = (tail[2] & 2) != 0;
+        ci->ranges_stage2 = (tail[2] & 2) ? CDVR_RANGES_LZO
+                                          : (tail[2] & 4) ? CDVR_RANGES_PACKED : 0;
         reserved |= tail[3] < 1 || tail[3] > 7 || ci->ranges_stored_bytes == 0;
     } else {
         reserved |= tail[2] != 0 || tail[3] != 0 || ci->ranges_crc32c != 0 ||
@@ -1162,7 +1167,9 @@ cdvr_status cdvr_store_read_ranges(const cdvr_store *st, size_t v, size_t c, uin
                      ci->ranges_crc32c, err);
     if (s == CDVR_OK && ci->ranges_stage2) {
         cdvr_error lerr;
-        if (cdvr_lzo_decompress(stored, stored_n, out, bytes, &lerr) != CDVR_OK)
+        if ((ci->ranges_stage2 == CDVR_RANGES_LZO
+                 ? cdvr_lzo_decompress(stored, stored_n, out, bytes, &lerr)
+                 : cdvr_range_unpack(stored, stored_n, out, bytes, &lerr)) != CDVR_OK)
             s = cdvr_error_set(err, lerr.status, "%s: variant %s chunk %zu: range table: %s",
                                st->path, name, c + 1, lerr.msg);
     }

@@ -838,18 +838,19 @@ static int l_player(lua_State *L)
 /* Pushes {read_ms=, ..., frame_ms=, serial_ms=} medians over frames without error. */
 static void push_stage_medians(lua_State *L, const cdvr_frame_row *rows, size_t n)
 {
-    static const char *const names[] = {"read_ms", "unzip_ms", "upload_ms", "decode_ms", "setup_ms", "render_ms", "frame_ms", "serial_ms", "interval_ms"};
+    static const char *const names[] = {"read_ms", "unzip_ms", "upload_ms", "decode_ms", "setup_ms", "render_ms", "frame_ms", "serial_ms", "interval_ms", "grid_ms"};
     double *vals = lua_newuserdatauv(L, (n ? n : 1) * sizeof(double), 0); /* scratch */
-    lua_createtable(L, 0, 9);                                             /* scratch, medians */
-    for (int k = 0; k < 9; k++) {
+    lua_createtable(L, 0, 10);                                            /* scratch, medians */
+    for (int k = 0; k < 10; k++) {
         size_t m = 0;
         for (size_t i = 0; i < n; i++) {
             const cdvr_frame_row *r = &rows[i];
             if (r->status != CDVR_OK)
                 continue;
-            double stage[9] = {r->read_ms, r->unzip_ms, r->upload_ms, r->decode_ms, r->setup_ms, r->render_ms, r->frame_ms,
-                               r->read_ms + r->unzip_ms + r->upload_ms + r->decode_ms + r->setup_ms + r->render_ms,
-                               r->interval_ms};
+            double stage[10] = {r->read_ms, r->unzip_ms, r->upload_ms, r->decode_ms, r->setup_ms, r->render_ms, r->frame_ms,
+                                r->read_ms + r->unzip_ms + r->grid_ms + r->upload_ms + r->decode_ms + r->setup_ms +
+                                    r->render_ms,
+                                r->interval_ms, r->grid_ms};
             vals[m++] = stage[k];
         }
         setnum(L, names[k], cdvr_median(vals, m));
@@ -1065,7 +1066,7 @@ int lcdvr_open_player(lua_State *L)
                    "distribute='time'|'bricks' (mpirun: frames or bricks shared by the ranks)");
     lcdvr_help_add(L, "p:run{frames=N, first=1}",
                    "plays N frames -> {fps=, wall_ms=, ranks=, capture=, frames={rows: frame, t, variant, rank, why (the decision in "
-                   "force), read_ms .. render_ms, composite_ms, wait_ms, frame_ms, bricks_read, bricks_skipped, reason (at group "
+                   "force), read_ms .. render_ms, grid_ms (skip grid from the range tables), samples (cl: samples taken), composite_ms, wait_ms, frame_ms, bricks_read, bricks_skipped, reason (at group "
                    "starts), error}, median={...}} (mpirun: rank 0 gets every rank's rows)");
     lcdvr_help_add(L, "p:close()", "release the player's buffers and its OpenCL stream");
     return 0;

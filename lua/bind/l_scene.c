@@ -33,6 +33,7 @@ void lcdvr_push_frame_row(lua_State *L, const cdvr_store *st, const cdvr_frame_r
     lua_setfield(L, -2, "variant");
     setnum(L, "read_ms", r->read_ms);
     setnum(L, "unzip_ms", r->unzip_ms);
+    setnum(L, "grid_ms", r->grid_ms);
     setnum(L, "upload_ms", r->upload_ms);
     setnum(L, "decode_ms", r->decode_ms);
     setnum(L, "setup_ms", r->setup_ms);
@@ -48,6 +49,7 @@ void lcdvr_push_frame_row(lua_State *L, const cdvr_store *st, const cdvr_frame_r
     lua_setfield(L, -2, "bricks_read");
     lua_pushinteger(L, (lua_Integer)r->bricks_skipped);
     lua_setfield(L, -2, "bricks_skipped");
+    setnum(L, "samples", (double)r->samples);
     lua_pushinteger(L, r->rank);
     lua_setfield(L, -2, "rank");
     if (r->group_start) {

@@ -44,8 +44,8 @@ static const char *const variant_keys[] = {"codec", "name", "stage2", "lzo_min_s
                                            "stage2_read_mbps", "stage2_segment", NULL};
 /* Keys only the top-level options table takes. */
 static const char *const top_keys[] = {"path", "schedule", "progress", "variants", "bricks",
-                                        "threads", "ranges", "callback_limit", "callback_memory",
-                                        NULL};
+                                        "threads", "ranges", "range_brick", "callback_limit",
+                                        "callback_memory", NULL};
 
 static int in_list(const char *const list[], const char *key)
 {
@@ -430,6 +430,15 @@ static int l_encode(lua_State *L)
                           "got %d", CDVR_ENCODE_MAX_THREADS, (int)threads);
     o.threads = (int)threads;
     o.no_range_tables = !lcdvr_optbooleanfield(L, 2, "ranges", 1);
+    lua_Integer range_brick = lcdvr_optintegerfield(L, 2, "range_brick",
+                                                    1 << CDVR_RANGE_SHIFT_DEFAULT);
+    o.range_shift = 0;
+    while (o.range_shift <= CDVR_RANGE_SHIFT_MAX &&
+           ((lua_Integer)1 << o.range_shift) != range_brick)
+        o.range_shift++;
+    if (o.range_shift < CDVR_RANGE_SHIFT || o.range_shift > CDVR_RANGE_SHIFT_MAX)
+        return luaL_error(L, "cdvr.encode: option 'range_brick': 4, 8, 16, 32 or 64 expected, "
+                          "got %d", (int)range_brick);
     cdvr_encode_source src;
     const cdvr_volume *u8 = NULL;
     if (lazy)
@@ -622,6 +631,9 @@ static void push_variant_info(lua_State *L, const cdvr_store *st, size_t v)
     setint(L, "bytes", (lua_Integer)vi->bytes);
     setint(L, "payload_bytes", (lua_Integer)vi->payload_bytes);
     setint(L, "ranges_bytes", (lua_Integer)vi->ranges_bytes);
+    const cdvr_chunk_info *c0 = cdvr_store_chunk(st, v, 0);
+    if (c0 && c0->ranges_shift) /* the encoder writes one size for every chunk */
+        setint(L, "range_brick", (lua_Integer)1 << c0->ranges_shift);
     setnum(L, "ratio", (double)vi->bytes / (double)in->raw_bytes);
     setnum(L, "bpv", 8.0 * (double)vi->bytes / (double)in->raw_bytes);
     setnum(L, "psnr", vi->psnr);
@@ -952,7 +964,7 @@ int lcdvr_open_store(lua_State *L)
     lcdvr_newclass(L, LCDVR_STORE, store_methods, store_meta);
     lcdvr_setfuncs(L, store_funcs);
     lcdvr_help_add(L, "cdvr.encode(volume, {path=, codec=, S=, T=, pack=, encoder=, stage2=, "
-                      "lzo_min_saving=, stage2_read_mbps=, stage2_segment=, name=, variants=, schedule=, progress=, bricks=, threads=, ranges=})",
+                      "lzo_min_saving=, stage2_read_mbps=, stage2_segment=, name=, variants=, schedule=, progress=, bricks=, threads=, ranges=, range_brick=})",
                    "encode a series into a .cdv store (written atomically; defaults codec=pvtc "
                    "S=4 T=3 pack=time encoder=lsq stage2=lzo lzo_min_saving=0.1; stage2=none|lzo|lz4|"
                    "zstd|auto (auto: per chunk the smallest modelled read at stage2_read_mbps=500 "
@@ -960,14 +972,14 @@ int lcdvr_open_store(lua_State *L)
                    "independently packed segment); bricks={bx,by,bz} "
                    "splits each timestep into bricks; threads=0: one per core, the same bytes for "
                    "any count; ranges=true: per-brick value range tables for empty-space "
-                   "skipping; schedule(t, variant) runs under callback_limit= instructions, "
+                   "skipping, range_brick=8 (4..64) voxels per brick edge; schedule(t, variant) runs under callback_limit= instructions, "
                    "default 5e7, and callback_memory= MB, default 256); the opened store; raises "
                    "when it cannot write the file (the message names it)");
     lcdvr_help_add(L, "cdvr.open(path)", "open a .cdv store (lazy); the store, or raises naming "
                                          "the file and the reason");
     lcdvr_help_add(L, "st:info()", "dims, timesteps, window, bytes, ratio and per-variant "
                                    "codec, bpv, psnr, maxerr, chunks, ranges_bytes (the value "
-                                   "range tables for empty-space skipping)");
+                                   "range tables for empty-space skipping), range_brick");
     lcdvr_help_add(L, "st:decode(t [, variant] [, {device=\"cpu\"|\"cl\", brick=b}])",
                    "u8 volume of timestep t (from 1) of a variant (name or index, default 1); "
                    "brick=b reads and decodes only brick b (st:info().bricks[b]), placed where it lies");

@@ -23,7 +23,12 @@
 --   the medians; each row has the 1-minute load average before it ran),
 --   --encoder lsq|bbox, --sizes 512,64, --frames 30, --device cl|cpu, --threads 0,
 --   --out DIR (stores; default a fresh directory under /tmp, removed at the end unless --keep),
---   --skip encode|playback, --repeats 1 (playback repeats; medians of fps and stages).
+--   --skip encode|playback, --repeats 1 (playback repeats; medians of fps and stages),
+--   --range-brick 4|8|16 (the new executable's range tables; default its encoder's),
+--   --empty-skip on|off (empty-space skipping of the players, default on).
+-- Playback rows carry grid_ms (the skip grids made from the range tables; the old executable
+-- may count them in unzip_ms) and samples (median samples the ray caster took per frame, 0
+-- when the executable does not report them: with --empty-skip off, every sample).
 package.path = (arg[0]:match("^(.*)/[^/]*$") or ".") .. "/?.lua;" .. package.path
 local common = require "common"
 
@@ -46,6 +51,11 @@ local D, frames, repeats = tonumber(opt.dims), tonumber(opt.frames), tonumber(op
 local rounds = tonumber(opt.rounds or "1")
 local outdir = opt.out or os.tmpname() .. "_scale"
 os.execute(("mkdir -p '%s'"):format(outdir))
+
+local function range_opts(exe)
+  if exe.name ~= "new" or not opt["range-brick"] then return "" end
+  return ", range_brick=" .. tonumber(opt["range-brick"])
+end
 
 local function stage2_opts(exe)
   if exe.name ~= "new" or not opt.stage2 then return "" end
@@ -107,11 +117,11 @@ for _, n in ipairs(lengths) do
         local r, msg = child(exe.path, ([[
 local t0 = cdvr.clock()
 local s = assert(cdvr.load_series(%q, {first=0, count=%d, dims={%d,%d,%d}, type="u8"}))
-local st = assert(cdvr.encode(s, {path=%q, variants={%s}, progress=false%s}))
+local st = assert(cdvr.encode(s, {path=%q, variants={%s}, progress=false%s%s}))
 local dt = cdvr.clock() - t0
 local v = st:info().variants[1]
 print(("OK,%%.3f,%%.4f,%%.0f,%%.1f,%%.0f"):format(dt, v.psnr, v.bytes, vmhwm_mb(), v.ranges_bytes or 0))
-]]):format(series_pattern(n), n, D, D, D, path, variant_spec(var, exe), threads))
+]]):format(series_pattern(n), n, D, D, D, path, variant_spec(var, exe), threads, range_opts(exe)))
         if r then
           local mbs = n * D ^ 3 / 1e6 / r[1]
           print(("encode,%s,%d,%s,%.2f,%.2f,%.1f,%.3f,%.0f,%.0f"):format(exe.name, n, var, r[1],
@@ -133,7 +143,7 @@ local tf_points = "{0, 0,0,0, 0}, {40, 0.2,0.1,0.5, 0}, {90, 0.9,0.5,0.2, 0.05},
 local fps_of = {} -- fps_of[exe][n][var][size], setup share too
 print()
 print("section,exe,timesteps,variant,size,fps,read_ms,unzip_ms,upload_ms,decode_ms,setup_ms," ..
-      "render_ms,frame_ms,setup_share,peak_rss_mb,round,loadavg")
+      "render_ms,frame_ms,setup_share,peak_rss_mb,round,loadavg,grid_ms,samples")
 local function loadavg()
   local f = io.open("/proc/loadavg")
   local l = f and f:read("l") or ""
@@ -153,7 +163,7 @@ local st = assert(cdvr.open(%q))
 local tf = cdvr.tf{ %s }
 local cam = cdvr.camera{eye={%g,%g,%g}, center={%g,%g,%g}, up={0,0,1}, fov=30,
                         width=%d, height=%d}
-local p = cdvr.player{store=st, tf=tf, camera=cam, variant=%q, device=%q, pipeline=true}
+local p = cdvr.player{store=st, tf=tf, camera=cam, variant=%q, device=%q, pipeline=true%s}
 p:run{frames=%d}
 local keys = {"read_ms","unzip_ms","upload_ms","decode_ms","setup_ms","render_ms","frame_ms"}
 local runs = {}
@@ -166,15 +176,25 @@ local function med(get)
 end
 local out = {("%%.3f"):format(med(function(r) return r.fps end))}
 for _, k in ipairs(keys) do out[#out + 1] = ("%%.3f"):format(med(function(r) return r.median[k] end)) end
+local function frames_median(r, k)
+  local v = {}
+  for i, row in ipairs(r.frames) do v[i] = row[k] or 0 end
+  table.sort(v)
+  return v[(#v + 1) // 2] or 0
+end
+local extra = {("%%.3f"):format(med(function(r) return r.median.grid_ms or 0 end)),
+               ("%%.0f"):format(med(function(r) return frames_median(r, "samples") end))}
 p:close()
-print("OK," .. table.concat(out, ",") .. (",%%.1f"):format(vmhwm_mb()))
+print("OK," .. table.concat(out, ",") .. (",%%.1f"):format(vmhwm_mb()) .. "," .. table.concat(extra, ","))
 ]]):format(stores[exe.name][n][var], tf_points, c + 2.2 * D, c - 1.3 * D, c + 1.3 * D, c, c, c,
-           size, size, var, opt.device, math.min(frames, 6), repeats, frames))
+           size, size, var, opt.device,
+           opt["empty-skip"] == "off" and ", empty_skip=false" or "",
+           math.min(frames, 6), repeats, frames))
         if r then
           local share = r[7] > 0 and r[6] / r[8] or 0 / 0
-          print(("playback,%s,%d,%s,%d,%.2f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.1f,%d,%.2f"):format(
+          print(("playback,%s,%d,%s,%d,%.2f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.1f,%d,%.2f,%.3f,%.0f"):format(
             exe.name, n, var, size, r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], share, r[9],
-            round, load))
+            round, load, r[10], r[11]))
           fps_of[exe.name] = fps_of[exe.name] or {}
           local key = n .. var .. size
           fps_of[exe.name][key] = fps_of[exe.name][key] or {}

@@ -118,6 +118,32 @@ do
   assert(math.abs(policy.predict(lzo, lm, false) - 35) < 1e-9)
   assert(math.abs(policy.predict(by_name("S4T3"), lm, false) - 20) < 1e-9)
 
+  -- Each stage 2 unpacks at its own rate: lz4 measured 4x faster than lzo here.
+  local lz4 = { name = "lz4", codec = "pvtc", stage2 = "lz4", bytes_per_timestep = 50000,
+                payload_bytes_per_timestep = 100000, psnr = 30 }
+  local zstd = { name = "zstd", codec = "pvtc", stage2 = "zstd", bytes_per_timestep = 40000,
+                 payload_bytes_per_timestep = 100000, psnr = 30 }
+  local mixed = { lzo_frames[1], { variant = "lz4", read_ms = 5, unzip_ms = 5, upload_ms = 0,
+                  decode_ms = 0, setup_ms = 0, render_ms = 10, frame_ms = 20, bytes = 50000,
+                  payload_bytes = 100000 } }
+  local pm = policy.measure(mixed, { lzo, lz4, zstd })
+  assert(math.abs(policy.stages(lzo, pm).unzip - 20) < 1e-9, policy.stages(lzo, pm).unzip)
+  assert(math.abs(policy.stages(lz4, pm).unzip - 5) < 1e-9, policy.stages(lz4, pm).unzip)
+  -- zstd not measured yet: the median rate over every frame
+  local all = 100000 / pm.unzip
+  assert(all > 5 and all < 20 and math.abs(policy.stages(zstd, pm).unzip - all) < 1e-9, all)
+  -- without the variants: one rate for all
+  assert(math.abs(policy.stages(lz4, policy.measure(mixed)).unzip - all) < 1e-9)
+  -- the skip grids (grid_ms) run on the unzip worker: pipelined max(read, unzip + grid, device)
+  local gridded = { { variant = "lz4", read_ms = 5, unzip_ms = 5, grid_ms = 4, upload_ms = 0,
+                      decode_ms = 0, setup_ms = 0, render_ms = 7, frame_ms = 20, bytes = 50000,
+                      payload_bytes = 100000 } }
+  local gm = policy.measure(gridded, { lz4 })
+  assert(math.abs(policy.predict(lz4, gm, true) - 9) < 1e-9, policy.predict(lz4, gm, true))
+  assert(math.abs(policy.predict(lz4, gm, false) - 21) < 1e-9, policy.predict(lz4, gm, false))
+  local ok, err = pcall(policy.measure, mixed, "lzo")
+  assert(not ok and err:find("bad argument #2 to 'measure'"), err)
+
   -- min_psnr is a floor even when the target cannot be met.
   name = policy.open_loop{ target_fps = 100 }(stats{ frames = frames, min_psnr = 35 })
   assert(name == "S1T3", name)

@@ -32,7 +32,11 @@
 
 #include "cdvr/error.h"
 
-#define CDVR_RANGE_SHIFT 2 /* range bricks of 4^3 voxels (plus apron) */
+#define CDVR_RANGE_SHIFT 2 /* the finest range bricks, 4^3 voxels (plus apron): the ray caster's
+                              skipping bricks, and the tables of stores written before 2026-12 */
+#define CDVR_RANGE_SHIFT_DEFAULT 3 /* tables the encoder writes by default: 8^3 bricks */
+#define CDVR_RANGE_SHIFT_MAX 6     /* 64^3 bricks */
+#define CDVR_RANGE_ZSTD_LEVEL 19   /* tables are small: the slowest level costs little */
 
 /* ---- store bricks --------------------------------------------------------------------------- */
 
@@ -76,5 +80,24 @@ cdvr_status cdvr_range_compute(const uint8_t *voxels, size_t row_stride, size_t 
  * min 255, max 0): min of the mins, max of the maxes. */
 void cdvr_range_merge(const uint8_t *window, const size_t g0[3], const size_t n[3],
                       const size_t grid[3], uint8_t *grid_minmax);
+
+
+/* Compact stored form of a table of n bytes (n even): zstd (level CDVR_RANGE_ZSTD_LEVEL, one
+ * frame that records its content size) of its planar form, the n/2 mins then the n/2 widths
+ * (max - min) mod 256. out_cap >= cdvr_range_pack_bound(n) (0 on overflow). */
+size_t cdvr_range_pack_bound(size_t n);
+cdvr_status cdvr_range_pack(const uint8_t *table, size_t n, uint8_t *out, size_t out_cap,
+                            size_t *out_n, cdvr_error *err);
+/* Undoes cdvr_range_pack: exactly expect bytes into table; anything else (a frame claiming
+ * another size, corrupt input) -> CDVR_ERR_CORRUPT. */
+cdvr_status cdvr_range_unpack(const uint8_t *in, size_t n, uint8_t *table, size_t expect,
+                              cdvr_error *err);
+
+/* A grid table of range bricks 2^factor_log2 times coarser per axis spread over a finer grid:
+ * fine brick (x, y, z) takes coarse brick (x, y, z) >> factor_log2. Each fine range brick's
+ * voxels (with its apron) lie in its coarse brick's, so its range is widened, never narrowed:
+ * skipping with it stays conservative. */
+void cdvr_range_expand(const uint8_t *coarse, const size_t coarse_dims[3], unsigned factor_log2,
+                       uint8_t *fine, const size_t fine_dims[3]);
 
 #endif

@@ -28,8 +28,9 @@
  * is read, the unzip worker also makes each frame's skip grid and flags (cdvr/skip.h), and b4
  * only uploads them (else the device computes them from the frame). So the next group's
  * decode and setup overlap the current group's rendering. Timings follow the work: b1
- * includes reading the range tables, b1' making the grids, b3 the host decode (wherever it
- * ran), b4 what the calling thread still does.
+ * includes reading the range tables, b1' the unpacking, b1g (grid_ms) making the grids (at
+ * the tables' brick size, spread over the device's bricks when those are smaller), b3 the
+ * host decode (wherever it ran), b4 what the calling thread still does.
  *
  * Brick skipping ("model only what a scene needs", opts.brick_skip): when a group is planned,
  * a brick is read and decoded only if
@@ -87,6 +88,10 @@ typedef struct cdvr_frame_row {
     size_t t;                /* timestep (0-based) */
     int variant;             /* variant index (0-based) */
     double read_ms, unzip_ms, upload_ms, decode_ms, setup_ms, render_ms, frame_ms;
+    double grid_ms;          /* b1g: the skip grid made from the range tables (0 without) */
+    uint64_t samples;        /* cl device: samples the ray caster took (0 elsewhere); with
+                                empty-space skipping off, all of them: 1 - on/off is the
+                                share skipping saves */
     double interval_ms;      /* frame_ms plus the pacing wait */
     uint64_t bytes;          /* stored bytes read, this frame's share */
     uint64_t payload_bytes;  /* bytes after stage 2, this frame's share */

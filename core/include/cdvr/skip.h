@@ -51,6 +51,15 @@ cdvr_status cdvr_skip_minmax_from_frame(cdvr_skip_grid *g, const uint8_t *frame,
  * TF entries with alpha > 0 already. Returns 1 if the flags were made again. */
 int cdvr_skip_flags(cdvr_skip_grid *g, const cdvr_tf *tf);
 
+/* The minmax, flags, bricks_visible and visible box of fine (a grid of the same volume whose
+ * bricks are 2^(coarse shift - fine shift) times smaller per axis) from coarse, whose flags
+ * must be made: each fine brick takes its coarse brick's range and state, and a distance that
+ * is exact for the coarse cube it lies in (so fine is as conservative as coarse: the ray
+ * caster skips exactly the samples it would skip with coarse bricks). CDVR_ERR_ARG when the
+ * grids do not fit. */
+cdvr_status cdvr_skip_grid_expand(const cdvr_skip_grid *coarse, cdvr_skip_grid *fine,
+                                  cdvr_error *err);
+
 /* Chessboard distance in bricks from each brick to the nearest brick with seed[b] != 0 (0 for
  * the seeds; at most 255, which also stands for "none"), by the two-pass 26-neighbour
  * chamfer, which is exact for the chessboard metric. */

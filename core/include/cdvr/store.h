@@ -107,6 +107,9 @@ typedef struct cdvr_encode_opts {
                                       stage 2 AUTO, whose choices follow measured times) */
     int no_range_tables;           /* 1: record no range tables (smaller store; playback then
                                       computes each frame's brick ranges itself) */
+    unsigned range_shift;          /* range bricks of 2^range_shift voxels in the tables,
+                                      CDVR_RANGE_SHIFT .. CDVR_RANGE_SHIFT_MAX; 0 ->
+                                      CDVR_RANGE_SHIFT_DEFAULT (8^3) */
 } cdvr_encode_opts;
 
 /* A series to encode, read one timestep at a time (out of core). */
@@ -119,6 +122,9 @@ typedef struct cdvr_encode_source {
 } cdvr_encode_source;
 
 typedef struct cdvr_store cdvr_store;
+
+#define CDVR_RANGES_LZO 1    /* cdvr_chunk_info.ranges_stage2: the table is LZO1X of it */
+#define CDVR_RANGES_PACKED 2 /* the table is cdvr_range_pack of it (bricks.h) */
 
 typedef struct cdvr_chunk_info {
     size_t t0, count;              /* timesteps covered (from 0) */
@@ -136,7 +142,8 @@ typedef struct cdvr_chunk_info {
     /* Range table (value ranges per range brick, see below), stored after the chunk's bytes;
      * ranges_shift 0: the chunk has none (version 1 stores and older version 2 ones). */
     unsigned ranges_shift;         /* range bricks of 2^shift voxels */
-    int ranges_stage2;             /* 1 if the stored table is LZO1X of the table */
+    int ranges_stage2;             /* 0 stored as is, CDVR_RANGES_LZO LZO1X of the table,
+                                      CDVR_RANGES_PACKED cdvr_range_pack (bricks.h) */
     uint32_t ranges_crc32c;        /* of the stored table bytes */
     uint64_t ranges_offset, ranges_stored_bytes;
 } cdvr_chunk_info;

@@ -15,7 +15,7 @@
 --               quality),
 --     min_psnr = number or nil (quality floor the user set),
 --     pipelined = true when the player overlaps stages (optional; default false),
---     frames = { last rows, oldest first, at most 16: {t=, variant=, read_ms=, unzip_ms=,
+--     frames = { last rows, oldest first, at most 16: {t=, variant=, read_ms=, unzip_ms=, grid_ms=,
 --                upload_ms=, decode_ms=, setup_ms=, render_ms=, frame_ms=, bytes= (stored
 --                bytes read for this frame's chunk share), payload_bytes=} },
 --     variants = { {name=, codec=, S=, T=, pack=, stage2=, bytes_per_timestep= (stored),
@@ -35,14 +35,19 @@
 -- Timing model (open_loop, and closed_loop's step-up prediction), from the recent frames:
 --   read   = bytes_per_timestep / (median of bytes / read_ms)
 --   unzip  = payload_bytes_per_timestep / (median of payload_bytes / unzip_ms), only for a
---            variant with stage 2 that actually shrank its chunks
+--            variant with stage 2 that actually shrank its chunks; the median over the frames
+--            of variants with the same stage 2 (lzo, lz4, zstd, auto unpack at very different
+--            rates) when policy.measure knows the variants and some were measured, else over
+--            all frames
 --   upload = payload_bytes_per_timestep / (median of payload_bytes / upload_ms)
 --   decode = median decode_ms of that variant's frames (every variant outputs one timestep
 --            per frame), else of all frames
+--   grid   = median grid_ms over all frames (the skip grids made from the range tables, on
+--            the unzip worker; 0 for rows without it)
 --   setup, render = medians over all frames (they do not depend on the variant)
 -- (policy.stages(v, m) gives these per-stage predictions, policy.predict(v, m) their total.)
 -- Serial player: the sum. Pipelined player (cdvr/player.h: reader thread, unzip thread, and
--- the device thread doing upload..render): max(read, unzip, upload+decode+setup+render).
+-- the device thread doing upload..render): max(read, unzip+grid, upload+decode+setup+render).
 -- A stage never measured yet counts as 0 ms (the next group measures it).
 --
 --   policy.fixed([name])
@@ -253,9 +258,34 @@ local function field_median(frames, field, variant)
   return median(values)
 end
 
+-- Unzip rate (payload bytes per ms) of the frames of variants with each stage 2, from the
+-- variants list ({name=, stage2=}); stage 2 name -> rate.
+local function unzip_rates(frames, variants)
+  local stage2_of, by_stage2 = {}, {}
+  for _, v in ipairs(variants) do
+    if type(v) == "table" and type(v.name) == "string" and type(v.stage2) == "string" then
+      stage2_of[v.name] = v.stage2
+    end
+  end
+  for _, f in ipairs(frames) do
+    local s2 = stage2_of[f.variant]
+    if s2 then
+      by_stage2[s2] = by_stage2[s2] or {}
+      table.insert(by_stage2[s2], f)
+    end
+  end
+  local rates = {}
+  for s2, list in pairs(by_stage2) do rates[s2] = rate_median(list, "payload_bytes", "unzip_ms") end
+  return rates
+end
+
 -- Bandwidths (bytes per ms) and variant-independent times measured on frames; nil if none.
-function policy.measure(frames)
+-- variants (optional, stats.variants) gives unzip rates per stage 2.
+function policy.measure(frames, variants)
   if type(frames) ~= "table" or #frames == 0 then return nil end
+  if variants ~= nil and type(variants) ~= "table" then
+    error(string.format("bad argument #2 to 'measure' (table of variants expected, got %s)", type(variants)), 2)
+  end
   for i, f in ipairs(frames) do
     if type(f) ~= "table" then
       error(string.format("bad argument #1 to 'measure' (frames[%d] must be a table, got %s)", i, type(f)), 2)
@@ -267,9 +297,11 @@ function policy.measure(frames)
     upload = rate_median(frames, "payload_bytes", "upload_ms"),
     decode_all = field_median(frames, "decode_ms"),
     setup = field_median(frames, "setup_ms") or 0,
+    grid = field_median(frames, "grid_ms") or 0,
     render = field_median(frames, "render_ms") or 0,
     frames = frames,
   }
+  m.unzip_by_stage2 = variants and unzip_rates(frames, variants) or {}
   m.decode = {}
   return m
 end
@@ -299,9 +331,11 @@ function policy.stages(v, m)
   end
   return {
     read = per(stored_bytes(v), m.read),
-    unzip = uses_stage2(v) and per(payload_bytes(v), m.unzip) or 0,
+    unzip = uses_stage2(v) and per(payload_bytes(v), (m.unzip_by_stage2 or {})[v.stage2] or m.unzip)
+      or 0,
     upload = per(payload_bytes(v), m.upload),
     decode = m.decode[v.name] or 0,
+    grid = m.grid or 0,
     setup = m.setup,
     render = m.render,
   }
@@ -313,9 +347,9 @@ function policy.predict(v, m, pipelined)
   local st = policy.stages(v, m)
   local device = st.upload + st.decode + st.setup + st.render
   if pipelined then
-    return math.max(st.read, st.unzip, device)
+    return math.max(st.read, st.unzip + st.grid, device)
   end
-  return st.read + st.unzip + device
+  return st.read + st.unzip + st.grid + device
 end
 
 -- ---- fixed --------------------------------------------------------------------------------
@@ -383,7 +417,7 @@ function policy.open_loop(opts)
     local name, ctx = settle_or_context("open_loop", stats, opts)
     if name then return name, ctx end
     local allowed, fps = ctx.allowed, ctx.fps
-    local m = policy.measure(stats.frames)
+    local m = policy.measure(stats.frames, stats.variants)
     if m == nil then
       return allowed[1].name, "open_loop: no measurements yet, best quality " .. allowed[1].name
     end
@@ -445,7 +479,7 @@ end
 -- never given up for a gain the model does not predict (e.g. when rendering, which no
 -- variant changes, is the slowest stage).
 local function step_down(state, stats, allowed, cur, measured, pipelined)
-  local m = policy.measure(stats.frames)
+  local m = policy.measure(stats.frames, stats.variants)
   local cur_model = m and policy.predict(cur, m, pipelined) or 0
   local best, best_ms
   for _, v in ipairs(allowed) do
@@ -466,7 +500,7 @@ end
 -- Time of `up` predicted from cur's measured median: the timing model's ratio when stage
 -- timings exist, else the stored-bytes ratio; never below what up measured recently.
 local function predict_up(state, stats, up, cur, measured_ms, pipelined)
-  local m = policy.measure(stats.frames)
+  local m = policy.measure(stats.frames, stats.variants)
   local cur_model = m and policy.predict(cur, m, pipelined) or 0
   local ratio
   if cur_model > 0 then

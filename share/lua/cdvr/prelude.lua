@@ -30,7 +30,7 @@ local HELP = {
   { "cdvr.policy.open_loop{target_fps=, margin=0.9}", "rate control: best quality whose predicted frame time fits" },
   { "cdvr.policy.closed_loop{target_fps=, hysteresis=0.1}", "rate control: step variants on the measured frame time" },
   { "cdvr.policy.get(name_or_fn [, opts])", "policy from 'fixed', 'open_loop', 'closed_loop' or a function" },
-  { "cdvr.policy.measure(frames)", "bandwidths and fixed stage times measured on stats.frames (for custom policies)" },
+  { "cdvr.policy.measure(frames [, variants])", "bandwidths and fixed stage times measured on stats.frames (for custom policies); with stats.variants, unzip rates per stage 2" },
   { "cdvr.policy.predict(variant, m [, pipelined])", "predicted frame time (ms) of a variant from cdvr.policy.measure" },
   { "policy(stats) -> variant [, reason]", "rate-control contract; stats fields documented in share/lua/cdvr/policy.lua" },
   { "cdvr.path.is_path(x)", "true when x is a camera path" },
