@@ -402,6 +402,7 @@ bool parse_header(const std::string &line, cdvr_volume *head)
     memcpy(head->spacing, v + 4, sizeof head->spacing);
     memcpy(head->origin, v + 7, sizeof head->origin);
     memcpy(head->direction, v + 10, sizeof head->direction);
+    memcpy(head->space, "LPS", 4); /* DICOM's patient coordinates (copied by the registry) */
     return true;
 }
 
