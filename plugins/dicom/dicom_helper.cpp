@@ -474,6 +474,12 @@ double dot(const double *a, const double *b)
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
 }
 
+/* A slice in messages: its file, and its frame for a multi-frame file. */
+std::string name(const Slice &s)
+{
+    return s.frames > 1 ? s.path + " frame " + std::to_string(s.frame + 1) : s.path;
+}
+
 /* Sorting, spacing and the direction matrix (the top of this file). */
 cdvr_status Reader::geometry(const std::string &dir, Plan &p)
 {
@@ -483,7 +489,7 @@ cdvr_status Reader::geometry(const std::string &dir, Plan &p)
     double lr = std::sqrt(dot(r, r)), lc = std::sqrt(dot(c, c));
     if (std::fabs(lr - 1) > 1e-3 || std::fabs(lc - 1) > 1e-3 || std::fabs(dot(r, c)) > 1e-3)
         return fail(CDVR_ERR_FORMAT, "%s: ImageOrientationPatient (0020,0037) %g\\%g\\%g\\%g\\%g\\%g "
-                    "is not two orthogonal unit vectors", a.path.c_str(), a.iop[0], a.iop[1],
+                    "is not two orthogonal unit vectors", name(a).c_str(), a.iop[0], a.iop[1],
                     a.iop[2], a.iop[3], a.iop[4], a.iop[5]);
     for (int i = 0; i < 3; i++) {
         r[i] /= lr;
@@ -494,22 +500,24 @@ cdvr_status Reader::geometry(const std::string &dir, Plan &p)
         for (int i = 0; i < 6; i++)
             if (std::fabs(s.iop[i] - a.iop[i]) > 1e-4)
                 return fail(CDVR_ERR_FORMAT, "%s: ImageOrientationPatient (0020,0037) differs "
-                            "from %s's in the same series", s.path.c_str(), a.path.c_str());
+                            "from %s's in the same series", name(s).c_str(), name(a).c_str());
         if (s.rows != a.rows || s.cols != a.cols)
             return fail(CDVR_ERR_FORMAT, "%s: Rows x Columns %ux%u differ from %s's %ux%u",
-                        s.path.c_str(), s.rows, s.cols, a.path.c_str(), a.rows, a.cols);
+                        name(s).c_str(), s.rows, s.cols, name(a).c_str(), a.rows, a.cols);
         if (std::fabs(s.ps[0] - a.ps[0]) > 1e-4 * a.ps[0] ||
             std::fabs(s.ps[1] - a.ps[1]) > 1e-4 * a.ps[1])
             return fail(CDVR_ERR_FORMAT, "%s: PixelSpacing (0028,0030) %g\\%g differs from %s's",
-                        s.path.c_str(), s.ps[0], s.ps[1], a.path.c_str());
+                        name(s).c_str(), s.ps[0], s.ps[1], name(a).c_str());
         if (s.bits_alloc != a.bits_alloc || s.pixel_rep != a.pixel_rep)
             return fail(CDVR_ERR_FORMAT, "%s: BitsAllocated / PixelRepresentation %u/%u differ "
-                        "from %s's %u/%u", s.path.c_str(), s.bits_alloc, s.pixel_rep,
-                        a.path.c_str(), a.bits_alloc, a.pixel_rep);
+                        "from %s's %u/%u", name(s).c_str(), s.bits_alloc, s.pixel_rep,
+                        name(a).c_str(), a.bits_alloc, a.pixel_rep);
         s.pos = dot(s.ipp, n);
     }
     std::sort(sl.begin(), sl.end(), [](const Slice &x, const Slice &y) {
-        return x.pos < y.pos || (x.pos == y.pos && x.path < y.path);
+        if (x.pos != y.pos)
+            return x.pos < y.pos;
+        return x.path < y.path || (x.path == y.path && x.frame < y.frame);
     });
     size_t k = sl.size();
     double dz = 1;
@@ -521,8 +529,8 @@ cdvr_status Reader::geometry(const std::string &dir, Plan &p)
             double gap = sl[i + 1].pos - sl[i].pos;
             if (gap <= 1e-6 * (std::fabs(dz) + 1))
                 return fail(CDVR_ERR_FORMAT, "%s: %s and %s lie at the same position %g along "
-                            "the slice normal (ImagePositionPatient)", path_, sl[i].path.c_str(),
-                            sl[i + 1].path.c_str(), sl[i].pos);
+                            "the slice normal (ImagePositionPatient)", path_, name(sl[i]).c_str(),
+                            name(sl[i + 1]).c_str(), sl[i].pos);
             if (std::fabs(gap - dz) > off) {
                 off = std::fabs(gap - dz);
                 worst = i;
@@ -531,7 +539,7 @@ cdvr_status Reader::geometry(const std::string &dir, Plan &p)
         if (off > kGapTolerance * dz)
             return fail(CDVR_ERR_FORMAT, "%s: uneven slice spacing: %s and %s are %g mm apart, "
                         "the mean gap is %g mm (more than 1%% off)", path_,
-                        sl[worst].path.c_str(), sl[worst + 1].path.c_str(),
+                        name(sl[worst]).c_str(), name(sl[worst + 1]).c_str(),
                         sl[worst + 1].pos - sl[worst].pos, dz);
         /* the slices must lie on a line: ipp_i = ipp_0 + i * step; an in-plane part of step
          * is a gantry tilt, kept exactly as a sheared grid (the third direction column along
@@ -549,7 +557,7 @@ cdvr_status Reader::geometry(const std::string &dir, Plan &p)
                 return fail(CDVR_ERR_FORMAT, "%s: %s is %g mm off the line through the first and "
                             "last slice positions (ImagePositionPatient): the slices are not one "
                             "evenly tilted stack, which cdvr does not resample", path_,
-                            sl[i].path.c_str(), std::sqrt(off));
+                            name(sl[i]).c_str(), std::sqrt(off));
         }
         double along = dot(step, n);
         for (int j = 0; j < 3; j++)
