@@ -74,7 +74,8 @@
  * intercept rounded to float). Bits above BitsStored are masked (and the value sign-extended for
  * PixelRepresentation 1). MONOCHROME1 (lowest value white) is turned into MONOCHROME2 by GDCM's
  * ImageChangePhotometricInterpretation before the rescale, as ITK's GDCMImageIO does (unsigned:
- * 2^BitsStored - 1 - stored); SamplesPerPixel other
+ * 2^BitsStored - 1 - stored). A rescale that maps the stored range beyond f32 is refused (the
+ * f32 rule of core/io; the f32_overflow load option does not reach the helper); SamplesPerPixel other
  * than 1 (colour), and other PhotometricInterpretations, are refused. Compressed transfer syntaxes
  * (JPEG, JPEG-LS, JPEG 2000, RLE) are decoded by gdcm::ImageReader as far as this GDCM supports
  * them; an unsupported one is refused naming the file.

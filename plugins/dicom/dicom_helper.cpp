@@ -609,6 +609,11 @@ cdvr_status Reader::value_type(Plan &p)
                                 : std::ldexp(1, (int)s.bits_stored) - 1;
         double y0 = s.slope * lo + s.intercept, y1 = s.slope * hi + s.intercept;
         fits &= std::min(y0, y1) >= -32768 && std::max(y0, y1) <= 32767;
+        if (std::max(std::fabs(y0), std::fabs(y1)) > 3.40282346638528859812e+38)
+            return fail(CDVR_ERR_FORMAT, "%s: RescaleSlope %g and RescaleIntercept %g map stored "
+                        "values to %g, beyond the range of f32 (cdvr refuses such values; the "
+                        "f32_overflow option does not reach DICOM)", name(s).c_str(), s.slope,
+                        s.intercept, std::fabs(y0) > std::fabs(y1) ? y0 : y1);
     }
     if (a.bits_alloc == 32)
         p.type = CDVR_TYPE_F32;

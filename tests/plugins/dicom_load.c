@@ -239,6 +239,10 @@ static void test_refusals(void)
     CHECK(st == CDVR_ERR_FORMAT && strstr(err.msg, "hostile/f1.dcm") &&
               strstr(err.msg, "Rows 7000") && strstr(err.msg, "the file holds"),
           "Rows claiming more than the file: %s", err.msg);
+    st = cdvr_volume_load(at("huge"), NULL, &v, &err);
+    CHECK(st == CDVR_ERR_FORMAT && strstr(err.msg, "huge/") && strstr(err.msg, "RescaleSlope 1e+36") &&
+              strstr(err.msg, "beyond the range of f32"),
+          "a rescale beyond f32 refused: %s", err.msg);
     st = cdvr_volume_load(at("wobble"), NULL, &v, &err);
     CHECK(st == CDVR_ERR_FORMAT && strstr(err.msg, "wobble/f0.dcm is 2 mm off the line") &&
               strstr(err.msg, "not one evenly tilted stack"),

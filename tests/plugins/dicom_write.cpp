@@ -30,6 +30,7 @@
  *   enhanced/ one Enhanced CT multi-frame file (multi.dcm) of oblique/'s 9 slices as frames:
  *             GDCM writes the per-frame PlanePositionSequence and the shared orientation,
  *             pixel measures and rescale.
+ *   huge/     like float/ but RescaleSlope 1e36: values beyond f32 (refused).
  *   mfsc/     one Multi-frame Grayscale Word Secondary Capture file of float/'s values, 4 frames,
  *             no geometry at all.
  */
@@ -305,8 +306,12 @@ int main(int argc, char **argv)
     mfsc.dir = "mfsc";
     mfsc.uid = "1.2.826.0.1.3680043.9.7777.15";
     mfsc.slices = 4;
+    Case huge = flt;
+    huge.dir = "huge";
+    huge.uid = "1.2.826.0.1.3680043.9.7777.16";
+    huge.slope = 1e36;
     for (const Case *cs : {&oblique, &jpegls, &axial, &sagittal, &flt, &uneven, &hostile, &dup1,
-                           &dup2, &tilt, &notag, &wobble, &mono1})
+                           &dup2, &tilt, &notag, &wobble, &mono1, &huge})
         if (!write_case(out, *cs))
             return 1;
     if (!write_multiframe(out, enhanced, false) || !write_multiframe(out, mfsc, true))
