@@ -312,6 +312,88 @@ static void refusals(void)
     cdvr_volume_free(s);
 }
 
+/* The value window of a u8 volume survives save and load (and probe) in every format: NRRD's
+ * old min/max, MetaImage's CdvrValueWindow key, VTI's CdvrValueWindow attribute, NIfTI's
+ * descrip; a u8 volume of window [0, 255] loads as [0, 255]. */
+static void test_u8_window(void)
+{
+    static const char *const names[] = {"w.nrrd", "w.nhdr", "w.nii", "w.nii.gz", "w.vti",
+                                        "w.mha", "w.mhd"};
+    cdvr_error err;
+    char path[512];
+    for (size_t i = 0; i < sizeof names / sizeof *names; i++)
+        for (int plain = 0; plain < 2; plain++) {
+            rm_all();
+            cdvr_volume *v = make(CDVR_TYPE_U8, 1, 0);
+            double want[2] = {plain ? 0 : -2.5, plain ? 255 : 1000.0078125};
+            v->window[0] = want[0];
+            v->window[1] = want[1];
+            path_of(path, sizeof path, names[i]);
+            cdvr_status st = cdvr_volume_save(v, path, NULL, &err);
+            CHECK_OK(st, err);
+            cdvr_volume *back = NULL, head;
+            st = cdvr_volume_load(path, NULL, &back, &err);
+            CHECK(st == CDVR_OK && back->type == CDVR_TYPE_U8 && back->window[0] == want[0] &&
+                      back->window[1] == want[1] &&
+                      memcmp(back->data, v->data, cdvr_volume_frame_bytes(v)) == 0,
+                  "%s: u8 window [%g, %g] back as [%g, %g]", names[i], want[0], want[1],
+                  back ? back->window[0] : NAN, back ? back->window[1] : NAN);
+            st = cdvr_volume_probe(path, NULL, &head, &err);
+            CHECK(st == CDVR_OK && head.window[0] == want[0] && head.window[1] == want[1],
+                  "%s: the probe gives the window [%g, %g]", names[i], head.window[0],
+                  head.window[1]);
+            cdvr_volume_free(back);
+            cdvr_volume_free(v);
+        }
+    rm_all();
+}
+
+/* The world a volume knows (cdvr_volume.space): NRRD names it (space:) and reads it back; NIfTI
+ * loads as RAS and turns an LPS volume into RAS (x and y negated); unknown stays unnamed. */
+static void test_space(void)
+{
+    cdvr_error err;
+    char path[512];
+    rm_all();
+    cdvr_volume *v = make(CDVR_TYPE_I16, 1, 0), *back = NULL;
+    memcpy(v->space, "LPS", 4);
+    path_of(path, sizeof path, "lps.nrrd");
+    CHECK_OK(cdvr_volume_save(v, path, NULL, &err), err);
+    CHECK(file_has(path, "space: left-posterior-superior"), "lps.nrrd names its space");
+    CHECK_OK(cdvr_volume_load(path, NULL, &back, &err), err);
+    if (back) {
+        CHECK(strcmp(back->space, "LPS") == 0, "lps.nrrd loads as LPS: '%s'", back->space);
+        same_geometry("lps.nrrd", back, v, 1e-15);
+    }
+    cdvr_volume_free(back);
+    path_of(path, sizeof path, "lps.nii");
+    CHECK_OK(cdvr_volume_save(v, path, NULL, &err), err);
+    back = NULL;
+    CHECK_OK(cdvr_volume_load(path, NULL, &back, &err), err);
+    if (back) {
+        cdvr_volume ras = *v;
+        for (int r = 0; r < 2; r++) { /* LPS -> RAS: x and y turn around */
+            ras.origin[r] = -v->origin[r];
+            for (int c = 0; c < 3; c++)
+                ras.direction[3 * r + c] = -v->direction[3 * r + c];
+        }
+        CHECK(strcmp(back->space, "RAS") == 0, "lps.nii loads as RAS: '%s'", back->space);
+        same_geometry("lps.nii (in RAS)", back, &ras, 1e-6);
+        /* and a RAS volume (from NIfTI) saved as NRRD names RAS */
+        path_of(path, sizeof path, "ras.nrrd");
+        CHECK_OK(cdvr_volume_save(back, path, NULL, &err), err);
+        CHECK(file_has(path, "space: right-anterior-superior"), "ras.nrrd names its space");
+    }
+    cdvr_volume_free(back);
+    v->space[0] = '\0';
+    path_of(path, sizeof path, "plain.nrrd");
+    CHECK_OK(cdvr_volume_save(v, path, NULL, &err), err);
+    CHECK(file_has(path, "space dimension: 3") && !file_has(path, "space: "),
+          "a volume of unknown world: space dimension only");
+    cdvr_volume_free(v);
+    rm_all();
+}
+
 /* A series saved as .vti or .pvd: NAME_0000.vti ... and NAME.pvd with the times given (else
  * 0, 1, ...); cdvr_volume_load of the .pvd gives the series back voxel for voxel. */
 static void test_pvd_series(void)
@@ -369,6 +451,8 @@ int main(void)
     }
     refusals();
     test_pvd_series();
+    test_u8_window();
+    test_space();
     rm_all();
     rmdir(tmpdir);
     return check_finish();

@@ -410,6 +410,7 @@ static cdvr_status load_by_read(const cdvr_format *f, const char *path, const cd
     memcpy((*out)->origin, head.origin, sizeof head.origin);
     memcpy((*out)->direction, head.direction, sizeof head.direction);
     memcpy((*out)->source_type, head.source_type, sizeof head.source_type);
+    memcpy((*out)->space, head.space, sizeof head.space);
     st = f->read(path, opts, *out, (*out)->data, err);
     if (st != CDVR_OK) {
         cdvr_volume_free(*out);

@@ -42,6 +42,8 @@ typedef struct mha_head {
     unsigned long long csize;  /* CompressedDataSize, 0 when absent */
     char data_file[MHA_LINE_MAX];
     size_t data_at;            /* LOCAL: where the data start in the header file */
+    int have_window;           /* CdvrValueWindow (cdvr's key: a u8 volume's value window) */
+    double window[2];
 } mha_head;
 
 static cdvr_status bad(const mha_head *h, const char *what, const char *line)
@@ -147,6 +149,10 @@ static cdvr_status mha_key(mha_head *h, const char *key, const char *val, const 
         if (!numbers(val, v, 1) || !(v[0] >= -1 && v[0] < 1e18 && v[0] == floor(v[0])))
             return bad(h, "HeaderSize is not a byte count or -1", line);
         h->header_size = (long long)v[0];
+    } else if (strcasecmp(key, "CdvrValueWindow") == 0) {
+        if (!numbers(val, h->window, 2))
+            return bad(h, "CdvrValueWindow is not two numbers", line);
+        h->have_window = 1;
     } else if (strcasecmp(key, "ElementDataFile") == 0) {
         if (!*val)
             return bad(h, "ElementDataFile is empty", line);
@@ -235,7 +241,14 @@ static cdvr_status mha_geometry(const mha_head *h, cdvr_volume *head)
     if (!cdvr_volume_bytes_for(head->dims, head->timesteps, CDVR_TYPE_F32, &bytes))
         return cdvr_error_set(h->err, CDVR_ERR_FORMAT, "%s: MetaImage: DimSize overflows",
                               h->path);
-    return cdvr_io_set_direction(h->path, "MetaImage TransformMatrix", m, head, h->err);
+    cdvr_status st = cdvr_io_set_direction(h->path, "MetaImage TransformMatrix", m, head, h->err);
+    if (st == CDVR_OK && head->type == CDVR_TYPE_U8) {
+        head->window[0] = 0;
+        head->window[1] = 255;
+        if (h->have_window)
+            cdvr_u8_window_set(head, h->window[0], h->window[1]);
+    }
+    return st;
 }
 
 /* The data file's path (the header's directory + a relative name) into out. */
@@ -334,6 +347,8 @@ static cdvr_status mha_load_file(const char *path, const cdvr_raw_opts *opts, cd
         memcpy(vol->spacing, head.spacing, sizeof head.spacing);
         memcpy(vol->origin, head.origin, sizeof head.origin);
         memcpy(vol->direction, head.direction, sizeof head.direction);
+        if (h.have_window)
+            cdvr_u8_window_set(vol, h.window[0], h.window[1]);
         cdvr_io_store(vol, 0, buf ? buf : dm->p + at, h.type, h.big_endian, count, &range);
         st = cdvr_io_finish(vol, h.type, &range, path, "MetaImage", err);
     }

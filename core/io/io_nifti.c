@@ -109,8 +109,26 @@ static int split_affine(const mat44 *m, double spacing[3], double direction[9])
  * 0, else the qform (quaternion, qoffset, pixdim and qfac = pixdim[0], niftilib's qto_xyz)
  * when qform_code > 0, else "method 1": spacing |pixdim|, origin 0, no rotation. A transform
  * that is singular or not finite is skipped for the next one. */
+/* A u8 volume's value window as cdvr writes it in descrip ("cdvr value window LO HI"; NIfTI
+ * has no field for it: cal_min/cal_max are a display range in data units); else [0, 255]. */
+static void nifti_u8_window(const nifti_image *nim, cdvr_volume *vol)
+{
+    if (vol->type != CDVR_TYPE_U8)
+        return;
+    double lo, hi;
+    vol->window[0] = 0;
+    vol->window[1] = 255;
+    char text[sizeof nim->descrip + 1];
+    memcpy(text, nim->descrip, sizeof nim->descrip);
+    text[sizeof nim->descrip] = '\0';
+    if (sscanf(text, "cdvr value window %lf %lf", &lo, &hi) == 2)
+        cdvr_u8_window_set(vol, lo, hi);
+}
+
 static void nifti_geometry(const nifti_image *nim, cdvr_volume *vol)
 {
+    nifti_u8_window(nim, vol);
+    cdvr_volume_set_space(vol, nim->sform_code > 0 || nim->qform_code > 0 ? "RAS" : NULL);
     const mat44 *choices[2] = {nim->sform_code > 0 ? &nim->sto_xyz : NULL,
                                nim->qform_code > 0 ? &nim->qto_xyz : NULL};
     for (int i = 0; i < 2; i++) {

@@ -106,9 +106,21 @@ static void cross3(const double a[3], const double b[3], double out[3])
  * spacing 1. Refused, naming the field and the value: a zero or non-finite direction vector, a
  * spacing given as 0, NaN or infinite, a non-finite space origin, and a singular set of
  * directions (parallel axes). */
+/* The named world of a NRRD "space" (3D ones; 3D-time ones too), else "". */
+static const char *nrrd_space_name(int space)
+{
+    switch (space) {
+    case nrrdSpaceRightAnteriorSuperior: case nrrdSpaceRightAnteriorSuperiorTime: return "RAS";
+    case nrrdSpaceLeftAnteriorSuperior: case nrrdSpaceLeftAnteriorSuperiorTime: return "LAS";
+    case nrrdSpaceLeftPosteriorSuperior: case nrrdSpaceLeftPosteriorSuperiorTime: return "LPS";
+    default: return "";
+    }
+}
+
 static cdvr_status nrrd_geometry(const char *path, const Nrrd *nrrd, const NrrdIoState *nio,
                                  cdvr_volume *vol, cdvr_error *err)
 {
+    cdvr_volume_set_space(vol, nrrd_space_name(nrrd->space));
     unsigned n = nrrd->dim < 3 ? nrrd->dim : 3;
     int has_dir[3] = {0, 0, 0};
     double cols[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
@@ -314,6 +326,7 @@ static cdvr_status load_nrrd(const char *path, const cdvr_raw_opts *opts, cdvr_v
         memcpy((*out)->spacing, head.spacing, sizeof head.spacing);
         memcpy((*out)->origin, head.origin, sizeof head.origin);
         memcpy((*out)->direction, head.direction, sizeof head.direction);
+        memcpy((*out)->space, head.space, sizeof head.space);
         value_sink k = {(*out)->data, nrrdElementSize(nrrd), cdvr_nrrd_swap(src), reader, 0,
                         (uint64_t)cdvr_volume_voxels(*out) * timesteps, {0}, 0, path,
                         airEnumStr(nrrdType, nrrd->type), err, INFINITY, -INFINITY, {0}};
@@ -326,6 +339,8 @@ static cdvr_status load_nrrd(const char *path, const cdvr_raw_opts *opts, cdvr_v
             st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: NRRD data hold %llu of %llu values",
                                 path, (unsigned long long)k.done, (unsigned long long)k.count);
         cdvr_volume_set_source_type(*out, nrrd_file_type(nrrd->type));
+        if (st == CDVR_OK) /* u8 quantised from [old min, old max] (teem's fields) */
+            cdvr_u8_window_set(*out, nrrd->oldMin, nrrd->oldMax);
         if (st == CDVR_OK && reader) { /* converted: the window in double (cdvr/volume.h) */
             (*out)->window[0] = k.lo <= k.hi ? k.lo : 0;
             (*out)->window[1] = k.lo <= k.hi ? k.hi : 0;
@@ -361,8 +376,14 @@ static cdvr_status probe_nrrd(const char *path, const cdvr_raw_opts *opts, cdvr_
         st = nrrd_shape(path, nrrd, head->dims, &head->timesteps, err);
     if (st == CDVR_OK)
         st = nrrd_geometry(path, nrrd, cdvr_nrrd_io(src), head, err);
-    if (st == CDVR_OK)
+    if (st == CDVR_OK) {
         cdvr_volume_set_source_type(head, nrrd_file_type(nrrd->type));
+        if (head->type == CDVR_TYPE_U8) { /* codes are values unless old min/max say */
+            head->window[0] = 0;
+            head->window[1] = 255;
+            cdvr_u8_window_set(head, nrrd->oldMin, nrrd->oldMax);
+        }
+    }
     cdvr_nrrd_close(src);
     return st;
 }

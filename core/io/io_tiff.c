@@ -9,7 +9,12 @@
  * identity (index x along world +x, rows along +y as VTK's TIFF reader without flipping).
  * Before any voxel is allocated the pages' bytes are checked against the file (uncompressed:
  * the file must hold them; compressed: zlib's largest ratio); libtiff's messages go to a per-call
- * handler, never to stderr, and name the file. */
+ * handler, never to stderr, and name the file.
+ * Speed: a probe reads page 0's directory and counts the pages by libtiff's walk of the
+ * directory offsets (TIFFNumberOfDirectories; no other page's tags); a load reads the
+ * directories once, in order (TIFFReadDirectory, never TIFFSetDirectory's walk from the start),
+ * checks each page against page 0 as it goes and reads the strips or tiles of a type the volume
+ * keeps straight into the volume (a page that differs is refused by the load, not the probe). */
 #include "cdvr/format.h"
 #include "cdvr/regular_file.h"
 #include "cdvr/series.h"
@@ -148,48 +153,60 @@ static cdvr_status description_geometry(const char *path, TIFF *tif, tiff_shape 
     return CDVR_OK;
 }
 
-/* Every page's shape, checked against the first's and the file. */
+/* The shape of page `page` (the current directory), checked against page 0's (s->w, s->h,
+ * s->type; page 0 sets them). */
+static cdvr_status page_shape(const char *path, TIFF *tif, size_t page, tiff_shape *s,
+                              cdvr_error *err)
+{
+    uint32_t w = 0, h = 0;
+    uint16_t comp = COMPRESSION_NONE;
+    cdvr_io_etype t;
+    TIFFGetField(tif, TIFFTAG_IMAGEWIDTH, &w);
+    TIFFGetField(tif, TIFFTAG_IMAGELENGTH, &h);
+    TIFFGetFieldDefaulted(tif, TIFFTAG_COMPRESSION, &comp);
+    if (!page_type(tif, &t))
+        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "%s: TIFF page %zu is not one "
+                              "sample of 8, 16, 32 or 64 bits (integer or float) per pixel",
+                              path, page);
+    if (w == 0 || h == 0)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: TIFF page %zu is empty", path, page);
+    if (page == 0) {
+        s->w = w;
+        s->h = h;
+        s->type = t;
+    } else if (w != s->w || h != s->h || t != s->type)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: TIFF page %zu is %ux%u %s, page 0 "
+                              "%ux%u %s (a volume's pages must agree)", path, page, w, h,
+                              cdvr_io_etype_name(t), s->w, s->h, cdvr_io_etype_name(s->type));
+    s->compressed |= comp != COMPRESSION_NONE;
+    return CDVR_OK;
+}
+
+/* The file's shape from page 0 (the current directory) and the page count, which libtiff tells
+ * by following the chain of directory offsets without reading the pages' tags: a probe reads one
+ * directory. The other pages are checked against page 0 as the load reads them (page_shape);
+ * the claim (pages x page 0's bytes) is checked against the file before anything is
+ * allocated (a compressed page 0: deflate's maximum ratio, 1032). */
 static cdvr_status tiff_shape_of(const char *path, TIFF *tif, tiff_shape *s, cdvr_error *err)
 {
     s->spacing[0] = s->spacing[1] = s->spacing[2] = 1;
     s->timesteps = 1;
-    s->pages = 0;
-    unsigned long long total = 0;
-    do {
-        uint32_t w = 0, h = 0;
-        uint16_t comp = COMPRESSION_NONE;
-        cdvr_io_etype t;
-        TIFFGetField(tif, TIFFTAG_IMAGEWIDTH, &w);
-        TIFFGetField(tif, TIFFTAG_IMAGELENGTH, &h);
-        TIFFGetFieldDefaulted(tif, TIFFTAG_COMPRESSION, &comp);
-        if (!page_type(tif, &t))
-            return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "%s: TIFF page %zu is not one "
-                                  "sample of 8, 16, 32 or 64 bits (integer or float) per pixel",
-                                  path, s->pages);
-        if (w == 0 || h == 0)
-            return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: TIFF page %zu is empty", path,
-                                  s->pages);
-        if (s->pages == 0) {
-            s->w = w;
-            s->h = h;
-            s->type = t;
-        } else if (w != s->w || h != s->h || t != s->type)
-            return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: TIFF page %zu is %ux%u %s, page 0 "
-                                  "%ux%u %s (a volume's pages must agree)", path, s->pages, w, h,
-                                  cdvr_io_etype_name(t), s->w, s->h, cdvr_io_etype_name(s->type));
-        s->compressed |= comp != COMPRESSION_NONE;
-        total += (unsigned long long)w * h * cdvr_io_etype_size(t);
-        s->pages++;
-        if (s->pages > 1000000)
-            return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: TIFF has more than 10^6 pages", path);
-    } while (TIFFReadDirectory(tif));
+    cdvr_status st = page_shape(path, tif, 0, s, err);
+    if (st != CDVR_OK)
+        return st;
+    tdir_t n = TIFFNumberOfDirectories(tif);
+    if (n == 0)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: TIFF has no readable page", path);
+    if (n > 1000000)
+        return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: TIFF has more than 10^6 pages", path);
+    s->pages = n;
+    unsigned long long total = (unsigned long long)s->w * s->h * cdvr_io_etype_size(s->type) * n;
     unsigned long long room = (unsigned long long)s->file_bytes * (s->compressed ? 1032 : 1);
     if (total > room)
         return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: TIFF pages of %ux%u %s x %zu need %llu "
                               "bytes, the file (%zu bytes%s) cannot hold them", path, s->w, s->h,
                               cdvr_io_etype_name(s->type), s->pages, total, s->file_bytes,
                               s->compressed ? ", compressed" : "");
-    TIFFSetDirectory(tif, 0);
     return description_geometry(path, tif, s, err);
 }
 
@@ -264,24 +281,46 @@ static int read_page(TIFF *tif, const tiff_shape *s, uint8_t *page, uint8_t *tmp
     return 1;
 }
 
-/* The pages of an open file (its shape s) into vol from element `at` on. */
+/* The pages of an open file (its shape s; page 0 the current directory) into vol from element
+ * `at` on, in one pass over the directories (TIFFReadDirectory: each page's tags read once),
+ * each page checked against page 0. A type the volume keeps is read straight into the volume
+ * (libtiff gives host byte order); a converted one through a page buffer. */
 static cdvr_status tiff_read_pages(const char *path, TIFF *tif, tiff_ctx *ctx,
-                                   const tiff_shape *s, cdvr_volume *vol, size_t at,
+                                   tiff_shape *s, cdvr_volume *vol, size_t at,
                                    cdvr_io_range *range, cdvr_error *err)
 {
     size_t es = cdvr_io_etype_size(s->type), plane = (size_t)s->w * s->h;
-    size_t tile_n = TIFFIsTiled(tif) ? (size_t)TIFFTileSize(tif) : 0;
-    uint8_t *page = malloc(plane * es), *tmp = malloc(tile_n ? tile_n : 1);
-    cdvr_status st = page && tmp ? CDVR_OK
-                                 : cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
+    int direct = !cdvr_io_etype_converted(s->type);
+    size_t tile_n = 0;
+    uint8_t *page = direct ? NULL : malloc(plane * es), *tmp = NULL;
+    cdvr_status st = direct || page ? CDVR_OK
+                                    : cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
     size_t n = s->pages * s->timesteps;
     for (size_t p = 0; st == CDVR_OK && p < n; p++) {
+        if (p > 0 && !TIFFReadDirectory(tif)) {
+            st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: TIFF page %zu cannot be read: %s",
+                                path, p, ctx->msg[0] ? ctx->msg : "the directory chain ends");
+            break;
+        }
+        if (p > 0 && (st = page_shape(path, tif, p, s, err)) != CDVR_OK)
+            break;
+        size_t need = TIFFIsTiled(tif) ? (size_t)TIFFTileSize(tif) : 0;
+        if (need > tile_n) { /* tiles may differ from page to page */
+            free(tmp);
+            tile_n = 0;
+            if (!(tmp = malloc(need))) {
+                st = cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
+                break;
+            }
+            tile_n = need;
+        }
         /* slot of page p: p itself, or with T before Z slice p / T of frame p % T */
         size_t slot = s->t_before_z ? p / s->timesteps + s->pages * (p % s->timesteps) : p;
-        if (!TIFFSetDirectory(tif, (tdir_t)p) || !read_page(tif, s, page, tmp, tile_n))
+        uint8_t *dst = direct ? (uint8_t *)vol->data + (at + slot * plane) * es : page;
+        if (!read_page(tif, s, dst, tmp, tile_n))
             st = cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: TIFF page %zu cannot be read: %s",
                                 path, p, ctx->msg[0] ? ctx->msg : "bad strips or tiles");
-        else
+        else if (!direct)
             cdvr_io_store(vol, at + slot * plane, page, s->type, !cdvr_host_is_little_endian(),
                           plane, range);
     }

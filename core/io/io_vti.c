@@ -45,6 +45,8 @@ typedef struct vti_parse {
     int seen_image, pieces;
     long long ext[6];
     double origin[3], spacing[3], dir[9];
+    int have_window;  /* CdvrValueWindow="lo hi" (cdvr's attribute: a u8 volume's window) */
+    double window[2];
     /* PointData and the chosen DataArray */
     int in_point, in_chosen, found, first_taken;
     char scalars[128];
@@ -152,6 +154,11 @@ static void start_image(vti_parse *v, const XML_Char **a)
     if (d && !cdvr_io_parse_doubles(d, v->dir, 9))
         return fail(v, CDVR_ERR_FORMAT, "ImageData Direction '%s' is not 9 finite numbers", d,
                     NULL);
+    const char *w = attr(a, "CdvrValueWindow");
+    if (w && !cdvr_io_parse_doubles(w, v->window, 2))
+        return fail(v, CDVR_ERR_FORMAT, "ImageData CdvrValueWindow '%s' is not 2 finite numbers",
+                    w, NULL);
+    v->have_window = w != NULL;
 }
 
 static void start_piece(vti_parse *v, const XML_Char **a)
@@ -337,6 +344,12 @@ static cdvr_status vti_geometry(const vti_parse *v, cdvr_volume *head, cdvr_erro
     }
     head->timesteps = 1;
     cdvr_io_set_type(head, v->type);
+    if (head->type == CDVR_TYPE_U8) {
+        head->window[0] = 0;
+        head->window[1] = 255;
+        if (v->have_window)
+            cdvr_u8_window_set(head, v->window[0], v->window[1]);
+    }
     double start[3];
     for (int c = 0; c < 3; c++)
         start[c] = (double)v->ext[2 * c] * v->spacing[c];
@@ -624,6 +637,8 @@ static cdvr_status vti_load_file(const char *path, const char *array, const cdvr
         memcpy(vol->spacing, head.spacing, sizeof head.spacing);
         memcpy(vol->origin, head.origin, sizeof head.origin);
         memcpy(vol->direction, head.direction, sizeof head.direction);
+        if (vol->type == CDVR_TYPE_U8)
+            memcpy(vol->window, head.window, sizeof head.window);
         st = vti_voxels(&v, &map, vol);
     }
     if (st == CDVR_OK) {

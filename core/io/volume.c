@@ -96,6 +96,13 @@ int cdvr_volume_converted(const cdvr_volume *vol)
                                           sizeof vol->source_type) != 0;
 }
 
+void cdvr_volume_set_space(cdvr_volume *vol, const char *space)
+{
+    memset(vol->space, 0, sizeof vol->space);
+    if (space && (!strcmp(space, "RAS") || !strcmp(space, "LAS") || !strcmp(space, "LPS")))
+        memcpy(vol->space, space, 3);
+}
+
 void cdvr_volume_set_source_type(cdvr_volume *vol, const char *name)
 {
     memset(vol->source_type, 0, sizeof vol->source_type);
@@ -274,6 +281,7 @@ cdvr_status cdvr_volume_slice_time(const cdvr_volume *vol, size_t t0, size_t cou
     memcpy((*out)->direction, vol->direction, sizeof vol->direction);
     memcpy((*out)->source_type, vol->source_type, sizeof vol->source_type);
     (*out)->beyond_f32 = vol->beyond_f32;
+    memcpy((*out)->space, vol->space, sizeof vol->space);
     cdvr_volume_window_peek(vol, (*out)->window);
     memcpy((*out)->data, cdvr_volume_frame(vol, t0), count * cdvr_volume_frame_bytes(vol));
     return CDVR_OK;
@@ -316,6 +324,24 @@ float cdvr_double_to_f32(double v)
     if (v < -FLT_MAX)
         return -INFINITY;
     return (float)v;
+}
+
+void cdvr_u8_window_set(cdvr_volume *vol, double lo, double hi)
+{
+    if (vol->type == CDVR_TYPE_U8 && isfinite(lo) && isfinite(hi) && lo < hi) {
+        vol->window[0] = lo;
+        vol->window[1] = hi;
+    }
+}
+
+int cdvr_u8_window_get(const cdvr_volume *vol, double w[2])
+{
+    if (vol->type != CDVR_TYPE_U8 || !(vol->window[0] < vol->window[1]) ||
+        (vol->window[0] == 0 && vol->window[1] == 255))
+        return 0;
+    w[0] = vol->window[0];
+    w[1] = vol->window[1];
+    return 1;
 }
 
 void cdvr_f32_guard_init(cdvr_f32_guard *g, const cdvr_raw_opts *opts)

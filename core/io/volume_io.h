@@ -56,6 +56,14 @@ static inline float cdvr_f32_guard_put(cdvr_f32_guard *g, double v, uint64_t at)
 cdvr_status cdvr_f32_guard_finish(const cdvr_f32_guard *g, const char *file, const char *what,
                                   const char *source_type, cdvr_volume *vol, cdvr_error *err);
 
+/* The value window of a u8 volume kept in a file (NRRD "old min"/"old max", cdvr's keys in
+ * MetaImage, VTI and NIfTI; cdvr/write.h): sets vol->window to [lo, hi] when vol is u8 and lo <
+ * hi are finite; otherwise leaves it. */
+void cdvr_u8_window_set(cdvr_volume *vol, double lo, double hi);
+/* 1 and w = the window when vol is u8 with a window other than [0, 255] (codes that stand for
+ * other values: worth saving); else 0. */
+int cdvr_u8_window_get(const cdvr_volume *vol, double w[2]);
+
 /* Converts `count` values from a source array (read through `read`) to f32 in dst. */
 typedef double (*cdvr_value_reader)(const void *src, size_t i);
 void cdvr_convert_to_f32(float *dst, const void *src, size_t count, cdvr_value_reader read);

@@ -173,6 +173,9 @@ static int mha_header(FILE *f, const cdvr_volume *vol, int compress, size_t csiz
     fprintf(f, "\nDimSize = %zu %zu %zu", vol->dims[0], vol->dims[1], vol->dims[2]);
     if (n == 4)
         fprintf(f, " %zu", vol->timesteps);
+    double w[2];
+    if (cdvr_u8_window_get(vol, w)) /* cdvr's key (ITK skips keys it does not know) */
+        fprintf(f, "\nCdvrValueWindow = %.17g %.17g", w[0], w[1]);
     fprintf(f, "\nElementType = %s\nElementDataFile = %s\n", met_type(vol->type), data_file);
     return !ferror(f);
 }
@@ -303,12 +306,16 @@ static cdvr_status write_vti(const cdvr_volume *vol, const char *path, int compr
                    "byte_order=\"%s\" header_type=\"UInt64\"%s>\n",
                 cdvr_host_is_little_endian() ? "LittleEndian" : "BigEndian",
                 compress ? " compressor=\"vtkZLibDataCompressor\"" : "");
+        char wattr[96] = "";
+        double w[2];
+        if (cdvr_u8_window_get(vol, w)) /* cdvr's attribute; VTK skips it */
+            snprintf(wattr, sizeof wattr, " CdvrValueWindow=\"%.17g %.17g\"", w[0], w[1]);
         fprintf(f, "  <ImageData WholeExtent=\"0 %zu 0 %zu 0 %zu\" Origin=\"%.17g %.17g %.17g\" "
                    "Spacing=\"%.17g %.17g %.17g\" Direction=\"%.17g %.17g %.17g %.17g %.17g "
-                   "%.17g %.17g %.17g %.17g\">\n",
+                   "%.17g %.17g %.17g %.17g\"%s>\n",
                 vol->dims[0] - 1, vol->dims[1] - 1, vol->dims[2] - 1, vol->origin[0],
                 vol->origin[1], vol->origin[2], vol->spacing[0], vol->spacing[1],
-                vol->spacing[2], D[0], D[1], D[2], D[3], D[4], D[5], D[6], D[7], D[8]);
+                vol->spacing[2], D[0], D[1], D[2], D[3], D[4], D[5], D[6], D[7], D[8], wattr);
         fprintf(f, "    <Piece Extent=\"0 %zu 0 %zu 0 %zu\">\n      <PointData "
                    "Scalars=\"scalars\">\n        <DataArray type=\"%s\" Name=\"scalars\" "
                    "NumberOfComponents=\"1\" format=\"appended\" offset=\"0\"/>\n      </PointData>\n      <CellData>\n"

@@ -9,6 +9,7 @@
  * not orthonormal it is the nearest rotation, and the sform is what readers that honour it use);
  * pixdim[1..3] = spacing, pixdim[4] = 1 for a series. No scaling (scl_slope 0). */
 #include "cdvr/atomicfile.h"
+#include "volume_io.h"
 #include "write_io.h"
 
 #include <nifti1_io.h>
@@ -48,12 +49,19 @@ static cdvr_status make_header(const cdvr_volume *vol, const char *path, nifti_1
     nim->nt = (int)n[3];
     double M[9];
     cdvr_write_matrix(vol, M);
+    /* NIfTI's world is RAS+: a volume known to be LPS (DICOM) or LAS turns its x (and for LPS
+     * y) around; one of unknown world is written as it is */
+    double flip[3] = {1, 1, 1};
+    if (!strcmp(vol->space, "LPS") || !strcmp(vol->space, "LAS"))
+        flip[0] = -1;
+    if (!strcmp(vol->space, "LPS"))
+        flip[1] = -1;
     mat44 s;
     memset(&s, 0, sizeof s);
     for (int r = 0; r < 3; r++) {
         for (int c = 0; c < 3; c++)
-            s.m[r][c] = (float)M[3 * r + c];
-        s.m[r][3] = (float)vol->origin[r];
+            s.m[r][c] = (float)(flip[r] * M[3 * r + c]);
+        s.m[r][3] = (float)(flip[r] * vol->origin[r]);
     }
     s.m[3][3] = 1.0f;
     nim->sform_code = NIFTI_XFORM_SCANNER_ANAT;
@@ -81,7 +89,11 @@ static cdvr_status make_header(const cdvr_volume *vol, const char *path, nifti_1
     nim->scl_inter = 0.0f;
     nim->nifti_type = NIFTI_FTYPE_NIFTI1_1;
     nim->iname_offset = 352;
-    snprintf(nim->descrip, sizeof nim->descrip, "cdvr");
+    double w[2];
+    if (cdvr_u8_window_get(vol, w)) /* read back by io_nifti.c (NIfTI has no such field) */
+        snprintf(nim->descrip, sizeof nim->descrip, "cdvr value window %.17g %.17g", w[0], w[1]);
+    else
+        snprintf(nim->descrip, sizeof nim->descrip, "cdvr");
     *out = nifti_convert_nim2nhdr(nim);
     nifti_image_free(nim);
     return CDVR_OK;

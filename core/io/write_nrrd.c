@@ -24,6 +24,16 @@ static int nrrd_type(cdvr_type t)
     }
 }
 
+/* The NRRD space of a volume's known world (cdvr_volume.space: RAS, LAS or LPS). */
+static int nrrd_space(const char *space)
+{
+    if (!strcmp(space, "RAS"))
+        return nrrdSpaceRightAnteriorSuperior;
+    if (!strcmp(space, "LAS"))
+        return nrrdSpaceLeftAnteriorSuperior;
+    return nrrdSpaceLeftPosteriorSuperior;
+}
+
 static cdvr_status teem_fail(const char *path, const char *what, cdvr_error *err)
 {
     char *msg = biffGetDone(NRRD);
@@ -45,7 +55,7 @@ static cdvr_status make_nrrd(const cdvr_volume *vol, const char *path, Nrrd **ou
     size_t sizes[4] = {vol->dims[0], vol->dims[1], vol->dims[2], vol->timesteps};
     unsigned dim = vol->timesteps > 1 ? 4 : 3;
     if (nrrdWrap_nva(n, vol->data, nrrd_type(vol->type), dim, sizes) ||
-        nrrdSpaceDimensionSet(n, 3)) {
+        (vol->space[0] ? nrrdSpaceSet(n, nrrd_space(vol->space)) : nrrdSpaceDimensionSet(n, 3))) {
         nrrdNix(n);
         return teem_fail(path, "describe the volume", err);
     }
@@ -62,6 +72,11 @@ static cdvr_status make_nrrd(const cdvr_volume *vol, const char *path, Nrrd **ou
     }
     for (int r = 0; r < 3; r++)
         n->spaceOrigin[r] = vol->origin[r];
+    double w[2];
+    if (cdvr_u8_window_get(vol, w)) { /* "old min"/"old max": the values the codes came from */
+        n->oldMin = w[0];
+        n->oldMax = w[1];
+    }
     *out = n;
     return CDVR_OK;
 }

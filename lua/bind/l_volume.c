@@ -261,6 +261,10 @@ static int volume_info(lua_State *L)
         lua_pushinteger(L, (lua_Integer)v->beyond_f32);
         lua_setfield(L, -2, "beyond_f32");
     }
+    if (v->space[0]) {
+        lua_pushstring(L, v->space);
+        lua_setfield(L, -2, "space");
+    }
     lua_pushboolean(L, ud->vol == NULL);
     lua_setfield(L, -2, "lazy");
     if (ud->lazy) {
@@ -1068,7 +1072,8 @@ int lcdvr_open_volume(lua_State *L)
                    ".pvd collection (times kept: v:times()) or a list of names; raises naming a file that cannot be read");
     lcdvr_help_add(L, "v:info()",
                    "{type=, source_type= (the file's element type, e.g. \"float64\"), converted= (true when the "
-                   "values became f32), beyond_f32= (values loaded as +-Inf, f32_overflow=\"inf\"), lazy=, files= (a series), "
+                   "values became f32), beyond_f32= (values loaded as +-Inf, f32_overflow=\"inf\"), space= (\"RAS\", \"LAS\" or "
+                   "\"LPS\" when the file names its world), lazy=, files= (a series), "
                    "times= (a .pvd series)}");
     lcdvr_help_add(L, "v:times()", "time values of a series read from .pvd collections (one per timestep), else nil");
     lcdvr_help_add(L, "cdvr.volume{dims=, type=, timesteps=}", "new zero-filled volume");

@@ -7,7 +7,8 @@
  * Two parts. This file is the plugin: the format table, the magic and accepts_dir tests (its own
  * few bytes of reading), and probe/read, which run the helper build/plugins/cdvr_dicom_helper
  * (dicom_helper.cpp, found beside this .so through dladdr) and read its answer from a pipe: the
- * header, or the header then the voxels slice by slice straight into the registry's buffer. All
+ * header, or the header then the voxels slice by slice straight into the registry's buffer.
+ * The probe also names the world: cdvr_volume.space "LPS". All
  * of GDCM runs in the helper, because Debian's GDCM is built with assert() enabled and aborts on
  * some hostile files (a mutated file meta group, an element length past the end; measured: about
  * one mutated file in four aborted a process that called GDCM directly); a helper that aborts,
@@ -27,8 +28,16 @@
  *    share (use the UID).
  *  - a file (.dcm, or any name with the DICM magic): the series it belongs to, read from the
  *    file's directory, as ParaView does: select defaults to the file's own SeriesInstanceUID (an
- *    explicit select still names a series of that directory). A multi-frame file
- *    (NumberOfFrames > 1) is refused naming the tag: cdvr reads one frame per file.
+ *    explicit select still names a series of that directory).
+ *  - multi-frame files (NumberOfFrames (0028,0008) > 1, up to 65535): each frame is a slice of
+ *    the file's series (sorted with the others like any slice). A frame's position, orientation,
+ *    PixelSpacing and RescaleSlope/Intercept come from its item of the Per-frame Functional
+ *    Groups (5200,9230) (PlanePositionSequence, PlaneOrientationSequence, PixelMeasuresSequence,
+ *    PixelValueTransformationSequence), else the Shared Functional Groups (5200,9229), else the
+ *    top-level tags (enhanced CT/MR/... images); a frame with no position lies
+ *    SpacingBetweenSlices (else SliceThickness, else 1 mm) along the normal from the one before,
+ *    and a file without any geometry (a multi-frame secondary capture) gets position 0,
+ *    identity orientation and PixelSpacing 1. The file is decoded once for all its frames.
  *
  * Geometry (DICOM patient space is LPS; cdvr keeps a file's world as it is, as for a NRRD with
  * `space: left-posterior-superior`, cdvr/volume.h). The result is what ITK's GDCMImageIO /
@@ -42,9 +51,16 @@
  *   - spacing x = PixelSpacing[1] (between columns), y = PixelSpacing[0] (between rows),
  *     z = the mean gap between slice positions (one slice: SpacingBetweenSlices, else
  *     SliceThickness, else 1). A gap more than 1% off that mean is refused naming the worst gap
- *     (its two files); so are two slices at one position, slices that are not stacked along n
- *     (an in-plane shift over 1% of a pixel: gantry tilt), and orientation, Rows, Columns,
+ *     (its two files); so are two slices at one position, and orientation, Rows, Columns,
  *     PixelSpacing or pixel format differing between slices.
+ *   - gantry tilt: slices whose positions move in their plane by the same amount per slice
+ *     (the step from one position to the next has a component along r or c over 1% of a pixel
+ *     across the stack) are kept exactly, not resampled: the third direction column is the
+ *     step's direction and spacing z its length (a sheared grid; cdvr's direction matrix need
+ *     not be orthonormal, cdvr/volume.h), so every voxel lies where its file puts it. ITK would
+ *     drop the shift (it cannot represent a shear) and Slicer resamples. Slices that are not on
+ *     one line (a position more than 1% of a pixel off the line through the first and last) are
+ *     refused naming the file.
  * VTK's old vtkDICOMImageReader (the one python3-vtk9 has) differs: it ignores
  * ImageOrientationPatient (identity direction) and flips each slice vertically (its row 0 is the
  * DICOM's last row) with its origin at ImagePositionPatient; its voxel (i, R-1-j, k) is cdvr's
@@ -56,7 +72,10 @@
  * and the range BitsStored and PixelRepresentation allow maps into [-32768, 32767] on every slice
  * (decided from the header, before any voxel is read), else f32 (value = slope * stored +
  * intercept rounded to float). Bits above BitsStored are masked (and the value sign-extended for
- * PixelRepresentation 1). MONOCHROME1 is kept as stored (not inverted); SamplesPerPixel other
+ * PixelRepresentation 1). MONOCHROME1 (lowest value white) is turned into MONOCHROME2 by GDCM's
+ * ImageChangePhotometricInterpretation before the rescale, as ITK's GDCMImageIO does (unsigned:
+ * 2^BitsStored - 1 - stored). A rescale that maps the stored range beyond f32 is refused (the
+ * f32 rule of core/io; the f32_overflow load option does not reach the helper); SamplesPerPixel other
  * than 1 (colour), and other PhotometricInterpretations, are refused. Compressed transfer syntaxes
  * (JPEG, JPEG-LS, JPEG 2000, RLE) are decoded by gdcm::ImageReader as far as this GDCM supports
  * them; an unsupported one is refused naming the file.
@@ -402,6 +421,7 @@ bool parse_header(const std::string &line, cdvr_volume *head)
     memcpy(head->spacing, v + 4, sizeof head->spacing);
     memcpy(head->origin, v + 7, sizeof head->origin);
     memcpy(head->direction, v + 10, sizeof head->direction);
+    memcpy(head->space, "LPS", 4); /* DICOM's patient coordinates (copied by the registry) */
     return true;
 }
 

@@ -27,12 +27,16 @@
 #include <cstring>
 #include <map>
 #include <memory>
+#include <set>
 #include <new>
 #include <string>
 #include <vector>
 
 #include <gdcmImage.h>
+#include <gdcmImageChangePhotometricInterpretation.h>
 #include <gdcmImageReader.h>
+#include <gdcmReader.h>
+#include <gdcmSequenceOfItems.h>
 #include <gdcmScanner.h>
 #include <gdcmTag.h>
 #include <gdcmTrace.h>
@@ -52,14 +56,23 @@ const gdcm::Tag tSeriesUID(0x0020, 0x000e), tSeriesDesc(0x0008, 0x103e),
     tBitsAlloc(0x0028, 0x0100), tBitsStored(0x0028, 0x0101), tPixelRep(0x0028, 0x0103),
     tSamples(0x0028, 0x0002), tFrames(0x0028, 0x0008), tPhotometric(0x0028, 0x0004),
     tSliceThickness(0x0018, 0x0050), tSpacingBetween(0x0018, 0x0088),
-    tTransferSyntax(0x0002, 0x0010);
+    tTransferSyntax(0x0002, 0x0010), tPixelData(0x7fe0, 0x0010),
+    /* multi-frame (enhanced) functional groups and the sequences in their items */
+    tShared(0x5200, 0x9229), tPerFrame(0x5200, 0x9230), tPlanePosition(0x0020, 0x9113),
+    tPlaneOrientation(0x0020, 0x9116), tPixelMeasures(0x0028, 0x9110),
+    tValueTransform(0x0028, 0x9145);
 
-/* One file of a series, as its header says. */
+const unsigned kFramesMax = 65535;
+
+/* One slice of a series: a single-frame file, or frame `frame` of a multi-frame file of
+ * `frames` frames, as its header says. */
 struct Slice {
     std::string path;
     double ipp[3], iop[6], ps[2], slope, intercept, pos;
     unsigned rows, cols, bits_alloc, bits_stored, pixel_rep, samples;
+    unsigned frame = 0, frames = 1;
     bool native; /* uncompressed transfer syntax */
+    bool mono1;  /* MONOCHROME1: inverted on read (GDCM's filter, as ITK's GDCMImageIO does) */
 };
 
 struct Series {
@@ -189,7 +202,8 @@ class Reader {
 
     cdvr_status fail(cdvr_status st, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
     cdvr_status files(std::string &dir, std::string &select, std::vector<std::string> &out);
-    cdvr_status slice(const std::string &file, Slice &s);
+    cdvr_status slice(const std::string &file, Slice &s, unsigned *frames);
+    cdvr_status frames(const Slice &first, std::vector<Slice> &out);
     cdvr_status choose(std::map<std::string, Series> &all, const std::string &dir,
                        const std::string &select, Series &out);
     cdvr_status geometry(const std::string &dir, Plan &p);
@@ -254,8 +268,9 @@ cdvr_status Reader::files(std::string &dir, std::string &select, std::vector<std
     return CDVR_OK;
 }
 
-/* The header fields of one scanned file. */
-cdvr_status Reader::slice(const std::string &file, Slice &s)
+/* The header fields of one scanned file; *frames its NumberOfFrames (a multi-frame file's
+ * geometry tags may be missing here: Reader::frames reads them from its functional groups). */
+cdvr_status Reader::slice(const std::string &file, Slice &s, unsigned *frames)
 {
     const char *f = file.c_str();
     auto tag = [&](const gdcm::Tag &t) { return trim(scanner_.GetValue(f, t)); };
@@ -265,11 +280,22 @@ cdvr_status Reader::slice(const std::string &file, Slice &s)
     };
     s.path = file;
     std::string v;
-    if (!parse_numbers(v = tag(tIPP), s.ipp, 3))
+    *frames = 1;
+    v = tag(tFrames);
+    if (!v.empty() && (!parse_uint(v, frames) || *frames < 1 || *frames > kFramesMax))
+        return fail(CDVR_ERR_FORMAT, "%s: NumberOfFrames (0028,0008) is '%s' (1 to %u)", f,
+                    v.c_str(), kFramesMax);
+    bool multi = *frames > 1;
+    static const double identity[6] = {1, 0, 0, 0, 1, 0};
+    memcpy(s.ipp, identity + 1, sizeof s.ipp); /* (0, 0, 0) */
+    memcpy(s.iop, identity, sizeof s.iop);
+    s.ps[0] = s.ps[1] = 1;
+    if (!parse_numbers(v = tag(tIPP), s.ipp, 3) && !(multi && v.empty()))
         return bad("ImagePositionPatient", tIPP, v);
-    if (!parse_numbers(v = tag(tIOP), s.iop, 6))
+    if (!parse_numbers(v = tag(tIOP), s.iop, 6) && !(multi && v.empty()))
         return bad("ImageOrientationPatient", tIOP, v);
-    if (!parse_numbers(v = tag(tPixelSpacing), s.ps, 2) || !(s.ps[0] > 0) || !(s.ps[1] > 0))
+    if ((!parse_numbers(v = tag(tPixelSpacing), s.ps, 2) || !(s.ps[0] > 0) || !(s.ps[1] > 0)) &&
+        !(multi && v.empty()))
         return bad("PixelSpacing", tPixelSpacing, v);
     if (!parse_uint(v = tag(tRows), &s.rows) || s.rows == 0 || s.rows > 65535)
         return bad("Rows", tRows, v);
@@ -289,11 +315,7 @@ cdvr_status Reader::slice(const std::string &file, Slice &s)
     v = tag(tPhotometric);
     if (v != "MONOCHROME2" && v != "MONOCHROME1")
         return bad("PhotometricInterpretation (MONOCHROME1 or 2)", tPhotometric, v);
-    unsigned frames = 1;
-    v = tag(tFrames);
-    if (!v.empty() && (!parse_uint(v, &frames) || frames != 1))
-        return fail(CDVR_ERR_FORMAT, "%s: NumberOfFrames (0028,0008) is '%s': cdvr reads one "
-                    "frame per DICOM file", f, v.c_str());
+    s.mono1 = v == "MONOCHROME1";
     s.slope = 1;
     s.intercept = 0;
     if (!(v = tag(tSlope)).empty() && (!parse_numbers(v, &s.slope, 1) || s.slope == 0))
@@ -304,11 +326,111 @@ cdvr_status Reader::slice(const std::string &file, Slice &s)
     s.native = ts.IsValid() && !ts.IsEncapsulated();
     if (s.native) { /* the pixels it claims must fit in the file */
         struct stat st;
-        double need = (double)s.rows * s.cols * (s.bits_alloc / 8);
+        double need = (double)s.rows * s.cols * (s.bits_alloc / 8) * *frames;
         if (stat(f, &st) != 0 || (double)st.st_size < need)
-            return fail(CDVR_ERR_FORMAT, "%s: Rows %u x Columns %u x %u bits claim %.0f bytes of "
-                        "pixels, the file holds %lld bytes", f, s.rows, s.cols, s.bits_alloc,
-                        need, (long long)st.st_size);
+            return fail(CDVR_ERR_FORMAT, "%s: Rows %u x Columns %u x %u bits x %u frames claim "
+                        "%.0f bytes of pixels, the file holds %lld bytes", f, s.rows, s.cols,
+                        s.bits_alloc, *frames, need, (long long)st.st_size);
+    }
+    return CDVR_OK;
+}
+
+/* ---- multi-frame files ------------------------------------------------------------------------ */
+
+/* The trimmed text of tag t in ds ("" when absent or not text). */
+std::string ds_text(const gdcm::DataSet &ds, const gdcm::Tag &t)
+{
+    if (!ds.FindDataElement(t))
+        return "";
+    const gdcm::ByteValue *bv = ds.GetDataElement(t).GetByteValue();
+    return bv ? trim(std::string(bv->GetPointer(), bv->GetLength()).c_str()) : "";
+}
+
+/* Item i (from 1) of sequence t in ds, copied into out; false when there is none. */
+bool ds_item(const gdcm::DataSet &ds, const gdcm::Tag &t, size_t i, gdcm::DataSet &out)
+{
+    if (!ds.FindDataElement(t))
+        return false;
+    gdcm::SmartPointer<gdcm::SequenceOfItems> sq = ds.GetDataElement(t).GetValueAsSQ();
+    if (!sq || i < 1 || sq->GetNumberOfItems() < i)
+        return false;
+    out = sq->GetItem(i).GetNestedDataSet();
+    return true;
+}
+
+/* Numbers of tag t inside the first item of sequence seq of a functional-group item g. */
+bool group_numbers(const gdcm::DataSet &g, const gdcm::Tag &seq, const gdcm::Tag &t, double *out,
+                   size_t n)
+{
+    gdcm::DataSet item;
+    return ds_item(g, seq, 1, item) && parse_numbers(ds_text(item, t), out, n);
+}
+
+/* The frames of a multi-frame file as slices (first: its top-level header, first.frames set).
+ * Each frame's position, orientation, pixel spacing and rescale come from its item of the
+ * Per-frame Functional Groups (5200,9230), else the Shared Functional Groups (5200,9229), else
+ * the top-level tags; a frame without any position lies SpacingBetweenSlices (else
+ * SliceThickness, else 1 mm) further along the normal than the one before (a multi-frame
+ * secondary capture: from ImagePositionPatient, else 0, with identity orientation). */
+cdvr_status Reader::frames(const Slice &first, std::vector<Slice> &out)
+{
+    const char *f = first.path.c_str();
+    gdcm::Reader r;
+    r.SetFileName(f);
+    std::set<gdcm::Tag> skip;
+    skip.insert(tPixelData);
+    if (!r.ReadUpToTag(tPixelData, skip))
+        return fail(CDVR_ERR_FORMAT, "%s: GDCM cannot read the multi-frame header", f);
+    const gdcm::DataSet &ds = r.GetFile().GetDataSet();
+    gdcm::DataSet shared, frame;
+    bool has_shared = ds_item(ds, tShared, 1, shared);
+    Slice base = first;
+    double dz = 1, t;
+    std::string v = ds_text(ds, tSpacingBetween);
+    if (v.empty())
+        v = ds_text(ds, tSliceThickness);
+    if (!v.empty() && parse_numbers(v, &t, 1) && t > 0)
+        dz = t;
+    if (has_shared) {
+        group_numbers(shared, tPlanePosition, tIPP, base.ipp, 3);
+        group_numbers(shared, tPlaneOrientation, tIOP, base.iop, 6);
+        group_numbers(shared, tPixelMeasures, tPixelSpacing, base.ps, 2);
+        if (group_numbers(shared, tPixelMeasures, tSpacingBetween, &t, 1) && t > 0)
+            dz = t;
+        group_numbers(shared, tValueTransform, tSlope, &base.slope, 1);
+        group_numbers(shared, tValueTransform, tIntercept, &base.intercept, 1);
+    }
+    gdcm::SmartPointer<gdcm::SequenceOfItems> per;
+    if (ds.FindDataElement(tPerFrame))
+        per = ds.GetDataElement(tPerFrame).GetValueAsSQ();
+    if (per && per->GetNumberOfItems() != 0 && per->GetNumberOfItems() != first.frames)
+        return fail(CDVR_ERR_FORMAT, "%s: %zu Per-frame Functional Group items (5200,9230) for "
+                    "NumberOfFrames %u", f, (size_t)per->GetNumberOfItems(), first.frames);
+    double prev[3];
+    for (unsigned k = 0; k < first.frames; k++) {
+        Slice s = base;
+        s.frame = k;
+        bool placed = false;
+        if (per && per->GetNumberOfItems() == first.frames) {
+            const gdcm::DataSet &g = per->GetItem(k + 1).GetNestedDataSet();
+            placed = group_numbers(g, tPlanePosition, tIPP, s.ipp, 3);
+            group_numbers(g, tPlaneOrientation, tIOP, s.iop, 6);
+            group_numbers(g, tPixelMeasures, tPixelSpacing, s.ps, 2);
+            group_numbers(g, tValueTransform, tSlope, &s.slope, 1);
+            group_numbers(g, tValueTransform, tIntercept, &s.intercept, 1);
+        }
+        if (!(s.ps[0] > 0 && s.ps[1] > 0) || s.slope == 0)
+            return fail(CDVR_ERR_FORMAT, "%s: frame %u: PixelSpacing %g\\%g or RescaleSlope %g "
+                        "is not usable", f, k + 1, s.ps[0], s.ps[1], s.slope);
+        if (!placed && k > 0) { /* the next position along the normal */
+            const double *a = s.iop;
+            double n[3] = {a[1] * a[5] - a[2] * a[4], a[2] * a[3] - a[0] * a[5],
+                           a[0] * a[4] - a[1] * a[3]};
+            for (int i = 0; i < 3; i++)
+                s.ipp[i] = prev[i] + dz * n[i];
+        }
+        memcpy(prev, s.ipp, sizeof prev);
+        out.push_back(s);
     }
     return CDVR_OK;
 }
@@ -352,6 +474,12 @@ double dot(const double *a, const double *b)
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
 }
 
+/* A slice in messages: its file, and its frame for a multi-frame file. */
+std::string name(const Slice &s)
+{
+    return s.frames > 1 ? s.path + " frame " + std::to_string(s.frame + 1) : s.path;
+}
+
 /* Sorting, spacing and the direction matrix (the top of this file). */
 cdvr_status Reader::geometry(const std::string &dir, Plan &p)
 {
@@ -361,7 +489,7 @@ cdvr_status Reader::geometry(const std::string &dir, Plan &p)
     double lr = std::sqrt(dot(r, r)), lc = std::sqrt(dot(c, c));
     if (std::fabs(lr - 1) > 1e-3 || std::fabs(lc - 1) > 1e-3 || std::fabs(dot(r, c)) > 1e-3)
         return fail(CDVR_ERR_FORMAT, "%s: ImageOrientationPatient (0020,0037) %g\\%g\\%g\\%g\\%g\\%g "
-                    "is not two orthogonal unit vectors", a.path.c_str(), a.iop[0], a.iop[1],
+                    "is not two orthogonal unit vectors", name(a).c_str(), a.iop[0], a.iop[1],
                     a.iop[2], a.iop[3], a.iop[4], a.iop[5]);
     for (int i = 0; i < 3; i++) {
         r[i] /= lr;
@@ -372,22 +500,24 @@ cdvr_status Reader::geometry(const std::string &dir, Plan &p)
         for (int i = 0; i < 6; i++)
             if (std::fabs(s.iop[i] - a.iop[i]) > 1e-4)
                 return fail(CDVR_ERR_FORMAT, "%s: ImageOrientationPatient (0020,0037) differs "
-                            "from %s's in the same series", s.path.c_str(), a.path.c_str());
+                            "from %s's in the same series", name(s).c_str(), name(a).c_str());
         if (s.rows != a.rows || s.cols != a.cols)
             return fail(CDVR_ERR_FORMAT, "%s: Rows x Columns %ux%u differ from %s's %ux%u",
-                        s.path.c_str(), s.rows, s.cols, a.path.c_str(), a.rows, a.cols);
+                        name(s).c_str(), s.rows, s.cols, name(a).c_str(), a.rows, a.cols);
         if (std::fabs(s.ps[0] - a.ps[0]) > 1e-4 * a.ps[0] ||
             std::fabs(s.ps[1] - a.ps[1]) > 1e-4 * a.ps[1])
             return fail(CDVR_ERR_FORMAT, "%s: PixelSpacing (0028,0030) %g\\%g differs from %s's",
-                        s.path.c_str(), s.ps[0], s.ps[1], a.path.c_str());
+                        name(s).c_str(), s.ps[0], s.ps[1], name(a).c_str());
         if (s.bits_alloc != a.bits_alloc || s.pixel_rep != a.pixel_rep)
             return fail(CDVR_ERR_FORMAT, "%s: BitsAllocated / PixelRepresentation %u/%u differ "
-                        "from %s's %u/%u", s.path.c_str(), s.bits_alloc, s.pixel_rep,
-                        a.path.c_str(), a.bits_alloc, a.pixel_rep);
+                        "from %s's %u/%u", name(s).c_str(), s.bits_alloc, s.pixel_rep,
+                        name(a).c_str(), a.bits_alloc, a.pixel_rep);
         s.pos = dot(s.ipp, n);
     }
     std::sort(sl.begin(), sl.end(), [](const Slice &x, const Slice &y) {
-        return x.pos < y.pos || (x.pos == y.pos && x.path < y.path);
+        if (x.pos != y.pos)
+            return x.pos < y.pos;
+        return x.path < y.path || (x.path == y.path && x.frame < y.frame);
     });
     size_t k = sl.size();
     double dz = 1;
@@ -399,8 +529,8 @@ cdvr_status Reader::geometry(const std::string &dir, Plan &p)
             double gap = sl[i + 1].pos - sl[i].pos;
             if (gap <= 1e-6 * (std::fabs(dz) + 1))
                 return fail(CDVR_ERR_FORMAT, "%s: %s and %s lie at the same position %g along "
-                            "the slice normal (ImagePositionPatient)", path_, sl[i].path.c_str(),
-                            sl[i + 1].path.c_str(), sl[i].pos);
+                            "the slice normal (ImagePositionPatient)", path_, name(sl[i]).c_str(),
+                            name(sl[i + 1]).c_str(), sl[i].pos);
             if (std::fabs(gap - dz) > off) {
                 off = std::fabs(gap - dz);
                 worst = i;
@@ -409,19 +539,34 @@ cdvr_status Reader::geometry(const std::string &dir, Plan &p)
         if (off > kGapTolerance * dz)
             return fail(CDVR_ERR_FORMAT, "%s: uneven slice spacing: %s and %s are %g mm apart, "
                         "the mean gap is %g mm (more than 1%% off)", path_,
-                        sl[worst].path.c_str(), sl[worst + 1].path.c_str(),
+                        name(sl[worst]).c_str(), name(sl[worst + 1]).c_str(),
                         sl[worst + 1].pos - sl[worst].pos, dz);
-        double tol = 0.01 * std::min(a.ps[0], a.ps[1]);
+        /* the slices must lie on a line: ipp_i = ipp_0 + i * step; an in-plane part of step
+         * is a gantry tilt, kept exactly as a sheared grid (the third direction column along
+         * step, not n): no resampling, every voxel where its file puts it */
+        double tol = 0.01 * std::min(a.ps[0], a.ps[1]), step[3], inplane = 0;
+        for (int j = 0; j < 3; j++)
+            step[j] = (sl[k - 1].ipp[j] - sl[0].ipp[j]) / (double)(k - 1);
         for (size_t i = 1; i < k; i++) {
-            double d = sl[i].pos - sl[0].pos, shift = 0;
+            double off = 0;
             for (int j = 0; j < 3; j++) {
-                double e = sl[i].ipp[j] - sl[0].ipp[j] - d * n[j];
-                shift += e * e;
+                double e = sl[i].ipp[j] - sl[0].ipp[j] - (double)i * step[j];
+                off += e * e;
             }
-            if (std::sqrt(shift) > tol)
-                return fail(CDVR_ERR_FORMAT, "%s: %s is shifted %g mm in its plane from the "
-                            "stack of %s (ImagePositionPatient; a gantry tilt is not read)", path_,
-                            sl[i].path.c_str(), std::sqrt(shift), sl[0].path.c_str());
+            if (std::sqrt(off) > tol)
+                return fail(CDVR_ERR_FORMAT, "%s: %s is %g mm off the line through the first and "
+                            "last slice positions (ImagePositionPatient): the slices are not one "
+                            "evenly tilted stack, which cdvr does not resample", path_,
+                            name(sl[i]).c_str(), std::sqrt(off));
+        }
+        double along = dot(step, n);
+        for (int j = 0; j < 3; j++)
+            inplane += (step[j] - along * n[j]) * (step[j] - along * n[j]);
+        if (std::sqrt(inplane) * (double)(k - 1) > tol) { /* tilted: the step is the z axis */
+            double len = std::sqrt(dot(step, step));
+            for (int j = 0; j < 3; j++)
+                n[j] = step[j] / len;
+            dz = len;
         }
     } else { /* one slice: the thickness the header gives */
         std::string v = trim(scanner_.GetValue(a.path.c_str(), tSpacingBetween));
@@ -464,6 +609,11 @@ cdvr_status Reader::value_type(Plan &p)
                                 : std::ldexp(1, (int)s.bits_stored) - 1;
         double y0 = s.slope * lo + s.intercept, y1 = s.slope * hi + s.intercept;
         fits &= std::min(y0, y1) >= -32768 && std::max(y0, y1) <= 32767;
+        if (std::max(std::fabs(y0), std::fabs(y1)) > 3.40282346638528859812e+38)
+            return fail(CDVR_ERR_FORMAT, "%s: RescaleSlope %g and RescaleIntercept %g map stored "
+                        "values to %g, beyond the range of f32 (cdvr refuses such values; the "
+                        "f32_overflow option does not reach DICOM)", name(s).c_str(), s.slope,
+                        s.intercept, std::fabs(y0) > std::fabs(y1) ? y0 : y1);
     }
     if (a.bits_alloc == 32)
         p.type = CDVR_TYPE_F32;
@@ -508,8 +658,14 @@ cdvr_status Reader::plan(Plan &out)
         s.uid = uid;
         if (s.slices.empty())
             s.description = trim(scanner_.GetValue(f.c_str(), tSeriesDesc));
-        s.slices.emplace_back();
-        if ((st = slice(f, s.slices.back())) != CDVR_OK)
+        Slice one;
+        unsigned n = 1;
+        if ((st = slice(f, one, &n)) != CDVR_OK)
+            return st;
+        one.frames = n;
+        if (n == 1)
+            s.slices.push_back(one);
+        else if ((st = frames(one, s.slices)) != CDVR_OK)
             return st;
     }
     Plan p;
@@ -546,37 +702,71 @@ void convert(const char *buf, const Slice &s, size_t count, T *out)
     }
 }
 
-cdvr_status read_slice(const Slice &s, cdvr_type type, void *dst, cdvr_error *err)
+/* The decoded pixels of one file (all its frames), kept while the slices of one multi-frame
+ * file are read, so a file is decoded once whatever the slice order. */
+struct Decoded {
+    std::string path;
+    std::vector<char> pixels;
+};
+
+/* Decodes s's file into d (MONOCHROME1 turned into MONOCHROME2 by GDCM's own filter, as ITK's
+ * GDCMImageIO does, before the rescale). */
+cdvr_status decode_file(const Slice &s, Decoded &d, cdvr_error *err)
 {
+    d.path.clear();
     gdcm::ImageReader reader;
     reader.SetFileName(s.path.c_str());
     if (!reader.Read())
         return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: GDCM cannot read the image",
                                  s.path.c_str());
-    const gdcm::Image &im = reader.GetImage();
-    const unsigned *d = im.GetDimensions();
-    size_t count = (size_t)s.rows * s.cols, want = count * (s.bits_alloc / 8);
-    gdcm::PixelFormat pf = im.GetPixelFormat();
-    if (d[0] != s.cols || d[1] != s.rows || (im.GetNumberOfDimensions() > 2 && d[2] != 1) ||
+    const gdcm::Image *im = &reader.GetImage();
+    gdcm::ImageChangePhotometricInterpretation icpi;
+    if (s.mono1) {
+        icpi.SetInput(*im);
+        icpi.SetPhotometricInterpretation(gdcm::PhotometricInterpretation::MONOCHROME2);
+        if (!icpi.Change())
+            return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: GDCM cannot invert the "
+                                     "MONOCHROME1 image", s.path.c_str());
+        im = &icpi.GetOutput();
+    }
+    const unsigned *d3 = im->GetDimensions();
+    size_t count = (size_t)s.rows * s.cols, want = count * (s.bits_alloc / 8) * s.frames;
+    unsigned depth = im->GetNumberOfDimensions() > 2 ? d3[2] : 1;
+    gdcm::PixelFormat pf = im->GetPixelFormat();
+    if (d3[0] != s.cols || d3[1] != s.rows || depth != s.frames ||
         pf.GetBitsAllocated() != s.bits_alloc || pf.GetSamplesPerPixel() != 1)
-        return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: the image GDCM decodes (%ux%u, %u "
-                                 "bits) is not the %ux%u, %u bits its header gave",
-                                 s.path.c_str(), d[0], d[1], (unsigned)pf.GetBitsAllocated(),
-                                 s.cols, s.rows, s.bits_alloc);
-    if (im.GetBufferLength() != want)
+        return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: the image GDCM decodes (%ux%ux%u, %u "
+                                 "bits) is not the %ux%u x %u frames, %u bits its header gave",
+                                 s.path.c_str(), d3[0], d3[1], depth,
+                                 (unsigned)pf.GetBitsAllocated(), s.cols, s.rows, s.frames,
+                                 s.bits_alloc);
+    if (im->GetBufferLength() != want)
         return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: the pixel data holds %lu bytes, Rows "
-                                 "x Columns x BitsAllocated claim %zu", s.path.c_str(),
-                                 im.GetBufferLength(), want);
-    std::vector<char> buf(want);
-    if (!im.GetBuffer(buf.data()))
+                                 "x Columns x BitsAllocated x frames claim %zu", s.path.c_str(),
+                                 im->GetBufferLength(), want);
+    d.pixels.resize(want);
+    if (!im->GetBuffer(d.pixels.data()))
         return cdvr_plugin_error(err, CDVR_ERR_FORMAT, "%s: GDCM cannot decode the pixel data "
                                  "(transfer syntax %s)", s.path.c_str(),
-                                 gdcm::TransferSyntax::GetTSString(im.GetTransferSyntax()));
+                                 gdcm::TransferSyntax::GetTSString(im->GetTransferSyntax()));
+    d.path = s.path;
+    return CDVR_OK;
+}
+
+cdvr_status read_slice(const Slice &s, cdvr_type type, void *dst, Decoded &d, cdvr_error *err)
+{
+    if (d.path != s.path) {
+        cdvr_status st = decode_file(s, d, err);
+        if (st != CDVR_OK)
+            return st;
+    }
+    size_t count = (size_t)s.rows * s.cols;
+    const char *buf = d.pixels.data() + (size_t)s.frame * count * (s.bits_alloc / 8);
     switch (type) {
-    case CDVR_TYPE_U8: convert(buf.data(), s, count, (uint8_t *)dst); break;
-    case CDVR_TYPE_U16: convert(buf.data(), s, count, (uint16_t *)dst); break;
-    case CDVR_TYPE_I16: convert(buf.data(), s, count, (int16_t *)dst); break;
-    case CDVR_TYPE_F32: convert(buf.data(), s, count, (float *)dst); break;
+    case CDVR_TYPE_U8: convert(buf, s, count, (uint8_t *)dst); break;
+    case CDVR_TYPE_U16: convert(buf, s, count, (uint16_t *)dst); break;
+    case CDVR_TYPE_I16: convert(buf, s, count, (int16_t *)dst); break;
+    case CDVR_TYPE_F32: convert(buf, s, count, (float *)dst); break;
     }
     return CDVR_OK;
 }
@@ -609,8 +799,9 @@ int run(const char *mode, const char *path, const cdvr_raw_opts *opts)
         return fflush(stdout) == 0 ? 0 : 1;
     size_t frame = p.dims[0] * p.dims[1] * type_size(p.type);
     std::vector<char> buf(frame);
+    Decoded decoded;
     for (size_t k = 0; k < p.dims[2]; k++) {
-        if ((st = read_slice(p.series.slices[k], p.type, buf.data(), &err)) != CDVR_OK)
+        if ((st = read_slice(p.series.slices[k], p.type, buf.data(), decoded, &err)) != CDVR_OK)
             return report(err);
         printf("D %zu\n", frame);
         if (fwrite(buf.data(), 1, frame, stdout) != frame)

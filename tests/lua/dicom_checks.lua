@@ -84,5 +84,17 @@ for _, case in ipairs{"oblique", "float"} do
     compared = compared + 1
   end
 end
+-- multi-frame (Enhanced CT), LPS named, and an LPS volume saved as NIfTI lands in RAS
+local e = cdvr.load(dir .. "/enhanced")
+check_oblique(e, "enhanced/ (frames)")
+check(e:info().space == "LPS", "a DICOM volume knows its world: " .. tostring(e:info().space))
+local nii = os.tmpname() .. ".nii"
+assert(e:save(nii))
+local back = cdvr.load(nii)
+os.remove(nii)
+local ex, ey, ez = e:origin()
+local bx, by, bz = back:origin()
+check(back:info().space == "RAS" and near(bx, -ex) and near(by, -ey) and near(bz, ez),
+      "saved as NIfTI: RAS, x and y negated")
 checks.finish(compared > 0 and (" (" .. compared .. " series compared with VTK)") or
               " (VTK comparison skipped)")

@@ -8,8 +8,10 @@
  * it fits and f32 otherwise; JPEG-LS decoded to the same voxels; two series in one directory
  * chosen by SeriesInstanceUID or SeriesDescription and refused without select listing both; a
  * .dcm file opens its own series; a description two series share refused (the UID then works);
- * uneven slices, an in-plane shift (gantry tilt), a missing PixelSpacing, a Rows claim larger
- * than the file, max_bytes,
+ * multi-frame files (an Enhanced CT file's frames with their functional groups, a multi-frame
+ * secondary capture without geometry) as slices; MONOCHROME1 inverted; a gantry tilt kept as
+ * a sheared grid; uneven slices, slices off one line, a missing PixelSpacing, a Rows claim
+ * larger than the file, max_bytes,
  * a FIFO, a symlink out of the directory and a directory without DICOM files refused, each
  * naming what is wrong; 48 mutated copies of a slice never end this process (GDCM, which
  * asserts on some of them, runs in the plugin's helper process).
@@ -164,6 +166,66 @@ static void test_select(void)
           "unknown select: %s", err.msg);
 }
 
+/* Multi-frame files, MONOCHROME1 and a gantry tilt (dicom_write.cpp's enhanced/, mfsc/, mono1/,
+ * tilt/). */
+static void test_frames_and_more(void)
+{
+    cdvr_error err;
+    cdvr_volume *v = NULL;
+    /* Enhanced CT: per-frame positions, shared orientation / spacing / rescale */
+    CHECK_OK(cdvr_volume_load(at("enhanced"), NULL, &v, &err), err);
+    if (v)
+        check_oblique(v, "enhanced/ (9 frames of one file)");
+    cdvr_volume_free(v);
+    v = NULL;
+    CHECK_OK(cdvr_volume_load(at("enhanced/multi.dcm"), NULL, &v, &err), err);
+    if (v)
+        check_oblique(v, "enhanced/multi.dcm");
+    cdvr_volume_free(v);
+    v = NULL;
+    /* a multi-frame secondary capture without geometry: frames stacked 1 mm apart */
+    CHECK_OK(cdvr_volume_load(at("mfsc"), NULL, &v, &err), err);
+    if (v) {
+        size_t bad = 0;
+        for (unsigned k = 0; k < 4; k++)
+            for (unsigned y = 0; y < 7; y++)
+                for (unsigned x = 0; x < 5; x++)
+                    bad += cdvr_volume_get(v, x, y, k, 0) != x + 5 * y + 35 * k;
+        CHECK(v->type == CDVR_TYPE_U16 && v->dims[2] == 4 && bad == 0 && v->spacing[2] == 1 &&
+                  v->origin[0] == 0 && v->direction[0] == 1 && v->direction[8] == 1,
+              "mfsc/: 4 frames as slices, identity geometry, %zu voxels differ", bad);
+    }
+    cdvr_volume_free(v);
+    v = NULL;
+    /* MONOCHROME1 (12 bits stored): inverted by GDCM's filter as ITK does, then rescaled */
+    CHECK_OK(cdvr_volume_load(at("mono1"), NULL, &v, &err), err);
+    if (v) {
+        size_t bad = 0;
+        for (unsigned k = 0; k < 3; k++)
+            for (unsigned y = 0; y < 7; y++)
+                for (unsigned x = 0; x < 5; x++)
+                    bad += cdvr_volume_get(v, x, y, k, 0) !=
+                           0.5 * (4095.0 - (x + 5 * y + 35 * k)) + 0.25;
+        CHECK(bad == 0, "mono1/: %zu voxels differ from 0.5 (4095 - stored) + 0.25", bad);
+    }
+    cdvr_volume_free(v);
+    v = NULL;
+    /* a gantry tilt: slice k shifted 2k mm along the rows, gap 1 along the normal: kept as a
+     * sheared grid (third axis along the slice step (2, 0, 1) / sqrt 5, spacing sqrt 5) */
+    CHECK_OK(cdvr_volume_load(at("tilt"), NULL, &v, &err), err);
+    if (v) {
+        double s5 = sqrt(5.0), ijk[3] = {4, 6, 2}, w[3];
+        cdvr_volume_index_to_world(v, ijk, w);
+        CHECK(near(v->spacing[2], s5) && near(v->direction[2], 2 / s5) &&
+                  near(v->direction[5], 0) && near(v->direction[8], 1 / s5) &&
+                  near(w[0], 4 + 4) && near(w[1], 6) && near(w[2], 2),
+              "tilt/: sheared z axis (%g %g %g), spacing %g, voxel (4,6,2) at %g %g %g",
+              v->direction[2], v->direction[5], v->direction[8], v->spacing[2], w[0], w[1], w[2]);
+        CHECK(cdvr_volume_get(v, 4, 6, 2, 0) == 0.5 * (4 + 30 + 70) + 0.25, "tilt/ values");
+    }
+    cdvr_volume_free(v);
+}
+
 static void test_refusals(void)
 {
     cdvr_error err;
@@ -177,9 +239,14 @@ static void test_refusals(void)
     CHECK(st == CDVR_ERR_FORMAT && strstr(err.msg, "hostile/f1.dcm") &&
               strstr(err.msg, "Rows 7000") && strstr(err.msg, "the file holds"),
           "Rows claiming more than the file: %s", err.msg);
-    st = cdvr_volume_load(at("tilt"), NULL, &v, &err);
-    CHECK(st == CDVR_ERR_FORMAT && strstr(err.msg, "shifted") && strstr(err.msg, "gantry tilt"),
-          "in-plane shift: %s", err.msg);
+    st = cdvr_volume_load(at("huge"), NULL, &v, &err);
+    CHECK(st == CDVR_ERR_FORMAT && strstr(err.msg, "huge/") && strstr(err.msg, "RescaleSlope 1e+36") &&
+              strstr(err.msg, "beyond the range of f32"),
+          "a rescale beyond f32 refused: %s", err.msg);
+    st = cdvr_volume_load(at("wobble"), NULL, &v, &err);
+    CHECK(st == CDVR_ERR_FORMAT && strstr(err.msg, "wobble/f0.dcm is 2 mm off the line") &&
+              strstr(err.msg, "not one evenly tilted stack"),
+          "slices not on one line (a shift growing as k^2): %s", err.msg);
     st = cdvr_volume_load(at("notag"), NULL, &v, &err);
     CHECK(st == CDVR_ERR_FORMAT && strstr(err.msg, "notag/f2.dcm: PixelSpacing (0028,0030) is "
                                           "missing"),
@@ -318,6 +385,7 @@ int main(int argc, char **argv)
     CHECK(cdvr_format_by_suffix("x.DCM") == f, "suffix .dcm");
     test_series();
     test_select();
+    test_frames_and_more();
     test_refusals();
     test_mutations();
     return check_finish();

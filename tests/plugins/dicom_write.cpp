@@ -25,6 +25,14 @@
  *   same_desc/ two series (...7777.8 like float/, ...7777.9 like axial) both described "dup".
  *   tilt/     like float/, slice k shifted 2k mm along the rows (a gantry tilt).
  *   notag/    like float/, f2.dcm without PixelSpacing.
+ *   wobble/   like tilt/ but slice k shifted 2 k^2 mm (not one evenly tilted stack).
+ *   mono1/    like float/ but MONOCHROME1, BitsStored 12.
+ *   enhanced/ one Enhanced CT multi-frame file (multi.dcm) of oblique/'s 9 slices as frames:
+ *             GDCM writes the per-frame PlanePositionSequence and the shared orientation,
+ *             pixel measures and rescale.
+ *   huge/     like float/ but RescaleSlope 1e36: values beyond f32 (refused).
+ *   mfsc/     one Multi-frame Grayscale Word Secondary Capture file of float/'s values, 4 frames,
+ *             no geometry at all.
  */
 #include <cmath>
 #include <cstdio>
@@ -55,6 +63,8 @@ struct Case {
     int (*value)(unsigned x, unsigned y, unsigned k);
     double tilt = 0;          /* slice k shifted k * tilt mm along r (in its plane) */
     std::string prefix = "f"; /* of the file names */
+    bool wobble = false;      /* the shift grows as k * k * tilt (not one tilted stack) */
+    bool mono1 = false;       /* PhotometricInterpretation MONOCHROME1 */
 };
 
 int v_oblique(unsigned x, unsigned y, unsigned k) { return (int)((3 * (x + 5 * y + 35 * k)) % 4096); }
@@ -73,14 +83,15 @@ bool write_slice(const Case &cs, unsigned k, const std::string &file)
     pf.SetBitsStored((unsigned short)cs.bits_stored);
     pf.SetHighBit((unsigned short)(cs.bits_stored - 1));
     im.SetPixelFormat(pf);
-    im.SetPhotometricInterpretation(gdcm::PhotometricInterpretation::MONOCHROME2);
+    im.SetPhotometricInterpretation(cs.mono1 ? gdcm::PhotometricInterpretation::MONOCHROME1
+                                             : gdcm::PhotometricInterpretation::MONOCHROME2);
     im.SetTransferSyntax(gdcm::TransferSyntax::ExplicitVRLittleEndian);
     double n[3] = {cs.r[1] * cs.c[2] - cs.r[2] * cs.c[1], cs.r[2] * cs.c[0] - cs.r[0] * cs.c[2],
                    cs.r[0] * cs.c[1] - cs.r[1] * cs.c[0]};
     double d = cs.positions.empty() ? k * cs.spacing[2] : cs.positions[k];
     double origin[3], dircos[6] = {cs.r[0], cs.r[1], cs.r[2], cs.c[0], cs.c[1], cs.c[2]};
     for (int i = 0; i < 3; i++)
-        origin[i] = cs.origin[i] + d * n[i] + k * cs.tilt * cs.r[i];
+        origin[i] = cs.origin[i] + d * n[i] + (cs.wobble ? k * k : k) * cs.tilt * cs.r[i];
     for (unsigned i = 0; i < 3; i++) /* SetOrigin(double[3]) keeps only 2 values of a 2D image */
         im.SetOrigin(i, origin[i]);
     im.SetDirectionCosines(dircos);
@@ -124,6 +135,67 @@ bool write_slice(const Case &cs, unsigned k, const std::string &file)
         }
         w.SetImage(change.GetOutput());
     }
+    w.SetFileName(file.c_str());
+    if (!w.Write()) {
+        fprintf(stderr, "dicom_write: cannot write %s\n", file.c_str());
+        return false;
+    }
+    return true;
+}
+
+/* One multi-frame file of cs's slices as frames: an Enhanced CT image (GDCM writes the
+ * functional groups: per-frame PlanePositionSequence, shared PlaneOrientationSequence,
+ * PixelMeasuresSequence and PixelValueTransformationSequence), or (sc) a Multi-frame Grayscale
+ * Word Secondary Capture image without any geometry. */
+bool write_multiframe(const std::string &out, const Case &cs, bool sc)
+{
+    std::string dir = out + "/" + cs.dir;
+    mkdir(dir.c_str(), 0777);
+    gdcm::ImageWriter w;
+    gdcm::Image &im = w.GetImage();
+    im.SetNumberOfDimensions(3);
+    im.SetDimension(0, cs.cols);
+    im.SetDimension(1, cs.rows);
+    im.SetDimension(2, cs.slices);
+    gdcm::PixelFormat pf(gdcm::PixelFormat::UINT16);
+    pf.SetBitsStored((unsigned short)cs.bits_stored);
+    pf.SetHighBit((unsigned short)(cs.bits_stored - 1));
+    im.SetPixelFormat(pf);
+    im.SetPhotometricInterpretation(gdcm::PhotometricInterpretation::MONOCHROME2);
+    im.SetTransferSyntax(gdcm::TransferSyntax::ExplicitVRLittleEndian);
+    double dircos[6] = {cs.r[0], cs.r[1], cs.r[2], cs.c[0], cs.c[1], cs.c[2]};
+    if (!sc) {
+        for (unsigned i = 0; i < 3; i++)
+            im.SetOrigin(i, cs.origin[i]);
+        im.SetDirectionCosines(dircos);
+        for (unsigned i = 0; i < 3; i++)
+            im.SetSpacing(i, cs.spacing[i]);
+        im.SetSlope(cs.slope);
+        im.SetIntercept(cs.intercept);
+    }
+    std::vector<unsigned short> px(cs.cols * cs.rows * cs.slices);
+    for (unsigned k = 0; k < cs.slices; k++)
+        for (unsigned y = 0; y < cs.rows; y++)
+            for (unsigned x = 0; x < cs.cols; x++)
+                px[x + cs.cols * (y + cs.rows * k)] = (unsigned short)cs.value(x, y, k);
+    gdcm::DataElement pixels(gdcm::Tag(0x7fe0, 0x0010));
+    pixels.SetByteValue((const char *)px.data(), (uint32_t)(px.size() * sizeof(short)));
+    im.SetDataElement(pixels);
+    gdcm::DataSet &ds = w.GetFile().GetDataSet();
+    gdcm::UIDGenerator uids;
+    gdcm::MediaStorage::MSType ms = sc ? gdcm::MediaStorage::MultiframeGrayscaleWordSecondaryCaptureImageStorage
+                                       : gdcm::MediaStorage::EnhancedCTImageStorage;
+    gdcm::Attribute<0x0008, 0x0016> sop_class = {gdcm::MediaStorage::GetMSString(ms)};
+    gdcm::Attribute<0x0008, 0x0018> sop_instance = {uids.Generate()};
+    gdcm::Attribute<0x0020, 0x000e> series = {cs.uid.c_str()};
+    gdcm::Attribute<0x0020, 0x000d> study = {"1.2.826.0.1.3680043.9.7777.100"};
+    gdcm::Attribute<0x0008, 0x103e> description = {cs.description.c_str()};
+    ds.Replace(sop_class.GetAsDataElement());
+    ds.Replace(sop_instance.GetAsDataElement());
+    ds.Replace(series.GetAsDataElement());
+    ds.Replace(study.GetAsDataElement());
+    ds.Replace(description.GetAsDataElement());
+    std::string file = dir + "/multi.dcm";
     w.SetFileName(file.c_str());
     if (!w.Write()) {
         fprintf(stderr, "dicom_write: cannot write %s\n", file.c_str());
@@ -221,10 +293,29 @@ int main(int argc, char **argv)
     tilt.tilt = 2;
     notag.dir = "notag";
     notag.uid = "1.2.826.0.1.3680043.9.7777.11";
+    Case wobble = tilt, mono1 = flt, enhanced = oblique, mfsc = flt;
+    wobble.dir = "wobble";
+    wobble.uid = "1.2.826.0.1.3680043.9.7777.12";
+    wobble.wobble = true;
+    mono1.dir = "mono1";
+    mono1.uid = "1.2.826.0.1.3680043.9.7777.13";
+    mono1.mono1 = true;
+    mono1.bits_stored = 12;
+    enhanced.dir = "enhanced";
+    enhanced.uid = "1.2.826.0.1.3680043.9.7777.14";
+    mfsc.dir = "mfsc";
+    mfsc.uid = "1.2.826.0.1.3680043.9.7777.15";
+    mfsc.slices = 4;
+    Case huge = flt;
+    huge.dir = "huge";
+    huge.uid = "1.2.826.0.1.3680043.9.7777.16";
+    huge.slope = 1e36;
     for (const Case *cs : {&oblique, &jpegls, &axial, &sagittal, &flt, &uneven, &hostile, &dup1,
-                           &dup2, &tilt, &notag})
+                           &dup2, &tilt, &notag, &wobble, &mono1, &huge})
         if (!write_case(out, *cs))
             return 1;
+    if (!write_multiframe(out, enhanced, false) || !write_multiframe(out, mfsc, true))
+        return 1;
     if (!make_hostile(out) || !drop_spacing(out)) {
         fprintf(stderr, "dicom_write: cannot make hostile/f1.dcm or notag/f2.dcm\n");
         return 1;

@@ -56,6 +56,11 @@ typedef struct cdvr_volume {
     /* Appended: how many finite file values lay beyond f32's range and were loaded as +-Inf
      * because the load options accepted that (cdvr_raw_opts.f32_overflow_inf); 0 otherwise. */
     uint64_t beyond_f32;
+    /* Appended: the world the coordinates are in when the file named it: "RAS" (NIfTI, a NRRD
+     * of space right-anterior-superior), "LAS", "LPS" (DICOM, a NRRD left-posterior-superior);
+     * "" when unknown. The NRRD writer names it (space:), the NIfTI writer turns LPS/LAS into
+     * NIfTI's RAS; nothing else converts. */
+    char space[8];
 } cdvr_volume;
 
 /* Bytes per voxel of a type (1, 2, 2, 4). */
@@ -67,6 +72,8 @@ const char *cdvr_type_file_name(cdvr_type type);
 /* 1 when vol->source_type names a file type other than vol->type's (the loader converted the
  * file's values to f32, with the window computed in double: "converted from float64"). */
 int cdvr_volume_converted(const cdvr_volume *vol);
+/* Sets vol->space to "RAS", "LAS" or "LPS" (anything else clears it). */
+void cdvr_volume_set_space(cdvr_volume *vol, const char *space);
 /* Sets vol->source_type (cut to 15 bytes; NULL clears it). */
 void cdvr_volume_set_source_type(cdvr_volume *vol, const char *name);
 /* Parses a type name (also accepts "uint8", "uchar", "uint16", "int16", "short", "float", "float32");
