@@ -130,10 +130,6 @@ end
 local device = render_device()
 
 -- ---- measuring ----------------------------------------------------------------------------
-local function stage2_of(var)
-  return var.stage2 == "auto" and "auto" or var.stage2
-end
-
 -- Encodes one dataset with every variant and appends one row per variant to rows.
 local function measure(vol, name, rows)
   if timesteps < vol:timesteps() then vol = vol:frame(1, timesteps) end
@@ -165,7 +161,7 @@ local function measure(vol, name, rows)
       if cmp.psnr ~= math.huge then sum, n = sum + cmp.psnr, n + 1 end
     end
     local staged = var.stage2 ~= "none"
-    rows[#rows + 1] = {dataset = name, config = var.name, codec = var.codec, stage2 = stage2_of(var),
+    rows[#rows + 1] = {dataset = name, config = var.name, codec = var.codec, stage2 = var.stage2,
                        bpv = 8 * var.bytes / info.raw_bytes,
                        image_psnr = n == 0 and math.huge or sum / n, volume_psnr = var.psnr,
                        decode_gb_s = st:bench_decode(var.name, 3) / 1e3,
