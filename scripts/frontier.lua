@@ -27,9 +27,9 @@
 -- (raw, raw_zstd, S1T3, S4T3, S4T3_lz4, S4T3_zstd, zfp at 1 and 4 bpv, hvq), 4 frames of
 -- 96^2 and a 128^3 series, for a run of a few minutes on 2 cores.
 -- Writes DIR/frontier.csv (columns above, one row per dataset and variant) and
--- DIR/frontier.png (gnuplot: image PSNR against bits per voxel, one colour per dataset, each
+-- DIR/frontier.png (gnuplot, one panel per dataset: image PSNR against bits per voxel, each
 -- point labelled with its variant, decode GB/s and fps, the pareto front joined by a line and
--- circled; lossless points at the top edge). A dataset that fails is reported on stderr and
+-- circled; lossless points at the top of their panel). A dataset that fails is reported on stderr and
 -- in DIR/failed.txt, the others are still measured, and the exit status is 1.
 package.path = (arg[0]:match("^(.*)/[^/]*$") or ".") .. "/bench/?.lua;" .. package.path
 local common = require "common"
@@ -130,10 +130,6 @@ end
 local device = render_device()
 
 -- ---- measuring ----------------------------------------------------------------------------
-local function stage2_of(var)
-  return var.stage2 == "auto" and "auto" or var.stage2
-end
-
 -- Encodes one dataset with every variant and appends one row per variant to rows.
 local function measure(vol, name, rows)
   if timesteps < vol:timesteps() then vol = vol:frame(1, timesteps) end
@@ -165,7 +161,7 @@ local function measure(vol, name, rows)
       if cmp.psnr ~= math.huge then sum, n = sum + cmp.psnr, n + 1 end
     end
     local staged = var.stage2 ~= "none"
-    rows[#rows + 1] = {dataset = name, config = var.name, codec = var.codec, stage2 = stage2_of(var),
+    rows[#rows + 1] = {dataset = name, config = var.name, codec = var.codec, stage2 = var.stage2,
                        bpv = 8 * var.bytes / info.raw_bytes,
                        image_psnr = n == 0 and math.huge or sum / n, volume_psnr = var.psnr,
                        decode_gb_s = st:bench_decode(var.name, 3) / 1e3,
@@ -255,60 +251,64 @@ if #rows == 0 then
 end
 
 -- ---- chart --------------------------------------------------------------------------------
--- Per dataset two gnuplot data blocks: every point (labelled), then the front by bits per
--- voxel. Lossless points (inf PSNR) sit at the top edge.
-local maxfin = 0
-for _, r in ipairs(rows) do
-  if r.image_psnr ~= math.huge then maxfin = math.max(maxfin, r.image_psnr) end
-end
-local lossless_y = maxfin + 8
+-- One panel per dataset in one PNG (gnuplot multiplot). Per dataset two data blocks: every
+-- point (labelled), then the front by bits per voxel. Lossless points (inf PSNR) sit at the
+-- top of their panel, 6 dB above its best lossy point.
 local COLOURS = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf"}
 local dat = assert(io.open(opt.out .. "/frontier.dat", "w"))
+local panels = {}
 for i, name in ipairs(names) do
-  local mine, front = {}, {}
+  local mine, front, maxfin = {}, {}, 0
   for _, r in ipairs(rows) do
     if r.dataset == name then
       mine[#mine + 1] = r
       if r.pareto == 1 then front[#front + 1] = r end
+      if r.image_psnr ~= math.huge then maxfin = math.max(maxfin, r.image_psnr) end
     end
   end
+  local top = maxfin + 6
   table.sort(front, function(a, b) return a.bpv < b.bpv end)
   if i > 1 then dat:write("\n\n") end
   for _, r in ipairs(mine) do
-    local y = r.image_psnr == math.huge and lossless_y or r.image_psnr
+    local y = r.image_psnr == math.huge and top or r.image_psnr
     dat:write(("%.5f %.4f \"%s %.2fGB/s %.0ffps%s\"\n"):format(r.bpv, y, r.config, r.decode_gb_s, r.fps,
-                                                              r.image_psnr == math.huge and " (lossless)" or ""))
+                                                              r.image_psnr == math.huge and " lossless" or ""))
   end
   dat:write("\n\n")
   for _, r in ipairs(front) do
-    dat:write(("%.5f %.4f\n"):format(r.bpv, r.image_psnr == math.huge and lossless_y or r.image_psnr))
+    dat:write(("%.5f %.4f\n"):format(r.bpv, r.image_psnr == math.huge and top or r.image_psnr))
   end
-end
-dat:close()
-local plots = {}
-for i, name in ipairs(names) do
   local colour = COLOURS[(i - 1) % #COLOURS + 1]
   local file = opt.out .. "/frontier.dat"
-  plots[#plots + 1] = ('"%s" index %d using 1:2 with points pt 7 ps 1.0 lc rgb "%s" title "%s"'):format(
-    file, 2 * (i - 1), colour, name:gsub('"', ""))
-  plots[#plots + 1] = ('"%s" index %d using 1:2 with linespoints pt 6 ps 2.0 lw 1.5 dt 2 lc rgb "%s" ' ..
-                       'title "%s front"'):format(file, 2 * i - 1, colour, name:gsub('"', ""))
-  plots[#plots + 1] = ('"%s" index %d using 1:2:3 with labels offset char 0,0.8 font ",7" tc rgb "%s" notitle'):format(
-    file, 2 * (i - 1), colour)
+  local title = name:gsub('"', "")
+  panels[#panels + 1] = table.concat({
+    ('set title "%s"'):format(title),
+    ('plot "%s" index %d using 1:2 with points pt 7 ps 0.9 lc rgb "%s" title "variant", \\'):format(
+      file, 2 * (i - 1), colour),
+    ('     "%s" index %d using 1:2 with linespoints pt 6 ps 2.0 lw 1.5 dt 2 lc rgb "%s" title "pareto front", \\'):format(
+      file, 2 * i - 1, colour),
+    ('     "%s" index %d using 1:2:3 with labels offset char 0,0.8 font ",7" tc rgb "#333333" notitle'):format(
+      file, 2 * (i - 1)),
+  }, "\n")
 end
+dat:close()
+local cols = math.ceil(math.sqrt(#names))
+local nrows = math.ceil(#names / cols)
 local gp = assert(io.open(opt.out .. "/frontier.gp", "w"))
 gp:write(([[
-set terminal pngcairo size 1400,900 font ",11" noenhanced
+set terminal pngcairo size %d,%d font ",10" noenhanced
 set output "%s/frontier.png"
-set title "cdvr: image PSNR against bits per voxel (labels: variant, decode GB/s per thread, playback fps at %dx%d on %s; circled and joined: the pareto front)"
-set xlabel "stored bits per voxel (log scale, lower is smaller)"
-set ylabel "image PSNR against the raw render (dB, higher is better; lossless at the top, %.0f dB)"
+set multiplot layout %d,%d title "cdvr frontier (labels: variant, decode GB/s per thread, fps at %dx%d on %s; circled: pareto front)"
+set xlabel "bits per voxel (log scale)"
+set ylabel "image PSNR (dB)"
 set logscale x 2
 set grid
-set key outside right top box Left reverse
-set offsets graph 0.05, graph 0.12, 3, 3
-plot %s
-]]):format(opt.out, width, width, device, lossless_y, table.concat(plots, ", \\\n     ")))
+set key bottom right font ",8"
+set offsets graph 0.08, graph 0.15, 3, 3
+%s
+unset multiplot
+]]):format(560 * cols, 420 * nrows + 40, opt.out, nrows, cols, width, width, device,
+           table.concat(panels, "\n")))
 gp:close()
 local ok = os.execute(('gnuplot "%s/frontier.gp"'):format(opt.out))
 if not ok then

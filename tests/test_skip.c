@@ -7,7 +7,8 @@
  * OpenCL device, setup from the recorded ranges (cdvr_cl_setup_grid) renders every pixel
  * exactly as setup from the device's own min/max kernel, taking the same samples with 4^3
  * tables and at least as many with coarser ones; a store written with 4^3 LZO tables before
- * (tests/data/v2_lzo_store.cdv) reads them as the ranges of its decoded frames. */
+ * (tests/data/v2_lzo_store.cdv) reads them as the ranges of its decoded frames; a packed table
+ * claiming another size, or index flags claiming two packings, are refused. */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -15,10 +16,12 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "cdvr/crc32c.h"
 #include "cdvr/device.h"
 #include "cdvr/skip.h"
 #include "cdvr/store.h"
 #include "check.h"
+#include "store/store_format.h"
 
 static uint32_t rng_state = 12345;
 
@@ -318,6 +321,103 @@ static void test_old_tables(void)
     cdvr_store_close(st);
 }
 
+static uint8_t *read_file(const char *path, size_t *n)
+{
+    FILE *in = fopen(path, "rb");
+    if (!in)
+        return NULL;
+    fseek(in, 0, SEEK_END);
+    *n = (size_t)ftell(in);
+    rewind(in);
+    uint8_t *file = malloc(*n);
+    if (file && fread(file, 1, *n, in) != *n) {
+        free(file);
+        file = NULL;
+    }
+    fclose(in);
+    return file;
+}
+
+static void write_file(const char *path, const uint8_t *bytes, size_t n)
+{
+    FILE *out = fopen(path, "wb");
+    CHECK(out && fwrite(bytes, 1, n, out) == n, "write %s", path);
+    if (out)
+        fclose(out);
+}
+
+/* A packed range table whose zstd frame claims another size (its CRC fixed) is refused when
+ * read, naming the file, chunk and table; index flags claiming LZO and packed at once are
+ * refused at open. */
+static void test_hostile_tables(void)
+{
+    size_t d[3] = {41, 27, 30};
+    cdvr_volume *vol = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_volume_create(d, 1, CDVR_TYPE_U8, &vol, &err), err);
+    if (!vol)
+        return;
+    fill_frame(cdvr_volume_frame(vol, 0), d, 0);
+    cdvr_variant_spec vs = {.codec = cdvr_codec_find("raw"), .lzo_min_saving = -1};
+    vs.codec->params_default(&vs.params);
+    char path[] = "/tmp/cdvr_test_skiph_XXXXXX", bad[64];
+    int fd = mkstemp(path);
+    if (fd >= 0)
+        close(fd);
+    snprintf(bad, sizeof bad, "%s_bad", path);
+    cdvr_encode_opts o = {.variants = &vs, .nvariants = 1, .qhi = 255, .bricks = {1, 1, 1}};
+    CHECK_OK(cdvr_store_encode(vol, &o, path, &err), err);
+    cdvr_volume_free(vol);
+    size_t n = 0;
+    uint8_t *file = read_file(path, &n);
+    cdvr_store *st = NULL;
+    CHECK_OK(cdvr_store_open(path, &st, &err), err);
+    if (!file || !st) {
+        free(file);
+        cdvr_store_close(st);
+        unlink(path);
+        return;
+    }
+    cdvr_chunk_info *ci = (cdvr_chunk_info *)cdvr_store_chunk(st, 0, 0);
+    CHECK(ci->ranges_shift == CDVR_RANGE_SHIFT_DEFAULT && ci->ranges_stage2 == CDVR_RANGES_PACKED,
+          "a packed 8^3 table (shift %u, stage 2 %d)", ci->ranges_shift, ci->ranges_stage2);
+    /* zstd frame header: magic (4), descriptor (1), then the content size: claim one more */
+    uint8_t *table = file + ci->ranges_offset;
+    uint64_t meta = 256 + 160 + 128;
+    uint8_t saved[128];
+    memcpy(saved, file + 256 + 160, sizeof saved);
+    table[5] = (uint8_t)(table[5] + 2);
+    ci->ranges_crc32c = cdvr_crc32c(0, table, (size_t)ci->ranges_stored_bytes);
+    cdvr_store_serialize_meta(st, file);
+    write_file(bad, file, n);
+    cdvr_store *hs = NULL;
+    CHECK_OK(cdvr_store_open(bad, &hs, &err), err);
+    if (hs) {
+        uint8_t *out = malloc(cdvr_store_ranges_bytes(hs, 0, 0));
+        cdvr_status s = cdvr_store_read_ranges(hs, 0, 0, out, &err);
+        CHECK(s == CDVR_ERR_CORRUPT && strstr(err.msg, bad) && strstr(err.msg, "chunk 1") &&
+                  strstr(err.msg, "range table"), "hostile packed table: %d '%s'", s, err.msg);
+        free(out);
+        cdvr_store_close(hs);
+    }
+    /* flags byte 106 of the chunk record: present + LZO + packed */
+    memcpy(file + 256 + 160, saved, sizeof saved);
+    file[256 + 160 + 106] = 1 | 2 | 4;
+    uint32_t crc = cdvr_crc32c(0, file, (size_t)meta);
+    for (int i = 0; i < 4; i++)
+        file[meta + (uint64_t)i] = (uint8_t)(crc >> (8 * i));
+    write_file(bad, file, n);
+    cdvr_status s = cdvr_store_open(bad, &hs, &err);
+    CHECK(s == CDVR_ERR_CORRUPT && strstr(err.msg, "reserved"), "LZO and packed at once: %d '%s'",
+          s, err.msg);
+    if (s == CDVR_OK)
+        cdvr_store_close(hs);
+    cdvr_store_close(st);
+    free(file);
+    unlink(path);
+    unlink(bad);
+}
+
 int main(void)
 {
     test_distance();
@@ -326,5 +426,6 @@ int main(void)
     test_store_grid(3);
     test_store_grid(4);
     test_old_tables();
+    test_hostile_tables();
     return check_finish();
 }

@@ -218,15 +218,29 @@ cdvr_status cdvr_range_unpack(const uint8_t *in, size_t n, uint8_t *table, size_
 void cdvr_range_expand(const uint8_t *coarse, const size_t coarse_dims[3], unsigned factor_log2,
                        uint8_t *fine, const size_t fine_dims[3])
 {
-    for (size_t z = 0, b = 0; z < fine_dims[2]; z++)
+    /* fine rows (planes) of one coarse row (plane) are alike: each is made once, then copied */
+    size_t k = (size_t)1 << factor_log2, row_bytes = 2 * fine_dims[0];
+    size_t plane_bytes = row_bytes * fine_dims[1];
+    for (size_t z = 0; z < fine_dims[2]; z++) {
+        uint8_t *out_plane = fine + plane_bytes * z;
+        if (z % k != 0) {
+            memcpy(out_plane, out_plane - plane_bytes, plane_bytes);
+            continue;
+        }
         for (size_t y = 0; y < fine_dims[1]; y++) {
+            uint8_t *out = out_plane + row_bytes * y;
+            if (y % k != 0) {
+                memcpy(out, out - row_bytes, row_bytes);
+                continue;
+            }
             const uint8_t *row = coarse + 2 * coarse_dims[0] *
                                               ((y >> factor_log2) +
                                                coarse_dims[1] * (z >> factor_log2));
-            for (size_t x = 0; x < fine_dims[0]; x++, b++) {
+            for (size_t x = 0; x < fine_dims[0]; x++) {
                 const uint8_t *c = row + 2 * (x >> factor_log2);
-                fine[2 * b] = c[0];
-                fine[2 * b + 1] = c[1];
+                out[2 * x] = c[0];
+                out[2 * x + 1] = c[1];
             }
         }
+    }
 }

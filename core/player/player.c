@@ -500,18 +500,18 @@ static void select_bricks(cdvr_player *p, chunk_item *it)
 /* Whether the group's frames get skip grids from the store's range tables: on the cl device
  * with skipping, rendering the whole volume (clipped renders do not skip), every brick read
  * (a skipped brick's fill is not what its table describes: the device computes the grid then),
- * and every chunk with a table of the device's bricks. */
+ * and every chunk with a table of one brick size, the device's or coarser (4^3 in stores
+ * written before 2026-12, 8^3 since). */
 static int wants_grids(const cdvr_player *p, const chunk_item *it)
 {
 #if CDVR_HAVE_OPENCL
     if (!p->on_stream || !p->opts.empty_skip || p->clipped ||
         it->bricks_read != p->nbricks)
         return 0;
+    const cdvr_chunk_info *c0 = cdvr_store_chunk(p->opts.store, (size_t)it->variant, it->chunk);
     for (size_t b = 0; b < p->nbricks; b++) {
         const cdvr_chunk_info *ch = cdvr_store_chunk(p->opts.store, (size_t)it->variant,
                                                      it->chunk + b);
-        const cdvr_chunk_info *c0 = cdvr_store_chunk(p->opts.store, (size_t)it->variant,
-                                                     it->chunk);
         if (!ch->ranges_shift || ch->ranges_shift != c0->ranges_shift ||
             ((size_t)1 << ch->ranges_shift) < cdvr_cl_brick_edge())
             return 0;

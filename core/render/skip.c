@@ -233,15 +233,34 @@ cdvr_status cdvr_skip_grid_expand(const cdvr_skip_grid *coarse, cdvr_skip_grid *
         codes[c] = fine_code((uint8_t)c, f);
     cdvr_range_expand(coarse->minmax, coarse->dims, f, fine->minmax, fine->dims);
     const size_t *cd = coarse->dims, *n = fine->dims;
+    /* fine rows (planes) of one coarse row (plane) are alike: each is made once, then copied */
+    size_t k = (size_t)1 << f, plane = n[0] * n[1], plane_visible = 0;
     fine->bricks_visible = 0;
-    for (size_t z = 0, b = 0; z < n[2]; z++)
-        for (size_t y = 0; y < n[1]; y++) {
-            const uint8_t *row = coarse->flags + cd[0] * ((y >> f) + cd[1] * (z >> f));
-            for (size_t x = 0; x < n[0]; x++, b++) {
-                fine->flags[b] = codes[row[x >> f]];
-                fine->bricks_visible += fine->flags[b] >= 128;
-            }
+    for (size_t z = 0; z < n[2]; z++) {
+        uint8_t *out_plane = fine->flags + plane * z;
+        if (z % k != 0) {
+            memcpy(out_plane, out_plane - plane, plane);
+            fine->bricks_visible += plane_visible;
+            continue;
         }
+        size_t row_visible = 0;
+        plane_visible = 0;
+        for (size_t y = 0; y < n[1]; y++) {
+            uint8_t *out = out_plane + n[0] * y;
+            if (y % k != 0) {
+                memcpy(out, out - n[0], n[0]);
+            } else {
+                const uint8_t *row = coarse->flags + cd[0] * ((y >> f) + cd[1] * (z >> f));
+                row_visible = 0;
+                for (size_t x = 0; x < n[0]; x++) {
+                    out[x] = codes[row[x >> f]];
+                    row_visible += out[x] >= 128;
+                }
+            }
+            plane_visible += row_visible;
+        }
+        fine->bricks_visible += plane_visible;
+    }
     for (int a = 0; a < 3; a++) {
         fine->visible_lo[a] = coarse->visible_lo[a];
         fine->visible_hi[a] = coarse->visible_hi[a];

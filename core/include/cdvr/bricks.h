@@ -15,8 +15,9 @@
  * Range bricks. For empty-space skipping the encoder records, per chunk and per timestep of
  * it, the range of the decoded values of each range brick: along each axis of N voxels, range
  * brick g (from 0) holds voxels E*g .. min(E*g + E, N - 1) with E = 2^shift, i.e. its cube plus
- * the upper one-voxel apron trilinear interpolation reads (the ray caster's skipping bricks,
- * shift CDVR_RANGE_SHIFT). The volume has ceil(N / E) of them per axis (cdvr_range_grid). The
+ * the upper one-voxel apron trilinear interpolation reads (the ray caster's skipping bricks
+ * have shift CDVR_RANGE_SHIFT; stores record 8^3 bricks by default, whose ranges hold those of
+ * the eight 4^3 bricks inside, cdvr_range_expand). The volume has ceil(N / E) of them per axis (cdvr_range_grid). The
  * chunk of store brick b holds the window of range bricks that meet the voxels b owns
  * (cdvr_brick_owned; cdvr_range_window), each with its range over those voxels; a whole range
  * brick's range is the smallest min and largest max over the store bricks it meets
