@@ -20,6 +20,7 @@ struct cdvr_series {
     int range_known;
     double range_lo, range_hi;
     double *times;               /* per timestep, or NULL (cdvr_series_times) */
+    unsigned char *counted;      /* per file: its beyond_f32 is in info.beyond_f32 */
 };
 
 static void free_paths(char **paths, size_t n)
@@ -35,6 +36,7 @@ void cdvr_series_close(cdvr_series *s)
         return;
     free_paths(s->paths, s->info.files);
     free(s->first_t);
+    free(s->counted);
     free(s->times);
     cdvr_volume_free(s->held);
     free(s);
@@ -70,6 +72,10 @@ static cdvr_status read_file(cdvr_series *s, size_t i, cdvr_error *err)
     if (st != CDVR_OK) {
         cdvr_volume_free(v);
         return st;
+    }
+    if (!s->counted[i]) {
+        s->info.beyond_f32 += v->beyond_f32;
+        s->counted[i] = 1;
     }
     s->held = v;
     s->held_file = i;
@@ -166,8 +172,9 @@ static cdvr_status open_files(const char *const *paths, size_t count, const cdvr
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "series: out of memory");
     s->paths = calloc(count, sizeof *s->paths);
     s->first_t = calloc(count + 1, sizeof *s->first_t);
+    s->counted = calloc(count, 1);
     s->info.files = count;
-    int ok = s->paths && s->first_t;
+    int ok = s->paths && s->first_t && s->counted;
     for (size_t i = 0; ok && i < count; i++)
         ok = (s->paths[i] = strdup(paths[i])) != NULL;
     if (!ok) {
@@ -190,6 +197,11 @@ static cdvr_status open_files(const char *const *paths, size_t count, const cdvr
     memcpy(in->direction, s->first.direction, sizeof in->direction);
     in->type = s->first.type;
     memcpy(in->source_type, s->first.source_type, sizeof in->source_type);
+    memcpy(in->space, s->first.space, sizeof in->space);
+    in->space[sizeof in->space - 1] = 0;
+    int u8_saved = in->type == CDVR_TYPE_U8 && s->first.window[0] < s->first.window[1];
+    in->window[0] = u8_saved ? s->first.window[0] : in->type == CDVR_TYPE_U8 ? 0 : NAN;
+    in->window[1] = u8_saved ? s->first.window[1] : in->type == CDVR_TYPE_U8 ? 255 : NAN;
     in->timesteps = s->first_t[count];
     *out = s;
     return CDVR_OK;

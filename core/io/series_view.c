@@ -140,9 +140,10 @@ cdvr_status cdvr_series_view_window(const cdvr_series_view *v, double w[2],
         w[1] = v->hi;
         return CDVR_OK;
     }
-    if (cdvr_series_get_info(v->series)->type == CDVR_TYPE_U8) {
-        w[0] = 0;
-        w[1] = 255;
+    const cdvr_series_info *in = cdvr_series_get_info(v->series);
+    if (in->type == CDVR_TYPE_U8) { /* the codes' saved window, else [0, 255] */
+        w[0] = in->window[0];
+        w[1] = in->window[1];
         return CDVR_OK;
     }
     return cdvr_series_range(v->series, &w[0], &w[1], progress, ud, err);

@@ -120,10 +120,18 @@ cdvr_volume *lcdvr_checkvolume(lua_State *L, int idx)
     return ud->vol;
 }
 
+/* The header of a volume; a lazy one's counts the values beyond f32 of the files read so far. */
+static const cdvr_volume *header_of(lvolume *ud)
+{
+    if (ud->vol)
+        return ud->vol;
+    ud->lazy->head.beyond_f32 = cdvr_series_get_info(ud->lazy->src->series)->beyond_f32;
+    return &ud->lazy->head;
+}
+
 const cdvr_volume *lcdvr_volume_header(lua_State *L, int idx)
 {
-    lvolume *ud = checkopen(L, idx);
-    return ud->vol ? ud->vol : &ud->lazy->head;
+    return header_of(checkopen(L, idx));
 }
 
 int lcdvr_volume_lazy(lua_State *L, int idx)
@@ -206,7 +214,7 @@ static int volume_tostring(lua_State *L)
         lua_pushliteral(L, "cdvr.Volume (closed)");
         return 1;
     }
-    const cdvr_volume *v = ud->vol ? ud->vol : &ud->lazy->head;
+    const cdvr_volume *v = header_of(ud);
     char conv[96] = "";
     if (cdvr_volume_converted(v))
         snprintf(conv, sizeof conv, ", converted from %s", v->source_type);
@@ -940,8 +948,9 @@ static int l_load_series(lua_State *L)
     h->timesteps = in->timesteps;
     h->type = in->type;
     memcpy(h->source_type, in->source_type, sizeof h->source_type);
-    h->window[0] = in->type == CDVR_TYPE_U8 ? 0 : NAN;
-    h->window[1] = in->type == CDVR_TYPE_U8 ? 255 : NAN;
+    h->window[0] = in->window[0];
+    h->window[1] = in->window[1];
+    memcpy(h->space, in->space, sizeof h->space);
     push_lazy(L, lv);
     return 1;
 }

@@ -89,6 +89,21 @@ local d = st:decode(2)
 check(d:save(tmp("decoded.nrrd")) == true, "st:decode(2):save")
 same(cdvr.load(tmp("decoded.nrrd")), d, "decoded timestep")
 
+-- decoded timesteps saved one file each read back as a lazy series with the store's window
+local wlo, whi = st:decode(1):window()
+for t = 1, 3 do assert(st:decode(t):save(tmp(("w%d.nrrd"):format(t)))) end
+for t = 1, 3 do assert(st:decode(t):save(tmp(("w%d.nii"):format(t)))) end
+for _, suffix in ipairs{"nrrd", "nii"} do
+  local ws = cdvr.load_series(tmp("w%d." .. suffix), {first = 1, count = 3})
+  local lo, hi = ws:window()
+  check(ws:info().lazy and lo == wlo and hi == whi,
+        ("lazy %s series keeps the saved window: %s %s, saved %s %s"):format(suffix, lo, hi, wlo, whi))
+  local elo, ehi = cdvr.load(tmp("w2." .. suffix)):window()
+  check(elo == lo and ehi == hi, "lazy and eager window agree (" .. suffix .. ")")
+end
+check(cdvr.load_series(tmp("w%d.nii"), {first = 1, count = 3}):info().space == "RAS",
+      "lazy NIfTI series knows its world (RAS)")
+
 -- misuse raises; I/O failure returns nil, msg
 raises(function() v:save(tmp("x.nrrd"), {compres = true}) end, "compres", "unknown option")
 raises(function() v:save(tmp("x.png")) end, "x.png", "unknown suffix")

@@ -29,6 +29,14 @@ typedef struct cdvr_series_info {
     cdvr_type type;
     double spacing[3], origin[3], direction[9]; /* of the first file */
     char source_type[16];      /* the first file's element type (cdvr_volume.source_type) */
+    /* Appended. The value window of a u8 series: the first file's saved window (NRRD old
+     * min/max, ...: what cdvr.load and the eager cdvr_volume_load_series give), [0, 255] when
+     * it saves none; NaN NaN for other types (their window is their range, cdvr_series_range). */
+    double window[2];
+    char space[8];             /* the first file's world ("RAS", "LPS", ...; cdvr_volume.space) */
+    /* Values loaded as +-Inf (f32_overflow="inf", cdvr_volume.beyond_f32), summed over the
+     * files read so far: a file counts once, when it is first read. */
+    uint64_t beyond_f32;
 } cdvr_series_info;
 
 /* Opens count files (raw files need raw; its spacing, when set, overrides every file's),
