@@ -383,7 +383,7 @@ static void test_engine_png(void)
 
 /* Empty-space skipping and the four-lane march change nothing: blobs of noise in a volume of
  * low values, a TF with zero opacity below 60, eyes outside and inside the volume, oblique and
- * axis-parallel rays, composite shaded and not, max and min (which jump dull bricks),
+ * axis-parallel rays, composite shaded and not, max and min (which jump dull bricks), average,
  * anisotropic spacing: the image and the samples count equal those with opts.no_skip (one
  * ray at a time, every sample), bit for bit, and the scene has empty and visible stretches. */
 static void test_skipping_is_exact(void)
@@ -412,7 +412,7 @@ static void test_skipping_is_exact(void)
     double eyes[][3] = {{-40, -55, 70}, {17.5, 18.5, 100}, {20, 20, 20}, {80, 30.3, 10}};
     double center[3] = {17.6, 18.5, 20.8};
     for (int e = 0; e < 4; e++)
-        for (int kind = 0; kind < 4; kind++) { /* composite, shaded composite, max, min */
+        for (int kind = 0; kind < 5; kind++) { /* composite, shaded, max, min, average */
             int shade = kind == 1;
             cdvr_camera cam = camera(eyes[e], center, 48);
             if (e == 1)
@@ -420,8 +420,10 @@ static void test_skipping_is_exact(void)
             cdvr_render_opts a = options(&tf, &cam, e == 3 ? 0.37 : 0.5, 0.0);
             if (shade)
                 cdvr_shading_default(&a.look.shade);
-            a.look.blend = kind == 2 ? CDVR_BLEND_MAX : kind == 3 ? CDVR_BLEND_MIN
-                                                                  : CDVR_BLEND_COMPOSITE;
+            a.look.blend = kind == 2   ? CDVR_BLEND_MAX
+                           : kind == 3 ? CDVR_BLEND_MIN
+                           : kind == 4 ? CDVR_BLEND_AVERAGE
+                                       : CDVR_BLEND_COMPOSITE;
             cdvr_render_opts b = a;
             b.no_skip = 1;
             cdvr_image *ia = render(v, &a), *ib = render(v, &b);
@@ -435,7 +437,7 @@ static void test_skipping_is_exact(void)
                 CHECK(a.samples == b.samples, "eye %d case %d: %llu samples with skipping, %llu "
                       "without", e, kind, (unsigned long long)a.samples,
                       (unsigned long long)b.samples);
-                if (kind < 3) /* min is the low background: nothing lit */
+                if (kind < 3) /* min and average are low: little or nothing lit */
                     CHECK(lit > 40 && lit < 48 * 48 - 40, "eye %d case %d: %d pixels lit: scene "
                           "too weak", e, kind, lit);
             }

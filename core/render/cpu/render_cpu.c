@@ -397,6 +397,21 @@ static inline void brick_range(const render_job *job, const float g[3], int *lo,
     *hi = mm[1];
 }
 
+/* The pixel of a max, min or average ray from its extreme, sum and samples (none: (0, 0)). */
+static void extreme_pixel(const render_job *job, float best, double sum, uint64_t taken,
+                          float out[4])
+{
+    if (!taken) {
+        out[0] = out[1] = out[2] = out[3] = 0.0f;
+        return;
+    }
+    float s = job->blend == CDVR_BLEND_AVERAGE ? (float)(sum / (double)taken) : best, rgba[4];
+    table_at(job, s, rgba);
+    for (int c = 0; c < 3; c++)
+        out[c] = rgba[c] * rgba[3];
+    out[3] = rgba[3];
+}
+
 /* Max, min or average of the samples' codes; returns the samples taken (jumped included). */
 static uint64_t march_extreme(const render_job *job, const float o[3], const float d[3],
                               float t_near, float t_far, long n, float out[4])
@@ -438,13 +453,7 @@ static uint64_t march_extreme(const render_job *job, const float o[3], const flo
         sum += s;
         best = is_max ? max_f(best, s) : job->blend == CDVR_BLEND_MIN ? min_f(best, s) : best;
     }
-    if (!taken)
-        return 0;
-    float s = job->blend == CDVR_BLEND_AVERAGE ? (float)(sum / (double)taken) : best, rgba[4];
-    table_at(job, s, rgba);
-    for (int c = 0; c < 3; c++)
-        out[c] = rgba[c] * rgba[3];
-    out[3] = rgba[3];
+    extreme_pixel(job, best, sum, taken, out);
     return taken;
 }
 
@@ -641,6 +650,9 @@ static void pixel_ray(const render_job *job, int x, int y, double origin[3], dou
 #define LANES 4
 
 typedef struct lanes {
+    int blend;               /* composite, max, min or average (cdvr_blend) */
+    float best[LANES];       /* max, min: the extreme so far */
+    double sum[LANES];       /* average: the sum of the codes */
     int live[LANES];         /* still marching */
     int i[LANES], n[LANES];  /* segment index, segments */
     uint64_t taken[LANES];
@@ -679,8 +691,11 @@ static inline void gather_lane(const render_job *job, const int i0[3], float v[8
     v[7][k] = cv[r11[hi[0]]];
 }
 
-/* One step of every live lane; returns the lanes still live. */
-static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
+/* Steps 2-3 for the live lanes at their segment index: lanes in empty space (composite:
+ * invisible bricks; max, min: dull bricks) jump, the others interpolate their sample into *s
+ * (sampling[k] = 1; ds[k] its segment length). Returns 0 when no lane samples. */
+static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], float dsv[LANES],
+                        __m128 *s)
 {
     const __m128 step = _mm_set1_ps(job->step), zero = _mm_setzero_ps();
     __m128i iv = _mm_loadu_si128((const __m128i *)L->i);
@@ -690,7 +705,7 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
     __m128 ds = _mm_or_ps(_mm_and_ps(is_full, step),
                           _mm_andnot_ps(is_full, _mm_sub_ps(_mm_loadu_ps(L->t_far), ts)));
     __m128 tm = _mm_add_ps(ts, _mm_mul_ps(_mm_set1_ps(0.5f), ds));
-    float g[3][LANES], dsv[LANES];
+    float g[3][LANES];
     int gi[3][LANES];
     _mm_storeu_ps(dsv, ds);
     __m128 gv[3];
@@ -702,7 +717,6 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
         _mm_storeu_si128((__m128i *)gi[a], _mm_cvttps_epi32(gv[a]));
     }
     float v[8][LANES];
-    int sampling[LANES];
     for (int k = 0; k < LANES; k++) {
         sampling[k] = 0;
         for (int c = 0; c < 8; c++)
@@ -714,9 +728,17 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
             continue;
         }
         float gk[3] = {g[0][k], g[1][k], g[2][k]};
+        int jump = 0, code = 1;
         if (job->skip_flags) {
-            int code = brick_code(job, gk);
-            if (code < 128) {
+            code = brick_code(job, gk);
+            jump = code < 128;
+        } else if (job->skip_minmax) {
+            int lo, hi;
+            brick_range(job, gk, &lo, &hi);
+            jump = L->blend == CDVR_BLEND_MAX ? (float)hi <= L->best[k] : (float)lo >= L->best[k];
+        }
+        {
+            if (jump) {
                 long next = skip_target(job, &L->gr[k], gk, code, L->t_near[k], L->i[k]);
                 int n = L->n[k];
                 next = next < n ? next : n;
@@ -733,7 +755,7 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
         sampling[k] = 1;
     }
     if (!(sampling[0] | sampling[1] | sampling[2] | sampling[3]))
-        return L->live[0] | L->live[1] | L->live[2] | L->live[3];
+        return 0;
     __m128 f[3];
     for (int a = 0; a < 3; a++)
         f[a] = _mm_sub_ps(gv[a], _mm_cvtepi32_ps(_mm_loadu_si128((const __m128i *)gi[a])));
@@ -741,7 +763,41 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
     __m128 c10 = lerp4(_mm_loadu_ps(v[2]), _mm_loadu_ps(v[3]), f[0]);
     __m128 c01 = lerp4(_mm_loadu_ps(v[4]), _mm_loadu_ps(v[5]), f[0]);
     __m128 c11 = lerp4(_mm_loadu_ps(v[6]), _mm_loadu_ps(v[7]), f[0]);
-    __m128 s = lerp4(lerp4(c00, c10, f[1]), lerp4(c01, c11, f[1]), f[2]);
+    *s = lerp4(lerp4(c00, c10, f[1]), lerp4(c01, c11, f[1]), f[2]);
+    return 1;
+}
+
+/* Max, min, average: the codes of the sampling lanes into their extreme or sum. */
+static void lanes_extreme(lanes *L, const int sampling[LANES], __m128 s)
+{
+    float sv[LANES];
+    _mm_storeu_ps(sv, s);
+    for (int k = 0; k < LANES; k++) {
+        if (!sampling[k])
+            continue;
+        float b = L->best[k];
+        if (L->blend == CDVR_BLEND_AVERAGE)
+            L->sum[k] += sv[k];
+        else
+            L->best[k] = L->blend == CDVR_BLEND_MAX ? max_f(b, sv[k]) : min_f(b, sv[k]);
+        L->taken[k]++;
+        L->i[k]++;
+        L->live[k] = L->i[k] < L->n[k];
+    }
+}
+
+/* One step of every live lane; returns the lanes still live. */
+static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
+{
+    int sampling[LANES];
+    float dsv[LANES];
+    __m128 s;
+    if (!lanes_sample(job, L, sampling, dsv, &s))
+        return L->live[0] | L->live[1] | L->live[2] | L->live[3];
+    if (L->blend != CDVR_BLEND_COMPOSITE) {
+        lanes_extreme(L, sampling, s);
+        return L->live[0] | L->live[1] | L->live[2] | L->live[3];
+    }
     /* step 4: i0 = min((int)s, 254) as the truncation of min(s, 254) */
     __m128i si = _mm_cvttps_epi32(_mm_min_ps(s, _mm_set1_ps(254.0f)));
     __m128 fr = _mm_sub_ps(s, _mm_cvtepi32_ps(si));
@@ -792,7 +848,9 @@ static uint64_t render_lanes(const render_job *job, int x, int y)
 {
     lanes L;
     memset(&L, 0, sizeof L);
+    L.blend = job->blend;
     for (int k = 0; k < LANES; k++) {
+        L.best[k] = job->blend == CDVR_BLEND_MIN ? INFINITY : -INFINITY;
         double od[3], dd[3];
         float o[3], d[3], t_near = 0.0f, t_far = 0.0f;
         pixel_ray(job, x + k, y, od, dd);
@@ -808,7 +866,7 @@ static uint64_t render_lanes(const render_job *job, int x, int y)
         L.t_near[k] = t_near;
         L.t_far[k] = t_far;
         L.live[k] = 1;
-        if (job->skip_flags)
+        if (job->skip_flags || job->skip_minmax)
             grid_ray_of(job, o, d, &L.gr[k]);
     }
     __m128 C[3] = {_mm_setzero_ps(), _mm_setzero_ps(), _mm_setzero_ps()}, A = _mm_setzero_ps();
@@ -821,8 +879,11 @@ static uint64_t render_lanes(const render_job *job, int x, int y)
     uint64_t samples = 0;
     for (int k = 0; k < LANES; k++) {
         float *px = cdvr_image_pixel(job->img, x + k, y);
-        for (int c = 0; c < 4; c++)
-            px[c] = out[c][k];
+        if (job->blend == CDVR_BLEND_COMPOSITE)
+            for (int c = 0; c < 4; c++)
+                px[c] = out[c][k];
+        else
+            extreme_pixel(job, L.best[k], L.sum[k], L.taken[k], px);
         samples += L.taken[k];
     }
     return samples;
@@ -1095,8 +1156,10 @@ static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render
 {
     job->skip_flags = NULL;
     job->skip_minmax = NULL;
-    job->lanes = !opts->no_skip && job->blend == CDVR_BLEND_COMPOSITE && !job->shade &&
-                 !job->go_points && !job->clipped;
+    job->lanes = !opts->no_skip && !job->clipped &&
+                 ((job->blend == CDVR_BLEND_COMPOSITE && !job->shade && !job->go_points) ||
+                  job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN ||
+                  job->blend == CDVR_BLEND_AVERAGE);
     int extreme = job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN;
     if (opts->no_skip || job->clipped || (job->blend != CDVR_BLEND_COMPOSITE && !extreme))
         return 0;
