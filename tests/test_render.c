@@ -383,7 +383,7 @@ static void test_engine_png(void)
 
 /* Empty-space skipping and the four-lane march change nothing: blobs of noise in a volume of
  * low values, a TF with zero opacity below 60, eyes outside and inside the volume, oblique and
- * axis-parallel rays, composite shaded and not, max and min (which jump dull bricks), average,
+ * axis-parallel rays, composite plain and shaded with gradient opacity, max and min (which jump dull bricks), average,
  * anisotropic spacing: the image and the samples count equal those with opts.no_skip (one
  * ray at a time, every sample), bit for bit, and the scene has empty and visible stretches. */
 static void test_skipping_is_exact(void)
@@ -418,8 +418,14 @@ static void test_skipping_is_exact(void)
             if (e == 1)
                 cam.up[0] = 1, cam.up[2] = 0; /* looking down z: rays parallel to it at the centre */
             cdvr_render_opts a = options(&tf, &cam, e == 3 ? 0.37 : 0.5, 0.0);
-            if (shade)
+            if (shade) { /* with gradient opacity */
                 cdvr_shading_default(&a.look.shade);
+                a.look.gradient_opacity.npoints = 2;
+                a.look.gradient_opacity.magnitude[0] = 0.0;
+                a.look.gradient_opacity.factor[0] = 0.2;
+                a.look.gradient_opacity.magnitude[1] = 40.0;
+                a.look.gradient_opacity.factor[1] = 1.0;
+            }
             a.look.blend = kind == 2   ? CDVR_BLEND_MAX
                            : kind == 3 ? CDVR_BLEND_MIN
                            : kind == 4 ? CDVR_BLEND_AVERAGE

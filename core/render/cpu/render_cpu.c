@@ -638,10 +638,10 @@ static void pixel_ray(const render_job *job, int x, int y, double origin[3], dou
 }
 
 /* ---- four rays at a time (SSE2) -------------------------------------------------------------
- * The plain composite march (no shading, no gradient opacity, not clipped) of four
- * neighbouring pixels in lock-step: each lane keeps its own segment index, so the lanes take
- * exactly the samples, in the same order, with the same float operations as march_composite
- * (IEEE single precision, the same operand order, no fused multiply-add: maxps/minps are
+ * The composite (shading and gradient opacity per lane, by look_sample), max, min and
+ * average marches (not clipped) of four neighbouring pixels in lock-step: each lane keeps its
+ * own segment index, so the lanes take exactly the samples, in the same order, with the same
+ * float operations as march_composite and march_extreme (IEEE single precision, the same operand order, no fused multiply-add: maxps/minps are
  * max_f/min_f, cvttps2dq is the (int) truncation, cvtdq2ps is exact for the at most 2^24
  * segments of a ray); voxel, brick and table reads are per lane. Lanes that jump empty space
  * or have finished add zero weight, which leaves C and A bit for bit unchanged. The shorter
@@ -659,6 +659,8 @@ typedef struct lanes {
     grid_ray gr[LANES];
     float t_near[LANES], t_far[LANES];
     float o[3][LANES], d[3][LANES];
+    float V[3][LANES];       /* shading: towards the eye, world */
+    float g[3][LANES];       /* the grid positions of the last lanes_sample */
 } lanes;
 
 static inline __m128 lerp4(__m128 a, __m128 b, __m128 f)
@@ -705,7 +707,7 @@ static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], fl
     __m128 ds = _mm_or_ps(_mm_and_ps(is_full, step),
                           _mm_andnot_ps(is_full, _mm_sub_ps(_mm_loadu_ps(L->t_far), ts)));
     __m128 tm = _mm_add_ps(ts, _mm_mul_ps(_mm_set1_ps(0.5f), ds));
-    float g[3][LANES];
+    float (*g)[LANES] = L->g;
     int gi[3][LANES];
     _mm_storeu_ps(dsv, ds);
     __m128 gv[3];
@@ -814,8 +816,11 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
             rgb1[c][k] = hi[c];
         }
     }
-    float alpha[LANES];
+    float alpha[LANES], rgb[3][LANES];
     _mm_storeu_ps(alpha, lerp4(_mm_loadu_ps(a0), _mm_loadu_ps(a1), fr));
+    for (int c = 0; c < 3; c++)
+        _mm_storeu_ps(rgb[c], lerp4(_mm_loadu_ps(rgb0[c]), _mm_loadu_ps(rgb1[c]), fr));
+    int looks = job->shade || job->go_points;
     for (int k = 0; k < LANES; k++) {
         if (!sampling[k])
             alpha[k] = 0.0f;
@@ -824,11 +829,20 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
             classify(job, sv[k], dsv[k], 0, rgba);
             alpha[k] = rgba[3];
         }
+        if (looks && alpha[k] > 0.0f) { /* shading, gradient opacity: per lane (look_sample) */
+            float rgba[4] = {rgb[0][k], rgb[1][k], rgb[2][k], alpha[k]};
+            float gk[3] = {L->g[0][k], L->g[1][k], L->g[2][k]};
+            float Vk[3] = {L->V[0][k], L->V[1][k], L->V[2][k]};
+            look_sample(job, gk, sv[k], dsv[k], Vk, rgba);
+            for (int c = 0; c < 3; c++)
+                rgb[c][k] = rgba[c];
+            alpha[k] = rgba[3];
+        }
     }
     __m128 a = _mm_loadu_ps(alpha);
     __m128 w = _mm_mul_ps(_mm_sub_ps(_mm_set1_ps(1.0f), *A), a);
     for (int c = 0; c < 3; c++)
-        C[c] = _mm_add_ps(C[c], _mm_mul_ps(w, lerp4(_mm_loadu_ps(rgb0[c]), _mm_loadu_ps(rgb1[c]), fr)));
+        C[c] = _mm_add_ps(C[c], _mm_mul_ps(w, _mm_loadu_ps(rgb[c])));
     *A = _mm_add_ps(*A, w);
     float Av[LANES];
     _mm_storeu_ps(Av, *A);
@@ -858,6 +872,7 @@ static uint64_t render_lanes(const render_job *job, int x, int y)
         for (int a = 0; a < 3; a++) {
             L.o[a][k] = o[a];
             L.d[a][k] = d[a];
+            L.V[a][k] = (float)-dd[a]; /* |dd| = 1 */
         }
         if (!intersect_box(job, o, d, &t_near, &t_far))
             continue;
@@ -1157,7 +1172,7 @@ static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render
     job->skip_flags = NULL;
     job->skip_minmax = NULL;
     job->lanes = !opts->no_skip && !job->clipped &&
-                 ((job->blend == CDVR_BLEND_COMPOSITE && !job->shade && !job->go_points) ||
+                 (job->blend == CDVR_BLEND_COMPOSITE ||
                   job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN ||
                   job->blend == CDVR_BLEND_AVERAGE);
     int extreme = job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN;
