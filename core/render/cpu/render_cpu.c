@@ -50,11 +50,11 @@ typedef struct render_job {
     float go_mag[CDVR_GRADIENT_OPACITY_MAX], go_factor[CDVR_GRADIENT_OPACITY_MAX];
     float iso_code, iso_rgb[3], iso_alpha;
     int iso_tf_color;          /* the TF's colour at the iso code */
-    /* empty-space skipping (composite, not clipped): the brick flags of cdvr/skip.h */
+    /* empty-space skipping (not clipped): composite reads the brick flags of cdvr/skip.h */
     const uint8_t *skip_flags; /* NULL: every sample is taken */
     const uint8_t *skip_minmax; /* max, min: brick ranges (NULL: every sample is taken) */
     int skip_shift, skip_nb[3];
-    int lanes;                 /* plain composite rays four at a time (SSE2) */
+    int lanes;                 /* rays four at a time (SSE2): composite, max, min, average */
     const atomic_int *cancel; /* NULL, or stop before the next row once nonzero */
     cdvr_image *img;
     atomic_int next_row;
@@ -369,7 +369,8 @@ static long skip_target(const render_job *job, const grid_ray *r, const float g[
         if (r->d[a] == 0.0)
             continue;
         long b = (long)((int)g[a] >> sh);
-        double face = r->d[a] > 0.0 ? (double)((b + reach + 1) << sh) : (double)((b - reach) << sh);
+        long edge = 1L << sh; /* (b - reach) may be negative: multiply, do not shift */
+        double face = r->d[a] > 0.0 ? (double)((b + reach + 1) * edge) : (double)((b - reach) * edge);
         double m = 0.01 + 1e-5 * (fabs(r->o[a]) + fabs(face));
         face += r->d[a] > 0.0 ? -m : m;
         double t = (face - r->o[a]) * r->inv_d[a];
@@ -384,8 +385,8 @@ static long skip_target(const render_job *job, const grid_ray *r, const float g[
 /* Max and min jump the bricks that cannot change the extreme so far: every sample in a brick
  * lies in its value range, so a brick whose max is at most the best max (min: whose min is at
  * least the best min) is jumped to its exit face as the composite march jumps an invisible
- * cube of reach 0 (skip_target): the result is exactly the unskipped one. */
-/* The value range [min, max] of the brick holding grid position g. */
+ * cube of reach 0 (skip_target): the result is exactly the unskipped one. This gives the
+ * value range [min, max] of the brick holding grid position g. */
 static inline void brick_range(const render_job *job, const float g[3], int *lo, int *hi)
 {
     int sh = job->skip_shift;
@@ -1164,8 +1165,8 @@ static void invisible_reach(cdvr_skip_grid *g, const cdvr_tf *tf)
 /* Empty-space skipping for a composite render of a whole volume: the brick flags of its frame
  * under the TF (cdvr/skip.h, bricks of 2^CDVR_RANGE_SHIFT voxels) into the job. Returns 1 when
  * the grid was made (free it), 0 when the render takes every sample (clipped, another blend
- * mode, opts->no_skip, or no memory: skipping is only a saving). Also chooses the four-lane
- * march for plain composite renders unless opts->no_skip. */
+ * mode, opts->no_skip, or no memory: skipping is only a saving); max and min get the brick
+ * ranges only. Also chooses the four-lane march unless opts->no_skip. */
 static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render_opts *opts,
                       int threads, cdvr_skip_grid *grid)
 {
