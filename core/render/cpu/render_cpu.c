@@ -469,12 +469,36 @@ static float field_at(const render_job *job, const float o[3], const float d[3],
     return sample_volume(job, g);
 }
 
+/* Iso skipping: sample i (at grid position g, not a hit) lies in a brick whose value range
+ * is strictly above or strictly below the iso code c, so the samples after it inside the
+ * brick (skip_target with reach 0) are on the same side as it and as each other: none is a
+ * hit. The march resumes at the last of them, next - 1, which it takes as usual: the hit
+ * test there needs only the side of its predecessor, which sample i's value gives. Returns
+ * the index before the one to take (the loop's i++ follows); jumped samples are counted. */
+static long iso_jump(const render_job *job, const grid_ray *gr, const float g[3], float c,
+                     float t_near, long i, long n, uint64_t *taken)
+{
+    int lo, hi;
+    brick_range(job, g, &lo, &hi);
+    if (!(c < (float)lo || c > (float)hi))
+        return i;
+    long next = skip_target(job, gr, g, 1, t_near, i);
+    next = next < n ? next : n;
+    if (next - 2 <= i)
+        return i;
+    *taken += (uint64_t)(next - 2 - i); /* samples i + 1 .. next - 2: full segments */
+    return next - 2;
+}
+
 /* The first crossing of the iso code, refined by two regula-falsi steps (render.h). */
 static uint64_t march_iso(const render_job *job, const float o[3], const float d[3],
                           float t_near, float t_far, long n, const float V[3], float out[4])
 {
     float c = job->iso_code, prev = 0.0f, t_prev = 0.0f;
     uint64_t taken = 0;
+    grid_ray gr;
+    if (job->skip_minmax)
+        grid_ray_of(job, o, d, &gr);
     for (long i = 0; i < n; i++) {
         float tm, g[3];
         float ts = t_near + (float)i * job->step;
@@ -486,6 +510,8 @@ static uint64_t march_iso(const render_job *job, const float o[3], const float d
         if (!hit) {
             prev = s;
             t_prev = tm;
+            if (job->skip_minmax)
+                i = iso_jump(job, &gr, g, c, t_near, i, n, &taken);
             continue;
         }
         float ta = t_prev, tb = tm, sa = prev, sb = s, t = tm;
@@ -1165,8 +1191,8 @@ static void invisible_reach(cdvr_skip_grid *g, const cdvr_tf *tf)
 /* Empty-space skipping for a composite render of a whole volume: the brick flags of its frame
  * under the TF (cdvr/skip.h, bricks of 2^CDVR_RANGE_SHIFT voxels) into the job. Returns 1 when
  * the grid was made (free it), 0 when the render takes every sample (clipped, another blend
- * mode, opts->no_skip, or no memory: skipping is only a saving); max and min get the brick
- * ranges only. Also chooses the four-lane march unless opts->no_skip. */
+ * mode, opts->no_skip, or no memory: skipping is only a saving); max, min and iso get the
+ * brick ranges only. Also chooses the four-lane march unless opts->no_skip. */
 static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render_opts *opts,
                       int threads, cdvr_skip_grid *grid)
 {
@@ -1176,7 +1202,8 @@ static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render
                  (job->blend == CDVR_BLEND_COMPOSITE ||
                   job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN ||
                   job->blend == CDVR_BLEND_AVERAGE);
-    int extreme = job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN;
+    int extreme = job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN ||
+                  job->blend == CDVR_BLEND_ISO;
     if (opts->no_skip || job->clipped || (job->blend != CDVR_BLEND_COMPOSITE && !extreme))
         return 0;
     cdvr_error ignored;
