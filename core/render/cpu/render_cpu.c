@@ -469,20 +469,21 @@ static float field_at(const render_job *job, const float o[3], const float d[3],
     return sample_volume(job, g);
 }
 
-/* Iso skipping: sample i (at grid position g, not a hit) lies in a brick whose value range
- * is strictly above or strictly below the iso code c, so the samples after it inside the
- * brick (skip_target with reach 0) are on the same side as it and as each other: none is a
- * hit. The march resumes at the last of them, next - 1, which it takes as usual: the hit
- * test there needs only the side of its predecessor, which sample i's value gives. Returns
- * the index before the one to take (the loop's i++ follows); jumped samples are counted. */
-static long iso_jump(const render_job *job, const grid_ray *gr, const float g[3], float c,
-                     float t_near, long i, long n, uint64_t *taken)
+/* Iso skipping: the flags (iso_flags) mark the bricks whose value range holds the iso code;
+ * in a cube of bricks that do not, every value lies on one side of it (neighbouring bricks
+ * share their boundary voxels, so a connected block of bricks each wholly above or below the
+ * code is wholly on one side). Sample i (at grid position g, not a hit) in such a cube: the
+ * samples after it inside the cube are on its side: none is a hit. The march resumes at the
+ * last of them, next - 1, which it takes as usual: the hit test there needs only the side of
+ * its predecessor, which sample i's value gives. Returns the index before the one to take
+ * (the loop's i++ follows); the samples jumped are counted. */
+static long iso_jump(const render_job *job, const grid_ray *gr, const float g[3], float t_near,
+                     long i, long n, uint64_t *taken)
 {
-    int lo, hi;
-    brick_range(job, g, &lo, &hi);
-    if (!(c < (float)lo || c > (float)hi))
+    int code = brick_code(job, g);
+    if (code >= 128)
         return i;
-    long next = skip_target(job, gr, g, 1, t_near, i);
+    long next = skip_target(job, gr, g, code, t_near, i);
     next = next < n ? next : n;
     if (next - 2 <= i)
         return i;
@@ -497,7 +498,7 @@ static uint64_t march_iso(const render_job *job, const float o[3], const float d
     float c = job->iso_code, prev = 0.0f, t_prev = 0.0f;
     uint64_t taken = 0;
     grid_ray gr;
-    if (job->skip_minmax)
+    if (job->skip_flags)
         grid_ray_of(job, o, d, &gr);
     for (long i = 0; i < n; i++) {
         float tm, g[3];
@@ -510,8 +511,8 @@ static uint64_t march_iso(const render_job *job, const float o[3], const float d
         if (!hit) {
             prev = s;
             t_prev = tm;
-            if (job->skip_minmax)
-                i = iso_jump(job, &gr, g, c, t_near, i, n, &taken);
+            if (job->skip_flags)
+                i = iso_jump(job, &gr, g, t_near, i, n, &taken);
             continue;
         }
         float ta = t_prev, tb = tm, sa = prev, sb = s, t = tm;
@@ -1166,6 +1167,16 @@ int cdvr_render_view_hits(const cdvr_volume *vol, const cdvr_camera *cam)
     return hit;
 }
 
+/* Flags from the marked bricks: 128 where marked, else the distance to the nearest mark. */
+static void reach_flags(cdvr_skip_grid *g, const uint8_t *visible)
+{
+    cdvr_skip_distance(visible, g->flags, g->dims);
+    for (size_t b = 0; b < g->nbricks; b++) {
+        int d = g->flags[b];
+        g->flags[b] = (uint8_t)(visible[b] ? 128 : d > CDVR_SKIP_REACH_MAX ? CDVR_SKIP_REACH_MAX : d);
+    }
+}
+
 /* The flags of cdvr/skip.h that the march reads: an invisible brick's code (its chessboard
  * distance to the nearest visible brick, at most CDVR_SKIP_REACH_MAX), and 128 for every
  * visible brick (the march never needs a visible brick's reach), which saves
@@ -1181,18 +1192,23 @@ static void invisible_reach(cdvr_skip_grid *g, const cdvr_tf *tf)
         int lo = g->minmax[2 * b], hi = g->minmax[2 * b + 1];
         visible[b] = lo <= hi && prefix[hi + 1] - prefix[lo] > 0;
     }
-    cdvr_skip_distance(visible, g->flags, g->dims);
-    for (size_t b = 0; b < g->nbricks; b++) {
-        int d = g->flags[b];
-        g->flags[b] = (uint8_t)(visible[b] ? 128 : d > CDVR_SKIP_REACH_MAX ? CDVR_SKIP_REACH_MAX : d);
-    }
+    reach_flags(g, visible);
+}
+
+/* The same flags with "visible" meaning that the brick's range holds iso code c (iso_jump). */
+static void iso_flags(cdvr_skip_grid *g, float c)
+{
+    uint8_t *holds = g->scratch;
+    for (size_t b = 0; b < g->nbricks; b++)
+        holds[b] = (float)g->minmax[2 * b] <= c && c <= (float)g->minmax[2 * b + 1];
+    reach_flags(g, holds);
 }
 
 /* Empty-space skipping for a composite render of a whole volume: the brick flags of its frame
  * under the TF (cdvr/skip.h, bricks of 2^CDVR_RANGE_SHIFT voxels) into the job. Returns 1 when
  * the grid was made (free it), 0 when the render takes every sample (clipped, another blend
- * mode, opts->no_skip, or no memory: skipping is only a saving); max, min and iso get the
- * brick ranges only. Also chooses the four-lane march unless opts->no_skip. */
+ * mode, opts->no_skip, or no memory: skipping is only a saving); max and min get the brick
+ * ranges only, iso the flags of iso_flags. Also chooses the four-lane march unless opts->no_skip. */
 static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render_opts *opts,
                       int threads, cdvr_skip_grid *grid)
 {
@@ -1202,9 +1218,9 @@ static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render
                  (job->blend == CDVR_BLEND_COMPOSITE ||
                   job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN ||
                   job->blend == CDVR_BLEND_AVERAGE);
-    int extreme = job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN ||
-                  job->blend == CDVR_BLEND_ISO;
-    if (opts->no_skip || job->clipped || (job->blend != CDVR_BLEND_COMPOSITE && !extreme))
+    int extreme = job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN;
+    if (opts->no_skip || job->clipped ||
+        (job->blend != CDVR_BLEND_COMPOSITE && job->blend != CDVR_BLEND_ISO && !extreme))
         return 0;
     cdvr_error ignored;
     if (cdvr_skip_grid_init(grid, vol->dims, CDVR_RANGE_SHIFT, &ignored) != CDVR_OK)
@@ -1217,7 +1233,10 @@ static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render
     job->skip_shift = (int)grid->shift;
     if (extreme)
         job->skip_minmax = grid->minmax;
-    else {
+    else if (job->blend == CDVR_BLEND_ISO) {
+        iso_flags(grid, job->iso_code);
+        job->skip_flags = grid->flags;
+    } else {
         invisible_reach(grid, opts->tf);
         job->skip_flags = grid->flags;
     }
