@@ -381,9 +381,10 @@ static void test_engine_png(void)
     cdvr_volume_free(v);
 }
 
-/* Empty-space skipping and the four-lane march change nothing: blobs of noise in a volume of
- * low values, a TF with zero opacity below 60, eyes outside and inside the volume, oblique and
- * axis-parallel rays, composite shaded and not, max and min (which jump dull bricks),
+/* Empty-space skipping and the four-lane march change nothing: blobs of noise and a smooth
+ * ramp in a volume of low values, a TF with zero opacity below 60, eyes outside and inside the volume, oblique and
+ * axis-parallel rays, composite plain and shaded with gradient opacity, max and min (which jump
+ * dull bricks), average, shaded iso (which jumps bricks wholly above or below the iso value),
  * anisotropic spacing: the image and the samples count equal those with opts.no_skip (one
  * ray at a time, every sample), bit for bit, and the scene has empty and visible stretches. */
 static void test_skipping_is_exact(void)
@@ -402,7 +403,10 @@ static void test_skipping_is_exact(void)
                 double r1 = hypot(hypot((double)x - 12, (double)y - 10), (double)z - 9);
                 double r2 = hypot(hypot((double)x - 33, (double)y - 27), (double)z - 22);
                 int inside = r1 < 7.5 || r2 < 5.2 || (x == 40 && y == 5);
-                d[x + 45 * (y + 38 * z)] = inside ? (uint8_t)(state >> 24) : (uint8_t)(z & 3);
+                int ramp = y >= 30 && z < 12; /* smooth: narrow brick ranges across iso 100 */
+                d[x + 45 * (y + 38 * z)] = inside ? (uint8_t)(state >> 24)
+                                           : ramp ? (uint8_t)(40 + 4 * x)
+                                                  : (uint8_t)(z & 3);
             }
     cdvr_tf_point pts[] = {{0, 0, 0, 0, 0}, {59, 0, 0, 0, 0}, {60, 1, 0.5, 0, 0.05},
                            {255, 0.2, 0.4, 1, 0.9}};
@@ -412,16 +416,28 @@ static void test_skipping_is_exact(void)
     double eyes[][3] = {{-40, -55, 70}, {17.5, 18.5, 100}, {20, 20, 20}, {80, 30.3, 10}};
     double center[3] = {17.6, 18.5, 20.8};
     for (int e = 0; e < 4; e++)
-        for (int kind = 0; kind < 4; kind++) { /* composite, shaded composite, max, min */
-            int shade = kind == 1;
+        for (int kind = 0; kind < 6; kind++) { /* composite, shaded, max, min, average, iso */
+            int shade = kind == 1 || kind == 5;
             cdvr_camera cam = camera(eyes[e], center, 48);
             if (e == 1)
                 cam.up[0] = 1, cam.up[2] = 0; /* looking down z: rays parallel to it at the centre */
             cdvr_render_opts a = options(&tf, &cam, e == 3 ? 0.37 : 0.5, 0.0);
-            if (shade)
+            if (shade && kind == 5)
                 cdvr_shading_default(&a.look.shade);
-            a.look.blend = kind == 2 ? CDVR_BLEND_MAX : kind == 3 ? CDVR_BLEND_MIN
-                                                                  : CDVR_BLEND_COMPOSITE;
+            else if (shade) { /* with gradient opacity */
+                cdvr_shading_default(&a.look.shade);
+                a.look.gradient_opacity.npoints = 2;
+                a.look.gradient_opacity.magnitude[0] = 0.0;
+                a.look.gradient_opacity.factor[0] = 0.2;
+                a.look.gradient_opacity.magnitude[1] = 40.0;
+                a.look.gradient_opacity.factor[1] = 1.0;
+            }
+            a.look.blend = kind == 2   ? CDVR_BLEND_MAX
+                           : kind == 3 ? CDVR_BLEND_MIN
+                           : kind == 4 ? CDVR_BLEND_AVERAGE
+                           : kind == 5 ? CDVR_BLEND_ISO
+                                       : CDVR_BLEND_COMPOSITE;
+            a.look.iso_value = 100.0; /* iso: brick ranges wholly above or below it are jumped */
             cdvr_render_opts b = a;
             b.no_skip = 1;
             cdvr_image *ia = render(v, &a), *ib = render(v, &b);
@@ -435,7 +451,7 @@ static void test_skipping_is_exact(void)
                 CHECK(a.samples == b.samples, "eye %d case %d: %llu samples with skipping, %llu "
                       "without", e, kind, (unsigned long long)a.samples,
                       (unsigned long long)b.samples);
-                if (kind < 3) /* min is the low background: nothing lit */
+                if (kind < 3 || kind == 5) /* min and average are low: little or nothing lit */
                     CHECK(lit > 40 && lit < 48 * 48 - 40, "eye %d case %d: %d pixels lit: scene "
                           "too weak", e, kind, lit);
             }

@@ -50,11 +50,11 @@ typedef struct render_job {
     float go_mag[CDVR_GRADIENT_OPACITY_MAX], go_factor[CDVR_GRADIENT_OPACITY_MAX];
     float iso_code, iso_rgb[3], iso_alpha;
     int iso_tf_color;          /* the TF's colour at the iso code */
-    /* empty-space skipping (composite, not clipped): the brick flags of cdvr/skip.h */
+    /* empty-space skipping (not clipped): composite reads the brick flags of cdvr/skip.h */
     const uint8_t *skip_flags; /* NULL: every sample is taken */
     const uint8_t *skip_minmax; /* max, min: brick ranges (NULL: every sample is taken) */
     int skip_shift, skip_nb[3];
-    int lanes;                 /* plain composite rays four at a time (SSE2) */
+    int lanes;                 /* rays four at a time (SSE2): composite, max, min, average */
     const atomic_int *cancel; /* NULL, or stop before the next row once nonzero */
     cdvr_image *img;
     atomic_int next_row;
@@ -369,7 +369,8 @@ static long skip_target(const render_job *job, const grid_ray *r, const float g[
         if (r->d[a] == 0.0)
             continue;
         long b = (long)((int)g[a] >> sh);
-        double face = r->d[a] > 0.0 ? (double)((b + reach + 1) << sh) : (double)((b - reach) << sh);
+        long edge = 1L << sh; /* (b - reach) may be negative: multiply, do not shift */
+        double face = r->d[a] > 0.0 ? (double)((b + reach + 1) * edge) : (double)((b - reach) * edge);
         double m = 0.01 + 1e-5 * (fabs(r->o[a]) + fabs(face));
         face += r->d[a] > 0.0 ? -m : m;
         double t = (face - r->o[a]) * r->inv_d[a];
@@ -384,8 +385,8 @@ static long skip_target(const render_job *job, const grid_ray *r, const float g[
 /* Max and min jump the bricks that cannot change the extreme so far: every sample in a brick
  * lies in its value range, so a brick whose max is at most the best max (min: whose min is at
  * least the best min) is jumped to its exit face as the composite march jumps an invisible
- * cube of reach 0 (skip_target): the result is exactly the unskipped one. */
-/* The value range [min, max] of the brick holding grid position g. */
+ * cube of reach 0 (skip_target): the result is exactly the unskipped one. This gives the
+ * value range [min, max] of the brick holding grid position g. */
 static inline void brick_range(const render_job *job, const float g[3], int *lo, int *hi)
 {
     int sh = job->skip_shift;
@@ -395,6 +396,21 @@ static inline void brick_range(const render_job *job, const float g[3], int *lo,
         job->skip_minmax + 2 * (bx + (size_t)job->skip_nb[0] * (by + (size_t)job->skip_nb[1] * bz));
     *lo = mm[0];
     *hi = mm[1];
+}
+
+/* The pixel of a max, min or average ray from its extreme, sum and samples (none: (0, 0)). */
+static void extreme_pixel(const render_job *job, float best, double sum, uint64_t taken,
+                          float out[4])
+{
+    if (!taken) {
+        out[0] = out[1] = out[2] = out[3] = 0.0f;
+        return;
+    }
+    float s = job->blend == CDVR_BLEND_AVERAGE ? (float)(sum / (double)taken) : best, rgba[4];
+    table_at(job, s, rgba);
+    for (int c = 0; c < 3; c++)
+        out[c] = rgba[c] * rgba[3];
+    out[3] = rgba[3];
 }
 
 /* Max, min or average of the samples' codes; returns the samples taken (jumped included). */
@@ -438,13 +454,7 @@ static uint64_t march_extreme(const render_job *job, const float o[3], const flo
         sum += s;
         best = is_max ? max_f(best, s) : job->blend == CDVR_BLEND_MIN ? min_f(best, s) : best;
     }
-    if (!taken)
-        return 0;
-    float s = job->blend == CDVR_BLEND_AVERAGE ? (float)(sum / (double)taken) : best, rgba[4];
-    table_at(job, s, rgba);
-    for (int c = 0; c < 3; c++)
-        out[c] = rgba[c] * rgba[3];
-    out[3] = rgba[3];
+    extreme_pixel(job, best, sum, taken, out);
     return taken;
 }
 
@@ -459,12 +469,37 @@ static float field_at(const render_job *job, const float o[3], const float d[3],
     return sample_volume(job, g);
 }
 
+/* Iso skipping: the flags (iso_flags) mark the bricks whose value range holds the iso code;
+ * in a cube of bricks that do not, every value lies on one side of it (neighbouring bricks
+ * share their boundary voxels, so a connected block of bricks each wholly above or below the
+ * code is wholly on one side). Sample i (at grid position g, not a hit) in such a cube: the
+ * samples after it inside the cube are on its side: none is a hit. The march resumes at the
+ * last of them, next - 1, which it takes as usual: the hit test there needs only the side of
+ * its predecessor, which sample i's value gives. Returns the index before the one to take
+ * (the loop's i++ follows); the samples jumped are counted. */
+static long iso_jump(const render_job *job, const grid_ray *gr, const float g[3], float t_near,
+                     long i, long n, uint64_t *taken)
+{
+    int code = brick_code(job, g);
+    if (code >= 128)
+        return i;
+    long next = skip_target(job, gr, g, code, t_near, i);
+    next = next < n ? next : n;
+    if (next - 2 <= i)
+        return i;
+    *taken += (uint64_t)(next - 2 - i); /* samples i + 1 .. next - 2: full segments */
+    return next - 2;
+}
+
 /* The first crossing of the iso code, refined by two regula-falsi steps (render.h). */
 static uint64_t march_iso(const render_job *job, const float o[3], const float d[3],
                           float t_near, float t_far, long n, const float V[3], float out[4])
 {
     float c = job->iso_code, prev = 0.0f, t_prev = 0.0f;
     uint64_t taken = 0;
+    grid_ray gr;
+    if (job->skip_flags)
+        grid_ray_of(job, o, d, &gr);
     for (long i = 0; i < n; i++) {
         float tm, g[3];
         float ts = t_near + (float)i * job->step;
@@ -476,6 +511,8 @@ static uint64_t march_iso(const render_job *job, const float o[3], const float d
         if (!hit) {
             prev = s;
             t_prev = tm;
+            if (job->skip_flags)
+                i = iso_jump(job, &gr, g, t_near, i, n, &taken);
             continue;
         }
         float ta = t_prev, tb = tm, sa = prev, sb = s, t = tm;
@@ -629,10 +666,10 @@ static void pixel_ray(const render_job *job, int x, int y, double origin[3], dou
 }
 
 /* ---- four rays at a time (SSE2) -------------------------------------------------------------
- * The plain composite march (no shading, no gradient opacity, not clipped) of four
- * neighbouring pixels in lock-step: each lane keeps its own segment index, so the lanes take
- * exactly the samples, in the same order, with the same float operations as march_composite
- * (IEEE single precision, the same operand order, no fused multiply-add: maxps/minps are
+ * The composite (shading and gradient opacity per lane, by look_sample), max, min and
+ * average marches (not clipped) of four neighbouring pixels in lock-step: each lane keeps its
+ * own segment index, so the lanes take exactly the samples, in the same order, with the same
+ * float operations as march_composite and march_extreme (IEEE single precision, the same operand order, no fused multiply-add: maxps/minps are
  * max_f/min_f, cvttps2dq is the (int) truncation, cvtdq2ps is exact for the at most 2^24
  * segments of a ray); voxel, brick and table reads are per lane. Lanes that jump empty space
  * or have finished add zero weight, which leaves C and A bit for bit unchanged. The shorter
@@ -641,12 +678,17 @@ static void pixel_ray(const render_job *job, int x, int y, double origin[3], dou
 #define LANES 4
 
 typedef struct lanes {
+    int blend;               /* composite, max, min or average (cdvr_blend) */
+    float best[LANES];       /* max, min: the extreme so far */
+    double sum[LANES];       /* average: the sum of the codes */
     int live[LANES];         /* still marching */
     int i[LANES], n[LANES];  /* segment index, segments */
     uint64_t taken[LANES];
     grid_ray gr[LANES];
     float t_near[LANES], t_far[LANES];
     float o[3][LANES], d[3][LANES];
+    float V[3][LANES];       /* shading: towards the eye, world */
+    float g[3][LANES];       /* the grid positions of the last lanes_sample */
 } lanes;
 
 static inline __m128 lerp4(__m128 a, __m128 b, __m128 f)
@@ -679,8 +721,11 @@ static inline void gather_lane(const render_job *job, const int i0[3], float v[8
     v[7][k] = cv[r11[hi[0]]];
 }
 
-/* One step of every live lane; returns the lanes still live. */
-static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
+/* Steps 2-3 for the live lanes at their segment index: lanes in empty space (composite:
+ * invisible bricks; max, min: dull bricks) jump, the others interpolate their sample into *s
+ * (sampling[k] = 1; ds[k] its segment length). Returns 0 when no lane samples. */
+static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], float dsv[LANES],
+                        __m128 *s)
 {
     const __m128 step = _mm_set1_ps(job->step), zero = _mm_setzero_ps();
     __m128i iv = _mm_loadu_si128((const __m128i *)L->i);
@@ -690,7 +735,7 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
     __m128 ds = _mm_or_ps(_mm_and_ps(is_full, step),
                           _mm_andnot_ps(is_full, _mm_sub_ps(_mm_loadu_ps(L->t_far), ts)));
     __m128 tm = _mm_add_ps(ts, _mm_mul_ps(_mm_set1_ps(0.5f), ds));
-    float g[3][LANES], dsv[LANES];
+    float (*g)[LANES] = L->g;
     int gi[3][LANES];
     _mm_storeu_ps(dsv, ds);
     __m128 gv[3];
@@ -702,7 +747,6 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
         _mm_storeu_si128((__m128i *)gi[a], _mm_cvttps_epi32(gv[a]));
     }
     float v[8][LANES];
-    int sampling[LANES];
     for (int k = 0; k < LANES; k++) {
         sampling[k] = 0;
         for (int c = 0; c < 8; c++)
@@ -714,9 +758,17 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
             continue;
         }
         float gk[3] = {g[0][k], g[1][k], g[2][k]};
+        int jump = 0, code = 1;
         if (job->skip_flags) {
-            int code = brick_code(job, gk);
-            if (code < 128) {
+            code = brick_code(job, gk);
+            jump = code < 128;
+        } else if (job->skip_minmax) {
+            int lo, hi;
+            brick_range(job, gk, &lo, &hi);
+            jump = L->blend == CDVR_BLEND_MAX ? (float)hi <= L->best[k] : (float)lo >= L->best[k];
+        }
+        {
+            if (jump) {
                 long next = skip_target(job, &L->gr[k], gk, code, L->t_near[k], L->i[k]);
                 int n = L->n[k];
                 next = next < n ? next : n;
@@ -733,7 +785,7 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
         sampling[k] = 1;
     }
     if (!(sampling[0] | sampling[1] | sampling[2] | sampling[3]))
-        return L->live[0] | L->live[1] | L->live[2] | L->live[3];
+        return 0;
     __m128 f[3];
     for (int a = 0; a < 3; a++)
         f[a] = _mm_sub_ps(gv[a], _mm_cvtepi32_ps(_mm_loadu_si128((const __m128i *)gi[a])));
@@ -741,7 +793,41 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
     __m128 c10 = lerp4(_mm_loadu_ps(v[2]), _mm_loadu_ps(v[3]), f[0]);
     __m128 c01 = lerp4(_mm_loadu_ps(v[4]), _mm_loadu_ps(v[5]), f[0]);
     __m128 c11 = lerp4(_mm_loadu_ps(v[6]), _mm_loadu_ps(v[7]), f[0]);
-    __m128 s = lerp4(lerp4(c00, c10, f[1]), lerp4(c01, c11, f[1]), f[2]);
+    *s = lerp4(lerp4(c00, c10, f[1]), lerp4(c01, c11, f[1]), f[2]);
+    return 1;
+}
+
+/* Max, min, average: the codes of the sampling lanes into their extreme or sum. */
+static void lanes_extreme(lanes *L, const int sampling[LANES], __m128 s)
+{
+    float sv[LANES];
+    _mm_storeu_ps(sv, s);
+    for (int k = 0; k < LANES; k++) {
+        if (!sampling[k])
+            continue;
+        float b = L->best[k];
+        if (L->blend == CDVR_BLEND_AVERAGE)
+            L->sum[k] += sv[k];
+        else
+            L->best[k] = L->blend == CDVR_BLEND_MAX ? max_f(b, sv[k]) : min_f(b, sv[k]);
+        L->taken[k]++;
+        L->i[k]++;
+        L->live[k] = L->i[k] < L->n[k];
+    }
+}
+
+/* One step of every live lane; returns the lanes still live. */
+static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
+{
+    int sampling[LANES];
+    float dsv[LANES];
+    __m128 s;
+    if (!lanes_sample(job, L, sampling, dsv, &s))
+        return L->live[0] | L->live[1] | L->live[2] | L->live[3];
+    if (L->blend != CDVR_BLEND_COMPOSITE) {
+        lanes_extreme(L, sampling, s);
+        return L->live[0] | L->live[1] | L->live[2] | L->live[3];
+    }
     /* step 4: i0 = min((int)s, 254) as the truncation of min(s, 254) */
     __m128i si = _mm_cvttps_epi32(_mm_min_ps(s, _mm_set1_ps(254.0f)));
     __m128 fr = _mm_sub_ps(s, _mm_cvtepi32_ps(si));
@@ -758,8 +844,11 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
             rgb1[c][k] = hi[c];
         }
     }
-    float alpha[LANES];
+    float alpha[LANES], rgb[3][LANES];
     _mm_storeu_ps(alpha, lerp4(_mm_loadu_ps(a0), _mm_loadu_ps(a1), fr));
+    for (int c = 0; c < 3; c++)
+        _mm_storeu_ps(rgb[c], lerp4(_mm_loadu_ps(rgb0[c]), _mm_loadu_ps(rgb1[c]), fr));
+    int looks = job->shade || job->go_points;
     for (int k = 0; k < LANES; k++) {
         if (!sampling[k])
             alpha[k] = 0.0f;
@@ -768,11 +857,20 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
             classify(job, sv[k], dsv[k], 0, rgba);
             alpha[k] = rgba[3];
         }
+        if (looks && alpha[k] > 0.0f) { /* shading, gradient opacity: per lane (look_sample) */
+            float rgba[4] = {rgb[0][k], rgb[1][k], rgb[2][k], alpha[k]};
+            float gk[3] = {L->g[0][k], L->g[1][k], L->g[2][k]};
+            float Vk[3] = {L->V[0][k], L->V[1][k], L->V[2][k]};
+            look_sample(job, gk, sv[k], dsv[k], Vk, rgba);
+            for (int c = 0; c < 3; c++)
+                rgb[c][k] = rgba[c];
+            alpha[k] = rgba[3];
+        }
     }
     __m128 a = _mm_loadu_ps(alpha);
     __m128 w = _mm_mul_ps(_mm_sub_ps(_mm_set1_ps(1.0f), *A), a);
     for (int c = 0; c < 3; c++)
-        C[c] = _mm_add_ps(C[c], _mm_mul_ps(w, lerp4(_mm_loadu_ps(rgb0[c]), _mm_loadu_ps(rgb1[c]), fr)));
+        C[c] = _mm_add_ps(C[c], _mm_mul_ps(w, _mm_loadu_ps(rgb[c])));
     *A = _mm_add_ps(*A, w);
     float Av[LANES];
     _mm_storeu_ps(Av, *A);
@@ -792,7 +890,9 @@ static uint64_t render_lanes(const render_job *job, int x, int y)
 {
     lanes L;
     memset(&L, 0, sizeof L);
+    L.blend = job->blend;
     for (int k = 0; k < LANES; k++) {
+        L.best[k] = job->blend == CDVR_BLEND_MIN ? INFINITY : -INFINITY;
         double od[3], dd[3];
         float o[3], d[3], t_near = 0.0f, t_far = 0.0f;
         pixel_ray(job, x + k, y, od, dd);
@@ -800,6 +900,7 @@ static uint64_t render_lanes(const render_job *job, int x, int y)
         for (int a = 0; a < 3; a++) {
             L.o[a][k] = o[a];
             L.d[a][k] = d[a];
+            L.V[a][k] = (float)-dd[a]; /* |dd| = 1 */
         }
         if (!intersect_box(job, o, d, &t_near, &t_far))
             continue;
@@ -808,7 +909,7 @@ static uint64_t render_lanes(const render_job *job, int x, int y)
         L.t_near[k] = t_near;
         L.t_far[k] = t_far;
         L.live[k] = 1;
-        if (job->skip_flags)
+        if (job->skip_flags || job->skip_minmax)
             grid_ray_of(job, o, d, &L.gr[k]);
     }
     __m128 C[3] = {_mm_setzero_ps(), _mm_setzero_ps(), _mm_setzero_ps()}, A = _mm_setzero_ps();
@@ -821,8 +922,11 @@ static uint64_t render_lanes(const render_job *job, int x, int y)
     uint64_t samples = 0;
     for (int k = 0; k < LANES; k++) {
         float *px = cdvr_image_pixel(job->img, x + k, y);
-        for (int c = 0; c < 4; c++)
-            px[c] = out[c][k];
+        if (job->blend == CDVR_BLEND_COMPOSITE)
+            for (int c = 0; c < 4; c++)
+                px[c] = out[c][k];
+        else
+            extreme_pixel(job, L.best[k], L.sum[k], L.taken[k], px);
         samples += L.taken[k];
     }
     return samples;
@@ -1063,6 +1167,16 @@ int cdvr_render_view_hits(const cdvr_volume *vol, const cdvr_camera *cam)
     return hit;
 }
 
+/* Flags from the marked bricks: 128 where marked, else the distance to the nearest mark. */
+static void reach_flags(cdvr_skip_grid *g, const uint8_t *visible)
+{
+    cdvr_skip_distance(visible, g->flags, g->dims);
+    for (size_t b = 0; b < g->nbricks; b++) {
+        int d = g->flags[b];
+        g->flags[b] = (uint8_t)(visible[b] ? 128 : d > CDVR_SKIP_REACH_MAX ? CDVR_SKIP_REACH_MAX : d);
+    }
+}
+
 /* The flags of cdvr/skip.h that the march reads: an invisible brick's code (its chessboard
  * distance to the nearest visible brick, at most CDVR_SKIP_REACH_MAX), and 128 for every
  * visible brick (the march never needs a visible brick's reach), which saves
@@ -1078,27 +1192,35 @@ static void invisible_reach(cdvr_skip_grid *g, const cdvr_tf *tf)
         int lo = g->minmax[2 * b], hi = g->minmax[2 * b + 1];
         visible[b] = lo <= hi && prefix[hi + 1] - prefix[lo] > 0;
     }
-    cdvr_skip_distance(visible, g->flags, g->dims);
-    for (size_t b = 0; b < g->nbricks; b++) {
-        int d = g->flags[b];
-        g->flags[b] = (uint8_t)(visible[b] ? 128 : d > CDVR_SKIP_REACH_MAX ? CDVR_SKIP_REACH_MAX : d);
-    }
+    reach_flags(g, visible);
+}
+
+/* The same flags with "visible" meaning that the brick's range holds iso code c (iso_jump). */
+static void iso_flags(cdvr_skip_grid *g, float c)
+{
+    uint8_t *holds = g->scratch;
+    for (size_t b = 0; b < g->nbricks; b++)
+        holds[b] = (float)g->minmax[2 * b] <= c && c <= (float)g->minmax[2 * b + 1];
+    reach_flags(g, holds);
 }
 
 /* Empty-space skipping for a composite render of a whole volume: the brick flags of its frame
  * under the TF (cdvr/skip.h, bricks of 2^CDVR_RANGE_SHIFT voxels) into the job. Returns 1 when
  * the grid was made (free it), 0 when the render takes every sample (clipped, another blend
- * mode, opts->no_skip, or no memory: skipping is only a saving). Also chooses the four-lane
- * march for plain composite renders unless opts->no_skip. */
+ * mode, opts->no_skip, or no memory: skipping is only a saving); max and min get the brick
+ * ranges only, iso the flags of iso_flags. Also chooses the four-lane march unless opts->no_skip. */
 static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render_opts *opts,
                       int threads, cdvr_skip_grid *grid)
 {
     job->skip_flags = NULL;
     job->skip_minmax = NULL;
-    job->lanes = !opts->no_skip && job->blend == CDVR_BLEND_COMPOSITE && !job->shade &&
-                 !job->go_points && !job->clipped;
+    job->lanes = !opts->no_skip && !job->clipped &&
+                 (job->blend == CDVR_BLEND_COMPOSITE ||
+                  job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN ||
+                  job->blend == CDVR_BLEND_AVERAGE);
     int extreme = job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN;
-    if (opts->no_skip || job->clipped || (job->blend != CDVR_BLEND_COMPOSITE && !extreme))
+    if (opts->no_skip || job->clipped ||
+        (job->blend != CDVR_BLEND_COMPOSITE && job->blend != CDVR_BLEND_ISO && !extreme))
         return 0;
     cdvr_error ignored;
     if (cdvr_skip_grid_init(grid, vol->dims, CDVR_RANGE_SHIFT, &ignored) != CDVR_OK)
@@ -1111,7 +1233,10 @@ static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render
     job->skip_shift = (int)grid->shift;
     if (extreme)
         job->skip_minmax = grid->minmax;
-    else {
+    else if (job->blend == CDVR_BLEND_ISO) {
+        iso_flags(grid, job->iso_code);
+        job->skip_flags = grid->flags;
+    } else {
         invisible_reach(grid, opts->tf);
         job->skip_flags = grid->flags;
     }
