@@ -24,7 +24,8 @@
 --
 -- On one 2-core machine N ranks share two cores: the figures show correctness and the
 -- overheads (composite, waiting, per-rank fixed costs), not speed-up.
-local common = dofile((debug.getinfo(1, "S").source:match("^@(.*)/[^/]+$") or ".") .. "/common.lua")
+-- arg[0], not debug.getinfo: under cdvr's script runner the main chunk's frame is a C frame
+local common = dofile((arg and arg[0] and arg[0]:match("^(.*/)") or "./") .. "common.lua")
 
 local function split(s)
   local out = {}
@@ -90,7 +91,7 @@ end
 
 -- ---- driver ------------------------------------------------------------------------------
 local exe = arg[-1] or "build/cdvr"
-local script = debug.getinfo(1, "S").source:match("^@(.*)$")
+local script = arg[0]
 local mpirun = os.getenv("CDVR_MPIEXEC") or "mpirun"
 local root = io.popen("id -u"):read("l") == "0"
 -- --bind-to none: Open MPI binds each rank to one core by default, which would halve a lone
