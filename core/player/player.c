@@ -142,6 +142,8 @@ struct cdvr_player {
     uint8_t *brick_frames[MAX_UNZIP]; /* per worker scratch: decoded frames of one brick */
     size_t brick_frames_cap[MAX_UNZIP];
     int *host_decodes;       /* per variant (cl device): its decode is faster on the host */
+    int fetch_bulk;          /* cl device: fetch-mode codecs decode in bulk on the host
+                                (cdvr_cl_fetch_path_of is BULK) */
 #if CDVR_HAVE_OPENCL
     cdvr_cl *cl;
     cdvr_cl_stream *stream;
@@ -757,7 +759,7 @@ static int decodes_on_host(cdvr_player *p, const chunk_item *it)
     if (!ch->codec || ch->codec->cl_mode == CDVR_CODEC_CL_NONE || p->nbricks > 1)
         return 1;
     if (ch->codec->cl_mode != CDVR_CODEC_CL_DECODE)
-        return 0;
+        return p->fetch_bulk;
     pthread_mutex_lock(&p->mu);
     int host = p->host_decodes[it->variant];
     pthread_mutex_unlock(&p->mu);
@@ -1498,8 +1500,11 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
         cdvr_status s = cdvr_cl_open(&p->cl, err);
         if (s == CDVR_OK)
             s = cdvr_cl_stream_create(p->cl, p->vox_dims, &p->stream, err);
-        if (s == CDVR_OK)
+        if (s == CDVR_OK) {
             cdvr_cl_set_skipping(p->stream, opts->empty_skip);
+            cdvr_cl_set_fetch_path(p->stream, (cdvr_cl_fetch_path)opts->fetch_path);
+            p->fetch_bulk = cdvr_cl_fetch_path_of(p->stream) == CDVR_CL_FETCH_BULK;
+        }
         if (s != CDVR_OK) {
             cdvr_player_free(p);
             return s;

@@ -9,12 +9,19 @@
 #include "cdvr/timing.h"
 
 typedef struct raycast_params {
-    int skip; /* empty-space skipping on the cl device */
+    int skip;  /* empty-space skipping on the cl device */
+    int fetch; /* fetch-mode codecs on cl: 0 auto, 1 sample, 2 bulk (cdvr_cl_fetch_path) */
 } raycast_params;
+
+static const char *const fetch_names[] = {"auto", "sample", "bulk"};
 
 static const cdvr_method_option raycast_options[] = {
     {"skip", CDVR_MOPT_BOOLEAN, "true", NULL,
      "empty-space skipping by brick min/max on the cl device (false: every sample is taken)"},
+    {"fetch", CDVR_MOPT_CHOICE, "auto", "auto|sample|bulk",
+     "a store of a fetch-mode codec (hvq) on cl: 'sample' reads every sample through the "
+     "codec's fetch function, 'bulk' decodes the chunk with its C decoder and renders dense, "
+     "'auto' bulk on a CPU device and sample on a GPU (same images)"},
     {NULL, 0, NULL, NULL, NULL}};
 
 static raycast_params get_params(const cdvr_method_params *p)
@@ -34,6 +41,16 @@ static cdvr_status raycast_set(cdvr_method_params *p, const char *key, const cha
                                cdvr_error *err)
 {
     raycast_params rp = get_params(p);
+    if (strcmp(key, "fetch") == 0) {
+        for (int i = 0; i < 3; i++)
+            if (strcmp(value, fetch_names[i]) == 0) {
+                rp.fetch = i;
+                memcpy(p->bytes, &rp, sizeof rp);
+                return CDVR_OK;
+            }
+        return cdvr_error_set(err, CDVR_ERR_ARG, "raycast: option 'fetch': auto, sample or bulk "
+                              "expected, got '%s'", value);
+    }
     if (strcmp(key, "skip") != 0)
         return cdvr_error_set(err, CDVR_ERR_ARG, "raycast: unknown option '%s'", key);
     if (strcmp(value, "true") == 0)
@@ -148,7 +165,11 @@ static cdvr_status raycast_store(cdvr_render_ctx *ctx, cdvr_device_kind device,
     double start = cdvr_now_ms();
     cdvr_cl_stream *s;
     size_t frame;
-    cdvr_status status = cdvr_render_ctx_load_chunk(ctx, st, v, t, &s, &frame, err);
+    cdvr_status status = cdvr_render_ctx_stream(ctx, info->dims, &s, err);
+    if (status != CDVR_OK)
+        return status;
+    cdvr_cl_set_fetch_path(s, (cdvr_cl_fetch_path)get_params(p).fetch);
+    status = cdvr_render_ctx_load_chunk(ctx, st, v, t, &s, &frame, err);
     if (status != CDVR_OK)
         return status;
     cdvr_cl_set_skipping(s, get_params(p).skip);

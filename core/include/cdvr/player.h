@@ -165,6 +165,9 @@ typedef struct cdvr_player_opts {
     int cold;                    /* drop chunks from the page cache (posix_fadvise) */
     double read_mbps;            /* > 0: cap read bandwidth (MB/s, 1e6 bytes) */
     int empty_skip;              /* 1 (default): empty-space skipping on the cl device */
+    int fetch_path;              /* fetch-mode codecs (hvq) on the cl device: 0 auto, 1 sample,
+                                    2 bulk (cdvr_cl_fetch_path, cdvr/device.h); bulk decodes
+                                    each group on the host in the pipeline's workers */
     double pace_fps;             /* > 0: show frames no faster than this (interactive pacing) */
     int loop;                    /* 1: wrap around after the last timestep; 0: stop there */
     int brick_skip;              /* 1: skip bricks that are transparent or out of view */
