@@ -348,11 +348,13 @@ static cdvr_status decode_fetch_bulk(cdvr_cl_stream *s, const cdvr_codec *codec,
                                      const cdvr_codec_params *params, size_t count,
                                      cdvr_error *err)
 {
-    cdvr_status st = ensure_frames(s, count, err);
+    cdvr_error inner;
+    cdvr_status st = ensure_frames(s, count, &inner);
     if (!st)
-        st = run_host_decode(s, codec, params, count, err);
+        st = run_host_decode(s, codec, params, count, &inner);
     if (st)
-        return st;
+        return cdvr_error_set(err, st, "codec %s (bulk decode for the %zux%zux%zu frames): %s",
+                              codec->name, s->dims[0], s->dims[1], s->dims[2], inner.msg);
     s->frames_valid = count;
     return CDVR_OK;
 }
