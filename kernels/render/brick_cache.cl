@@ -16,39 +16,31 @@ static ulong bc_payload_bytes(__constant uchar *params)
     return v;
 }
 
-static uint bc_word(__global const uchar *p, ulong n, ulong at)
-{
-    at = min(at, n - 4);
-    return (uint)p[at] | ((uint)p[at + 1] << 8) | ((uint)p[at + 2] << 16) |
-           ((uint)p[at + 3] << 24);
-}
-
 static uint bc_coord(uint x, uint lvl, uint lo, uint d)
 {
     long c = (long)(x >> lvl) - (long)lo;
     return (uint)clamp(c, 0L, (long)d - 1);
 }
 
+/* The payload is read as little-endian 32-bit words (every device cdvr runs on is little
+ * endian; buffers are aligned); word indices are clamped below the payload's n / 4 words. */
 uchar brick_cache_fetch(__global const uchar *p, __constant uchar *params, int4 dims, int x,
                         int y, int z)
 {
     ulong n = bc_payload_bytes(params);
     if (n < 64)
         return 0;
-    ulong X = (ulong)dims.x, Y = (ulong)dims.y;
-    uint bx = bc_word(p, n, 4), by = bc_word(p, n, 8);
-    ulong pool = bc_word(p, n, 16), table = bc_word(p, n, 20);
-    ulong bi = bc_word(p, n, 24 + 4 * (ulong)x);
-    ulong bj = bc_word(p, n, 24 + 4 * (X + (ulong)y));
-    ulong bk = bc_word(p, n, 24 + 4 * (X + Y + (ulong)z));
-    ulong e = table + 32 * (bi + (ulong)bx * (bj + (ulong)by * bk));
-    ulong base = pool + bc_word(p, n, e);
-    uint lvl = min(bc_word(p, n, e + 4), 15u);
-    uint lo0 = bc_word(p, n, e + 8), lo1 = bc_word(p, n, e + 12), lo2 = bc_word(p, n, e + 16);
-    uint d0 = max(bc_word(p, n, e + 20), 1u), d1 = max(bc_word(p, n, e + 24), 1u);
-    uint d2 = max(bc_word(p, n, e + 28), 1u);
-    uint cx = bc_coord((uint)x, lvl, lo0, d0), cy = bc_coord((uint)y, lvl, lo1, d1);
-    uint cz = bc_coord((uint)z, lvl, lo2, d2);
+    __global const uint *w = (__global const uint *)p;
+    ulong nw = n >> 2, X = (ulong)dims.x, Y = (ulong)dims.y;
+    ulong bi = w[min(6 + (ulong)x, nw - 1)], bj = w[min(6 + X + (ulong)y, nw - 1)];
+    ulong bk = w[min(6 + X + Y + (ulong)z, nw - 1)];
+    ulong e = min((ulong)(w[5] >> 2) + 8 * (bi + (ulong)w[1] * (bj + (ulong)w[2] * bk)), nw - 8);
+    __global const uint *t = w + e;
+    ulong base = (ulong)w[4] + t[0];
+    uint lvl = min(t[1], 15u);
+    uint d0 = max(t[5], 1u), d1 = max(t[6], 1u), d2 = max(t[7], 1u);
+    uint cx = bc_coord((uint)x, lvl, t[2], d0), cy = bc_coord((uint)y, lvl, t[3], d1);
+    uint cz = bc_coord((uint)z, lvl, t[4], d2);
     if (lvl == 0)
         return p[min(base + cx + (ulong)d0 * (cy + (ulong)d1 * cz), n - 1)];
     uint mask = (1u << lvl) - 1u, s = 1u << lvl;

@@ -46,12 +46,11 @@ struct cdvr_brick_cache {
 
 /* ---- the fetch (the definition; brick_cache.cl mirrors it) ------------------------------- */
 
-static uint32_t word_at(const uint8_t *p, size_t n, size_t at)
+/* Word i of the payload (little endian), i clamped below the payload's n / 4 words. */
+static uint32_t word_at(const uint8_t *p, size_t nw, size_t i)
 {
-    if (at > n - 4)
-        at = n - 4;
-    return (uint32_t)p[at] | (uint32_t)p[at + 1] << 8 | (uint32_t)p[at + 2] << 16 |
-           (uint32_t)p[at + 3] << 24;
+    const uint8_t *q = p + 4 * (i < nw ? i : nw - 1);
+    return (uint32_t)q[0] | (uint32_t)q[1] << 8 | (uint32_t)q[2] << 16 | (uint32_t)q[3] << 24;
 }
 
 static uint32_t coord_at(size_t x, uint32_t lvl, uint32_t lo, uint32_t d)
@@ -70,19 +69,19 @@ uint8_t cdvr_brick_cache_fetch(const uint8_t *p, size_t n, const size_t dims[3],
 {
     if (n < 64)
         return 0;
-    size_t X = dims[0], Y = dims[1];
-    uint32_t bx = word_at(p, n, 4), by = word_at(p, n, 8);
-    size_t pool = word_at(p, n, 16), table = word_at(p, n, 20);
-    size_t bi = word_at(p, n, 24 + 4 * x), bj = word_at(p, n, 24 + 4 * (X + y));
-    size_t bk = word_at(p, n, 24 + 4 * (X + Y + z));
-    size_t e = table + 32 * (bi + (size_t)bx * (bj + (size_t)by * bk));
-    size_t base = pool + word_at(p, n, e);
-    uint32_t lvl = word_at(p, n, e + 4);
+    size_t nw = n / 4, X = dims[0], Y = dims[1];
+    size_t bi = word_at(p, nw, 6 + x), bj = word_at(p, nw, 6 + X + y);
+    size_t bk = word_at(p, nw, 6 + X + Y + z);
+    size_t e = min_sz(word_at(p, nw, 5) / 4 +
+                          8 * (bi + (size_t)word_at(p, nw, 1) * (bj + (size_t)word_at(p, nw, 2) * bk)),
+                      nw - 8);
+    size_t base = (size_t)word_at(p, nw, 4) + word_at(p, nw, e);
+    uint32_t lvl = word_at(p, nw, e + 1);
     lvl = lvl < 15 ? lvl : 15;
     uint32_t lo[3], d[3];
     for (int a = 0; a < 3; a++) {
-        lo[a] = word_at(p, n, e + 8 + 4 * (size_t)a);
-        d[a] = word_at(p, n, e + 20 + 4 * (size_t)a);
+        lo[a] = word_at(p, nw, e + 2 + (size_t)a);
+        d[a] = word_at(p, nw, e + 5 + (size_t)a);
         d[a] = d[a] ? d[a] : 1;
     }
     uint32_t cx = coord_at(x, lvl, lo[0], d[0]), cy = coord_at(y, lvl, lo[1], d[1]);
@@ -166,7 +165,7 @@ static cdvr_status bc_decode(const cdvr_codec_params *p, const size_t dims[3], c
                              cdvr_error *err)
 {
     (void)p;
-    if (count != 1 || in_bytes < 64 || word_at(in, in_bytes, 0) != CDVR_BRICK_CACHE_MAGIC)
+    if (count != 1 || in_bytes < 64 || word_at(in, in_bytes / 4, 0) != CDVR_BRICK_CACHE_MAGIC)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "brick cache: not a cache payload");
     uint8_t *out = frames[0];
     for (size_t z = 0; z < dims[2]; z++)
