@@ -109,6 +109,59 @@ static cdvr_status render_cpu(const cdvr_volume *vol, size_t t, cdvr_render_opts
     return CDVR_OK;
 }
 
+/* The brick cache's figures of its last frame into stats. */
+static void cache_stats(const cdvr_brick_cache *bc, cdvr_render_stats *stats)
+{
+    cdvr_brick_cache_stats cs;
+    cdvr_brick_cache_get_stats(bc, &cs);
+    cdvr_render_stats_integer(stats, "resident_bytes", (long long)cs.resident_bytes);
+    cdvr_render_stats_integer(stats, "cache_bytes", (long long)cs.cache_bytes);
+    cdvr_render_stats_integer(stats, "bricks_decoded", (long long)cs.decoded);
+    cdvr_render_stats_number(stats, "cache_decode_ms", cs.decode_ms);
+    for (size_t l = 0; l < cs.levels; l++) {
+        char key[24];
+        snprintf(key, sizeof key, "bricks_level%zu", l);
+        cdvr_render_stats_integer(stats, key, (long long)cs.bricks_at[l]);
+    }
+}
+
+/* The CPU reference through the brick cache: the cache's payload decoded by its C fetch
+ * (cdvr/brick_cache.h) into a dense frame of the store's dims (the reference renders dense),
+ * then the CPU ray caster. */
+static cdvr_status raycast_cached_cpu(cdvr_render_ctx *ctx, const cdvr_store *st, size_t v,
+                                      size_t t, cdvr_render_opts *opts,
+                                      const raycast_params *rp, cdvr_render_stats *stats,
+                                      cdvr_image **out, cdvr_error *err)
+{
+    const cdvr_store_info *info = cdvr_store_get_info(st);
+    uint64_t budget = rp->budget_mb > 0 ? (uint64_t)(rp->budget_mb * 1e6) : (uint64_t)1 << 30;
+    cdvr_brick_cache *bc;
+    const uint8_t *payload;
+    size_t bytes;
+    cdvr_volume *vol = NULL;
+    cdvr_status s = cdvr_render_ctx_brick_cache(ctx, st, v, budget, &bc, err);
+    if (s == CDVR_OK)
+        s = cdvr_brick_cache_frame(bc, t, opts->camera, rp->lod_error, &payload, &bytes, err);
+    if (s == CDVR_OK)
+        s = cdvr_volume_create(info->dims, 1, CDVR_TYPE_U8, &vol, err);
+    if (s == CDVR_OK) {
+        uint8_t *frames[1] = {vol->data};
+        cdvr_codec_params none = {{0}};
+        memcpy(vol->spacing, info->spacing, sizeof vol->spacing);
+        memcpy(vol->origin, info->origin, sizeof vol->origin);
+        memcpy(vol->direction, info->direction, sizeof vol->direction);
+        vol->window[0] = info->qlo;
+        vol->window[1] = info->qhi;
+        s = cdvr_brick_cache_codec()->decode(&none, info->dims, payload, bytes, frames, 1, err);
+    }
+    if (s == CDVR_OK)
+        s = render_cpu(vol, 0, opts, stats, out, err);
+    if (s == CDVR_OK)
+        cache_stats(bc, stats);
+    cdvr_volume_free(vol);
+    return s;
+}
+
 #if CDVR_HAVE_OPENCL
 
 static void cl_stats(cdvr_render_ctx *ctx, cdvr_cl_stream *s, double ms, cdvr_render_stats *stats)
@@ -186,22 +239,6 @@ static cdvr_status render_cl(cdvr_render_ctx *ctx, const cdvr_volume *vol, size_
                                stats, out, err);
 }
 
-/* The brick cache's figures of its last frame into stats. */
-static void cache_stats(const cdvr_brick_cache *bc, cdvr_render_stats *stats)
-{
-    cdvr_brick_cache_stats cs;
-    cdvr_brick_cache_get_stats(bc, &cs);
-    cdvr_render_stats_integer(stats, "resident_bytes", (long long)cs.resident_bytes);
-    cdvr_render_stats_integer(stats, "cache_bytes", (long long)cs.cache_bytes);
-    cdvr_render_stats_integer(stats, "bricks_decoded", (long long)cs.decoded);
-    cdvr_render_stats_number(stats, "cache_decode_ms", cs.decode_ms);
-    for (size_t l = 0; l < cs.levels; l++) {
-        char key[24];
-        snprintf(key, sizeof key, "bricks_level%zu", l);
-        cdvr_render_stats_integer(stats, key, (long long)cs.bricks_at[l]);
-    }
-}
-
 /* Timestep t of variant v through the context's brick cache (raycast_params.cache). */
 static cdvr_status raycast_cached(cdvr_render_ctx *ctx, const cdvr_store *st, size_t v, size_t t,
                                   cdvr_render_opts *opts, const raycast_params *rp,
@@ -246,13 +283,14 @@ static cdvr_status raycast_store(cdvr_render_ctx *ctx, cdvr_device_kind device,
                                  const cdvr_method_params *p, cdvr_render_stats *stats,
                                  cdvr_image **out, cdvr_error *err)
 {
+    raycast_params rp = get_params(p);
+    if (rp.cache && device == CDVR_DEVICE_CPU)
+        return raycast_cached_cpu(ctx, st, v, t, opts, &rp, stats, out, err);
     if (device != CDVR_DEVICE_CL)
         return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "raycast: a store renders from its "
                               "chunk on cl only (the cpu decodes it first)");
-    if (get_params(p).cache) {
-        raycast_params rp = get_params(p);
+    if (rp.cache)
         return raycast_cached(ctx, st, v, t, opts, &rp, stats, out, err);
-    }
     const cdvr_store_info *info = cdvr_store_get_info(st);
     double start = cdvr_now_ms();
     cdvr_cl_stream *s;
@@ -283,8 +321,21 @@ static cdvr_status render_cl(cdvr_render_ctx *ctx, const cdvr_volume *vol, size_
     return cdvr_render_ctx_cl(ctx, &cl, err);
 }
 
+static cdvr_status raycast_store(cdvr_render_ctx *ctx, cdvr_device_kind device,
+                                 const cdvr_store *st, size_t v, size_t t, cdvr_render_opts *opts,
+                                 const cdvr_method_params *p, cdvr_render_stats *stats,
+                                 cdvr_image **out, cdvr_error *err)
+{
+    raycast_params rp = get_params(p);
+    if (rp.cache && device == CDVR_DEVICE_CPU)
+        return raycast_cached_cpu(ctx, st, v, t, opts, &rp, stats, out, err);
+    return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "raycast: a store renders from its chunk "
+                          "on cl only (the cpu decodes it first, or renders it through the "
+                          "brick cache with cache=true)");
+}
+
 #define RAYCAST_STREAM NULL
-#define RAYCAST_STORE NULL
+#define RAYCAST_STORE raycast_store
 
 #endif
 

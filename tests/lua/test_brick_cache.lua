@@ -5,6 +5,8 @@
 -- with a far camera and lod_error=1 coarser levels are chosen; a small budget coarsens the
 -- farthest bricks until the frame fits (resident bytes <= budget, PSNR against the full
 -- render reported > 20 dB here), and a budget below the coarsest level is an error naming it.
+-- The CPU reference through the cache (cache=true, device="cpu") equals the CPU render of the
+-- store at level 0 and agrees with cl (>= 50 dB) with coarse levels.
 if not cdvr.cl_info() then
   print("skip: no OpenCL device")
   os.exit(77)
@@ -34,6 +36,10 @@ for _, variant in ipairs{"raw", "pvtc"} do
     -- the CPU reference renders the same voxels (the cache's C fetch over every voxel)
     local ref = cdvr.render(st:decode(t, variant), {tf = tf, camera = near, device = "cpu"})
     assert(cdvr.compare(img, ref).psnr >= 50, "cl cache against the cpu reference")
+    local cpu, cs = cdvr.render(st, {t = t, variant = variant, tf = tf, camera = near,
+                                     device = "cpu", cache = true, lod_error = 0, budget_mb = 64})
+    assert(cdvr.compare(cpu, ref).maxerr == 0 and cs.bricks_level0 == 12,
+           "cpu through the cache at level 0 equals the cpu render of the store")
   end
 end
 
@@ -53,6 +59,10 @@ local img, bs = cdvr.render(st, {variant = "raw", tf = tf, camera = near, device
 assert(bs.resident_bytes <= budget * 1e6, "resident within the budget: " .. bs.resident_bytes)
 assert(bs.bricks_level0 > 0 and bs.bricks_level0 < 12, "some bricks coarser, the near ones fine")
 local psnr = cdvr.compare(img, full).psnr
+local cpu_lod, cs = cdvr.render(st, {variant = "raw", tf = tf, camera = near, device = "cpu",
+                                     cache = true, lod_error = 0, budget_mb = budget})
+assert(cs.bricks_level0 == bs.bricks_level0 and cdvr.compare(cpu_lod, img).psnr >= 50,
+       "cpu and cl through the cache pick the same levels and agree")
 assert(psnr > 20, "coarser far bricks stay close to the full render: " .. psnr)
 local ok, err = pcall(cdvr.render, st, {variant = "raw", tf = tf, camera = near, device = "cl",
                                         cache = true, budget_mb = 0.0001})
