@@ -120,7 +120,7 @@ static void cache_stats(const cdvr_brick_cache *bc, cdvr_render_stats *stats)
     cdvr_render_stats_number(stats, "cache_decode_ms", cs.decode_ms);
     for (size_t l = 0; l < cs.levels; l++) {
         char key[24];
-        snprintf(key, sizeof key, "bricks_level%zu", l);
+        snprintf(key, sizeof key, "bricks_level%u", (unsigned)l);
         cdvr_render_stats_integer(stats, key, (long long)cs.bricks_at[l]);
     }
 }
