@@ -71,7 +71,7 @@ static void level0_exact(cdvr_store *st)
     for (size_t t = 0; t < 2; t++) {
         const uint8_t *payload;
         size_t bytes;
-        CHECK_OK(cdvr_brick_cache_frame(c, t, &cam, 0.0, &payload, &bytes, &err), err);
+        CHECK_OK(cdvr_brick_cache_frame(c, t, &cam, NULL, 0.0, &payload, &bytes, &err), err);
         cdvr_brick_cache_stats s;
         cdvr_brick_cache_get_stats(c, &s);
         CHECK(s.levels == 3 && s.bricks_at[0] == 12, "all bricks at level 0: %zu", s.bricks_at[0]);
@@ -97,7 +97,7 @@ static void lru_budget(cdvr_store *st)
         for (size_t t = 0; t < 2; t++) {
             const uint8_t *payload;
             size_t bytes;
-            CHECK_OK(cdvr_brick_cache_frame(c, t, &cam, 0.0, &payload, &bytes, &err), err);
+            CHECK_OK(cdvr_brick_cache_frame(c, t, &cam, NULL, 0.0, &payload, &bytes, &err), err);
             cdvr_brick_cache_stats s;
             cdvr_brick_cache_get_stats(c, &s);
             CHECK(s.cache_bytes <= budget && s.resident_bytes <= budget,
@@ -157,7 +157,7 @@ static void device_matches_c(cdvr_store *st)
     cam.fov = 50;
     const uint8_t *payload;
     size_t bytes;
-    CHECK_OK(cdvr_brick_cache_frame(c, 1, &cam, 1.0, &payload, &bytes, &err), err);
+    CHECK_OK(cdvr_brick_cache_frame(c, 1, &cam, NULL, 1.0, &payload, &bytes, &err), err);
     cdvr_brick_cache_stats s;
     cdvr_brick_cache_get_stats(c, &s);
     CHECK(s.bricks_at[1] + s.bricks_at[2] > 0, "coarse levels in play");

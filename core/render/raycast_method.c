@@ -141,7 +141,8 @@ static cdvr_status raycast_cached_cpu(cdvr_render_ctx *ctx, const cdvr_store *st
     cdvr_volume *vol = NULL;
     cdvr_status s = cdvr_render_ctx_brick_cache(ctx, st, v, budget, &bc, err);
     if (s == CDVR_OK)
-        s = cdvr_brick_cache_frame(bc, t, opts->camera, rp->lod_error, &payload, &bytes, err);
+        s = cdvr_brick_cache_frame(bc, t, opts->camera, opts->tf, rp->lod_error, &payload,
+                                   &bytes, err);
     if (s == CDVR_OK)
         s = cdvr_volume_create(info->dims, 1, CDVR_TYPE_U8, &vol, err);
     if (s == CDVR_OK) {
@@ -258,7 +259,8 @@ static cdvr_status raycast_cached(cdvr_render_ctx *ctx, const cdvr_store *st, si
     cdvr_cl_stream *s;
     status = cdvr_render_ctx_brick_cache(ctx, st, v, budget ? budget : 1, &bc, err);
     if (status == CDVR_OK)
-        status = cdvr_brick_cache_frame(bc, t, opts->camera, rp->lod_error, &payload, &bytes, err);
+        status = cdvr_brick_cache_frame(bc, t, opts->camera, opts->tf, rp->lod_error, &payload,
+                                   &bytes, err);
     if (status == CDVR_OK)
         status = cdvr_render_ctx_stream(ctx, info->dims, &s, err);
     if (status != CDVR_OK)

@@ -11,9 +11,10 @@
  *   to the nearest point of B (0 inside), p = 2 d tan(fov / 2) / height the world size of a
  *   pixel there (orthographic: ortho_height / height), s = the smallest voxel spacing of level
  *   0; the level is the largest l < levels with s 2^l <= lod_error p (0 when lod_error is 0).
- *   Budget: while the bricks chosen need more bytes than the budget, the farthest brick not
- *   yet at the coarsest level goes one level coarser (one level per brick per round, farthest
- *   first); when even every brick at the coarsest level does not fit, the frame fails
+ *   Budget: while the bricks chosen need more bytes than the budget, the brick that adds least
+ *   not yet at the coarsest level goes one level coarser (one level per brick per round): first
+ *   the bricks the TF leaves transparent (no code of the range recorded for the brick's chunk
+ *   has opacity), then the others farthest first; when even every brick at the coarsest level does not fit, the frame fails
  *   (CDVR_ERR_NOMEM naming the bytes it needs). Every brick always has a level: no holes.
  *   Level l of brick b is the level-l brick holding the level-l voxel nearest b's centre.
  *
@@ -45,6 +46,7 @@
 #include "cdvr/codec.h"
 #include "cdvr/error.h"
 #include "cdvr/store.h"
+#include "cdvr/tf.h"
 
 #define CDVR_BRICK_CACHE_MAGIC 0x43425243u
 
@@ -69,11 +71,12 @@ void cdvr_brick_cache_free(cdvr_brick_cache *c);
 /* 1 if the cache serves variant v of st with this budget. */
 int cdvr_brick_cache_serves(const cdvr_brick_cache *c, const cdvr_store *st, size_t v,
                             uint64_t budget_bytes);
-/* Timestep t for camera cam at lod_error pixels (>= 0): the level choice, residency and
- * payload above; *payload (valid until the next call) and *bytes. */
+/* Timestep t for camera cam and TF tf (its table over the store's window, or NULL) at
+ * lod_error pixels (>= 0): the level choice, residency and payload above; *payload (valid
+ * until the next call) and *bytes. */
 cdvr_status cdvr_brick_cache_frame(cdvr_brick_cache *c, size_t t, const cdvr_camera *cam,
-                                   double lod_error, const uint8_t **payload, size_t *bytes,
-                                   cdvr_error *err);
+                                   const cdvr_tf *tf, double lod_error,
+                                   const uint8_t **payload, size_t *bytes, cdvr_error *err);
 void cdvr_brick_cache_get_stats(const cdvr_brick_cache *c, cdvr_brick_cache_stats *out);
 
 /* The fetch above on a payload of n bytes (reads outside it are clamped inside). */

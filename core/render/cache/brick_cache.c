@@ -339,9 +339,23 @@ static int farther_first(const void *a, const void *b)
     return x->dist > y->dist ? -1 : x->dist < y->dist ? 1 : (x->brick > y->brick) - (x->brick < y->brick);
 }
 
+/* 1 when no code of the brick's chunk at t (its recorded value range, over the brick's box)
+ * has opacity under tf: the brick adds nothing to the image. */
+static int brick_transparent(const cdvr_brick_cache *c, size_t t, size_t b, const cdvr_tf *tf)
+{
+    size_t chunk = tf ? cdvr_store_chunk_for(c->st, c->v, t, b) : (size_t)-1;
+    const cdvr_chunk_info *ci = chunk != (size_t)-1 ? cdvr_store_chunk(c->st, c->v, chunk) : NULL;
+    if (!ci || ci->value_min > ci->value_max)
+        return 0;
+    for (int i = ci->value_min; i <= ci->value_max; i++)
+        if (tf->table[i][3] > 0.0f)
+            return 0;
+    return 1;
+}
+
 /* The level of every level-0 brick (see the header); CDVR_ERR_NOMEM when nothing fits. */
-static cdvr_status choose_levels(cdvr_brick_cache *c, const cdvr_camera *cam, double lod_error,
-                                 cdvr_error *err)
+static cdvr_status choose_levels(cdvr_brick_cache *c, size_t t, const cdvr_camera *cam,
+                                 const cdvr_tf *tf, double lod_error, cdvr_error *err)
 {
     const cdvr_store_info *in = cdvr_store_get_info(c->st);
     double smin = fmin(in->spacing[0], fmin(in->spacing[1], in->spacing[2]));
@@ -356,7 +370,7 @@ static cdvr_status choose_levels(cdvr_brick_cache *c, const cdvr_camera *cam, do
                smin * (double)(2u << l) <= lod_error * pixel)
             l++;
         c->choice[b] = l;
-        c->keys[b] = (far_key){c->dist[b], b};
+        c->keys[b] = (far_key){brick_transparent(c, t, b, tf) ? INFINITY : c->dist[b], b};
         total += brick_bytes(c, b, l);
     }
     qsort(c->keys, c->nbricks, sizeof *c->keys, farther_first);
@@ -514,8 +528,8 @@ static cdvr_status layout(cdvr_brick_cache *c, cdvr_error *err)
 }
 
 cdvr_status cdvr_brick_cache_frame(cdvr_brick_cache *c, size_t t, const cdvr_camera *cam,
-                                   double lod_error, const uint8_t **payload, size_t *bytes,
-                                   cdvr_error *err)
+                                   const cdvr_tf *tf, double lod_error,
+                                   const uint8_t **payload, size_t *bytes, cdvr_error *err)
 {
     *payload = NULL;
     *bytes = 0;
@@ -527,7 +541,7 @@ cdvr_status cdvr_brick_cache_frame(cdvr_brick_cache *c, size_t t, const cdvr_cam
     memset(&c->stats, 0, sizeof c->stats);
     c->stats.levels = c->nlevels;
     c->stamp++;
-    cdvr_status s = choose_levels(c, cam, lod_error, err);
+    cdvr_status s = choose_levels(c, t, cam, tf, lod_error, err);
     for (size_t b = 0; b < c->nbricks; b++)
         c->entry_of[b] = (size_t)-1;
     for (size_t b = 0; s == CDVR_OK && b < c->nbricks; b++) {
