@@ -67,6 +67,40 @@ assert(psnr > 20, "coarser far bricks stay close to the full render: " .. psnr)
 local ok, err = pcall(cdvr.render, st, {variant = "raw", tf = tf, camera = near, device = "cl",
                                         cache = true, budget_mb = 0.0001})
 assert(not ok and err:find("coarsest level"), "a budget below the coarsest level: " .. tostring(err))
+-- the player through the cache: rows report resident bytes and bricks per level, and at
+-- lod_error 0 with room for everything it plays exactly the frames of the player without it
+local function slurp(file)
+  local fh = assert(io.open(file, "rb"))
+  local data = fh:read("a")
+  fh:close()
+  return data
+end
+for _, cached in ipairs{false, true} do
+  local out = ("%s/p_%s_%%d.png"):format(tmp, tostring(cached))
+  local p = cdvr.player{store = st, tf = tf, camera = near, device = "cl", variant = "pvtc",
+                        cache = cached, lod_error = 0, budget_mb = 64, out = out}
+  local r = p:run{frames = 2}
+  for i, row in ipairs(r.frames) do
+    assert(not row.error, row.error)
+    if cached then
+      assert(row.resident_bytes > 0 and row.resident_bytes <= 64e6 and row.bricks_level0 == 12
+             and row.bricks_level2 == 0, "player row: resident bytes and bricks per level")
+      assert(slurp(out:format(i)) == slurp((tmp .. "/p_false_%d.png"):format(i)),
+             "player frame " .. i .. " through the cache equals the frame without it")
+    else
+      assert(row.resident_bytes == nil, "no cache figures without the cache")
+    end
+  end
+  p:close()
+end
+local small = cdvr.player{store = st, tf = tf, camera = near, device = "cl", variant = "raw",
+                          cache = true, lod_error = 0, budget_mb = budget}
+local sr = small:run{frames = 2}
+assert(sr.frames[1].bricks_level0 < 12 and sr.frames[1].resident_bytes <= budget * 1e6,
+       "the player's cache keeps to the budget")
+small:close()
+assert(not pcall(cdvr.player, {store = st, tf = tf, device = "cpu", cache = true}),
+       "the player's cache is a cl feature")
 st:close()
 os.execute(("rm -rf %q"):format(tmp))
 print(("test_brick_cache: ok (budget %.3f MB: %d/%d/%d bricks at levels 0/1/2, %.1f dB)"):format(
