@@ -162,6 +162,10 @@ static void device_matches_c(cdvr_store *st)
     cdvr_brick_cache_get_stats(c, &s);
     CHECK(s.bricks_at[1] + s.bricks_at[2] > 0, "coarse levels in play");
     uint8_t *volume = decode_payload(payload, bytes);
+    const uint8_t *dense_frame;
+    CHECK_OK(cdvr_brick_cache_dense(c, &dense_frame, &err), err);
+    CHECK(memcmp(dense_frame, volume, DIMS[0] * DIMS[1] * DIMS[2]) == 0,
+          "the assembled dense frame is the C fetch at every voxel");
     cdvr_tf tf;
     cdvr_tf_point pts[] = {{0, 0, 0, 0, 0}, {80, 1, .5, .2, .2}, {255, 1, 1, 1, .8}};
     cdvr_tf_init(&tf, pts, 3, 0, &err);

@@ -984,6 +984,14 @@ static cdvr_status load_cached(cdvr_player *p, const chunk_item *it, size_t t,
     cdvr_codec_params none = {{0}};
     cdvr_status s = cdvr_brick_cache_frame(p->cache, t, cam, p->opts.tf, p->opts.lod_error,
                                            &payload, &bytes, err);
+    const cdvr_store_info *in = cdvr_store_get_info(p->opts.store);
+    if (s == CDVR_OK && !cdvr_cl_get_info(p->cl)->is_gpu &&
+        p->opts.fetch_path != CDVR_CL_FETCH_SAMPLE &&
+        (uint64_t)in->dims[0] * in->dims[1] * in->dims[2] <= budget) {
+        const uint8_t *frame; /* a CPU device: the dense frame when it fits (raycast_method.c) */
+        s = cdvr_brick_cache_dense(p->cache, &frame, err);
+        return s == CDVR_OK ? cdvr_cl_use_host_frames(p->stream, frame, 1, err) : s;
+    }
     if (s == CDVR_OK)
         s = cdvr_cl_upload(p->stream, payload, bytes, err);
     cdvr_cl_set_fetch_path(p->stream, CDVR_CL_FETCH_SAMPLE);

@@ -28,9 +28,10 @@ static const cdvr_method_option raycast_options[] = {
      "codec's fetch function, 'bulk' decodes the chunk with its C decoder and renders dense, "
      "'auto' bulk on a CPU device and sample on a GPU (same images)"},
     {"cache", CDVR_MOPT_BOOLEAN, "false", NULL,
-     "a store on cl through the brick cache: decoded bricks in a pool of budget_mb, a level "
-     "per brick by lod_error (cdvr/brick_cache.h); stats add resident_bytes and bricks per "
-     "level"},
+     "a store through the brick cache: decoded bricks in a pool of budget_mb, a level per "
+     "brick by lod_error (cdvr/brick_cache.h), read through a page table (on a CPU device a "
+     "dense frame assembled from them when it fits the budget, unless fetch='sample'); stats "
+     "add resident_bytes, bricks per level and cache_path"},
     {"budget_mb", CDVR_MOPT_NUMBER, "0", NULL,
      "the brick cache's budget in MB (10^6 bytes) of voxels; 0: a quarter of the device's "
      "memory"},
@@ -266,17 +267,31 @@ static cdvr_status raycast_cached(cdvr_render_ctx *ctx, const cdvr_store *st, si
     if (status != CDVR_OK)
         return status;
     cdvr_render_ctx_forget_frame(ctx);
-    cdvr_cl_set_fetch_path(s, CDVR_CL_FETCH_SAMPLE); /* the page table, never a dense copy */
     cdvr_cl_set_skipping(s, rp->skip);
-    cdvr_codec_params none = {{0}};
-    status = cdvr_cl_upload(s, payload, bytes, err);
-    if (status == CDVR_OK)
-        status = cdvr_cl_decode(s, cdvr_brick_cache_codec(), &none, 1, err);
+    /* A CPU device reads a dense frame 10-20x faster than through the page table: when the
+     * dense frame fits the budget (and fetch="sample" does not ask for the page table) the
+     * cache assembles it; the images are the same. */
+    int dense = !cdvr_cl_get_info(cl)->is_gpu && rp->fetch != CDVR_CL_FETCH_SAMPLE &&
+                (uint64_t)info->dims[0] * info->dims[1] * info->dims[2] <= budget;
+    if (dense) {
+        const uint8_t *frame;
+        status = cdvr_brick_cache_dense(bc, &frame, err);
+        if (status == CDVR_OK)
+            status = cdvr_cl_use_host_frames(s, frame, 1, err);
+    } else {
+        cdvr_codec_params none = {{0}};
+        cdvr_cl_set_fetch_path(s, CDVR_CL_FETCH_SAMPLE); /* the page table, no dense copy */
+        status = cdvr_cl_upload(s, payload, bytes, err);
+        if (status == CDVR_OK)
+            status = cdvr_cl_decode(s, cdvr_brick_cache_codec(), &none, 1, err);
+    }
     if (status == CDVR_OK)
         status = render_device_frame(ctx, s, 0, opts, info->spacing, info->origin,
                                      info->direction, start, stats, out, err);
-    if (status == CDVR_OK)
+    if (status == CDVR_OK) {
         cache_stats(bc, stats);
+        cdvr_render_stats_string(stats, "cache_path", dense ? "dense" : "page_table");
+    }
     return status;
 }
 

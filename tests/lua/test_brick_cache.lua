@@ -5,6 +5,8 @@
 -- with a far camera and lod_error=1 coarser levels are chosen; a small budget coarsens the
 -- farthest bricks until the frame fits (resident bytes <= budget, PSNR against the full
 -- render reported > 20 dB here), and a budget below the coarsest level is an error naming it.
+-- On a CPU device a dense frame is assembled from the cache when it fits the budget (cache_path
+-- "dense"), else and with fetch="sample" the page table is read (the same images).
 -- The CPU reference through the cache (cache=true, device="cpu") equals the CPU render of the
 -- store at level 0 and agrees with cl (>= 50 dB) with coarse levels.
 if not cdvr.cl_info() then
@@ -32,6 +34,11 @@ for _, variant in ipairs{"raw", "pvtc"} do
            variant, t, c.maxerr))
     assert(stats.bricks_level0 == 12 and stats.bricks_level1 == 0 and stats.bricks_level2 == 0,
            "every brick at level 0")
+    o.fetch = "sample" -- the page table on every device
+    local img2, stats2 = cdvr.render(st, o)
+    assert(stats2.cache_path == "page_table" and cdvr.compare(img2, dense).maxerr == 0,
+           "the page-table path equals the dense render too")
+    o.fetch = nil
     assert(stats.resident_bytes >= 45 * 38 * 31 and stats.resident_bytes <= 64e6, "resident bytes")
     -- the CPU reference renders the same voxels (the cache's C fetch over every voxel)
     local ref = cdvr.render(st:decode(t, variant), {tf = tf, camera = near, device = "cpu"})
@@ -57,6 +64,7 @@ local budget = 0.5 * 45 * 38 * 31 / 1e6
 local img, bs = cdvr.render(st, {variant = "raw", tf = tf, camera = near, device = "cl",
                                  cache = true, lod_error = 0, budget_mb = budget})
 assert(bs.resident_bytes <= budget * 1e6, "resident within the budget: " .. bs.resident_bytes)
+assert(bs.cache_path == "page_table", "a dense frame that does not fit the budget is not made")
 assert(bs.bricks_level0 > 0 and bs.bricks_level0 < 12, "some bricks coarser, the near ones fine")
 local psnr = cdvr.compare(img, full).psnr
 local cpu_lod, cs = cdvr.render(st, {variant = "raw", tf = tf, camera = near, device = "cpu",

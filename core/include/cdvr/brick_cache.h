@@ -78,6 +78,12 @@ cdvr_status cdvr_brick_cache_frame(cdvr_brick_cache *c, size_t t, const cdvr_cam
                                    const cdvr_tf *tf, double lod_error,
                                    const uint8_t **payload, size_t *bytes, cdvr_error *err);
 void cdvr_brick_cache_get_stats(const cdvr_brick_cache *c, cdvr_brick_cache_stats *out);
+/* The last frame as a dense frame of the store's dims in memory the cache holds (page
+ * aligned, valid until the next call or the cache's end): exactly cdvr_brick_cache_fetch at
+ * every voxel, level-0 bricks copied row by row. Renderers take it on a CPU device when the
+ * dense frame fits the budget: there the page-table fetch per sample costs 10-20x a dense
+ * read (raycast_method.c, player.c). */
+cdvr_status cdvr_brick_cache_dense(cdvr_brick_cache *c, const uint8_t **frame, cdvr_error *err);
 
 /* The fetch above on a payload of n bytes (reads outside it are clamped inside). */
 uint8_t cdvr_brick_cache_fetch(const uint8_t *payload, size_t n, const size_t dims[3], size_t x,

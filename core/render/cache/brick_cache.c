@@ -41,6 +41,7 @@ struct cdvr_brick_cache {
     uint64_t cache_bytes, stamp;
     uint8_t *payload;
     size_t payload_cap, payload_bytes;
+    uint8_t *dense;              /* cdvr_brick_cache_dense's frame, or NULL */
     cdvr_brick_cache_stats stats;
 };
 
@@ -236,6 +237,7 @@ void cdvr_brick_cache_free(cdvr_brick_cache *c)
     free(c->entry_of);
     free(c->keys);
     free(c->payload);
+    free(c->dense);
     free(c);
 }
 
@@ -288,10 +290,12 @@ int cdvr_brick_cache_serves(const cdvr_brick_cache *c, const cdvr_store *st, siz
  * b's centre. */
 static size_t level_brick(const cdvr_brick_cache *c, size_t b, size_t l)
 {
+    if (l == 0)
+        return b;
     const cdvr_store_info *in = cdvr_store_get_info(c->st);
     const cdvr_store_info *li = cdvr_store_get_info(c->level[l]);
     size_t lo[3], d[3], idx[3];
-    cdvr_store_brick_box(in, b, lo, d);
+    cdvr_store_brick_owned(in, b, lo, d);
     for (int a = 0; a < 3; a++) {
         size_t centre = (lo[a] + lo[a] + d[a] - 1) / 2, cl = centre >> l;
         idx[a] = c->level_owner[l][a][cl < li->dims[a] ? cl : li->dims[a] - 1];
@@ -565,4 +569,48 @@ cdvr_status cdvr_brick_cache_frame(cdvr_brick_cache *c, size_t t, const cdvr_cam
 void cdvr_brick_cache_get_stats(const cdvr_brick_cache *c, cdvr_brick_cache_stats *out)
 {
     *out = c->stats;
+}
+
+static void assemble(const cdvr_brick_cache *c, uint8_t *frame)
+{
+    const cdvr_store_info *in = cdvr_store_get_info(c->st);
+    size_t X = c->dims[0], Y = c->dims[1];
+    for (size_t b = 0; b < c->nbricks; b++) {
+        const cache_entry *e = &c->entries[c->entry_of[b]];
+        size_t lo[3], d[3];
+        cdvr_store_brick_owned(in, b, lo, d);
+        for (size_t z = lo[2]; z < lo[2] + d[2]; z++)
+            for (size_t y = lo[1]; y < lo[1] + d[1]; y++) {
+                uint8_t *row = frame + X * (y + Y * z);
+                if (e->level == 0) { /* the owned voxels lie inside the brick's box */
+                    const uint8_t *src = e->voxels + (lo[0] - e->lo[0]) +
+                                         e->dims[0] * ((y - e->lo[1]) + e->dims[1] * (z - e->lo[2]));
+                    memcpy(row + lo[0], src, d[0]);
+                } else {
+                    for (size_t x = lo[0]; x < lo[0] + d[0]; x++)
+                        row[x] = cdvr_brick_cache_fetch(c->payload, c->payload_bytes, c->dims,
+                                                        x, y, z);
+                }
+            }
+    }
+}
+
+cdvr_status cdvr_brick_cache_dense(cdvr_brick_cache *c, const uint8_t **frame, cdvr_error *err)
+{
+    *frame = NULL;
+    if (!c->payload_bytes)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "brick cache: no frame laid out yet");
+    if (!c->dense) {
+        void *mem = NULL;
+        size_t n = c->dims[0] * c->dims[1] * c->dims[2];
+        if (posix_memalign(&mem, 4096, n ? n : 1) != 0)
+            return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory for a dense "
+                                  "frame of %zu bytes", n);
+        c->dense = mem;
+    }
+    double t0 = cdvr_now_ms();
+    assemble(c, c->dense);
+    c->stats.layout_ms += cdvr_now_ms() - t0;
+    *frame = c->dense;
+    return CDVR_OK;
 }
