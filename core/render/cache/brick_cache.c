@@ -571,6 +571,42 @@ void cdvr_brick_cache_get_stats(const cdvr_brick_cache *c, cdvr_brick_cache_stat
     *out = c->stats;
 }
 
+/* One axis of the coarse fetch (cdvr_brick_cache_fetch) at level-0 coordinate x. */
+static void coarse_axis(size_t x, uint32_t lvl, size_t lo, size_t d, uint32_t *c0,
+                        uint32_t *c1, uint64_t *w0, uint64_t *w1)
+{
+    uint32_t s = 1u << lvl, f = (uint32_t)x & (s - 1u);
+    *c0 = coord_at(x, lvl, (uint32_t)lo, (uint32_t)d);
+    *c1 = *c0 + 1 < d ? *c0 + 1 : (uint32_t)d - 1;
+    *w0 = s - f;
+    *w1 = f;
+}
+
+/* Voxels x0 .. x0 + n - 1 of row (y, z) from a coarse entry: the fetch's formula with the
+ * page-table lookups done once (the same integers, so the same bytes). */
+static void assemble_row(const cache_entry *e, size_t x0, size_t n, size_t y, size_t z,
+                         uint8_t *row)
+{
+    uint32_t lvl = (uint32_t)(e->level < 15 ? e->level : 15), shift = 3 * lvl;
+    uint32_t cy0, cy1, cz0, cz1;
+    uint64_t wy0, wy1, wz0, wz1;
+    coarse_axis(y, lvl, e->lo[1], e->dims[1], &cy0, &cy1, &wy0, &wy1);
+    coarse_axis(z, lvl, e->lo[2], e->dims[2], &cz0, &cz1, &wz0, &wz1);
+    const uint8_t *r[4] = {e->voxels + e->dims[0] * (cy0 + e->dims[1] * cz0),
+                           e->voxels + e->dims[0] * (cy1 + e->dims[1] * cz0),
+                           e->voxels + e->dims[0] * (cy0 + e->dims[1] * cz1),
+                           e->voxels + e->dims[0] * (cy1 + e->dims[1] * cz1)};
+    uint64_t w[4] = {wy0 * wz0, wy1 * wz0, wy0 * wz1, wy1 * wz1};
+    for (size_t x = x0; x < x0 + n; x++) {
+        uint32_t cx0, cx1;
+        uint64_t wx0, wx1, sum = 0;
+        coarse_axis(x, lvl, e->lo[0], e->dims[0], &cx0, &cx1, &wx0, &wx1);
+        for (int k = 0; k < 4; k++)
+            sum += w[k] * (wx0 * r[k][cx0] + wx1 * r[k][cx1]);
+        row[x] = (uint8_t)((sum + (1ull << (shift - 1))) >> shift);
+    }
+}
+
 static void assemble(const cdvr_brick_cache *c, uint8_t *frame)
 {
     const cdvr_store_info *in = cdvr_store_get_info(c->st);
@@ -587,9 +623,7 @@ static void assemble(const cdvr_brick_cache *c, uint8_t *frame)
                                          e->dims[0] * ((y - e->lo[1]) + e->dims[1] * (z - e->lo[2]));
                     memcpy(row + lo[0], src, d[0]);
                 } else {
-                    for (size_t x = lo[0]; x < lo[0] + d[0]; x++)
-                        row[x] = cdvr_brick_cache_fetch(c->payload, c->payload_bytes, c->dims,
-                                                        x, y, z);
+                    assemble_row(e, lo[0], d[0], y, z, row);
                 }
             }
     }
