@@ -2,7 +2,9 @@
  * a test codec whose OpenCL code reads raw voxels through a fetch function renders exactly the
  * image of the dense path (same samples, same arithmetic), with and without empty-space
  * skipping, on odd dims and for several frames of a chunk; the device then holds the payload,
- * not dense frames; its frames cannot be downloaded; a broken fetch source gives the build log. */
+ * not dense frames; its frames cannot be downloaded; a broken fetch source gives the build log.
+ * The BULK path (cdvr_cl_fetch_path: the codec's C decoder, then the dense render) gives the
+ * same images with dense frames on the device, and AUTO takes it on CPU devices only. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -84,7 +86,8 @@ static cdvr_image *render(cdvr_cl_stream *s, size_t frame, const cdvr_tf *tf,
     return img;
 }
 
-static void compare_paths(cdvr_cl *cl, const cdvr_codec *codec, const size_t dims[3])
+static void compare_paths(cdvr_cl *cl, const cdvr_codec *codec, const size_t dims[3],
+                          cdvr_cl_fetch_path path)
 {
     cdvr_volume *vol;
     cdvr_error err;
@@ -101,6 +104,7 @@ static void compare_paths(cdvr_cl *cl, const cdvr_codec *codec, const size_t dim
     cdvr_cl_stream *dense = NULL, *fetch = NULL;
     CHECK_OK(cdvr_cl_stream_create(cl, dims, &dense, &err), err);
     CHECK_OK(cdvr_cl_stream_create(cl, dims, &fetch, &err), err);
+    cdvr_cl_set_fetch_path(fetch, path);
     size_t voxels = cdvr_volume_voxels(vol);
     cdvr_codec_params none = {{0}};
     cdvr_status st = cdvr_cl_upload_frames(dense, vol->data, 3, &err);
@@ -109,10 +113,18 @@ static void compare_paths(cdvr_cl *cl, const cdvr_codec *codec, const size_t dim
     CHECK_OK(st, err);
     st = cdvr_cl_decode(fetch, codec, &none, 3, &err);
     CHECK_OK(st, err);
-    CHECK(cdvr_cl_volume_bytes(fetch) == 3 * voxels + 48, "fetch mode holds the payload: %llu",
-          (unsigned long long)cdvr_cl_volume_bytes(fetch));
     uint8_t *got = malloc(voxels);
-    CHECK(cdvr_cl_download(fetch, 0, got, &err) == CDVR_ERR_UNSUPPORTED, "download in fetch mode");
+    if (path == CDVR_CL_FETCH_SAMPLE) {
+        CHECK(cdvr_cl_volume_bytes(fetch) == 3 * voxels + 48, "fetch mode holds the payload: %llu",
+              (unsigned long long)cdvr_cl_volume_bytes(fetch));
+        CHECK(cdvr_cl_download(fetch, 0, got, &err) == CDVR_ERR_UNSUPPORTED,
+              "download in fetch mode");
+    } else {
+        CHECK(cdvr_cl_volume_bytes(fetch) == 3 * voxels, "bulk holds dense frames: %llu",
+              (unsigned long long)cdvr_cl_volume_bytes(fetch));
+        CHECK_OK(cdvr_cl_download(fetch, 2, got, &err), err);
+        CHECK(memcmp(got, vol->data + 2 * voxels, voxels) == 0, "bulk frame 2 is the C decode");
+    }
     free(got);
     for (int skip = 0; skip < 2; skip++)
         for (size_t f = 0; f < 3 && st == CDVR_OK; f++) {
@@ -147,8 +159,10 @@ int main(void)
     codec = make_fetch_codec("rawfetch_test", 90001, fetch_source);
     CHECK_OK(cdvr_codec_register(&codec, &err), err);
     const size_t dims[][3] = {{1, 1, 1}, {5, 3, 7}, {23, 17, 9}};
-    for (size_t i = 0; i < 3; i++)
-        compare_paths(cl, &codec, dims[i]);
+    for (size_t i = 0; i < 3; i++) {
+        compare_paths(cl, &codec, dims[i], CDVR_CL_FETCH_SAMPLE);
+        compare_paths(cl, &codec, dims[i], CDVR_CL_FETCH_BULK);
+    }
     /* a fetch function that does not compile: the build log is in the message */
     broken = make_fetch_codec("brokenfetch_test", 90002,
                               "uchar rawfetch(__global const uchar *p, __constant uchar *q, "
@@ -158,6 +172,12 @@ int main(void)
     uint8_t payload[3 * 64] = {0};
     cdvr_codec_params none = {{0}};
     CHECK_OK(cdvr_cl_stream_create(cl, d, &s, &err), err);
+    if (!getenv("CDVR_CL_FETCH")) { /* AUTO: bulk exactly on CPU devices */
+        cdvr_cl_fetch_path want = cdvr_cl_get_info(cl)->is_gpu ? CDVR_CL_FETCH_SAMPLE
+                                                               : CDVR_CL_FETCH_BULK;
+        CHECK(cdvr_cl_fetch_path_of(s) == want, "auto path %d", (int)cdvr_cl_fetch_path_of(s));
+    }
+    cdvr_cl_set_fetch_path(s, CDVR_CL_FETCH_SAMPLE); /* bulk would never build the source */
     CHECK_OK(cdvr_cl_upload(s, payload, sizeof payload, &err), err);
     cdvr_status st = cdvr_cl_decode(s, &broken, &none, 1, &err);
     CHECK(st == CDVR_ERR_DEVICE && strstr(err.msg, "no_such_name_q") &&

@@ -66,6 +66,7 @@ static const char child_script[] =
     "  local okc, ec = pcall(cdvr.render, st, o)\n"
     "  say('cpu', okc, ec)\n"
     "  o.device = 'cl'\n"
+    "  o.fetch = 'sample'\n" /* the fetch function on hostile payloads (bulk is the C decoder) */
     "  local okg, img = pcall(cdvr.render, st, o)\n"
     "  say('cl', okg, img)\n"
     "  if okc and okg then\n"
@@ -76,6 +77,7 @@ static const char child_script[] =
     "else\n"
     "  local okp, e = pcall(function()\n"
     "    local p = cdvr.player{store=st, tf=tf, camera=cam, device='cl', variant='hvq',\n"
+    "                          fetch='sample',\n"
     "                          width=40, height=32}\n"
     "    local r = p:run{frames=1}\n"
     "    local f = r.frames[1]\n"

@@ -17,6 +17,7 @@
  * the next group's decode and setup overlap the current group's rendering.
  */
 #include "cdvr/player.h"
+#include "cdvr/brick_cache.h"
 #include "cdvr/timing.h"
 
 #include <math.h>
@@ -145,6 +146,9 @@ struct cdvr_player {
     uint8_t *brick_frames[MAX_UNZIP]; /* per worker scratch: decoded frames of one brick */
     size_t brick_frames_cap[MAX_UNZIP];
     int *host_decodes;       /* per variant (cl device): its decode is faster on the host */
+    struct cdvr_brick_cache *cache; /* opts.cache: the brick cache of the variant playing */
+    int fetch_bulk;          /* cl device: fetch-mode codecs decode in bulk on the host
+                                (cdvr_cl_fetch_path_of is BULK) */
 #if CDVR_HAVE_OPENCL
     cdvr_cl *cl;
     cdvr_cl_stream *stream;
@@ -763,7 +767,7 @@ static int decodes_on_host(cdvr_player *p, const chunk_item *it)
     if (!ch->codec || ch->codec->cl_mode == CDVR_CODEC_CL_NONE || p->nbricks > 1)
         return 1;
     if (ch->codec->cl_mode != CDVR_CODEC_CL_DECODE)
-        return 0;
+        return p->fetch_bulk;
     pthread_mutex_lock(&p->mu);
     int host = p->host_decodes[it->variant];
     pthread_mutex_unlock(&p->mu);
@@ -990,6 +994,59 @@ static cdvr_status blank_image(const cdvr_player *p, const cdvr_camera *cam, cdv
 }
 
 /* b4 + b5 for timestep t of the current chunk; *img receives the frame. */
+#if CDVR_HAVE_OPENCL
+/* opts.cache: the frame from the brick cache of the group's variant (made or remade when the
+ * variant changes) into the stream's payload, read through the cache's fetch. */
+static cdvr_status load_cached(cdvr_player *p, const chunk_item *it, size_t t,
+                               const cdvr_camera *cam, cdvr_error *err)
+{
+    uint64_t budget = p->opts.cache_budget_mb > 0
+                          ? (uint64_t)(p->opts.cache_budget_mb * 1e6)
+                          : cdvr_cl_get_info(p->cl)->global_mem_bytes / 4;
+    budget = budget ? budget : 1;
+    if (!cdvr_brick_cache_serves(p->cache, p->opts.store, (size_t)it->variant, budget)) {
+        cdvr_brick_cache_free(p->cache);
+        p->cache = NULL;
+        cdvr_status s = cdvr_brick_cache_create(p->opts.store, (size_t)it->variant, budget,
+                                                &p->cache, err);
+        if (s != CDVR_OK)
+            return s;
+    }
+    const uint8_t *payload;
+    size_t bytes;
+    cdvr_codec_params none = {{0}};
+    cdvr_status s = cdvr_brick_cache_frame(p->cache, t, cam, p->opts.tf, p->opts.lod_error,
+                                           &payload, &bytes, err);
+    const cdvr_store_info *in = cdvr_store_get_info(p->opts.store);
+    if (s == CDVR_OK && !cdvr_cl_get_info(p->cl)->is_gpu &&
+        p->opts.fetch_path != CDVR_CL_FETCH_SAMPLE &&
+        (uint64_t)in->dims[0] * in->dims[1] * in->dims[2] <= budget) {
+        const uint8_t *frame; /* a CPU device: the dense frame when it fits (raycast_method.c) */
+        s = cdvr_brick_cache_dense(p->cache, &frame, err);
+        return s == CDVR_OK ? cdvr_cl_use_host_frames(p->stream, frame, 1, err) : s;
+    }
+    if (s == CDVR_OK)
+        s = cdvr_cl_upload(p->stream, payload, bytes, err);
+    cdvr_cl_set_fetch_path(p->stream, CDVR_CL_FETCH_SAMPLE);
+    if (s == CDVR_OK)
+        s = cdvr_cl_decode(p->stream, cdvr_brick_cache_codec(), &none, 1, err);
+    cdvr_cl_set_fetch_path(p->stream, (cdvr_cl_fetch_path)p->opts.fetch_path);
+    return s;
+}
+
+/* The cache's figures of the frame into its row. */
+static void cache_row(const cdvr_player *p, cdvr_frame_row *row)
+{
+    cdvr_brick_cache_stats cs;
+    if (!p->cache)
+        return;
+    cdvr_brick_cache_get_stats(p->cache, &cs);
+    row->resident_bytes = cs.resident_bytes;
+    row->nlevels = cs.levels;
+    memcpy(row->bricks_at, cs.bricks_at, sizeof row->bricks_at);
+}
+#endif
+
 static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const cdvr_camera *cam,
                                 cdvr_image **img, double *setup_ms, double *render_ms, cdvr_error *err)
 {
@@ -1016,6 +1073,13 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
     if (p->on_stream) {
         double t0 = cdvr_now_ms();
         const cdvr_skip_grid *grid = f < it->ngrids ? &it->grids[f] : NULL;
+        if (p->opts.cache) { /* the cache's payload replaces the group's frames */
+            cdvr_status cs = load_cached(p, it, t, cam, err);
+            if (cs != CDVR_OK)
+                return cs;
+            grid = NULL;
+            f = 0;
+        }
         cdvr_status s = cdvr_image_create(cam->width, cam->height, img, err);
         if (s == CDVR_OK)
             s = p->opts.method->render_stream(p->stream, f, grid, &ro, &p->opts.method_params,
@@ -1156,6 +1220,8 @@ static cdvr_status consume(cdvr_player *p, chunk_item *it, cdvr_error *err)
 #if CDVR_HAVE_OPENCL
         if (p->stream)
             row->device_bytes = cdvr_cl_stream_bytes(p->stream);
+        if (p->opts.cache)
+            cache_row(p, row);
 #endif
         row->status = ferr.status;
         if (ferr.status != CDVR_OK)
@@ -1493,6 +1559,10 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
          opts->look.gradient_opacity.npoints))
         rs = cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "player: a box of the bricks (sort-last) "
                             "renders only the composite blend mode without shading");
+    if (rs == CDVR_OK && opts->cache && (p->clipped || !p->on_stream))
+        rs = cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "player: cache=true renders on the cl "
+                            "device with the raycast method, the whole volume (not a box of "
+                            "the bricks)");
     if (rs == CDVR_OK && p->clipped && !method->bricks)
         rs = cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "player: method '%s' cannot render a "
                             "box of the bricks (sort-last distribution needs a method that "
@@ -1536,8 +1606,11 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
         cdvr_status s = cdvr_cl_open(&p->cl, err);
         if (s == CDVR_OK)
             s = cdvr_cl_stream_create(p->cl, p->vox_dims, &p->stream, err);
-        if (s == CDVR_OK)
+        if (s == CDVR_OK) {
             cdvr_cl_set_skipping(p->stream, opts->empty_skip);
+            cdvr_cl_set_fetch_path(p->stream, (cdvr_cl_fetch_path)opts->fetch_path);
+            p->fetch_bulk = cdvr_cl_fetch_path_of(p->stream) == CDVR_CL_FETCH_BULK;
+        }
         if (s != CDVR_OK) {
             cdvr_player_free(p);
             return s;
@@ -1583,6 +1656,7 @@ void cdvr_player_free(cdvr_player *p)
     cdvr_cl_close(p->cl);
 #endif
     cdvr_render_ctx_free(p->own_ctx);
+    cdvr_brick_cache_free(p->cache);
     pthread_mutex_destroy(&p->mu);
     pthread_cond_destroy(&p->cv);
     free(p);

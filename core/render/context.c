@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "cdvr/brick_cache.h"
 #include "cdvr/device.h"
 #include "cdvr/gl.h"
 #include "cdvr/store.h"
@@ -21,6 +22,9 @@ struct cdvr_render_ctx {
     uint8_t *frame_copy;         /* host copy of the voxels of the stream's frame 0, or NULL */
     size_t frame_bytes;
     cdvr_gl *gl;
+    cdvr_brick_cache *cache;     /* the brick cache of the last cached store render, or NULL */
+    char *cache_path;            /* its store's path and size: a new store at the address of */
+    uint64_t cache_file_bytes;   /* a closed one is not taken for it */
 };
 
 cdvr_status cdvr_render_ctx_create(cdvr_render_ctx **out, cdvr_error *err)
@@ -43,12 +47,37 @@ void cdvr_render_ctx_free(cdvr_render_ctx *ctx)
     if (!ctx)
         return;
     cdvr_render_ctx_forget_frame(ctx);
+    cdvr_brick_cache_free(ctx->cache);
+    free(ctx->cache_path);
 #if CDVR_HAVE_OPENCL
     cdvr_cl_stream_free(ctx->stream);
     cdvr_cl_close(ctx->cl);
 #endif
     cdvr_gl_free(ctx->gl);
     free(ctx);
+}
+
+cdvr_status cdvr_render_ctx_brick_cache(cdvr_render_ctx *ctx, const cdvr_store *st, size_t v,
+                                        uint64_t budget_bytes, cdvr_brick_cache **out,
+                                        cdvr_error *err)
+{
+    const cdvr_store_info *in = cdvr_store_get_info(st);
+    if (!cdvr_brick_cache_serves(ctx->cache, st, v, budget_bytes) || !ctx->cache_path ||
+        strcmp(ctx->cache_path, cdvr_store_path(st)) != 0 ||
+        ctx->cache_file_bytes != in->file_bytes) {
+        cdvr_brick_cache_free(ctx->cache);
+        free(ctx->cache_path);
+        ctx->cache = NULL;
+        ctx->cache_path = strdup(cdvr_store_path(st));
+        ctx->cache_file_bytes = in->file_bytes;
+        if (!ctx->cache_path)
+            return cdvr_error_set(err, CDVR_ERR_NOMEM, "render context: out of memory");
+        cdvr_status s = cdvr_brick_cache_create(st, v, budget_bytes, &ctx->cache, err);
+        if (s != CDVR_OK)
+            return s;
+    }
+    *out = ctx->cache;
+    return CDVR_OK;
 }
 
 cdvr_status cdvr_render_ctx_gl(cdvr_render_ctx *ctx, cdvr_gl **out, cdvr_error *err)

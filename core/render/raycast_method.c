@@ -2,19 +2,42 @@
  * ray caster (render.h) and the OpenCL one (device.h), which follows it to 50 dB. */
 #include "cdvr/method.h"
 
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
+#include "cdvr/brick_cache.h"
 #include "cdvr/device.h"
 #include "cdvr/store.h"
 #include "cdvr/timing.h"
 
 typedef struct raycast_params {
-    int skip; /* empty-space skipping */
+    int skip;  /* empty-space skipping */
+    int fetch; /* fetch-mode codecs on cl: 0 auto, 1 sample, 2 bulk (cdvr_cl_fetch_path) */
+    int cache; /* a store on cl through the brick cache (cdvr/brick_cache.h) */
+    double budget_mb, lod_error;
 } raycast_params;
+
+static const char *const fetch_names[] = {"auto", "sample", "bulk"};
 
 static const cdvr_method_option raycast_options[] = {
     {"skip", CDVR_MOPT_BOOLEAN, "true", NULL,
      "empty-space skipping by brick min/max (false: every sample is taken; the image is the same)"},
+    {"fetch", CDVR_MOPT_CHOICE, "auto", "auto|sample|bulk",
+     "a store of a fetch-mode codec (hvq) on cl: 'sample' reads every sample through the "
+     "codec's fetch function, 'bulk' decodes the chunk with its C decoder and renders dense, "
+     "'auto' bulk on a CPU device and sample on a GPU (same images)"},
+    {"cache", CDVR_MOPT_BOOLEAN, "false", NULL,
+     "a store through the brick cache: decoded bricks in a pool of budget_mb, a level per "
+     "brick by lod_error (cdvr/brick_cache.h), read through a page table (on a CPU device a "
+     "dense frame assembled from them when it fits the budget, unless fetch='sample'); stats "
+     "add resident_bytes, bricks per level and cache_path"},
+    {"budget_mb", CDVR_MOPT_NUMBER, "0", NULL,
+     "the brick cache's budget in MB (10^6 bytes) of voxels; 0: a quarter of the device's "
+     "memory"},
+    {"lod_error", CDVR_MOPT_NUMBER, "1", NULL,
+     "the brick cache's level of detail: a brick's voxel may project to at most this many "
+     "pixels at its nearest point (0: level 0 everywhere, as far as the budget allows)"},
     {NULL, 0, NULL, NULL, NULL}};
 
 static raycast_params get_params(const cdvr_method_params *p)
@@ -26,7 +49,7 @@ static raycast_params get_params(const cdvr_method_params *p)
 
 static void raycast_default(cdvr_method_params *p)
 {
-    raycast_params rp = {.skip = 1};
+    raycast_params rp = {.skip = 1, .lod_error = 1.0};
     memcpy(p->bytes, &rp, sizeof rp);
 }
 
@@ -34,6 +57,34 @@ static cdvr_status raycast_set(cdvr_method_params *p, const char *key, const cha
                                cdvr_error *err)
 {
     raycast_params rp = get_params(p);
+    if (strcmp(key, "fetch") == 0) {
+        for (int i = 0; i < 3; i++)
+            if (strcmp(value, fetch_names[i]) == 0) {
+                rp.fetch = i;
+                memcpy(p->bytes, &rp, sizeof rp);
+                return CDVR_OK;
+            }
+        return cdvr_error_set(err, CDVR_ERR_ARG, "raycast: option 'fetch': auto, sample or bulk "
+                              "expected, got '%s'", value);
+    }
+    if (strcmp(key, "budget_mb") == 0 || strcmp(key, "lod_error") == 0) {
+        char *end;
+        double x = strtod(value, &end);
+        if (end == value || *end || !(x >= 0) || x > 1e12)
+            return cdvr_error_set(err, CDVR_ERR_ARG, "raycast: option '%s': a number >= 0 "
+                                  "expected, got '%s'", key, value);
+        *(key[0] == 'b' ? &rp.budget_mb : &rp.lod_error) = x;
+        memcpy(p->bytes, &rp, sizeof rp);
+        return CDVR_OK;
+    }
+    if (strcmp(key, "cache") == 0) {
+        if (strcmp(value, "true") != 0 && strcmp(value, "false") != 0)
+            return cdvr_error_set(err, CDVR_ERR_ARG, "raycast: option 'cache': true or false "
+                                  "expected, got '%s'", value);
+        rp.cache = strcmp(value, "true") == 0;
+        memcpy(p->bytes, &rp, sizeof rp);
+        return CDVR_OK;
+    }
     if (strcmp(key, "skip") != 0)
         return cdvr_error_set(err, CDVR_ERR_ARG, "raycast: unknown option '%s'", key);
     if (strcmp(value, "true") == 0)
@@ -57,6 +108,60 @@ static cdvr_status render_cpu(const cdvr_volume *vol, size_t t, cdvr_render_opts
     cdvr_render_stats_integer(stats, "samples", (long long)opts->samples);
     cdvr_render_stats_number(stats, "ms", cdvr_now_ms() - start);
     return CDVR_OK;
+}
+
+/* The brick cache's figures of its last frame into stats. */
+static void cache_stats(const cdvr_brick_cache *bc, cdvr_render_stats *stats)
+{
+    cdvr_brick_cache_stats cs;
+    cdvr_brick_cache_get_stats(bc, &cs);
+    cdvr_render_stats_integer(stats, "resident_bytes", (long long)cs.resident_bytes);
+    cdvr_render_stats_integer(stats, "cache_bytes", (long long)cs.cache_bytes);
+    cdvr_render_stats_integer(stats, "bricks_decoded", (long long)cs.decoded);
+    cdvr_render_stats_number(stats, "cache_decode_ms", cs.decode_ms);
+    for (size_t l = 0; l < cs.levels; l++) {
+        char key[24];
+        snprintf(key, sizeof key, "bricks_level%u", (unsigned)l);
+        cdvr_render_stats_integer(stats, key, (long long)cs.bricks_at[l]);
+    }
+}
+
+/* The CPU reference through the brick cache: the cache's payload decoded by its C fetch
+ * (cdvr/brick_cache.h) into a dense frame of the store's dims (the reference renders dense),
+ * then the CPU ray caster. */
+static cdvr_status raycast_cached_cpu(cdvr_render_ctx *ctx, const cdvr_store *st, size_t v,
+                                      size_t t, cdvr_render_opts *opts,
+                                      const raycast_params *rp, cdvr_render_stats *stats,
+                                      cdvr_image **out, cdvr_error *err)
+{
+    const cdvr_store_info *info = cdvr_store_get_info(st);
+    uint64_t budget = rp->budget_mb > 0 ? (uint64_t)(rp->budget_mb * 1e6) : (uint64_t)1 << 30;
+    cdvr_brick_cache *bc;
+    const uint8_t *payload;
+    size_t bytes;
+    cdvr_volume *vol = NULL;
+    cdvr_status s = cdvr_render_ctx_brick_cache(ctx, st, v, budget, &bc, err);
+    if (s == CDVR_OK)
+        s = cdvr_brick_cache_frame(bc, t, opts->camera, opts->tf, rp->lod_error, &payload,
+                                   &bytes, err);
+    if (s == CDVR_OK)
+        s = cdvr_volume_create(info->dims, 1, CDVR_TYPE_U8, &vol, err);
+    if (s == CDVR_OK) {
+        uint8_t *frames[1] = {vol->data};
+        cdvr_codec_params none = {{0}};
+        memcpy(vol->spacing, info->spacing, sizeof vol->spacing);
+        memcpy(vol->origin, info->origin, sizeof vol->origin);
+        memcpy(vol->direction, info->direction, sizeof vol->direction);
+        vol->window[0] = info->qlo;
+        vol->window[1] = info->qhi;
+        s = cdvr_brick_cache_codec()->decode(&none, info->dims, payload, bytes, frames, 1, err);
+    }
+    if (s == CDVR_OK)
+        s = render_cpu(vol, 0, opts, stats, out, err);
+    if (s == CDVR_OK)
+        cache_stats(bc, stats);
+    cdvr_volume_free(vol);
+    return s;
 }
 
 #if CDVR_HAVE_OPENCL
@@ -136,19 +241,82 @@ static cdvr_status render_cl(cdvr_render_ctx *ctx, const cdvr_volume *vol, size_
                                stats, out, err);
 }
 
+/* Timestep t of variant v through the context's brick cache (raycast_params.cache). */
+static cdvr_status raycast_cached(cdvr_render_ctx *ctx, const cdvr_store *st, size_t v, size_t t,
+                                  cdvr_render_opts *opts, const raycast_params *rp,
+                                  cdvr_render_stats *stats, cdvr_image **out, cdvr_error *err)
+{
+    const cdvr_store_info *info = cdvr_store_get_info(st);
+    double start = cdvr_now_ms();
+    cdvr_cl *cl;
+    cdvr_status status = cdvr_render_ctx_cl(ctx, &cl, err);
+    if (status != CDVR_OK)
+        return status;
+    uint64_t budget = rp->budget_mb > 0 ? (uint64_t)(rp->budget_mb * 1e6)
+                                        : cdvr_cl_get_info(cl)->global_mem_bytes / 4;
+    cdvr_brick_cache *bc;
+    const uint8_t *payload;
+    size_t bytes;
+    cdvr_cl_stream *s;
+    status = cdvr_render_ctx_brick_cache(ctx, st, v, budget ? budget : 1, &bc, err);
+    if (status == CDVR_OK)
+        status = cdvr_brick_cache_frame(bc, t, opts->camera, opts->tf, rp->lod_error, &payload,
+                                   &bytes, err);
+    if (status == CDVR_OK)
+        status = cdvr_render_ctx_stream(ctx, info->dims, &s, err);
+    if (status != CDVR_OK)
+        return status;
+    cdvr_render_ctx_forget_frame(ctx);
+    cdvr_cl_set_skipping(s, rp->skip);
+    /* A CPU device reads a dense frame 10-20x faster than through the page table: when the
+     * dense frame fits the budget (and fetch="sample" does not ask for the page table) the
+     * cache assembles it; the images are the same. */
+    int dense = !cdvr_cl_get_info(cl)->is_gpu && rp->fetch != CDVR_CL_FETCH_SAMPLE &&
+                (uint64_t)info->dims[0] * info->dims[1] * info->dims[2] <= budget;
+    if (dense) {
+        const uint8_t *frame;
+        status = cdvr_brick_cache_dense(bc, &frame, err);
+        if (status == CDVR_OK)
+            status = cdvr_cl_use_host_frames(s, frame, 1, err);
+    } else {
+        cdvr_codec_params none = {{0}};
+        cdvr_cl_set_fetch_path(s, CDVR_CL_FETCH_SAMPLE); /* the page table, no dense copy */
+        status = cdvr_cl_upload(s, payload, bytes, err);
+        if (status == CDVR_OK)
+            status = cdvr_cl_decode(s, cdvr_brick_cache_codec(), &none, 1, err);
+    }
+    if (status == CDVR_OK)
+        status = render_device_frame(ctx, s, 0, opts, info->spacing, info->origin,
+                                     info->direction, start, stats, out, err);
+    if (status == CDVR_OK) {
+        cache_stats(bc, stats);
+        cdvr_render_stats_string(stats, "cache_path", dense ? "dense" : "page_table");
+    }
+    return status;
+}
+
 static cdvr_status raycast_store(cdvr_render_ctx *ctx, cdvr_device_kind device,
                                  const cdvr_store *st, size_t v, size_t t, cdvr_render_opts *opts,
                                  const cdvr_method_params *p, cdvr_render_stats *stats,
                                  cdvr_image **out, cdvr_error *err)
 {
+    raycast_params rp = get_params(p);
+    if (rp.cache && device == CDVR_DEVICE_CPU)
+        return raycast_cached_cpu(ctx, st, v, t, opts, &rp, stats, out, err);
     if (device != CDVR_DEVICE_CL)
         return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "raycast: a store renders from its "
                               "chunk on cl only (the cpu decodes it first)");
+    if (rp.cache)
+        return raycast_cached(ctx, st, v, t, opts, &rp, stats, out, err);
     const cdvr_store_info *info = cdvr_store_get_info(st);
     double start = cdvr_now_ms();
     cdvr_cl_stream *s;
     size_t frame;
-    cdvr_status status = cdvr_render_ctx_load_chunk(ctx, st, v, t, &s, &frame, err);
+    cdvr_status status = cdvr_render_ctx_stream(ctx, info->dims, &s, err);
+    if (status != CDVR_OK)
+        return status;
+    cdvr_cl_set_fetch_path(s, (cdvr_cl_fetch_path)get_params(p).fetch);
+    status = cdvr_render_ctx_load_chunk(ctx, st, v, t, &s, &frame, err);
     if (status != CDVR_OK)
         return status;
     cdvr_cl_set_skipping(s, get_params(p).skip);
@@ -170,8 +338,21 @@ static cdvr_status render_cl(cdvr_render_ctx *ctx, const cdvr_volume *vol, size_
     return cdvr_render_ctx_cl(ctx, &cl, err);
 }
 
+static cdvr_status raycast_store(cdvr_render_ctx *ctx, cdvr_device_kind device,
+                                 const cdvr_store *st, size_t v, size_t t, cdvr_render_opts *opts,
+                                 const cdvr_method_params *p, cdvr_render_stats *stats,
+                                 cdvr_image **out, cdvr_error *err)
+{
+    raycast_params rp = get_params(p);
+    if (rp.cache && device == CDVR_DEVICE_CPU)
+        return raycast_cached_cpu(ctx, st, v, t, opts, &rp, stats, out, err);
+    return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "raycast: a store renders from its chunk "
+                          "on cl only (the cpu decodes it first, or renders it through the "
+                          "brick cache with cache=true)");
+}
+
 #define RAYCAST_STREAM NULL
-#define RAYCAST_STORE NULL
+#define RAYCAST_STORE raycast_store
 
 #endif
 

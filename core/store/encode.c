@@ -994,6 +994,8 @@ cdvr_status cdvr_store_encode_source(const cdvr_encode_source *src,
                                      const cdvr_encode_opts *opts, const char *path,
                                      cdvr_error *err)
 {
+    if (opts && opts->levels > 1) /* a multi-resolution store: levels.c */
+        return cdvr_store_encode_levels(src, opts, path, err);
     cdvr_store *st = NULL;
     cdvr_status s = check_opts(src, opts, path, err);
     if (s == CDVR_OK && opts->threads < 0)

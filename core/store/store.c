@@ -22,7 +22,10 @@
  *   208  u64    data offset (M + 4: first byte after the metadata CRC)
  *   216  u64    file bytes (size of the whole file)
  *   224  u32[3] brick grid bx, by, bz (each >= 1, product <= 4096; cdvr_brick_box)
- *   236  u32[5] reserved, 0
+ *   236  u32    levels: 0 (stores without coarser levels, all stores before them) or
+ *               2..CDVR_STORE_MAX_LEVELS (a multi-resolution store, core/store/levels.c)
+ *   240  u64    offset of the level directory (0 when levels is 0; levels.c)
+ *   248  u32[2] reserved, 0
  *  VARIANT TABLE (nvariants records of 160 bytes, from offset 256)
  *     0  u8[32] name, NUL padded (non-empty, NUL-terminated, unique in the store)
  *    32  u8[16] codec name, NUL padded ([a-z0-9_], 1..15 bytes)
@@ -266,7 +269,9 @@ static void put_header(wcursor *w, const cdvr_store *st, uint64_t meta)
     put_u64(w, in->file_bytes);
     for (int i = 0; i < 3; i++)
         put_u32(w, (uint32_t)in->bricks[i]);
-    put_zeros(w, 20);
+    put_u32(w, in->nlevels > 1 ? (uint32_t)in->nlevels : 0u);
+    put_u64(w, in->nlevels > 1 ? st->levels_offset : 0u);
+    put_zeros(w, 8);
 }
 
 static void put_variant(wcursor *w, const cdvr_variant_info *v)
@@ -345,6 +350,8 @@ typedef struct header_fields {
     uint64_t meta, dims[3], timesteps, nchunks, data_offset, file_bytes;
     double spacing[3], origin[3], direction[9], qlo, qhi;
     uint32_t bricks[3], reserved;
+    uint32_t nlevels;
+    uint64_t levels_offset;
 } header_fields;
 
 /* Versions 1 and 2 share the first 16 bytes (magic, version, header bytes, meta bytes). */
@@ -378,7 +385,9 @@ static void parse_header(const uint8_t *buf, size_t n, header_fields *h)
     if (h->version >= 2) {
         for (int i = 0; i < 3; i++)
             h->bricks[i] = get_u32(&r);
-        for (int i = 0; i < 5; i++)
+        h->nlevels = get_u32(&r);
+        h->levels_offset = get_u64(&r);
+        for (int i = 0; i < 2; i++)
             h->reserved |= get_u32(&r);
     }
 }
@@ -462,6 +471,11 @@ static cdvr_status check_header_values(const char *path, const header_fields *h,
     int small = h->bricks[0] <= CDVR_STORE_MAX_BRICKS && h->bricks[1] <= CDVR_STORE_MAX_BRICKS &&
                 h->bricks[2] <= CDVR_STORE_MAX_BRICKS;
     size_t nbricks = small ? bricks[0] * bricks[1] * bricks[2] : 0;
+    if (h->nlevels == 1 || h->nlevels > CDVR_STORE_MAX_LEVELS ||
+        (h->nlevels == 0) != (h->levels_offset == 0) || h->levels_offset > h->file_bytes)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: bad level count %u or directory "
+                              "offset %llu", path, h->nlevels,
+                              (unsigned long long)h->levels_offset);
     if (h->reserved || nbricks == 0 || nbricks > CDVR_STORE_MAX_BRICKS ||
         !cdvr_brick_box(dims, bricks, 0, lo, bd))
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: bad brick grid %ux%ux%u for dims "
@@ -477,6 +491,7 @@ static cdvr_status check_header_values(const char *path, const header_fields *h,
     }
     memcpy(info->direction, h->direction, sizeof info->direction);
     info->nbricks = nbricks;
+    info->nlevels = h->nlevels ? h->nlevels : 1;
     info->timesteps = (size_t)h->timesteps;
     info->qlo = h->qlo;
     info->qhi = h->qhi;
@@ -850,7 +865,7 @@ static cdvr_status open_header(cdvr_store *st, uint64_t file_size, header_fields
 {
     uint8_t hdr[CDVR_STORE_HEADER_BYTES];
     size_t got = 0;
-    if (read_at(st->fd, hdr, sizeof hdr, 0, &got) != CDVR_OK)
+    if (read_at(st->fd, hdr, sizeof hdr, st->base, &got) != CDVR_OK)
         return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot read: %s", st->path, strerror(errno));
     if (got < 8 || memcmp(hdr, CDVR_STORE_MAGIC, 8) != 0)
         return cdvr_error_set(err, CDVR_ERR_FORMAT, "%s: not a cdvr store (bad magic)", st->path);
@@ -873,7 +888,7 @@ static cdvr_status open_tables(cdvr_store *st, const header_fields *h, cdvr_erro
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for %zu bytes of tables",
                               st->path, meta + 4);
     size_t got = 0;
-    cdvr_status s = read_at(st->fd, buf, meta + 4, 0, &got);
+    cdvr_status s = read_at(st->fd, buf, meta + 4, st->base, &got);
     if (s != CDVR_OK || got != meta + 4) {
         free(buf);
         return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot read the tables", st->path);
@@ -889,17 +904,13 @@ static cdvr_status open_tables(cdvr_store *st, const header_fields *h, cdvr_erro
     return s;
 }
 
-cdvr_status cdvr_store_open(const char *path, cdvr_store **out, cdvr_error *err)
+cdvr_status cdvr_store_open_at(const char *path, int fd, uint64_t base, uint64_t size,
+                               cdvr_store **out, cdvr_error *err)
 {
     *out = NULL;
-    int fd;
-    struct stat sb;
-    cdvr_status os = cdvr_open_regular_file(path, &fd, &sb, err); /* never waits on a FIFO */
-    if (os != CDVR_OK)
-        return os;
     header_fields h = {0};
-    cdvr_store probe = {.path = (char *)path, .fd = fd};
-    cdvr_status s = open_header(&probe, (uint64_t)sb.st_size, &h, err);
+    cdvr_store probe = {.path = (char *)path, .fd = fd, .base = base};
+    cdvr_status s = open_header(&probe, size, &h, err);
     cdvr_store *st = NULL;
     if (s == CDVR_OK)
         s = cdvr_store_alloc(h.nvariants, (size_t)h.nchunks, path, &st, err);
@@ -908,10 +919,14 @@ cdvr_status cdvr_store_open(const char *path, cdvr_store **out, cdvr_error *err)
         return s;
     }
     st->fd = fd;
+    st->base = base;
     st->info.version = h.version;
     st->info.file_bytes = h.file_bytes;
     st->info.nbricks = 1; /* until the header values are checked */
+    st->info.nlevels = 1;
     s = open_tables(st, &h, err);
+    if (s == CDVR_OK && h.nlevels > 1)
+        s = cdvr_store_open_levels(st, h.nlevels, h.levels_offset, err);
     if (s != CDVR_OK) {
         cdvr_store_close(st);
         return s;
@@ -920,10 +935,32 @@ cdvr_status cdvr_store_open(const char *path, cdvr_store **out, cdvr_error *err)
     return CDVR_OK;
 }
 
+cdvr_status cdvr_store_read_bytes(const cdvr_store *st, uint8_t *buf, size_t n, uint64_t offset,
+                                  cdvr_error *err)
+{
+    size_t got = 0;
+    if (read_at(st->fd, buf, n, st->base + offset, &got) != CDVR_OK || got != n)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: cannot read %zu bytes at %llu",
+                              st->path, n, (unsigned long long)offset);
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_store_open(const char *path, cdvr_store **out, cdvr_error *err)
+{
+    *out = NULL;
+    int fd;
+    struct stat sb;
+    cdvr_status os = cdvr_open_regular_file(path, &fd, &sb, err); /* never waits on a FIFO */
+    if (os != CDVR_OK)
+        return os;
+    return cdvr_store_open_at(path, fd, 0, (uint64_t)sb.st_size, out, err);
+}
+
 void cdvr_store_close(cdvr_store *st)
 {
     if (!st)
         return;
+    cdvr_store_close_levels(st);
     if (st->fd >= 0)
         close(st->fd);
     free(st->path);
@@ -1043,7 +1080,7 @@ static cdvr_status read_checked(const cdvr_store *st, size_t v, size_t c, const 
 {
     const char *name = st->variants[v].name;
     size_t got = 0;
-    if (read_at(st->fd, buf, n, offset, &got) != CDVR_OK)
+    if (read_at(st->fd, buf, n, st->base + offset, &got) != CDVR_OK)
         return cdvr_error_set(err, CDVR_ERR_IO, "%s: variant %s chunk %zu: %sread failed: %s",
                               st->path, name, c + 1, what, strerror(errno));
     if (got != n)
@@ -1071,7 +1108,7 @@ void cdvr_store_drop_cache(const cdvr_store *st, size_t v, size_t c)
 {
     const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, c);
     if (ci)
-        (void)posix_fadvise(st->fd, (off_t)ci->offset, (off_t)ci->stored_bytes,
+        (void)posix_fadvise(st->fd, (off_t)(st->base + ci->offset), (off_t)ci->stored_bytes,
                             POSIX_FADV_DONTNEED);
 }
 

@@ -560,6 +560,18 @@ static double box_diagonal(const cdvr_store_info *info)
     return sqrt(sum);
 }
 
+/* fetch = "auto" | "sample" | "bulk": cdvr_cl_fetch_path (cdvr/device.h) as 0, 1, 2. */
+static int fetch_option(lua_State *L)
+{
+    static const char *const names[] = {"auto", "sample", "bulk"};
+    const char *name = lcdvr_optstringfield(L, 1, "fetch", "auto");
+    for (int i = 0; i < 3; i++)
+        if (strcmp(name, names[i]) == 0)
+            return i;
+    return luaL_error(L, "cdvr.player: option 'fetch': auto, sample or bulk expected, got '%s'",
+                      name);
+}
+
 /* step, unit, term, background, threads, ring, read_mbps: the render and pipeline options. */
 static void render_options(lua_State *L, lplayer *lp, const cdvr_store_info *info)
 {
@@ -577,6 +589,11 @@ static void render_options(lua_State *L, lplayer *lp, const cdvr_store_info *inf
     lp->opts.cold = lcdvr_optbooleanfield(L, 1, "cold", 0);
     lp->opts.read_mbps = rate_option(L, "read_mbps", 0, 1, CDVR_PLAYER_MIN_READ_MBPS, "MB/s");
     lp->opts.empty_skip = lcdvr_optbooleanfield(L, 1, "empty_skip", 1);
+    lp->opts.fetch_path = fetch_option(L);
+    lp->opts.cache = lcdvr_optbooleanfield(L, 1, "cache", 0);
+    lp->opts.cache_budget_mb = number_option(L, "budget_mb", 0, 0, 1e12,
+                                             "MB >= 0 expected (0: a quarter of the device's memory)");
+    lp->opts.lod_error = number_option(L, "lod_error", 1, 0, 1e12, "pixels >= 0 expected");
     lp->opts.brick_skip = lcdvr_optbooleanfield(L, 1, "brick_skip", 1);
 }
 
@@ -772,7 +789,7 @@ static int l_player(lua_State *L)
     static const char *const keys[] = {"store", "tf", "camera", "policy", "target_fps", "min_psnr",
                                        "variant", "device", "step", "unit", "term", "background",
                                        "threads", "pipeline", "ring", "cold", "read_mbps",
-                                       "empty_skip", "callback_limit", "callback_memory", "out", "pace", "width",
+                                       "empty_skip", "fetch", "cache", "budget_mb", "lod_error", "callback_limit", "callback_memory", "out", "pace", "width",
                                        "height", "loop", "brick_skip", "frame", "distribute",
                                        "on_error", "fps", "crf", "preset", "progress", NULL};
     luaL_checktype(L, 1, LUA_TTABLE);

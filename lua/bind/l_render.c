@@ -298,7 +298,9 @@ static int l_render(lua_State *L)
     c.timesteps = timesteps;
     if (st) {
         size_t v = store_variant(L, st);
-        if (c.method->render_store && c.device == CDVR_DEVICE_CL)
+        int cached = lua_getfield(L, 2, "cache") != LUA_TNIL && lua_toboolean(L, -1);
+        lua_pop(L, 1); /* cache=true on the cpu: the method's store path (its brick cache) */
+        if (c.method->render_store && (c.device == CDVR_DEVICE_CL || cached))
             return render_store_direct(L, &c, st, v, frame);
         cdvr_volume *decoded; /* decode the timestep on the host, then render it as a volume */
         cdvr_error err;

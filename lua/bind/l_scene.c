@@ -50,6 +50,15 @@ void lcdvr_push_frame_row(lua_State *L, const cdvr_store *st, const cdvr_frame_r
     lua_pushinteger(L, (lua_Integer)r->bricks_skipped);
     lua_setfield(L, -2, "bricks_skipped");
     setnum(L, "samples", (double)r->samples);
+    if (r->nlevels) { /* the brick cache (cache=true) */
+        setnum(L, "resident_bytes", (double)r->resident_bytes);
+        for (size_t l = 0; l < r->nlevels && l < 16; l++) {
+            char key[24];
+            snprintf(key, sizeof key, "bricks_level%u", (unsigned)l);
+            lua_pushinteger(L, (lua_Integer)r->bricks_at[l]);
+            lua_setfield(L, -2, key);
+        }
+    }
     lua_pushinteger(L, r->rank);
     lua_setfield(L, -2, "rank");
     if (r->group_start) {

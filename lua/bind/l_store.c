@@ -44,8 +44,9 @@ static const char *const variant_keys[] = {"codec", "name", "stage2", "lzo_min_s
                                            "stage2_read_mbps", "stage2_segment", NULL};
 /* Keys only the top-level options table takes. */
 static const char *const top_keys[] = {"path", "schedule", "progress", "variants", "bricks",
-                                        "threads", "ranges", "range_brick", "callback_limit",
-                                        "callback_memory", NULL};
+                                        "threads", "ranges", "range_brick", "levels",
+                                        "level_variants", "callback_limit", "callback_memory",
+                                        NULL};
 
 static int in_list(const char *const list[], const char *key)
 {
@@ -392,6 +393,42 @@ static const cdvr_volume *encode_input(lua_State *L, const cdvr_volume *vol,
     return q;
 }
 
+/* levels= (1..CDVR_STORE_MAX_LEVELS) and level_variants= {{variants of level 1}, ...} (each a
+ * list of as many variant tables as variants=, parsed as variants=): the level count, and the
+ * per-level specs in *out (NULL when none), left on the stack. */
+static size_t level_options(lua_State *L, size_t nvariants, const cdvr_variant_spec *const **out)
+{
+    lua_Integer levels = lcdvr_optintegerfield(L, 2, "levels", 1);
+    if (levels < 1 || levels > CDVR_STORE_MAX_LEVELS)
+        luaL_error(L, "cdvr.encode: option 'levels': 1..%d expected, got %I",
+                   CDVR_STORE_MAX_LEVELS, (LUAI_UACINT)levels);
+    *out = NULL;
+    int t = lua_getfield(L, 2, "level_variants");
+    if (t == LUA_TNIL) {
+        lua_pop(L, 1);
+        return (size_t)levels;
+    }
+    if (t != LUA_TTABLE || luaL_len(L, -1) != levels - 1)
+        luaL_error(L, "cdvr.encode: option 'level_variants': a list of %I lists of variants "
+                      "(levels 1 .. %I) expected", (LUAI_UACINT)(levels - 1),
+                   (LUAI_UACINT)(levels - 1));
+    int list = lua_gettop(L);
+    const cdvr_variant_spec **specs = lua_newuserdatauv(L, (size_t)levels * sizeof *specs, 0);
+    for (lua_Integer l = 1; l < levels; l++) {
+        lua_createtable(L, 0, 1); /* {variants = level_variants[l]}, parsed as cdvr.encode's */
+        int tmp = lua_gettop(L);
+        lua_geti(L, list, l);
+        lua_setfield(L, tmp, "variants");
+        size_t n;
+        specs[l - 1] = parse_variants(L, tmp, &n); /* left on the stack: kept alive */
+        if (n != nvariants)
+            luaL_error(L, "cdvr.encode: option 'level_variants': level %I has %d variants, "
+                          "variants= has %d", (LUAI_UACINT)l, (int)n, (int)nvariants);
+    }
+    *out = specs;
+    return (size_t)levels;
+}
+
 static int l_encode(lua_State *L)
 {
     int lazy = lcdvr_volume_lazy(L, 1); /* read one timestep at a time while encoding */
@@ -439,6 +476,7 @@ static int l_encode(lua_State *L)
     if (o.range_shift < CDVR_RANGE_SHIFT || o.range_shift > CDVR_RANGE_SHIFT_MAX)
         return luaL_error(L, "cdvr.encode: option 'range_brick': 4, 8, 16, 32 or 64 expected, "
                           "got %d", (int)range_brick);
+    o.levels = level_options(L, ctx.nvariants, &o.level_variants);
     cdvr_encode_source src;
     const cdvr_volume *u8 = NULL;
     if (lazy)
@@ -664,6 +702,60 @@ static void push_bricks(lua_State *L, const cdvr_store_info *in)
     lua_setfield(L, -2, "bricks");
 }
 
+/* info.levels: per level (from 0) its dims, spacing, brick grid, bytes (all variants) and per
+ * variant name, bytes, psnr and maxerr against level 0 (store.h). */
+static void push_levels(lua_State *L, const cdvr_store *st)
+{
+    const cdvr_store_info *in = cdvr_store_get_info(st);
+    lua_createtable(L, (int)in->nlevels, 0);
+    for (size_t l = 0; l < in->nlevels; l++) {
+        const cdvr_store *lv = cdvr_store_level(st, l);
+        const cdvr_store_info *li = cdvr_store_get_info(lv);
+        lua_createtable(L, 0, 6);
+        setint(L, "level", (lua_Integer)l);
+        push_triple(L, "dims", (double)li->dims[0], (double)li->dims[1], (double)li->dims[2]);
+        push_triple(L, "spacing", li->spacing[0], li->spacing[1], li->spacing[2]);
+        push_triple(L, "brick_grid", (double)li->bricks[0], (double)li->bricks[1],
+                    (double)li->bricks[2]);
+        uint64_t bytes = 0;
+        lua_createtable(L, (int)li->nvariants, 0);
+        for (size_t v = 0; v < li->nvariants; v++) {
+            const cdvr_variant_info *vi = cdvr_store_variant(lv, v);
+            double psnr, maxerr;
+            cdvr_store_level_error(st, l, v, &psnr, &maxerr);
+            bytes += vi->bytes;
+            lua_createtable(L, 0, 5);
+            setstr(L, "name", vi->name);
+            setstr(L, "codec", vi->codec_name);
+            setint(L, "bytes", (lua_Integer)vi->bytes);
+            setnum(L, "psnr", psnr);
+            setnum(L, "maxerr", maxerr);
+            lua_rawseti(L, -2, (lua_Integer)v + 1);
+        }
+        lua_setfield(L, -2, "variants");
+        setint(L, "bytes", (lua_Integer)bytes);
+        lua_rawseti(L, -2, (lua_Integer)l + 1);
+    }
+    lua_setfield(L, -2, "levels");
+}
+
+/* st:level(l): level l (0 .. #st:info().levels - 1) as a store of its own. */
+static int store_level(lua_State *L)
+{
+    const cdvr_store *st = lcdvr_checkstore(L, 1);
+    lua_Integer l = luaL_checkinteger(L, 2);
+    size_t n = cdvr_store_get_info(st)->nlevels;
+    if (l < 0 || (size_t)l >= n)
+        return luaL_error(L, "st:level: level %I of %s: the store has levels 0..%d",
+                          (LUAI_UACINT)l, cdvr_store_path(st), (int)n - 1);
+    cdvr_store *out;
+    cdvr_error err;
+    if (cdvr_store_open_level(st, (size_t)l, &out, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    pushstore(L, out);
+    return 1;
+}
+
 static int store_info(lua_State *L)
 {
     const cdvr_store *st = lcdvr_checkstore(L, 1);
@@ -704,6 +796,7 @@ static int store_info(lua_State *L)
         lua_rawseti(L, -2, (lua_Integer)v + 1);
     }
     lua_setfield(L, -2, "variants");
+    push_levels(L, st);
     setint(L, "bytes", (lua_Integer)bytes);
     setnum(L, "ratio", (double)cdvr_store_variant(st, 0)->bytes / (double)in->raw_bytes);
     return 1;
@@ -947,6 +1040,7 @@ static int store_bench_unpack(lua_State *L)
 static const luaL_Reg store_methods[] = {
     {"info", store_info},         {"decode", store_decode},
     {"chunk", store_chunk},       {"variants", store_variants},
+    {"level", store_level},
     {"close", store_gc},          {"bench_decode", store_bench_decode},
     {"bench_unpack", store_bench_unpack}, {NULL, NULL}};
 
@@ -964,7 +1058,7 @@ int lcdvr_open_store(lua_State *L)
     lcdvr_newclass(L, LCDVR_STORE, store_methods, store_meta);
     lcdvr_setfuncs(L, store_funcs);
     lcdvr_help_add(L, "cdvr.encode(volume, {path=, codec=, S=, T=, pack=, encoder=, stage2=, "
-                      "lzo_min_saving=, stage2_read_mbps=, stage2_segment=, name=, variants=, schedule=, progress=, bricks=, threads=, ranges=, range_brick=})",
+                      "lzo_min_saving=, stage2_read_mbps=, stage2_segment=, name=, variants=, schedule=, progress=, bricks=, threads=, ranges=, range_brick=, levels=, level_variants=})",
                    "encode a series into a .cdv store (written atomically; defaults codec=pvtc "
                    "S=4 T=3 pack=time encoder=lsq stage2=lzo lzo_min_saving=0.1; stage2=none|lzo|lz4|"
                    "zstd|auto (auto: per chunk the smallest modelled read at stage2_read_mbps=500 "
@@ -972,7 +1066,9 @@ int lcdvr_open_store(lua_State *L)
                    "independently packed segment); bricks={bx,by,bz} "
                    "splits each timestep into bricks; threads=0: one per core, the same bytes for "
                    "any count; ranges=true: per-brick value range tables for empty-space "
-                   "skipping, range_brick=8 (4..64) voxels per brick edge; schedule(t, variant) runs under callback_limit= instructions, "
+                   "skipping, range_brick=8 (4..64) voxels per brick edge; levels=N adds N-1 coarser levels, each halving resolution "
+                   "(tent filter, store.h), with level_variants={{...}, ...} per level "
+                   "(default: variants=); schedule(t, variant) runs under callback_limit= instructions, "
                    "default 5e7, and callback_memory= MB, default 256); the opened store; raises "
                    "when it cannot write the file (the message names it)");
     lcdvr_help_add(L, "cdvr.open(path)", "open a .cdv store (lazy); the store, or raises naming "
@@ -987,6 +1083,8 @@ int lcdvr_open_store(lua_State *L)
                                                  "{t0=, timesteps=, S=, T=, pack=, stored_bytes=, stage2=, "
                                                  "stage2_codec=, stage2_segmented=}");
     lcdvr_help_add(L, "st:variants()", "list of variant names");
+    lcdvr_help_add(L, "st:level(l)", "level l (0 = full resolution) of a multi-resolution "
+                                     "store (cdvr.encode levels=) as a store of its own");
     lcdvr_help_add(L, "st:close()", "close the store file");
     lcdvr_help_add(L, "st:bench_decode([variant] [, repeats])",
                    "median MB/s (output bytes) of the C decoder over all chunks, single thread");

@@ -125,6 +125,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     cdvr_status cpu = codec->decode(&blob, dims, payload, bytes, frames, 1, &err);
     FUZZ_ASSERT(cpu == CDVR_OK || cpu == CDVR_ERR_CORRUPT);
     FUZZ_ASSERT(cdvr_cl_stream_create(hvq_cl_ctx.cl, dims, &s, &err) == CDVR_OK);
+    cdvr_cl_set_fetch_path(s, CDVR_CL_FETCH_SAMPLE); /* the fetch function, not the C decoder */
     FUZZ_ASSERT(cdvr_cl_upload(s, payload, bytes, &err) == CDVR_OK);
     cdvr_status dev = cdvr_cl_decode(s, codec, &blob, 1, &err);
     FUZZ_ASSERT(dev == cpu);

@@ -37,31 +37,64 @@ local cam = cdvr.orbit_camera(vol, {azimuth = 40, elevation = 25, width = 64, he
 if cdvr.cl_info() then
   for _, name in ipairs{"hvq", "hvq8"} do
     for t = 1, 3 do
-      local img, stats = cdvr.render(st, {t = t, variant = name, tf = tf, camera = cam, device = "cl"})
+      local o = {t = t, variant = name, tf = tf, camera = cam, device = "cl", fetch = "sample"}
+      local img, stats = cdvr.render(st, o)
       local ref = cdvr.render(st:decode(t, name), {tf = tf, camera = cam, device = "cpu"})
       local c = cdvr.compare(img, ref)
       assert(c.psnr >= 50, ("%s t=%d: compressed-domain render %.2f dB"):format(name, t, c.psnr))
       assert(stats.volume_bytes < dense / 2 and stats.volume_bytes > 48,
              "the device holds the compressed payload: " .. stats.volume_bytes)
+      -- the bulk path (C decoder, dense render) and auto give the very same image
+      for _, path in ipairs{"bulk", "auto"} do
+        o.fetch = path
+        local img2, stats2 = cdvr.render(st, o)
+        local c2 = cdvr.compare(img2, img)
+        assert(c2.maxerr == 0, ("%s t=%d fetch=%s: differs from the fetch by %g"):format(
+               name, t, path, c2.maxerr))
+        if path == "bulk" then
+          assert(stats2.volume_bytes >= dense and stats2.volume_bytes % dense == 0, "bulk holds dense frames: " ..
+                 stats2.volume_bytes)
+        end
+      end
     end
   end
-  local ok, err = pcall(st.decode, st, 1, "hvq", {device = "cl"})
-  assert(not ok and err:find("stay compressed"), "hvq frames are not decoded on the device")
+  local ok, err = pcall(cdvr.render, st, {variant = "hvq", tf = tf, camera = cam, device = "cl",
+                                          fetch = "fast"})
+  assert(not ok and err:find("fetch"), "bad fetch= is an error: " .. tostring(err))
 end
 
 local devices = {"cpu"}
 if cdvr.cl_info() then devices[2] = "cl" end
-for _, dev in ipairs(devices) do
-  local p = cdvr.player{store = st, tf = tf, camera = cam, device = dev, variant = "hvq"}
+local runs = {{"cpu"}}
+if cdvr.cl_info() then runs = {{"cpu"}, {"cl", "sample"}, {"cl", "bulk"}, {"cl", "auto"}} end
+local function slurp(path)
+  local f = assert(io.open(path, "rb"))
+  local s = f:read("a")
+  f:close()
+  return s
+end
+for _, run in ipairs(runs) do
+  local dev, path = run[1], run[2]
+  local out = ("%s/%s_%s_%%d.png"):format(tmp, dev, path or "")
+  local p = cdvr.player{store = st, tf = tf, camera = cam, device = dev, variant = "hvq",
+                        fetch = path, out = out}
   local r = p:run{frames = 3}
   for _, row in ipairs(r.frames) do
     assert(not row.error, row.error)
-    if dev == "cl" then
+    if path == "sample" then
       assert(row.device_bytes > 0 and row.device_bytes < dense + 4 * 64 * 56 * 4 + 65536,
              "player device bytes " .. row.device_bytes)
     end
   end
   p:close()
+  if dev == "cl" and path ~= "sample" then -- every path plays the same images
+    for i = 1, 3 do
+      assert(slurp(out:format(i)) == slurp((tmp .. "/cl_sample_%d.png"):format(i)),
+             ("player fetch=%s frame %d differs from the fetch"):format(path, i))
+    end
+  end
 end
+local ok, err = pcall(cdvr.player, {store = st, tf = tf, camera = cam, fetch = "fast"})
+assert(not ok and err:find("fetch"), "bad player fetch= is an error: " .. tostring(err))
 os.execute(("rm -rf %q"):format(tmp))
 print("test_hvq_store: ok")

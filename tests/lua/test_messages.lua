@@ -120,6 +120,7 @@ local calls = {
   ["st:bench_decode"] = {st.bench_decode, st, 1, 1},
   ["st:bench_unpack"] = {st.bench_unpack, st, 1, 1},
   ["st:chunk"] = {st.chunk, st, 1, 1},
+  ["st:level"] = {st.level, st, 0},
   ["st:close"] = {skip = "closes (test_store.lua)"},
   ["st:decode(t ["] = {st.decode, st, 1, 1, cpu, opts = 4},
   ["st:decode(t,"] = {skip = "the same function"},

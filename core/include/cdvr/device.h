@@ -82,8 +82,10 @@ cdvr_status cdvr_cl_upload(cdvr_cl_stream *s, const void *payload, size_t bytes,
  * chunk of `codec` with `params` (cdvr/codec.h), count <= the codec's timesteps per chunk:
  *  - decode mode: dense frames, by the codec's decode kernel or, on a CPU device where that
  *    is faster, by its C decoder (cdvr_cl_decode_path), bit-exact with each other;
- *  - fetch mode: keeps the payload as it is; cdvr_cl_setup and cdvr_cl_render read every
- *    voxel through the codec's fetch function (rendering in the compressed domain);
+ *  - fetch mode: on the SAMPLE path (cdvr_cl_fetch_path) keeps the payload as it is;
+ *    cdvr_cl_setup and cdvr_cl_render read every voxel through the codec's fetch function
+ *    (rendering in the compressed domain); on the BULK path dense frames by the codec's C
+ *    decoder, as decode mode's host path;
  *  - codecs without OpenCL source: CDVR_ERR_UNSUPPORTED (decode on the CPU and use
  *    cdvr_cl_upload_frames).
  * The codec's program is built (or loaded from the binary cache) on first use. */
@@ -107,6 +109,27 @@ typedef enum cdvr_cl_decode_path {
 void cdvr_cl_set_decode_path(cdvr_cl_stream *s, cdvr_cl_decode_path path);
 /* The path the last successful cdvr_cl_decode of a decode-mode codec took (AUTO before any). */
 cdvr_cl_decode_path cdvr_cl_last_decode_path(const cdvr_cl_stream *s);
+
+/* Paths of fetch-mode codecs (hvq). Both give the same images: the fetch function returns
+ * exactly what the codec's C decoder gives (cdvr/codec.h). */
+typedef enum cdvr_cl_fetch_path {
+    CDVR_CL_FETCH_AUTO = 0,    /* SAMPLE on GPUs and other devices that are not CPUs, BULK on a
+                                  CPU device (PoCL), where decoding the chunk in bulk and
+                                  rendering dense is 10-40x faster than a hashed fetch per
+                                  sample and the frames live in host memory anyway */
+    CDVR_CL_FETCH_SAMPLE = 1,  /* the ray caster reads every sample through the codec's fetch
+                                  function: the device holds only the payload */
+    CDVR_CL_FETCH_BULK = 2     /* cdvr_cl_decode runs the codec's C decoder into dense frames
+                                  (device memory: dims product per frame), then the dense
+                                  kernels render them */
+} cdvr_cl_fetch_path;
+
+/* The fetch-mode path cdvr_cl_decode takes from now on. New streams take AUTO, which means
+ * what the environment variable CDVR_CL_FETCH says ("sample" or "bulk") when it is set,
+ * else the device's rule above. */
+void cdvr_cl_set_fetch_path(cdvr_cl_stream *s, cdvr_cl_fetch_path path);
+/* The path a fetch-mode codec takes on this stream now: SAMPLE or BULK (AUTO resolved). */
+cdvr_cl_fetch_path cdvr_cl_fetch_path_of(const cdvr_cl_stream *s);
 
 /* b2 for frames decoded on the host: uploads count dense u8 frames (count * dims product
  * bytes) as device frames 0 .. count-1. */

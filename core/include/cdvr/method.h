@@ -243,6 +243,12 @@ cdvr_status cdvr_render_ctx_upload(cdvr_render_ctx *ctx, cdvr_cl_stream *s,
                                    const cdvr_volume *vol, size_t t, cdvr_error *err);
 /* Forgets the uploaded frame (the stream's frame 0 was overwritten by someone else). */
 void cdvr_render_ctx_forget_frame(cdvr_render_ctx *ctx);
+/* The context's brick cache (cdvr/brick_cache.h) for variant v of st with this budget, made
+ * (or remade, dropping the old one) when it serves another store, variant or budget. */
+struct cdvr_brick_cache;
+cdvr_status cdvr_render_ctx_brick_cache(cdvr_render_ctx *ctx, const struct cdvr_store *st,
+                                        size_t v, uint64_t budget_bytes,
+                                        struct cdvr_brick_cache **out, cdvr_error *err);
 /* Makes the frames of the chunk holding timestep t (from 0) of variant v of a store on the
  * context's stream for the store's dims: the codec's decode kernel, its fetch mode (frames
  * stay compressed), or a host decode + upload for codecs without device code and for bricked

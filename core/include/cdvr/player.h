@@ -101,6 +101,10 @@ typedef struct cdvr_frame_row {
     double wait_ms;          /* the composite hook waiting for the other processes' frames */
     size_t bricks_read;      /* bricks read and decoded for this frame's chunk group */
     size_t bricks_skipped;   /* bricks of the player's region not read (transparent or unseen) */
+    uint64_t resident_bytes; /* brick cache (opts.cache): voxel bytes of the bricks the frame
+                                rendered from; 0 without the cache */
+    size_t nlevels;          /* brick cache: the store's levels; bricks_at[l] level-0 bricks */
+    size_t bricks_at[16];    /* rendered at level l (CDVR_STORE_MAX_LEVELS entries) */
     int rank;                /* process that played the frame (cdvr/dist.h; 0 in one process) */
     int group_start;         /* 1 if a policy decision was made for this frame's group */
     char reason[160];        /* the decision's one-line reason (group_start only) */
@@ -170,6 +174,13 @@ typedef struct cdvr_player_opts {
     int cold;                    /* drop chunks from the page cache (posix_fadvise) */
     double read_mbps;            /* > 0: cap read bandwidth (MB/s, 1e6 bytes) */
     int empty_skip;              /* 1 (default): empty-space skipping on the cl device */
+    int cache;                   /* 1: the cl device renders every frame through the brick cache
+                                    (cdvr/brick_cache.h; not with a region of the bricks) */
+    double cache_budget_mb;      /* its budget (0: a quarter of the device's memory) */
+    double lod_error;            /* its level of detail in pixels (cdvr_brick_cache_frame) */
+    int fetch_path;              /* fetch-mode codecs (hvq) on the cl device: 0 auto, 1 sample,
+                                    2 bulk (cdvr_cl_fetch_path, cdvr/device.h); bulk decodes
+                                    each group on the host in the pipeline's workers */
     double pace_fps;             /* > 0: show frames no faster than this (interactive pacing) */
     int loop;                    /* 1: wrap around after the last timestep; 0: stop there */
     int brick_skip;              /* 1: skip bricks that are transparent or out of view */

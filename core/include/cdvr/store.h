@@ -78,6 +78,7 @@ typedef struct cdvr_variant_spec {
 
 #define CDVR_LZO_MIN_SAVING 0.10
 #define CDVR_STORE_MAX_BRICKS 4096 /* bricks per timestep */
+#define CDVR_STORE_MAX_LEVELS 16   /* resolution levels of a multi-resolution store */
 
 /* Per-group schedule: called once per chunk group of variant `variant` (from 0) whose first
  * timestep is t0 (from 0), with *params preset to the variant's parameters; may change them
@@ -110,6 +111,12 @@ typedef struct cdvr_encode_opts {
     unsigned range_shift;          /* range bricks of 2^range_shift voxels in the tables,
                                       CDVR_RANGE_SHIFT .. CDVR_RANGE_SHIFT_MAX; 0 ->
                                       CDVR_RANGE_SHIFT_DEFAULT (8^3) */
+    size_t levels;                 /* resolution levels (0 or 1: level 0 only; 2 ..
+                                      CDVR_STORE_MAX_LEVELS: a multi-resolution store, below) */
+    const cdvr_variant_spec *const *level_variants; /* NULL, or levels - 1 entries: the
+                                      variants of level l at [l - 1] (nvariants each, matched
+                                      to `variants` by position; names are level 0's), NULL
+                                      entries: `variants` again */
 } cdvr_encode_opts;
 
 /* A series to encode, read one timestep at a time (out of core). */
@@ -176,9 +183,41 @@ typedef struct cdvr_store_info {
     cdvr_type source_type;
     size_t nvariants;
     size_t bricks[3], nbricks;     /* brick grid (1 1 1 for unbricked stores) */
+    size_t nlevels;                /* resolution levels (1: level 0 only) */
     uint64_t raw_bytes;            /* dims product * timesteps (u8) */
     uint64_t file_bytes;
 } cdvr_store_info;
+
+/* Multi-resolution stores (DESIGN.md section 15; core/store/levels.c). With opts->levels =
+ * N >= 2 the store holds the series at level 0 and at N-1 coarser levels. Level l has dims
+ * N_l = ceil((N_{l-1} - 1) / 2) + 1 per axis (1 stays 1): its voxel i sits where voxel 2i of
+ * level l-1 sits, so it has the same origin and direction and twice the spacing. Filter: the
+ * separable tent (1 2 1)/4 per axis over voxels 2i-1, 2i, 2i+1 of level l-1 (indices clamped
+ * to the level's range), i.e. v = (sum of w_x w_y w_z u, w in {1,2,1}, + 32) >> 6, exact in
+ * integers (round half up). Each level is a complete store (the same variants by position,
+ * each with its own codec and parameters: level_variants; the same brick counts, each axis
+ * capped at the level's cells, so the one-voxel overlap holds at every level), embedded in
+ * the file after level 0 (format: store.c, levels.c); readers see level 0 as the store and
+ * reach level l through cdvr_store_level. Encoding reads the source once per level plus once
+ * to measure each level's error: the source's frame function is called in increasing t
+ * order within each pass (levels + 1 passes), holding one frame per level at a time. */
+
+/* Dims of level `level` (0: dims) under the rule above. */
+void cdvr_level_dims(const size_t dims[3], size_t level, size_t out[3]);
+/* Level l (0 .. info.nlevels - 1) of a store: st itself for 0, else a store of the level's
+ * dims, spacing, bricks and variants (same names, timesteps and window), read as any store;
+ * NULL out of range. It lives as long as st. */
+const cdvr_store *cdvr_store_level(const cdvr_store *st, size_t level);
+/* Error of variant v at level l against the series at level 0 as encoded (the source): the
+ * level's decoded frames upsampled to level 0 by trilinear interpolation (level-0 voxel x
+ * read at x / 2^l), PSNR (peak 255) and max error over all voxels and timesteps; for level 0
+ * the variant's own figures. Bytes: the level's stored bytes of variant v. */
+void cdvr_store_level_error(const cdvr_store *st, size_t level, size_t v, double *psnr,
+                            double *maxerr);
+/* Level l as a new, independent store object (closed by cdvr_store_close; level 0: the
+ * store with its levels again). CDVR_ERR_ARG for a level the store does not have. */
+cdvr_status cdvr_store_open_level(const cdvr_store *st, size_t level, cdvr_store **out,
+                                  cdvr_error *err);
 
 /* Encodes a u8 volume/series into a new store at path (temporary name, fsync, rename). The
  * volume's spacing, origin and direction are recorded. */

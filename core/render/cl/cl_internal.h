@@ -107,6 +107,7 @@ struct cdvr_cl_stream {
     uint64_t last_samples;
     cdvr_cl_decode_path decode_path;      /* what cdvr_cl_decode may use (AUTO: choose) */
     cdvr_cl_decode_path last_decode_path; /* what the last decode used */
+    cdvr_cl_fetch_path fetch_path;        /* what a fetch-mode codec takes (AUTO: by device) */
 };
 
 /* The buffer holding the stream's dense frames now. */

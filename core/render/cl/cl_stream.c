@@ -27,6 +27,16 @@ static cdvr_cl_decode_path decode_path_from_env(void)
     return CDVR_CL_DECODE_AUTO;
 }
 
+static cdvr_cl_fetch_path fetch_path_from_env(void)
+{
+    const char *e = getenv("CDVR_CL_FETCH");
+    if (e && strcmp(e, "sample") == 0)
+        return CDVR_CL_FETCH_SAMPLE;
+    if (e && strcmp(e, "bulk") == 0)
+        return CDVR_CL_FETCH_BULK;
+    return CDVR_CL_FETCH_AUTO;
+}
+
 /* Buffers the host may map: in host memory on CPU devices (maps then cost no copy). */
 static cl_mem_flags host_visible(const cdvr_cl *cl, cl_mem_flags flags)
 {
@@ -289,6 +299,21 @@ cdvr_cl_decode_path cdvr_cl_last_decode_path(const cdvr_cl_stream *s)
     return s->last_decode_path;
 }
 
+void cdvr_cl_set_fetch_path(cdvr_cl_stream *s, cdvr_cl_fetch_path path)
+{
+    s->fetch_path = path;
+}
+
+cdvr_cl_fetch_path cdvr_cl_fetch_path_of(const cdvr_cl_stream *s)
+{
+    if (s->fetch_path != CDVR_CL_FETCH_AUTO)
+        return s->fetch_path;
+    cdvr_cl_fetch_path env = fetch_path_from_env();
+    if (env != CDVR_CL_FETCH_AUTO)
+        return env;
+    return s->cl->info.is_gpu ? CDVR_CL_FETCH_SAMPLE : CDVR_CL_FETCH_BULK;
+}
+
 /* The codec's check hook (cdvr/codec.h) on the uploaded payload, read through a map (no copy
  * on CPU devices, whose payload buffer lives in host memory): a chunk it refuses never
  * reaches a kernel. */
@@ -317,6 +342,23 @@ static cdvr_status check_payload(cdvr_cl_stream *s, const cdvr_codec *codec,
     return st;
 }
 
+/* The BULK path of a fetch-mode codec: its C decoder (safe on any payload, so no check hook
+ * is needed before it) into the dense frames, which the dense kernels then render. */
+static cdvr_status decode_fetch_bulk(cdvr_cl_stream *s, const cdvr_codec *codec,
+                                     const cdvr_codec_params *params, size_t count,
+                                     cdvr_error *err)
+{
+    cdvr_error inner;
+    cdvr_status st = ensure_frames(s, count, &inner);
+    if (!st)
+        st = run_host_decode(s, codec, params, count, &inner);
+    if (st)
+        return cdvr_error_set(err, st, "codec %s (bulk decode for the %zux%zux%zu frames): %s",
+                              codec->name, s->dims[0], s->dims[1], s->dims[2], inner.msg);
+    s->frames_valid = count;
+    return CDVR_OK;
+}
+
 cdvr_status cdvr_cl_decode(cdvr_cl_stream *s, const cdvr_codec *codec,
                            const cdvr_codec_params *params, size_t count, cdvr_error *err)
 {
@@ -337,6 +379,8 @@ cdvr_status cdvr_cl_decode(cdvr_cl_stream *s, const cdvr_codec *codec,
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL decode: %s chunk of %zux%zux%zu needs "
                               "%zu bytes, got %zu", codec->name, s->dims[0], s->dims[1],
                               s->dims[2], shape.payload_bytes, s->payload_bytes);
+    if (codec->cl_mode == CDVR_CODEC_CL_FETCH && cdvr_cl_fetch_path_of(s) == CDVR_CL_FETCH_BULK)
+        return decode_fetch_bulk(s, codec, params, count, err);
     st = check_payload(s, codec, params, err);
     if (st)
         return st;

@@ -1,0 +1,650 @@
+/* core/render/cache/brick_cache.c - the brick cache, its level of detail and its fetch
+ * (cdvr/brick_cache.h; the OpenCL twin of the fetch is kernels/render/brick_cache.cl). */
+#include "cdvr/brick_cache.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cdvr/timing.h"
+
+typedef struct far_key {        /* a brick and its distance, for the farthest-first order */
+    double dist;
+    size_t brick;
+} far_key;
+
+typedef struct cache_entry {
+    size_t t, level, brick;      /* key: timestep, level, brick of that level */
+    uint8_t *voxels;
+    size_t bytes;
+    size_t lo[3], dims[3];       /* the brick's box at its level */
+    uint64_t last_used;          /* frame stamp */
+    size_t pool_offset;          /* in the payload of the frame that last used it */
+} cache_entry;
+
+struct cdvr_brick_cache {
+    const cdvr_store *st;
+    size_t v;
+    uint64_t budget;
+    size_t nlevels;
+    const cdvr_store *level[CDVR_STORE_MAX_LEVELS];
+    size_t dims[3], grid[3], nbricks;
+    size_t *owner[3];            /* level 0: voxel coordinate -> brick along the axis */
+    size_t *level_owner[CDVR_STORE_MAX_LEVELS][3]; /* the same per level */
+    double *dist;                /* per level-0 brick: eye distance of the frame */
+    size_t *choice, *order;      /* per level-0 brick: level; bricks farthest first */
+    struct far_key *keys;        /* scratch for the order */
+    size_t *entry_of;            /* per level-0 brick: its entry this frame */
+    cache_entry *entries;
+    size_t nentries, cap;
+    uint64_t cache_bytes, stamp;
+    uint8_t *payload;
+    size_t payload_cap, payload_bytes;
+    uint8_t *dense;              /* cdvr_brick_cache_dense's frame, or NULL */
+    cdvr_brick_cache_stats stats;
+};
+
+/* ---- the fetch (the definition; brick_cache.cl mirrors it) ------------------------------- */
+
+/* Word i of the payload (little endian), i clamped below the payload's n / 4 words. */
+static uint32_t word_at(const uint8_t *p, size_t nw, size_t i)
+{
+    const uint8_t *q = p + 4 * (i < nw ? i : nw - 1);
+    return (uint32_t)q[0] | (uint32_t)q[1] << 8 | (uint32_t)q[2] << 16 | (uint32_t)q[3] << 24;
+}
+
+static uint32_t coord_at(size_t x, uint32_t lvl, uint32_t lo, uint32_t d)
+{
+    long c = (long)(x >> lvl) - (long)lo;
+    return c < 0 ? 0 : c > (long)d - 1 ? d - 1 : (uint32_t)c;
+}
+
+static size_t min_sz(size_t a, size_t b)
+{
+    return a < b ? a : b;
+}
+
+uint8_t cdvr_brick_cache_fetch(const uint8_t *p, size_t n, const size_t dims[3], size_t x,
+                               size_t y, size_t z)
+{
+    if (n < 64)
+        return 0;
+    size_t nw = n / 4, X = dims[0], Y = dims[1];
+    size_t bi = word_at(p, nw, 6 + x), bj = word_at(p, nw, 6 + X + y);
+    size_t bk = word_at(p, nw, 6 + X + Y + z);
+    size_t e = min_sz(word_at(p, nw, 5) / 4 +
+                          8 * (bi + (size_t)word_at(p, nw, 1) * (bj + (size_t)word_at(p, nw, 2) * bk)),
+                      nw - 8);
+    size_t base = (size_t)word_at(p, nw, 4) + word_at(p, nw, e);
+    uint32_t lvl = word_at(p, nw, e + 1);
+    lvl = lvl < 15 ? lvl : 15;
+    uint32_t lo[3], d[3];
+    for (int a = 0; a < 3; a++) {
+        lo[a] = word_at(p, nw, e + 2 + (size_t)a);
+        d[a] = word_at(p, nw, e + 5 + (size_t)a);
+        d[a] = d[a] ? d[a] : 1;
+    }
+    uint32_t cx = coord_at(x, lvl, lo[0], d[0]), cy = coord_at(y, lvl, lo[1], d[1]);
+    uint32_t cz = coord_at(z, lvl, lo[2], d[2]);
+    if (lvl == 0)
+        return p[min_sz(base + cx + (size_t)d[0] * (cy + (size_t)d[1] * cz), n - 1)];
+    uint32_t mask = (1u << lvl) - 1u, s = 1u << lvl;
+    uint32_t f[3] = {(uint32_t)x & mask, (uint32_t)y & mask, (uint32_t)z & mask};
+    uint32_t xs[2] = {cx, cx + 1 < d[0] ? cx + 1 : d[0] - 1};
+    uint32_t ys[2] = {cy, cy + 1 < d[1] ? cy + 1 : d[1] - 1};
+    uint32_t zs[2] = {cz, cz + 1 < d[2] ? cz + 1 : d[2] - 1};
+    uint64_t sum = 0;
+    for (int k = 0; k < 2; k++)
+        for (int j = 0; j < 2; j++)
+            for (int i = 0; i < 2; i++) {
+                uint64_t w = (uint64_t)(i ? f[0] : s - f[0]) * (j ? f[1] : s - f[1]) *
+                             (k ? f[2] : s - f[2]);
+                size_t at = base + xs[i] + (size_t)d[0] * (ys[j] + (size_t)d[1] * zs[k]);
+                sum += w * p[min_sz(at, n - 1)];
+            }
+    uint32_t shift = 3 * lvl;
+    return (uint8_t)((sum + (1ull << (shift - 1))) >> shift);
+}
+
+/* ---- the codec table (fetch mode) -------------------------------------------------------- */
+
+static const cdvr_codec_param_doc no_params[] = {{NULL, NULL, NULL}};
+
+static void bc_params_default(cdvr_codec_params *p)
+{
+    memset(p, 0, sizeof *p);
+}
+
+static cdvr_status bc_params_set(cdvr_codec_params *p, const char *key, const char *value,
+                                 cdvr_error *err)
+{
+    (void)p;
+    return cdvr_error_set(err, CDVR_ERR_ARG, "brick cache: no parameter '%s' (= '%s')", key,
+                          value);
+}
+
+static int bc_params_get(const cdvr_codec_params *p, const char *key, char *out, size_t n)
+{
+    (void)p; (void)key; (void)out; (void)n;
+    return -1;
+}
+
+static cdvr_status bc_params_check(const cdvr_codec_params *p, cdvr_error *err)
+{
+    (void)p; (void)err;
+    return CDVR_OK;
+}
+
+static void bc_variant_name(const cdvr_codec_params *p, char *name, size_t n)
+{
+    (void)p;
+    snprintf(name, n, "cache");
+}
+
+static cdvr_status bc_shape(const cdvr_codec_params *p, const size_t dims[3],
+                            cdvr_codec_shape *out, cdvr_error *err)
+{
+    (void)p; (void)dims; (void)err;
+    out->timesteps = 1;
+    out->payload_bytes = 0;
+    out->bound_bytes = (size_t)1 << 62;
+    return CDVR_OK;
+}
+
+static cdvr_status bc_encode(const cdvr_codec_params *p, const size_t dims[3],
+                             const uint8_t *const *frames, size_t count, uint8_t *out,
+                             size_t out_cap, size_t *out_bytes, cdvr_error *err)
+{
+    (void)p; (void)dims; (void)frames; (void)count; (void)out; (void)out_cap; (void)out_bytes;
+    return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "brick cache: payloads are laid out by "
+                          "the cache, not encoded");
+}
+
+static cdvr_status bc_decode(const cdvr_codec_params *p, const size_t dims[3], const uint8_t *in,
+                             size_t in_bytes, uint8_t *const *frames, size_t count,
+                             cdvr_error *err)
+{
+    (void)p;
+    if (count != 1 || in_bytes < 64 || word_at(in, in_bytes / 4, 0) != CDVR_BRICK_CACHE_MAGIC)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "brick cache: not a cache payload");
+    uint8_t *out = frames[0];
+    for (size_t z = 0; z < dims[2]; z++)
+        for (size_t y = 0; y < dims[1]; y++)
+            for (size_t x = 0; x < dims[0]; x++)
+                *out++ = cdvr_brick_cache_fetch(in, in_bytes, dims, x, y, z);
+    return CDVR_OK;
+}
+
+static const cdvr_codec brick_cache_codec = {
+    .name = "brick_cache",
+    .id = 0x7fffff01u,
+    .description = "decoded bricks behind a page table (the brick cache's payload)",
+    .params = no_params,
+    .params_default = bc_params_default,
+    .params_set = bc_params_set,
+    .params_get = bc_params_get,
+    .params_check = bc_params_check,
+    .variant_name = bc_variant_name,
+    .shape = bc_shape,
+    .encode = bc_encode,
+    .decode = bc_decode,
+    .cl_mode = CDVR_CODEC_CL_FETCH,
+    .cl_file = "render/brick_cache.cl",
+    .cl_function = "brick_cache_fetch",
+};
+
+const cdvr_codec *cdvr_brick_cache_codec(void)
+{
+    return &brick_cache_codec;
+}
+
+/* ---- geometry ---------------------------------------------------------------------------- */
+
+/* Per axis: voxel coordinate -> owner brick along the axis, for the store's grid. */
+static cdvr_status owner_tables(const cdvr_store_info *in, size_t *tab[3], cdvr_error *err)
+{
+    size_t stride[3] = {1, in->bricks[0], in->bricks[0] * in->bricks[1]};
+    for (int a = 0; a < 3; a++) {
+        tab[a] = malloc(in->dims[a] * sizeof *tab[a]);
+        if (!tab[a])
+            return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory");
+        for (size_t i = 0; i < in->bricks[a]; i++) {
+            size_t lo[3], d[3];
+            cdvr_store_brick_owned(in, i * stride[a], lo, d);
+            for (size_t x = lo[a]; x < lo[a] + d[a] && x < in->dims[a]; x++)
+                tab[a][x] = i;
+        }
+    }
+    return CDVR_OK;
+}
+
+void cdvr_brick_cache_free(cdvr_brick_cache *c)
+{
+    if (!c)
+        return;
+    for (int a = 0; a < 3; a++)
+        free(c->owner[a]);
+    for (size_t l = 0; l < CDVR_STORE_MAX_LEVELS; l++)
+        for (int a = 0; a < 3; a++)
+            free(c->level_owner[l][a]);
+    for (size_t i = 0; i < c->nentries; i++)
+        free(c->entries[i].voxels);
+    free(c->entries);
+    free(c->dist);
+    free(c->choice);
+    free(c->order);
+    free(c->entry_of);
+    free(c->keys);
+    free(c->payload);
+    free(c->dense);
+    free(c);
+}
+
+cdvr_status cdvr_brick_cache_create(const cdvr_store *st, size_t v, uint64_t budget_bytes,
+                                    cdvr_brick_cache **out, cdvr_error *err)
+{
+    *out = NULL;
+    const cdvr_store_info *in = cdvr_store_get_info(st);
+    if (v >= in->nvariants || budget_bytes == 0)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "brick cache: variant %zu of %s, budget %llu "
+                              "bytes", v + 1, cdvr_store_path(st),
+                              (unsigned long long)budget_bytes);
+    cdvr_brick_cache *c = calloc(1, sizeof *c);
+    if (!c)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory");
+    c->st = st;
+    c->v = v;
+    c->budget = budget_bytes;
+    c->nlevels = in->nlevels;
+    memcpy(c->dims, in->dims, sizeof c->dims);
+    memcpy(c->grid, in->bricks, sizeof c->grid);
+    c->nbricks = in->nbricks;
+    cdvr_status s = owner_tables(in, c->owner, err);
+    for (size_t l = 0; s == CDVR_OK && l < c->nlevels; l++) {
+        c->level[l] = cdvr_store_level(st, l);
+        s = owner_tables(cdvr_store_get_info(c->level[l]), c->level_owner[l], err);
+    }
+    c->dist = malloc(c->nbricks * sizeof *c->dist);
+    c->choice = malloc(c->nbricks * sizeof *c->choice);
+    c->order = malloc(c->nbricks * sizeof *c->order);
+    c->entry_of = malloc(c->nbricks * sizeof *c->entry_of);
+    c->keys = malloc(c->nbricks * sizeof *c->keys);
+    if (s == CDVR_OK && (!c->dist || !c->choice || !c->order || !c->entry_of || !c->keys))
+        s = cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory");
+    if (s != CDVR_OK) {
+        cdvr_brick_cache_free(c);
+        return s;
+    }
+    *out = c;
+    return CDVR_OK;
+}
+
+int cdvr_brick_cache_serves(const cdvr_brick_cache *c, const cdvr_store *st, size_t v,
+                            uint64_t budget_bytes)
+{
+    return c && c->st == st && c->v == v && c->budget == budget_bytes;
+}
+
+/* The level-l brick standing for level-0 brick b: the one owning the level-l voxel nearest
+ * b's centre. */
+static size_t level_brick(const cdvr_brick_cache *c, size_t b, size_t l)
+{
+    if (l == 0)
+        return b;
+    const cdvr_store_info *in = cdvr_store_get_info(c->st);
+    const cdvr_store_info *li = cdvr_store_get_info(c->level[l]);
+    size_t lo[3], d[3], idx[3];
+    cdvr_store_brick_owned(in, b, lo, d);
+    for (int a = 0; a < 3; a++) {
+        size_t centre = (lo[a] + lo[a] + d[a] - 1) / 2, cl = centre >> l;
+        idx[a] = c->level_owner[l][a][cl < li->dims[a] ? cl : li->dims[a] - 1];
+    }
+    return idx[0] + li->bricks[0] * (idx[1] + li->bricks[1] * idx[2]);
+}
+
+static size_t brick_bytes(const cdvr_brick_cache *c, size_t b, size_t l)
+{
+    size_t lo[3], d[3];
+    cdvr_store_brick_box(cdvr_store_get_info(c->level[l]), level_brick(c, b, l), lo, d);
+    return d[0] * d[1] * d[2];
+}
+
+/* Distance from the eye to the world bounds of level-0 brick b. */
+static double brick_distance(const cdvr_brick_cache *c, size_t b, const double eye[3])
+{
+    const cdvr_store_info *in = cdvr_store_get_info(c->st);
+    size_t lo[3], d[3];
+    cdvr_store_brick_box(in, b, lo, d);
+    double mn[3] = {INFINITY, INFINITY, INFINITY}, mx[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int corner = 0; corner < 8; corner++) {
+        double q[3];
+        for (int a = 0; a < 3; a++)
+            q[a] = (double)(lo[a] + ((corner >> a) & 1 ? d[a] - 1 : 0)) * in->spacing[a];
+        for (int r = 0; r < 3; r++) {
+            double w = in->origin[r];
+            for (int a = 0; a < 3; a++)
+                w += in->direction[3 * r + a] * q[a];
+            mn[r] = w < mn[r] ? w : mn[r];
+            mx[r] = w > mx[r] ? w : mx[r];
+        }
+    }
+    double s = 0;
+    for (int r = 0; r < 3; r++) {
+        double g = eye[r] < mn[r] ? mn[r] - eye[r] : eye[r] > mx[r] ? eye[r] - mx[r] : 0;
+        s += g * g;
+    }
+    return sqrt(s);
+}
+
+static int farther_first(const void *a, const void *b)
+{
+    const far_key *x = a, *y = b;
+    return x->dist > y->dist ? -1 : x->dist < y->dist ? 1 : (x->brick > y->brick) - (x->brick < y->brick);
+}
+
+/* 1 when no code of the brick's chunk at t (its recorded value range, over the brick's box)
+ * has opacity under tf: the brick adds nothing to the image. */
+static int brick_transparent(const cdvr_brick_cache *c, size_t t, size_t b, const cdvr_tf *tf)
+{
+    size_t chunk = tf ? cdvr_store_chunk_for(c->st, c->v, t, b) : (size_t)-1;
+    const cdvr_chunk_info *ci = chunk != (size_t)-1 ? cdvr_store_chunk(c->st, c->v, chunk) : NULL;
+    if (!ci || ci->value_min > ci->value_max)
+        return 0;
+    for (int i = ci->value_min; i <= ci->value_max; i++)
+        if (tf->table[i][3] > 0.0f)
+            return 0;
+    return 1;
+}
+
+/* The level of every level-0 brick (see the header); CDVR_ERR_NOMEM when nothing fits. */
+static cdvr_status choose_levels(cdvr_brick_cache *c, size_t t, const cdvr_camera *cam,
+                                 const cdvr_tf *tf, double lod_error, cdvr_error *err)
+{
+    const cdvr_store_info *in = cdvr_store_get_info(c->st);
+    double smin = fmin(in->spacing[0], fmin(in->spacing[1], in->spacing[2]));
+    double tan_half = tan(cam->fov * 3.14159265358979323846 / 360.0);
+    uint64_t total = 0;
+    for (size_t b = 0; b < c->nbricks; b++) {
+        c->dist[b] = brick_distance(c, b, cam->eye);
+        double pixel = cam->orthographic ? cam->ortho_height / cam->height
+                                         : 2.0 * c->dist[b] * tan_half / cam->height;
+        size_t l = 0;
+        while (lod_error > 0 && l + 1 < c->nlevels &&
+               smin * (double)(2u << l) <= lod_error * pixel)
+            l++;
+        c->choice[b] = l;
+        c->keys[b] = (far_key){brick_transparent(c, t, b, tf) ? INFINITY : c->dist[b], b};
+        total += brick_bytes(c, b, l);
+    }
+    qsort(c->keys, c->nbricks, sizeof *c->keys, farther_first);
+    for (size_t i = 0; i < c->nbricks; i++)
+        c->order[i] = c->keys[i].brick;
+    for (int coarsened = 1; total > c->budget && coarsened;) {
+        coarsened = 0;
+        for (size_t i = 0; i < c->nbricks && total > c->budget; i++) {
+            size_t b = c->order[i], l = c->choice[b];
+            if (l + 1 >= c->nlevels)
+                continue;
+            total = total - brick_bytes(c, b, l) + brick_bytes(c, b, l + 1);
+            c->choice[b] = l + 1;
+            coarsened = 1;
+        }
+    }
+    if (total > c->budget)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: %s needs %.1f MB at its "
+                              "coarsest level (%zu levels), the budget is %.1f MB",
+                              cdvr_store_path(c->st), (double)total / 1e6, c->nlevels,
+                              (double)c->budget / 1e6);
+    return CDVR_OK;
+}
+
+/* ---- residency ---------------------------------------------------------------------------- */
+
+static size_t find_entry(const cdvr_brick_cache *c, size_t t, size_t l, size_t brick)
+{
+    for (size_t i = 0; i < c->nentries; i++)
+        if (c->entries[i].t == t && c->entries[i].level == l && c->entries[i].brick == brick)
+            return i;
+    return (size_t)-1;
+}
+
+/* Drops the least recently used entries not used by this frame until `need` more bytes fit. */
+static void make_room(cdvr_brick_cache *c, uint64_t need)
+{
+    while (c->cache_bytes + need > c->budget) {
+        size_t victim = (size_t)-1;
+        for (size_t i = 0; i < c->nentries; i++)
+            if (c->entries[i].last_used != c->stamp &&
+                (victim == (size_t)-1 || c->entries[i].last_used < c->entries[victim].last_used))
+                victim = i;
+        if (victim == (size_t)-1)
+            return;
+        c->cache_bytes -= c->entries[victim].bytes;
+        free(c->entries[victim].voxels);
+        c->entries[victim] = c->entries[--c->nentries];
+        for (size_t b = 0; b < c->nbricks; b++) /* keep this frame's references valid */
+            if (c->entry_of[b] == c->nentries)
+                c->entry_of[b] = victim;
+        c->stats.evicted++;
+    }
+}
+
+static cdvr_status load_entry(cdvr_brick_cache *c, size_t t, size_t l, size_t brick,
+                              size_t *out, cdvr_error *err)
+{
+    size_t i = find_entry(c, t, l, brick);
+    if (i == (size_t)-1) {
+        cdvr_volume *vol = NULL;
+        double t0 = cdvr_now_ms();
+        cdvr_status s = cdvr_store_decode_brick(c->level[l], c->v, t, brick, &vol, err);
+        c->stats.decode_ms += cdvr_now_ms() - t0;
+        if (s != CDVR_OK)
+            return s;
+        size_t bytes = cdvr_volume_voxels(vol);
+        make_room(c, bytes);
+        if (c->nentries == c->cap) {
+            size_t cap = c->cap ? 2 * c->cap : 64;
+            cache_entry *e = realloc(c->entries, cap * sizeof *e);
+            if (!e) {
+                cdvr_volume_free(vol);
+                return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory");
+            }
+            c->entries = e;
+            c->cap = cap;
+        }
+        cache_entry *e = &c->entries[c->nentries];
+        memset(e, 0, sizeof *e);
+        e->t = t;
+        e->level = l;
+        e->brick = brick;
+        e->bytes = bytes;
+        e->voxels = vol->data; /* taken over from the volume */
+        vol->data = NULL;
+        cdvr_volume_free(vol);
+        cdvr_store_brick_box(cdvr_store_get_info(c->level[l]), brick, e->lo, e->dims);
+        c->cache_bytes += bytes;
+        c->stats.decoded++;
+        i = c->nentries++;
+    }
+    c->entries[i].last_used = c->stamp;
+    *out = i;
+    return CDVR_OK;
+}
+
+/* ---- the payload ---------------------------------------------------------------------------- */
+
+static void put_word(uint8_t *p, uint32_t v)
+{
+    for (int i = 0; i < 4; i++)
+        p[i] = (uint8_t)(v >> (8 * i));
+}
+
+static cdvr_status layout(cdvr_brick_cache *c, cdvr_error *err)
+{
+    size_t axes = c->dims[0] + c->dims[1] + c->dims[2];
+    size_t table = 24 + 4 * axes, pool = table + 32 * c->nbricks, bytes = pool;
+    for (size_t i = 0; i < c->nentries; i++)
+        if (c->entries[i].last_used == c->stamp) {
+            c->entries[i].pool_offset = bytes - pool;
+            bytes += c->entries[i].bytes;
+        }
+    if (bytes > UINT32_MAX)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: a payload of %zu bytes (the "
+                              "page table holds 32-bit offsets)", bytes);
+    if (bytes > c->payload_cap) {
+        uint8_t *p = realloc(c->payload, bytes);
+        if (!p)
+            return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory for a payload "
+                                  "of %zu bytes", bytes);
+        c->payload = p;
+        c->payload_cap = bytes;
+    }
+    uint8_t *p = c->payload;
+    put_word(p, CDVR_BRICK_CACHE_MAGIC);
+    for (int a = 0; a < 3; a++)
+        put_word(p + 4 + 4 * a, (uint32_t)c->grid[a]);
+    put_word(p + 16, (uint32_t)pool);
+    put_word(p + 20, (uint32_t)table);
+    size_t w = 24;
+    for (int a = 0; a < 3; a++)
+        for (size_t x = 0; x < c->dims[a]; x++, w += 4)
+            put_word(p + w, (uint32_t)c->owner[a][x]);
+    c->stats.resident_bytes = 0;
+    for (size_t b = 0; b < c->nbricks; b++) {
+        const cache_entry *e = &c->entries[c->entry_of[b]];
+        uint8_t *t = p + table + 32 * b;
+        put_word(t, (uint32_t)e->pool_offset);
+        put_word(t + 4, (uint32_t)e->level);
+        for (int a = 0; a < 3; a++) {
+            put_word(t + 8 + 4 * a, (uint32_t)e->lo[a]);
+            put_word(t + 20 + 4 * a, (uint32_t)e->dims[a]);
+        }
+    }
+    for (size_t i = 0; i < c->nentries; i++)
+        if (c->entries[i].last_used == c->stamp) {
+            memcpy(p + pool + c->entries[i].pool_offset, c->entries[i].voxels,
+                   c->entries[i].bytes);
+            c->stats.resident_bytes += c->entries[i].bytes;
+        }
+    c->payload_bytes = bytes;
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_brick_cache_frame(cdvr_brick_cache *c, size_t t, const cdvr_camera *cam,
+                                   const cdvr_tf *tf, double lod_error,
+                                   const uint8_t **payload, size_t *bytes, cdvr_error *err)
+{
+    *payload = NULL;
+    *bytes = 0;
+    if (!(lod_error >= 0) || !isfinite(lod_error))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "brick cache: lod_error %g (>= 0 pixels)",
+                              lod_error);
+    if (t >= cdvr_store_get_info(c->st)->timesteps)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "brick cache: no timestep %zu", t + 1);
+    memset(&c->stats, 0, sizeof c->stats);
+    c->stats.levels = c->nlevels;
+    c->stamp++;
+    cdvr_status s = choose_levels(c, t, cam, tf, lod_error, err);
+    for (size_t b = 0; b < c->nbricks; b++)
+        c->entry_of[b] = (size_t)-1;
+    for (size_t b = 0; s == CDVR_OK && b < c->nbricks; b++) {
+        size_t l = c->choice[b];
+        s = load_entry(c, t, l, level_brick(c, b, l), &c->entry_of[b], err);
+        c->stats.bricks_at[l]++;
+    }
+    double t0 = cdvr_now_ms();
+    if (s == CDVR_OK)
+        s = layout(c, err);
+    c->stats.layout_ms = cdvr_now_ms() - t0;
+    c->stats.cache_bytes = c->cache_bytes;
+    c->stats.payload_bytes = c->payload_bytes;
+    if (s != CDVR_OK)
+        return s;
+    *payload = c->payload;
+    *bytes = c->payload_bytes;
+    return CDVR_OK;
+}
+
+void cdvr_brick_cache_get_stats(const cdvr_brick_cache *c, cdvr_brick_cache_stats *out)
+{
+    *out = c->stats;
+}
+
+/* One axis of the coarse fetch (cdvr_brick_cache_fetch) at level-0 coordinate x. */
+static void coarse_axis(size_t x, uint32_t lvl, size_t lo, size_t d, uint32_t *c0,
+                        uint32_t *c1, uint64_t *w0, uint64_t *w1)
+{
+    uint32_t s = 1u << lvl, f = (uint32_t)x & (s - 1u);
+    *c0 = coord_at(x, lvl, (uint32_t)lo, (uint32_t)d);
+    *c1 = *c0 + 1 < d ? *c0 + 1 : (uint32_t)d - 1;
+    *w0 = s - f;
+    *w1 = f;
+}
+
+/* Voxels x0 .. x0 + n - 1 of row (y, z) from a coarse entry: the fetch's formula with the
+ * page-table lookups done once (the same integers, so the same bytes). */
+static void assemble_row(const cache_entry *e, size_t x0, size_t n, size_t y, size_t z,
+                         uint8_t *row)
+{
+    uint32_t lvl = (uint32_t)(e->level < 15 ? e->level : 15), shift = 3 * lvl;
+    uint32_t cy0, cy1, cz0, cz1;
+    uint64_t wy0, wy1, wz0, wz1;
+    coarse_axis(y, lvl, e->lo[1], e->dims[1], &cy0, &cy1, &wy0, &wy1);
+    coarse_axis(z, lvl, e->lo[2], e->dims[2], &cz0, &cz1, &wz0, &wz1);
+    const uint8_t *r[4] = {e->voxels + e->dims[0] * (cy0 + e->dims[1] * cz0),
+                           e->voxels + e->dims[0] * (cy1 + e->dims[1] * cz0),
+                           e->voxels + e->dims[0] * (cy0 + e->dims[1] * cz1),
+                           e->voxels + e->dims[0] * (cy1 + e->dims[1] * cz1)};
+    uint64_t w[4] = {wy0 * wz0, wy1 * wz0, wy0 * wz1, wy1 * wz1};
+    for (size_t x = x0; x < x0 + n; x++) {
+        uint32_t cx0, cx1;
+        uint64_t wx0, wx1, sum = 0;
+        coarse_axis(x, lvl, e->lo[0], e->dims[0], &cx0, &cx1, &wx0, &wx1);
+        for (int k = 0; k < 4; k++)
+            sum += w[k] * (wx0 * r[k][cx0] + wx1 * r[k][cx1]);
+        row[x] = (uint8_t)((sum + (1ull << (shift - 1))) >> shift);
+    }
+}
+
+static void assemble(const cdvr_brick_cache *c, uint8_t *frame)
+{
+    const cdvr_store_info *in = cdvr_store_get_info(c->st);
+    size_t X = c->dims[0], Y = c->dims[1];
+    for (size_t b = 0; b < c->nbricks; b++) {
+        const cache_entry *e = &c->entries[c->entry_of[b]];
+        size_t lo[3], d[3];
+        cdvr_store_brick_owned(in, b, lo, d);
+        for (size_t z = lo[2]; z < lo[2] + d[2]; z++)
+            for (size_t y = lo[1]; y < lo[1] + d[1]; y++) {
+                uint8_t *row = frame + X * (y + Y * z);
+                if (e->level == 0) { /* the owned voxels lie inside the brick's box */
+                    const uint8_t *src = e->voxels + (lo[0] - e->lo[0]) +
+                                         e->dims[0] * ((y - e->lo[1]) + e->dims[1] * (z - e->lo[2]));
+                    memcpy(row + lo[0], src, d[0]);
+                } else {
+                    assemble_row(e, lo[0], d[0], y, z, row);
+                }
+            }
+    }
+}
+
+cdvr_status cdvr_brick_cache_dense(cdvr_brick_cache *c, const uint8_t **frame, cdvr_error *err)
+{
+    *frame = NULL;
+    if (!c->payload_bytes)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "brick cache: no frame laid out yet");
+    if (!c->dense) {
+        void *mem = NULL;
+        size_t n = c->dims[0] * c->dims[1] * c->dims[2];
+        if (posix_memalign(&mem, 4096, n ? n : 1) != 0)
+            return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory for a dense "
+                                  "frame of %zu bytes", n);
+        c->dense = mem;
+    }
+    double t0 = cdvr_now_ms();
+    assemble(c, c->dense);
+    c->stats.layout_ms += cdvr_now_ms() - t0;
+    *frame = c->dense;
+    return CDVR_OK;
+}

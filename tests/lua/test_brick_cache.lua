@@ -1,0 +1,115 @@
+-- The brick cache and level of detail (issue 26 items 2-4; cdvr/brick_cache.h): a bricked
+-- multi-resolution store rendered on cl through the cache (cache=true) with lod_error=0 and a
+-- budget that holds everything equals the dense render of the same store bit for bit, for a
+-- lossless and a lossy variant and for two timesteps (the LRU keeps both within the budget);
+-- with a far camera and lod_error=1 coarser levels are chosen; a small budget coarsens the
+-- farthest bricks until the frame fits (resident bytes <= budget, PSNR against the full
+-- render reported > 20 dB here), and a budget below the coarsest level is an error naming it.
+-- On a CPU device a dense frame is assembled from the cache when it fits the budget (cache_path
+-- "dense"), else and with fetch="sample" the page table is read (the same images).
+-- The CPU reference through the cache (cache=true, device="cpu") equals the CPU render of the
+-- store at level 0 and agrees with cl (>= 50 dB) with coarse levels.
+if not cdvr.cl_info() then
+  print("skip: no OpenCL device")
+  os.exit(77)
+end
+local tmp = os.tmpname()
+os.remove(tmp)
+assert(os.execute(("mkdir -p %q"):format(tmp)))
+local vol = cdvr.generate("sphere", {dims = {45, 38, 31}, timesteps = 2, radius = 0.6})
+local st = cdvr.encode(vol, {path = tmp .. "/c.cdv", progress = false, levels = 3,
+                             bricks = {3, 2, 2},
+                             variants = {{codec = "raw", name = "raw"}, {S = 4, T = 2, name = "pvtc"}}})
+local tf = cdvr.tf{{0, 0, 0, 0, 0}, {60, 1, .6, .2, .3}, {255, 1, 1, 1, .9}}
+local near = cdvr.orbit_camera(vol, {azimuth = 35, elevation = 20, width = 48, height = 40})
+
+for _, variant in ipairs{"raw", "pvtc"} do
+  for t = 1, 2 do
+    local o = {t = t, variant = variant, tf = tf, camera = near, device = "cl"}
+    local dense = cdvr.render(st, o)
+    o.cache, o.lod_error, o.budget_mb = true, 0, 64
+    local img, stats = cdvr.render(st, o)
+    local c = cdvr.compare(img, dense)
+    assert(c.maxerr == 0, ("%s t=%d: cache at level 0 differs from the dense render by %g"):format(
+           variant, t, c.maxerr))
+    assert(stats.bricks_level0 == 12 and stats.bricks_level1 == 0 and stats.bricks_level2 == 0,
+           "every brick at level 0")
+    o.fetch = "sample" -- the page table on every device
+    local img2, stats2 = cdvr.render(st, o)
+    assert(stats2.cache_path == "page_table" and cdvr.compare(img2, dense).maxerr == 0,
+           "the page-table path equals the dense render too")
+    o.fetch = nil
+    assert(stats.resident_bytes >= 45 * 38 * 31 and stats.resident_bytes <= 64e6, "resident bytes")
+    -- the CPU reference renders the same voxels (the cache's C fetch over every voxel)
+    local ref = cdvr.render(st:decode(t, variant), {tf = tf, camera = near, device = "cpu"})
+    assert(cdvr.compare(img, ref).psnr >= 50, "cl cache against the cpu reference")
+    local cpu, cs = cdvr.render(st, {t = t, variant = variant, tf = tf, camera = near,
+                                     device = "cpu", cache = true, lod_error = 0, budget_mb = 64})
+    assert(cdvr.compare(cpu, ref).maxerr == 0 and cs.bricks_level0 == 12,
+           "cpu through the cache at level 0 equals the cpu render of the store")
+  end
+end
+
+-- far away, lod_error 1: coarser levels; still the whole volume covered (no holes: every
+-- brick has a level)
+local far = cdvr.camera{eye = {22 + 400, 19, 15}, center = {22, 19, 15}, up = {0, 0, 1},
+                        fov = 30, width = 48, height = 40}
+local _, fs = cdvr.render(st, {variant = "raw", tf = tf, camera = far, device = "cl", cache = true,
+                                lod_error = 1, budget_mb = 64})
+assert(fs.bricks_level2 == 12, "far bricks at the coarsest level: " .. tostring(fs.bricks_level2))
+
+-- a budget that does not hold level 0: the farthest bricks coarsen until it fits
+local full = cdvr.render(st, {variant = "raw", tf = tf, camera = near, device = "cl"})
+local budget = 0.5 * 45 * 38 * 31 / 1e6
+local img, bs = cdvr.render(st, {variant = "raw", tf = tf, camera = near, device = "cl",
+                                 cache = true, lod_error = 0, budget_mb = budget})
+assert(bs.resident_bytes <= budget * 1e6, "resident within the budget: " .. bs.resident_bytes)
+assert(bs.cache_path == "page_table", "a dense frame that does not fit the budget is not made")
+assert(bs.bricks_level0 > 0 and bs.bricks_level0 < 12, "some bricks coarser, the near ones fine")
+local psnr = cdvr.compare(img, full).psnr
+local cpu_lod, cs = cdvr.render(st, {variant = "raw", tf = tf, camera = near, device = "cpu",
+                                     cache = true, lod_error = 0, budget_mb = budget})
+assert(cs.bricks_level0 == bs.bricks_level0 and cdvr.compare(cpu_lod, img).psnr >= 50,
+       "cpu and cl through the cache pick the same levels and agree")
+assert(psnr > 20, "coarser far bricks stay close to the full render: " .. psnr)
+local ok, err = pcall(cdvr.render, st, {variant = "raw", tf = tf, camera = near, device = "cl",
+                                        cache = true, budget_mb = 0.0001})
+assert(not ok and err:find("coarsest level"), "a budget below the coarsest level: " .. tostring(err))
+-- the player through the cache: rows report resident bytes and bricks per level, and at
+-- lod_error 0 with room for everything it plays exactly the frames of the player without it
+local function slurp(file)
+  local fh = assert(io.open(file, "rb"))
+  local data = fh:read("a")
+  fh:close()
+  return data
+end
+for _, cached in ipairs{false, true} do
+  local out = ("%s/p_%s_%%d.png"):format(tmp, tostring(cached))
+  local p = cdvr.player{store = st, tf = tf, camera = near, device = "cl", variant = "pvtc",
+                        cache = cached, lod_error = 0, budget_mb = 64, out = out}
+  local r = p:run{frames = 2}
+  for i, row in ipairs(r.frames) do
+    assert(not row.error, row.error)
+    if cached then
+      assert(row.resident_bytes > 0 and row.resident_bytes <= 64e6 and row.bricks_level0 == 12
+             and row.bricks_level2 == 0, "player row: resident bytes and bricks per level")
+      assert(slurp(out:format(i)) == slurp((tmp .. "/p_false_%d.png"):format(i)),
+             "player frame " .. i .. " through the cache equals the frame without it")
+    else
+      assert(row.resident_bytes == nil, "no cache figures without the cache")
+    end
+  end
+  p:close()
+end
+local small = cdvr.player{store = st, tf = tf, camera = near, device = "cl", variant = "raw",
+                          cache = true, lod_error = 0, budget_mb = budget}
+local sr = small:run{frames = 2}
+assert(sr.frames[1].bricks_level0 < 12 and sr.frames[1].resident_bytes <= budget * 1e6,
+       "the player's cache keeps to the budget")
+small:close()
+assert(not pcall(cdvr.player, {store = st, tf = tf, device = "cpu", cache = true}),
+       "the player's cache is a cl feature")
+st:close()
+os.execute(("rm -rf %q"):format(tmp))
+print(("test_brick_cache: ok (budget %.3f MB: %d/%d/%d bricks at levels 0/1/2, %.1f dB)"):format(
+      budget, bs.bricks_level0, bs.bricks_level1, bs.bricks_level2, psnr))

@@ -1,0 +1,226 @@
+/* tests/test_brick_cache.c - the brick cache (cdvr/brick_cache.h) on a bricked store with
+ * three levels: at lod_error 0 with room for everything its payload decodes (the C fetch over
+ * every voxel) to exactly the assembled volume; with coarse levels in play (a far camera, a
+ * small budget) the OpenCL fetch (kernels/render/brick_cache.cl) renders exactly the image of
+ * the C fetch's volume uploaded dense, and the bulk path's frame is that volume; the LRU keeps
+ * the cache within the budget across timesteps; the fetch never reads outside a hostile
+ * payload (ASan). OpenCL parts skip without a device. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "cdvr/brick_cache.h"
+#include "cdvr/camera.h"
+#include "cdvr/device.h"
+#include "cdvr/render.h"
+#include "cdvr/store.h"
+#include "cdvr/tf.h"
+#include "cdvr/volume.h"
+#include "check.h"
+
+static const size_t DIMS[3] = {29, 23, 17};
+
+static cdvr_store *make_store(const char *path)
+{
+    cdvr_volume *vol;
+    cdvr_error err;
+    CHECK_OK(cdvr_volume_create(DIMS, 2, CDVR_TYPE_U8, &vol, &err), err);
+    uint32_t r = 12345;
+    for (size_t i = 0; i < 2 * DIMS[0] * DIMS[1] * DIMS[2]; i++) {
+        r = r * 1103515245u + 12345u;
+        size_t x = i % DIMS[0], y = i / DIMS[0] % DIMS[1];
+        ((uint8_t *)vol->data)[i] = (uint8_t)((x * 7 + y * 5 + (r >> 24) % 16) & 0xff);
+    }
+    cdvr_variant_spec spec = {.codec = cdvr_codec_find("raw")};
+    spec.codec->params_default(&spec.params);
+    cdvr_encode_opts o = {.variants = &spec, .nvariants = 1, .bricks = {3, 2, 2}, .levels = 3,
+                          .threads = 1, .qhi = 255};
+    CHECK_OK(cdvr_store_encode(vol, &o, path, &err), err);
+    cdvr_volume_free(vol);
+    cdvr_store *st = NULL;
+    CHECK_OK(cdvr_store_open(path, &st, &err), err);
+    return st;
+}
+
+/* The C fetch over every voxel of a payload (the codec's decode). */
+static uint8_t *decode_payload(const uint8_t *payload, size_t bytes)
+{
+    size_t n = DIMS[0] * DIMS[1] * DIMS[2];
+    uint8_t *out = malloc(n);
+    uint8_t *frames[1] = {out};
+    cdvr_codec_params none = {{0}};
+    cdvr_error err;
+    CHECK_OK(cdvr_brick_cache_codec()->decode(&none, DIMS, payload, bytes, frames, 1, &err), err);
+    return out;
+}
+
+static cdvr_camera far_camera(void)
+{
+    cdvr_camera cam = {.eye = {14 + 300, 11 - 40, 8 + 60}, .center = {14, 11, 8},
+                       .up = {0, 0, 1}, .fov = 30, .width = 40, .height = 32};
+    return cam;
+}
+
+static void level0_exact(cdvr_store *st)
+{
+    cdvr_brick_cache *c;
+    cdvr_error err;
+    CHECK_OK(cdvr_brick_cache_create(st, 0, 1u << 24, &c, &err), err);
+    cdvr_camera cam = far_camera();
+    for (size_t t = 0; t < 2; t++) {
+        const uint8_t *payload;
+        size_t bytes;
+        CHECK_OK(cdvr_brick_cache_frame(c, t, &cam, NULL, 0.0, &payload, &bytes, &err), err);
+        cdvr_brick_cache_stats s;
+        cdvr_brick_cache_get_stats(c, &s);
+        CHECK(s.levels == 3 && s.bricks_at[0] == 12, "all bricks at level 0: %zu", s.bricks_at[0]);
+        uint8_t *got = decode_payload(payload, bytes);
+        cdvr_volume *ref;
+        CHECK_OK(cdvr_store_decode(st, 0, t, &ref, &err), err);
+        CHECK(memcmp(got, ref->data, cdvr_volume_voxels(ref)) == 0, "t %zu: level 0 exact", t);
+        cdvr_volume_free(ref);
+        free(got);
+    }
+    cdvr_brick_cache_free(c);
+}
+
+static void lru_budget(cdvr_store *st)
+{
+    cdvr_brick_cache *c;
+    cdvr_error err;
+    uint64_t budget = 12000; /* less than one timestep at level 0 (11339 + aprons) */
+    CHECK_OK(cdvr_brick_cache_create(st, 0, budget, &c, &err), err);
+    cdvr_camera cam = far_camera();
+    cam.eye[0] = 40; /* near: level 0 where the budget allows */
+    for (int round = 0; round < 2; round++)
+        for (size_t t = 0; t < 2; t++) {
+            const uint8_t *payload;
+            size_t bytes;
+            CHECK_OK(cdvr_brick_cache_frame(c, t, &cam, NULL, 0.0, &payload, &bytes, &err), err);
+            cdvr_brick_cache_stats s;
+            cdvr_brick_cache_get_stats(c, &s);
+            CHECK(s.cache_bytes <= budget && s.resident_bytes <= budget,
+                  "within the budget: %llu %llu", (unsigned long long)s.cache_bytes,
+                  (unsigned long long)s.resident_bytes);
+            CHECK(s.bricks_at[0] < 12 && s.bricks_at[0] + s.bricks_at[1] + s.bricks_at[2] == 12,
+                  "some bricks coarser, none missing");
+            if (round == 1)
+                CHECK(s.evicted > 0 && s.decoded > 0, "the other timestep was evicted");
+        }
+    cdvr_brick_cache_free(c);
+}
+
+static void hostile_payloads(void)
+{
+    uint8_t p[96];
+    uint32_t r = 99;
+    for (int k = 0; k < 200; k++) {
+        for (size_t i = 0; i < sizeof p; i++) {
+            r = r * 1103515245u + 12345u;
+            p[i] = (uint8_t)(r >> 24);
+        }
+        for (size_t n = 0; n <= sizeof p; n += 13)
+            (void)cdvr_brick_cache_fetch(p, n, DIMS, (size_t)k % DIMS[0], 3, (size_t)k % DIMS[2]);
+    }
+}
+
+#if CDVR_HAVE_OPENCL
+static cdvr_image *render(cdvr_cl_stream *s, const cdvr_tf *tf, const cdvr_camera *cam)
+{
+    static const double spacing[3] = {1, 1, 1}, origin[3] = {0, 0, 0}, direction[9] = {1, 0, 0,
+                                                                                      0, 1, 0,
+                                                                                      0, 0, 1};
+    cdvr_render_opts o = {.tf = tf, .camera = cam, .step = 0.4};
+    cdvr_image *img = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_image_create(cam->width, cam->height, &img, &err), err);
+    CHECK_OK(cdvr_cl_setup(s, 0, tf, &err), err);
+    CHECK_OK(cdvr_cl_render(s, 0, &o, spacing, origin, direction, img, &err), err);
+    return img;
+}
+
+static void device_matches_c(cdvr_store *st)
+{
+    cdvr_cl *cl;
+    cdvr_error err;
+    if (cdvr_cl_open(&cl, &err)) {
+        printf("skip device part: %s\n", err.msg);
+        return;
+    }
+    cdvr_brick_cache *c;
+    CHECK_OK(cdvr_brick_cache_create(st, 0, 6000, &c, &err), err);
+    cdvr_camera cam = far_camera();
+    cam.eye[0] = 60;
+    cam.width = 48;
+    cam.height = 40;
+    cam.fov = 50;
+    const uint8_t *payload;
+    size_t bytes;
+    CHECK_OK(cdvr_brick_cache_frame(c, 1, &cam, NULL, 1.0, &payload, &bytes, &err), err);
+    cdvr_brick_cache_stats s;
+    cdvr_brick_cache_get_stats(c, &s);
+    CHECK(s.bricks_at[1] + s.bricks_at[2] > 0, "coarse levels in play");
+    uint8_t *volume = decode_payload(payload, bytes);
+    const uint8_t *dense_frame;
+    CHECK_OK(cdvr_brick_cache_dense(c, &dense_frame, &err), err);
+    CHECK(memcmp(dense_frame, volume, DIMS[0] * DIMS[1] * DIMS[2]) == 0,
+          "the assembled dense frame is the C fetch at every voxel");
+    cdvr_tf tf;
+    cdvr_tf_point pts[] = {{0, 0, 0, 0, 0}, {80, 1, .5, .2, .2}, {255, 1, 1, 1, .8}};
+    cdvr_tf_init(&tf, pts, 3, 0, &err);
+    cdvr_cl_stream *fetch, *dense, *bulk;
+    CHECK_OK(cdvr_cl_stream_create(cl, DIMS, &fetch, &err), err);
+    CHECK_OK(cdvr_cl_stream_create(cl, DIMS, &dense, &err), err);
+    CHECK_OK(cdvr_cl_stream_create(cl, DIMS, &bulk, &err), err);
+    cdvr_cl_set_fetch_path(fetch, CDVR_CL_FETCH_SAMPLE);
+    cdvr_cl_set_fetch_path(bulk, CDVR_CL_FETCH_BULK);
+    cdvr_codec_params none = {{0}};
+    CHECK_OK(cdvr_cl_upload(fetch, payload, bytes, &err), err);
+    CHECK_OK(cdvr_cl_decode(fetch, cdvr_brick_cache_codec(), &none, 1, &err), err);
+    CHECK_OK(cdvr_cl_upload(bulk, payload, bytes, &err), err);
+    CHECK_OK(cdvr_cl_decode(bulk, cdvr_brick_cache_codec(), &none, 1, &err), err);
+    CHECK_OK(cdvr_cl_upload_frames(dense, volume, 1, &err), err);
+    size_t n = DIMS[0] * DIMS[1] * DIMS[2];
+    uint8_t *back = malloc(n);
+    CHECK_OK(cdvr_cl_download(bulk, 0, back, &err), err);
+    CHECK(memcmp(back, volume, n) == 0, "bulk frame is the C fetch's volume");
+    free(back);
+    for (int skip = 0; skip < 2; skip++) {
+        cdvr_cl_set_skipping(fetch, skip);
+        cdvr_cl_set_skipping(dense, skip);
+        cdvr_image *a = render(fetch, &tf, &cam), *b = render(dense, &tf, &cam);
+        size_t differ = 0, values = (size_t)a->width * a->height * 4;
+        for (size_t i = 0; i < values; i++)
+            differ += a->rgba[i] != b->rgba[i];
+        CHECK(differ == 0, "skip %d: the OpenCL fetch differs from the C fetch in %zu of %zu "
+              "values", skip, differ, values);
+        cdvr_image_free(a);
+        cdvr_image_free(b);
+    }
+    free(volume);
+    cdvr_cl_stream_free(fetch);
+    cdvr_cl_stream_free(dense);
+    cdvr_cl_stream_free(bulk);
+    cdvr_brick_cache_free(c);
+    cdvr_cl_close(cl);
+}
+#endif
+
+int main(void)
+{
+    char path[256];
+    snprintf(path, sizeof path, "/tmp/cdvr_test_brick_cache_%ld.cdv", (long)getpid());
+    cdvr_store *st = make_store(path);
+    if (st) {
+        level0_exact(st);
+        lru_budget(st);
+#if CDVR_HAVE_OPENCL
+        device_matches_c(st);
+#endif
+        cdvr_store_close(st);
+    }
+    hostile_payloads();
+    unlink(path);
+    return check_finish();
+}
