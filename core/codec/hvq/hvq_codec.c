@@ -166,14 +166,15 @@ static cdvr_status hvq_check(const cdvr_codec_params *blob, cdvr_error *err)
     return s;
 }
 
-/* "hvq" for the defaults; otherwise the parameters that differ: hvq_g32_r5_k128x512_e0.01_t0. */
-static void hvq_name(const cdvr_codec_params *blob, char *name, size_t n)
+/* "hvq" for the defaults; otherwise the parameters that differ: hvq_g32_r5_k128x512_e0.01_t0
+ * (the compact form: "hvqc..."). */
+static void name_with(const char *prefix, const cdvr_codec_params *blob, char *name, size_t n)
 {
     cdvr_hvq_params p, d;
     cdvr_hvq_params_from_blob(blob, &p);
     cdvr_hvq_params_default(&d);
     char buf[96];
-    int len = snprintf(buf, sizeof buf, "hvq");
+    int len = snprintf(buf, sizeof buf, "%s", prefix);
     if (p.grad != d.grad)
         len += snprintf(buf + len, sizeof buf - (size_t)len, "_g%.6g", p.grad);
     if (p.residual != d.residual)
@@ -185,6 +186,11 @@ static void hvq_name(const cdvr_codec_params *blob, char *name, size_t n)
     if (p.train != d.train)
         snprintf(buf + len, sizeof buf - (size_t)len, "_t%u", p.train);
     snprintf(name, n, "%s", buf);
+}
+
+static void hvq_name(const cdvr_codec_params *blob, char *name, size_t n)
+{
+    name_with("hvq", blob, name, n);
 }
 
 static cdvr_status hvq_shape(const cdvr_codec_params *blob, const size_t dims[3],
@@ -277,4 +283,92 @@ const cdvr_codec cdvr_codec_hvq = {
     .cl_file = "codec/hvq_fetch.cl",
     .cl_function = "hvq_fetch",
     .check = hvq_payload_check,
+};
+
+/* ---- "hvqc": the compact form (cdvr/hvq.h), decoded on the CPU ------------------------------ */
+
+static void hvqc_name(const cdvr_codec_params *blob, char *name, size_t n)
+{
+    name_with("hvqc", blob, name, n);
+}
+
+static cdvr_status hvqc_shape(const cdvr_codec_params *blob, const size_t dims[3],
+                              cdvr_codec_shape *out, cdvr_error *err)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_from_blob(blob, &p);
+    size_t bound;
+    cdvr_status s = cdvr_hvq_compact_bound(&p, dims, &bound, err);
+    if (s != CDVR_OK)
+        return s;
+    out->timesteps = 1;
+    out->payload_bytes = 0;
+    out->bound_bytes = bound;
+    return CDVR_OK;
+}
+
+static cdvr_status hvqc_encode(const cdvr_codec_params *blob, const size_t dims[3],
+                               const uint8_t *const *frames, size_t count, uint8_t *out,
+                               size_t out_cap, size_t *out_bytes, cdvr_error *err)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_from_blob(blob, &p);
+    if (count != 1)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvqc: %zu frames for one chunk (1 "
+                              "expected)", count);
+    return cdvr_hvq_encode_compact(&p, dims, frames[0], 0, out, out_cap, out_bytes, NULL, err);
+}
+
+static cdvr_status hvqc_decode(const cdvr_codec_params *blob, const size_t dims[3],
+                               const uint8_t *in, size_t in_bytes, uint8_t *const *frames,
+                               size_t count, cdvr_error *err)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_from_blob(blob, &p);
+    if (count != 1)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvqc: %zu frames asked of a chunk of 1",
+                              count);
+    return cdvr_hvq_compact_decode(&p, dims, in, in_bytes, frames[0], err);
+}
+
+static cdvr_status hvqc_describe(const cdvr_codec_params *blob, const size_t dims[3],
+                                 const uint8_t *payload, size_t bytes,
+                                 void (*emit)(void *ud, const char *key, double value), void *ud,
+                                 cdvr_error *err)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_from_blob(blob, &p);
+    cdvr_hvq_stats st;
+    cdvr_status s = cdvr_hvq_compact_check(&p, dims, payload, bytes, &st, err);
+    if (s != CDVR_OK)
+        return s;
+    emit(ud, "header", (double)st.header);
+    emit(ud, "means", (double)st.means);
+    emit(ud, "codebook1", (double)st.codebook1);
+    emit(ud, "codebook2", (double)st.codebook2);
+    emit(ud, "indices", (double)st.indices);
+    emit(ud, "residuals", (double)st.residuals);
+    emit(ud, "blocks", (double)st.blocks);
+    emit(ud, "zero_blocks", (double)st.zero_blocks);
+    emit(ud, "residual_voxels", (double)st.residual_voxels);
+    return CDVR_OK;
+}
+
+const cdvr_codec cdvr_codec_hvqc = {
+    .name = "hvqc",
+    .id = CDVR_CODEC_ID_HVQC,
+    .description = "hvq in its compact form: the same blocks and codebooks, zstd-coded means, "
+                   "index list and residual list (within `residual`); CPU decode, for stores "
+                   "and the brick cache (the hashed form \"hvq\" is for per-sample fetch)",
+    .params = hvq_params,
+    .params_default = hvq_default,
+    .params_set = hvq_set,
+    .params_get = hvq_get,
+    .params_check = hvq_check,
+    .variant_name = hvqc_name,
+    .shape = hvqc_shape,
+    .encode = hvqc_encode,
+    .decode = hvqc_decode,
+    .describe = hvqc_describe,
+    .cl_mode = CDVR_CODEC_CL_NONE,
 };

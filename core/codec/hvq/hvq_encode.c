@@ -454,12 +454,13 @@ static cdvr_status write_payload(const hvq_enc *e, uint8_t *out, size_t out_cap,
     return CDVR_OK;
 }
 
-cdvr_status cdvr_hvq_encode(const cdvr_hvq_params *p, const size_t dims[3],
-                            const uint8_t *frame, unsigned threads, uint8_t *out,
-                            size_t out_cap, size_t *out_bytes, cdvr_hvq_stats *stats,
-                            cdvr_error *err)
+/* The stages both forms share: arguments, classification and the two codebooks. */
+static cdvr_status encode_common(hvq_enc *e, const cdvr_hvq_params *p, const size_t dims[3],
+                                 const uint8_t *frame, unsigned threads, uint8_t *out,
+                                 size_t *out_bytes, cdvr_error *err)
 {
     size_t bound;
+    memset(e, 0, sizeof *e);
     if (!p || !dims || !frame || !out || !out_bytes)
         return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: encode with a NULL argument");
     cdvr_status s = cdvr_hvq_params_check(p, err);
@@ -470,25 +471,96 @@ cdvr_status cdvr_hvq_encode(const cdvr_hvq_params *p, const size_t dims[3],
     if ((dims[0] + 3) / 4 * ((dims[1] + 3) / 4) * ((dims[2] + 3) / 4) >= UINT32_MAX)
         return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "hvq: %zux%zux%zu has 2^32 blocks or "
                               "more (encode it in bricks)", dims[0], dims[1], dims[2]);
-    hvq_enc e;
-    memset(&e, 0, sizeof e);
-    e.p = p;
-    e.frame = frame;
-    e.X = dims[0];
-    e.Y = dims[1];
-    e.Z = dims[2];
-    e.threads = threads ? threads : hvq_threads_auto();
+    e->p = p;
+    e->frame = frame;
+    e->X = dims[0];
+    e->Y = dims[1];
+    e->Z = dims[2];
+    e->threads = threads ? threads : hvq_threads_auto();
     const uint64_t d64[3] = {dims[0], dims[1], dims[2]};
-    hvq_layout_get(d64, 0, 0, &e.L);
-    s = classify(&e, err);
+    hvq_layout_get(d64, 0, 0, &e->L);
+    s = classify(e, err);
     if (s == CDVR_OK)
-        s = quantise(&e, err);
-    if (s == CDVR_OK) {
-        hvq_layout_get(d64, e.n1, e.n2, &e.L);
+        s = quantise(e, err);
+    if (s == CDVR_OK)
+        hvq_layout_get(d64, e->n1, e->n2, &e->L);
+    return s;
+}
+
+cdvr_status cdvr_hvq_encode(const cdvr_hvq_params *p, const size_t dims[3],
+                            const uint8_t *frame, unsigned threads, uint8_t *out,
+                            size_t out_cap, size_t *out_bytes, cdvr_hvq_stats *stats,
+                            cdvr_error *err)
+{
+    hvq_enc e;
+    cdvr_status s = encode_common(&e, p, dims, frame, threads, out, out_bytes, err);
+    if (s == CDVR_OK)
         s = build_regions(&e, err);
-    }
     if (s == CDVR_OK)
         s = write_payload(&e, out, out_cap, out_bytes, stats, err);
+    enc_free(&e);
+    return s;
+}
+
+/* ---- compact form (HVQ2) ---------------------------------------------------------------------- */
+
+/* The compact form's raw sections (hvq_compact_sections) from the encoder's state: the
+ * residual stage keeps, for each voxel off by more than R, q = round(d / (2R+1)) of d = v - b
+ * (halves away from zero; |d - q(2R+1)| <= R). */
+static cdvr_status compact_sections(const hvq_enc *e, hvq_sections *sec, cdvr_error *err)
+{
+    const hvq_layout *L = &e->L;
+    uint32_t R = e->p->residual, step = 2 * R + 1;
+    cdvr_status s = hvq_sections_alloc(sec, L, e->nnz, e->n1, e->n2, err);
+    if (s != CDVR_OK)
+        return s;
+    sec->wq = R == 0 ? 2 : 1;
+    uint8_t prev = 0;
+    for (uint64_t b = 0; b < L->nblocks; b++) {
+        sec->raw[HVQ_SEC_MEANS][b] = (uint8_t)(e->means[b] - prev);
+        prev = e->means[b];
+        if (e->nz[b] != UINT32_MAX)
+            sec->raw[HVQ_SEC_BITMAP][b >> 3] |= (uint8_t)(1u << (b & 7));
+    }
+    hvq_sections_put_indices(sec, e->i1, e->i2, e->nnz, L->w1, L->w2);
+    hvq_sections_put_codebooks(sec, e->cb1, e->n1, e->cb2, e->n2);
+    uint64_t last = 0;
+    for (size_t z = 0; z < e->Z; z++)
+        for (size_t y = 0; y < e->Y; y++)
+            for (size_t x = 0; x < e->X; x++) {
+                int v = e->frame[x + e->X * (y + e->Y * z)];
+                int d = v - base_value(e, x, y, z);
+                if ((uint32_t)abs(d) <= R)
+                    continue;
+                int q = (abs(d) + (int)R) / (int)step; /* round(|d| / step), halves up */
+                uint64_t at = x + e->X * (y + e->Y * (uint64_t)z);
+                if (!hvq_sections_put_residual(sec, at - last, d < 0 ? -q : q))
+                    return cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: out of memory for the "
+                                          "residual list");
+                last = at + 1;
+            }
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_hvq_encode_compact(const cdvr_hvq_params *p, const size_t dims[3],
+                                    const uint8_t *frame, unsigned threads, uint8_t *out,
+                                    size_t out_cap, size_t *out_bytes, cdvr_hvq_stats *stats,
+                                    cdvr_error *err)
+{
+    hvq_enc e;
+    hvq_sections sec;
+    memset(&sec, 0, sizeof sec);
+    cdvr_status s = encode_common(&e, p, dims, frame, threads, out, out_bytes, err);
+    if (s == CDVR_OK)
+        s = compact_sections(&e, &sec, err);
+    if (s == CDVR_OK)
+        s = hvq_compact_write(&sec, dims, e.n1, e.n2, p->residual, out, out_cap, out_bytes,
+                              stats, err);
+    if (s == CDVR_OK && stats) {
+        stats->lbg_iterations[0] = e.lbg_iterations[0];
+        stats->lbg_iterations[1] = e.lbg_iterations[1];
+    }
+    hvq_sections_free(&sec);
     enc_free(&e);
     return s;
 }

@@ -128,6 +128,39 @@ cdvr_status hvq_vq_train(const int16_t *vectors, size_t n, unsigned d, unsigned 
 void hvq_vq_assign(const int16_t *vectors, size_t n, unsigned d, const int16_t *codebook,
                    unsigned k, int scale, unsigned threads, uint16_t *index);
 
+
+/* ---- compact form (HVQ2, cdvr/hvq.h) --------------------------------------------------------- */
+
+enum { HVQ_SEC_MEANS, HVQ_SEC_BITMAP, HVQ_SEC_INDEX, HVQ_SEC_CB1, HVQ_SEC_CB2, HVQ_SEC_RESPOS,
+       HVQ_SEC_RESVAL, HVQ_SECTIONS };
+
+#define HVQ2_HEADER_BYTES (48u + 8u * HVQ_SECTIONS)
+
+/* The raw (uncompressed) sections of a compact payload. */
+typedef struct hvq_sections {
+    uint8_t *raw[HVQ_SECTIONS];
+    size_t size[HVQ_SECTIONS];  /* bytes in use */
+    size_t cap[HVQ_SECTIONS];   /* bytes allocated */
+    uint64_t nres;              /* residual voxels */
+    unsigned wq;                /* bytes per residual value (2 when R = 0, else 1) */
+} hvq_sections;
+
+/* Sections sized for the layout, nnz non-zero blocks and codebooks of n1, n2 entries (means,
+ * bitmap zeroed; the residual sections grow as residuals are put). */
+cdvr_status hvq_sections_alloc(hvq_sections *s, const hvq_layout *L, size_t nnz, uint32_t n1,
+                               uint32_t n2, cdvr_error *err);
+void hvq_sections_free(hvq_sections *s);
+void hvq_sections_put_indices(hvq_sections *s, const uint16_t *i1, const uint16_t *i2,
+                              size_t nnz, unsigned w1, unsigned w2);
+void hvq_sections_put_codebooks(hvq_sections *s, const int16_t *cb1, uint32_t n1,
+                                const int16_t *cb2, uint32_t n2);
+/* Appends one residual: its distance from the previous one's successor and q; 0: no memory. */
+int hvq_sections_put_residual(hvq_sections *s, uint64_t delta, int q);
+/* Compresses the sections into the payload (layout in cdvr/hvq.h). */
+cdvr_status hvq_compact_write(const hvq_sections *s, const size_t dims[3], uint32_t n1,
+                              uint32_t n2, uint32_t residual, uint8_t *out, size_t out_cap,
+                              size_t *out_bytes, cdvr_hvq_stats *stats, cdvr_error *err);
+
 /* ---- threads -------------------------------------------------------------------------------- */
 
 /* Runs fn(ctx, item) for item in 0..count-1 on up to `threads` threads (items taken in order

@@ -3,7 +3,8 @@
  * A codec turns the u8 frames of one chunk (a few consecutive timesteps of one brick of a
  * series) into a payload and back. The store, the encoder, schedules, the player, the
  * renderers and the Lua layer only ever go through a `cdvr_codec` table; none of them names a
- * codec or its parameters. Built-in codecs: "raw" (id 0), "pvtc" (id 1), "hvq" (id 2);
+ * codec or its parameters. Built-in codecs: "raw" (id 0), "pvtc" (id 1), "hvq" (id 2),
+ * "hvqc" (id 3);
  * plugins (cdvr/plugin.h) add more at run time.
  *
  * Parameters. Each codec keeps its parameters in a `cdvr_codec_params` blob of at most
@@ -69,6 +70,7 @@
 #define CDVR_CODEC_ID_RAW 0u
 #define CDVR_CODEC_ID_PVTC 1u
 #define CDVR_CODEC_ID_HVQ 2u
+#define CDVR_CODEC_ID_HVQC 3u  /* hvq's compact form (cdvr/hvq.h) */
 
 typedef struct cdvr_codec_params {
     uint8_t bytes[CDVR_CODEC_PARAMS_MAX];

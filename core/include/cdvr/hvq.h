@@ -148,6 +148,7 @@ typedef struct cdvr_hvq_params {
  * padding and the region directory; index_hash and residual_hash = offset tables + slots. */
 typedef struct cdvr_hvq_stats {
     size_t header, means, codebook1, codebook2, index_hash, residual_hash;
+    size_t indices, residuals;  /* compact form: bitmap + index list, residual list */
     size_t blocks, zero_blocks, residual_voxels;
     size_t codebook1_entries, codebook2_entries, regions;
     /* encoder only (cdvr_hvq_check leaves them 0): LBG iterations of codebook 1 and 2, and
@@ -196,5 +197,26 @@ cdvr_status cdvr_hvq_decode(const cdvr_hvq_params *p, const size_t dims[3],
  * did not write must check it first. */
 uint8_t cdvr_hvq_fetch(const uint8_t *payload, const size_t dims[3], size_t x, size_t y,
                        size_t z);
+
+/* ---- compact form ("hvqc", magic HVQ2; layout at the top) ---- */
+
+/* Worst-case compact payload bytes for dims. */
+cdvr_status cdvr_hvq_compact_bound(const cdvr_hvq_params *p, const size_t dims[3],
+                                   size_t *bytes, cdvr_error *err);
+/* Encodes one u8 frame into the compact form: the same classification and codebooks as
+ * cdvr_hvq_encode, residuals as a list of quantised corrections (every voxel within
+ * p->residual of the original). stats: header, means, codebook1/2, indices, residuals. */
+cdvr_status cdvr_hvq_encode_compact(const cdvr_hvq_params *p, const size_t dims[3],
+                                    const uint8_t *frame, unsigned threads, uint8_t *out,
+                                    size_t out_cap, size_t *out_bytes, cdvr_hvq_stats *stats,
+                                    cdvr_error *err);
+/* Checks a compact payload completely (every section inflated and checked). */
+cdvr_status cdvr_hvq_compact_check(const cdvr_hvq_params *p, const size_t dims[3],
+                                   const uint8_t *payload, size_t bytes, cdvr_hvq_stats *stats,
+                                   cdvr_error *err);
+/* Checks and decodes a compact payload into out (X*Y*Z bytes). */
+cdvr_status cdvr_hvq_compact_decode(const cdvr_hvq_params *p, const size_t dims[3],
+                                    const uint8_t *payload, size_t bytes, uint8_t *out,
+                                    cdvr_error *err);
 
 #endif

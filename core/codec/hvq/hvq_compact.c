@@ -1,0 +1,502 @@
+/* core/codec/hvq/hvq_compact.c - the compact form of hvq (magic "HVQ2", codec "hvqc",
+ * cdvr/hvq.h): the same blocks, means and codebooks as the hashed form, stored as zstd-coded
+ * sections (delta-coded means, a non-zero-block bitmap with the index list, byte-planed
+ * codebooks, a sorted delta-coded residual list); its writer, checker and decoder. */
+#include "codec/hvq/hvq_internal.h"
+
+#include <stdlib.h>
+#include <string.h>
+#include <zstd.h>
+
+#define HVQ2_ZSTD_LEVEL 19
+
+static const char *const section_names[HVQ_SECTIONS] = {
+    "means", "bitmap", "indices", "codebook 1", "codebook 2", "residual positions",
+    "residual values"};
+
+/* ---- sections ------------------------------------------------------------------------------- */
+
+cdvr_status hvq_sections_alloc(hvq_sections *s, const hvq_layout *L, size_t nnz, uint32_t n1,
+                               uint32_t n2, cdvr_error *err)
+{
+    memset(s, 0, sizeof *s);
+    s->size[HVQ_SEC_MEANS] = (size_t)L->nblocks;
+    s->size[HVQ_SEC_BITMAP] = (size_t)((L->nblocks + 7) / 8);
+    s->size[HVQ_SEC_INDEX] = nnz * (L->w1 + L->w2);
+    s->size[HVQ_SEC_CB1] = 16u * (size_t)n1;
+    s->size[HVQ_SEC_CB2] = 128u * (size_t)n2;
+    s->cap[HVQ_SEC_RESPOS] = s->cap[HVQ_SEC_RESVAL] = 4096;
+    for (int i = 0; i < HVQ_SECTIONS; i++) {
+        if (i != HVQ_SEC_RESPOS && i != HVQ_SEC_RESVAL)
+            s->cap[i] = s->size[i];
+        s->raw[i] = calloc(s->cap[i] ? s->cap[i] : 1, 1);
+        if (!s->raw[i])
+            return cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: out of memory for the %s (%zu "
+                                  "bytes)", section_names[i], s->cap[i]);
+    }
+    return CDVR_OK;
+}
+
+void hvq_sections_free(hvq_sections *s)
+{
+    for (int i = 0; i < HVQ_SECTIONS; i++)
+        free(s->raw[i]);
+    memset(s, 0, sizeof *s);
+}
+
+/* Byte planes: all low bytes, then (w = 2) all high bytes. */
+static void put_planes16(uint8_t *dst, const uint16_t *v, size_t n, unsigned w)
+{
+    for (size_t i = 0; i < n; i++) {
+        dst[i] = (uint8_t)v[i];
+        if (w == 2)
+            dst[n + i] = (uint8_t)(v[i] >> 8);
+    }
+}
+
+void hvq_sections_put_indices(hvq_sections *s, const uint16_t *i1, const uint16_t *i2,
+                              size_t nnz, unsigned w1, unsigned w2)
+{
+    put_planes16(s->raw[HVQ_SEC_INDEX], i1, nnz, w1);
+    put_planes16(s->raw[HVQ_SEC_INDEX] + nnz * w1, i2, nnz, w2);
+}
+
+void hvq_sections_put_codebooks(hvq_sections *s, const int16_t *cb1, uint32_t n1,
+                                const int16_t *cb2, uint32_t n2)
+{
+    put_planes16(s->raw[HVQ_SEC_CB1], (const uint16_t *)cb1, 8u * (size_t)n1, 2);
+    put_planes16(s->raw[HVQ_SEC_CB2], (const uint16_t *)cb2, 64u * (size_t)n2, 2);
+}
+
+static int reserve(hvq_sections *s, int sec, size_t more)
+{
+    if (s->size[sec] + more <= s->cap[sec])
+        return 1;
+    size_t cap = 2 * s->cap[sec] + more;
+    uint8_t *p = realloc(s->raw[sec], cap);
+    if (!p)
+        return 0;
+    s->raw[sec] = p;
+    s->cap[sec] = cap;
+    return 1;
+}
+
+int hvq_sections_put_residual(hvq_sections *s, uint64_t delta, int q)
+{
+    if (!reserve(s, HVQ_SEC_RESPOS, 10) || !reserve(s, HVQ_SEC_RESVAL, 2))
+        return 0;
+    uint8_t *p = s->raw[HVQ_SEC_RESPOS] + s->size[HVQ_SEC_RESPOS];
+    size_t n = 0;
+    do { /* LEB128 */
+        p[n++] = (uint8_t)((delta & 0x7F) | (delta >= 0x80 ? 0x80 : 0));
+        delta >>= 7;
+    } while (delta);
+    s->size[HVQ_SEC_RESPOS] += n;
+    uint32_t zz = q < 0 ? 2u * (uint32_t)(-q) - 1u : 2u * (uint32_t)q; /* zigzag */
+    uint8_t *v = s->raw[HVQ_SEC_RESVAL] + s->size[HVQ_SEC_RESVAL];
+    v[0] = (uint8_t)zz;
+    if (s->wq == 2)
+        v[1] = (uint8_t)(zz >> 8);
+    s->size[HVQ_SEC_RESVAL] += s->wq;
+    s->nres++;
+    return 1;
+}
+
+/* ---- writer --------------------------------------------------------------------------------- */
+
+cdvr_status hvq_compact_write(const hvq_sections *s, const size_t dims[3], uint32_t n1,
+                              uint32_t n2, uint32_t residual, uint8_t *out, size_t out_cap,
+                              size_t *out_bytes, cdvr_hvq_stats *stats, cdvr_error *err)
+{
+    if (out_cap < HVQ2_HEADER_BYTES)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: a %zu-byte buffer for a compact payload",
+                              out_cap);
+    memset(out, 0, HVQ2_HEADER_BYTES);
+    memcpy(out, "HVQ2", 4);
+    for (int a = 0; a < 3; a++)
+        hvq_wr32(out + 4 + 4 * a, (uint32_t)dims[a]);
+    hvq_wr32(out + 16, n1);
+    hvq_wr32(out + 20, n2);
+    hvq_wr32(out + 24, residual);
+    hvq_wr64(out + 32, s->nres);
+    hvq_wr64(out + 40, s->size[HVQ_SEC_RESPOS]);
+    size_t at = HVQ2_HEADER_BYTES, csize[HVQ_SECTIONS];
+    ZSTD_CCtx *z = ZSTD_createCCtx();
+    if (!z || ZSTD_isError(ZSTD_CCtx_setParameter(z, ZSTD_c_compressionLevel, HVQ2_ZSTD_LEVEL)) ||
+        ZSTD_isError(ZSTD_CCtx_setParameter(z, ZSTD_c_checksumFlag, 1))) {
+        ZSTD_freeCCtx(z);
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: cannot set up zstd");
+    }
+    for (int i = 0; i < HVQ_SECTIONS; i++) {
+        csize[i] = 0;
+        if (s->size[i]) {
+            csize[i] = ZSTD_compress2(z, out + at, out_cap - at, s->raw[i], s->size[i]);
+            if (ZSTD_isError(csize[i])) {
+                ZSTD_freeCCtx(z);
+                return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: the %s do not fit the %zu-byte "
+                                      "buffer (zstd: %s)", section_names[i], out_cap,
+                                      ZSTD_getErrorName(csize[i]));
+            }
+        }
+        hvq_wr64(out + 48 + 8 * i, csize[i]);
+        at += csize[i];
+    }
+    ZSTD_freeCCtx(z);
+    *out_bytes = at;
+    if (stats) {
+        memset(stats, 0, sizeof *stats);
+        stats->header = HVQ2_HEADER_BYTES;
+        stats->means = csize[HVQ_SEC_MEANS];
+        stats->indices = csize[HVQ_SEC_BITMAP] + csize[HVQ_SEC_INDEX];
+        stats->codebook1 = csize[HVQ_SEC_CB1];
+        stats->codebook2 = csize[HVQ_SEC_CB2];
+        stats->residuals = csize[HVQ_SEC_RESPOS] + csize[HVQ_SEC_RESVAL];
+        stats->blocks = s->size[HVQ_SEC_MEANS];
+        stats->zero_blocks = stats->blocks - s->size[HVQ_SEC_INDEX] /
+                                                 (hvq_index_width(n1) + hvq_index_width(n2));
+        stats->residual_voxels = (size_t)s->nres;
+        stats->codebook1_entries = n1;
+        stats->codebook2_entries = n2;
+    }
+    return CDVR_OK;
+}
+
+/* Worst-case compact payload: the header and each section's zstd bound at its largest. */
+cdvr_status cdvr_hvq_compact_bound(const cdvr_hvq_params *p, const size_t dims[3],
+                                   size_t *bytes, cdvr_error *err)
+{
+    size_t voxels = 1;
+    for (int a = 0; a < 3; a++)
+        if (dims[a] == 0 || dims[a] > UINT32_MAX || !cdvr_size_mul(voxels, dims[a], &voxels))
+            return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: dims %zux%zux%zu (each 1..2^32-1, "
+                                  "their product below 2^64)", dims[0], dims[1], dims[2]);
+    const uint64_t d64[3] = {dims[0], dims[1], dims[2]};
+    hvq_layout L;
+    hvq_layout_get(d64, p->k1, p->k2, &L);
+    if (voxels > SIZE_MAX / 16)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: the compact bound of %zux%zux%zu "
+                              "overflows size_t", dims[0], dims[1], dims[2]);
+    size_t nb = (size_t)L.nblocks, raw[HVQ_SECTIONS] = {
+        nb, (nb + 7) / 8, nb * 4, 16u * (size_t)p->k1, 128u * (size_t)p->k2, voxels * 10,
+        voxels * 2};
+    size_t total = HVQ2_HEADER_BYTES;
+    for (int i = 0; i < HVQ_SECTIONS; i++)
+        total += ZSTD_compressBound(raw[i]);
+    *bytes = total;
+    return CDVR_OK;
+}
+
+/* ---- reader --------------------------------------------------------------------------------- */
+
+/* A checked compact payload, its sections decompressed. */
+typedef struct hvq2_view {
+    uint64_t dims[3], nvox, nnz;
+    uint32_t n1, n2, residual;
+    hvq_layout L;
+    hvq_sections s;
+    size_t csize[HVQ_SECTIONS];
+    int16_t *cb1, *cb2;
+} hvq2_view;
+
+static void view2_free(hvq2_view *v)
+{
+    hvq_sections_free(&v->s);
+    free(v->cb1);
+    free(v->cb2);
+}
+
+static cdvr_status corrupt(cdvr_error *err, const char *what)
+{
+    return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: %s", what);
+}
+
+static cdvr_status open_header(hvq2_view *v, const cdvr_hvq_params *p, const uint8_t *in,
+                               size_t bytes, cdvr_error *err)
+{
+    if (bytes < HVQ2_HEADER_BYTES)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload of %zu bytes is "
+                              "shorter than its %u-byte header", bytes, HVQ2_HEADER_BYTES);
+    if (memcmp(in, "HVQ2", 4) != 0)
+        return corrupt(err, "bad magic (not \"HVQ2\")");
+    for (int a = 0; a < 3; a++)
+        if (hvq_rd32(in + 4 + 4 * a) != v->dims[a])
+            return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: dims %ux%ux%u, "
+                                  "the chunk has %llux%llux%llu", hvq_rd32(in + 4),
+                                  hvq_rd32(in + 8), hvq_rd32(in + 12),
+                                  (unsigned long long)v->dims[0],
+                                  (unsigned long long)v->dims[1],
+                                  (unsigned long long)v->dims[2]);
+    v->n1 = hvq_rd32(in + 16);
+    v->n2 = hvq_rd32(in + 20);
+    v->residual = hvq_rd32(in + 24);
+    uint32_t k1 = p ? p->k1 : CDVR_HVQ_K_MAX, k2 = p ? p->k2 : CDVR_HVQ_K_MAX;
+    if (v->n1 > k1 || v->n2 > k2 || v->n1 > CDVR_HVQ_K_MAX || v->n2 > CDVR_HVQ_K_MAX ||
+        (v->n1 == 0) != (v->n2 == 0))
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: codebooks of %u "
+                              "and %u entries (at most %u and %u, both 0 or neither)", v->n1,
+                              v->n2, k1, k2);
+    if (v->residual > 255 || hvq_rd32(in + 28) != 0)
+        return corrupt(err, "residual above 255 or reserved bytes not zero");
+    v->s.nres = hvq_rd64(in + 32);
+    v->s.wq = v->residual == 0 ? 2 : 1;
+    if (v->s.nres > v->nvox || hvq_rd64(in + 40) > 10 * v->s.nres)
+        return corrupt(err, "more residual voxels than voxels, or a residual position list "
+                       "longer than 10 bytes a voxel");
+    uint64_t at = HVQ2_HEADER_BYTES;
+    for (int i = 0; i < HVQ_SECTIONS; i++) {
+        v->csize[i] = (size_t)hvq_rd64(in + 48 + 8 * i);
+        if (v->csize[i] > bytes - at)
+            return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: the %s (%zu "
+                                  "bytes) run past its end", section_names[i], v->csize[i]);
+        at += v->csize[i];
+    }
+    if (at != bytes)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload of %zu bytes: its "
+                              "sections end at byte %llu", bytes, (unsigned long long)at);
+    return CDVR_OK;
+}
+
+/* Decompresses section i (raw size v->s.size[i]) from src. */
+static cdvr_status inflate(hvq2_view *v, int i, const uint8_t *src, cdvr_error *err)
+{
+    size_t want = v->s.size[i];
+    if (want == 0 && v->csize[i] == 0)
+        return CDVR_OK;
+    /* zstd inflates at most ~32768:1 (RLE blocks): a bound before allocating */
+    if (want == 0 || v->csize[i] == 0 || want / 32768 > v->csize[i] ||
+        ZSTD_getFrameContentSize(src, v->csize[i]) != (unsigned long long)want)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: the %s should "
+                              "hold %zu bytes, their %zu compressed bytes do not say so",
+                              section_names[i], want, v->csize[i]);
+    v->s.raw[i] = malloc(want);
+    if (!v->s.raw[i])
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: out of memory for the %s (%zu bytes)",
+                              section_names[i], want);
+    size_t got = ZSTD_decompress(v->s.raw[i], want, src, v->csize[i]);
+    if (ZSTD_isError(got) || got != want)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: the %s do not "
+                              "inflate to %zu bytes (%s)", section_names[i], want,
+                              ZSTD_isError(got) ? ZSTD_getErrorName(got) : "wrong size");
+    return CDVR_OK;
+}
+
+static size_t src_offset(const hvq2_view *v, int i)
+{
+    size_t at = HVQ2_HEADER_BYTES;
+    for (int j = 0; j < i; j++)
+        at += v->csize[j];
+    return at;
+}
+
+static unsigned get16(const uint8_t *planes, size_t n, size_t i, unsigned w)
+{
+    return planes[i] | (w == 2 ? (unsigned)planes[n + i] << 8 : 0u);
+}
+
+/* Bitmap (no bits past the blocks), indices below the codebook sizes. */
+static cdvr_status check_blocks(hvq2_view *v, cdvr_error *err)
+{
+    const uint8_t *bm = v->s.raw[HVQ_SEC_BITMAP];
+    uint64_t nnz = 0;
+    for (uint64_t b = 0; b < v->L.nblocks; b++)
+        nnz += bm[b >> 3] >> (b & 7) & 1;
+    if ((v->L.nblocks & 7) && bm[v->L.nblocks >> 3] >> (v->L.nblocks & 7))
+        return corrupt(err, "bitmap bits past the last block");
+    if ((nnz == 0) != (v->n1 == 0))
+        return corrupt(err, "non-zero blocks without codebooks, or codebooks without them");
+    v->nnz = nnz;
+    return CDVR_OK;
+}
+
+static cdvr_status check_indices(const hvq2_view *v, cdvr_error *err)
+{
+    const uint8_t *ix = v->s.raw[HVQ_SEC_INDEX];
+    size_t n = (size_t)v->nnz;
+    for (size_t k = 0; k < n; k++)
+        if (get16(ix, n, k, v->L.w1) >= v->n1 || get16(ix + n * v->L.w1, n, k, v->L.w2) >= v->n2)
+            return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: block %zu of "
+                                  "the index list holds an index past its codebook", k);
+    return CDVR_OK;
+}
+
+/* Residual positions: nres LEB128 deltas, each position below the voxel count, exactly the
+ * section's bytes. */
+static cdvr_status check_residuals(const hvq2_view *v, cdvr_error *err)
+{
+    const uint8_t *p = v->s.raw[HVQ_SEC_RESPOS];
+    size_t n = v->s.size[HVQ_SEC_RESPOS], at = 0;
+    uint64_t next = 0;
+    for (uint64_t r = 0; r < v->s.nres; r++) {
+        uint64_t delta = 0;
+        for (int shift = 0;; shift += 7) {
+            if (at >= n || shift > 56)
+                return corrupt(err, "a residual position runs past its list");
+            delta |= (uint64_t)(p[at] & 0x7F) << shift;
+            if (!(p[at++] & 0x80))
+                break;
+        }
+        if (delta >= v->nvox - next)
+            return corrupt(err, "a residual position past the last voxel");
+        next += delta + 1;
+    }
+    if (at != n)
+        return corrupt(err, "bytes after the last residual position");
+    return CDVR_OK;
+}
+
+static cdvr_status codebooks_unplane(hvq2_view *v, cdvr_error *err)
+{
+    size_t e1 = 8u * (size_t)v->n1, e2 = 64u * (size_t)v->n2;
+    v->cb1 = malloc((e1 ? e1 : 1) * sizeof *v->cb1);
+    v->cb2 = malloc((e2 ? e2 : 1) * sizeof *v->cb2);
+    if (!v->cb1 || !v->cb2)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: out of memory for the codebooks");
+    for (size_t i = 0; i < e1; i++)
+        v->cb1[i] = (int16_t)(uint16_t)get16(v->s.raw[HVQ_SEC_CB1], e1, i, 2);
+    for (size_t i = 0; i < e2; i++)
+        v->cb2[i] = (int16_t)(uint16_t)get16(v->s.raw[HVQ_SEC_CB2], e2, i, 2);
+    return CDVR_OK;
+}
+
+static cdvr_status view2_open(hvq2_view *v, const cdvr_hvq_params *p, const size_t dims[3],
+                              const uint8_t *in, size_t bytes, cdvr_error *err)
+{
+    memset(v, 0, sizeof *v);
+    v->nvox = 1;
+    for (int a = 0; a < 3; a++) {
+        if (dims[a] == 0 || dims[a] > UINT32_MAX)
+            return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: dims %zux%zux%zu (each 1..2^32-1)",
+                                  dims[0], dims[1], dims[2]);
+        v->dims[a] = dims[a];
+        v->nvox *= dims[a];
+    }
+    if (!in && bytes)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: NULL payload of %zu bytes", bytes);
+    cdvr_status s = open_header(v, p, in, bytes, err);
+    if (s != CDVR_OK)
+        return s;
+    hvq_layout_get(v->dims, v->n1, v->n2, &v->L);
+    /* raw section sizes: from the dims, the header and the bitmap */
+    v->s.size[HVQ_SEC_MEANS] = (size_t)v->L.nblocks;
+    v->s.size[HVQ_SEC_BITMAP] = (size_t)((v->L.nblocks + 7) / 8);
+    v->s.size[HVQ_SEC_CB1] = 16u * (size_t)v->n1;
+    v->s.size[HVQ_SEC_CB2] = 128u * (size_t)v->n2;
+    v->s.size[HVQ_SEC_RESPOS] = (size_t)hvq_rd64(in + 40);
+    v->s.size[HVQ_SEC_RESVAL] = (size_t)v->s.nres * v->s.wq;
+    int order[] = {HVQ_SEC_BITMAP, HVQ_SEC_MEANS, HVQ_SEC_CB1, HVQ_SEC_CB2, HVQ_SEC_RESPOS,
+                   HVQ_SEC_RESVAL};
+    for (size_t i = 0; s == CDVR_OK && i < sizeof order / sizeof *order; i++) {
+        s = inflate(v, order[i], in + src_offset(v, order[i]), err);
+        if (s == CDVR_OK && order[i] == HVQ_SEC_BITMAP && v->s.size[HVQ_SEC_BITMAP]) {
+            s = check_blocks(v, err);
+            v->s.size[HVQ_SEC_INDEX] = (size_t)v->nnz * (v->L.w1 + v->L.w2);
+            if (s == CDVR_OK)
+                s = inflate(v, HVQ_SEC_INDEX, in + src_offset(v, HVQ_SEC_INDEX), err);
+        }
+    }
+    if (s == CDVR_OK)
+        s = check_indices(v, err);
+    if (s == CDVR_OK)
+        s = check_residuals(v, err);
+    if (s == CDVR_OK)
+        s = codebooks_unplane(v, err);
+    return s;
+}
+
+cdvr_status cdvr_hvq_compact_check(const cdvr_hvq_params *p, const size_t dims[3],
+                                   const uint8_t *payload, size_t bytes, cdvr_hvq_stats *stats,
+                                   cdvr_error *err)
+{
+    hvq2_view v;
+    cdvr_status s = view2_open(&v, p, dims, payload, bytes, err);
+    if (s == CDVR_OK && stats) {
+        memset(stats, 0, sizeof *stats);
+        stats->header = HVQ2_HEADER_BYTES;
+        stats->means = v.csize[HVQ_SEC_MEANS];
+        stats->indices = v.csize[HVQ_SEC_BITMAP] + v.csize[HVQ_SEC_INDEX];
+        stats->codebook1 = v.csize[HVQ_SEC_CB1];
+        stats->codebook2 = v.csize[HVQ_SEC_CB2];
+        stats->residuals = v.csize[HVQ_SEC_RESPOS] + v.csize[HVQ_SEC_RESVAL];
+        stats->blocks = (size_t)v.L.nblocks;
+        stats->zero_blocks = (size_t)(v.L.nblocks - v.nnz);
+        stats->residual_voxels = (size_t)v.s.nres;
+        stats->codebook1_entries = v.n1;
+        stats->codebook2_entries = v.n2;
+    }
+    view2_free(&v);
+    return s;
+}
+
+/* ---- decode --------------------------------------------------------------------------------- */
+
+static void decode_blocks(const hvq2_view *v, uint8_t *out)
+{
+    const uint8_t *md = v->s.raw[HVQ_SEC_MEANS], *bm = v->s.raw[HVQ_SEC_BITMAP];
+    const uint8_t *ix = v->s.raw[HVQ_SEC_INDEX];
+    size_t n = (size_t)v->nnz, k = 0;
+    uint64_t X = v->dims[0], Y = v->dims[1], Z = v->dims[2], b = 0;
+    uint8_t mean = 0;
+    for (uint64_t bz = 0; bz < v->L.nbz; bz++)
+        for (uint64_t by = 0; by < v->L.nby; by++)
+            for (uint64_t bx = 0; bx < v->L.nbx; bx++, b++) {
+                mean = (uint8_t)(mean + md[b]);
+                const int16_t *c1 = NULL, *c2 = NULL;
+                if (bm[b >> 3] >> (b & 7) & 1) {
+                    c1 = v->cb1 + 8u * get16(ix, n, k, v->L.w1);
+                    c2 = v->cb2 + 64u * get16(ix + n * v->L.w1, n, k, v->L.w2);
+                    k++;
+                }
+                unsigned ex = X - 4 * bx < 4 ? (unsigned)(X - 4 * bx) : 4;
+                unsigned ey = Y - 4 * by < 4 ? (unsigned)(Y - 4 * by) : 4;
+                unsigned ez = Z - 4 * bz < 4 ? (unsigned)(Z - 4 * bz) : 4;
+                for (unsigned z = 0; z < ez; z++)
+                    for (unsigned y = 0; y < ey; y++) {
+                        uint8_t *row = out + 4 * bx + X * ((4 * by + y) + Y * (4 * bz + z));
+                        if (!c1) {
+                            memset(row, mean, ex);
+                            continue;
+                        }
+                        for (unsigned x = 0; x < ex; x++) {
+                            int val = mean + c1[(x >> 1) + 2 * (y >> 1) + 4 * (z >> 1)] +
+                                      c2[x + 4 * y + 16 * z];
+                            row[x] = (uint8_t)(val < 0 ? 0 : val > 255 ? 255 : val);
+                        }
+                    }
+            }
+}
+
+static void apply_residuals2(const hvq2_view *v, uint8_t *out)
+{
+    const uint8_t *p = v->s.raw[HVQ_SEC_RESPOS], *q = v->s.raw[HVQ_SEC_RESVAL];
+    int step = 2 * (int)v->residual + 1;
+    uint64_t next = 0;
+    size_t at = 0;
+    for (uint64_t r = 0; r < v->s.nres; r++) {
+        uint64_t delta = 0;
+        for (int shift = 0;; shift += 7) {
+            delta |= (uint64_t)(p[at] & 0x7F) << shift;
+            if (!(p[at++] & 0x80))
+                break;
+        }
+        uint64_t pos = next + delta;
+        next = pos + 1;
+        uint32_t zz = v->s.wq == 2 ? hvq_rd16(q + 2 * r) : q[r];
+        int k = zz & 1 ? -(int)((zz + 1) >> 1) : (int)(zz >> 1);
+        int val = out[pos] + k * step;
+        out[pos] = (uint8_t)(val < 0 ? 0 : val > 255 ? 255 : val);
+    }
+}
+
+cdvr_status cdvr_hvq_compact_decode(const cdvr_hvq_params *p, const size_t dims[3],
+                                    const uint8_t *payload, size_t bytes, uint8_t *out,
+                                    cdvr_error *err)
+{
+    hvq2_view v;
+    cdvr_status s = view2_open(&v, p, dims, payload, bytes, err);
+    if (s == CDVR_OK) {
+        decode_blocks(&v, out);
+        apply_residuals2(&v, out);
+    }
+    view2_free(&v);
+    return s;
+}

@@ -1,0 +1,280 @@
+/* tests/test_hvqc.c - hvq's compact form (codec "hvqc", cdvr/hvq.h, core/codec/hvq/
+ * hvq_compact.c): the codec table; round trips within the residual bound on odd dims, an
+ * all-zero frame, noise with residual 0 (two-byte residual values) and residual 255; the
+ * compact decode equals the hashed form's everywhere but at residual voxels (same blocks and
+ * codebooks); the parts add up; determinism over threads; truncated and mutated payloads. */
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cdvr/codec.h"
+#include "cdvr/hvq.h"
+#include "check.h"
+#include "codec/hvq/hvq_internal.h"
+
+static uint32_t rng_next(uint32_t *s)
+{
+    *s ^= *s << 13;
+    *s ^= *s >> 17;
+    *s ^= *s << 5;
+    return *s;
+}
+
+/* Dark noisy background, a bright ball, sharp slabs: zero blocks, VQ blocks, residuals. */
+static uint8_t *make_volume(const size_t d[3], uint32_t seed)
+{
+    uint8_t *v = malloc(d[0] * d[1] * d[2]);
+    for (size_t z = 0, i = 0; z < d[2]; z++)
+        for (size_t y = 0; y < d[1]; y++)
+            for (size_t x = 0; x < d[0]; x++, i++) {
+                double fx = (double)x / d[0], fy = (double)y / d[1], fz = (double)z / d[2];
+                double r2 = (fx - 0.5) * (fx - 0.5) + (fy - 0.5) * (fy - 0.5) + (fz - 0.4) * (fz - 0.4);
+                int val = r2 > 0.1 ? 10 : (int)(120 + 100 * fx * fy - 60 * fz);
+                if (x % 23 < 2)
+                    val = 240;
+                val += (int)(rng_next(&seed) % 3) - 1;
+                v[i] = (uint8_t)(val < 0 ? 0 : val > 255 ? 255 : val);
+            }
+    return v;
+}
+
+typedef struct coded {
+    uint8_t *bytes;
+    size_t n;
+    cdvr_hvq_stats stats;
+} coded;
+
+static int encode(const cdvr_hvq_params *p, const size_t d[3], const uint8_t *v, int compact,
+                  unsigned threads, coded *out)
+{
+    cdvr_error err;
+    size_t bound;
+    memset(out, 0, sizeof *out);
+    cdvr_status s = compact ? cdvr_hvq_compact_bound(p, d, &bound, &err)
+                            : cdvr_hvq_bound(p, d, &bound, &err);
+    CHECK_OK(s, err);
+    out->bytes = s == CDVR_OK ? malloc(bound) : NULL;
+    if (!out->bytes)
+        return 0;
+    s = compact ? cdvr_hvq_encode_compact(p, d, v, threads, out->bytes, bound, &out->n,
+                                          &out->stats, &err)
+                : cdvr_hvq_encode(p, d, v, threads, out->bytes, bound, &out->n, &out->stats,
+                                  &err);
+    CHECK_OK(s, err);
+    return s == CDVR_OK;
+}
+
+/* Round trip of both forms; returns the compact form. */
+static coded round_trip(const cdvr_hvq_params *p, const size_t d[3], const uint8_t *v,
+                        const char *what)
+{
+    size_t n = d[0] * d[1] * d[2];
+    coded c, h, c3;
+    if (!encode(p, d, v, 1, 1, &c) || !encode(p, d, v, 0, 1, &h))
+        return c;
+    uint8_t *dc = malloc(n), *dh = malloc(n);
+    cdvr_error err;
+    memset(dc, 0xA5, n);
+    cdvr_status s = cdvr_hvq_compact_decode(p, d, c.bytes, c.n, dc, &err);
+    CHECK_OK(s, err);
+    s = cdvr_hvq_decode(p, d, h.bytes, h.n, dh, &err);
+    CHECK_OK(s, err);
+    size_t differ = 0;
+    int maxerr = 0;
+    for (size_t i = 0; i < n; i++) {
+        int e = abs(dc[i] - v[i]);
+        maxerr = e > maxerr ? e : maxerr;
+        differ += dc[i] != dh[i];
+    }
+    CHECK(maxerr <= (int)p->residual, "%s: max error %d > residual %u", what, maxerr,
+          p->residual);
+    CHECK(differ <= c.stats.residual_voxels && c.stats.residual_voxels == h.stats.residual_voxels &&
+              c.stats.zero_blocks == h.stats.zero_blocks,
+          "%s: %zu voxels differ from the hashed form (%zu/%zu residuals, %zu/%zu zero blocks)",
+          what, differ, c.stats.residual_voxels, h.stats.residual_voxels, c.stats.zero_blocks,
+          h.stats.zero_blocks);
+    cdvr_hvq_stats st;
+    s = cdvr_hvq_compact_check(p, d, c.bytes, c.n, &st, &err);
+    CHECK_OK(s, err);
+    CHECK(st.header + st.means + st.codebook1 + st.codebook2 + st.indices + st.residuals == c.n &&
+              st.residual_voxels == c.stats.residual_voxels &&
+              st.zero_blocks == c.stats.zero_blocks && st.indices == c.stats.indices,
+          "%s: parts of the check (%zu residuals, %zu zero blocks) and encoder disagree or do "
+          "not add up to %zu", what, st.residual_voxels, st.zero_blocks, c.n);
+    if (encode(p, d, v, 1, 3, &c3))
+        CHECK(c3.n == c.n && memcmp(c3.bytes, c.bytes, c.n) == 0, "%s: 1 and 3 threads differ",
+              what);
+    free(c3.bytes);
+    free(h.bytes);
+    free(dc);
+    free(dh);
+    return c;
+}
+
+static void test_table(void)
+{
+    const cdvr_codec *c = cdvr_codec_find("hvqc");
+    CHECK(c && c->id == CDVR_CODEC_ID_HVQC && c->cl_mode == CDVR_CODEC_CL_NONE &&
+              cdvr_codec_by_id(CDVR_CODEC_ID_HVQC) == c,
+          "hvqc is not registered as id 3, CPU decode");
+    if (!c)
+        return;
+    cdvr_codec_params blob;
+    cdvr_error err;
+    char name[CDVR_VARIANT_NAME_MAX];
+    c->params_default(&blob);
+    c->variant_name(&blob, name, sizeof name);
+    CHECK(strcmp(name, "hvqc") == 0, "default variant name '%s'", name);
+    CHECK_OK(c->params_set(&blob, "residual", "4", &err), err);
+    c->variant_name(&blob, name, sizeof name);
+    CHECK(strcmp(name, "hvqc_r4") == 0, "variant name '%s'", name);
+    const size_t d[3] = {21, 14, 9};
+    uint8_t *v = make_volume(d, 3), *out = malloc(21 * 14 * 9);
+    cdvr_codec_shape sh;
+    CHECK_OK(c->shape(&blob, d, &sh, &err), err);
+    uint8_t *payload = malloc(sh.bound_bytes);
+    size_t n = 0;
+    const uint8_t *frames[1] = {v};
+    uint8_t *outs[1] = {out};
+    CHECK_OK(c->encode(&blob, d, frames, 1, payload, sh.bound_bytes, &n, &err), err);
+    CHECK_OK(c->decode(&blob, d, payload, n, outs, 1, &err), err);
+    int maxerr = 0;
+    for (size_t i = 0; i < 21 * 14 * 9; i++)
+        maxerr = abs(out[i] - v[i]) > maxerr ? abs(out[i] - v[i]) : maxerr;
+    CHECK(maxerr <= 4, "through the table: max error %d > 4", maxerr);
+    free(payload);
+    free(out);
+    free(v);
+}
+
+static void test_shapes(void)
+{
+    const size_t dims[][3] = {{1, 1, 1}, {5, 3, 7}, {4, 4, 4}, {2, 9, 1}, {257, 5, 3},
+                              {33, 31, 29}};
+    cdvr_hvq_params p;
+    cdvr_hvq_params_default(&p);
+    for (size_t i = 0; i < sizeof dims / sizeof *dims; i++) {
+        char what[64];
+        snprintf(what, sizeof what, "dims %zux%zux%zu", dims[i][0], dims[i][1], dims[i][2]);
+        uint8_t *v = make_volume(dims[i], 11u + (uint32_t)i);
+        coded c = round_trip(&p, dims[i], v, what);
+        free(c.bytes);
+        free(v);
+    }
+}
+
+/* All zero (no non-zero block: empty codebooks and index list), residual 255 (no residual),
+ * residual 0 on noise (lossless, two-byte values), wide indices (k above 256). */
+static void test_extremes(void)
+{
+    const size_t d[3] = {40, 30, 20};
+    size_t n = 40 * 30 * 20;
+    cdvr_hvq_params p;
+    cdvr_hvq_params_default(&p);
+    uint8_t *v = calloc(n, 1);
+    coded c = round_trip(&p, d, v, "all zero");
+    CHECK(!c.bytes || (c.stats.zero_blocks == c.stats.blocks && c.stats.codebook1 == 0 &&
+                       c.stats.residual_voxels == 0 && c.n < 200),
+          "all zero: %zu bytes, %zu zero blocks of %zu", c.n, c.stats.zero_blocks,
+          c.stats.blocks);
+    free(c.bytes);
+    free(v);
+    v = make_volume(d, 5);
+    p.grad = 4;
+    p.residual = 255;
+    c = round_trip(&p, d, v, "residual 255");
+    CHECK(!c.bytes || c.stats.residual_voxels == 0, "residual 255: %zu residual voxels",
+          c.stats.residual_voxels);
+    free(c.bytes);
+    uint32_t seed = 3;
+    for (size_t i = 0; i < n; i++)
+        v[i] = (uint8_t)rng_next(&seed);
+    p.residual = 0;
+    p.k1 = p.k2 = 16;
+    c = round_trip(&p, d, v, "residual 0 on noise");
+    CHECK(!c.bytes || c.stats.residual_voxels > 20000, "noise: %zu residual voxels",
+          c.stats.residual_voxels);
+    free(c.bytes);
+    free(v);
+    const size_t w[3] = {64, 64, 48};
+    v = make_volume(w, 9);
+    for (size_t i = 0; i < 64 * 64 * 48; i += 7)
+        v[i] = (uint8_t)(v[i] + rng_next(&seed) % 40);
+    cdvr_hvq_params_default(&p);
+    p.grad = 1;
+    p.k1 = p.k2 = 600;
+    c = round_trip(&p, w, v, "wide indices");
+    CHECK(!c.bytes || (c.stats.codebook1_entries > 256 && c.stats.codebook2_entries > 256),
+          "wide indices: codebooks of %zu and %zu entries", c.stats.codebook1_entries,
+          c.stats.codebook2_entries);
+    free(c.bytes);
+    free(v);
+}
+
+static void expect_corrupt(const cdvr_hvq_params *p, const size_t d[3], const uint8_t *b,
+                           size_t n, const char *what)
+{
+    uint8_t *out = malloc(d[0] * d[1] * d[2]);
+    cdvr_error err;
+    cdvr_status s = cdvr_hvq_compact_decode(p, d, b, n, out, &err);
+    CHECK(s == CDVR_ERR_CORRUPT, "%s: status %d (%s)", what, (int)s, s ? err.msg : "ok");
+    free(out);
+}
+
+static void test_corrupt(void)
+{
+    const size_t d[3] = {20, 17, 9};
+    uint8_t *v = make_volume(d, 77);
+    cdvr_hvq_params p;
+    cdvr_hvq_params_default(&p);
+    p.grad = 2;
+    coded c;
+    if (!encode(&p, d, v, 1, 1, &c)) {
+        free(v);
+        return;
+    }
+    CHECK(c.stats.residual_voxels > 0 && c.stats.codebook1 > 0, "the corrupt-payload volume "
+          "has residuals (%zu) and codebooks", c.stats.residual_voxels);
+    uint8_t *m = malloc(c.n + 1);
+    for (size_t cut = 0; cut < c.n; cut += 1 + cut / 5)
+        expect_corrupt(&p, d, c.bytes, cut, "truncated");
+    memcpy(m, c.bytes, c.n);
+    m[c.n] = 0;
+    expect_corrupt(&p, d, m, c.n + 1, "one byte too many");
+#define MUTATE(what, stmt)                                                                    \
+    do {                                                                                      \
+        memcpy(m, c.bytes, c.n);                                                              \
+        stmt;                                                                                 \
+        expect_corrupt(&p, d, m, c.n, what);                                                  \
+    } while (0)
+    MUTATE("magic", m[3] = '9');
+    MUTATE("dims", m[8]++);
+    MUTATE("n1 above k1", hvq_wr32(m + 16, p.k1 + 1));
+    MUTATE("n2 = 0 alone", hvq_wr32(m + 20, 0));
+    MUTATE("residual above 255", hvq_wr32(m + 24, 256));
+    MUTATE("reserved", m[29] = 1);
+    MUTATE("one residual more", hvq_wr64(m + 32, hvq_rd64(c.bytes + 32) + 1));
+    MUTATE("position list longer", hvq_wr64(m + 40, hvq_rd64(c.bytes + 40) + 1));
+    MUTATE("section sizes", hvq_wr64(m + 48, hvq_rd64(c.bytes + 48) + 1));
+    for (int sec = 0; sec < HVQ_SECTIONS; sec++) { /* a byte inside each section (checksums) */
+        size_t at = HVQ2_HEADER_BYTES, cs = (size_t)hvq_rd64(c.bytes + 48 + 8 * sec);
+        for (int j = 0; j < sec; j++)
+            at += (size_t)hvq_rd64(c.bytes + 48 + 8 * j);
+        if (cs > 8)
+            MUTATE("a section's byte", m[at + cs / 2] ^= 0x5A);
+    }
+#undef MUTATE
+    free(m);
+    free(c.bytes);
+    free(v);
+}
+
+int main(void)
+{
+    test_table();
+    test_shapes();
+    test_extremes();
+    test_corrupt();
+    return check_finish();
+}
