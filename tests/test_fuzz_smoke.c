@@ -338,7 +338,7 @@ static int make_hvq_seed(bytes *seed, const uint8_t head[4], const size_t dims[3
                                                    : cdvr_hvq_bound(p, dims, &bound, &err);
     out = st == CDVR_OK ? malloc(bound) : NULL;
     if (out)
-        st = compact ? cdvr_hvq_encode_compact(p, dims, v, 1, out, bound, &got, NULL, &err)
+        st = compact ? cdvr_hvq_encode_compact(p, NULL, dims, v, 1, out, bound, &got, NULL, &err)
                      : cdvr_hvq_encode(p, dims, v, 1, out, bound, &got, NULL, &err);
     CHECK_OK(st, err);
     /* the seed passes the decoder's check with the parameters the target will use */
@@ -346,7 +346,7 @@ static int make_hvq_seed(bytes *seed, const uint8_t head[4], const size_t dims[3
     cdvr_hvq_params_default(&q);
     q.k1 = q.k2 = head[0] & 2 ? CDVR_HVQ_K_MAX : q.k1;
     if (out && st == CDVR_OK) {
-        cdvr_status checked = compact ? cdvr_hvq_compact_check(&q, dims, out, got, NULL, &err)
+        cdvr_status checked = compact ? cdvr_hvq_compact_check(&q, NULL, dims, out, got, NULL, &err)
                                       : cdvr_hvq_check(&q, dims, out, got, NULL, &err);
         CHECK_OK(checked, err);
     }

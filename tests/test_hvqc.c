@@ -2,14 +2,20 @@
  * hvq_compact.c): the codec table; round trips within the residual bound on odd dims, an
  * all-zero frame, noise with residual 0 (two-byte residual values) and residual 255; the
  * compact decode equals the hashed form's everywhere but at residual voxels (same blocks and
- * codebooks); the parts add up; determinism over threads; truncated and mutated payloads. */
+ * codebooks); the parts add up; determinism over threads; truncated and mutated payloads;
+ * shared codebooks (trained on some frames, used by others and by bricks; refused without
+ * them or with others; a corrupt blob) and a bricked two-timestep store with shared=1 that
+ * reopens and decodes within the bound, a corrupted shared blob failing the decode. */
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "cdvr/codec.h"
 #include "cdvr/hvq.h"
+#include "cdvr/store.h"
+#include "cdvr/volume.h"
 #include "check.h"
 #include "codec/hvq/hvq_internal.h"
 
@@ -57,7 +63,7 @@ static int encode(const cdvr_hvq_params *p, const size_t d[3], const uint8_t *v,
     out->bytes = s == CDVR_OK ? malloc(bound) : NULL;
     if (!out->bytes)
         return 0;
-    s = compact ? cdvr_hvq_encode_compact(p, d, v, threads, out->bytes, bound, &out->n,
+    s = compact ? cdvr_hvq_encode_compact(p, NULL, d, v, threads, out->bytes, bound, &out->n,
                                           &out->stats, &err)
                 : cdvr_hvq_encode(p, d, v, threads, out->bytes, bound, &out->n, &out->stats,
                                   &err);
@@ -76,7 +82,7 @@ static coded round_trip(const cdvr_hvq_params *p, const size_t d[3], const uint8
     uint8_t *dc = malloc(n), *dh = malloc(n);
     cdvr_error err;
     memset(dc, 0xA5, n);
-    cdvr_status s = cdvr_hvq_compact_decode(p, d, c.bytes, c.n, dc, &err);
+    cdvr_status s = cdvr_hvq_compact_decode(p, NULL, d, c.bytes, c.n, dc, &err);
     CHECK_OK(s, err);
     s = cdvr_hvq_decode(p, d, h.bytes, h.n, dh, &err);
     CHECK_OK(s, err);
@@ -95,7 +101,7 @@ static coded round_trip(const cdvr_hvq_params *p, const size_t d[3], const uint8
           what, differ, c.stats.residual_voxels, h.stats.residual_voxels, c.stats.zero_blocks,
           h.stats.zero_blocks);
     cdvr_hvq_stats st;
-    s = cdvr_hvq_compact_check(p, d, c.bytes, c.n, &st, &err);
+    s = cdvr_hvq_compact_check(p, NULL, d, c.bytes, c.n, &st, &err);
     CHECK_OK(s, err);
     CHECK(st.header + st.means + st.codebook1 + st.codebook2 + st.indices + st.residuals == c.n &&
               st.residual_voxels == c.stats.residual_voxels &&
@@ -217,7 +223,7 @@ static void expect_corrupt(const cdvr_hvq_params *p, const size_t d[3], const ui
 {
     uint8_t *out = malloc(d[0] * d[1] * d[2]);
     cdvr_error err;
-    cdvr_status s = cdvr_hvq_compact_decode(p, d, b, n, out, &err);
+    cdvr_status s = cdvr_hvq_compact_decode(p, NULL, d, b, n, out, &err);
     CHECK(s == CDVR_ERR_CORRUPT, "%s: status %d (%s)", what, (int)s, s ? err.msg : "ok");
     free(out);
 }
@@ -256,11 +262,11 @@ static void test_corrupt(void)
     MUTATE("reserved", m[29] = 1);
     MUTATE("one residual more", hvq_wr64(m + 32, hvq_rd64(c.bytes + 32) + 1));
     MUTATE("position list longer", hvq_wr64(m + 40, hvq_rd64(c.bytes + 40) + 1));
-    MUTATE("section sizes", hvq_wr64(m + 48, hvq_rd64(c.bytes + 48) + 1));
+    MUTATE("section sizes", hvq_wr64(m + 56, hvq_rd64(c.bytes + 56) + 1));
     for (int sec = 0; sec < HVQ_SECTIONS; sec++) { /* a byte inside each section (checksums) */
-        size_t at = HVQ2_HEADER_BYTES, cs = (size_t)hvq_rd64(c.bytes + 48 + 8 * sec);
+        size_t at = HVQ2_HEADER_BYTES, cs = (size_t)hvq_rd64(c.bytes + 56 + 8 * sec);
         for (int j = 0; j < sec; j++)
-            at += (size_t)hvq_rd64(c.bytes + 48 + 8 * j);
+            at += (size_t)hvq_rd64(c.bytes + 56 + 8 * j);
         if (cs > 8)
             MUTATE("a section's byte", m[at + cs / 2] ^= 0x5A);
     }
@@ -270,11 +276,171 @@ static void test_corrupt(void)
     free(v);
 }
 
+
+/* ---- shared codebooks ------------------------------------------------------------------------ */
+
+static void test_shared(void)
+{
+    const size_t d[3] = {36, 28, 20}, sub[3] = {17, 15, 9};
+    size_t n = 36 * 28 * 20;
+    uint8_t *f0 = make_volume(d, 21), *f1 = make_volume(d, 22), *zero = calloc(n, 1);
+    cdvr_hvq_params p;
+    cdvr_hvq_params_default(&p);
+    p.grad = 2;
+    p.residual = 6;
+    const uint8_t *train[2] = {f0, f1};
+    uint8_t *blob = NULL;
+    size_t bytes = 0;
+    cdvr_error err;
+    cdvr_hvq_codebooks cb, other;
+    CHECK_OK(cdvr_hvq_train_shared(&p, d, train, 2, 1, &blob, &bytes, &err), err);
+    CHECK_OK(cdvr_hvq_shared_open(&p, blob, bytes, &cb, &err), err);
+    CHECK(cb.n1 > 0 && cb.n2 > 0 && cb.id == cdvr_shared_id(blob, bytes), "shared codebooks of "
+          "%u and %u entries", cb.n1, cb.n2);
+    uint8_t *g = make_volume(d, 23), *box = malloc(17 * 15 * 9);
+    for (size_t z = 0; z < 9; z++) /* a sub-box, as a brick of the frame */
+        for (size_t y = 0; y < 15; y++)
+            memcpy(box + 17 * (y + 15 * z), g + 11 + 36 * ((y + 7) + 28 * (z + 5)), 17);
+    const uint8_t *frames[3] = {g, zero, box};
+    const size_t *dims[3] = {d, d, sub};
+    for (int i = 0; i < 3; i++) {
+        size_t bound, got, voxels = dims[i][0] * dims[i][1] * dims[i][2];
+        CHECK_OK(cdvr_hvq_compact_bound(&p, dims[i], &bound, &err), err);
+        uint8_t *out = malloc(bound), *dec = malloc(voxels);
+        cdvr_hvq_stats st;
+        cdvr_status s = cdvr_hvq_encode_compact(&p, &cb, dims[i], frames[i], 2, out, bound, &got,
+                                                &st, &err);
+        CHECK_OK(s, err);
+        CHECK(s || (st.codebook1 == 0 && st.codebook2 == 0), "frame %d: codebooks in a payload "
+              "coded with shared ones", i);
+        s = s ? s : cdvr_hvq_compact_decode(&p, &cb, dims[i], out, got, dec, &err);
+        CHECK_OK(s, err);
+        int maxerr = 0;
+        for (size_t k = 0; s == CDVR_OK && k < voxels; k++)
+            maxerr = abs(dec[k] - frames[i][k]) > maxerr ? abs(dec[k] - frames[i][k]) : maxerr;
+        CHECK(maxerr <= 6, "frame %d with shared codebooks: max error %d > 6", i, maxerr);
+        if (s == CDVR_OK && i == 0) {
+            s = cdvr_hvq_compact_decode(&p, NULL, dims[i], out, got, dec, &err);
+            CHECK(s == CDVR_ERR_CORRUPT && strstr(err.msg, "shared"), "decoded without its "
+                  "shared codebooks: status %d (%s)", (int)s, s ? err.msg : "ok");
+            other = cb;
+            other.id ^= 1;
+            s = cdvr_hvq_compact_decode(&p, &other, dims[i], out, got, dec, &err);
+            CHECK(s == CDVR_ERR_CORRUPT, "decoded with other codebooks: status %d", (int)s);
+        }
+        free(out);
+        free(dec);
+    }
+    for (size_t cut = 0; cut < bytes; cut += 1 + cut / 3) {
+        cdvr_status s = cdvr_hvq_shared_open(&p, blob, cut, &other, &err);
+        CHECK(s == CDVR_ERR_CORRUPT, "shared blob cut to %zu bytes: status %d", cut, (int)s);
+    }
+    blob[bytes / 2 + 12] ^= 0x33;
+    cdvr_status s = cdvr_hvq_shared_open(&p, blob, bytes, &other, &err);
+    CHECK(s == CDVR_ERR_CORRUPT, "shared blob with a flipped byte: status %d", (int)s);
+    cdvr_hvq_codebooks_free(&cb);
+    free(blob);
+    free(box);
+    free(g);
+    free(zero);
+    free(f0);
+    free(f1);
+}
+
+/* A bricked (2x2x1), two-timestep store with hvqc shared=1 and without: reopened, each
+ * timestep decodes within the bound; the shared variant keeps no codebook in its chunks; a
+ * byte flipped in its shared blob makes its decode fail (and the other variant's still works). */
+static void test_shared_store(void)
+{
+    const size_t d[3] = {40, 36, 24};
+    size_t n = 40 * 36 * 24;
+    cdvr_volume *vol;
+    cdvr_error err;
+    if (cdvr_volume_create(d, 2, CDVR_TYPE_U8, &vol, &err) != CDVR_OK) {
+        CHECK_OK(CDVR_ERR_NOMEM, err);
+        return;
+    }
+    for (size_t t = 0; t < 2; t++) {
+        uint8_t *v = make_volume(d, 31u + (uint32_t)t);
+        memcpy(cdvr_volume_frame(vol, t), v, n);
+        free(v);
+    }
+    const cdvr_codec *codec = cdvr_codec_find("hvqc");
+    cdvr_variant_spec specs[2];
+    memset(specs, 0, sizeof specs);
+    const char *keys[2] = {"residual", "shared"}, *values[2][2] = {{"5", "1"}, {"5", "0"}};
+    for (int i = 0; i < 2; i++) {
+        specs[i].codec = codec;
+        CHECK_OK(cdvr_codec_params_parse(codec, keys, values[i], 2, &specs[i].params, &err), err);
+    }
+    cdvr_encode_opts opts;
+    memset(&opts, 0, sizeof opts);
+    opts.variants = specs;
+    opts.nvariants = 2;
+    opts.qlo = 0;
+    opts.qhi = 255;
+    opts.source_type = CDVR_TYPE_U8;
+    opts.bricks[0] = opts.bricks[1] = 2;
+    opts.bricks[2] = 1;
+    char path[] = "/tmp/cdvr_test_hvqc_XXXXXX";
+    int fd = mkstemp(path);
+    if (fd >= 0)
+        close(fd);
+    cdvr_status s = cdvr_store_encode(vol, &opts, path, &err);
+    CHECK_OK(s, err);
+    cdvr_store *st = NULL;
+    uint64_t blob_at = 0;
+    if (s == CDVR_OK && cdvr_store_open(path, &st, &err) == CDVR_OK) {
+        const cdvr_variant_info *vi = cdvr_store_variant(st, 0);
+        blob_at = vi->shared_offset + vi->shared_bytes / 2;
+        CHECK(vi->shared_bytes > 0 && cdvr_store_variant(st, 1)->shared_bytes == 0,
+              "shared blob bytes %llu and %llu", (unsigned long long)vi->shared_bytes,
+              (unsigned long long)cdvr_store_variant(st, 1)->shared_bytes);
+        for (size_t v = 0; v < 2; v++)
+            for (size_t t = 0; t < 2; t++) {
+                cdvr_volume *dec = NULL;
+                s = cdvr_store_decode(st, v, t, &dec, &err);
+                CHECK_OK(s, err);
+                int maxerr = 0;
+                const uint8_t *a = cdvr_volume_frame(vol, t), *b = dec ? dec->data : NULL;
+                for (size_t k = 0; b && k < n; k++)
+                    maxerr = abs(a[k] - b[k]) > maxerr ? abs(a[k] - b[k]) : maxerr;
+                CHECK(maxerr <= 5, "store variant %zu t %zu: max error %d > 5", v, t, maxerr);
+                cdvr_volume_free(dec);
+            }
+        cdvr_store_close(st);
+    } else {
+        CHECK(0, "cannot reopen the store: %s", err.msg);
+    }
+    FILE *f = blob_at ? fopen(path, "r+b") : NULL;
+    if (f) {
+        int c = (fseek(f, (long)blob_at, SEEK_SET), fgetc(f));
+        fseek(f, (long)blob_at, SEEK_SET);
+        fputc(c ^ 0x5A, f);
+        fclose(f);
+        if (cdvr_store_open(path, &st, &err) == CDVR_OK) {
+            cdvr_volume *dec = NULL;
+            s = cdvr_store_decode(st, 0, 1, &dec, &err);
+            CHECK(s != CDVR_OK, "a corrupt shared blob decodes");
+            cdvr_volume_free(dec);
+            dec = NULL;
+            s = cdvr_store_decode(st, 1, 1, &dec, &err);
+            CHECK_OK(s, err);
+            cdvr_volume_free(dec);
+            cdvr_store_close(st);
+        }
+    }
+    remove(path);
+    cdvr_volume_free(vol);
+}
+
 int main(void)
 {
     test_table();
     test_shapes();
     test_extremes();
     test_corrupt();
+    test_shared();
+    test_shared_store();
     return check_finish();
 }

@@ -104,9 +104,22 @@ int hvq_sections_put_residual(hvq_sections *s, uint64_t delta, int q)
 
 /* ---- writer --------------------------------------------------------------------------------- */
 
+/* zstd at HVQ2_ZSTD_LEVEL with a content checksum (a flipped byte fails the decode). */
+static ZSTD_CCtx *zstd_context(void)
+{
+    ZSTD_CCtx *z = ZSTD_createCCtx();
+    if (z && (ZSTD_isError(ZSTD_CCtx_setParameter(z, ZSTD_c_compressionLevel, HVQ2_ZSTD_LEVEL)) ||
+              ZSTD_isError(ZSTD_CCtx_setParameter(z, ZSTD_c_checksumFlag, 1)))) {
+        ZSTD_freeCCtx(z);
+        z = NULL;
+    }
+    return z;
+}
+
 cdvr_status hvq_compact_write(const hvq_sections *s, const size_t dims[3], uint32_t n1,
-                              uint32_t n2, uint32_t residual, uint8_t *out, size_t out_cap,
-                              size_t *out_bytes, cdvr_hvq_stats *stats, cdvr_error *err)
+                              uint32_t n2, uint32_t residual, uint64_t shared_id, uint8_t *out,
+                              size_t out_cap, size_t *out_bytes, cdvr_hvq_stats *stats,
+                              cdvr_error *err)
 {
     if (out_cap < HVQ2_HEADER_BYTES)
         return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: a %zu-byte buffer for a compact payload",
@@ -118,15 +131,14 @@ cdvr_status hvq_compact_write(const hvq_sections *s, const size_t dims[3], uint3
     hvq_wr32(out + 16, n1);
     hvq_wr32(out + 20, n2);
     hvq_wr32(out + 24, residual);
+    hvq_wr32(out + 28, shared_id ? HVQ2_FLAG_SHARED : 0);
     hvq_wr64(out + 32, s->nres);
     hvq_wr64(out + 40, s->size[HVQ_SEC_RESPOS]);
+    hvq_wr64(out + 48, shared_id);
     size_t at = HVQ2_HEADER_BYTES, csize[HVQ_SECTIONS];
-    ZSTD_CCtx *z = ZSTD_createCCtx();
-    if (!z || ZSTD_isError(ZSTD_CCtx_setParameter(z, ZSTD_c_compressionLevel, HVQ2_ZSTD_LEVEL)) ||
-        ZSTD_isError(ZSTD_CCtx_setParameter(z, ZSTD_c_checksumFlag, 1))) {
-        ZSTD_freeCCtx(z);
+    ZSTD_CCtx *z = zstd_context();
+    if (!z)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: cannot set up zstd");
-    }
     for (int i = 0; i < HVQ_SECTIONS; i++) {
         csize[i] = 0;
         if (s->size[i]) {
@@ -138,7 +150,7 @@ cdvr_status hvq_compact_write(const hvq_sections *s, const size_t dims[3], uint3
                                       ZSTD_getErrorName(csize[i]));
             }
         }
-        hvq_wr64(out + 48 + 8 * i, csize[i]);
+        hvq_wr64(out + 56 + 8 * i, csize[i]);
         at += csize[i];
     }
     ZSTD_freeCCtx(z);
@@ -196,6 +208,8 @@ typedef struct hvq2_view {
     hvq_sections s;
     size_t csize[HVQ_SECTIONS];
     int16_t *cb1, *cb2;
+    const int16_t *c1, *c2;  /* the codebooks in use: own (cb1, cb2) or the variant's */
+    int shared;
 } hvq2_view;
 
 static void view2_free(hvq2_view *v)
@@ -210,8 +224,9 @@ static cdvr_status corrupt(cdvr_error *err, const char *what)
     return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: %s", what);
 }
 
-static cdvr_status open_header(hvq2_view *v, const cdvr_hvq_params *p, const uint8_t *in,
-                               size_t bytes, cdvr_error *err)
+static cdvr_status open_header(hvq2_view *v, const cdvr_hvq_params *p,
+                               const cdvr_hvq_codebooks *shared, const uint8_t *in, size_t bytes,
+                               cdvr_error *err)
 {
     if (bytes < HVQ2_HEADER_BYTES)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload of %zu bytes is "
@@ -235,8 +250,19 @@ static cdvr_status open_header(hvq2_view *v, const cdvr_hvq_params *p, const uin
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: codebooks of %u "
                               "and %u entries (at most %u and %u, both 0 or neither)", v->n1,
                               v->n2, k1, k2);
-    if (v->residual > 255 || hvq_rd32(in + 28) != 0)
-        return corrupt(err, "residual above 255 or reserved bytes not zero");
+    uint32_t flags = hvq_rd32(in + 28);
+    if (v->residual > 255 || (flags & ~HVQ2_FLAG_SHARED) ||
+        ((flags & HVQ2_FLAG_SHARED) != 0) != (hvq_rd64(in + 48) != 0))
+        return corrupt(err, "residual above 255, unknown flags, or a shared-codebook id "
+                       "without its flag");
+    v->shared = (flags & HVQ2_FLAG_SHARED) != 0;
+    if (v->shared && (!shared || shared->id != hvq_rd64(in + 48)))
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: coded with the shared "
+                              "codebooks %016llx, %s", (unsigned long long)hvq_rd64(in + 48),
+                              shared ? "other codebooks given" : "none given (the variant's "
+                              "codebooks are missing)");
+    if (v->shared && (v->n1 != shared->n1 || v->n2 != shared->n2))
+        return corrupt(err, "codebook sizes other than the shared codebooks'");
     v->s.nres = hvq_rd64(in + 32);
     v->s.wq = v->residual == 0 ? 2 : 1;
     if (v->s.nres > v->nvox || hvq_rd64(in + 40) > 10 * v->s.nres)
@@ -244,7 +270,7 @@ static cdvr_status open_header(hvq2_view *v, const cdvr_hvq_params *p, const uin
                        "longer than 10 bytes a voxel");
     uint64_t at = HVQ2_HEADER_BYTES;
     for (int i = 0; i < HVQ_SECTIONS; i++) {
-        v->csize[i] = (size_t)hvq_rd64(in + 48 + 8 * i);
+        v->csize[i] = (size_t)hvq_rd64(in + 56 + 8 * i);
         if (v->csize[i] > bytes - at)
             return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: the %s (%zu "
                                   "bytes) run past its end", section_names[i], v->csize[i]);
@@ -302,8 +328,10 @@ static cdvr_status check_blocks(hvq2_view *v, cdvr_error *err)
         nnz += bm[b >> 3] >> (b & 7) & 1;
     if ((v->L.nblocks & 7) && bm[v->L.nblocks >> 3] >> (v->L.nblocks & 7))
         return corrupt(err, "bitmap bits past the last block");
-    if ((nnz == 0) != (v->n1 == 0))
-        return corrupt(err, "non-zero blocks without codebooks, or codebooks without them");
+    if (nnz && v->n1 == 0)
+        return corrupt(err, "non-zero blocks without codebooks");
+    if (!nnz && v->n1 && !v->shared)
+        return corrupt(err, "codebooks without non-zero blocks");
     v->nnz = nnz;
     return CDVR_OK;
 }
@@ -358,7 +386,8 @@ static cdvr_status codebooks_unplane(hvq2_view *v, cdvr_error *err)
     return CDVR_OK;
 }
 
-static cdvr_status view2_open(hvq2_view *v, const cdvr_hvq_params *p, const size_t dims[3],
+static cdvr_status view2_open(hvq2_view *v, const cdvr_hvq_params *p,
+                              const cdvr_hvq_codebooks *shared, const size_t dims[3],
                               const uint8_t *in, size_t bytes, cdvr_error *err)
 {
     memset(v, 0, sizeof *v);
@@ -372,15 +401,15 @@ static cdvr_status view2_open(hvq2_view *v, const cdvr_hvq_params *p, const size
     }
     if (!in && bytes)
         return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: NULL payload of %zu bytes", bytes);
-    cdvr_status s = open_header(v, p, in, bytes, err);
+    cdvr_status s = open_header(v, p, shared, in, bytes, err);
     if (s != CDVR_OK)
         return s;
     hvq_layout_get(v->dims, v->n1, v->n2, &v->L);
     /* raw section sizes: from the dims, the header and the bitmap */
     v->s.size[HVQ_SEC_MEANS] = (size_t)v->L.nblocks;
     v->s.size[HVQ_SEC_BITMAP] = (size_t)((v->L.nblocks + 7) / 8);
-    v->s.size[HVQ_SEC_CB1] = 16u * (size_t)v->n1;
-    v->s.size[HVQ_SEC_CB2] = 128u * (size_t)v->n2;
+    v->s.size[HVQ_SEC_CB1] = v->shared ? 0 : 16u * (size_t)v->n1;
+    v->s.size[HVQ_SEC_CB2] = v->shared ? 0 : 128u * (size_t)v->n2;
     v->s.size[HVQ_SEC_RESPOS] = (size_t)hvq_rd64(in + 40);
     v->s.size[HVQ_SEC_RESVAL] = (size_t)v->s.nres * v->s.wq;
     int order[] = {HVQ_SEC_BITMAP, HVQ_SEC_MEANS, HVQ_SEC_CB1, HVQ_SEC_CB2, HVQ_SEC_RESPOS,
@@ -398,17 +427,19 @@ static cdvr_status view2_open(hvq2_view *v, const cdvr_hvq_params *p, const size
         s = check_indices(v, err);
     if (s == CDVR_OK)
         s = check_residuals(v, err);
-    if (s == CDVR_OK)
+    if (s == CDVR_OK && !v->shared)
         s = codebooks_unplane(v, err);
+    v->c1 = v->shared ? shared->c1 : v->cb1;
+    v->c2 = v->shared ? shared->c2 : v->cb2;
     return s;
 }
 
-cdvr_status cdvr_hvq_compact_check(const cdvr_hvq_params *p, const size_t dims[3],
-                                   const uint8_t *payload, size_t bytes, cdvr_hvq_stats *stats,
-                                   cdvr_error *err)
+cdvr_status cdvr_hvq_compact_check(const cdvr_hvq_params *p, const cdvr_hvq_codebooks *shared,
+                                   const size_t dims[3], const uint8_t *payload, size_t bytes,
+                                   cdvr_hvq_stats *stats, cdvr_error *err)
 {
     hvq2_view v;
-    cdvr_status s = view2_open(&v, p, dims, payload, bytes, err);
+    cdvr_status s = view2_open(&v, p, shared, dims, payload, bytes, err);
     if (s == CDVR_OK && stats) {
         memset(stats, 0, sizeof *stats);
         stats->header = HVQ2_HEADER_BYTES;
@@ -442,8 +473,8 @@ static void decode_blocks(const hvq2_view *v, uint8_t *out)
                 mean = (uint8_t)(mean + md[b]);
                 const int16_t *c1 = NULL, *c2 = NULL;
                 if (bm[b >> 3] >> (b & 7) & 1) {
-                    c1 = v->cb1 + 8u * get16(ix, n, k, v->L.w1);
-                    c2 = v->cb2 + 64u * get16(ix + n * v->L.w1, n, k, v->L.w2);
+                    c1 = v->c1 + 8u * get16(ix, n, k, v->L.w1);
+                    c2 = v->c2 + 64u * get16(ix + n * v->L.w1, n, k, v->L.w2);
                     k++;
                 }
                 unsigned ex = X - 4 * bx < 4 ? (unsigned)(X - 4 * bx) : 4;
@@ -487,16 +518,112 @@ static void apply_residuals2(const hvq2_view *v, uint8_t *out)
     }
 }
 
-cdvr_status cdvr_hvq_compact_decode(const cdvr_hvq_params *p, const size_t dims[3],
-                                    const uint8_t *payload, size_t bytes, uint8_t *out,
-                                    cdvr_error *err)
+cdvr_status cdvr_hvq_compact_decode(const cdvr_hvq_params *p, const cdvr_hvq_codebooks *shared,
+                                    const size_t dims[3], const uint8_t *payload, size_t bytes,
+                                    uint8_t *out, cdvr_error *err)
 {
     hvq2_view v;
-    cdvr_status s = view2_open(&v, p, dims, payload, bytes, err);
+    cdvr_status s = view2_open(&v, p, shared, dims, payload, bytes, err);
     if (s == CDVR_OK) {
         decode_blocks(&v, out);
         apply_residuals2(&v, out);
     }
     view2_free(&v);
+    return s;
+}
+
+/* ---- shared codebooks ------------------------------------------------------------------------ */
+
+#define HVQS_HEADER_BYTES 24u
+
+
+cdvr_status hvq_shared_write(const int16_t *cb1, uint32_t n1, const int16_t *cb2, uint32_t n2,
+                             uint8_t **blob, size_t *bytes, cdvr_error *err)
+{
+    size_t raw = 16u * (size_t)n1 + 128u * (size_t)n2;
+    uint8_t *planes = malloc(raw ? raw : 1);
+    size_t cap = HVQS_HEADER_BYTES + ZSTD_compressBound(raw);
+    uint8_t *out = malloc(cap);
+    ZSTD_CCtx *z = zstd_context();
+    cdvr_status s = CDVR_OK;
+    if (!planes || !out || !z)
+        s = cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: out of memory for shared codebooks");
+    size_t c = 0;
+    if (s == CDVR_OK) {
+        put_planes16(planes, (const uint16_t *)cb1, 8u * (size_t)n1, 2);
+        put_planes16(planes + 16u * (size_t)n1, (const uint16_t *)cb2, 64u * (size_t)n2, 2);
+        memset(out, 0, HVQS_HEADER_BYTES);
+        memcpy(out, "HVQS", 4);
+        hvq_wr32(out + 4, n1);
+        hvq_wr32(out + 8, n2);
+        if (raw)
+            c = ZSTD_compress2(z, out + HVQS_HEADER_BYTES, cap - HVQS_HEADER_BYTES, planes, raw);
+        if (ZSTD_isError(c))
+            s = cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: zstd: %s", ZSTD_getErrorName(c));
+        else
+            hvq_wr64(out + 16, c);
+    }
+    ZSTD_freeCCtx(z);
+    free(planes);
+    if (s != CDVR_OK) {
+        free(out);
+        return s;
+    }
+    *blob = out;
+    *bytes = HVQS_HEADER_BYTES + c;
+    return CDVR_OK;
+}
+
+void cdvr_hvq_codebooks_free(cdvr_hvq_codebooks *cb)
+{
+    free(cb->c1);
+    free(cb->c2);
+    memset(cb, 0, sizeof *cb);
+}
+
+cdvr_status cdvr_hvq_shared_open(const cdvr_hvq_params *p, const uint8_t *blob, size_t bytes,
+                                 cdvr_hvq_codebooks *cb, cdvr_error *err)
+{
+    memset(cb, 0, sizeof *cb);
+    if (!blob || bytes < HVQS_HEADER_BYTES || memcmp(blob, "HVQS", 4) != 0 ||
+        hvq_rd32(blob + 12) != 0)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq shared codebooks of %zu bytes: no "
+                              "\"HVQS\" header", bytes);
+    uint32_t n1 = hvq_rd32(blob + 4), n2 = hvq_rd32(blob + 8);
+    uint32_t k1 = p ? p->k1 : CDVR_HVQ_K_MAX, k2 = p ? p->k2 : CDVR_HVQ_K_MAX;
+    if (n1 > k1 || n2 > k2 || n1 > CDVR_HVQ_K_MAX || n2 > CDVR_HVQ_K_MAX || (n1 == 0) != (n2 == 0) ||
+        hvq_rd64(blob + 16) != bytes - HVQS_HEADER_BYTES)
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq shared codebooks: %u and %u entries "
+                              "(at most %u, %u), %llu compressed bytes of %zu", n1, n2, k1, k2,
+                              (unsigned long long)hvq_rd64(blob + 16),
+                              bytes - HVQS_HEADER_BYTES);
+    size_t raw = 16u * (size_t)n1 + 128u * (size_t)n2;
+    uint8_t *planes = malloc(raw ? raw : 1);
+    cb->c1 = malloc(sizeof *cb->c1 * (8u * (size_t)n1 + 1));
+    cb->c2 = malloc(sizeof *cb->c2 * (64u * (size_t)n2 + 1));
+    cdvr_status s = CDVR_OK;
+    if (!planes || !cb->c1 || !cb->c2)
+        s = cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: out of memory for shared codebooks");
+    if (s == CDVR_OK && raw) {
+        size_t got = ZSTD_decompress(planes, raw, blob + HVQS_HEADER_BYTES,
+                                     bytes - HVQS_HEADER_BYTES);
+        if (ZSTD_isError(got) || got != raw)
+            s = cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq shared codebooks do not inflate to "
+                               "%zu bytes", raw);
+    } else if (s == CDVR_OK && bytes != HVQS_HEADER_BYTES) {
+        s = cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq shared codebooks: empty, with data");
+    }
+    if (s == CDVR_OK) {
+        for (size_t i = 0; i < 8u * (size_t)n1; i++)
+            cb->c1[i] = (int16_t)(uint16_t)get16(planes, 8u * (size_t)n1, i, 2);
+        for (size_t i = 0; i < 64u * (size_t)n2; i++)
+            cb->c2[i] = (int16_t)(uint16_t)get16(planes + 16u * (size_t)n1, 64u * (size_t)n2, i, 2);
+        cb->n1 = n1;
+        cb->n2 = n2;
+        cb->id = cdvr_shared_id(blob, bytes);
+    }
+    free(planes);
+    if (s != CDVR_OK)
+        cdvr_hvq_codebooks_free(cb);
     return s;
 }

@@ -134,7 +134,8 @@ void hvq_vq_assign(const int16_t *vectors, size_t n, unsigned d, const int16_t *
 enum { HVQ_SEC_MEANS, HVQ_SEC_BITMAP, HVQ_SEC_INDEX, HVQ_SEC_CB1, HVQ_SEC_CB2, HVQ_SEC_RESPOS,
        HVQ_SEC_RESVAL, HVQ_SECTIONS };
 
-#define HVQ2_HEADER_BYTES (48u + 8u * HVQ_SECTIONS)
+#define HVQ2_HEADER_BYTES (56u + 8u * HVQ_SECTIONS)
+#define HVQ2_FLAG_SHARED 1u  /* codebooks are the variant's (cdvr_hvq_codebooks) */
 
 /* The raw (uncompressed) sections of a compact payload. */
 typedef struct hvq_sections {
@@ -158,8 +159,12 @@ void hvq_sections_put_codebooks(hvq_sections *s, const int16_t *cb1, uint32_t n1
 int hvq_sections_put_residual(hvq_sections *s, uint64_t delta, int q);
 /* Compresses the sections into the payload (layout in cdvr/hvq.h). */
 cdvr_status hvq_compact_write(const hvq_sections *s, const size_t dims[3], uint32_t n1,
-                              uint32_t n2, uint32_t residual, uint8_t *out, size_t out_cap,
-                              size_t *out_bytes, cdvr_hvq_stats *stats, cdvr_error *err);
+                              uint32_t n2, uint32_t residual, uint64_t shared_id, uint8_t *out,
+                              size_t out_cap, size_t *out_bytes, cdvr_hvq_stats *stats,
+                              cdvr_error *err);
+/* A shared codebook blob (layout in cdvr/hvq.h) of these codebooks; *blob is malloc'd. */
+cdvr_status hvq_shared_write(const int16_t *cb1, uint32_t n1, const int16_t *cb2, uint32_t n2,
+                             uint8_t **blob, size_t *bytes, cdvr_error *err);
 
 /* ---- threads -------------------------------------------------------------------------------- */
 

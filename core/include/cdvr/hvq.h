@@ -200,23 +200,49 @@ uint8_t cdvr_hvq_fetch(const uint8_t *payload, const size_t dims[3], size_t x, s
 
 /* ---- compact form ("hvqc", magic HVQ2; layout at the top) ---- */
 
+/* The variant's shared codebooks, opened from their blob (cdvr_hvq_shared_open). */
+typedef struct cdvr_hvq_codebooks {
+    uint32_t n1, n2;
+    int16_t *c1, *c2;  /* n1 x 8, n2 x 64 */
+    uint64_t id;       /* cdvr_shared_id of the blob (cdvr/codec.h) */
+} cdvr_hvq_codebooks;
+
 /* Worst-case compact payload bytes for dims. */
 cdvr_status cdvr_hvq_compact_bound(const cdvr_hvq_params *p, const size_t dims[3],
                                    size_t *bytes, cdvr_error *err);
 /* Encodes one u8 frame into the compact form: the same classification and codebooks as
- * cdvr_hvq_encode, residuals as a list of quantised corrections (every voxel within
+ * cdvr_hvq_encode (shared != NULL: these codebooks, not trained; the payload then names their
+ * id and holds none), residuals as a list of quantised corrections (every voxel within
  * p->residual of the original). stats: header, means, codebook1/2, indices, residuals. */
-cdvr_status cdvr_hvq_encode_compact(const cdvr_hvq_params *p, const size_t dims[3],
-                                    const uint8_t *frame, unsigned threads, uint8_t *out,
-                                    size_t out_cap, size_t *out_bytes, cdvr_hvq_stats *stats,
-                                    cdvr_error *err);
-/* Checks a compact payload completely (every section inflated and checked). */
-cdvr_status cdvr_hvq_compact_check(const cdvr_hvq_params *p, const size_t dims[3],
-                                   const uint8_t *payload, size_t bytes, cdvr_hvq_stats *stats,
-                                   cdvr_error *err);
+cdvr_status cdvr_hvq_encode_compact(const cdvr_hvq_params *p, const cdvr_hvq_codebooks *shared,
+                                    const size_t dims[3], const uint8_t *frame, unsigned threads,
+                                    uint8_t *out, size_t out_cap, size_t *out_bytes,
+                                    cdvr_hvq_stats *stats, cdvr_error *err);
+/* Checks a compact payload completely (every section inflated and checked). shared: the
+ * codebooks a payload coded with shared codebooks needs (CDVR_ERR_CORRUPT without them). */
+cdvr_status cdvr_hvq_compact_check(const cdvr_hvq_params *p, const cdvr_hvq_codebooks *shared,
+                                   const size_t dims[3], const uint8_t *payload, size_t bytes,
+                                   cdvr_hvq_stats *stats, cdvr_error *err);
 /* Checks and decodes a compact payload into out (X*Y*Z bytes). */
-cdvr_status cdvr_hvq_compact_decode(const cdvr_hvq_params *p, const size_t dims[3],
-                                    const uint8_t *payload, size_t bytes, uint8_t *out,
-                                    cdvr_error *err);
+cdvr_status cdvr_hvq_compact_decode(const cdvr_hvq_params *p, const cdvr_hvq_codebooks *shared,
+                                    const size_t dims[3], const uint8_t *payload, size_t bytes,
+                                    uint8_t *out, cdvr_error *err);
+
+/* Shared codebooks: trains one codebook set on the pooled non-zero blocks of nframes sample
+ * frames of dims (at most ceil(train / nframes) vectors of each, evenly spaced; the sizes
+ * follow the same rules as one frame's) and writes its blob (*blob malloc'd). */
+cdvr_status cdvr_hvq_train_shared(const cdvr_hvq_params *p, const size_t dims[3],
+                                  const uint8_t *const *frames, size_t nframes, unsigned threads,
+                                  uint8_t **blob, size_t *bytes, cdvr_error *err);
+/* Opens a blob (checked: CDVR_ERR_CORRUPT) into cb; p may be NULL (sizes up to K_MAX). */
+cdvr_status cdvr_hvq_shared_open(const cdvr_hvq_params *p, const uint8_t *blob, size_t bytes,
+                                 cdvr_hvq_codebooks *cb, cdvr_error *err);
+void cdvr_hvq_codebooks_free(cdvr_hvq_codebooks *cb);
+/* The hvqc codec's side of cdvr_codec_wants_shared / cdvr_codec_train_shared (cdvr/codec.h):
+ * shared=1 in the blob; training sets the blob's shared-codebook id. */
+int cdvr_hvqc_wants_shared(const cdvr_codec_params *p);
+cdvr_status cdvr_hvqc_train_shared(cdvr_codec_params *p, const size_t dims[3],
+                                   const uint8_t *const *frames, size_t nframes, uint8_t **blob,
+                                   size_t *bytes, cdvr_error *err);
 
 #endif
