@@ -622,6 +622,7 @@ static void push_variant_info(lua_State *L, const cdvr_store *st, size_t v)
     setint(L, "bytes", (lua_Integer)vi->bytes);
     setint(L, "payload_bytes", (lua_Integer)vi->payload_bytes);
     setint(L, "ranges_bytes", (lua_Integer)vi->ranges_bytes);
+    setint(L, "shared_bytes", (lua_Integer)vi->shared_bytes); /* in bytes too */
     setnum(L, "ratio", (double)vi->bytes / (double)in->raw_bytes);
     setnum(L, "bpv", 8.0 * (double)vi->bytes / (double)in->raw_bytes);
     setnum(L, "psnr", vi->psnr);

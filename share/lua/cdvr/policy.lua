@@ -39,7 +39,10 @@
 --   upload = payload_bytes_per_timestep / (median of payload_bytes / upload_ms)
 --   decode = median decode_ms of that variant's frames (every variant outputs one timestep
 --            per frame), else of all frames
---   setup, render = medians over all frames (they do not depend on the variant)
+--   render = median render_ms of that variant's frames, else of all frames (a codec that
+--            fetches every sample from its payload, hvq, renders many times slower than a
+--            dense volume: the render depends on the variant)
+--   setup  = median over all frames (it does not depend on the variant)
 -- (policy.stages(v, m) gives these per-stage predictions, policy.predict(v, m) their total.)
 -- Serial player: the sum. Pipelined player (cdvr/player.h: reader thread, unzip thread, and
 -- the device thread doing upload..render): max(read, unzip, upload+decode+setup+render).
@@ -271,6 +274,7 @@ function policy.measure(frames)
     frames = frames,
   }
   m.decode = {}
+  m.render_of = {}
   return m
 end
 
@@ -297,13 +301,17 @@ function policy.stages(v, m)
   if m.decode[v.name] == nil then
     m.decode[v.name] = field_median(m.frames, "decode_ms", v.name) or m.decode_all or false
   end
+  m.render_of = m.render_of or {}
+  if m.render_of[v.name] == nil then
+    m.render_of[v.name] = field_median(m.frames, "render_ms", v.name) or m.render
+  end
   return {
     read = per(stored_bytes(v), m.read),
     unzip = uses_stage2(v) and per(payload_bytes(v), m.unzip) or 0,
     upload = per(payload_bytes(v), m.upload),
     decode = m.decode[v.name] or 0,
     setup = m.setup,
-    render = m.render,
+    render = m.render_of[v.name],
   }
 end
 
