@@ -3,10 +3,12 @@
 -- (zstd-coded sections, CPU decode), against the old binary's hvq (--old) for the compression
 -- targets of issue 27, on a generated light-sheet-like volume (scripts/bench/lightsheet_gen.c:
 -- sparse tubes and blobs, ~5% foreground, background 10 + noise sigma 1, 256^3), Colin27 and
--- the engine CT; the light-sheet volume also bricked 4x4x4 (64^3 bricks).
+-- the engine CT; the light-sheet volume also bricked 4x4x4 (64^3 bricks); "series": 60
+-- timesteps of a 128^3 light-sheet volume whose objects drift 0.25 voxel a step (fresh noise
+-- each), where hvqc shared=1 pays its codebooks once (bytes_per_t: stored bytes / timesteps).
 --
 --   cdvr scripts/bench/hvq.lua [--runs N] [--size PIXELS] [--old PATH_TO_OLD_CDVR]
---                              [--sets lightsheet,colin27,engine] [--lightsheet FILE.nrrd]
+--                              [--sets lightsheet,colin27,engine,series] [--lightsheet FILE.nrrd]
 --
 -- The old binary runs this same script as a child (--child DATASET --spec K=V,..), which
 -- prints one row of the compression columns; the rows of both binaries are printed together.
@@ -37,24 +39,44 @@ local data = common.shared_data()
 local outdir = os.getenv("CDVR_BENCH_OUT") or "/tmp/cdvr-hvq"
 os.execute("mkdir -p '" .. outdir .. "'")
 
+local function generator()
+  local exe = outdir .. "/lightsheet_gen"
+  if not common.exists(exe) then
+    assert(os.execute(("cc -O2 -std=c11 '%s/lightsheet_gen.c' -lm -o '%s'"):format(here, exe)),
+           "cannot build lightsheet_gen")
+  end
+  return exe
+end
+
 local function lightsheet_path()
   if opt.lightsheet then return opt.lightsheet end
   local out = outdir .. "/lightsheet_256_s1.nrrd"
   if common.exists(out) then return out end
-  local exe = outdir .. "/lightsheet_gen"
-  assert(os.execute(("cc -O2 -std=c11 '%s/lightsheet_gen.c' -lm -o '%s'"):format(here, exe)),
-         "cannot build lightsheet_gen")
-  assert(os.execute(("'%s' '%s' 256 1 0"):format(exe, out)), "lightsheet_gen failed")
+  assert(os.execute(("'%s' '%s' 256 1 0"):format(generator(), out)), "lightsheet_gen failed")
   return out
+end
+
+local SERIES_T = 60
+local function series_glob()
+  local dir = outdir .. "/series_128"
+  if not common.exists(("%s/ls_%02d.nrrd"):format(dir, SERIES_T - 1)) then
+    os.execute("mkdir -p '" .. dir .. "'")
+    for t = 0, SERIES_T - 1 do
+      assert(os.execute(("'%s' '%s/ls_%02d.nrrd' 128 1 %d 2>/dev/null"):format(generator(), dir, t, t)))
+    end
+  end
+  return dir .. "/ls_*.nrrd"
 end
 
 local DATASETS = {
   lightsheet = function() return lightsheet_path(), "ct_bone" end,
+  series = function() return series_glob(), "ct_bone", true end,
   colin27 = function() return data .. "/mri/colin27_t1_301x370x316_u8.nii.gz", "mri" end,
   engine = function() return data .. "/ct/engine_256x256x128_u8.nrrd", "ct_bone" end,
 }
 
-local columns = {"dataset", "binary", "variant", "bricks", "ratio", "bpv", "volume_psnr", "maxerr",
+local columns = {"dataset", "binary", "variant", "bricks", "ratio", "bpv", "bytes_per_t",
+                 "shared_bytes", "volume_psnr", "maxerr",
                  "decode_gbps", "encode_s", "device_bytes", "fps_variant", "fps_dense", "fps_ratio",
                  "image_psnr", "means", "codebook1", "codebook2", "index_hash", "residual_hash",
                  "indices", "residuals", "residual_voxels", "zero_blocks"}
@@ -98,9 +120,12 @@ local function compress(name, vol, spec, bricks)
     times[r] = cdvr.clock() - t1
   end
   local X, Y, Z = vol:dims()
-  local c = cdvr.compare(vol, dec)
+  local T = st:info().timesteps
+  -- a series: the encoder's figures over every timestep (st:info()); a volume: compared here
+  local c = T > 1 and {psnr = row.psnr, maxerr = row.maxerr} or cdvr.compare(vol, dec)
   local r = {dataset = name, variant = row.name, bricks = bricks and (bricks .. "^3") or "1",
-             ratio = 1 / row.ratio, bpv = row.bpv, volume_psnr = c.psnr, maxerr = c.maxerr,
+             ratio = 1 / row.ratio, bpv = row.bpv, bytes_per_t = row.bytes / T,
+             shared_bytes = row.shared_bytes, volume_psnr = c.psnr, maxerr = c.maxerr,
              decode_gbps = X * Y * Z / common.median(times) / 1e9, encode_s = encode_s,
              device_bytes = row.device_bytes}
   for _, k in ipairs{"means", "codebook1", "codebook2", "index_hash", "residual_hash", "indices",
@@ -109,9 +134,10 @@ local function compress(name, vol, spec, bricks)
 end
 
 if opt.child then -- one row for the parent (possibly another binary)
-  local path = DATASETS[opt.child] and DATASETS[opt.child]() or opt.child
+  local path, _, series = DATASETS[opt.child]()
   local spec, bricks = parse_spec(opt.spec or "codec=hvq")
-  local r, st, _, tmp = compress(opt.child, assert(cdvr.load(path)), spec, bricks)
+  local vol = assert(series and cdvr.load_series(path) or cdvr.load(path))
+  local r, st, _, tmp = compress(opt.child, vol, spec, bricks)
   st:close()
   os.remove(tmp)
   r.binary = "old"
@@ -137,10 +163,10 @@ local function interleaved_fps(st, row_name, dec, tf, cam)
   return 1 / common.median(tv), 1 / common.median(td), img
 end
 
-local function new_row(name, vol, tfname, spec, bricks)
+local function new_row(name, vol, tfname, spec, bricks, no_render)
   local r, st, dec, tmp = compress(name, vol, spec, bricks)
   r.binary = "new"
-  if not bricks then
+  if not bricks and not no_render then
     local tf = cdvr.tf(tfname)
     local cam = common.view(vol, 30, 20, SIZE, SIZE)
     local ref = cdvr.render(vol, {tf = tf, camera = cam, device = "cpu"})
@@ -167,16 +193,18 @@ end
 
 print(table.concat(columns, ","))
 for name in opt.sets:gmatch("[^,]+") do
-  local path, tf = assert(DATASETS[name], "unknown set " .. name)()
+  local path, tf, series = assert(DATASETS[name], "unknown set " .. name)()
   common.progress("%s", name)
-  local vol = assert(cdvr.load(path))
+  local vol = assert(series and cdvr.load_series(path) or cdvr.load(path))
   old_row(name, "codec=hvq")
-  new_row(name, vol, tf, {codec = "hvq"})
-  new_row(name, vol, tf, {codec = "hvqc"})
+  new_row(name, vol, tf, {codec = "hvq"}, nil, series)
+  new_row(name, vol, tf, {codec = "hvqc"}, nil, series)
+  new_row(name, vol, tf, {codec = "hvqc", shared = 1}, nil, series)
   if name == "lightsheet" then
     old_row(name, "codec=hvq,bricks=4")
     new_row(name, vol, tf, {codec = "hvq"}, 4)
     new_row(name, vol, tf, {codec = "hvqc"}, 4)
+    new_row(name, vol, tf, {codec = "hvqc", shared = 1}, 4)
   end
 end
 common.progress_done()
