@@ -115,6 +115,46 @@
  *  a directory n other than the number of slots whose key maps to themselves (and lies in the
  *  region), m > 1023, r > 256, and codebook sizes above the parameters' k1, k2.
  *
+ * ---- Compact form: codec "hvqc" (id 3), payload magic "HVQ2" --------------------------------
+ * Steps 1-4 as above (the same means, zero blocks, codebooks and indices for the same
+ * parameters and frame; with shared codebooks, step 4 assigns to the given codebooks and
+ * trains none). No hashes: residuals are a list. Residual stage: b as in step 5; for every
+ * voxel with |d| > R, d = v - b, R = `residual`, the payload keeps its position and
+ * q = sign(d) * floor((|d| + R) / (2R + 1)) (|d - q(2R+1)| <= R). Decoding:
+ *     value = clamp(b + q * (2R + 1), 0, 255)     at a residual voxel (|value - v| <= R, as
+ *                                                 clamping only moves toward v in 0..255);
+ *           = b                                   elsewhere (b: the formula of step 5).
+ * Payload (little endian):
+ *   0  4   magic "HVQ2"; 4: u32 X, 8: u32 Y, 12: u32 Z (the chunk's dims)
+ *  16  4   u32 n1, 20: u32 n2 (codebook sizes; the shared codebooks' when flag 1 is set)
+ *  24  4   u32 R (0..255)
+ *  28  4   u32 flags: bit 0: the codebooks are the variant's shared ones (none inside); others 0
+ *  32  8   u64 residual voxels NR (at most X*Y*Z)
+ *  40  8   u64 bytes of the raw residual position list (at most 10 * NR)
+ *  48  8   u64 shared-codebook id (cdvr_shared_id of the blob; nonzero iff flag bit 0)
+ *  56 56   u64 compressed bytes of the 7 sections below, in order (0 iff the section is empty)
+ * 112      the sections, each one zstd frame with its content size and checksum, back to back,
+ *          ending exactly at the end of the payload. Raw contents:
+ *          means      NB bytes: m[b] - m[b-1] mod 256, block order (m[-1] = 0)
+ *          bitmap     ceil(NB/8) bytes: bit b%8 of byte b/8 set iff block b is non-zero (bits
+ *                     past NB zero); NZ = the number of set bits
+ *          indices    NZ x W1 then NZ x W2 bytes (W as in the hashed form), each index list as
+ *                     byte planes (all low bytes, then all high bytes when W = 2), non-zero
+ *                     blocks in block order
+ *          codebook 1 16 x n1 bytes: the 8 n1 int16 values entry-major, as byte planes
+ *          codebook 2 128 x n2 bytes: likewise (both empty with shared codebooks)
+ *          positions  NR unsigned LEB128 deltas: voxel index x + X(y + Y z) of residual k
+ *                     minus (index of residual k-1) + 1 (k = 0: the index itself); increasing
+ *          values     NR x WQ bytes, WQ = 2 if R = 0 else 1: zigzag(q) (2q for q >= 0, -2q-1
+ *                     else), one u16 little endian per value when WQ = 2
+ * The decoder rejects (CDVR_ERR_CORRUPT) any other layout, an index past its codebook, a
+ * position past the last voxel, a section that does not inflate to its size exactly, a shared
+ * payload without (or with other) shared codebooks, and codebook sizes above k1, k2.
+ * Shared codebook blob ("HVQS", stored once per variant, cdvr/codec.h): 0 "HVQS", 4 u32 n1,
+ * 8 u32 n2, 12 u32 0, 16 u64 compressed bytes C, 24: one zstd frame (C bytes) of codebook 1
+ * then codebook 2 as byte planes (as in the payload). Trained on the pooled non-zero blocks
+ * of up to 4 sample frames of the whole volume (at most ceil(train / frames) vectors of each).
+ *
  * ---- Parameter blob (CDVR_CODEC_PARAMS_MAX bytes, little endian, unused bytes 0) -----------
  *   0  f64 grad      zero-block threshold on the average gradient, 0..765 (default 8)
  *   8  f64 eps       LBG stop: relative distortion change, 0 < eps < 1 (default 0.01)
@@ -122,6 +162,8 @@
  *  20  u32 k1        codebook 1 size at most, 1..4096 (default 4096)
  *  24  u32 k2        codebook 2 size at most, 1..4096 (default 1024)
  *  28  u32 train     training vectors at most, 0 = all (default 262144)
+ *  hvqc only: 32 u32 shared (0/1), 36 u32 0, 40 u64 shared-codebook id (set by the store
+ *  encoder after training; 0 unless shared = 1)
  */
 #ifndef CDVR_HVQ_H
 #define CDVR_HVQ_H
