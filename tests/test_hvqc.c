@@ -135,6 +135,11 @@ static void test_table(void)
     CHECK_OK(c->params_set(&blob, "residual", "4", &err), err);
     c->variant_name(&blob, name, sizeof name);
     CHECK(strcmp(name, "hvqc_r4") == 0, "variant name '%s'", name);
+    cdvr_codec_params shp;
+    const char *keys[3] = {"shared", "k2", "residual"}, *values[3] = {"1", "512", "3"};
+    CHECK_OK(cdvr_codec_params_parse(c, keys, values, 3, &shp, &err), err);
+    c->variant_name(&shp, name, sizeof name);
+    CHECK(strcmp(name, "hvqc_r3_k4096x512_s") == 0, "shared set before other keys: '%s'", name);
     const size_t d[3] = {21, 14, 9};
     uint8_t *v = make_volume(d, 3), *out = malloc(21 * 14 * 9);
     cdvr_codec_shape sh;

@@ -314,8 +314,13 @@ int cdvr_hvqc_wants_shared(const cdvr_codec_params *blob)
 static cdvr_status hvqc_set(cdvr_codec_params *blob, const char *key, const char *value,
                             cdvr_error *err)
 {
-    if (strcmp(key, "shared") != 0)
-        return hvq_set(blob, key, value, err);
+    if (strcmp(key, "shared") != 0) { /* hvq_set rewrites the blob: keep bytes 32.. */
+        cdvr_codec_params keep = *blob;
+        cdvr_status s = hvq_set(blob, key, value, err);
+        memcpy(blob->bytes + USED_BYTES, keep.bytes + USED_BYTES,
+               CDVR_CODEC_PARAMS_MAX - USED_BYTES);
+        return s;
+    }
     uint32_t v;
     if (!parse_u32(value, 1, &v))
         return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvqc: shared = '%s', must be 0 or 1",
