@@ -209,6 +209,7 @@ typedef struct hvq2_view {
     size_t csize[HVQ_SECTIONS];
     int16_t *cb1, *cb2;
     const int16_t *c1, *c2;  /* the codebooks in use: own (cb1, cb2) or the variant's */
+    uint64_t core[3];        /* the block grid's extent (hvq2_core) */
     int shared;
 } hvq2_view;
 
@@ -404,7 +405,11 @@ static cdvr_status view2_open(hvq2_view *v, const cdvr_hvq_params *p,
     cdvr_status s = open_header(v, p, shared, in, bytes, err);
     if (s != CDVR_OK)
         return s;
-    hvq_layout_get(v->dims, v->n1, v->n2, &v->L);
+    const uint64_t core[3] = {hvq2_core((size_t)v->dims[0]), hvq2_core((size_t)v->dims[1]),
+                              hvq2_core((size_t)v->dims[2])};
+    hvq_layout_get(core, v->n1, v->n2, &v->L);
+    for (int a = 0; a < 3; a++)
+        v->core[a] = core[a];
     /* raw section sizes: from the dims, the header and the bitmap */
     v->s.size[HVQ_SEC_MEANS] = (size_t)v->L.nblocks;
     v->s.size[HVQ_SEC_BITMAP] = (size_t)((v->L.nblocks + 7) / 8);
@@ -465,7 +470,8 @@ static void decode_blocks(const hvq2_view *v, uint8_t *out)
     const uint8_t *md = v->s.raw[HVQ_SEC_MEANS], *bm = v->s.raw[HVQ_SEC_BITMAP];
     const uint8_t *ix = v->s.raw[HVQ_SEC_INDEX];
     size_t n = (size_t)v->nnz, k = 0;
-    uint64_t X = v->dims[0], Y = v->dims[1], Z = v->dims[2], b = 0;
+    uint64_t X = v->dims[0], Y = v->dims[1], b = 0;
+    uint64_t CX = v->core[0], CY = v->core[1], CZ = v->core[2];
     uint8_t mean = 0;
     for (uint64_t bz = 0; bz < v->L.nbz; bz++)
         for (uint64_t by = 0; by < v->L.nby; by++)
@@ -477,9 +483,9 @@ static void decode_blocks(const hvq2_view *v, uint8_t *out)
                     c2 = v->c2 + 64u * get16(ix + n * v->L.w1, n, k, v->L.w2);
                     k++;
                 }
-                unsigned ex = X - 4 * bx < 4 ? (unsigned)(X - 4 * bx) : 4;
-                unsigned ey = Y - 4 * by < 4 ? (unsigned)(Y - 4 * by) : 4;
-                unsigned ez = Z - 4 * bz < 4 ? (unsigned)(Z - 4 * bz) : 4;
+                unsigned ex = CX - 4 * bx < 4 ? (unsigned)(CX - 4 * bx) : 4;
+                unsigned ey = CY - 4 * by < 4 ? (unsigned)(CY - 4 * by) : 4;
+                unsigned ez = CZ - 4 * bz < 4 ? (unsigned)(CZ - 4 * bz) : 4;
                 for (unsigned z = 0; z < ez; z++)
                     for (unsigned y = 0; y < ey; y++) {
                         uint8_t *row = out + 4 * bx + X * ((4 * by + y) + Y * (4 * bz + z));
@@ -494,6 +500,25 @@ static void decode_blocks(const hvq2_view *v, uint8_t *out)
                         }
                     }
             }
+}
+
+/* The planes past the core: copies of the last core plane, x then y then z (so an edge or
+ * corner voxel takes its nearest core voxel's value). */
+static void fill_tail(const hvq2_view *v, uint8_t *out)
+{
+    uint64_t X = v->dims[0], Y = v->dims[1], Z = v->dims[2];
+    uint64_t CX = v->core[0], CY = v->core[1], CZ = v->core[2];
+    for (uint64_t z = 0; z < CZ; z++)
+        for (uint64_t y = 0; y < CY; y++) {
+            uint8_t *row = out + X * (y + Y * z);
+            for (uint64_t x = CX; x < X; x++)
+                row[x] = row[CX - 1];
+        }
+    for (uint64_t z = 0; z < CZ; z++)
+        for (uint64_t y = CY; y < Y; y++)
+            memcpy(out + X * (y + Y * z), out + X * ((CY - 1) + Y * z), (size_t)X);
+    for (uint64_t z = CZ; z < Z; z++)
+        memcpy(out + X * Y * z, out + X * Y * (CZ - 1), (size_t)(X * Y));
 }
 
 static void apply_residuals2(const hvq2_view *v, uint8_t *out)
@@ -526,6 +551,7 @@ cdvr_status cdvr_hvq_compact_decode(const cdvr_hvq_params *p, const cdvr_hvq_cod
     cdvr_status s = view2_open(&v, p, shared, dims, payload, bytes, err);
     if (s == CDVR_OK) {
         decode_blocks(&v, out);
+        fill_tail(&v, out);
         apply_residuals2(&v, out);
     }
     view2_free(&v);

@@ -103,7 +103,8 @@ cdvr_status cdvr_hvq_bound(const cdvr_hvq_params *p, const size_t dims[3], size_
 typedef struct hvq_enc {
     const cdvr_hvq_params *p;
     const uint8_t *frame;
-    size_t X, Y, Z;
+    size_t X, Y, Z;       /* the block grid's extent (compact form: the core) */
+    size_t SX, SY, SZ;    /* the frame's dims */
     unsigned threads;
     hvq_layout L;
     uint8_t *means;       /* per block */
@@ -149,7 +150,7 @@ static uint8_t voxel_at(const hvq_enc *e, size_t x, size_t y, size_t z)
     x = x < e->X ? x : e->X - 1;
     y = y < e->Y ? y : e->Y - 1;
     z = z < e->Z ? z : e->Z - 1;
-    return e->frame[x + e->X * (y + e->Y * z)];
+    return e->frame[x + e->SX * (y + e->SY * z)];
 }
 
 /* The 4x4x4 block (n = 4) or the block plus its +1 neighbours (n = 5), edge-replicated,
@@ -478,9 +479,9 @@ static cdvr_status write_payload(const hvq_enc *e, uint8_t *out, size_t out_cap,
 
 /* The stages both forms share: arguments, classification and the two codebooks. */
 static cdvr_status encode_common(hvq_enc *e, const cdvr_hvq_params *p,
-                                 const cdvr_hvq_codebooks *shared, const size_t dims[3],
-                                 const uint8_t *frame, unsigned threads, uint8_t *out,
-                                 size_t *out_bytes, cdvr_error *err)
+                                 const cdvr_hvq_codebooks *shared, int compact,
+                                 const size_t dims[3], const uint8_t *frame, unsigned threads,
+                                 uint8_t *out, size_t *out_bytes, cdvr_error *err)
 {
     size_t bound;
     memset(e, 0, sizeof *e);
@@ -497,11 +498,14 @@ static cdvr_status encode_common(hvq_enc *e, const cdvr_hvq_params *p,
                               "more (encode it in bricks)", dims[0], dims[1], dims[2]);
     e->p = p;
     e->frame = frame;
-    e->X = dims[0];
-    e->Y = dims[1];
-    e->Z = dims[2];
+    e->SX = dims[0];
+    e->SY = dims[1];
+    e->SZ = dims[2];
+    e->X = compact ? hvq2_core(dims[0]) : dims[0];
+    e->Y = compact ? hvq2_core(dims[1]) : dims[1];
+    e->Z = compact ? hvq2_core(dims[2]) : dims[2];
     e->threads = threads ? threads : hvq_threads_auto();
-    const uint64_t d64[3] = {dims[0], dims[1], dims[2]};
+    const uint64_t d64[3] = {e->X, e->Y, e->Z};
     hvq_layout_get(d64, 0, 0, &e->L);
     s = classify(e, err);
     if (s == CDVR_OK)
@@ -517,7 +521,7 @@ cdvr_status cdvr_hvq_encode(const cdvr_hvq_params *p, const size_t dims[3],
                             cdvr_error *err)
 {
     hvq_enc e;
-    cdvr_status s = encode_common(&e, p, NULL, dims, frame, threads, out, out_bytes, err);
+    cdvr_status s = encode_common(&e, p, NULL, 0, dims, frame, threads, out, out_bytes, err);
     if (s == CDVR_OK)
         s = build_regions(&e, err);
     if (s == CDVR_OK)
@@ -551,15 +555,17 @@ static cdvr_status compact_sections(const hvq_enc *e, hvq_sections *sec, cdvr_er
     if (!e->shared)
         hvq_sections_put_codebooks(sec, e->cb1, e->n1, e->cb2, e->n2);
     uint64_t last = 0;
-    for (size_t z = 0; z < e->Z; z++)
-        for (size_t y = 0; y < e->Y; y++)
-            for (size_t x = 0; x < e->X; x++) {
-                int v = e->frame[x + e->X * (y + e->Y * z)];
-                int d = v - base_value(e, x, y, z);
+    for (size_t z = 0; z < e->SZ; z++)
+        for (size_t y = 0; y < e->SY; y++)
+            for (size_t x = 0; x < e->SX; x++) {
+                uint64_t at = x + e->SX * (y + e->SY * (uint64_t)z);
+                int v = e->frame[at];
+                /* outside the core: the nearest core voxel's value (hvq2_core) */
+                int d = v - base_value(e, x < e->X ? x : e->X - 1, y < e->Y ? y : e->Y - 1,
+                                       z < e->Z ? z : e->Z - 1);
                 if ((uint32_t)abs(d) <= R)
                     continue;
                 int q = (abs(d) + (int)R) / (int)step; /* round(|d| / step), halves up */
-                uint64_t at = x + e->X * (y + e->Y * (uint64_t)z);
                 if (!hvq_sections_put_residual(sec, at - last, d < 0 ? -q : q))
                     return cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: out of memory for the "
                                           "residual list");
@@ -576,7 +582,7 @@ cdvr_status cdvr_hvq_encode_compact(const cdvr_hvq_params *p, const cdvr_hvq_cod
     hvq_enc e;
     hvq_sections sec;
     memset(&sec, 0, sizeof sec);
-    cdvr_status s = encode_common(&e, p, shared, dims, frame, threads, out, out_bytes, err);
+    cdvr_status s = encode_common(&e, p, shared, 1, dims, frame, threads, out, out_bytes, err);
     if (s == CDVR_OK)
         s = compact_sections(&e, &sec, err);
     if (s == CDVR_OK)
@@ -625,9 +631,9 @@ cdvr_status cdvr_hvq_train_shared(const cdvr_hvq_params *p, const size_t dims[3]
         memset(&e, 0, sizeof e);
         e.p = p;
         e.frame = frames[f];
-        e.X = dims[0];
-        e.Y = dims[1];
-        e.Z = dims[2];
+        e.X = e.SX = dims[0];
+        e.Y = e.SY = dims[1];
+        e.Z = e.SZ = dims[2];
         e.threads = threads ? threads : hvq_threads_auto();
         const uint64_t d64[3] = {dims[0], dims[1], dims[2]};
         hvq_layout_get(d64, 0, 0, &e.L);

@@ -135,7 +135,10 @@
  *  56 56   u64 compressed bytes of the 7 sections below, in order (0 iff the section is empty)
  * 112      the sections, each one zstd frame with its content size and checksum, back to back,
  *          ending exactly at the end of the payload. Raw contents:
- *          means      NB bytes: m[b] - m[b-1] mod 256, block order (m[-1] = 0)
+ *          means      NB bytes: m[b] - m[b-1] mod 256, block order (m[-1] = 0); the block
+ *                     grid covers the core: an axis of n = 4k+1 >= 5 voxels (a store brick
+ *                     with its one-voxel overlap) has n-1 there, its last plane decoding as
+ *                     a copy of the one before (b of the nearest core voxel), before residuals
  *          bitmap     ceil(NB/8) bytes: bit b%8 of byte b/8 set iff block b is non-zero (bits
  *                     past NB zero); NZ = the number of set bits
  *          indices    NZ x W1 then NZ x W2 bytes (W as in the hashed form), each index list as
@@ -144,7 +147,7 @@
  *          codebook 1 16 x n1 bytes: the 8 n1 int16 values entry-major, as byte planes
  *          codebook 2 128 x n2 bytes: likewise (both empty with shared codebooks)
  *          positions  NR unsigned LEB128 deltas: voxel index x + X(y + Y z) of residual k
- *                     minus (index of residual k-1) + 1 (k = 0: the index itself); increasing
+ *                     minus (index of residual k-1) minus 1 (k = 0: the index itself)
  *          values     NR x WQ bytes, WQ = 2 if R = 0 else 1: zigzag(q) (2q for q >= 0, -2q-1
  *                     else), one u16 little endian per value when WQ = 2
  * The decoder rejects (CDVR_ERR_CORRUPT) any other layout, an index past its codebook, a
