@@ -22,9 +22,9 @@
 --                       decoders are single-threaded), median of RUNS
 --   encode_s            wall time of cdvr.encode
 --   device_bytes        device memory of one frame (st:info())
---   fps_variant         renders/s of the variant on the device (hvq: fetch from the payload;
---                       hvqc: CPU decode + dense upload per render is not repeated: the
---                       decoded frame is cached by the renderer, so this is the dense cast)
+--   fps_variant         renders/s of the store's variant on the device (hvq: every sample
+--                       fetched from the payload; hvqc: as cdvr.render reads a store frame:
+--                       the chunk decoded on the CPU, uploaded, then the dense cast)
 --   fps_dense           the same camera on the dense decoded volume (OpenCL ray cast)
 --   fps_ratio           fps_variant / fps_dense
 --   image_psnr          device render of the variant against the CPU render of the original
