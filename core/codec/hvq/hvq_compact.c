@@ -209,7 +209,7 @@ typedef struct hvq2_view {
     size_t csize[HVQ_SECTIONS];
     int16_t *cb1, *cb2;
     const int16_t *c1, *c2;  /* the codebooks in use: own (cb1, cb2) or the variant's */
-    uint64_t core[3];        /* the block grid's extent (hvq2_core) */
+    uint64_t core[3], skip[3]; /* the block grid's extent and origin (hvq2_core, hvq2_skip) */
     int shared;
 } hvq2_view;
 
@@ -408,8 +408,10 @@ static cdvr_status view2_open(hvq2_view *v, const cdvr_hvq_params *p,
     const uint64_t core[3] = {hvq2_core((size_t)v->dims[0]), hvq2_core((size_t)v->dims[1]),
                               hvq2_core((size_t)v->dims[2])};
     hvq_layout_get(core, v->n1, v->n2, &v->L);
-    for (int a = 0; a < 3; a++)
+    for (int a = 0; a < 3; a++) {
         v->core[a] = core[a];
+        v->skip[a] = v->dims[a] - core[a];
+    }
     /* raw section sizes: from the dims, the header and the bitmap */
     v->s.size[HVQ_SEC_MEANS] = (size_t)v->L.nblocks;
     v->s.size[HVQ_SEC_BITMAP] = (size_t)((v->L.nblocks + 7) / 8);
@@ -472,6 +474,7 @@ static void decode_blocks(const hvq2_view *v, uint8_t *out)
     size_t n = (size_t)v->nnz, k = 0;
     uint64_t X = v->dims[0], Y = v->dims[1], b = 0;
     uint64_t CX = v->core[0], CY = v->core[1], CZ = v->core[2];
+    uint64_t OX = v->skip[0], OY = v->skip[1], OZ = v->skip[2];
     uint8_t mean = 0;
     for (uint64_t bz = 0; bz < v->L.nbz; bz++)
         for (uint64_t by = 0; by < v->L.nby; by++)
@@ -488,7 +491,8 @@ static void decode_blocks(const hvq2_view *v, uint8_t *out)
                 unsigned ez = CZ - 4 * bz < 4 ? (unsigned)(CZ - 4 * bz) : 4;
                 for (unsigned z = 0; z < ez; z++)
                     for (unsigned y = 0; y < ey; y++) {
-                        uint8_t *row = out + 4 * bx + X * ((4 * by + y) + Y * (4 * bz + z));
+                        uint8_t *row = out + (OX + 4 * bx) +
+                                       X * ((OY + 4 * by + y) + Y * (OZ + 4 * bz + z));
                         if (!c1) {
                             memset(row, mean, ex);
                             continue;
@@ -502,23 +506,20 @@ static void decode_blocks(const hvq2_view *v, uint8_t *out)
             }
 }
 
-/* The planes past the core: copies of the last core plane, x then y then z (so an edge or
+/* The planes before the core: copies of the first core plane, x then y then z (so an edge or
  * corner voxel takes its nearest core voxel's value). */
-static void fill_tail(const hvq2_view *v, uint8_t *out)
+static void fill_skipped(const hvq2_view *v, uint8_t *out)
 {
     uint64_t X = v->dims[0], Y = v->dims[1], Z = v->dims[2];
-    uint64_t CX = v->core[0], CY = v->core[1], CZ = v->core[2];
-    for (uint64_t z = 0; z < CZ; z++)
-        for (uint64_t y = 0; y < CY; y++) {
-            uint8_t *row = out + X * (y + Y * z);
-            for (uint64_t x = CX; x < X; x++)
-                row[x] = row[CX - 1];
-        }
-    for (uint64_t z = 0; z < CZ; z++)
-        for (uint64_t y = CY; y < Y; y++)
-            memcpy(out + X * (y + Y * z), out + X * ((CY - 1) + Y * z), (size_t)X);
-    for (uint64_t z = CZ; z < Z; z++)
-        memcpy(out + X * Y * z, out + X * Y * (CZ - 1), (size_t)(X * Y));
+    if (v->skip[0])
+        for (uint64_t z = v->skip[2]; z < Z; z++)
+            for (uint64_t y = v->skip[1]; y < Y; y++)
+                out[X * (y + Y * z)] = out[1 + X * (y + Y * z)];
+    if (v->skip[1])
+        for (uint64_t z = v->skip[2]; z < Z; z++)
+            memcpy(out + X * Y * z, out + X * (1 + Y * z), (size_t)X);
+    if (v->skip[2])
+        memcpy(out, out + X * Y, (size_t)(X * Y));
 }
 
 static void apply_residuals2(const hvq2_view *v, uint8_t *out)
@@ -551,7 +552,7 @@ cdvr_status cdvr_hvq_compact_decode(const cdvr_hvq_params *p, const cdvr_hvq_cod
     cdvr_status s = view2_open(&v, p, shared, dims, payload, bytes, err);
     if (s == CDVR_OK) {
         decode_blocks(&v, out);
-        fill_tail(&v, out);
+        fill_skipped(&v, out);
         apply_residuals2(&v, out);
     }
     view2_free(&v);

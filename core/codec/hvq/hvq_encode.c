@@ -105,6 +105,7 @@ typedef struct hvq_enc {
     const uint8_t *frame;
     size_t X, Y, Z;       /* the block grid's extent (compact form: the core) */
     size_t SX, SY, SZ;    /* the frame's dims */
+    size_t OX, OY, OZ;    /* the core's origin in the frame (compact form: hvq2_skip) */
     unsigned threads;
     hvq_layout L;
     uint8_t *means;       /* per block */
@@ -150,7 +151,7 @@ static uint8_t voxel_at(const hvq_enc *e, size_t x, size_t y, size_t z)
     x = x < e->X ? x : e->X - 1;
     y = y < e->Y ? y : e->Y - 1;
     z = z < e->Z ? z : e->Z - 1;
-    return e->frame[x + e->SX * (y + e->SY * z)];
+    return e->frame[(x + e->OX) + e->SX * ((y + e->OY) + e->SY * (z + e->OZ))];
 }
 
 /* The 4x4x4 block (n = 4) or the block plus its +1 neighbours (n = 5), edge-replicated,
@@ -501,9 +502,12 @@ static cdvr_status encode_common(hvq_enc *e, const cdvr_hvq_params *p,
     e->SX = dims[0];
     e->SY = dims[1];
     e->SZ = dims[2];
-    e->X = compact ? hvq2_core(dims[0]) : dims[0];
-    e->Y = compact ? hvq2_core(dims[1]) : dims[1];
-    e->Z = compact ? hvq2_core(dims[2]) : dims[2];
+    e->OX = compact ? hvq2_skip(dims[0]) : 0;
+    e->OY = compact ? hvq2_skip(dims[1]) : 0;
+    e->OZ = compact ? hvq2_skip(dims[2]) : 0;
+    e->X = dims[0] - e->OX;
+    e->Y = dims[1] - e->OY;
+    e->Z = dims[2] - e->OZ;
     e->threads = threads ? threads : hvq_threads_auto();
     const uint64_t d64[3] = {e->X, e->Y, e->Z};
     hvq_layout_get(d64, 0, 0, &e->L);
@@ -560,9 +564,9 @@ static cdvr_status compact_sections(const hvq_enc *e, hvq_sections *sec, cdvr_er
             for (size_t x = 0; x < e->SX; x++) {
                 uint64_t at = x + e->SX * (y + e->SY * (uint64_t)z);
                 int v = e->frame[at];
-                /* outside the core: the nearest core voxel's value (hvq2_core) */
-                int d = v - base_value(e, x < e->X ? x : e->X - 1, y < e->Y ? y : e->Y - 1,
-                                       z < e->Z ? z : e->Z - 1);
+                /* outside the core: the nearest core voxel's value (hvq2_skip) */
+                int d = v - base_value(e, x > e->OX ? x - e->OX : 0, y > e->OY ? y - e->OY : 0,
+                                       z > e->OZ ? z - e->OZ : 0);
                 if ((uint32_t)abs(d) <= R)
                     continue;
                 int q = (abs(d) + (int)R) / (int)step; /* round(|d| / step), halves up */

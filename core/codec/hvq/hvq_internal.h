@@ -137,9 +137,12 @@ enum { HVQ_SEC_MEANS, HVQ_SEC_BITMAP, HVQ_SEC_INDEX, HVQ_SEC_CB1, HVQ_SEC_CB2, H
 #define HVQ2_HEADER_BYTES (56u + 8u * HVQ_SECTIONS)
 
 /* The compact form's block grid covers the core: an axis of n = 4k + 1 >= 5 voxels (a store
- * brick of 64 owned voxels and a one-voxel overlap) leaves its last plane out, decoded as a
- * copy of the plane before it (before residuals). */
-static inline size_t hvq2_core(size_t n) { return n >= 5 && n % 4 == 1 ? n - 1 : n; }
+ * brick: its owned voxels and the one-voxel overlap below them) leaves its first plane out,
+ * decoded as a copy of the plane after it (before residuals), so the blocks of every brick
+ * lie on the whole volume's grid. hvq2_skip: the planes left out (0 or 1), hvq2_core: the
+ * core's extent. */
+static inline size_t hvq2_skip(size_t n) { return n >= 5 && n % 4 == 1 ? 1 : 0; }
+static inline size_t hvq2_core(size_t n) { return n - hvq2_skip(n); }
 #define HVQ2_FLAG_SHARED 1u  /* codebooks are the variant's (cdvr_hvq_codebooks) */
 
 /* The raw (uncompressed) sections of a compact payload. */

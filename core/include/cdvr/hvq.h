@@ -136,9 +136,11 @@
  * 112      the sections, each one zstd frame with its content size and checksum, back to back,
  *          ending exactly at the end of the payload. Raw contents:
  *          means      NB bytes: m[b] - m[b-1] mod 256, block order (m[-1] = 0); the block
- *                     grid covers the core: an axis of n = 4k+1 >= 5 voxels (a store brick
- *                     with its one-voxel overlap) has n-1 there, its last plane decoding as
- *                     a copy of the one before (b of the nearest core voxel), before residuals
+ *                     grid covers the core: an axis of n = 4k+1 >= 5 voxels (a store brick:
+ *                     its owned voxels and the one-voxel overlap below them) leaves its first
+ *                     plane out (the core starts at 1 there and has n-1 voxels), that plane
+ *                     decoding as a copy of the next (b of the nearest core voxel) before
+ *                     residuals: every brick's blocks then lie on the whole volume's grid
  *          bitmap     ceil(NB/8) bytes: bit b%8 of byte b/8 set iff block b is non-zero (bits
  *                     past NB zero); NZ = the number of set bits
  *          indices    NZ x W1 then NZ x W2 bytes (W as in the hashed form), each index list as
