@@ -249,34 +249,50 @@ static void test_corrupt(void)
     }
     CHECK(c.stats.residual_voxels > 0 && c.stats.codebook1 > 0, "the corrupt-payload volume "
           "has residuals (%zu) and codebooks", c.stats.residual_voxels);
-    uint8_t *m = malloc(c.n + 1);
+    uint8_t *m = malloc(c.n + HVQ2_HEADER_MAX);
     for (size_t cut = 0; cut < c.n; cut += 1 + cut / 5)
         expect_corrupt(&p, d, c.bytes, cut, "truncated");
     memcpy(m, c.bytes, c.n);
     m[c.n] = 0;
     expect_corrupt(&p, d, m, c.n + 1, "one byte too many");
+    hvq2_header h0;
+    CHECK(hvq2_header_read(c.bytes, c.n, &h0) && h0.bytes < 40, "compact header of %zu bytes",
+          h0.bytes);
 #define MUTATE(what, stmt)                                                                    \
     do {                                                                                      \
         memcpy(m, c.bytes, c.n);                                                              \
         stmt;                                                                                 \
         expect_corrupt(&p, d, m, c.n, what);                                                  \
     } while (0)
+#define MUTATE_HEADER(what, stmt) /* the header rewritten with a field changed */            \
+    do {                                                                                      \
+        hvq2_header h = h0;                                                                   \
+        stmt;                                                                                 \
+        size_t hb = hvq2_header_write(&h, m);                                                 \
+        memcpy(m + hb, c.bytes + h0.bytes, c.n - h0.bytes);                                   \
+        expect_corrupt(&p, d, m, hb + c.n - h0.bytes, what);                                  \
+    } while (0)
     MUTATE("magic", m[3] = '9');
-    MUTATE("dims", m[8]++);
-    MUTATE("n1 above k1", hvq_wr32(m + 16, p.k1 + 1));
-    MUTATE("n2 = 0 alone", hvq_wr32(m + 20, 0));
-    MUTATE("residual above 255", hvq_wr32(m + 24, 256));
-    MUTATE("reserved", m[29] = 1);
-    MUTATE("one residual more", hvq_wr64(m + 32, hvq_rd64(c.bytes + 32) + 1));
-    MUTATE("position list longer", hvq_wr64(m + 40, hvq_rd64(c.bytes + 40) + 1));
-    MUTATE("section sizes", hvq_wr64(m + 56, hvq_rd64(c.bytes + 56) + 1));
+    MUTATE("a field past 64 bits", memset(m + 4, 0xFF, 12));
+    MUTATE_HEADER("dims", h.dims[1]++);
+    MUTATE_HEADER("n1 above k1", h.n1 = p.k1 + 1);
+    MUTATE_HEADER("n2 = 0 alone", h.n2 = 0);
+    MUTATE_HEADER("residual above 255", h.residual = 256);
+    MUTATE_HEADER("unknown flag", h.flags |= 2);
+    MUTATE_HEADER("shared flag, id 0", h.flags |= HVQ2_FLAG_SHARED);
+    MUTATE_HEADER("shared flag, no codebooks given", (h.flags |= HVQ2_FLAG_SHARED, h.id = 7));
+    MUTATE_HEADER("one residual more", h.nres++);
+    MUTATE_HEADER("position list longer", h.respos_bytes++);
+    MUTATE_HEADER("section sizes", (h.csize[0]++, h.csize[1]--));
+    MUTATE_HEADER("sections past the end", h.csize[HVQ_SECTIONS - 1]++);
     for (int sec = 0; sec < HVQ_SECTIONS; sec++) { /* a byte inside each section (checksums) */
-        size_t at = HVQ2_HEADER_BYTES, cs = (size_t)hvq_rd64(c.bytes + 56 + 8 * sec);
+        size_t at = h0.bytes, cs = (size_t)h0.csize[sec];
         for (int j = 0; j < sec; j++)
-            at += (size_t)hvq_rd64(c.bytes + 56 + 8 * j);
+            at += (size_t)h0.csize[j];
         if (cs > 8)
             MUTATE("a section's byte", m[at + cs / 2] ^= 0x5A);
     }
+#undef MUTATE_HEADER
 #undef MUTATE
     free(m);
     free(c.bytes);

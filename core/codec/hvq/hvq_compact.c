@@ -116,53 +116,131 @@ static ZSTD_CCtx *zstd_context(void)
     return z;
 }
 
+/* ---- header ----------------------------------------------------------------------------------- */
+
+static size_t put_leb(uint8_t *p, uint64_t v)
+{
+    size_t n = 0;
+    do {
+        p[n++] = (uint8_t)((v & 0x7F) | (v >= 0x80 ? 0x80 : 0));
+        v >>= 7;
+    } while (v);
+    return n;
+}
+
+/* 0 when the field runs past end or past 64 bits. */
+static int get_leb(const uint8_t **p, const uint8_t *end, uint64_t *v)
+{
+    *v = 0;
+    for (int shift = 0; *p < end && shift < 64; shift += 7) {
+        uint8_t b = *(*p)++;
+        if (shift == 63 && (b & 0x7E))
+            return 0;
+        *v |= (uint64_t)(b & 0x7F) << shift;
+        if (!(b & 0x80))
+            return 1;
+    }
+    return 0;
+}
+
+size_t hvq2_header_write(hvq2_header *h, uint8_t *out)
+{
+    uint64_t f[9 + HVQ_SECTIONS] = {h->dims[0], h->dims[1], h->dims[2], h->n1, h->n2,
+                                     h->residual, h->flags, h->nres, h->respos_bytes};
+    memcpy(f + 9, h->csize, sizeof h->csize);
+    memcpy(out, "HVQ2", 4);
+    size_t at = 4;
+    for (size_t i = 0; i < 9 + HVQ_SECTIONS; i++)
+        at += put_leb(out + at, f[i]);
+    if (h->flags & HVQ2_FLAG_SHARED) {
+        hvq_wr64(out + at, h->id);
+        at += 8;
+    }
+    h->bytes = at;
+    return at;
+}
+
+int hvq2_header_read(const uint8_t *in, size_t n, hvq2_header *h)
+{
+    memset(h, 0, sizeof *h);
+    if (n < 4 || memcmp(in, "HVQ2", 4) != 0)
+        return 0;
+    const uint8_t *p = in + 4, *end = in + n;
+    uint64_t f[9 + HVQ_SECTIONS];
+    for (size_t i = 0; i < 9 + HVQ_SECTIONS; i++)
+        if (!get_leb(&p, end, &f[i]))
+            return 0;
+    memcpy(h->dims, f, sizeof h->dims);
+    h->n1 = f[3];
+    h->n2 = f[4];
+    h->residual = f[5];
+    h->flags = f[6];
+    h->nres = f[7];
+    h->respos_bytes = f[8];
+    memcpy(h->csize, f + 9, sizeof h->csize);
+    if (h->flags & HVQ2_FLAG_SHARED) {
+        if (end - p < 8)
+            return 0;
+        h->id = hvq_rd64(p);
+        p += 8;
+    }
+    h->bytes = (size_t)(p - in);
+    return 1;
+}
+
+/* ---- writer (continued) ----------------------------------------------------------------------- */
+
 cdvr_status hvq_compact_write(const hvq_sections *s, const size_t dims[3], uint32_t n1,
                               uint32_t n2, uint32_t residual, uint64_t shared_id, uint8_t *out,
                               size_t out_cap, size_t *out_bytes, cdvr_hvq_stats *stats,
                               cdvr_error *err)
 {
-    if (out_cap < HVQ2_HEADER_BYTES)
-        return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: a %zu-byte buffer for a compact payload",
-                              out_cap);
-    memset(out, 0, HVQ2_HEADER_BYTES);
-    memcpy(out, "HVQ2", 4);
-    for (int a = 0; a < 3; a++)
-        hvq_wr32(out + 4 + 4 * a, (uint32_t)dims[a]);
-    hvq_wr32(out + 16, n1);
-    hvq_wr32(out + 20, n2);
-    hvq_wr32(out + 24, residual);
-    hvq_wr32(out + 28, shared_id ? HVQ2_FLAG_SHARED : 0);
-    hvq_wr64(out + 32, s->nres);
-    hvq_wr64(out + 40, s->size[HVQ_SEC_RESPOS]);
-    hvq_wr64(out + 48, shared_id);
-    size_t at = HVQ2_HEADER_BYTES, csize[HVQ_SECTIONS];
+    hvq2_header h = {.dims = {dims[0], dims[1], dims[2]}, .n1 = n1, .n2 = n2,
+                     .residual = residual, .flags = shared_id ? HVQ2_FLAG_SHARED : 0,
+                     .nres = s->nres, .respos_bytes = s->size[HVQ_SEC_RESPOS], .id = shared_id};
+    uint8_t *packed[HVQ_SECTIONS] = {NULL};
     ZSTD_CCtx *z = zstd_context();
-    if (!z)
-        return cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: cannot set up zstd");
-    for (int i = 0; i < HVQ_SECTIONS; i++) {
-        csize[i] = 0;
-        if (s->size[i]) {
-            csize[i] = ZSTD_compress2(z, out + at, out_cap - at, s->raw[i], s->size[i]);
-            if (ZSTD_isError(csize[i])) {
-                ZSTD_freeCCtx(z);
-                return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: the %s do not fit the %zu-byte "
-                                      "buffer (zstd: %s)", section_names[i], out_cap,
-                                      ZSTD_getErrorName(csize[i]));
-            }
-        }
-        hvq_wr64(out + 56 + 8 * i, csize[i]);
-        at += csize[i];
+    cdvr_status st = z ? CDVR_OK : cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: cannot set up zstd");
+    size_t total = 0;
+    for (int i = 0; st == CDVR_OK && i < HVQ_SECTIONS; i++) {
+        if (!s->size[i])
+            continue;
+        size_t cap = ZSTD_compressBound(s->size[i]);
+        packed[i] = malloc(cap);
+        size_t c = packed[i] ? ZSTD_compress2(z, packed[i], cap, s->raw[i], s->size[i]) : 0;
+        if (!packed[i] || ZSTD_isError(c))
+            st = cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: cannot compress the %s",
+                                section_names[i]);
+        else
+            h.csize[i] = c;
+        total += h.csize[i];
     }
     ZSTD_freeCCtx(z);
-    *out_bytes = at;
-    if (stats) {
+    uint8_t head[HVQ2_HEADER_MAX];
+    size_t hb = st == CDVR_OK ? hvq2_header_write(&h, head) : 0;
+    if (st == CDVR_OK && (total > out_cap || hb > out_cap - total))
+        st = cdvr_error_set(err, CDVR_ERR_ARG, "hvq: the payload needs %zu bytes, the buffer has "
+                            "%zu", hb + total, out_cap);
+    if (st == CDVR_OK) {
+        memcpy(out, head, hb);
+        size_t at = hb;
+        for (int i = 0; i < HVQ_SECTIONS; i++) {
+            if (h.csize[i])
+                memcpy(out + at, packed[i], (size_t)h.csize[i]);
+            at += (size_t)h.csize[i];
+        }
+        *out_bytes = at;
+    }
+    for (int i = 0; i < HVQ_SECTIONS; i++)
+        free(packed[i]);
+    if (st == CDVR_OK && stats) {
         memset(stats, 0, sizeof *stats);
-        stats->header = HVQ2_HEADER_BYTES;
-        stats->means = csize[HVQ_SEC_MEANS];
-        stats->indices = csize[HVQ_SEC_BITMAP] + csize[HVQ_SEC_INDEX];
-        stats->codebook1 = csize[HVQ_SEC_CB1];
-        stats->codebook2 = csize[HVQ_SEC_CB2];
-        stats->residuals = csize[HVQ_SEC_RESPOS] + csize[HVQ_SEC_RESVAL];
+        stats->header = hb;
+        stats->means = (size_t)h.csize[HVQ_SEC_MEANS];
+        stats->indices = (size_t)(h.csize[HVQ_SEC_BITMAP] + h.csize[HVQ_SEC_INDEX]);
+        stats->codebook1 = (size_t)h.csize[HVQ_SEC_CB1];
+        stats->codebook2 = (size_t)h.csize[HVQ_SEC_CB2];
+        stats->residuals = (size_t)(h.csize[HVQ_SEC_RESPOS] + h.csize[HVQ_SEC_RESVAL]);
         stats->blocks = s->size[HVQ_SEC_MEANS];
         stats->zero_blocks = stats->blocks - s->size[HVQ_SEC_INDEX] /
                                                  (hvq_index_width(n1) + hvq_index_width(n2));
@@ -170,7 +248,7 @@ cdvr_status hvq_compact_write(const hvq_sections *s, const size_t dims[3], uint3
         stats->codebook1_entries = n1;
         stats->codebook2_entries = n2;
     }
-    return CDVR_OK;
+    return st;
 }
 
 /* Worst-case compact payload: the header and each section's zstd bound at its largest. */
@@ -191,7 +269,7 @@ cdvr_status cdvr_hvq_compact_bound(const cdvr_hvq_params *p, const size_t dims[3
     size_t nb = (size_t)L.nblocks, raw[HVQ_SECTIONS] = {
         nb, (nb + 7) / 8, nb * 4, 16u * (size_t)p->k1, 128u * (size_t)p->k2, voxels * 10,
         voxels * 2};
-    size_t total = HVQ2_HEADER_BYTES;
+    size_t total = HVQ2_HEADER_MAX;
     for (int i = 0; i < HVQ_SECTIONS; i++)
         total += ZSTD_compressBound(raw[i]);
     *bytes = total;
@@ -210,6 +288,8 @@ typedef struct hvq2_view {
     int16_t *cb1, *cb2;
     const int16_t *c1, *c2;  /* the codebooks in use: own (cb1, cb2) or the variant's */
     uint64_t core[3], skip[3]; /* the block grid's extent and origin (hvq2_core, hvq2_skip) */
+    uint64_t respos_bytes;
+    size_t header_bytes;
     int shared;
 } hvq2_view;
 
@@ -229,52 +309,50 @@ static cdvr_status open_header(hvq2_view *v, const cdvr_hvq_params *p,
                                const cdvr_hvq_codebooks *shared, const uint8_t *in, size_t bytes,
                                cdvr_error *err)
 {
-    if (bytes < HVQ2_HEADER_BYTES)
-        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload of %zu bytes is "
-                              "shorter than its %u-byte header", bytes, HVQ2_HEADER_BYTES);
-    if (memcmp(in, "HVQ2", 4) != 0)
-        return corrupt(err, "bad magic (not \"HVQ2\")");
-    for (int a = 0; a < 3; a++)
-        if (hvq_rd32(in + 4 + 4 * a) != v->dims[a])
-            return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: dims %ux%ux%u, "
-                                  "the chunk has %llux%llux%llu", hvq_rd32(in + 4),
-                                  hvq_rd32(in + 8), hvq_rd32(in + 12),
-                                  (unsigned long long)v->dims[0],
-                                  (unsigned long long)v->dims[1],
-                                  (unsigned long long)v->dims[2]);
-    v->n1 = hvq_rd32(in + 16);
-    v->n2 = hvq_rd32(in + 20);
-    v->residual = hvq_rd32(in + 24);
+    hvq2_header h;
+    if (!hvq2_header_read(in, bytes, &h))
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload of %zu bytes: no "
+                              "\"HVQ2\" header", bytes);
+    if (h.dims[0] != v->dims[0] || h.dims[1] != v->dims[1] || h.dims[2] != v->dims[2])
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: dims %llux%llux%llu, "
+                              "the chunk has %llux%llux%llu", (unsigned long long)h.dims[0],
+                              (unsigned long long)h.dims[1], (unsigned long long)h.dims[2],
+                              (unsigned long long)v->dims[0], (unsigned long long)v->dims[1],
+                              (unsigned long long)v->dims[2]);
     uint32_t k1 = p ? p->k1 : CDVR_HVQ_K_MAX, k2 = p ? p->k2 : CDVR_HVQ_K_MAX;
-    if (v->n1 > k1 || v->n2 > k2 || v->n1 > CDVR_HVQ_K_MAX || v->n2 > CDVR_HVQ_K_MAX ||
-        (v->n1 == 0) != (v->n2 == 0))
-        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: codebooks of %u "
-                              "and %u entries (at most %u and %u, both 0 or neither)", v->n1,
-                              v->n2, k1, k2);
-    uint32_t flags = hvq_rd32(in + 28);
-    if (v->residual > 255 || (flags & ~HVQ2_FLAG_SHARED) ||
-        ((flags & HVQ2_FLAG_SHARED) != 0) != (hvq_rd64(in + 48) != 0))
-        return corrupt(err, "residual above 255, unknown flags, or a shared-codebook id "
-                       "without its flag");
-    v->shared = (flags & HVQ2_FLAG_SHARED) != 0;
-    if (v->shared && (!shared || shared->id != hvq_rd64(in + 48)))
+    if (h.n1 > k1 || h.n2 > k2 || h.n1 > CDVR_HVQ_K_MAX || h.n2 > CDVR_HVQ_K_MAX ||
+        (h.n1 == 0) != (h.n2 == 0))
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: codebooks of %llu "
+                              "and %llu entries (at most %u and %u, both 0 or neither)",
+                              (unsigned long long)h.n1, (unsigned long long)h.n2, k1, k2);
+    v->n1 = (uint32_t)h.n1;
+    v->n2 = (uint32_t)h.n2;
+    if (h.residual > 255 || (h.flags & ~(uint64_t)HVQ2_FLAG_SHARED) ||
+        ((h.flags & HVQ2_FLAG_SHARED) && h.id == 0))
+        return corrupt(err, "residual above 255, unknown flags, or a shared-codebook id of 0");
+    v->residual = (uint32_t)h.residual;
+    v->shared = (h.flags & HVQ2_FLAG_SHARED) != 0;
+    if (v->shared && (!shared || shared->id != h.id))
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: coded with the shared "
-                              "codebooks %016llx, %s", (unsigned long long)hvq_rd64(in + 48),
+                              "codebooks %016llx, %s", (unsigned long long)h.id,
                               shared ? "other codebooks given" : "none given (the variant's "
                               "codebooks are missing)");
     if (v->shared && (v->n1 != shared->n1 || v->n2 != shared->n2))
         return corrupt(err, "codebook sizes other than the shared codebooks'");
-    v->s.nres = hvq_rd64(in + 32);
+    v->s.nres = h.nres;
     v->s.wq = v->residual == 0 ? 2 : 1;
-    if (v->s.nres > v->nvox || hvq_rd64(in + 40) > 10 * v->s.nres)
+    if (h.nres > v->nvox || h.respos_bytes > 10 * h.nres)
         return corrupt(err, "more residual voxels than voxels, or a residual position list "
                        "longer than 10 bytes a voxel");
-    uint64_t at = HVQ2_HEADER_BYTES;
+    v->respos_bytes = h.respos_bytes;
+    v->header_bytes = h.bytes;
+    uint64_t at = h.bytes;
     for (int i = 0; i < HVQ_SECTIONS; i++) {
-        v->csize[i] = (size_t)hvq_rd64(in + 56 + 8 * i);
-        if (v->csize[i] > bytes - at)
-            return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: the %s (%zu "
-                                  "bytes) run past its end", section_names[i], v->csize[i]);
+        if (h.csize[i] > bytes - at)
+            return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: the %s (%llu "
+                                  "bytes) run past its end", section_names[i],
+                                  (unsigned long long)h.csize[i]);
+        v->csize[i] = (size_t)h.csize[i];
         at += v->csize[i];
     }
     if (at != bytes)
@@ -309,7 +387,7 @@ static cdvr_status inflate(hvq2_view *v, int i, const uint8_t *src, cdvr_error *
 
 static size_t src_offset(const hvq2_view *v, int i)
 {
-    size_t at = HVQ2_HEADER_BYTES;
+    size_t at = v->header_bytes;
     for (int j = 0; j < i; j++)
         at += v->csize[j];
     return at;
@@ -417,7 +495,7 @@ static cdvr_status view2_open(hvq2_view *v, const cdvr_hvq_params *p,
     v->s.size[HVQ_SEC_BITMAP] = (size_t)((v->L.nblocks + 7) / 8);
     v->s.size[HVQ_SEC_CB1] = v->shared ? 0 : 16u * (size_t)v->n1;
     v->s.size[HVQ_SEC_CB2] = v->shared ? 0 : 128u * (size_t)v->n2;
-    v->s.size[HVQ_SEC_RESPOS] = (size_t)hvq_rd64(in + 40);
+    v->s.size[HVQ_SEC_RESPOS] = (size_t)v->respos_bytes;
     v->s.size[HVQ_SEC_RESVAL] = (size_t)v->s.nres * v->s.wq;
     int order[] = {HVQ_SEC_BITMAP, HVQ_SEC_MEANS, HVQ_SEC_CB1, HVQ_SEC_CB2, HVQ_SEC_RESPOS,
                    HVQ_SEC_RESVAL};
@@ -449,7 +527,7 @@ cdvr_status cdvr_hvq_compact_check(const cdvr_hvq_params *p, const cdvr_hvq_code
     cdvr_status s = view2_open(&v, p, shared, dims, payload, bytes, err);
     if (s == CDVR_OK && stats) {
         memset(stats, 0, sizeof *stats);
-        stats->header = HVQ2_HEADER_BYTES;
+        stats->header = v.header_bytes;
         stats->means = v.csize[HVQ_SEC_MEANS];
         stats->indices = v.csize[HVQ_SEC_BITMAP] + v.csize[HVQ_SEC_INDEX];
         stats->codebook1 = v.csize[HVQ_SEC_CB1];

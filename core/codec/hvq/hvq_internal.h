@@ -134,7 +134,23 @@ void hvq_vq_assign(const int16_t *vectors, size_t n, unsigned d, const int16_t *
 enum { HVQ_SEC_MEANS, HVQ_SEC_BITMAP, HVQ_SEC_INDEX, HVQ_SEC_CB1, HVQ_SEC_CB2, HVQ_SEC_RESPOS,
        HVQ_SEC_RESVAL, HVQ_SECTIONS };
 
-#define HVQ2_HEADER_BYTES (56u + 8u * HVQ_SECTIONS)
+/* The compact payload's header: "HVQ2", then unsigned LEB128 fields in this order: the dims,
+ * n1, n2, residual, flags, nres, respos_bytes, the sections' compressed sizes; then, when
+ * flags has HVQ2_FLAG_SHARED, the shared-codebook id as 8 bytes little endian. */
+typedef struct hvq2_header {
+    uint64_t dims[3], n1, n2, residual, flags, nres, respos_bytes;
+    uint64_t csize[HVQ_SECTIONS];
+    uint64_t id;
+    size_t bytes;  /* the header's size (read: as found; write: as written) */
+} hvq2_header;
+
+#define HVQ2_HEADER_MAX (4u + 10u * (9u + HVQ_SECTIONS) + 8u)
+
+/* Writes h at out (room for HVQ2_HEADER_MAX bytes); returns its size (also in h->bytes). */
+size_t hvq2_header_write(hvq2_header *h, uint8_t *out);
+/* Reads a header from the n bytes at in; 0 when they do not hold one (no magic, a field
+ * running past n or past 64 bits). */
+int hvq2_header_read(const uint8_t *in, size_t n, hvq2_header *h);
 
 /* The compact form's block grid covers the core: an axis of n = 4k + 1 >= 5 voxels (a store
  * brick: its owned voxels and the one-voxel overlap below them) leaves its first plane out,

@@ -124,17 +124,19 @@
  *     value = clamp(b + q * (2R + 1), 0, 255)     at a residual voxel (|value - v| <= R, as
  *                                                 clamping only moves toward v in 0..255);
  *           = b                                   elsewhere (b: the formula of step 5).
- * Payload (little endian):
- *   0  4   magic "HVQ2"; 4: u32 X, 8: u32 Y, 12: u32 Z (the chunk's dims)
- *  16  4   u32 n1, 20: u32 n2 (codebook sizes; the shared codebooks' when flag 1 is set)
- *  24  4   u32 R (0..255)
- *  28  4   u32 flags: bit 0: the codebooks are the variant's shared ones (none inside); others 0
- *  32  8   u64 residual voxels NR (at most X*Y*Z)
- *  40  8   u64 bytes of the raw residual position list (at most 10 * NR)
- *  48  8   u64 shared-codebook id (cdvr_shared_id of the blob; nonzero iff flag bit 0)
- *  56 56   u64 compressed bytes of the 7 sections below, in order (0 iff the section is empty)
- * 112      the sections, each one zstd frame with its content size and checksum, back to back,
- *          ending exactly at the end of the payload. Raw contents:
+ * Payload: the magic "HVQ2", then these fields, each an unsigned LEB128 (7 bits a byte, low
+ * first, bit 7 set on every byte but the last; at most 64 bits):
+ *          X, Y, Z     the chunk's dims
+ *          n1, n2      codebook sizes (the shared codebooks' when flags bit 0 is set)
+ *          R           0..255
+ *          flags       bit 0: the codebooks are the variant's shared ones (none inside);
+ *                      others 0
+ *          NR          residual voxels (at most X*Y*Z)
+ *          P           bytes of the raw residual position list (at most 10 * NR)
+ *          C1 .. C7    compressed bytes of the 7 sections below (0 iff the section is empty)
+ *        then, with flag bit 0, the shared-codebook id (cdvr_shared_id of the blob, not 0):
+ *        8 bytes little endian; then the sections, each one zstd frame with its content size
+ *        and checksum, back to back, ending exactly at the end of the payload. Raw contents:
  *          means      NB bytes: m[b] - m[b-1] mod 256, block order (m[-1] = 0); the block
  *                     grid covers the core: an axis of n = 4k+1 >= 5 voxels (a store brick:
  *                     its owned voxels and the one-voxel overlap below them) leaves its first
