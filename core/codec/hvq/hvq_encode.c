@@ -635,11 +635,17 @@ cdvr_status cdvr_hvq_train_shared(const cdvr_hvq_params *p, const size_t dims[3]
         memset(&e, 0, sizeof e);
         e.p = p;
         e.frame = frames[f];
-        e.X = e.SX = dims[0];
-        e.Y = e.SY = dims[1];
-        e.Z = e.SZ = dims[2];
+        e.SX = dims[0];
+        e.SY = dims[1];
+        e.SZ = dims[2];
+        e.OX = hvq2_skip(dims[0]); /* the grid an unbricked compact chunk of dims has */
+        e.OY = hvq2_skip(dims[1]);
+        e.OZ = hvq2_skip(dims[2]);
+        e.X = dims[0] - e.OX;
+        e.Y = dims[1] - e.OY;
+        e.Z = dims[2] - e.OZ;
         e.threads = threads ? threads : hvq_threads_auto();
-        const uint64_t d64[3] = {dims[0], dims[1], dims[2]};
+        const uint64_t d64[3] = {e.X, e.Y, e.Z};
         hvq_layout_get(d64, 0, 0, &e.L);
         s = classify(&e, err);
         if (s == CDVR_OK && (!append_sample(&l1, &n1v, e.l1, e.nnz, 8, keep) ||

@@ -160,6 +160,7 @@
  * Shared codebook blob ("HVQS", stored once per variant, cdvr/codec.h): 0 "HVQS", 4 u32 n1,
  * 8 u32 n2, 12 u32 0, 16 u64 compressed bytes C, 24: one zstd frame (C bytes) of codebook 1
  * then codebook 2 as byte planes (as in the payload). Trained on the pooled non-zero blocks
+ * (on the block grid an unbricked compact chunk of the whole volume has)
  * of up to 4 sample frames of the whole volume (at most ceil(train / frames) vectors of each).
  *
  * ---- Parameter blob (CDVR_CODEC_PARAMS_MAX bytes, little endian, unused bytes 0) -----------
