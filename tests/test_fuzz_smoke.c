@@ -333,17 +333,21 @@ static int make_hvq_seed(bytes *seed, const uint8_t head[4], const size_t dims[3
                              : (uint8_t)((x / 4 + y / 4) % 3 == 0 ? 0 : val);
     }
     cdvr_error err;
-    cdvr_status st = v ? cdvr_hvq_bound(p, dims, &bound, &err) : CDVR_ERR_NOMEM;
+    int compact = (head[0] & 4) != 0; /* fuzz_hvq.c: the compact form */
+    cdvr_status st = !v ? CDVR_ERR_NOMEM : compact ? cdvr_hvq_compact_bound(p, dims, &bound, &err)
+                                                   : cdvr_hvq_bound(p, dims, &bound, &err);
     out = st == CDVR_OK ? malloc(bound) : NULL;
     if (out)
-        st = cdvr_hvq_encode(p, dims, v, 1, out, bound, &got, NULL, &err);
+        st = compact ? cdvr_hvq_encode_compact(p, NULL, dims, v, 1, out, bound, &got, NULL, &err)
+                     : cdvr_hvq_encode(p, dims, v, 1, out, bound, &got, NULL, &err);
     CHECK_OK(st, err);
     /* the seed passes the decoder's check with the parameters the target will use */
     cdvr_hvq_params q;
     cdvr_hvq_params_default(&q);
     q.k1 = q.k2 = head[0] & 2 ? CDVR_HVQ_K_MAX : q.k1;
     if (out && st == CDVR_OK) {
-        cdvr_status checked = cdvr_hvq_check(&q, dims, out, got, NULL, &err);
+        cdvr_status checked = compact ? cdvr_hvq_compact_check(&q, NULL, dims, out, got, NULL, &err)
+                                      : cdvr_hvq_check(&q, dims, out, got, NULL, &err);
         CHECK_OK(checked, err);
     }
     int ok = out && st == CDVR_OK && bytes_append(seed, head, 4) && bytes_append(seed, out, got);
@@ -578,7 +582,11 @@ int main(void)
                          {{1, 3, 2, 1}, {260, 3, 2}, 2, 10, 256, 0, 300},
                          {{2, 39, 35, 19}, {40, 36, 20}, 1, 10, 400, 0, 150},
                          {{0, 12, 4, 2}, {13, 5, 3}, 64, 10, 256, 2, 400},
-                         {{0, 7, 7, 7}, {8, 8, 8}, 8, 0, 16, 1, 400}};
+                         {{0, 7, 7, 7}, {8, 8, 8}, 8, 0, 16, 1, 400},
+                         {{4, 10, 8, 6}, {11, 9, 7}, 4, 10, 256, 0, 600},
+                         {{6, 39, 35, 19}, {40, 36, 20}, 1, 10, 400, 0, 150},
+                         {{4, 12, 4, 2}, {13, 5, 3}, 64, 10, 256, 2, 300},
+                         {{4, 7, 7, 7}, {8, 8, 8}, 8, 0, 16, 1, 400}};
         for (size_t i = 0; i < sizeof hvq_seeds / sizeof *hvq_seeds; i++) {
             seed.n = 0;
             p.grad = hvq_seeds[i].grad;
@@ -588,7 +596,7 @@ int main(void)
                 fuzz_seed("hvq", fuzz_hvq_input, &seed, hvq_seeds[i].mutations, 4,
                           8000u + (uint32_t)i);
             /* the OpenCL decode/fetch path (PoCL here), on as many mutants */
-            if (fuzz_hvq_cl_device() && seed.n)
+            if (fuzz_hvq_cl_device() && seed.n && !(hvq_seeds[i].head[0] & 4))
                 fuzz_seed("hvq_cl", fuzz_hvq_cl_input, &seed, hvq_seeds[i].mutations, 4,
                           9000u + (uint32_t)i);
             if (fuzz_hvq_cl_device() && i == 0 && seed.n > 4)

@@ -13,6 +13,7 @@
 extern const cdvr_codec cdvr_codec_raw;
 extern const cdvr_codec cdvr_codec_pvtc;
 extern const cdvr_codec cdvr_codec_hvq;
+extern const cdvr_codec cdvr_codec_hvqc;
 
 #define REGISTRY_MAX 64
 
@@ -86,7 +87,7 @@ static cdvr_status add_locked(const cdvr_codec *c, cdvr_error *err)
 static void register_builtins(void)
 {
     static const cdvr_codec *const builtins[] = {&cdvr_codec_raw, &cdvr_codec_pvtc,
-                                                    &cdvr_codec_hvq};
+                                                    &cdvr_codec_hvq, &cdvr_codec_hvqc};
     pthread_mutex_lock(&registry.mu);
     for (size_t i = 0; i < sizeof builtins / sizeof *builtins; i++)
         (void)add_locked(builtins[i], NULL); /* built-ins are valid: test_codec checks */

@@ -963,6 +963,73 @@ static cdvr_status write_chunks(write_ctx *wc, cdvr_error *err)
     return s;
 }
 
+/* Shared blobs (cdvr/codec.h): each variant whose codec wants one is trained on up to
+ * SHARED_SAMPLE_FRAMES timesteps spread evenly over the series (t = j*T/n; fewer when they
+ * would pass SHARED_SAMPLE_BYTES, at least one), written at the start of the data area and
+ * put in the shared-blob table; its chunks get the trained parameters (which name the blob). */
+#define SHARED_SAMPLE_FRAMES 4
+#define SHARED_SAMPLE_BYTES ((size_t)1 << 30)
+
+static cdvr_status train_variant(write_ctx *wc, cdvr_variant_info *vi, size_t v,
+                                 const uint8_t *const *frames, size_t nframes, cdvr_error *err)
+{
+    cdvr_store *st = wc->st;
+    cdvr_codec_params before = vi->params;
+    uint8_t *blob = NULL;
+    size_t bytes = 0;
+    cdvr_status s = cdvr_codec_train_shared(vi->codec, &vi->params, st->info.dims, frames,
+                                            nframes, &blob, &bytes, err);
+    if (s == CDVR_OK && (bytes == 0 || bytes > UINT32_MAX))
+        s = cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "%s: variant %s: a shared blob of %zu "
+                           "bytes (1..2^32-1)", st->path, vi->name, bytes);
+    if (s == CDVR_OK)
+        s = cdvr_shared_put(blob, bytes, &vi->shared_id, err);
+    if (s == CDVR_OK)
+        s = write_at(wc->fd, blob, bytes, wc->offset, st->path, err);
+    if (s == CDVR_OK) {
+        vi->shared_offset = wc->offset;
+        vi->shared_bytes = bytes;
+        wc->offset += bytes;
+        for (size_t c = 0; c < vi->nchunks; c++) {
+            cdvr_chunk_info *ci = &st->chunks[st->chunk_first[v] + c];
+            if (memcmp(&ci->params, &before, sizeof before) == 0)
+                ci->params = vi->params;
+        }
+    }
+    free(blob);
+    return s;
+}
+
+static cdvr_status train_shared(write_ctx *wc, cdvr_error *err)
+{
+    cdvr_store *st = wc->st;
+    size_t voxels = st->info.dims[0] * st->info.dims[1] * st->info.dims[2], nframes = 0;
+    uint8_t *frames[SHARED_SAMPLE_FRAMES] = {NULL};
+    cdvr_status s = CDVR_OK;
+    for (size_t v = 0; s == CDVR_OK && v < st->info.nvariants; v++) {
+        cdvr_variant_info *vi = &st->variants[v];
+        if (!vi->codec || !cdvr_codec_wants_shared(vi->codec, &vi->params))
+            continue;
+        size_t want = st->info.timesteps < SHARED_SAMPLE_FRAMES ? st->info.timesteps
+                                                                : SHARED_SAMPLE_FRAMES;
+        while (want > 1 && voxels > SHARED_SAMPLE_BYTES / want)
+            want--;
+        for (; s == CDVR_OK && nframes < want; nframes++) {
+            frames[nframes] = malloc(voxels);
+            s = !frames[nframes]
+                    ? cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for a sample frame",
+                                     st->path)
+                    : wc->src->frame(wc->src->frame_ud, nframes * st->info.timesteps / want,
+                                     frames[nframes], err);
+        }
+        if (s == CDVR_OK)
+            s = train_variant(wc, vi, v, (const uint8_t *const *)frames, nframes, err);
+    }
+    for (size_t i = 0; i < SHARED_SAMPLE_FRAMES; i++)
+        free(frames[i]);
+    return s;
+}
+
 static cdvr_status write_meta(cdvr_store *st, int fd, const char *target, cdvr_error *err)
 {
     uint64_t meta = cdvr_store_meta_bytes(st->info.nvariants, st->nchunks_total);
@@ -1022,7 +1089,9 @@ cdvr_status cdvr_store_encode_source(const cdvr_encode_source *src,
         return s;
     }
     wc.fd = fileno(af.f); /* written with pwrite only: the FILE buffers nothing */
-    s = write_chunks(&wc, err);
+    s = train_shared(&wc, err);
+    if (s == CDVR_OK)
+        s = write_chunks(&wc, err);
     if (s == CDVR_OK) {
         st->info.file_bytes = wc.offset;
         finish_variants(st, wc.sse, wc.maxerr);

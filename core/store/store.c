@@ -40,7 +40,11 @@
  *               in stores written before stage 2 beyond LZO, whose bytes 136..159 are 0)
  *   144  u32    stage-2 segment bytes used at encode time (0: not recorded, else
  *               CDVR_STAGE2_SEGMENT_MIN..CDVR_STAGE2_SEGMENT_MAX)
- *   148  u8[12] reserved, 0
+ *   148  u64    offset of the variant's shared blob (cdvr/codec.h: data every chunk of the
+ *               variant needs, e.g. hvqc's codebooks), 156: u32 its bytes; both 0 when
+ *               there is none (as in every store written before it). The blob lies in the
+ *               data area like a chunk (no overlap); its integrity: the chunks' parameters
+ *               name it by content id (cdvr_shared_id), so a changed blob decodes nothing.
  *  CHUNK INDEX (128 bytes per chunk; variant 1's chunks, then variant 2's, ...; within a
  *  variant by time group, and within a group by brick)
  *     0  u64    t0 (first timestep, from 0)
@@ -287,7 +291,8 @@ static void put_variant(wcursor *w, const cdvr_variant_info *v)
     put_bytes(w, v->params.bytes, CDVR_CODEC_PARAMS_MAX);
     put_f64(w, v->stage2_read_mbps);
     put_u32(w, (uint32_t)v->stage2_segment);
-    put_zeros(w, 12);
+    put_u64(w, v->shared_offset);
+    put_u32(w, (uint32_t)v->shared_bytes);
 }
 
 static void put_chunk(wcursor *w, const cdvr_chunk_info *c)
@@ -551,7 +556,6 @@ static cdvr_status check_variant_common(const cdvr_store *st, size_t v, uint64_t
 static cdvr_status parse_variant_v2(const cdvr_store *st, rcursor *r, size_t v, cdvr_error *err)
 {
     cdvr_variant_info *vi = &st->variants[v];
-    uint8_t reserved[24];
     get_bytes(r, vi->name, CDVR_NAME_MAX);
     get_bytes(r, vi->codec_name, CDVR_CODEC_NAME_MAX);
     vi->codec_id = get_u32(r);
@@ -563,11 +567,13 @@ static cdvr_status parse_variant_v2(const cdvr_store *st, rcursor *r, size_t v, 
     get_bytes(r, vi->params.bytes, CDVR_CODEC_PARAMS_MAX);
     vi->stage2_read_mbps = get_f64(r);
     uint32_t segment = get_u32(r);
-    get_bytes(r, reserved, 12);
-    for (size_t i = 0; i < 12; i++)
-        if (reserved[i])
-            return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %zu: reserved bytes set",
-                                  st->path, v + 1);
+    vi->shared_offset = get_u64(r);
+    vi->shared_bytes = get_u32(r);
+    if ((vi->shared_offset == 0) != (vi->shared_bytes == 0))
+        return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %zu: shared blob at %llu of "
+                              "%llu bytes", st->path, v + 1,
+                              (unsigned long long)vi->shared_offset,
+                              (unsigned long long)vi->shared_bytes);
     if (!(vi->stage2_read_mbps >= 0 && vi->stage2_read_mbps < HUGE_VAL) ||
         (segment && (segment < CDVR_STAGE2_SEGMENT_MIN || segment > CDVR_STAGE2_SEGMENT_MAX)))
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %zu: bad stage-2 read rate %g "
@@ -766,7 +772,7 @@ static int compare_extents(const void *a, const void *b)
 static cdvr_status check_extents(const cdvr_store *st, uint64_t data_start, cdvr_error *err)
 {
     size_t n = st->nchunks_total;
-    extent *ex = malloc((n ? 2 * n : 1) * sizeof *ex);
+    extent *ex = malloc((2 * n + st->info.nvariants + 1) * sizeof *ex);
     if (!ex)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory to check %zu chunks",
                               st->path, n);
@@ -777,6 +783,10 @@ static cdvr_status check_extents(const cdvr_store *st, uint64_t data_start, cdvr
         if (ci->ranges_shift)
             ex[nex++] = (extent){ci->ranges_offset, ci->ranges_stored_bytes, c};
     }
+    for (size_t v = 0; v < st->info.nvariants; v++) /* shared blobs: as the first chunk's */
+        if (st->variants[v].shared_bytes)
+            ex[nex++] = (extent){st->variants[v].shared_offset, st->variants[v].shared_bytes,
+                                 st->chunk_first[v]};
     n = nex;
     qsort(ex, n, sizeof *ex, compare_extents);
     cdvr_status s = CDVR_OK;
@@ -789,7 +799,8 @@ static cdvr_status check_extents(const cdvr_store *st, uint64_t data_start, cdvr
             while (v + 1 < st->info.nvariants && st->chunk_first[v + 1] <= e->chunk)
                 v++;
             s = cdvr_error_set(err, CDVR_ERR_CORRUPT, "%s: variant %s chunk %zu: bytes "
-                               "%llu..%llu (chunk or range table) overlap another extent or "
+                               "%llu..%llu (chunk, range table or shared blob) overlap another "
+                               "extent or "
                                "lie outside the data "
                                "(%llu..%llu)", st->path, st->variants[v].name,
                                e->chunk - st->chunk_first[v] + 1,
@@ -880,6 +891,28 @@ static cdvr_status open_header(cdvr_store *st, uint64_t file_size, header_fields
     return check_header_sizes(st->path, h, file_size, err);
 }
 
+/* The variant's shared blob (extent checked) into the shared-blob table. */
+static cdvr_status load_shared(cdvr_store *st, cdvr_variant_info *vi, cdvr_error *err)
+{
+    if (!vi->shared_bytes)
+        return CDVR_OK;
+    size_t n = (size_t)vi->shared_bytes, got = 0;
+    uint8_t *blob = malloc(n);
+    if (!blob)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: variant %s: no memory for its shared "
+                              "blob of %zu bytes", st->path, vi->name, n);
+    cdvr_status s = read_at(st->fd, blob, n, st->base + vi->shared_offset, &got);
+    if (s != CDVR_OK || got != n)
+        s = cdvr_error_set(err, CDVR_ERR_IO, "%s: variant %s: cannot read its shared blob",
+                           st->path, vi->name);
+    else
+        s = cdvr_shared_put(blob, n, &vi->shared_id, err);
+    if (s == CDVR_OK)
+        vi->bytes += vi->shared_bytes;
+    free(blob);
+    return s;
+}
+
 static cdvr_status open_tables(cdvr_store *st, const header_fields *h, cdvr_error *err)
 {
     size_t meta = (size_t)h->meta;
@@ -901,6 +934,8 @@ static cdvr_status open_tables(cdvr_store *st, const header_fields *h, cdvr_erro
     else if ((s = check_header_values(st->path, h, &st->info, err)) == CDVR_OK)
         s = parse_tables(st, buf, meta, err);
     free(buf);
+    for (size_t v = 0; s == CDVR_OK && v < st->info.nvariants; v++)
+        s = load_shared(st, &st->variants[v], err);
     return s;
 }
 
@@ -963,6 +998,9 @@ void cdvr_store_close(cdvr_store *st)
     cdvr_store_close_levels(st);
     if (st->fd >= 0)
         close(st->fd);
+    for (size_t v = 0; st->variants && v < st->info.nvariants; v++)
+        if (st->variants[v].shared_id)
+            cdvr_shared_drop(st->variants[v].shared_id);
     free(st->path);
     free(st->variants);
     free(st->chunk_first);

@@ -672,6 +672,7 @@ static void push_variant_info(lua_State *L, const cdvr_store *st, size_t v)
     const cdvr_chunk_info *c0 = cdvr_store_chunk(st, v, 0);
     if (c0 && c0->ranges_shift) /* the encoder writes one size for every chunk */
         setint(L, "range_brick", (lua_Integer)1 << c0->ranges_shift);
+    setint(L, "shared_bytes", (lua_Integer)vi->shared_bytes); /* in bytes too */
     setnum(L, "ratio", (double)vi->bytes / (double)in->raw_bytes);
     setnum(L, "bpv", 8.0 * (double)vi->bytes / (double)in->raw_bytes);
     setnum(L, "psnr", vi->psnr);

@@ -1,10 +1,12 @@
-/* tests/fuzz/fuzz_hvq.c - libFuzzer target for the hvq decoder (core/codec/hvq/hvq_decode.c)
- * through its codec table: check, whole-frame decode and describe. How to run: README.
+/* tests/fuzz/fuzz_hvq.c - libFuzzer target for the hvq decoders (core/codec/hvq/hvq_decode.c,
+ * hvq_compact.c) through their codec tables: check, whole-frame decode and describe. How to
+ * run: README.
  *
  * Input: 4 header bytes, then the payload (passed as it is).
  *   byte 0: bit 0: dims across two regions (X = 257 + byte1 % 8, Y = 1 + byte2 % 4,
  *           Z = 1 + byte3 % 4); clear: X, Y, Z = 1 + byte % 40;
  *           bit 1: parameters k1 = k2 = 4096 (else the defaults, which bound the codebooks)
+ *           bit 2: the compact form (codec "hvqc"; no fetch to compare with)
  *   bytes 1..3: dims as above
  * The frame is its own exact-size allocation, so ASan sees any write past it. A payload the
  * decoder accepts must decode, voxel for voxel, to what the per-voxel fetch (the C twin of the
@@ -32,7 +34,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     if (size < 4)
         return 0;
-    const cdvr_codec *codec = cdvr_codec_find("hvq");
+    int compact = (data[0] & 4) != 0;
+    const cdvr_codec *codec = cdvr_codec_find(compact ? "hvqc" : "hvq");
     FUZZ_ASSERT(codec != NULL);
     size_t dims[3];
     if (data[0] & 1) {
@@ -63,8 +66,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         cdvr_status described = codec->describe(&blob, dims, payload, bytes, hvq_fuzz_emit, &sum,
                                                 &err);
         FUZZ_ASSERT(described == st);
-        if (st == CDVR_OK) {
+        if (st == CDVR_OK)
             FUZZ_ASSERT(sum.parts == (double)bytes);
+        if (st == CDVR_OK && !compact) {
             for (size_t z = 0, i = 0; z < dims[2]; z++)
                 for (size_t y = 0; y < dims[1]; y++)
                     for (size_t x = 0; x < dims[0]; x++, i++)

@@ -102,8 +102,8 @@ local function run(env, code)
 end
 
 if exe then
-  -- built-ins: raw, pvtc, hvq; [4] is the first plugin
-  local list = "io.write(#cdvr.codecs(), (cdvr.codecs()[4] or {}).name or \"-\", \"\\n\")"
+  -- built-ins: raw, pvtc, hvq, hvqc; [5] is the first plugin
+  local list = "io.write(#cdvr.codecs(), (cdvr.codecs()[5] or {}).name or \"-\", \"\\n\")"
   local ok, out = run("CDVR_PLUGIN_PATH='" .. bin .. "/tests/plugins:" .. bin .. "/no_such_dir'", list)
   check(ok, "bad plugins at start-up are not fatal: " .. out)
   local warnings = 0
@@ -112,10 +112,10 @@ if exe then
   end
   check(warnings == 9, "one warning per bad plugin and the missing directory (" .. warnings .. "): " .. out)
   check(out:find("bad_abi.so: plugin built for ABI version 42", 1, true), "warning names file and reason")
-  check(out:find("\n3-\n", 1, true) or out:find("^3-\n"), "only the built-ins registered: " .. out)
+  check(out:find("\n4-\n", 1, true) or out:find("^4-\n"), "only the built-ins registered: " .. out)
 
   ok, out = run("CDVR_PLUGIN_PATH=''", list)
-  check(ok and out == "3-\n", "empty CDVR_PLUGIN_PATH loads nothing: " .. out)
+  check(ok and out == "4-\n", "empty CDVR_PLUGIN_PATH loads nothing: " .. out)
 
   if have_rle then
     ok, out = run("CDVR_PLUGIN_PATH='" .. bin .. "/plugins'", list)

@@ -143,6 +143,21 @@ do
   assert(math.abs(policy.predict(lz4, gm, false) - 21) < 1e-9, policy.predict(lz4, gm, false))
   local ok, err = pcall(policy.measure, mixed, "lzo")
   assert(not ok and err:find("bad argument #2 to 'measure'"), err)
+  -- Render time per variant: an hvq variant (every sample fetched from its payload) renders
+  -- slower than the dense variants; once measured, its own median is used.
+  local hvq = { name = "hvq", codec = "hvq", bytes_per_timestep = 50000,
+                payload_bytes_per_timestep = 50000, psnr = 43 }
+  local hmixed = {
+    { variant = "S4T3", read_ms = 5, upload_ms = 0, decode_ms = 0, setup_ms = 0, render_ms = 10,
+      frame_ms = 15, bytes = 50000, payload_bytes = 50000 },
+    { variant = "hvq", read_ms = 5, upload_ms = 0, decode_ms = 0, setup_ms = 0, render_ms = 200,
+      frame_ms = 205, bytes = 50000, payload_bytes = 50000 },
+    { variant = "S4T3", read_ms = 5, upload_ms = 0, decode_ms = 0, setup_ms = 0, render_ms = 10,
+      frame_ms = 15, bytes = 50000, payload_bytes = 50000 } }
+  local hm = policy.measure(hmixed)
+  assert(math.abs(policy.predict(hvq, hm, false) - 205) < 1e-9, policy.predict(hvq, hm, false))
+  assert(policy.stages(by_name("S4T3"), hm).render == 10)
+  assert(policy.stages(by_name("raw"), hm).render == 10) -- unmeasured: all frames' median
 
   -- min_psnr is a floor even when the target cannot be met.
   name = policy.open_loop{ target_fps = 100 }(stats{ frames = frames, min_psnr = 35 })

@@ -10,7 +10,7 @@
 #include <string.h>
 
 enum { OFF_GRAD = 0, OFF_EPS = 8, OFF_RESIDUAL = 16, OFF_K1 = 20, OFF_K2 = 24, OFF_TRAIN = 28,
-       USED_BYTES = 32 };
+       USED_BYTES = 32, OFF_SHARED = 32, OFF_SHARED_ID = 40 /* hvqc only */ };
 
 static const cdvr_codec_param_doc hvq_params[] = {
     {"grad", "8", "zero-block threshold on a block's average gradient (seed eq. 11-12), 0..765"},
@@ -166,14 +166,15 @@ static cdvr_status hvq_check(const cdvr_codec_params *blob, cdvr_error *err)
     return s;
 }
 
-/* "hvq" for the defaults; otherwise the parameters that differ: hvq_g32_r5_k128x512_e0.01_t0. */
-static void hvq_name(const cdvr_codec_params *blob, char *name, size_t n)
+/* "hvq" for the defaults; otherwise the parameters that differ: hvq_g32_r5_k128x512_e0.01_t0
+ * (the compact form: "hvqc..."). */
+static void name_with(const char *prefix, const cdvr_codec_params *blob, char *name, size_t n)
 {
     cdvr_hvq_params p, d;
     cdvr_hvq_params_from_blob(blob, &p);
     cdvr_hvq_params_default(&d);
     char buf[96];
-    int len = snprintf(buf, sizeof buf, "hvq");
+    int len = snprintf(buf, sizeof buf, "%s", prefix);
     if (p.grad != d.grad)
         len += snprintf(buf + len, sizeof buf - (size_t)len, "_g%.6g", p.grad);
     if (p.residual != d.residual)
@@ -185,6 +186,11 @@ static void hvq_name(const cdvr_codec_params *blob, char *name, size_t n)
     if (p.train != d.train)
         snprintf(buf + len, sizeof buf - (size_t)len, "_t%u", p.train);
     snprintf(name, n, "%s", buf);
+}
+
+static void hvq_name(const cdvr_codec_params *blob, char *name, size_t n)
+{
+    name_with("hvq", blob, name, n);
 }
 
 static cdvr_status hvq_shape(const cdvr_codec_params *blob, const size_t dims[3],
@@ -277,4 +283,219 @@ const cdvr_codec cdvr_codec_hvq = {
     .cl_file = "codec/hvq_fetch.cl",
     .cl_function = "hvq_fetch",
     .check = hvq_payload_check,
+};
+
+/* ---- "hvqc": the compact form (cdvr/hvq.h), decoded on the CPU ------------------------------
+ * Parameters: hvq's, and at byte 32 u32 shared (0 or 1: train one codebook set per variant,
+ * cdvr/codec.h "data shared by a variant's chunks"), 36..39 zero, at byte 40 u64 the shared
+ * codebooks' id (set by the store encoder after training; 0 when shared is 0 or untrained). */
+
+static const cdvr_codec_param_doc hvqc_params[] = {
+    {"grad", "8", "zero-block threshold on a block's average gradient (seed eq. 11-12), 0..765"},
+    {"residual", "10", "every voxel decodes within this of the original, 0..255"},
+    {"k1", "4096", "level-1 codebook entries (8-d) at most, 1..4096 (and 1 per 8 blocks)"},
+    {"k2", "1024", "level-2 codebook entries (64-d) at most, 1..4096 (and 1 per 8 blocks)"},
+    {"eps", "0.01", "LBG stops when the relative distortion change is below this, (0, 1)"},
+    {"train", "262144", "training vectors per codebook at most (0: all)"},
+    {"shared", "0", "1: one codebook set per variant, trained on sample timesteps (stores)"},
+    {NULL, NULL, NULL}};
+
+static uint64_t shared_id_of(const cdvr_codec_params *blob)
+{
+    return (uint64_t)cdvr_params_get_u32(blob, OFF_SHARED_ID) |
+           (uint64_t)cdvr_params_get_u32(blob, OFF_SHARED_ID + 4) << 32;
+}
+
+int cdvr_hvqc_wants_shared(const cdvr_codec_params *blob)
+{
+    return cdvr_params_get_u32(blob, OFF_SHARED) == 1;
+}
+
+static cdvr_status hvqc_set(cdvr_codec_params *blob, const char *key, const char *value,
+                            cdvr_error *err)
+{
+    if (strcmp(key, "shared") != 0) { /* hvq_set rewrites the blob: keep bytes 32.. */
+        cdvr_codec_params keep = *blob;
+        cdvr_status s = hvq_set(blob, key, value, err);
+        memcpy(blob->bytes + USED_BYTES, keep.bytes + USED_BYTES,
+               CDVR_CODEC_PARAMS_MAX - USED_BYTES);
+        return s;
+    }
+    uint32_t v;
+    if (!parse_u32(value, 1, &v))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvqc: shared = '%s', must be 0 or 1",
+                              value);
+    cdvr_params_set_u32(blob, OFF_SHARED, v);
+    cdvr_params_set_u32(blob, OFF_SHARED_ID, 0);
+    cdvr_params_set_u32(blob, OFF_SHARED_ID + 4, 0);
+    return CDVR_OK;
+}
+
+static int hvqc_get(const cdvr_codec_params *blob, const char *key, char *out, size_t n)
+{
+    if (strcmp(key, "shared") != 0)
+        return hvq_get(blob, key, out, n);
+    snprintf(out, n, "%u", cdvr_params_get_u32(blob, OFF_SHARED));
+    return 0;
+}
+
+static cdvr_status hvqc_check(const cdvr_codec_params *blob, cdvr_error *err)
+{
+    cdvr_codec_params hvq_part = *blob;
+    memset(hvq_part.bytes + USED_BYTES, 0, CDVR_CODEC_PARAMS_MAX - USED_BYTES);
+    cdvr_status s = hvq_check(&hvq_part, err);
+    uint32_t shared = cdvr_params_get_u32(blob, OFF_SHARED);
+    if (s == CDVR_OK && (shared > 1 || cdvr_params_get_u32(blob, 36) != 0 ||
+                         (shared == 0 && shared_id_of(blob) != 0)))
+        s = cdvr_error_set(err, CDVR_ERR_ARG, "codec hvqc: shared = %u with id %016llx (0 or "
+                           "1; an id only when 1)", shared,
+                           (unsigned long long)shared_id_of(blob));
+    return s;
+}
+
+static void hvqc_name(const cdvr_codec_params *blob, char *name, size_t n)
+{
+    char base[CDVR_VARIANT_NAME_MAX];
+    name_with("hvqc", blob, base, sizeof base);
+    snprintf(name, n, "%s%s", base, cdvr_hvqc_wants_shared(blob) ? "_s" : "");
+}
+
+/* The shared codebooks the parameters name (none: cb zeroed, *held 0). */
+static cdvr_status open_shared(const cdvr_codec_params *blob, const cdvr_hvq_params *p,
+                               cdvr_hvq_codebooks *cb, uint64_t *held, cdvr_error *err)
+{
+    memset(cb, 0, sizeof *cb);
+    *held = 0;
+    uint64_t id = shared_id_of(blob);
+    if (id == 0)
+        return CDVR_OK;
+    const uint8_t *bytes;
+    size_t n;
+    cdvr_status s = cdvr_shared_borrow(id, &bytes, &n, err);
+    if (s != CDVR_OK)
+        return s;
+    *held = id;
+    return cdvr_hvq_shared_open(p, bytes, n, cb, err);
+}
+
+static void close_shared(cdvr_hvq_codebooks *cb, uint64_t held)
+{
+    cdvr_hvq_codebooks_free(cb);
+    if (held)
+        cdvr_shared_drop(held);
+}
+
+cdvr_status cdvr_hvqc_train_shared(cdvr_codec_params *blob, const size_t dims[3],
+                                   const uint8_t *const *frames, size_t nframes, uint8_t **out,
+                                   size_t *bytes, cdvr_error *err)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_from_blob(blob, &p);
+    cdvr_status s = cdvr_hvq_train_shared(&p, dims, frames, nframes, 0, out, bytes, err);
+    if (s == CDVR_OK) {
+        uint64_t id = cdvr_shared_id(*out, *bytes);
+        cdvr_params_set_u32(blob, OFF_SHARED_ID, (uint32_t)id);
+        cdvr_params_set_u32(blob, OFF_SHARED_ID + 4, (uint32_t)(id >> 32));
+    }
+    return s;
+}
+
+static cdvr_status hvqc_shape(const cdvr_codec_params *blob, const size_t dims[3],
+                              cdvr_codec_shape *out, cdvr_error *err)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_from_blob(blob, &p);
+    size_t bound;
+    cdvr_status s = cdvr_hvq_compact_bound(&p, dims, &bound, err);
+    if (s != CDVR_OK)
+        return s;
+    out->timesteps = 1;
+    out->payload_bytes = 0;
+    out->bound_bytes = bound;
+    return CDVR_OK;
+}
+
+static cdvr_status hvqc_encode(const cdvr_codec_params *blob, const size_t dims[3],
+                               const uint8_t *const *frames, size_t count, uint8_t *out,
+                               size_t out_cap, size_t *out_bytes, cdvr_error *err)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_from_blob(blob, &p);
+    if (count != 1)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvqc: %zu frames for one chunk (1 "
+                              "expected)", count);
+    cdvr_hvq_codebooks cb;
+    uint64_t held;
+    cdvr_status s = open_shared(blob, &p, &cb, &held, err);
+    if (s == CDVR_OK)
+        s = cdvr_hvq_encode_compact(&p, held ? &cb : NULL, dims, frames[0], 0, out, out_cap,
+                                    out_bytes, NULL, err);
+    close_shared(&cb, held);
+    return s;
+}
+
+static cdvr_status hvqc_decode(const cdvr_codec_params *blob, const size_t dims[3],
+                               const uint8_t *in, size_t in_bytes, uint8_t *const *frames,
+                               size_t count, cdvr_error *err)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_from_blob(blob, &p);
+    if (count != 1)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvqc: %zu frames asked of a chunk of 1",
+                              count);
+    cdvr_hvq_codebooks cb;
+    uint64_t held;
+    cdvr_status s = open_shared(blob, &p, &cb, &held, err);
+    if (s == CDVR_OK)
+        s = cdvr_hvq_compact_decode(&p, held ? &cb : NULL, dims, in, in_bytes, frames[0], err);
+    close_shared(&cb, held);
+    return s;
+}
+
+static cdvr_status hvqc_describe(const cdvr_codec_params *blob, const size_t dims[3],
+                                 const uint8_t *payload, size_t bytes,
+                                 void (*emit)(void *ud, const char *key, double value), void *ud,
+                                 cdvr_error *err)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_from_blob(blob, &p);
+    cdvr_hvq_stats st;
+    cdvr_hvq_codebooks cb;
+    uint64_t held;
+    cdvr_status s = open_shared(blob, &p, &cb, &held, err);
+    if (s == CDVR_OK)
+        s = cdvr_hvq_compact_check(&p, held ? &cb : NULL, dims, payload, bytes, &st, err);
+    close_shared(&cb, held);
+    if (s != CDVR_OK)
+        return s;
+    emit(ud, "header", (double)st.header);
+    emit(ud, "means", (double)st.means);
+    emit(ud, "codebook1", (double)st.codebook1);
+    emit(ud, "codebook2", (double)st.codebook2);
+    emit(ud, "indices", (double)st.indices);
+    emit(ud, "residuals", (double)st.residuals);
+    emit(ud, "blocks", (double)st.blocks);
+    emit(ud, "zero_blocks", (double)st.zero_blocks);
+    emit(ud, "residual_voxels", (double)st.residual_voxels);
+    return CDVR_OK;
+}
+
+const cdvr_codec cdvr_codec_hvqc = {
+    .name = "hvqc",
+    .id = CDVR_CODEC_ID_HVQC,
+    .description = "hvq in its compact form: the same blocks and codebooks (per chunk, or one set "
+                   "per variant with shared=1), zstd-coded means, index list and residual list "
+                   "(within `residual`); CPU decode, for stores and the brick cache (the hashed "
+                   "form \"hvq\" is for per-sample fetch)",
+    .params = hvqc_params,
+    .params_default = hvq_default,
+    .params_set = hvqc_set,
+    .params_get = hvqc_get,
+    .params_check = hvqc_check,
+    .variant_name = hvqc_name,
+    .shape = hvqc_shape,
+    .encode = hvqc_encode,
+    .decode = hvqc_decode,
+    .describe = hvqc_describe,
+    .cl_mode = CDVR_CODEC_CL_NONE,
 };

@@ -103,7 +103,9 @@ cdvr_status cdvr_hvq_bound(const cdvr_hvq_params *p, const size_t dims[3], size_
 typedef struct hvq_enc {
     const cdvr_hvq_params *p;
     const uint8_t *frame;
-    size_t X, Y, Z;
+    size_t X, Y, Z;       /* the block grid's extent (compact form: the core) */
+    size_t SX, SY, SZ;    /* the frame's dims */
+    size_t OX, OY, OZ;    /* the core's origin in the frame (compact form: hvq2_skip) */
     unsigned threads;
     hvq_layout L;
     uint8_t *means;       /* per block */
@@ -116,6 +118,7 @@ typedef struct hvq_enc {
     int16_t *cb1;         /* K_MAX x 8 */
     int16_t *cb2;         /* K_MAX x 64 */
     unsigned n1, n2;
+    const cdvr_hvq_codebooks *shared; /* compact form: the variant's codebooks, or NULL */
     int lbg_iterations[2];
     hvq_psh *ihash, *rhash;  /* per region */
     cdvr_status *rstatus;
@@ -148,7 +151,7 @@ static uint8_t voxel_at(const hvq_enc *e, size_t x, size_t y, size_t z)
     x = x < e->X ? x : e->X - 1;
     y = y < e->Y ? y : e->Y - 1;
     z = z < e->Z ? z : e->Z - 1;
-    return e->frame[x + e->X * (y + e->Y * z)];
+    return e->frame[(x + e->OX) + e->SX * ((y + e->OY) + e->SY * (z + e->OZ))];
 }
 
 /* The 4x4x4 block (n = 4) or the block plus its +1 neighbours (n = 5), edge-replicated,
@@ -226,6 +229,17 @@ static cdvr_status classify(hvq_enc *e, cdvr_error *err)
     return CDVR_OK;
 }
 
+/* Level-2 vectors: the residual minus the decoded level 1 of each block's entry. */
+static void subtract_level1(int16_t *l2, size_t n, const int16_t *cb1, const uint16_t *i1)
+{
+    for (size_t k = 0; k < n; k++) {
+        const int16_t *c = cb1 + (size_t)i1[k] * 8;
+        int16_t *r = l2 + k * 64;
+        for (int i = 0; i < 64; i++)
+            r[i] = (int16_t)(r[i] - c[((i & 3) >> 1) + 2 * ((i >> 2 & 3) >> 1) + 4 * ((i >> 4) >> 1)]);
+    }
+}
+
 static cdvr_status quantise(hvq_enc *e, cdvr_error *err)
 {
     hvq_vq_report rep;
@@ -233,18 +247,28 @@ static cdvr_status quantise(hvq_enc *e, cdvr_error *err)
     e->cb2 = malloc(sizeof *e->cb2 * CDVR_HVQ_K_MAX * 64);
     if (!e->cb1 || !e->cb2)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: out of memory for the codebooks");
+    if (e->shared) { /* the variant's codebooks: assignment only */
+        e->n1 = e->shared->n1;
+        e->n2 = e->shared->n2;
+        memcpy(e->cb1, e->shared->c1, sizeof *e->cb1 * 8 * e->n1);
+        memcpy(e->cb2, e->shared->c2, sizeof *e->cb2 * 64 * e->n2);
+        if (e->n1 == 0) { /* trained on empty frames: every block is a zero block here */
+            for (uint64_t b = 0; b < e->L.nblocks; b++)
+                e->nz[b] = UINT32_MAX;
+            e->nnz = 0;
+        }
+        hvq_vq_assign(e->l1, e->nnz, 8, e->cb1, e->n1, 8, e->threads, e->i1);
+        subtract_level1(e->l2, e->nnz, e->cb1, e->i1);
+        hvq_vq_assign(e->l2, e->nnz, 64, e->cb2, e->n2, 1, e->threads, e->i2);
+        return CDVR_OK;
+    }
     cdvr_status s = hvq_vq_train(e->l1, e->nnz, 8, e->p->k1, 8, e->p->eps, e->p->train,
                                  e->threads, e->cb1, &e->n1, &rep, err);
     if (s != CDVR_OK)
         return s;
     e->lbg_iterations[0] = rep.lbg_iterations;
     hvq_vq_assign(e->l1, e->nnz, 8, e->cb1, e->n1, 8, e->threads, e->i1);
-    for (size_t k = 0; k < e->nnz; k++) {
-        const int16_t *c = e->cb1 + (size_t)e->i1[k] * 8;
-        int16_t *r = e->l2 + k * 64;
-        for (int i = 0; i < 64; i++)
-            r[i] = (int16_t)(r[i] - c[((i & 3) >> 1) + 2 * ((i >> 2 & 3) >> 1) + 4 * ((i >> 4) >> 1)]);
-    }
+    subtract_level1(e->l2, e->nnz, e->cb1, e->i1);
     s = hvq_vq_train(e->l2, e->nnz, 64, e->p->k2, 1, e->p->eps, e->p->train, e->threads, e->cb2,
                      &e->n2, &rep, err);
     if (s == CDVR_OK)
@@ -454,12 +478,15 @@ static cdvr_status write_payload(const hvq_enc *e, uint8_t *out, size_t out_cap,
     return CDVR_OK;
 }
 
-cdvr_status cdvr_hvq_encode(const cdvr_hvq_params *p, const size_t dims[3],
-                            const uint8_t *frame, unsigned threads, uint8_t *out,
-                            size_t out_cap, size_t *out_bytes, cdvr_hvq_stats *stats,
-                            cdvr_error *err)
+/* The stages both forms share: arguments, classification and the two codebooks. */
+static cdvr_status encode_common(hvq_enc *e, const cdvr_hvq_params *p,
+                                 const cdvr_hvq_codebooks *shared, int compact,
+                                 const size_t dims[3], const uint8_t *frame, unsigned threads,
+                                 uint8_t *out, size_t *out_bytes, cdvr_error *err)
 {
     size_t bound;
+    memset(e, 0, sizeof *e);
+    e->shared = shared;
     if (!p || !dims || !frame || !out || !out_bytes)
         return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: encode with a NULL argument");
     cdvr_status s = cdvr_hvq_params_check(p, err);
@@ -470,25 +497,177 @@ cdvr_status cdvr_hvq_encode(const cdvr_hvq_params *p, const size_t dims[3],
     if ((dims[0] + 3) / 4 * ((dims[1] + 3) / 4) * ((dims[2] + 3) / 4) >= UINT32_MAX)
         return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "hvq: %zux%zux%zu has 2^32 blocks or "
                               "more (encode it in bricks)", dims[0], dims[1], dims[2]);
-    hvq_enc e;
-    memset(&e, 0, sizeof e);
-    e.p = p;
-    e.frame = frame;
-    e.X = dims[0];
-    e.Y = dims[1];
-    e.Z = dims[2];
-    e.threads = threads ? threads : hvq_threads_auto();
-    const uint64_t d64[3] = {dims[0], dims[1], dims[2]};
-    hvq_layout_get(d64, 0, 0, &e.L);
-    s = classify(&e, err);
+    e->p = p;
+    e->frame = frame;
+    e->SX = dims[0];
+    e->SY = dims[1];
+    e->SZ = dims[2];
+    e->OX = compact ? hvq2_skip(dims[0]) : 0;
+    e->OY = compact ? hvq2_skip(dims[1]) : 0;
+    e->OZ = compact ? hvq2_skip(dims[2]) : 0;
+    e->X = dims[0] - e->OX;
+    e->Y = dims[1] - e->OY;
+    e->Z = dims[2] - e->OZ;
+    e->threads = threads ? threads : hvq_threads_auto();
+    const uint64_t d64[3] = {e->X, e->Y, e->Z};
+    hvq_layout_get(d64, 0, 0, &e->L);
+    s = classify(e, err);
     if (s == CDVR_OK)
-        s = quantise(&e, err);
-    if (s == CDVR_OK) {
-        hvq_layout_get(d64, e.n1, e.n2, &e.L);
+        s = quantise(e, err);
+    if (s == CDVR_OK)
+        hvq_layout_get(d64, e->n1, e->n2, &e->L);
+    return s;
+}
+
+cdvr_status cdvr_hvq_encode(const cdvr_hvq_params *p, const size_t dims[3],
+                            const uint8_t *frame, unsigned threads, uint8_t *out,
+                            size_t out_cap, size_t *out_bytes, cdvr_hvq_stats *stats,
+                            cdvr_error *err)
+{
+    hvq_enc e;
+    cdvr_status s = encode_common(&e, p, NULL, 0, dims, frame, threads, out, out_bytes, err);
+    if (s == CDVR_OK)
         s = build_regions(&e, err);
-    }
     if (s == CDVR_OK)
         s = write_payload(&e, out, out_cap, out_bytes, stats, err);
     enc_free(&e);
+    return s;
+}
+
+/* ---- compact form (HVQ2) ---------------------------------------------------------------------- */
+
+/* The compact form's raw sections (hvq_compact_sections) from the encoder's state: the
+ * residual stage keeps, for each voxel off by more than R, q = round(d / (2R+1)) of d = v - b
+ * (halves away from zero; |d - q(2R+1)| <= R). */
+static cdvr_status compact_sections(const hvq_enc *e, hvq_sections *sec, cdvr_error *err)
+{
+    const hvq_layout *L = &e->L;
+    uint32_t R = e->p->residual, step = 2 * R + 1;
+    cdvr_status s = hvq_sections_alloc(sec, L, e->nnz, e->shared ? 0 : e->n1,
+                                       e->shared ? 0 : e->n2, err);
+    if (s != CDVR_OK)
+        return s;
+    sec->wq = R == 0 ? 2 : 1;
+    uint8_t prev = 0;
+    for (uint64_t b = 0; b < L->nblocks; b++) {
+        sec->raw[HVQ_SEC_MEANS][b] = (uint8_t)(e->means[b] - prev);
+        prev = e->means[b];
+        if (e->nz[b] != UINT32_MAX)
+            sec->raw[HVQ_SEC_BITMAP][b >> 3] |= (uint8_t)(1u << (b & 7));
+    }
+    hvq_sections_put_indices(sec, e->i1, e->i2, e->nnz, L->w1, L->w2);
+    if (!e->shared)
+        hvq_sections_put_codebooks(sec, e->cb1, e->n1, e->cb2, e->n2);
+    uint64_t last = 0;
+    for (size_t z = 0; z < e->SZ; z++)
+        for (size_t y = 0; y < e->SY; y++)
+            for (size_t x = 0; x < e->SX; x++) {
+                uint64_t at = x + e->SX * (y + e->SY * (uint64_t)z);
+                int v = e->frame[at];
+                /* outside the core: the nearest core voxel's value (hvq2_skip) */
+                int d = v - base_value(e, x > e->OX ? x - e->OX : 0, y > e->OY ? y - e->OY : 0,
+                                       z > e->OZ ? z - e->OZ : 0);
+                if ((uint32_t)abs(d) <= R)
+                    continue;
+                int q = (abs(d) + (int)R) / (int)step; /* round(|d| / step), halves up */
+                if (!hvq_sections_put_residual(sec, at - last, d < 0 ? -q : q))
+                    return cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: out of memory for the "
+                                          "residual list");
+                last = at + 1;
+            }
+    return CDVR_OK;
+}
+
+cdvr_status cdvr_hvq_encode_compact(const cdvr_hvq_params *p, const cdvr_hvq_codebooks *shared,
+                                    const size_t dims[3], const uint8_t *frame, unsigned threads,
+                                    uint8_t *out, size_t out_cap, size_t *out_bytes,
+                                    cdvr_hvq_stats *stats, cdvr_error *err)
+{
+    hvq_enc e;
+    hvq_sections sec;
+    memset(&sec, 0, sizeof sec);
+    cdvr_status s = encode_common(&e, p, shared, 1, dims, frame, threads, out, out_bytes, err);
+    if (s == CDVR_OK)
+        s = compact_sections(&e, &sec, err);
+    if (s == CDVR_OK)
+        s = hvq_compact_write(&sec, dims, e.n1, e.n2, p->residual, shared ? shared->id : 0,
+                              out, out_cap, out_bytes, stats, err);
+    if (s == CDVR_OK && stats) {
+        stats->lbg_iterations[0] = e.lbg_iterations[0];
+        stats->lbg_iterations[1] = e.lbg_iterations[1];
+    }
+    hvq_sections_free(&sec);
+    enc_free(&e);
+    return s;
+}
+
+/* ---- shared codebooks ------------------------------------------------------------------------ */
+
+/* Appends at most `keep` (0: all) of n vectors of d values, evenly spaced (j*n/keep). */
+static int append_sample(int16_t **dst, size_t *have, const int16_t *src, size_t n, unsigned d,
+                         size_t keep)
+{
+    size_t m = keep && n > keep ? keep : n;
+    int16_t *p = realloc(*dst, sizeof *p * d * (*have + m + 1));
+    if (!p)
+        return 0;
+    *dst = p;
+    for (size_t j = 0; j < m; j++)
+        memcpy(p + (*have + j) * d, src + (size_t)((uint64_t)j * n / m) * d, sizeof *p * d);
+    *have += m;
+    return 1;
+}
+
+cdvr_status cdvr_hvq_train_shared(const cdvr_hvq_params *p, const size_t dims[3],
+                                  const uint8_t *const *frames, size_t nframes, unsigned threads,
+                                  uint8_t **blob, size_t *bytes, cdvr_error *err)
+{
+    *blob = NULL;
+    *bytes = 0;
+    if (nframes == 0)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: training shared codebooks on no frame");
+    int16_t *l1 = NULL, *l2 = NULL;
+    size_t n1v = 0, n2v = 0;
+    size_t keep = p->train ? (p->train + nframes - 1) / nframes : 0;
+    cdvr_status s = CDVR_OK;
+    for (size_t f = 0; s == CDVR_OK && f < nframes; f++) {
+        hvq_enc e;
+        memset(&e, 0, sizeof e);
+        e.p = p;
+        e.frame = frames[f];
+        e.SX = dims[0];
+        e.SY = dims[1];
+        e.SZ = dims[2];
+        e.OX = hvq2_skip(dims[0]); /* the grid an unbricked compact chunk of dims has */
+        e.OY = hvq2_skip(dims[1]);
+        e.OZ = hvq2_skip(dims[2]);
+        e.X = dims[0] - e.OX;
+        e.Y = dims[1] - e.OY;
+        e.Z = dims[2] - e.OZ;
+        e.threads = threads ? threads : hvq_threads_auto();
+        const uint64_t d64[3] = {e.X, e.Y, e.Z};
+        hvq_layout_get(d64, 0, 0, &e.L);
+        s = classify(&e, err);
+        if (s == CDVR_OK && (!append_sample(&l1, &n1v, e.l1, e.nnz, 8, keep) ||
+                             !append_sample(&l2, &n2v, e.l2, e.nnz, 64, keep)))
+            s = cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: out of memory for training vectors");
+        enc_free(&e);
+    }
+    hvq_enc t; /* the pooled vectors, trained as one frame's */
+    memset(&t, 0, sizeof t);
+    t.p = p;
+    t.threads = threads ? threads : hvq_threads_auto();
+    t.l1 = l1;
+    t.l2 = l2;
+    t.nnz = n1v;
+    t.i1 = malloc((n1v ? n1v : 1) * sizeof *t.i1);
+    t.i2 = malloc((n1v ? n1v : 1) * sizeof *t.i2);
+    if (s == CDVR_OK && (!t.i1 || !t.i2))
+        s = cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: out of memory for training vectors");
+    if (s == CDVR_OK)
+        s = quantise(&t, err);
+    if (s == CDVR_OK)
+        s = hvq_shared_write(t.cb1, t.n1, t.cb2, t.n2, blob, bytes, err);
+    enc_free(&t); /* frees l1, l2 */
     return s;
 }

@@ -128,6 +128,68 @@ cdvr_status hvq_vq_train(const int16_t *vectors, size_t n, unsigned d, unsigned 
 void hvq_vq_assign(const int16_t *vectors, size_t n, unsigned d, const int16_t *codebook,
                    unsigned k, int scale, unsigned threads, uint16_t *index);
 
+
+/* ---- compact form (HVQ2, cdvr/hvq.h) --------------------------------------------------------- */
+
+enum { HVQ_SEC_MEANS, HVQ_SEC_BITMAP, HVQ_SEC_INDEX, HVQ_SEC_CB1, HVQ_SEC_CB2, HVQ_SEC_RESPOS,
+       HVQ_SEC_RESVAL, HVQ_SECTIONS };
+
+/* The compact payload's header: "HVQ2", then unsigned LEB128 fields in this order: the dims,
+ * n1, n2, residual, flags, nres, respos_bytes, the sections' compressed sizes; then, when
+ * flags has HVQ2_FLAG_SHARED, the shared-codebook id as 8 bytes little endian. */
+typedef struct hvq2_header {
+    uint64_t dims[3], n1, n2, residual, flags, nres, respos_bytes;
+    uint64_t csize[HVQ_SECTIONS];
+    uint64_t id;
+    size_t bytes;  /* the header's size (read: as found; write: as written) */
+} hvq2_header;
+
+#define HVQ2_HEADER_MAX (4u + 10u * (9u + HVQ_SECTIONS) + 8u)
+
+/* Writes h at out (room for HVQ2_HEADER_MAX bytes); returns its size (also in h->bytes). */
+size_t hvq2_header_write(hvq2_header *h, uint8_t *out);
+/* Reads a header from the n bytes at in; 0 when they do not hold one (no magic, a field
+ * running past n or past 64 bits). */
+int hvq2_header_read(const uint8_t *in, size_t n, hvq2_header *h);
+
+/* The compact form's block grid covers the core: an axis of n = 4k + 1 >= 5 voxels (a store
+ * brick: its owned voxels and the one-voxel overlap below them) leaves its first plane out,
+ * decoded as a copy of the plane after it (before residuals), so the blocks of every brick
+ * lie on the whole volume's grid. hvq2_skip: the planes left out (0 or 1), hvq2_core: the
+ * core's extent. */
+static inline size_t hvq2_skip(size_t n) { return n >= 5 && n % 4 == 1 ? 1 : 0; }
+static inline size_t hvq2_core(size_t n) { return n - hvq2_skip(n); }
+#define HVQ2_FLAG_SHARED 1u  /* codebooks are the variant's (cdvr_hvq_codebooks) */
+
+/* The raw (uncompressed) sections of a compact payload. */
+typedef struct hvq_sections {
+    uint8_t *raw[HVQ_SECTIONS];
+    size_t size[HVQ_SECTIONS];  /* bytes in use */
+    size_t cap[HVQ_SECTIONS];   /* bytes allocated */
+    uint64_t nres;              /* residual voxels */
+    unsigned wq;                /* bytes per residual value (2 when R = 0, else 1) */
+} hvq_sections;
+
+/* Sections sized for the layout, nnz non-zero blocks and codebooks of n1, n2 entries (means,
+ * bitmap zeroed; the residual sections grow as residuals are put). */
+cdvr_status hvq_sections_alloc(hvq_sections *s, const hvq_layout *L, size_t nnz, uint32_t n1,
+                               uint32_t n2, cdvr_error *err);
+void hvq_sections_free(hvq_sections *s);
+void hvq_sections_put_indices(hvq_sections *s, const uint16_t *i1, const uint16_t *i2,
+                              size_t nnz, unsigned w1, unsigned w2);
+void hvq_sections_put_codebooks(hvq_sections *s, const int16_t *cb1, uint32_t n1,
+                                const int16_t *cb2, uint32_t n2);
+/* Appends one residual: its distance from the previous one's successor and q; 0: no memory. */
+int hvq_sections_put_residual(hvq_sections *s, uint64_t delta, int q);
+/* Compresses the sections into the payload (layout in cdvr/hvq.h). */
+cdvr_status hvq_compact_write(const hvq_sections *s, const size_t dims[3], uint32_t n1,
+                              uint32_t n2, uint32_t residual, uint64_t shared_id, uint8_t *out,
+                              size_t out_cap, size_t *out_bytes, cdvr_hvq_stats *stats,
+                              cdvr_error *err);
+/* A shared codebook blob (layout in cdvr/hvq.h) of these codebooks; *blob is malloc'd. */
+cdvr_status hvq_shared_write(const int16_t *cb1, uint32_t n1, const int16_t *cb2, uint32_t n2,
+                             uint8_t **blob, size_t *bytes, cdvr_error *err);
+
 /* ---- threads -------------------------------------------------------------------------------- */
 
 /* Runs fn(ctx, item) for item in 0..count-1 on up to `threads` threads (items taken in order

@@ -3,7 +3,8 @@
  * A codec turns the u8 frames of one chunk (a few consecutive timesteps of one brick of a
  * series) into a payload and back. The store, the encoder, schedules, the player, the
  * renderers and the Lua layer only ever go through a `cdvr_codec` table; none of them names a
- * codec or its parameters. Built-in codecs: "raw" (id 0), "pvtc" (id 1), "hvq" (id 2);
+ * codec or its parameters. Built-in codecs: "raw" (id 0), "pvtc" (id 1), "hvq" (id 2),
+ * "hvqc" (id 3);
  * plugins (cdvr/plugin.h) add more at run time.
  *
  * Parameters. Each codec keeps its parameters in a `cdvr_codec_params` blob of at most
@@ -69,6 +70,7 @@
 #define CDVR_CODEC_ID_RAW 0u
 #define CDVR_CODEC_ID_PVTC 1u
 #define CDVR_CODEC_ID_HVQ 2u
+#define CDVR_CODEC_ID_HVQC 3u  /* hvq's compact form (cdvr/hvq.h) */
 
 typedef struct cdvr_codec_params {
     uint8_t bytes[CDVR_CODEC_PARAMS_MAX];
@@ -235,5 +237,33 @@ static inline void cdvr_params_set_f64(cdvr_codec_params *p, size_t offset, doub
     for (size_t i = 0; i < 8 && offset + i < CDVR_CODEC_PARAMS_MAX; i++)
         p->bytes[offset + i] = (uint8_t)(v >> (8 * i));
 }
+
+
+/* ---- data shared by a variant's chunks (built-in codecs; no plugin ABI change) --------------
+ * A variant may hold one blob every chunk decoder of it needs (hvqc's shared codebooks),
+ * stored once per variant in the store and trained before the chunks are encoded. A codec
+ * that uses one names it in its chunk parameter blob by its id (cdvr_shared_id). The blobs in
+ * use live in the process-wide shared-blob table (a context like the registry, guarded by a
+ * mutex, reference counted): the store adds its variants' blobs on open and encode and drops
+ * them on close, and a decoder borrows the blob its parameters name while it decodes. */
+
+/* FNV-1a 64 of the blob (never 0): the id a chunk's parameters name it by. */
+uint64_t cdvr_shared_id(const uint8_t *blob, size_t bytes);
+/* Adds a reference to the blob of id cdvr_shared_id(blob, bytes) (copied on the first). */
+cdvr_status cdvr_shared_put(const uint8_t *blob, size_t bytes, uint64_t *id, cdvr_error *err);
+/* Drops one reference (put); the last one frees the copy. Unknown ids are ignored. */
+void cdvr_shared_drop(uint64_t id);
+/* Borrows the blob of id: *blob and *bytes stay valid until cdvr_shared_drop (the borrow
+ * holds a reference); CDVR_ERR_UNSUPPORTED naming the id when no open store holds it. */
+cdvr_status cdvr_shared_borrow(uint64_t id, const uint8_t **blob, size_t *bytes,
+                               cdvr_error *err);
+/* 1 when the codec wants a shared blob trained for these parameters. */
+int cdvr_codec_wants_shared(const cdvr_codec *codec, const cdvr_codec_params *p);
+/* Trains the shared blob on nframes sample frames of the whole volume (dims) and records its
+ * id in *p (the codec's own field). *blob is malloc'd. */
+cdvr_status cdvr_codec_train_shared(const cdvr_codec *codec, cdvr_codec_params *p,
+                                    const size_t dims[3], const uint8_t *const *frames,
+                                    size_t nframes, uint8_t **blob, size_t *bytes,
+                                    cdvr_error *err);
 
 #endif

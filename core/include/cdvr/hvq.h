@@ -115,6 +115,54 @@
  *  a directory n other than the number of slots whose key maps to themselves (and lies in the
  *  region), m > 1023, r > 256, and codebook sizes above the parameters' k1, k2.
  *
+ * ---- Compact form: codec "hvqc" (id 3), payload magic "HVQ2" --------------------------------
+ * Steps 1-4 as above (the same means, zero blocks, codebooks and indices for the same
+ * parameters and frame; with shared codebooks, step 4 assigns to the given codebooks and
+ * trains none). No hashes: residuals are a list. Residual stage: b as in step 5; for every
+ * voxel with |d| > R, d = v - b, R = `residual`, the payload keeps its position and
+ * q = sign(d) * floor((|d| + R) / (2R + 1)) (|d - q(2R+1)| <= R). Decoding:
+ *     value = clamp(b + q * (2R + 1), 0, 255)     at a residual voxel (|value - v| <= R, as
+ *                                                 clamping only moves toward v in 0..255);
+ *           = b                                   elsewhere (b: the formula of step 5).
+ * Payload: the magic "HVQ2", then these fields, each an unsigned LEB128 (7 bits a byte, low
+ * first, bit 7 set on every byte but the last; at most 64 bits):
+ *          X, Y, Z     the chunk's dims
+ *          n1, n2      codebook sizes (the shared codebooks' when flags bit 0 is set)
+ *          R           0..255
+ *          flags       bit 0: the codebooks are the variant's shared ones (none inside);
+ *                      others 0
+ *          NR          residual voxels (at most X*Y*Z)
+ *          P           bytes of the raw residual position list (at most 10 * NR)
+ *          C1 .. C7    compressed bytes of the 7 sections below (0 iff the section is empty)
+ *        then, with flag bit 0, the shared-codebook id (cdvr_shared_id of the blob, not 0):
+ *        8 bytes little endian; then the sections, each one zstd frame with its content size
+ *        and checksum, back to back, ending exactly at the end of the payload. Raw contents:
+ *          means      NB bytes: m[b] - m[b-1] mod 256, block order (m[-1] = 0); the block
+ *                     grid covers the core: an axis of n = 4k+1 >= 5 voxels (a store brick:
+ *                     its owned voxels and the one-voxel overlap below them) leaves its first
+ *                     plane out (the core starts at 1 there and has n-1 voxels), that plane
+ *                     decoding as a copy of the next (b of the nearest core voxel) before
+ *                     residuals: every brick's blocks then lie on the whole volume's grid
+ *          bitmap     ceil(NB/8) bytes: bit b%8 of byte b/8 set iff block b is non-zero (bits
+ *                     past NB zero); NZ = the number of set bits
+ *          indices    NZ x W1 then NZ x W2 bytes (W as in the hashed form), each index list as
+ *                     byte planes (all low bytes, then all high bytes when W = 2), non-zero
+ *                     blocks in block order
+ *          codebook 1 16 x n1 bytes: the 8 n1 int16 values entry-major, as byte planes
+ *          codebook 2 128 x n2 bytes: likewise (both empty with shared codebooks)
+ *          positions  NR unsigned LEB128 deltas: voxel index x + X(y + Y z) of residual k
+ *                     minus (index of residual k-1) minus 1 (k = 0: the index itself)
+ *          values     NR x WQ bytes, WQ = 2 if R = 0 else 1: zigzag(q) (2q for q >= 0, -2q-1
+ *                     else), one u16 little endian per value when WQ = 2
+ * The decoder rejects (CDVR_ERR_CORRUPT) any other layout, an index past its codebook, a
+ * position past the last voxel, a section that does not inflate to its size exactly, a shared
+ * payload without (or with other) shared codebooks, and codebook sizes above k1, k2.
+ * Shared codebook blob ("HVQS", stored once per variant, cdvr/codec.h): 0 "HVQS", 4 u32 n1,
+ * 8 u32 n2, 12 u32 0, 16 u64 compressed bytes C, 24: one zstd frame (C bytes) of codebook 1
+ * then codebook 2 as byte planes (as in the payload). Trained on the pooled non-zero blocks
+ * (on the block grid an unbricked compact chunk of the whole volume has)
+ * of up to 4 sample frames of the whole volume (at most ceil(train / frames) vectors of each).
+ *
  * ---- Parameter blob (CDVR_CODEC_PARAMS_MAX bytes, little endian, unused bytes 0) -----------
  *   0  f64 grad      zero-block threshold on the average gradient, 0..765 (default 8)
  *   8  f64 eps       LBG stop: relative distortion change, 0 < eps < 1 (default 0.01)
@@ -122,6 +170,8 @@
  *  20  u32 k1        codebook 1 size at most, 1..4096 (default 4096)
  *  24  u32 k2        codebook 2 size at most, 1..4096 (default 1024)
  *  28  u32 train     training vectors at most, 0 = all (default 262144)
+ *  hvqc only: 32 u32 shared (0/1), 36 u32 0, 40 u64 shared-codebook id (set by the store
+ *  encoder after training; 0 unless shared = 1)
  */
 #ifndef CDVR_HVQ_H
 #define CDVR_HVQ_H
@@ -148,6 +198,7 @@ typedef struct cdvr_hvq_params {
  * padding and the region directory; index_hash and residual_hash = offset tables + slots. */
 typedef struct cdvr_hvq_stats {
     size_t header, means, codebook1, codebook2, index_hash, residual_hash;
+    size_t indices, residuals;  /* compact form: bitmap + index list, residual list */
     size_t blocks, zero_blocks, residual_voxels;
     size_t codebook1_entries, codebook2_entries, regions;
     /* encoder only (cdvr_hvq_check leaves them 0): LBG iterations of codebook 1 and 2, and
@@ -196,5 +247,52 @@ cdvr_status cdvr_hvq_decode(const cdvr_hvq_params *p, const size_t dims[3],
  * did not write must check it first. */
 uint8_t cdvr_hvq_fetch(const uint8_t *payload, const size_t dims[3], size_t x, size_t y,
                        size_t z);
+
+/* ---- compact form ("hvqc", magic HVQ2; layout at the top) ---- */
+
+/* The variant's shared codebooks, opened from their blob (cdvr_hvq_shared_open). */
+typedef struct cdvr_hvq_codebooks {
+    uint32_t n1, n2;
+    int16_t *c1, *c2;  /* n1 x 8, n2 x 64 */
+    uint64_t id;       /* cdvr_shared_id of the blob (cdvr/codec.h) */
+} cdvr_hvq_codebooks;
+
+/* Worst-case compact payload bytes for dims. */
+cdvr_status cdvr_hvq_compact_bound(const cdvr_hvq_params *p, const size_t dims[3],
+                                   size_t *bytes, cdvr_error *err);
+/* Encodes one u8 frame into the compact form: the same classification and codebooks as
+ * cdvr_hvq_encode (shared != NULL: these codebooks, not trained; the payload then names their
+ * id and holds none), residuals as a list of quantised corrections (every voxel within
+ * p->residual of the original). stats: header, means, codebook1/2, indices, residuals. */
+cdvr_status cdvr_hvq_encode_compact(const cdvr_hvq_params *p, const cdvr_hvq_codebooks *shared,
+                                    const size_t dims[3], const uint8_t *frame, unsigned threads,
+                                    uint8_t *out, size_t out_cap, size_t *out_bytes,
+                                    cdvr_hvq_stats *stats, cdvr_error *err);
+/* Checks a compact payload completely (every section inflated and checked). shared: the
+ * codebooks a payload coded with shared codebooks needs (CDVR_ERR_CORRUPT without them). */
+cdvr_status cdvr_hvq_compact_check(const cdvr_hvq_params *p, const cdvr_hvq_codebooks *shared,
+                                   const size_t dims[3], const uint8_t *payload, size_t bytes,
+                                   cdvr_hvq_stats *stats, cdvr_error *err);
+/* Checks and decodes a compact payload into out (X*Y*Z bytes). */
+cdvr_status cdvr_hvq_compact_decode(const cdvr_hvq_params *p, const cdvr_hvq_codebooks *shared,
+                                    const size_t dims[3], const uint8_t *payload, size_t bytes,
+                                    uint8_t *out, cdvr_error *err);
+
+/* Shared codebooks: trains one codebook set on the pooled non-zero blocks of nframes sample
+ * frames of dims (at most ceil(train / nframes) vectors of each, evenly spaced; the sizes
+ * follow the same rules as one frame's) and writes its blob (*blob malloc'd). */
+cdvr_status cdvr_hvq_train_shared(const cdvr_hvq_params *p, const size_t dims[3],
+                                  const uint8_t *const *frames, size_t nframes, unsigned threads,
+                                  uint8_t **blob, size_t *bytes, cdvr_error *err);
+/* Opens a blob (checked: CDVR_ERR_CORRUPT) into cb; p may be NULL (sizes up to K_MAX). */
+cdvr_status cdvr_hvq_shared_open(const cdvr_hvq_params *p, const uint8_t *blob, size_t bytes,
+                                 cdvr_hvq_codebooks *cb, cdvr_error *err);
+void cdvr_hvq_codebooks_free(cdvr_hvq_codebooks *cb);
+/* The hvqc codec's side of cdvr_codec_wants_shared / cdvr_codec_train_shared (cdvr/codec.h):
+ * shared=1 in the blob; training sets the blob's shared-codebook id. */
+int cdvr_hvqc_wants_shared(const cdvr_codec_params *p);
+cdvr_status cdvr_hvqc_train_shared(cdvr_codec_params *p, const size_t dims[3],
+                                   const uint8_t *const *frames, size_t nframes, uint8_t **blob,
+                                   size_t *bytes, cdvr_error *err);
 
 #endif

@@ -164,7 +164,7 @@ typedef struct cdvr_variant_info {
     cdvr_stage2 stage2;
     size_t nchunks;                /* groups x bricks */
     size_t ngroups;
-    uint64_t bytes;                /* stored bytes of all chunks */
+    uint64_t bytes;                /* stored bytes of all chunks (and the shared blob) */
     uint64_t payload_bytes;        /* bytes before stage 2 */
     uint64_t ranges_bytes;         /* stored bytes of the chunks' range tables */
     double psnr, maxerr;           /* volume PSNR / max error measured at encode time */
@@ -172,6 +172,9 @@ typedef struct cdvr_variant_info {
     double stage2_read_mbps;       /* AUTO's read rate at encode time (0: not recorded) */
     size_t stage2_segment;         /* segment bytes at encode time (0: not recorded) */
     size_t stage2_chunks[4];       /* chunks stored with stage 2 none, LZO, LZ4, zstd */
+    /* The blob the variant's chunks share (cdvr/codec.h; hvqc shared=1), 0 bytes if none;
+     * counted in `bytes`. shared_id: its id in the shared-blob table while the store is open. */
+    uint64_t shared_offset, shared_bytes, shared_id;
 } cdvr_variant_info;
 
 typedef struct cdvr_store_info {

@@ -44,7 +44,10 @@
 --            per frame), else of all frames
 --   grid   = median grid_ms over all frames (the skip grids made from the range tables, on
 --            the unzip worker; 0 for rows without it)
---   setup, render = medians over all frames (they do not depend on the variant)
+--   render = median render_ms of that variant's frames, else of all frames (a codec that
+--            fetches every sample from its payload, hvq, renders many times slower than a
+--            dense volume: the render depends on the variant)
+--   setup  = median over all frames (it does not depend on the variant)
 -- (policy.stages(v, m) gives these per-stage predictions, policy.predict(v, m) their total.)
 -- Serial player: the sum. Pipelined player (cdvr/player.h: reader thread, unzip thread, and
 -- the device thread doing upload..render): max(read, unzip+grid, upload+decode+setup+render).
@@ -303,6 +306,7 @@ function policy.measure(frames, variants)
   }
   m.unzip_by_stage2 = variants and unzip_rates(frames, variants) or {}
   m.decode = {}
+  m.render_of = {}
   return m
 end
 
@@ -329,6 +333,10 @@ function policy.stages(v, m)
   if m.decode[v.name] == nil then
     m.decode[v.name] = field_median(m.frames, "decode_ms", v.name) or m.decode_all or false
   end
+  m.render_of = m.render_of or {}
+  if m.render_of[v.name] == nil then
+    m.render_of[v.name] = field_median(m.frames, "render_ms", v.name) or m.render
+  end
   return {
     read = per(stored_bytes(v), m.read),
     unzip = uses_stage2(v) and per(payload_bytes(v), (m.unzip_by_stage2 or {})[v.stage2] or m.unzip)
@@ -337,7 +345,7 @@ function policy.stages(v, m)
     decode = m.decode[v.name] or 0,
     grid = m.grid or 0,
     setup = m.setup,
-    render = m.render,
+    render = m.render_of[v.name],
   }
 end
 
