@@ -10,7 +10,8 @@
 --   raw; raw with stage 2 zstd and lz4 (lossless, fewer bits);
 --   PVTC S1T3, S4T3, S1T2, S4T2 (no stage 2), and S4T3 / S1T3 with stage 2 lzo, lz4, zstd;
 --   zfp at each rate of --zfp (bits per voxel, default 0.5,1,2,4) when the zfp plugin is
---   loaded; hvq (default parameters) when the codec is registered;
+--   loaded; hvq and hvqc (default parameters; hvqc also with shared=1 unless --quick) when
+--   those codecs are registered;
 -- then measure, per variant:
 --   bpv          stored bits per voxel (chunks after stage 2; range tables not counted);
 --   image_psnr   mean over --frames frames of an orbit of the PSNR of the render of the
@@ -24,7 +25,7 @@
 --                an equal or higher image PSNR, one of them strictly (the front a user picks
 --                from: the best quality for a budget of bits).
 -- Each dataset keeps its first --timesteps timesteps (default 3). --quick: fewer variants
--- (raw, raw_zstd, S1T3, S4T3, S4T3_lz4, S4T3_zstd, zfp at 1 and 4 bpv, hvq), 4 frames of
+-- (raw, raw_zstd, S1T3, S4T3, S4T3_lz4, S4T3_zstd, zfp at 1 and 4 bpv, hvq, hvqc), 4 frames of
 -- 96^2 and a 128^3 series, for a run of a few minutes on 2 cores.
 -- Writes DIR/frontier.csv (columns above, one row per dataset and variant) and
 -- DIR/frontier.png (gnuplot, one panel per dataset: image PSNR against bits per voxel, each
@@ -119,6 +120,10 @@ local function variant_list()
     end
   end
   if codec_loaded("hvq") then list[#list + 1] = {name = "hvq", codec = "hvq"} end
+  if codec_loaded("hvqc") then -- hvq's compact form; shared=1: one codebook set per variant
+    list[#list + 1] = {name = "hvqc", codec = "hvqc"}
+    if not quick then list[#list + 1] = {name = "hvqc_s", codec = "hvqc", shared = 1} end
+  end
   return list
 end
 local variants = variant_list()

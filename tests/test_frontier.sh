@@ -16,7 +16,7 @@ check "frontier.lua exit 0" [ $? -eq 0 ]
 [ -s "$tmp/f/frontier.csv" ] || cat "$tmp/f.err" >&2
 csv="$tmp/f/frontier.csv"
 check "frontier.csv columns" [ "$(head -1 "$csv")" = "dataset,config,codec,stage2,bpv,image_psnr,volume_psnr,decode_gb_s,unpack_gb_s,fps,frame_ms,pareto" ]
-nvar=6; "$cdvr" -e 'for _, c in ipairs(cdvr.codecs()) do if c.name == "hvq" then os.exit(0) end end os.exit(1)' 2>/dev/null && nvar=7
+nvar=$("$cdvr" -e 'local n = 6 for _, c in ipairs(cdvr.codecs()) do if c.name == "hvq" or c.name == "hvqc" then n = n + 1 end end print(n)')
 check "one row per variant and dataset ($nvar each)" [ "$(grep -c '^neghip_66x66x66_u8,' "$csv")" -eq $nvar ] && \
   [ "$(grep -c '^mpld_asl_64x64x24x25_f32,' "$csv")" -eq $nvar ]
 check "every row has 12 fields" [ "$(awk -F, 'NR > 1 && NF != 12' "$csv" | wc -l)" -eq 0 ]
