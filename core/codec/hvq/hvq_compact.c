@@ -247,6 +247,7 @@ cdvr_status hvq_compact_write(const hvq_sections *s, const size_t dims[3], uint3
         stats->residual_voxels = (size_t)s->nres;
         stats->codebook1_entries = n1;
         stats->codebook2_entries = n2;
+        stats->residual = residual;
     }
     return st;
 }
@@ -538,6 +539,7 @@ cdvr_status cdvr_hvq_compact_check(const cdvr_hvq_params *p, const cdvr_hvq_code
         stats->residual_voxels = (size_t)v.s.nres;
         stats->codebook1_entries = v.n1;
         stats->codebook2_entries = v.n2;
+        stats->residual = v.residual;
     }
     view2_free(&v);
     return s;

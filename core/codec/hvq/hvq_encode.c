@@ -119,6 +119,7 @@ typedef struct hvq_enc {
     int16_t *cb2;         /* K_MAX x 64 */
     unsigned n1, n2;
     const cdvr_hvq_codebooks *shared; /* compact form: the variant's codebooks, or NULL */
+    uint32_t R;           /* the residual threshold applied (choose_residual) */
     int lbg_iterations[2];
     hvq_psh *ihash, *rhash;  /* per region */
     cdvr_status *rstatus;
@@ -291,6 +292,64 @@ static int base_value(const hvq_enc *e, size_t x, size_t y, size_t z)
     return v < 0 ? 0 : v > 255 ? 255 : v;
 }
 
+/* Frame voxel (x, y, z)'s value before the residual stage: outside the compact form's core,
+ * the nearest core voxel's (hvq2_skip; the hashed form's core is the frame). */
+static int frame_base(const hvq_enc *e, size_t x, size_t y, size_t z)
+{
+    return base_value(e, x > e->OX ? x - e->OX : 0, y > e->OY ? y - e->OY : 0,
+                      z > e->OZ ? z - e->OZ : 0);
+}
+
+/* Squared error of the decoded voxel (base b, original v) at residual threshold R. */
+static uint64_t decoded_error2(int b, int v, uint32_t R, int compact)
+{
+    int d = v - b;
+    if ((uint32_t)abs(d) <= R)
+        return (uint64_t)(d * d);
+    if (!compact)
+        return 0; /* the residual hash holds v */
+    int step = 2 * (int)R + 1, q = (abs(d) + (int)R) / step;
+    int value = b + (d < 0 ? -q : q) * step;
+    value = value < 0 ? 0 : value > 255 ? 255 : value;
+    return (uint64_t)((value - v) * (value - v));
+}
+
+/* The residual threshold (cdvr/hvq.h "Quality target"): p->residual, or under a PSNR target
+ * the largest R <= p->residual whose decoded frame meets it, from the exact squared error of
+ * each R over the histogram of (base, original) pairs. */
+static cdvr_status choose_residual(hvq_enc *e, int compact, cdvr_error *err)
+{
+    e->R = e->p->residual;
+    if (!(e->p->psnr > 0))
+        return CDVR_OK;
+    uint64_t *pairs = calloc(256 * 256 * 3, sizeof *pairs);
+    if (!pairs)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: out of memory for the PSNR search");
+    for (size_t z = 0; z < e->SZ; z++)
+        for (size_t y = 0; y < e->SY; y++)
+            for (size_t x = 0; x < e->SX; x++)
+                pairs[256 * frame_base(e, x, y, z) + e->frame[x + e->SX * (y + e->SY * z)]]++;
+    uint64_t *list = pairs + 256 * 256; /* the non-empty pairs: b << 8 | v, then the count */
+    size_t used = 0;
+    for (unsigned bv = 0; bv < 256 * 256; bv++)
+        if (pairs[bv]) {
+            list[used++] = bv;
+            list[used++] = pairs[bv];
+        }
+    double voxels = (double)e->SX * (double)e->SY * (double)e->SZ;
+    double sse_max = 255.0 * 255.0 * voxels / pow(10.0, e->p->psnr / 10.0);
+    for (;; e->R--) {
+        uint64_t sse = 0;
+        for (size_t i = 0; i < used; i += 2)
+            sse += list[i + 1] * decoded_error2((int)(list[i] >> 8), (int)(list[i] & 255),
+                                                e->R, compact);
+        if (sse == 0 || (double)sse <= sse_max || e->R == 0)
+            break;
+    }
+    free(pairs);
+    return CDVR_OK;
+}
+
 static void put_index(uint8_t *p, unsigned w, unsigned v)
 {
     if (w == 1)
@@ -368,7 +427,7 @@ static void build_region(void *ctx, size_t r)
         for (size_t y = y0; s == CDVR_OK && y < y1; y++)
             for (size_t x = x0; x < x1; x++) {
                 int v = e->frame[x + e->X * (y + e->Y * z)];
-                if ((uint32_t)abs(v - base_value(e, x, y, z)) <= e->p->residual)
+                if ((uint32_t)abs(v - base_value(e, x, y, z)) <= e->R)
                     continue;
                 if (!key_list_grow(&k)) {
                     s = CDVR_ERR_NOMEM;
@@ -467,6 +526,7 @@ static cdvr_status write_payload(const hvq_enc *e, uint8_t *out, size_t out_cap,
         stats->codebook1_entries = e->n1;
         stats->codebook2_entries = e->n2;
         stats->regions = (size_t)L.nregions;
+        stats->residual = e->R;
         stats->lbg_iterations[0] = e->lbg_iterations[0];
         stats->lbg_iterations[1] = e->lbg_iterations[1];
         for (uint64_t r = 0; r < L.nregions; r++) {
@@ -516,6 +576,8 @@ static cdvr_status encode_common(hvq_enc *e, const cdvr_hvq_params *p,
         s = quantise(e, err);
     if (s == CDVR_OK)
         hvq_layout_get(d64, e->n1, e->n2, &e->L);
+    if (s == CDVR_OK)
+        s = choose_residual(e, compact, err);
     return s;
 }
 
@@ -542,7 +604,7 @@ cdvr_status cdvr_hvq_encode(const cdvr_hvq_params *p, const size_t dims[3],
 static cdvr_status compact_sections(const hvq_enc *e, hvq_sections *sec, cdvr_error *err)
 {
     const hvq_layout *L = &e->L;
-    uint32_t R = e->p->residual, step = 2 * R + 1;
+    uint32_t R = e->R, step = 2 * R + 1;
     cdvr_status s = hvq_sections_alloc(sec, L, e->nnz, e->shared ? 0 : e->n1,
                                        e->shared ? 0 : e->n2, err);
     if (s != CDVR_OK)
@@ -565,8 +627,7 @@ static cdvr_status compact_sections(const hvq_enc *e, hvq_sections *sec, cdvr_er
                 uint64_t at = x + e->SX * (y + e->SY * (uint64_t)z);
                 int v = e->frame[at];
                 /* outside the core: the nearest core voxel's value (hvq2_skip) */
-                int d = v - base_value(e, x > e->OX ? x - e->OX : 0, y > e->OY ? y - e->OY : 0,
-                                       z > e->OZ ? z - e->OZ : 0);
+                int d = v - frame_base(e, x, y, z);
                 if ((uint32_t)abs(d) <= R)
                     continue;
                 int q = (abs(d) + (int)R) / (int)step; /* round(|d| / step), halves up */
@@ -590,7 +651,7 @@ cdvr_status cdvr_hvq_encode_compact(const cdvr_hvq_params *p, const cdvr_hvq_cod
     if (s == CDVR_OK)
         s = compact_sections(&e, &sec, err);
     if (s == CDVR_OK)
-        s = hvq_compact_write(&sec, dims, e.n1, e.n2, p->residual, shared ? shared->id : 0,
+        s = hvq_compact_write(&sec, dims, e.n1, e.n2, e.R, shared ? shared->id : 0,
                               out, out_cap, out_bytes, stats, err);
     if (s == CDVR_OK && stats) {
         stats->lbg_iterations[0] = e.lbg_iterations[0];
