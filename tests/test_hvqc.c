@@ -6,7 +6,8 @@
  * shared codebooks (trained on some frames, used by others and by bricks; refused without
  * them or with others; a corrupt blob) and a bricked two-timestep store with shared=1 that
  * reopens and decodes within the bound, a corrupted shared blob failing the decode; the PSNR
- * target (psnr=): met, within `residual`, the largest threshold that meets it, reported. */
+ * target (psnr=): met, within `residual`, the largest threshold that meets it, reported;
+ * k2=auto: the smallest payload of the candidate sizes. */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -568,6 +569,80 @@ static void test_quality_target(void)
     free(v);
 }
 
+/* k2=auto: the payload is byte for byte the plain encode at the candidate size that gives the
+ * smallest payload (the 1-per-8-blocks cap ends the candidates early), decodes within
+ * `residual`; the hashed form and shared codebooks refuse it. */
+static void test_k2_auto(void)
+{
+    const size_t d[3] = {64, 60, 44}, n = 64 * 60 * 44;
+    uint8_t *v = make_volume(d, 5);
+    uint32_t seed = 7;
+    for (size_t i = 0; i < n; i++)
+        v[i] = (uint8_t)(v[i] < 200 ? v[i] + rng_next(&seed) % 16 : v[i]);
+    cdvr_hvq_params p;
+    cdvr_hvq_params_default(&p);
+    p.grad = 2;
+    p.residual = 6;
+    coded best = {NULL, SIZE_MAX, {0}}, plain, aut;
+    const uint32_t sizes[4] = {256, 512, 1024, 2048};
+    size_t distinct = 0, last_n2 = 0;
+    for (int i = 0; i < 4; i++) {
+        p.k2 = sizes[i];
+        if (!encode(&p, d, v, 1, 2, &plain))
+            return;
+        if (plain.stats.codebook2_entries == last_n2) {
+            free(plain.bytes);
+            break;
+        }
+        distinct++;
+        last_n2 = plain.stats.codebook2_entries;
+        if (plain.n < best.n) {
+            free(best.bytes);
+            best = plain;
+        } else {
+            free(plain.bytes);
+        }
+    }
+    p.k2 = 0;
+    if (!encode(&p, d, v, 1, 2, &aut))
+        return;
+    CHECK(distinct >= 2 && aut.n == best.n && memcmp(aut.bytes, best.bytes, aut.n) == 0 &&
+              aut.stats.codebook2_entries == best.stats.codebook2_entries,
+          "k2=auto: %zu bytes (%zu entries), the best of %zu sizes %zu bytes (%zu entries)",
+          aut.n, aut.stats.codebook2_entries, distinct, best.n, best.stats.codebook2_entries);
+    uint8_t *out = malloc(n);
+    cdvr_error err;
+    CHECK_OK(cdvr_hvq_compact_decode(&p, NULL, d, aut.bytes, aut.n, out, &err), err);
+    int maxerr;
+    frame_psnr(out, v, n, &maxerr);
+    CHECK(maxerr <= (int)p.residual, "k2=auto: max error %d", maxerr);
+    size_t bound = 0, got;
+    CHECK_OK(cdvr_hvq_bound(&p, d, &bound, &err), err);
+    uint8_t *hashed = malloc(bound);
+    CHECK(cdvr_hvq_encode(&p, d, v, 1, hashed, bound, &got, NULL, &err) == CDVR_ERR_ARG &&
+              strstr(err.msg, "auto"), "the hashed form accepted k2 = auto");
+    free(hashed);
+    const cdvr_codec *c = cdvr_codec_find("hvqc"), *h = cdvr_codec_find("hvq");
+    cdvr_codec_params blob;
+    char name[CDVR_VARIANT_NAME_MAX], got_k2[16];
+    c->params_default(&blob);
+    CHECK_OK(c->params_set(&blob, "k2", "auto", &err), err);
+    CHECK_OK(c->params_check(&blob, &err), err);
+    c->variant_name(&blob, name, sizeof name);
+    CHECK(strcmp(name, "hvqc_k4096xauto") == 0 &&
+              c->params_get(&blob, "k2", got_k2, sizeof got_k2) == 0 &&
+              strcmp(got_k2, "auto") == 0, "k2=auto: name '%s', reads back '%s'", name, got_k2);
+    CHECK_OK(c->params_set(&blob, "shared", "1", &err), err);
+    CHECK(c->params_check(&blob, &err) == CDVR_ERR_ARG, "hvqc accepted k2=auto with shared=1");
+    h->params_default(&blob);
+    CHECK_OK(h->params_set(&blob, "k2", "auto", &err), err);
+    CHECK(h->params_check(&blob, &err) == CDVR_ERR_ARG, "hvq accepted k2=auto");
+    free(out);
+    free(aut.bytes);
+    free(best.bytes);
+    free(v);
+}
+
 int main(void)
 {
     test_table();
@@ -577,5 +652,6 @@ int main(void)
     test_shared();
     test_shared_store();
     test_quality_target();
+    test_k2_auto();
     return check_finish();
 }

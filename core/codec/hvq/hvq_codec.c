@@ -81,9 +81,9 @@ cdvr_status cdvr_hvq_params_check(const cdvr_hvq_params *p, cdvr_error *err)
     if (p->residual > 255)
         return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: residual = %u, must be 0..255",
                               p->residual);
-    if (p->k1 < 1 || p->k1 > CDVR_HVQ_K_MAX || p->k2 < 1 || p->k2 > CDVR_HVQ_K_MAX)
+    if (p->k1 < 1 || p->k1 > CDVR_HVQ_K_MAX || p->k2 > CDVR_HVQ_K_MAX)
         return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: k1 = %u, k2 = %u, each must be "
-                              "1..%u", p->k1, p->k2, CDVR_HVQ_K_MAX);
+                              "1..%u (k2 0: auto)", p->k1, p->k2, CDVR_HVQ_K_MAX);
     if (!(p->psnr >= 0 && p->psnr <= PSNR_CENTI_MAX / 100.0))
         return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: psnr = %g, must be 0..200 dB",
                               p->psnr);
@@ -137,6 +137,10 @@ static cdvr_status hvq_set(cdvr_codec_params *blob, const char *key, const char 
     } else if (strcmp(key, "residual") == 0) {
         ok = parse_u32(value, 255, &p.residual);
         want = "an integer 0..255";
+    } else if (strcmp(key, "k2") == 0 && strcmp(value, "auto") == 0) {
+        p.k2 = 0; /* the compact form chooses (hvqc_check; the hashed form refuses it) */
+        ok = 1;
+        want = "";
     } else if (strcmp(key, "k1") == 0 || strcmp(key, "k2") == 0) {
         uint32_t *k = key[1] == '1' ? &p.k1 : &p.k2;
         ok = parse_u32(value, CDVR_HVQ_K_MAX, k) && *k >= 1;
@@ -171,6 +175,8 @@ static int hvq_get(const cdvr_codec_params *blob, const char *key, char *out, si
         snprintf(out, n, "%u", p.residual);
     else if (strcmp(key, "k1") == 0)
         snprintf(out, n, "%u", p.k1);
+    else if (strcmp(key, "k2") == 0 && p.k2 == 0)
+        snprintf(out, n, "auto");
     else if (strcmp(key, "k2") == 0)
         snprintf(out, n, "%u", p.k2);
     else if (strcmp(key, "train") == 0)
@@ -187,6 +193,9 @@ static cdvr_status hvq_check(const cdvr_codec_params *blob, cdvr_error *err)
     cdvr_hvq_params p;
     cdvr_hvq_params_from_blob(blob, &p);
     cdvr_status s = cdvr_hvq_params_check(&p, err);
+    if (s == CDVR_OK && p.k2 == 0)
+        s = cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: k2 = auto is for the compact form "
+                           "(codec hvqc)");
     if (s == CDVR_OK && cdvr_params_get_u32(blob, OFF_PSNR) > PSNR_CENTI_MAX)
         s = cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: psnr = %u/100 dB, above 200 dB",
                            cdvr_params_get_u32(blob, OFF_PSNR));
@@ -210,8 +219,11 @@ static void name_with(const char *prefix, const cdvr_codec_params *blob, char *n
         len += snprintf(buf + len, sizeof buf - (size_t)len, "_g%.6g", p.grad);
     if (p.residual != d.residual)
         len += snprintf(buf + len, sizeof buf - (size_t)len, "_r%u", p.residual);
-    if (p.k1 != d.k1 || p.k2 != d.k2)
-        len += snprintf(buf + len, sizeof buf - (size_t)len, "_k%ux%u", p.k1, p.k2);
+    if (p.k1 != d.k1 || p.k2 != d.k2) {
+        char k2[16];
+        snprintf(k2, sizeof k2, p.k2 ? "%u" : "auto", p.k2);
+        len += snprintf(buf + len, sizeof buf - (size_t)len, "_k%ux%s", p.k1, k2);
+    }
     if (p.eps != d.eps)
         len += snprintf(buf + len, sizeof buf - (size_t)len, "_e%.3g", p.eps);
     if (p.train != d.train)
@@ -327,7 +339,8 @@ static const cdvr_codec_param_doc hvqc_params[] = {
     {"grad", "8", "zero-block threshold on a block's average gradient (seed eq. 11-12), 0..765"},
     {"residual", "10", "every voxel decodes within this of the original, 0..255"},
     {"k1", "4096", "level-1 codebook entries (8-d) at most, 1..4096 (and 1 per 8 blocks)"},
-    {"k2", "1024", "level-2 codebook entries (64-d) at most, 1..4096 (and 1 per 8 blocks)"},
+    {"k2", "1024", "level-2 codebook entries (64-d) at most, 1..4096 (and 1 per 8 blocks); "
+                   "auto: of 256, 512, 1024, 2048 the one giving the smallest payload"},
     {"eps", "0.01", "LBG stops when the relative distortion change is below this, (0, 1)"},
     {"train", "262144", "training vectors per codebook at most (0: all)"},
     {"psnr", "0", "PSNR target in dB (0.01 steps, 0..200; 0: none): the residual threshold is "
@@ -379,8 +392,14 @@ static cdvr_status hvqc_check(const cdvr_codec_params *blob, cdvr_error *err)
     cdvr_codec_params hvq_part = *blob;
     memset(hvq_part.bytes + OFF_SHARED, 0, 4);
     memset(hvq_part.bytes + OFF_SHARED_ID, 0, 8);
+    int k2_auto = cdvr_params_get_u32(blob, OFF_K2) == 0;
+    if (k2_auto) /* the compact form's own: hvq_check refuses it for the hashed form */
+        cdvr_params_set_u32(&hvq_part, OFF_K2, 1);
     cdvr_status s = hvq_check(&hvq_part, err);
     uint32_t shared = cdvr_params_get_u32(blob, OFF_SHARED);
+    if (s == CDVR_OK && k2_auto && shared)
+        s = cdvr_error_set(err, CDVR_ERR_ARG, "codec hvqc: k2 = auto with shared = 1 (shared "
+                           "codebooks have one size: give k2)");
     if (s == CDVR_OK && (shared > 1 || (shared == 0 && shared_id_of(blob) != 0)))
         s = cdvr_error_set(err, CDVR_ERR_ARG, "codec hvqc: shared = %u with id %016llx (0 or "
                            "1; an id only when 1)", shared,

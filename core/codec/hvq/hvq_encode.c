@@ -3,6 +3,7 @@
  * voxels, and the payload writer. */
 #include "codec/hvq/hvq_internal.h"
 
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -68,7 +69,7 @@ cdvr_status cdvr_hvq_bound(const cdvr_hvq_params *p, const size_t dims[3], size_
     }
     const uint64_t d64[3] = {dims[0], dims[1], dims[2]};
     uint32_t k1 = p->k1 > CDVR_HVQ_K_MAX ? CDVR_HVQ_K_MAX : p->k1;
-    uint32_t k2 = p->k2 > CDVR_HVQ_K_MAX ? CDVR_HVQ_K_MAX : p->k2;
+    uint32_t k2 = p->k2 > CDVR_HVQ_K_MAX ? CDVR_HVQ_K_MAX : hvq_k2_max(p->k2);
     hvq_layout L;
     hvq_layout_get(d64, k1, k2, &L);
     unsigned index_slot = 3 + L.w1 + L.w2;
@@ -241,6 +242,18 @@ static void subtract_level1(int16_t *l2, size_t n, const int16_t *cb1, const uin
     }
 }
 
+/* Level 2 at codebook size k at most: trains codebook 2 and assigns every block. */
+static cdvr_status level2(hvq_enc *e, uint32_t k, cdvr_error *err)
+{
+    hvq_vq_report rep;
+    cdvr_status s = hvq_vq_train(e->l2, e->nnz, 64, k, 1, e->p->eps, e->p->train, e->threads,
+                                 e->cb2, &e->n2, &rep, err);
+    if (s == CDVR_OK)
+        hvq_vq_assign(e->l2, e->nnz, 64, e->cb2, e->n2, 1, e->threads, e->i2);
+    e->lbg_iterations[1] = rep.lbg_iterations;
+    return s;
+}
+
 static cdvr_status quantise(hvq_enc *e, cdvr_error *err)
 {
     hvq_vq_report rep;
@@ -270,12 +283,7 @@ static cdvr_status quantise(hvq_enc *e, cdvr_error *err)
     e->lbg_iterations[0] = rep.lbg_iterations;
     hvq_vq_assign(e->l1, e->nnz, 8, e->cb1, e->n1, 8, e->threads, e->i1);
     subtract_level1(e->l2, e->nnz, e->cb1, e->i1);
-    s = hvq_vq_train(e->l2, e->nnz, 64, e->p->k2, 1, e->p->eps, e->p->train, e->threads, e->cb2,
-                     &e->n2, &rep, err);
-    if (s == CDVR_OK)
-        hvq_vq_assign(e->l2, e->nnz, 64, e->cb2, e->n2, 1, e->threads, e->i2);
-    e->lbg_iterations[1] = rep.lbg_iterations;
-    return s;
+    return e->p->k2 ? level2(e, e->p->k2, err) : CDVR_OK; /* auto: choose_k2 */
 }
 
 /* Voxel value before the residual stage (the decoder's formula). */
@@ -574,10 +582,12 @@ static cdvr_status encode_common(hvq_enc *e, const cdvr_hvq_params *p,
     s = classify(e, err);
     if (s == CDVR_OK)
         s = quantise(e, err);
-    if (s == CDVR_OK)
+    if (s == CDVR_OK && !p->k2 && !shared && !compact)
+        s = cdvr_error_set(err, CDVR_ERR_ARG, "hvq: k2 = auto is for the compact form (hvqc)");
+    if (s == CDVR_OK && (p->k2 || shared)) { /* auto: choose_k2 finishes these */
         hvq_layout_get(d64, e->n1, e->n2, &e->L);
-    if (s == CDVR_OK)
         s = choose_residual(e, compact, err);
+    }
     return s;
 }
 
@@ -639,6 +649,64 @@ static cdvr_status compact_sections(const hvq_enc *e, hvq_sections *sec, cdvr_er
     return CDVR_OK;
 }
 
+/* k2 = auto (cdvr/hvq.h "Codebook size from the data"): level 2 trained at each candidate
+ * size, the payload's size measured for each (sections built and compressed), the smallest kept (ties: the
+ * smaller size); e ends as after a plain encode at that size. */
+static const uint32_t k2_candidates[] = {256, 512, 1024, 2048};
+
+static cdvr_status compact_size(hvq_enc *e, const size_t dims[3], size_t *bytes,
+                                cdvr_error *err)
+{
+    const uint64_t d64[3] = {e->X, e->Y, e->Z};
+    hvq_sections sec;
+    memset(&sec, 0, sizeof sec);
+    hvq_layout_get(d64, e->n1, e->n2, &e->L);
+    cdvr_status s = choose_residual(e, 1, err);
+    if (s == CDVR_OK)
+        s = compact_sections(e, &sec, err);
+    if (s == CDVR_OK)
+        s = hvq_compact_write(&sec, dims, e->n1, e->n2, e->R, 0, NULL, 0, bytes, NULL, err);
+    hvq_sections_free(&sec);
+    return s;
+}
+
+static cdvr_status choose_k2(hvq_enc *e, const size_t dims[3], cdvr_error *err)
+{
+    uint16_t *best_i2 = malloc((e->nnz ? e->nnz : 1) * sizeof *best_i2);
+    int16_t *best_cb2 = malloc(sizeof *best_cb2 * 64 * HVQ_K2_AUTO_MAX);
+    cdvr_status s = best_i2 && best_cb2 ? CDVR_OK :
+        cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: out of memory for the k2 = auto search");
+    size_t best = SIZE_MAX, bytes;
+    unsigned best_n2 = 0, last_n2 = UINT_MAX;
+    int best_lbg = 0;
+    for (size_t c = 0; s == CDVR_OK && c < sizeof k2_candidates / sizeof *k2_candidates; c++) {
+        s = level2(e, k2_candidates[c], err);
+        if (s != CDVR_OK || e->n2 == last_n2) /* the 1-per-8-blocks cap: no larger size */
+            break;
+        last_n2 = e->n2;
+        s = compact_size(e, dims, &bytes, err);
+        if (s == CDVR_OK && bytes < best) {
+            best = bytes;
+            best_n2 = e->n2;
+            best_lbg = e->lbg_iterations[1];
+            memcpy(best_i2, e->i2, e->nnz * sizeof *best_i2);
+            memcpy(best_cb2, e->cb2, sizeof *best_cb2 * 64 * e->n2);
+        }
+    }
+    if (s == CDVR_OK) {
+        const uint64_t d64[3] = {e->X, e->Y, e->Z};
+        e->n2 = best_n2;
+        e->lbg_iterations[1] = best_lbg;
+        memcpy(e->i2, best_i2, e->nnz * sizeof *best_i2);
+        memcpy(e->cb2, best_cb2, sizeof *best_cb2 * 64 * best_n2);
+        hvq_layout_get(d64, e->n1, e->n2, &e->L);
+        s = choose_residual(e, 1, err);
+    }
+    free(best_i2);
+    free(best_cb2);
+    return s;
+}
+
 cdvr_status cdvr_hvq_encode_compact(const cdvr_hvq_params *p, const cdvr_hvq_codebooks *shared,
                                     const size_t dims[3], const uint8_t *frame, unsigned threads,
                                     uint8_t *out, size_t out_cap, size_t *out_bytes,
@@ -648,6 +716,8 @@ cdvr_status cdvr_hvq_encode_compact(const cdvr_hvq_params *p, const cdvr_hvq_cod
     hvq_sections sec;
     memset(&sec, 0, sizeof sec);
     cdvr_status s = encode_common(&e, p, shared, 1, dims, frame, threads, out, out_bytes, err);
+    if (s == CDVR_OK && !p->k2 && !shared)
+        s = choose_k2(&e, dims, err);
     if (s == CDVR_OK)
         s = compact_sections(&e, &sec, err);
     if (s == CDVR_OK)
@@ -685,6 +755,8 @@ cdvr_status cdvr_hvq_train_shared(const cdvr_hvq_params *p, const size_t dims[3]
 {
     *blob = NULL;
     *bytes = 0;
+    if (p->k2 == 0)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: shared codebooks with k2 = auto (give k2)");
     if (nframes == 0)
         return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: training shared codebooks on no frame");
     int16_t *l1 = NULL, *l2 = NULL;

@@ -176,12 +176,21 @@
  * without R (its encoder stats report it). A store's volume PSNR over owned voxels can differ
  * slightly from its bricks' (overlap voxels count in each brick).
  *
+ * ---- Codebook size from the data (k2 = 0, "auto"; compact form only) ------------------------
+ * Level 2 is trained and assigned at each size 256, 512, 1024, 2048 in turn (the size cap
+ * above applies; the candidates stop at the first that gives no more entries than the one
+ * before), the residual threshold chosen for each (under a PSNR target too), and the whole
+ * compact payload's size measured (sections built and compressed); the size with the smallest
+ * payload is kept (ties: the smaller), so the payload is byte for byte the plain encode at
+ * that k2. Encode time: up to four level-2 trainings and residual stages (light-sheet 256^3:
+ * about 3x the plain encode). The hashed form and shared codebooks refuse k2 = 0.
+ *
  * ---- Parameter blob (CDVR_CODEC_PARAMS_MAX bytes, little endian, unused bytes 0) -----------
  *   0  f64 grad      zero-block threshold on the average gradient, 0..765 (default 8)
  *   8  f64 eps       LBG stop: relative distortion change, 0 < eps < 1 (default 0.01)
  *  16  u32 residual  residual threshold, 0..255 (default 10)
  *  20  u32 k1        codebook 1 size at most, 1..4096 (default 4096)
- *  24  u32 k2        codebook 2 size at most, 1..4096 (default 1024)
+ *  24  u32 k2        codebook 2 size at most, 1..4096 (default 1024); hvqc: 0 = auto
  *  28  u32 train     training vectors at most, 0 = all (default 262144)
  *  36  u32 psnr      PSNR target in 1/100 dB, 0..20000, 0 = none (default 0; both forms)
  *  hvqc only: 32 u32 shared (0/1), 40 u64 shared-codebook id (set by the store encoder
