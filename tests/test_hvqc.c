@@ -5,7 +5,10 @@
  * codebooks) when no axis has 4k+1 voxels (else the compact grid leaves the last plane out); the parts add up; determinism over threads; truncated and mutated payloads;
  * shared codebooks (trained on some frames, used by others and by bricks; refused without
  * them or with others; a corrupt blob) and a bricked two-timestep store with shared=1 that
- * reopens and decodes within the bound, a corrupted shared blob failing the decode. */
+ * reopens and decodes within the bound, a corrupted shared blob failing the decode; the PSNR
+ * target (psnr=): met, within `residual`, the largest threshold that meets it, reported;
+ * k2=auto: the smallest payload of the candidate sizes. */
+#include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -457,6 +460,189 @@ static void test_shared_store(void)
     cdvr_volume_free(vol);
 }
 
+/* Squared error sum and max error of a decoded frame. */
+static double frame_psnr(const uint8_t *a, const uint8_t *b, size_t n, int *maxerr)
+{
+    uint64_t sse = 0;
+    *maxerr = 0;
+    for (size_t i = 0; i < n; i++) {
+        int e = abs(a[i] - b[i]);
+        sse += (uint64_t)(e * e);
+        *maxerr = e > *maxerr ? e : *maxerr;
+    }
+    return sse ? 10.0 * log10(255.0 * 255.0 * (double)n / (double)sse) : INFINITY;
+}
+
+/* Encodes (both forms), decodes; returns the PSNR, fills the max error and the R applied. */
+static double coded_psnr(const cdvr_hvq_params *p, const size_t d[3], const uint8_t *v,
+                         int compact, int *maxerr, uint32_t *applied)
+{
+    size_t n = d[0] * d[1] * d[2];
+    coded c;
+    cdvr_error err;
+    *maxerr = 256;
+    *applied = 999;
+    if (!encode(p, d, v, compact, 2, &c))
+        return -1;
+    uint8_t *out = malloc(n);
+    cdvr_status s = compact ? cdvr_hvq_compact_decode(p, NULL, d, c.bytes, c.n, out, &err)
+                            : cdvr_hvq_decode(p, d, c.bytes, c.n, out, &err);
+    CHECK_OK(s, err);
+    double psnr = s == CDVR_OK ? frame_psnr(out, v, n, maxerr) : -1;
+    *applied = c.stats.residual;
+    if (compact) { /* the payload records R: the check (st:info "residual") reads it back */
+        cdvr_hvq_stats st;
+        CHECK_OK(cdvr_hvq_compact_check(p, NULL, d, c.bytes, c.n, &st, &err), err);
+        CHECK(st.residual == c.stats.residual, "check reads residual %u, encoder applied %u",
+              st.residual, c.stats.residual);
+    }
+    free(out);
+    free(c.bytes);
+    return psnr;
+}
+
+/* psnr=T: the decoded chunk meets T, stays within `residual`, and R is the largest that does
+ * (R+1 without a target misses T); on odd dims with a 4k+1 axis, both forms. */
+static void test_quality_target(void)
+{
+    const size_t d[3] = {37, 30, 21};
+    uint8_t *v = make_volume(d, 11);
+    /* wider noise than make_volume's: residual errors to trade against PSNR */
+    uint32_t seed = 99;
+    for (size_t i = 0; i < d[0] * d[1] * d[2]; i++)
+        v[i] = (uint8_t)(v[i] < 200 ? v[i] + rng_next(&seed) % 24 : v[i]);
+    const double targets[3] = {30, 38, 46};
+    int inside = 0;
+    for (int compact = 0; compact < 2; compact++)
+        for (int t = 0; t < 3; t++) {
+            cdvr_hvq_params p;
+            cdvr_hvq_params_default(&p);
+            p.residual = 20;
+            p.k2 = 64;
+            cdvr_hvq_params_set_psnr(&p, targets[t]);
+            int maxerr;
+            uint32_t R;
+            double psnr = coded_psnr(&p, d, v, compact, &maxerr, &R);
+            CHECK(psnr >= targets[t] && maxerr <= (int)R && R <= p.residual,
+                  "form %d, psnr=%g: %.3f dB, max error %d, R %u (cap %u)", compact, targets[t],
+                  psnr, maxerr, R, p.residual);
+            inside += R > 0 && R < p.residual;
+            if (R >= p.residual)
+                continue;
+            p.psnr = 0;
+            p.residual = R + 1;
+            int maxerr1;
+            uint32_t R1;
+            double psnr1 = coded_psnr(&p, d, v, compact, &maxerr1, &R1);
+            CHECK(R1 == R + 1 && psnr1 < targets[t], "form %d, psnr=%g: R %u chosen, but R %u "
+                  "gives %.3f dB", compact, targets[t], R, R1, psnr1);
+        }
+    CHECK(inside >= 2, "only %d of 6 targets chose a threshold inside (0, residual)", inside);
+    /* the setter and the table: the applied value (0.01 dB steps), the name, the blob */
+    cdvr_hvq_params p;
+    cdvr_hvq_params_default(&p);
+    CHECK(cdvr_hvq_params_set_psnr(&p, 43.456) == 43.46 && p.psnr == 43.46 &&
+              cdvr_hvq_params_set_psnr(&p, 1e9) == 200 && cdvr_hvq_params_set_psnr(&p, -3) == 0,
+          "psnr setter: applied %g", p.psnr);
+    const cdvr_codec *c = cdvr_codec_find("hvqc");
+    cdvr_codec_params blob;
+    cdvr_error err;
+    char name[CDVR_VARIANT_NAME_MAX], got[32];
+    c->params_default(&blob);
+    CHECK_OK(c->params_set(&blob, "shared", "1", &err), err);
+    CHECK_OK(c->params_set(&blob, "psnr", "43.456", &err), err);
+    CHECK(c->params_get(&blob, "psnr", got, sizeof got) == 0 && strcmp(got, "43.46") == 0 &&
+              cdvr_hvqc_wants_shared(&blob),
+          "hvqc psnr reads back '%s' (shared %d)", got, cdvr_hvqc_wants_shared(&blob));
+    CHECK_OK(c->params_check(&blob, &err), err);
+    c->variant_name(&blob, name, sizeof name);
+    CHECK(strcmp(name, "hvqc_p43.46_s") == 0, "variant name '%s'", name);
+    CHECK(c->params_set(&blob, "psnr", "201", &err) == CDVR_ERR_ARG &&
+              c->params_set(&blob, "psnr", "-1", &err) == CDVR_ERR_ARG,
+          "psnr out of range accepted");
+    const cdvr_codec *h = cdvr_codec_find("hvq");
+    h->params_default(&blob);
+    CHECK_OK(h->params_set(&blob, "psnr", "40", &err), err);
+    CHECK_OK(h->params_check(&blob, &err), err);
+    cdvr_hvq_params_from_blob(&blob, &p);
+    CHECK(p.psnr == 40, "hvq blob psnr %g", p.psnr);
+    free(v);
+}
+
+/* k2=auto: the payload is byte for byte the plain encode at the candidate size that gives the
+ * smallest payload (the 1-per-8-blocks cap ends the candidates early), decodes within
+ * `residual`; the hashed form and shared codebooks refuse it. */
+static void test_k2_auto(void)
+{
+    const size_t d[3] = {64, 60, 44}, n = 64 * 60 * 44;
+    uint8_t *v = make_volume(d, 5);
+    uint32_t seed = 7;
+    for (size_t i = 0; i < n; i++)
+        v[i] = (uint8_t)(v[i] < 200 ? v[i] + rng_next(&seed) % 16 : v[i]);
+    cdvr_hvq_params p;
+    cdvr_hvq_params_default(&p);
+    p.grad = 2;
+    p.residual = 6;
+    coded best = {NULL, SIZE_MAX, {0}}, plain, aut;
+    const uint32_t sizes[4] = {256, 512, 1024, 2048};
+    size_t distinct = 0, last_n2 = 0;
+    for (int i = 0; i < 4; i++) {
+        p.k2 = sizes[i];
+        if (!encode(&p, d, v, 1, 2, &plain))
+            return;
+        if (plain.stats.codebook2_entries == last_n2) {
+            free(plain.bytes);
+            break;
+        }
+        distinct++;
+        last_n2 = plain.stats.codebook2_entries;
+        if (plain.n < best.n) {
+            free(best.bytes);
+            best = plain;
+        } else {
+            free(plain.bytes);
+        }
+    }
+    p.k2 = 0;
+    if (!encode(&p, d, v, 1, 2, &aut))
+        return;
+    CHECK(distinct >= 2 && aut.n == best.n && memcmp(aut.bytes, best.bytes, aut.n) == 0 &&
+              aut.stats.codebook2_entries == best.stats.codebook2_entries,
+          "k2=auto: %zu bytes (%zu entries), the best of %zu sizes %zu bytes (%zu entries)",
+          aut.n, aut.stats.codebook2_entries, distinct, best.n, best.stats.codebook2_entries);
+    uint8_t *out = malloc(n);
+    cdvr_error err;
+    CHECK_OK(cdvr_hvq_compact_decode(&p, NULL, d, aut.bytes, aut.n, out, &err), err);
+    int maxerr;
+    frame_psnr(out, v, n, &maxerr);
+    CHECK(maxerr <= (int)p.residual, "k2=auto: max error %d", maxerr);
+    size_t bound = 0, got;
+    CHECK_OK(cdvr_hvq_bound(&p, d, &bound, &err), err);
+    uint8_t *hashed = malloc(bound);
+    CHECK(cdvr_hvq_encode(&p, d, v, 1, hashed, bound, &got, NULL, &err) == CDVR_ERR_ARG &&
+              strstr(err.msg, "auto"), "the hashed form accepted k2 = auto");
+    free(hashed);
+    const cdvr_codec *c = cdvr_codec_find("hvqc"), *h = cdvr_codec_find("hvq");
+    cdvr_codec_params blob;
+    char name[CDVR_VARIANT_NAME_MAX], got_k2[16];
+    c->params_default(&blob);
+    CHECK_OK(c->params_set(&blob, "k2", "auto", &err), err);
+    CHECK_OK(c->params_check(&blob, &err), err);
+    c->variant_name(&blob, name, sizeof name);
+    CHECK(strcmp(name, "hvqc_k4096xauto") == 0 &&
+              c->params_get(&blob, "k2", got_k2, sizeof got_k2) == 0 &&
+              strcmp(got_k2, "auto") == 0, "k2=auto: name '%s', reads back '%s'", name, got_k2);
+    CHECK_OK(c->params_set(&blob, "shared", "1", &err), err);
+    CHECK(c->params_check(&blob, &err) == CDVR_ERR_ARG, "hvqc accepted k2=auto with shared=1");
+    h->params_default(&blob);
+    CHECK_OK(h->params_set(&blob, "k2", "auto", &err), err);
+    CHECK(h->params_check(&blob, &err) == CDVR_ERR_ARG, "hvq accepted k2=auto");
+    free(out);
+    free(aut.bytes);
+    free(best.bytes);
+    free(v);
+}
+
 int main(void)
 {
     test_table();
@@ -465,5 +651,7 @@ int main(void)
     test_corrupt();
     test_shared();
     test_shared_store();
+    test_quality_target();
+    test_k2_auto();
     return check_finish();
 }

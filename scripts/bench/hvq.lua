@@ -9,6 +9,11 @@
 --
 --   cdvr scripts/bench/hvq.lua [--runs N] [--size PIXELS] [--old PATH_TO_OLD_CDVR]
 --                              [--sets lightsheet,colin27,engine,series] [--lightsheet FILE.nrrd]
+--                              [--specs 'codec=hvqc,psnr=43;codec=hvqc,k2=512'] [--render 0]
+--
+-- --specs replaces the default rows (hvq, hvqc, hvqc shared=1, and on lightsheet the same
+-- bricked 4^3) by these variants, ';'-separated K=V lists (bricks=4 bricks one); the old
+-- binary then runs its hvq once per set. --render 0 leaves the renders out (compression only).
 --
 -- The old binary runs this same script as a child (--child DATASET --spec K=V,..), which
 -- prints one row of the compression columns; the rows of both binaries are printed together.
@@ -30,10 +35,12 @@
 --   image_psnr          device render of the variant against the CPU render of the original
 --   the parts (bytes): means, codebook1, codebook2, index_hash, residual_hash (hashed form),
 --   indices, residuals (compact form), residual_voxels, zero_blocks
+--   residual_applied    hvqc: the mean residual threshold its chunks got (psnr= target)
 local here = (arg and arg[0] and arg[0]:match("^(.*)/[^/]*$")) or "."
 local common = dofile(here .. "/common.lua")
 
-local _, opt = common.parse_args(arg, {runs = "5", size = "256", sets = "lightsheet,colin27,engine"})
+local _, opt = common.parse_args(arg, {runs = "5", size = "256", sets = "lightsheet,colin27,engine",
+                                       render = "1"})
 local RUNS, SIZE = assert(math.tointeger(tonumber(opt.runs))), assert(math.tointeger(tonumber(opt.size)))
 local data = common.shared_data()
 local outdir = os.getenv("CDVR_BENCH_OUT") or "/tmp/cdvr-hvq"
@@ -79,7 +86,7 @@ local columns = {"dataset", "binary", "variant", "bricks", "ratio", "bpv", "byte
                  "shared_bytes", "volume_psnr", "maxerr",
                  "decode_gbps", "encode_s", "device_bytes", "fps_variant", "fps_dense", "fps_ratio",
                  "image_psnr", "means", "codebook1", "codebook2", "index_hash", "residual_hash",
-                 "indices", "residuals", "residual_voxels", "zero_blocks"}
+                 "indices", "residuals", "residual_voxels", "zero_blocks", "residual_applied"}
 
 local function fmt(x)
   if x == nil then return "" end
@@ -130,6 +137,7 @@ local function compress(name, vol, spec, bricks)
              device_bytes = row.device_bytes}
   for _, k in ipairs{"means", "codebook1", "codebook2", "index_hash", "residual_hash", "indices",
                      "residuals", "residual_voxels", "zero_blocks"} do r[k] = row[k] end
+  if row.residual_sum then r.residual_applied = row.residual_sum / row.chunks end
   return r, st, dec, tmp
 end
 
@@ -166,7 +174,7 @@ end
 local function new_row(name, vol, tfname, spec, bricks, no_render)
   local r, st, dec, tmp = compress(name, vol, spec, bricks)
   r.binary = "new"
-  if not bricks and not no_render then
+  if not bricks and not no_render and opt.render ~= "0" then
     local tf = cdvr.tf(tfname)
     local cam = common.view(vol, 30, 20, SIZE, SIZE)
     local ref = cdvr.render(vol, {tf = tf, camera = cam, device = "cpu"})
@@ -196,6 +204,14 @@ for name in opt.sets:gmatch("[^,]+") do
   local path, tf, series = assert(DATASETS[name], "unknown set " .. name)()
   common.progress("%s", name)
   local vol = assert(series and cdvr.load_series(path) or cdvr.load(path))
+  if opt.specs then
+    old_row(name, "codec=hvq")
+    for text in opt.specs:gmatch("[^;]+") do
+      local spec, bricks = parse_spec(text)
+      new_row(name, vol, tf, spec, bricks, series)
+    end
+    goto next_set
+  end
   old_row(name, "codec=hvq")
   new_row(name, vol, tf, {codec = "hvq"}, nil, series)
   new_row(name, vol, tf, {codec = "hvqc"}, nil, series)
@@ -206,5 +222,6 @@ for name in opt.sets:gmatch("[^,]+") do
     new_row(name, vol, tf, {codec = "hvqc"}, 4)
     new_row(name, vol, tf, {codec = "hvqc", shared = 1}, 4)
   end
+  ::next_set::
 end
 common.progress_done()

@@ -26,7 +26,8 @@ typedef struct hvq_fuzz_sum {
 static void hvq_fuzz_emit(void *ud, const char *key, double value)
 {
     hvq_fuzz_sum *s = ud;
-    if (strcmp(key, "blocks") && strcmp(key, "zero_blocks") && strcmp(key, "residual_voxels"))
+    if (strcmp(key, "blocks") && strcmp(key, "zero_blocks") && strcmp(key, "residual_voxels") &&
+        strcmp(key, "residual_sum")) /* counts and the threshold: not bytes */
         s->parts += value;
 }
 

@@ -32,7 +32,7 @@ do
         and pvtc.variant == "S4T3", "pvtc entry")
   local hvq = codecs.hvq
   check(hvq and hvq.id == 2 and hvq.index == 3 and hvq.cl_mode == "fetch" and hvq.variant == "hvq"
-        and #hvq.params == 6 and hvq.plugin == nil, "hvq entry")
+        and #hvq.params == 7 and hvq.plugin == nil, "hvq entry")
   local want = {S = "4", T = "3", pack = "time", encoder = "lsq"}
   check(pvtc and #pvtc.params == 4, "pvtc params")
   for _, p in ipairs(pvtc and pvtc.params or {}) do

@@ -10,7 +10,8 @@
 #include <string.h>
 
 enum { OFF_GRAD = 0, OFF_EPS = 8, OFF_RESIDUAL = 16, OFF_K1 = 20, OFF_K2 = 24, OFF_TRAIN = 28,
-       USED_BYTES = 32, OFF_SHARED = 32, OFF_SHARED_ID = 40 /* hvqc only */ };
+       USED_BYTES = 32, OFF_PSNR = 36, OFF_SHARED = 32, OFF_SHARED_ID = 40 /* hvqc only */ };
+#define PSNR_CENTI_MAX 20000u /* 200 dB */
 
 static const cdvr_codec_param_doc hvq_params[] = {
     {"grad", "8", "zero-block threshold on a block's average gradient (seed eq. 11-12), 0..765"},
@@ -19,6 +20,8 @@ static const cdvr_codec_param_doc hvq_params[] = {
     {"k2", "1024", "level-2 codebook entries (64-d) at most, 1..4096 (and 1 per 8 blocks)"},
     {"eps", "0.01", "LBG stops when the relative distortion change is below this, (0, 1)"},
     {"train", "262144", "training vectors per codebook at most (0: all)"},
+    {"psnr", "0", "PSNR target in dB (0.01 steps, 0..200; 0: none): the residual threshold is "
+                  "the largest <= residual that keeps the chunk's PSNR >= psnr"},
     {NULL, NULL, NULL}};
 
 void cdvr_hvq_params_default(cdvr_hvq_params *p)
@@ -29,6 +32,20 @@ void cdvr_hvq_params_default(cdvr_hvq_params *p)
     p->k1 = 4096;
     p->k2 = 1024;
     p->train = 262144;
+    p->psnr = 0;
+}
+
+static uint32_t psnr_centi(double db)
+{
+    if (!(db > 0))
+        return 0;
+    return db >= PSNR_CENTI_MAX / 100.0 ? PSNR_CENTI_MAX : (uint32_t)lround(db * 100.0);
+}
+
+double cdvr_hvq_params_set_psnr(cdvr_hvq_params *p, double db)
+{
+    p->psnr = psnr_centi(db) / 100.0;
+    return p->psnr;
 }
 
 void cdvr_hvq_params_to_blob(const cdvr_hvq_params *p, cdvr_codec_params *blob)
@@ -40,6 +57,7 @@ void cdvr_hvq_params_to_blob(const cdvr_hvq_params *p, cdvr_codec_params *blob)
     cdvr_params_set_u32(blob, OFF_K1, p->k1);
     cdvr_params_set_u32(blob, OFF_K2, p->k2);
     cdvr_params_set_u32(blob, OFF_TRAIN, p->train);
+    cdvr_params_set_u32(blob, OFF_PSNR, psnr_centi(p->psnr));
 }
 
 void cdvr_hvq_params_from_blob(const cdvr_codec_params *blob, cdvr_hvq_params *p)
@@ -50,6 +68,7 @@ void cdvr_hvq_params_from_blob(const cdvr_codec_params *blob, cdvr_hvq_params *p
     p->k1 = cdvr_params_get_u32(blob, OFF_K1);
     p->k2 = cdvr_params_get_u32(blob, OFF_K2);
     p->train = cdvr_params_get_u32(blob, OFF_TRAIN);
+    p->psnr = cdvr_params_get_u32(blob, OFF_PSNR) / 100.0;
 }
 
 cdvr_status cdvr_hvq_params_check(const cdvr_hvq_params *p, cdvr_error *err)
@@ -62,9 +81,12 @@ cdvr_status cdvr_hvq_params_check(const cdvr_hvq_params *p, cdvr_error *err)
     if (p->residual > 255)
         return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: residual = %u, must be 0..255",
                               p->residual);
-    if (p->k1 < 1 || p->k1 > CDVR_HVQ_K_MAX || p->k2 < 1 || p->k2 > CDVR_HVQ_K_MAX)
+    if (p->k1 < 1 || p->k1 > CDVR_HVQ_K_MAX || p->k2 > CDVR_HVQ_K_MAX)
         return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: k1 = %u, k2 = %u, each must be "
-                              "1..%u", p->k1, p->k2, CDVR_HVQ_K_MAX);
+                              "1..%u (k2 0: auto)", p->k1, p->k2, CDVR_HVQ_K_MAX);
+    if (!(p->psnr >= 0 && p->psnr <= PSNR_CENTI_MAX / 100.0))
+        return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: psnr = %g, must be 0..200 dB",
+                              p->psnr);
     return CDVR_OK;
 }
 
@@ -115,6 +137,10 @@ static cdvr_status hvq_set(cdvr_codec_params *blob, const char *key, const char 
     } else if (strcmp(key, "residual") == 0) {
         ok = parse_u32(value, 255, &p.residual);
         want = "an integer 0..255";
+    } else if (strcmp(key, "k2") == 0 && strcmp(value, "auto") == 0) {
+        p.k2 = 0; /* the compact form chooses (hvqc_check; the hashed form refuses it) */
+        ok = 1;
+        want = "";
     } else if (strcmp(key, "k1") == 0 || strcmp(key, "k2") == 0) {
         uint32_t *k = key[1] == '1' ? &p.k1 : &p.k2;
         ok = parse_u32(value, CDVR_HVQ_K_MAX, k) && *k >= 1;
@@ -122,9 +148,13 @@ static cdvr_status hvq_set(cdvr_codec_params *blob, const char *key, const char 
     } else if (strcmp(key, "train") == 0) {
         ok = parse_u32(value, UINT32_MAX, &p.train);
         want = "an integer 0..4294967295 (0: all vectors)";
+    } else if (strcmp(key, "psnr") == 0) {
+        ok = parse_f64(value, &p.psnr) && p.psnr >= 0 && p.psnr <= PSNR_CENTI_MAX / 100.0;
+        cdvr_hvq_params_set_psnr(&p, p.psnr);
+        want = "a number of dB 0..200 (0: none)";
     } else {
         return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: unknown parameter '%s' "
-                              "(parameters: grad, residual, k1, k2, eps, train)", key);
+                              "(parameters: grad, residual, k1, k2, eps, train, psnr)", key);
     }
     if (!ok)
         return cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: %s = '%s', must be %s", key, value,
@@ -145,10 +175,14 @@ static int hvq_get(const cdvr_codec_params *blob, const char *key, char *out, si
         snprintf(out, n, "%u", p.residual);
     else if (strcmp(key, "k1") == 0)
         snprintf(out, n, "%u", p.k1);
+    else if (strcmp(key, "k2") == 0 && p.k2 == 0)
+        snprintf(out, n, "auto");
     else if (strcmp(key, "k2") == 0)
         snprintf(out, n, "%u", p.k2);
     else if (strcmp(key, "train") == 0)
         snprintf(out, n, "%u", p.train);
+    else if (strcmp(key, "psnr") == 0)
+        snprintf(out, n, "%.2f", p.psnr);
     else
         return -1;
     return 0;
@@ -159,8 +193,14 @@ static cdvr_status hvq_check(const cdvr_codec_params *blob, cdvr_error *err)
     cdvr_hvq_params p;
     cdvr_hvq_params_from_blob(blob, &p);
     cdvr_status s = cdvr_hvq_params_check(&p, err);
+    if (s == CDVR_OK && p.k2 == 0)
+        s = cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: k2 = auto is for the compact form "
+                           "(codec hvqc)");
+    if (s == CDVR_OK && cdvr_params_get_u32(blob, OFF_PSNR) > PSNR_CENTI_MAX)
+        s = cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: psnr = %u/100 dB, above 200 dB",
+                           cdvr_params_get_u32(blob, OFF_PSNR));
     for (size_t i = USED_BYTES; s == CDVR_OK && i < CDVR_CODEC_PARAMS_MAX; i++)
-        if (blob->bytes[i])
+        if (blob->bytes[i] && (i < OFF_PSNR || i >= OFF_PSNR + 4))
             s = cdvr_error_set(err, CDVR_ERR_ARG, "codec hvq: unused parameter byte %zu is %u",
                                i, blob->bytes[i]);
     return s;
@@ -179,12 +219,17 @@ static void name_with(const char *prefix, const cdvr_codec_params *blob, char *n
         len += snprintf(buf + len, sizeof buf - (size_t)len, "_g%.6g", p.grad);
     if (p.residual != d.residual)
         len += snprintf(buf + len, sizeof buf - (size_t)len, "_r%u", p.residual);
-    if (p.k1 != d.k1 || p.k2 != d.k2)
-        len += snprintf(buf + len, sizeof buf - (size_t)len, "_k%ux%u", p.k1, p.k2);
+    if (p.k1 != d.k1 || p.k2 != d.k2) {
+        char k2[16];
+        snprintf(k2, sizeof k2, p.k2 ? "%u" : "auto", p.k2);
+        len += snprintf(buf + len, sizeof buf - (size_t)len, "_k%ux%s", p.k1, k2);
+    }
     if (p.eps != d.eps)
         len += snprintf(buf + len, sizeof buf - (size_t)len, "_e%.3g", p.eps);
     if (p.train != d.train)
-        snprintf(buf + len, sizeof buf - (size_t)len, "_t%u", p.train);
+        len += snprintf(buf + len, sizeof buf - (size_t)len, "_t%u", p.train);
+    if (p.psnr != d.psnr)
+        snprintf(buf + len, sizeof buf - (size_t)len, "_p%.5g", p.psnr);
     snprintf(name, n, "%s", buf);
 }
 
@@ -287,16 +332,19 @@ const cdvr_codec cdvr_codec_hvq = {
 
 /* ---- "hvqc": the compact form (cdvr/hvq.h), decoded on the CPU ------------------------------
  * Parameters: hvq's, and at byte 32 u32 shared (0 or 1: train one codebook set per variant,
- * cdvr/codec.h "data shared by a variant's chunks"), 36..39 zero, at byte 40 u64 the shared
+ * cdvr/codec.h "data shared by a variant's chunks"), 36..39 psnr as in hvq, at byte 40 u64 the shared
  * codebooks' id (set by the store encoder after training; 0 when shared is 0 or untrained). */
 
 static const cdvr_codec_param_doc hvqc_params[] = {
     {"grad", "8", "zero-block threshold on a block's average gradient (seed eq. 11-12), 0..765"},
     {"residual", "10", "every voxel decodes within this of the original, 0..255"},
     {"k1", "4096", "level-1 codebook entries (8-d) at most, 1..4096 (and 1 per 8 blocks)"},
-    {"k2", "1024", "level-2 codebook entries (64-d) at most, 1..4096 (and 1 per 8 blocks)"},
+    {"k2", "1024", "level-2 codebook entries (64-d) at most, 1..4096 (and 1 per 8 blocks); "
+                   "auto: of 256, 512, 1024, 2048 the one giving the smallest payload"},
     {"eps", "0.01", "LBG stops when the relative distortion change is below this, (0, 1)"},
     {"train", "262144", "training vectors per codebook at most (0: all)"},
+    {"psnr", "0", "PSNR target in dB (0.01 steps, 0..200; 0: none): the residual threshold is "
+                  "the largest <= residual that keeps the chunk's PSNR >= psnr"},
     {"shared", "0", "1: one codebook set per variant, trained on sample timesteps (stores)"},
     {NULL, NULL, NULL}};
 
@@ -317,8 +365,8 @@ static cdvr_status hvqc_set(cdvr_codec_params *blob, const char *key, const char
     if (strcmp(key, "shared") != 0) { /* hvq_set rewrites the blob: keep bytes 32.. */
         cdvr_codec_params keep = *blob;
         cdvr_status s = hvq_set(blob, key, value, err);
-        memcpy(blob->bytes + USED_BYTES, keep.bytes + USED_BYTES,
-               CDVR_CODEC_PARAMS_MAX - USED_BYTES);
+        memcpy(blob->bytes + OFF_SHARED, keep.bytes + OFF_SHARED, 4);
+        memcpy(blob->bytes + OFF_SHARED_ID, keep.bytes + OFF_SHARED_ID, 8);
         return s;
     }
     uint32_t v;
@@ -342,11 +390,17 @@ static int hvqc_get(const cdvr_codec_params *blob, const char *key, char *out, s
 static cdvr_status hvqc_check(const cdvr_codec_params *blob, cdvr_error *err)
 {
     cdvr_codec_params hvq_part = *blob;
-    memset(hvq_part.bytes + USED_BYTES, 0, CDVR_CODEC_PARAMS_MAX - USED_BYTES);
+    memset(hvq_part.bytes + OFF_SHARED, 0, 4);
+    memset(hvq_part.bytes + OFF_SHARED_ID, 0, 8);
+    int k2_auto = cdvr_params_get_u32(blob, OFF_K2) == 0;
+    if (k2_auto) /* the compact form's own: hvq_check refuses it for the hashed form */
+        cdvr_params_set_u32(&hvq_part, OFF_K2, 1);
     cdvr_status s = hvq_check(&hvq_part, err);
     uint32_t shared = cdvr_params_get_u32(blob, OFF_SHARED);
-    if (s == CDVR_OK && (shared > 1 || cdvr_params_get_u32(blob, 36) != 0 ||
-                         (shared == 0 && shared_id_of(blob) != 0)))
+    if (s == CDVR_OK && k2_auto && shared)
+        s = cdvr_error_set(err, CDVR_ERR_ARG, "codec hvqc: k2 = auto with shared = 1 (shared "
+                           "codebooks have one size: give k2)");
+    if (s == CDVR_OK && (shared > 1 || (shared == 0 && shared_id_of(blob) != 0)))
         s = cdvr_error_set(err, CDVR_ERR_ARG, "codec hvqc: shared = %u with id %016llx (0 or "
                            "1; an id only when 1)", shared,
                            (unsigned long long)shared_id_of(blob));
@@ -477,6 +531,7 @@ static cdvr_status hvqc_describe(const cdvr_codec_params *blob, const size_t dim
     emit(ud, "blocks", (double)st.blocks);
     emit(ud, "zero_blocks", (double)st.zero_blocks);
     emit(ud, "residual_voxels", (double)st.residual_voxels);
+    emit(ud, "residual_sum", (double)st.residual); /* st:info() sums over chunks */
     return CDVR_OK;
 }
 

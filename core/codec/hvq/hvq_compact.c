@@ -218,10 +218,13 @@ cdvr_status hvq_compact_write(const hvq_sections *s, const size_t dims[3], uint3
     ZSTD_freeCCtx(z);
     uint8_t head[HVQ2_HEADER_MAX];
     size_t hb = st == CDVR_OK ? hvq2_header_write(&h, head) : 0;
-    if (st == CDVR_OK && (total > out_cap || hb > out_cap - total))
+    if (st == CDVR_OK && !out) { /* a size query */
+        *out_bytes = hb + total;
+        stats = NULL;
+    } else if (st == CDVR_OK && (total > out_cap || hb > out_cap - total))
         st = cdvr_error_set(err, CDVR_ERR_ARG, "hvq: the payload needs %zu bytes, the buffer has "
                             "%zu", hb + total, out_cap);
-    if (st == CDVR_OK) {
+    else if (st == CDVR_OK) {
         memcpy(out, head, hb);
         size_t at = hb;
         for (int i = 0; i < HVQ_SECTIONS; i++) {
@@ -247,6 +250,7 @@ cdvr_status hvq_compact_write(const hvq_sections *s, const size_t dims[3], uint3
         stats->residual_voxels = (size_t)s->nres;
         stats->codebook1_entries = n1;
         stats->codebook2_entries = n2;
+        stats->residual = residual;
     }
     return st;
 }
@@ -262,12 +266,13 @@ cdvr_status cdvr_hvq_compact_bound(const cdvr_hvq_params *p, const size_t dims[3
                                   "their product below 2^64)", dims[0], dims[1], dims[2]);
     const uint64_t d64[3] = {dims[0], dims[1], dims[2]};
     hvq_layout L;
-    hvq_layout_get(d64, p->k1, p->k2, &L);
+    hvq_layout_get(d64, p->k1, hvq_k2_max(p->k2), &L);
     if (voxels > SIZE_MAX / 16)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: the compact bound of %zux%zux%zu "
                               "overflows size_t", dims[0], dims[1], dims[2]);
     size_t nb = (size_t)L.nblocks, raw[HVQ_SECTIONS] = {
-        nb, (nb + 7) / 8, nb * 4, 16u * (size_t)p->k1, 128u * (size_t)p->k2, voxels * 10,
+        nb, (nb + 7) / 8, nb * 4, 16u * (size_t)p->k1, 128u * (size_t)hvq_k2_max(p->k2),
+        voxels * 10,
         voxels * 2};
     size_t total = HVQ2_HEADER_MAX;
     for (int i = 0; i < HVQ_SECTIONS; i++)
@@ -319,7 +324,7 @@ static cdvr_status open_header(hvq2_view *v, const cdvr_hvq_params *p,
                               (unsigned long long)h.dims[1], (unsigned long long)h.dims[2],
                               (unsigned long long)v->dims[0], (unsigned long long)v->dims[1],
                               (unsigned long long)v->dims[2]);
-    uint32_t k1 = p ? p->k1 : CDVR_HVQ_K_MAX, k2 = p ? p->k2 : CDVR_HVQ_K_MAX;
+    uint32_t k1 = p ? p->k1 : CDVR_HVQ_K_MAX, k2 = p ? hvq_k2_max(p->k2) : CDVR_HVQ_K_MAX;
     if (h.n1 > k1 || h.n2 > k2 || h.n1 > CDVR_HVQ_K_MAX || h.n2 > CDVR_HVQ_K_MAX ||
         (h.n1 == 0) != (h.n2 == 0))
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq compact payload: codebooks of %llu "
@@ -538,6 +543,7 @@ cdvr_status cdvr_hvq_compact_check(const cdvr_hvq_params *p, const cdvr_hvq_code
         stats->residual_voxels = (size_t)v.s.nres;
         stats->codebook1_entries = v.n1;
         stats->codebook2_entries = v.n2;
+        stats->residual = v.residual;
     }
     view2_free(&v);
     return s;
@@ -695,7 +701,7 @@ cdvr_status cdvr_hvq_shared_open(const cdvr_hvq_params *p, const uint8_t *blob, 
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq shared codebooks of %zu bytes: no "
                               "\"HVQS\" header", bytes);
     uint32_t n1 = hvq_rd32(blob + 4), n2 = hvq_rd32(blob + 8);
-    uint32_t k1 = p ? p->k1 : CDVR_HVQ_K_MAX, k2 = p ? p->k2 : CDVR_HVQ_K_MAX;
+    uint32_t k1 = p ? p->k1 : CDVR_HVQ_K_MAX, k2 = p ? hvq_k2_max(p->k2) : CDVR_HVQ_K_MAX;
     if (n1 > k1 || n2 > k2 || n1 > CDVR_HVQ_K_MAX || n2 > CDVR_HVQ_K_MAX || (n1 == 0) != (n2 == 0) ||
         hvq_rd64(blob + 16) != bytes - HVQS_HEADER_BYTES)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq shared codebooks: %u and %u entries "

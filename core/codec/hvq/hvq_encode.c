@@ -3,6 +3,7 @@
  * voxels, and the payload writer. */
 #include "codec/hvq/hvq_internal.h"
 
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -68,7 +69,7 @@ cdvr_status cdvr_hvq_bound(const cdvr_hvq_params *p, const size_t dims[3], size_
     }
     const uint64_t d64[3] = {dims[0], dims[1], dims[2]};
     uint32_t k1 = p->k1 > CDVR_HVQ_K_MAX ? CDVR_HVQ_K_MAX : p->k1;
-    uint32_t k2 = p->k2 > CDVR_HVQ_K_MAX ? CDVR_HVQ_K_MAX : p->k2;
+    uint32_t k2 = p->k2 > CDVR_HVQ_K_MAX ? CDVR_HVQ_K_MAX : hvq_k2_max(p->k2);
     hvq_layout L;
     hvq_layout_get(d64, k1, k2, &L);
     unsigned index_slot = 3 + L.w1 + L.w2;
@@ -119,6 +120,7 @@ typedef struct hvq_enc {
     int16_t *cb2;         /* K_MAX x 64 */
     unsigned n1, n2;
     const cdvr_hvq_codebooks *shared; /* compact form: the variant's codebooks, or NULL */
+    uint32_t R;           /* the residual threshold applied (choose_residual) */
     int lbg_iterations[2];
     hvq_psh *ihash, *rhash;  /* per region */
     cdvr_status *rstatus;
@@ -240,6 +242,18 @@ static void subtract_level1(int16_t *l2, size_t n, const int16_t *cb1, const uin
     }
 }
 
+/* Level 2 at codebook size k at most: trains codebook 2 and assigns every block. */
+static cdvr_status level2(hvq_enc *e, uint32_t k, cdvr_error *err)
+{
+    hvq_vq_report rep;
+    cdvr_status s = hvq_vq_train(e->l2, e->nnz, 64, k, 1, e->p->eps, e->p->train, e->threads,
+                                 e->cb2, &e->n2, &rep, err);
+    if (s == CDVR_OK)
+        hvq_vq_assign(e->l2, e->nnz, 64, e->cb2, e->n2, 1, e->threads, e->i2);
+    e->lbg_iterations[1] = rep.lbg_iterations;
+    return s;
+}
+
 static cdvr_status quantise(hvq_enc *e, cdvr_error *err)
 {
     hvq_vq_report rep;
@@ -269,12 +283,7 @@ static cdvr_status quantise(hvq_enc *e, cdvr_error *err)
     e->lbg_iterations[0] = rep.lbg_iterations;
     hvq_vq_assign(e->l1, e->nnz, 8, e->cb1, e->n1, 8, e->threads, e->i1);
     subtract_level1(e->l2, e->nnz, e->cb1, e->i1);
-    s = hvq_vq_train(e->l2, e->nnz, 64, e->p->k2, 1, e->p->eps, e->p->train, e->threads, e->cb2,
-                     &e->n2, &rep, err);
-    if (s == CDVR_OK)
-        hvq_vq_assign(e->l2, e->nnz, 64, e->cb2, e->n2, 1, e->threads, e->i2);
-    e->lbg_iterations[1] = rep.lbg_iterations;
-    return s;
+    return e->p->k2 ? level2(e, e->p->k2, err) : CDVR_OK; /* auto: choose_k2 */
 }
 
 /* Voxel value before the residual stage (the decoder's formula). */
@@ -289,6 +298,64 @@ static int base_value(const hvq_enc *e, size_t x, size_t y, size_t z)
         v += e->cb1[(size_t)e->i1[k] * 8 + o8] + e->cb2[(size_t)e->i2[k] * 64 + o64];
     }
     return v < 0 ? 0 : v > 255 ? 255 : v;
+}
+
+/* Frame voxel (x, y, z)'s value before the residual stage: outside the compact form's core,
+ * the nearest core voxel's (hvq2_skip; the hashed form's core is the frame). */
+static int frame_base(const hvq_enc *e, size_t x, size_t y, size_t z)
+{
+    return base_value(e, x > e->OX ? x - e->OX : 0, y > e->OY ? y - e->OY : 0,
+                      z > e->OZ ? z - e->OZ : 0);
+}
+
+/* Squared error of the decoded voxel (base b, original v) at residual threshold R. */
+static uint64_t decoded_error2(int b, int v, uint32_t R, int compact)
+{
+    int d = v - b;
+    if ((uint32_t)abs(d) <= R)
+        return (uint64_t)(d * d);
+    if (!compact)
+        return 0; /* the residual hash holds v */
+    int step = 2 * (int)R + 1, q = (abs(d) + (int)R) / step;
+    int value = b + (d < 0 ? -q : q) * step;
+    value = value < 0 ? 0 : value > 255 ? 255 : value;
+    return (uint64_t)((value - v) * (value - v));
+}
+
+/* The residual threshold (cdvr/hvq.h "Quality target"): p->residual, or under a PSNR target
+ * the largest R <= p->residual whose decoded frame meets it, from the exact squared error of
+ * each R over the histogram of (base, original) pairs. */
+static cdvr_status choose_residual(hvq_enc *e, int compact, cdvr_error *err)
+{
+    e->R = e->p->residual;
+    if (!(e->p->psnr > 0))
+        return CDVR_OK;
+    uint64_t *pairs = calloc(256 * 256 * 3, sizeof *pairs);
+    if (!pairs)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: out of memory for the PSNR search");
+    for (size_t z = 0; z < e->SZ; z++)
+        for (size_t y = 0; y < e->SY; y++)
+            for (size_t x = 0; x < e->SX; x++)
+                pairs[256 * frame_base(e, x, y, z) + e->frame[x + e->SX * (y + e->SY * z)]]++;
+    uint64_t *list = pairs + 256 * 256; /* the non-empty pairs: b << 8 | v, then the count */
+    size_t used = 0;
+    for (unsigned bv = 0; bv < 256 * 256; bv++)
+        if (pairs[bv]) {
+            list[used++] = bv;
+            list[used++] = pairs[bv];
+        }
+    double voxels = (double)e->SX * (double)e->SY * (double)e->SZ;
+    double sse_max = 255.0 * 255.0 * voxels / pow(10.0, e->p->psnr / 10.0);
+    for (;; e->R--) {
+        uint64_t sse = 0;
+        for (size_t i = 0; i < used; i += 2)
+            sse += list[i + 1] * decoded_error2((int)(list[i] >> 8), (int)(list[i] & 255),
+                                                e->R, compact);
+        if (sse == 0 || (double)sse <= sse_max || e->R == 0)
+            break;
+    }
+    free(pairs);
+    return CDVR_OK;
 }
 
 static void put_index(uint8_t *p, unsigned w, unsigned v)
@@ -368,7 +435,7 @@ static void build_region(void *ctx, size_t r)
         for (size_t y = y0; s == CDVR_OK && y < y1; y++)
             for (size_t x = x0; x < x1; x++) {
                 int v = e->frame[x + e->X * (y + e->Y * z)];
-                if ((uint32_t)abs(v - base_value(e, x, y, z)) <= e->p->residual)
+                if ((uint32_t)abs(v - base_value(e, x, y, z)) <= e->R)
                     continue;
                 if (!key_list_grow(&k)) {
                     s = CDVR_ERR_NOMEM;
@@ -467,6 +534,7 @@ static cdvr_status write_payload(const hvq_enc *e, uint8_t *out, size_t out_cap,
         stats->codebook1_entries = e->n1;
         stats->codebook2_entries = e->n2;
         stats->regions = (size_t)L.nregions;
+        stats->residual = e->R;
         stats->lbg_iterations[0] = e->lbg_iterations[0];
         stats->lbg_iterations[1] = e->lbg_iterations[1];
         for (uint64_t r = 0; r < L.nregions; r++) {
@@ -514,8 +582,12 @@ static cdvr_status encode_common(hvq_enc *e, const cdvr_hvq_params *p,
     s = classify(e, err);
     if (s == CDVR_OK)
         s = quantise(e, err);
-    if (s == CDVR_OK)
+    if (s == CDVR_OK && !p->k2 && !shared && !compact)
+        s = cdvr_error_set(err, CDVR_ERR_ARG, "hvq: k2 = auto is for the compact form (hvqc)");
+    if (s == CDVR_OK && (p->k2 || shared)) { /* auto: choose_k2 finishes these */
         hvq_layout_get(d64, e->n1, e->n2, &e->L);
+        s = choose_residual(e, compact, err);
+    }
     return s;
 }
 
@@ -542,7 +614,7 @@ cdvr_status cdvr_hvq_encode(const cdvr_hvq_params *p, const size_t dims[3],
 static cdvr_status compact_sections(const hvq_enc *e, hvq_sections *sec, cdvr_error *err)
 {
     const hvq_layout *L = &e->L;
-    uint32_t R = e->p->residual, step = 2 * R + 1;
+    uint32_t R = e->R, step = 2 * R + 1;
     cdvr_status s = hvq_sections_alloc(sec, L, e->nnz, e->shared ? 0 : e->n1,
                                        e->shared ? 0 : e->n2, err);
     if (s != CDVR_OK)
@@ -565,8 +637,7 @@ static cdvr_status compact_sections(const hvq_enc *e, hvq_sections *sec, cdvr_er
                 uint64_t at = x + e->SX * (y + e->SY * (uint64_t)z);
                 int v = e->frame[at];
                 /* outside the core: the nearest core voxel's value (hvq2_skip) */
-                int d = v - base_value(e, x > e->OX ? x - e->OX : 0, y > e->OY ? y - e->OY : 0,
-                                       z > e->OZ ? z - e->OZ : 0);
+                int d = v - frame_base(e, x, y, z);
                 if ((uint32_t)abs(d) <= R)
                     continue;
                 int q = (abs(d) + (int)R) / (int)step; /* round(|d| / step), halves up */
@@ -578,6 +649,64 @@ static cdvr_status compact_sections(const hvq_enc *e, hvq_sections *sec, cdvr_er
     return CDVR_OK;
 }
 
+/* k2 = auto (cdvr/hvq.h "Codebook size from the data"): level 2 trained at each candidate
+ * size, the payload's size measured for each (sections built and compressed), the smallest kept (ties: the
+ * smaller size); e ends as after a plain encode at that size. */
+static const uint32_t k2_candidates[] = {256, 512, 1024, 2048};
+
+static cdvr_status compact_size(hvq_enc *e, const size_t dims[3], size_t *bytes,
+                                cdvr_error *err)
+{
+    const uint64_t d64[3] = {e->X, e->Y, e->Z};
+    hvq_sections sec;
+    memset(&sec, 0, sizeof sec);
+    hvq_layout_get(d64, e->n1, e->n2, &e->L);
+    cdvr_status s = choose_residual(e, 1, err);
+    if (s == CDVR_OK)
+        s = compact_sections(e, &sec, err);
+    if (s == CDVR_OK)
+        s = hvq_compact_write(&sec, dims, e->n1, e->n2, e->R, 0, NULL, 0, bytes, NULL, err);
+    hvq_sections_free(&sec);
+    return s;
+}
+
+static cdvr_status choose_k2(hvq_enc *e, const size_t dims[3], cdvr_error *err)
+{
+    uint16_t *best_i2 = malloc((e->nnz ? e->nnz : 1) * sizeof *best_i2);
+    int16_t *best_cb2 = malloc(sizeof *best_cb2 * 64 * HVQ_K2_AUTO_MAX);
+    cdvr_status s = best_i2 && best_cb2 ? CDVR_OK :
+        cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq: out of memory for the k2 = auto search");
+    size_t best = SIZE_MAX, bytes;
+    unsigned best_n2 = 0, last_n2 = UINT_MAX;
+    int best_lbg = 0;
+    for (size_t c = 0; s == CDVR_OK && c < sizeof k2_candidates / sizeof *k2_candidates; c++) {
+        s = level2(e, k2_candidates[c], err);
+        if (s != CDVR_OK || e->n2 == last_n2) /* the 1-per-8-blocks cap: no larger size */
+            break;
+        last_n2 = e->n2;
+        s = compact_size(e, dims, &bytes, err);
+        if (s == CDVR_OK && bytes < best) {
+            best = bytes;
+            best_n2 = e->n2;
+            best_lbg = e->lbg_iterations[1];
+            memcpy(best_i2, e->i2, e->nnz * sizeof *best_i2);
+            memcpy(best_cb2, e->cb2, sizeof *best_cb2 * 64 * e->n2);
+        }
+    }
+    if (s == CDVR_OK) {
+        const uint64_t d64[3] = {e->X, e->Y, e->Z};
+        e->n2 = best_n2;
+        e->lbg_iterations[1] = best_lbg;
+        memcpy(e->i2, best_i2, e->nnz * sizeof *best_i2);
+        memcpy(e->cb2, best_cb2, sizeof *best_cb2 * 64 * best_n2);
+        hvq_layout_get(d64, e->n1, e->n2, &e->L);
+        s = choose_residual(e, 1, err);
+    }
+    free(best_i2);
+    free(best_cb2);
+    return s;
+}
+
 cdvr_status cdvr_hvq_encode_compact(const cdvr_hvq_params *p, const cdvr_hvq_codebooks *shared,
                                     const size_t dims[3], const uint8_t *frame, unsigned threads,
                                     uint8_t *out, size_t out_cap, size_t *out_bytes,
@@ -587,10 +716,12 @@ cdvr_status cdvr_hvq_encode_compact(const cdvr_hvq_params *p, const cdvr_hvq_cod
     hvq_sections sec;
     memset(&sec, 0, sizeof sec);
     cdvr_status s = encode_common(&e, p, shared, 1, dims, frame, threads, out, out_bytes, err);
+    if (s == CDVR_OK && !p->k2 && !shared)
+        s = choose_k2(&e, dims, err);
     if (s == CDVR_OK)
         s = compact_sections(&e, &sec, err);
     if (s == CDVR_OK)
-        s = hvq_compact_write(&sec, dims, e.n1, e.n2, p->residual, shared ? shared->id : 0,
+        s = hvq_compact_write(&sec, dims, e.n1, e.n2, e.R, shared ? shared->id : 0,
                               out, out_cap, out_bytes, stats, err);
     if (s == CDVR_OK && stats) {
         stats->lbg_iterations[0] = e.lbg_iterations[0];
@@ -624,6 +755,8 @@ cdvr_status cdvr_hvq_train_shared(const cdvr_hvq_params *p, const size_t dims[3]
 {
     *blob = NULL;
     *bytes = 0;
+    if (p->k2 == 0)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: shared codebooks with k2 = auto (give k2)");
     if (nframes == 0)
         return cdvr_error_set(err, CDVR_ERR_ARG, "hvq: training shared codebooks on no frame");
     int16_t *l1 = NULL, *l2 = NULL;

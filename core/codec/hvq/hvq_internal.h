@@ -157,6 +157,9 @@ int hvq2_header_read(const uint8_t *in, size_t n, hvq2_header *h);
  * decoded as a copy of the plane after it (before residuals), so the blocks of every brick
  * lie on the whole volume's grid. hvq2_skip: the planes left out (0 or 1), hvq2_core: the
  * core's extent. */
+/* k2 = 0 ("auto", hvqc): the sizes tried (cdvr/hvq.h), the largest the bound for. */
+#define HVQ_K2_AUTO_MAX 2048u
+static inline uint32_t hvq_k2_max(uint32_t k2) { return k2 ? k2 : HVQ_K2_AUTO_MAX; }
 static inline size_t hvq2_skip(size_t n) { return n >= 5 && n % 4 == 1 ? 1 : 0; }
 static inline size_t hvq2_core(size_t n) { return n - hvq2_skip(n); }
 #define HVQ2_FLAG_SHARED 1u  /* codebooks are the variant's (cdvr_hvq_codebooks) */

@@ -163,15 +163,38 @@
  * (on the block grid an unbricked compact chunk of the whole volume has)
  * of up to 4 sample frames of the whole volume (at most ceil(train / frames) vectors of each).
  *
+ * ---- Quality target (encoder only; both forms) ----------------------------------------------
+ * `residual` is the maximum error: every decoded voxel is within it of the original. With a
+ * PSNR target T > 0 the encoder picks the residual threshold per chunk: after steps 1-4 (the
+ * VQ result, not retrained) it counts the pairs (b, v) of every voxel's value before the
+ * residual stage and its original, computes the decoded chunk's squared error SSE(R) exactly
+ * for R = residual, residual-1, ..., 0 (hashed form: error d = v - b when |d| <= R, else 0;
+ * compact form: d when |d| <= R, else clamp(b + q(2R+1), 0, 255) - v) and applies the first R
+ * with SSE(R) = 0 or 10 log10(255^2 N / SSE(R)) >= T, N = the chunk's voxels (R = 0 always
+ * qualifies: the decode is then exact). The compact payload records R in its header (hvqc's
+ * describe figure "residual_sum", which st:info() sums over chunks); the hashed form decodes
+ * without R (its encoder stats report it). A store's volume PSNR over owned voxels can differ
+ * slightly from its bricks' (overlap voxels count in each brick).
+ *
+ * ---- Codebook size from the data (k2 = 0, "auto"; compact form only) ------------------------
+ * Level 2 is trained and assigned at each size 256, 512, 1024, 2048 in turn (the size cap
+ * above applies; the candidates stop at the first that gives no more entries than the one
+ * before), the residual threshold chosen for each (under a PSNR target too), and the whole
+ * compact payload's size measured (sections built and compressed); the size with the smallest
+ * payload is kept (ties: the smaller), so the payload is byte for byte the plain encode at
+ * that k2. Encode time: up to four level-2 trainings and residual stages (light-sheet 256^3:
+ * about 3x the plain encode). The hashed form and shared codebooks refuse k2 = 0.
+ *
  * ---- Parameter blob (CDVR_CODEC_PARAMS_MAX bytes, little endian, unused bytes 0) -----------
  *   0  f64 grad      zero-block threshold on the average gradient, 0..765 (default 8)
  *   8  f64 eps       LBG stop: relative distortion change, 0 < eps < 1 (default 0.01)
  *  16  u32 residual  residual threshold, 0..255 (default 10)
  *  20  u32 k1        codebook 1 size at most, 1..4096 (default 4096)
- *  24  u32 k2        codebook 2 size at most, 1..4096 (default 1024)
+ *  24  u32 k2        codebook 2 size at most, 1..4096 (default 1024); hvqc: 0 = auto
  *  28  u32 train     training vectors at most, 0 = all (default 262144)
- *  hvqc only: 32 u32 shared (0/1), 36 u32 0, 40 u64 shared-codebook id (set by the store
- *  encoder after training; 0 unless shared = 1)
+ *  36  u32 psnr      PSNR target in 1/100 dB, 0..20000, 0 = none (default 0; both forms)
+ *  hvqc only: 32 u32 shared (0/1), 40 u64 shared-codebook id (set by the store encoder
+ *  after training; 0 unless shared = 1)
  */
 #ifndef CDVR_HVQ_H
 #define CDVR_HVQ_H
@@ -191,6 +214,9 @@ typedef struct cdvr_hvq_params {
     uint32_t residual;  /* |original - decoded| above this -> residual voxel */
     uint32_t k1, k2;    /* codebook sizes (at most) */
     uint32_t train;     /* training vectors per codebook at most; 0 = all */
+    double psnr;        /* quality target in dB, 0 = none: the residual threshold applied is
+                         * the largest R <= residual whose decoded chunk has PSNR >= psnr
+                         * (see "Quality target" above); a multiple of 0.01, 0..200 */
 } cdvr_hvq_params;
 
 /* Figures about one payload (cdvr_hvq_check fills them; the codec's describe hook emits
@@ -201,11 +227,18 @@ typedef struct cdvr_hvq_stats {
     size_t indices, residuals;  /* compact form: bitmap + index list, residual list */
     size_t blocks, zero_blocks, residual_voxels;
     size_t codebook1_entries, codebook2_entries, regions;
+    /* the residual threshold R applied (the encoder's choice under a psnr target; the compact
+     * form's check reads it from the payload, the hashed form's check leaves it 0) */
+    uint32_t residual;
     /* encoder only (cdvr_hvq_check leaves them 0): LBG iterations of codebook 1 and 2, and
      * the PSH attempts of the region that needed the most */
     int lbg_iterations[2];
     int hash_attempts;
 } cdvr_hvq_stats;
+
+/* Sets p->psnr to db rounded to the nearest 0.01 and clamped to 0..200 (what the parameter
+ * blob holds) and returns that value, the target the encoder applies (0: none). */
+double cdvr_hvq_params_set_psnr(cdvr_hvq_params *p, double db);
 
 /* The defaults (grad 8, eps 0.01, residual 10, k1 4096, k2 1024, train 262144), chosen by
  * measurement on Colin27 and the engine CT (scripts/bench/hvq_bench.sh sweep). */
