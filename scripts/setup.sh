@@ -43,9 +43,12 @@ case "$mode" in
     ./build/cdvr scripts/demo.lua ;;
   test)
     build build -DCDVR_WITH_MPI=ON
+    # PoCL is installed above: an OpenCL test that cannot open its device fails, not skips
+    export CDVR_REQUIRE_OPENCL=1
     cd build && ctest --output-on-failure -j"$jobs" ;;
   test-sanitize)
     build build-asan -DCDVR_SANITIZE=ON -DCDVR_WITH_MPI=ON
+    export CDVR_REQUIRE_OPENCL=1
     cd build-asan && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
       LSAN_OPTIONS=suppressions=$PWD/../tests/lsan.supp ctest --output-on-failure -j"$jobs" ;;
   *)

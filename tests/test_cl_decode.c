@@ -261,8 +261,7 @@ int main(void)
     cdvr_cl *cl;
     cdvr_error err;
     if (cdvr_cl_open(&cl, &err)) {
-        printf("skip: no OpenCL device: %s\n", err.msg);
-        return 77;
+        return check_opencl_unavailable(err.msg);
     }
     printf("device: %s\n", cdvr_cl_device_name(cl));
     const size_t dims_list[][3] = {{1, 1, 1}, {5, 3, 7}, {9, 8, 13}, {66, 66, 66}, {4, 4, 24}};

@@ -152,8 +152,7 @@ int main(void)
     cdvr_cl *cl;
     cdvr_error err;
     if (cdvr_cl_open(&cl, &err)) {
-        printf("skip: no OpenCL device: %s\n", err.msg);
-        return 77;
+        return check_opencl_unavailable(err.msg);
     }
     static cdvr_codec codec, broken;
     codec = make_fetch_codec("rawfetch_test", 90001, fetch_source);

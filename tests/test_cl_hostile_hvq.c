@@ -337,8 +337,7 @@ int main(void)
     cdvr_cl *cl;
     cdvr_error err;
     if (cdvr_cl_open(&cl, &err) != CDVR_OK) {
-        printf("skip: no OpenCL device: %s\n", err.msg);
-        return 77;
+        return check_opencl_unavailable(err.msg);
     }
     cdvr_cl_close(cl);
     char dir[] = "/tmp/cdvr_hostile_hvq_XXXXXX";

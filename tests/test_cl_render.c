@@ -463,8 +463,7 @@ int main(void)
     cdvr_cl *cl;
     cdvr_error err;
     if (cdvr_cl_open(&cl, &err)) {
-        printf("skip: no OpenCL device: %s\n", err.msg);
-        return 77;
+        return check_opencl_unavailable(err.msg);
     }
     const char *data = check_shared_data();
     if (data)

@@ -396,8 +396,7 @@ int main(void)
     memset(&env, 0, sizeof env);
     int rc = env_open(&env);
     if (rc == 77) {
-        printf("skip: no OpenCL platform or device\n");
-        return 77;
+        return check_opencl_unavailable("no OpenCL platform or device");
     }
     if (rc == 0) {
         hard_cases(&env);
