@@ -461,6 +461,70 @@ static void test_skipping_is_exact(void)
     cdvr_volume_free(v);
 }
 
+/* One skip cache across a sequence of renders keeps exactly the images of no_skip: the same
+ * TF again (flags kept), a TF that makes more entries visible (stale flags would jump the
+ * bricks between 60 and 200), iso and max on the same ranges, the first TF again, a voxel edit
+ * that puts a visible blob into empty bricks (stale ranges would jump it), and a volume of
+ * other dims. */
+static void test_skip_cache_is_exact(void)
+{
+    cdvr_volume *v = make_volume(40, 36, 30), *w = make_volume(23, 41, 19);
+    cdvr_cpu_skip_cache *cache = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_cpu_skip_cache_create(&cache, &err), err);
+    if (!v || !w || !cache)
+        goto done;
+    cdvr_volume *vols[2] = {v, w};
+    for (int k = 0; k < 2; k++) {
+        cdvr_volume *u = vols[k];
+        uint8_t *d = u->data;
+        for (size_t z = 0, i = 0; z < u->dims[2]; z++)
+            for (size_t y = 0; y < u->dims[1]; y++)
+                for (size_t x = 0; x < u->dims[0]; x++, i++) {
+                    double r = hypot(hypot((double)x - 12, (double)y - 12), (double)z - 11);
+                    d[i] = r < 4.0 ? 240 : r < 9.0 ? (uint8_t)(100 + 10 * (int)(r - 4.0)) : 10;
+                }
+    }
+    cdvr_tf_point hi_pts[] = {{0, 0, 0, 0, 0}, {199, 0, 0, 0, 0}, {200, 1, 1, 1, 0.3},
+                              {255, 1, 1, 1, 0.9}};
+    cdvr_tf_point lo_pts[] = {{0, 0, 0, 0, 0}, {59, 0, 0, 0, 0}, {60, 1, 0.5, 0, 0.05},
+                              {255, 0.2, 0.4, 1, 0.9}};
+    cdvr_tf tf_hi, tf_lo;
+    CHECK_OK(cdvr_tf_init(&tf_hi, hi_pts, 4, 1.0, &err), err);
+    CHECK_OK(cdvr_tf_init(&tf_lo, lo_pts, 4, 1.0, &err), err);
+    double eye[3] = {-30, -45, 60}, center[3] = {20, 18, 15};
+    cdvr_camera cam = camera(eye, center, 40);
+    /* case: 0, 1 tf_hi; 2 tf_lo; 3 iso; 4 max; 5 tf_hi; 6 tf_hi after the edit; 7 on w */
+    for (int c = 0; c < 8; c++) {
+        if (c == 6) /* a visible blob far from the sphere, in bricks that were empty */
+            for (size_t z = 22; z < 27; z++)
+                for (size_t y = 26; y < 31; y++)
+                    for (size_t x = 30; x < 36; x++)
+                        ((uint8_t *)v->data)[x + 40 * (y + 36 * z)] = 250;
+        cdvr_volume *u = c == 7 ? w : v;
+        cdvr_render_opts a = options(c == 2 ? &tf_lo : &tf_hi, &cam, 0.5, 0.0);
+        a.look.blend = c == 3 ? CDVR_BLEND_ISO : c == 4 ? CDVR_BLEND_MAX : CDVR_BLEND_COMPOSITE;
+        a.look.iso_value = 150.0;
+        cdvr_render_opts b = a;
+        b.no_skip = 1;
+        cdvr_image *ia = NULL, *ib = render(u, &b);
+        CHECK_OK(cdvr_render_cpu_cached(u, 0, &a, cache, &ia, &err), err);
+        if (ia && ib) {
+            size_t n = (size_t)40 * 40 * 4;
+            CHECK(memcmp(ia->rgba, ib->rgba, n * sizeof(float)) == 0,
+                  "case %d: the cached skip grid changed the image", c);
+            CHECK(a.samples == b.samples, "case %d: %llu samples cached, %llu without skipping",
+                  c, (unsigned long long)a.samples, (unsigned long long)b.samples);
+        }
+        cdvr_image_free(ia);
+        cdvr_image_free(ib);
+    }
+done:
+    cdvr_cpu_skip_cache_free(cache);
+    cdvr_volume_free(v);
+    cdvr_volume_free(w);
+}
+
 /* The threaded brick ranges equal cdvr_range_compute's (through cdvr_skip_minmax_from_frame)
  * for odd and even sizes, one voxel thick axes, shifts 1..3 and 1..7 threads. */
 static void test_brick_ranges(void)
@@ -503,6 +567,7 @@ int main(void)
 {
     test_brick_ranges();
     test_skipping_is_exact();
+    test_skip_cache_is_exact();
     test_analytic_box();
     test_zero_and_full_opacity();
     test_early_termination_and_threads();

@@ -1,7 +1,7 @@
 /* core/render/context.c - the devices a render uses (cdvr_render_ctx, cdvr/method.h): the
  * OpenCL device with one stream reused while the frame dims stay the same, a host copy of
  * the frame last uploaded (so rendering the same frame twice uploads nothing), and the EGL
- * slicer. Each is opened on first use; a failed OpenCL open is remembered, so the default
+ * slicer; the CPU ray caster's skip cache. Each is opened on first use; a failed OpenCL open is remembered, so the default
  * device rule asks the driver once. */
 #include "cdvr/method.h"
 
@@ -25,6 +25,7 @@ struct cdvr_render_ctx {
     cdvr_brick_cache *cache;     /* the brick cache of the last cached store render, or NULL */
     char *cache_path;            /* its store's path and size: a new store at the address of */
     uint64_t cache_file_bytes;   /* a closed one is not taken for it */
+    cdvr_cpu_skip_cache *cpu_skip;
 };
 
 cdvr_status cdvr_render_ctx_create(cdvr_render_ctx **out, cdvr_error *err)
@@ -54,6 +55,7 @@ void cdvr_render_ctx_free(cdvr_render_ctx *ctx)
     cdvr_cl_close(ctx->cl);
 #endif
     cdvr_gl_free(ctx->gl);
+    cdvr_cpu_skip_cache_free(ctx->cpu_skip);
     free(ctx);
 }
 
@@ -89,6 +91,15 @@ cdvr_status cdvr_render_ctx_gl(cdvr_render_ctx *ctx, cdvr_gl **out, cdvr_error *
     }
     *out = ctx->gl;
     return CDVR_OK;
+}
+
+cdvr_cpu_skip_cache *cdvr_render_ctx_cpu_skip(cdvr_render_ctx *ctx)
+{
+    if (!ctx) /* the player renders on the CPU without a context */
+        return NULL;
+    if (!ctx->cpu_skip && cdvr_cpu_skip_cache_create(&ctx->cpu_skip, NULL) != CDVR_OK)
+        ctx->cpu_skip = NULL;
+    return ctx->cpu_skip;
 }
 
 #if CDVR_HAVE_OPENCL

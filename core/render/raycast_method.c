@@ -98,11 +98,12 @@ static cdvr_status raycast_set(cdvr_method_params *p, const char *key, const cha
     return CDVR_OK;
 }
 
-static cdvr_status render_cpu(const cdvr_volume *vol, size_t t, cdvr_render_opts *opts,
-                              cdvr_render_stats *stats, cdvr_image **out, cdvr_error *err)
+static cdvr_status render_cpu(cdvr_render_ctx *ctx, const cdvr_volume *vol, size_t t,
+                              cdvr_render_opts *opts, cdvr_render_stats *stats,
+                              cdvr_image **out, cdvr_error *err)
 {
     double start = cdvr_now_ms();
-    cdvr_status s = cdvr_render_cpu(vol, t, opts, out, err);
+    cdvr_status s = cdvr_render_cpu_cached(vol, t, opts, cdvr_render_ctx_cpu_skip(ctx), out, err);
     if (s != CDVR_OK)
         return s;
     cdvr_render_stats_integer(stats, "samples", (long long)opts->samples);
@@ -364,7 +365,7 @@ static cdvr_status raycast_render(cdvr_render_ctx *ctx, cdvr_device_kind device,
     if (device == CDVR_DEVICE_CL)
         return render_cl(ctx, vol, t, opts, p, stats, out, err);
     opts->no_skip = !get_params(p).skip;
-    return render_cpu(vol, t, opts, stats, out, err);
+    return render_cpu(ctx, vol, t, opts, stats, out, err);
 }
 
 const cdvr_render_method cdvr_method_raycast = {

@@ -18,6 +18,12 @@ typedef int32_t cdvr_cl_i32;
  * in lock-step on 16-wide vectors (lanes row by row). */
 #define CDVR_CL_PACKET_W 4
 #define CDVR_CL_PACKET_H 4
+/* The ray caster's quads (kernels/render/raycast.cl) are stored in tiles of 4 x 4 x 4 voxels
+ * (64 words, 256 bytes: four cache lines), tiles x fastest, then y, z; within a tile x
+ * fastest, then y, z. The buffer holds whole tiles: ceil(dims / 4) of them per axis. A
+ * sample's two quad reads (planes z0 and z0 + 1) and the neighbouring rays of a packet then
+ * fall on a few nearby cache lines instead of rows and planes apart. */
+#define CDVR_CL_QUAD_TILE_SHIFT 2
 /* Edge of the min/max bricks for empty-space skipping: 1 << CDVR_CL_BRICK_SHIFT voxels. */
 #define CDVR_CL_BRICK_SHIFT 2
 /* Bytes of the codec parameter blob handed to decode kernels and fetch functions

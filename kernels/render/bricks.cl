@@ -39,7 +39,17 @@ __kernel void brick_minmax(__global const uchar *frames, __constant uchar *param
 
 /* The quads of a dense frame for the ray caster (raycast.cl): per voxel (x, y, z), one word
  * holding voxels (x, y), (x1, y), (x, y1), (x1, y1) of its plane, low byte first, with
- * x1 = min(x + 1, X - 1) and y1 = min(y + 1, Y - 1). One work-item per voxel. */
+ * x1 = min(x + 1, X - 1) and y1 = min(y + 1, Y - 1), at its place in the tiled layout of
+ * kernels/common/cl_shared.h (quad_slot; the padding of the last tiles is never read). One
+ * work-item per voxel. */
+static size_t quad_slot(uint x, uint y, uint z, uint X, uint Y)
+{
+    const uint sh = CDVR_CL_QUAD_TILE_SHIFT, m = (1u << sh) - 1u;
+    size_t tx = (X + m) >> sh, ty = (Y + m) >> sh;
+    size_t tile = ((size_t)(z >> sh) * ty + (y >> sh)) * tx + (x >> sh);
+    return (tile << (3 * sh)) + ((z & m) << (2 * sh)) + ((y & m) << sh) + (x & m);
+}
+
 __kernel void make_quads(__global const uchar *frames, ulong offset, uint X, uint Y, uint Z,
                          __global uint *quads)
 {
@@ -47,9 +57,10 @@ __kernel void make_quads(__global const uchar *frames, ulong offset, uint X, uin
     if (i >= (size_t)X * Y * Z)
         return;
     __global const uchar *f = frames + offset;
-    uint x = i % X, y = (i / X) % Y;
+    uint x = i % X, y = (i / X) % Y, z = i / ((size_t)X * Y);
     size_t row = i - x, up = y + 1 < Y ? X : 0;
     uint x1 = x + 1 < X ? x + 1 : x;
-    quads[i] = (uint)f[row + x] | (uint)f[row + x1] << 8 | (uint)f[row + up + x] << 16 |
-               (uint)f[row + up + x1] << 24;
+    quads[quad_slot(x, y, z, X, Y)] = (uint)f[row + x] | (uint)f[row + x1] << 8 |
+                                      (uint)f[row + up + x] << 16 |
+                                      (uint)f[row + up + x1] << 24;
 }

@@ -15,7 +15,8 @@
  *
  * Dense frames are read as rows of voxel pairs, or, when the host made them for a frame it
  * renders again (cdvr_cl_render), as "quads": one 32-bit word per voxel holding its 2x2
- * neighbourhood in x and y, so a sample is two gathers instead of eight loads. Both give the
+ * neighbourhood in x and y, stored in 4x4x4 tiles (kernels/common/cl_shared.h), so a sample
+ * is two gathers instead of eight loads, from nearby cache lines. Both give the
  * same values. Voxel indices are 32-bit unless the program is built with
  * -DCDVR_LONG_INDEX (frames of 2^31 voxels or more; no quads then).
  *
@@ -58,6 +59,7 @@ typedef struct volume_geo {
     __constant uchar *params;
     int frame;
     int quads;      /* vol holds the frame's quads (see the top of this file) */
+    int2 quad_tiles; /* quad tiles along x and y (kernels/common/cl_shared.h) */
     int3 dims;
     int3 base_max;  /* largest lower trilinear corner per axis: max(dims - 2, 0) */
     long3 stride;   /* index step to the upper corner per axis; 0 where dims is 1 */
@@ -208,6 +210,17 @@ static vfloat fetch16(const volume_geo *v, vint x, vint y, vint z)
 }
 #endif
 
+#ifndef CDVR_LONG_INDEX
+/* Where the quad of voxel (x, y, z) lies: the tiled layout of kernels/common/cl_shared.h
+ * (make_quads in bricks.cl writes it; the host keeps tiles * 64 below 2^31). */
+static vint quad_index(const volume_geo *v, vint x, vint y, vint z)
+{
+    const int sh = CDVR_CL_QUAD_TILE_SHIFT, m = (1 << sh) - 1;
+    vint tile = ((z >> sh) * v->quad_tiles.y + (y >> sh)) * v->quad_tiles.x + (x >> sh);
+    return (tile << (3 * sh)) + ((z & m) << (2 * sh)) + ((y & m) << sh) + (x & m);
+}
+#endif
+
 /* render.h step 3 at grid position g (clamped here). */
 /* always inlined: as a call (two callers) its vector arguments and result go through memory */
 /* g is a whole-volume grid position; the frame's voxels start at v->offset (an integer:
@@ -233,8 +246,8 @@ __attribute__((always_inline)) static inline vfloat trilinear(const volume_geo *
 #ifndef CDVR_LONG_INDEX
     if (v->quads) {
         __global const uint *q = (__global const uint *)p;
-        lerp_quads(q, base, fx, &c00, &c10);
-        lerp_quads(q, base + sz, fx, &c01, &c11);
+        lerp_quads(q, quad_index(v, x0, y0, z0), fx, &c00, &c10);
+        lerp_quads(q, quad_index(v, x0, y0, z0 + (sz != 0)), fx, &c01, &c11);
         return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
     }
 #endif
@@ -784,6 +797,8 @@ static volume_geo make_geo(__global const uchar *vol, __constant uchar *params, 
     v.params = params;
     v.frame = frame;
     v.quads = quads;
+    v.quad_tiles = (int2)((X + (1 << CDVR_CL_QUAD_TILE_SHIFT) - 1) >> CDVR_CL_QUAD_TILE_SHIFT,
+                          (Y + (1 << CDVR_CL_QUAD_TILE_SHIFT) - 1) >> CDVR_CL_QUAD_TILE_SHIFT);
     v.dims = (int3)(X, Y, Z);
     v.base_max = max(v.dims - 2, 0);
     v.stride = (long3)(X > 1 ? 1 : 0, Y > 1 ? (long)X : 0, Z > 1 ? (long)X * (long)Y : 0);

@@ -258,5 +258,8 @@ cdvr_status cdvr_render_ctx_load_chunk(cdvr_render_ctx *ctx, const cdvr_store *s
                                        cdvr_error *err);
 /* The EGL slicer, created on first use. */
 cdvr_status cdvr_render_ctx_gl(cdvr_render_ctx *ctx, cdvr_gl **out, cdvr_error *err);
+/* The CPU ray caster's skip cache (cdvr/render.h), created on first use; NULL when ctx is
+ * NULL or out of memory (the render then makes its grid each time). */
+cdvr_cpu_skip_cache *cdvr_render_ctx_cpu_skip(cdvr_render_ctx *ctx);
 
 #endif

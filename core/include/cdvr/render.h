@@ -219,4 +219,19 @@ int cdvr_render_view_hits(const cdvr_volume *vol, const cdvr_camera *cam);
 cdvr_status cdvr_render_cpu(const cdvr_volume *vol, size_t t, cdvr_render_opts *opts,
                             cdvr_image **out, cdvr_error *err);
 
+/* What a CPU render's empty-space skipping keeps for the next one (a render context holds
+ * one, cdvr/method.h): the brick ranges of the last frame and the skip flags made from them.
+ * A render recomputes the ranges (cheap, on all threads) and makes the flags again (a distance
+ * transform over the bricks, on one thread) only when the ranges or the TF's set of entries
+ * with alpha > 0 (iso: the iso value) changed; the image is the same either way, bit for bit.
+ * Belongs to one thread at a time. */
+typedef struct cdvr_cpu_skip_cache cdvr_cpu_skip_cache;
+cdvr_status cdvr_cpu_skip_cache_create(cdvr_cpu_skip_cache **out, cdvr_error *err);
+/* NULL is allowed. */
+void cdvr_cpu_skip_cache_free(cdvr_cpu_skip_cache *c);
+/* cdvr_render_cpu with a cache (NULL: none, as cdvr_render_cpu). */
+cdvr_status cdvr_render_cpu_cached(const cdvr_volume *vol, size_t t, cdvr_render_opts *opts,
+                                   cdvr_cpu_skip_cache *cache, cdvr_image **out,
+                                   cdvr_error *err);
+
 #endif

@@ -418,15 +418,30 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
 
 /* A frame rendered a second time (a scene shown again: another camera, TF or step) gets its
  * quads (raycast.cl), which the ray caster reads with two gathers per sample instead of eight
- * loads: 4 bytes per voxel, so only below 2^31 voxels and when the device takes the buffer.
+ * loads: 4 bytes per voxel in whole 4x4x4 tiles, so only below 2^29 words and when the
+ * device takes the buffer.
  * Playback renders each frame once and never pays for them. On any failure the frame is
  * simply rendered from its voxels. */
+/* Words of the tiled quads of a frame of dims (whole tiles, kernels/common/cl_shared.h);
+ * SIZE_MAX on overflow. */
+static size_t quad_slots(const size_t dims[3])
+{
+    size_t edge = (size_t)1 << CDVR_CL_QUAD_TILE_SHIFT, n = 1;
+    for (int a = 0; a < 3; a++) {
+        size_t tiles = dims[a] / edge + (dims[a] % edge != 0);
+        if (!cdvr_size_mul(n, tiles * edge, &n))
+            return SIZE_MAX;
+    }
+    return n;
+}
+
 static void make_quads_if_rerendered(cdvr_cl_stream *s, size_t frame)
 {
     int again = s->last_rendered == frame;
     s->last_rendered = frame;
     const char *force_long = getenv("CDVR_CL_LONG_INDEX");
-    if (s->fetch || !again || s->quads_frame == frame || s->voxels > INT_MAX / 4 ||
+    size_t slots = quad_slots(s->dims);
+    if (s->fetch || !again || s->quads_frame == frame || slots > INT_MAX / 4 ||
         (force_long && !strcmp(force_long, "1")))
         return;
     cdvr_error err;
@@ -434,7 +449,7 @@ static void make_quads_if_rerendered(cdvr_cl_stream *s, size_t frame)
     cl_ulong offset = frame * s->voxels;
     cl_mem frames = cdvr_cl_frames_mem(s);
     cl_uint d[3] = {(cl_uint)s->dims[0], (cl_uint)s->dims[1], (cl_uint)s->dims[2]};
-    cdvr_status st = cdvr_cl_ensure_buffer(s->cl, &s->quads, &s->quads_capacity, 4 * s->voxels,
+    cdvr_status st = cdvr_cl_ensure_buffer(s->cl, &s->quads, &s->quads_capacity, 4 * slots,
                                            CL_MEM_READ_WRITE, "quads", &err);
     if (!st)
         st = cdvr_cl_arg(k, "make_quads", 0, sizeof(cl_mem), &frames, &err);

@@ -1204,13 +1204,99 @@ static void iso_flags(cdvr_skip_grid *g, float c)
     reach_flags(g, holds);
 }
 
+/* What a skip grid's flags were made for: a composite TF's entries with alpha > 0, or an iso
+ * code (the ranges are compared separately). */
+typedef struct skip_key {
+    int kind;                /* 0: none (flags not made), 1: composite, 2: iso */
+    uint8_t tf_visible[256];
+    float iso_code;
+} skip_key;
+
+struct cdvr_cpu_skip_cache {
+    cdvr_skip_grid grid;     /* grid.minmax == NULL: nothing kept */
+    skip_key key;
+};
+
+cdvr_status cdvr_cpu_skip_cache_create(cdvr_cpu_skip_cache **out, cdvr_error *err)
+{
+    *out = calloc(1, sizeof **out);
+    if (!*out)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "render: no memory for the skip cache");
+    return CDVR_OK;
+}
+
+void cdvr_cpu_skip_cache_free(cdvr_cpu_skip_cache *c)
+{
+    if (!c)
+        return;
+    if (c->grid.minmax)
+        cdvr_skip_grid_free(&c->grid);
+    free(c);
+}
+
+static skip_key key_of(const render_job *job, const cdvr_tf *tf)
+{
+    skip_key k;
+    memset(&k, 0, sizeof k);
+    if (job->blend == CDVR_BLEND_ISO) {
+        k.kind = 2;
+        k.iso_code = job->iso_code;
+    } else {
+        k.kind = 1;
+        for (int i = 0; i < 256; i++)
+            k.tf_visible[i] = tf->table[i][3] > 0.0f;
+    }
+    return k;
+}
+
+/* The cache's grid for a volume of dims with fresh brick ranges in grid->minmax; *same is 1
+ * when they equal the ranges its flags were made from (the flags are then valid for the same
+ * key). Returns NULL (no skipping) when out of memory. */
+static cdvr_skip_grid *cached_ranges(cdvr_cpu_skip_cache *c, const render_job *job,
+                                     const cdvr_volume *vol, int threads, int *same)
+{
+    cdvr_skip_grid *g = &c->grid;
+    cdvr_error ignored;
+    *same = 0;
+    if (g->minmax && memcmp(g->vol_dims, vol->dims, sizeof g->vol_dims) != 0) {
+        cdvr_skip_grid_free(g);
+        memset(g, 0, sizeof *g);
+    }
+    if (!g->minmax) {
+        c->key.kind = 0;
+        if (cdvr_skip_grid_init(g, vol->dims, CDVR_RANGE_SHIFT, &ignored) != CDVR_OK) {
+            memset(g, 0, sizeof *g);
+            return NULL;
+        }
+    }
+    /* the new ranges into scratch (2 bytes per brick, as minmax), then compared */
+    if (cdvr_cpu_brick_ranges(job->voxels, vol->dims, g->shift, threads, g->scratch,
+                              &ignored) != CDVR_OK) {
+        c->key.kind = 0;
+        return NULL;
+    }
+    size_t bytes = 2 * g->nbricks;
+    *same = c->key.kind != 0 && memcmp(g->scratch, g->minmax, bytes) == 0;
+    if (!*same) {
+        uint8_t *fresh = g->scratch;
+        g->scratch = g->minmax;
+        g->minmax = fresh;
+        c->key.kind = 0;
+    }
+    return g;
+}
+
 /* Empty-space skipping for a composite render of a whole volume: the brick flags of its frame
- * under the TF (cdvr/skip.h, bricks of 2^CDVR_RANGE_SHIFT voxels) into the job. Returns 1 when
- * the grid was made (free it), 0 when the render takes every sample (clipped, another blend
- * mode, opts->no_skip, or no memory: skipping is only a saving); max and min get the brick
- * ranges only, iso the flags of iso_flags. Also chooses the four-lane march unless opts->no_skip. */
+ * under the TF (cdvr/skip.h, bricks of 2^CDVR_RANGE_SHIFT voxels) into the job, from cache
+ * (its flags kept when the brick ranges and the key are those they were made for; the flags
+ * depend on nothing else, so the image is the same bit for bit) or, when cache is NULL, a
+ * grid made for this render in *own. Returns 1 when *own was made (free it), 0 otherwise;
+ * the render takes every sample (job->skip_* NULL) when clipped, for another blend mode,
+ * with opts->no_skip, or out of memory (skipping is only a saving); max and min get the brick
+ * ranges only, iso the flags of iso_flags. Also chooses the four-lane march unless
+ * opts->no_skip. */
 static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render_opts *opts,
-                      int threads, cdvr_skip_grid *grid)
+                      int threads, cdvr_cpu_skip_cache *cache, cdvr_skip_grid *own)
 {
     job->skip_flags = NULL;
     job->skip_minmax = NULL;
@@ -1223,30 +1309,49 @@ static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render
         (job->blend != CDVR_BLEND_COMPOSITE && job->blend != CDVR_BLEND_ISO && !extreme))
         return 0;
     cdvr_error ignored;
-    if (cdvr_skip_grid_init(grid, vol->dims, CDVR_RANGE_SHIFT, &ignored) != CDVR_OK)
-        return 0;
-    if (cdvr_cpu_brick_ranges(job->voxels, vol->dims, grid->shift, threads, grid->minmax,
-                              &ignored) != CDVR_OK) {
-        cdvr_skip_grid_free(grid);
-        return 0;
+    cdvr_skip_grid *grid = own;
+    int same = 0;
+    if (cache) {
+        grid = cached_ranges(cache, job, vol, threads, &same);
+        if (!grid)
+            return 0;
+    } else {
+        if (cdvr_skip_grid_init(grid, vol->dims, CDVR_RANGE_SHIFT, &ignored) != CDVR_OK)
+            return 0;
+        if (cdvr_cpu_brick_ranges(job->voxels, vol->dims, grid->shift, threads, grid->minmax,
+                                  &ignored) != CDVR_OK) {
+            cdvr_skip_grid_free(grid);
+            return 0;
+        }
     }
     job->skip_shift = (int)grid->shift;
-    if (extreme)
-        job->skip_minmax = grid->minmax;
-    else if (job->blend == CDVR_BLEND_ISO) {
-        iso_flags(grid, job->iso_code);
-        job->skip_flags = grid->flags;
-    } else {
-        invisible_reach(grid, opts->tf);
-        job->skip_flags = grid->flags;
-    }
     for (int a = 0; a < 3; a++)
         job->skip_nb[a] = (int)grid->dims[a];
-    return 1;
+    if (extreme) {
+        job->skip_minmax = grid->minmax;
+        return cache == NULL;
+    }
+    skip_key key = key_of(job, opts->tf);
+    if (!cache || !same || memcmp(&key, &cache->key, sizeof key) != 0) {
+        if (job->blend == CDVR_BLEND_ISO)
+            iso_flags(grid, job->iso_code);
+        else
+            invisible_reach(grid, opts->tf);
+        if (cache)
+            cache->key = key;
+    }
+    job->skip_flags = grid->flags;
+    return cache == NULL;
 }
 
 cdvr_status cdvr_render_cpu(const cdvr_volume *vol, size_t t, cdvr_render_opts *opts,
                             cdvr_image **out, cdvr_error *err)
+{
+    return cdvr_render_cpu_cached(vol, t, opts, NULL, out, err);
+}
+
+cdvr_status cdvr_render_cpu_cached(const cdvr_volume *vol, size_t t, cdvr_render_opts *opts,
+                                   cdvr_cpu_skip_cache *cache, cdvr_image **out, cdvr_error *err)
 {
     *out = NULL;
     if (!vol || !opts)
@@ -1277,7 +1382,7 @@ cdvr_status cdvr_render_cpu(const cdvr_volume *vol, size_t t, cdvr_render_opts *
     setup_job(job, vol, t, opts, step, unit, term, img);
     cdvr_skip_grid grid;
     int nthreads = thread_count(opts, img->height);
-    int skipping = skip_setup(job, vol, opts, nthreads, &grid);
+    int skipping = skip_setup(job, vol, opts, nthreads, cache, &grid);
     run_workers(job, nthreads);
     if (skipping)
         cdvr_skip_grid_free(&grid);
