@@ -158,7 +158,7 @@ static cdvr_status raycast_cached_cpu(cdvr_render_ctx *ctx, const cdvr_store *st
         s = cdvr_brick_cache_codec()->decode(&none, info->dims, payload, bytes, frames, 1, err);
     }
     if (s == CDVR_OK)
-        s = render_cpu(vol, 0, opts, stats, out, err);
+        s = render_cpu(ctx, vol, 0, opts, stats, out, err);
     if (s == CDVR_OK)
         cache_stats(bc, stats);
     cdvr_volume_free(vol);
