@@ -259,6 +259,47 @@ end
 -- One panel per dataset in one PNG (gnuplot multiplot). Per dataset two data blocks: every
 -- point (labelled), then the front by bits per voxel. Lossless points (inf PSNR) sit at the
 -- top of their panel, 6 dB above its best lossy point.
+-- Label heights (data units) so that labels do not overwrite each other: variants of one
+-- codec at equal PSNR (a PVTC variant and its stage-2 versions) stand at one height. Greedy, in
+-- order of bits per voxel: a label takes the first of its point's height, one line above, one
+-- below, two above, ... that keeps a line's distance from every label placed within
+-- LABEL_OCTAVES of it along the (log 2) bits axis. A line is 1/24 of the panel's PSNR span.
+local LABEL_OCTAVES = 1.4
+local function place_labels(points, top)
+  local low = top
+  for _, r in ipairs(points) do
+    if r.image_psnr ~= math.huge then low = math.min(low, r.image_psnr) end
+  end
+  local line = math.max(top - low, 6) / 24
+  local order = {}
+  for k in ipairs(points) do order[k] = k end
+  table.sort(order, function(a, b) return points[a].bpv < points[b].bpv end)
+  local placed, out = {}, {}
+  for _, k in ipairs(order) do
+    local r = points[k]
+    local y = r.image_psnr == math.huge and top or r.image_psnr
+    local x = math.log(math.max(r.bpv, 1e-9), 2)
+    local chosen = y
+    for step = 0, 16 do
+      local dy = (step % 2 == 1 and 1 or -1) * math.ceil(step / 2) * line
+      local free = true
+      for _, p in ipairs(placed) do
+        if math.abs(p.x - x) < LABEL_OCTAVES and math.abs(p.y - (y + dy)) < line then
+          free = false
+          break
+        end
+      end
+      if free then
+        chosen = y + dy
+        break
+      end
+    end
+    placed[#placed + 1] = {x = x, y = chosen}
+    out[k] = chosen
+  end
+  return out
+end
+
 local COLOURS = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf"}
 local dat = assert(io.open(opt.out .. "/frontier.dat", "w"))
 local panels = {}
@@ -274,10 +315,11 @@ for i, name in ipairs(names) do
   local top = maxfin + 6
   table.sort(front, function(a, b) return a.bpv < b.bpv end)
   if i > 1 then dat:write("\n\n") end
-  for _, r in ipairs(mine) do
+  local label_y = place_labels(mine, top)
+  for k, r in ipairs(mine) do
     local y = r.image_psnr == math.huge and top or r.image_psnr
-    dat:write(("%.5f %.4f \"%s %.2fGB/s %.0ffps%s\"\n"):format(r.bpv, y, r.config, r.decode_gb_s, r.fps,
-                                                              r.image_psnr == math.huge and " lossless" or ""))
+    dat:write(("%.5f %.4f \"%s %.2fGB/s %.0ffps%s\" %.4f\n"):format(r.bpv, y, r.config, r.decode_gb_s,
+      r.fps, r.image_psnr == math.huge and " lossless" or "", label_y[k]))
   end
   dat:write("\n\n")
   for _, r in ipairs(front) do
@@ -292,7 +334,7 @@ for i, name in ipairs(names) do
       file, 2 * (i - 1), colour),
     ('     "%s" index %d using 1:2 with linespoints pt 6 ps 2.0 lw 1.5 dt 2 lc rgb "%s" title "pareto front", \\'):format(
       file, 2 * i - 1, colour),
-    ('     "%s" index %d using 1:2:3 with labels offset char 0,0.8 font ",7" tc rgb "#333333" notitle'):format(
+    ('     "%s" index %d using 1:4:3 with labels offset char 0,0.8 font ",7" tc rgb "#333333" notitle'):format(
       file, 2 * (i - 1)),
   }, "\n")
 end
