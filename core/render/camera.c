@@ -93,10 +93,16 @@ void cdvr_camera_basis(const cdvr_camera *cam, double f[3], double u[3], double 
     cross3(f, u, r);
 }
 
-void cdvr_camera_ray(const cdvr_camera *cam, int x, int y, double origin[3], double dir[3])
+void cdvr_camera_frame_init(const cdvr_camera *cam, cdvr_camera_frame *frame)
 {
-    double f[3], u[3], r[3];
-    cdvr_camera_basis(cam, f, u, r);
+    cdvr_camera_basis(cam, frame->f, frame->u, frame->r);
+    frame->tan_half_fov = tan(0.5 * cam->fov * kPi / 180.0);
+}
+
+void cdvr_camera_frame_ray(const cdvr_camera *cam, const cdvr_camera_frame *frame, int x, int y,
+                           double origin[3], double dir[3])
+{
+    const double *f = frame->f, *u = frame->u, *r = frame->r;
     double aspect = (double)cam->width / (double)cam->height;
     double sx = (2.0 * (x + 0.5) / cam->width - 1.0) * aspect;
     double sy = -(2.0 * (y + 0.5) / cam->height - 1.0);
@@ -108,12 +114,18 @@ void cdvr_camera_ray(const cdvr_camera *cam, int x, int y, double origin[3], dou
         }
         return;
     }
-    double t = tan(0.5 * cam->fov * kPi / 180.0);
     for (int i = 0; i < 3; i++) {
         origin[i] = cam->eye[i];
-        dir[i] = f[i] + (sx * r[i] + sy * u[i]) * t;
+        dir[i] = f[i] + (sx * r[i] + sy * u[i]) * frame->tan_half_fov;
     }
     normalize3(dir);
+}
+
+void cdvr_camera_ray(const cdvr_camera *cam, int x, int y, double origin[3], double dir[3])
+{
+    cdvr_camera_frame frame;
+    cdvr_camera_frame_init(cam, &frame);
+    cdvr_camera_frame_ray(cam, &frame, x, y, origin, dir);
 }
 
 /* Unit vector orthogonal to the unit vector n: the world axis least parallel to n, with its

@@ -25,6 +25,16 @@ cdvr_status cdvr_camera_validate(const cdvr_camera *cam, cdvr_error *err);
 void cdvr_camera_basis(const cdvr_camera *cam, double f[3], double u[3], double r[3]);
 /* Ray through pixel (x, y): origin and unit direction. */
 void cdvr_camera_ray(const cdvr_camera *cam, int x, int y, double origin[3], double dir[3]);
+/* What cdvr_camera_ray derives from the camera alone (its basis and tan(fov / 2)), computed
+ * once for all the rays of an image: cdvr_camera_frame_ray gives exactly cdvr_camera_ray's
+ * ray, bit for bit. */
+typedef struct cdvr_camera_frame {
+    double f[3], u[3], r[3];
+    double tan_half_fov;
+} cdvr_camera_frame;
+void cdvr_camera_frame_init(const cdvr_camera *cam, cdvr_camera_frame *frame);
+void cdvr_camera_frame_ray(const cdvr_camera *cam, const cdvr_camera_frame *frame, int x, int y,
+                           double origin[3], double dir[3]);
 /* Camera on a circle around center: eye at distance `distance`, angle `azimuth_deg` around
  * the up axis, `elevation_deg` above the plane orthogonal to up. */
 void cdvr_camera_orbit(cdvr_camera *cam, const double center[3], const double up[3],

@@ -34,8 +34,7 @@ typedef struct render_job {
     float alpha_step[256]; /* a_c[i] = 1 - (1 - a[i])^(step/unit) */
     float code_value[256];     /* (float)i: a load instead of an int-to-float conversion */
     const cdvr_camera *camera;
-    double cam_f[3], cam_u[3], cam_r[3]; /* cdvr_camera_basis, once per render */
-    double cam_tan;            /* tan(fov / 2) as cdvr_camera_ray computes it */
+    cdvr_camera_frame cam_frame; /* the camera's basis, once per render */
     /* blend modes and shading (render.h) */
     int blend;
     int shade;                 /* shading on */
@@ -638,31 +637,11 @@ static void to_box_frame(const render_job *job, const double od[3], const double
     }
 }
 
-/* cdvr_camera_ray's ray through pixel (x, y), the same arithmetic in the same order, with the
- * camera's basis and tan(fov / 2) computed once per render (job) instead of per pixel. */
+/* cdvr_camera_ray's ray through pixel (x, y), with the camera's basis computed once per
+ * render (job) instead of per pixel. */
 static void pixel_ray(const render_job *job, int x, int y, double origin[3], double dir[3])
 {
-    const cdvr_camera *cam = job->camera;
-    double aspect = (double)cam->width / (double)cam->height;
-    double sx = (2.0 * (x + 0.5) / cam->width - 1.0) * aspect;
-    double sy = -(2.0 * (y + 0.5) / cam->height - 1.0);
-    const double *f = job->cam_f, *u = job->cam_u, *r = job->cam_r;
-    if (cam->orthographic) {
-        double half = 0.5 * cam->ortho_height;
-        for (int i = 0; i < 3; i++) {
-            origin[i] = cam->eye[i] + (sx * r[i] + sy * u[i]) * half;
-            dir[i] = f[i];
-        }
-        return;
-    }
-    for (int i = 0; i < 3; i++) {
-        origin[i] = cam->eye[i];
-        dir[i] = f[i] + (sx * r[i] + sy * u[i]) * job->cam_tan;
-    }
-    double len = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
-    if (len > 0.0)
-        for (int i = 0; i < 3; i++)
-            dir[i] /= len;
+    cdvr_camera_frame_ray(job->camera, &job->cam_frame, x, y, origin, dir);
 }
 
 /* ---- four rays at a time (SSE2) -------------------------------------------------------------
@@ -1122,8 +1101,7 @@ static void setup_job(render_job *job, const cdvr_volume *vol, size_t t,
     for (int i = 0; i < 256; i++)
         job->alpha_step[i] = (float)(1.0 - pow(1.0 - opts->tf->table[i][3], step / unit));
     job->camera = opts->camera;
-    cdvr_camera_basis(opts->camera, job->cam_f, job->cam_u, job->cam_r);
-    job->cam_tan = tan(0.5 * opts->camera->fov * 3.14159265358979323846 / 180.0);
+    cdvr_camera_frame_init(opts->camera, &job->cam_frame);
     setup_look(job, opts, D);
     job->cancel = opts->cancel;
     job->img = img;
