@@ -316,11 +316,11 @@ static cdvr_status raycast_store(cdvr_render_ctx *ctx, cdvr_device_kind device,
     cdvr_status status = cdvr_render_ctx_stream(ctx, info->dims, &s, err);
     if (status != CDVR_OK)
         return status;
-    cdvr_cl_set_fetch_path(s, (cdvr_cl_fetch_path)get_params(p).fetch);
+    cdvr_cl_set_fetch_path(s, (cdvr_cl_fetch_path)rp.fetch);
     status = cdvr_render_ctx_load_chunk(ctx, st, v, t, &s, &frame, err);
     if (status != CDVR_OK)
         return status;
-    cdvr_cl_set_skipping(s, get_params(p).skip);
+    cdvr_cl_set_skipping(s, rp.skip);
     return render_device_frame(ctx, s, frame, opts, info->spacing, info->origin, info->direction,
                                start, stats, out, err);
 }
