@@ -231,29 +231,12 @@ mark_front(rows)
 -- ---- CSV ----------------------------------------------------------------------------------
 local COLUMNS = "dataset,config,codec,stage2,bpv,image_psnr,volume_psnr,decode_gb_s,unpack_gb_s," ..
                 "fps,frame_ms,pareto"
-local function fmt(x) return x == math.huge and "inf" or ("%.4f"):format(x) end
-local csv = assert(io.open(opt.out .. "/frontier.csv", "w"))
-csv:write(COLUMNS, "\n")
-for _, r in ipairs(rows) do
-  csv:write(("%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%d\n"):format(r.dataset, r.config, r.codec, r.stage2,
+local fmt = common.csv_number
+common.write_results(opt.out, "frontier.csv", COLUMNS, rows, function(r)
+  return ("%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%d"):format(r.dataset, r.config, r.codec, r.stage2,
     fmt(r.bpv), fmt(r.image_psnr), fmt(r.volume_psnr), fmt(r.decode_gb_s), fmt(r.unpack_gb_s),
-    fmt(r.fps), fmt(r.frame_ms), r.pareto))
-end
-csv:close()
-io.write(io.open(opt.out .. "/frontier.csv"):read("a"))
-
-local failed_path = opt.out .. "/failed.txt"
-if #failures > 0 then
-  local f = assert(io.open(failed_path, "w"))
-  f:write(table.concat(failures, "\n"), "\n")
-  f:close()
-else
-  os.remove(failed_path)
-end
-if #rows == 0 then
-  io.stderr:write("frontier.lua: no dataset could be measured\n")
-  os.exit(1)
-end
+    fmt(r.fps), fmt(r.frame_ms), r.pareto)
+end, failures, "frontier.lua")
 
 -- ---- chart --------------------------------------------------------------------------------
 -- One panel per dataset in one PNG (gnuplot multiplot). Per dataset two data blocks: every

@@ -137,29 +137,14 @@ for _, spec in ipairs(datasets) do
 end
 common.progress_done()
 
-local csv = assert(io.open(opt.out .. "/report.csv", "w"))
-csv:write("dataset,config,codec,bpv,ratio,fps,frame_ms,image_psnr,volume_psnr,maxerr,stage2,unpack_mb_s\n")
-local function fmt(x) return x == math.huge and "inf" or ("%.4f"):format(x) end
-for _, r in ipairs(rows) do
-  csv:write(("%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s\n"):format(r.dataset, r.config, r.codec, fmt(r.bpv),
-    fmt(r.ratio), fmt(r.fps), fmt(r.frame_ms), fmt(r.image_psnr), fmt(r.volume_psnr), fmt(r.maxerr),
-    r.stage2, fmt(r.unpack_mb_s)))
-end
-csv:close()
-io.write(io.open(opt.out .. "/report.csv"):read("a"))
-
-local failed_path = opt.out .. "/failed.txt"
-if #failures > 0 then
-  local f = assert(io.open(failed_path, "w"))
-  f:write(table.concat(failures, "\n"), "\n")
-  f:close()
-else
-  os.remove(failed_path)
-end
-if #rows == 0 then
-  io.stderr:write("report.lua: no dataset could be measured\n")
-  os.exit(1)
-end
+local fmt = common.csv_number
+common.write_results(opt.out, "report.csv",
+  "dataset,config,codec,bpv,ratio,fps,frame_ms,image_psnr,volume_psnr,maxerr,stage2,unpack_mb_s", rows,
+  function(r)
+    return ("%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s"):format(r.dataset, r.config, r.codec, fmt(r.bpv),
+      fmt(r.ratio), fmt(r.fps), fmt(r.frame_ms), fmt(r.image_psnr), fmt(r.volume_psnr), fmt(r.maxerr),
+      r.stage2, fmt(r.unpack_mb_s))
+  end, failures, "report.lua")
 
 -- Chart: one data block (gnuplot index) per dataset, each with its colour and legend entry;
 -- lossless points (inf PSNR) are drawn at the right edge and labelled so.

@@ -96,4 +96,31 @@ function M.view(v, az, el, width, height)
                                height = height or 512})
 end
 
+-- A number for a CSV cell: "inf" for math.huge, else 4 decimals.
+function M.csv_number(x) return x == math.huge and "inf" or ("%.4f"):format(x) end
+
+-- Writes DIR/NAME (header, then row_line(r) for each row), echoes it on stdout, and records the
+-- datasets that failed in DIR/failed.txt (removed when none did). Exits 1, naming the script,
+-- when no row was measured.
+function M.write_results(dir, name, header, rows, row_line, failures, script)
+  local path = dir .. "/" .. name
+  local csv = assert(io.open(path, "w"))
+  csv:write(header, "\n")
+  for _, r in ipairs(rows) do csv:write(row_line(r), "\n") end
+  csv:close()
+  io.write(io.open(path):read("a"))
+  local failed_path = dir .. "/failed.txt"
+  if #failures > 0 then
+    local f = assert(io.open(failed_path, "w"))
+    f:write(table.concat(failures, "\n"), "\n")
+    f:close()
+  else
+    os.remove(failed_path)
+  end
+  if #rows == 0 then
+    io.stderr:write(script .. ": no dataset could be measured\n")
+    os.exit(1)
+  end
+end
+
 return M
