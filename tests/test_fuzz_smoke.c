@@ -208,10 +208,12 @@ static cdvr_volume *make_series(void)
 }
 
 /* Store seed: mode byte + a store with four variants (LZO, LZ4 in 128-byte segments, raw with
- * zstd in 256-byte segments, none), so mutations reach the segment tables too. */
-static int make_store_seed(bytes *seed, uint8_t mode)
+ * zstd in 256-byte segments, none), so mutations reach the segment tables too. With
+ * multilevel, a fifth variant, hvqc with a shared codebook blob, and a second resolution level
+ * (the level directory and an embedded store). */
+static int make_store_seed(bytes *seed, uint8_t mode, int multilevel)
 {
-    cdvr_variant_spec specs[4];
+    cdvr_variant_spec specs[5];
     memset(specs, 0, sizeof specs);
     specs[0] = spec_pvtc(1, 3, CDVR_PACK_TIME, CDVR_ENCODER_BBOX, CDVR_STAGE2_LZO, 0.0);
     specs[1] = spec_pvtc(4, 2, CDVR_PACK_SPACE, CDVR_ENCODER_BBOX, CDVR_STAGE2_LZ4, 0.0);
@@ -219,11 +221,20 @@ static int make_store_seed(bytes *seed, uint8_t mode)
     specs[2] = spec_codec("raw", CDVR_STAGE2_ZSTD, 0.0);
     specs[2].stage2_segment = 256;
     specs[3] = spec_pvtc(4, 3, CDVR_PACK_TIME, CDVR_ENCODER_BBOX, CDVR_STAGE2_NONE, -1.0);
-    cdvr_encode_opts opts = {.variants = specs, .nvariants = 4, .qlo = 0, .qhi = 1,
-                             .source_type = CDVR_TYPE_U8};
+    size_t nvariants = 4;
+    cdvr_error err;
+    if (multilevel) {
+        specs[4] = spec_codec("hvqc", CDVR_STAGE2_NONE, -1.0);
+        const char *key = "shared", *value = "1";
+        CHECK(specs[4].codec && cdvr_codec_params_parse(specs[4].codec, &key, &value, 1,
+                                                        &specs[4].params, &err) == CDVR_OK,
+              "hvqc shared=1 for the multi-level store seed");
+        nvariants = 5;
+    }
+    cdvr_encode_opts opts = {.variants = specs, .nvariants = nvariants, .qlo = 0, .qhi = 1,
+                             .source_type = CDVR_TYPE_U8, .levels = multilevel ? 2 : 0};
     cdvr_volume *vol = make_series();
     char path[256];
-    cdvr_error err;
     int ok = vol && fuzz_write_temp(NULL, 0, ".cdv", path);
     cdvr_status st = ok ? cdvr_store_encode(vol, &opts, path, &err) : CDVR_ERR_NOMEM;
     CHECK_OK(st, err);
@@ -247,9 +258,11 @@ static int make_store_seed(bytes *seed, uint8_t mode)
                 lzo_chunks += cdvr_store_chunk(opened, v, c)->stage2 == CDVR_STAGE2_LZO;
                 segmented += (size_t)cdvr_store_chunk(opened, v, c)->stage2_segmented;
             }
-        CHECK(cdvr_store_get_info(opened)->nvariants == 4 && lzo_chunks > 0 && segmented > 0,
-              "store seed: %zu variants, %zu LZO chunks, %zu segmented",
-              cdvr_store_get_info(opened)->nvariants, lzo_chunks, segmented);
+        CHECK(cdvr_store_get_info(opened)->nvariants == nvariants && lzo_chunks > 0 &&
+              segmented > 0 && cdvr_store_get_info(opened)->nlevels == (multilevel ? 2u : 1u),
+              "store seed: %zu variants, %zu levels, %zu LZO chunks, %zu segmented",
+              cdvr_store_get_info(opened)->nvariants, cdvr_store_get_info(opened)->nlevels,
+              lzo_chunks, segmented);
         cdvr_store_close(opened);
     } else {
         CHECK(0, "store seed does not open: %s", ok ? err.msg : "no bytes");
@@ -550,8 +563,13 @@ int main(void)
     bytes seed = {0};
     for (uint8_t mode = 0; mode < 4; mode++) {
         seed.n = 0;
-        if (make_store_seed(&seed, mode))
+        if (make_store_seed(&seed, mode, 0))
             fuzz_seed("store", fuzz_store_input, &seed, 600, 1, 1000u + mode);
+    }
+    for (uint8_t mode = 0; mode < 4; mode++) { /* levels and a shared codebook blob */
+        seed.n = 0;
+        if (make_store_seed(&seed, mode, 1))
+            fuzz_seed("store", fuzz_store_input, &seed, 300, 1, 1100u + mode);
     }
     for (uint8_t bits = 0; bits < 8; bits++) {
         seed.n = 0;

@@ -1,6 +1,7 @@
 /* tests/fuzz/fuzz_store.c - libFuzzer target for the .cdv store reader (core/store/store.c): open,
- * then read, unpack and decode every chunk of every variant, and decode every timestep through
- * cdvr_store_decode; every error is tolerated, no input may crash. How to run: README.
+ * then read, unpack and decode every chunk of every variant (of every resolution level), and
+ * decode every timestep through cdvr_store_decode; every error is tolerated, no input may
+ * crash. How to run: README.
  *
  * Input: 1 mode byte, then the file.
  *   mode bit 0: recompute the chunk CRCs and the metadata CRC before writing the file, so that
@@ -127,6 +128,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         for (size_t v = 0; v < info->nvariants; v++)
             store_variant(st, v);
         FUZZ_ASSERT(cdvr_store_variant(st, info->nvariants) == NULL);
+        for (size_t l = 1; l < info->nlevels; l++) { /* the embedded level stores */
+            const cdvr_store *level = cdvr_store_level(st, l);
+            FUZZ_ASSERT(level != NULL);
+            for (size_t v = 0; v < cdvr_store_get_info(level)->nvariants; v++)
+                store_variant(level, v);
+        }
         cdvr_store_close(st);
     }
     unlink(path);
