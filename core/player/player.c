@@ -147,8 +147,8 @@ struct cdvr_player {
     size_t brick_frames_cap[MAX_UNZIP];
     int *host_decodes;       /* per variant (cl device): its decode is faster on the host */
     struct cdvr_brick_cache *cache; /* opts.cache: the brick cache of the variant playing */
-    int fetch_bulk;          /* cl device: fetch-mode codecs decode in bulk on the host
-                                (cdvr_cl_fetch_path_of is BULK) */
+    int *fetch_bulk;         /* per variant (cl device): a fetch-mode codec decodes in bulk
+                                on the host (cdvr_cl_fetch_path_for is not SAMPLE) */
 #if CDVR_HAVE_OPENCL
     cdvr_cl *cl;
     cdvr_cl_stream *stream;
@@ -767,7 +767,7 @@ static int decodes_on_host(cdvr_player *p, const chunk_item *it)
     if (!ch->codec || ch->codec->cl_mode == CDVR_CODEC_CL_NONE || p->nbricks > 1)
         return 1;
     if (ch->codec->cl_mode != CDVR_CODEC_CL_DECODE)
-        return p->fetch_bulk;
+        return p->fetch_bulk[it->variant];
     pthread_mutex_lock(&p->mu);
     int host = p->host_decodes[it->variant];
     pthread_mutex_unlock(&p->mu);
@@ -1522,6 +1522,22 @@ static cdvr_status check_work_bounds(const cdvr_player_opts *opts, const cdvr_st
     return CDVR_OK;
 }
 
+#if CDVR_HAVE_OPENCL
+/* Per variant of a fetch-mode codec: whether its groups decode in bulk on the host, by the
+ * path remembered for the device (cdvr_cl_fetch_path_for; BULK while none is measured: the
+ * player's pipeline does not measure). */
+static void choose_fetch_paths(cdvr_player *p)
+{
+    const cdvr_store_info *info = cdvr_store_get_info(p->opts.store);
+    for (size_t v = 0; v < info->nvariants; v++) {
+        const cdvr_chunk_info *ch = cdvr_store_chunk(p->opts.store, v, 0);
+        if (ch && ch->codec && ch->codec->cl_mode == CDVR_CODEC_CL_FETCH)
+            p->fetch_bulk[v] = cdvr_cl_fetch_path_for(p->stream, ch->codec, ch->count) !=
+                               CDVR_CL_FETCH_SAMPLE;
+    }
+}
+#endif
+
 cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, cdvr_error *err)
 {
     *out = NULL;
@@ -1577,13 +1593,14 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
         if (!(p->items[i].parts = calloc(p->nbricks, sizeof *p->items[i].parts)))
             p->nitems = i; /* free what was made, then fail below */
     p->host_decodes = calloc(info->nvariants, sizeof *p->host_decodes);
+    p->fetch_bulk = calloc(info->nvariants, sizeof *p->fetch_bulk);
     p->turn_passed = calloc(p->nitems ? p->nitems : 1, 1);
     p->nworkers = p->opts.pipelined ? unzip_workers(p->opts.unzip_threads) : 1;
     p->nslots = p->nworkers + 1;
     pthread_mutex_init(&p->mu, NULL);
     pthread_cond_init(&p->cv, NULL);
     if (!p->items || p->nitems != (size_t)p->opts.ring * 2 + 1 || !p->host_decodes ||
-        !p->turn_passed) {
+        !p->fetch_bulk || !p->turn_passed) {
         cdvr_player_free(p);
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "player: out of memory");
     }
@@ -1609,7 +1626,7 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
         if (s == CDVR_OK) {
             cdvr_cl_set_skipping(p->stream, opts->empty_skip);
             cdvr_cl_set_fetch_path(p->stream, (cdvr_cl_fetch_path)opts->fetch_path);
-            p->fetch_bulk = cdvr_cl_fetch_path_of(p->stream) == CDVR_CL_FETCH_BULK;
+            choose_fetch_paths(p);
         }
         if (s != CDVR_OK) {
             cdvr_player_free(p);
@@ -1650,6 +1667,7 @@ void cdvr_player_free(cdvr_player *p)
     for (int w = 0; w < MAX_UNZIP; w++)
         free(p->brick_frames[w]);
     free(p->host_decodes);
+    free(p->fetch_bulk);
     free(p->turn_passed);
 #if CDVR_HAVE_OPENCL
     cdvr_cl_stream_free(p->stream);

@@ -296,6 +296,63 @@ static cdvr_status raycast_cached(cdvr_render_ctx *ctx, const cdvr_store *st, si
     return status;
 }
 
+/* Frames in the chunk holding timestep t of variant v (0 when there is none). */
+static size_t chunk_frames(const cdvr_store *st, size_t v, size_t t)
+{
+    size_t c = cdvr_store_chunk_for_time(st, v, t);
+    const cdvr_chunk_info *chunk = c != (size_t)-1 ? cdvr_store_chunk(st, v, c) : NULL;
+    return chunk ? chunk->count : 0;
+}
+
+/* Loads timestep t's chunk into s (its fetch path as set) and renders it. */
+static cdvr_status load_and_render(cdvr_render_ctx *ctx, cdvr_cl_stream *s, const cdvr_store *st,
+                                   size_t v, size_t t, cdvr_render_opts *opts,
+                                   const raycast_params *rp, cdvr_render_stats *stats,
+                                   cdvr_image **out, cdvr_error *err)
+{
+    const cdvr_store_info *info = cdvr_store_get_info(st);
+    double start = cdvr_now_ms();
+    size_t frame;
+    cdvr_status status = cdvr_render_ctx_load_chunk(ctx, st, v, t, &s, &frame, err);
+    if (status != CDVR_OK)
+        return status;
+    cdvr_cl_set_skipping(s, rp->skip);
+    return render_device_frame(ctx, s, frame, opts, info->spacing, info->origin, info->direction,
+                               start, stats, out, err);
+}
+
+/* The first render of a fetch-mode codec's size class on a CPU device (cdvr_cl_fetch_path
+ * AUTO, nothing remembered): the whole frame (load, decode, setup, ray cast) through the
+ * per-sample fetch, then through the bulk decoder; the faster path is remembered for the
+ * device, and the second image (the same as the first: cdvr/codec.h) is the result. */
+static cdvr_status probe_fetch_paths(cdvr_render_ctx *ctx, cdvr_cl_stream *s,
+                                     const cdvr_store *st, size_t v, size_t t,
+                                     cdvr_render_opts *opts, const raycast_params *rp,
+                                     const cdvr_codec *codec, size_t count,
+                                     cdvr_render_stats *stats, cdvr_image **out, cdvr_error *err)
+{
+    cdvr_image *sampled = NULL;
+    double t0 = cdvr_now_ms();
+    cdvr_cl_set_fetch_path(s, CDVR_CL_FETCH_SAMPLE);
+    cdvr_status status = load_and_render(ctx, s, st, v, t, opts, rp, stats, &sampled, err);
+    double sample_ms = cdvr_now_ms() - t0;
+    cdvr_image_free(sampled);
+    if (status == CDVR_OK) {
+        double t1 = cdvr_now_ms();
+        cdvr_cl_set_fetch_path(s, CDVR_CL_FETCH_BULK);
+        status = load_and_render(ctx, s, st, v, t, opts, rp, stats, out, err);
+        double bulk_ms = cdvr_now_ms() - t1;
+        if (status == CDVR_OK) {
+            cdvr_cl_remember_fetch_path(s, codec, count, sample_ms, bulk_ms);
+            cdvr_render_stats_string(stats, "fetch_path", "bulk");
+            cdvr_render_stats_number(stats, "fetch_probe_sample_ms", sample_ms);
+            cdvr_render_stats_number(stats, "fetch_probe_bulk_ms", bulk_ms);
+        }
+    }
+    cdvr_cl_set_fetch_path(s, CDVR_CL_FETCH_AUTO);
+    return status;
+}
+
 static cdvr_status raycast_store(cdvr_render_ctx *ctx, cdvr_device_kind device,
                                  const cdvr_store *st, size_t v, size_t t, cdvr_render_opts *opts,
                                  const cdvr_method_params *p, cdvr_render_stats *stats,
@@ -310,19 +367,26 @@ static cdvr_status raycast_store(cdvr_render_ctx *ctx, cdvr_device_kind device,
     if (rp.cache)
         return raycast_cached(ctx, st, v, t, opts, &rp, stats, out, err);
     const cdvr_store_info *info = cdvr_store_get_info(st);
-    double start = cdvr_now_ms();
     cdvr_cl_stream *s;
-    size_t frame;
     cdvr_status status = cdvr_render_ctx_stream(ctx, info->dims, &s, err);
     if (status != CDVR_OK)
         return status;
     cdvr_cl_set_fetch_path(s, (cdvr_cl_fetch_path)rp.fetch);
-    status = cdvr_render_ctx_load_chunk(ctx, st, v, t, &s, &frame, err);
+    const cdvr_codec *codec;
+    status = cdvr_store_variant_codec(st, v, &codec, err);
     if (status != CDVR_OK)
         return status;
-    cdvr_cl_set_skipping(s, rp.skip);
-    return render_device_frame(ctx, s, frame, opts, info->spacing, info->origin, info->direction,
-                               start, stats, out, err);
+    size_t count = chunk_frames(st, v, t);
+    if (codec->cl_mode != CDVR_CODEC_CL_FETCH || !count || info->nbricks > 1)
+        return load_and_render(ctx, s, st, v, t, opts, &rp, stats, out, err);
+    cdvr_cl_fetch_path path = cdvr_cl_fetch_path_for(s, codec, count);
+    if (path == CDVR_CL_FETCH_AUTO)
+        return probe_fetch_paths(ctx, s, st, v, t, opts, &rp, codec, count, stats, out, err);
+    status = load_and_render(ctx, s, st, v, t, opts, &rp, stats, out, err);
+    if (status == CDVR_OK)
+        cdvr_render_stats_string(stats, "fetch_path",
+                                 path == CDVR_CL_FETCH_SAMPLE ? "sample" : "bulk");
+    return status;
 }
 
 #define RAYCAST_STREAM raycast_stream

@@ -113,10 +113,13 @@ cdvr_cl_decode_path cdvr_cl_last_decode_path(const cdvr_cl_stream *s);
 /* Paths of fetch-mode codecs (hvq). Both give the same images: the fetch function returns
  * exactly what the codec's C decoder gives (cdvr/codec.h). */
 typedef enum cdvr_cl_fetch_path {
-    CDVR_CL_FETCH_AUTO = 0,    /* SAMPLE on GPUs and other devices that are not CPUs, BULK on a
-                                  CPU device (PoCL), where decoding the chunk in bulk and
-                                  rendering dense is 10-40x faster than a hashed fetch per
-                                  sample and the frames live in host memory anyway */
+    CDVR_CL_FETCH_AUTO = 0,    /* SAMPLE on GPUs and other devices that are not CPUs; on a
+                                  CPU device (PoCL) the faster of the two for the codec and
+                                  the chunk's size class, measured on the first render that
+                                  needs it (cdvr_cl_remember_fetch_path) and remembered for
+                                  the device (in memory, and on disk beside the program
+                                  cache); BULK until measured (on PoCL it is 20-40x faster
+                                  than a hashed fetch per sample at 512^2) */
     CDVR_CL_FETCH_SAMPLE = 1,  /* the ray caster reads every sample through the codec's fetch
                                   function: the device holds only the payload */
     CDVR_CL_FETCH_BULK = 2     /* cdvr_cl_decode runs the codec's C decoder into dense frames
@@ -126,10 +129,21 @@ typedef enum cdvr_cl_fetch_path {
 
 /* The fetch-mode path cdvr_cl_decode takes from now on. New streams take AUTO, which means
  * what the environment variable CDVR_CL_FETCH says ("sample" or "bulk") when it is set,
- * else the device's rule above. */
+ * else the rule above. */
 void cdvr_cl_set_fetch_path(cdvr_cl_stream *s, cdvr_cl_fetch_path path);
-/* The path a fetch-mode codec takes on this stream now: SAMPLE or BULK (AUTO resolved). */
+/* The path a fetch-mode codec takes on this stream by the set path, the environment and the
+ * device type alone: SAMPLE or BULK. */
 cdvr_cl_fetch_path cdvr_cl_fetch_path_of(const cdvr_cl_stream *s);
+/* The path cdvr_cl_decode takes for count frames of codec: the set path, the environment,
+ * SAMPLE on a GPU, else the path remembered for the codec and size class (floor(log4) of
+ * the decoded bytes) on this device; AUTO when that is not measured yet (cdvr_cl_decode
+ * then takes BULK). Not thread-safe with other calls on the stream's device. */
+cdvr_cl_fetch_path cdvr_cl_fetch_path_for(cdvr_cl_stream *s, const cdvr_codec *codec,
+                                          size_t count);
+/* Records a measurement of both paths for count frames of codec on this device (whole
+ * frames: load, decode and render, in ms): the faster one becomes the remembered path. */
+void cdvr_cl_remember_fetch_path(cdvr_cl_stream *s, const cdvr_codec *codec, size_t count,
+                                 double sample_ms, double bulk_ms);
 
 /* b2 for frames decoded on the host: uploads count dense u8 frames (count * dims product
  * bytes) as device frames 0 .. count-1. */

@@ -543,57 +543,93 @@ cdvr_status cdvr_cl_long_index_kernels(cdvr_cl *cl, cl_kernel *bricks, cl_kernel
     return CDVR_OK;
 }
 
-/* ---- remembered decode paths ------------------------------------------------------------
- * One cache entry per device and codec, in the program cache's format, holding the text
- * "host|kernel KERNEL_MS HOST_MS"; its key covers the codec's kernel source, the device and
- * its driver, and the cdvr version (whose C decoder was measured). */
+/* ---- remembered decode and fetch paths -------------------------------------------------
+ * One cache entry per device, codec, kind ("decode" or "fetch") and size class, in the
+ * program cache's format, holding the text "NAME A_MS B_MS": for decode "host|kernel
+ * KERNEL_MS HOST_MS", for fetch "sample|bulk SAMPLE_MS BULK_MS". Its key covers the codec's
+ * kernel source, the device and its driver, and the cdvr version (whose C decoder was
+ * measured). */
 
-static int decode_choice_path(cdvr_cl *cl, const cdvr_codec *codec, unsigned size_class,
-                              char *path, size_t n, char key[33])
+static int choice_path(cdvr_cl *cl, const cdvr_codec *codec, const char *kind,
+                       unsigned size_class, char *path, size_t n, char key[33])
 {
     char dir[400], what[96], *source = NULL;
     if (load_sources(codec, NULL, 0, &source, NULL) != CDVR_OK)
         return 0;
-    snprintf(what, sizeof what, "decode path, size class %u, cdvr %s", size_class, CDVR_VERSION);
+    snprintf(what, sizeof what, "%s path, size class %u, cdvr %s", kind, size_class,
+             CDVR_VERSION);
     cache_key(cl, source, what, key);
     free(source);
     if (cache_dir(dir, sizeof dir) != 0)
         return 0;
-    snprintf(path, n, "%s/%s.decode", dir, key);
+    snprintf(path, n, "%s/%s.%s", dir, key, kind);
     return 1;
+}
+
+/* The remembered choice's name (empty when none) and its two times. */
+static void load_choice(cdvr_cl *cl, const cdvr_codec *codec, const char *kind,
+                        unsigned size_class, char which[8], double *a_ms, double *b_ms)
+{
+    char path[512], key[33], text[64];
+    size_t size = 0;
+    which[0] = '\0';
+    if (!choice_path(cl, codec, kind, size_class, path, sizeof path, key))
+        return;
+    unsigned char *bin = cache_load(path, key, &size);
+    if (bin && size < sizeof text) {
+        memcpy(text, bin, size);
+        text[size] = '\0';
+        if (sscanf(text, "%7s %lf %lf", which, a_ms, b_ms) != 3)
+            which[0] = '\0';
+    }
+    free(bin);
+}
+
+static void store_choice(cdvr_cl *cl, const cdvr_codec *codec, const char *kind,
+                         unsigned size_class, const char *which, double a_ms, double b_ms)
+{
+    char file[512], key[33], text[64];
+    if (!choice_path(cl, codec, kind, size_class, file, sizeof file, key))
+        return;
+    int n = snprintf(text, sizeof text, "%s %.4f %.4f", which, a_ms, b_ms);
+    if (n > 0 && (size_t)n < sizeof text)
+        cache_store(file, key, (const unsigned char *)text, (size_t)n);
 }
 
 cdvr_cl_decode_path cdvr_cl_load_decode_choice(cdvr_cl *cl, const cdvr_codec *codec,
                                                unsigned size_class, double *kernel_ms,
                                                double *host_ms)
 {
-    char path[512], key[33], text[64], which[8];
-    size_t size = 0;
-    if (!decode_choice_path(cl, codec, size_class, path, sizeof path, key))
-        return CDVR_CL_DECODE_AUTO;
-    unsigned char *bin = cache_load(path, key, &size);
-    cdvr_cl_decode_path choice = CDVR_CL_DECODE_AUTO;
-    if (bin && size < sizeof text) {
-        memcpy(text, bin, size);
-        text[size] = '\0';
-        if (sscanf(text, "%7s %lf %lf", which, kernel_ms, host_ms) == 3)
-            choice = !strcmp(which, "host") ? CDVR_CL_DECODE_HOST
-                   : !strcmp(which, "kernel") ? CDVR_CL_DECODE_KERNEL : CDVR_CL_DECODE_AUTO;
-    }
-    free(bin);
-    return choice;
+    char which[8];
+    load_choice(cl, codec, "decode", size_class, which, kernel_ms, host_ms);
+    return !strcmp(which, "host")     ? CDVR_CL_DECODE_HOST
+           : !strcmp(which, "kernel") ? CDVR_CL_DECODE_KERNEL
+                                      : CDVR_CL_DECODE_AUTO;
 }
 
 void cdvr_cl_store_decode_choice(cdvr_cl *cl, const cdvr_codec *codec, unsigned size_class,
                                  cdvr_cl_decode_path path, double kernel_ms, double host_ms)
 {
-    char file[512], key[33], text[64];
-    if (!decode_choice_path(cl, codec, size_class, file, sizeof file, key))
-        return;
-    int n = snprintf(text, sizeof text, "%s %.4f %.4f",
-                     path == CDVR_CL_DECODE_HOST ? "host" : "kernel", kernel_ms, host_ms);
-    if (n > 0 && (size_t)n < sizeof text)
-        cache_store(file, key, (const unsigned char *)text, (size_t)n);
+    store_choice(cl, codec, "decode", size_class,
+                 path == CDVR_CL_DECODE_HOST ? "host" : "kernel", kernel_ms, host_ms);
+}
+
+cdvr_cl_fetch_path cdvr_cl_load_fetch_choice(cdvr_cl *cl, const cdvr_codec *codec,
+                                             unsigned size_class, double *sample_ms,
+                                             double *bulk_ms)
+{
+    char which[8];
+    load_choice(cl, codec, "fetch", size_class, which, sample_ms, bulk_ms);
+    return !strcmp(which, "sample")  ? CDVR_CL_FETCH_SAMPLE
+           : !strcmp(which, "bulk") ? CDVR_CL_FETCH_BULK
+                                    : CDVR_CL_FETCH_AUTO;
+}
+
+void cdvr_cl_store_fetch_choice(cdvr_cl *cl, const cdvr_codec *codec, unsigned size_class,
+                                cdvr_cl_fetch_path path, double sample_ms, double bulk_ms)
+{
+    store_choice(cl, codec, "fetch", size_class,
+                 path == CDVR_CL_FETCH_SAMPLE ? "sample" : "bulk", sample_ms, bulk_ms);
 }
 
 static cdvr_status create_kernel(cl_program program, const char *name, cl_kernel *out,

@@ -33,6 +33,17 @@ typedef struct cdvr_cl_codec_program {
 } cdvr_cl_codec_program;
 
 #define CDVR_CL_MAX_CODEC_PROGRAMS 32
+
+/* The faster path of a fetch-mode codec for one size class on this device: measured
+ * (cdvr_cl_remember_fetch_path) or loaded from the disk record; AUTO when neither exists. */
+typedef struct cdvr_cl_fetch_choice {
+    const cdvr_codec *codec;
+    unsigned size_class;
+    cdvr_cl_fetch_path path;
+    double sample_ms, bulk_ms;
+} cdvr_cl_fetch_choice;
+
+#define CDVR_CL_MAX_FETCH_CHOICES 64
 #define CDVR_CL_BRICK (1u << CDVR_CL_BRICK_SHIFT) /* edge of the skipping bricks, voxels */
 
 struct cdvr_cl {
@@ -47,6 +58,8 @@ struct cdvr_cl {
     cl_kernel k_bricks_long, k_raycast_long;
     cdvr_cl_codec_program codecs[CDVR_CL_MAX_CODEC_PROGRAMS]; /* built on first use */
     size_t ncodecs;
+    cdvr_cl_fetch_choice fetch_choices[CDVR_CL_MAX_FETCH_CHOICES]; /* looked up or measured */
+    size_t nfetch_choices;
     cdvr_cl_info info;
 };
 
@@ -61,6 +74,12 @@ cdvr_cl_decode_path cdvr_cl_load_decode_choice(cdvr_cl *cl, const cdvr_codec *co
                                                double *host_ms);
 void cdvr_cl_store_decode_choice(cdvr_cl *cl, const cdvr_codec *codec, unsigned size_class,
                                  cdvr_cl_decode_path path, double kernel_ms, double host_ms);
+/* The same for the paths of fetch-mode codecs (cdvr_cl_fetch_path). */
+cdvr_cl_fetch_path cdvr_cl_load_fetch_choice(cdvr_cl *cl, const cdvr_codec *codec,
+                                             unsigned size_class, double *sample_ms,
+                                             double *bulk_ms);
+void cdvr_cl_store_fetch_choice(cdvr_cl *cl, const cdvr_codec *codec, unsigned size_class,
+                                cdvr_cl_fetch_path path, double sample_ms, double bulk_ms);
 /* Sets argument `index` of kernel `name`; on failure fills err naming both. */
 cdvr_status cdvr_cl_arg(cl_kernel k, const char *name, cl_uint index, size_t size,
                         const void *value, cdvr_error *err);

@@ -232,6 +232,16 @@ static cdvr_status run_host_decode(cdvr_cl_stream *s, const cdvr_codec *codec,
 }
 
 /* Runs one path and returns its wall time in ms (negative on failure, err set). */
+/* floor(log4(decoded bytes of count frames)), capped: the size class of remembered paths. */
+static unsigned size_class(const cdvr_cl_stream *s, size_t count)
+{
+    unsigned cls = 0;
+    for (size_t bytes = s->voxels * count; bytes >= 4 && cls + 1 < CDVR_CL_SIZE_CLASSES;
+         bytes /= 4)
+        cls++;
+    return cls;
+}
+
 static double timed_decode(cdvr_cl_stream *s, const cdvr_cl_codec_program *cp,
                            cdvr_cl_decode_path path, const cdvr_codec_params *params,
                            size_t count, cdvr_error *err)
@@ -260,10 +270,7 @@ static cdvr_status choose_path(cdvr_cl_stream *s, cdvr_cl_codec_program *cp,
         *path = CDVR_CL_DECODE_KERNEL;
         return CDVR_OK;
     }
-    unsigned cls = 0;
-    for (size_t bytes = s->voxels * count; bytes >= 4 && cls + 1 < CDVR_CL_SIZE_CLASSES;
-         bytes /= 4)
-        cls++;
+    unsigned cls = size_class(s, count);
     if (cp->fastest[cls] == CDVR_CL_DECODE_AUTO)
         cp->fastest[cls] = cdvr_cl_load_decode_choice(s->cl, cp->codec, cls, &cp->kernel_ms[cls],
                                                       &cp->host_ms[cls]);
@@ -304,14 +311,56 @@ void cdvr_cl_set_fetch_path(cdvr_cl_stream *s, cdvr_cl_fetch_path path)
     s->fetch_path = path;
 }
 
+/* The path set on the stream or by the environment; AUTO when neither says. */
+static cdvr_cl_fetch_path fetch_path_asked(const cdvr_cl_stream *s)
+{
+    return s->fetch_path != CDVR_CL_FETCH_AUTO ? s->fetch_path : fetch_path_from_env();
+}
+
 cdvr_cl_fetch_path cdvr_cl_fetch_path_of(const cdvr_cl_stream *s)
 {
-    if (s->fetch_path != CDVR_CL_FETCH_AUTO)
-        return s->fetch_path;
-    cdvr_cl_fetch_path env = fetch_path_from_env();
-    if (env != CDVR_CL_FETCH_AUTO)
-        return env;
+    cdvr_cl_fetch_path asked = fetch_path_asked(s);
+    if (asked != CDVR_CL_FETCH_AUTO)
+        return asked;
     return s->cl->info.is_gpu ? CDVR_CL_FETCH_SAMPLE : CDVR_CL_FETCH_BULK;
+}
+
+/* The device's entry for codec and size class: found, loaded from disk, or NULL when the
+ * table is full. */
+static cdvr_cl_fetch_choice *fetch_choice(cdvr_cl *cl, const cdvr_codec *codec, unsigned cls)
+{
+    for (size_t i = 0; i < cl->nfetch_choices; i++)
+        if (cl->fetch_choices[i].codec == codec && cl->fetch_choices[i].size_class == cls)
+            return &cl->fetch_choices[i];
+    if (cl->nfetch_choices == CDVR_CL_MAX_FETCH_CHOICES)
+        return NULL;
+    cdvr_cl_fetch_choice *c = &cl->fetch_choices[cl->nfetch_choices++];
+    *c = (cdvr_cl_fetch_choice){codec, cls, CDVR_CL_FETCH_AUTO, 0, 0};
+    c->path = cdvr_cl_load_fetch_choice(cl, codec, cls, &c->sample_ms, &c->bulk_ms);
+    return c;
+}
+
+cdvr_cl_fetch_path cdvr_cl_fetch_path_for(cdvr_cl_stream *s, const cdvr_codec *codec,
+                                          size_t count)
+{
+    cdvr_cl_fetch_path asked = fetch_path_asked(s);
+    if (asked != CDVR_CL_FETCH_AUTO)
+        return asked;
+    if (s->cl->info.is_gpu)
+        return CDVR_CL_FETCH_SAMPLE;
+    cdvr_cl_fetch_choice *c = fetch_choice(s->cl, codec, size_class(s, count));
+    return c ? c->path : CDVR_CL_FETCH_BULK;
+}
+
+void cdvr_cl_remember_fetch_path(cdvr_cl_stream *s, const cdvr_codec *codec, size_t count,
+                                 double sample_ms, double bulk_ms)
+{
+    unsigned cls = size_class(s, count);
+    cdvr_cl_fetch_choice *c = fetch_choice(s->cl, codec, cls);
+    cdvr_cl_fetch_path faster = sample_ms < bulk_ms ? CDVR_CL_FETCH_SAMPLE : CDVR_CL_FETCH_BULK;
+    if (c)
+        *c = (cdvr_cl_fetch_choice){codec, cls, faster, sample_ms, bulk_ms};
+    cdvr_cl_store_fetch_choice(s->cl, codec, cls, faster, sample_ms, bulk_ms);
 }
 
 /* The codec's check hook (cdvr/codec.h) on the uploaded payload, read through a map (no copy
@@ -379,7 +428,8 @@ cdvr_status cdvr_cl_decode(cdvr_cl_stream *s, const cdvr_codec *codec,
         return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL decode: %s chunk of %zux%zux%zu needs "
                               "%zu bytes, got %zu", codec->name, s->dims[0], s->dims[1],
                               s->dims[2], shape.payload_bytes, s->payload_bytes);
-    if (codec->cl_mode == CDVR_CODEC_CL_FETCH && cdvr_cl_fetch_path_of(s) == CDVR_CL_FETCH_BULK)
+    if (codec->cl_mode == CDVR_CODEC_CL_FETCH &&
+        cdvr_cl_fetch_path_for(s, codec, count) != CDVR_CL_FETCH_SAMPLE)
         return decode_fetch_bulk(s, codec, params, count, err);
     st = check_payload(s, codec, params, err);
     if (st)
