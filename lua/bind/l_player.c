@@ -591,6 +591,9 @@ static void render_options(lua_State *L, lplayer *lp, const cdvr_store_info *inf
     lp->opts.empty_skip = lcdvr_optbooleanfield(L, 1, "empty_skip", 1);
     lp->opts.fetch_path = fetch_option(L);
     lp->opts.cache = lcdvr_optbooleanfield(L, 1, "cache", 0);
+    lp->opts.cache_async = lcdvr_optbooleanfield(L, 1, "cache_async", 0);
+    if (lp->opts.cache_async && !lp->opts.cache)
+        luaL_error(L, "cdvr.player: option 'cache_async' needs cache=true");
     lp->opts.cache_budget_mb = number_option(L, "budget_mb", 0, 0, 1e12,
                                              "MB >= 0 expected (0: a quarter of the device's memory)");
     lp->opts.lod_error = number_option(L, "lod_error", 1, 0, 1e12, "pixels >= 0 expected");
@@ -789,7 +792,7 @@ static int l_player(lua_State *L)
     static const char *const keys[] = {"store", "tf", "camera", "policy", "target_fps", "min_psnr",
                                        "variant", "device", "step", "unit", "term", "background",
                                        "threads", "pipeline", "ring", "cold", "read_mbps",
-                                       "empty_skip", "fetch", "cache", "budget_mb", "lod_error", "callback_limit", "callback_memory", "out", "pace", "width",
+                                       "empty_skip", "fetch", "cache", "cache_async", "budget_mb", "lod_error", "callback_limit", "callback_memory", "out", "pace", "width",
                                        "height", "loop", "brick_skip", "frame", "distribute",
                                        "on_error", "fps", "crf", "preset", "progress", NULL};
     luaL_checktype(L, 1, LUA_TTABLE);
