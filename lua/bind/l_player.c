@@ -136,14 +136,27 @@ static int decide_lua(lua_State *L)
     const cdvr_store *st = lp->opts.store;
     lua_getiuservalue(L, 2, UV_POLICY);           /* policy */
     lcdvr_policy_view view = {c->t, c->group, lp->target_fps, lp->min_psnr, lp->opts.pipelined,
-                              lp->capture};
+                              lp->capture, lp->opts.cache, cdvr_player_lod_error(c->player),
+                              lp->opts.lod_error, cdvr_store_get_info(st)->nlevels};
     size_t nrows;
     const cdvr_frame_row *rows = cdvr_player_rows(c->player, &nrows);
     lcdvr_push_policy_stats(L, st, &view, rows, nrows); /* policy, stats */
-    c->status = call_budgeted(lp, L, 1, 2, "policy", c->err);
+    c->status = call_budgeted(lp, L, 1, 3, "policy", c->err);
     if (c->status != CDVR_OK)
         return 0;
+    /* a third result: the brick cache's lod_error for the group (cache=true only) */
+    int has_lod = !lua_isnil(L, -1);
+    double lod = lua_tonumber(L, -1);
+    if (has_lod && (!lua_isnumber(L, -1) || !lp->opts.cache)) {
+        c->status = cdvr_error_set(c->err, CDVR_ERR_ARG, "policy returned lod_error %s (%s)",
+                                   lcdvr_push_quoted(L, -1), lp->opts.cache ? "a number >= 0 "
+                                   "expected" : "only with cache=true");
+        return 0;
+    }
+    lua_pop(L, 1);
     c->status = lcdvr_policy_result(L, st, &c->variant, c->reason, c->reason_size, c->err);
+    if (c->status == CDVR_OK && has_lod)
+        c->status = cdvr_player_set_lod_error(c->player, lod, c->err);
     return 0;
 }
 

@@ -123,6 +123,12 @@ void lcdvr_push_policy_stats(lua_State *L, const cdvr_store *st, const lcdvr_pol
     }
     lua_pushstring(L, cdvr_store_variant(st, (size_t)cdvr_store_best_variant(st))->name);
     lua_setfield(L, -2, "best");
+    if (view->cache) {
+        setnum(L, "lod_error", view->lod_error);
+        setnum(L, "lod_base", view->lod_base);
+        lua_pushinteger(L, (lua_Integer)view->levels);
+        lua_setfield(L, -2, "levels");
+    }
     size_t first = nrows > LCDVR_POLICY_ROWS ? nrows - LCDVR_POLICY_ROWS : 0;
     lua_createtable(L, (int)(nrows - first), 0);  /* stats, frames */
     for (size_t i = first; i < nrows; i++) {

@@ -810,8 +810,8 @@ static void run_policy(lua_State *L, int w_idx, lwindow *w)
         lua_pop(L, 1);
         return;
     }
-    lcdvr_policy_view view = {(size_t)w->t - 1, (size_t)(w->t - 1) / group, w->fps, w->min_psnr,
-                              0, 0};
+    lcdvr_policy_view view = {.t = (size_t)w->t - 1, .group = (size_t)(w->t - 1) / group,
+                              .target_fps = w->fps, .min_psnr = w->min_psnr};
     lcdvr_push_policy_stats(L, st, &view, w->rows, (size_t)w->nrows);
     cdvr_error err;
     cdvr_status s = lcdvr_call_callback(L, 1, 2, &w->limits, "window: policy", &err);

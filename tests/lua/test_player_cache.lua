@@ -102,6 +102,33 @@ do
   p:close()
 end
 
+-- a policy sees the levels and sets lod_error per group (its third result)
+do
+  local seen = {}
+  local p, rows = play({store = st, tf = tf, camera = near, device = "cpu", cache = true,
+                        lod_error = 0, budget_mb = 64, pipeline = false,
+                        policy = function(stats)
+                          seen[#seen + 1] = {stats.lod_error, stats.lod_base, stats.levels}
+                          if stats.t == 1 then return "raw", "start" end
+                          return "raw", "coarser", 1e6
+                        end}, 2)
+  assert(seen[1][1] == 0 and seen[1][2] == 0 and seen[1][3] == 3, "stats: lod_error, lod_base, levels")
+  assert(seen[2][1] == 0, "lod_error unchanged until the policy sets it")
+  assert(rows[1].lod_error == 0 and rows[1].bricks_level0 == 12, "group 1 at lod_error 0")
+  assert(rows[2].lod_error == 1e6 and rows[2].bricks_level2 == 12, "group 2 at the policy's lod_error")
+  p:close()
+  local function bad_lod(lod, cache)
+    local q = cdvr.player{store = st, tf = tf, camera = near, device = "cpu", cache = cache,
+                          pipeline = false, policy = function() return "raw", "x", lod end}
+    local ok, err = pcall(q.run, q, {frames = 1})
+    q:close()
+    return not ok and err or "no error"
+  end
+  assert(bad_lod(2, false):find("only with cache=true", 1, true), "lod_error without the cache")
+  assert(bad_lod("fine", true):find("a number >= 0 expected", 1, true), "lod_error not a number")
+  assert(bad_lod(-1, true):find("lod_error", 1, true), "lod_error < 0")
+end
+
 assert(not pcall(cdvr.player, {store = st, tf = tf, device = "cpu", cache_async = true}),
        "cache_async needs cache=true")
 st:close()
