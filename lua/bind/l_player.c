@@ -1096,6 +1096,8 @@ int lcdvr_open_player(lua_State *L)
                    "fps= (default target_fps or 25), crf=, preset=; progress=true: frames, fps and ETA on a terminal), frame=function(row, image), device='cl'|'cpu'|'auto' (default auto: cl when an OpenCL device opens), pace (default true with target_fps); "
                    "variant default: best quality; loop=true wraps past the last timestep (default: playback stops there, report.stopped "
                    "says so); brick_skip (default true: bricks the TF hides or the view misses are not read); "
+                   "cache=true (budget_mb=, lod_error=; cl or cpu): through the brick cache, cache_async=true: never waits for a "
+                   "brick (coarser resident levels meanwhile; rows bricks_coarser, bricks_pending); "
                    "distribute='time'|'bricks' (mpirun: frames or bricks shared by the ranks)");
     lcdvr_help_add(L, "p:run{frames=N, first=1}",
                    "plays N frames -> {fps=, wall_ms=, ranks=, capture=, frames={rows: frame, t, variant, rank, why (the decision in "
