@@ -1026,8 +1026,11 @@ static cdvr_status cache_frame(cdvr_player *p, const chunk_item *it, size_t t,
                                                 &p->cache, err);
         if (s == CDVR_OK && p->opts.cache_async)
             s = cdvr_brick_cache_set_async(p->cache, 1, err);
-        if (s != CDVR_OK)
+        if (s != CDVR_OK) { /* none rather than a synchronous one the next frame would take */
+            cdvr_brick_cache_free(p->cache);
+            p->cache = NULL;
             return s;
+        }
     }
     return cdvr_brick_cache_frame(p->cache, t, cam, p->opts.tf, it->lod_error, payload, bytes,
                                   err);

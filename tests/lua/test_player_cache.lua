@@ -8,6 +8,8 @@
 --     every brick at the coarsest level (no hole); the same view played again converges to
 --     bricks_coarser = 0, and that frame equals the synchronous frame bit for bit; a camera
 --     jump (far -> near) plays its first frame from the coarser resident bricks;
+--   - a policy's third result sets lod_error per group (stats show levels and lod_error);
+--   - a budget below the coarsest level fails every frame, naming it;
 --   - cache_async without cache is refused.
 local tmp = os.tmpname()
 os.remove(tmp)
@@ -127,6 +129,18 @@ do
   assert(bad_lod(2, false):find("only with cache=true", 1, true), "lod_error without the cache")
   assert(bad_lod("fine", true):find("a number >= 0 expected", 1, true), "lod_error not a number")
   assert(bad_lod(-1, true):find("lod_error", 1, true), "lod_error < 0")
+end
+
+-- a budget below the coarsest level: every frame fails, naming it (never a silent fallback)
+do
+  local p = cdvr.player{store = st, tf = tf, camera = near, device = "cpu", cache = true,
+                        cache_async = true, budget_mb = 1e-4, pipeline = false}
+  local r = p:run{frames = 2}
+  for i = 1, 2 do
+    local e = r.frames[i].error
+    assert(e and e:find("coarsest level", 1, true), "frame " .. i .. ": " .. tostring(e))
+  end
+  p:close()
 end
 
 assert(not pcall(cdvr.player, {store = st, tf = tf, device = "cpu", cache_async = true}),
