@@ -9,7 +9,10 @@
  *     the frame is exactly the level-1 frame (the finest resident coarser level: no hole);
  *     after the worker it is exactly the assembled volume (cdvr_store_decode);
  *   - a new timestep pins its own coarsest level; the cache stays within its budget; a budget
- *     below the coarsest level is refused; switching async off returns to synchronous frames. */
+ *     below the coarsest level is refused; switching async off returns to synchronous frames;
+ *   - cdvr_brick_cache_dense assembles again exactly the bricks whose entry changed (none for
+ *     a camera that moved without changing levels; all 12 at new levels or a new timestep;
+ *     only the changed ones when a budget coarsens some), the frame always exact. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -176,6 +179,49 @@ static void tight_budget(cdvr_store *st)
     cdvr_brick_cache_free(c);
 }
 
+static void dense_reuse(cdvr_store *st)
+{
+    cdvr_brick_cache *c;
+    cdvr_brick_cache_stats s;
+    cdvr_error err;
+    cdvr_camera far = far_camera(), turned = far_camera(), near = near_camera();
+    turned.eye[1] += 3; /* another view, the same levels */
+    CHECK_OK(cdvr_brick_cache_create(st, 0, 1u << 24, &c, &err), err);
+    frame(c, 0, &far, 0.6, got, &s);
+    CHECK(s.dense_bricks == 12 && memcmp(got, sync_level1, VOXELS) == 0, "first dense frame");
+    frame(c, 0, &turned, 0.6, got, &s);
+    CHECK(s.dense_bricks == 0 && s.bricks_at[1] == 12 && memcmp(got, sync_level1, VOXELS) == 0,
+          "a turned camera at the same levels: %zu bricks assembled, the same voxels",
+          s.dense_bricks);
+    frame(c, 0, &near, 0.0, got, &s);
+    cdvr_volume *ref;
+    CHECK_OK(cdvr_store_decode(st, 0, 0, &ref, &err), err);
+    CHECK(s.dense_bricks == 12 && memcmp(got, ref->data, VOXELS) == 0, "new levels: all again");
+    cdvr_volume_free(ref);
+    frame(c, 1, &near, 0.0, got, &s);
+    CHECK_OK(cdvr_store_decode(st, 0, 1, &ref, &err), err);
+    CHECK(s.dense_bricks == 12 && memcmp(got, ref->data, VOXELS) == 0, "a new timestep: all");
+    cdvr_volume_free(ref);
+    frame(c, 0, &far, 0.6, got, &s);
+    CHECK(s.dense_bricks == 12 && memcmp(got, sync_level1, VOXELS) == 0, "back: all again");
+    cdvr_brick_cache_free(c);
+    /* a budget that holds level 0 for only some bricks: the near frame mixes levels, and
+     * after a level-1 frame only the bricks whose level changed are assembled again */
+    uint8_t mixed[VOXELS];
+    cdvr_brick_cache *fresh;
+    CHECK_OK(cdvr_brick_cache_create(st, 0, 9000, &c, &err), err);
+    CHECK_OK(cdvr_brick_cache_create(st, 0, 9000, &fresh, &err), err);
+    frame(c, 0, &far, 0.6, got, &s);
+    frame(c, 0, &near, 0.0, got, &s);
+    size_t changed = s.dense_bricks, at0 = s.bricks_at[0], at2 = s.bricks_at[2];
+    frame(fresh, 0, &near, 0.0, mixed, &s);
+    CHECK(at0 > 0 && at0 < 12 && changed == at0 + at2, "mixed levels: %zu at level 0, %zu at "
+          "level 2, %zu assembled", at0, at2, changed);
+    CHECK(memcmp(got, mixed, VOXELS) == 0, "incremental frame = a whole assembly");
+    cdvr_brick_cache_free(fresh);
+    cdvr_brick_cache_free(c);
+}
+
 int main(void)
 {
     char path[256];
@@ -185,6 +231,7 @@ int main(void)
         synchronous_references(st);
         jump_and_refine(st);
         tight_budget(st);
+        dense_reuse(st);
         cdvr_store_close(st);
     }
     unlink(path);

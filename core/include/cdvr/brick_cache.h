@@ -69,6 +69,8 @@ typedef struct cdvr_brick_cache_stats {
     uint64_t resident_bytes;                     /* voxel bytes of the bricks the frame uses */
     uint64_t cache_bytes;                        /* voxel bytes the cache holds (<= budget) */
     uint64_t payload_bytes;                      /* the payload: tables + resident bricks */
+    size_t dense_bricks;                         /* level-0 bricks cdvr_brick_cache_dense
+                                                    assembled (the others were in place) */
     double decode_ms, layout_ms;
 } cdvr_brick_cache_stats;
 
@@ -107,7 +109,10 @@ void cdvr_brick_cache_get_stats(const cdvr_brick_cache *c, cdvr_brick_cache_stat
  * aligned, valid until the next call or the cache's end): exactly cdvr_brick_cache_fetch at
  * every voxel, level-0 bricks copied row by row. Renderers take it on a CPU device when the
  * dense frame fits the budget: there the page-table fetch per sample costs 10-20x a dense
- * read (raycast_method.c, player.c). */
+ * read (raycast_method.c, player.c). Only the level-0 bricks whose entry (timestep, level,
+ * brick) changed since the frame last assembled are assembled again (each writes just the
+ * voxels it owns, so the frame is the same; stats dense_bricks): a camera that moves changes
+ * the levels of a few bricks. */
 cdvr_status cdvr_brick_cache_dense(cdvr_brick_cache *c, const uint8_t **frame, cdvr_error *err);
 
 /* The fetch above on a payload of n bytes (reads outside it are clamped inside). */

@@ -65,6 +65,8 @@ struct cdvr_brick_cache {
     uint8_t *payload;
     size_t payload_cap, payload_bytes;
     uint8_t *dense;              /* cdvr_brick_cache_dense's frame, or NULL */
+    size_t *dense_key;           /* per level-0 brick: t, level, brick of the entry dense holds */
+    int dense_valid;             /* dense_key describes dense */
     cdvr_brick_cache_stats stats;
     brick_worker *worker;        /* the asynchronous mode, or NULL */
     uint64_t reserved;           /* async: bytes of the coarsest level (pinned) */
@@ -270,6 +272,7 @@ void cdvr_brick_cache_free(cdvr_brick_cache *c)
     free(c->keys);
     free(c->payload);
     free(c->dense);
+    free(c->dense_key);
     free(c);
 }
 
@@ -918,26 +921,46 @@ static void assemble_row(const cache_entry *e, size_t x0, size_t n, size_t y, si
     }
 }
 
-static void assemble(const cdvr_brick_cache *c, uint8_t *frame)
+/* Level-0 brick b's owned voxels of the dense frame from its entry. */
+static void assemble_brick(const cdvr_brick_cache *c, size_t b, uint8_t *frame)
 {
     const cdvr_store_info *in = cdvr_store_get_info(c->st);
     size_t X = c->dims[0], Y = c->dims[1];
+    const cache_entry *e = &c->entries[c->entry_of[b]];
+    size_t lo[3], d[3];
+    cdvr_store_brick_owned(in, b, lo, d);
+    for (size_t z = lo[2]; z < lo[2] + d[2]; z++)
+        for (size_t y = lo[1]; y < lo[1] + d[1]; y++) {
+            uint8_t *row = frame + X * (y + Y * z);
+            if (e->level == 0) { /* the owned voxels lie inside the brick's box */
+                const uint8_t *src = e->voxels + (lo[0] - e->lo[0]) +
+                                     e->dims[0] * ((y - e->lo[1]) + e->dims[1] * (z - e->lo[2]));
+                memcpy(row + lo[0], src, d[0]);
+            } else {
+                assemble_row(e, lo[0], d[0], y, z, row);
+            }
+        }
+}
+
+/* Assembles the level-0 bricks whose entry (timestep, level, brick) differs from the one
+ * the dense frame holds for them (every brick when it holds none): each brick writes only the
+ * voxels it owns, so the frame ends exactly as a whole assembly. Returns how many. */
+static size_t assemble_changed(cdvr_brick_cache *c)
+{
+    size_t n = 0;
     for (size_t b = 0; b < c->nbricks; b++) {
         const cache_entry *e = &c->entries[c->entry_of[b]];
-        size_t lo[3], d[3];
-        cdvr_store_brick_owned(in, b, lo, d);
-        for (size_t z = lo[2]; z < lo[2] + d[2]; z++)
-            for (size_t y = lo[1]; y < lo[1] + d[1]; y++) {
-                uint8_t *row = frame + X * (y + Y * z);
-                if (e->level == 0) { /* the owned voxels lie inside the brick's box */
-                    const uint8_t *src = e->voxels + (lo[0] - e->lo[0]) +
-                                         e->dims[0] * ((y - e->lo[1]) + e->dims[1] * (z - e->lo[2]));
-                    memcpy(row + lo[0], src, d[0]);
-                } else {
-                    assemble_row(e, lo[0], d[0], y, z, row);
-                }
-            }
+        size_t *k = &c->dense_key[3 * b];
+        if (c->dense_valid && k[0] == e->t && k[1] == e->level && k[2] == e->brick)
+            continue;
+        assemble_brick(c, b, c->dense);
+        k[0] = e->t;
+        k[1] = e->level;
+        k[2] = e->brick;
+        n++;
     }
+    c->dense_valid = 1;
+    return n;
 }
 
 cdvr_status cdvr_brick_cache_dense(cdvr_brick_cache *c, const uint8_t **frame, cdvr_error *err)
@@ -948,13 +971,17 @@ cdvr_status cdvr_brick_cache_dense(cdvr_brick_cache *c, const uint8_t **frame, c
     if (!c->dense) {
         void *mem = NULL;
         size_t n = c->dims[0] * c->dims[1] * c->dims[2];
-        if (posix_memalign(&mem, 4096, n ? n : 1) != 0)
+        if (posix_memalign(&mem, 4096, n ? n : 1) != 0 ||
+            !(c->dense_key = malloc(3 * c->nbricks * sizeof *c->dense_key))) {
+            free(mem);
             return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory for a dense "
                                   "frame of %zu bytes", n);
+        }
         c->dense = mem;
+        c->dense_valid = 0;
     }
     double t0 = cdvr_now_ms();
-    assemble(c, c->dense);
+    c->stats.dense_bricks = assemble_changed(c);
     c->stats.layout_ms += cdvr_now_ms() - t0;
     *frame = c->dense;
     return CDVR_OK;
