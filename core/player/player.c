@@ -503,6 +503,11 @@ static void select_bricks(cdvr_player *p, chunk_item *it)
         it->bricks_read += (size_t)it->parts[b].needed;
         it->bricks_region += (size_t)(it->parts[b].needed && in_region(p, b));
     }
+    if (p->opts.cache) { /* the brick cache reads and decodes what each frame needs itself */
+        for (size_t b = 0; b < p->nbricks; b++)
+            it->parts[b].needed = 0;
+        it->bricks_read = 0;
+    }
 }
 
 /* Whether the group's frames get skip grids from the store's range tables: on the cl device
@@ -1130,7 +1135,8 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
     memcpy(frame.direction, info->direction, sizeof frame.direction);
     frame.timesteps = 1;
     frame.type = CDVR_TYPE_U8;
-    frame.data = p->slots[it->slot] + f * p->voxels;
+    if (!p->opts.cache) /* the cache's dense frame below instead (nothing was read) */
+        frame.data = p->slots[it->slot] + f * p->voxels;
     cdvr_render_ctx *ctx = p->opts.ctx ? p->opts.ctx : p->own_ctx;
     double t0 = cdvr_now_ms();
     cdvr_status s = CDVR_OK;

@@ -2,7 +2,7 @@
 -- (cache=true, cache_async=true; cdvr/brick_cache.h, cdvr/player.h), no OpenCL needed:
 --   - synchronous, lod_error 0, room for everything: every frame equals the cpu player's frame
 --     without the cache and cdvr.render's cpu path through the cache, bit for bit; rows report
---     resident bytes, bricks per level and lod_error;
+--     resident bytes, bricks per level and lod_error, and no chunk read by the player itself;
 --   - asynchronous: the first frame renders every brick at the pinned coarsest level (rows:
 --     bricks_coarser = every brick, bricks_pending > 0) and equals the synchronous render with
 --     every brick at the coarsest level (no hole); the same view played again converges to
@@ -48,6 +48,8 @@ do
     assert(row.bricks_level0 == 12 and row.bricks_level2 == 0 and row.resident_bytes > 0 and
            row.lod_error == 0 and row.bricks_coarser == 0 and row.bricks_pending == 0,
            "synchronous rows: every brick at level 0, nothing coarser or pending")
+    assert(row.bricks_read == 0 and row.bytes == 0, "the cache reads what it needs itself: " ..
+           "the player reads no chunk (" .. row.bricks_read .. " bricks, " .. row.bytes .. " bytes)")
     assert(same(imgs[i], plain[i]), "frame " .. i .. ": through the cache = without it")
     local ref = cdvr.render(st, {t = i, tf = tf, camera = near, device = "cpu", cache = true,
                                  lod_error = 0, budget_mb = 64})

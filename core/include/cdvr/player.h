@@ -99,7 +99,8 @@ typedef struct cdvr_frame_row {
                                 (compressed payload in fetch mode); 0 on the cpu device */
     double composite_ms;     /* the composite hook (distributed compositing), wait_ms excluded */
     double wait_ms;          /* the composite hook waiting for the other processes' frames */
-    size_t bricks_read;      /* bricks read and decoded for this frame's chunk group */
+    size_t bricks_read;      /* bricks read and decoded for this frame's chunk group (0 with
+                                opts.cache: the cache reads what it needs itself) */
     size_t bricks_skipped;   /* bricks of the player's region not read (transparent or unseen) */
     uint64_t resident_bytes; /* brick cache (opts.cache): voxel bytes of the bricks the frame
                                 rendered from; 0 without the cache */
