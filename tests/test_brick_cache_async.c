@@ -8,7 +8,9 @@
  *   - right after a jump to a near camera at lod_error 0 every brick is coarser than chosen and
  *     the frame is exactly the level-1 frame (the finest resident coarser level: no hole);
  *     after the worker it is exactly the assembled volume (cdvr_store_decode);
- *   - a new timestep pins its own coarsest level; the cache stays within its budget; a budget
+ *   - a new timestep pins its own coarsest level; named beforehand (cdvr_brick_cache_set_next)
+ *     it is decoded during the frame before and its first frame is complete; the cache stays
+ *     within its budget; a budget
  *     below the coarsest level is refused; switching async off returns to synchronous frames;
  *   - cdvr_brick_cache_dense assembles again exactly the bricks whose entry changed (none for
  *     a camera that moved without changing levels; all 12 at new levels or a new timestep;
@@ -145,6 +147,24 @@ static void jump_and_refine(cdvr_store *st)
     CHECK_OK(cdvr_store_decode(st, 0, 1, &ref, &err), err);
     CHECK(memcmp(got, ref->data, VOXELS) == 0 && s.coarser == 0, "t 2 refined exactly");
     cdvr_volume_free(ref);
+
+    /* playback: with the next timestep named, the worker decodes it during this frame, and
+     * the next frame finds every brick resident at its chosen level (nothing decoded in it) */
+    cdvr_brick_cache *play;
+    CHECK_OK(cdvr_brick_cache_create(st, 0, budget, &play, &err), err);
+    CHECK_OK(cdvr_brick_cache_set_async(play, 1, &err), err);
+    cdvr_brick_cache_set_next(play, 1);
+    frame(play, 0, &near, 0.0, got, &s);
+    CHECK(s.coarser == 12 && s.pending > 24, "t 1 at its coarsest level; t 1's level 0 and t 2's "
+          "coarsest and level 0 queued (%zu pending)", s.pending);
+    cdvr_brick_cache_wait(play);
+    frame(play, 1, &near, 0.0, got, &s);
+    CHECK_OK(cdvr_store_decode(st, 0, 1, &ref, &err), err);
+    CHECK(s.coarser == 0 && s.decoded == 0 && s.bricks_at[0] == 12 &&
+          memcmp(got, ref->data, VOXELS) == 0, "the prefetched timestep: all resident, exact "
+          "(%zu coarser, %zu decoded in the frame)", s.coarser, s.decoded);
+    cdvr_volume_free(ref);
+    cdvr_brick_cache_free(play);
 
     CHECK_OK(cdvr_brick_cache_set_async(c, 0, &err), err);
     frame(c, 0, &far, 0.6, got, &s);

@@ -1037,6 +1037,11 @@ static cdvr_status cache_frame(cdvr_player *p, const chunk_item *it, size_t t,
             return s;
         }
     }
+    if (p->opts.cache_async) { /* the worker decodes this player's next timestep meanwhile */
+        size_t n = cdvr_store_get_info(p->opts.store)->timesteps, next = t + p->stride;
+        cdvr_brick_cache_set_next(p->cache, next < n ? next : p->opts.loop ? next % n
+                                                                             : (size_t)-1);
+    }
     return cdvr_brick_cache_frame(p->cache, t, cam, p->opts.tf, it->lod_error, payload, bytes,
                                   err);
 }

@@ -100,6 +100,12 @@ cdvr_status cdvr_brick_cache_frame(cdvr_brick_cache *c, size_t t, const cdvr_cam
  * one that finds no room is dropped. A worker's decode error fails the next frame. Fails
  * (CDVR_ERR_NOMEM) when the coarsest level alone passes the budget. */
 cdvr_status cdvr_brick_cache_set_async(cdvr_brick_cache *c, int on, cdvr_error *err);
+/* Asynchronous mode: the timestep the frame after the next cdvr_brick_cache_frame will show
+ * (playback). That next call queues, after its own missing bricks, t_next's coarsest level and
+ * its bricks at the levels it chose, those not resident, so the worker decodes the next
+ * timestep while this one renders (without it a new timestep starts at its coarsest level).
+ * Applies to that one call; (size_t)-1: none. */
+void cdvr_brick_cache_set_next(cdvr_brick_cache *c, size_t t_next);
 /* Blocks until the worker has decoded every brick queued (nothing when synchronous). */
 void cdvr_brick_cache_wait(cdvr_brick_cache *c);
 /* Bricks queued, being decoded or decoded and not yet resident (0 when synchronous). */

@@ -71,8 +71,10 @@ struct cdvr_brick_cache {
     brick_worker *worker;        /* the asynchronous mode, or NULL */
     uint64_t reserved;           /* async: bytes of the coarsest level (pinned) */
     size_t pinned_t;             /* async: the timestep whose coarsest level is pinned */
-    brick_job *requests;         /* async: this frame's missing bricks (at most nbricks) */
+    brick_job *requests;         /* async: this frame's missing bricks, then the next
+                                    timestep's (at most 3 nbricks) */
     size_t nrequests;
+    size_t next_t;               /* async: cdvr_brick_cache_set_next's timestep, or -1 */
 };
 
 /* ---- the fetch (the definition; brick_cache.cl mirrors it) ------------------------------- */
@@ -613,14 +615,15 @@ cdvr_status cdvr_brick_cache_set_async(cdvr_brick_cache *c, int on, cdvr_error *
                               "coarsest level (%zu levels, kept resident in the asynchronous "
                               "mode), the budget is %.1f MB", cdvr_store_path(c->st),
                               (double)reserved / 1e6, c->nlevels, (double)c->budget / 1e6);
-    /* done between two frames: what finished of the last queue before it was replaced (at
-     * most nbricks), the job then in flight, and the new queue (at most nbricks) */
-    size_t done_cap = 2 * c->nbricks + 1;
+    /* a queue: the frame's missing bricks, the next timestep's coarsest and chosen ones (at
+     * most nbricks each); done between two frames: what finished of the last queue before it
+     * was replaced, the job then in flight, and the new queue */
+    size_t queue_cap = 3 * c->nbricks, done_cap = 2 * queue_cap + 1;
     brick_worker *w = calloc(1, sizeof *w);
-    if (!w || !(w->todo = malloc(c->nbricks * sizeof *w->todo)) ||
+    if (!w || !(w->todo = malloc(queue_cap * sizeof *w->todo)) ||
         !(w->done = malloc(done_cap * sizeof *w->done)) ||
         !(w->taken = malloc(done_cap * sizeof *w->taken)) ||
-        (!c->requests && !(c->requests = malloc(c->nbricks * sizeof *c->requests)))) {
+        (!c->requests && !(c->requests = malloc(queue_cap * sizeof *c->requests)))) {
         if (w) {
             free(w->todo);
             free(w->done);
@@ -646,7 +649,13 @@ cdvr_status cdvr_brick_cache_set_async(cdvr_brick_cache *c, int on, cdvr_error *
     c->worker = w;
     c->reserved = reserved;
     c->pinned_t = (size_t)-1;
+    c->next_t = (size_t)-1;
     return CDVR_OK;
+}
+
+void cdvr_brick_cache_set_next(cdvr_brick_cache *c, size_t t_next)
+{
+    c->next_t = t_next;
 }
 
 void cdvr_brick_cache_wait(cdvr_brick_cache *c)
@@ -755,6 +764,22 @@ static void submit(cdvr_brick_cache *c)
     pthread_mutex_unlock(&w->mu);
 }
 
+/* After this frame's requests: the next timestep's coarsest level and its bricks at this
+ * frame's chosen levels, those not resident (cdvr_brick_cache_set_next; once). */
+static void prefetch_next(cdvr_brick_cache *c, size_t t)
+{
+    size_t next = c->next_t, last = c->nlevels - 1;
+    c->next_t = (size_t)-1;
+    if (next == (size_t)-1 || next == t || next >= cdvr_store_get_info(c->st)->timesteps)
+        return;
+    for (int pass = 0; pass < 2; pass++)
+        for (size_t b = 0; b < c->nbricks; b++) {
+            size_t l = pass == 0 ? last : c->choice[b], lb = level_brick(c, b, l);
+            if ((pass == 0 || l != last) && find_entry(c, next, l, lb) == (size_t)-1)
+                request(c, next, l, lb);
+        }
+}
+
 /* Residency of the asynchronous mode: per brick the chosen level when resident, else the
  * finest resident coarser one (the pinned coarsest level at worst); the missing chosen levels
  * go to the worker. */
@@ -780,6 +805,7 @@ static cdvr_status residency_async(cdvr_brick_cache *c, size_t t, cdvr_error *er
             request(c, t, want, level_brick(c, b, want));
         }
     }
+    prefetch_next(c, t);
     submit(c);
     return CDVR_OK;
 }
