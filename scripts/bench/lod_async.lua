@@ -4,6 +4,7 @@
 --
 --   cd scripts/bench && ../../build/cdvr lod_async.lua [--volume N] [--levels L] [--bricks B]
 --        [--pixels P] [--device cpu|cl] [--codec raw|hvq|...] [--lod 1] [--repeats R] [--dir DIR]
+--        [--series T]
 --
 -- A generated N^3 u8 volume (Marschner-Lobb, default 256), bricked B^3 (default 8) with L
 -- levels (default 4), one variant of --codec (default hvq, whose C decoder is slower than raw's
@@ -13,11 +14,14 @@
 -- cache's decodes and the render), its bricks per level and bricks_coarser, then (async)
 -- how many one-frame runs and how much wall time until the view is refined (bricks_coarser
 -- 0), and the PSNR of the frame right after the jump and of the refined frame against the
--- synchronous frame of the same view.
+-- synchronous frame of the same view. With --series T > 0, playback rows follow: an N^3 x T
+-- series (the sphere generator) played once through, near view, per mode: the median frame
+-- time (frame_ms) and setup_ms, and how many frames had every brick at its chosen level
+-- (bricks_coarser 0; async prefetches the next timestep, cdvr_brick_cache_set_next).
 local common = dofile((debug.getinfo(1, "S").source:match("^@(.*)/[^/]*$") or ".") .. "/common.lua")
 
 local _, opt = common.parse_args(arg, {volume = "256", levels = "4", bricks = "8", pixels = "256",
-  device = "cpu", codec = "hvq", lod = "1", repeats = "3", dir = ""})
+  device = "cpu", codec = "hvq", lod = "1", repeats = "3", dir = "", series = "0"})
 local function int(k) return (assert(math.tointeger(tonumber(opt[k])), k)) end
 local dir = opt.dir
 local own_dir = dir == ""
@@ -99,6 +103,35 @@ for r = 1, int("repeats") do
           jump.render_ms, jump.setup_ms, level_counts(jump), jump.bricks_coarser, runs, ms,
           level_counts(last), jump_psnr, refined_psnr))
   end
+end
+local steps = int("series")
+if steps > 0 then
+  local spath = ("%s/sphere_%d_%d_%s_b%d_l%d.cdv"):format(dir, n, steps, opt.codec, b, int("levels"))
+  local series = common.exists(spath) and cdvr.open(spath) or
+    cdvr.encode(cdvr.generate("sphere", {dims = {n, n, n}, timesteps = steps}),
+                {path = spath, progress = false, stage2 = "none", variants = {{codec = opt.codec}},
+                 bricks = {b, b, b}, levels = int("levels")})
+  local view = cdvr.orbit_camera(series, {azimuth = 30, elevation = 20, zoom = 1.6, width = p,
+                                          height = p})
+  local function median(t) table.sort(t) return t[(#t + 1) // 2] end
+  print("mode,repeat,frames,median_frame_ms,median_setup_ms,frames_complete")
+  for r = 1, int("repeats") do
+    for _, mode in ipairs{"sync", "async"} do
+      local pl = cdvr.player{store = series, tf = tf, device = opt.device, cache = true,
+                             cache_async = mode == "async", budget_mb = 1024, lod_error = lod,
+                             camera = view, width = p, height = p}
+      local rows = pl:run{frames = steps}.frames
+      pl:close()
+      local fm, sm, complete = {}, {}, 0
+      for _, row in ipairs(rows) do
+        assert(not row.error, row.error)
+        fm[#fm + 1], sm[#sm + 1] = row.frame_ms, row.setup_ms
+        complete = complete + (row.bricks_coarser == 0 and 1 or 0)
+      end
+      print(("%s,%d,%d,%.1f,%.1f,%d"):format(mode, r, #rows, median(fm), median(sm), complete))
+    end
+  end
+  series:close()
 end
 io.stderr:write("loadavg after: " .. loadavg() .. "\n")
 st:close()
