@@ -58,6 +58,7 @@ typedef struct chunk_item {
     size_t frame0;           /* frame number of t_begin */
     int group_start;
     char reason[160];
+    double lod_error;        /* opts.cache: the brick cache's lod_error for its frames */
     double read_ms, unzip_ms;
     double grid_ms;          /* making the frames' skip grids from the range tables (b1g) */
     uint64_t stored_bytes, payload_bytes;
@@ -147,6 +148,8 @@ struct cdvr_player {
     size_t brick_frames_cap[MAX_UNZIP];
     int *host_decodes;       /* per variant (cl device): its decode is faster on the host */
     struct cdvr_brick_cache *cache; /* opts.cache: the brick cache of the variant playing */
+    double lod_error;        /* opts.cache: lod_error of the groups planned from now on
+                                (opts.lod_error, or the policy's: cdvr_player_set_lod_error) */
     int *fetch_bulk;         /* per variant (cl device): a fetch-mode codec decodes in bulk
                                 on the host (cdvr_cl_fetch_path_for is not SAMPLE) */
 #if CDVR_HAVE_OPENCL
@@ -336,6 +339,7 @@ static cdvr_status plan_item(cdvr_player *p, chunk_item *it, cdvr_error *err)
         p->last_group = group;
     }
     it->variant = p->current_variant;
+    it->lod_error = p->lod_error;
     it->chunk = cdvr_store_chunk_for(st, (size_t)it->variant, t, 0);
     const cdvr_chunk_info *ch = cdvr_store_chunk(st, (size_t)it->variant, it->chunk);
     size_t in_chunk = (ch->t0 + ch->count - t + p->stride - 1) / p->stride;
@@ -498,6 +502,11 @@ static void select_bricks(cdvr_player *p, chunk_item *it)
     for (size_t b = 0; b < p->nbricks; b++) {
         it->bricks_read += (size_t)it->parts[b].needed;
         it->bricks_region += (size_t)(it->parts[b].needed && in_region(p, b));
+    }
+    if (p->opts.cache) { /* the brick cache reads and decodes what each frame needs itself */
+        for (size_t b = 0; b < p->nbricks; b++)
+            it->parts[b].needed = 0;
+        it->bricks_read = 0;
     }
 }
 
@@ -993,34 +1002,80 @@ static cdvr_status blank_image(const cdvr_player *p, const cdvr_camera *cam, cdv
     return s;
 }
 
-/* b4 + b5 for timestep t of the current chunk; *img receives the frame. */
-#if CDVR_HAVE_OPENCL
-/* opts.cache: the frame from the brick cache of the group's variant (made or remade when the
- * variant changes) into the stream's payload, read through the cache's fetch. */
-static cdvr_status load_cached(cdvr_player *p, const chunk_item *it, size_t t,
-                               const cdvr_camera *cam, cdvr_error *err)
+/* opts.cache: the budget (the device's memory / 4 on cl, 1 GiB on the cpu as cdvr.render's
+ * cpu path, raycast_method.c). */
+static uint64_t cache_budget(const cdvr_player *p)
 {
-    uint64_t budget = p->opts.cache_budget_mb > 0
-                          ? (uint64_t)(p->opts.cache_budget_mb * 1e6)
-                          : cdvr_cl_get_info(p->cl)->global_mem_bytes / 4;
-    budget = budget ? budget : 1;
+    if (p->opts.cache_budget_mb > 0)
+        return (uint64_t)(p->opts.cache_budget_mb * 1e6);
+#if CDVR_HAVE_OPENCL
+    if (p->cl) {
+        uint64_t quarter = cdvr_cl_get_info(p->cl)->global_mem_bytes / 4;
+        return quarter ? quarter : 1;
+    }
+#endif
+    return (uint64_t)1 << 30;
+}
+
+/* opts.cache: timestep t's frame in the brick cache of the group's variant (made or remade
+ * when the variant changes; asynchronous with opts.cache_async). */
+static cdvr_status cache_frame(cdvr_player *p, const chunk_item *it, size_t t,
+                               const cdvr_camera *cam, const uint8_t **payload, size_t *bytes,
+                               cdvr_error *err)
+{
+    uint64_t budget = cache_budget(p);
     if (!cdvr_brick_cache_serves(p->cache, p->opts.store, (size_t)it->variant, budget)) {
         cdvr_brick_cache_free(p->cache);
         p->cache = NULL;
         cdvr_status s = cdvr_brick_cache_create(p->opts.store, (size_t)it->variant, budget,
                                                 &p->cache, err);
-        if (s != CDVR_OK)
+        if (s == CDVR_OK && p->opts.cache_async)
+            s = cdvr_brick_cache_set_async(p->cache, 1, err);
+        if (s != CDVR_OK) { /* none rather than a synchronous one the next frame would take */
+            cdvr_brick_cache_free(p->cache);
+            p->cache = NULL;
             return s;
+        }
     }
+    if (p->opts.cache_async) { /* the worker decodes this player's next timestep meanwhile */
+        size_t n = cdvr_store_get_info(p->opts.store)->timesteps, next = t + p->stride;
+        cdvr_brick_cache_set_next(p->cache, next < n ? next : p->opts.loop ? next % n
+                                                                             : (size_t)-1);
+    }
+    return cdvr_brick_cache_frame(p->cache, t, cam, p->opts.tf, it->lod_error, payload, bytes,
+                                  err);
+}
+
+/* The cache's figures of the frame into its row. */
+static void cache_row(const cdvr_player *p, const chunk_item *it, cdvr_frame_row *row)
+{
+    cdvr_brick_cache_stats cs;
+    if (!p->cache)
+        return;
+    cdvr_brick_cache_get_stats(p->cache, &cs);
+    row->resident_bytes = cs.resident_bytes;
+    row->nlevels = cs.levels;
+    memcpy(row->bricks_at, cs.bricks_at, sizeof row->bricks_at);
+    row->bricks_coarser = cs.coarser;
+    row->bricks_pending = cs.pending;
+    row->lod_error = it->lod_error;
+}
+
+/* b4 + b5 for timestep t of the current chunk; *img receives the frame. */
+#if CDVR_HAVE_OPENCL
+/* opts.cache on cl: the cache's frame into the stream's payload, read through the cache's
+ * fetch (or its dense frame on a CPU device when that fits the budget). */
+static cdvr_status load_cached(cdvr_player *p, const chunk_item *it, size_t t,
+                               const cdvr_camera *cam, cdvr_error *err)
+{
     const uint8_t *payload;
     size_t bytes;
     cdvr_codec_params none = {{0}};
-    cdvr_status s = cdvr_brick_cache_frame(p->cache, t, cam, p->opts.tf, p->opts.lod_error,
-                                           &payload, &bytes, err);
+    cdvr_status s = cache_frame(p, it, t, cam, &payload, &bytes, err);
     const cdvr_store_info *in = cdvr_store_get_info(p->opts.store);
     if (s == CDVR_OK && !cdvr_cl_get_info(p->cl)->is_gpu &&
         p->opts.fetch_path != CDVR_CL_FETCH_SAMPLE &&
-        (uint64_t)in->dims[0] * in->dims[1] * in->dims[2] <= budget) {
+        (uint64_t)in->dims[0] * in->dims[1] * in->dims[2] <= cache_budget(p)) {
         const uint8_t *frame; /* a CPU device: the dense frame when it fits (raycast_method.c) */
         s = cdvr_brick_cache_dense(p->cache, &frame, err);
         return s == CDVR_OK ? cdvr_cl_use_host_frames(p->stream, frame, 1, err) : s;
@@ -1033,19 +1088,8 @@ static cdvr_status load_cached(cdvr_player *p, const chunk_item *it, size_t t,
     cdvr_cl_set_fetch_path(p->stream, (cdvr_cl_fetch_path)p->opts.fetch_path);
     return s;
 }
-
-/* The cache's figures of the frame into its row. */
-static void cache_row(const cdvr_player *p, cdvr_frame_row *row)
-{
-    cdvr_brick_cache_stats cs;
-    if (!p->cache)
-        return;
-    cdvr_brick_cache_get_stats(p->cache, &cs);
-    row->resident_bytes = cs.resident_bytes;
-    row->nlevels = cs.levels;
-    memcpy(row->bricks_at, cs.bricks_at, sizeof row->bricks_at);
-}
 #endif
+
 
 static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const cdvr_camera *cam,
                                 cdvr_image **img, double *setup_ms, double *render_ms, cdvr_error *err)
@@ -1096,10 +1140,23 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
     memcpy(frame.direction, info->direction, sizeof frame.direction);
     frame.timesteps = 1;
     frame.type = CDVR_TYPE_U8;
-    frame.data = p->slots[it->slot] + f * p->voxels;
+    if (!p->opts.cache) /* the cache's dense frame below instead (nothing was read) */
+        frame.data = p->slots[it->slot] + f * p->voxels;
     cdvr_render_ctx *ctx = p->opts.ctx ? p->opts.ctx : p->own_ctx;
     double t0 = cdvr_now_ms();
-    cdvr_status s = p->opts.method->render(ctx, p->opts.device, &frame, 0, &ro,
+    cdvr_status s = CDVR_OK;
+    if (p->opts.cache) { /* the cpu device: the cache's dense frame replaces the group's */
+        const uint8_t *payload, *dense = NULL;
+        size_t bytes;
+        s = cache_frame(p, it, t, cam, &payload, &bytes, err);
+        if (s == CDVR_OK)
+            s = cdvr_brick_cache_dense(p->cache, &dense, err);
+        frame.data = (void *)dense;
+        *setup_ms = cdvr_now_ms() - t0;
+        t0 = cdvr_now_ms();
+    }
+    if (s == CDVR_OK)
+        s = p->opts.method->render(ctx, p->opts.device, &frame, 0, &ro,
                                            &p->opts.method_params, NULL, img, err);
     *render_ms = cdvr_now_ms() - t0;
     return s;
@@ -1220,9 +1277,9 @@ static cdvr_status consume(cdvr_player *p, chunk_item *it, cdvr_error *err)
 #if CDVR_HAVE_OPENCL
         if (p->stream)
             row->device_bytes = cdvr_cl_stream_bytes(p->stream);
-        if (p->opts.cache)
-            cache_row(p, row);
 #endif
+        if (p->opts.cache)
+            cache_row(p, it, row);
         row->status = ferr.status;
         if (ferr.status != CDVR_OK)
             snprintf(row->error, sizeof row->error, "%s", ferr.msg);
@@ -1563,6 +1620,7 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
     if (!opts->method)
         method->params_default(&p->opts.method_params);
     p->on_stream = opts->device == CDVR_DEVICE_CL && method->render_stream != NULL;
+    p->lod_error = opts->lod_error;
     if (p->opts.ring <= 0)
         p->opts.ring = 3;
     p->group_len = cdvr_player_group_length(opts->store);
@@ -1575,10 +1633,11 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
          opts->look.gradient_opacity.npoints))
         rs = cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "player: a box of the bricks (sort-last) "
                             "renders only the composite blend mode without shading");
-    if (rs == CDVR_OK && opts->cache && (p->clipped || !p->on_stream))
-        rs = cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "player: cache=true renders on the cl "
-                            "device with the raycast method, the whole volume (not a box of "
-                            "the bricks)");
+    if (rs == CDVR_OK && opts->cache &&
+        (p->clipped || (!p->on_stream && opts->device != CDVR_DEVICE_CPU)))
+        rs = cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "player: cache=true renders on the cpu "
+                            "device, or on cl with the raycast method, the whole volume (not a "
+                            "box of the bricks)");
     if (rs == CDVR_OK && p->clipped && !method->bricks)
         rs = cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "player: method '%s' cannot render a "
                             "box of the bricks (sort-last distribution needs a method that "
@@ -1714,6 +1773,20 @@ cdvr_status cdvr_player_run(cdvr_player *p, size_t first, size_t frames, cdvr_er
     if (err)
         *err = e;
     return s;
+}
+
+cdvr_status cdvr_player_set_lod_error(cdvr_player *p, double lod_error, cdvr_error *err)
+{
+    if (!(lod_error >= 0) || lod_error > 1e12)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "player: lod_error %g (pixels, 0 .. 1e12)",
+                              lod_error);
+    p->lod_error = lod_error;
+    return CDVR_OK;
+}
+
+double cdvr_player_lod_error(const cdvr_player *p)
+{
+    return p->lod_error;
 }
 
 size_t cdvr_player_stopped_early(const cdvr_player *p)

@@ -127,9 +127,9 @@ static void cache_stats(const cdvr_brick_cache *bc, cdvr_render_stats *stats)
     }
 }
 
-/* The CPU reference through the brick cache: the cache's payload decoded by its C fetch
- * (cdvr/brick_cache.h) into a dense frame of the store's dims (the reference renders dense),
- * then the CPU ray caster. */
+/* The CPU reference through the brick cache: the cache's dense frame (cdvr_brick_cache_dense:
+ * exactly its C fetch at every voxel, assembled again only where a brick's entry changed;
+ * the reference renders dense), then the CPU ray caster. */
 static cdvr_status raycast_cached_cpu(cdvr_render_ctx *ctx, const cdvr_store *st, size_t v,
                                       size_t t, cdvr_render_opts *opts,
                                       const raycast_params *rp, cdvr_render_stats *stats,
@@ -138,30 +138,26 @@ static cdvr_status raycast_cached_cpu(cdvr_render_ctx *ctx, const cdvr_store *st
     const cdvr_store_info *info = cdvr_store_get_info(st);
     uint64_t budget = rp->budget_mb > 0 ? (uint64_t)(rp->budget_mb * 1e6) : (uint64_t)1 << 30;
     cdvr_brick_cache *bc;
-    const uint8_t *payload;
+    const uint8_t *payload, *dense = NULL;
     size_t bytes;
-    cdvr_volume *vol = NULL;
     cdvr_status s = cdvr_render_ctx_brick_cache(ctx, st, v, budget, &bc, err);
     if (s == CDVR_OK)
         s = cdvr_brick_cache_frame(bc, t, opts->camera, opts->tf, rp->lod_error, &payload,
                                    &bytes, err);
     if (s == CDVR_OK)
-        s = cdvr_volume_create(info->dims, 1, CDVR_TYPE_U8, &vol, err);
-    if (s == CDVR_OK) {
-        uint8_t *frames[1] = {vol->data};
-        cdvr_codec_params none = {{0}};
-        memcpy(vol->spacing, info->spacing, sizeof vol->spacing);
-        memcpy(vol->origin, info->origin, sizeof vol->origin);
-        memcpy(vol->direction, info->direction, sizeof vol->direction);
-        vol->window[0] = info->qlo;
-        vol->window[1] = info->qhi;
-        s = cdvr_brick_cache_codec()->decode(&none, info->dims, payload, bytes, frames, 1, err);
-    }
-    if (s == CDVR_OK)
-        s = render_cpu(ctx, vol, 0, opts, stats, out, err);
+        s = cdvr_brick_cache_dense(bc, &dense, err);
+    if (s != CDVR_OK)
+        return s;
+    cdvr_volume vol = {.timesteps = 1, .type = CDVR_TYPE_U8, .data = (void *)dense};
+    memcpy(vol.dims, info->dims, sizeof vol.dims);
+    memcpy(vol.spacing, info->spacing, sizeof vol.spacing);
+    memcpy(vol.origin, info->origin, sizeof vol.origin);
+    memcpy(vol.direction, info->direction, sizeof vol.direction);
+    vol.window[0] = info->qlo;
+    vol.window[1] = info->qhi;
+    s = render_cpu(ctx, &vol, 0, opts, stats, out, err);
     if (s == CDVR_OK)
         cache_stats(bc, stats);
-    cdvr_volume_free(vol);
     return s;
 }
 

@@ -12,7 +12,7 @@
 
 #define LCDVR_RENDER_CTX "cdvr.RenderContext"
 #define CTX_KEY "cdvr.render_ctx" /* registry: the state's context userdata */
-#define MAX_KEYS 48
+#define MAX_KEYS 128 /* base + look + scene + method keys (the player has about 50: at 48 the last ones were cut, unknown) */
 
 typedef struct lctx {
     cdvr_render_ctx *ctx;

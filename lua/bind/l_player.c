@@ -136,14 +136,27 @@ static int decide_lua(lua_State *L)
     const cdvr_store *st = lp->opts.store;
     lua_getiuservalue(L, 2, UV_POLICY);           /* policy */
     lcdvr_policy_view view = {c->t, c->group, lp->target_fps, lp->min_psnr, lp->opts.pipelined,
-                              lp->capture};
+                              lp->capture, lp->opts.cache, cdvr_player_lod_error(c->player),
+                              lp->opts.lod_error, cdvr_store_get_info(st)->nlevels};
     size_t nrows;
     const cdvr_frame_row *rows = cdvr_player_rows(c->player, &nrows);
     lcdvr_push_policy_stats(L, st, &view, rows, nrows); /* policy, stats */
-    c->status = call_budgeted(lp, L, 1, 2, "policy", c->err);
+    c->status = call_budgeted(lp, L, 1, 3, "policy", c->err);
     if (c->status != CDVR_OK)
         return 0;
+    /* a third result: the brick cache's lod_error for the group (cache=true only) */
+    int has_lod = !lua_isnil(L, -1);
+    double lod = lua_tonumber(L, -1);
+    if (has_lod && (!lua_isnumber(L, -1) || !lp->opts.cache)) {
+        c->status = cdvr_error_set(c->err, CDVR_ERR_ARG, "policy returned lod_error %s (%s)",
+                                   lcdvr_push_quoted(L, -1), lp->opts.cache ? "a number >= 0 "
+                                   "expected" : "only with cache=true");
+        return 0;
+    }
+    lua_pop(L, 1);
     c->status = lcdvr_policy_result(L, st, &c->variant, c->reason, c->reason_size, c->err);
+    if (c->status == CDVR_OK && has_lod)
+        c->status = cdvr_player_set_lod_error(c->player, lod, c->err);
     return 0;
 }
 
@@ -591,6 +604,9 @@ static void render_options(lua_State *L, lplayer *lp, const cdvr_store_info *inf
     lp->opts.empty_skip = lcdvr_optbooleanfield(L, 1, "empty_skip", 1);
     lp->opts.fetch_path = fetch_option(L);
     lp->opts.cache = lcdvr_optbooleanfield(L, 1, "cache", 0);
+    lp->opts.cache_async = lcdvr_optbooleanfield(L, 1, "cache_async", 0);
+    if (lp->opts.cache_async && !lp->opts.cache)
+        luaL_error(L, "cdvr.player: option 'cache_async' needs cache=true");
     lp->opts.cache_budget_mb = number_option(L, "budget_mb", 0, 0, 1e12,
                                              "MB >= 0 expected (0: a quarter of the device's memory)");
     lp->opts.lod_error = number_option(L, "lod_error", 1, 0, 1e12, "pixels >= 0 expected");
@@ -789,7 +805,7 @@ static int l_player(lua_State *L)
     static const char *const keys[] = {"store", "tf", "camera", "policy", "target_fps", "min_psnr",
                                        "variant", "device", "step", "unit", "term", "background",
                                        "threads", "pipeline", "ring", "cold", "read_mbps",
-                                       "empty_skip", "fetch", "cache", "budget_mb", "lod_error", "callback_limit", "callback_memory", "out", "pace", "width",
+                                       "empty_skip", "fetch", "cache", "cache_async", "budget_mb", "lod_error", "callback_limit", "callback_memory", "out", "pace", "width",
                                        "height", "loop", "brick_skip", "frame", "distribute",
                                        "on_error", "fps", "crf", "preset", "progress", NULL};
     luaL_checktype(L, 1, LUA_TTABLE);
@@ -1080,6 +1096,8 @@ int lcdvr_open_player(lua_State *L)
                    "fps= (default target_fps or 25), crf=, preset=; progress=true: frames, fps and ETA on a terminal), frame=function(row, image), device='cl'|'cpu'|'auto' (default auto: cl when an OpenCL device opens), pace (default true with target_fps); "
                    "variant default: best quality; loop=true wraps past the last timestep (default: playback stops there, report.stopped "
                    "says so); brick_skip (default true: bricks the TF hides or the view misses are not read); "
+                   "cache=true (budget_mb=, lod_error=; cl or cpu): through the brick cache, cache_async=true: never waits for a "
+                   "brick (coarser resident levels meanwhile; rows bricks_coarser, bricks_pending); "
                    "distribute='time'|'bricks' (mpirun: frames or bricks shared by the ranks)");
     lcdvr_help_add(L, "p:run{frames=N, first=1}",
                    "plays N frames -> {fps=, wall_ms=, ranks=, capture=, frames={rows: frame, t, variant, rank, why (the decision in "

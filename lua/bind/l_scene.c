@@ -52,6 +52,11 @@ void lcdvr_push_frame_row(lua_State *L, const cdvr_store *st, const cdvr_frame_r
     setnum(L, "samples", (double)r->samples);
     if (r->nlevels) { /* the brick cache (cache=true) */
         setnum(L, "resident_bytes", (double)r->resident_bytes);
+        setnum(L, "lod_error", r->lod_error);
+        lua_pushinteger(L, (lua_Integer)r->bricks_coarser);
+        lua_setfield(L, -2, "bricks_coarser");
+        lua_pushinteger(L, (lua_Integer)r->bricks_pending);
+        lua_setfield(L, -2, "bricks_pending");
         for (size_t l = 0; l < r->nlevels && l < 16; l++) {
             char key[24];
             snprintf(key, sizeof key, "bricks_level%u", (unsigned)l);
@@ -118,6 +123,12 @@ void lcdvr_push_policy_stats(lua_State *L, const cdvr_store *st, const lcdvr_pol
     }
     lua_pushstring(L, cdvr_store_variant(st, (size_t)cdvr_store_best_variant(st))->name);
     lua_setfield(L, -2, "best");
+    if (view->cache) {
+        setnum(L, "lod_error", view->lod_error);
+        setnum(L, "lod_base", view->lod_base);
+        lua_pushinteger(L, (lua_Integer)view->levels);
+        lua_setfield(L, -2, "levels");
+    }
     size_t first = nrows > LCDVR_POLICY_ROWS ? nrows - LCDVR_POLICY_ROWS : 0;
     lua_createtable(L, (int)(nrows - first), 0);  /* stats, frames */
     for (size_t i = first; i < nrows; i++) {

@@ -26,6 +26,7 @@
 #include "cdvr/gl.h"
 #include "cdvr/movie.h"
 #include "cdvr/player.h"
+#include "cdvr/refine.h"
 #include "cdvr/timing.h"
 #include "lcdvr.h"
 
@@ -81,6 +82,13 @@ typedef struct lwindow {
     int shot_pending, shots;
     int shot_scale;            /* screenshot_scale=: 'p' renders the shot at this many times the
                                   window's size (1: the frame shown) */
+    /* a store scene with cache=true renders through the brick cache, coarse first while the
+     * camera moves (cdvr/refine.h) */
+    cdvr_refine refine;
+    double moving_lod;         /* moving_lod=: lod_error while moving, -1: 4 * max(lod_error, 1) */
+    double settle_ms;          /* settle_ms=: still this long, then refine */
+    int cached_frame;          /* the last frame rendered the store through the cache */
+    double frame_lod;          /* its lod_error (what render_scene passes) */
 } lwindow;
 
 static lwindow *towindow(lua_State *L, int idx)
@@ -128,6 +136,34 @@ static size_t scene_timesteps(lua_State *L, int w_idx)
     return n ? n : st ? cdvr_store_get_info(st)->timesteps : 0;
 }
 
+static void push_render_options(lua_State *L, int w_idx);
+
+/* A store scene whose render options ask for the brick cache (cache=true) with a method that
+ * renders stores: the window renders the store itself (cdvr.render(st, ...)), coarse first
+ * while the camera moves, instead of decoding chunk groups. */
+static int scene_cached(lua_State *L, int w_idx, const lwindow *w)
+{
+    int volume = lua_getiuservalue(L, w_idx, UV_VOLUME) == LUA_TUSERDATA;
+    lua_pop(L, 1);
+    if (volume || !w->method->render_store || !scene_store(L, w_idx))
+        return 0;
+    push_render_options(L, w_idx);
+    lua_getfield(L, -1, "cache");
+    int on = lua_toboolean(L, -1);
+    lua_pop(L, 2);
+    return on;
+}
+
+/* The lod_error the render options ask for (the method's default 1 when not set). */
+static double requested_lod(lua_State *L, int w_idx)
+{
+    push_render_options(L, w_idx);
+    lua_getfield(L, -1, "lod_error");
+    double lod = lua_isnumber(L, -1) ? lua_tonumber(L, -1) : 1.0;
+    lua_pop(L, 2);
+    return lod;
+}
+
 /* Pushes the volume to render and sets *t (from 1) to its frame: the scene's volume at w->t,
  * or, for a store, the chunk group of the variant shown that holds timestep w->t, decoded
  * once for all its timesteps (lcdvr_store_decode_group: read, unzip and decode timed apart;
@@ -145,6 +181,11 @@ static void push_scene_volume(lua_State *L, int w_idx, lwindow *w, long *t, cdvr
     const cdvr_store *st = scene_store(L, w_idx);
     if (!st) {
         lua_pushnil(L);
+        return;
+    }
+    if (scene_cached(L, w_idx, w)) { /* the store itself, timestep w->t */
+        *t = w->t;
+        lua_getiuservalue(L, w_idx, UV_STORE);
         return;
     }
     if (w->frame_t == 0 || w->t < w->frame_t || w->t >= w->frame_t + w->frame_count ||
@@ -231,7 +272,7 @@ static const char *opts_what(int idx)
 static const char *const window_keys[] = {"volume", "store", "tf", "camera", "method", "device",
                                           "overlay", "t", "variant", "playing", "fps", "policy",
                                           "min_psnr", "callback_limit", "callback_memory", "width", "height", "title",
-                                          "screenshot_scale", NULL};
+                                          "screenshot_scale", "moving_lod", "settle_ms", NULL};
 
 /* The device the window renders on: the one set, else the method's default (the scene
  * contract's rule, cdvr_render_method_default_device). */
@@ -544,6 +585,14 @@ static void apply_options(lua_State *L, int w_idx, int idx, lwindow *w)
         lcdvr_error(L, "option 'screenshot_scale' = %I: must be 1..%d", (LUAI_UACINT)shot_scale,
                     SHOT_SCALE_MAX);
     w->shot_scale = (int)shot_scale;
+    double moving = lcdvr_optnumberfield(L, idx, "moving_lod", w->moving_lod);
+    if (!(moving >= 0 || moving == -1) || moving > 1e12)
+        lcdvr_error(L, "option 'moving_lod' = %f: pixels 0 .. 1e12 expected", moving);
+    w->moving_lod = moving;
+    double settle = lcdvr_optnumberfield(L, idx, "settle_ms", w->settle_ms);
+    if (!(settle >= 0) || settle > 1e9)
+        lcdvr_error(L, "option 'settle_ms' = %f: 0 .. 1e9 ms expected", settle);
+    w->settle_ms = settle;
     w->overlay = lcdvr_optbooleanfield(L, idx, "overlay", w->overlay);
     w->playing = lcdvr_optbooleanfield(L, idx, "playing", w->playing);
     double fps = lcdvr_optnumberfield(L, idx, "fps", w->fps);
@@ -810,8 +859,8 @@ static void run_policy(lua_State *L, int w_idx, lwindow *w)
         lua_pop(L, 1);
         return;
     }
-    lcdvr_policy_view view = {(size_t)w->t - 1, (size_t)(w->t - 1) / group, w->fps, w->min_psnr,
-                              0, 0};
+    lcdvr_policy_view view = {.t = (size_t)w->t - 1, .group = (size_t)(w->t - 1) / group,
+                              .target_fps = w->fps, .min_psnr = w->min_psnr};
     lcdvr_push_policy_stats(L, st, &view, w->rows, (size_t)w->nrows);
     cdvr_error err;
     cdvr_status s = lcdvr_call_callback(L, 1, 2, &w->limits, "window: policy", &err);
@@ -861,6 +910,11 @@ static void overlay(lua_State *L, int w_idx, lwindow *w, uint8_t *rgba, int widt
     }
     snprintf(how, sizeof how, "%s (%s)%s", w->method->name,
              cdvr_device_name(window_device(L, w)), state);
+    if (w->cached_frame) {
+        size_t used = strlen(how);
+        snprintf(how + used, sizeof how - used, " lod %g%s", w->frame_lod,
+                 w->frame_lod != w->refine.lod_error ? " moving" : "");
+    }
     double ms = w->last_frame_ms;
     snprintf(timing, sizeof timing, "%.1f ms = %.0f fps", ms, ms > 0.0 ? 1000.0 / ms : 0.0);
     if (!n)
@@ -938,7 +992,27 @@ static void render_scene(lua_State *L, int w_idx, lwindow *w, int vol_idx, long 
         lua_rawset(L, opts);
     }
     lua_pop(L, 1);                                /* render, volume, opts */
+    const cdvr_store *st = luaL_testudata(L, vol_idx, LCDVR_STORE) ? scene_store(L, w_idx) : NULL;
+    if (st) { /* the store through the cache (scene_cached) */
+        lua_pushstring(L, cdvr_store_variant(st, (size_t)w->variant)->name);
+        lua_setfield(L, opts, "variant");
+        lua_pushnumber(L, w->frame_lod);
+        lua_setfield(L, opts, "lod_error");
+    }
     lua_call(L, 2, 1);                            /* image */
+}
+
+/* The lod_error of the frame of camera cam drawn now (cdvr/refine.h): moving_lod while the
+ * camera moves, the requested one once it is still. */
+static double refine_lod(lua_State *L, int w_idx, lwindow *w, const cdvr_camera *cam)
+{
+    double lod = requested_lod(L, w_idx);
+    double moving = w->moving_lod >= 0 ? w->moving_lod : 4.0 * (lod > 1.0 ? lod : 1.0);
+    cdvr_error err;
+    if (cdvr_refine_configure(&w->refine, lod, moving < lod ? lod : moving, w->settle_ms,
+                              &err) != CDVR_OK)
+        lcdvr_raise(L, &err);
+    return cdvr_refine_frame(&w->refine, cam, cdvr_now_ms());
 }
 
 /* The scene through cam at scale times its size (no overlay), pushed as an image. */
@@ -975,6 +1049,9 @@ static void draw(lua_State *L, int w_idx, lwindow *w)
         w->shot_pending = 0; /* nothing to shoot */
     } else {
         cdvr_camera *cam = scene_camera(L, w_idx, w, vol_idx, width, height);
+        w->cached_frame = scene_cached(L, w_idx, w);
+        if (w->cached_frame)
+            w->frame_lod = refine_lod(L, w_idx, w, cam);
         double render_start = cdvr_now_ms();
         render_scene(L, w_idx, w, vol_idx, t, cam); /* ..., image */
         render_ms = cdvr_now_ms() - render_start;
@@ -985,6 +1062,7 @@ static void draw(lua_State *L, int w_idx, lwindow *w)
         if (w->shot_pending) { /* 'p' with screenshot_scale > 1 */
             cdvr_error err;
             w->shot_pending = 0;
+            w->frame_lod = w->refine.lod_error; /* a shot is never coarse */
             const cdvr_image *shot = render_scaled(L, w_idx, w, vol_idx, t, cam, w->shot_scale);
             if (save_shot(w, shot, NULL, &err) == CDVR_OK)
                 printf("cdvr: screenshot %s (%dx%d)\n", w->shot_path, shot->width, shot->height);
@@ -1016,6 +1094,8 @@ static void frame(lua_State *L, int w_idx, lwindow *w, int force)
     if (wants_close(w))
         return;
     advance(L, w_idx, w);
+    if (w->cached_frame && cdvr_refine_due(&w->refine, cdvr_now_ms()))
+        w->dirty = 1; /* the camera stopped: the frame at the requested lod_error */
     if (force || w->dirty)
         draw(L, w_idx, w);
 }
@@ -1073,6 +1153,9 @@ static int l_window(lua_State *L)
     w->limits.instructions = LCDVR_CALLBACK_LIMIT;
     w->limits.memory = (size_t)LCDVR_CALLBACK_MEMORY_MB << 20;
     w->min_psnr = NAN;
+    w->moving_lod = -1;
+    w->settle_ms = 250;
+    cdvr_refine_init(&w->refine, 1, 4, w->settle_ms, NULL);
     snprintf(w->reason, sizeof w->reason, "-");
     luaL_setmetatable(L, LCDVR_WINDOW);
     int w_idx = lua_gettop(L);
@@ -1175,6 +1258,7 @@ static int window_screenshot(lua_State *L)
     if (width <= 0 || height <= 0)
         return luaL_error(L, "w:screenshot: the window has no size (minimised?)");
     cdvr_camera *cam = scene_camera(L, 1, w, 4, width, height);
+    w->frame_lod = requested_lod(L, 1); /* a shot is never coarse */
     const cdvr_image *shot = render_scaled(L, 1, w, 4, t, cam, (int)scale);
     cdvr_error err;
     if (save_shot(w, shot, path, &err) != CDVR_OK)
@@ -1226,6 +1310,10 @@ static int window_state(lua_State *L)
     lua_setfield(L, -2, "options");
     lua_pushstring(L, w->reason);
     lua_setfield(L, -2, "reason");
+    if (w->cached_frame) { /* the store through the brick cache: the last frame's lod_error */
+        lua_pushnumber(L, w->frame_lod);
+        lua_setfield(L, -2, "lod_error");
+    }
     if (w->movie) {
         lua_pushstring(L, w->movie_path);
         lua_setfield(L, -2, "recording");
@@ -1357,7 +1445,8 @@ int lcdvr_open_window(lua_State *L)
     lcdvr_setfuncs(L, window_funcs);
     lcdvr_help_add(L, "cdvr.window{volume= | store=, tf=, camera=, method=, device=, overlay=, t=, variant=, ...}",
                    "open a window showing the scene (needs a display and GL); more keys: lod, step, "
-                   "playing, fps, policy, min_psnr, callback_limit, callback_memory, screenshot_scale, width, height, title; camera = cdvr.Camera, false "
+                   "playing, fps, policy, min_psnr, callback_limit, callback_memory, screenshot_scale, width, height, title, "
+                   "moving_lod, settle_ms (a store with cache=true: coarse while the camera moves); camera = cdvr.Camera, false "
                    "(frame the scene) or function(frame, t); defaults as cdvr.player: the store's best "
                    "variant, device cl when OpenCL has a device; drag orbits, wheel zooms, left/right "
                    "step t, up/down step variants, space plays, r resets the view, m records a movie (again: stops; the path is printed), "

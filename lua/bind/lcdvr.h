@@ -186,6 +186,11 @@ typedef struct lcdvr_policy_view {
     double target_fps;       /* > 0: stats.target_fps; else absent */
     double min_psnr;         /* NaN: absent */
     int pipelined, capture;
+    /* the brick cache (player cache=true): stats.lod_error (the knob now), stats.lod_base (the
+     * user's lod_error) and stats.levels; absent when cache is 0 */
+    int cache;
+    double lod_error, lod_base;
+    size_t levels;
 } lcdvr_policy_view;
 
 /* Pushes one frame row as a table (policy stats.frames[i], the player's report rows). */

@@ -34,7 +34,8 @@
  *
  * The fetch reaches the renderers as a fetch-mode codec table (cdvr_brick_cache_codec: the
  * OpenCL ray caster's fetch hook; its C decoder is the fetch over every voxel, which is what
- * the CPU reference renders). Not thread-safe: one thread per cache.
+ * the CPU reference renders). Not thread-safe: one thread per cache (in the asynchronous
+ * mode the cache's own worker thread decodes alongside; the calls stay one thread's).
  */
 #ifndef CDVR_BRICK_CACHE_H
 #define CDVR_BRICK_CACHE_H
@@ -56,11 +57,20 @@ typedef struct cdvr_brick_cache cdvr_brick_cache;
 typedef struct cdvr_brick_cache_stats {
     size_t levels;                               /* the store's levels */
     size_t bricks_at[CDVR_STORE_MAX_LEVELS];     /* level-0 bricks rendered at each level */
-    size_t decoded;                              /* bricks decoded for the frame */
+    size_t decoded;                              /* bricks decoded for the frame (on the
+                                                    calling thread) */
+    size_t coarser;                              /* async: level-0 bricks rendered at a level
+                                                    coarser than chosen (not yet resident) */
+    size_t pending;                              /* async: bricks queued or being decoded by
+                                                    the worker after the frame */
+    size_t arrived;                              /* async: bricks the worker decoded that
+                                                    became resident for the frame */
     size_t evicted;                              /* bricks dropped for the frame */
     uint64_t resident_bytes;                     /* voxel bytes of the bricks the frame uses */
     uint64_t cache_bytes;                        /* voxel bytes the cache holds (<= budget) */
     uint64_t payload_bytes;                      /* the payload: tables + resident bricks */
+    size_t dense_bricks;                         /* level-0 bricks cdvr_brick_cache_dense
+                                                    assembled (the others were in place) */
     double decode_ms, layout_ms;
 } cdvr_brick_cache_stats;
 
@@ -77,12 +87,38 @@ int cdvr_brick_cache_serves(const cdvr_brick_cache *c, const cdvr_store *st, siz
 cdvr_status cdvr_brick_cache_frame(cdvr_brick_cache *c, size_t t, const cdvr_camera *cam,
                                    const cdvr_tf *tf, double lod_error,
                                    const uint8_t **payload, size_t *bytes, cdvr_error *err);
+/* Asynchronous residency (on = 1; 0 returns to the synchronous mode above). The coarsest
+ * level of every brick of the frame's timestep is decoded in the frame when missing and kept
+ * resident (pinned; it never leaves while the timestep is shown); the level choice above works
+ * within the budget less those bytes (bricks at the coarsest level cost nothing more). Per
+ * brick the frame uses the chosen level when it is resident, else the finest resident coarser
+ * level (the pinned one at worst: never a hole), and queues the chosen one for a worker
+ * thread (its own, started here), which decodes with the store's C decoder; the queue holds
+ * only the last frame's requests (older ones not started are dropped). A decoded brick
+ * becomes resident at the start of the next frame (so a frame depends only on what had
+ * arrived when it started), least recently used entries out while it would pass the budget;
+ * one that finds no room is dropped. A worker's decode error fails the next frame. Fails
+ * (CDVR_ERR_NOMEM) when the coarsest level alone passes the budget. */
+cdvr_status cdvr_brick_cache_set_async(cdvr_brick_cache *c, int on, cdvr_error *err);
+/* Asynchronous mode: the timestep the frame after the next cdvr_brick_cache_frame will show
+ * (playback). That next call queues, after its own missing bricks, t_next's coarsest level and
+ * its bricks at the levels it chose, those not resident, so the worker decodes the next
+ * timestep while this one renders (without it a new timestep starts at its coarsest level).
+ * Applies to that one call; (size_t)-1: none. */
+void cdvr_brick_cache_set_next(cdvr_brick_cache *c, size_t t_next);
+/* Blocks until the worker has decoded every brick queued (nothing when synchronous). */
+void cdvr_brick_cache_wait(cdvr_brick_cache *c);
+/* Bricks queued, being decoded or decoded and not yet resident (0 when synchronous). */
+size_t cdvr_brick_cache_pending(cdvr_brick_cache *c);
 void cdvr_brick_cache_get_stats(const cdvr_brick_cache *c, cdvr_brick_cache_stats *out);
 /* The last frame as a dense frame of the store's dims in memory the cache holds (page
  * aligned, valid until the next call or the cache's end): exactly cdvr_brick_cache_fetch at
  * every voxel, level-0 bricks copied row by row. Renderers take it on a CPU device when the
  * dense frame fits the budget: there the page-table fetch per sample costs 10-20x a dense
- * read (raycast_method.c, player.c). */
+ * read (raycast_method.c, player.c). Only the level-0 bricks whose entry (timestep, level,
+ * brick) changed since the frame last assembled are assembled again (each writes just the
+ * voxels it owns, so the frame is the same; stats dense_bricks): a camera that moves changes
+ * the levels of a few bricks. */
 cdvr_status cdvr_brick_cache_dense(cdvr_brick_cache *c, const uint8_t **frame, cdvr_error *err);
 
 /* The fetch above on a payload of n bytes (reads outside it are clamped inside). */

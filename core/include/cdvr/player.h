@@ -99,12 +99,18 @@ typedef struct cdvr_frame_row {
                                 (compressed payload in fetch mode); 0 on the cpu device */
     double composite_ms;     /* the composite hook (distributed compositing), wait_ms excluded */
     double wait_ms;          /* the composite hook waiting for the other processes' frames */
-    size_t bricks_read;      /* bricks read and decoded for this frame's chunk group */
+    size_t bricks_read;      /* bricks read and decoded for this frame's chunk group (0 with
+                                opts.cache: the cache reads what it needs itself) */
     size_t bricks_skipped;   /* bricks of the player's region not read (transparent or unseen) */
     uint64_t resident_bytes; /* brick cache (opts.cache): voxel bytes of the bricks the frame
                                 rendered from; 0 without the cache */
     size_t nlevels;          /* brick cache: the store's levels; bricks_at[l] level-0 bricks */
     size_t bricks_at[16];    /* rendered at level l (CDVR_STORE_MAX_LEVELS entries) */
+    size_t bricks_coarser;   /* cache_async: level-0 bricks rendered coarser than their chosen
+                                level (not yet resident) */
+    size_t bricks_pending;   /* cache_async: bricks the cache's worker still had to decode */
+    double lod_error;        /* brick cache: the frame's lod_error (opts.lod_error or the
+                                policy's, cdvr_player_set_lod_error) */
     int rank;                /* process that played the frame (cdvr/dist.h; 0 in one process) */
     int group_start;         /* 1 if a policy decision was made for this frame's group */
     char reason[160];        /* the decision's one-line reason (group_start only) */
@@ -174,10 +180,17 @@ typedef struct cdvr_player_opts {
     int cold;                    /* drop chunks from the page cache (posix_fadvise) */
     double read_mbps;            /* > 0: cap read bandwidth (MB/s, 1e6 bytes) */
     int empty_skip;              /* 1 (default): empty-space skipping on the cl device */
-    int cache;                   /* 1: the cl device renders every frame through the brick cache
-                                    (cdvr/brick_cache.h; not with a region of the bricks) */
-    double cache_budget_mb;      /* its budget (0: a quarter of the device's memory) */
-    double lod_error;            /* its level of detail in pixels (cdvr_brick_cache_frame) */
+    int cache;                   /* 1: every frame renders through the brick cache
+                                    (cdvr/brick_cache.h; the cl device with a method that renders
+                                    streams (raycast), or the cpu device with any method, from
+                                    the cache's dense frame; not with a region of the bricks) */
+    int cache_async;             /* 1: the cache's asynchronous residency
+                                    (cdvr_brick_cache_set_async): a frame never waits for a brick
+                                    finer than its coarsest level; frames then depend on timing */
+    double cache_budget_mb;      /* its budget (0: a quarter of the cl device's memory, 1 GiB on
+                                    the cpu) */
+    double lod_error;            /* its level of detail in pixels (cdvr_brick_cache_frame) at
+                                    the start; a policy may change it */
     int fetch_path;              /* fetch-mode codecs (hvq) on the cl device: 0 auto, 1 sample,
                                     2 bulk (cdvr_cl_fetch_path, cdvr/device.h); bulk decodes
                                     each group on the host in the pipeline's workers */
@@ -216,6 +229,12 @@ void cdvr_player_free(cdvr_player *p);
  * status and the run goes on; a failing callback stops the run and returns its error (rows so
  * far are kept). */
 cdvr_status cdvr_player_run(cdvr_player *p, size_t first, size_t frames, cdvr_error *err);
+/* The brick cache's lod_error (opts.cache) for the groups planned from now on: called by the
+ * decide callback it applies to the group it decides (a policy trading level of detail for
+ * speed); CDVR_ERR_ARG unless 0 <= lod_error <= 1e12. */
+cdvr_status cdvr_player_set_lod_error(cdvr_player *p, double lod_error, cdvr_error *err);
+/* The lod_error of the groups planned from now on. */
+double cdvr_player_lod_error(const cdvr_player *p);
 /* Frames the last run did not play because it reached the last timestep without loop. */
 size_t cdvr_player_stopped_early(const cdvr_player *p);
 /* Rows of the last run (valid until the next run or free). */

@@ -3,6 +3,7 @@
 #include "cdvr/brick_cache.h"
 
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -21,7 +22,29 @@ typedef struct cache_entry {
     size_t lo[3], dims[3];       /* the brick's box at its level */
     uint64_t last_used;          /* frame stamp */
     size_t pool_offset;          /* in the payload of the frame that last used it */
+    int pinned;                  /* async: the coarsest level of the frame's timestep */
 } cache_entry;
+
+typedef struct brick_job {       /* async: a brick for the worker, then its decoded voxels */
+    size_t t, level, brick;
+    cdvr_volume *vol;
+    cdvr_error err;
+} brick_job;
+
+/* The asynchronous mode's worker (cdvr_brick_cache_set_async). It touches only the jobs under
+ * mu and the store (whose decode is thread-safe, store.h); the entries stay the frame
+ * thread's. */
+typedef struct brick_worker {
+    pthread_t thread;
+    pthread_mutex_t mu;
+    pthread_cond_t work, idle;
+    const cdvr_brick_cache *c;
+    brick_job *todo, *done;      /* todo[next..ntodo) waiting; done: decoded, not yet taken */
+    brick_job *taken;            /* the frame thread's copy of done */
+    size_t ntodo, next, ndone;
+    brick_job current;           /* the job being decoded when busy */
+    int busy, stop;
+} brick_worker;
 
 struct cdvr_brick_cache {
     const cdvr_store *st;
@@ -42,7 +65,16 @@ struct cdvr_brick_cache {
     uint8_t *payload;
     size_t payload_cap, payload_bytes;
     uint8_t *dense;              /* cdvr_brick_cache_dense's frame, or NULL */
+    size_t *dense_key;           /* per level-0 brick: t, level, brick of the entry dense holds */
+    int dense_valid;             /* dense_key describes dense */
     cdvr_brick_cache_stats stats;
+    brick_worker *worker;        /* the asynchronous mode, or NULL */
+    uint64_t reserved;           /* async: bytes of the coarsest level (pinned) */
+    size_t pinned_t;             /* async: the timestep whose coarsest level is pinned */
+    brick_job *requests;         /* async: this frame's missing bricks, then the next
+                                    timestep's (at most 3 nbricks) */
+    size_t nrequests;
+    size_t next_t;               /* async: cdvr_brick_cache_set_next's timestep, or -1 */
 };
 
 /* ---- the fetch (the definition; brick_cache.cl mirrors it) ------------------------------- */
@@ -219,10 +251,14 @@ static cdvr_status owner_tables(const cdvr_store_info *in, size_t *tab[3], cdvr_
     return CDVR_OK;
 }
 
+static void worker_stop(cdvr_brick_cache *c);
+
 void cdvr_brick_cache_free(cdvr_brick_cache *c)
 {
     if (!c)
         return;
+    worker_stop(c);
+    free(c->requests);
     for (int a = 0; a < 3; a++)
         free(c->owner[a]);
     for (size_t l = 0; l < CDVR_STORE_MAX_LEVELS; l++)
@@ -238,6 +274,7 @@ void cdvr_brick_cache_free(cdvr_brick_cache *c)
     free(c->keys);
     free(c->payload);
     free(c->dense);
+    free(c->dense_key);
     free(c);
 }
 
@@ -310,6 +347,13 @@ static size_t brick_bytes(const cdvr_brick_cache *c, size_t b, size_t l)
     return d[0] * d[1] * d[2];
 }
 
+/* What brick b at level l adds to the frame's bytes: in the asynchronous mode the coarsest
+ * level is pinned, counted once in c->reserved. */
+static size_t level_cost(const cdvr_brick_cache *c, size_t b, size_t l)
+{
+    return c->worker && l + 1 == c->nlevels ? 0 : brick_bytes(c, b, l);
+}
+
 /* Distance from the eye to the world bounds of level-0 brick b. */
 static double brick_distance(const cdvr_brick_cache *c, size_t b, const double eye[3])
 {
@@ -364,7 +408,7 @@ static cdvr_status choose_levels(cdvr_brick_cache *c, size_t t, const cdvr_camer
     const cdvr_store_info *in = cdvr_store_get_info(c->st);
     double smin = fmin(in->spacing[0], fmin(in->spacing[1], in->spacing[2]));
     double tan_half = tan(cam->fov * 3.14159265358979323846 / 360.0);
-    uint64_t total = 0;
+    uint64_t total = 0, budget = c->budget - c->reserved; /* async: past the pinned level */
     for (size_t b = 0; b < c->nbricks; b++) {
         c->dist[b] = brick_distance(c, b, cam->eye);
         double pixel = cam->orthographic ? cam->ortho_height / cam->height
@@ -375,27 +419,27 @@ static cdvr_status choose_levels(cdvr_brick_cache *c, size_t t, const cdvr_camer
             l++;
         c->choice[b] = l;
         c->keys[b] = (far_key){brick_transparent(c, t, b, tf) ? INFINITY : c->dist[b], b};
-        total += brick_bytes(c, b, l);
+        total += level_cost(c, b, l);
     }
     qsort(c->keys, c->nbricks, sizeof *c->keys, farther_first);
     for (size_t i = 0; i < c->nbricks; i++)
         c->order[i] = c->keys[i].brick;
-    for (int coarsened = 1; total > c->budget && coarsened;) {
+    for (int coarsened = 1; total > budget && coarsened;) {
         coarsened = 0;
-        for (size_t i = 0; i < c->nbricks && total > c->budget; i++) {
+        for (size_t i = 0; i < c->nbricks && total > budget; i++) {
             size_t b = c->order[i], l = c->choice[b];
             if (l + 1 >= c->nlevels)
                 continue;
-            total = total - brick_bytes(c, b, l) + brick_bytes(c, b, l + 1);
+            total = total - level_cost(c, b, l) + level_cost(c, b, l + 1);
             c->choice[b] = l + 1;
             coarsened = 1;
         }
     }
-    if (total > c->budget)
+    if (total > budget)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: %s needs %.1f MB at its "
                               "coarsest level (%zu levels), the budget is %.1f MB",
                               cdvr_store_path(c->st), (double)total / 1e6, c->nlevels,
-                              (double)c->budget / 1e6);
+                              (double)budget / 1e6);
     return CDVR_OK;
 }
 
@@ -409,13 +453,14 @@ static size_t find_entry(const cdvr_brick_cache *c, size_t t, size_t l, size_t b
     return (size_t)-1;
 }
 
-/* Drops the least recently used entries not used by this frame until `need` more bytes fit. */
+/* Drops the least recently used entries not used by this frame (nor pinned) until `need` more
+ * bytes fit. */
 static void make_room(cdvr_brick_cache *c, uint64_t need)
 {
     while (c->cache_bytes + need > c->budget) {
         size_t victim = (size_t)-1;
         for (size_t i = 0; i < c->nentries; i++)
-            if (c->entries[i].last_used != c->stamp &&
+            if (c->entries[i].last_used != c->stamp && !c->entries[i].pinned &&
                 (victim == (size_t)-1 || c->entries[i].last_used < c->entries[victim].last_used))
                 victim = i;
         if (victim == (size_t)-1)
@@ -430,6 +475,37 @@ static void make_room(cdvr_brick_cache *c, uint64_t need)
     }
 }
 
+/* Takes over vol's voxels as a new entry for (t, l, brick) at *out. */
+static cdvr_status insert_volume(cdvr_brick_cache *c, size_t t, size_t l, size_t brick,
+                                 cdvr_volume *vol, size_t *out, cdvr_error *err)
+{
+    size_t bytes = cdvr_volume_voxels(vol);
+    make_room(c, bytes);
+    if (c->nentries == c->cap) {
+        size_t cap = c->cap ? 2 * c->cap : 64;
+        cache_entry *e = realloc(c->entries, cap * sizeof *e);
+        if (!e) {
+            cdvr_volume_free(vol);
+            return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory");
+        }
+        c->entries = e;
+        c->cap = cap;
+    }
+    cache_entry *e = &c->entries[c->nentries];
+    memset(e, 0, sizeof *e);
+    e->t = t;
+    e->level = l;
+    e->brick = brick;
+    e->bytes = bytes;
+    e->voxels = vol->data; /* taken over from the volume */
+    vol->data = NULL;
+    cdvr_volume_free(vol);
+    cdvr_store_brick_box(cdvr_store_get_info(c->level[l]), brick, e->lo, e->dims);
+    c->cache_bytes += bytes;
+    *out = c->nentries++;
+    return CDVR_OK;
+}
+
 static cdvr_status load_entry(cdvr_brick_cache *c, size_t t, size_t l, size_t brick,
                               size_t *out, cdvr_error *err)
 {
@@ -439,36 +515,298 @@ static cdvr_status load_entry(cdvr_brick_cache *c, size_t t, size_t l, size_t br
         double t0 = cdvr_now_ms();
         cdvr_status s = cdvr_store_decode_brick(c->level[l], c->v, t, brick, &vol, err);
         c->stats.decode_ms += cdvr_now_ms() - t0;
+        if (s == CDVR_OK)
+            s = insert_volume(c, t, l, brick, vol, &i, err);
         if (s != CDVR_OK)
             return s;
-        size_t bytes = cdvr_volume_voxels(vol);
-        make_room(c, bytes);
-        if (c->nentries == c->cap) {
-            size_t cap = c->cap ? 2 * c->cap : 64;
-            cache_entry *e = realloc(c->entries, cap * sizeof *e);
-            if (!e) {
-                cdvr_volume_free(vol);
-                return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory");
-            }
-            c->entries = e;
-            c->cap = cap;
-        }
-        cache_entry *e = &c->entries[c->nentries];
-        memset(e, 0, sizeof *e);
-        e->t = t;
-        e->level = l;
-        e->brick = brick;
-        e->bytes = bytes;
-        e->voxels = vol->data; /* taken over from the volume */
-        vol->data = NULL;
-        cdvr_volume_free(vol);
-        cdvr_store_brick_box(cdvr_store_get_info(c->level[l]), brick, e->lo, e->dims);
-        c->cache_bytes += bytes;
         c->stats.decoded++;
-        i = c->nentries++;
     }
     c->entries[i].last_used = c->stamp;
     *out = i;
+    return CDVR_OK;
+}
+
+/* ---- the asynchronous mode ----------------------------------------------------------------- */
+
+static void *worker_main(void *arg)
+{
+    brick_worker *w = arg;
+    pthread_mutex_lock(&w->mu);
+    for (;;) {
+        while (!w->stop && w->next == w->ntodo)
+            pthread_cond_wait(&w->work, &w->mu);
+        if (w->stop)
+            break;
+        w->current = w->todo[w->next++];
+        w->busy = 1;
+        pthread_mutex_unlock(&w->mu);
+        brick_job job = w->current;
+        cdvr_error_clear(&job.err);
+        cdvr_store_decode_brick(w->c->level[job.level], w->c->v, job.t, job.brick, &job.vol,
+                                &job.err);
+        pthread_mutex_lock(&w->mu);
+        w->done[w->ndone++] = job; /* room: see cdvr_brick_cache_set_async */
+        w->busy = 0;
+        pthread_cond_broadcast(&w->idle);
+    }
+    pthread_mutex_unlock(&w->mu);
+    return NULL;
+}
+
+static void worker_stop(cdvr_brick_cache *c)
+{
+    brick_worker *w = c->worker;
+    if (!w)
+        return;
+    pthread_mutex_lock(&w->mu);
+    w->stop = 1;
+    pthread_cond_broadcast(&w->work);
+    pthread_mutex_unlock(&w->mu);
+    pthread_join(w->thread, NULL);
+    for (size_t i = 0; i < w->ndone; i++)
+        cdvr_volume_free(w->done[i].vol);
+    pthread_mutex_destroy(&w->mu);
+    pthread_cond_destroy(&w->work);
+    pthread_cond_destroy(&w->idle);
+    free(w->todo);
+    free(w->done);
+    free(w->taken);
+    free(w);
+    c->worker = NULL;
+    c->reserved = 0;
+    for (size_t i = 0; i < c->nentries; i++)
+        c->entries[i].pinned = 0;
+}
+
+/* Bytes of the coarsest level's bricks that stand for some level-0 brick. */
+static uint64_t coarsest_bytes(const cdvr_brick_cache *c, cdvr_error *err, int *ok)
+{
+    size_t l = c->nlevels - 1, n = cdvr_store_get_info(c->level[l])->nbricks;
+    uint8_t *seen = calloc(n ? n : 1, 1);
+    uint64_t bytes = 0;
+    *ok = seen != NULL;
+    if (!seen) {
+        cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory");
+        return 0;
+    }
+    for (size_t b = 0; b < c->nbricks; b++) {
+        size_t lb = level_brick(c, b, l);
+        if (!seen[lb])
+            bytes += brick_bytes(c, b, l);
+        seen[lb] = 1;
+    }
+    free(seen);
+    return bytes;
+}
+
+cdvr_status cdvr_brick_cache_set_async(cdvr_brick_cache *c, int on, cdvr_error *err)
+{
+    if (!on || c->worker) {
+        if (!on)
+            worker_stop(c);
+        return CDVR_OK;
+    }
+    int ok;
+    uint64_t reserved = coarsest_bytes(c, err, &ok);
+    if (!ok)
+        return CDVR_ERR_NOMEM;
+    if (reserved > c->budget)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: %s needs %.1f MB for its "
+                              "coarsest level (%zu levels, kept resident in the asynchronous "
+                              "mode), the budget is %.1f MB", cdvr_store_path(c->st),
+                              (double)reserved / 1e6, c->nlevels, (double)c->budget / 1e6);
+    /* a queue: the frame's missing bricks, the next timestep's coarsest and chosen ones (at
+     * most nbricks each); done between two frames: what finished of the last queue before it
+     * was replaced, the job then in flight, and the new queue */
+    size_t queue_cap = 3 * c->nbricks, done_cap = 2 * queue_cap + 1;
+    brick_worker *w = calloc(1, sizeof *w);
+    if (!w || !(w->todo = malloc(queue_cap * sizeof *w->todo)) ||
+        !(w->done = malloc(done_cap * sizeof *w->done)) ||
+        !(w->taken = malloc(done_cap * sizeof *w->taken)) ||
+        (!c->requests && !(c->requests = malloc(queue_cap * sizeof *c->requests)))) {
+        if (w) {
+            free(w->todo);
+            free(w->done);
+            free(w->taken);
+        }
+        free(w);
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory");
+    }
+    w->c = c;
+    pthread_mutex_init(&w->mu, NULL);
+    pthread_cond_init(&w->work, NULL);
+    pthread_cond_init(&w->idle, NULL);
+    if (pthread_create(&w->thread, NULL, worker_main, w) != 0) {
+        pthread_mutex_destroy(&w->mu);
+        pthread_cond_destroy(&w->work);
+        pthread_cond_destroy(&w->idle);
+        free(w->todo);
+        free(w->done);
+        free(w->taken);
+        free(w);
+        return cdvr_error_set(err, CDVR_ERR_IO, "brick cache: cannot start its worker thread");
+    }
+    c->worker = w;
+    c->reserved = reserved;
+    c->pinned_t = (size_t)-1;
+    c->next_t = (size_t)-1;
+    return CDVR_OK;
+}
+
+void cdvr_brick_cache_set_next(cdvr_brick_cache *c, size_t t_next)
+{
+    c->next_t = t_next;
+}
+
+void cdvr_brick_cache_wait(cdvr_brick_cache *c)
+{
+    brick_worker *w = c->worker;
+    if (!w)
+        return;
+    pthread_mutex_lock(&w->mu);
+    while (w->next < w->ntodo || w->busy)
+        pthread_cond_wait(&w->idle, &w->mu);
+    pthread_mutex_unlock(&w->mu);
+}
+
+size_t cdvr_brick_cache_pending(cdvr_brick_cache *c)
+{
+    brick_worker *w = c->worker;
+    if (!w)
+        return 0;
+    pthread_mutex_lock(&w->mu);
+    size_t n = w->ntodo - w->next + (size_t)w->busy + w->ndone;
+    pthread_mutex_unlock(&w->mu);
+    return n;
+}
+
+/* The bricks the worker finished become entries (a brick already resident, or one that finds
+ * no room, is dropped); the first error the worker met is the frame's. */
+static cdvr_status take_done(cdvr_brick_cache *c, cdvr_error *err)
+{
+    brick_worker *w = c->worker;
+    brick_job *jobs = w->taken;
+    pthread_mutex_lock(&w->mu);
+    size_t n = w->ndone;
+    memcpy(jobs, w->done, n * sizeof *jobs);
+    w->ndone = 0;
+    pthread_mutex_unlock(&w->mu);
+    cdvr_status s = CDVR_OK;
+    for (size_t i = 0; i < n; i++) {
+        brick_job *j = &jobs[i];
+        size_t at;
+        if (!j->vol || s != CDVR_OK || find_entry(c, j->t, j->level, j->brick) != (size_t)-1) {
+            if (!j->vol && s == CDVR_OK)
+                s = cdvr_error_set(err, j->err.status, "%s", j->err.msg);
+            cdvr_volume_free(j->vol);
+            continue;
+        }
+        make_room(c, cdvr_volume_voxels(j->vol));
+        if (c->cache_bytes + cdvr_volume_voxels(j->vol) > c->budget) {
+            cdvr_volume_free(j->vol);
+            continue;
+        }
+        s = insert_volume(c, j->t, j->level, j->brick, j->vol, &at, err);
+        if (s == CDVR_OK) {
+            c->entries[at].last_used = c->stamp - 1; /* resident, not yet used by a frame */
+            c->stats.arrived++;
+        }
+    }
+    return s;
+}
+
+/* Pins the coarsest level of timestep t (decoded here when missing: never a hole). */
+static cdvr_status pin_coarsest(cdvr_brick_cache *c, size_t t, cdvr_error *err)
+{
+    size_t l = c->nlevels - 1;
+    if (c->pinned_t != t)
+        for (size_t i = 0; i < c->nentries; i++)
+            c->entries[i].pinned = 0;
+    c->pinned_t = t;
+    for (size_t b = 0; b < c->nbricks; b++) {
+        size_t at;
+        cdvr_status s = load_entry(c, t, l, level_brick(c, b, l), &at, err);
+        if (s != CDVR_OK)
+            return s;
+        c->entries[at].pinned = 1;
+    }
+    return CDVR_OK;
+}
+
+/* Queues (t, l, brick) once for the worker. */
+static void request(cdvr_brick_cache *c, size_t t, size_t l, size_t brick)
+{
+    for (size_t i = 0; i < c->nrequests; i++)
+        if (c->requests[i].t == t && c->requests[i].level == l && c->requests[i].brick == brick)
+            return;
+    c->requests[c->nrequests++] = (brick_job){.t = t, .level = l, .brick = brick};
+}
+
+/* The worker's queue becomes this frame's requests (older ones not started are dropped: the
+ * view moved on), less the one it is decoding and those it finished. */
+static void submit(cdvr_brick_cache *c)
+{
+    brick_worker *w = c->worker;
+    pthread_mutex_lock(&w->mu);
+    w->ntodo = w->next = 0;
+    for (size_t i = 0; i < c->nrequests; i++) {
+        const brick_job *r = &c->requests[i];
+        int known = w->busy && w->current.t == r->t && w->current.level == r->level &&
+                    w->current.brick == r->brick;
+        for (size_t k = 0; !known && k < w->ndone; k++)
+            known = w->done[k].t == r->t && w->done[k].level == r->level &&
+                    w->done[k].brick == r->brick;
+        if (!known)
+            w->todo[w->ntodo++] = *r;
+    }
+    c->stats.pending = w->ntodo + (size_t)w->busy + w->ndone;
+    pthread_cond_broadcast(&w->work);
+    pthread_mutex_unlock(&w->mu);
+}
+
+/* After this frame's requests: the next timestep's coarsest level and its bricks at this
+ * frame's chosen levels, those not resident (cdvr_brick_cache_set_next; once). */
+static void prefetch_next(cdvr_brick_cache *c, size_t t)
+{
+    size_t next = c->next_t, last = c->nlevels - 1;
+    c->next_t = (size_t)-1;
+    if (next == (size_t)-1 || next == t || next >= cdvr_store_get_info(c->st)->timesteps)
+        return;
+    for (int pass = 0; pass < 2; pass++)
+        for (size_t b = 0; b < c->nbricks; b++) {
+            size_t l = pass == 0 ? last : c->choice[b], lb = level_brick(c, b, l);
+            if ((pass == 0 || l != last) && find_entry(c, next, l, lb) == (size_t)-1)
+                request(c, next, l, lb);
+        }
+}
+
+/* Residency of the asynchronous mode: per brick the chosen level when resident, else the
+ * finest resident coarser one (the pinned coarsest level at worst); the missing chosen levels
+ * go to the worker. */
+static cdvr_status residency_async(cdvr_brick_cache *c, size_t t, cdvr_error *err)
+{
+    cdvr_status s = take_done(c, err);
+    if (s == CDVR_OK)
+        s = pin_coarsest(c, t, err);
+    if (s != CDVR_OK)
+        return s;
+    c->nrequests = 0;
+    for (size_t b = 0; b < c->nbricks; b++) {
+        size_t want = c->choice[b], l = want, at = (size_t)-1;
+        for (; l < c->nlevels; l++)
+            if ((at = find_entry(c, t, l, level_brick(c, b, l))) != (size_t)-1)
+                break;
+        /* l < nlevels: the coarsest level was pinned above */
+        c->entries[at].last_used = c->stamp;
+        c->entry_of[b] = at;
+        c->stats.bricks_at[l]++;
+        if (l > want) {
+            c->stats.coarser++;
+            request(c, t, want, level_brick(c, b, want));
+        }
+    }
+    prefetch_next(c, t);
+    submit(c);
     return CDVR_OK;
 }
 
@@ -548,7 +886,9 @@ cdvr_status cdvr_brick_cache_frame(cdvr_brick_cache *c, size_t t, const cdvr_cam
     cdvr_status s = choose_levels(c, t, cam, tf, lod_error, err);
     for (size_t b = 0; b < c->nbricks; b++)
         c->entry_of[b] = (size_t)-1;
-    for (size_t b = 0; s == CDVR_OK && b < c->nbricks; b++) {
+    if (s == CDVR_OK && c->worker)
+        s = residency_async(c, t, err);
+    for (size_t b = 0; s == CDVR_OK && !c->worker && b < c->nbricks; b++) {
         size_t l = c->choice[b];
         s = load_entry(c, t, l, level_brick(c, b, l), &c->entry_of[b], err);
         c->stats.bricks_at[l]++;
@@ -607,26 +947,46 @@ static void assemble_row(const cache_entry *e, size_t x0, size_t n, size_t y, si
     }
 }
 
-static void assemble(const cdvr_brick_cache *c, uint8_t *frame)
+/* Level-0 brick b's owned voxels of the dense frame from its entry. */
+static void assemble_brick(const cdvr_brick_cache *c, size_t b, uint8_t *frame)
 {
     const cdvr_store_info *in = cdvr_store_get_info(c->st);
     size_t X = c->dims[0], Y = c->dims[1];
+    const cache_entry *e = &c->entries[c->entry_of[b]];
+    size_t lo[3], d[3];
+    cdvr_store_brick_owned(in, b, lo, d);
+    for (size_t z = lo[2]; z < lo[2] + d[2]; z++)
+        for (size_t y = lo[1]; y < lo[1] + d[1]; y++) {
+            uint8_t *row = frame + X * (y + Y * z);
+            if (e->level == 0) { /* the owned voxels lie inside the brick's box */
+                const uint8_t *src = e->voxels + (lo[0] - e->lo[0]) +
+                                     e->dims[0] * ((y - e->lo[1]) + e->dims[1] * (z - e->lo[2]));
+                memcpy(row + lo[0], src, d[0]);
+            } else {
+                assemble_row(e, lo[0], d[0], y, z, row);
+            }
+        }
+}
+
+/* Assembles the level-0 bricks whose entry (timestep, level, brick) differs from the one
+ * the dense frame holds for them (every brick when it holds none): each brick writes only the
+ * voxels it owns, so the frame ends exactly as a whole assembly. Returns how many. */
+static size_t assemble_changed(cdvr_brick_cache *c)
+{
+    size_t n = 0;
     for (size_t b = 0; b < c->nbricks; b++) {
         const cache_entry *e = &c->entries[c->entry_of[b]];
-        size_t lo[3], d[3];
-        cdvr_store_brick_owned(in, b, lo, d);
-        for (size_t z = lo[2]; z < lo[2] + d[2]; z++)
-            for (size_t y = lo[1]; y < lo[1] + d[1]; y++) {
-                uint8_t *row = frame + X * (y + Y * z);
-                if (e->level == 0) { /* the owned voxels lie inside the brick's box */
-                    const uint8_t *src = e->voxels + (lo[0] - e->lo[0]) +
-                                         e->dims[0] * ((y - e->lo[1]) + e->dims[1] * (z - e->lo[2]));
-                    memcpy(row + lo[0], src, d[0]);
-                } else {
-                    assemble_row(e, lo[0], d[0], y, z, row);
-                }
-            }
+        size_t *k = &c->dense_key[3 * b];
+        if (c->dense_valid && k[0] == e->t && k[1] == e->level && k[2] == e->brick)
+            continue;
+        assemble_brick(c, b, c->dense);
+        k[0] = e->t;
+        k[1] = e->level;
+        k[2] = e->brick;
+        n++;
     }
+    c->dense_valid = 1;
+    return n;
 }
 
 cdvr_status cdvr_brick_cache_dense(cdvr_brick_cache *c, const uint8_t **frame, cdvr_error *err)
@@ -637,13 +997,17 @@ cdvr_status cdvr_brick_cache_dense(cdvr_brick_cache *c, const uint8_t **frame, c
     if (!c->dense) {
         void *mem = NULL;
         size_t n = c->dims[0] * c->dims[1] * c->dims[2];
-        if (posix_memalign(&mem, 4096, n ? n : 1) != 0)
+        if (posix_memalign(&mem, 4096, n ? n : 1) != 0 ||
+            !(c->dense_key = malloc(3 * c->nbricks * sizeof *c->dense_key))) {
+            free(mem);
             return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory for a dense "
                                   "frame of %zu bytes", n);
+        }
         c->dense = mem;
+        c->dense_valid = 0;
     }
     double t0 = cdvr_now_ms();
-    assemble(c, c->dense);
+    c->stats.dense_bricks = assemble_changed(c);
     c->stats.layout_ms += cdvr_now_ms() - t0;
     *frame = c->dense;
     return CDVR_OK;

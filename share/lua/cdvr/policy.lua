@@ -3,7 +3,10 @@
 -- The player calls policy(stats) at each group boundary (multiples of the lcm of the
 -- variants' T) and reads the next group from the variant it returns:
 --
---   policy(stats) -> variant_name [, reason]     -- reason: one line, shown in the report
+--   policy(stats) -> variant_name [, reason [, lod_error]]
+--     reason: one line, shown in the report; lod_error (only when stats.lod_error is given,
+--     i.e. the player renders through the brick cache): the cache's level of detail for the
+--     group, in pixels (nil: unchanged)
 --
 --   stats = {
 --     target_fps = number or nil,
@@ -19,7 +22,10 @@
 --                upload_ms=, decode_ms=, setup_ms=, render_ms=, frame_ms=, bytes= (stored
 --                bytes read for this frame's chunk share), payload_bytes=} },
 --     variants = { {name=, codec=, S=, T=, pack=, stage2=, bytes_per_timestep= (stored),
---                   payload_bytes_per_timestep=, psnr=, group=T or 1}, ... }
+--                   payload_bytes_per_timestep=, psnr=, group=T or 1}, ... },
+--     -- the player through the brick cache (cache=true) only:
+--     lod_error = the cache's lod_error now (frames rows carry theirs: frames[i].lod_error),
+--     lod_base = the lod_error the user asked for, levels = the store's resolution levels
 --   }                                              -- psnr: encode-time PSNR
 --
 -- Orders: by quality, psnr descending (a raw variant, or psnr = inf, is best; a variant
@@ -66,6 +72,14 @@
 --     stored-bytes ratio without stage timings; never less than what that variant measured
 --     in the last `memory` groups) fits the target, once that has held for `up_after`
 --     consecutive groups. Otherwise stay. It starts at opts.variant or the best quality.
+--     Level of detail (stats.lod_error given and stats.levels > 1; opts lod=false turns it
+--     off): lod_error is a knob before the variants. Over target it first raises lod_error
+--     (x2, 0 -> 1) up to lod_max (default max(lod_base, 1) * 2^(levels-1), each doubling
+--     coarsening by about one level) with the variant kept, and steps the variant down only at
+--     lod_max; with headroom it first steps the variant up (as above), and when no better
+--     variant is to be had it lowers lod_error (/2, to lod_base at the bottom) after up_after
+--     groups, unless that finer lod_error measured over target in the last `memory` groups.
+--     The median is over the frames of the current variant at the current lod_error.
 --   policy.get(name_or_fn [, opts])
 local options = require "cdvr.options"
 local policy = {}
@@ -456,12 +470,12 @@ local function group_length(variants)
   return len
 end
 
-local function recent_frame_times(frames, name, window)
+local function recent_frame_times(frames, name, window, lod)
   local times = {}
   if type(frames) ~= "table" then return times end
   for i = #frames, 1, -1 do
     local f = frames[i]
-    if f.variant == name and positive(f.frame_ms) then
+    if f.variant == name and positive(f.frame_ms) and (lod == nil or f.lod_error == lod) then
       times[#times + 1] = f.frame_ms
       if #times >= window then break end
     end
@@ -538,11 +552,65 @@ local function step_up(state, stats, allowed, cur, measured, pipelined, target)
   return cheapest, cheapest_ms
 end
 
-local function closed_loop_step(state, stats, allowed, cur, fps)
-  local target = 1000 / fps
-  local h = state.hysteresis
+-- The level-of-detail knob (closed_loop's doc), or nil when the player does not render
+-- through the brick cache or the store has one level.
+local function lod_knob(state, stats)
+  local lod, base, levels = stats.lod_error, stats.lod_base, stats.levels
+  if not state.lod or lod == nil then return nil end
+  if type(lod) ~= "number" or lod < 0 or lod ~= lod or type(base) ~= "number" or base < 0 or
+     not integer_at_least(levels, 1) then
+    error(string.format("closed_loop: stats.lod_error, lod_base (numbers >= 0) and levels " ..
+                        "(integer >= 1) expected, got %s, %s, %s", tostring(lod), tostring(base),
+                        tostring(levels)), 4)
+  end
+  if levels < 2 then return nil end
+  local max = state.lod_max or math.max(base, 1) * 2 ^ (levels - 1)
+  return { now = lod, base = base, max = math.max(max, base) }
+end
+
+local function fmt_lod(x) return string.format("%g", x) end
+
+-- Over target: lod_error one step coarser, or nil at lod_max.
+local function lod_raise(knob)
+  if knob == nil or knob.now >= knob.max then return nil end
+  return math.min(knob.now > 0 and knob.now * 2 or 1, knob.max)
+end
+
+-- With headroom: lod_error one step finer, or nil at lod_base.
+local function lod_lower(knob)
+  if knob == nil or knob.now <= knob.base then return nil end
+  local finer = knob.now / 2
+  if finer < knob.base or (knob.base == 0 and finer < 1) then finer = knob.base end
+  return finer
+end
+
+-- Headroom and no better variant to step to: lower lod_error after up_after groups, unless
+-- the finer value measured over target recently.
+local function lod_refine(state, stats, knob, cur, what, target)
+  local finer = lod_lower(knob)
+  if finer == nil then return nil end
+  local seen = state.memory[cur.name .. "@" .. fmt_lod(finer)]
+  if seen and (stats.group or 0) - seen.group <= state.memory_groups and seen.ms > target then
+    state.up_streak = 0
+    return cur.name, string.format("%s, lod_error %s measured %s > %s, stay", what,
+                                   fmt_lod(finer), fmt_ms(seen.ms), fmt_ms(target)), knob.now
+  end
+  state.up_streak = state.up_streak + 1
+  if state.up_streak < state.up_after then
+    return cur.name, string.format("%s, lod_error %s -> %s waiting (%d/%d)", what,
+                                   fmt_lod(knob.now), fmt_lod(finer), state.up_streak,
+                                   state.up_after), knob.now
+  end
+  state.up_streak = 0
+  return cur.name, string.format("%s, headroom: lod_error %s -> %s", what, fmt_lod(knob.now),
+                                 fmt_lod(finer)), finer
+end
+
+-- The variant (and lod_error when knob) for the next group: closed_loop's rule.
+local function closed_loop_variant(state, stats, allowed, cur, target, h, knob)
   local times = recent_frame_times(stats.frames, cur.name, state.window or
-                                   math.min(16, math.max(3, group_length(stats.variants))))
+                                   math.min(16, math.max(3, group_length(stats.variants))),
+                                   knob and knob.now)
   local measured = median(times)
   if measured == nil then
     state.up_streak = 0
@@ -550,10 +618,19 @@ local function closed_loop_step(state, stats, allowed, cur, fps)
   end
   state.memory[cur.name] = { ms = measured, group = stats.group or 0 }
   local what = string.format("closed_loop: %s median %s", cur.name, fmt_ms(measured))
+  if knob then
+    state.memory[cur.name .. "@" .. fmt_lod(knob.now)] = state.memory[cur.name]
+    what = what .. " at lod_error " .. fmt_lod(knob.now)
+  end
   local pipelined = stats.pipelined
   if pipelined == nil then pipelined = state.pipelined end
   if measured > target * (1 + h) then
     state.up_streak = 0
+    local coarser = lod_raise(knob)
+    if coarser then
+      return cur.name, string.format("%s > %s, lod_error %s -> %s", what, fmt_ms(target * (1 + h)),
+                                     fmt_lod(knob.now), fmt_lod(coarser)), coarser
+    end
     local down, detail = step_down(state, stats, allowed, cur, measured, pipelined)
     if not down then
       return cur.name, string.format("%s > %s, %s", what, fmt_ms(target * (1 + h)), detail)
@@ -566,6 +643,9 @@ local function closed_loop_step(state, stats, allowed, cur, fps)
     return cur.name, string.format("%s within %s +-%d%%, stay", what, fmt_ms(target), math.floor(h * 100 + 0.5))
   end
   local up, predicted = step_up(state, stats, allowed, cur, measured, pipelined, target)
+  if (not up or predicted > target) and lod_lower(knob) then
+    return lod_refine(state, stats, knob, cur, what, target)
+  end
   if not up then
     state.up_streak = 0
     return cur.name, string.format("%s < %s, already the best allowed", what, fmt_ms(target * (1 - h)))
@@ -584,10 +664,19 @@ local function closed_loop_step(state, stats, allowed, cur, fps)
                                 fmt_ms(predicted), fmt_ms(target))
 end
 
+local function closed_loop_step(state, stats, allowed, cur, fps)
+  local target = 1000 / fps
+  local h = state.hysteresis
+  local knob = lod_knob(state, stats)
+  local name, why, lod = closed_loop_variant(state, stats, allowed, cur, target, h, knob)
+  if knob == nil then return name, why end
+  return name, why, lod or knob.now
+end
+
 function policy.closed_loop(opts)
   opts = check_opts(opts, "closed_loop")
   options.check(opts, "cdvr.policy.closed_loop", { "target_fps", "hysteresis", "window", "up_after", "memory",
-                                                   "variant", "pipelined" })
+                                                   "variant", "pipelined", "lod", "lod_max" })
   local state = {
     hysteresis = opts.hysteresis or 0.1,
     window = opts.window,
@@ -596,7 +685,16 @@ function policy.closed_loop(opts)
     pipelined = opts.pipelined,
     up_streak = 0,
     memory = {},
+    lod = opts.lod ~= false,
+    lod_max = opts.lod_max,
   }
+  if opts.lod ~= nil and type(opts.lod) ~= "boolean" then
+    error(string.format("closed_loop: lod must be a boolean, got %s", type(opts.lod)), 2)
+  end
+  if opts.lod_max ~= nil and not (type(opts.lod_max) == "number" and opts.lod_max >= 0 and
+                                  opts.lod_max < INF) then
+    error(string.format("closed_loop: lod_max must be a number >= 0, got %s", tostring(opts.lod_max)), 2)
+  end
   if type(state.hysteresis) ~= "number" or state.hysteresis < 0 or state.hysteresis >= 1 then
     error(string.format("closed_loop: hysteresis must be in [0, 1), got %s", tostring(state.hysteresis)), 2)
   end
