@@ -2,7 +2,7 @@
 # README.md's Lua examples run as written: every ```lua block is extracted and run by cdvr on
 # the bundled data (share/data), each in a fresh temporary directory (its files land there).
 # The per-frame fields the README names in backquotes (`read_ms` ... `frame_ms`, `variant`,
-# `why`) must be fields of the player's rows.
+# `why`) in paragraphs about the player's rows must be fields of those rows.
 cdvr=${1:?usage: test_readme.sh path/to/cdvr}
 cdvr=$(cd "$(dirname "$cdvr")" && pwd)/$(basename "$cdvr")
 src=${CDVR_SOURCE_DIR:-$(cd "$(dirname "$0")/.." && pwd)}
@@ -18,7 +18,9 @@ awk -v dir="$tmp" '
 count=$(cat "$tmp/count")
 check "README has Lua examples" [ "${count:-0}" -ge 1 ]
 
-fields=$(grep -o '`[a-z_]*_ms`' "$src/README.md" | tr -d '`' | sort -u)
+# (named in paragraphs about rows: other `*_ms` names are render statistics)
+fields=$(awk 'BEGIN { RS = "" } /(^|[^a-z])[Rr]ows?([^a-z]|$)/' "$src/README.md" |
+         grep -o '`[a-z_]*_ms`' | tr -d '`' | sort -u)
 check "README names the stage fields" [ "$(echo "$fields" | wc -w)" -ge 7 ]
 for i in $(seq 1 "${count:-0}"); do
   block="$tmp/block$i.lua"
