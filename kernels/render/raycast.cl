@@ -547,6 +547,240 @@ static void march_full(march *m, int skipping, const bricks *b, const volume_geo
     }
 }
 
+#ifdef CDVR_BRICK_CACHE
+/* ---- the brick march through the brick cache (cdvr/brick_cache.h, "the brick march") ------ */
+
+/* Per lane, the cache brick of its run (written by look-ups lane by lane). */
+typedef struct cache_lanes {
+    uint base[RAY_PACKET];                   /* payload byte offset of the brick's voxels */
+    int lo[3][RAY_PACKET], d[3][RAY_PACKET]; /* its box at its level */
+    int group[RAY_PACKET];                   /* 2^level: level-0 samples per group */
+    float scale[RAY_PACKET];                 /* 2^-level */
+    int end[RAY_PACKET];                     /* first sample index past the run */
+} cache_lanes;
+
+/* The same as vectors, for the samples. */
+typedef struct cache_run {
+    vuint base;
+    vint lo_x, lo_y, lo_z, d_x, d_y, d_z, group, end;
+    vfloat scale;
+    uint limit; /* largest byte index a voxel pair may start at */
+} cache_run;
+
+static cache_run load_run(const cache_lanes *cl, uint limit)
+{
+    cache_run r;
+    r.base = vload16(0, cl->base);
+    r.lo_x = vload16(0, cl->lo[0]);
+    r.lo_y = vload16(0, cl->lo[1]);
+    r.lo_z = vload16(0, cl->lo[2]);
+    r.d_x = vload16(0, cl->d[0]);
+    r.d_y = vload16(0, cl->d[1]);
+    r.d_z = vload16(0, cl->d[2]);
+    r.group = vload16(0, cl->group);
+    r.end = vload16(0, cl->end);
+    r.scale = vload16(0, cl->scale);
+    r.limit = limit;
+    return r;
+}
+
+/* Lanes `need` look up the brick of their sample i (the owner of its corner + 1 per axis,
+ * cdvr/brick_cache.h) and set their run: up to the first sample past the brick's cells. */
+static void cache_lookup(cache_lanes *cl, vint need, vint i, vint n_full, const volume_geo *v,
+                         vec3x g0, vec3x dg, const bricks *b)
+{
+    vec3x g = at(g0, dg, i);
+    vfloat f;
+    vint x = corner(g.x - v->offset.x, v->top.x, v->base_max.x, &f) + (v->stride.x != 0);
+    vint y = corner(g.y - v->offset.y, v->top.y, v->base_max.y, &f) + (v->stride.y != 0);
+    vint z = corner(g.z - v->offset.z, v->top.z, v->base_max.z, &f) + (v->stride.z != 0);
+    int xs[RAY_PACKET], ys[RAY_PACKET], zs[RAY_PACKET], on[RAY_PACKET];
+    float face[3][RAY_PACKET];
+    vstore16(x, 0, xs);
+    vstore16(y, 0, ys);
+    vstore16(z, 0, zs);
+    vstore16(need, 0, on);
+    int fx[RAY_PACKET], fy[RAY_PACKET], fz[RAY_PACKET];
+    vstore16(b->fwd_x, 0, fx);
+    vstore16(b->fwd_y, 0, fy);
+    vstore16(b->fwd_z, 0, fz);
+    int4 dims = (int4)(v->dims.x, v->dims.y, v->dims.z, 0);
+    uint pool = ((__global const uint *)v->vol)[4];
+    for (int k = 0; k < RAY_PACKET; k++) {
+        face[0][k] = face[1][k] = face[2][k] = 0.0f;
+        if (!on[k])
+            continue;
+        __global const uint *e = bc_entry(v->vol, v->params, dims, xs[k], ys[k], zs[k]);
+        uint lvl = min(e[1], 15u);
+        cl->base[k] = pool + e[0];
+        for (int a = 0; a < 3; a++) {
+            cl->lo[a][k] = (int)e[2 + a];
+            cl->d[a][k] = (int)max(e[5 + a], 1u);
+        }
+        cl->group[k] = 1 << lvl;
+        cl->scale[k] = ldexp(1.0f, -(int)lvl);
+        face[0][k] = (float)e[fx[k] ? 11 : 8]; /* the cells' upper or lower face */
+        face[1][k] = (float)e[fy[k] ? 12 : 9];
+        face[2][k] = (float)e[fz[k] ? 13 : 10];
+    }
+    vfloat tx = (vload16(0, face[0]) - g0.x) * b->inv_dg.x;
+    vfloat ty = (vload16(0, face[1]) - g0.y) * b->inv_dg.y;
+    vfloat tz = (vload16(0, face[2]) - g0.z) * b->inv_dg.z;
+    vfloat t_exit = clamp(fmin(tx, fmin(ty, tz)), 0.0f, convert_vfloat(n_full));
+    vint end = min(max(convert_vint(ceil(t_exit)), i + 1), n_full);
+    vstore16(select(vload16(0, cl->end), end, need), 0, cl->end);
+}
+
+/* Voxels x0 and x0 + ox (ox 0 or 1) of each lane at p[idx], lerped by fx: the dense
+ * render's pair lerp. */
+#define CPAIR_AT(k) pair_at(p + idx.s##k)
+#define CBYTE_AT(k) p[idx.s##k]
+#define CBYTE1_AT(k) p[idx.s##k + 1]
+static vfloat cache_lerp(__global const uchar *p, vuint idx, vint ox, vfloat fx)
+{
+#ifdef __ENDIAN_LITTLE__
+    ushort16 w = (ushort16)(L16(CPAIR_AT));
+    vfloat a = convert_vfloat(w & (ushort)0xff), b = convert_vfloat(w >> (ushort)8);
+#else
+    vfloat a = convert_vfloat((uchar16)(L16(CBYTE_AT)));
+    vfloat b = convert_vfloat((uchar16)(L16(CBYTE1_AT)));
+#endif
+    return mix(a, select(b, a, ox == 0), fx);
+}
+
+/* Lower corner of one axis: level 0 (`level0` lanes) as corner() does; coarser levels at
+ * floor(g) (the box clamps it). */
+static vint cache_corner(vfloat g, vint level0, float top, int base_max, vfloat *frac)
+{
+    vfloat gc = select(fmax(g, 0.0f), clamp(g, 0.0f, top), level0);
+    vint i0 = convert_vint(gc);
+    i0 = select(i0, min(i0, base_max), level0);
+    *frac = gc - convert_vfloat(i0);
+    return i0;
+}
+
+/* The sample at whole-volume grid position g from each lane's brick (cdvr/brick_cache.h);
+ * *inside: lanes whose cell lies in the brick's box (always, unless rounding put a level-0
+ * sample past the run's brick). */
+static vfloat cache_trilinear(const volume_geo *v, const cache_run *r, vec3x g, vint *inside)
+{
+    vint level0 = r->group == 1;
+    vfloat fx, fy, fz;
+    vint cx = cache_corner((g.x - v->offset.x) * r->scale, level0, v->top.x, v->base_max.x, &fx) -
+              r->lo_x;
+    vint cy = cache_corner((g.y - v->offset.y) * r->scale, level0, v->top.y, v->base_max.y, &fy) -
+              r->lo_y;
+    vint cz = cache_corner((g.z - v->offset.z) * r->scale, level0, v->top.z, v->base_max.z, &fz) -
+              r->lo_z;
+    int ux = v->stride.x != 0, uy = v->stride.y != 0, uz = v->stride.z != 0;
+    *inside = cx >= 0 & cx + ux < r->d_x & cy >= 0 & cy + uy < r->d_y & cz >= 0 &
+              cz + uz < r->d_z;
+    vint x0 = clamp(cx, 0, r->d_x - 1), x1 = clamp(cx + ux, 0, r->d_x - 1);
+    vint y0 = clamp(cy, 0, r->d_y - 1), y1 = clamp(cy + uy, 0, r->d_y - 1);
+    vint z0 = clamp(cz, 0, r->d_z - 1), z1 = clamp(cz + uz, 0, r->d_z - 1);
+    vint ox = x1 - x0, oy = (y1 - y0) * r->d_x, oz = (z1 - z0) * r->d_x * r->d_y;
+    vuint idx = r->base + as_uint16(x0 + r->d_x * (y0 + r->d_y * z0));
+    vuint lim = (vuint)(r->limit);
+    __global const uchar *p = v->vol;
+    vfloat c00 = cache_lerp(p, min(idx, lim), ox, fx);
+    vfloat c10 = cache_lerp(p, min(idx + as_uint16(oy), lim), ox, fx);
+    vfloat c01 = cache_lerp(p, min(idx + as_uint16(oz), lim), ox, fx);
+    vfloat c11 = cache_lerp(p, min(idx + as_uint16(oz + oy), lim), ox, fx);
+    return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
+}
+
+/* sample_steps through the cache: up to UNROLL groups per lane (one sample each, 2^level
+ * level-0 segments each, fewer at the run's end), then composited in order; alpha corrected
+ * for the group's segments. `fresh`: lanes whose run was just looked up (never cut). */
+static void cache_sample_steps(march *m, vint run, vint fresh, cache_lanes *cl, uint limit,
+                               const volume_geo *v, const clip_params *clip, vec3x g0, vec3x dg,
+                               __global const float4 *table, float term_alpha,
+                               const look_params *lk, __global const float *alpha, float step,
+                               float unit, vec3x V, rgbax *acc)
+{
+    cache_run r = load_run(cl, limit);
+    vint stop_at = min(m->end, r.end);
+    vfloat s[UNROLL], fi[UNROLL];
+    vint own[UNROLL], len[UNROLL], in[UNROLL];
+    vint ik = m->i;
+    for (int k = 0; k < UNROLL; k++) { /* independent loads, before any compositing */
+        len[k] = clamp(stop_at - ik, 0, r.group);
+        fi[k] = convert_vfloat(ik) + 0.5f * convert_vfloat(max(len[k] - 1, 0));
+        vec3x g = {g0.x + fi[k] * dg.x, g0.y + fi[k] * dg.y, g0.z + fi[k] * dg.z};
+        own[k] = owned(clip, g);
+        s[k] = cache_trilinear(v, &r, g, &in[k]);
+        ik += len[k];
+    }
+    vint stop = (vint)(0), live = run, cut = (vint)(0), level0 = r.group == 1;
+    for (int k = 0; k < UNROLL; k++) {
+        live &= len[k] > 0;
+        vint out = live & ~in[k] & level0;
+        if (k == 0)
+            out &= ~fresh;
+        cut |= out;
+        live &= ~out;
+        vint keep = live & own[k];
+        vint i0;
+        vfloat fr;
+        rgbax c = classify(s[k], table, &i0, &fr);
+        c.a = select((vfloat)(0.0f), c.a, keep);
+        vint multi = keep & (len[k] > 1) & (c.a > 0.0f);
+        if (any(multi))
+            c.a = select(c.a, 1.0f - pow(1.0f - c.a, convert_vfloat(len[k])), multi);
+        if (lk->shade | lk->go_points) {
+            vint on = keep & (c.a > 0.0f);
+            vec3x g = {g0.x + fi[k] * dg.x, g0.y + fi[k] * dg.y, g0.z + fi[k] * dg.z};
+            if (any(on))
+                look_sample(v, lk, g, i0, fr, convert_vfloat(max(len[k], 1)) * step, unit,
+                            alpha, V, on, &c);
+            c.a = select((vfloat)(0.0f), c.a, on);
+        }
+        composite(acc, c);
+        m->i += select((vint)(0), len[k], live);
+        m->taken -= keep;
+        stop |= keep & (acc->a >= term_alpha | acc->a >= 1.0f);
+        live &= ~stop;
+    }
+    if (any(cut)) /* look the lane up again at the sample it stopped at */
+        vstore16(select(r.end, m->i, cut), 0, cl->end);
+    if (any(stop)) {
+        m->done |= stop;
+        m->active &= ~stop;
+    }
+    m->active &= m->i < m->n_full;
+}
+
+/* march_full through the cache: the skip grid's runs, cut at the cache bricks' exits. */
+static void march_cached(march *m, int skipping, const bricks *b, const volume_geo *v,
+                         const clip_params *clip, vec3x g0, vec3x dg,
+                         __global const float4 *table, float term_alpha, const look_params *lk,
+                         __global const float *alpha, float step, float unit, vec3x V,
+                         rgbax *acc)
+{
+    cache_lanes cl;
+    for (int k = 0; k < RAY_PACKET; k++)
+        cl.end[k] = 0;
+    ulong n = bc_payload_bytes(v->params);
+    uint limit = (uint)min(n - 2, (ulong)UINT_MAX);
+    while (any(m->active)) {
+        if (skipping) {
+            vint need = m->active & (m->i >= m->end);
+            if (any(need)) {
+                brick_step(m, need, b, v, g0, dg);
+                m->active &= m->i < m->n_full;
+            }
+        }
+        vint run = m->active & (m->i < m->end);
+        vint fresh = run & (m->i >= vload16(0, cl.end));
+        if (any(fresh))
+            cache_lookup(&cl, fresh, m->i, m->n_full, v, g0, dg, b);
+        if (any(run))
+            cache_sample_steps(m, run, fresh, &cl, limit, v, clip, g0, dg, table, term_alpha, lk,
+                               alpha, step, unit, V, acc);
+    }
+}
+#endif
+
 /* The last segment, shorter than step unless L is a multiple of it, on lanes `last`. */
 static void last_segment(const packet *p, vint n, vint last, float step, float unit,
                          const volume_geo *v, const clip_params *clip, float3 inv_spacing,
@@ -979,8 +1213,15 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     m.done = (vint)(0);
     m.taken = (vint)(0);
     rgbax acc = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
-    march_full(&m, skipping, &b, &v, &clip, g0, dg, table, term_alpha, &look, alpha, step, unit,
-               V, &acc);
+#ifdef CDVR_BRICK_CACHE
+    /* the brick march (byte 0 of the cache codec's parameters), else the per-voxel fetch */
+    if (params[0] && !clip.enabled && bc_payload_bytes(params) >= BC_MIN_BYTES)
+        march_cached(&m, skipping, &b, &v, &clip, g0, dg, table, term_alpha, &look, alpha, step,
+                     unit, V, &acc);
+    else
+#endif
+        march_full(&m, skipping, &b, &v, &clip, g0, dg, table, term_alpha, &look, alpha, step,
+                   unit, V, &acc);
     last_segment(&p, n, last & ~m.done, step, unit, &v, &clip, inv_spacing, table, alpha, &look,
                  V, &acc, &m.taken);
     store_pixels(image, px, py, cam.width, cam.height, acc);

@@ -21,6 +21,10 @@ typedef struct cache_entry {
     size_t lo[3], dims[3];       /* the brick's box at its level */
     uint64_t last_used;          /* frame stamp */
     size_t pool_offset;          /* in the payload of the frame that last used it */
+    int ranged;                  /* vmin, vmax hold the range of the voxels */
+    uint8_t vmin, vmax;
+    uint8_t *ranges;             /* per range brick over the box (entry_ranges): min, max */
+    size_t range_lo[3], range_n[3]; /* those range bricks (level-0 grid), per axis */
 } cache_entry;
 
 struct cdvr_brick_cache {
@@ -68,14 +72,15 @@ static size_t min_sz(size_t a, size_t b)
 uint8_t cdvr_brick_cache_fetch(const uint8_t *p, size_t n, const size_t dims[3], size_t x,
                                size_t y, size_t z)
 {
-    if (n < 64)
+    if (n < CDVR_BRICK_CACHE_MIN_BYTES)
         return 0;
-    size_t nw = n / 4, X = dims[0], Y = dims[1];
-    size_t bi = word_at(p, nw, 6 + x), bj = word_at(p, nw, 6 + X + y);
-    size_t bk = word_at(p, nw, 6 + X + Y + z);
+    size_t nw = n / 4, X = dims[0], Y = dims[1], o = CDVR_BRICK_CACHE_HEADER_WORDS;
+    size_t bi = word_at(p, nw, o + x), bj = word_at(p, nw, o + X + y);
+    size_t bk = word_at(p, nw, o + X + Y + z);
     size_t e = min_sz(word_at(p, nw, 5) / 4 +
-                          8 * (bi + (size_t)word_at(p, nw, 1) * (bj + (size_t)word_at(p, nw, 2) * bk)),
-                      nw - 8);
+                          CDVR_BRICK_CACHE_ENTRY_WORDS *
+                              (bi + (size_t)word_at(p, nw, 1) * (bj + (size_t)word_at(p, nw, 2) * bk)),
+                      nw - CDVR_BRICK_CACHE_ENTRY_WORDS);
     size_t base = (size_t)word_at(p, nw, 4) + word_at(p, nw, e);
     uint32_t lvl = word_at(p, nw, e + 1);
     lvl = lvl < 15 ? lvl : 15;
@@ -166,7 +171,8 @@ static cdvr_status bc_decode(const cdvr_codec_params *p, const size_t dims[3], c
                              cdvr_error *err)
 {
     (void)p;
-    if (count != 1 || in_bytes < 64 || word_at(in, in_bytes / 4, 0) != CDVR_BRICK_CACHE_MAGIC)
+    if (count != 1 || in_bytes < CDVR_BRICK_CACHE_MIN_BYTES ||
+        word_at(in, in_bytes / 4, 0) != CDVR_BRICK_CACHE_MAGIC)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "brick cache: not a cache payload");
     uint8_t *out = frames[0];
     for (size_t z = 0; z < dims[2]; z++)
@@ -228,8 +234,10 @@ void cdvr_brick_cache_free(cdvr_brick_cache *c)
     for (size_t l = 0; l < CDVR_STORE_MAX_LEVELS; l++)
         for (int a = 0; a < 3; a++)
             free(c->level_owner[l][a]);
-    for (size_t i = 0; i < c->nentries; i++)
+    for (size_t i = 0; i < c->nentries; i++) {
         free(c->entries[i].voxels);
+        free(c->entries[i].ranges);
+    }
     free(c->entries);
     free(c->dist);
     free(c->choice);
@@ -422,6 +430,7 @@ static void make_room(cdvr_brick_cache *c, uint64_t need)
             return;
         c->cache_bytes -= c->entries[victim].bytes;
         free(c->entries[victim].voxels);
+        free(c->entries[victim].ranges);
         c->entries[victim] = c->entries[--c->nentries];
         for (size_t b = 0; b < c->nbricks; b++) /* keep this frame's references valid */
             if (c->entry_of[b] == c->nentries)
@@ -480,15 +489,49 @@ static void put_word(uint8_t *p, uint32_t v)
         p[i] = (uint8_t)(v >> (8 * i));
 }
 
+/* The value range of an entry's voxels, once per entry (the skip grid's ranges). */
+static void entry_range(cache_entry *e)
+{
+    if (e->ranged)
+        return;
+    uint8_t lo = 255, hi = 0;
+    for (size_t i = 0; i < e->bytes; i++) {
+        lo = e->voxels[i] < lo ? e->voxels[i] : lo;
+        hi = e->voxels[i] > hi ? e->voxels[i] : hi;
+    }
+    e->vmin = lo;
+    e->vmax = hi;
+    e->ranged = 1;
+}
+
+/* Page-table entry of level-0 brick b (see the header for the words). */
+static void put_entry(const cdvr_brick_cache *c, size_t b, uint8_t *t)
+{
+    const cache_entry *e = &c->entries[c->entry_of[b]];
+    size_t lo0[3], d0[3];
+    cdvr_store_brick_box(cdvr_store_get_info(c->st), b, lo0, d0);
+    memset(t, 0, 4 * CDVR_BRICK_CACHE_ENTRY_WORDS);
+    put_word(t, (uint32_t)e->pool_offset);
+    put_word(t + 4, (uint32_t)e->level);
+    for (int a = 0; a < 3; a++) {
+        put_word(t + 8 + 4 * a, (uint32_t)e->lo[a]);
+        put_word(t + 20 + 4 * a, (uint32_t)e->dims[a]);
+        put_word(t + 32 + 4 * a, (uint32_t)lo0[a]);
+        put_word(t + 44 + 4 * a, (uint32_t)(lo0[a] + (d0[a] > 1 ? d0[a] - 1 : 1)));
+    }
+}
+
 static cdvr_status layout(cdvr_brick_cache *c, cdvr_error *err)
 {
     size_t axes = c->dims[0] + c->dims[1] + c->dims[2];
-    size_t table = 24 + 4 * axes, pool = table + 32 * c->nbricks, bytes = pool;
+    size_t table = 4 * (CDVR_BRICK_CACHE_HEADER_WORDS + axes);
+    size_t pool = table + 4 * CDVR_BRICK_CACHE_ENTRY_WORDS * c->nbricks, bytes = pool;
     for (size_t i = 0; i < c->nentries; i++)
         if (c->entries[i].last_used == c->stamp) {
             c->entries[i].pool_offset = bytes - pool;
             bytes += c->entries[i].bytes;
         }
+    bytes += CDVR_BRICK_CACHE_PAD;
     if (bytes > UINT32_MAX)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: a payload of %zu bytes (the "
                               "page table holds 32-bit offsets)", bytes);
@@ -501,32 +544,27 @@ static cdvr_status layout(cdvr_brick_cache *c, cdvr_error *err)
         c->payload_cap = bytes;
     }
     uint8_t *p = c->payload;
+    memset(p, 0, 4 * CDVR_BRICK_CACHE_HEADER_WORDS);
     put_word(p, CDVR_BRICK_CACHE_MAGIC);
     for (int a = 0; a < 3; a++)
         put_word(p + 4 + 4 * a, (uint32_t)c->grid[a]);
     put_word(p + 16, (uint32_t)pool);
     put_word(p + 20, (uint32_t)table);
-    size_t w = 24;
+    put_word(p + 24, CDVR_BRICK_CACHE_ENTRY_WORDS);
+    size_t w = 4 * CDVR_BRICK_CACHE_HEADER_WORDS;
     for (int a = 0; a < 3; a++)
         for (size_t x = 0; x < c->dims[a]; x++, w += 4)
             put_word(p + w, (uint32_t)c->owner[a][x]);
     c->stats.resident_bytes = 0;
-    for (size_t b = 0; b < c->nbricks; b++) {
-        const cache_entry *e = &c->entries[c->entry_of[b]];
-        uint8_t *t = p + table + 32 * b;
-        put_word(t, (uint32_t)e->pool_offset);
-        put_word(t + 4, (uint32_t)e->level);
-        for (int a = 0; a < 3; a++) {
-            put_word(t + 8 + 4 * a, (uint32_t)e->lo[a]);
-            put_word(t + 20 + 4 * a, (uint32_t)e->dims[a]);
-        }
-    }
+    for (size_t b = 0; b < c->nbricks; b++)
+        put_entry(c, b, p + table + 4 * CDVR_BRICK_CACHE_ENTRY_WORDS * b);
     for (size_t i = 0; i < c->nentries; i++)
         if (c->entries[i].last_used == c->stamp) {
             memcpy(p + pool + c->entries[i].pool_offset, c->entries[i].voxels,
                    c->entries[i].bytes);
             c->stats.resident_bytes += c->entries[i].bytes;
         }
+    memset(p + bytes - CDVR_BRICK_CACHE_PAD, 0, CDVR_BRICK_CACHE_PAD);
     c->payload_bytes = bytes;
     return CDVR_OK;
 }
@@ -646,5 +684,139 @@ cdvr_status cdvr_brick_cache_dense(cdvr_brick_cache *c, const uint8_t **frame, c
     assemble(c, c->dense);
     c->stats.layout_ms += cdvr_now_ms() - t0;
     *frame = c->dense;
+    return CDVR_OK;
+}
+
+/* Along one axis of an entry at level l (box lo, d at its level): the range bricks (of
+ * 2^shift level-0 cells) over the box, and per range brick s the entry's voxels that a
+ * sample in its cells reads, [floor(s 2^shift / 2^l), ceil((s + 1) 2^shift / 2^l)] inside the
+ * box (local coordinates), in first[] and last[]. */
+static size_t range_axis(size_t lo, size_t d, size_t l, unsigned shift, size_t *s_lo,
+                         size_t **first, size_t **last)
+{
+    size_t a = (lo << l) >> shift, b = ((lo + d - 1) << l) >> shift, n = b - a + 1;
+    *s_lo = a;
+    *first = malloc(2 * n * sizeof **first);
+    if (!*first)
+        return 0;
+    *last = *first + n;
+    for (size_t s = a; s <= b; s++) {
+        size_t v0 = (s << shift) >> l, v1 = (((s + 1) << shift) + ((size_t)1 << l) - 1) >> l;
+        v0 = v0 < lo ? lo : v0 > lo + d - 1 ? lo + d - 1 : v0;
+        v1 = v1 < v0 ? v0 : v1 > lo + d - 1 ? lo + d - 1 : v1;
+        (*first)[s - a] = v0 - lo;
+        (*last)[s - a] = v1 - lo;
+    }
+    return n;
+}
+
+/* The entry's range per range brick of 2^shift level-0 cells over its box, once per entry
+ * (on no memory it keeps none: its whole range stands for every range brick). */
+static void entry_ranges(cache_entry *e, unsigned shift)
+{
+    entry_range(e);
+    if (e->ranges)
+        return;
+    size_t *first[3] = {NULL, NULL, NULL}, *last[3], n[3];
+    int ok = 1;
+    for (int a = 0; a < 3; a++) {
+        n[a] = range_axis(e->lo[a], e->dims[a], e->level, shift, &e->range_lo[a], &first[a],
+                          &last[a]);
+        ok &= n[a] > 0;
+    }
+    uint8_t *mm = ok ? malloc(2 * n[0] * n[1] * n[2]) : NULL;
+    if (mm) {
+        e->ranges = mm;
+        memcpy(e->range_n, n, sizeof n);
+        size_t X = e->dims[0], XY = e->dims[0] * e->dims[1];
+        for (size_t k = 0; k < n[2]; k++)
+            for (size_t j = 0; j < n[1]; j++)
+                for (size_t i = 0; i < n[0]; i++, mm += 2) {
+                    uint8_t lo = 255, hi = 0;
+                    for (size_t z = first[2][k]; z <= last[2][k]; z++)
+                        for (size_t y = first[1][j]; y <= last[1][j]; y++) {
+                            const uint8_t *row = e->voxels + X * y + XY * z;
+                            for (size_t x = first[0][i]; x <= last[0][i]; x++) {
+                                lo = row[x] < lo ? row[x] : lo;
+                                hi = row[x] > hi ? row[x] : hi;
+                            }
+                        }
+                    mm[0] = lo;
+                    mm[1] = hi;
+                }
+    }
+    for (int a = 0; a < 3; a++)
+        free(first[a]);
+}
+
+/* The range of entry e over range brick (x, y, z): its table's, or its whole range. */
+static void entry_range_at(const cache_entry *e, size_t x, size_t y, size_t z, uint8_t *lo,
+                           uint8_t *hi)
+{
+    size_t i = x - e->range_lo[0], j = y - e->range_lo[1], k = z - e->range_lo[2];
+    if (e->ranges && x >= e->range_lo[0] && y >= e->range_lo[1] && z >= e->range_lo[2] &&
+        i < e->range_n[0] && j < e->range_n[1] && k < e->range_n[2]) {
+        const uint8_t *mm = e->ranges + 2 * (i + e->range_n[0] * (j + e->range_n[1] * k));
+        *lo = mm[0] < *lo ? mm[0] : *lo;
+        *hi = mm[1] > *hi ? mm[1] : *hi;
+    } else {
+        *lo = e->vmin < *lo ? e->vmin : *lo;
+        *hi = e->vmax > *hi ? e->vmax : *hi;
+    }
+}
+
+/* Per range brick s of 2^shift cells along one axis of n voxels: the first and last level-0
+ * brick (along the axis) that the march reads for a sample in it, owner(min(x, n - 2) + 1)
+ * for its cells x (owner(0) on an axis of one voxel). */
+static void skip_axis(const size_t *owner, size_t n, unsigned shift, size_t count, size_t *first,
+                      size_t *last)
+{
+    for (size_t s = 0; s < count; s++) {
+        size_t x0 = s << shift, x1 = ((s + 1) << shift) < n ? ((s + 1) << shift) - 1 : n - 1;
+        if (n >= 2) {
+            x0 = (x0 < n - 2 ? x0 : n - 2) + 1;
+            x1 = (x1 < n - 2 ? x1 : n - 2) + 1;
+        } else {
+            x0 = x1 = 0;
+        }
+        first[s] = owner[x0];
+        last[s] = owner[x1];
+    }
+}
+
+cdvr_status cdvr_brick_cache_skip_minmax(cdvr_brick_cache *c, cdvr_skip_grid *g, cdvr_error *err)
+{
+    if (!c->payload_bytes || memcmp(g->vol_dims, c->dims, sizeof c->dims) != 0)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "brick cache: no frame laid out, or a skip grid "
+                              "of another volume (%zux%zux%zu)", g->vol_dims[0], g->vol_dims[1],
+                              g->vol_dims[2]);
+    size_t total = g->dims[0] + g->dims[1] + g->dims[2];
+    size_t *span = malloc(2 * total * sizeof *span);
+    if (!span)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory for the skip ranges");
+    size_t *first[3], *last[3];
+    for (int a = 0, at = 0; a < 3; at += (int)g->dims[a], a++) {
+        first[a] = span + at;
+        last[a] = span + total + at;
+        skip_axis(c->owner[a], c->dims[a], g->shift, g->dims[a], first[a], last[a]);
+    }
+    for (size_t b = 0; b < c->nbricks; b++)
+        entry_ranges(&c->entries[c->entry_of[b]], g->shift);
+    uint8_t *mm = g->minmax;
+    for (size_t z = 0; z < g->dims[2]; z++)
+        for (size_t y = 0; y < g->dims[1]; y++)
+            for (size_t x = 0; x < g->dims[0]; x++, mm += 2) {
+                uint8_t lo = 255, hi = 0;
+                for (size_t k = first[2][z]; k <= last[2][z]; k++)
+                    for (size_t j = first[1][y]; j <= last[1][y]; j++)
+                        for (size_t i = first[0][x]; i <= last[0][x]; i++) {
+                            size_t b = i + c->grid[0] * (j + c->grid[1] * k);
+                            entry_range_at(&c->entries[c->entry_of[b]], x, y, z, &lo, &hi);
+                        }
+                mm[0] = lo;
+                mm[1] = hi;
+            }
+    free(span);
+    cdvr_skip_grid_touch(g);
     return CDVR_OK;
 }
