@@ -689,6 +689,18 @@ static vfloat cache_trilinear(const volume_geo *v, const cache_run *r, vec3x g, 
     return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
 }
 
+/* x^n per lane (n >= 0) by binary exponentiation: the transparency of n segments of
+ * transparency x (pow is a libm call per lane on a CPU device). */
+static vfloat power_of(vfloat x, vint n)
+{
+    vfloat p = (vfloat)(1.0f);
+    for (int bit = 0; any((n >> bit) != 0); bit++) {
+        p = select(p, p * x, ((n >> bit) & 1) != 0);
+        x = x * x;
+    }
+    return p;
+}
+
 /* sample_steps through the cache: up to UNROLL groups per lane (one sample each, 2^level
  * level-0 segments each, fewer at the run's end), then composited in order; alpha corrected
  * for the group's segments. `fresh`: lanes whose run was just looked up (never cut). */
@@ -726,7 +738,8 @@ static void cache_sample_steps(march *m, vint run, vint fresh, cache_lanes *cl, 
         c.a = select((vfloat)(0.0f), c.a, keep);
         vint multi = keep & (len[k] > 1) & (c.a > 0.0f);
         if (any(multi))
-            c.a = select(c.a, 1.0f - pow(1.0f - c.a, convert_vfloat(len[k])), multi);
+            c.a = select(c.a, 1.0f - power_of(1.0f - c.a, select((vint)(0), len[k], multi)),
+                         multi);
         if (lk->shade | lk->go_points) {
             vint on = keep & (c.a > 0.0f);
             vec3x g = {g0.x + fi[k] * dg.x, g0.y + fi[k] * dg.y, g0.z + fi[k] * dg.z};
@@ -757,9 +770,17 @@ static void march_cached(march *m, int skipping, const bricks *b, const volume_g
                          __global const float *alpha, float step, float unit, vec3x V,
                          rgbax *acc)
 {
-    cache_lanes cl;
-    for (int k = 0; k < RAY_PACKET; k++)
+    cache_lanes cl; /* lanes not looked up yet: an empty run of a one-voxel brick at 0 */
+    for (int k = 0; k < RAY_PACKET; k++) {
+        cl.base[k] = 0;
+        for (int a = 0; a < 3; a++) {
+            cl.lo[a][k] = 0;
+            cl.d[a][k] = 1;
+        }
+        cl.group[k] = 1;
+        cl.scale[k] = 1.0f;
         cl.end[k] = 0;
+    }
     ulong n = bc_payload_bytes(v->params);
     uint limit = (uint)min(n - 2, (ulong)UINT_MAX);
     while (any(m->active)) {
