@@ -250,8 +250,10 @@ static cdvr_status render_cl(cdvr_render_ctx *ctx, const cdvr_volume *vol, size_
  * the device over the voxels), then the ray cast. */
 static cdvr_status render_march(cdvr_brick_cache *bc, cdvr_cl_stream *s, const uint8_t *payload,
                                 size_t bytes, const cdvr_store_info *info,
-                                const cdvr_render_opts *opts, cdvr_image *img, cdvr_error *err)
+                                const cdvr_render_opts *opts, cdvr_image *img, double *setup_ms,
+                                cdvr_error *err)
 {
+    double t0 = cdvr_now_ms();
     cdvr_codec_params march = {{0}};
     march.bytes[CDVR_BRICK_CACHE_PARAM_MARCH] = 1;
     cdvr_skip_grid grid;
@@ -268,6 +270,7 @@ static cdvr_status render_march(cdvr_brick_cache *bc, cdvr_cl_stream *s, const u
         cdvr_skip_flags(&grid, opts->tf);
         status = cdvr_cl_setup_grid(s, 0, opts->tf, &grid, err);
     }
+    *setup_ms = cdvr_now_ms() - t0;
     if (status == CDVR_OK) /* the grid stays until the render (a max or min render reads it) */
         status = cdvr_cl_render(s, 0, opts, info->spacing, info->origin, info->direction, img,
                                 err);
@@ -294,10 +297,12 @@ static cdvr_status raycast_cached(cdvr_render_ctx *ctx, const cdvr_store *st, si
     const uint8_t *payload;
     size_t bytes;
     cdvr_cl_stream *s;
+    double frame_ms = cdvr_now_ms(), setup_ms = 0;
     status = cdvr_render_ctx_brick_cache(ctx, st, v, budget ? budget : 1, &bc, err);
     if (status == CDVR_OK)
         status = cdvr_brick_cache_frame(bc, t, opts->camera, opts->tf, rp->lod_error, &payload,
                                    &bytes, err);
+    frame_ms = cdvr_now_ms() - frame_ms;
     if (status == CDVR_OK)
         status = cdvr_render_ctx_stream(ctx, info->dims, &s, err);
     if (status != CDVR_OK)
@@ -322,7 +327,7 @@ static cdvr_status raycast_cached(cdvr_render_ctx *ctx, const cdvr_store *st, si
     } else {
         status = cdvr_image_create(opts->camera->width, opts->camera->height, out, err);
         if (status == CDVR_OK)
-            status = render_march(bc, s, payload, bytes, info, opts, *out, err);
+            status = render_march(bc, s, payload, bytes, info, opts, *out, &setup_ms, err);
         if (status != CDVR_OK) {
             cdvr_image_free(*out);
             *out = NULL;
@@ -336,6 +341,8 @@ static cdvr_status raycast_cached(cdvr_render_ctx *ctx, const cdvr_store *st, si
     if (status == CDVR_OK) {
         cache_stats(bc, stats);
         cdvr_render_stats_string(stats, "cache_path", path);
+        cdvr_render_stats_number(stats, "cache_frame_ms", frame_ms);
+        cdvr_render_stats_number(stats, "cache_setup_ms", setup_ms);
     }
     return status;
 }

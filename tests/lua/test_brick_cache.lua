@@ -1,7 +1,8 @@
 -- The brick cache and level of detail (issue 26 items 2-4; cdvr/brick_cache.h): a bricked
 -- multi-resolution store rendered on cl through the cache (cache=true) with lod_error=0 and a
 -- budget that holds everything equals the dense render of the same store bit for bit, for a
--- lossless and a lossy variant and for two timesteps (the LRU keeps both within the budget);
+-- lossless and two lossy variants (hvq decodes the bricks' overlap voxels differently from
+-- their owners: the cache takes the owners') and for two timesteps (the LRU keeps them);
 -- with a far camera and lod_error=1 coarser levels are chosen; a small budget coarsens the
 -- farthest bricks until the frame fits (resident bytes <= budget, PSNR against the full
 -- render reported > 20 dB here), and a budget below the coarsest level is an error naming it.
@@ -23,11 +24,12 @@ assert(os.execute(("mkdir -p %q"):format(tmp)))
 local vol = cdvr.generate("sphere", {dims = {45, 38, 31}, timesteps = 2, radius = 0.6})
 local st = cdvr.encode(vol, {path = tmp .. "/c.cdv", progress = false, levels = 3,
                              bricks = {3, 2, 2},
-                             variants = {{codec = "raw", name = "raw"}, {S = 4, T = 2, name = "pvtc"}}})
+                             variants = {{codec = "raw", name = "raw"}, {S = 4, T = 2, name = "pvtc"},
+                                         {codec = "hvq", name = "hvq"}}})
 local tf = cdvr.tf{{0, 0, 0, 0, 0}, {60, 1, .6, .2, .3}, {255, 1, 1, 1, .9}}
 local near = cdvr.orbit_camera(vol, {azimuth = 35, elevation = 20, width = 48, height = 40})
 
-for _, variant in ipairs{"raw", "pvtc"} do
+for _, variant in ipairs{"raw", "pvtc", "hvq"} do
   for t = 1, 2 do
     local o = {t = t, variant = variant, tf = tf, camera = near, device = "cl"}
     local dense = cdvr.render(st, o)

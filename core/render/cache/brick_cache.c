@@ -23,6 +23,7 @@ typedef struct cache_entry {
     size_t pool_offset;          /* in the payload of the frame that last used it */
     int ranged;                  /* vmin, vmax hold the range of the voxels */
     uint8_t vmin, vmax;
+    int apron_done;              /* level 0: its lower apron holds its owners' voxels */
     uint8_t *ranges;             /* per range brick over the box (entry_ranges): min, max */
     size_t range_lo[3], range_n[3]; /* those range bricks (level-0 grid), per axis */
 } cache_entry;
@@ -504,6 +505,48 @@ static void entry_range(cache_entry *e)
     e->ranged = 1;
 }
 
+/* Voxel (x, y, z) (level-0 coordinates) of level-0 brick b as its owner decoded it, when
+ * the owner is resident at level 0 this frame; NULL otherwise. */
+static const uint8_t *owner_voxel(const cdvr_brick_cache *c, size_t x, size_t y, size_t z)
+{
+    size_t ob = c->owner[0][x] + c->grid[0] * (c->owner[1][y] + c->grid[1] * c->owner[2][z]);
+    const cache_entry *o = &c->entries[c->entry_of[ob]];
+    if (o->level != 0)
+        return NULL;
+    return o->voxels + (x - o->lo[0]) + o->dims[0] * ((y - o->lo[1]) + o->dims[1] * (z - o->lo[2]));
+}
+
+/* A lossy codec decodes the one-voxel overlap of a brick (its lower apron) on its own: the
+ * march reads it, the dense frame the owner's voxel. So a level-0 entry's apron takes its
+ * owners' voxels once they are resident at level 0 (then the march at level 0 reads exactly
+ * the assembled frame); its ranges are made again when a voxel changed. */
+static void patch_apron(cdvr_brick_cache *c, cache_entry *e)
+{
+    int complete = 1, changed = 0;
+    const size_t *lo = e->lo, *d = e->dims;
+    for (size_t z = lo[2]; z < lo[2] + d[2]; z++)
+        for (size_t y = lo[1]; y < lo[1] + d[1]; y++) {
+            int plane = (z == lo[2] && lo[2] > 0) || (y == lo[1] && lo[1] > 0);
+            size_t end = plane ? lo[0] + d[0] : lo[0] > 0 ? lo[0] + 1 : lo[0];
+            uint8_t *row = e->voxels + d[0] * ((y - lo[1]) + d[1] * (z - lo[2]));
+            for (size_t x = lo[0]; x < end; x++) {
+                const uint8_t *v = owner_voxel(c, x, y, z);
+                if (!v) {
+                    complete = 0;
+                } else if (row[x - lo[0]] != *v) {
+                    row[x - lo[0]] = *v;
+                    changed = 1;
+                }
+            }
+        }
+    if (changed) {
+        free(e->ranges);
+        e->ranges = NULL;
+        e->ranged = 0;
+    }
+    e->apron_done = complete;
+}
+
 /* Page-table entry of level-0 brick b (see the header for the words). */
 static void put_entry(const cdvr_brick_cache *c, size_t b, uint8_t *t)
 {
@@ -556,8 +599,12 @@ static cdvr_status layout(cdvr_brick_cache *c, cdvr_error *err)
         for (size_t x = 0; x < c->dims[a]; x++, w += 4)
             put_word(p + w, (uint32_t)c->owner[a][x]);
     c->stats.resident_bytes = 0;
-    for (size_t b = 0; b < c->nbricks; b++)
+    for (size_t b = 0; b < c->nbricks; b++) {
+        cache_entry *e = &c->entries[c->entry_of[b]];
+        if (e->level == 0 && !e->apron_done)
+            patch_apron(c, e);
         put_entry(c, b, p + table + 4 * CDVR_BRICK_CACHE_ENTRY_WORDS * b);
+    }
     for (size_t i = 0; i < c->nentries; i++)
         if (c->entries[i].last_used == c->stamp) {
             memcpy(p + pool + c->entries[i].pool_offset, c->entries[i].voxels,
