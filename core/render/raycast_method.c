@@ -246,8 +246,9 @@ static cdvr_status render_cl(cdvr_render_ctx *ctx, const cdvr_volume *vol, size_
 }
 
 /* The brick march (cdvr/brick_cache.h) of the cache's frame on s: the payload with the march
- * flag, the skip grid from the cache's brick ranges (cdvr_brick_cache_skip_minmax: no pass of
- * the device over the voxels), then the ray cast. */
+ * flag, the skip grid from the cache's brick ranges (cdvr_brick_cache_skip_grid: no pass of
+ * the device over the voxels; made again only when the frame's bricks change), then the ray
+ * cast. */
 static cdvr_status render_march(cdvr_brick_cache *bc, cdvr_cl_stream *s, const uint8_t *payload,
                                 size_t bytes, const cdvr_store_info *info,
                                 const cdvr_render_opts *opts, cdvr_image *img, double *setup_ms,
@@ -256,25 +257,19 @@ static cdvr_status render_march(cdvr_brick_cache *bc, cdvr_cl_stream *s, const u
     double t0 = cdvr_now_ms();
     cdvr_codec_params march = {{0}};
     march.bytes[CDVR_BRICK_CACHE_PARAM_MARCH] = 1;
-    cdvr_skip_grid grid;
-    memset(&grid, 0, sizeof grid);
+    const cdvr_skip_grid *grid;
     cdvr_cl_set_fetch_path(s, CDVR_CL_FETCH_SAMPLE); /* the payload as it is, no dense copy */
     cdvr_status status = cdvr_cl_upload(s, payload, bytes, err);
     if (status == CDVR_OK)
         status = cdvr_cl_decode(s, cdvr_brick_cache_codec(), &march, 1, err);
     if (status == CDVR_OK)
-        status = cdvr_skip_grid_init(&grid, info->dims, CDVR_RANGE_SHIFT, err);
+        status = cdvr_brick_cache_skip_grid(bc, CDVR_RANGE_SHIFT, opts->tf, &grid, err);
     if (status == CDVR_OK)
-        status = cdvr_brick_cache_skip_minmax(bc, &grid, err);
-    if (status == CDVR_OK) {
-        cdvr_skip_flags(&grid, opts->tf);
-        status = cdvr_cl_setup_grid(s, 0, opts->tf, &grid, err);
-    }
+        status = cdvr_cl_setup_grid(s, 0, opts->tf, grid, err);
     *setup_ms = cdvr_now_ms() - t0;
     if (status == CDVR_OK) /* the grid stays until the render (a max or min render reads it) */
         status = cdvr_cl_render(s, 0, opts, info->spacing, info->origin, info->direction, img,
                                 err);
-    cdvr_skip_grid_free(&grid);
     return status;
 }
 

@@ -140,6 +140,13 @@ cdvr_status cdvr_brick_cache_dense(cdvr_brick_cache *c, const uint8_t **frame, c
  * the brick march above); marks g's minmax changed. */
 cdvr_status cdvr_brick_cache_skip_minmax(cdvr_brick_cache *c, cdvr_skip_grid *g, cdvr_error *err);
 
+/* The skip grid of the last frame, bricks of 2^shift (cdvr_brick_cache_skip_minmax's ranges)
+ * with its flags for tf, in memory the cache holds (valid until the next call or the cache's
+ * end); its ranges are made again only when the frame's bricks changed, its flags only when
+ * the set of TF entries with opacity did. */
+cdvr_status cdvr_brick_cache_skip_grid(cdvr_brick_cache *c, unsigned shift, const cdvr_tf *tf,
+                                       const cdvr_skip_grid **out, cdvr_error *err);
+
 /* The fetch above on a payload of n bytes (reads outside it are clamped inside). */
 uint8_t cdvr_brick_cache_fetch(const uint8_t *payload, size_t n, const size_t dims[3], size_t x,
                                size_t y, size_t z);

@@ -48,6 +48,12 @@ struct cdvr_brick_cache {
     size_t payload_cap, payload_bytes;
     uint8_t *dense;              /* cdvr_brick_cache_dense's frame, or NULL */
     cdvr_brick_cache_stats stats;
+    /* cdvr_brick_cache_skip_grid's grid and the frame it was made for: per level-0 brick the
+     * (t, level, brick) of its entry, and the count of apron patches then */
+    cdvr_skip_grid skip;
+    int grid_made;
+    size_t *grid_key;
+    uint64_t patches, grid_patches;
 };
 
 /* ---- the fetch (the definition; brick_cache.cl mirrors it) ------------------------------- */
@@ -247,6 +253,8 @@ void cdvr_brick_cache_free(cdvr_brick_cache *c)
     free(c->keys);
     free(c->payload);
     free(c->dense);
+    cdvr_skip_grid_free(&c->skip);
+    free(c->grid_key);
     free(c);
 }
 
@@ -543,6 +551,7 @@ static void patch_apron(cdvr_brick_cache *c, cache_entry *e)
         free(e->ranges);
         e->ranges = NULL;
         e->ranged = 0;
+        c->patches++;
     }
     e->apron_done = complete;
 }
@@ -865,5 +874,52 @@ cdvr_status cdvr_brick_cache_skip_minmax(cdvr_brick_cache *c, cdvr_skip_grid *g,
             }
     free(span);
     cdvr_skip_grid_touch(g);
+    return CDVR_OK;
+}
+
+/* 1 when the skip grid was made for the bricks of this frame (same entries, no apron patched
+ * since); records this frame's otherwise. */
+static int grid_current(cdvr_brick_cache *c)
+{
+    int same = c->grid_made && c->patches == c->grid_patches;
+    for (size_t b = 0; b < c->nbricks; b++) {
+        const cache_entry *e = &c->entries[c->entry_of[b]];
+        size_t key[3] = {e->t, e->level, e->brick};
+        same = same && memcmp(c->grid_key + 3 * b, key, sizeof key) == 0;
+        memcpy(c->grid_key + 3 * b, key, sizeof key);
+    }
+    c->grid_patches = c->patches;
+    return same;
+}
+
+cdvr_status cdvr_brick_cache_skip_grid(cdvr_brick_cache *c, unsigned shift, const cdvr_tf *tf,
+                                       const cdvr_skip_grid **out, cdvr_error *err)
+{
+    *out = NULL;
+    if (!c->payload_bytes || !tf)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "brick cache: no frame laid out, or no TF");
+    if (!c->grid_key) {
+        c->grid_key = malloc(3 * c->nbricks * sizeof *c->grid_key);
+        if (!c->grid_key)
+            return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory");
+    }
+    if (c->grid_made && c->skip.shift != shift) {
+        cdvr_skip_grid_free(&c->skip);
+        c->grid_made = 0;
+    }
+    if (!c->grid_made) {
+        cdvr_status s = cdvr_skip_grid_init(&c->skip, c->dims, shift, err);
+        if (s != CDVR_OK)
+            return s;
+    }
+    if (!grid_current(c)) {
+        c->grid_made = 0;
+        cdvr_status s = cdvr_brick_cache_skip_minmax(c, &c->skip, err);
+        if (s != CDVR_OK)
+            return s;
+        c->grid_made = 1;
+    }
+    cdvr_skip_flags(&c->skip, tf);
+    *out = &c->skip;
     return CDVR_OK;
 }
