@@ -253,6 +253,25 @@ static void march_matches_dense(cdvr_store *st)
         }
     free(volume);
     cdvr_cl_stream_free(dense);
+    /* the cache's own grid follows the frame's bricks: a level-0 frame, then a coarse one */
+    const cdvr_skip_grid *kept;
+    cdvr_skip_grid fresh;
+    cdvr_camera far2 = far_camera();
+    CHECK_OK(cdvr_skip_grid_init(&fresh, DIMS, CDVR_RANGE_SHIFT, &err), err);
+    for (int round = 0; round < 3; round++) {
+        double lod = round == 1 ? 4.0 : 0.0;
+        CHECK_OK(cdvr_brick_cache_frame(c, 1, round == 1 ? &far2 : &cams[0], &tf, lod, &payload,
+                                        &bytes, &err), err);
+        CHECK_OK(cdvr_brick_cache_skip_grid(c, CDVR_RANGE_SHIFT, &tf, &kept, &err), err);
+        CHECK_OK(cdvr_brick_cache_skip_minmax(c, &fresh, &err), err);
+        CHECK(memcmp(kept->minmax, fresh.minmax, 2 * fresh.nbricks) == 0 && kept->flags_valid,
+              "round %d: the kept grid holds this frame's ranges", round);
+        cdvr_brick_cache_stats rs;
+        cdvr_brick_cache_get_stats(c, &rs);
+        CHECK((round == 1) == (rs.bricks_at[0] == 0), "round %d: %zu bricks at level 0", round,
+              rs.bricks_at[0]);
+    }
+    cdvr_skip_grid_free(&fresh);
     /* coarse levels: the march against the page table of the same payload */
     cdvr_camera far = far_camera();
     far.width = 48;
