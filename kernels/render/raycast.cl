@@ -25,7 +25,19 @@
  * sample it computes, in sample units, where the ray leaves the cube of like bricks around
  * it; an invisible cube is jumped in one step (conservatively, so a skipped sample is always
  * inside it), a visible cube's samples need no further look-ups. Skipped samples are exactly
- * those whose value range has zero opacity under the TF. */
+ * those whose value range has zero opacity under the TF.
+ *
+ * Built after kernels/render/brick_cache.cl (which defines CDVR_BRICK_CACHE), the composite
+ * blend can march through the brick cache's payload brick by brick instead of fetching every
+ * voxel (byte 0 of the codec parameters; the definition is in cdvr/brick_cache.h, "the brick
+ * march"): each lane keeps the page-table entry of the brick its run lies in (cache_lanes),
+ * looks it up once when it enters the brick (cache_lookup), and samples the brick's voxels
+ * directly; level-0 bricks with the dense render's positions, corners, weights and mix order
+ * (the same bits), a level-l brick as one sample per 2^l level-0 segments at its own
+ * resolution, alpha corrected to 1 - (1 - alpha)^k. Runs end where the skip grid's visible
+ * cube or the brick ends, whichever comes first; gradients, the last segment and the other
+ * blend modes use the per-voxel fetch. The packets stay: lanes at different levels step by
+ * different group sizes within one packet. */
 
 #define RAY_PACKET 16 /* a packet is PACKET_W x PACKET_H pixels (lanes row by row) */
 #define PACKET_W CDVR_CL_PACKET_W

@@ -19,7 +19,8 @@
 -- frame (the lowest over the frames), the process's peak host memory so far (VmHWM; on a CPU
 -- device the device's memory is host memory too), the payload the device holds for the frame
 -- (the cache's page table and bricks: the device memory of the volume) against the dense
--- frame's bytes, and the load average at the row's end.
+-- frame's bytes, the load average at the row's end, and the samples (trilinear +
+-- classification) both took over the frames.
 -- hvq: the hvq store through the cache at budgets of a quarter of the dense volume and of the
 -- whole, alternated with the dense render of the hvq-decoded volume already in memory, and
 -- with the store's own path (cache off).
@@ -72,7 +73,7 @@ end
 local PIX = int("pixels")
 print("dataset,frames,budget_mb,lod_error,full_ms,cached_ms,ratio,resident_bytes,cache_bytes,"
       .. "bricks_per_level,psnr_vs_full,peak_host_mb,payload_bytes,dense_bytes,path,loadavg,"
-      .. "encode_s,first_frame_ms")
+      .. "encode_s,first_frame_ms,full_samples,cached_samples")
 
 local function render(st, o, extra)
   local a = {}
@@ -100,21 +101,22 @@ local function row(name, frames, budget, lod, info, full, cached, dense_bytes, e
     io.stdout:flush()
     return
   end
-  local fms, cms, psnr, stats = {}, {}, math.huge, nil
+  local fms, cms, psnr, stats, fsamples, csamples = {}, {}, math.huge, nil, 0, 0
   for r = 1, int("repeats") do
     for f = 1, frames do
-      local a, _, ams = full(f)
+      local a, fs, ams = full(f)
       local b, s, bms = cached(f)
       stats = s
+      if r == 1 then fsamples, csamples = fsamples + fs.samples, csamples + s.samples end
       fms[#fms + 1], cms[#cms + 1] = ams, bms
       if r == 1 then psnr = math.min(psnr, cdvr.compare(b, a).psnr) end
     end
   end
   local fm, cm = common.median(fms), common.median(cms)
-  print(("%s,%d,%g,%g,%.1f,%.1f,%.2f,%d,%d,%s,%.2f,%.0f,%d,%d,%s,%s,%.1f,%.1f"):format(name, frames,
-        budget, lod, fm, cm, cm / fm, stats.resident_bytes, stats.cache_bytes,
+  print(("%s,%d,%g,%g,%.1f,%.1f,%.2f,%d,%d,%s,%.2f,%.0f,%d,%d,%s,%s,%.1f,%.1f,%d,%d"):format(name,
+        frames, budget, lod, fm, cm, cm / fm, stats.resident_bytes, stats.cache_bytes,
         levels_of(info, stats), psnr, peak_mb(), stats.payload_bytes, dense_bytes,
-        stats.cache_path, loadavg(), encode_s, first))
+        stats.cache_path, loadavg(), encode_s, first, fsamples, csamples))
   io.stdout:flush()
 end
 
