@@ -164,7 +164,7 @@ static cdvr_image *render_march(cdvr_cl *cl, cdvr_brick_cache *c, const uint8_t 
     CHECK_OK(cdvr_cl_upload(s, payload, bytes, &err), err);
     CHECK_OK(cdvr_cl_decode(s, cdvr_brick_cache_codec(), &march, 1, &err), err);
     CHECK_OK(cdvr_skip_grid_init(&g, DIMS, CDVR_RANGE_SHIFT, &err), err);
-    CHECK_OK(cdvr_brick_cache_skip_minmax(c, &g, &err), err);
+    CHECK_OK(cdvr_brick_cache_skip_minmax(c, &g, tf, &err), err);
     cdvr_skip_flags(&g, tf);
     CHECK_OK(cdvr_cl_setup_grid(s, 0, tf, &g, &err), err);
     CHECK_OK(cdvr_image_create(cam->width, cam->height, &img, &err), err);
@@ -217,7 +217,7 @@ static void march_matches_dense(cdvr_store *st)
     CHECK_OK(cdvr_skip_grid_init(&exact, DIMS, CDVR_RANGE_SHIFT, &err), err);
     CHECK_OK(cdvr_skip_grid_init(&cached, DIMS, CDVR_RANGE_SHIFT, &err), err);
     CHECK_OK(cdvr_skip_minmax_from_frame(&exact, volume, &err), err);
-    CHECK_OK(cdvr_brick_cache_skip_minmax(c, &cached, &err), err);
+    CHECK_OK(cdvr_brick_cache_skip_minmax(c, &cached, &tf, &err), err);
     size_t loose = 0;
     for (size_t b = 0; b < exact.nbricks; b++) {
         CHECK(cached.minmax[2 * b] <= exact.minmax[2 * b] &&
@@ -263,7 +263,7 @@ static void march_matches_dense(cdvr_store *st)
         CHECK_OK(cdvr_brick_cache_frame(c, 1, round == 1 ? &far2 : &cams[0], &tf, lod, &payload,
                                         &bytes, &err), err);
         CHECK_OK(cdvr_brick_cache_skip_grid(c, CDVR_RANGE_SHIFT, &tf, &kept, &err), err);
-        CHECK_OK(cdvr_brick_cache_skip_minmax(c, &fresh, &err), err);
+        CHECK_OK(cdvr_brick_cache_skip_minmax(c, &fresh, &tf, &err), err);
         CHECK(memcmp(kept->minmax, fresh.minmax, 2 * fresh.nbricks) == 0 && kept->flags_valid,
               "round %d: the kept grid holds this frame's ranges", round);
         cdvr_brick_cache_stats rs;

@@ -135,15 +135,17 @@ void cdvr_brick_cache_get_stats(const cdvr_brick_cache *c, cdvr_brick_cache_stat
  * read (raycast_method.c, player.c). */
 cdvr_status cdvr_brick_cache_dense(cdvr_brick_cache *c, const uint8_t **frame, cdvr_error *err);
 
-/* The skip grid g (of the store's dims; cdvr_skip_grid_init) for the last frame's march:
- * per range brick the union of the value ranges of the cache bricks its samples read (see
- * the brick march above); marks g's minmax changed. */
-cdvr_status cdvr_brick_cache_skip_minmax(cdvr_brick_cache *c, cdvr_skip_grid *g, cdvr_error *err);
+/* The skip grid g (of the store's dims; cdvr_skip_grid_init) for the last frame's march and
+ * tf (or NULL): per range brick the union of the value ranges of the cache bricks its samples
+ * read, a coarse brick's only where the TF leaves a value of level 0's range there visible
+ * (the store's range tables; see the brick march above); marks g's minmax changed. */
+cdvr_status cdvr_brick_cache_skip_minmax(cdvr_brick_cache *c, cdvr_skip_grid *g,
+                                         const cdvr_tf *tf, cdvr_error *err);
 
 /* The skip grid of the last frame, bricks of 2^shift (cdvr_brick_cache_skip_minmax's ranges)
  * with its flags for tf, in memory the cache holds (valid until the next call or the cache's
- * end); its ranges are made again only when the frame's bricks changed, its flags only when
- * the set of TF entries with opacity did. */
+ * end); it is made again only when the frame's bricks or the set of TF entries with opacity
+ * changed. */
 cdvr_status cdvr_brick_cache_skip_grid(cdvr_brick_cache *c, unsigned shift, const cdvr_tf *tf,
                                        const cdvr_skip_grid **out, cdvr_error *err);
 

@@ -53,7 +53,13 @@ struct cdvr_brick_cache {
     cdvr_skip_grid skip;
     int grid_made;
     size_t *grid_key;
+    uint8_t grid_tf[256];        /* the TF entries with opacity the grid was made for */
     uint64_t patches, grid_patches;
+    /* level 0's ranges of timestep table_t from the store's range tables (bricks of
+     * 2^table.shift), for the bricks rendered coarser (level0_table) */
+    cdvr_skip_grid table;
+    size_t table_t;
+    int table_state;             /* 0 not read, 1 read, -1 the store has none */
 };
 
 /* ---- the fetch (the definition; brick_cache.cl mirrors it) ------------------------------- */
@@ -254,6 +260,7 @@ void cdvr_brick_cache_free(cdvr_brick_cache *c)
     free(c->payload);
     free(c->dense);
     cdvr_skip_grid_free(&c->skip);
+    cdvr_skip_grid_free(&c->table);
     free(c->grid_key);
     free(c);
 }
@@ -840,7 +847,81 @@ static void skip_axis(const size_t *owner, size_t n, unsigned shift, size_t coun
     }
 }
 
-cdvr_status cdvr_brick_cache_skip_minmax(cdvr_brick_cache *c, cdvr_skip_grid *g, cdvr_error *err)
+/* Level 0's range per range brick of timestep t, merged from the range tables the store
+ * recorded for every level-0 brick (cdvr/bricks.h: exactly the assembled volume's ranges), once
+ * per timestep; table_state -1 when some chunk has none (or tables of different bricks). */
+static cdvr_status level0_table(cdvr_brick_cache *c, size_t t, cdvr_error *err)
+{
+    if (c->table_state != 0 && (c->table_state < 0 || c->table_t == t))
+        return CDVR_OK;
+    const cdvr_store_info *in = cdvr_store_get_info(c->st);
+    unsigned shift = 0;
+    for (size_t b = 0; b < c->nbricks; b++) {
+        size_t chunk = cdvr_store_chunk_for(c->st, c->v, t, b);
+        const cdvr_chunk_info *ci = chunk != (size_t)-1 ? cdvr_store_chunk(c->st, c->v, chunk)
+                                                          : NULL;
+        if (!ci || !ci->ranges_shift || (shift && ci->ranges_shift != shift)) {
+            c->table_state = -1;
+            return CDVR_OK;
+        }
+        shift = ci->ranges_shift;
+    }
+    if (c->table.minmax && c->table.shift != shift)
+        cdvr_skip_grid_free(&c->table);
+    if (!c->table.minmax) {
+        cdvr_status s = cdvr_skip_grid_init(&c->table, c->dims, shift, err);
+        if (s != CDVR_OK)
+            return s;
+    }
+    memset(c->table.minmax, 0, 2 * c->table.nbricks);
+    for (size_t i = 0; i < c->table.nbricks; i++)
+        c->table.minmax[2 * i] = 255;
+    for (size_t b = 0; b < c->nbricks; b++) {
+        size_t chunk = cdvr_store_chunk_for(c->st, c->v, t, b);
+        const cdvr_chunk_info *ci = cdvr_store_chunk(c->st, c->v, chunk);
+        size_t bytes = cdvr_store_ranges_bytes(c->st, c->v, chunk), lo[3], bd[3], g0[3], n[3];
+        uint8_t *tab = bytes ? malloc(bytes) : NULL;
+        if (!tab)
+            return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory for a range "
+                                  "table of %zu bytes", bytes);
+        cdvr_status s = cdvr_store_read_ranges(c->st, c->v, chunk, tab, err);
+        if (s != CDVR_OK) {
+            free(tab);
+            return s;
+        }
+        cdvr_store_brick_owned(in, b, lo, bd);
+        cdvr_range_window(c->dims, lo, bd, shift, g0, n);
+        cdvr_range_merge(tab + (t - ci->t0) * 2 * n[0] * n[1] * n[2], g0, n, c->table.dims,
+                         c->table.minmax);
+        free(tab);
+    }
+    c->table_t = t;
+    c->table_state = 1;
+    return CDVR_OK;
+}
+
+/* Level 0's range over the table brick holding range brick (x, y, z) of g. */
+static void table_range_at(const cdvr_brick_cache *c, const cdvr_skip_grid *g, size_t x,
+                           size_t y, size_t z, uint8_t *lo, uint8_t *hi)
+{
+    unsigned f = c->table.shift - g->shift;
+    const size_t *d = c->table.dims;
+    size_t i = x >> f, j = y >> f, k = z >> f;
+    const uint8_t *mm = c->table.minmax + 2 * ((i < d[0] ? i : d[0] - 1) +
+                                              d[0] * ((j < d[1] ? j : d[1] - 1) +
+                                                      d[1] * (k < d[2] ? k : d[2] - 1)));
+    *lo = mm[0] < *lo ? mm[0] : *lo;
+    *hi = mm[1] > *hi ? mm[1] : *hi;
+}
+
+/* 1 when some value of [lo, hi] is visible (prefix: counts of visible TF entries). */
+static int range_visible(const int *prefix, uint8_t lo, uint8_t hi)
+{
+    return lo <= hi && prefix[hi + 1] - prefix[lo] > 0;
+}
+
+cdvr_status cdvr_brick_cache_skip_minmax(cdvr_brick_cache *c, cdvr_skip_grid *g,
+                                         const cdvr_tf *tf, cdvr_error *err)
 {
     if (!c->payload_bytes || memcmp(g->vol_dims, c->dims, sizeof c->dims) != 0)
         return cdvr_error_set(err, CDVR_ERR_ARG, "brick cache: no frame laid out, or a skip grid "
@@ -856,8 +937,20 @@ cdvr_status cdvr_brick_cache_skip_minmax(cdvr_brick_cache *c, cdvr_skip_grid *g,
         last[a] = span + total + at;
         skip_axis(c->owner[a], c->dims[a], g->shift, g->dims[a], first[a], last[a]);
     }
-    for (size_t b = 0; b < c->nbricks; b++)
+    int coarse = 0;
+    for (size_t b = 0; b < c->nbricks; b++) {
         entry_ranges(&c->entries[c->entry_of[b]], g->shift);
+        coarse |= c->entries[c->entry_of[b]].level > 0;
+    }
+    cdvr_status s = coarse ? level0_table(c, c->entries[c->entry_of[0]].t, err) : CDVR_OK;
+    if (s != CDVR_OK) {
+        free(span);
+        return s;
+    }
+    int tables = coarse && tf && c->table_state > 0 && c->table.shift >= g->shift;
+    int prefix[257] = {0};
+    for (int i = 0; tables && i < 256; i++)
+        prefix[i + 1] = prefix[i] + (tf->table[i][3] > 0.0f);
     uint8_t *mm = g->minmax;
     for (size_t z = 0; z < g->dims[2]; z++)
         for (size_t y = 0; y < g->dims[1]; y++)
@@ -867,7 +960,16 @@ cdvr_status cdvr_brick_cache_skip_minmax(cdvr_brick_cache *c, cdvr_skip_grid *g,
                     for (size_t j = first[1][y]; j <= last[1][y]; j++)
                         for (size_t i = first[0][x]; i <= last[0][x]; i++) {
                             size_t b = i + c->grid[0] * (j + c->grid[1] * k);
-                            entry_range_at(&c->entries[c->entry_of[b]], x, y, z, &lo, &hi);
+                            const cache_entry *e = &c->entries[c->entry_of[b]];
+                            uint8_t elo = 255, ehi = 0, tlo = 255, thi = 0;
+                            entry_range_at(e, x, y, z, &elo, &ehi);
+                            if (e->level > 0 && tables) { /* and level 0 visible there */
+                                table_range_at(c, g, x, y, z, &tlo, &thi);
+                                if (!range_visible(prefix, tlo, thi))
+                                    continue;
+                            }
+                            lo = elo < lo ? elo : lo;
+                            hi = ehi > hi ? ehi : hi;
                         }
                 mm[0] = lo;
                 mm[1] = hi;
@@ -912,9 +1014,14 @@ cdvr_status cdvr_brick_cache_skip_grid(cdvr_brick_cache *c, unsigned shift, cons
         if (s != CDVR_OK)
             return s;
     }
-    if (!grid_current(c)) {
+    uint8_t visible[256];
+    for (int i = 0; i < 256; i++)
+        visible[i] = tf->table[i][3] > 0.0f;
+    int same_tf = memcmp(visible, c->grid_tf, sizeof visible) == 0;
+    memcpy(c->grid_tf, visible, sizeof visible);
+    if (!grid_current(c) || !same_tf) {
         c->grid_made = 0;
-        cdvr_status s = cdvr_brick_cache_skip_minmax(c, &c->skip, err);
+        cdvr_status s = cdvr_brick_cache_skip_minmax(c, &c->skip, tf, err);
         if (s != CDVR_OK)
             return s;
         c->grid_made = 1;
