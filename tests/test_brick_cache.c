@@ -262,7 +262,7 @@ static void march_matches_dense(cdvr_store *st)
         double lod = round == 1 ? 4.0 : 0.0;
         CHECK_OK(cdvr_brick_cache_frame(c, 1, round == 1 ? &far2 : &cams[0], &tf, lod, &payload,
                                         &bytes, &err), err);
-        CHECK_OK(cdvr_brick_cache_skip_grid(c, CDVR_RANGE_SHIFT, &tf, &kept, &err), err);
+        CHECK_OK(cdvr_brick_cache_skip_grid(c, CDVR_RANGE_SHIFT, &tf, 1, &kept, &err), err);
         CHECK_OK(cdvr_brick_cache_skip_minmax(c, &fresh, &tf, &err), err);
         CHECK(memcmp(kept->minmax, fresh.minmax, 2 * fresh.nbricks) == 0 && kept->flags_valid,
               "round %d: the kept grid holds this frame's ranges", round);

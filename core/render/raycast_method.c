@@ -263,7 +263,8 @@ static cdvr_status render_march(cdvr_brick_cache *bc, cdvr_cl_stream *s, const u
     if (status == CDVR_OK)
         status = cdvr_cl_decode(s, cdvr_brick_cache_codec(), &march, 1, err);
     if (status == CDVR_OK)
-        status = cdvr_brick_cache_skip_grid(bc, CDVR_RANGE_SHIFT, opts->tf, &grid, err);
+        status = cdvr_brick_cache_skip_grid(bc, CDVR_RANGE_SHIFT, opts->tf,
+                                            opts->look.blend == CDVR_BLEND_COMPOSITE, &grid, err);
     if (status == CDVR_OK)
         status = cdvr_cl_setup_grid(s, 0, opts->tf, grid, err);
     *setup_ms = cdvr_now_ms() - t0;

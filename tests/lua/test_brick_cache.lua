@@ -97,6 +97,18 @@ assert(ps.bricks_level0 == bs.bricks_level0 and march_vs_page >= 30,
        "the march's coarse bricks against the page table's upsampled voxels: " .. march_vs_page)
 assert(bs.samples < ps.samples, ("coarse bricks take fewer samples: %d against %d"):format(
        bs.samples, ps.samples))
+-- skipping on and off agree at coarse levels up to where the groups start; max blend
+local lod_o = {variant = "raw", tf = tf, camera = near, device = "cl", cache = true, lod_error = 0,
+               budget_mb = budget, skip = false}
+local noskip = cdvr.render(st, lod_o)
+local skip_vs_noskip = cdvr.compare(img, noskip).psnr
+assert(skip_vs_noskip >= 40, "coarse march, skipping on against off: " .. skip_vs_noskip)
+lod_o.skip, lod_o.blend = nil, "max"
+local mip = cdvr.render(st, lod_o)
+lod_o.fetch = "sample"
+local mip_paged = cdvr.render(st, lod_o)
+local mip_psnr = cdvr.compare(mip, mip_paged).psnr
+assert(mip_psnr >= 30, "coarse max blend, march against page table: " .. mip_psnr)
 local ok_bulk, bulk_err = pcall(cdvr.render, st, {variant = "raw", tf = tf, camera = near,
                                 device = "cl", cache = true, lod_error = 0, budget_mb = budget,
                                 fetch = "bulk"})
@@ -149,5 +161,6 @@ st:close()
 os.execute(("rm -rf %q"):format(tmp))
 print(("test_brick_cache: ok (budget %.3f MB: %d/%d/%d bricks at levels 0/1/2, %.1f dB against "
        .. "the full render, march against page table %.1f dB, against cpu %.1f dB, samples "
-       .. "%d against %d)"):format(budget, bs.bricks_level0, bs.bricks_level1, bs.bricks_level2,
-       psnr, march_vs_page, cpu_vs_cl, bs.samples, ps.samples))
+       .. "%d against %d, skipping on against off %.1f dB, max blend against page table %.1f dB)"):format(
+       budget, bs.bricks_level0, bs.bricks_level1, bs.bricks_level2, psnr, march_vs_page,
+       cpu_vs_cl, bs.samples, ps.samples, skip_vs_noskip, mip_psnr))

@@ -63,15 +63,27 @@
  *     alpha' = 1 - (1 - alpha)^k (alpha the step-corrected table's, render.h; the same as
  *     correcting the per-unit alpha for k * step). So a level-l brick costs 2^-l of the samples
  *     of level 0.
- *     Empty space: the skip grid (cdvr/skip.h, bricks of 2^CDVR_CL_BRICK_SHIFT) gets per range
- *     brick the union of the value ranges of the cache bricks its samples read
- *     (cdvr_brick_cache_skip_minmax), so invisible cubes are jumped as in the dense render
- *     (exactly: every value a sample there reads lies in those ranges, and has zero opacity).
- *     Gradients (shading, gradient opacity), the last shorter segment and the other blend
- *     modes read voxels through the fetch above, one page-table look-up per voxel.
- *   With every brick at level 0 the march gives the dense render's image bit for bit; with
- *   coarser bricks it differs from the CPU reference (which upsamples by the fetch and samples
- *   at the level-0 step): the images agree to the PSNR test_brick_cache checks.
+ *     Empty space: the skip grid (cdvr/skip.h, range bricks of 2^CDVR_RANGE_SHIFT) gets per
+ *     range brick the union of the value ranges (over the voxels its samples read) of the
+ *     cache bricks its samples read (cdvr_brick_cache_skip_grid); a coarse brick's range only
+ *     where level 0 has a value the TF leaves visible in the range brick (the store's range
+ *     tables; every range brick counts when the store has none). A coarse sample counts only
+ *     in a visible range brick (one the TF leaves invisible adds nothing: the tent filter
+ *     spreads values into empty space, which the full render does not show), so invisible
+ *     cubes are jumped as in the dense render, exactly: at level 0 every value read there has
+ *     zero opacity, and coarse samples there count for nothing.
+ *     Single samples (the shorter last segment, the six of a gradient for shading and
+ *     gradient opacity, the max, min, average and iso blends) read through the brick of
+ *     their own cell, one page-table look-up each, as level-0 and coarse samples above, with
+ *     the level-0 step.
+ *     Overlap voxels: a lossy codec decodes a brick's overlap (its lower apron) on its own;
+ *     a level-0 brick's apron takes its owners' voxels once they are resident at level 0, so
+ *     level-0 samples read exactly the assembled frame.
+ *   With every brick at level 0 the march gives the dense render's image bit for bit, for
+ *   every blend, shading and skipping; with coarser bricks it differs from the CPU reference
+ *   (which renders the fetch above: upsampled voxels at the level-0 step), and skipping on and
+ *   off can differ where runs start (groups start there): test_brick_cache and
+ *   lua_test_brick_cache report the PSNR.
  *
  * The fetch reaches the renderers as a fetch-mode codec table (cdvr_brick_cache_codec: the
  * OpenCL ray caster's fetch hook; its C decoder is the fetch over every voxel, which is what
@@ -142,12 +154,14 @@ cdvr_status cdvr_brick_cache_dense(cdvr_brick_cache *c, const uint8_t **frame, c
 cdvr_status cdvr_brick_cache_skip_minmax(cdvr_brick_cache *c, cdvr_skip_grid *g,
                                          const cdvr_tf *tf, cdvr_error *err);
 
-/* The skip grid of the last frame, bricks of 2^shift (cdvr_brick_cache_skip_minmax's ranges)
- * with its flags for tf, in memory the cache holds (valid until the next call or the cache's
- * end); it is made again only when the frame's bricks or the set of TF entries with opacity
- * changed. */
+/* The skip grid of the last frame, bricks of 2^shift (cdvr_brick_cache_skip_minmax's ranges,
+ * coarse bricks' only where level 0 is visible when level0_visible: the composite march; the
+ * max and min blends need every range) with its flags for tf, in memory the cache holds (valid
+ * until the next call or the cache's end); it is made again only when the frame's bricks, the
+ * set of TF entries with opacity or level0_visible changed. */
 cdvr_status cdvr_brick_cache_skip_grid(cdvr_brick_cache *c, unsigned shift, const cdvr_tf *tf,
-                                       const cdvr_skip_grid **out, cdvr_error *err);
+                                       int level0_visible, const cdvr_skip_grid **out,
+                                       cdvr_error *err);
 
 /* The fetch above on a payload of n bytes (reads outside it are clamped inside). */
 uint8_t cdvr_brick_cache_fetch(const uint8_t *payload, size_t n, const size_t dims[3], size_t x,

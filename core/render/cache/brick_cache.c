@@ -54,6 +54,7 @@ struct cdvr_brick_cache {
     int grid_made;
     size_t *grid_key;
     uint8_t grid_tf[256];        /* the TF entries with opacity the grid was made for */
+    int grid_level0_visible;     /* and its level0_visible */
     uint64_t patches, grid_patches;
     /* level 0's ranges of timestep table_t from the store's range tables (bricks of
      * 2^table.shift), for the bricks rendered coarser (level0_table) */
@@ -995,7 +996,8 @@ static int grid_current(cdvr_brick_cache *c)
 }
 
 cdvr_status cdvr_brick_cache_skip_grid(cdvr_brick_cache *c, unsigned shift, const cdvr_tf *tf,
-                                       const cdvr_skip_grid **out, cdvr_error *err)
+                                       int level0_visible, const cdvr_skip_grid **out,
+                                       cdvr_error *err)
 {
     *out = NULL;
     if (!c->payload_bytes || !tf)
@@ -1017,11 +1019,15 @@ cdvr_status cdvr_brick_cache_skip_grid(cdvr_brick_cache *c, unsigned shift, cons
     uint8_t visible[256];
     for (int i = 0; i < 256; i++)
         visible[i] = tf->table[i][3] > 0.0f;
-    int same_tf = memcmp(visible, c->grid_tf, sizeof visible) == 0;
+    level0_visible = level0_visible != 0;
+    int same_tf = memcmp(visible, c->grid_tf, sizeof visible) == 0 &&
+                  level0_visible == c->grid_level0_visible;
     memcpy(c->grid_tf, visible, sizeof visible);
+    c->grid_level0_visible = level0_visible;
     if (!grid_current(c) || !same_tf) {
         c->grid_made = 0;
-        cdvr_status s = cdvr_brick_cache_skip_minmax(c, &c->skip, tf, err);
+        cdvr_status s = cdvr_brick_cache_skip_minmax(c, &c->skip, level0_visible ? tf : NULL,
+                                                     err);
         if (s != CDVR_OK)
             return s;
         c->grid_made = 1;
