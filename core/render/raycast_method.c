@@ -248,11 +248,11 @@ static cdvr_status render_cl(cdvr_render_ctx *ctx, const cdvr_volume *vol, size_
 /* The brick march (cdvr/brick_cache.h) of the cache's frame on s: the payload with the march
  * flag, the skip grid from the cache's brick ranges (cdvr_brick_cache_skip_grid: no pass of
  * the device over the voxels; made again only when the frame's bricks change), then the ray
- * cast. */
-static cdvr_status render_march(cdvr_brick_cache *bc, cdvr_cl_stream *s, const uint8_t *payload,
-                                size_t bytes, const cdvr_store_info *info,
-                                const cdvr_render_opts *opts, cdvr_image *img, double *setup_ms,
-                                cdvr_error *err)
+ * cast into img. */
+static cdvr_status march_into(cdvr_brick_cache *bc, cdvr_cl_stream *s, const uint8_t *payload,
+                              size_t bytes, const cdvr_store_info *info,
+                              const cdvr_render_opts *opts, cdvr_image *img, double *setup_ms,
+                              cdvr_error *err)
 {
     double t0 = cdvr_now_ms();
     cdvr_codec_params march = {{0}};
@@ -272,6 +272,42 @@ static cdvr_status render_march(cdvr_brick_cache *bc, cdvr_cl_stream *s, const u
         status = cdvr_cl_render(s, 0, opts, info->spacing, info->origin, info->direction, img,
                                 err);
     return status;
+}
+
+/* march_into a new image, with the device's figures. */
+static cdvr_status render_march(cdvr_render_ctx *ctx, cdvr_brick_cache *bc, cdvr_cl_stream *s,
+                                const uint8_t *payload, size_t bytes,
+                                const cdvr_store_info *info, const cdvr_render_opts *opts,
+                                double start, double *setup_ms, cdvr_render_stats *stats,
+                                cdvr_image **out, cdvr_error *err)
+{
+    cdvr_status status = cdvr_image_create(opts->camera->width, opts->camera->height, out, err);
+    if (status == CDVR_OK)
+        status = march_into(bc, s, payload, bytes, info, opts, *out, setup_ms, err);
+    if (status != CDVR_OK) {
+        cdvr_image_free(*out);
+        *out = NULL;
+        return status;
+    }
+    cl_stats(ctx, s, cdvr_now_ms() - start, stats);
+    return CDVR_OK;
+}
+
+/* The cache's frame as device frame 0 of s: the assembled dense frame (dense), else the
+ * payload read voxel by voxel through the page table. */
+static cdvr_status load_cached_frame(cdvr_brick_cache *bc, cdvr_cl_stream *s, int dense,
+                                     const uint8_t *payload, size_t bytes, cdvr_error *err)
+{
+    if (dense) {
+        const uint8_t *frame;
+        cdvr_status status = cdvr_brick_cache_dense(bc, &frame, err);
+        return status == CDVR_OK ? cdvr_cl_use_host_frames(s, frame, 1, err) : status;
+    }
+    cdvr_codec_params none = {{0}};
+    cdvr_cl_set_fetch_path(s, CDVR_CL_FETCH_SAMPLE); /* the page table, no dense copy */
+    cdvr_status status = cdvr_cl_upload(s, payload, bytes, err);
+    return status == CDVR_OK ? cdvr_cl_decode(s, cdvr_brick_cache_codec(), &none, 1, err)
+                             : status;
 }
 
 /* Timestep t of variant v through the context's brick cache (raycast_params.cache): the
@@ -307,36 +343,20 @@ static cdvr_status raycast_cached(cdvr_render_ctx *ctx, const cdvr_store *st, si
     cdvr_cl_set_skipping(s, rp->skip);
     int dense = rp->fetch == CDVR_CL_FETCH_BULK &&
                 (uint64_t)info->dims[0] * info->dims[1] * info->dims[2] <= budget;
-    const char *path = dense ? "dense" : rp->fetch == CDVR_CL_FETCH_SAMPLE ? "page_table"
-                                                                            : "march";
-    if (dense) {
-        const uint8_t *frame;
-        status = cdvr_brick_cache_dense(bc, &frame, err);
-        if (status == CDVR_OK)
-            status = cdvr_cl_use_host_frames(s, frame, 1, err);
-    } else if (rp->fetch == CDVR_CL_FETCH_SAMPLE) {
-        cdvr_codec_params none = {{0}};
-        cdvr_cl_set_fetch_path(s, CDVR_CL_FETCH_SAMPLE); /* the page table, no dense copy */
-        status = cdvr_cl_upload(s, payload, bytes, err);
-        if (status == CDVR_OK)
-            status = cdvr_cl_decode(s, cdvr_brick_cache_codec(), &none, 1, err);
+    int march = !dense && rp->fetch != CDVR_CL_FETCH_SAMPLE;
+    if (march) {
+        status = render_march(ctx, bc, s, payload, bytes, info, opts, start, &setup_ms, stats,
+                              out, err);
     } else {
-        status = cdvr_image_create(opts->camera->width, opts->camera->height, out, err);
+        status = load_cached_frame(bc, s, dense, payload, bytes, err);
         if (status == CDVR_OK)
-            status = render_march(bc, s, payload, bytes, info, opts, *out, &setup_ms, err);
-        if (status != CDVR_OK) {
-            cdvr_image_free(*out);
-            *out = NULL;
-            return status;
-        }
-        cl_stats(ctx, s, cdvr_now_ms() - start, stats);
+            status = render_device_frame(ctx, s, 0, opts, info->spacing, info->origin,
+                                         info->direction, start, stats, out, err);
     }
-    if (status == CDVR_OK && strcmp(path, "march") != 0)
-        status = render_device_frame(ctx, s, 0, opts, info->spacing, info->origin,
-                                     info->direction, start, stats, out, err);
     if (status == CDVR_OK) {
         cache_stats(bc, stats);
-        cdvr_render_stats_string(stats, "cache_path", path);
+        cdvr_render_stats_string(stats, "cache_path", march ? "march" : dense ? "dense"
+                                                                            : "page_table");
         cdvr_render_stats_number(stats, "cache_frame_ms", frame_ms);
         cdvr_render_stats_number(stats, "cache_setup_ms", setup_ms);
     }
