@@ -11,9 +11,12 @@
 #include <unistd.h>
 
 #include "cdvr/brick_cache.h"
+#include "cdvr/bricks.h"
 #include "cdvr/camera.h"
+#include "cdvr/compare.h"
 #include "cdvr/device.h"
 #include "cdvr/render.h"
+#include "cdvr/skip.h"
 #include "cdvr/store.h"
 #include "cdvr/tf.h"
 #include "cdvr/volume.h"
@@ -140,6 +143,167 @@ static cdvr_image *render(cdvr_cl_stream *s, const cdvr_tf *tf, const cdvr_camer
     return img;
 }
 
+/* The brick march of a cache payload on a new stream (skip grid from the cache). */
+static cdvr_image *render_march(cdvr_cl *cl, cdvr_brick_cache *c, const uint8_t *payload,
+                                size_t bytes, int skip, const cdvr_tf *tf,
+                                const cdvr_camera *cam, uint64_t *samples)
+{
+    static const double spacing[3] = {1, 1, 1}, origin[3] = {0, 0, 0}, direction[9] = {1, 0, 0,
+                                                                                      0, 1, 0,
+                                                                                      0, 0, 1};
+    cdvr_render_opts o = {.tf = tf, .camera = cam, .step = 0.4};
+    cdvr_error err;
+    cdvr_cl_stream *s;
+    cdvr_skip_grid g;
+    cdvr_image *img = NULL;
+    cdvr_codec_params march = {{0}};
+    march.bytes[CDVR_BRICK_CACHE_PARAM_MARCH] = 1;
+    CHECK_OK(cdvr_cl_stream_create(cl, DIMS, &s, &err), err);
+    cdvr_cl_set_fetch_path(s, CDVR_CL_FETCH_SAMPLE);
+    cdvr_cl_set_skipping(s, skip);
+    CHECK_OK(cdvr_cl_upload(s, payload, bytes, &err), err);
+    CHECK_OK(cdvr_cl_decode(s, cdvr_brick_cache_codec(), &march, 1, &err), err);
+    CHECK_OK(cdvr_skip_grid_init(&g, DIMS, CDVR_RANGE_SHIFT, &err), err);
+    CHECK_OK(cdvr_brick_cache_skip_minmax(c, &g, tf, &err), err);
+    cdvr_skip_flags(&g, tf);
+    CHECK_OK(cdvr_cl_setup_grid(s, 0, tf, &g, &err), err);
+    CHECK_OK(cdvr_image_create(cam->width, cam->height, &img, &err), err);
+    CHECK_OK(cdvr_cl_render(s, 0, &o, spacing, origin, direction, img, &err), err);
+    *samples = cdvr_cl_last_samples(s);
+    cdvr_skip_grid_free(&g);
+    cdvr_cl_stream_free(s);
+    return img;
+}
+
+static size_t values_differing(const cdvr_image *a, const cdvr_image *b)
+{
+    size_t differ = 0, values = (size_t)a->width * a->height * 4;
+    for (size_t i = 0; i < values; i++)
+        differ += a->rgba[i] != b->rgba[i];
+    return differ;
+}
+
+/* The march with every brick at level 0 renders exactly the dense frame (skipping on and off,
+ * two cameras); the cache's skip ranges hold the exact ranges of the level-0 frame; with
+ * coarse bricks it stays close to the per-voxel page table and takes fewer samples. */
+static void march_matches_dense(cdvr_store *st)
+{
+    cdvr_cl *cl;
+    cdvr_error err;
+    if (cdvr_cl_open(&cl, &err)) {
+        printf("skip march part: %s\n", err.msg);
+        return;
+    }
+    cdvr_tf tf;
+    cdvr_tf_point pts[] = {{0, 0, 0, 0, 0}, {80, 1, .5, .2, .2}, {255, 1, 1, 1, .8}};
+    cdvr_tf_init(&tf, pts, 3, 0, &err);
+    cdvr_brick_cache *c;
+    CHECK_OK(cdvr_brick_cache_create(st, 0, 1u << 24, &c, &err), err);
+    cdvr_camera cams[2] = {far_camera(), far_camera()};
+    cams[0].eye[0] = 60;
+    cams[1].eye[0] = -20;
+    cams[1].eye[1] = 45;
+    cams[1].eye[2] = -12;
+    for (int k = 0; k < 2; k++) {
+        cams[k].width = 48;
+        cams[k].height = 40;
+        cams[k].fov = 50;
+    }
+    const uint8_t *payload;
+    size_t bytes;
+    CHECK_OK(cdvr_brick_cache_frame(c, 1, &cams[0], &tf, 0.0, &payload, &bytes, &err), err);
+    uint8_t *volume = decode_payload(payload, bytes);
+    cdvr_skip_grid exact, cached;
+    CHECK_OK(cdvr_skip_grid_init(&exact, DIMS, CDVR_RANGE_SHIFT, &err), err);
+    CHECK_OK(cdvr_skip_grid_init(&cached, DIMS, CDVR_RANGE_SHIFT, &err), err);
+    CHECK_OK(cdvr_skip_minmax_from_frame(&exact, volume, &err), err);
+    CHECK_OK(cdvr_brick_cache_skip_minmax(c, &cached, &tf, &err), err);
+    size_t loose = 0;
+    for (size_t b = 0; b < exact.nbricks; b++) {
+        CHECK(cached.minmax[2 * b] <= exact.minmax[2 * b] &&
+              cached.minmax[2 * b + 1] >= exact.minmax[2 * b + 1],
+              "range brick %zu: the cache's range [%d, %d] holds the frame's [%d, %d]", b,
+              cached.minmax[2 * b], cached.minmax[2 * b + 1], exact.minmax[2 * b],
+              exact.minmax[2 * b + 1]);
+        loose += cached.minmax[2 * b] != exact.minmax[2 * b] ||
+                 cached.minmax[2 * b + 1] != exact.minmax[2 * b + 1];
+    }
+    CHECK(loose == 0, "at level 0 the cache's ranges are the frame's exactly (%zu differ)", loose);
+    cdvr_skip_grid_free(&exact);
+    cdvr_skip_grid_free(&cached);
+    cdvr_cl_stream *dense;
+    CHECK_OK(cdvr_cl_stream_create(cl, DIMS, &dense, &err), err);
+    CHECK_OK(cdvr_cl_upload_frames(dense, volume, 1, &err), err);
+    for (int k = 0; k < 2; k++)
+        for (int skip = 0; skip < 2; skip++) {
+            CHECK_OK(cdvr_brick_cache_frame(c, 1, &cams[k], &tf, 0.0, &payload, &bytes, &err),
+                     err);
+            uint64_t samples;
+            cdvr_cl_set_skipping(dense, skip);
+            cdvr_image *a = render_march(cl, c, payload, bytes, skip, &tf, &cams[k], &samples);
+            cdvr_image *b = render(dense, &tf, &cams[k]);
+            size_t differ = values_differing(a, b);
+            CHECK(differ == 0, "camera %d skip %d: the march differs from the dense render in "
+                  "%zu values", k, skip, differ);
+            CHECK(samples == cdvr_cl_last_samples(dense), "camera %d skip %d: samples %llu "
+                  "against %llu", k, skip, (unsigned long long)samples,
+                  (unsigned long long)cdvr_cl_last_samples(dense));
+            cdvr_image_free(a);
+            cdvr_image_free(b);
+        }
+    free(volume);
+    cdvr_cl_stream_free(dense);
+    /* the cache's own grid follows the frame's bricks: a level-0 frame, then a coarse one */
+    const cdvr_skip_grid *kept;
+    cdvr_skip_grid fresh;
+    cdvr_camera far2 = far_camera();
+    CHECK_OK(cdvr_skip_grid_init(&fresh, DIMS, CDVR_RANGE_SHIFT, &err), err);
+    for (int round = 0; round < 3; round++) {
+        double lod = round == 1 ? 4.0 : 0.0;
+        CHECK_OK(cdvr_brick_cache_frame(c, 1, round == 1 ? &far2 : &cams[0], &tf, lod, &payload,
+                                        &bytes, &err), err);
+        CHECK_OK(cdvr_brick_cache_skip_grid(c, CDVR_RANGE_SHIFT, &tf, 1, &kept, &err), err);
+        CHECK_OK(cdvr_brick_cache_skip_minmax(c, &fresh, &tf, &err), err);
+        CHECK(memcmp(kept->minmax, fresh.minmax, 2 * fresh.nbricks) == 0 && kept->flags_valid,
+              "round %d: the kept grid holds this frame's ranges", round);
+        cdvr_brick_cache_stats rs;
+        cdvr_brick_cache_get_stats(c, &rs);
+        CHECK((round == 1) == (rs.bricks_at[0] == 0), "round %d: %zu bricks at level 0", round,
+              rs.bricks_at[0]);
+    }
+    cdvr_skip_grid_free(&fresh);
+    /* coarse levels: the march against the page table of the same payload */
+    cdvr_camera far = far_camera();
+    far.width = 48;
+    far.height = 40;
+    far.fov = 50;
+    far.eye[0] = 60;
+    CHECK_OK(cdvr_brick_cache_frame(c, 1, &far, &tf, 2.0, &payload, &bytes, &err), err);
+    cdvr_brick_cache_stats cs;
+    cdvr_brick_cache_get_stats(c, &cs);
+    CHECK(cs.bricks_at[1] + cs.bricks_at[2] > 0, "coarse levels in play");
+    cdvr_cl_stream *paged;
+    cdvr_codec_params none = {{0}};
+    CHECK_OK(cdvr_cl_stream_create(cl, DIMS, &paged, &err), err);
+    cdvr_cl_set_fetch_path(paged, CDVR_CL_FETCH_SAMPLE);
+    CHECK_OK(cdvr_cl_upload(paged, payload, bytes, &err), err);
+    CHECK_OK(cdvr_cl_decode(paged, cdvr_brick_cache_codec(), &none, 1, &err), err);
+    uint64_t samples;
+    cdvr_image *a = render_march(cl, c, payload, bytes, 1, &tf, &far, &samples);
+    cdvr_image *b = render(paged, &tf, &far);
+    cdvr_compare_result cmp;
+    CHECK_OK(cdvr_compare_images(a, b, &cmp, &err), err);
+    printf("coarse march against the page table: %.1f dB, samples %llu against %llu\n", cmp.psnr,
+           (unsigned long long)samples, (unsigned long long)cdvr_cl_last_samples(paged));
+    CHECK(cmp.psnr >= 30, "coarse march against the page table: %.1f dB", cmp.psnr);
+    CHECK(samples < cdvr_cl_last_samples(paged), "coarse bricks take fewer samples");
+    cdvr_image_free(a);
+    cdvr_image_free(b);
+    cdvr_cl_stream_free(paged);
+    cdvr_brick_cache_free(c);
+    cdvr_cl_close(cl);
+}
+
 static void device_matches_c(cdvr_store *st)
 {
     cdvr_cl *cl;
@@ -217,6 +381,7 @@ int main(void)
         lru_budget(st);
 #if CDVR_HAVE_OPENCL
         device_matches_c(st);
+        march_matches_dense(st);
 #endif
         cdvr_store_close(st);
     }

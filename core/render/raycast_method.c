@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "cdvr/brick_cache.h"
+#include "cdvr/bricks.h"
 #include "cdvr/device.h"
 #include "cdvr/store.h"
 #include "cdvr/timing.h"
@@ -29,9 +30,10 @@ static const cdvr_method_option raycast_options[] = {
      "'auto' bulk on a CPU device and sample on a GPU (same images)"},
     {"cache", CDVR_MOPT_BOOLEAN, "false", NULL,
      "a store through the brick cache: decoded bricks in a pool of budget_mb, a level per "
-     "brick by lod_error (cdvr/brick_cache.h), read through a page table (on a CPU device a "
-     "dense frame assembled from them when it fits the budget, unless fetch='sample'); stats "
-     "add resident_bytes, bricks per level and cache_path"},
+     "brick by lod_error (cdvr/brick_cache.h); on cl the ray caster marches brick by brick "
+     "(coarse bricks at their own resolution), fetch='sample' reads every voxel through the "
+     "page table, fetch='bulk' renders a dense frame assembled from the bricks when it fits "
+     "the budget; stats add resident_bytes, payload_bytes, bricks per level and cache_path"},
     {"budget_mb", CDVR_MOPT_NUMBER, "0", NULL,
      "the brick cache's budget in MB (10^6 bytes) of voxels; 0: a quarter of the device's "
      "memory"},
@@ -118,6 +120,7 @@ static void cache_stats(const cdvr_brick_cache *bc, cdvr_render_stats *stats)
     cdvr_brick_cache_get_stats(bc, &cs);
     cdvr_render_stats_integer(stats, "resident_bytes", (long long)cs.resident_bytes);
     cdvr_render_stats_integer(stats, "cache_bytes", (long long)cs.cache_bytes);
+    cdvr_render_stats_integer(stats, "payload_bytes", (long long)cs.payload_bytes);
     cdvr_render_stats_integer(stats, "bricks_decoded", (long long)cs.decoded);
     cdvr_render_stats_number(stats, "cache_decode_ms", cs.decode_ms);
     for (size_t l = 0; l < cs.levels; l++) {
@@ -238,7 +241,74 @@ static cdvr_status render_cl(cdvr_render_ctx *ctx, const cdvr_volume *vol, size_
                                stats, out, err);
 }
 
-/* Timestep t of variant v through the context's brick cache (raycast_params.cache). */
+/* The brick march (cdvr/brick_cache.h) of the cache's frame on s: the payload with the march
+ * flag, the skip grid from the cache's brick ranges (cdvr_brick_cache_skip_grid: no pass of
+ * the device over the voxels; made again only when the frame's bricks change), then the ray
+ * cast into img. */
+static cdvr_status march_into(cdvr_brick_cache *bc, cdvr_cl_stream *s, const uint8_t *payload,
+                              size_t bytes, const cdvr_store_info *info,
+                              const cdvr_render_opts *opts, cdvr_image *img, double *setup_ms,
+                              cdvr_error *err)
+{
+    double t0 = cdvr_now_ms();
+    cdvr_codec_params march = {{0}};
+    march.bytes[CDVR_BRICK_CACHE_PARAM_MARCH] = 1;
+    const cdvr_skip_grid *grid;
+    cdvr_cl_set_fetch_path(s, CDVR_CL_FETCH_SAMPLE); /* the payload as it is, no dense copy */
+    cdvr_status status = cdvr_cl_upload(s, payload, bytes, err);
+    if (status == CDVR_OK)
+        status = cdvr_cl_decode(s, cdvr_brick_cache_codec(), &march, 1, err);
+    if (status == CDVR_OK)
+        status = cdvr_brick_cache_skip_grid(bc, CDVR_RANGE_SHIFT, opts->tf,
+                                            opts->look.blend == CDVR_BLEND_COMPOSITE, &grid, err);
+    if (status == CDVR_OK)
+        status = cdvr_cl_setup_grid(s, 0, opts->tf, grid, err);
+    *setup_ms = cdvr_now_ms() - t0;
+    if (status == CDVR_OK) /* the grid stays until the render (a max or min render reads it) */
+        status = cdvr_cl_render(s, 0, opts, info->spacing, info->origin, info->direction, img,
+                                err);
+    return status;
+}
+
+/* march_into a new image, with the device's figures. */
+static cdvr_status render_march(cdvr_render_ctx *ctx, cdvr_brick_cache *bc, cdvr_cl_stream *s,
+                                const uint8_t *payload, size_t bytes,
+                                const cdvr_store_info *info, const cdvr_render_opts *opts,
+                                double start, double *setup_ms, cdvr_render_stats *stats,
+                                cdvr_image **out, cdvr_error *err)
+{
+    cdvr_status status = cdvr_image_create(opts->camera->width, opts->camera->height, out, err);
+    if (status == CDVR_OK)
+        status = march_into(bc, s, payload, bytes, info, opts, *out, setup_ms, err);
+    if (status != CDVR_OK) {
+        cdvr_image_free(*out);
+        *out = NULL;
+        return status;
+    }
+    cl_stats(ctx, s, cdvr_now_ms() - start, stats);
+    return CDVR_OK;
+}
+
+/* The cache's frame as device frame 0 of s: the assembled dense frame (dense), else the
+ * payload read voxel by voxel through the page table. */
+static cdvr_status load_cached_frame(cdvr_brick_cache *bc, cdvr_cl_stream *s, int dense,
+                                     const uint8_t *payload, size_t bytes, cdvr_error *err)
+{
+    if (dense) {
+        const uint8_t *frame;
+        cdvr_status status = cdvr_brick_cache_dense(bc, &frame, err);
+        return status == CDVR_OK ? cdvr_cl_use_host_frames(s, frame, 1, err) : status;
+    }
+    cdvr_codec_params none = {{0}};
+    cdvr_cl_set_fetch_path(s, CDVR_CL_FETCH_SAMPLE); /* the page table, no dense copy */
+    cdvr_status status = cdvr_cl_upload(s, payload, bytes, err);
+    return status == CDVR_OK ? cdvr_cl_decode(s, cdvr_brick_cache_codec(), &none, 1, err)
+                             : status;
+}
+
+/* Timestep t of variant v through the context's brick cache (raycast_params.cache): the
+ * brick march, or with fetch="sample" the per-voxel fetch through the page table, or with
+ * fetch="bulk" a dense frame assembled from the cached bricks when it fits the budget. */
 static cdvr_status raycast_cached(cdvr_render_ctx *ctx, const cdvr_store *st, size_t v, size_t t,
                                   cdvr_render_opts *opts, const raycast_params *rp,
                                   cdvr_render_stats *stats, cdvr_image **out, cdvr_error *err)
@@ -255,39 +325,36 @@ static cdvr_status raycast_cached(cdvr_render_ctx *ctx, const cdvr_store *st, si
     const uint8_t *payload;
     size_t bytes;
     cdvr_cl_stream *s;
+    double frame_ms = cdvr_now_ms(), setup_ms = 0;
     status = cdvr_render_ctx_brick_cache(ctx, st, v, budget ? budget : 1, &bc, err);
     if (status == CDVR_OK)
         status = cdvr_brick_cache_frame(bc, t, opts->camera, opts->tf, rp->lod_error, &payload,
                                    &bytes, err);
+    frame_ms = cdvr_now_ms() - frame_ms;
     if (status == CDVR_OK)
         status = cdvr_render_ctx_stream(ctx, info->dims, &s, err);
     if (status != CDVR_OK)
         return status;
     cdvr_render_ctx_forget_frame(ctx);
     cdvr_cl_set_skipping(s, rp->skip);
-    /* A CPU device reads a dense frame 10-20x faster than through the page table: when the
-     * dense frame fits the budget (and fetch="sample" does not ask for the page table) the
-     * cache assembles it; the images are the same. */
-    int dense = !cdvr_cl_get_info(cl)->is_gpu && rp->fetch != CDVR_CL_FETCH_SAMPLE &&
+    int dense = rp->fetch == CDVR_CL_FETCH_BULK &&
                 (uint64_t)info->dims[0] * info->dims[1] * info->dims[2] <= budget;
-    if (dense) {
-        const uint8_t *frame;
-        status = cdvr_brick_cache_dense(bc, &frame, err);
-        if (status == CDVR_OK)
-            status = cdvr_cl_use_host_frames(s, frame, 1, err);
+    int march = !dense && rp->fetch != CDVR_CL_FETCH_SAMPLE;
+    if (march) {
+        status = render_march(ctx, bc, s, payload, bytes, info, opts, start, &setup_ms, stats,
+                              out, err);
     } else {
-        cdvr_codec_params none = {{0}};
-        cdvr_cl_set_fetch_path(s, CDVR_CL_FETCH_SAMPLE); /* the page table, no dense copy */
-        status = cdvr_cl_upload(s, payload, bytes, err);
+        status = load_cached_frame(bc, s, dense, payload, bytes, err);
         if (status == CDVR_OK)
-            status = cdvr_cl_decode(s, cdvr_brick_cache_codec(), &none, 1, err);
+            status = render_device_frame(ctx, s, 0, opts, info->spacing, info->origin,
+                                         info->direction, start, stats, out, err);
     }
-    if (status == CDVR_OK)
-        status = render_device_frame(ctx, s, 0, opts, info->spacing, info->origin,
-                                     info->direction, start, stats, out, err);
     if (status == CDVR_OK) {
         cache_stats(bc, stats);
-        cdvr_render_stats_string(stats, "cache_path", dense ? "dense" : "page_table");
+        cdvr_render_stats_string(stats, "cache_path", march ? "march" : dense ? "dense"
+                                                                            : "page_table");
+        cdvr_render_stats_number(stats, "cache_frame_ms", frame_ms);
+        cdvr_render_stats_number(stats, "cache_setup_ms", setup_ms);
     }
     return status;
 }

@@ -2,7 +2,13 @@
  * reads every voxel through the page table of the cache's payload. Bit-exact with
  * cdvr_brick_cache_fetch (core/render/cache/brick_cache.c), which it mirrors; every read is
  * clamped inside the payload's n bytes (bytes 48..55 of the params buffer, cdvr/codec.h).
- * Integer arithmetic only. */
+ * Integer arithmetic only. Defining CDVR_BRICK_CACHE makes raycast.cl (built after this
+ * file) compile the brick march, which reads the page table through bc_entry below. */
+
+#define CDVR_BRICK_CACHE 1
+#define BC_HEADER_WORDS 8 /* cdvr/brick_cache.h: CDVR_BRICK_CACHE_HEADER_WORDS */
+#define BC_ENTRY_WORDS 16 /* CDVR_BRICK_CACHE_ENTRY_WORDS */
+#define BC_MIN_BYTES (4 * (BC_HEADER_WORDS + BC_ENTRY_WORDS))
 
 #ifndef CDVR_CL_PARAMS_BYTES
 #define CDVR_CL_PARAMS_BYTES 48
@@ -28,13 +34,15 @@ uchar brick_cache_fetch(__global const uchar *p, __constant uchar *params, int4 
                         int y, int z)
 {
     ulong n = bc_payload_bytes(params);
-    if (n < 64)
+    if (n < BC_MIN_BYTES)
         return 0;
     __global const uint *w = (__global const uint *)p;
-    ulong nw = n >> 2, X = (ulong)dims.x, Y = (ulong)dims.y;
-    ulong bi = w[min(6 + (ulong)x, nw - 1)], bj = w[min(6 + X + (ulong)y, nw - 1)];
-    ulong bk = w[min(6 + X + Y + (ulong)z, nw - 1)];
-    ulong e = min((ulong)(w[5] >> 2) + 8 * (bi + (ulong)w[1] * (bj + (ulong)w[2] * bk)), nw - 8);
+    ulong nw = n >> 2, X = (ulong)dims.x, Y = (ulong)dims.y, o = BC_HEADER_WORDS;
+    ulong bi = w[min(o + (ulong)x, nw - 1)], bj = w[min(o + X + (ulong)y, nw - 1)];
+    ulong bk = w[min(o + X + Y + (ulong)z, nw - 1)];
+    ulong e = min((ulong)(w[5] >> 2) +
+                      BC_ENTRY_WORDS * (bi + (ulong)w[1] * (bj + (ulong)w[2] * bk)),
+                  nw - BC_ENTRY_WORDS);
     __global const uint *t = w + e;
     ulong base = (ulong)w[4] + t[0];
     uint lvl = min(t[1], 15u);
@@ -57,4 +65,19 @@ uchar brick_cache_fetch(__global const uchar *p, __constant uchar *params, int4 
             }
     uint shift = 3 * lvl;
     return (uchar)((sum + (1ul << (shift - 1))) >> shift);
+}
+
+/* The march's look-up: the page-table entry (its first word) of the level-0 brick that owns
+ * voxel (x, y, z), clamped inside the payload like the fetch; the caller reads its 16 words. */
+__global const uint *bc_entry(__global const uchar *p, __constant uchar *params, int4 dims,
+                              int x, int y, int z)
+{
+    ulong n = max(bc_payload_bytes(params), (ulong)BC_MIN_BYTES);
+    __global const uint *w = (__global const uint *)p;
+    ulong nw = n >> 2, X = (ulong)dims.x, Y = (ulong)dims.y, o = BC_HEADER_WORDS;
+    ulong bi = w[min(o + (ulong)x, nw - 1)], bj = w[min(o + X + (ulong)y, nw - 1)];
+    ulong bk = w[min(o + X + Y + (ulong)z, nw - 1)];
+    return w + min((ulong)(w[5] >> 2) +
+                       BC_ENTRY_WORDS * (bi + (ulong)w[1] * (bj + (ulong)w[2] * bk)),
+                   nw - BC_ENTRY_WORDS);
 }

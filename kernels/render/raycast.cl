@@ -25,7 +25,19 @@
  * sample it computes, in sample units, where the ray leaves the cube of like bricks around
  * it; an invisible cube is jumped in one step (conservatively, so a skipped sample is always
  * inside it), a visible cube's samples need no further look-ups. Skipped samples are exactly
- * those whose value range has zero opacity under the TF. */
+ * those whose value range has zero opacity under the TF.
+ *
+ * Built after kernels/render/brick_cache.cl (which defines CDVR_BRICK_CACHE), the composite
+ * blend can march through the brick cache's payload brick by brick instead of fetching every
+ * voxel (byte 0 of the codec parameters; the definition is in cdvr/brick_cache.h, "the brick
+ * march"): each lane keeps the page-table entry of the brick its run lies in (cache_lanes),
+ * looks it up once when it enters the brick (cache_lookup), and samples the brick's voxels
+ * directly; level-0 bricks with the dense render's positions, corners, weights and mix order
+ * (the same bits), a level-l brick as one sample per 2^l level-0 segments at its own
+ * resolution, alpha corrected to 1 - (1 - alpha)^k. Runs end where the skip grid's visible
+ * cube or the brick ends, whichever comes first; gradients, the last segment and the other
+ * blend modes use the per-voxel fetch. The packets stay: lanes at different levels step by
+ * different group sizes within one packet. */
 
 #define RAY_PACKET 16 /* a packet is PACKET_W x PACKET_H pixels (lanes row by row) */
 #define PACKET_W CDVR_CL_PACKET_W
@@ -65,6 +77,8 @@ typedef struct volume_geo {
     long3 stride;   /* index step to the upper corner per axis; 0 where dims is 1 */
     float3 top;     /* dims - 1 */
     float3 offset;  /* clipped rendering: whole-volume index of voxel (0,0,0), else 0 */
+    int march;      /* CDVR_BRICK_CACHE: vol is a cache payload read brick by brick */
+    uint limit;     /* then the largest byte index a voxel pair may start at */
 } volume_geo;
 
 /* Per-lane rays of the packet and their clipped segments. */
@@ -221,6 +235,167 @@ static vint quad_index(const volume_geo *v, vint x, vint y, vint z)
 }
 #endif
 
+#ifdef CDVR_BRICK_CACHE
+/* ---- sampling through the brick cache (cdvr/brick_cache.h, "the brick march") ------------- */
+
+/* Per lane, the cache brick of its run (written by look-ups lane by lane). */
+typedef struct cache_lanes {
+    uint base[RAY_PACKET];                   /* payload byte offset of the brick's voxels */
+    int lo[3][RAY_PACKET], d[3][RAY_PACKET]; /* its box at its level */
+    int group[RAY_PACKET];                   /* 2^level: level-0 samples per group */
+    float scale[RAY_PACKET];                 /* 2^-level */
+    int end[RAY_PACKET];                     /* first sample index past the run */
+    float cell_lo[3][RAY_PACKET], cell_hi[3][RAY_PACKET]; /* the level-0 brick's cells */
+} cache_lanes;
+
+/* Lanes not looked up yet: an empty run of a one-voxel brick at 0. */
+static void cache_lanes_init(cache_lanes *cl)
+{
+    for (int k = 0; k < RAY_PACKET; k++) {
+        cl->base[k] = 0;
+        for (int a = 0; a < 3; a++) {
+            cl->lo[a][k] = 0;
+            cl->d[a][k] = 1;
+            cl->cell_lo[a][k] = cl->cell_hi[a][k] = 0.0f;
+        }
+        cl->group[k] = 1;
+        cl->scale[k] = 1.0f;
+        cl->end[k] = 0;
+    }
+}
+
+/* Lanes `need` look up the brick of the sample at grid position g: the owner of its lower
+ * corner + 1 per axis (cdvr/brick_cache.h), whose box holds the cell's eight voxels. */
+static void cache_fill(cache_lanes *cl, vint need, const volume_geo *v, vec3x g)
+{
+    vfloat f;
+    vint x = corner(g.x - v->offset.x, v->top.x, v->base_max.x, &f) + (v->stride.x != 0);
+    vint y = corner(g.y - v->offset.y, v->top.y, v->base_max.y, &f) + (v->stride.y != 0);
+    vint z = corner(g.z - v->offset.z, v->top.z, v->base_max.z, &f) + (v->stride.z != 0);
+    int xs[RAY_PACKET], ys[RAY_PACKET], zs[RAY_PACKET], on[RAY_PACKET];
+    vstore16(x, 0, xs);
+    vstore16(y, 0, ys);
+    vstore16(z, 0, zs);
+    vstore16(need, 0, on);
+    int4 dims = (int4)(v->dims.x, v->dims.y, v->dims.z, 0);
+    uint pool = ((__global const uint *)v->vol)[4];
+    for (int k = 0; k < RAY_PACKET; k++) {
+        if (!on[k])
+            continue;
+        __global const uint *e = bc_entry(v->vol, v->params, dims, xs[k], ys[k], zs[k]);
+        uint lvl = min(e[1], 15u);
+        cl->base[k] = pool + e[0];
+        for (int a = 0; a < 3; a++) {
+            cl->lo[a][k] = (int)e[2 + a];
+            cl->d[a][k] = (int)max(e[5 + a], 1u);
+            cl->cell_lo[a][k] = (float)e[8 + a];
+            cl->cell_hi[a][k] = (float)e[11 + a];
+        }
+        cl->group[k] = 1 << lvl;
+        cl->scale[k] = ldexp(1.0f, -(int)lvl);
+    }
+}
+
+/* The same as vectors, for the samples. */
+typedef struct cache_run {
+    vuint base;
+    vint lo_x, lo_y, lo_z, d_x, d_y, d_z, group, end;
+    vfloat scale;
+    uint limit; /* largest byte index a voxel pair may start at */
+} cache_run;
+
+static cache_run load_run(const cache_lanes *cl, uint limit)
+{
+    cache_run r;
+    r.base = vload16(0, cl->base);
+    r.lo_x = vload16(0, cl->lo[0]);
+    r.lo_y = vload16(0, cl->lo[1]);
+    r.lo_z = vload16(0, cl->lo[2]);
+    r.d_x = vload16(0, cl->d[0]);
+    r.d_y = vload16(0, cl->d[1]);
+    r.d_z = vload16(0, cl->d[2]);
+    r.group = vload16(0, cl->group);
+    r.end = vload16(0, cl->end);
+    r.scale = vload16(0, cl->scale);
+    r.limit = limit;
+    return r;
+}
+
+/* Voxels x0 and x0 + ox (ox 0 or 1) of each lane at p[idx], lerped by fx: the dense
+ * render's pair lerp. */
+#define CPAIR_AT(k) pair_at(p + idx.s##k)
+#define CBYTE_AT(k) p[idx.s##k]
+#define CBYTE1_AT(k) p[idx.s##k + 1]
+__attribute__((always_inline)) static inline vfloat cache_lerp(__global const uchar *p, vuint idx,
+                                                               vint ox, vfloat fx)
+{
+#ifdef __ENDIAN_LITTLE__
+    ushort16 w = (ushort16)(L16(CPAIR_AT));
+    vfloat a = convert_vfloat(w & (ushort)0xff), b = convert_vfloat(w >> (ushort)8);
+#else
+    vfloat a = convert_vfloat((uchar16)(L16(CBYTE_AT)));
+    vfloat b = convert_vfloat((uchar16)(L16(CBYTE1_AT)));
+#endif
+    return mix(a, select(b, a, ox == 0), fx);
+}
+
+/* Lower corner of one axis: level 0 (`level0` lanes) as corner() does; coarser levels at
+ * floor(g) (the box clamps it). */
+__attribute__((always_inline)) static inline vint cache_corner(vfloat g, vint level0, float top,
+                                                             int base_max, vfloat *frac)
+{
+    vfloat gc = select(fmax(g, 0.0f), clamp(g, 0.0f, top), level0);
+    vint i0 = convert_vint(gc);
+    i0 = select(i0, min(i0, base_max), level0);
+    *frac = gc - convert_vfloat(i0);
+    return i0;
+}
+
+/* The sample at whole-volume grid position g from each lane's brick (cdvr/brick_cache.h);
+ * *inside: lanes whose cell lies in the brick's box (always, unless rounding put a level-0
+ * sample past the run's brick). */
+__attribute__((always_inline)) static inline vfloat cache_trilinear(const volume_geo *v,
+                                                                    const cache_run *r, vec3x g,
+                                                                    vint *inside)
+{
+    vint level0 = r->group == 1;
+    vfloat fx, fy, fz;
+    vint cx = cache_corner((g.x - v->offset.x) * r->scale, level0, v->top.x, v->base_max.x, &fx) -
+              r->lo_x;
+    vint cy = cache_corner((g.y - v->offset.y) * r->scale, level0, v->top.y, v->base_max.y, &fy) -
+              r->lo_y;
+    vint cz = cache_corner((g.z - v->offset.z) * r->scale, level0, v->top.z, v->base_max.z, &fz) -
+              r->lo_z;
+    int ux = v->stride.x != 0, uy = v->stride.y != 0, uz = v->stride.z != 0;
+    *inside = cx >= 0 & cx + ux < r->d_x & cy >= 0 & cy + uy < r->d_y & cz >= 0 &
+              cz + uz < r->d_z;
+    vint x0 = clamp(cx, 0, r->d_x - 1), x1 = clamp(cx + ux, 0, r->d_x - 1);
+    vint y0 = clamp(cy, 0, r->d_y - 1), y1 = clamp(cy + uy, 0, r->d_y - 1);
+    vint z0 = clamp(cz, 0, r->d_z - 1), z1 = clamp(cz + uz, 0, r->d_z - 1);
+    vint ox = x1 - x0, oy = (y1 - y0) * r->d_x, oz = (z1 - z0) * r->d_x * r->d_y;
+    vuint idx = r->base + as_uint16(x0 + r->d_x * (y0 + r->d_y * z0));
+    vuint lim = (vuint)(r->limit);
+    __global const uchar *p = v->vol;
+    vfloat c00 = cache_lerp(p, min(idx, lim), ox, fx);
+    vfloat c10 = cache_lerp(p, min(idx + as_uint16(oy), lim), ox, fx);
+    vfloat c01 = cache_lerp(p, min(idx + as_uint16(oz), lim), ox, fx);
+    vfloat c11 = cache_lerp(p, min(idx + as_uint16(oz + oy), lim), ox, fx);
+    return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
+}
+
+/* The sample at grid position g through the brick of its cell, one look-up per lane (the
+ * march's reading of a single sample: the last segment, gradients, the other blend modes). */
+__attribute__((noinline)) static vfloat cache_value_at(const volume_geo *v, vec3x g)
+{
+    cache_lanes cl;
+    cache_lanes_init(&cl);
+    cache_fill(&cl, (vint)(-1), v, g);
+    cache_run r = load_run(&cl, v->limit);
+    vint inside;
+    return cache_trilinear(v, &r, g, &inside);
+}
+#endif
+
 /* render.h step 3 at grid position g (clamped here). */
 /* always inlined: as a call (two callers) its vector arguments and result go through memory */
 /* g is a whole-volume grid position; the frame's voxels start at v->offset (an integer:
@@ -232,6 +407,10 @@ __attribute__((always_inline)) static inline vfloat trilinear(const volume_geo *
     vint y0 = corner(g.y - v->offset.y, v->top.y, v->base_max.y, &fy);
     vint z0 = corner(g.z - v->offset.z, v->top.z, v->base_max.z, &fz);
 #ifdef CDVR_FETCH
+#ifdef CDVR_BRICK_CACHE
+    if (v->march)
+        return cache_value_at(v, g);
+#endif
     vint x1 = x0 + (v->stride.x != 0), y1 = y0 + (v->stride.y != 0), z1 = z0 + (v->stride.z != 0);
     return mix(mix(mix(fetch16(v, x0, y0, z0), fetch16(v, x1, y0, z0), fx),
                    mix(fetch16(v, x0, y1, z0), fetch16(v, x1, y1, z0), fx), fy),
@@ -547,6 +726,142 @@ static void march_full(march *m, int skipping, const bricks *b, const volume_geo
     }
 }
 
+#ifdef CDVR_BRICK_CACHE
+/* Lanes `need` look up the brick of their sample i and set their run: up to the first sample
+ * past the brick's cells. */
+static void cache_lookup(cache_lanes *cl, vint need, vint i, vint n_full, const volume_geo *v,
+                         vec3x g0, vec3x dg, const bricks *b)
+{
+    cache_fill(cl, need, v, at(g0, dg, i));
+    vfloat fx = select(vload16(0, cl->cell_lo[0]), vload16(0, cl->cell_hi[0]), b->fwd_x);
+    vfloat fy = select(vload16(0, cl->cell_lo[1]), vload16(0, cl->cell_hi[1]), b->fwd_y);
+    vfloat fz = select(vload16(0, cl->cell_lo[2]), vload16(0, cl->cell_hi[2]), b->fwd_z);
+    vfloat tx = (fx - g0.x) * b->inv_dg.x;
+    vfloat ty = (fy - g0.y) * b->inv_dg.y;
+    vfloat tz = (fz - g0.z) * b->inv_dg.z;
+    vfloat t_exit = clamp(fmin(tx, fmin(ty, tz)), 0.0f, convert_vfloat(n_full));
+    vint end = min(max(convert_vint(ceil(t_exit)), i + 1), n_full);
+    vstore16(select(vload16(0, cl->end), end, need), 0, cl->end);
+}
+
+/* x^n per lane (n >= 0) by binary exponentiation: the transparency of n segments of
+ * transparency x (pow is a libm call per lane on a CPU device). */
+static vfloat power_of(vfloat x, vint n)
+{
+    vfloat p = (vfloat)(1.0f);
+    for (int bit = 0; any((n >> bit) != 0); bit++) {
+        p = select(p, p * x, ((n >> bit) & 1) != 0);
+        x = x * x;
+    }
+    return p;
+}
+
+/* sample_steps through the cache: up to UNROLL groups per lane (one sample each, 2^level
+ * level-0 segments each, fewer at the run's end), then composited in order; alpha corrected
+ * for the group's segments. `fresh`: lanes whose run was just looked up (never cut). */
+/* Lanes whose grid position g lies in a visible range brick (the skip grid's flags). */
+static vint range_visible(const bricks *b, const volume_geo *v, vec3x g)
+{
+    vint bx = min(convert_vint(clamp(g.x, 0.0f, v->top.x)) >> b->shift, b->nbx - 1);
+    vint by = min(convert_vint(clamp(g.y, 0.0f, v->top.y)) >> b->shift, b->nby - 1);
+    vint bz = min(convert_vint(clamp(g.z, 0.0f, v->top.z)) >> b->shift, b->nbz - 1);
+    vint idx = bx + b->nbx * (by + b->nby * bz);
+    __global const uchar *d = b->dist;
+    return convert_vint((uchar16)(L16(CODE_AT))) >= 128;
+}
+
+static void cache_sample_steps(march *m, vint run, vint fresh, cache_lanes *cl, uint limit,
+                               const bricks *b, const volume_geo *v, const clip_params *clip,
+                               vec3x g0, vec3x dg,
+                               __global const float4 *table, float term_alpha,
+                               const look_params *lk, __global const float *alpha, float step,
+                               float unit, vec3x V, rgbax *acc)
+{
+    cache_run r = load_run(cl, limit);
+    vint stop_at = min(m->end, r.end);
+    vfloat s[UNROLL], fi[UNROLL];
+    vint own[UNROLL], len[UNROLL], in[UNROLL];
+    vint ik = m->i;
+    for (int k = 0; k < UNROLL; k++) { /* independent loads, before any compositing */
+        len[k] = clamp(stop_at - ik, 0, r.group);
+        fi[k] = convert_vfloat(ik) + 0.5f * convert_vfloat(max(len[k] - 1, 0));
+        vec3x g = {g0.x + fi[k] * dg.x, g0.y + fi[k] * dg.y, g0.z + fi[k] * dg.z};
+        own[k] = owned(clip, g);
+        s[k] = cache_trilinear(v, &r, g, &in[k]);
+        ik += len[k];
+        /* a coarse sample counts only where level 0 has opacity (its range brick visible) */
+        if (!all(r.group == 1))
+            own[k] &= (r.group == 1) | range_visible(b, v, g);
+    }
+    vint stop = (vint)(0), live = run, cut = (vint)(0), level0 = r.group == 1;
+    for (int k = 0; k < UNROLL; k++) {
+        live &= len[k] > 0;
+        vint out = live & ~in[k] & level0;
+        if (k == 0)
+            out &= ~fresh;
+        cut |= out;
+        live &= ~out;
+        vint keep = live & own[k];
+        vint i0;
+        vfloat fr;
+        rgbax c = classify(s[k], table, &i0, &fr);
+        c.a = select((vfloat)(0.0f), c.a, keep);
+        vint multi = keep & (len[k] > 1) & (c.a > 0.0f);
+        if (any(multi))
+            c.a = select(c.a, 1.0f - power_of(1.0f - c.a, select((vint)(0), len[k], multi)),
+                         multi);
+        if (lk->shade | lk->go_points) {
+            vint on = keep & (c.a > 0.0f);
+            vec3x g = {g0.x + fi[k] * dg.x, g0.y + fi[k] * dg.y, g0.z + fi[k] * dg.z};
+            if (any(on))
+                look_sample(v, lk, g, i0, fr, convert_vfloat(max(len[k], 1)) * step, unit,
+                            alpha, V, on, &c);
+            c.a = select((vfloat)(0.0f), c.a, on);
+        }
+        composite(acc, c);
+        m->i += select((vint)(0), len[k], live);
+        m->taken -= keep;
+        stop |= keep & (acc->a >= term_alpha | acc->a >= 1.0f);
+        live &= ~stop;
+    }
+    if (any(cut)) /* look the lane up again at the sample it stopped at */
+        vstore16(select(r.end, m->i, cut), 0, cl->end);
+    if (any(stop)) {
+        m->done |= stop;
+        m->active &= ~stop;
+    }
+    m->active &= m->i < m->n_full;
+}
+
+/* march_full through the cache: the skip grid's runs, cut at the cache bricks' exits. */
+static void march_cached(march *m, int skipping, const bricks *b, const volume_geo *v,
+                         const clip_params *clip, vec3x g0, vec3x dg,
+                         __global const float4 *table, float term_alpha, const look_params *lk,
+                         __global const float *alpha, float step, float unit, vec3x V,
+                         rgbax *acc)
+{
+    cache_lanes cl;
+    cache_lanes_init(&cl);
+    uint limit = v->limit;
+    while (any(m->active)) {
+        if (skipping) {
+            vint need = m->active & (m->i >= m->end);
+            if (any(need)) {
+                brick_step(m, need, b, v, g0, dg);
+                m->active &= m->i < m->n_full;
+            }
+        }
+        vint run = m->active & (m->i < m->end);
+        vint fresh = run & (m->i >= vload16(0, cl.end));
+        if (any(fresh))
+            cache_lookup(&cl, fresh, m->i, m->n_full, v, g0, dg, b);
+        if (any(run))
+            cache_sample_steps(m, run, fresh, &cl, limit, b, v, clip, g0, dg, table, term_alpha,
+                               lk, alpha, step, unit, V, acc);
+    }
+}
+#endif
+
 /* The last segment, shorter than step unless L is a multiple of it, on lanes `last`. */
 static void last_segment(const packet *p, vint n, vint last, float step, float unit,
                          const volume_geo *v, const clip_params *clip, float3 inv_spacing,
@@ -805,6 +1120,8 @@ static volume_geo make_geo(__global const uchar *vol, __constant uchar *params, 
     v.top = convert_float3(v.dims - 1);
     v.offset = clip->enabled ? (float3)(clip->offset[0], clip->offset[1], clip->offset[2])
                              : (float3)(0.0f);
+    v.march = 0;
+    v.limit = 0;
     return v;
 }
 
@@ -926,6 +1243,11 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
                 select((vfloat)(0.0f), p.d.z * step * inv_spacing.z, p.hit)};
 #ifdef CDVR_FETCH
     volume_geo v = make_geo(frames, params, (int)offset, 0, X, Y, Z, &clip);
+#ifdef CDVR_BRICK_CACHE
+    /* the brick march (byte 0 of the cache codec's parameters), else the per-voxel fetch */
+    v.march = params[0] && !clip.enabled && bc_payload_bytes(params) >= BC_MIN_BYTES;
+    v.limit = (uint)min(bc_payload_bytes(params) - 2, (ulong)UINT_MAX);
+#endif
 #else
     volume_geo v = make_geo(frames + offset, params, 0, quads, X, Y, Z, &clip);
 #endif
@@ -979,8 +1301,14 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     m.done = (vint)(0);
     m.taken = (vint)(0);
     rgbax acc = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
-    march_full(&m, skipping, &b, &v, &clip, g0, dg, table, term_alpha, &look, alpha, step, unit,
-               V, &acc);
+#ifdef CDVR_BRICK_CACHE
+    if (v.march)
+        march_cached(&m, skipping, &b, &v, &clip, g0, dg, table, term_alpha, &look, alpha, step,
+                     unit, V, &acc);
+    else
+#endif
+        march_full(&m, skipping, &b, &v, &clip, g0, dg, table, term_alpha, &look, alpha, step,
+                   unit, V, &acc);
     last_segment(&p, n, last & ~m.done, step, unit, &v, &clip, inv_spacing, table, alpha, &look,
                  V, &acc, &m.taken);
     store_pixels(image, px, py, cam.width, cam.height, acc);

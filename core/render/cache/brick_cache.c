@@ -23,6 +23,11 @@ typedef struct cache_entry {
     uint64_t last_used;          /* frame stamp */
     size_t pool_offset;          /* in the payload of the frame that last used it */
     int pinned;                  /* async: the coarsest level of the frame's timestep */
+    int ranged;                  /* vmin, vmax hold the range of the voxels */
+    uint8_t vmin, vmax;
+    int apron_done;              /* level 0: its lower apron holds its owners' voxels */
+    uint8_t *ranges;             /* per range brick over the box (entry_ranges): min, max */
+    size_t range_lo[3], range_n[3]; /* those range bricks (level-0 grid), per axis */
 } cache_entry;
 
 typedef struct brick_job {       /* async: a brick for the worker, then its decoded voxels */
@@ -75,6 +80,19 @@ struct cdvr_brick_cache {
                                     timestep's (at most 3 nbricks) */
     size_t nrequests;
     size_t next_t;               /* async: cdvr_brick_cache_set_next's timestep, or -1 */
+    /* cdvr_brick_cache_skip_grid's grid and the frame it was made for: per level-0 brick the
+     * (t, level, brick) of its entry, and the count of apron patches then */
+    cdvr_skip_grid skip;
+    int grid_made;
+    size_t *grid_key;
+    uint8_t grid_tf[256];        /* the TF entries with opacity the grid was made for */
+    int grid_level0_visible;     /* and its level0_visible */
+    uint64_t patches, grid_patches;
+    /* level 0's ranges of timestep table_t from the store's range tables (bricks of
+     * 2^table.shift), for the bricks rendered coarser (level0_table) */
+    cdvr_skip_grid table;
+    size_t table_t;
+    int table_state;             /* 0 not read, 1 read, -1 the store has none */
 };
 
 /* ---- the fetch (the definition; brick_cache.cl mirrors it) ------------------------------- */
@@ -100,14 +118,15 @@ static size_t min_sz(size_t a, size_t b)
 uint8_t cdvr_brick_cache_fetch(const uint8_t *p, size_t n, const size_t dims[3], size_t x,
                                size_t y, size_t z)
 {
-    if (n < 64)
+    if (n < CDVR_BRICK_CACHE_MIN_BYTES)
         return 0;
-    size_t nw = n / 4, X = dims[0], Y = dims[1];
-    size_t bi = word_at(p, nw, 6 + x), bj = word_at(p, nw, 6 + X + y);
-    size_t bk = word_at(p, nw, 6 + X + Y + z);
+    size_t nw = n / 4, X = dims[0], Y = dims[1], o = CDVR_BRICK_CACHE_HEADER_WORDS;
+    size_t bi = word_at(p, nw, o + x), bj = word_at(p, nw, o + X + y);
+    size_t bk = word_at(p, nw, o + X + Y + z);
     size_t e = min_sz(word_at(p, nw, 5) / 4 +
-                          8 * (bi + (size_t)word_at(p, nw, 1) * (bj + (size_t)word_at(p, nw, 2) * bk)),
-                      nw - 8);
+                          CDVR_BRICK_CACHE_ENTRY_WORDS *
+                              (bi + (size_t)word_at(p, nw, 1) * (bj + (size_t)word_at(p, nw, 2) * bk)),
+                      nw - CDVR_BRICK_CACHE_ENTRY_WORDS);
     size_t base = (size_t)word_at(p, nw, 4) + word_at(p, nw, e);
     uint32_t lvl = word_at(p, nw, e + 1);
     lvl = lvl < 15 ? lvl : 15;
@@ -198,7 +217,8 @@ static cdvr_status bc_decode(const cdvr_codec_params *p, const size_t dims[3], c
                              cdvr_error *err)
 {
     (void)p;
-    if (count != 1 || in_bytes < 64 || word_at(in, in_bytes / 4, 0) != CDVR_BRICK_CACHE_MAGIC)
+    if (count != 1 || in_bytes < CDVR_BRICK_CACHE_MIN_BYTES ||
+        word_at(in, in_bytes / 4, 0) != CDVR_BRICK_CACHE_MAGIC)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "brick cache: not a cache payload");
     uint8_t *out = frames[0];
     for (size_t z = 0; z < dims[2]; z++)
@@ -264,8 +284,10 @@ void cdvr_brick_cache_free(cdvr_brick_cache *c)
     for (size_t l = 0; l < CDVR_STORE_MAX_LEVELS; l++)
         for (int a = 0; a < 3; a++)
             free(c->level_owner[l][a]);
-    for (size_t i = 0; i < c->nentries; i++)
+    for (size_t i = 0; i < c->nentries; i++) {
         free(c->entries[i].voxels);
+        free(c->entries[i].ranges);
+    }
     free(c->entries);
     free(c->dist);
     free(c->choice);
@@ -275,6 +297,9 @@ void cdvr_brick_cache_free(cdvr_brick_cache *c)
     free(c->payload);
     free(c->dense);
     free(c->dense_key);
+    cdvr_skip_grid_free(&c->skip);
+    cdvr_skip_grid_free(&c->table);
+    free(c->grid_key);
     free(c);
 }
 
@@ -467,6 +492,7 @@ static void make_room(cdvr_brick_cache *c, uint64_t need)
             return;
         c->cache_bytes -= c->entries[victim].bytes;
         free(c->entries[victim].voxels);
+        free(c->entries[victim].ranges);
         c->entries[victim] = c->entries[--c->nentries];
         for (size_t b = 0; b < c->nbricks; b++) /* keep this frame's references valid */
             if (c->entry_of[b] == c->nentries)
@@ -818,15 +844,92 @@ static void put_word(uint8_t *p, uint32_t v)
         p[i] = (uint8_t)(v >> (8 * i));
 }
 
+/* The value range of an entry's voxels, once per entry (the skip grid's ranges). */
+static void entry_range(cache_entry *e)
+{
+    if (e->ranged)
+        return;
+    uint8_t lo = 255, hi = 0;
+    for (size_t i = 0; i < e->bytes; i++) {
+        lo = e->voxels[i] < lo ? e->voxels[i] : lo;
+        hi = e->voxels[i] > hi ? e->voxels[i] : hi;
+    }
+    e->vmin = lo;
+    e->vmax = hi;
+    e->ranged = 1;
+}
+
+/* Voxel (x, y, z) (level-0 coordinates) of level-0 brick b as its owner decoded it, when
+ * the owner is resident at level 0 this frame; NULL otherwise. */
+static const uint8_t *owner_voxel(const cdvr_brick_cache *c, size_t x, size_t y, size_t z)
+{
+    size_t ob = c->owner[0][x] + c->grid[0] * (c->owner[1][y] + c->grid[1] * c->owner[2][z]);
+    const cache_entry *o = &c->entries[c->entry_of[ob]];
+    if (o->level != 0)
+        return NULL;
+    return o->voxels + (x - o->lo[0]) + o->dims[0] * ((y - o->lo[1]) + o->dims[1] * (z - o->lo[2]));
+}
+
+/* A lossy codec decodes the one-voxel overlap of a brick (its lower apron) on its own: the
+ * march reads it, the dense frame the owner's voxel. So a level-0 entry's apron takes its
+ * owners' voxels once they are resident at level 0 (then the march at level 0 reads exactly
+ * the assembled frame); its ranges are made again when a voxel changed. */
+static void patch_apron(cdvr_brick_cache *c, cache_entry *e)
+{
+    int complete = 1, changed = 0;
+    const size_t *lo = e->lo, *d = e->dims;
+    for (size_t z = lo[2]; z < lo[2] + d[2]; z++)
+        for (size_t y = lo[1]; y < lo[1] + d[1]; y++) {
+            int plane = (z == lo[2] && lo[2] > 0) || (y == lo[1] && lo[1] > 0);
+            size_t end = plane ? lo[0] + d[0] : lo[0] > 0 ? lo[0] + 1 : lo[0];
+            uint8_t *row = e->voxels + d[0] * ((y - lo[1]) + d[1] * (z - lo[2]));
+            for (size_t x = lo[0]; x < end; x++) {
+                const uint8_t *v = owner_voxel(c, x, y, z);
+                if (!v) {
+                    complete = 0;
+                } else if (row[x - lo[0]] != *v) {
+                    row[x - lo[0]] = *v;
+                    changed = 1;
+                }
+            }
+        }
+    if (changed) {
+        free(e->ranges);
+        e->ranges = NULL;
+        e->ranged = 0;
+        c->patches++;
+    }
+    e->apron_done = complete;
+}
+
+/* Page-table entry of level-0 brick b (see the header for the words). */
+static void put_entry(const cdvr_brick_cache *c, size_t b, uint8_t *t)
+{
+    const cache_entry *e = &c->entries[c->entry_of[b]];
+    size_t lo0[3], d0[3];
+    cdvr_store_brick_box(cdvr_store_get_info(c->st), b, lo0, d0);
+    memset(t, 0, 4 * CDVR_BRICK_CACHE_ENTRY_WORDS);
+    put_word(t, (uint32_t)e->pool_offset);
+    put_word(t + 4, (uint32_t)e->level);
+    for (int a = 0; a < 3; a++) {
+        put_word(t + 8 + 4 * a, (uint32_t)e->lo[a]);
+        put_word(t + 20 + 4 * a, (uint32_t)e->dims[a]);
+        put_word(t + 32 + 4 * a, (uint32_t)lo0[a]);
+        put_word(t + 44 + 4 * a, (uint32_t)(lo0[a] + (d0[a] > 1 ? d0[a] - 1 : 1)));
+    }
+}
+
 static cdvr_status layout(cdvr_brick_cache *c, cdvr_error *err)
 {
     size_t axes = c->dims[0] + c->dims[1] + c->dims[2];
-    size_t table = 24 + 4 * axes, pool = table + 32 * c->nbricks, bytes = pool;
+    size_t table = 4 * (CDVR_BRICK_CACHE_HEADER_WORDS + axes);
+    size_t pool = table + 4 * CDVR_BRICK_CACHE_ENTRY_WORDS * c->nbricks, bytes = pool;
     for (size_t i = 0; i < c->nentries; i++)
         if (c->entries[i].last_used == c->stamp) {
             c->entries[i].pool_offset = bytes - pool;
             bytes += c->entries[i].bytes;
         }
+    bytes += CDVR_BRICK_CACHE_PAD;
     if (bytes > UINT32_MAX)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: a payload of %zu bytes (the "
                               "page table holds 32-bit offsets)", bytes);
@@ -839,25 +942,23 @@ static cdvr_status layout(cdvr_brick_cache *c, cdvr_error *err)
         c->payload_cap = bytes;
     }
     uint8_t *p = c->payload;
+    memset(p, 0, 4 * CDVR_BRICK_CACHE_HEADER_WORDS);
     put_word(p, CDVR_BRICK_CACHE_MAGIC);
     for (int a = 0; a < 3; a++)
         put_word(p + 4 + 4 * a, (uint32_t)c->grid[a]);
     put_word(p + 16, (uint32_t)pool);
     put_word(p + 20, (uint32_t)table);
-    size_t w = 24;
+    put_word(p + 24, CDVR_BRICK_CACHE_ENTRY_WORDS);
+    size_t w = 4 * CDVR_BRICK_CACHE_HEADER_WORDS;
     for (int a = 0; a < 3; a++)
         for (size_t x = 0; x < c->dims[a]; x++, w += 4)
             put_word(p + w, (uint32_t)c->owner[a][x]);
     c->stats.resident_bytes = 0;
     for (size_t b = 0; b < c->nbricks; b++) {
-        const cache_entry *e = &c->entries[c->entry_of[b]];
-        uint8_t *t = p + table + 32 * b;
-        put_word(t, (uint32_t)e->pool_offset);
-        put_word(t + 4, (uint32_t)e->level);
-        for (int a = 0; a < 3; a++) {
-            put_word(t + 8 + 4 * a, (uint32_t)e->lo[a]);
-            put_word(t + 20 + 4 * a, (uint32_t)e->dims[a]);
-        }
+        cache_entry *e = &c->entries[c->entry_of[b]];
+        if (e->level == 0 && !e->apron_done)
+            patch_apron(c, e);
+        put_entry(c, b, p + table + 4 * CDVR_BRICK_CACHE_ENTRY_WORDS * b);
     }
     for (size_t i = 0; i < c->nentries; i++)
         if (c->entries[i].last_used == c->stamp) {
@@ -865,6 +966,7 @@ static cdvr_status layout(cdvr_brick_cache *c, cdvr_error *err)
                    c->entries[i].bytes);
             c->stats.resident_bytes += c->entries[i].bytes;
         }
+    memset(p + bytes - CDVR_BRICK_CACHE_PAD, 0, CDVR_BRICK_CACHE_PAD);
     c->payload_bytes = bytes;
     return CDVR_OK;
 }
@@ -1010,5 +1112,291 @@ cdvr_status cdvr_brick_cache_dense(cdvr_brick_cache *c, const uint8_t **frame, c
     c->stats.dense_bricks = assemble_changed(c);
     c->stats.layout_ms += cdvr_now_ms() - t0;
     *frame = c->dense;
+    return CDVR_OK;
+}
+
+/* Along one axis of an entry at level l (box lo, d at its level): the range bricks (of
+ * 2^shift level-0 cells) over the box, and per range brick s the entry's voxels that a
+ * sample in its cells reads, [floor(s 2^shift / 2^l), ceil((s + 1) 2^shift / 2^l)] inside the
+ * box (local coordinates), in first[] and last[]. */
+static size_t range_axis(size_t lo, size_t d, size_t l, unsigned shift, size_t *s_lo,
+                         size_t **first, size_t **last)
+{
+    size_t a = (lo << l) >> shift, b = ((lo + d - 1) << l) >> shift, n = b - a + 1;
+    *s_lo = a;
+    *first = malloc(2 * n * sizeof **first);
+    if (!*first)
+        return 0;
+    *last = *first + n;
+    for (size_t s = a; s <= b; s++) {
+        size_t v0 = (s << shift) >> l, v1 = (((s + 1) << shift) + ((size_t)1 << l) - 1) >> l;
+        v0 = v0 < lo ? lo : v0 > lo + d - 1 ? lo + d - 1 : v0;
+        v1 = v1 < v0 ? v0 : v1 > lo + d - 1 ? lo + d - 1 : v1;
+        (*first)[s - a] = v0 - lo;
+        (*last)[s - a] = v1 - lo;
+    }
+    return n;
+}
+
+/* The entry's range per range brick of 2^shift level-0 cells over its box, once per entry
+ * (on no memory it keeps none: its whole range stands for every range brick). */
+static void entry_ranges(cache_entry *e, unsigned shift)
+{
+    entry_range(e);
+    if (e->ranges)
+        return;
+    size_t *first[3] = {NULL, NULL, NULL}, *last[3], n[3];
+    int ok = 1;
+    for (int a = 0; a < 3; a++) {
+        n[a] = range_axis(e->lo[a], e->dims[a], e->level, shift, &e->range_lo[a], &first[a],
+                          &last[a]);
+        ok &= n[a] > 0;
+    }
+    uint8_t *mm = ok ? malloc(2 * n[0] * n[1] * n[2]) : NULL;
+    if (mm) {
+        e->ranges = mm;
+        memcpy(e->range_n, n, sizeof n);
+        size_t X = e->dims[0], XY = e->dims[0] * e->dims[1];
+        for (size_t k = 0; k < n[2]; k++)
+            for (size_t j = 0; j < n[1]; j++)
+                for (size_t i = 0; i < n[0]; i++, mm += 2) {
+                    uint8_t lo = 255, hi = 0;
+                    for (size_t z = first[2][k]; z <= last[2][k]; z++)
+                        for (size_t y = first[1][j]; y <= last[1][j]; y++) {
+                            const uint8_t *row = e->voxels + X * y + XY * z;
+                            for (size_t x = first[0][i]; x <= last[0][i]; x++) {
+                                lo = row[x] < lo ? row[x] : lo;
+                                hi = row[x] > hi ? row[x] : hi;
+                            }
+                        }
+                    mm[0] = lo;
+                    mm[1] = hi;
+                }
+    }
+    for (int a = 0; a < 3; a++)
+        free(first[a]);
+}
+
+/* The range of entry e over range brick (x, y, z): its table's, or its whole range. */
+static void entry_range_at(const cache_entry *e, size_t x, size_t y, size_t z, uint8_t *lo,
+                           uint8_t *hi)
+{
+    size_t i = x - e->range_lo[0], j = y - e->range_lo[1], k = z - e->range_lo[2];
+    if (e->ranges && x >= e->range_lo[0] && y >= e->range_lo[1] && z >= e->range_lo[2] &&
+        i < e->range_n[0] && j < e->range_n[1] && k < e->range_n[2]) {
+        const uint8_t *mm = e->ranges + 2 * (i + e->range_n[0] * (j + e->range_n[1] * k));
+        *lo = mm[0] < *lo ? mm[0] : *lo;
+        *hi = mm[1] > *hi ? mm[1] : *hi;
+    } else {
+        *lo = e->vmin < *lo ? e->vmin : *lo;
+        *hi = e->vmax > *hi ? e->vmax : *hi;
+    }
+}
+
+/* Per range brick s of 2^shift cells along one axis of n voxels: the first and last level-0
+ * brick (along the axis) that the march reads for a sample in it, owner(min(x, n - 2) + 1)
+ * for its cells x (owner(0) on an axis of one voxel). */
+static void skip_axis(const size_t *owner, size_t n, unsigned shift, size_t count, size_t *first,
+                      size_t *last)
+{
+    for (size_t s = 0; s < count; s++) {
+        size_t x0 = s << shift, x1 = ((s + 1) << shift) < n ? ((s + 1) << shift) - 1 : n - 1;
+        if (n >= 2) {
+            x0 = (x0 < n - 2 ? x0 : n - 2) + 1;
+            x1 = (x1 < n - 2 ? x1 : n - 2) + 1;
+        } else {
+            x0 = x1 = 0;
+        }
+        first[s] = owner[x0];
+        last[s] = owner[x1];
+    }
+}
+
+/* Level 0's range per range brick of timestep t, merged from the range tables the store
+ * recorded for every level-0 brick (cdvr/bricks.h: exactly the assembled volume's ranges), once
+ * per timestep; table_state -1 when some chunk has none (or tables of different bricks). */
+static cdvr_status level0_table(cdvr_brick_cache *c, size_t t, cdvr_error *err)
+{
+    if (c->table_state != 0 && (c->table_state < 0 || c->table_t == t))
+        return CDVR_OK;
+    const cdvr_store_info *in = cdvr_store_get_info(c->st);
+    unsigned shift = 0;
+    for (size_t b = 0; b < c->nbricks; b++) {
+        size_t chunk = cdvr_store_chunk_for(c->st, c->v, t, b);
+        const cdvr_chunk_info *ci = chunk != (size_t)-1 ? cdvr_store_chunk(c->st, c->v, chunk)
+                                                          : NULL;
+        if (!ci || !ci->ranges_shift || (shift && ci->ranges_shift != shift)) {
+            c->table_state = -1;
+            return CDVR_OK;
+        }
+        shift = ci->ranges_shift;
+    }
+    if (c->table.minmax && c->table.shift != shift)
+        cdvr_skip_grid_free(&c->table);
+    if (!c->table.minmax) {
+        cdvr_status s = cdvr_skip_grid_init(&c->table, c->dims, shift, err);
+        if (s != CDVR_OK)
+            return s;
+    }
+    memset(c->table.minmax, 0, 2 * c->table.nbricks);
+    for (size_t i = 0; i < c->table.nbricks; i++)
+        c->table.minmax[2 * i] = 255;
+    for (size_t b = 0; b < c->nbricks; b++) {
+        size_t chunk = cdvr_store_chunk_for(c->st, c->v, t, b);
+        const cdvr_chunk_info *ci = cdvr_store_chunk(c->st, c->v, chunk);
+        size_t bytes = cdvr_store_ranges_bytes(c->st, c->v, chunk), lo[3], bd[3], g0[3], n[3];
+        uint8_t *tab = bytes ? malloc(bytes) : NULL;
+        if (!tab)
+            return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory for a range "
+                                  "table of %zu bytes", bytes);
+        cdvr_status s = cdvr_store_read_ranges(c->st, c->v, chunk, tab, err);
+        if (s != CDVR_OK) {
+            free(tab);
+            return s;
+        }
+        cdvr_store_brick_owned(in, b, lo, bd);
+        cdvr_range_window(c->dims, lo, bd, shift, g0, n);
+        cdvr_range_merge(tab + (t - ci->t0) * 2 * n[0] * n[1] * n[2], g0, n, c->table.dims,
+                         c->table.minmax);
+        free(tab);
+    }
+    c->table_t = t;
+    c->table_state = 1;
+    return CDVR_OK;
+}
+
+/* Level 0's range over the table brick holding range brick (x, y, z) of g. */
+static void table_range_at(const cdvr_brick_cache *c, const cdvr_skip_grid *g, size_t x,
+                           size_t y, size_t z, uint8_t *lo, uint8_t *hi)
+{
+    unsigned f = c->table.shift - g->shift;
+    const size_t *d = c->table.dims;
+    size_t i = x >> f, j = y >> f, k = z >> f;
+    const uint8_t *mm = c->table.minmax + 2 * ((i < d[0] ? i : d[0] - 1) +
+                                              d[0] * ((j < d[1] ? j : d[1] - 1) +
+                                                      d[1] * (k < d[2] ? k : d[2] - 1)));
+    *lo = mm[0] < *lo ? mm[0] : *lo;
+    *hi = mm[1] > *hi ? mm[1] : *hi;
+}
+
+/* 1 when some value of [lo, hi] is visible (prefix: counts of visible TF entries). */
+static int range_visible(const int *prefix, uint8_t lo, uint8_t hi)
+{
+    return lo <= hi && prefix[hi + 1] - prefix[lo] > 0;
+}
+
+cdvr_status cdvr_brick_cache_skip_minmax(cdvr_brick_cache *c, cdvr_skip_grid *g,
+                                         const cdvr_tf *tf, cdvr_error *err)
+{
+    if (!c->payload_bytes || memcmp(g->vol_dims, c->dims, sizeof c->dims) != 0)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "brick cache: no frame laid out, or a skip grid "
+                              "of another volume (%zux%zux%zu)", g->vol_dims[0], g->vol_dims[1],
+                              g->vol_dims[2]);
+    size_t total = g->dims[0] + g->dims[1] + g->dims[2];
+    size_t *span = malloc(2 * total * sizeof *span);
+    if (!span)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory for the skip ranges");
+    size_t *first[3], *last[3];
+    for (int a = 0, at = 0; a < 3; at += (int)g->dims[a], a++) {
+        first[a] = span + at;
+        last[a] = span + total + at;
+        skip_axis(c->owner[a], c->dims[a], g->shift, g->dims[a], first[a], last[a]);
+    }
+    int coarse = 0;
+    for (size_t b = 0; b < c->nbricks; b++) {
+        entry_ranges(&c->entries[c->entry_of[b]], g->shift);
+        coarse |= c->entries[c->entry_of[b]].level > 0;
+    }
+    cdvr_status s = coarse ? level0_table(c, c->entries[c->entry_of[0]].t, err) : CDVR_OK;
+    if (s != CDVR_OK) {
+        free(span);
+        return s;
+    }
+    int tables = coarse && tf && c->table_state > 0 && c->table.shift >= g->shift;
+    int prefix[257] = {0};
+    for (int i = 0; tables && i < 256; i++)
+        prefix[i + 1] = prefix[i] + (tf->table[i][3] > 0.0f);
+    uint8_t *mm = g->minmax;
+    for (size_t z = 0; z < g->dims[2]; z++)
+        for (size_t y = 0; y < g->dims[1]; y++)
+            for (size_t x = 0; x < g->dims[0]; x++, mm += 2) {
+                uint8_t lo = 255, hi = 0;
+                for (size_t k = first[2][z]; k <= last[2][z]; k++)
+                    for (size_t j = first[1][y]; j <= last[1][y]; j++)
+                        for (size_t i = first[0][x]; i <= last[0][x]; i++) {
+                            size_t b = i + c->grid[0] * (j + c->grid[1] * k);
+                            const cache_entry *e = &c->entries[c->entry_of[b]];
+                            uint8_t elo = 255, ehi = 0, tlo = 255, thi = 0;
+                            entry_range_at(e, x, y, z, &elo, &ehi);
+                            if (e->level > 0 && tables) { /* and level 0 visible there */
+                                table_range_at(c, g, x, y, z, &tlo, &thi);
+                                if (!range_visible(prefix, tlo, thi))
+                                    continue;
+                            }
+                            lo = elo < lo ? elo : lo;
+                            hi = ehi > hi ? ehi : hi;
+                        }
+                mm[0] = lo;
+                mm[1] = hi;
+            }
+    free(span);
+    cdvr_skip_grid_touch(g);
+    return CDVR_OK;
+}
+
+/* 1 when the skip grid was made for the bricks of this frame (same entries, no apron patched
+ * since); records this frame's otherwise. */
+static int grid_current(cdvr_brick_cache *c)
+{
+    int same = c->grid_made && c->patches == c->grid_patches;
+    for (size_t b = 0; b < c->nbricks; b++) {
+        const cache_entry *e = &c->entries[c->entry_of[b]];
+        size_t key[3] = {e->t, e->level, e->brick};
+        same = same && memcmp(c->grid_key + 3 * b, key, sizeof key) == 0;
+        memcpy(c->grid_key + 3 * b, key, sizeof key);
+    }
+    c->grid_patches = c->patches;
+    return same;
+}
+
+cdvr_status cdvr_brick_cache_skip_grid(cdvr_brick_cache *c, unsigned shift, const cdvr_tf *tf,
+                                       int level0_visible, const cdvr_skip_grid **out,
+                                       cdvr_error *err)
+{
+    *out = NULL;
+    if (!c->payload_bytes || !tf)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "brick cache: no frame laid out, or no TF");
+    if (!c->grid_key) {
+        c->grid_key = malloc(3 * c->nbricks * sizeof *c->grid_key);
+        if (!c->grid_key)
+            return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory");
+    }
+    if (c->grid_made && c->skip.shift != shift) {
+        cdvr_skip_grid_free(&c->skip);
+        c->grid_made = 0;
+    }
+    if (!c->grid_made) {
+        cdvr_status s = cdvr_skip_grid_init(&c->skip, c->dims, shift, err);
+        if (s != CDVR_OK)
+            return s;
+    }
+    uint8_t visible[256];
+    for (int i = 0; i < 256; i++)
+        visible[i] = tf->table[i][3] > 0.0f;
+    level0_visible = level0_visible != 0;
+    int same_tf = memcmp(visible, c->grid_tf, sizeof visible) == 0 &&
+                  level0_visible == c->grid_level0_visible;
+    memcpy(c->grid_tf, visible, sizeof visible);
+    c->grid_level0_visible = level0_visible;
+    if (!grid_current(c) || !same_tf) {
+        c->grid_made = 0;
+        cdvr_status s = cdvr_brick_cache_skip_minmax(c, &c->skip, level0_visible ? tf : NULL,
+                                                     err);
+        if (s != CDVR_OK)
+            return s;
+        c->grid_made = 1;
+    }
+    cdvr_skip_flags(&c->skip, tf);
+    *out = &c->skip;
     return CDVR_OK;
 }
