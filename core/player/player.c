@@ -1063,29 +1063,37 @@ static void cache_row(const cdvr_player *p, const chunk_item *it, cdvr_frame_row
 
 /* b4 + b5 for timestep t of the current chunk; *img receives the frame. */
 #if CDVR_HAVE_OPENCL
-/* opts.cache on cl: the cache's frame into the stream's payload, read through the cache's
- * fetch (or its dense frame on a CPU device when that fits the budget). */
+/* opts.cache on cl: the cache's frame on the stream as raycast_method.c renders it: the brick
+ * march (the payload with the march flag and *grid, the skip grid from the cache's brick
+ * ranges), or with fetch="sample" the per-voxel page table, or with fetch="bulk" the cache's
+ * dense frame when it fits the budget. */
 static cdvr_status load_cached(cdvr_player *p, const chunk_item *it, size_t t,
-                               const cdvr_camera *cam, cdvr_error *err)
+                               const cdvr_camera *cam, const cdvr_render_opts *ro,
+                               const cdvr_skip_grid **grid, cdvr_error *err)
 {
     const uint8_t *payload;
     size_t bytes;
-    cdvr_codec_params none = {{0}};
+    cdvr_codec_params params = {{0}};
+    *grid = NULL;
     cdvr_status s = cache_frame(p, it, t, cam, &payload, &bytes, err);
     const cdvr_store_info *in = cdvr_store_get_info(p->opts.store);
-    if (s == CDVR_OK && !cdvr_cl_get_info(p->cl)->is_gpu &&
-        p->opts.fetch_path != CDVR_CL_FETCH_SAMPLE &&
+    if (s == CDVR_OK && p->opts.fetch_path == CDVR_CL_FETCH_BULK &&
         (uint64_t)in->dims[0] * in->dims[1] * in->dims[2] <= cache_budget(p)) {
-        const uint8_t *frame; /* a CPU device: the dense frame when it fits (raycast_method.c) */
+        const uint8_t *frame;
         s = cdvr_brick_cache_dense(p->cache, &frame, err);
         return s == CDVR_OK ? cdvr_cl_use_host_frames(p->stream, frame, 1, err) : s;
     }
+    int march = p->opts.fetch_path != CDVR_CL_FETCH_SAMPLE;
+    params.bytes[CDVR_BRICK_CACHE_PARAM_MARCH] = (unsigned char)march;
     if (s == CDVR_OK)
         s = cdvr_cl_upload(p->stream, payload, bytes, err);
-    cdvr_cl_set_fetch_path(p->stream, CDVR_CL_FETCH_SAMPLE);
+    cdvr_cl_set_fetch_path(p->stream, CDVR_CL_FETCH_SAMPLE); /* the payload as it is */
     if (s == CDVR_OK)
-        s = cdvr_cl_decode(p->stream, cdvr_brick_cache_codec(), &none, 1, err);
+        s = cdvr_cl_decode(p->stream, cdvr_brick_cache_codec(), &params, 1, err);
     cdvr_cl_set_fetch_path(p->stream, (cdvr_cl_fetch_path)p->opts.fetch_path);
+    if (s == CDVR_OK && march)
+        s = cdvr_brick_cache_skip_grid(p->cache, CDVR_RANGE_SHIFT, ro->tf,
+                                       ro->look.blend == CDVR_BLEND_COMPOSITE, grid, err);
     return s;
 }
 #endif
@@ -1118,10 +1126,9 @@ static cdvr_status setup_render(cdvr_player *p, chunk_item *it, size_t t, const 
         double t0 = cdvr_now_ms();
         const cdvr_skip_grid *grid = f < it->ngrids ? &it->grids[f] : NULL;
         if (p->opts.cache) { /* the cache's payload replaces the group's frames */
-            cdvr_status cs = load_cached(p, it, t, cam, err);
+            cdvr_status cs = load_cached(p, it, t, cam, &ro, &grid, err);
             if (cs != CDVR_OK)
                 return cs;
-            grid = NULL;
             f = 0;
         }
         cdvr_status s = cdvr_image_create(cam->width, cam->height, img, err);
