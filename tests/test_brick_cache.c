@@ -112,6 +112,17 @@ static void lru_budget(cdvr_store *st)
                 CHECK(s.evicted > 0 && s.decoded > 0, "the other timestep was evicted");
         }
     cdvr_brick_cache_free(c);
+    /* a budget past the payload's 32-bit pool offsets is capped, so frames coarsen instead of
+     * failing; the cache still serves the budget asked for */
+    uint64_t huge = (uint64_t)8 << 30;
+    CHECK_OK(cdvr_brick_cache_create(st, 0, huge, &c, &err), err);
+    cdvr_brick_cache_stats s;
+    cdvr_brick_cache_get_stats(c, &s);
+    CHECK(s.budget_bytes < UINT32_MAX && s.budget_bytes > UINT32_MAX - 65536,
+          "8 GiB capped below 4 GiB less the tables: %llu", (unsigned long long)s.budget_bytes);
+    CHECK(cdvr_brick_cache_serves(c, st, 0, huge) && !cdvr_brick_cache_serves(c, st, 0, budget),
+          "serves the budget asked for");
+    cdvr_brick_cache_free(c);
 }
 
 static void hostile_payloads(void)

@@ -130,13 +130,16 @@ typedef struct cdvr_brick_cache_stats {
     size_t evicted;                              /* bricks dropped for the frame */
     uint64_t resident_bytes;                     /* voxel bytes of the bricks the frame uses */
     uint64_t cache_bytes;                        /* voxel bytes the cache holds (<= budget) */
+    uint64_t budget_bytes;                       /* the budget kept to (asked for, capped) */
     uint64_t payload_bytes;                      /* the payload: tables + resident bricks */
     size_t dense_bricks;                         /* level-0 bricks cdvr_brick_cache_dense
                                                     assembled (the others were in place) */
     double decode_ms, layout_ms;
 } cdvr_brick_cache_stats;
 
-/* A cache of variant v of st (st must outlive it) holding at most budget_bytes of voxels. */
+/* A cache of variant v of st (st must outlive it) holding at most budget_bytes of voxels,
+ * capped at what the payload's 32-bit pool offsets reach (4 GiB less the tables): a larger
+ * budget renders coarser, not fails. */
 cdvr_status cdvr_brick_cache_create(const cdvr_store *st, size_t v, uint64_t budget_bytes,
                                     cdvr_brick_cache **out, cdvr_error *err);
 void cdvr_brick_cache_free(cdvr_brick_cache *c);

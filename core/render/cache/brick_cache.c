@@ -55,6 +55,7 @@ struct cdvr_brick_cache {
     const cdvr_store *st;
     size_t v;
     uint64_t budget;
+    uint64_t asked_budget;       /* the budget asked for (budget is it capped: capped_budget) */
     size_t nlevels;
     const cdvr_store *level[CDVR_STORE_MAX_LEVELS];
     size_t dims[3], grid[3], nbricks;
@@ -303,6 +304,18 @@ void cdvr_brick_cache_free(cdvr_brick_cache *c)
     free(c);
 }
 
+/* The budget the cache keeps to: the one asked for, at most what a payload's 32-bit pool
+ * offsets reach past the tables (layout): a larger budget renders coarser instead of failing. */
+static uint64_t capped_budget(const cdvr_store_info *in, uint64_t asked)
+{
+    uint64_t axes = (uint64_t)in->dims[0] + in->dims[1] + in->dims[2];
+    uint64_t tables = 4 * (CDVR_BRICK_CACHE_HEADER_WORDS + axes) +
+                      4 * (uint64_t)CDVR_BRICK_CACHE_ENTRY_WORDS * in->nbricks +
+                      CDVR_BRICK_CACHE_PAD;
+    uint64_t reach = tables < UINT32_MAX ? UINT32_MAX - tables : 1;
+    return asked < reach ? asked : reach;
+}
+
 cdvr_status cdvr_brick_cache_create(const cdvr_store *st, size_t v, uint64_t budget_bytes,
                                     cdvr_brick_cache **out, cdvr_error *err)
 {
@@ -317,7 +330,9 @@ cdvr_status cdvr_brick_cache_create(const cdvr_store *st, size_t v, uint64_t bud
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory");
     c->st = st;
     c->v = v;
-    c->budget = budget_bytes;
+    c->asked_budget = budget_bytes;
+    c->budget = capped_budget(in, budget_bytes);
+    c->stats.budget_bytes = c->budget;
     c->nlevels = in->nlevels;
     memcpy(c->dims, in->dims, sizeof c->dims);
     memcpy(c->grid, in->bricks, sizeof c->grid);
@@ -345,7 +360,7 @@ cdvr_status cdvr_brick_cache_create(const cdvr_store *st, size_t v, uint64_t bud
 int cdvr_brick_cache_serves(const cdvr_brick_cache *c, const cdvr_store *st, size_t v,
                             uint64_t budget_bytes)
 {
-    return c && c->st == st && c->v == v && c->budget == budget_bytes;
+    return c && c->st == st && c->v == v && c->asked_budget == budget_bytes;
 }
 
 /* The level-l brick standing for level-0 brick b: the one owning the level-l voxel nearest
@@ -984,6 +999,7 @@ cdvr_status cdvr_brick_cache_frame(cdvr_brick_cache *c, size_t t, const cdvr_cam
         return cdvr_error_set(err, CDVR_ERR_ARG, "brick cache: no timestep %zu", t + 1);
     memset(&c->stats, 0, sizeof c->stats);
     c->stats.levels = c->nlevels;
+    c->stats.budget_bytes = c->budget;
     c->stamp++;
     cdvr_status s = choose_levels(c, t, cam, tf, lod_error, err);
     for (size_t b = 0; b < c->nbricks; b++)
