@@ -334,17 +334,38 @@ static float sample_at(const render_job *job, const float o[3], const float d[3]
  * taken as usual (its own brick is looked up again). Images are those without skipping, bit
  * for bit; the samples jumped are still counted in opts->samples (the definition's count). */
 
-/* Per ray: the box-frame ray in grid coordinates, in double. */
+/* Per ray: where its jumps land, as sample indices. For axis a the exit face of a cube of
+ * bricks is face index f (in bricks: b + reach + 1 going up, b - reach going down) pulled in
+ * by the margin m_a, at parameter t = (f E -+ m_a - o_a) / d_a (grid coordinates, double), and
+ * the first sample whose nominal midpoint is not short of it is ceil((t - t_near) / step -
+ * 1/2): that is base[a] + f * per_face[a] before the ceil, with per_face = E / (d_a step) and
+ * everything else folded into base. m_a = 0.01 + 1e-5 (|o_a| + the largest |face| a cube of
+ * reach CDVR_SKIP_REACH_MAX can have), at least the margin above. The double rounding of this
+ * rearrangement is some 1e-13 of a sample, far inside the margin. An axis the ray does not
+ * move along never bounds the jump (per_face 0, base +huge). */
 typedef struct grid_ray {
-    double o[3], d[3], inv_d[3]; /* inv_d: +-inf where d is 0 */
+    double base[3], per_face[3];
+    int up[3];                   /* 1: d_a > 0 (exits through the upper face), 0: below */
 } grid_ray;
 
-static void grid_ray_of(const render_job *job, const float o[3], const float d[3], grid_ray *r)
+static void grid_ray_of(const render_job *job, const float o[3], const float d[3],
+                        float t_near, grid_ray *r)
 {
+    double inv_step = 1.0 / (double)job->step, edge = (double)(1 << job->skip_shift);
     for (int a = 0; a < 3; a++) {
-        r->o[a] = (double)o[a] * (double)job->inv_spacing[a];
-        r->d[a] = (double)d[a] * (double)job->inv_spacing[a];
-        r->inv_d[a] = 1.0 / r->d[a];
+        double og = (double)o[a] * (double)job->inv_spacing[a];
+        double dg = (double)d[a] * (double)job->inv_spacing[a];
+        r->up[a] = dg > 0.0;
+        if (dg == 0.0) {
+            r->base[a] = 1e300;
+            r->per_face[a] = 0.0;
+            continue;
+        }
+        double far = ((double)job->skip_nb[a] + CDVR_SKIP_REACH_MAX + 2) * edge;
+        double m = 0.01 + 1e-5 * (fabs(og) + far);
+        double inv_d = 1.0 / dg;
+        r->base[a] = ((dg > 0.0 ? -m : m) - og) * inv_d * inv_step - (double)t_near * inv_step - 0.5;
+        r->per_face[a] = edge * inv_d * inv_step;
     }
 }
 
@@ -359,26 +380,23 @@ static inline int brick_code(const render_job *job, const float g[3])
 
 /* Sample i at grid position g lies in an invisible brick of the given code: the index of the
  * first sample after it that may lie outside the invisible cube around that brick. */
-static long skip_target(const render_job *job, const grid_ray *r, const float g[3], int code,
-                        float t_near, long i)
+static inline long skip_target(const render_job *job, const grid_ray *r, const float g[3],
+                               int code, long i)
 {
     int sh = job->skip_shift, reach = (code > 1 ? code : 1) - 1;
-    double t_exit = INFINITY;
+    double j = 1e300;
     for (int a = 0; a < 3; a++) {
-        if (r->d[a] == 0.0)
-            continue;
-        long b = (long)((int)g[a] >> sh);
-        long edge = 1L << sh; /* (b - reach) may be negative: multiply, do not shift */
-        double face = r->d[a] > 0.0 ? (double)((b + reach + 1) * edge) : (double)((b - reach) * edge);
-        double m = 0.01 + 1e-5 * (fabs(r->o[a]) + fabs(face));
-        face += r->d[a] > 0.0 ? -m : m;
-        double t = (face - r->o[a]) * r->inv_d[a];
-        t_exit = t < t_exit ? t : t_exit;
+        int b = (int)g[a] >> sh;
+        int f = r->up[a] ? b + reach + 1 : b - reach;
+        double ja = r->base[a] + (double)f * r->per_face[a];
+        j = ja < j ? ja : j;
     }
-    double j = ceil((t_exit - (double)t_near) / (double)job->step - 0.5);
-    if (!(j > (double)(i + 1)))
+    if (!(j > (double)(i + 1))) /* ceil(j) > i + 1 exactly when j > i + 1 */
         return i + 1;
-    return j > (double)(LONG_MAX / 2) ? LONG_MAX / 2 : (long)j;
+    if (j >= (double)(LONG_MAX / 2))
+        return LONG_MAX / 2;
+    long c = (long)j; /* j > 1: truncation, then up to the ceiling */
+    return (double)c < j ? c + 1 : c;
 }
 
 /* Max and min jump the bricks that cannot change the extreme so far: every sample in a brick
@@ -423,7 +441,7 @@ static uint64_t march_extreme(const render_job *job, const float o[3], const flo
     int skipping = job->skip_minmax && job->blend != CDVR_BLEND_AVERAGE;
     grid_ray gr;
     if (skipping)
-        grid_ray_of(job, o, d, &gr);
+        grid_ray_of(job, o, d, t_near, &gr);
     for (long i = 0; i < n; i++) {
         float tm, g[3];
         float ts = t_near + (float)i * job->step;
@@ -439,7 +457,7 @@ static uint64_t march_extreme(const render_job *job, const float o[3], const flo
             int lo, hi;
             brick_range(job, g, &lo, &hi);
             if (is_max ? (float)hi <= best : (float)lo >= best) {
-                long next = skip_target(job, &gr, g, 1, t_near, i);
+                long next = skip_target(job, &gr, g, 1, i);
                 next = next < n ? next : n;
                 taken += (uint64_t)(next - i);
                 if (next == n && t_far - (t_near + (float)(n - 1) * job->step) <= 0.0f)
@@ -476,13 +494,13 @@ static float field_at(const render_job *job, const float o[3], const float d[3],
  * last of them, next - 1, which it takes as usual: the hit test there needs only the side of
  * its predecessor, which sample i's value gives. Returns the index before the one to take
  * (the loop's i++ follows); the samples jumped are counted. */
-static long iso_jump(const render_job *job, const grid_ray *gr, const float g[3], float t_near,
-                     long i, long n, uint64_t *taken)
+static long iso_jump(const render_job *job, const grid_ray *gr, const float g[3], long i, long n,
+                     uint64_t *taken)
 {
     int code = brick_code(job, g);
     if (code >= 128)
         return i;
-    long next = skip_target(job, gr, g, code, t_near, i);
+    long next = skip_target(job, gr, g, code, i);
     next = next < n ? next : n;
     if (next - 2 <= i)
         return i;
@@ -498,7 +516,7 @@ static uint64_t march_iso(const render_job *job, const float o[3], const float d
     uint64_t taken = 0;
     grid_ray gr;
     if (job->skip_flags)
-        grid_ray_of(job, o, d, &gr);
+        grid_ray_of(job, o, d, t_near, &gr);
     for (long i = 0; i < n; i++) {
         float tm, g[3];
         float ts = t_near + (float)i * job->step;
@@ -511,7 +529,7 @@ static uint64_t march_iso(const render_job *job, const float o[3], const float d
             prev = s;
             t_prev = tm;
             if (job->skip_flags)
-                i = iso_jump(job, &gr, g, t_near, i, n, &taken);
+                i = iso_jump(job, &gr, g, i, n, &taken);
             continue;
         }
         float ta = t_prev, tb = tm, sa = prev, sb = s, t = tm;
@@ -556,7 +574,7 @@ static uint64_t march_composite(const render_job *job, const float o[3], const f
     float C[3] = {0.0f, 0.0f, 0.0f}, A = 0.0f, step = job->step;
     grid_ray gr;
     if (skipping)
-        grid_ray_of(job, o, d, &gr);
+        grid_ray_of(job, o, d, t_near, &gr);
     uint64_t taken = 0;
     for (long i = first; i < stop; i++) {
         float ts = t_near + (float)i * step;
@@ -572,7 +590,7 @@ static uint64_t march_composite(const render_job *job, const float o[3], const f
         if (skipping) {
             int code = brick_code(job, g);
             if (code < 128) { /* invisible: sample i and those up to the cube's face add nothing */
-                long next = skip_target(job, &gr, g, code, t_near, i);
+                long next = skip_target(job, &gr, g, code, i);
                 next = next < stop ? next : stop;
                 taken += (uint64_t)(next - i);
                 if (next == n && t_far - (t_near + (float)(n - 1) * step) <= 0.0f)
@@ -748,7 +766,7 @@ static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], fl
         }
         {
             if (jump) {
-                long next = skip_target(job, &L->gr[k], gk, code, L->t_near[k], L->i[k]);
+                long next = skip_target(job, &L->gr[k], gk, code, L->i[k]);
                 int n = L->n[k];
                 next = next < n ? next : n;
                 L->taken[k] += (uint64_t)(next - L->i[k]);
@@ -889,7 +907,7 @@ static uint64_t render_lanes(const render_job *job, int x, int y)
         L.t_far[k] = t_far;
         L.live[k] = 1;
         if (job->skip_flags || job->skip_minmax)
-            grid_ray_of(job, o, d, &L.gr[k]);
+            grid_ray_of(job, o, d, t_near, &L.gr[k]);
     }
     __m128 C[3] = {_mm_setzero_ps(), _mm_setzero_ps(), _mm_setzero_ps()}, A = _mm_setzero_ps();
     while (lanes_step(job, &L, C, &A))
