@@ -35,6 +35,7 @@ typedef struct render_job {
     float code_value[256];     /* (float)i: a load instead of an int-to-float conversion */
     const cdvr_camera *camera;
     cdvr_camera_frame cam_frame; /* the camera's basis, once per render */
+    float eye_box[3];          /* a pinhole camera's eye in the box frame (step 0's o) */
     /* blend modes and shading (render.h) */
     int blend;
     int shade;                 /* shading on */
@@ -882,22 +883,86 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
     return L->live[0] | L->live[1] | L->live[2] | L->live[3];
 }
 
+/* Steps 0 of pixels x .. x + 3 of row y for a pinhole camera, two rays at a time in double
+ * (SSE2): the operations of cdvr_camera_frame_ray (its order, no fused multiply-add; sqrtpd
+ * and divpd round as sqrt and / do) and of to_box_frame, so o, d and V are those of the
+ * one-ray path bit for bit. The origin is the eye for every pixel: job->eye_box. Returns 0
+ * (nothing written) for an orthographic camera or a zero-length direction: the caller then
+ * takes the one-ray path. */
+static int lanes_rays(const render_job *job, int x, int y, float o[3][LANES],
+                      float d[3][LANES], float V[3][LANES])
+{
+    const cdvr_camera *cam = job->camera;
+    const cdvr_camera_frame *fr = &job->cam_frame;
+    if (cam->orthographic)
+        return 0;
+    double aspect = (double)cam->width / (double)cam->height;
+    double sy = -(2.0 * (y + 0.5) / cam->height - 1.0);
+    const __m128d two = _mm_set1_pd(2.0), one = _mm_set1_pd(1.0), half = _mm_set1_pd(0.5);
+    const __m128d w = _mm_set1_pd((double)cam->width), tan = _mm_set1_pd(fr->tan_half_fov);
+    __m128d dir[2][3];
+    for (int p = 0; p < 2; p++) {
+        __m128d xs = _mm_add_pd(_mm_set_pd((double)(x + 2 * p + 1), (double)(x + 2 * p)), half);
+        __m128d sx = _mm_mul_pd(_mm_sub_pd(_mm_div_pd(_mm_mul_pd(two, xs), w), one),
+                                _mm_set1_pd(aspect));
+        for (int i = 0; i < 3; i++) {
+            __m128d side = _mm_add_pd(_mm_mul_pd(sx, _mm_set1_pd(fr->r[i])),
+                                      _mm_set1_pd(sy * fr->u[i]));
+            dir[p][i] = _mm_add_pd(_mm_set1_pd(fr->f[i]), _mm_mul_pd(side, tan));
+        }
+        __m128d len2 = _mm_add_pd(_mm_add_pd(_mm_mul_pd(dir[p][0], dir[p][0]),
+                                             _mm_mul_pd(dir[p][1], dir[p][1])),
+                                  _mm_mul_pd(dir[p][2], dir[p][2]));
+        __m128d len = _mm_sqrt_pd(len2);
+        if (_mm_movemask_pd(_mm_cmpgt_pd(len, _mm_setzero_pd())) != 3)
+            return 0;
+        for (int i = 0; i < 3; i++)
+            dir[p][i] = _mm_div_pd(dir[p][i], len);
+    }
+    const double *m = job->inv_dir;
+    for (int p = 0; p < 2; p++) {
+        double dd[3][2];
+        for (int i = 0; i < 3; i++)
+            _mm_storeu_pd(dd[i], dir[p][i]);
+        for (int r = 0; r < 3; r++) {
+            __m128d v = _mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_set1_pd(m[3 * r]), dir[p][0]),
+                                              _mm_mul_pd(_mm_set1_pd(m[3 * r + 1]), dir[p][1])),
+                                   _mm_mul_pd(_mm_set1_pd(m[3 * r + 2]), dir[p][2]));
+            double db[2];
+            _mm_storeu_pd(db, v);
+            for (int k = 0; k < 2; k++) {
+                d[r][2 * p + k] = (float)db[k];
+                o[r][2 * p + k] = job->eye_box[r];
+                V[r][2 * p + k] = (float)-dd[r][k];
+            }
+        }
+    }
+    return 1;
+}
+
 /* Pixels x .. x + 3 of row y (x + 3 < width) by the four-lane march; returns their samples. */
 static uint64_t render_lanes(const render_job *job, int x, int y)
 {
     lanes L;
     memset(&L, 0, sizeof L);
     L.blend = job->blend;
+    int fast = lanes_rays(job, x, y, L.o, L.d, L.V);
     for (int k = 0; k < LANES; k++) {
         L.best[k] = job->blend == CDVR_BLEND_MIN ? INFINITY : -INFINITY;
-        double od[3], dd[3];
         float o[3], d[3], t_near = 0.0f, t_far = 0.0f;
-        pixel_ray(job, x + k, y, od, dd);
-        to_box_frame(job, od, dd, o, d);
+        if (!fast) {
+            double od[3], dd[3];
+            pixel_ray(job, x + k, y, od, dd);
+            to_box_frame(job, od, dd, o, d);
+            for (int a = 0; a < 3; a++) {
+                L.o[a][k] = o[a];
+                L.d[a][k] = d[a];
+                L.V[a][k] = (float)-dd[a]; /* |dd| = 1 */
+            }
+        }
         for (int a = 0; a < 3; a++) {
-            L.o[a][k] = o[a];
-            L.d[a][k] = d[a];
-            L.V[a][k] = (float)-dd[a]; /* |dd| = 1 */
+            o[a] = L.o[a][k];
+            d[a] = L.d[a][k];
         }
         if (!intersect_box(job, o, d, &t_near, &t_far))
             continue;
@@ -1120,6 +1185,9 @@ static void setup_job(render_job *job, const cdvr_volume *vol, size_t t,
         job->alpha_step[i] = (float)(1.0 - pow(1.0 - opts->tf->table[i][3], step / unit));
     job->camera = opts->camera;
     cdvr_camera_frame_init(opts->camera, &job->cam_frame);
+    double zero[3] = {0.0, 0.0, 0.0};
+    float unused[3];
+    to_box_frame(job, opts->camera->eye, zero, job->eye_box, unused);
     setup_look(job, opts, D);
     job->cancel = opts->cancel;
     job->img = img;
