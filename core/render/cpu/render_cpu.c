@@ -689,34 +689,35 @@ typedef struct lanes {
     float g[3][LANES];       /* the grid positions of the last lanes_sample */
 } lanes;
 
+/* Four integer codes as floats (exact). */
+static inline __m128 code4(const int v[LANES])
+{
+    return _mm_cvtepi32_ps(_mm_loadu_si128((const __m128i *)v));
+}
+
 static inline __m128 lerp4(__m128 a, __m128 b, __m128 f)
 {
     return _mm_add_ps(a, _mm_mul_ps(f, _mm_sub_ps(b, a)));
 }
 
-/* Lane k's eight voxels at grid position g (already clamped) into v[0..7][k]. */
-static inline void gather_lane(const render_job *job, const int i0[3], float v[8][LANES], int k)
+/* Lane k's eight voxel codes around cell (x, y, z) (clamped; the upper neighbour along an
+ * axis is the voxel itself on the volume's last voxel, as in sample_volume) into v[0..7][k],
+ * as integers: (float) of them, by cvtdq2ps, is code_value's value. */
+static inline void gather_lane(const render_job *job, int x, int y, int z, int v[8][LANES],
+                               int k)
 {
-    size_t lo[3], hi[3];
-    for (int a = 0; a < 3; a++) {
-        int i1 = i0[a] + 1 < job->dims[a] ? i0[a] + 1 : i0[a];
-        lo[a] = (size_t)i0[a];
-        hi[a] = (size_t)i1;
-    }
-    const uint8_t *vox = job->voxels;
-    const float *cv = job->code_value;
-    size_t y0 = lo[1] * job->stride_y, y1 = hi[1] * job->stride_y;
-    size_t z0 = lo[2] * job->stride_z, z1 = hi[2] * job->stride_z;
-    const uint8_t *r00 = vox + y0 + z0, *r10 = vox + y1 + z0, *r01 = vox + y0 + z1,
-                  *r11 = vox + y1 + z1;
-    v[0][k] = cv[r00[lo[0]]];
-    v[1][k] = cv[r00[hi[0]]];
-    v[2][k] = cv[r10[lo[0]]];
-    v[3][k] = cv[r10[hi[0]]];
-    v[4][k] = cv[r01[lo[0]]];
-    v[5][k] = cv[r01[hi[0]]];
-    v[6][k] = cv[r11[lo[0]]];
-    v[7][k] = cv[r11[hi[0]]];
+    size_t dx = x + 1 < job->dims[0], dy = y + 1 < job->dims[1] ? job->stride_y : 0;
+    size_t dz = z + 1 < job->dims[2] ? job->stride_z : 0;
+    const uint8_t *p = job->voxels + (size_t)x + (size_t)y * job->stride_y +
+                       (size_t)z * job->stride_z;
+    v[0][k] = p[0];
+    v[1][k] = p[dx];
+    v[2][k] = p[dy];
+    v[3][k] = p[dy + dx];
+    v[4][k] = p[dz];
+    v[5][k] = p[dz + dx];
+    v[6][k] = p[dz + dy];
+    v[7][k] = p[dz + dy + dx];
 }
 
 /* Steps 2-3 for the live lanes at their segment index: lanes in empty space (composite:
@@ -744,11 +745,11 @@ static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], fl
         _mm_storeu_ps(g[a], gv[a]);
         _mm_storeu_si128((__m128i *)gi[a], _mm_cvttps_epi32(gv[a]));
     }
-    float v[8][LANES];
+    int v[8][LANES];
     for (int k = 0; k < LANES; k++) {
         sampling[k] = 0;
         for (int c = 0; c < 8; c++)
-            v[c][k] = 0.0f;
+            v[c][k] = 0;
         if (!L->live[k])
             continue;
         if (!(dsv[k] > 0.0f)) { /* the definition stops before an empty last segment */
@@ -778,8 +779,7 @@ static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], fl
                 continue;
             }
         }
-        int i0[3] = {gi[0][k], gi[1][k], gi[2][k]};
-        gather_lane(job, i0, v, k);
+        gather_lane(job, gi[0][k], gi[1][k], gi[2][k], v, k);
         sampling[k] = 1;
     }
     if (!(sampling[0] | sampling[1] | sampling[2] | sampling[3]))
@@ -787,10 +787,10 @@ static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], fl
     __m128 f[3];
     for (int a = 0; a < 3; a++)
         f[a] = _mm_sub_ps(gv[a], _mm_cvtepi32_ps(_mm_loadu_si128((const __m128i *)gi[a])));
-    __m128 c00 = lerp4(_mm_loadu_ps(v[0]), _mm_loadu_ps(v[1]), f[0]);
-    __m128 c10 = lerp4(_mm_loadu_ps(v[2]), _mm_loadu_ps(v[3]), f[0]);
-    __m128 c01 = lerp4(_mm_loadu_ps(v[4]), _mm_loadu_ps(v[5]), f[0]);
-    __m128 c11 = lerp4(_mm_loadu_ps(v[6]), _mm_loadu_ps(v[7]), f[0]);
+    __m128 c00 = lerp4(code4(v[0]), code4(v[1]), f[0]);
+    __m128 c10 = lerp4(code4(v[2]), code4(v[3]), f[0]);
+    __m128 c01 = lerp4(code4(v[4]), code4(v[5]), f[0]);
+    __m128 c11 = lerp4(code4(v[6]), code4(v[7]), f[0]);
     *s = lerp4(lerp4(c00, c10, f[1]), lerp4(c01, c11, f[1]), f[2]);
     return 1;
 }
