@@ -461,6 +461,57 @@ static void test_skipping_is_exact(void)
     cdvr_volume_free(v);
 }
 
+/* Max and min stop a ray once its extreme is the last code (255 for max, 0 for min): a
+ * volume with a saturated cube of 255s and one of 0s in a field of middling noise, seen from
+ * two eyes (a row width not a multiple of four, so the one-ray tail runs too), gives the
+ * images and samples count of no_skip bit for bit, and some rays do meet each cube. */
+static void test_extreme_stops_exact(void)
+{
+    cdvr_volume *v = make_volume(30, 26, 22);
+    if (!v)
+        return;
+    uint8_t *d = v->data;
+    uint32_t state = 4242u;
+    for (size_t z = 0, i = 0; z < 22; z++)
+        for (size_t y = 0; y < 26; y++)
+            for (size_t x = 0; x < 30; x++, i++) {
+                state = state * 1664525u + 1013904223u;
+                int hot = x >= 6 && x < 13 && y >= 5 && y < 12 && z >= 6 && z < 14;
+                int cold = x >= 17 && x < 25 && y >= 14 && y < 21 && z >= 8 && z < 15;
+                d[i] = hot ? 255 : cold ? 0 : (uint8_t)(40 + (state >> 26));
+            }
+    cdvr_tf_point pts[] = {{0, 0, 0, 0, 0.2}, {255, 1, 1, 1, 0.9}};
+    cdvr_tf tf;
+    cdvr_error err;
+    CHECK_OK(cdvr_tf_init(&tf, pts, 2, 1.0, &err), err);
+    double eyes[][3] = {{-30, -40, 50}, {70, 60, -20}}, center[3] = {15, 13, 11};
+    for (int e = 0; e < 2; e++)
+        for (int blend = 0; blend < 2; blend++) {
+            cdvr_camera cam = camera(eyes[e], center, 38);
+            cdvr_render_opts a = options(&tf, &cam, e ? 0.45 : 0.5, 0.0);
+            a.look.blend = blend ? CDVR_BLEND_MIN : CDVR_BLEND_MAX;
+            cdvr_render_opts b = a;
+            b.no_skip = 1;
+            cdvr_image *ia = render(v, &a), *ib = render(v, &b);
+            if (ia && ib) {
+                size_t n = (size_t)38 * 38 * 4;
+                int extreme = 0;
+                for (size_t i = 3; i < n; i += 4) /* the TF's alpha at 255 (0): 0.9 (0.2) */
+                    extreme += ib->rgba[i] == (blend ? 0.2f : 0.9f);
+                CHECK(memcmp(ia->rgba, ib->rgba, n * sizeof(float)) == 0,
+                      "eye %d blend %d: stopping at the last code changed the image", e, blend);
+                CHECK(a.samples == b.samples, "eye %d blend %d: %llu samples, %llu without "
+                      "skipping", e, blend, (unsigned long long)a.samples,
+                      (unsigned long long)b.samples);
+                CHECK(extreme > 20, "eye %d blend %d: only %d rays meet the cube", e, blend,
+                      extreme);
+            }
+            cdvr_image_free(ia);
+            cdvr_image_free(ib);
+        }
+    cdvr_volume_free(v);
+}
+
 /* One skip cache across a sequence of renders keeps exactly the images of no_skip: the same
  * TF again (flags kept), a TF that makes more entries visible (stale flags would jump the
  * bricks between 60 and 200), iso and max on the same ranges, the first TF again, a voxel edit
@@ -567,6 +618,7 @@ int main(void)
 {
     test_brick_ranges();
     test_skipping_is_exact();
+    test_extreme_stops_exact();
     test_skip_cache_is_exact();
     test_analytic_box();
     test_zero_and_full_opacity();

@@ -796,7 +796,7 @@ static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], fl
 }
 
 /* Max, min, average: the codes of the sampling lanes into their extreme or sum. */
-static void lanes_extreme(lanes *L, const int sampling[LANES], __m128 s)
+static void lanes_extreme(const render_job *job, lanes *L, const int sampling[LANES], __m128 s)
 {
     float sv[LANES];
     _mm_storeu_ps(sv, s);
@@ -811,6 +811,16 @@ static void lanes_extreme(lanes *L, const int sampling[LANES], __m128 s)
         L->taken[k]++;
         L->i[k]++;
         L->live[k] = L->i[k] < L->n[k];
+        if (L->live[k] && L->best[k] == (L->blend == CDVR_BLEND_MAX ? 255.0f : 0.0f)) {
+            /* no code lies beyond 255 (below 0): the rest cannot change the extreme; they
+             * are counted as the definition takes them (not an empty last segment) */
+            int n = L->n[k];
+            L->taken[k] += (uint64_t)(n - L->i[k]);
+            if (L->t_far[k] - (L->t_near[k] + (float)(n - 1) * job->step) <= 0.0f)
+                L->taken[k]--;
+            L->i[k] = n;
+            L->live[k] = 0;
+        }
     }
 }
 
@@ -823,7 +833,7 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
     if (!lanes_sample(job, L, sampling, dsv, &s))
         return L->live[0] | L->live[1] | L->live[2] | L->live[3];
     if (L->blend != CDVR_BLEND_COMPOSITE) {
-        lanes_extreme(L, sampling, s);
+        lanes_extreme(job, L, sampling, s);
         return L->live[0] | L->live[1] | L->live[2] | L->live[3];
     }
     /* step 4: i0 = min((int)s, 254) as the truncation of min(s, 254) */
