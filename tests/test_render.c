@@ -515,8 +515,9 @@ static void test_extreme_stops_exact(void)
 /* One skip cache across a sequence of renders keeps exactly the images of no_skip: the same
  * TF again (flags kept), a TF that makes more entries visible (stale flags would jump the
  * bricks between 60 and 200), iso and max on the same ranges, the first TF again, a voxel edit
- * that puts a visible blob into empty bricks (stale ranges would jump it), and a volume of
- * other dims. */
+ * that puts a visible blob into empty bricks (stale ranges would jump it), max twice with an
+ * edit between them (stale widened ranges would jump the new blob), and a volume of other
+ * dims. */
 static void test_skip_cache_is_exact(void)
 {
     cdvr_volume *v = make_volume(40, 36, 30), *w = make_volume(23, 41, 19);
@@ -545,16 +546,24 @@ static void test_skip_cache_is_exact(void)
     CHECK_OK(cdvr_tf_init(&tf_lo, lo_pts, 4, 1.0, &err), err);
     double eye[3] = {-30, -45, 60}, center[3] = {20, 18, 15};
     cdvr_camera cam = camera(eye, center, 40);
-    /* case: 0, 1 tf_hi; 2 tf_lo; 3 iso; 4 max; 5 tf_hi; 6 tf_hi after the edit; 7 on w */
-    for (int c = 0; c < 8; c++) {
+    /* case: 0, 1 tf_hi; 2 tf_lo; 3 iso; 4 max; 5 tf_hi; 6 tf_hi after the edit; 7 max; 8 max
+     * after a second edit (stale widened ranges would jump its blob); 9 on w */
+    for (int c = 0; c < 10; c++) {
         if (c == 6) /* a visible blob far from the sphere, in bricks that were empty */
             for (size_t z = 22; z < 27; z++)
                 for (size_t y = 26; y < 31; y++)
                     for (size_t x = 30; x < 36; x++)
                         ((uint8_t *)v->data)[x + 40 * (y + 36 * z)] = 250;
-        cdvr_volume *u = c == 7 ? w : v;
+        if (c == 8) /* a small bright blob between the sphere and the first blob */
+            for (size_t z = 16; z < 19; z++)
+                for (size_t y = 2; y < 5; y++)
+                    for (size_t x = 26; x < 29; x++)
+                        ((uint8_t *)v->data)[x + 40 * (y + 36 * z)] = 252;
+        cdvr_volume *u = c == 9 ? w : v;
         cdvr_render_opts a = options(c == 2 ? &tf_lo : &tf_hi, &cam, 0.5, 0.0);
-        a.look.blend = c == 3 ? CDVR_BLEND_ISO : c == 4 ? CDVR_BLEND_MAX : CDVR_BLEND_COMPOSITE;
+        a.look.blend = c == 3                       ? CDVR_BLEND_ISO
+                       : c == 4 || c == 7 || c == 8 ? CDVR_BLEND_MAX
+                                                    : CDVR_BLEND_COMPOSITE;
         a.look.iso_value = 150.0;
         cdvr_render_opts b = a;
         b.no_skip = 1;

@@ -18,6 +18,7 @@
 #endif
 
 #define MAX_THREADS 256
+#define WIDE_REACH 2 /* max, min: the reach of the widened brick ranges (wide_ranges) */
 
 typedef struct render_job {
     const uint8_t *voxels;
@@ -53,6 +54,8 @@ typedef struct render_job {
     /* empty-space skipping (not clipped): composite reads the brick flags of cdvr/skip.h */
     const uint8_t *skip_flags; /* NULL: every sample is taken */
     const uint8_t *skip_minmax; /* max, min: brick ranges (NULL: every sample is taken) */
+    const uint8_t *skip_wide;  /* max, min: the range of the cube of reach WIDE_REACH around
+                                * each brick (wide_ranges), or NULL */
     int skip_shift, skip_nb[3];
     int lanes;                 /* rays four at a time (SSE2): composite, max, min, average */
     const atomic_int *cancel; /* NULL, or stop before the next row once nonzero */
@@ -405,6 +408,15 @@ static inline long skip_target(const render_job *job, const grid_ray *r, const f
  * least the best min) is jumped to its exit face as the composite march jumps an invisible
  * cube of reach 0 (skip_target): the result is exactly the unskipped one. This gives the
  * value range [min, max] of the brick holding grid position g. */
+/* The index of the brick holding grid position g (x fastest). */
+static inline size_t brick_index(const render_job *job, const float g[3])
+{
+    int sh = job->skip_shift;
+    size_t bx = (size_t)((int)g[0] >> sh), by = (size_t)((int)g[1] >> sh);
+    size_t bz = (size_t)((int)g[2] >> sh);
+    return bx + (size_t)job->skip_nb[0] * (by + (size_t)job->skip_nb[1] * bz);
+}
+
 static inline void brick_range(const render_job *job, const float g[3], int *lo, int *hi)
 {
     int sh = job->skip_shift;
@@ -762,9 +774,15 @@ static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], fl
             code = brick_code(job, gk);
             jump = code < 128;
         } else if (job->skip_minmax) {
-            int lo, hi;
+            int lo, hi, is_max = L->blend == CDVR_BLEND_MAX;
             brick_range(job, gk, &lo, &hi);
-            jump = L->blend == CDVR_BLEND_MAX ? (float)hi <= L->best[k] : (float)lo >= L->best[k];
+            jump = is_max ? (float)hi <= L->best[k] : (float)lo >= L->best[k];
+            if (jump && job->skip_wide) { /* the whole cube around the brick is dull too? */
+                size_t b = brick_index(job, gk);
+                float wide = job->skip_wide[2 * b + is_max];
+                if (is_max ? wide <= L->best[k] : wide >= L->best[k])
+                    code = WIDE_REACH + 1;
+            }
         }
         {
             if (jump) {
@@ -1278,6 +1296,47 @@ static void iso_flags(cdvr_skip_grid *g, float c)
     reach_flags(g, holds);
 }
 
+/* Max and min: every brick's range widened to the cube of bricks within WIDE_REACH of it
+ * (chessboard distance, bricks outside the grid left out): a ray whose extreme already
+ * beats that range jumps the whole cube (skip_target with code WIDE_REACH + 1), as the
+ * composite march jumps an invisible cube, instead of one brick at a time (WIDE_REACH: at
+ * the top of this file). */
+
+/* out[2 b] = min, out[2 b + 1] = max of in over the bricks within WIDE_REACH of b along axis
+ * a only (in and out distinct, both 2 per brick). */
+static void widen_axis(const uint8_t *in, uint8_t *out, const size_t nb[3], int a)
+{
+    size_t stride = a == 0 ? 1 : a == 1 ? nb[0] : nb[0] * nb[1];
+    size_t n = nb[a], lines = nb[0] * nb[1] * nb[2] / n;
+    for (size_t l = 0; l < lines; l++) {
+        /* the first brick of line l: l counts the other two axes, x before y before z */
+        size_t first = a == 0 ? l * nb[0]
+                     : a == 1 ? (l % nb[0]) + (l / nb[0]) * nb[0] * nb[1]
+                              : l;
+        for (size_t i = 0; i < n; i++) {
+            size_t j0 = i >= WIDE_REACH ? i - WIDE_REACH : 0;
+            size_t j1 = i + WIDE_REACH < n ? i + WIDE_REACH : n - 1;
+            uint8_t lo = 255, hi = 0;
+            for (size_t j = j0; j <= j1; j++) {
+                const uint8_t *r = in + 2 * (first + j * stride);
+                lo = r[0] < lo ? r[0] : lo;
+                hi = r[1] > hi ? r[1] : hi;
+            }
+            uint8_t *o = out + 2 * (first + i * stride);
+            o[0] = lo;
+            o[1] = hi;
+        }
+    }
+}
+
+/* The widened ranges of grid g into out (2 per brick), with tmp (2 per brick) as scratch. */
+static void wide_ranges(const cdvr_skip_grid *g, uint8_t *out, uint8_t *tmp)
+{
+    widen_axis(g->minmax, out, g->dims, 0);
+    widen_axis(out, tmp, g->dims, 1);
+    widen_axis(tmp, out, g->dims, 2);
+}
+
 /* What a skip grid's flags were made for: a composite TF's entries with alpha > 0, or an iso
  * code (the ranges are compared separately). */
 typedef struct skip_key {
@@ -1289,6 +1348,9 @@ typedef struct skip_key {
 struct cdvr_cpu_skip_cache {
     cdvr_skip_grid grid;     /* grid.minmax == NULL: nothing kept */
     skip_key key;
+    int ranges_valid;        /* grid.minmax holds the ranges of the last render's frame */
+    uint8_t *wide;           /* wide_ranges of grid.minmax (2 per brick), or NULL */
+    int wide_valid;          /* wide was made from the ranges in grid.minmax */
 };
 
 cdvr_status cdvr_cpu_skip_cache_create(cdvr_cpu_skip_cache **out, cdvr_error *err)
@@ -1305,6 +1367,7 @@ void cdvr_cpu_skip_cache_free(cdvr_cpu_skip_cache *c)
         return;
     if (c->grid.minmax)
         cdvr_skip_grid_free(&c->grid);
+    free(c->wide);
     free(c);
 }
 
@@ -1335,9 +1398,14 @@ static cdvr_skip_grid *cached_ranges(cdvr_cpu_skip_cache *c, const render_job *j
     if (g->minmax && memcmp(g->vol_dims, vol->dims, sizeof g->vol_dims) != 0) {
         cdvr_skip_grid_free(g);
         memset(g, 0, sizeof *g);
+        free(c->wide);
+        c->wide = NULL;
+        c->wide_valid = 0;
     }
     if (!g->minmax) {
         c->key.kind = 0;
+        c->ranges_valid = 0;
+        c->wide_valid = 0;
         if (cdvr_skip_grid_init(g, vol->dims, CDVR_RANGE_SHIFT, &ignored) != CDVR_OK) {
             memset(g, 0, sizeof *g);
             return NULL;
@@ -1350,14 +1418,39 @@ static cdvr_skip_grid *cached_ranges(cdvr_cpu_skip_cache *c, const render_job *j
         return NULL;
     }
     size_t bytes = 2 * g->nbricks;
-    *same = c->key.kind != 0 && memcmp(g->scratch, g->minmax, bytes) == 0;
+    *same = c->ranges_valid && memcmp(g->scratch, g->minmax, bytes) == 0;
+    c->ranges_valid = 1;
     if (!*same) {
         uint8_t *fresh = g->scratch;
         g->scratch = g->minmax;
         g->minmax = fresh;
         c->key.kind = 0;
+        c->wide_valid = 0;
     }
     return g;
+}
+
+/* The widened ranges (wide_ranges) of grid: the cache's (made when its ranges changed), or
+ * without a cache a new array in *own (free it); NULL (bricks jumped one at a time) when out
+ * of memory. The grid's scratch is free here (it only ever holds what is made next). */
+static const uint8_t *extreme_wide(cdvr_skip_grid *grid, cdvr_cpu_skip_cache *cache,
+                                   uint8_t **own)
+{
+    if (!cache) {
+        *own = malloc(2 * grid->nbricks);
+        if (*own)
+            wide_ranges(grid, *own, grid->scratch);
+        return *own;
+    }
+    if (!cache->wide_valid) {
+        if (!cache->wide)
+            cache->wide = malloc(2 * grid->nbricks);
+        if (!cache->wide)
+            return NULL;
+        wide_ranges(grid, cache->wide, grid->scratch);
+        cache->wide_valid = 1;
+    }
+    return cache->wide;
 }
 
 /* Empty-space skipping for a composite render of a whole volume: the brick flags of its frame
@@ -1370,10 +1463,13 @@ static cdvr_skip_grid *cached_ranges(cdvr_cpu_skip_cache *c, const render_job *j
  * ranges only, iso the flags of iso_flags. Also chooses the four-lane march unless
  * opts->no_skip. */
 static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render_opts *opts,
-                      int threads, cdvr_cpu_skip_cache *cache, cdvr_skip_grid *own)
+                      int threads, cdvr_cpu_skip_cache *cache, cdvr_skip_grid *own,
+                      uint8_t **wide_own)
 {
     job->skip_flags = NULL;
     job->skip_minmax = NULL;
+    job->skip_wide = NULL;
+    *wide_own = NULL;
     job->lanes = !opts->no_skip && !job->clipped &&
                  (job->blend == CDVR_BLEND_COMPOSITE ||
                   job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN ||
@@ -1403,6 +1499,7 @@ static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render
         job->skip_nb[a] = (int)grid->dims[a];
     if (extreme) {
         job->skip_minmax = grid->minmax;
+        job->skip_wide = extreme_wide(grid, cache, wide_own);
         return cache == NULL;
     }
     skip_key key = key_of(job, opts->tf);
@@ -1455,11 +1552,13 @@ cdvr_status cdvr_render_cpu_cached(const cdvr_volume *vol, size_t t, cdvr_render
     }
     setup_job(job, vol, t, opts, step, unit, term, img);
     cdvr_skip_grid grid;
+    uint8_t *wide = NULL;
     int nthreads = thread_count(opts, img->height);
-    int skipping = skip_setup(job, vol, opts, nthreads, cache, &grid);
+    int skipping = skip_setup(job, vol, opts, nthreads, cache, &grid, &wide);
     run_workers(job, nthreads);
     if (skipping)
         cdvr_skip_grid_free(&grid);
+    free(wide);
     opts->samples = (uint64_t)atomic_load(&job->samples);
     free(job);
     if (opts->cancel && atomic_load(opts->cancel)) {
