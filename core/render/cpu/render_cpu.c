@@ -33,6 +33,7 @@ typedef struct render_job {
     float step, unit, term_alpha;
     const cdvr_tf *tf;
     float alpha_step[256]; /* a_c[i] = 1 - (1 - a[i])^(step/unit) */
+    float rgb_alpha_step[256][4]; /* the TF's r, g, b and a_c[i] side by side */
     float code_value[256];     /* (float)i: a load instead of an int-to-float conversion */
     const cdvr_camera *camera;
     cdvr_camera_frame cam_frame; /* the camera's basis, once per render */
@@ -57,6 +58,7 @@ typedef struct render_job {
     const uint8_t *skip_wide;  /* max, min: the range of the cube of reach WIDE_REACH around
                                 * each brick (wide_ranges), or NULL */
     int skip_shift, skip_nb[3];
+    double jump_inv_step, jump_edge, jump_far[3]; /* grid_ray_of's constants (skip_setup) */
     int lanes;                 /* rays four at a time (SSE2): composite, max, min, average */
     const atomic_int *cancel; /* NULL, or stop before the next row once nonzero */
     cdvr_image *img;
@@ -355,7 +357,7 @@ typedef struct grid_ray {
 static void grid_ray_of(const render_job *job, const float o[3], const float d[3],
                         float t_near, grid_ray *r)
 {
-    double inv_step = 1.0 / (double)job->step, edge = (double)(1 << job->skip_shift);
+    double inv_step = job->jump_inv_step, edge = job->jump_edge;
     for (int a = 0; a < 3; a++) {
         double og = (double)o[a] * (double)job->inv_spacing[a];
         double dg = (double)d[a] * (double)job->inv_spacing[a];
@@ -365,32 +367,47 @@ static void grid_ray_of(const render_job *job, const float o[3], const float d[3
             r->per_face[a] = 0.0;
             continue;
         }
-        double far = ((double)job->skip_nb[a] + CDVR_SKIP_REACH_MAX + 2) * edge;
-        double m = 0.01 + 1e-5 * (fabs(og) + far);
+        double m = 0.01 + 1e-5 * (fabs(og) + job->jump_far[a]);
         double inv_d = 1.0 / dg;
         r->base[a] = ((dg > 0.0 ? -m : m) - og) * inv_d * inv_step - (double)t_near * inv_step - 0.5;
         r->per_face[a] = edge * inv_d * inv_step;
     }
 }
 
+/* The index of the brick holding voxel cell `cell` ((int) of a clamped grid position). */
+static inline size_t brick_of_cell(const render_job *job, const int cell[3])
+{
+    int sh = job->skip_shift;
+    size_t bx = (size_t)(cell[0] >> sh), by = (size_t)(cell[1] >> sh);
+    size_t bz = (size_t)(cell[2] >> sh);
+    return bx + (size_t)job->skip_nb[0] * (by + (size_t)job->skip_nb[1] * bz);
+}
+
+/* The cell of grid position g. */
+static inline void cell_of(const float g[3], int cell[3])
+{
+    for (int a = 0; a < 3; a++)
+        cell[a] = (int)g[a];
+}
+
 /* The flag byte of the brick holding grid position g (clamped to the volume: step 3). */
 static inline int brick_code(const render_job *job, const float g[3])
 {
-    int sh = job->skip_shift;
-    size_t bx = (size_t)((int)g[0] >> sh), by = (size_t)((int)g[1] >> sh);
-    size_t bz = (size_t)((int)g[2] >> sh);
-    return job->skip_flags[bx + (size_t)job->skip_nb[0] * (by + (size_t)job->skip_nb[1] * bz)];
+    int cell[3];
+    cell_of(g, cell);
+    return job->skip_flags[brick_of_cell(job, cell)];
 }
 
-/* Sample i at grid position g lies in an invisible brick of the given code: the index of the
- * first sample after it that may lie outside the invisible cube around that brick. */
-static inline long skip_target(const render_job *job, const grid_ray *r, const float g[3],
+/* Sample i in voxel cell `cell` ((int) of its grid position) lies in an invisible brick of
+ * the given code: the index of the first sample after it that may lie outside the invisible
+ * cube around that brick. */
+static inline long skip_target(const render_job *job, const grid_ray *r, const int cell[3],
                                int code, long i)
 {
     int sh = job->skip_shift, reach = (code > 1 ? code : 1) - 1;
     double j = 1e300;
     for (int a = 0; a < 3; a++) {
-        int b = (int)g[a] >> sh;
+        int b = cell[a] >> sh;
         int f = r->up[a] ? b + reach + 1 : b - reach;
         double ja = r->base[a] + (double)f * r->per_face[a];
         j = ja < j ? ja : j;
@@ -408,15 +425,6 @@ static inline long skip_target(const render_job *job, const grid_ray *r, const f
  * least the best min) is jumped to its exit face as the composite march jumps an invisible
  * cube of reach 0 (skip_target): the result is exactly the unskipped one. This gives the
  * value range [min, max] of the brick holding grid position g. */
-/* The index of the brick holding grid position g (x fastest). */
-static inline size_t brick_index(const render_job *job, const float g[3])
-{
-    int sh = job->skip_shift;
-    size_t bx = (size_t)((int)g[0] >> sh), by = (size_t)((int)g[1] >> sh);
-    size_t bz = (size_t)((int)g[2] >> sh);
-    return bx + (size_t)job->skip_nb[0] * (by + (size_t)job->skip_nb[1] * bz);
-}
-
 static inline void brick_range(const render_job *job, const float g[3], int *lo, int *hi)
 {
     int sh = job->skip_shift;
@@ -470,7 +478,9 @@ static uint64_t march_extreme(const render_job *job, const float o[3], const flo
             int lo, hi;
             brick_range(job, g, &lo, &hi);
             if (is_max ? (float)hi <= best : (float)lo >= best) {
-                long next = skip_target(job, &gr, g, 1, i);
+                int cell[3];
+                cell_of(g, cell);
+                long next = skip_target(job, &gr, cell, 1, i);
                 next = next < n ? next : n;
                 taken += (uint64_t)(next - i);
                 if (next == n && t_far - (t_near + (float)(n - 1) * job->step) <= 0.0f)
@@ -513,7 +523,9 @@ static long iso_jump(const render_job *job, const grid_ray *gr, const float g[3]
     int code = brick_code(job, g);
     if (code >= 128)
         return i;
-    long next = skip_target(job, gr, g, code, i);
+    int cell[3];
+    cell_of(g, cell);
+    long next = skip_target(job, gr, cell, code, i);
     next = next < n ? next : n;
     if (next - 2 <= i)
         return i;
@@ -603,7 +615,9 @@ static uint64_t march_composite(const render_job *job, const float o[3], const f
         if (skipping) {
             int code = brick_code(job, g);
             if (code < 128) { /* invisible: sample i and those up to the cube's face add nothing */
-                long next = skip_target(job, &gr, g, code, i);
+                int cell[3];
+                cell_of(g, cell);
+                long next = skip_target(job, &gr, cell, code, i);
                 next = next < stop ? next : stop;
                 taken += (uint64_t)(next - i);
                 if (next == n && t_far - (t_near + (float)(n - 1) * step) <= 0.0f)
@@ -758,27 +772,26 @@ static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], fl
         _mm_storeu_si128((__m128i *)gi[a], _mm_cvttps_epi32(gv[a]));
     }
     int v[8][LANES];
+    memset(v, 0, sizeof v);
     for (int k = 0; k < LANES; k++) {
         sampling[k] = 0;
-        for (int c = 0; c < 8; c++)
-            v[c][k] = 0;
         if (!L->live[k])
             continue;
         if (!(dsv[k] > 0.0f)) { /* the definition stops before an empty last segment */
             L->live[k] = 0;
             continue;
         }
-        float gk[3] = {g[0][k], g[1][k], g[2][k]};
+        int cell[3] = {gi[0][k], gi[1][k], gi[2][k]};
         int jump = 0, code = 1;
         if (job->skip_flags) {
-            code = brick_code(job, gk);
+            code = job->skip_flags[brick_of_cell(job, cell)];
             jump = code < 128;
         } else if (job->skip_minmax) {
-            int lo, hi, is_max = L->blend == CDVR_BLEND_MAX;
-            brick_range(job, gk, &lo, &hi);
-            jump = is_max ? (float)hi <= L->best[k] : (float)lo >= L->best[k];
+            int is_max = L->blend == CDVR_BLEND_MAX;
+            size_t b = brick_of_cell(job, cell);
+            float edge = job->skip_minmax[2 * b + is_max]; /* max: the brick's max; min: min */
+            jump = is_max ? edge <= L->best[k] : edge >= L->best[k];
             if (jump && job->skip_wide) { /* the whole cube around the brick is dull too? */
-                size_t b = brick_index(job, gk);
                 float wide = job->skip_wide[2 * b + is_max];
                 if (is_max ? wide <= L->best[k] : wide >= L->best[k])
                     code = WIDE_REACH + 1;
@@ -786,7 +799,7 @@ static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], fl
         }
         {
             if (jump) {
-                long next = skip_target(job, &L->gr[k], gk, code, L->i[k]);
+                long next = skip_target(job, &L->gr[k], cell, code, L->i[k]);
                 int n = L->n[k];
                 next = next < n ? next : n;
                 L->taken[k] += (uint64_t)(next - L->i[k]);
@@ -858,22 +871,21 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
     __m128i si = _mm_cvttps_epi32(_mm_min_ps(s, _mm_set1_ps(254.0f)));
     __m128 fr = _mm_sub_ps(s, _mm_cvtepi32_ps(si));
     int ti[LANES];
-    float sv[LANES], a0[LANES], a1[LANES], rgb0[3][LANES], rgb1[3][LANES];
+    float sv[LANES];
     _mm_storeu_si128((__m128i *)ti, si);
     _mm_storeu_ps(sv, s);
+    /* each lane's two entries (r, g, b, a_c) of the table, transposed to channels */
+    __m128 lo[4], hi[4];
     for (int k = 0; k < LANES; k++) {
-        const float *lo = job->tf->table[ti[k]], *hi = job->tf->table[ti[k] + 1];
-        a0[k] = job->alpha_step[ti[k]];
-        a1[k] = job->alpha_step[ti[k] + 1];
-        for (int c = 0; c < 3; c++) {
-            rgb0[c][k] = lo[c];
-            rgb1[c][k] = hi[c];
-        }
+        lo[k] = _mm_loadu_ps(job->rgb_alpha_step[ti[k]]);
+        hi[k] = _mm_loadu_ps(job->rgb_alpha_step[ti[k] + 1]);
     }
+    _MM_TRANSPOSE4_PS(lo[0], lo[1], lo[2], lo[3]);
+    _MM_TRANSPOSE4_PS(hi[0], hi[1], hi[2], hi[3]);
     float alpha[LANES], rgb[3][LANES];
-    _mm_storeu_ps(alpha, lerp4(_mm_loadu_ps(a0), _mm_loadu_ps(a1), fr));
+    _mm_storeu_ps(alpha, lerp4(lo[3], hi[3], fr));
     for (int c = 0; c < 3; c++)
-        _mm_storeu_ps(rgb[c], lerp4(_mm_loadu_ps(rgb0[c]), _mm_loadu_ps(rgb1[c]), fr));
+        _mm_storeu_ps(rgb[c], lerp4(lo[c], hi[c], fr));
     int looks = job->shade || job->go_points;
     for (int k = 0; k < LANES; k++) {
         if (!sampling[k])
@@ -968,6 +980,38 @@ static int lanes_rays(const render_job *job, int x, int y, float o[3][LANES],
     return 1;
 }
 
+/* Step 1 for the four rays in L->o, L->d: intersect_box lane by lane (maxps and minps are
+ * the fmaxf and fminf it calls, x86-64 glibc's maxss and minss, for operands that are not
+ * NaN; the swap and the division as it does them), into t_near, t_far; returns the mask of
+ * the lanes that hit, or -1 (nothing written) when a NaN turns up: the caller then takes
+ * intersect_box. */
+static int lanes_intersect(const render_job *job, const lanes *L, float t_near[LANES],
+                           float t_far[LANES])
+{
+    const __m128 sign = _mm_set1_ps(-0.0f), zero = _mm_setzero_ps();
+    __m128 t_enter = _mm_set1_ps(-INFINITY), t_exit = _mm_set1_ps(INFINITY);
+    __m128 miss = zero, nan = zero;
+    for (int a = 0; a < 3; a++) {
+        __m128 o = _mm_loadu_ps(L->o[a]), d = _mm_loadu_ps(L->d[a]);
+        __m128 hi = _mm_set1_ps(job->box_hi[a]);
+        __m128 tiny = _mm_cmplt_ps(_mm_andnot_ps(sign, d), _mm_set1_ps(1e-12f));
+        __m128 outside = _mm_or_ps(_mm_cmplt_ps(o, zero), _mm_cmpgt_ps(o, hi));
+        miss = _mm_or_ps(miss, _mm_and_ps(tiny, outside));
+        __m128 t0 = _mm_div_ps(_mm_sub_ps(zero, o), d), t1 = _mm_div_ps(_mm_sub_ps(hi, o), d);
+        __m128 lo_t = _mm_min_ps(t1, t0), hi_t = _mm_max_ps(t0, t1); /* the swap */
+        nan = _mm_or_ps(nan, _mm_andnot_ps(tiny, _mm_cmpunord_ps(lo_t, hi_t)));
+        __m128 enter = _mm_max_ps(t_enter, lo_t), exit = _mm_min_ps(t_exit, hi_t);
+        t_enter = _mm_or_ps(_mm_and_ps(tiny, t_enter), _mm_andnot_ps(tiny, enter));
+        t_exit = _mm_or_ps(_mm_and_ps(tiny, t_exit), _mm_andnot_ps(tiny, exit));
+    }
+    if (_mm_movemask_ps(nan))
+        return -1;
+    __m128 tn = _mm_max_ps(t_enter, zero);
+    _mm_storeu_ps(t_near, tn);
+    _mm_storeu_ps(t_far, t_exit);
+    return _mm_movemask_ps(_mm_andnot_ps(miss, _mm_cmpgt_ps(t_exit, tn)));
+}
+
 /* Pixels x .. x + 3 of row y (x + 3 < width) by the four-lane march; returns their samples. */
 static uint64_t render_lanes(const render_job *job, int x, int y)
 {
@@ -975,6 +1019,8 @@ static uint64_t render_lanes(const render_job *job, int x, int y)
     memset(&L, 0, sizeof L);
     L.blend = job->blend;
     int fast = lanes_rays(job, x, y, L.o, L.d, L.V);
+    float tn4[LANES], tf4[LANES];
+    int hit4 = fast ? lanes_intersect(job, &L, tn4, tf4) : -1;
     for (int k = 0; k < LANES; k++) {
         L.best[k] = job->blend == CDVR_BLEND_MIN ? INFINITY : -INFINITY;
         float o[3], d[3], t_near = 0.0f, t_far = 0.0f;
@@ -992,8 +1038,14 @@ static uint64_t render_lanes(const render_job *job, int x, int y)
             o[a] = L.o[a][k];
             d[a] = L.d[a][k];
         }
-        if (!intersect_box(job, o, d, &t_near, &t_far))
+        if (hit4 >= 0) {
+            if (!((hit4 >> k) & 1))
+                continue;
+            t_near = tn4[k];
+            t_far = tf4[k];
+        } else if (!intersect_box(job, o, d, &t_near, &t_far)) {
             continue;
+        }
         long n = (long)ceilf((t_far - t_near) / job->step);
         L.n[k] = n < 1 ? 1 : (int)n;
         L.t_near[k] = t_near;
@@ -1211,6 +1263,11 @@ static void setup_job(render_job *job, const cdvr_volume *vol, size_t t,
         job->code_value[i] = (float)i;
     for (int i = 0; i < 256; i++)
         job->alpha_step[i] = (float)(1.0 - pow(1.0 - opts->tf->table[i][3], step / unit));
+    for (int i = 0; i < 256; i++) {
+        for (int c = 0; c < 3; c++)
+            job->rgb_alpha_step[i][c] = opts->tf->table[i][c];
+        job->rgb_alpha_step[i][3] = job->alpha_step[i];
+    }
     job->camera = opts->camera;
     cdvr_camera_frame_init(opts->camera, &job->cam_frame);
     double zero[3] = {0.0, 0.0, 0.0};
@@ -1495,8 +1552,13 @@ static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render
         }
     }
     job->skip_shift = (int)grid->shift;
-    for (int a = 0; a < 3; a++)
+    job->jump_inv_step = 1.0 / (double)job->step;
+    job->jump_edge = (double)(1 << job->skip_shift);
+    for (int a = 0; a < 3; a++) {
         job->skip_nb[a] = (int)grid->dims[a];
+        /* the largest |face| of a cube of reach CDVR_SKIP_REACH_MAX, or more */
+        job->jump_far[a] = ((double)job->skip_nb[a] + CDVR_SKIP_REACH_MAX + 2) * job->jump_edge;
+    }
     if (extreme) {
         job->skip_minmax = grid->minmax;
         job->skip_wide = extreme_wide(grid, cache, wide_own);
