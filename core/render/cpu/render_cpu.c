@@ -60,9 +60,9 @@ typedef struct render_job {
     int skip_shift, skip_nb[3];
     double jump_inv_step, jump_edge, jump_far[3]; /* grid_ray_of's constants (skip_setup) */
     int lanes;                 /* rays four at a time (SSE2): composite, max, min, average */
-    const atomic_int *cancel; /* NULL, or stop before the next row once nonzero */
+    const atomic_int *cancel; /* NULL, or stop before the next tile once nonzero */
     cdvr_image *img;
-    atomic_int next_row;
+    atomic_int next_tile;
     atomic_uint_fast64_t samples;
 } render_job;
 
@@ -1075,15 +1075,17 @@ static uint64_t render_lanes(const render_job *job, int x, int y)
 }
 #endif
 
-static uint64_t render_row(const render_job *job, int y)
+/* Pixels x0 .. x1 - 1 of row y: four at a time where four fit from x0 (a multiple of four)
+ * and the march allows it, the others one at a time. */
+static uint64_t render_span(const render_job *job, int x0, int x1, int y)
 {
     uint64_t samples = 0;
-    int x = 0;
+    int x = x0;
 #ifdef __SSE2__
-    for (; job->lanes && x + LANES <= job->img->width; x += LANES)
+    for (; job->lanes && x + LANES <= x1; x += LANES)
         samples += render_lanes(job, x, y);
 #endif
-    for (; x < job->img->width; x++) {
+    for (; x < x1; x++) {
         double od[3], dd[3];
         float o[3], d[3];
         pixel_ray(job, x, y, od, dd);
@@ -1094,28 +1096,40 @@ static uint64_t render_row(const render_job *job, int y)
     return samples;
 }
 
+/* The image is handed out in tiles of TILE_W x TILE_H pixels (TILE_W a multiple of four),
+ * rows of tiles in turn: the rays of a tile run side by side through the same voxels, which
+ * then stay in the cache from one ray to the next (a row of rays across the whole image
+ * touches more voxels than the cache holds, and the next row fetches them again). */
+#define TILE_W 16
+#define TILE_H 8
+
 static void *render_worker(void *arg)
 {
     render_job *job = arg;
     uint64_t samples = 0;
+    int w = job->img->width, h = job->img->height;
+    int tiles_x = (w + TILE_W - 1) / TILE_W, tiles = tiles_x * ((h + TILE_H - 1) / TILE_H);
     for (;;) {
-        int y = atomic_fetch_add(&job->next_row, 1);
-        if (y >= job->img->height || (job->cancel && atomic_load(job->cancel)))
+        int t = atomic_fetch_add(&job->next_tile, 1);
+        if (t >= tiles || (job->cancel && atomic_load(job->cancel)))
             break;
-        samples += render_row(job, y);
+        int x0 = (t % tiles_x) * TILE_W, y0 = (t / tiles_x) * TILE_H;
+        int x1 = x0 + TILE_W < w ? x0 + TILE_W : w, y1 = y0 + TILE_H < h ? y0 + TILE_H : h;
+        for (int y = y0; y < y1; y++)
+            samples += render_span(job, x0, x1, y);
     }
     atomic_fetch_add(&job->samples, samples);
     return NULL;
 }
 
-static int thread_count(const cdvr_render_opts *opts, int rows)
+static int thread_count(const cdvr_render_opts *opts, int tiles)
 {
     long n = opts->threads > 0 ? opts->threads : sysconf(_SC_NPROCESSORS_ONLN);
     if (n < 1)
         n = 1;
     if (n > MAX_THREADS)
         n = MAX_THREADS;
-    return n > rows ? rows : (int)n;
+    return n > tiles ? tiles : (int)n;
 }
 
 /* Runs the workers; the calling thread is one of them. Threads that fail to start are
@@ -1276,7 +1290,7 @@ static void setup_job(render_job *job, const cdvr_volume *vol, size_t t,
     setup_look(job, opts, D);
     job->cancel = opts->cancel;
     job->img = img;
-    atomic_init(&job->next_row, 0);
+    atomic_init(&job->next_tile, 0);
     atomic_init(&job->samples, 0);
 }
 
@@ -1615,7 +1629,8 @@ cdvr_status cdvr_render_cpu_cached(const cdvr_volume *vol, size_t t, cdvr_render
     setup_job(job, vol, t, opts, step, unit, term, img);
     cdvr_skip_grid grid;
     uint8_t *wide = NULL;
-    int nthreads = thread_count(opts, img->height);
+    int tiles = ((img->width + TILE_W - 1) / TILE_W) * ((img->height + TILE_H - 1) / TILE_H);
+    int nthreads = thread_count(opts, tiles);
     int skipping = skip_setup(job, vol, opts, nthreads, cache, &grid, &wide);
     run_workers(job, nthreads);
     if (skipping)
