@@ -512,6 +512,53 @@ static void test_extreme_stops_exact(void)
     cdvr_volume_free(v);
 }
 
+/* Rays along an axis: a camera above the volume looking straight down z, with an odd image
+ * width, so the middle pixel's ray has x and y components of exactly 0 (the slab test's
+ * axis-parallel branch, taken four rays at a time), and the same from an eye beside the box
+ * looking along -y: composite and max equal no_skip bit for bit, and the middle ray hits. */
+static void test_axis_rays_exact(void)
+{
+    cdvr_volume *v = make_volume(21, 19, 17);
+    if (!v)
+        return;
+    uint8_t *d = v->data;
+    uint32_t state = 31337u;
+    for (size_t i = 0; i < 21 * 19 * 17; i++) {
+        state = state * 1664525u + 1013904223u;
+        d[i] = (uint8_t)(state >> 24);
+    }
+    cdvr_tf_point pts[] = {{0, 0, 0, 0, 0}, {99, 0, 0, 0, 0}, {100, 1, 0.5, 0, 0.1},
+                           {255, 0.2, 0.4, 1, 0.9}};
+    cdvr_tf tf;
+    cdvr_error err;
+    CHECK_OK(cdvr_tf_init(&tf, pts, 4, 1.0, &err), err);
+    double eyes[][3] = {{10, 9, 60}, {10, 60, 8}}, centers[][3] = {{10, 9, 8}, {10, 9, 8}};
+    for (int e = 0; e < 2; e++)
+        for (int blend = 0; blend < 2; blend++) {
+            cdvr_camera cam = camera(eyes[e], centers[e], 33);
+            if (e == 0)
+                cam.up[0] = 1, cam.up[2] = 0;
+            cdvr_render_opts a = options(&tf, &cam, 0.5, 0.0);
+            a.look.blend = blend ? CDVR_BLEND_MAX : CDVR_BLEND_COMPOSITE;
+            cdvr_render_opts b = a;
+            b.no_skip = 1;
+            cdvr_image *ia = render(v, &a), *ib = render(v, &b);
+            if (ia && ib) {
+                size_t n = (size_t)33 * 33 * 4;
+                CHECK(memcmp(ia->rgba, ib->rgba, n * sizeof(float)) == 0,
+                      "eye %d blend %d: the four-ray path changed the image", e, blend);
+                CHECK(a.samples == b.samples, "eye %d blend %d: %llu samples, %llu without "
+                      "skipping", e, blend, (unsigned long long)a.samples,
+                      (unsigned long long)b.samples);
+                CHECK(cdvr_image_pixel(ib, 16, 16)[3] > 0.0f, "eye %d blend %d: the middle ray "
+                      "misses", e, blend);
+            }
+            cdvr_image_free(ia);
+            cdvr_image_free(ib);
+        }
+    cdvr_volume_free(v);
+}
+
 /* One skip cache across a sequence of renders keeps exactly the images of no_skip: the same
  * TF again (flags kept), a TF that makes more entries visible (stale flags would jump the
  * bricks between 60 and 200), iso and max on the same ranges, the first TF again, a voxel edit
@@ -628,6 +675,7 @@ int main(void)
     test_brick_ranges();
     test_skipping_is_exact();
     test_extreme_stops_exact();
+    test_axis_rays_exact();
     test_skip_cache_is_exact();
     test_analytic_box();
     test_zero_and_full_opacity();
