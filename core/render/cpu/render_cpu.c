@@ -810,9 +810,11 @@ static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], fl
                 continue;
             }
         }
-        gather_lane(job, gi[0][k], gi[1][k], gi[2][k], v, k);
         sampling[k] = 1;
     }
+    for (int k = 0; k < LANES; k++) /* the loads of all sampling lanes together */
+        if (sampling[k])
+            gather_lane(job, gi[0][k], gi[1][k], gi[2][k], v, k);
     if (!(sampling[0] | sampling[1] | sampling[2] | sampling[3]))
         return 0;
     __m128 f[3];
