@@ -221,20 +221,62 @@ static void owned_segments(const render_job *job, const float o[3], const float 
 
 /* ---- shading (render.h) ------------------------------------------------------------------ */
 
+/* One axis of a trilinear sample at grid coordinate x along axis a: the byte offsets of its
+ * two voxel planes in the passed voxels and the fraction, as sample_volume makes them. */
+typedef struct axis_at {
+    size_t lo, hi;
+    float f;
+} axis_at;
+
+static inline axis_at axis_setup(const render_job *job, int a, float x)
+{
+    size_t stride = a == 0 ? 1 : a == 1 ? job->stride_y : job->stride_z;
+    int i0 = (int)x;
+    int i1 = i0 + 1 < job->dims[a] ? i0 + 1 : i0;
+    axis_at r = {((size_t)i0 - job->offset[a]) * stride, ((size_t)i1 - job->offset[a]) * stride,
+                 x - (float)i0};
+    return r;
+}
+
+/* sample_volume at the point whose axes are X, Y, Z: the same loads and lerps. */
+static inline float sample_axes(const render_job *job, const axis_at *X, const axis_at *Y,
+                                const axis_at *Z)
+{
+    const uint8_t *v = job->voxels;
+    const uint8_t *r00 = v + Y->lo + Z->lo, *r10 = v + Y->hi + Z->lo, *r01 = v + Y->lo + Z->hi,
+                  *r11 = v + Y->hi + Z->hi;
+    const float *cv = job->code_value;
+    float a0 = cv[r00[X->lo]], a1 = cv[r00[X->hi]], b0 = cv[r10[X->lo]], b1 = cv[r10[X->hi]];
+    float c0 = cv[r01[X->lo]], c1 = cv[r01[X->hi]], d0 = cv[r11[X->lo]], d1 = cv[r11[X->hi]];
+    float c00 = lerpf(a0, a1, X->f), c10 = lerpf(b0, b1, X->f);
+    float c01 = lerpf(c0, c1, X->f), c11 = lerpf(d0, d1, X->f);
+    return lerpf(lerpf(c00, c10, Y->f), lerpf(c01, c11, Y->f), Z->f);
+}
+
 /* World gradient G (codes per world unit) at grid position g by central differences of the
- * trilinear field one voxel apart (render.h). */
+ * trilinear field one voxel apart (render.h). The six samples are sample_volume's values;
+ * each axis's setup at g and one voxel up and down is made once for all of them. */
 static void gradient(const render_job *job, const float g[3], float G[3])
 {
-    float dq[3];
+    axis_at at[3], up[3], down[3];
+    float h[3], dq[3];
     for (int a = 0; a < 3; a++) {
-        float gp[3] = {g[0], g[1], g[2]}, gm[3] = {g[0], g[1], g[2]};
         float top = (float)(job->dims[a] - 1);
-        gp[a] = min_f(g[a] + 1.0f, top);
-        gm[a] = max_f(g[a] - 1.0f, 0.0f);
-        float h = gp[a] - gm[a];
-        dq[a] = h > 0.0f ? (sample_volume(job, gp) - sample_volume(job, gm)) / (h * job->spacing[a])
-                         : 0.0f;
+        float gp = min_f(g[a] + 1.0f, top), gm = max_f(g[a] - 1.0f, 0.0f);
+        h[a] = gp - gm;
+        at[a] = axis_setup(job, a, g[a]);
+        up[a] = axis_setup(job, a, gp);
+        down[a] = axis_setup(job, a, gm);
     }
+    float s[6];
+    s[0] = sample_axes(job, &up[0], &at[1], &at[2]);
+    s[1] = sample_axes(job, &down[0], &at[1], &at[2]);
+    s[2] = sample_axes(job, &at[0], &up[1], &at[2]);
+    s[3] = sample_axes(job, &at[0], &down[1], &at[2]);
+    s[4] = sample_axes(job, &at[0], &at[1], &up[2]);
+    s[5] = sample_axes(job, &at[0], &at[1], &down[2]);
+    for (int a = 0; a < 3; a++)
+        dq[a] = h[a] > 0.0f ? (s[2 * a] - s[2 * a + 1]) / (h[a] * job->spacing[a]) : 0.0f;
     const float *m = job->grad_to_world;
     for (int r = 0; r < 3; r++)
         G[r] = m[3 * r] * dq[0] + m[3 * r + 1] * dq[1] + m[3 * r + 2] * dq[2];
