@@ -59,7 +59,7 @@ typedef struct render_job {
                                 * each brick (wide_ranges), or NULL */
     int skip_shift, skip_nb[3];
     double jump_inv_step, jump_edge, jump_far[3]; /* grid_ray_of's constants (skip_setup) */
-    int lanes;                 /* rays four at a time (SSE2): composite, max, min, average */
+    int lanes;                 /* rays four at a time (SSE2), every blend mode */
     const atomic_int *cancel; /* NULL, or stop before the next tile once nonzero */
     cdvr_image *img;
     atomic_int next_tile;
@@ -575,6 +575,40 @@ static long iso_jump(const render_job *job, const grid_ray *gr, const float g[3]
     return next - 2;
 }
 
+/* The pixel of a ray whose sample s (at parameter tm) is the first hit of the iso code, its
+ * predecessor's code and parameter prev, t_prev: two regula-falsi steps, colour, shading. */
+static void iso_hit(const render_job *job, const float o[3], const float d[3],
+                    const float V[3], float prev, float t_prev, float s, float tm, float out[4])
+{
+    float c = job->iso_code, g[3];
+    float ta = t_prev, tb = tm, sa = prev, sb = s, t = tm;
+    for (int k = 0; k < 2 && s != c && sb != sa; k++) {
+        t = ta + (c - sa) * (tb - ta) / (sb - sa);
+        float st = field_at(job, o, d, t, g);
+        if ((sa - c) * (st - c) <= 0.0f) {
+            tb = t;
+            sb = st;
+        } else {
+            ta = t;
+            sa = st;
+        }
+    }
+    field_at(job, o, d, t, g);
+    float rgba[4];
+    table_at(job, c, rgba);
+    if (!job->iso_tf_color)
+        for (int k = 0; k < 3; k++)
+            rgba[k] = job->iso_rgb[k];
+    if (job->shade) {
+        float G[3];
+        gradient(job, g, G);
+        shade_rgb(job, G, V, rgba);
+    }
+    for (int k = 0; k < 3; k++)
+        out[k] = rgba[k] * job->iso_alpha;
+    out[3] = job->iso_alpha;
+}
+
 /* The first crossing of the iso code, refined by two regula-falsi steps (render.h). */
 static uint64_t march_iso(const render_job *job, const float o[3], const float d[3],
                           float t_near, float t_far, long n, const float V[3], float out[4])
@@ -599,32 +633,7 @@ static uint64_t march_iso(const render_job *job, const float o[3], const float d
                 i = iso_jump(job, &gr, g, i, n, &taken);
             continue;
         }
-        float ta = t_prev, tb = tm, sa = prev, sb = s, t = tm;
-        for (int k = 0; k < 2 && s != c && sb != sa; k++) {
-            t = ta + (c - sa) * (tb - ta) / (sb - sa);
-            float st = field_at(job, o, d, t, g);
-            if ((sa - c) * (st - c) <= 0.0f) {
-                tb = t;
-                sb = st;
-            } else {
-                ta = t;
-                sa = st;
-            }
-        }
-        field_at(job, o, d, t, g);
-        float rgba[4];
-        table_at(job, c, rgba);
-        if (!job->iso_tf_color)
-            for (int k = 0; k < 3; k++)
-                rgba[k] = job->iso_rgb[k];
-        if (job->shade) {
-            float G[3];
-            gradient(job, g, G);
-            shade_rgb(job, G, V, rgba);
-        }
-        for (int k = 0; k < 3; k++)
-            out[k] = rgba[k] * job->iso_alpha;
-        out[3] = job->iso_alpha;
+        iso_hit(job, o, d, V, prev, t_prev, s, tm, out);
         return taken;
     }
     return taken;
@@ -732,19 +741,20 @@ static void pixel_ray(const render_job *job, int x, int y, double origin[3], dou
 }
 
 /* ---- four rays at a time (SSE2) -------------------------------------------------------------
- * The composite (shading and gradient opacity per lane, by look_sample), max, min and
- * average marches (not clipped) of four neighbouring pixels in lock-step: each lane keeps its
- * own segment index, so the lanes take exactly the samples, in the same order, with the same
- * float operations as march_composite and march_extreme (IEEE single precision, the same operand order, no fused multiply-add: maxps/minps are
- * max_f/min_f, cvttps2dq is the (int) truncation, cvtdq2ps is exact for the at most 2^24
- * segments of a ray); voxel, brick and table reads are per lane. Lanes that jump empty space
+ * The composite (shading and gradient opacity per lane, by look_sample), max, min, average
+ * and iso (the hit refined by iso_hit) marches (not clipped) of four neighbouring pixels in
+ * lock-step: each lane keeps its own segment index, so the lanes take exactly the samples, in
+ * the same order, with the same float operations as march_composite, march_extreme and
+ * march_iso (IEEE single precision, the same operand order, no fused multiply-add:
+ * maxps/minps are max_f/min_f, cvttps2dq is the (int) truncation, cvtdq2ps is exact for the
+ * at most 2^24 segments of a ray); voxel, brick and table reads are per lane. Lanes that jump empty space
  * or have finished add zero weight, which leaves C and A bit for bit unchanged. The shorter
  * last segment's alpha (powf) is taken per lane as classify does. */
 #ifdef __SSE2__
 #define LANES 4
 
 typedef struct lanes {
-    int blend;               /* composite, max, min or average (cdvr_blend) */
+    int blend;               /* cdvr_blend */
     float best[LANES];       /* max, min: the extreme so far */
     double sum[LANES];       /* average: the sum of the codes */
     int live[LANES];         /* still marching */
@@ -755,6 +765,9 @@ typedef struct lanes {
     float o[3][LANES], d[3][LANES];
     float V[3][LANES];       /* shading: towards the eye, world */
     float g[3][LANES];       /* the grid positions of the last lanes_sample */
+    /* iso: the last sample's code and parameter before a hit, and the hit (code, parameter) */
+    float prev[LANES], t_prev[LANES], hit_s[LANES], hit_tm[LANES];
+    int hit[LANES];
 } lanes;
 
 /* Four integer codes as floats (exact). */
@@ -897,6 +910,79 @@ static void lanes_extreme(const render_job *job, lanes *L, const int sampling[LA
             L->live[k] = 0;
         }
     }
+}
+
+/* Iso (march_iso lane by lane): every live lane takes its sample (computed for all lanes:
+ * positions are clamped into the volume); a hit stops the lane and is kept for iso_hit, a
+ * miss becomes the predecessor and may jump as iso_jump does. Returns the lanes still live. */
+static int lanes_iso_step(const render_job *job, lanes *L)
+{
+    const __m128 step = _mm_set1_ps(job->step), zero = _mm_setzero_ps();
+    __m128i iv = _mm_loadu_si128((const __m128i *)L->i);
+    __m128 ts = _mm_add_ps(_mm_loadu_ps(L->t_near), _mm_mul_ps(_mm_cvtepi32_ps(iv), step));
+    __m128i last = _mm_sub_epi32(_mm_loadu_si128((const __m128i *)L->n), _mm_set1_epi32(1));
+    __m128 is_full = _mm_castsi128_ps(_mm_cmplt_epi32(iv, last));
+    __m128 ds = _mm_or_ps(_mm_and_ps(is_full, step),
+                          _mm_andnot_ps(is_full, _mm_sub_ps(_mm_loadu_ps(L->t_far), ts)));
+    __m128 tm = _mm_add_ps(ts, _mm_mul_ps(_mm_set1_ps(0.5f), ds));
+    float dsv[LANES], tmv[LANES], sv[LANES];
+    int gi[3][LANES], v[8][LANES];
+    _mm_storeu_ps(dsv, ds);
+    _mm_storeu_ps(tmv, tm);
+    __m128 gv[3];
+    for (int a = 0; a < 3; a++) {
+        __m128 p = _mm_add_ps(_mm_loadu_ps(L->o[a]), _mm_mul_ps(tm, _mm_loadu_ps(L->d[a])));
+        __m128 top = _mm_set1_ps((float)(job->dims[a] - 1));
+        gv[a] = _mm_min_ps(_mm_max_ps(_mm_mul_ps(p, _mm_set1_ps(job->inv_spacing[a])), zero), top);
+        _mm_storeu_si128((__m128i *)gi[a], _mm_cvttps_epi32(gv[a]));
+    }
+    memset(v, 0, sizeof v);
+    for (int k = 0; k < LANES; k++) {
+        if (L->live[k] && !(dsv[k] > 0.0f)) /* the definition stops before an empty last one */
+            L->live[k] = 0;
+        if (L->live[k])
+            gather_lane(job, gi[0][k], gi[1][k], gi[2][k], v, k);
+    }
+    __m128 f[3];
+    for (int a = 0; a < 3; a++)
+        f[a] = _mm_sub_ps(gv[a], _mm_cvtepi32_ps(_mm_loadu_si128((const __m128i *)gi[a])));
+    __m128 c00 = lerp4(code4(v[0]), code4(v[1]), f[0]);
+    __m128 c10 = lerp4(code4(v[2]), code4(v[3]), f[0]);
+    __m128 c01 = lerp4(code4(v[4]), code4(v[5]), f[0]);
+    __m128 c11 = lerp4(code4(v[6]), code4(v[7]), f[0]);
+    _mm_storeu_ps(sv, lerp4(lerp4(c00, c10, f[1]), lerp4(c01, c11, f[1]), f[2]));
+    float c = job->iso_code;
+    for (int k = 0; k < LANES; k++) {
+        if (!L->live[k])
+            continue;
+        long i = L->i[k], n = L->n[k];
+        float s = sv[k];
+        L->taken[k]++;
+        if (s == c || (i > 0 && (L->prev[k] - c) * (s - c) < 0.0f)) {
+            L->hit[k] = 1;
+            L->hit_s[k] = s;
+            L->hit_tm[k] = tmv[k];
+            L->live[k] = 0;
+            continue;
+        }
+        L->prev[k] = s;
+        L->t_prev[k] = tmv[k];
+        if (job->skip_flags) {
+            int cell[3] = {gi[0][k], gi[1][k], gi[2][k]};
+            int code = job->skip_flags[brick_of_cell(job, cell)];
+            if (code < 128) {
+                long next = skip_target(job, &L->gr[k], cell, code, i);
+                next = next < n ? next : n;
+                if (next - 2 > i) { /* samples i + 1 .. next - 2: full segments */
+                    L->taken[k] += (uint64_t)(next - 2 - i);
+                    i = next - 2;
+                }
+            }
+        }
+        L->i[k] = (int)(i + 1);
+        L->live[k] = i + 1 < n;
+    }
+    return L->live[0] | L->live[1] | L->live[2] | L->live[3];
 }
 
 /* One step of every live lane; returns the lanes still live. */
@@ -1099,6 +1185,23 @@ static uint64_t render_lanes(const render_job *job, int x, int y)
             grid_ray_of(job, o, d, t_near, &L.gr[k]);
     }
     __m128 C[3] = {_mm_setzero_ps(), _mm_setzero_ps(), _mm_setzero_ps()}, A = _mm_setzero_ps();
+    if (job->blend == CDVR_BLEND_ISO) {
+        while (lanes_iso_step(job, &L))
+            ;
+        uint64_t samples = 0;
+        for (int k = 0; k < LANES; k++) {
+            float *px = cdvr_image_pixel(job->img, x + k, y);
+            px[0] = px[1] = px[2] = px[3] = 0.0f;
+            if (L.hit[k]) {
+                float o[3] = {L.o[0][k], L.o[1][k], L.o[2][k]};
+                float d[3] = {L.d[0][k], L.d[1][k], L.d[2][k]};
+                float V[3] = {L.V[0][k], L.V[1][k], L.V[2][k]};
+                iso_hit(job, o, d, V, L.prev[k], L.t_prev[k], L.hit_s[k], L.hit_tm[k], px);
+            }
+            samples += L.taken[k];
+        }
+        return samples;
+    }
     while (lanes_step(job, &L, C, &A))
         ;
     float out[4][LANES];
@@ -1585,10 +1688,7 @@ static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render
     job->skip_minmax = NULL;
     job->skip_wide = NULL;
     *wide_own = NULL;
-    job->lanes = !opts->no_skip && !job->clipped &&
-                 (job->blend == CDVR_BLEND_COMPOSITE ||
-                  job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN ||
-                  job->blend == CDVR_BLEND_AVERAGE);
+    job->lanes = !opts->no_skip && !job->clipped;
     int extreme = job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN;
     if (opts->no_skip || job->clipped ||
         (job->blend != CDVR_BLEND_COMPOSITE && job->blend != CDVR_BLEND_ISO && !extreme))
