@@ -512,6 +512,53 @@ static void test_extreme_stops_exact(void)
     cdvr_volume_free(v);
 }
 
+/* Average skips bricks of zeros (their samples add 0 to the sum but count): a volume of zeros
+ * with a blob of noise (values 1..255, so a brick of ones is not skipped) and a faint shell
+ * of ones around it, large enough for whole cubes of zero bricks: the image and samples
+ * count equal no_skip bit for bit. */
+static void test_average_skips_zeros_exact(void)
+{
+    cdvr_volume *v = make_volume(52, 44, 40);
+    if (!v)
+        return;
+    uint8_t *d = v->data;
+    uint32_t state = 2718u;
+    for (size_t z = 0, i = 0; z < 40; z++)
+        for (size_t y = 0; y < 44; y++)
+            for (size_t x = 0; x < 52; x++, i++) {
+                state = state * 1664525u + 1013904223u;
+                double r = hypot(hypot((double)x - 15, (double)y - 14), (double)z - 12);
+                d[i] = r < 7.0 ? (uint8_t)(1 + (state >> 24) % 255) : r < 10.0 ? 1 : 0;
+            }
+    cdvr_tf_point pts[] = {{0, 0, 0, 0, 0.1}, {255, 1, 1, 1, 0.9}};
+    cdvr_tf tf;
+    cdvr_error err;
+    CHECK_OK(cdvr_tf_init(&tf, pts, 2, 1.0, &err), err);
+    double eyes[][3] = {{-40, -50, 60}, {100, 80, 20}}, center[3] = {26, 22, 20};
+    for (int e = 0; e < 2; e++) {
+        cdvr_camera cam = camera(eyes[e], center, 36);
+        cdvr_render_opts a = options(&tf, &cam, e ? 0.6 : 0.5, 0.0);
+        a.look.blend = CDVR_BLEND_AVERAGE;
+        cdvr_render_opts b = a;
+        b.no_skip = 1;
+        cdvr_image *ia = render(v, &a), *ib = render(v, &b);
+        if (ia && ib) {
+            size_t n = (size_t)36 * 36 * 4;
+            int lit = 0;
+            for (size_t i = 3; i < n; i += 4)
+                lit += ib->rgba[i] > 0.1f; /* above the TF's alpha at 0: rays through the blob */
+            CHECK(memcmp(ia->rgba, ib->rgba, n * sizeof(float)) == 0,
+                  "eye %d: skipping zero bricks changed the average", e);
+            CHECK(a.samples == b.samples, "eye %d: %llu samples, %llu without skipping", e,
+                  (unsigned long long)a.samples, (unsigned long long)b.samples);
+            CHECK(lit > 20 && lit < 36 * 36 - 20, "eye %d: %d rays meet the blob", e, lit);
+        }
+        cdvr_image_free(ia);
+        cdvr_image_free(ib);
+    }
+    cdvr_volume_free(v);
+}
+
 /* Rays along an axis: a camera above the volume looking straight down z, with an odd image
  * width, so the middle pixel's ray has x and y components of exactly 0 (the slab test's
  * axis-parallel branch, taken four rays at a time), and the same from an eye beside the box
@@ -676,6 +723,7 @@ int main(void)
     test_skipping_is_exact();
     test_extreme_stops_exact();
     test_axis_rays_exact();
+    test_average_skips_zeros_exact();
     test_skip_cache_is_exact();
     test_analytic_box();
     test_zero_and_full_opacity();

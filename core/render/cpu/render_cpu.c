@@ -842,13 +842,16 @@ static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], fl
             code = job->skip_flags[brick_of_cell(job, cell)];
             jump = code < 128;
         } else if (job->skip_minmax) {
-            int is_max = L->blend == CDVR_BLEND_MAX;
+            /* max: bricks whose max is at most the best; min: whose min is at least the best;
+             * average: bricks of zeros (their samples are 0 and leave the sum as it is) */
+            int is_max = L->blend != CDVR_BLEND_MIN;
+            float best = L->blend == CDVR_BLEND_AVERAGE ? 0.0f : L->best[k];
             size_t b = brick_of_cell(job, cell);
             float edge = job->skip_minmax[2 * b + is_max]; /* max: the brick's max; min: min */
-            jump = is_max ? edge <= L->best[k] : edge >= L->best[k];
+            jump = is_max ? edge <= best : edge >= best;
             if (jump && job->skip_wide) { /* the whole cube around the brick is dull too? */
                 float wide = job->skip_wide[2 * b + is_max];
-                if (is_max ? wide <= L->best[k] : wide >= L->best[k])
+                if (is_max ? wide <= best : wide >= best)
                     code = WIDE_REACH + 1;
             }
         }
@@ -1676,10 +1679,10 @@ static const uint8_t *extreme_wide(cdvr_skip_grid *grid, cdvr_cpu_skip_cache *ca
  * (its flags kept when the brick ranges and the key are those they were made for; the flags
  * depend on nothing else, so the image is the same bit for bit) or, when cache is NULL, a
  * grid made for this render in *own. Returns 1 when *own was made (free it), 0 otherwise;
- * the render takes every sample (job->skip_* NULL) when clipped, for another blend mode,
- * with opts->no_skip, or out of memory (skipping is only a saving); max and min get the brick
- * ranges only, iso the flags of iso_flags. Also chooses the four-lane march unless
- * opts->no_skip. */
+ * the render takes every sample (job->skip_* NULL) when clipped, with opts->no_skip, or out
+ * of memory (skipping is only a saving); max, min and average get the brick ranges (and
+ * their widened ranges) only, iso the flags of iso_flags. Also chooses the four-lane march
+ * unless opts->no_skip or clipped. */
 static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render_opts *opts,
                       int threads, cdvr_cpu_skip_cache *cache, cdvr_skip_grid *own,
                       uint8_t **wide_own)
@@ -1689,7 +1692,8 @@ static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render
     job->skip_wide = NULL;
     *wide_own = NULL;
     job->lanes = !opts->no_skip && !job->clipped;
-    int extreme = job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN;
+    int extreme = job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN ||
+                  job->blend == CDVR_BLEND_AVERAGE; /* the brick ranges (average: the lanes) */
     if (opts->no_skip || job->clipped ||
         (job->blend != CDVR_BLEND_COMPOSITE && job->blend != CDVR_BLEND_ISO && !extreme))
         return 0;
