@@ -18,7 +18,7 @@
 #endif
 
 #define MAX_THREADS 256
-#define WIDE_REACH 2 /* max, min: the reach of the widened brick ranges (wide_ranges) */
+#define WIDE_REACH 2 /* max, min, average: the reach of the widened ranges (wide_ranges) */
 
 typedef struct render_job {
     const uint8_t *voxels;
@@ -54,9 +54,10 @@ typedef struct render_job {
     int iso_tf_color;          /* the TF's colour at the iso code */
     /* empty-space skipping (not clipped): composite reads the brick flags of cdvr/skip.h */
     const uint8_t *skip_flags; /* NULL: every sample is taken */
-    const uint8_t *skip_minmax; /* max, min: brick ranges (NULL: every sample is taken) */
-    const uint8_t *skip_wide;  /* max, min: the range of the cube of reach WIDE_REACH around
-                                * each brick (wide_ranges), or NULL */
+    const uint8_t *skip_minmax; /* max, min, average (four lanes): brick ranges (NULL: every
+                                 * sample is taken) */
+    const uint8_t *skip_wide;  /* the range of the cube of reach WIDE_REACH around each brick
+                                * (wide_ranges), or NULL */
     int skip_shift, skip_nb[3];
     double jump_inv_step, jump_edge, jump_far[3]; /* grid_ray_of's constants (skip_setup) */
     int lanes;                 /* rays four at a time (SSE2), every blend mode */
@@ -411,7 +412,8 @@ static void grid_ray_of(const render_job *job, const float o[3], const float d[3
         }
         double m = 0.01 + 1e-5 * (fabs(og) + job->jump_far[a]);
         double inv_d = 1.0 / dg;
-        r->base[a] = ((dg > 0.0 ? -m : m) - og) * inv_d * inv_step - (double)t_near * inv_step - 0.5;
+        r->base[a] =
+            ((dg > 0.0 ? -m : m) - og) * inv_d * inv_step - (double)t_near * inv_step - 0.5;
         r->per_face[a] = edge * inv_d * inv_step;
     }
 }
@@ -747,8 +749,9 @@ static void pixel_ray(const render_job *job, int x, int y, double origin[3], dou
  * the same order, with the same float operations as march_composite, march_extreme and
  * march_iso (IEEE single precision, the same operand order, no fused multiply-add:
  * maxps/minps are max_f/min_f, cvttps2dq is the (int) truncation, cvtdq2ps is exact for the
- * at most 2^24 segments of a ray); voxel, brick and table reads are per lane. Lanes that jump empty space
- * or have finished add zero weight, which leaves C and A bit for bit unchanged. The shorter
+ * at most 2^24 segments of a ray); voxel, brick and table reads are per lane. Lanes that
+ * jump empty space or have finished add zero weight, which leaves C and A bit for bit
+ * unchanged. The shorter
  * last segment's alpha (powf) is taken per lane as classify does. */
 #ifdef __SSE2__
 #define LANES 4
@@ -802,8 +805,9 @@ static inline void gather_lane(const render_job *job, int x, int y, int z, int v
 }
 
 /* Steps 2-3 for the live lanes at their segment index: lanes in empty space (composite:
- * invisible bricks; max, min: dull bricks) jump, the others interpolate their sample into *s
- * (sampling[k] = 1; ds[k] its segment length). Returns 0 when no lane samples. */
+ * invisible bricks; max, min: dull bricks; average: bricks of zeros) jump, the others
+ * interpolate their sample into *s (sampling[k] = 1; ds[k] its segment length). Returns 0
+ * when no lane samples. */
 static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], float dsv[LANES],
                         __m128 *s)
 {
@@ -1517,11 +1521,11 @@ static void iso_flags(cdvr_skip_grid *g, float c)
     reach_flags(g, holds);
 }
 
-/* Max and min: every brick's range widened to the cube of bricks within WIDE_REACH of it
- * (chessboard distance, bricks outside the grid left out): a ray whose extreme already
- * beats that range jumps the whole cube (skip_target with code WIDE_REACH + 1), as the
- * composite march jumps an invisible cube, instead of one brick at a time (WIDE_REACH: at
- * the top of this file). */
+/* Max, min and average: every brick's range widened to the cube of bricks within WIDE_REACH
+ * of it (chessboard distance, bricks outside the grid left out): a ray whose extreme already
+ * beats that range (average: a cube of zeros) jumps the whole cube (skip_target with code
+ * WIDE_REACH + 1), as the composite march jumps an invisible cube, instead of one brick at a
+ * time (WIDE_REACH: at the top of this file). */
 
 /* out[2 b] = min, out[2 b + 1] = max of in over the bricks within WIDE_REACH of b along axis
  * a only (in and out distinct, both 2 per brick). */
@@ -1608,8 +1612,9 @@ static skip_key key_of(const render_job *job, const cdvr_tf *tf)
 }
 
 /* The cache's grid for a volume of dims with fresh brick ranges in grid->minmax; *same is 1
- * when they equal the ranges its flags were made from (the flags are then valid for the same
- * key). Returns NULL (no skipping) when out of memory. */
+ * when they equal the ranges it held (its flags, when made, and its widened ranges, when
+ * valid, were made from those: the flags are then valid for the same key); otherwise the
+ * flags and widened ranges are marked stale. Returns NULL (no skipping) when out of memory. */
 static cdvr_skip_grid *cached_ranges(cdvr_cpu_skip_cache *c, const render_job *job,
                                      const cdvr_volume *vol, int threads, int *same)
 {
