@@ -461,11 +461,157 @@ static void test_skipping_is_exact(void)
     cdvr_volume_free(v);
 }
 
+/* Max and min stop a ray once its extreme is the last code (255 for max, 0 for min): a
+ * volume with a saturated cube of 255s and one of 0s in a field of middling noise, seen from
+ * two eyes (a row width not a multiple of four, so the one-ray tail runs too), gives the
+ * images and samples count of no_skip bit for bit, and some rays do meet each cube. */
+static void test_extreme_stops_exact(void)
+{
+    cdvr_volume *v = make_volume(30, 26, 22);
+    if (!v)
+        return;
+    uint8_t *d = v->data;
+    uint32_t state = 4242u;
+    for (size_t z = 0, i = 0; z < 22; z++)
+        for (size_t y = 0; y < 26; y++)
+            for (size_t x = 0; x < 30; x++, i++) {
+                state = state * 1664525u + 1013904223u;
+                int hot = x >= 6 && x < 13 && y >= 5 && y < 12 && z >= 6 && z < 14;
+                int cold = x >= 17 && x < 25 && y >= 14 && y < 21 && z >= 8 && z < 15;
+                d[i] = hot ? 255 : cold ? 0 : (uint8_t)(40 + (state >> 26));
+            }
+    cdvr_tf_point pts[] = {{0, 0, 0, 0, 0.2}, {255, 1, 1, 1, 0.9}};
+    cdvr_tf tf;
+    cdvr_error err;
+    CHECK_OK(cdvr_tf_init(&tf, pts, 2, 1.0, &err), err);
+    double eyes[][3] = {{-30, -40, 50}, {70, 60, -20}}, center[3] = {15, 13, 11};
+    for (int e = 0; e < 2; e++)
+        for (int blend = 0; blend < 2; blend++) {
+            cdvr_camera cam = camera(eyes[e], center, 38);
+            cdvr_render_opts a = options(&tf, &cam, e ? 0.45 : 0.5, 0.0);
+            a.look.blend = blend ? CDVR_BLEND_MIN : CDVR_BLEND_MAX;
+            cdvr_render_opts b = a;
+            b.no_skip = 1;
+            cdvr_image *ia = render(v, &a), *ib = render(v, &b);
+            if (ia && ib) {
+                size_t n = (size_t)38 * 38 * 4;
+                int extreme = 0;
+                for (size_t i = 3; i < n; i += 4) /* the TF's alpha at 255 (0): 0.9 (0.2) */
+                    extreme += ib->rgba[i] == (blend ? 0.2f : 0.9f);
+                CHECK(memcmp(ia->rgba, ib->rgba, n * sizeof(float)) == 0,
+                      "eye %d blend %d: stopping at the last code changed the image", e, blend);
+                CHECK(a.samples == b.samples, "eye %d blend %d: %llu samples, %llu without "
+                      "skipping", e, blend, (unsigned long long)a.samples,
+                      (unsigned long long)b.samples);
+                CHECK(extreme > 20, "eye %d blend %d: only %d rays meet the cube", e, blend,
+                      extreme);
+            }
+            cdvr_image_free(ia);
+            cdvr_image_free(ib);
+        }
+    cdvr_volume_free(v);
+}
+
+/* Average skips bricks of zeros (their samples add 0 to the sum but count): a volume of zeros
+ * with a blob of noise (values 1..255, so a brick of ones is not skipped) and a faint shell
+ * of ones around it, large enough for whole cubes of zero bricks: the image and samples
+ * count equal no_skip bit for bit. */
+static void test_average_skips_zeros_exact(void)
+{
+    cdvr_volume *v = make_volume(52, 44, 40);
+    if (!v)
+        return;
+    uint8_t *d = v->data;
+    uint32_t state = 2718u;
+    for (size_t z = 0, i = 0; z < 40; z++)
+        for (size_t y = 0; y < 44; y++)
+            for (size_t x = 0; x < 52; x++, i++) {
+                state = state * 1664525u + 1013904223u;
+                double r = hypot(hypot((double)x - 15, (double)y - 14), (double)z - 12);
+                d[i] = r < 7.0 ? (uint8_t)(1 + (state >> 24) % 255) : r < 10.0 ? 1 : 0;
+            }
+    cdvr_tf_point pts[] = {{0, 0, 0, 0, 0.1}, {255, 1, 1, 1, 0.9}};
+    cdvr_tf tf;
+    cdvr_error err;
+    CHECK_OK(cdvr_tf_init(&tf, pts, 2, 1.0, &err), err);
+    double eyes[][3] = {{-40, -50, 60}, {100, 80, 20}}, center[3] = {26, 22, 20};
+    for (int e = 0; e < 2; e++) {
+        cdvr_camera cam = camera(eyes[e], center, 36);
+        cdvr_render_opts a = options(&tf, &cam, e ? 0.6 : 0.5, 0.0);
+        a.look.blend = CDVR_BLEND_AVERAGE;
+        cdvr_render_opts b = a;
+        b.no_skip = 1;
+        cdvr_image *ia = render(v, &a), *ib = render(v, &b);
+        if (ia && ib) {
+            size_t n = (size_t)36 * 36 * 4;
+            int lit = 0;
+            for (size_t i = 3; i < n; i += 4)
+                lit += ib->rgba[i] > 0.1f; /* above the TF's alpha at 0: rays through the blob */
+            CHECK(memcmp(ia->rgba, ib->rgba, n * sizeof(float)) == 0,
+                  "eye %d: skipping zero bricks changed the average", e);
+            CHECK(a.samples == b.samples, "eye %d: %llu samples, %llu without skipping", e,
+                  (unsigned long long)a.samples, (unsigned long long)b.samples);
+            CHECK(lit > 20 && lit < 36 * 36 - 20, "eye %d: %d rays meet the blob", e, lit);
+        }
+        cdvr_image_free(ia);
+        cdvr_image_free(ib);
+    }
+    cdvr_volume_free(v);
+}
+
+/* Rays along an axis: a camera above the volume looking straight down z, with an odd image
+ * width, so the middle pixel's ray has x and y components of exactly 0 (the slab test's
+ * axis-parallel branch, taken four rays at a time), and the same from an eye beside the box
+ * looking along -y: composite and max equal no_skip bit for bit, and the middle ray hits. */
+static void test_axis_rays_exact(void)
+{
+    cdvr_volume *v = make_volume(21, 19, 17);
+    if (!v)
+        return;
+    uint8_t *d = v->data;
+    uint32_t state = 31337u;
+    for (size_t i = 0; i < 21 * 19 * 17; i++) {
+        state = state * 1664525u + 1013904223u;
+        d[i] = (uint8_t)(state >> 24);
+    }
+    cdvr_tf_point pts[] = {{0, 0, 0, 0, 0}, {99, 0, 0, 0, 0}, {100, 1, 0.5, 0, 0.1},
+                           {255, 0.2, 0.4, 1, 0.9}};
+    cdvr_tf tf;
+    cdvr_error err;
+    CHECK_OK(cdvr_tf_init(&tf, pts, 4, 1.0, &err), err);
+    double eyes[][3] = {{10, 9, 60}, {10, 60, 8}}, centers[][3] = {{10, 9, 8}, {10, 9, 8}};
+    for (int e = 0; e < 2; e++)
+        for (int blend = 0; blend < 2; blend++) {
+            cdvr_camera cam = camera(eyes[e], centers[e], 33);
+            if (e == 0)
+                cam.up[0] = 1, cam.up[2] = 0;
+            cdvr_render_opts a = options(&tf, &cam, 0.5, 0.0);
+            a.look.blend = blend ? CDVR_BLEND_MAX : CDVR_BLEND_COMPOSITE;
+            cdvr_render_opts b = a;
+            b.no_skip = 1;
+            cdvr_image *ia = render(v, &a), *ib = render(v, &b);
+            if (ia && ib) {
+                size_t n = (size_t)33 * 33 * 4;
+                CHECK(memcmp(ia->rgba, ib->rgba, n * sizeof(float)) == 0,
+                      "eye %d blend %d: the four-ray path changed the image", e, blend);
+                CHECK(a.samples == b.samples, "eye %d blend %d: %llu samples, %llu without "
+                      "skipping", e, blend, (unsigned long long)a.samples,
+                      (unsigned long long)b.samples);
+                CHECK(cdvr_image_pixel(ib, 16, 16)[3] > 0.0f, "eye %d blend %d: the middle ray "
+                      "misses", e, blend);
+            }
+            cdvr_image_free(ia);
+            cdvr_image_free(ib);
+        }
+    cdvr_volume_free(v);
+}
+
 /* One skip cache across a sequence of renders keeps exactly the images of no_skip: the same
  * TF again (flags kept), a TF that makes more entries visible (stale flags would jump the
  * bricks between 60 and 200), iso and max on the same ranges, the first TF again, a voxel edit
- * that puts a visible blob into empty bricks (stale ranges would jump it), and a volume of
- * other dims. */
+ * that puts a visible blob into empty bricks (stale ranges would jump it), max twice with an
+ * edit between them (stale widened ranges would jump the new blob), and a volume of other
+ * dims. */
 static void test_skip_cache_is_exact(void)
 {
     cdvr_volume *v = make_volume(40, 36, 30), *w = make_volume(23, 41, 19);
@@ -494,16 +640,24 @@ static void test_skip_cache_is_exact(void)
     CHECK_OK(cdvr_tf_init(&tf_lo, lo_pts, 4, 1.0, &err), err);
     double eye[3] = {-30, -45, 60}, center[3] = {20, 18, 15};
     cdvr_camera cam = camera(eye, center, 40);
-    /* case: 0, 1 tf_hi; 2 tf_lo; 3 iso; 4 max; 5 tf_hi; 6 tf_hi after the edit; 7 on w */
-    for (int c = 0; c < 8; c++) {
+    /* case: 0, 1 tf_hi; 2 tf_lo; 3 iso; 4 max; 5 tf_hi; 6 tf_hi after the edit; 7 max; 8 max
+     * after a second edit (stale widened ranges would jump its blob); 9 on w */
+    for (int c = 0; c < 10; c++) {
         if (c == 6) /* a visible blob far from the sphere, in bricks that were empty */
             for (size_t z = 22; z < 27; z++)
                 for (size_t y = 26; y < 31; y++)
                     for (size_t x = 30; x < 36; x++)
                         ((uint8_t *)v->data)[x + 40 * (y + 36 * z)] = 250;
-        cdvr_volume *u = c == 7 ? w : v;
+        if (c == 8) /* a small bright blob between the sphere and the first blob */
+            for (size_t z = 16; z < 19; z++)
+                for (size_t y = 2; y < 5; y++)
+                    for (size_t x = 26; x < 29; x++)
+                        ((uint8_t *)v->data)[x + 40 * (y + 36 * z)] = 252;
+        cdvr_volume *u = c == 9 ? w : v;
         cdvr_render_opts a = options(c == 2 ? &tf_lo : &tf_hi, &cam, 0.5, 0.0);
-        a.look.blend = c == 3 ? CDVR_BLEND_ISO : c == 4 ? CDVR_BLEND_MAX : CDVR_BLEND_COMPOSITE;
+        a.look.blend = c == 3                       ? CDVR_BLEND_ISO
+                       : c == 4 || c == 7 || c == 8 ? CDVR_BLEND_MAX
+                                                    : CDVR_BLEND_COMPOSITE;
         a.look.iso_value = 150.0;
         cdvr_render_opts b = a;
         b.no_skip = 1;
@@ -567,6 +721,9 @@ int main(void)
 {
     test_brick_ranges();
     test_skipping_is_exact();
+    test_extreme_stops_exact();
+    test_axis_rays_exact();
+    test_average_skips_zeros_exact();
     test_skip_cache_is_exact();
     test_analytic_box();
     test_zero_and_full_opacity();

@@ -18,6 +18,7 @@
 #endif
 
 #define MAX_THREADS 256
+#define WIDE_REACH 2 /* max, min, average: the reach of the widened ranges (wide_ranges) */
 
 typedef struct render_job {
     const uint8_t *voxels;
@@ -32,9 +33,11 @@ typedef struct render_job {
     float step, unit, term_alpha;
     const cdvr_tf *tf;
     float alpha_step[256]; /* a_c[i] = 1 - (1 - a[i])^(step/unit) */
+    float rgb_alpha_step[256][4]; /* the TF's r, g, b and a_c[i] side by side */
     float code_value[256];     /* (float)i: a load instead of an int-to-float conversion */
     const cdvr_camera *camera;
     cdvr_camera_frame cam_frame; /* the camera's basis, once per render */
+    float eye_box[3];          /* a pinhole camera's eye in the box frame (step 0's o) */
     /* blend modes and shading (render.h) */
     int blend;
     int shade;                 /* shading on */
@@ -51,12 +54,16 @@ typedef struct render_job {
     int iso_tf_color;          /* the TF's colour at the iso code */
     /* empty-space skipping (not clipped): composite reads the brick flags of cdvr/skip.h */
     const uint8_t *skip_flags; /* NULL: every sample is taken */
-    const uint8_t *skip_minmax; /* max, min: brick ranges (NULL: every sample is taken) */
+    const uint8_t *skip_minmax; /* max, min, average (four lanes): brick ranges (NULL: every
+                                 * sample is taken) */
+    const uint8_t *skip_wide;  /* the range of the cube of reach WIDE_REACH around each brick
+                                * (wide_ranges), or NULL */
     int skip_shift, skip_nb[3];
-    int lanes;                 /* rays four at a time (SSE2): composite, max, min, average */
-    const atomic_int *cancel; /* NULL, or stop before the next row once nonzero */
+    double jump_inv_step, jump_edge, jump_far[3]; /* grid_ray_of's constants (skip_setup) */
+    int lanes;                 /* rays four at a time (SSE2), every blend mode */
+    const atomic_int *cancel; /* NULL, or stop before the next tile once nonzero */
     cdvr_image *img;
-    atomic_int next_row;
+    atomic_int next_tile;
     atomic_uint_fast64_t samples;
 } render_job;
 
@@ -215,20 +222,62 @@ static void owned_segments(const render_job *job, const float o[3], const float 
 
 /* ---- shading (render.h) ------------------------------------------------------------------ */
 
+/* One axis of a trilinear sample at grid coordinate x along axis a: the byte offsets of its
+ * two voxel planes in the passed voxels and the fraction, as sample_volume makes them. */
+typedef struct axis_at {
+    size_t lo, hi;
+    float f;
+} axis_at;
+
+static inline axis_at axis_setup(const render_job *job, int a, float x)
+{
+    size_t stride = a == 0 ? 1 : a == 1 ? job->stride_y : job->stride_z;
+    int i0 = (int)x;
+    int i1 = i0 + 1 < job->dims[a] ? i0 + 1 : i0;
+    axis_at r = {((size_t)i0 - job->offset[a]) * stride, ((size_t)i1 - job->offset[a]) * stride,
+                 x - (float)i0};
+    return r;
+}
+
+/* sample_volume at the point whose axes are X, Y, Z: the same loads and lerps. */
+static inline float sample_axes(const render_job *job, const axis_at *X, const axis_at *Y,
+                                const axis_at *Z)
+{
+    const uint8_t *v = job->voxels;
+    const uint8_t *r00 = v + Y->lo + Z->lo, *r10 = v + Y->hi + Z->lo, *r01 = v + Y->lo + Z->hi,
+                  *r11 = v + Y->hi + Z->hi;
+    const float *cv = job->code_value;
+    float a0 = cv[r00[X->lo]], a1 = cv[r00[X->hi]], b0 = cv[r10[X->lo]], b1 = cv[r10[X->hi]];
+    float c0 = cv[r01[X->lo]], c1 = cv[r01[X->hi]], d0 = cv[r11[X->lo]], d1 = cv[r11[X->hi]];
+    float c00 = lerpf(a0, a1, X->f), c10 = lerpf(b0, b1, X->f);
+    float c01 = lerpf(c0, c1, X->f), c11 = lerpf(d0, d1, X->f);
+    return lerpf(lerpf(c00, c10, Y->f), lerpf(c01, c11, Y->f), Z->f);
+}
+
 /* World gradient G (codes per world unit) at grid position g by central differences of the
- * trilinear field one voxel apart (render.h). */
+ * trilinear field one voxel apart (render.h). The six samples are sample_volume's values;
+ * each axis's setup at g and one voxel up and down is made once for all of them. */
 static void gradient(const render_job *job, const float g[3], float G[3])
 {
-    float dq[3];
+    axis_at at[3], up[3], down[3];
+    float h[3], dq[3];
     for (int a = 0; a < 3; a++) {
-        float gp[3] = {g[0], g[1], g[2]}, gm[3] = {g[0], g[1], g[2]};
         float top = (float)(job->dims[a] - 1);
-        gp[a] = min_f(g[a] + 1.0f, top);
-        gm[a] = max_f(g[a] - 1.0f, 0.0f);
-        float h = gp[a] - gm[a];
-        dq[a] = h > 0.0f ? (sample_volume(job, gp) - sample_volume(job, gm)) / (h * job->spacing[a])
-                         : 0.0f;
+        float gp = min_f(g[a] + 1.0f, top), gm = max_f(g[a] - 1.0f, 0.0f);
+        h[a] = gp - gm;
+        at[a] = axis_setup(job, a, g[a]);
+        up[a] = axis_setup(job, a, gp);
+        down[a] = axis_setup(job, a, gm);
     }
+    float s[6];
+    s[0] = sample_axes(job, &up[0], &at[1], &at[2]);
+    s[1] = sample_axes(job, &down[0], &at[1], &at[2]);
+    s[2] = sample_axes(job, &at[0], &up[1], &at[2]);
+    s[3] = sample_axes(job, &at[0], &down[1], &at[2]);
+    s[4] = sample_axes(job, &at[0], &at[1], &up[2]);
+    s[5] = sample_axes(job, &at[0], &at[1], &down[2]);
+    for (int a = 0; a < 3; a++)
+        dq[a] = h[a] > 0.0f ? (s[2 * a] - s[2 * a + 1]) / (h[a] * job->spacing[a]) : 0.0f;
     const float *m = job->grad_to_world;
     for (int r = 0; r < 3; r++)
         G[r] = m[3 * r] * dq[0] + m[3 * r + 1] * dq[1] + m[3 * r + 2] * dq[2];
@@ -334,51 +383,85 @@ static float sample_at(const render_job *job, const float o[3], const float d[3]
  * taken as usual (its own brick is looked up again). Images are those without skipping, bit
  * for bit; the samples jumped are still counted in opts->samples (the definition's count). */
 
-/* Per ray: the box-frame ray in grid coordinates, in double. */
+/* Per ray: where its jumps land, as sample indices. For axis a the exit face of a cube of
+ * bricks is face index f (in bricks: b + reach + 1 going up, b - reach going down) pulled in
+ * by the margin m_a, at parameter t = (f E -+ m_a - o_a) / d_a (grid coordinates, double), and
+ * the first sample whose nominal midpoint is not short of it is ceil((t - t_near) / step -
+ * 1/2): that is base[a] + f * per_face[a] before the ceil, with per_face = E / (d_a step) and
+ * everything else folded into base. m_a = 0.01 + 1e-5 (|o_a| + the largest |face| a cube of
+ * reach CDVR_SKIP_REACH_MAX can have), at least the margin above. The double rounding of this
+ * rearrangement is some 1e-13 of a sample, far inside the margin. An axis the ray does not
+ * move along never bounds the jump (per_face 0, base +huge). */
 typedef struct grid_ray {
-    double o[3], d[3], inv_d[3]; /* inv_d: +-inf where d is 0 */
+    double base[3], per_face[3];
+    int up[3];                   /* 1: d_a > 0 (exits through the upper face), 0: below */
 } grid_ray;
 
-static void grid_ray_of(const render_job *job, const float o[3], const float d[3], grid_ray *r)
+static void grid_ray_of(const render_job *job, const float o[3], const float d[3],
+                        float t_near, grid_ray *r)
 {
+    double inv_step = job->jump_inv_step, edge = job->jump_edge;
     for (int a = 0; a < 3; a++) {
-        r->o[a] = (double)o[a] * (double)job->inv_spacing[a];
-        r->d[a] = (double)d[a] * (double)job->inv_spacing[a];
-        r->inv_d[a] = 1.0 / r->d[a];
+        double og = (double)o[a] * (double)job->inv_spacing[a];
+        double dg = (double)d[a] * (double)job->inv_spacing[a];
+        r->up[a] = dg > 0.0;
+        if (dg == 0.0) {
+            r->base[a] = 1e300;
+            r->per_face[a] = 0.0;
+            continue;
+        }
+        double m = 0.01 + 1e-5 * (fabs(og) + job->jump_far[a]);
+        double inv_d = 1.0 / dg;
+        r->base[a] =
+            ((dg > 0.0 ? -m : m) - og) * inv_d * inv_step - (double)t_near * inv_step - 0.5;
+        r->per_face[a] = edge * inv_d * inv_step;
     }
+}
+
+/* The index of the brick holding voxel cell `cell` ((int) of a clamped grid position). */
+static inline size_t brick_of_cell(const render_job *job, const int cell[3])
+{
+    int sh = job->skip_shift;
+    size_t bx = (size_t)(cell[0] >> sh), by = (size_t)(cell[1] >> sh);
+    size_t bz = (size_t)(cell[2] >> sh);
+    return bx + (size_t)job->skip_nb[0] * (by + (size_t)job->skip_nb[1] * bz);
+}
+
+/* The cell of grid position g. */
+static inline void cell_of(const float g[3], int cell[3])
+{
+    for (int a = 0; a < 3; a++)
+        cell[a] = (int)g[a];
 }
 
 /* The flag byte of the brick holding grid position g (clamped to the volume: step 3). */
 static inline int brick_code(const render_job *job, const float g[3])
 {
-    int sh = job->skip_shift;
-    size_t bx = (size_t)((int)g[0] >> sh), by = (size_t)((int)g[1] >> sh);
-    size_t bz = (size_t)((int)g[2] >> sh);
-    return job->skip_flags[bx + (size_t)job->skip_nb[0] * (by + (size_t)job->skip_nb[1] * bz)];
+    int cell[3];
+    cell_of(g, cell);
+    return job->skip_flags[brick_of_cell(job, cell)];
 }
 
-/* Sample i at grid position g lies in an invisible brick of the given code: the index of the
- * first sample after it that may lie outside the invisible cube around that brick. */
-static long skip_target(const render_job *job, const grid_ray *r, const float g[3], int code,
-                        float t_near, long i)
+/* Sample i in voxel cell `cell` ((int) of its grid position) lies in an invisible brick of
+ * the given code: the index of the first sample after it that may lie outside the invisible
+ * cube around that brick. */
+static inline long skip_target(const render_job *job, const grid_ray *r, const int cell[3],
+                               int code, long i)
 {
     int sh = job->skip_shift, reach = (code > 1 ? code : 1) - 1;
-    double t_exit = INFINITY;
+    double j = 1e300;
     for (int a = 0; a < 3; a++) {
-        if (r->d[a] == 0.0)
-            continue;
-        long b = (long)((int)g[a] >> sh);
-        long edge = 1L << sh; /* (b - reach) may be negative: multiply, do not shift */
-        double face = r->d[a] > 0.0 ? (double)((b + reach + 1) * edge) : (double)((b - reach) * edge);
-        double m = 0.01 + 1e-5 * (fabs(r->o[a]) + fabs(face));
-        face += r->d[a] > 0.0 ? -m : m;
-        double t = (face - r->o[a]) * r->inv_d[a];
-        t_exit = t < t_exit ? t : t_exit;
+        int b = cell[a] >> sh;
+        int f = r->up[a] ? b + reach + 1 : b - reach;
+        double ja = r->base[a] + (double)f * r->per_face[a];
+        j = ja < j ? ja : j;
     }
-    double j = ceil((t_exit - (double)t_near) / (double)job->step - 0.5);
-    if (!(j > (double)(i + 1)))
+    if (!(j > (double)(i + 1))) /* ceil(j) > i + 1 exactly when j > i + 1 */
         return i + 1;
-    return j > (double)(LONG_MAX / 2) ? LONG_MAX / 2 : (long)j;
+    if (j >= (double)(LONG_MAX / 2))
+        return LONG_MAX / 2;
+    long c = (long)j; /* j > 1: truncation, then up to the ceiling */
+    return (double)c < j ? c + 1 : c;
 }
 
 /* Max and min jump the bricks that cannot change the extreme so far: every sample in a brick
@@ -423,7 +506,7 @@ static uint64_t march_extreme(const render_job *job, const float o[3], const flo
     int skipping = job->skip_minmax && job->blend != CDVR_BLEND_AVERAGE;
     grid_ray gr;
     if (skipping)
-        grid_ray_of(job, o, d, &gr);
+        grid_ray_of(job, o, d, t_near, &gr);
     for (long i = 0; i < n; i++) {
         float tm, g[3];
         float ts = t_near + (float)i * job->step;
@@ -439,7 +522,9 @@ static uint64_t march_extreme(const render_job *job, const float o[3], const flo
             int lo, hi;
             brick_range(job, g, &lo, &hi);
             if (is_max ? (float)hi <= best : (float)lo >= best) {
-                long next = skip_target(job, &gr, g, 1, t_near, i);
+                int cell[3];
+                cell_of(g, cell);
+                long next = skip_target(job, &gr, cell, 1, i);
                 next = next < n ? next : n;
                 taken += (uint64_t)(next - i);
                 if (next == n && t_far - (t_near + (float)(n - 1) * job->step) <= 0.0f)
@@ -476,18 +561,54 @@ static float field_at(const render_job *job, const float o[3], const float d[3],
  * last of them, next - 1, which it takes as usual: the hit test there needs only the side of
  * its predecessor, which sample i's value gives. Returns the index before the one to take
  * (the loop's i++ follows); the samples jumped are counted. */
-static long iso_jump(const render_job *job, const grid_ray *gr, const float g[3], float t_near,
-                     long i, long n, uint64_t *taken)
+static long iso_jump(const render_job *job, const grid_ray *gr, const float g[3], long i, long n,
+                     uint64_t *taken)
 {
     int code = brick_code(job, g);
     if (code >= 128)
         return i;
-    long next = skip_target(job, gr, g, code, t_near, i);
+    int cell[3];
+    cell_of(g, cell);
+    long next = skip_target(job, gr, cell, code, i);
     next = next < n ? next : n;
     if (next - 2 <= i)
         return i;
     *taken += (uint64_t)(next - 2 - i); /* samples i + 1 .. next - 2: full segments */
     return next - 2;
+}
+
+/* The pixel of a ray whose sample s (at parameter tm) is the first hit of the iso code, its
+ * predecessor's code and parameter prev, t_prev: two regula-falsi steps, colour, shading. */
+static void iso_hit(const render_job *job, const float o[3], const float d[3],
+                    const float V[3], float prev, float t_prev, float s, float tm, float out[4])
+{
+    float c = job->iso_code, g[3];
+    float ta = t_prev, tb = tm, sa = prev, sb = s, t = tm;
+    for (int k = 0; k < 2 && s != c && sb != sa; k++) {
+        t = ta + (c - sa) * (tb - ta) / (sb - sa);
+        float st = field_at(job, o, d, t, g);
+        if ((sa - c) * (st - c) <= 0.0f) {
+            tb = t;
+            sb = st;
+        } else {
+            ta = t;
+            sa = st;
+        }
+    }
+    field_at(job, o, d, t, g);
+    float rgba[4];
+    table_at(job, c, rgba);
+    if (!job->iso_tf_color)
+        for (int k = 0; k < 3; k++)
+            rgba[k] = job->iso_rgb[k];
+    if (job->shade) {
+        float G[3];
+        gradient(job, g, G);
+        shade_rgb(job, G, V, rgba);
+    }
+    for (int k = 0; k < 3; k++)
+        out[k] = rgba[k] * job->iso_alpha;
+    out[3] = job->iso_alpha;
 }
 
 /* The first crossing of the iso code, refined by two regula-falsi steps (render.h). */
@@ -498,7 +619,7 @@ static uint64_t march_iso(const render_job *job, const float o[3], const float d
     uint64_t taken = 0;
     grid_ray gr;
     if (job->skip_flags)
-        grid_ray_of(job, o, d, &gr);
+        grid_ray_of(job, o, d, t_near, &gr);
     for (long i = 0; i < n; i++) {
         float tm, g[3];
         float ts = t_near + (float)i * job->step;
@@ -511,35 +632,10 @@ static uint64_t march_iso(const render_job *job, const float o[3], const float d
             prev = s;
             t_prev = tm;
             if (job->skip_flags)
-                i = iso_jump(job, &gr, g, t_near, i, n, &taken);
+                i = iso_jump(job, &gr, g, i, n, &taken);
             continue;
         }
-        float ta = t_prev, tb = tm, sa = prev, sb = s, t = tm;
-        for (int k = 0; k < 2 && s != c && sb != sa; k++) {
-            t = ta + (c - sa) * (tb - ta) / (sb - sa);
-            float st = field_at(job, o, d, t, g);
-            if ((sa - c) * (st - c) <= 0.0f) {
-                tb = t;
-                sb = st;
-            } else {
-                ta = t;
-                sa = st;
-            }
-        }
-        field_at(job, o, d, t, g);
-        float rgba[4];
-        table_at(job, c, rgba);
-        if (!job->iso_tf_color)
-            for (int k = 0; k < 3; k++)
-                rgba[k] = job->iso_rgb[k];
-        if (job->shade) {
-            float G[3];
-            gradient(job, g, G);
-            shade_rgb(job, G, V, rgba);
-        }
-        for (int k = 0; k < 3; k++)
-            out[k] = rgba[k] * job->iso_alpha;
-        out[3] = job->iso_alpha;
+        iso_hit(job, o, d, V, prev, t_prev, s, tm, out);
         return taken;
     }
     return taken;
@@ -556,7 +652,7 @@ static uint64_t march_composite(const render_job *job, const float o[3], const f
     float C[3] = {0.0f, 0.0f, 0.0f}, A = 0.0f, step = job->step;
     grid_ray gr;
     if (skipping)
-        grid_ray_of(job, o, d, &gr);
+        grid_ray_of(job, o, d, t_near, &gr);
     uint64_t taken = 0;
     for (long i = first; i < stop; i++) {
         float ts = t_near + (float)i * step;
@@ -572,7 +668,9 @@ static uint64_t march_composite(const render_job *job, const float o[3], const f
         if (skipping) {
             int code = brick_code(job, g);
             if (code < 128) { /* invisible: sample i and those up to the cube's face add nothing */
-                long next = skip_target(job, &gr, g, code, t_near, i);
+                int cell[3];
+                cell_of(g, cell);
+                long next = skip_target(job, &gr, cell, code, i);
                 next = next < stop ? next : stop;
                 taken += (uint64_t)(next - i);
                 if (next == n && t_far - (t_near + (float)(n - 1) * step) <= 0.0f)
@@ -645,19 +743,21 @@ static void pixel_ray(const render_job *job, int x, int y, double origin[3], dou
 }
 
 /* ---- four rays at a time (SSE2) -------------------------------------------------------------
- * The composite (shading and gradient opacity per lane, by look_sample), max, min and
- * average marches (not clipped) of four neighbouring pixels in lock-step: each lane keeps its
- * own segment index, so the lanes take exactly the samples, in the same order, with the same
- * float operations as march_composite and march_extreme (IEEE single precision, the same operand order, no fused multiply-add: maxps/minps are
- * max_f/min_f, cvttps2dq is the (int) truncation, cvtdq2ps is exact for the at most 2^24
- * segments of a ray); voxel, brick and table reads are per lane. Lanes that jump empty space
- * or have finished add zero weight, which leaves C and A bit for bit unchanged. The shorter
+ * The composite (shading and gradient opacity per lane, by look_sample), max, min, average
+ * and iso (the hit refined by iso_hit) marches (not clipped) of four neighbouring pixels in
+ * lock-step: each lane keeps its own segment index, so the lanes take exactly the samples, in
+ * the same order, with the same float operations as march_composite, march_extreme and
+ * march_iso (IEEE single precision, the same operand order, no fused multiply-add:
+ * maxps/minps are max_f/min_f, cvttps2dq is the (int) truncation, cvtdq2ps is exact for the
+ * at most 2^24 segments of a ray); voxel, brick and table reads are per lane. Lanes that
+ * jump empty space or have finished add zero weight, which leaves C and A bit for bit
+ * unchanged. The shorter
  * last segment's alpha (powf) is taken per lane as classify does. */
 #ifdef __SSE2__
 #define LANES 4
 
 typedef struct lanes {
-    int blend;               /* composite, max, min or average (cdvr_blend) */
+    int blend;               /* cdvr_blend */
     float best[LANES];       /* max, min: the extreme so far */
     double sum[LANES];       /* average: the sum of the codes */
     int live[LANES];         /* still marching */
@@ -668,41 +768,46 @@ typedef struct lanes {
     float o[3][LANES], d[3][LANES];
     float V[3][LANES];       /* shading: towards the eye, world */
     float g[3][LANES];       /* the grid positions of the last lanes_sample */
+    /* iso: the last sample's code and parameter before a hit, and the hit (code, parameter) */
+    float prev[LANES], t_prev[LANES], hit_s[LANES], hit_tm[LANES];
+    int hit[LANES];
 } lanes;
+
+/* Four integer codes as floats (exact). */
+static inline __m128 code4(const int v[LANES])
+{
+    return _mm_cvtepi32_ps(_mm_loadu_si128((const __m128i *)v));
+}
 
 static inline __m128 lerp4(__m128 a, __m128 b, __m128 f)
 {
     return _mm_add_ps(a, _mm_mul_ps(f, _mm_sub_ps(b, a)));
 }
 
-/* Lane k's eight voxels at grid position g (already clamped) into v[0..7][k]. */
-static inline void gather_lane(const render_job *job, const int i0[3], float v[8][LANES], int k)
+/* Lane k's eight voxel codes around cell (x, y, z) (clamped; the upper neighbour along an
+ * axis is the voxel itself on the volume's last voxel, as in sample_volume) into v[0..7][k],
+ * as integers: (float) of them, by cvtdq2ps, is code_value's value. */
+static inline void gather_lane(const render_job *job, int x, int y, int z, int v[8][LANES],
+                               int k)
 {
-    size_t lo[3], hi[3];
-    for (int a = 0; a < 3; a++) {
-        int i1 = i0[a] + 1 < job->dims[a] ? i0[a] + 1 : i0[a];
-        lo[a] = (size_t)i0[a];
-        hi[a] = (size_t)i1;
-    }
-    const uint8_t *vox = job->voxels;
-    const float *cv = job->code_value;
-    size_t y0 = lo[1] * job->stride_y, y1 = hi[1] * job->stride_y;
-    size_t z0 = lo[2] * job->stride_z, z1 = hi[2] * job->stride_z;
-    const uint8_t *r00 = vox + y0 + z0, *r10 = vox + y1 + z0, *r01 = vox + y0 + z1,
-                  *r11 = vox + y1 + z1;
-    v[0][k] = cv[r00[lo[0]]];
-    v[1][k] = cv[r00[hi[0]]];
-    v[2][k] = cv[r10[lo[0]]];
-    v[3][k] = cv[r10[hi[0]]];
-    v[4][k] = cv[r01[lo[0]]];
-    v[5][k] = cv[r01[hi[0]]];
-    v[6][k] = cv[r11[lo[0]]];
-    v[7][k] = cv[r11[hi[0]]];
+    size_t dx = x + 1 < job->dims[0], dy = y + 1 < job->dims[1] ? job->stride_y : 0;
+    size_t dz = z + 1 < job->dims[2] ? job->stride_z : 0;
+    const uint8_t *p = job->voxels + (size_t)x + (size_t)y * job->stride_y +
+                       (size_t)z * job->stride_z;
+    v[0][k] = p[0];
+    v[1][k] = p[dx];
+    v[2][k] = p[dy];
+    v[3][k] = p[dy + dx];
+    v[4][k] = p[dz];
+    v[5][k] = p[dz + dx];
+    v[6][k] = p[dz + dy];
+    v[7][k] = p[dz + dy + dx];
 }
 
 /* Steps 2-3 for the live lanes at their segment index: lanes in empty space (composite:
- * invisible bricks; max, min: dull bricks) jump, the others interpolate their sample into *s
- * (sampling[k] = 1; ds[k] its segment length). Returns 0 when no lane samples. */
+ * invisible bricks; max, min: dull bricks; average: bricks of zeros) jump, the others
+ * interpolate their sample into *s (sampling[k] = 1; ds[k] its segment length). Returns 0
+ * when no lane samples. */
 static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], float dsv[LANES],
                         __m128 *s)
 {
@@ -725,30 +830,38 @@ static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], fl
         _mm_storeu_ps(g[a], gv[a]);
         _mm_storeu_si128((__m128i *)gi[a], _mm_cvttps_epi32(gv[a]));
     }
-    float v[8][LANES];
+    int v[8][LANES];
+    memset(v, 0, sizeof v);
     for (int k = 0; k < LANES; k++) {
         sampling[k] = 0;
-        for (int c = 0; c < 8; c++)
-            v[c][k] = 0.0f;
         if (!L->live[k])
             continue;
         if (!(dsv[k] > 0.0f)) { /* the definition stops before an empty last segment */
             L->live[k] = 0;
             continue;
         }
-        float gk[3] = {g[0][k], g[1][k], g[2][k]};
+        int cell[3] = {gi[0][k], gi[1][k], gi[2][k]};
         int jump = 0, code = 1;
         if (job->skip_flags) {
-            code = brick_code(job, gk);
+            code = job->skip_flags[brick_of_cell(job, cell)];
             jump = code < 128;
         } else if (job->skip_minmax) {
-            int lo, hi;
-            brick_range(job, gk, &lo, &hi);
-            jump = L->blend == CDVR_BLEND_MAX ? (float)hi <= L->best[k] : (float)lo >= L->best[k];
+            /* max: bricks whose max is at most the best; min: whose min is at least the best;
+             * average: bricks of zeros (their samples are 0 and leave the sum as it is) */
+            int is_max = L->blend != CDVR_BLEND_MIN;
+            float best = L->blend == CDVR_BLEND_AVERAGE ? 0.0f : L->best[k];
+            size_t b = brick_of_cell(job, cell);
+            float edge = job->skip_minmax[2 * b + is_max]; /* max: the brick's max; min: min */
+            jump = is_max ? edge <= best : edge >= best;
+            if (jump && job->skip_wide) { /* the whole cube around the brick is dull too? */
+                float wide = job->skip_wide[2 * b + is_max];
+                if (is_max ? wide <= best : wide >= best)
+                    code = WIDE_REACH + 1;
+            }
         }
         {
             if (jump) {
-                long next = skip_target(job, &L->gr[k], gk, code, L->t_near[k], L->i[k]);
+                long next = skip_target(job, &L->gr[k], cell, code, L->i[k]);
                 int n = L->n[k];
                 next = next < n ? next : n;
                 L->taken[k] += (uint64_t)(next - L->i[k]);
@@ -759,25 +872,26 @@ static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], fl
                 continue;
             }
         }
-        int i0[3] = {gi[0][k], gi[1][k], gi[2][k]};
-        gather_lane(job, i0, v, k);
         sampling[k] = 1;
     }
+    for (int k = 0; k < LANES; k++) /* the loads of all sampling lanes together */
+        if (sampling[k])
+            gather_lane(job, gi[0][k], gi[1][k], gi[2][k], v, k);
     if (!(sampling[0] | sampling[1] | sampling[2] | sampling[3]))
         return 0;
     __m128 f[3];
     for (int a = 0; a < 3; a++)
         f[a] = _mm_sub_ps(gv[a], _mm_cvtepi32_ps(_mm_loadu_si128((const __m128i *)gi[a])));
-    __m128 c00 = lerp4(_mm_loadu_ps(v[0]), _mm_loadu_ps(v[1]), f[0]);
-    __m128 c10 = lerp4(_mm_loadu_ps(v[2]), _mm_loadu_ps(v[3]), f[0]);
-    __m128 c01 = lerp4(_mm_loadu_ps(v[4]), _mm_loadu_ps(v[5]), f[0]);
-    __m128 c11 = lerp4(_mm_loadu_ps(v[6]), _mm_loadu_ps(v[7]), f[0]);
+    __m128 c00 = lerp4(code4(v[0]), code4(v[1]), f[0]);
+    __m128 c10 = lerp4(code4(v[2]), code4(v[3]), f[0]);
+    __m128 c01 = lerp4(code4(v[4]), code4(v[5]), f[0]);
+    __m128 c11 = lerp4(code4(v[6]), code4(v[7]), f[0]);
     *s = lerp4(lerp4(c00, c10, f[1]), lerp4(c01, c11, f[1]), f[2]);
     return 1;
 }
 
 /* Max, min, average: the codes of the sampling lanes into their extreme or sum. */
-static void lanes_extreme(lanes *L, const int sampling[LANES], __m128 s)
+static void lanes_extreme(const render_job *job, lanes *L, const int sampling[LANES], __m128 s)
 {
     float sv[LANES];
     _mm_storeu_ps(sv, s);
@@ -792,7 +906,90 @@ static void lanes_extreme(lanes *L, const int sampling[LANES], __m128 s)
         L->taken[k]++;
         L->i[k]++;
         L->live[k] = L->i[k] < L->n[k];
+        if (L->live[k] && L->best[k] == (L->blend == CDVR_BLEND_MAX ? 255.0f : 0.0f)) {
+            /* no code lies beyond 255 (below 0): the rest cannot change the extreme; they
+             * are counted as the definition takes them (not an empty last segment) */
+            int n = L->n[k];
+            L->taken[k] += (uint64_t)(n - L->i[k]);
+            if (L->t_far[k] - (L->t_near[k] + (float)(n - 1) * job->step) <= 0.0f)
+                L->taken[k]--;
+            L->i[k] = n;
+            L->live[k] = 0;
+        }
     }
+}
+
+/* Iso (march_iso lane by lane): every live lane takes its sample (computed for all lanes:
+ * positions are clamped into the volume); a hit stops the lane and is kept for iso_hit, a
+ * miss becomes the predecessor and may jump as iso_jump does. Returns the lanes still live. */
+static int lanes_iso_step(const render_job *job, lanes *L)
+{
+    const __m128 step = _mm_set1_ps(job->step), zero = _mm_setzero_ps();
+    __m128i iv = _mm_loadu_si128((const __m128i *)L->i);
+    __m128 ts = _mm_add_ps(_mm_loadu_ps(L->t_near), _mm_mul_ps(_mm_cvtepi32_ps(iv), step));
+    __m128i last = _mm_sub_epi32(_mm_loadu_si128((const __m128i *)L->n), _mm_set1_epi32(1));
+    __m128 is_full = _mm_castsi128_ps(_mm_cmplt_epi32(iv, last));
+    __m128 ds = _mm_or_ps(_mm_and_ps(is_full, step),
+                          _mm_andnot_ps(is_full, _mm_sub_ps(_mm_loadu_ps(L->t_far), ts)));
+    __m128 tm = _mm_add_ps(ts, _mm_mul_ps(_mm_set1_ps(0.5f), ds));
+    float dsv[LANES], tmv[LANES], sv[LANES];
+    int gi[3][LANES], v[8][LANES];
+    _mm_storeu_ps(dsv, ds);
+    _mm_storeu_ps(tmv, tm);
+    __m128 gv[3];
+    for (int a = 0; a < 3; a++) {
+        __m128 p = _mm_add_ps(_mm_loadu_ps(L->o[a]), _mm_mul_ps(tm, _mm_loadu_ps(L->d[a])));
+        __m128 top = _mm_set1_ps((float)(job->dims[a] - 1));
+        gv[a] = _mm_min_ps(_mm_max_ps(_mm_mul_ps(p, _mm_set1_ps(job->inv_spacing[a])), zero), top);
+        _mm_storeu_si128((__m128i *)gi[a], _mm_cvttps_epi32(gv[a]));
+    }
+    memset(v, 0, sizeof v);
+    for (int k = 0; k < LANES; k++) {
+        if (L->live[k] && !(dsv[k] > 0.0f)) /* the definition stops before an empty last one */
+            L->live[k] = 0;
+        if (L->live[k])
+            gather_lane(job, gi[0][k], gi[1][k], gi[2][k], v, k);
+    }
+    __m128 f[3];
+    for (int a = 0; a < 3; a++)
+        f[a] = _mm_sub_ps(gv[a], _mm_cvtepi32_ps(_mm_loadu_si128((const __m128i *)gi[a])));
+    __m128 c00 = lerp4(code4(v[0]), code4(v[1]), f[0]);
+    __m128 c10 = lerp4(code4(v[2]), code4(v[3]), f[0]);
+    __m128 c01 = lerp4(code4(v[4]), code4(v[5]), f[0]);
+    __m128 c11 = lerp4(code4(v[6]), code4(v[7]), f[0]);
+    _mm_storeu_ps(sv, lerp4(lerp4(c00, c10, f[1]), lerp4(c01, c11, f[1]), f[2]));
+    float c = job->iso_code;
+    for (int k = 0; k < LANES; k++) {
+        if (!L->live[k])
+            continue;
+        long i = L->i[k], n = L->n[k];
+        float s = sv[k];
+        L->taken[k]++;
+        if (s == c || (i > 0 && (L->prev[k] - c) * (s - c) < 0.0f)) {
+            L->hit[k] = 1;
+            L->hit_s[k] = s;
+            L->hit_tm[k] = tmv[k];
+            L->live[k] = 0;
+            continue;
+        }
+        L->prev[k] = s;
+        L->t_prev[k] = tmv[k];
+        if (job->skip_flags) {
+            int cell[3] = {gi[0][k], gi[1][k], gi[2][k]};
+            int code = job->skip_flags[brick_of_cell(job, cell)];
+            if (code < 128) {
+                long next = skip_target(job, &L->gr[k], cell, code, i);
+                next = next < n ? next : n;
+                if (next - 2 > i) { /* samples i + 1 .. next - 2: full segments */
+                    L->taken[k] += (uint64_t)(next - 2 - i);
+                    i = next - 2;
+                }
+            }
+        }
+        L->i[k] = (int)(i + 1);
+        L->live[k] = i + 1 < n;
+    }
+    return L->live[0] | L->live[1] | L->live[2] | L->live[3];
 }
 
 /* One step of every live lane; returns the lanes still live. */
@@ -804,29 +1001,28 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
     if (!lanes_sample(job, L, sampling, dsv, &s))
         return L->live[0] | L->live[1] | L->live[2] | L->live[3];
     if (L->blend != CDVR_BLEND_COMPOSITE) {
-        lanes_extreme(L, sampling, s);
+        lanes_extreme(job, L, sampling, s);
         return L->live[0] | L->live[1] | L->live[2] | L->live[3];
     }
     /* step 4: i0 = min((int)s, 254) as the truncation of min(s, 254) */
     __m128i si = _mm_cvttps_epi32(_mm_min_ps(s, _mm_set1_ps(254.0f)));
     __m128 fr = _mm_sub_ps(s, _mm_cvtepi32_ps(si));
     int ti[LANES];
-    float sv[LANES], a0[LANES], a1[LANES], rgb0[3][LANES], rgb1[3][LANES];
+    float sv[LANES];
     _mm_storeu_si128((__m128i *)ti, si);
     _mm_storeu_ps(sv, s);
+    /* each lane's two entries (r, g, b, a_c) of the table, transposed to channels */
+    __m128 lo[4], hi[4];
     for (int k = 0; k < LANES; k++) {
-        const float *lo = job->tf->table[ti[k]], *hi = job->tf->table[ti[k] + 1];
-        a0[k] = job->alpha_step[ti[k]];
-        a1[k] = job->alpha_step[ti[k] + 1];
-        for (int c = 0; c < 3; c++) {
-            rgb0[c][k] = lo[c];
-            rgb1[c][k] = hi[c];
-        }
+        lo[k] = _mm_loadu_ps(job->rgb_alpha_step[ti[k]]);
+        hi[k] = _mm_loadu_ps(job->rgb_alpha_step[ti[k] + 1]);
     }
+    _MM_TRANSPOSE4_PS(lo[0], lo[1], lo[2], lo[3]);
+    _MM_TRANSPOSE4_PS(hi[0], hi[1], hi[2], hi[3]);
     float alpha[LANES], rgb[3][LANES];
-    _mm_storeu_ps(alpha, lerp4(_mm_loadu_ps(a0), _mm_loadu_ps(a1), fr));
+    _mm_storeu_ps(alpha, lerp4(lo[3], hi[3], fr));
     for (int c = 0; c < 3; c++)
-        _mm_storeu_ps(rgb[c], lerp4(_mm_loadu_ps(rgb0[c]), _mm_loadu_ps(rgb1[c]), fr));
+        _mm_storeu_ps(rgb[c], lerp4(lo[c], hi[c], fr));
     int looks = job->shade || job->go_points;
     for (int k = 0; k < LANES; k++) {
         if (!sampling[k])
@@ -864,34 +1060,155 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
     return L->live[0] | L->live[1] | L->live[2] | L->live[3];
 }
 
+/* Steps 0 of pixels x .. x + 3 of row y for a pinhole camera, two rays at a time in double
+ * (SSE2): the operations of cdvr_camera_frame_ray (its order, no fused multiply-add; sqrtpd
+ * and divpd round as sqrt and / do) and of to_box_frame, so o, d and V are those of the
+ * one-ray path bit for bit. The origin is the eye for every pixel: job->eye_box. Returns 0
+ * (nothing written) for an orthographic camera or a zero-length direction: the caller then
+ * takes the one-ray path. */
+static int lanes_rays(const render_job *job, int x, int y, float o[3][LANES],
+                      float d[3][LANES], float V[3][LANES])
+{
+    const cdvr_camera *cam = job->camera;
+    const cdvr_camera_frame *fr = &job->cam_frame;
+    if (cam->orthographic)
+        return 0;
+    double aspect = (double)cam->width / (double)cam->height;
+    double sy = -(2.0 * (y + 0.5) / cam->height - 1.0);
+    const __m128d two = _mm_set1_pd(2.0), one = _mm_set1_pd(1.0), half = _mm_set1_pd(0.5);
+    const __m128d w = _mm_set1_pd((double)cam->width), tan = _mm_set1_pd(fr->tan_half_fov);
+    __m128d dir[2][3];
+    for (int p = 0; p < 2; p++) {
+        __m128d xs = _mm_add_pd(_mm_set_pd((double)(x + 2 * p + 1), (double)(x + 2 * p)), half);
+        __m128d sx = _mm_mul_pd(_mm_sub_pd(_mm_div_pd(_mm_mul_pd(two, xs), w), one),
+                                _mm_set1_pd(aspect));
+        for (int i = 0; i < 3; i++) {
+            __m128d side = _mm_add_pd(_mm_mul_pd(sx, _mm_set1_pd(fr->r[i])),
+                                      _mm_set1_pd(sy * fr->u[i]));
+            dir[p][i] = _mm_add_pd(_mm_set1_pd(fr->f[i]), _mm_mul_pd(side, tan));
+        }
+        __m128d len2 = _mm_add_pd(_mm_add_pd(_mm_mul_pd(dir[p][0], dir[p][0]),
+                                             _mm_mul_pd(dir[p][1], dir[p][1])),
+                                  _mm_mul_pd(dir[p][2], dir[p][2]));
+        __m128d len = _mm_sqrt_pd(len2);
+        if (_mm_movemask_pd(_mm_cmpgt_pd(len, _mm_setzero_pd())) != 3)
+            return 0;
+        for (int i = 0; i < 3; i++)
+            dir[p][i] = _mm_div_pd(dir[p][i], len);
+    }
+    const double *m = job->inv_dir;
+    for (int p = 0; p < 2; p++) {
+        double dd[3][2];
+        for (int i = 0; i < 3; i++)
+            _mm_storeu_pd(dd[i], dir[p][i]);
+        for (int r = 0; r < 3; r++) {
+            __m128d v = _mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_set1_pd(m[3 * r]), dir[p][0]),
+                                              _mm_mul_pd(_mm_set1_pd(m[3 * r + 1]), dir[p][1])),
+                                   _mm_mul_pd(_mm_set1_pd(m[3 * r + 2]), dir[p][2]));
+            double db[2];
+            _mm_storeu_pd(db, v);
+            for (int k = 0; k < 2; k++) {
+                d[r][2 * p + k] = (float)db[k];
+                o[r][2 * p + k] = job->eye_box[r];
+                V[r][2 * p + k] = (float)-dd[r][k];
+            }
+        }
+    }
+    return 1;
+}
+
+/* Step 1 for the four rays in L->o, L->d: intersect_box lane by lane (maxps and minps are
+ * the fmaxf and fminf it calls, x86-64 glibc's maxss and minss, for operands that are not
+ * NaN; the swap and the division as it does them), into t_near, t_far; returns the mask of
+ * the lanes that hit, or -1 (nothing written) when a NaN turns up: the caller then takes
+ * intersect_box. */
+static int lanes_intersect(const render_job *job, const lanes *L, float t_near[LANES],
+                           float t_far[LANES])
+{
+    const __m128 sign = _mm_set1_ps(-0.0f), zero = _mm_setzero_ps();
+    __m128 t_enter = _mm_set1_ps(-INFINITY), t_exit = _mm_set1_ps(INFINITY);
+    __m128 miss = zero, nan = zero;
+    for (int a = 0; a < 3; a++) {
+        __m128 o = _mm_loadu_ps(L->o[a]), d = _mm_loadu_ps(L->d[a]);
+        __m128 hi = _mm_set1_ps(job->box_hi[a]);
+        __m128 tiny = _mm_cmplt_ps(_mm_andnot_ps(sign, d), _mm_set1_ps(1e-12f));
+        __m128 outside = _mm_or_ps(_mm_cmplt_ps(o, zero), _mm_cmpgt_ps(o, hi));
+        miss = _mm_or_ps(miss, _mm_and_ps(tiny, outside));
+        __m128 t0 = _mm_div_ps(_mm_sub_ps(zero, o), d), t1 = _mm_div_ps(_mm_sub_ps(hi, o), d);
+        __m128 lo_t = _mm_min_ps(t1, t0), hi_t = _mm_max_ps(t0, t1); /* the swap */
+        nan = _mm_or_ps(nan, _mm_andnot_ps(tiny, _mm_cmpunord_ps(lo_t, hi_t)));
+        __m128 enter = _mm_max_ps(t_enter, lo_t), exit = _mm_min_ps(t_exit, hi_t);
+        t_enter = _mm_or_ps(_mm_and_ps(tiny, t_enter), _mm_andnot_ps(tiny, enter));
+        t_exit = _mm_or_ps(_mm_and_ps(tiny, t_exit), _mm_andnot_ps(tiny, exit));
+    }
+    if (_mm_movemask_ps(nan))
+        return -1;
+    __m128 tn = _mm_max_ps(t_enter, zero);
+    _mm_storeu_ps(t_near, tn);
+    _mm_storeu_ps(t_far, t_exit);
+    return _mm_movemask_ps(_mm_andnot_ps(miss, _mm_cmpgt_ps(t_exit, tn)));
+}
+
 /* Pixels x .. x + 3 of row y (x + 3 < width) by the four-lane march; returns their samples. */
 static uint64_t render_lanes(const render_job *job, int x, int y)
 {
     lanes L;
     memset(&L, 0, sizeof L);
     L.blend = job->blend;
+    int fast = lanes_rays(job, x, y, L.o, L.d, L.V);
+    float tn4[LANES], tf4[LANES];
+    int hit4 = fast ? lanes_intersect(job, &L, tn4, tf4) : -1;
     for (int k = 0; k < LANES; k++) {
         L.best[k] = job->blend == CDVR_BLEND_MIN ? INFINITY : -INFINITY;
-        double od[3], dd[3];
         float o[3], d[3], t_near = 0.0f, t_far = 0.0f;
-        pixel_ray(job, x + k, y, od, dd);
-        to_box_frame(job, od, dd, o, d);
-        for (int a = 0; a < 3; a++) {
-            L.o[a][k] = o[a];
-            L.d[a][k] = d[a];
-            L.V[a][k] = (float)-dd[a]; /* |dd| = 1 */
+        if (!fast) {
+            double od[3], dd[3];
+            pixel_ray(job, x + k, y, od, dd);
+            to_box_frame(job, od, dd, o, d);
+            for (int a = 0; a < 3; a++) {
+                L.o[a][k] = o[a];
+                L.d[a][k] = d[a];
+                L.V[a][k] = (float)-dd[a]; /* |dd| = 1 */
+            }
         }
-        if (!intersect_box(job, o, d, &t_near, &t_far))
+        for (int a = 0; a < 3; a++) {
+            o[a] = L.o[a][k];
+            d[a] = L.d[a][k];
+        }
+        if (hit4 >= 0) {
+            if (!((hit4 >> k) & 1))
+                continue;
+            t_near = tn4[k];
+            t_far = tf4[k];
+        } else if (!intersect_box(job, o, d, &t_near, &t_far)) {
             continue;
+        }
         long n = (long)ceilf((t_far - t_near) / job->step);
         L.n[k] = n < 1 ? 1 : (int)n;
         L.t_near[k] = t_near;
         L.t_far[k] = t_far;
         L.live[k] = 1;
         if (job->skip_flags || job->skip_minmax)
-            grid_ray_of(job, o, d, &L.gr[k]);
+            grid_ray_of(job, o, d, t_near, &L.gr[k]);
     }
     __m128 C[3] = {_mm_setzero_ps(), _mm_setzero_ps(), _mm_setzero_ps()}, A = _mm_setzero_ps();
+    if (job->blend == CDVR_BLEND_ISO) {
+        while (lanes_iso_step(job, &L))
+            ;
+        uint64_t samples = 0;
+        for (int k = 0; k < LANES; k++) {
+            float *px = cdvr_image_pixel(job->img, x + k, y);
+            px[0] = px[1] = px[2] = px[3] = 0.0f;
+            if (L.hit[k]) {
+                float o[3] = {L.o[0][k], L.o[1][k], L.o[2][k]};
+                float d[3] = {L.d[0][k], L.d[1][k], L.d[2][k]};
+                float V[3] = {L.V[0][k], L.V[1][k], L.V[2][k]};
+                iso_hit(job, o, d, V, L.prev[k], L.t_prev[k], L.hit_s[k], L.hit_tm[k], px);
+            }
+            samples += L.taken[k];
+        }
+        return samples;
+    }
     while (lanes_step(job, &L, C, &A))
         ;
     float out[4][LANES];
@@ -912,15 +1229,17 @@ static uint64_t render_lanes(const render_job *job, int x, int y)
 }
 #endif
 
-static uint64_t render_row(const render_job *job, int y)
+/* Pixels x0 .. x1 - 1 of row y: four at a time where four fit from x0 (a multiple of four)
+ * and the march allows it, the others one at a time. */
+static uint64_t render_span(const render_job *job, int x0, int x1, int y)
 {
     uint64_t samples = 0;
-    int x = 0;
+    int x = x0;
 #ifdef __SSE2__
-    for (; job->lanes && x + LANES <= job->img->width; x += LANES)
+    for (; job->lanes && x + LANES <= x1; x += LANES)
         samples += render_lanes(job, x, y);
 #endif
-    for (; x < job->img->width; x++) {
+    for (; x < x1; x++) {
         double od[3], dd[3];
         float o[3], d[3];
         pixel_ray(job, x, y, od, dd);
@@ -931,28 +1250,40 @@ static uint64_t render_row(const render_job *job, int y)
     return samples;
 }
 
+/* The image is handed out in tiles of TILE_W x TILE_H pixels (TILE_W a multiple of four),
+ * rows of tiles in turn: the rays of a tile run side by side through the same voxels, which
+ * then stay in the cache from one ray to the next (a row of rays across the whole image
+ * touches more voxels than the cache holds, and the next row fetches them again). */
+#define TILE_W 16
+#define TILE_H 8
+
 static void *render_worker(void *arg)
 {
     render_job *job = arg;
     uint64_t samples = 0;
+    int w = job->img->width, h = job->img->height;
+    int tiles_x = (w + TILE_W - 1) / TILE_W, tiles = tiles_x * ((h + TILE_H - 1) / TILE_H);
     for (;;) {
-        int y = atomic_fetch_add(&job->next_row, 1);
-        if (y >= job->img->height || (job->cancel && atomic_load(job->cancel)))
+        int t = atomic_fetch_add(&job->next_tile, 1);
+        if (t >= tiles || (job->cancel && atomic_load(job->cancel)))
             break;
-        samples += render_row(job, y);
+        int x0 = (t % tiles_x) * TILE_W, y0 = (t / tiles_x) * TILE_H;
+        int x1 = x0 + TILE_W < w ? x0 + TILE_W : w, y1 = y0 + TILE_H < h ? y0 + TILE_H : h;
+        for (int y = y0; y < y1; y++)
+            samples += render_span(job, x0, x1, y);
     }
     atomic_fetch_add(&job->samples, samples);
     return NULL;
 }
 
-static int thread_count(const cdvr_render_opts *opts, int rows)
+static int thread_count(const cdvr_render_opts *opts, int tiles)
 {
     long n = opts->threads > 0 ? opts->threads : sysconf(_SC_NPROCESSORS_ONLN);
     if (n < 1)
         n = 1;
     if (n > MAX_THREADS)
         n = MAX_THREADS;
-    return n > rows ? rows : (int)n;
+    return n > tiles ? tiles : (int)n;
 }
 
 /* Runs the workers; the calling thread is one of them. Threads that fail to start are
@@ -1100,12 +1431,20 @@ static void setup_job(render_job *job, const cdvr_volume *vol, size_t t,
         job->code_value[i] = (float)i;
     for (int i = 0; i < 256; i++)
         job->alpha_step[i] = (float)(1.0 - pow(1.0 - opts->tf->table[i][3], step / unit));
+    for (int i = 0; i < 256; i++) {
+        for (int c = 0; c < 3; c++)
+            job->rgb_alpha_step[i][c] = opts->tf->table[i][c];
+        job->rgb_alpha_step[i][3] = job->alpha_step[i];
+    }
     job->camera = opts->camera;
     cdvr_camera_frame_init(opts->camera, &job->cam_frame);
+    double zero[3] = {0.0, 0.0, 0.0};
+    float unused[3];
+    to_box_frame(job, opts->camera->eye, zero, job->eye_box, unused);
     setup_look(job, opts, D);
     job->cancel = opts->cancel;
     job->img = img;
-    atomic_init(&job->next_row, 0);
+    atomic_init(&job->next_tile, 0);
     atomic_init(&job->samples, 0);
 }
 
@@ -1182,6 +1521,47 @@ static void iso_flags(cdvr_skip_grid *g, float c)
     reach_flags(g, holds);
 }
 
+/* Max, min and average: every brick's range widened to the cube of bricks within WIDE_REACH
+ * of it (chessboard distance, bricks outside the grid left out): a ray whose extreme already
+ * beats that range (average: a cube of zeros) jumps the whole cube (skip_target with code
+ * WIDE_REACH + 1), as the composite march jumps an invisible cube, instead of one brick at a
+ * time (WIDE_REACH: at the top of this file). */
+
+/* out[2 b] = min, out[2 b + 1] = max of in over the bricks within WIDE_REACH of b along axis
+ * a only (in and out distinct, both 2 per brick). */
+static void widen_axis(const uint8_t *in, uint8_t *out, const size_t nb[3], int a)
+{
+    size_t stride = a == 0 ? 1 : a == 1 ? nb[0] : nb[0] * nb[1];
+    size_t n = nb[a], lines = nb[0] * nb[1] * nb[2] / n;
+    for (size_t l = 0; l < lines; l++) {
+        /* the first brick of line l: l counts the other two axes, x before y before z */
+        size_t first = a == 0 ? l * nb[0]
+                     : a == 1 ? (l % nb[0]) + (l / nb[0]) * nb[0] * nb[1]
+                              : l;
+        for (size_t i = 0; i < n; i++) {
+            size_t j0 = i >= WIDE_REACH ? i - WIDE_REACH : 0;
+            size_t j1 = i + WIDE_REACH < n ? i + WIDE_REACH : n - 1;
+            uint8_t lo = 255, hi = 0;
+            for (size_t j = j0; j <= j1; j++) {
+                const uint8_t *r = in + 2 * (first + j * stride);
+                lo = r[0] < lo ? r[0] : lo;
+                hi = r[1] > hi ? r[1] : hi;
+            }
+            uint8_t *o = out + 2 * (first + i * stride);
+            o[0] = lo;
+            o[1] = hi;
+        }
+    }
+}
+
+/* The widened ranges of grid g into out (2 per brick), with tmp (2 per brick) as scratch. */
+static void wide_ranges(const cdvr_skip_grid *g, uint8_t *out, uint8_t *tmp)
+{
+    widen_axis(g->minmax, out, g->dims, 0);
+    widen_axis(out, tmp, g->dims, 1);
+    widen_axis(tmp, out, g->dims, 2);
+}
+
 /* What a skip grid's flags were made for: a composite TF's entries with alpha > 0, or an iso
  * code (the ranges are compared separately). */
 typedef struct skip_key {
@@ -1193,6 +1573,9 @@ typedef struct skip_key {
 struct cdvr_cpu_skip_cache {
     cdvr_skip_grid grid;     /* grid.minmax == NULL: nothing kept */
     skip_key key;
+    int ranges_valid;        /* grid.minmax holds the ranges of the last render's frame */
+    uint8_t *wide;           /* wide_ranges of grid.minmax (2 per brick), or NULL */
+    int wide_valid;          /* wide was made from the ranges in grid.minmax */
 };
 
 cdvr_status cdvr_cpu_skip_cache_create(cdvr_cpu_skip_cache **out, cdvr_error *err)
@@ -1209,6 +1592,7 @@ void cdvr_cpu_skip_cache_free(cdvr_cpu_skip_cache *c)
         return;
     if (c->grid.minmax)
         cdvr_skip_grid_free(&c->grid);
+    free(c->wide);
     free(c);
 }
 
@@ -1228,8 +1612,9 @@ static skip_key key_of(const render_job *job, const cdvr_tf *tf)
 }
 
 /* The cache's grid for a volume of dims with fresh brick ranges in grid->minmax; *same is 1
- * when they equal the ranges its flags were made from (the flags are then valid for the same
- * key). Returns NULL (no skipping) when out of memory. */
+ * when they equal the ranges it held (its flags, when made, and its widened ranges, when
+ * valid, were made from those: the flags are then valid for the same key); otherwise the
+ * flags and widened ranges are marked stale. Returns NULL (no skipping) when out of memory. */
 static cdvr_skip_grid *cached_ranges(cdvr_cpu_skip_cache *c, const render_job *job,
                                      const cdvr_volume *vol, int threads, int *same)
 {
@@ -1239,9 +1624,14 @@ static cdvr_skip_grid *cached_ranges(cdvr_cpu_skip_cache *c, const render_job *j
     if (g->minmax && memcmp(g->vol_dims, vol->dims, sizeof g->vol_dims) != 0) {
         cdvr_skip_grid_free(g);
         memset(g, 0, sizeof *g);
+        free(c->wide);
+        c->wide = NULL;
+        c->wide_valid = 0;
     }
     if (!g->minmax) {
         c->key.kind = 0;
+        c->ranges_valid = 0;
+        c->wide_valid = 0;
         if (cdvr_skip_grid_init(g, vol->dims, CDVR_RANGE_SHIFT, &ignored) != CDVR_OK) {
             memset(g, 0, sizeof *g);
             return NULL;
@@ -1254,14 +1644,39 @@ static cdvr_skip_grid *cached_ranges(cdvr_cpu_skip_cache *c, const render_job *j
         return NULL;
     }
     size_t bytes = 2 * g->nbricks;
-    *same = c->key.kind != 0 && memcmp(g->scratch, g->minmax, bytes) == 0;
+    *same = c->ranges_valid && memcmp(g->scratch, g->minmax, bytes) == 0;
+    c->ranges_valid = 1;
     if (!*same) {
         uint8_t *fresh = g->scratch;
         g->scratch = g->minmax;
         g->minmax = fresh;
         c->key.kind = 0;
+        c->wide_valid = 0;
     }
     return g;
+}
+
+/* The widened ranges (wide_ranges) of grid: the cache's (made when its ranges changed), or
+ * without a cache a new array in *own (free it); NULL (bricks jumped one at a time) when out
+ * of memory. The grid's scratch is free here (it only ever holds what is made next). */
+static const uint8_t *extreme_wide(cdvr_skip_grid *grid, cdvr_cpu_skip_cache *cache,
+                                   uint8_t **own)
+{
+    if (!cache) {
+        *own = malloc(2 * grid->nbricks);
+        if (*own)
+            wide_ranges(grid, *own, grid->scratch);
+        return *own;
+    }
+    if (!cache->wide_valid) {
+        if (!cache->wide)
+            cache->wide = malloc(2 * grid->nbricks);
+        if (!cache->wide)
+            return NULL;
+        wide_ranges(grid, cache->wide, grid->scratch);
+        cache->wide_valid = 1;
+    }
+    return cache->wide;
 }
 
 /* Empty-space skipping for a composite render of a whole volume: the brick flags of its frame
@@ -1269,20 +1684,21 @@ static cdvr_skip_grid *cached_ranges(cdvr_cpu_skip_cache *c, const render_job *j
  * (its flags kept when the brick ranges and the key are those they were made for; the flags
  * depend on nothing else, so the image is the same bit for bit) or, when cache is NULL, a
  * grid made for this render in *own. Returns 1 when *own was made (free it), 0 otherwise;
- * the render takes every sample (job->skip_* NULL) when clipped, for another blend mode,
- * with opts->no_skip, or out of memory (skipping is only a saving); max and min get the brick
- * ranges only, iso the flags of iso_flags. Also chooses the four-lane march unless
- * opts->no_skip. */
+ * the render takes every sample (job->skip_* NULL) when clipped, with opts->no_skip, or out
+ * of memory (skipping is only a saving); max, min and average get the brick ranges (and
+ * their widened ranges) only, iso the flags of iso_flags. Also chooses the four-lane march
+ * unless opts->no_skip or clipped. */
 static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render_opts *opts,
-                      int threads, cdvr_cpu_skip_cache *cache, cdvr_skip_grid *own)
+                      int threads, cdvr_cpu_skip_cache *cache, cdvr_skip_grid *own,
+                      uint8_t **wide_own)
 {
     job->skip_flags = NULL;
     job->skip_minmax = NULL;
-    job->lanes = !opts->no_skip && !job->clipped &&
-                 (job->blend == CDVR_BLEND_COMPOSITE ||
-                  job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN ||
-                  job->blend == CDVR_BLEND_AVERAGE);
-    int extreme = job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN;
+    job->skip_wide = NULL;
+    *wide_own = NULL;
+    job->lanes = !opts->no_skip && !job->clipped;
+    int extreme = job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN ||
+                  job->blend == CDVR_BLEND_AVERAGE; /* the brick ranges (average: the lanes) */
     if (opts->no_skip || job->clipped ||
         (job->blend != CDVR_BLEND_COMPOSITE && job->blend != CDVR_BLEND_ISO && !extreme))
         return 0;
@@ -1303,10 +1719,16 @@ static int skip_setup(render_job *job, const cdvr_volume *vol, const cdvr_render
         }
     }
     job->skip_shift = (int)grid->shift;
-    for (int a = 0; a < 3; a++)
+    job->jump_inv_step = 1.0 / (double)job->step;
+    job->jump_edge = (double)(1 << job->skip_shift);
+    for (int a = 0; a < 3; a++) {
         job->skip_nb[a] = (int)grid->dims[a];
+        /* the largest |face| of a cube of reach CDVR_SKIP_REACH_MAX, or more */
+        job->jump_far[a] = ((double)job->skip_nb[a] + CDVR_SKIP_REACH_MAX + 2) * job->jump_edge;
+    }
     if (extreme) {
         job->skip_minmax = grid->minmax;
+        job->skip_wide = extreme_wide(grid, cache, wide_own);
         return cache == NULL;
     }
     skip_key key = key_of(job, opts->tf);
@@ -1359,11 +1781,14 @@ cdvr_status cdvr_render_cpu_cached(const cdvr_volume *vol, size_t t, cdvr_render
     }
     setup_job(job, vol, t, opts, step, unit, term, img);
     cdvr_skip_grid grid;
-    int nthreads = thread_count(opts, img->height);
-    int skipping = skip_setup(job, vol, opts, nthreads, cache, &grid);
+    uint8_t *wide = NULL;
+    int tiles = ((img->width + TILE_W - 1) / TILE_W) * ((img->height + TILE_H - 1) / TILE_H);
+    int nthreads = thread_count(opts, tiles);
+    int skipping = skip_setup(job, vol, opts, nthreads, cache, &grid, &wide);
     run_workers(job, nthreads);
     if (skipping)
         cdvr_skip_grid_free(&grid);
+    free(wide);
     opts->samples = (uint64_t)atomic_load(&job->samples);
     free(job);
     if (opts->cancel && atomic_load(opts->cancel)) {
