@@ -12,7 +12,7 @@
 
 #define LCDVR_RENDER_CTX "cdvr.RenderContext"
 #define CTX_KEY "cdvr.render_ctx" /* registry: the state's context userdata */
-#define MAX_KEYS 128 /* base + look + scene + method keys (the player has about 50: at 48 the last ones were cut, unknown) */
+#define MAX_KEYS 128 /* base + look + scene + method keys (the player has about 50) */
 
 typedef struct lctx {
     cdvr_render_ctx *ctx;
@@ -77,23 +77,28 @@ const char *const lcdvr_look_keys[] = {"blend", "iso", "shade", "ambient", "diff
                                        "annotate", NULL};
 
 /* The keys an options table may hold for method m: `base` (NULL-terminated), the look keys,
- * the scene keys m honours and m's own options. */
+ * the scene keys m honours and m's own options; -1 when there are more than MAX_KEYS - 1 (a
+ * list cut short would call valid keys unknown, as it once did silently: callers raise). */
 static int method_keys(const cdvr_render_method *m, const char *const base[],
                        const char *keys[MAX_KEYS])
 {
     static const struct { unsigned bit; const char *key; } scene[] = {
         {CDVR_SCENE_STEP, "step"}, {CDVR_SCENE_UNIT, "unit"}, {CDVR_SCENE_TERM, "term"},
         {CDVR_SCENE_THREADS, "threads"}};
+    const char *all[4 * MAX_KEYS]; /* every list is far shorter than MAX_KEYS alone */
     int n = 0;
-    for (int i = 0; base[i] && n < MAX_KEYS - 1; i++)
-        keys[n++] = base[i];
-    for (int i = 0; lcdvr_look_keys[i] && n < MAX_KEYS - 1; i++)
-        keys[n++] = lcdvr_look_keys[i];
-    for (size_t i = 0; i < sizeof scene / sizeof scene[0] && n < MAX_KEYS - 1; i++)
+    for (int i = 0; base[i] && n < 4 * MAX_KEYS; i++)
+        all[n++] = base[i];
+    for (int i = 0; lcdvr_look_keys[i] && n < 4 * MAX_KEYS; i++)
+        all[n++] = lcdvr_look_keys[i];
+    for (size_t i = 0; i < sizeof scene / sizeof scene[0] && n < 4 * MAX_KEYS; i++)
         if (m->scene_keys & scene[i].bit)
-            keys[n++] = scene[i].key;
-    for (const cdvr_method_option *o = m->options; o->key && n < MAX_KEYS - 1; o++)
-        keys[n++] = o->key;
+            all[n++] = scene[i].key;
+    for (const cdvr_method_option *o = m->options; o->key && n < 4 * MAX_KEYS; o++)
+        all[n++] = o->key;
+    if (n > MAX_KEYS - 1)
+        return -1;
+    memcpy(keys, all, (size_t)n * sizeof *keys);
     keys[n] = NULL;
     return n;
 }
@@ -102,7 +107,9 @@ void lcdvr_method_checkoptions(lua_State *L, int idx, const cdvr_render_method *
                                const char *what, const char *const base[])
 {
     const char *keys[MAX_KEYS];
-    method_keys(m, base, keys);
+    if (method_keys(m, base, keys) < 0)
+        luaL_error(L, "%s: internal error: more than %d option keys for method %s (MAX_KEYS)",
+                   what, MAX_KEYS - 1, m->name);
     lcdvr_checkoptions(L, idx, what, keys);
 }
 
@@ -110,7 +117,8 @@ int lcdvr_method_takes(const cdvr_render_method *m, const char *key)
 {
     static const char *const none[] = {NULL};
     const char *keys[MAX_KEYS];
-    method_keys(m, none, keys);
+    if (method_keys(m, none, keys) < 0)
+        return 0;
     for (int i = 0; keys[i]; i++)
         if (strcmp(keys[i], key) == 0)
             return 1;
