@@ -272,6 +272,17 @@ static cdvr_status owner_tables(const cdvr_store_info *in, size_t *tab[3], cdvr_
     return CDVR_OK;
 }
 
+/* The worker's buffers and itself (NULL: nothing). */
+static void worker_free(brick_worker *w)
+{
+    if (!w)
+        return;
+    free(w->todo);
+    free(w->done);
+    free(w->taken);
+    free(w);
+}
+
 static void worker_stop(cdvr_brick_cache *c);
 
 void cdvr_brick_cache_free(cdvr_brick_cache *c)
@@ -609,10 +620,7 @@ static void worker_stop(cdvr_brick_cache *c)
     pthread_mutex_destroy(&w->mu);
     pthread_cond_destroy(&w->work);
     pthread_cond_destroy(&w->idle);
-    free(w->todo);
-    free(w->done);
-    free(w->taken);
-    free(w);
+    worker_free(w);
     c->worker = NULL;
     c->reserved = 0;
     for (size_t i = 0; i < c->nentries; i++)
@@ -665,12 +673,7 @@ cdvr_status cdvr_brick_cache_set_async(cdvr_brick_cache *c, int on, cdvr_error *
         !(w->done = malloc(done_cap * sizeof *w->done)) ||
         !(w->taken = malloc(done_cap * sizeof *w->taken)) ||
         (!c->requests && !(c->requests = malloc(queue_cap * sizeof *c->requests)))) {
-        if (w) {
-            free(w->todo);
-            free(w->done);
-            free(w->taken);
-        }
-        free(w);
+        worker_free(w);
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick cache: no memory");
     }
     w->c = c;
@@ -681,10 +684,7 @@ cdvr_status cdvr_brick_cache_set_async(cdvr_brick_cache *c, int on, cdvr_error *
         pthread_mutex_destroy(&w->mu);
         pthread_cond_destroy(&w->work);
         pthread_cond_destroy(&w->idle);
-        free(w->todo);
-        free(w->done);
-        free(w->taken);
-        free(w);
+        worker_free(w);
         return cdvr_error_set(err, CDVR_ERR_IO, "brick cache: cannot start its worker thread");
     }
     c->worker = w;
