@@ -804,6 +804,19 @@ static inline void gather_lane(const render_job *job, int x, int y, int z, int v
     v[7][k] = p[dz + dy + dx];
 }
 
+/* Each lane's segment at its index i (render.h step 2, as sample_at): length ds (step, or
+ * the rest of the ray for the last one) and midpoint tm. */
+static inline void lanes_segment(const lanes *L, __m128 step, __m128 *ds, __m128 *tm)
+{
+    __m128i iv = _mm_loadu_si128((const __m128i *)L->i);
+    __m128 ts = _mm_add_ps(_mm_loadu_ps(L->t_near), _mm_mul_ps(_mm_cvtepi32_ps(iv), step));
+    __m128i last = _mm_sub_epi32(_mm_loadu_si128((const __m128i *)L->n), _mm_set1_epi32(1));
+    __m128 is_full = _mm_castsi128_ps(_mm_cmplt_epi32(iv, last));
+    *ds = _mm_or_ps(_mm_and_ps(is_full, step),
+                    _mm_andnot_ps(is_full, _mm_sub_ps(_mm_loadu_ps(L->t_far), ts)));
+    *tm = _mm_add_ps(ts, _mm_mul_ps(_mm_set1_ps(0.5f), *ds));
+}
+
 /* Steps 2-3 for the live lanes at their segment index: lanes in empty space (composite:
  * invisible bricks; max, min: dull bricks; average: bricks of zeros) jump, the others
  * interpolate their sample into *s (sampling[k] = 1; ds[k] its segment length). Returns 0
@@ -812,13 +825,8 @@ static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], fl
                         __m128 *s)
 {
     const __m128 step = _mm_set1_ps(job->step), zero = _mm_setzero_ps();
-    __m128i iv = _mm_loadu_si128((const __m128i *)L->i);
-    __m128 ts = _mm_add_ps(_mm_loadu_ps(L->t_near), _mm_mul_ps(_mm_cvtepi32_ps(iv), step));
-    __m128i last = _mm_sub_epi32(_mm_loadu_si128((const __m128i *)L->n), _mm_set1_epi32(1));
-    __m128 is_full = _mm_castsi128_ps(_mm_cmplt_epi32(iv, last));
-    __m128 ds = _mm_or_ps(_mm_and_ps(is_full, step),
-                          _mm_andnot_ps(is_full, _mm_sub_ps(_mm_loadu_ps(L->t_far), ts)));
-    __m128 tm = _mm_add_ps(ts, _mm_mul_ps(_mm_set1_ps(0.5f), ds));
+    __m128 ds, tm;
+    lanes_segment(L, step, &ds, &tm);
     float (*g)[LANES] = L->g;
     int gi[3][LANES];
     _mm_storeu_ps(dsv, ds);
@@ -925,13 +933,8 @@ static void lanes_extreme(const render_job *job, lanes *L, const int sampling[LA
 static int lanes_iso_step(const render_job *job, lanes *L)
 {
     const __m128 step = _mm_set1_ps(job->step), zero = _mm_setzero_ps();
-    __m128i iv = _mm_loadu_si128((const __m128i *)L->i);
-    __m128 ts = _mm_add_ps(_mm_loadu_ps(L->t_near), _mm_mul_ps(_mm_cvtepi32_ps(iv), step));
-    __m128i last = _mm_sub_epi32(_mm_loadu_si128((const __m128i *)L->n), _mm_set1_epi32(1));
-    __m128 is_full = _mm_castsi128_ps(_mm_cmplt_epi32(iv, last));
-    __m128 ds = _mm_or_ps(_mm_and_ps(is_full, step),
-                          _mm_andnot_ps(is_full, _mm_sub_ps(_mm_loadu_ps(L->t_far), ts)));
-    __m128 tm = _mm_add_ps(ts, _mm_mul_ps(_mm_set1_ps(0.5f), ds));
+    __m128 ds, tm;
+    lanes_segment(L, step, &ds, &tm);
     float dsv[LANES], tmv[LANES], sv[LANES];
     int gi[3][LANES], v[8][LANES];
     _mm_storeu_ps(dsv, ds);
