@@ -185,10 +185,15 @@ static void tight_budget(cdvr_store *st)
     CHECK_OK(cdvr_brick_cache_create(st, 0, budget, &c, &err), err);
     CHECK_OK(cdvr_brick_cache_set_async(c, 1, &err), err);
     for (int i = 0; i < 4; i++) {
+        cdvr_brick_cache_set_next(c, (size_t)(i + 1) % 2);
         frame(c, (size_t)i % 2, &near, 0.0, got, &s);
         CHECK(s.cache_bytes <= budget && s.resident_bytes <= budget,
               "frame %d within the budget: %llu", i, (unsigned long long)s.cache_bytes);
         CHECK(s.bricks_at[0] + s.bricks_at[1] + s.bricks_at[2] == 12, "every brick has a level");
+        /* what the worker decodes waits outside the budget until the next frame: the queue
+         * (this frame's missing bricks and the next timestep's) fits the budget too */
+        CHECK(s.requested_bytes > 0 && s.requested_bytes <= budget,
+              "frame %d: %llu bytes queued", i, (unsigned long long)s.requested_bytes);
         cdvr_brick_cache_wait(c);
     }
     cdvr_brick_cache_free(c);

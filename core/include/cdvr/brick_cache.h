@@ -125,6 +125,10 @@ typedef struct cdvr_brick_cache_stats {
                                                     coarser than chosen (not yet resident) */
     size_t pending;                              /* async: bricks queued or being decoded by
                                                     the worker after the frame */
+    uint64_t requested_bytes;                    /* async: voxel bytes the frame queued (this
+                                                    frame's missing bricks, then the next
+                                                    timestep's): at most the budget less the
+                                                    pinned coarsest level */
     size_t arrived;                              /* async: bricks the worker decoded that
                                                     became resident for the frame */
     size_t evicted;                              /* bricks dropped for the frame */

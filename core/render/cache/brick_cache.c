@@ -80,6 +80,7 @@ struct cdvr_brick_cache {
     brick_job *requests;         /* async: this frame's missing bricks, then the next
                                     timestep's (at most 3 nbricks) */
     size_t nrequests;
+    uint64_t requested_bytes;    /* async: voxel bytes of the requests */
     size_t next_t;               /* async: cdvr_brick_cache_set_next's timestep, or -1 */
     /* cdvr_brick_cache_skip_grid's grid and the frame it was made for: per level-0 brick the
      * (t, level, brick) of its entry, and the count of apron patches then */
@@ -774,12 +775,20 @@ static cdvr_status pin_coarsest(cdvr_brick_cache *c, size_t t, cdvr_error *err)
     return CDVR_OK;
 }
 
-/* Queues (t, l, brick) once for the worker. */
+/* Queues (t, l, brick) once for the worker, while the bricks queued for this frame fit the
+ * budget past the pinned level: what the worker decodes waits outside the budget until the
+ * next frame takes it, so that wait is bounded by the budget too (plus the brick in flight). */
 static void request(cdvr_brick_cache *c, size_t t, size_t l, size_t brick)
 {
     for (size_t i = 0; i < c->nrequests; i++)
         if (c->requests[i].t == t && c->requests[i].level == l && c->requests[i].brick == brick)
             return;
+    size_t lo[3], d[3];
+    cdvr_store_brick_box(cdvr_store_get_info(c->level[l]), brick, lo, d);
+    uint64_t bytes = (uint64_t)d[0] * d[1] * d[2];
+    if (c->requested_bytes + bytes > c->budget - c->reserved)
+        return;
+    c->requested_bytes += bytes;
     c->requests[c->nrequests++] = (brick_job){.t = t, .level = l, .brick = brick};
 }
 
@@ -801,6 +810,7 @@ static void submit(cdvr_brick_cache *c)
             w->todo[w->ntodo++] = *r;
     }
     c->stats.pending = w->ntodo + (size_t)w->busy + w->ndone;
+    c->stats.requested_bytes = c->requested_bytes;
     pthread_cond_broadcast(&w->work);
     pthread_mutex_unlock(&w->mu);
 }
@@ -832,6 +842,7 @@ static cdvr_status residency_async(cdvr_brick_cache *c, size_t t, cdvr_error *er
     if (s != CDVR_OK)
         return s;
     c->nrequests = 0;
+    c->requested_bytes = 0;
     for (size_t b = 0; b < c->nbricks; b++) {
         size_t want = c->choice[b], l = want, at = (size_t)-1;
         for (; l < c->nlevels; l++)
