@@ -400,7 +400,10 @@ __attribute__((noinline)) static vfloat cache_value_at(const volume_geo *v, vec3
 /* always inlined: as a call (two callers) its vector arguments and result go through memory */
 /* g is a whole-volume grid position; the frame's voxels start at v->offset (an integer:
  * g - offset is exact in float). */
-__attribute__((always_inline)) static inline vfloat trilinear(const volume_geo *v, vec3x g)
+/* Lanes off `on` read voxel (0, 0, 0) instead (their values are discarded): lanes that wait or
+ * skip then cost cache hits, not misses on voxels they may never sample. */
+__attribute__((always_inline)) static inline vfloat trilinear_on(const volume_geo *v, vec3x g,
+                                                                 vint on)
 {
     vfloat fx, fy, fz;
     vint x0 = corner(g.x - v->offset.x, v->top.x, v->base_max.x, &fx);
@@ -420,13 +423,15 @@ __attribute__((always_inline)) static inline vfloat trilinear(const volume_geo *
 #else
     sindex sx = (sindex)v->stride.x, sy = (sindex)v->stride.y, sz = (sindex)v->stride.z;
     vindex base = convert_vindex(x0) + sy * convert_vindex(y0) + sz * convert_vindex(z0);
+    base = select((vindex)(0), base, convert_vindex(on));
     __global const uchar *p = v->vol;
     vfloat c00, c10, c01, c11;
 #ifndef CDVR_LONG_INDEX
     if (v->quads) {
         __global const uint *q = (__global const uint *)p;
-        lerp_quads(q, quad_index(v, x0, y0, z0), fx, &c00, &c10);
-        lerp_quads(q, quad_index(v, x0, y0, z0 + (sz != 0)), fx, &c01, &c11);
+        vint zero = (vint)(0);
+        lerp_quads(q, select(zero, quad_index(v, x0, y0, z0), on), fx, &c00, &c10);
+        lerp_quads(q, select(zero, quad_index(v, x0, y0, z0 + (sz != 0)), on), fx, &c01, &c11);
         return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
     }
 #endif
@@ -445,6 +450,11 @@ __attribute__((always_inline)) static inline vfloat trilinear(const volume_geo *
     c11 = mix(gather16(p, base + sz + sy), gather16(p, base + sz + sy + sx), fx);
     return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
 #endif
+}
+
+__attribute__((always_inline)) static inline vfloat trilinear(const volume_geo *v, vec3x g)
+{
+    return trilinear_on(v, g, (vint)(-1));
 }
 
 /* Classified sample per lane: rgb lerped from the table, alpha per the caller. */
@@ -672,12 +682,12 @@ static void sample_steps(march *m, vint run, const volume_geo *v, const clip_par
     for (int k = 0; k < UNROLL; k++) { /* independent loads, before any compositing */
         vec3x g = at(g0, dg, i_first + k);
         own[k] = owned(clip, g);
-        s[k] = trilinear(v, g);
+        s[k] = trilinear_on(v, g, run & (i_first + k < m->end));
     }
     vint stop = (vint)(0), live = run;
     for (int k = 0; k < UNROLL; k++) {
         live &= m->i < m->end;
-        vint keep = live & own[k];
+        vint keep = live & ~stop & own[k];
         vint i0;
         vfloat fr;
         rgbax c = classify(s[k], table, &i0, &fr);
@@ -690,14 +700,14 @@ static void sample_steps(march *m, vint run, const volume_geo *v, const clip_par
             c.a = select((vfloat)(0.0f), c.a, on);
         }
         composite(acc, c);
-        m->i -= live;
+        m->i -= live; /* a lane that stopped moves on too: its index is no longer used */
         m->taken -= keep;
         stop |= keep & (acc->a >= term_alpha | acc->a >= 1.0f);
-        live &= ~stop;
     }
-    /* Termination changes the lanes only behind a branch: as a data dependency it would chain
-     * each step's sample addresses to the previous step's compositing, while the branch
-     * (rarely taken) lets the CPU start the next step's loads early. */
+    /* Termination changes the lanes only behind a branch: as a data dependency (of the sample
+     * indices, hence of the next step's addresses) it would chain each step's loads to the
+     * previous step's compositing, while the branch (rarely taken) lets the CPU start the next
+     * step's loads early. */
     if (any(stop)) {
         m->done |= stop;
         m->active &= ~stop;
