@@ -8,8 +8,9 @@
  * (PoCL does not vectorise across work-items: the march loop is data dependent). Every lane
  * keeps its own sample index on its own segment grid; lane masks (-1 true, as vector
  * comparisons give) say which lanes sample, which look up bricks and which are still running.
- * Inside visible runs each step takes UNROLL samples per lane whose voxel loads do not depend
- * on each other (the CPU overlaps them), composited in order; a lane takes only the samples
+ * Inside visible runs each step takes up to UNROLL samples per lane (with skipping, about half
+ * a brick's worth: runs end at bricks) whose voxel loads do not depend on each other (the CPU
+ * overlaps them), composited in order; a lane takes only the samples
  * left in its run and none after it terminates, so the samples and their order are those of
  * one sample per step.
  *
@@ -630,6 +631,7 @@ static vfloat brick_exit(const bricks *b, const volume_geo *v, vec3x g0, vec3x g
 /* March state of a packet over its full segments. */
 typedef struct march {
     vint i, end, n_full, active, done, taken;
+    int unroll; /* samples per lane per step inside visible runs: UNROLL or UNROLL_SHORT */
 } march;
 
 static vec3x at(vec3x g0, vec3x dg, vint i)
@@ -666,26 +668,27 @@ static vint owned(const clip_params *c, vec3x g)
 }
 
 /* Samples the lanes inside a visible run (all lanes run when skipping is off). */
-#define UNROLL 4 /* samples per lane per step inside visible runs */
+#define UNROLL 4 /* most samples per lane per step inside visible runs */
+#define UNROLL_SHORT 2 /* the same where a brick holds few samples (step of a voxel or more) */
 
 /* Samples the lanes inside a visible run (all lanes run when skipping is off): up to UNROLL
  * each, the k-th only for lanes whose run still holds it and that have not terminated; a
  * sample outside the owned cells (clipped rendering) advances the lane but adds nothing. */
-static void sample_steps(march *m, vint run, const volume_geo *v, const clip_params *clip,
-                         vec3x g0, vec3x dg, __global const float4 *table, float term_alpha,
-                         const look_params *lk, __global const float *alpha, float step,
-                         float unit, vec3x V, rgbax *acc)
+__attribute__((always_inline)) static inline void sample_steps(
+    march *m, vint run, const volume_geo *v, const clip_params *clip, vec3x g0, vec3x dg,
+    __global const float4 *table, float term_alpha, const look_params *lk,
+    __global const float *alpha, float step, float unit, vec3x V, rgbax *acc, const int unroll)
 {
     vfloat s[UNROLL];
     vint own[UNROLL];
     vint i_first = m->i;
-    for (int k = 0; k < UNROLL; k++) { /* independent loads, before any compositing */
+    for (int k = 0; k < unroll; k++) { /* independent loads, before any compositing */
         vec3x g = at(g0, dg, i_first + k);
         own[k] = owned(clip, g);
         s[k] = trilinear_on(v, g, run & (i_first + k < m->end));
     }
     vint stop = (vint)(0), live = run;
-    for (int k = 0; k < UNROLL; k++) {
+    for (int k = 0; k < unroll; k++) {
         live &= m->i < m->end;
         vint keep = live & ~stop & own[k];
         vint i0;
@@ -737,9 +740,14 @@ static void march_full(march *m, int skipping, const bricks *b, const volume_geo
             }
         }
         vint run = m->active & (m->i < m->end);
-        if (any(run))
+        if (!any(run))
+            continue;
+        if (m->unroll == UNROLL) /* two copies, each with a constant count */
             sample_steps(m, run, v, clip, g0, dg, table, term_alpha, lk, alpha, step, unit, V,
-                         acc);
+                         acc, UNROLL);
+        else
+            sample_steps(m, run, v, clip, g0, dg, table, term_alpha, lk, alpha, step, unit, V,
+                         acc, UNROLL_SHORT);
     }
 }
 
@@ -1317,6 +1325,11 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     m.active = p.hit & (m.i < m.n_full);
     m.done = (vint)(0);
     m.taken = (vint)(0);
+    /* with skipping, visible runs end at bricks: about half a brick's samples per step */
+    float voxels_per_step = step * fmax(isx, fmax(isy, isz));
+    m.unroll = skipping && 0.5f * (float)(1 << brick_shift) / voxels_per_step < (float)UNROLL
+                   ? UNROLL_SHORT
+                   : UNROLL;
     rgbax acc = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
 #ifdef CDVR_BRICK_CACHE
     if (v.march)
