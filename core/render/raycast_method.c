@@ -416,36 +416,30 @@ static cdvr_status probe_fetch_paths(cdvr_render_ctx *ctx, cdvr_cl_stream *s,
     return status;
 }
 
-static cdvr_status raycast_store(cdvr_render_ctx *ctx, cdvr_device_kind device,
-                                 const cdvr_store *st, size_t v, size_t t, cdvr_render_opts *opts,
-                                 const cdvr_method_params *p, cdvr_render_stats *stats,
-                                 cdvr_image **out, cdvr_error *err)
+/* A store's chunk on cl: its codec's path (a fetch-mode codec's measured once per device). */
+static cdvr_status raycast_store_cl(cdvr_render_ctx *ctx, const cdvr_store *st, size_t v, size_t t,
+                                    cdvr_render_opts *opts, const raycast_params *rp,
+                                    cdvr_render_stats *stats, cdvr_image **out, cdvr_error *err)
 {
-    raycast_params rp = get_params(p);
-    if (rp.cache && device == CDVR_DEVICE_CPU)
-        return raycast_cached_cpu(ctx, st, v, t, opts, &rp, stats, out, err);
-    if (device != CDVR_DEVICE_CL)
-        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "raycast: a store renders from its "
-                              "chunk on cl only (the cpu decodes it first)");
-    if (rp.cache)
-        return raycast_cached(ctx, st, v, t, opts, &rp, stats, out, err);
+    if (rp->cache)
+        return raycast_cached(ctx, st, v, t, opts, rp, stats, out, err);
     const cdvr_store_info *info = cdvr_store_get_info(st);
     cdvr_cl_stream *s;
     cdvr_status status = cdvr_render_ctx_stream(ctx, info->dims, &s, err);
     if (status != CDVR_OK)
         return status;
-    cdvr_cl_set_fetch_path(s, (cdvr_cl_fetch_path)rp.fetch);
+    cdvr_cl_set_fetch_path(s, (cdvr_cl_fetch_path)rp->fetch);
     const cdvr_codec *codec;
     status = cdvr_store_variant_codec(st, v, &codec, err);
     if (status != CDVR_OK)
         return status;
     size_t count = chunk_frames(st, v, t);
     if (codec->cl_mode != CDVR_CODEC_CL_FETCH || !count || info->nbricks > 1)
-        return load_and_render(ctx, s, st, v, t, opts, &rp, stats, out, err);
+        return load_and_render(ctx, s, st, v, t, opts, rp, stats, out, err);
     cdvr_cl_fetch_path path = cdvr_cl_fetch_path_for(s, codec, count);
     if (path == CDVR_CL_FETCH_AUTO)
-        return probe_fetch_paths(ctx, s, st, v, t, opts, &rp, codec, count, stats, out, err);
-    status = load_and_render(ctx, s, st, v, t, opts, &rp, stats, out, err);
+        return probe_fetch_paths(ctx, s, st, v, t, opts, rp, codec, count, stats, out, err);
+    status = load_and_render(ctx, s, st, v, t, opts, rp, stats, out, err);
     if (status == CDVR_OK)
         cdvr_render_stats_string(stats, "fetch_path",
                                  path == CDVR_CL_FETCH_SAMPLE ? "sample" : "bulk");
@@ -453,7 +447,6 @@ static cdvr_status raycast_store(cdvr_render_ctx *ctx, cdvr_device_kind device,
 }
 
 #define RAYCAST_STREAM raycast_stream
-#define RAYCAST_STORE raycast_store
 
 #else
 
@@ -466,6 +459,10 @@ static cdvr_status render_cl(cdvr_render_ctx *ctx, const cdvr_volume *vol, size_
     return cdvr_render_ctx_cl(ctx, &cl, err);
 }
 
+#define RAYCAST_STREAM NULL
+
+#endif
+
 static cdvr_status raycast_store(cdvr_render_ctx *ctx, cdvr_device_kind device,
                                  const cdvr_store *st, size_t v, size_t t, cdvr_render_opts *opts,
                                  const cdvr_method_params *p, cdvr_render_stats *stats,
@@ -474,15 +471,14 @@ static cdvr_status raycast_store(cdvr_render_ctx *ctx, cdvr_device_kind device,
     raycast_params rp = get_params(p);
     if (rp.cache && device == CDVR_DEVICE_CPU)
         return raycast_cached_cpu(ctx, st, v, t, opts, &rp, stats, out, err);
+#if CDVR_HAVE_OPENCL
+    if (device == CDVR_DEVICE_CL)
+        return raycast_store_cl(ctx, st, v, t, opts, &rp, stats, out, err);
+#endif
     return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "raycast: a store renders from its chunk "
                           "on cl only (the cpu decodes it first, or renders it through the "
                           "brick cache with cache=true)");
 }
-
-#define RAYCAST_STREAM NULL
-#define RAYCAST_STORE raycast_store
-
-#endif
 
 static cdvr_status raycast_render(cdvr_render_ctx *ctx, cdvr_device_kind device,
                                   const cdvr_volume *vol, size_t t, cdvr_render_opts *opts,
@@ -512,5 +508,5 @@ const cdvr_render_method cdvr_method_raycast = {
     .params_set = raycast_set,
     .render = raycast_render,
     .render_stream = RAYCAST_STREAM,
-    .render_store = RAYCAST_STORE,
+    .render_store = raycast_store,
 };
