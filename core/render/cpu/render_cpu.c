@@ -804,6 +804,20 @@ static inline void gather_lane(const render_job *job, int x, int y, int z, int v
     v[7][k] = p[dz + dy + dx];
 }
 
+/* render.h step 3 for four lanes: the gathered corner codes v (gather_lane) blended at the
+ * positions gv (lower corners gi), in the one-ray order. */
+static inline __m128 lanes_trilinear(const __m128 gv[3], int gi[3][LANES], int v[8][LANES])
+{
+    __m128 f[3];
+    for (int a = 0; a < 3; a++)
+        f[a] = _mm_sub_ps(gv[a], _mm_cvtepi32_ps(_mm_loadu_si128((const __m128i *)gi[a])));
+    __m128 c00 = lerp4(code4(v[0]), code4(v[1]), f[0]);
+    __m128 c10 = lerp4(code4(v[2]), code4(v[3]), f[0]);
+    __m128 c01 = lerp4(code4(v[4]), code4(v[5]), f[0]);
+    __m128 c11 = lerp4(code4(v[6]), code4(v[7]), f[0]);
+    return lerp4(lerp4(c00, c10, f[1]), lerp4(c01, c11, f[1]), f[2]);
+}
+
 /* Each lane's segment at its index i (render.h step 2, as sample_at): length ds (step, or
  * the rest of the ray for the last one) and midpoint tm. */
 static inline void lanes_segment(const lanes *L, __m128 step, __m128 *ds, __m128 *tm)
@@ -887,14 +901,7 @@ static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], fl
             gather_lane(job, gi[0][k], gi[1][k], gi[2][k], v, k);
     if (!(sampling[0] | sampling[1] | sampling[2] | sampling[3]))
         return 0;
-    __m128 f[3];
-    for (int a = 0; a < 3; a++)
-        f[a] = _mm_sub_ps(gv[a], _mm_cvtepi32_ps(_mm_loadu_si128((const __m128i *)gi[a])));
-    __m128 c00 = lerp4(code4(v[0]), code4(v[1]), f[0]);
-    __m128 c10 = lerp4(code4(v[2]), code4(v[3]), f[0]);
-    __m128 c01 = lerp4(code4(v[4]), code4(v[5]), f[0]);
-    __m128 c11 = lerp4(code4(v[6]), code4(v[7]), f[0]);
-    *s = lerp4(lerp4(c00, c10, f[1]), lerp4(c01, c11, f[1]), f[2]);
+    *s = lanes_trilinear(gv, gi, v);
     return 1;
 }
 
@@ -953,14 +960,7 @@ static int lanes_iso_step(const render_job *job, lanes *L)
         if (L->live[k])
             gather_lane(job, gi[0][k], gi[1][k], gi[2][k], v, k);
     }
-    __m128 f[3];
-    for (int a = 0; a < 3; a++)
-        f[a] = _mm_sub_ps(gv[a], _mm_cvtepi32_ps(_mm_loadu_si128((const __m128i *)gi[a])));
-    __m128 c00 = lerp4(code4(v[0]), code4(v[1]), f[0]);
-    __m128 c10 = lerp4(code4(v[2]), code4(v[3]), f[0]);
-    __m128 c01 = lerp4(code4(v[4]), code4(v[5]), f[0]);
-    __m128 c11 = lerp4(code4(v[6]), code4(v[7]), f[0]);
-    _mm_storeu_ps(sv, lerp4(lerp4(c00, c10, f[1]), lerp4(c01, c11, f[1]), f[2]));
+    _mm_storeu_ps(sv, lanes_trilinear(gv, gi, v));
     float c = job->iso_code;
     for (int k = 0; k < LANES; k++) {
         if (!L->live[k])
