@@ -44,9 +44,9 @@ typedef struct brick_worker {
     pthread_mutex_t mu;
     pthread_cond_t work, idle;
     const cdvr_brick_cache *c;
-    brick_job *todo, *done;      /* todo[next..ntodo) waiting; done: decoded, not yet taken */
+    brick_job *queue, *done;     /* queue[next..nqueued) waiting; done: decoded, not yet taken */
     brick_job *taken;            /* the frame thread's copy of done */
-    size_t ntodo, next, ndone;
+    size_t nqueued, next, ndone;
     brick_job current;           /* the job being decoded when busy */
     int busy, stop;
 } brick_worker;
@@ -278,7 +278,7 @@ static void worker_free(brick_worker *w)
 {
     if (!w)
         return;
-    free(w->todo);
+    free(w->queue);
     free(w->done);
     free(w->taken);
     free(w);
@@ -586,11 +586,11 @@ static void *worker_main(void *arg)
     brick_worker *w = arg;
     pthread_mutex_lock(&w->mu);
     for (;;) {
-        while (!w->stop && w->next == w->ntodo)
+        while (!w->stop && w->next == w->nqueued)
             pthread_cond_wait(&w->work, &w->mu);
         if (w->stop)
             break;
-        w->current = w->todo[w->next++];
+        w->current = w->queue[w->next++];
         w->busy = 1;
         pthread_mutex_unlock(&w->mu);
         brick_job job = w->current;
@@ -670,7 +670,7 @@ cdvr_status cdvr_brick_cache_set_async(cdvr_brick_cache *c, int on, cdvr_error *
      * was replaced, the job then in flight, and the new queue */
     size_t queue_cap = 3 * c->nbricks, done_cap = 2 * queue_cap + 1;
     brick_worker *w = calloc(1, sizeof *w);
-    if (!w || !(w->todo = malloc(queue_cap * sizeof *w->todo)) ||
+    if (!w || !(w->queue = malloc(queue_cap * sizeof *w->queue)) ||
         !(w->done = malloc(done_cap * sizeof *w->done)) ||
         !(w->taken = malloc(done_cap * sizeof *w->taken)) ||
         (!c->requests && !(c->requests = malloc(queue_cap * sizeof *c->requests)))) {
@@ -706,7 +706,7 @@ void cdvr_brick_cache_wait(cdvr_brick_cache *c)
     if (!w)
         return;
     pthread_mutex_lock(&w->mu);
-    while (w->next < w->ntodo || w->busy)
+    while (w->next < w->nqueued || w->busy)
         pthread_cond_wait(&w->idle, &w->mu);
     pthread_mutex_unlock(&w->mu);
 }
@@ -717,7 +717,7 @@ size_t cdvr_brick_cache_pending(cdvr_brick_cache *c)
     if (!w)
         return 0;
     pthread_mutex_lock(&w->mu);
-    size_t n = w->ntodo - w->next + (size_t)w->busy + w->ndone;
+    size_t n = w->nqueued - w->next + (size_t)w->busy + w->ndone;
     pthread_mutex_unlock(&w->mu);
     return n;
 }
@@ -798,7 +798,7 @@ static void submit(cdvr_brick_cache *c)
 {
     brick_worker *w = c->worker;
     pthread_mutex_lock(&w->mu);
-    w->ntodo = w->next = 0;
+    w->nqueued = w->next = 0;
     for (size_t i = 0; i < c->nrequests; i++) {
         const brick_job *r = &c->requests[i];
         int known = w->busy && w->current.t == r->t && w->current.level == r->level &&
@@ -807,9 +807,9 @@ static void submit(cdvr_brick_cache *c)
             known = w->done[k].t == r->t && w->done[k].level == r->level &&
                     w->done[k].brick == r->brick;
         if (!known)
-            w->todo[w->ntodo++] = *r;
+            w->queue[w->nqueued++] = *r;
     }
-    c->stats.pending = w->ntodo + (size_t)w->busy + w->ndone;
+    c->stats.pending = w->nqueued + (size_t)w->busy + w->ndone;
     c->stats.requested_bytes = c->requested_bytes;
     pthread_cond_broadcast(&w->work);
     pthread_mutex_unlock(&w->mu);
