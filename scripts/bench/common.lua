@@ -81,6 +81,26 @@ function M.median(list)
   return 0.5 * (s[n // 2] + s[n // 2 + 1])
 end
 
+-- The line of /proc/loadavg ("?" where there is none).
+function M.loadavg()
+  local f = io.open("/proc/loadavg")
+  local s = f and f:read("l") or "?"
+  if f then f:close() end
+  return s
+end
+
+-- The working directory a script was given, made if absent; with none a new temporary one,
+-- and own = true (the script removes it at the end).
+function M.work_dir(dir)
+  local own = dir == ""
+  if own then
+    dir = os.tmpname()
+    os.remove(dir)
+  end
+  assert(os.execute(("mkdir -p %q"):format(dir)))
+  return dir, own
+end
+
 -- Progress on stderr, only when stderr is a terminal.
 local tty = os.execute("test -t 2") == true
 function M.progress(fmt, ...)

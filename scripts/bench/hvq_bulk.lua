@@ -20,13 +20,6 @@ local SIZE, REPEATS = assert(math.tointeger(tonumber(opt.size))), assert(math.to
 local data = opt.data ~= "" and opt.data or common.shared_data() .. "/ct/engine_256x256x128_u8.nrrd"
 local path = opt.store ~= "" and opt.store or os.tmpname() .. ".cdv"
 
-local function loadavg()
-  local f = io.open("/proc/loadavg")
-  local s = f and f:read("l") or "?"
-  if f then f:close() end
-  return s
-end
-
 if not common.exists(path) then
   local vol = cdvr.load(data)
   local h = cdvr.encode(vol, {path = path, progress = false, variants = {{codec = "hvq", name = "hvq"}}})
@@ -52,7 +45,7 @@ for _, c in ipairs(cases) do
   c.maxerr = cdvr.compare(img, ref).maxerr
   c.ms = {}
 end
-io.stderr:write("loadavg before: " .. loadavg() .. "\n")
+io.stderr:write("loadavg before: " .. common.loadavg() .. "\n")
 local ratios = {{}, {}, {}}
 for r = 1, REPEATS do
   local times = {}
@@ -65,7 +58,7 @@ for r = 1, REPEATS do
   end
   for i = 1, #cases do ratios[i][r] = times[i] / times[3] end
 end
-io.stderr:write("loadavg after: " .. loadavg() .. "\n")
+io.stderr:write("loadavg after: " .. common.loadavg() .. "\n")
 print("case,median_ms,ratio_to_dense_volume,image_maxerr_vs_dense,size,repeats")
 for i, c in ipairs(cases) do
   print(("%s,%.1f,%.2f,%g,%d,%d"):format(c[1], common.median(c.ms), common.median(ratios[i]), c.maxerr, SIZE, REPEATS))

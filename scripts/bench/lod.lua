@@ -36,18 +36,10 @@ local function list(s) local t = {} for x in s:gmatch("[^,]+") do t[#t + 1] = as
 local budgets, lods = list(opt.budgets), list(opt.lods)
 local parts = {}
 for p in opt.parts:gmatch("[^,]+") do parts[p] = true end
-local dir = opt.dir
-local own_dir = dir == ""
-if own_dir then
-  dir = os.tmpname()
-  os.remove(dir)
-end
-assert(os.execute(("mkdir -p %q"):format(dir)))
+local dir, own_dir = common.work_dir(opt.dir)
 
 local function loadavg()
-  local f = io.open("/proc/loadavg")
-  local s = f and f:read("l") or "?"
-  if f then f:close() end
+  local s = common.loadavg()
   return s:match("^(%S+ %S+ %S+)") or s
 end
 

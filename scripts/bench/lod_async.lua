@@ -23,20 +23,7 @@ local common = dofile((debug.getinfo(1, "S").source:match("^@(.*)/[^/]*$") or ".
 local _, opt = common.parse_args(arg, {volume = "256", levels = "4", bricks = "8", pixels = "256",
   device = "cpu", codec = "hvq", lod = "1", repeats = "3", dir = "", series = "0"})
 local function int(k) return (assert(math.tointeger(tonumber(opt[k])), k)) end
-local dir = opt.dir
-local own_dir = dir == ""
-if own_dir then
-  dir = os.tmpname()
-  os.remove(dir)
-end
-assert(os.execute(("mkdir -p %q"):format(dir)))
-
-local function loadavg()
-  local f = io.open("/proc/loadavg")
-  local s = f and f:read("l") or "?"
-  if f then f:close() end
-  return s
-end
+local dir, own_dir = common.work_dir(opt.dir)
 
 local n, b = int("volume"), int("bricks")
 local path = ("%s/ml_%d_%s_b%d_l%d.cdv"):format(dir, n, opt.codec, b, int("levels"))
@@ -94,7 +81,7 @@ end
 
 print("mode,repeat,jump_frame_ms,jump_render_ms,jump_setup_ms,jump_bricks_per_level,jump_bricks_coarser,"
       .. "runs_to_refined,ms_to_refined,refined_bricks_per_level,jump_psnr_vs_sync,refined_psnr_vs_sync")
-io.stderr:write("loadavg before: " .. loadavg() .. "\n")
+io.stderr:write("loadavg before: " .. common.loadavg() .. "\n")
 run("sync") -- the reference image of the near view (and a warm-up)
 for r = 1, int("repeats") do
   for _, mode in ipairs{"sync", "async"} do
@@ -133,6 +120,6 @@ if steps > 0 then
   end
   series:close()
 end
-io.stderr:write("loadavg after: " .. loadavg() .. "\n")
+io.stderr:write("loadavg after: " .. common.loadavg() .. "\n")
 st:close()
 if own_dir then os.execute(("rm -rf %q"):format(dir)) end
