@@ -194,6 +194,60 @@ static size_t values_differing(const cdvr_image *a, const cdvr_image *b)
     return differ;
 }
 
+/* Hostile payloads through the march on the device: random page tables and pools (the magic
+ * word kept) render or fail with an error, never read outside the payload (the kernel clamps
+ * every table index and voxel offset; a read past it would fault). */
+static void march_hostile(void)
+{
+    cdvr_cl *cl;
+    cdvr_error err;
+    if (cdvr_cl_open(&cl, &err)) {
+        printf("skip hostile march: %s\n", err.msg);
+        return;
+    }
+    cdvr_tf tf;
+    cdvr_tf_point pts[] = {{0, 0, 0, 0, 0}, {1, 1, 1, 1, 0.5}, {255, 1, 1, 1, 0.5}};
+    cdvr_tf_init(&tf, pts, 3, 0, &err);
+    cdvr_camera cam = far_camera();
+    cdvr_render_opts o = {.tf = &tf, .camera = &cam, .step = 0.4};
+    static const double spacing[3] = {1, 1, 1}, origin[3] = {0, 0, 0},
+                        direction[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    cdvr_codec_params march = {{0}};
+    march.bytes[CDVR_BRICK_CACHE_PARAM_MARCH] = 1;
+    uint32_t r = 7;
+    int rendered = 0;
+    for (int k = 0; k < 12; k++) {
+        size_t n = 64 + (size_t)k * 397;
+        uint8_t *p = malloc(n);
+        for (size_t i = 0; i < n; i++) {
+            r = r * 1103515245u + 12345u;
+            p[i] = (uint8_t)(r >> (k % 2 ? 24 : 28)); /* odd k: any bytes; even: small ones */
+        }
+        for (int i = 0; i < 4; i++)
+            p[i] = (uint8_t)(CDVR_BRICK_CACHE_MAGIC >> (8 * i));
+        cdvr_cl_stream *s;
+        CHECK_OK(cdvr_cl_stream_create(cl, DIMS, &s, &err), err);
+        cdvr_cl_set_fetch_path(s, CDVR_CL_FETCH_SAMPLE);
+        cdvr_image *img = NULL;
+        cdvr_status st = cdvr_cl_upload(s, p, n, &err);
+        if (!st)
+            st = cdvr_cl_decode(s, cdvr_brick_cache_codec(), &march, 1, &err);
+        if (!st)
+            st = cdvr_cl_setup(s, 0, &tf, &err);
+        if (!st)
+            st = cdvr_image_create(cam.width, cam.height, &img, &err);
+        if (!st)
+            st = cdvr_cl_render(s, 0, &o, spacing, origin, direction, img, &err);
+        CHECK(st == CDVR_OK || err.msg[0], "hostile payload %d: an image or a message", k);
+        rendered += st == CDVR_OK;
+        cdvr_image_free(img);
+        cdvr_cl_stream_free(s);
+        free(p);
+    }
+    printf("hostile march payloads: %d of 12 rendered, the others refused\n", rendered);
+    cdvr_cl_close(cl);
+}
+
 /* The march with every brick at level 0 renders exactly the dense frame (skipping on and off,
  * two cameras); the cache's skip ranges hold the exact ranges of the level-0 frame; with
  * coarse bricks it stays close to the per-voxel page table and takes fewer samples. */
@@ -393,6 +447,7 @@ int main(void)
 #if CDVR_HAVE_OPENCL
         device_matches_c(st);
         march_matches_dense(st);
+        march_hostile();
 #endif
         cdvr_store_close(st);
     }
