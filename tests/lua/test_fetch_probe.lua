@@ -65,6 +65,12 @@ local again = run("b")
 assert(not again[1].sample and again[1].path == faster,
        "a new process takes the remembered path without measuring: " .. again[1].path)
 
+-- a damaged record (truncated, or another file's bytes) is not a choice: the next process
+-- measures again
+assert(os.execute(("for f in %q/cache/*.fetch; do printf 'sample -1 x' > \"$f\"; done"):format(tmp)))
+local damaged = run("c")
+assert(damaged[1].sample and damaged[1].bulk, "a damaged record is measured again")
+
 local function bytes(path)
   local h = assert(io.open(path, "rb"))
   local s = h:read("a")
