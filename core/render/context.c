@@ -1,8 +1,9 @@
 /* core/render/context.c - the devices a render uses (cdvr_render_ctx, cdvr/method.h): the
  * OpenCL device with one stream reused while the frame dims stay the same, what the stream's
  * frame 0 holds (so rendering the same frame twice uploads nothing: the identity and revision
- * of a held volume's frame, else a host copy of the voxels), and the EGL slicer; the CPU ray caster's skip cache. Each is opened on first use; a failed OpenCL open is remembered, so the default
- * device rule asks the driver once. */
+ * of a held volume's frame, else a host copy of the voxels), and the EGL slicer; the CPU ray
+ * caster's skip cache. Each is opened on first use; a failed OpenCL open is remembered, so the
+ * default device rule asks the driver once. */
 #include "cdvr/method.h"
 
 #include <pthread.h>
