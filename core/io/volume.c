@@ -118,6 +118,11 @@ void cdvr_volume_free(cdvr_volume *vol)
     }
 }
 
+void cdvr_volume_touch(cdvr_volume *vol)
+{
+    vol->revision++;
+}
+
 size_t cdvr_volume_voxels(const cdvr_volume *vol)
 {
     return vol->dims[0] * vol->dims[1] * vol->dims[2];

@@ -1,8 +1,9 @@
 /* core/render/context.c - the devices a render uses (cdvr_render_ctx, cdvr/method.h): the
- * OpenCL device with one stream reused while the frame dims stay the same, a host copy of
- * the frame last uploaded (so rendering the same frame twice uploads nothing), and the EGL
- * slicer; the CPU ray caster's skip cache. Each is opened on first use; a failed OpenCL open is remembered, so the default
- * device rule asks the driver once. */
+ * OpenCL device with one stream reused while the frame dims stay the same, what the stream's
+ * frame 0 holds (so rendering the same frame twice uploads nothing: the identity and revision
+ * of a held volume's frame, else a host copy of the voxels), and the EGL slicer; the CPU ray
+ * caster's skip cache. Each is opened on first use; a failed OpenCL open is remembered, so the
+ * default device rule asks the driver once. */
 #include "cdvr/method.h"
 
 #include <pthread.h>
@@ -15,6 +16,17 @@
 #include "cdvr/gl.h"
 #include "cdvr/store.h"
 
+/* Frame t of a held volume as it was uploaded: while the volume is held (alive, never freed)
+ * equal fields mean equal voxels (volume.h: revision). */
+typedef struct held_frame {
+    const cdvr_volume *vol;
+    const void *voxels;
+    size_t dims[3];
+    cdvr_type type;
+    size_t t;
+    uint64_t revision;
+} held_frame;
+
 struct cdvr_render_ctx {
     cdvr_cl *cl;
     int cl_failed;               /* cdvr_cl_open failed: cl_error says why */
@@ -23,6 +35,9 @@ struct cdvr_render_ctx {
     size_t stream_dims[3];
     uint8_t *frame_copy;         /* host copy of the voxels of the stream's frame 0, or NULL */
     size_t frame_bytes;
+    const cdvr_volume *held;     /* cdvr_render_ctx_hold_volume's volume, or NULL */
+    held_frame uploaded;         /* the held volume's frame on the stream (vol NULL: none) */
+    uint64_t uploads;            /* frames sent by cdvr_render_ctx_upload */
     cdvr_gl *gl;
     cdvr_brick_cache *cache;     /* the brick cache of the last cached store render, or NULL */
     char *cache_path;            /* its store's path and size: a new store at the address of */
@@ -43,6 +58,21 @@ void cdvr_render_ctx_forget_frame(cdvr_render_ctx *ctx)
     free(ctx->frame_copy);
     ctx->frame_copy = NULL;
     ctx->frame_bytes = 0;
+    memset(&ctx->uploaded, 0, sizeof ctx->uploaded);
+}
+
+void cdvr_render_ctx_hold_volume(cdvr_render_ctx *ctx, const cdvr_volume *vol)
+{
+    if (vol == ctx->held)
+        return;
+    ctx->held = vol;
+    /* the volume held before may be freed from now on, and another allocated at its address */
+    memset(&ctx->uploaded, 0, sizeof ctx->uploaded);
+}
+
+uint64_t cdvr_render_ctx_uploads(const cdvr_render_ctx *ctx)
+{
+    return ctx->uploads;
 }
 
 void cdvr_render_ctx_free(cdvr_render_ctx *ctx)
@@ -174,19 +204,51 @@ static int same_bytes(const uint8_t *a, const uint8_t *b, size_t bytes)
     return lower_equal && upper.equal;
 }
 
-/* A volume may be edited in place (v:set) between renders, so the voxels are compared with a
- * host copy of what was uploaded (memcmp is exact and faster than hashing the frame). */
+static held_frame frame_of(const cdvr_volume *vol, size_t t)
+{
+    held_frame f = {vol, cdvr_volume_frame(vol, t), {vol->dims[0], vol->dims[1], vol->dims[2]},
+                    vol->type, t, vol->revision};
+    return f;
+}
+
+/* 1 when the stream's frame 0 is frame t of the held volume vol at its current revision. */
+static int holds_frame(const cdvr_render_ctx *ctx, const cdvr_volume *vol, size_t t)
+{
+    held_frame now = frame_of(vol, t);
+    const held_frame *up = &ctx->uploaded;
+    return vol == ctx->held && up->vol == vol && up->voxels == now.voxels &&
+           memcmp(up->dims, now.dims, sizeof now.dims) == 0 && up->type == now.type &&
+           up->t == t && up->revision == now.revision;
+}
+
+/* The frame of a held volume is known by its identity and revision (O(1), no host copy);
+ * any other volume may have been edited in place (v:set) or freed and another allocated at
+ * its address, so its voxels are compared with a host copy of what was uploaded (memcmp is
+ * exact and faster than hashing the frame). */
 cdvr_status cdvr_render_ctx_upload(cdvr_render_ctx *ctx, cdvr_cl_stream *s,
                                    const cdvr_volume *vol, size_t t, cdvr_error *err)
 {
+    if (holds_frame(ctx, vol, t))
+        return CDVR_OK;
     const uint8_t *voxels = cdvr_volume_frame(vol, t);
     size_t bytes = cdvr_volume_voxels(vol);
-    if (ctx->frame_copy && ctx->frame_bytes == bytes && same_bytes(ctx->frame_copy, voxels, bytes))
+    int held = vol == ctx->held;
+    if (ctx->frame_copy && ctx->frame_bytes == bytes && same_bytes(ctx->frame_copy, voxels, bytes)) {
+        if (held) { /* known by identity from now on: the copy is not needed */
+            cdvr_render_ctx_forget_frame(ctx);
+            ctx->uploaded = frame_of(vol, t);
+        }
         return CDVR_OK;
+    }
     cdvr_render_ctx_forget_frame(ctx);
     cdvr_status st = cdvr_cl_upload_frames(s, voxels, 1, err);
     if (st != CDVR_OK)
         return st;
+    ctx->uploads++;
+    if (held) {
+        ctx->uploaded = frame_of(vol, t);
+        return CDVR_OK;
+    }
     ctx->frame_copy = malloc(bytes ? bytes : 1);
     if (ctx->frame_copy) { /* without a copy the next render uploads again */
         memcpy(ctx->frame_copy, voxels, bytes);

@@ -234,11 +234,17 @@ static cdvr_status render_cl(cdvr_render_ctx *ctx, const cdvr_volume *vol, size_
         return st;
     double start = cdvr_now_ms();
     cdvr_cl_set_skipping(s, get_params(p).skip);
+    uint64_t uploads = cdvr_render_ctx_uploads(ctx);
     st = cdvr_render_ctx_upload(ctx, s, vol, t, err);
     if (st != CDVR_OK)
         return st;
-    return render_device_frame(ctx, s, 0, opts, vol->spacing, vol->origin, vol->direction, start,
-                               stats, out, err);
+    st = render_device_frame(ctx, s, 0, opts, vol->spacing, vol->origin, vol->direction, start,
+                             stats, out, err);
+    if (st == CDVR_OK) /* 0 when the device held the frame already */
+        cdvr_render_stats_integer(stats, "uploaded_bytes",
+                                  cdvr_render_ctx_uploads(ctx) != uploads
+                                      ? (long long)cdvr_volume_voxels(vol) : 0);
+    return st;
 }
 
 /* The brick march (cdvr/brick_cache.h) of the cache's frame on s: the payload with the march

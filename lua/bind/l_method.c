@@ -14,8 +14,10 @@
 #define CTX_KEY "cdvr.render_ctx" /* registry: the state's context userdata */
 #define MAX_KEYS 128 /* base + look + scene + method keys (the player has about 50) */
 
+/* User value 1: the userdata of the volume the context holds (lcdvr_render_ctx_hold), or nil. */
 typedef struct lctx {
     cdvr_render_ctx *ctx;
+    const cdvr_volume *held;
 } lctx;
 
 static int ctx_gc(lua_State *L)
@@ -23,6 +25,7 @@ static int ctx_gc(lua_State *L)
     lctx *c = (lctx *)luaL_checkudata(L, 1, LCDVR_RENDER_CTX);
     cdvr_render_ctx_free(c->ctx);
     c->ctx = NULL;
+    c->held = NULL;
     return 0;
 }
 
@@ -43,14 +46,54 @@ cdvr_render_ctx *lcdvr_render_ctx(lua_State *L)
     } else {
         lua_pop(L, 1);
     }
-    lctx *c = (lctx *)lua_newuserdatauv(L, sizeof *c, 0); /* userdata first, then the object */
+    lctx *c = (lctx *)lua_newuserdatauv(L, sizeof *c, 1); /* userdata first, then the object */
     c->ctx = NULL;
+    c->held = NULL;
     luaL_setmetatable(L, LCDVR_RENDER_CTX);
     cdvr_error err;
     if (cdvr_render_ctx_create(&c->ctx, &err) != CDVR_OK)
         lcdvr_raise(L, &err);
     lua_setfield(L, LUA_REGISTRYINDEX, CTX_KEY);
     return c->ctx;
+}
+
+void lcdvr_render_ctx_hold(lua_State *L, int idx, const cdvr_volume *vol)
+{
+    idx = idx ? lua_absindex(L, idx) : 0;
+    cdvr_render_ctx *ctx = lcdvr_render_ctx(L);
+    lua_getfield(L, LUA_REGISTRYINDEX, CTX_KEY);
+    lctx *c = (lctx *)lua_touserdata(L, -1);
+    if (idx && vol)
+        lua_pushvalue(L, idx);
+    else
+        lua_pushnil(L);
+    cdvr_render_ctx_hold_volume(ctx, idx ? vol : NULL); /* before the old userdata may go */
+    c->held = idx ? vol : NULL;
+    lua_setiuservalue(L, -2, 1);
+    lua_pop(L, 1);
+}
+
+const cdvr_volume *lcdvr_render_ctx_held(lua_State *L)
+{
+    const cdvr_volume *held = NULL;
+    if (lua_getfield(L, LUA_REGISTRYINDEX, CTX_KEY) == LUA_TUSERDATA)
+        held = ((lctx *)lua_touserdata(L, -1))->held;
+    lua_pop(L, 1);
+    return held;
+}
+
+void lcdvr_render_ctx_release(lua_State *L, const cdvr_volume *vol)
+{
+    if (lua_getfield(L, LUA_REGISTRYINDEX, CTX_KEY) == LUA_TUSERDATA) {
+        lctx *c = (lctx *)lua_touserdata(L, -1);
+        if (c->ctx && vol && c->held == vol) {
+            cdvr_render_ctx_hold_volume(c->ctx, NULL);
+            c->held = NULL;
+            lua_pushnil(L);
+            lua_setiuservalue(L, -2, 1);
+        }
+    }
+    lua_pop(L, 1);
 }
 
 /* ---- reading a method from an options table ---------------------------------------------- */

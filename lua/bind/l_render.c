@@ -285,6 +285,7 @@ static int l_render(lua_State *L)
     const cdvr_store *st = luaL_testudata(L, 1, LCDVR_STORE) ? lcdvr_checkstore(L, 1) : NULL;
     const cdvr_volume *head = st ? NULL : lcdvr_volume_header(L, 1);
     cdvr_volume *vol = NULL;
+    int lazy = 0;
     luaL_checktype(L, 2, LUA_TTABLE);
     render_call c;
     read_call(L, &c);
@@ -300,6 +301,7 @@ static int l_render(lua_State *L)
         size_t v = store_variant(L, st);
         int cached = lua_getfield(L, 2, "cache") != LUA_TNIL && lua_toboolean(L, -1);
         lua_pop(L, 1); /* cache=true on the cpu: the method's store path (its brick cache) */
+        lcdvr_render_ctx_hold(L, 0, NULL); /* a store renders no volume: release the last */
         if (c.method->render_store && (c.device == CDVR_DEVICE_CL || cached))
             return render_store_direct(L, &c, st, v, frame);
         cdvr_volume *decoded; /* decode the timestep on the host, then render it as a volume */
@@ -310,7 +312,7 @@ static int l_render(lua_State *L)
         lua_replace(L, 1);
         vol = decoded;
         frame = 0;
-    } else if (lcdvr_volume_lazy(L, 1)) { /* a series read as needed: timestep t only */
+    } else if ((lazy = lcdvr_volume_lazy(L, 1))) { /* a series read as needed: timestep t only */
         vol = lcdvr_volume_read(L, 1, frame, 1);
         lua_replace(L, 1);
         frame = 0;
@@ -328,6 +330,13 @@ static int l_render(lua_State *L)
     cdvr_render_stats stats = {0};
     cdvr_image *img = NULL;
     cdvr_error err;
+    /* The context holds the script's own u8 volume it renders on cl (cdvr/method.h: its frames
+     * are known on the device by identity and revision, no per-render compare), and keeps it
+     * while that one renders on another device; a decoded, lazily read or quantized frame is
+     * new each time and compared as before. Any other render releases the volume held. */
+    int own = u8 == vol && !st && !lazy;
+    int hold = own && (c.device == CDVR_DEVICE_CL || lcdvr_render_ctx_held(L) == vol);
+    lcdvr_render_ctx_hold(L, hold ? 1 : 0, hold ? vol : NULL);
     cdvr_status s = c.method->render(c.ctx, c.device, u8, frame, &o, &c.params, &stats, &img, &err);
     return push_result(L, &c, s, img, &stats, &err, &o);
 }

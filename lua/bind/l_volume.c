@@ -199,6 +199,7 @@ static int volume_gc(lua_State *L)
     lvolume *ud = tolvolume(L, 1);
     if (lcdvr_defer_close(L, 1)) /* cdvr.encode still reads it: freed when it is done */
         return 0;
+    lcdvr_render_ctx_release(L, ud->vol); /* a render context may hold it (l_render.c) */
     cdvr_volume_free(ud->vol);
     lazy_free(ud->lazy);
     ud->vol = NULL;
@@ -517,6 +518,7 @@ static int volume_set(lua_State *L)
     }
     size_t i = c[0] + v->dims[0] * (c[1] + v->dims[1] * (c[2] + v->dims[2] * t));
     set_value(L, v, i, value_arg);
+    cdvr_volume_touch(v); /* a render context that holds v uploads it again */
     if (v->type != CDVR_TYPE_U8) /* the series range may have changed */
         v->window[0] = v->window[1] = NAN;
     return 0;

@@ -243,6 +243,20 @@ cdvr_status cdvr_render_ctx_upload(cdvr_render_ctx *ctx, cdvr_cl_stream *s,
                                    const cdvr_volume *vol, size_t t, cdvr_error *err);
 /* Forgets the uploaded frame (the stream's frame 0 was overwritten by someone else). */
 void cdvr_render_ctx_forget_frame(cdvr_render_ctx *ctx);
+/* The caller's promise that vol (NULL: none) stays alive, never freed nor its data pointer
+ * replaced, until it calls this again with another volume or NULL, or frees ctx. While vol is
+ * held, cdvr_render_ctx_upload knows its frame t is on the device when the frame pointer,
+ * dims, type, t and vol->revision (volume.h) equal those of the upload that put it there:
+ * O(1), and no host copy of the frame is kept. So whoever changes voxels of a held volume in
+ * place must call cdvr_volume_touch. Volumes not held are compared voxel by voxel with a host
+ * copy of the uploaded frame (a volume freed and another allocated at its address is never
+ * taken for it). Call it with NULL (or another volume) before freeing the held volume: the
+ * context forgets the held volume's frame then. A context without a held volume works as
+ * before (the memcmp path), as the player's does. */
+void cdvr_render_ctx_hold_volume(cdvr_render_ctx *ctx, const cdvr_volume *vol);
+/* How many frames cdvr_render_ctx_upload sent to the device since ctx was created (a render
+ * of a frame the device holds already sends none). */
+uint64_t cdvr_render_ctx_uploads(const cdvr_render_ctx *ctx);
 /* The context's brick cache (cdvr/brick_cache.h) for variant v of st with this budget, made
  * (or remade, dropping the old one) when it serves another store, variant or budget. */
 struct cdvr_brick_cache;

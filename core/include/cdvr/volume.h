@@ -61,6 +61,14 @@ typedef struct cdvr_volume {
      * "" when unknown. The NRRD writer names it (space:), the NIfTI writer turns LPS/LAS into
      * NIfTI's RAS; nothing else converts. */
     char space[8];
+    /* Appended: the voxels' revision, 0 at creation (cdvr_volume_create); every cdvr function
+     * that changes voxels of an existing volume in place adds 1 (cdvr_volume_touch), so two
+     * equal revisions of one live volume mean the same voxels. Code that writes vol->data
+     * directly calls cdvr_volume_touch. A new volume, even one allocated where a freed one
+     * lay, starts at 0 again: the revision tells versions of one volume apart, never two
+     * volumes (the render context's cdvr_render_ctx_hold_volume, method.h, says how it tells
+     * volumes apart). Plugins never read it. */
+    uint64_t revision;
 } cdvr_volume;
 
 /* Bytes per voxel of a type (1, 2, 2, 4). */
@@ -86,6 +94,10 @@ int cdvr_type_parse(const char *name, cdvr_type *type);
 cdvr_status cdvr_volume_create(const size_t dims[3], size_t timesteps, cdvr_type type,
                                cdvr_volume **out, cdvr_error *err);
 void cdvr_volume_free(cdvr_volume *vol);
+/* Marks the voxels of vol as changed in place (vol->revision + 1): code that writes vol->data
+ * directly calls it, after the writes and before the volume is rendered again. It changes
+ * nothing else (the window of a non-u8 volume is set back to NAN by the writer, see above). */
+void cdvr_volume_touch(cdvr_volume *vol);
 
 /* Voxels per frame (dims product) and bytes per frame. */
 size_t cdvr_volume_voxels(const cdvr_volume *vol);
