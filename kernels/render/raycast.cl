@@ -474,7 +474,7 @@ static vfloat table_channel(__global const float *t, vint w)
 
 /* render.h step 4 for full segments: lerp of rgb and of the step-corrected alpha. *i0_out and
  * *fr_out give the table position for the shorter last segment's alpha. */
-static rgbax classify(vfloat s, __global const float4 *table, vint *i0_out, vfloat *fr_out)
+__attribute__((always_inline)) static inline rgbax classify(vfloat s, __global const float4 *table, vint *i0_out, vfloat *fr_out)
 {
     vint i0 = min(convert_vint(s), 254);
     vfloat fr = s - convert_vfloat(i0);
@@ -1203,7 +1203,7 @@ static void visible_slab(vfloat g0, vfloat dg, float lo, float hi, vfloat *enter
 /* Sample indices [*first, *stop) of the full segments that can lie in visible bricks: the
  * others are in invisible bricks outside the visible box, which the host sized in grid
  * coordinates. One sample of margin on each side absorbs rounding. */
-static void visible_range(vec3x g0, vec3x dg, float3 lo, float3 hi, vint n_full,
+__attribute__((always_inline)) static inline void visible_range(vec3x g0, vec3x dg, float3 lo, float3 hi, vint n_full,
                           vint *first, vint *stop)
 {
     if (any(lo > hi)) { /* no visible brick */
