@@ -357,13 +357,19 @@ static void test_cl(void)
     const cdvr_render_method *ray = cdvr_render_method_find("raycast");
     cdvr_method_params p;
     cdvr_render_method_params_parse(ray, NULL, NULL, 0, &p, &err);
+    /* "shade": power 10 by repeated squaring on both; "shade+light": specular 0.5, and
+     * "shade, power 7.5": powf / pow (render.h) */
     const char *names[] = {"shade", "shade+light", "gradient opacity", "max", "min", "average",
-                           "iso", "iso (tf colour, flat)"};
-    for (int k = 0; k < 8; k++) {
+                           "iso", "iso (tf colour, flat)", "shade, power 7.5"};
+    for (int k = 0; k < 9; k++) {
         cdvr_look look;
         memset(&look, 0, sizeof look);
         cdvr_shading_default(&look.shade);
-        look.shade.enabled = k <= 2 || k == 6;
+        look.shade.enabled = k <= 2 || k == 6 || k == 8;
+        if (k == 8) {
+            look.shade.specular = 0.6;
+            look.shade.specular_power = 7.5;
+        }
         if (k == 1) {
             look.shade.light_fixed = 1;
             look.shade.light_dir[0] = 1;

@@ -24,6 +24,9 @@ typedef int32_t cdvr_cl_i32;
  * sample's two quad reads (planes z0 and z0 + 1) and the neighbouring rays of a packet then
  * fall on a few nearby cache lines instead of rows and planes apart. */
 #define CDVR_CL_QUAD_TILE_SHIFT 2
+/* The largest whole specular power taken by repeated squaring: CDVR_SHADE_WHOLE_POWER_MAX of
+ * render.h, shading (cl_render.c checks that they agree). */
+#define CDVR_CL_WHOLE_POWER_MAX 128.0f
 /* Edge of the min/max bricks for empty-space skipping: 1 << CDVR_CL_BRICK_SHIFT voxels. */
 #define CDVR_CL_BRICK_SHIFT 2
 /* Bytes of the codec parameter blob handed to decode kernels and fetch functions

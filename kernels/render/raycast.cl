@@ -562,6 +562,28 @@ static vfloat length3x(vec3x a)
 }
 
 /* rgb' = min(1, rgb (ambient + diffuse |n.L|) + specular |n.H|^power), two-sided. */
+/* x^n per lane (n >= 0) by binary exponentiation, lowest bit first (render.h: the specular
+ * term; the brick march's transparency of n segments of transparency x): pow is a call per
+ * lane on a CPU device. */
+static vfloat power_of(vfloat x, vint n)
+{
+    vfloat p = (vfloat)(1.0f);
+    for (int bit = 0; any((n >> bit) != 0); bit++) {
+        p = select(p, p * x, ((n >> bit) & 1) != 0);
+        x = x * x;
+    }
+    return p;
+}
+
+/* render.h's |n.H|^power: repeated squaring for a whole power up to CDVR_CL_WHOLE_POWER_MAX
+ * (VTK's default 10), else pow. */
+static vfloat specular_power(vfloat x, float power)
+{
+    if (power == floor(power) && power <= CDVR_CL_WHOLE_POWER_MAX)
+        return power_of(x, (vint)((int)power));
+    return pow(x, power);
+}
+
 static void shade_rgb(const look_params *lk, vec3x G, vec3x V, rgbax *c)
 {
     vfloat len = length3x(G);
@@ -574,7 +596,7 @@ static void shade_rgb(const look_params *lk, vec3x G, vec3x V, rgbax *c)
     vfloat hl = length3x(H);
     vfloat ndl = fabs(n.x * L.x + n.y * L.y + n.z * L.z);
     vfloat ndh = select((vfloat)(0.0f), fabs(n.x * H.x + n.y * H.y + n.z * H.z) / hl, hl > 0.0f);
-    vfloat spec = select((vfloat)(0.0f), lk->specular * pow(ndh, lk->power), ndh > 0.0f);
+    vfloat spec = select((vfloat)(0.0f), lk->specular * specular_power(ndh, lk->power), ndh > 0.0f);
     vfloat k = lk->ambient + lk->diffuse * ndl;
     c->r = fmin(c->r * k + spec, 1.0f);
     c->g = fmin(c->g * k + spec, 1.0f);
@@ -794,18 +816,6 @@ static void cache_lookup(cache_lanes *cl, vint need, vint i, vint n_full, const 
     vfloat t_exit = clamp(fmin(tx, fmin(ty, tz)), 0.0f, convert_vfloat(n_full));
     vint end = min(max(convert_vint(ceil(t_exit)), i + 1), n_full);
     vstore16(select(vload16(0, cl->end), end, need), 0, cl->end);
-}
-
-/* x^n per lane (n >= 0) by binary exponentiation: the transparency of n segments of
- * transparency x (pow is a libm call per lane on a CPU device). */
-static vfloat power_of(vfloat x, vint n)
-{
-    vfloat p = (vfloat)(1.0f);
-    for (int bit = 0; any((n >> bit) != 0); bit++) {
-        p = select(p, p * x, ((n >> bit) & 1) != 0);
-        x = x * x;
-    }
-    return p;
 }
 
 /* sample_steps through the cache: up to UNROLL groups per lane (one sample each, 2^level

@@ -64,6 +64,9 @@
  * n = G / |G| (n = 0 when |G| < 1e-12: no NaN), two-sided lighting as VTK's renderers:
  *     rgb' = min(1, rgb * (ambient + diffuse |n.L|) + specular |n.H|^specular_power)
  * (0^power is 0: a zero gradient keeps only the ambient term). Alpha is unchanged by shading.
+ * x^power (x = |n.H| in float): for a whole power up to CDVR_SHADE_WHOLE_POWER_MAX (VTK's
+ * default 10) the float product of repeated squaring, lowest bit first: p = 1, then for each
+ * bit b of power from 0, p = p * x if b is set, x = x * x (x^0 = 1); any other power powf.
  * Gradient opacity (opts->look.gradient_opacity, VTK's GradientOpacity; composite only): the
  * sample's opacity a (step 4's lerp of the table, before the unit correction) is multiplied by
  * the piecewise-linear function of |G| (hi - lo) / 255 (data units per world unit) through the
@@ -133,6 +136,7 @@ typedef struct cdvr_shading {
 #define CDVR_SHADE_DIFFUSE 0.7
 #define CDVR_SHADE_SPECULAR 0.2
 #define CDVR_SHADE_SPECULAR_POWER 10.0
+#define CDVR_SHADE_WHOLE_POWER_MAX 128 /* whole specular powers taken by repeated squaring */
 
 #define CDVR_GRADIENT_OPACITY_MAX 16
 /* Opacity factor against gradient magnitude (data units per world unit); npoints 0: off. */

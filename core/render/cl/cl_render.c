@@ -7,6 +7,9 @@
 
 #include "cl_internal.h"
 
+_Static_assert(CDVR_CL_WHOLE_POWER_MAX == (float)CDVR_SHADE_WHOLE_POWER_MAX,
+               "raycast.cl and render.h take the same whole specular powers by squaring");
+
 typedef cdvr_cl_camera cam_params; /* kernels/common/cl_shared.h */
 typedef cdvr_cl_box_frame box_frame; /* render.h step 0 */
 typedef cdvr_cl_clip clip_params;    /* clipped rendering, render.h */

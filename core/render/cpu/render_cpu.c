@@ -288,6 +288,22 @@ static float length3(const float v[3])
     return sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
 }
 
+/* render.h's x^power of the specular term: repeated squaring for a whole power up to
+ * CDVR_SHADE_WHOLE_POWER_MAX, lowest bit first (raycast.cl's power_of multiplies in the same
+ * order), else powf. */
+static float specular_power(float x, float power)
+{
+    if (power != floorf(power) || power > (float)CDVR_SHADE_WHOLE_POWER_MAX)
+        return powf(x, power);
+    float p = 1.0f;
+    for (unsigned n = (unsigned)power; n; n >>= 1) {
+        if (n & 1u)
+            p *= x;
+        x *= x;
+    }
+    return p;
+}
+
 /* rgb' = min(1, rgb (ambient + diffuse |n.L|) + specular |n.H|^power), two-sided; V towards
  * the eye (unit). */
 static void shade_rgb(const render_job *job, const float G[3], const float V[3], float rgb[3])
@@ -301,7 +317,7 @@ static void shade_rgb(const render_job *job, const float G[3], const float V[3],
         ndl = fabsf(n[0] * L[0] + n[1] * L[1] + n[2] * L[2]);
         ndh = hl > 0.0f ? fabsf(n[0] * H[0] + n[1] * H[1] + n[2] * H[2]) / hl : 0.0f;
     }
-    float spec = ndh > 0.0f ? job->specular * powf(ndh, job->power) : 0.0f;
+    float spec = ndh > 0.0f ? job->specular * specular_power(ndh, job->power) : 0.0f;
     float k = job->ambient + job->diffuse * ndl;
     for (int c = 0; c < 3; c++)
         rgb[c] = min_f(rgb[c] * k + spec, 1.0f);
