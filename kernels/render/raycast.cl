@@ -1075,6 +1075,8 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
     } else { /* per-lane sample index: lanes skip dull bricks on their own; the last, shorter
                 segment is always sampled */
         int is_max = lk->blend == 1;
+        /* no code lies beyond 255 (below 0): a lane whose extreme got there is done */
+        float saturated = is_max ? 255.0f : 0.0f;
         vint i = (vint)(0), end = (vint)(0), live = p->hit & (i < n);
         while (any(live)) {
             vint need = live & (i >= end) & (i < n - 1);
@@ -1098,6 +1100,9 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
                 i -= run;
                 live &= i < n;
             }
+            /* after the step's samples: as a condition of each sample it would chain their
+             * loads to the previous sample's value */
+            live &= best != saturated;
         }
     }
     *taken = count;
