@@ -173,13 +173,18 @@ static void visible_box(cdvr_skip_grid *g, const uint8_t *visible)
 int cdvr_skip_flags(cdvr_skip_grid *g, const cdvr_tf *tf)
 {
     uint8_t visible_entry[256];
+    for (int i = 0; i < 256; i++)
+        visible_entry[i] = tf->table[i][3] > 0.0f;
+    return cdvr_skip_flags_of(g, visible_entry);
+}
+
+int cdvr_skip_flags_of(cdvr_skip_grid *g, const uint8_t visible_entry[256])
+{
     int prefix[257];
     prefix[0] = 0;
-    for (int i = 0; i < 256; i++) {
-        visible_entry[i] = tf->table[i][3] > 0.0f;
-        prefix[i + 1] = prefix[i] + visible_entry[i];
-    }
-    if (g->flags_valid && memcmp(visible_entry, g->tf_visible, sizeof visible_entry) == 0)
+    for (int i = 0; i < 256; i++)
+        prefix[i + 1] = prefix[i] + (visible_entry[i] != 0);
+    if (g->flags_valid && memcmp(visible_entry, g->tf_visible, 256) == 0)
         return 0;
     uint8_t *visible = g->scratch, *hidden = g->scratch + g->nbricks;
     g->bricks_visible = 0;
@@ -198,7 +203,7 @@ int cdvr_skip_flags(cdvr_skip_grid *g, const cdvr_tf *tf)
         d = d > CDVR_SKIP_REACH_MAX ? CDVR_SKIP_REACH_MAX : d;
         g->flags[b] = (uint8_t)(vis ? 128 + d : d);
     }
-    memcpy(g->tf_visible, visible_entry, sizeof visible_entry);
+    memcpy(g->tf_visible, visible_entry, 256);
     g->flags_valid = 1;
     return 1;
 }

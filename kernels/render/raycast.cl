@@ -1114,27 +1114,30 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
 }
 
 /* The first crossing of the iso code per lane, refined by two regula-falsi steps, shaded. */
+/* render.h's iso: the first crossing along the samples, refined. With b (skipping: its flags
+ * are made for the code floor(c), cl_render.c), a lane in a cube of bricks whose ranges do
+ * not hold it (all its samples lie strictly on one side of c: adjacent bricks' ranges share
+ * voxels, so the cube's ranges cannot straddle c) moves on to the cube's last sample, which
+ * the crossing test and the refinement of the first sample past it read as the predecessor;
+ * the samples between are counted as taken (the same image and count as without skipping). */
 static rgbax march_iso(const packet *p, vint n, float step, float3 inv_spacing,
                        const volume_geo *v, const look_params *lk,
-                       __global const float4 *table, vec3x V, vint *taken)
+                       __global const float4 *table, vec3x V, const bricks *b, vec3x g0,
+                       vec3x dg, vint *taken)
 {
     float c = lk->iso_code;
     vfloat prev = (vfloat)(0.0f), t_prev = (vfloat)(0.0f), t_hit = (vfloat)(0.0f);
     vint found = (vint)(0), count = (vint)(0);
     vfloat ta = (vfloat)(0.0f), tb = (vfloat)(0.0f), sa = (vfloat)(0.0f), sb = (vfloat)(0.0f);
-    int nmax = 0;
-    int ns[RAY_PACKET];
-    vstore16(select((vint)(0), n, p->hit), 0, ns);
-    for (int k = 0; k < RAY_PACKET; k++)
-        nmax = max(nmax, ns[k]);
-    for (int i = 0; i < nmax && !all(found | ~(p->hit & ((vint)(i) < n))); i++) {
+    vint i = (vint)(0), end = (vint)(0), live = p->hit & (i < n);
+    while (any(live)) {
         vint ok;
         vfloat tm;
-        vec3x g = sample_point(p, (vint)(i), n, step, inv_spacing, &ok, &tm);
-        ok &= ~found;
+        vec3x g = sample_point(p, i, n, step, inv_spacing, &ok, &tm);
+        ok &= live;
         vfloat s = trilinear(v, g);
         count -= ok;
-        vint hit = ok & (s == c | ((vint)(i) > 0 & (prev - c) * (s - c) < 0.0f));
+        vint hit = ok & (s == c | (i > 0 & (prev - c) * (s - c) < 0.0f));
         ta = select(ta, t_prev, hit);
         tb = select(tb, tm, hit);
         sa = select(sa, prev, hit);
@@ -1143,6 +1146,21 @@ static rgbax march_iso(const packet *p, vint n, float step, float3 inv_spacing,
         found |= hit;
         prev = select(prev, s, ok);
         t_prev = select(t_prev, tm, ok);
+        live &= ok & ~hit; /* an empty last segment ends the lane, as in the definition */
+        vint next = i + 1;
+        vint need = live & (i >= end) & (i < n - 2);
+        if (b && any(need)) {
+            vint visible;
+            vfloat t_exit = brick_exit(b, v, g0, at(g0, dg, i), &visible);
+            vint last_inside = min(max(i + 1, convert_vint(ceil(t_exit - SKIP_MARGIN))) - 1,
+                                   n - 1);
+            vint jump = need & ~visible & (last_inside > i + 1);
+            count += select((vint)(0), last_inside - (i + 1), jump);
+            end = select(end, max(i + 1, convert_vint(ceil(t_exit))), need & visible);
+            next = select(next, last_inside, jump);
+        }
+        i = select(i, next, live);
+        live &= i < n;
     }
     *taken = count;
     if (!any(found))
@@ -1328,11 +1346,13 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
         eb.nbz = nbz;
         eb.g0 = g0;
         eb.dg = dg;
+        bricks iso_bricks = make_bricks(brick_visible, brick_shift, nbx, nby, nbz, dg);
         eb.inv_dg = (vec3x){select((vfloat)(INFINITY), 1.0f / dg.x, dg.x != 0.0f),
                             select((vfloat)(INFINITY), 1.0f / dg.y, dg.y != 0.0f),
                             select((vfloat)(INFINITY), 1.0f / dg.z, dg.z != 0.0f)};
         rgbax out = look.blend == 4
-                        ? march_iso(&p, n, step, inv_spacing, &v, &look, table, V, &taken)
+                        ? march_iso(&p, n, step, inv_spacing, &v, &look, table, V,
+                                    skipping ? &iso_bricks : 0, g0, dg, &taken)
                         : march_extreme(&p, n, step, inv_spacing, &v, &look, table, alpha, &eb,
                                         &taken);
         store_pixels(image, px, py, cam.width, cam.height, out);

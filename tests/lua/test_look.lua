@@ -69,6 +69,33 @@ if devices[2] then
   os.remove(hpath)
 end
 
+-- iso on cl skips the bricks that cannot hold the iso code (flags for the codes around it):
+-- the same image and sample count as with skip=false, at whole, fractional and out-of-range
+-- values, from three sides; a composite render after them is unchanged (its own flags)
+if devices[2] then
+  local before = render{device = "cl"}
+  for _, az in ipairs{30, 150, 260} do
+    local c = cdvr.orbit_camera(v, {azimuth = az, elevation = 20, width = 64, height = 64})
+    for _, value in ipairs{40, 120, 120.5, 200, 300, -3} do
+      for _, shade in ipairs{false, true} do
+        local o = {tf = tf, camera = c, device = "cl", iso = {value = value}, shade = shade}
+        local a = cdvr.render(v, o)
+        o.skip = false
+        local b = cdvr.render(v, o)
+        local what = ("iso %g from %d%s"):format(value, az, shade and ", shaded" or "")
+        check(cdvr.compare(a, b).maxerr == 0, what .. ": skipping changes nothing")
+        check(a:stats().samples == b:stats().samples, what .. ": samples " .. a:stats().samples ..
+              " with skipping, " .. b:stats().samples .. " without")
+        if not shade then
+          o.skip, o.device = nil, "cpu"
+          check(cdvr.compare(a, cdvr.render(v, o)).maxerr == 0, what .. ": cl equals cpu")
+        end
+      end
+    end
+  end
+  check(cdvr.compare(before, render{device = "cl"}).maxerr == 0, "composite after iso renders")
+end
+
 -- annotate= in cdvr.render and the player: the same pixels as img:annotate of the plain image
 local ann = {colorbar = true, axes = true, title = "neghip", time = true}
 local annotated = render{annotate = ann}

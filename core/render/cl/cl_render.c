@@ -89,7 +89,41 @@ static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *e
     cl_int code = clEnqueueReadBuffer(s->cl->queue, s->brick_minmax, CL_TRUE, 0, 2 * s->nbricks,
                                       s->grid.minmax, 0, NULL, NULL);
     cdvr_skip_grid_touch(&s->grid);
+    s->minmax_count++;
     return cdvr_cl_check(code, "read brick min/max grid", err);
+}
+
+/* Iso skipping (raycast.cl, march_iso): iso_flags gets the flags of the set-up frame's ranges
+ * for the one code floor(code): a brick whose (whole-code) range [lo, hi] can hold the iso
+ * code has lo <= floor(code) <= hi, so one without lies strictly on one side of it. Made
+ * again only when the ranges or that code change. Returns 1 when iso_flags holds them; 0 (the iso render then takes
+ * every sample) when the ranges on the host are another grid's (cdvr_cl_setup_grid) or on
+ * any failure. */
+static int iso_flags_ready(cdvr_cl_stream *s, size_t frame, float code)
+{
+    cdvr_error ignored;
+    if (!s->skipping || s->grid_uploaded || s->minmax_frame != frame || !s->minmax_count)
+        return 0;
+    size_t cap = s->iso_flags ? s->nbricks : 0;
+    if (!s->iso_grid.minmax &&
+        cdvr_skip_grid_init(&s->iso_grid, s->dims, CDVR_CL_BRICK_SHIFT, &ignored) != CDVR_OK)
+        return 0;
+    if (cdvr_cl_ensure_buffer(s->cl, &s->iso_flags, &cap, s->nbricks, CL_MEM_READ_ONLY,
+                              "iso brick flags", &ignored) != CDVR_OK)
+        return 0;
+    if (s->iso_minmax != s->minmax_count) {
+        memcpy(s->iso_grid.minmax, s->grid.minmax, 2 * s->nbricks);
+        cdvr_skip_grid_touch(&s->iso_grid);
+        s->iso_minmax = s->minmax_count;
+    }
+    uint8_t below[256] = {0}; /* floor(code) outside 0..255: no sample can reach the code */
+    double whole = floor(code);
+    if (whole >= 0 && whole <= 255)
+        below[(int)whole] = 1;
+    if (cdvr_skip_flags_of(&s->iso_grid, below) || !s->iso_uploaded)
+        s->iso_uploaded = write_buffer(s->cl, s->iso_flags, s->iso_grid.flags, s->nbricks,
+                                       "upload iso brick flags", &ignored) == CDVR_OK;
+    return s->iso_uploaded;
 }
 
 /* Uploads the flags of grid g and takes its visible box and count. */
@@ -380,6 +414,12 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
     clip_params kclip = clip_params_of(clip);
     cl_int bricks[5] = {CDVR_CL_BRICK_SHIFT, (cl_int)s->brick_dims[0], (cl_int)s->brick_dims[1],
                         (cl_int)s->brick_dims[2], s->skipping && !clip};
+    cl_mem flags = s->brick_visible;
+    if (look->blend == CDVR_BLEND_ISO) { /* skipping by the iso code's flags, or none */
+        bricks[4] = !clip && iso_flags_ready(s, frame, look->iso_code);
+        if (bricks[4])
+            flags = s->iso_flags;
+    }
     cl_float step = (cl_float)rp.step, term_alpha = (cl_float)rp.term_alpha;
     cl_float unit = (cl_float)rp.unit;
     if ((look->blend == CDVR_BLEND_MAX || look->blend == CDVR_BLEND_MIN) && !s->minmax_valid &&
@@ -404,7 +444,7 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
                 {sizeof *cam, cam},           {sizeof kclip, &kclip},
                 {sizeof(cl_mem), &s->table},
                 {sizeof(cl_mem), &s->alpha_unit}, {sizeof unit, &unit},
-                {sizeof(cl_mem), &s->brick_visible}, {sizeof(cl_int), &bricks[0]},
+                {sizeof(cl_mem), &flags},     {sizeof(cl_int), &bricks[0]},
                 {sizeof(cl_int), &bricks[1]}, {sizeof(cl_int), &bricks[2]},
                 {sizeof(cl_int), &bricks[3]}, {sizeof(cl_int), &bricks[4]},
                 {sizeof(cl_float), &s->visible_lo[0]}, {sizeof(cl_float), &s->visible_lo[1]},

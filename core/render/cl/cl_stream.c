@@ -109,10 +109,12 @@ void cdvr_cl_stream_free(cdvr_cl_stream *s)
         return;
     cl_mem *mems[] = {&s->payload, &s->params, &s->frames, &s->host_frames, &s->quads, &s->table,
                       &s->alpha_unit,
-                      &s->brick_minmax, &s->brick_visible, &s->image, &s->samples};
+                      &s->brick_minmax, &s->brick_visible, &s->iso_flags, &s->image,
+                      &s->samples};
     for (size_t i = 0; i < sizeof mems / sizeof *mems; i++)
         cdvr_cl_release(mems[i]);
     cdvr_skip_grid_free(&s->grid);
+    cdvr_skip_grid_free(&s->iso_grid);
     free(s);
 }
 
