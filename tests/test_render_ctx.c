@@ -15,7 +15,9 @@
  *    memory given other voxels and revision 0 after hold NULL);
  *  - a volume not held keeps the memcmp path: a second render uploads nothing, and a write
  *    without touch is still seen.
- * Skipped (77) without an OpenCL device.
+ * The same free-and-reallocate cases, and an edit of a held volume, on the cpu device (whose
+ * skip cache keeps a held volume's brick ranges). The cl part is skipped (77) without an
+ * OpenCL device.
  */
 #include "check.h"
 
@@ -30,6 +32,7 @@
 static const size_t dims[3] = {24, 20, 16};
 
 typedef struct scene {
+    cdvr_device_kind device;
     const cdvr_render_method *ray;
     cdvr_method_params params;
     cdvr_tf tf;
@@ -54,7 +57,7 @@ static void scene_init(scene *sc)
     sc->cam.height = 32;
 }
 
-/* Frame t of vol on cl through ctx; *uploaded gets the stat uploaded_bytes (-1 if missing). */
+/* Frame t of vol on sc->device through ctx; *uploaded gets the stat uploaded_bytes (-1 if missing). */
 static cdvr_image *render(cdvr_render_ctx *ctx, scene *sc, const cdvr_volume *vol, size_t t,
                           long long *uploaded)
 {
@@ -62,7 +65,7 @@ static cdvr_image *render(cdvr_render_ctx *ctx, scene *sc, const cdvr_volume *vo
     cdvr_render_stats stats = {0};
     cdvr_image *img = NULL;
     cdvr_error err;
-    CHECK_OK(sc->ray->render(ctx, CDVR_DEVICE_CL, vol, t, &o, &sc->params, &stats, &img, &err),
+    CHECK_OK(sc->ray->render(ctx, sc->device, vol, t, &o, &sc->params, &stats, &img, &err),
              err);
     if (uploaded) {
         *uploaded = -1;
@@ -243,18 +246,48 @@ static void test_not_held(cdvr_render_ctx *ctx, scene *sc)
     cdvr_volume_free(vol);
 }
 
+/* The CPU ray caster's skip cache keeps a held volume's brick ranges (render.h,
+ * cdvr_cpu_skip_cache_hold): a voxel written in an empty brick, then touch, must be seen;
+ * without touch (the caller broke the promise) the kept ranges may skip it. */
+static void test_cpu_held_edit(cdvr_render_ctx *ctx, scene *sc)
+{
+    cdvr_volume *vol = volume_with_block(1, 0, 4, 4, 4);
+    if (!vol)
+        return;
+    cdvr_render_ctx_hold_volume(ctx, vol);
+    cdvr_image *first = render(ctx, sc, vol, 0, NULL);
+    uint8_t *f = cdvr_volume_frame(vol, 0);
+    for (size_t k = 9; k < 12; k++)
+        for (size_t j = 12; j < 15; j++)
+            memset(f + 16 + dims[0] * (j + dims[1] * k), 255, 3);
+    cdvr_volume_touch(vol);
+    cdvr_image *edited = render(ctx, sc, vol, 0, NULL);
+    CHECK(!same_image(first, edited), "cpu, held: the touched edit changed the image");
+    check_fresh(sc, edited, vol, 0, "cpu, held volume edited and touched");
+    cdvr_render_ctx_hold_volume(ctx, NULL);
+    cdvr_image_free(first);
+    cdvr_image_free(edited);
+    cdvr_volume_free(vol);
+}
+
 int main(void)
 {
     cdvr_render_ctx *ctx = NULL;
     cdvr_error err;
     CHECK_OK(cdvr_render_ctx_create(&ctx, &err), err);
+    scene sc;
+    scene_init(&sc);
+    sc.device = CDVR_DEVICE_CPU; /* the CPU skip cache: held ranges, free and reallocate */
+    test_cpu_held_edit(ctx, &sc);
+    for (int hold = 0; hold < 4; hold++)
+        test_reallocate(ctx, &sc, hold);
     cdvr_cl *cl;
     if (cdvr_render_ctx_cl(ctx, &cl, &err) != CDVR_OK) {
         cdvr_render_ctx_free(ctx);
-        return check_opencl_unavailable(err.msg);
+        int status = check_finish();
+        return status ? status : check_opencl_unavailable(err.msg);
     }
-    scene sc;
-    scene_init(&sc);
+    sc.device = CDVR_DEVICE_CL;
     test_held_edit(ctx, &sc);
     test_held_timesteps(ctx, &sc);
     for (int hold = 0; hold < 4; hold++)

@@ -68,6 +68,7 @@ void cdvr_render_ctx_hold_volume(cdvr_render_ctx *ctx, const cdvr_volume *vol)
     ctx->held = vol;
     /* the volume held before may be freed from now on, and another allocated at its address */
     memset(&ctx->uploaded, 0, sizeof ctx->uploaded);
+    cdvr_cpu_skip_cache_hold(ctx->cpu_skip, vol);
 }
 
 uint64_t cdvr_render_ctx_uploads(const cdvr_render_ctx *ctx)
@@ -131,6 +132,7 @@ cdvr_cpu_skip_cache *cdvr_render_ctx_cpu_skip(cdvr_render_ctx *ctx)
         return NULL;
     if (!ctx->cpu_skip && cdvr_cpu_skip_cache_create(&ctx->cpu_skip, NULL) != CDVR_OK)
         ctx->cpu_skip = NULL;
+    cdvr_cpu_skip_cache_hold(ctx->cpu_skip, ctx->held);
     return ctx->cpu_skip;
 }
 

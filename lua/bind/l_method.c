@@ -73,15 +73,6 @@ void lcdvr_render_ctx_hold(lua_State *L, int idx, const cdvr_volume *vol)
     lua_pop(L, 1);
 }
 
-const cdvr_volume *lcdvr_render_ctx_held(lua_State *L)
-{
-    const cdvr_volume *held = NULL;
-    if (lua_getfield(L, LUA_REGISTRYINDEX, CTX_KEY) == LUA_TUSERDATA)
-        held = ((lctx *)lua_touserdata(L, -1))->held;
-    lua_pop(L, 1);
-    return held;
-}
-
 void lcdvr_render_ctx_release(lua_State *L, const cdvr_volume *vol)
 {
     if (lua_getfield(L, LUA_REGISTRYINDEX, CTX_KEY) == LUA_TUSERDATA) {

@@ -330,13 +330,12 @@ static int l_render(lua_State *L)
     cdvr_render_stats stats = {0};
     cdvr_image *img = NULL;
     cdvr_error err;
-    /* The context holds the script's own u8 volume it renders on cl (cdvr/method.h: its frames
-     * are known on the device by identity and revision, no per-render compare), and keeps it
-     * while that one renders on another device; a decoded, lazily read or quantized frame is
-     * new each time and compared as before. Any other render releases the volume held. */
+    /* The context holds the script's own u8 volume it renders (cdvr/method.h: on cl its frames
+     * are known on the device by identity and revision, no per-render compare; on the cpu the
+     * skip cache keeps its brick ranges); a decoded, lazily read or quantized frame is new
+     * each time and compared as before. Any other render releases the volume held. */
     int own = u8 == vol && !st && !lazy;
-    int hold = own && (c.device == CDVR_DEVICE_CL || lcdvr_render_ctx_held(L) == vol);
-    lcdvr_render_ctx_hold(L, hold ? 1 : 0, hold ? vol : NULL);
+    lcdvr_render_ctx_hold(L, own ? 1 : 0, own ? vol : NULL);
     cdvr_status s = c.method->render(c.ctx, c.device, u8, frame, &o, &c.params, &stats, &img, &err);
     return push_result(L, &c, s, img, &stats, &err, &o);
 }

@@ -287,8 +287,6 @@ cdvr_render_ctx *lcdvr_render_ctx(lua_State *L);
  * (the context's user value) so it is not collected while held; idx 0 and vol NULL hold
  * none. The volume held before is released. */
 void lcdvr_render_ctx_hold(lua_State *L, int idx, const cdvr_volume *vol);
-/* The volume the state's context holds, or NULL (none, or no context yet). */
-const cdvr_volume *lcdvr_render_ctx_held(lua_State *L);
 /* Called before vol is freed (its __gc or __close): the state's context, if it holds vol,
  * holds none from now on. Makes no context. */
 void lcdvr_render_ctx_release(lua_State *L, const cdvr_volume *vol);

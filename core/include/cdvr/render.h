@@ -233,6 +233,12 @@ typedef struct cdvr_cpu_skip_cache cdvr_cpu_skip_cache;
 cdvr_status cdvr_cpu_skip_cache_create(cdvr_cpu_skip_cache **out, cdvr_error *err);
 /* NULL is allowed. */
 void cdvr_cpu_skip_cache_free(cdvr_cpu_skip_cache *c);
+/* The caller's promise (as cdvr_render_ctx_hold_volume's, cdvr/method.h) that vol (NULL:
+ * none) stays alive and changes its voxels only with cdvr_volume_touch until it calls this
+ * again with another volume or NULL: a render of vol's frame at the revision whose ranges the
+ * cache holds then takes them as they are instead of computing them again (a tenth of a
+ * Colin27 frame). NULL c is allowed. */
+void cdvr_cpu_skip_cache_hold(cdvr_cpu_skip_cache *c, const cdvr_volume *vol);
 /* cdvr_render_cpu with a cache (NULL: none, as cdvr_render_cpu). */
 cdvr_status cdvr_render_cpu_cached(const cdvr_volume *vol, size_t t, cdvr_render_opts *opts,
                                    cdvr_cpu_skip_cache *cache, cdvr_image **out,
