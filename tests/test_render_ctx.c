@@ -57,7 +57,8 @@ static void scene_init(scene *sc)
     sc->cam.height = 32;
 }
 
-/* Frame t of vol on sc->device through ctx; *uploaded gets the stat uploaded_bytes (-1 if missing). */
+/* Frame t of vol on sc->device through ctx; *uploaded gets the stat uploaded_bytes (-1 if
+ * missing). */
 static cdvr_image *render(cdvr_render_ctx *ctx, scene *sc, const cdvr_volume *vol, size_t t,
                           long long *uploaded)
 {

@@ -1260,8 +1260,9 @@ static void visible_slab(vfloat g0, vfloat dg, float lo, float hi, vfloat *enter
 /* Sample indices [*first, *stop) of the full segments that can lie in visible bricks: the
  * others are in invisible bricks outside the visible box, which the host sized in grid
  * coordinates. One sample of margin on each side absorbs rounding. */
-__attribute__((always_inline)) static inline void visible_range(vec3x g0, vec3x dg, float3 lo, float3 hi, vint n_full,
-                          vint *first, vint *stop)
+__attribute__((always_inline)) static inline void visible_range(vec3x g0, vec3x dg, float3 lo,
+                                                                float3 hi, vint n_full,
+                                                                vint *first, vint *stop)
 {
     if (any(lo > hi)) { /* no visible brick */
         *first = *stop = (vint)(0);

@@ -96,9 +96,9 @@ static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *e
 /* Iso skipping (raycast.cl, march_iso): iso_flags gets the flags of the set-up frame's ranges
  * for the one code floor(code): a brick whose (whole-code) range [lo, hi] can hold the iso
  * code has lo <= floor(code) <= hi, so one without lies strictly on one side of it. Made
- * again only when the ranges or that code change. Returns 1 when iso_flags holds them; 0 (the iso render then takes
- * every sample) when the ranges on the host are another grid's (cdvr_cl_setup_grid) or on
- * any failure. */
+ * again only when the ranges or that code change. Returns 1 when iso_flags holds them; 0
+ * (the iso render then takes every sample) when the ranges on the host are another grid's
+ * (cdvr_cl_setup_grid) or on any failure. */
 static int iso_flags_ready(cdvr_cl_stream *s, size_t frame, float code)
 {
     cdvr_error ignored;
@@ -116,11 +116,11 @@ static int iso_flags_ready(cdvr_cl_stream *s, size_t frame, float code)
         cdvr_skip_grid_touch(&s->iso_grid);
         s->iso_minmax = s->minmax_count;
     }
-    uint8_t below[256] = {0}; /* floor(code) outside 0..255: no sample can reach the code */
+    uint8_t marks[256] = {0}; /* floor(code) outside 0..255: no sample can reach the code */
     double whole = floor(code);
     if (whole >= 0 && whole <= 255)
-        below[(int)whole] = 1;
-    if (cdvr_skip_flags_of(&s->iso_grid, below) || !s->iso_uploaded)
+        marks[(int)whole] = 1;
+    if (cdvr_skip_flags_of(&s->iso_grid, marks) || !s->iso_uploaded)
         s->iso_uploaded = write_buffer(s->cl, s->iso_flags, s->iso_grid.flags, s->nbricks,
                                        "upload iso brick flags", &ignored) == CDVR_OK;
     return s->iso_uploaded;
