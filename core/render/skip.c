@@ -170,42 +170,52 @@ static void visible_box(cdvr_skip_grid *g, const uint8_t *visible)
     }
 }
 
-int cdvr_skip_flags(cdvr_skip_grid *g, const cdvr_tf *tf)
-{
-    uint8_t visible_entry[256];
-    for (int i = 0; i < 256; i++)
-        visible_entry[i] = tf->table[i][3] > 0.0f;
-    return cdvr_skip_flags_of(g, visible_entry);
-}
-
-int cdvr_skip_flags_of(cdvr_skip_grid *g, const uint8_t visible_entry[256])
+/* The flags of g's ranges for the codes whose entry is not 0 into flags (nbricks), with
+ * scratch (2 * nbricks); afterwards scratch[b] is 1 where brick b is visible. Returns how
+ * many bricks are visible. */
+static size_t make_flags(const cdvr_skip_grid *g, const uint8_t visible_entry[256],
+                         uint8_t *flags, uint8_t *scratch)
 {
     int prefix[257];
     prefix[0] = 0;
     for (int i = 0; i < 256; i++)
         prefix[i + 1] = prefix[i] + (visible_entry[i] != 0);
-    if (g->flags_valid && memcmp(visible_entry, g->tf_visible, 256) == 0)
-        return 0;
-    uint8_t *visible = g->scratch, *hidden = g->scratch + g->nbricks;
-    g->bricks_visible = 0;
+    uint8_t *visible = scratch, *hidden = scratch + g->nbricks;
+    size_t count = 0;
     for (size_t b = 0; b < g->nbricks; b++) {
         int lo = g->minmax[2 * b], hi = g->minmax[2 * b + 1];
         visible[b] = lo <= hi && prefix[hi + 1] - prefix[lo] > 0;
         hidden[b] = !visible[b];
-        g->bricks_visible += visible[b];
+        count += visible[b];
     }
-    visible_box(g, visible);
-    cdvr_skip_distance(visible, g->flags, g->dims); /* distance to visible, in flags */
-    cdvr_skip_distance(hidden, hidden, g->dims);    /* distance to invisible (in place) */
+    cdvr_skip_distance(visible, flags, g->dims); /* distance to visible, in flags */
+    cdvr_skip_distance(hidden, hidden, g->dims); /* distance to invisible (in place) */
     for (size_t b = 0; b < g->nbricks; b++) {
-        int vis = g->flags[b] == 0;
-        int d = vis ? hidden[b] : g->flags[b];
+        int vis = flags[b] == 0;
+        int d = vis ? hidden[b] : flags[b];
         d = d > CDVR_SKIP_REACH_MAX ? CDVR_SKIP_REACH_MAX : d;
-        g->flags[b] = (uint8_t)(vis ? 128 + d : d);
+        flags[b] = (uint8_t)(vis ? 128 + d : d);
     }
-    memcpy(g->tf_visible, visible_entry, 256);
+    return count;
+}
+
+int cdvr_skip_flags(cdvr_skip_grid *g, const cdvr_tf *tf)
+{
+    uint8_t visible_entry[256];
+    for (int i = 0; i < 256; i++)
+        visible_entry[i] = tf->table[i][3] > 0.0f;
+    if (g->flags_valid && memcmp(visible_entry, g->tf_visible, sizeof visible_entry) == 0)
+        return 0;
+    g->bricks_visible = make_flags(g, visible_entry, g->flags, g->scratch);
+    visible_box(g, g->scratch);
+    memcpy(g->tf_visible, visible_entry, sizeof visible_entry);
     g->flags_valid = 1;
     return 1;
+}
+
+void cdvr_skip_flags_into(cdvr_skip_grid *g, const uint8_t visible_entry[256], uint8_t *flags)
+{
+    make_flags(g, visible_entry, flags, g->scratch);
 }
 
 /* ---- a coarse grid's flags on a finer grid ---------------------------------------------- */

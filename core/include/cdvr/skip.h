@@ -50,9 +50,10 @@ cdvr_status cdvr_skip_minmax_from_frame(cdvr_skip_grid *g, const uint8_t *frame,
 /* The flags, bricks_visible and visible box for tf, unless they are valid for the same set of
  * TF entries with alpha > 0 already. Returns 1 if the flags were made again. */
 int cdvr_skip_flags(cdvr_skip_grid *g, const cdvr_tf *tf);
-/* The same for the codes whose visible_entry is not 0 (e.g. the ray caster's iso skipping:
- * the code floor(iso code), cl_render.c). */
-int cdvr_skip_flags_of(cdvr_skip_grid *g, const uint8_t visible_entry[256]);
+/* Flags as above from g's ranges for the codes whose visible_entry is not 0 (e.g. the ray
+ * caster's iso skipping: the code floor(iso code), cl_render.c) into flags (nbricks bytes),
+ * with g->scratch as scratch; g's own flags, count and box stay as they are. */
+void cdvr_skip_flags_into(cdvr_skip_grid *g, const uint8_t visible_entry[256], uint8_t *flags);
 
 /* The minmax, flags, bricks_visible and visible box of fine (a grid of the same volume whose
  * bricks are 2^(coarse shift - fine shift) times smaller per axis) from coarse, whose flags

@@ -118,11 +118,10 @@ struct cdvr_cl_stream {
     size_t minmax_frame;         /* frame grid.minmax belongs to, (size_t)-1 for none */
     int grid_uploaded;           /* brick_visible holds another grid's flags (setup_grid) */
     uint64_t minmax_count;       /* grid.minmax computations so far (compute_minmax) */
-    cl_mem iso_flags;            /* nbricks uchar flags of iso_grid (iso skipping, raycast.cl) */
-    cdvr_skip_grid iso_grid;     /* a copy of grid.minmax (computation iso_minmax) with the
-                                    flags of the codes around an iso code */
-    uint64_t iso_minmax;         /* minmax_count of iso_grid's ranges, 0: none */
-    int iso_uploaded;            /* iso_flags holds iso_grid's flags */
+    cl_mem iso_flags;            /* nbricks uchar flags of grid.minmax for the code iso_mark
+                                    (iso skipping, raycast.cl; cl_render.c, iso_flags_ready) */
+    uint64_t iso_minmax;         /* minmax_count of the ranges iso_flags holds, 0: none */
+    int iso_mark;                /* the code they mark, -1: none */
     cdvr_tf tf;                  /* TF of the last setup */
     size_t setup_frame;          /* frame of the last setup, (size_t)-1 for none */
     size_t bricks_visible;

@@ -101,29 +101,33 @@ static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *e
  * (cdvr_cl_setup_grid) or on any failure. */
 static int iso_flags_ready(cdvr_cl_stream *s, size_t frame, float code)
 {
-    cdvr_error ignored;
     if (!s->skipping || s->grid_uploaded || s->minmax_frame != frame || !s->minmax_count)
         return 0;
+    double whole = floor(code); /* outside 0..255: no sample can reach the code */
+    int mark = whole >= 0 && whole <= 255 ? (int)whole : -1;
+    if (s->iso_minmax == s->minmax_count && s->iso_mark == mark)
+        return 1;
+    s->iso_minmax = 0;
+    cdvr_error ignored;
     size_t cap = s->iso_flags ? s->nbricks : 0;
-    if (!s->iso_grid.minmax &&
-        cdvr_skip_grid_init(&s->iso_grid, s->dims, CDVR_CL_BRICK_SHIFT, &ignored) != CDVR_OK)
+    uint8_t *flags = malloc(s->nbricks);
+    if (!flags || cdvr_cl_ensure_buffer(s->cl, &s->iso_flags, &cap, s->nbricks,
+                                        CL_MEM_READ_ONLY, "iso brick flags", &ignored) != CDVR_OK) {
+        free(flags);
         return 0;
-    if (cdvr_cl_ensure_buffer(s->cl, &s->iso_flags, &cap, s->nbricks, CL_MEM_READ_ONLY,
-                              "iso brick flags", &ignored) != CDVR_OK)
-        return 0;
-    if (s->iso_minmax != s->minmax_count) {
-        memcpy(s->iso_grid.minmax, s->grid.minmax, 2 * s->nbricks);
-        cdvr_skip_grid_touch(&s->iso_grid);
-        s->iso_minmax = s->minmax_count;
     }
-    uint8_t marks[256] = {0}; /* floor(code) outside 0..255: no sample can reach the code */
-    double whole = floor(code);
-    if (whole >= 0 && whole <= 255)
-        marks[(int)whole] = 1;
-    if (cdvr_skip_flags_of(&s->iso_grid, marks) || !s->iso_uploaded)
-        s->iso_uploaded = write_buffer(s->cl, s->iso_flags, s->iso_grid.flags, s->nbricks,
-                                       "upload iso brick flags", &ignored) == CDVR_OK;
-    return s->iso_uploaded;
+    uint8_t marks[256] = {0};
+    if (mark >= 0)
+        marks[mark] = 1;
+    cdvr_skip_flags_into(&s->grid, marks, flags);
+    cdvr_status st = write_buffer(s->cl, s->iso_flags, flags, s->nbricks,
+                                  "upload iso brick flags", &ignored);
+    free(flags);
+    if (st != CDVR_OK)
+        return 0;
+    s->iso_minmax = s->minmax_count;
+    s->iso_mark = mark;
+    return 1;
 }
 
 /* Uploads the flags of grid g and takes its visible box and count. */

@@ -114,7 +114,6 @@ void cdvr_cl_stream_free(cdvr_cl_stream *s)
     for (size_t i = 0; i < sizeof mems / sizeof *mems; i++)
         cdvr_cl_release(mems[i]);
     cdvr_skip_grid_free(&s->grid);
-    cdvr_skip_grid_free(&s->iso_grid);
     free(s);
 }
 
