@@ -123,6 +123,17 @@ void cdvr_volume_touch(cdvr_volume *vol)
     vol->revision++;
 }
 
+cdvr_frame_stamp cdvr_volume_stamp(const cdvr_volume *vol, size_t t)
+{
+    cdvr_frame_stamp stamp = {vol, cdvr_volume_frame(vol, t), vol->revision};
+    return stamp;
+}
+
+int cdvr_frame_stamp_same(cdvr_frame_stamp a, cdvr_frame_stamp b)
+{
+    return a.vol && a.vol == b.vol && a.voxels == b.voxels && a.revision == b.revision;
+}
+
 size_t cdvr_volume_voxels(const cdvr_volume *vol)
 {
     return vol->dims[0] * vol->dims[1] * vol->dims[2];

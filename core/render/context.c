@@ -16,17 +16,6 @@
 #include "cdvr/gl.h"
 #include "cdvr/store.h"
 
-/* Frame t of a held volume as it was uploaded: while the volume is held (alive, never freed)
- * equal fields mean equal voxels (volume.h: revision). */
-typedef struct held_frame {
-    const cdvr_volume *vol;
-    const void *voxels;
-    size_t dims[3];
-    cdvr_type type;
-    size_t t;
-    uint64_t revision;
-} held_frame;
-
 struct cdvr_render_ctx {
     cdvr_cl *cl;
     int cl_failed;               /* cdvr_cl_open failed: cl_error says why */
@@ -36,7 +25,7 @@ struct cdvr_render_ctx {
     uint8_t *frame_copy;         /* host copy of the voxels of the stream's frame 0, or NULL */
     size_t frame_bytes;
     const cdvr_volume *held;     /* cdvr_render_ctx_hold_volume's volume, or NULL */
-    held_frame uploaded;         /* the held volume's frame on the stream (vol NULL: none) */
+    cdvr_frame_stamp uploaded;   /* the held volume's frame on the stream (vol NULL: none) */
     uint64_t uploads;            /* frames sent by cdvr_render_ctx_upload */
     cdvr_gl *gl;
     cdvr_brick_cache *cache;     /* the brick cache of the last cached store render, or NULL */
@@ -206,23 +195,6 @@ static int same_bytes(const uint8_t *a, const uint8_t *b, size_t bytes)
     return lower_equal && upper.equal;
 }
 
-static held_frame frame_of(const cdvr_volume *vol, size_t t)
-{
-    held_frame f = {vol, cdvr_volume_frame(vol, t), {vol->dims[0], vol->dims[1], vol->dims[2]},
-                    vol->type, t, vol->revision};
-    return f;
-}
-
-/* 1 when the stream's frame 0 is frame t of the held volume vol at its current revision. */
-static int holds_frame(const cdvr_render_ctx *ctx, const cdvr_volume *vol, size_t t)
-{
-    held_frame now = frame_of(vol, t);
-    const held_frame *up = &ctx->uploaded;
-    return vol == ctx->held && up->vol == vol && up->voxels == now.voxels &&
-           memcmp(up->dims, now.dims, sizeof now.dims) == 0 && up->type == now.type &&
-           up->t == t && up->revision == now.revision;
-}
-
 /* The frame of a held volume is known by its identity and revision (O(1), no host copy);
  * any other volume may have been edited in place (v:set) or freed and another allocated at
  * its address, so its voxels are compared with a host copy of what was uploaded (memcmp is
@@ -230,7 +202,8 @@ static int holds_frame(const cdvr_render_ctx *ctx, const cdvr_volume *vol, size_
 cdvr_status cdvr_render_ctx_upload(cdvr_render_ctx *ctx, cdvr_cl_stream *s,
                                    const cdvr_volume *vol, size_t t, cdvr_error *err)
 {
-    if (holds_frame(ctx, vol, t))
+    /* the stream's frame 0 is frame t of the held volume at its current revision */
+    if (vol == ctx->held && cdvr_frame_stamp_same(ctx->uploaded, cdvr_volume_stamp(vol, t)))
         return CDVR_OK;
     const uint8_t *voxels = cdvr_volume_frame(vol, t);
     size_t bytes = cdvr_volume_voxels(vol);
@@ -238,7 +211,7 @@ cdvr_status cdvr_render_ctx_upload(cdvr_render_ctx *ctx, cdvr_cl_stream *s,
     if (ctx->frame_copy && ctx->frame_bytes == bytes && same_bytes(ctx->frame_copy, voxels, bytes)) {
         if (held) { /* known by identity from now on: the copy is not needed */
             cdvr_render_ctx_forget_frame(ctx);
-            ctx->uploaded = frame_of(vol, t);
+            ctx->uploaded = cdvr_volume_stamp(vol, t);
         }
         return CDVR_OK;
     }
@@ -248,7 +221,7 @@ cdvr_status cdvr_render_ctx_upload(cdvr_render_ctx *ctx, cdvr_cl_stream *s,
         return st;
     ctx->uploads++;
     if (held) {
-        ctx->uploaded = frame_of(vol, t);
+        ctx->uploaded = cdvr_volume_stamp(vol, t);
         return CDVR_OK;
     }
     ctx->frame_copy = malloc(bytes ? bytes : 1);

@@ -98,6 +98,18 @@ void cdvr_volume_free(cdvr_volume *vol);
  * directly calls it, after the writes and before the volume is rendered again. It changes
  * nothing else (the window of a non-u8 volume is set back to NAN by the writer, see above). */
 void cdvr_volume_touch(cdvr_volume *vol);
+/* Which voxels of which volume at which revision: for a volume that stays alive (a held one,
+ * cdvr_render_ctx_hold_volume in cdvr/method.h), two equal stamps mean the same voxels. A
+ * zeroed stamp (vol NULL) is none. */
+typedef struct cdvr_frame_stamp {
+    const cdvr_volume *vol;
+    const void *voxels;  /* the frame's first voxel */
+    uint64_t revision;
+} cdvr_frame_stamp;
+/* The stamp of frame t of vol now. */
+cdvr_frame_stamp cdvr_volume_stamp(const cdvr_volume *vol, size_t t);
+/* 1 when a and b name the same frame of the same volume at the same revision (none: 0). */
+int cdvr_frame_stamp_same(cdvr_frame_stamp a, cdvr_frame_stamp b);
 
 /* Voxels per frame (dims product) and bytes per frame. */
 size_t cdvr_volume_voxels(const cdvr_volume *vol);

@@ -1596,8 +1596,7 @@ struct cdvr_cpu_skip_cache {
     uint8_t *wide;           /* wide_ranges of grid.minmax (2 per brick), or NULL */
     int wide_valid;          /* wide was made from the ranges in grid.minmax */
     const cdvr_volume *held; /* cdvr_cpu_skip_cache_hold's volume, or NULL */
-    const void *held_voxels; /* grid.minmax holds the ranges of these voxels of held at */
-    uint64_t held_revision;  /* this revision (held_voxels NULL: not known) */
+    cdvr_frame_stamp ranges_of; /* the held frame grid.minmax holds the ranges of, or none */
 };
 
 cdvr_status cdvr_cpu_skip_cache_create(cdvr_cpu_skip_cache **out, cdvr_error *err)
@@ -1613,7 +1612,7 @@ void cdvr_cpu_skip_cache_hold(cdvr_cpu_skip_cache *c, const cdvr_volume *vol)
     if (!c || vol == c->held)
         return;
     c->held = vol; /* the one held before may be freed now, another allocated at its address */
-    c->held_voxels = NULL;
+    memset(&c->ranges_of, 0, sizeof c->ranges_of);
 }
 
 void cdvr_cpu_skip_cache_free(cdvr_cpu_skip_cache *c)
@@ -1669,12 +1668,12 @@ static cdvr_skip_grid *cached_ranges(cdvr_cpu_skip_cache *c, const render_job *j
     }
     /* a held volume's frame at the revision the ranges were made from: the same ranges */
     int held = vol == c->held;
-    if (held && c->ranges_valid && c->held_voxels == (const void *)job->voxels &&
-        c->held_revision == vol->revision) {
+    cdvr_frame_stamp now = {vol, job->voxels, vol->revision}; /* this render's frame */
+    if (held && c->ranges_valid && cdvr_frame_stamp_same(c->ranges_of, now)) {
         *same = 1;
         return g;
     }
-    c->held_voxels = NULL;
+    memset(&c->ranges_of, 0, sizeof c->ranges_of);
     /* the new ranges into scratch (2 bytes per brick, as minmax), then compared */
     if (cdvr_cpu_brick_ranges(job->voxels, vol->dims, g->shift, threads, g->scratch,
                               &ignored) != CDVR_OK) {
@@ -1684,10 +1683,8 @@ static cdvr_skip_grid *cached_ranges(cdvr_cpu_skip_cache *c, const render_job *j
     size_t bytes = 2 * g->nbricks;
     *same = c->ranges_valid && memcmp(g->scratch, g->minmax, bytes) == 0;
     c->ranges_valid = 1;
-    if (held) {
-        c->held_voxels = job->voxels;
-        c->held_revision = vol->revision;
-    }
+    if (held)
+        c->ranges_of = now;
     if (!*same) {
         uint8_t *fresh = g->scratch;
         g->scratch = g->minmax;
