@@ -60,6 +60,11 @@ void cdvr_render_ctx_hold_volume(cdvr_render_ctx *ctx, const cdvr_volume *vol)
     cdvr_cpu_skip_cache_hold(ctx->cpu_skip, vol);
 }
 
+const cdvr_volume *cdvr_render_ctx_held(const cdvr_render_ctx *ctx)
+{
+    return ctx->held;
+}
+
 uint64_t cdvr_render_ctx_uploads(const cdvr_render_ctx *ctx)
 {
     return ctx->uploads;

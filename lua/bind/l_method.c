@@ -17,7 +17,6 @@
 /* User value 1: the userdata of the volume the context holds (lcdvr_render_ctx_hold), or nil. */
 typedef struct lctx {
     cdvr_render_ctx *ctx;
-    const cdvr_volume *held;
 } lctx;
 
 static int ctx_gc(lua_State *L)
@@ -25,7 +24,6 @@ static int ctx_gc(lua_State *L)
     lctx *c = (lctx *)luaL_checkudata(L, 1, LCDVR_RENDER_CTX);
     cdvr_render_ctx_free(c->ctx);
     c->ctx = NULL;
-    c->held = NULL;
     return 0;
 }
 
@@ -48,7 +46,6 @@ cdvr_render_ctx *lcdvr_render_ctx(lua_State *L)
     }
     lctx *c = (lctx *)lua_newuserdatauv(L, sizeof *c, 1); /* userdata first, then the object */
     c->ctx = NULL;
-    c->held = NULL;
     luaL_setmetatable(L, LCDVR_RENDER_CTX);
     cdvr_error err;
     if (cdvr_render_ctx_create(&c->ctx, &err) != CDVR_OK)
@@ -57,32 +54,33 @@ cdvr_render_ctx *lcdvr_render_ctx(lua_State *L)
     return c->ctx;
 }
 
+/* The context c, its userdata on top of the stack, holds vol, whose userdata is at absolute
+ * index idx (vol NULL: none) and becomes the context's user value. */
+static void ctx_hold(lua_State *L, lctx *c, int idx, const cdvr_volume *vol)
+{
+    if (vol)
+        lua_pushvalue(L, idx);
+    else
+        lua_pushnil(L);                          /* ctx, volume or nil */
+    cdvr_render_ctx_hold_volume(c->ctx, vol);    /* before the old userdata may go */
+    lua_setiuservalue(L, -2, 1);                 /* ctx */
+}
+
 void lcdvr_render_ctx_hold(lua_State *L, int idx, const cdvr_volume *vol)
 {
     idx = idx ? lua_absindex(L, idx) : 0;
-    cdvr_render_ctx *ctx = lcdvr_render_ctx(L);
-    lua_getfield(L, LUA_REGISTRYINDEX, CTX_KEY);
-    lctx *c = (lctx *)lua_touserdata(L, -1);
-    if (idx && vol)
-        lua_pushvalue(L, idx);
-    else
-        lua_pushnil(L);
-    cdvr_render_ctx_hold_volume(ctx, idx ? vol : NULL); /* before the old userdata may go */
-    c->held = idx ? vol : NULL;
-    lua_setiuservalue(L, -2, 1);
+    lcdvr_render_ctx(L);
+    lua_getfield(L, LUA_REGISTRYINDEX, CTX_KEY); /* ctx */
+    ctx_hold(L, (lctx *)lua_touserdata(L, -1), idx, idx ? vol : NULL);
     lua_pop(L, 1);
 }
 
 void lcdvr_render_ctx_release(lua_State *L, const cdvr_volume *vol)
 {
-    if (lua_getfield(L, LUA_REGISTRYINDEX, CTX_KEY) == LUA_TUSERDATA) {
+    if (lua_getfield(L, LUA_REGISTRYINDEX, CTX_KEY) == LUA_TUSERDATA) { /* ctx */
         lctx *c = (lctx *)lua_touserdata(L, -1);
-        if (c->ctx && vol && c->held == vol) {
-            cdvr_render_ctx_hold_volume(c->ctx, NULL);
-            c->held = NULL;
-            lua_pushnil(L);
-            lua_setiuservalue(L, -2, 1);
-        }
+        if (c->ctx && vol && cdvr_render_ctx_held(c->ctx) == vol)
+            ctx_hold(L, c, 0, NULL);
     }
     lua_pop(L, 1);
 }

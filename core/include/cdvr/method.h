@@ -254,6 +254,8 @@ void cdvr_render_ctx_forget_frame(cdvr_render_ctx *ctx);
  * context forgets the held volume's frame then. A context without a held volume works as
  * before (the memcmp path), as the player's does. */
 void cdvr_render_ctx_hold_volume(cdvr_render_ctx *ctx, const cdvr_volume *vol);
+/* The volume ctx holds, or NULL. */
+const cdvr_volume *cdvr_render_ctx_held(const cdvr_render_ctx *ctx);
 /* How many frames cdvr_render_ctx_upload sent to the device since ctx was created (a render
  * of a frame the device holds already sends none). */
 uint64_t cdvr_render_ctx_uploads(const cdvr_render_ctx *ctx);
