@@ -561,7 +561,6 @@ static vfloat length3x(vec3x a)
     return sqrt(a.x * a.x + a.y * a.y + a.z * a.z);
 }
 
-/* rgb' = min(1, rgb (ambient + diffuse |n.L|) + specular |n.H|^power), two-sided. */
 /* x^n per lane (n >= 0) by binary exponentiation, lowest bit first (render.h: the specular
  * term; the brick march's transparency of n segments of transparency x): pow is a call per
  * lane on a CPU device. */
@@ -584,6 +583,7 @@ static vfloat specular_power(vfloat x, float power)
     return pow(x, power);
 }
 
+/* rgb' = min(1, rgb (ambient + diffuse |n.L|) + specular |n.H|^power), two-sided. */
 static void shade_rgb(const look_params *lk, vec3x G, vec3x V, rgbax *c)
 {
     vfloat len = length3x(G);
@@ -1113,7 +1113,6 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
     return (rgbax){c.r * a, c.g * a, c.b * a, a};
 }
 
-/* The first crossing of the iso code per lane, refined by two regula-falsi steps, shaded. */
 /* render.h's iso: the first crossing along the samples, refined. With b (skipping: its flags
  * are made for the code floor(c), cl_render.c), a lane in a cube of bricks whose ranges do
  * not hold it (all its samples lie strictly on one side of c: adjacent bricks' ranges share

@@ -42,6 +42,7 @@ typedef struct render_job {
     int blend;
     int shade;                 /* shading on */
     float ambient, diffuse, specular, power;
+    int whole_power;           /* power when whole and at most CDVR_SHADE_WHOLE_POWER_MAX, else -1 */
     int headlight;
     float light[3];            /* world, towards the light (unit), when not a headlight */
     float dir[9];              /* D: box-frame directions to world */
@@ -289,14 +290,14 @@ static float length3(const float v[3])
 }
 
 /* render.h's x^power of the specular term: repeated squaring for a whole power up to
- * CDVR_SHADE_WHOLE_POWER_MAX, lowest bit first (raycast.cl's power_of multiplies in the same
- * order), else powf. */
-static float specular_power(float x, float power)
+ * CDVR_SHADE_WHOLE_POWER_MAX (job->whole_power), lowest bit first (raycast.cl's power_of
+ * multiplies in the same order), else powf. */
+static float specular_power(const render_job *job, float x)
 {
-    if (power != floorf(power) || power > (float)CDVR_SHADE_WHOLE_POWER_MAX)
-        return powf(x, power);
+    if (job->whole_power < 0)
+        return powf(x, job->power);
     float p = 1.0f;
-    for (unsigned n = (unsigned)power; n; n >>= 1) {
+    for (unsigned n = (unsigned)job->whole_power; n; n >>= 1) {
         if (n & 1u)
             p *= x;
         x *= x;
@@ -317,7 +318,7 @@ static void shade_rgb(const render_job *job, const float G[3], const float V[3],
         ndl = fabsf(n[0] * L[0] + n[1] * L[1] + n[2] * L[2]);
         ndh = hl > 0.0f ? fabsf(n[0] * H[0] + n[1] * H[1] + n[2] * H[2]) / hl : 0.0f;
     }
-    float spec = ndh > 0.0f ? job->specular * specular_power(ndh, job->power) : 0.0f;
+    float spec = ndh > 0.0f ? job->specular * specular_power(job, ndh) : 0.0f;
     float k = job->ambient + job->diffuse * ndl;
     for (int c = 0; c < 3; c++)
         rgb[c] = min_f(rgb[c] * k + spec, 1.0f);
@@ -1394,6 +1395,10 @@ static void setup_look(render_job *job, const cdvr_render_opts *opts, const doub
     job->diffuse = (float)sh->diffuse;
     job->specular = (float)sh->specular;
     job->power = (float)sh->specular_power;
+    job->whole_power = job->power == floorf(job->power) &&
+                               job->power <= (float)CDVR_SHADE_WHOLE_POWER_MAX
+                           ? (int)job->power
+                           : -1;
     job->headlight = !sh->light_fixed;
     double len = sqrt(sh->light_dir[0] * sh->light_dir[0] + sh->light_dir[1] * sh->light_dir[1] +
                       sh->light_dir[2] * sh->light_dir[2]);
