@@ -848,6 +848,20 @@ static inline void lanes_segment(const lanes *L, __m128 step, __m128 *ds, __m128
     *tm = _mm_add_ps(ts, _mm_mul_ps(_mm_set1_ps(0.5f), *ds));
 }
 
+/* Step 2 at the four lanes' segment midpoints tm: grid positions clamped into the volume (gv)
+ * and their lower corners (gi). */
+static inline void lanes_position(const render_job *job, const lanes *L, __m128 tm,
+                                  __m128 gv[3], int gi[3][LANES])
+{
+    const __m128 zero = _mm_setzero_ps();
+    for (int a = 0; a < 3; a++) {
+        __m128 p = _mm_add_ps(_mm_loadu_ps(L->o[a]), _mm_mul_ps(tm, _mm_loadu_ps(L->d[a])));
+        __m128 top = _mm_set1_ps((float)(job->dims[a] - 1));
+        gv[a] = _mm_min_ps(_mm_max_ps(_mm_mul_ps(p, _mm_set1_ps(job->inv_spacing[a])), zero), top);
+        _mm_storeu_si128((__m128i *)gi[a], _mm_cvttps_epi32(gv[a]));
+    }
+}
+
 /* Steps 2-3 for the live lanes at their segment index: lanes in empty space (composite:
  * invisible bricks; max, min: dull bricks; average: bricks of zeros) jump, the others
  * interpolate their sample into *s (sampling[k] = 1; ds[k] its segment length). Returns 0
@@ -855,20 +869,16 @@ static inline void lanes_segment(const lanes *L, __m128 step, __m128 *ds, __m128
 static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], float dsv[LANES],
                         __m128 *s)
 {
-    const __m128 step = _mm_set1_ps(job->step), zero = _mm_setzero_ps();
+    const __m128 step = _mm_set1_ps(job->step);
     __m128 ds, tm;
     lanes_segment(L, step, &ds, &tm);
     float (*g)[LANES] = L->g;
     int gi[3][LANES];
     _mm_storeu_ps(dsv, ds);
     __m128 gv[3];
-    for (int a = 0; a < 3; a++) {
-        __m128 p = _mm_add_ps(_mm_loadu_ps(L->o[a]), _mm_mul_ps(tm, _mm_loadu_ps(L->d[a])));
-        __m128 top = _mm_set1_ps((float)(job->dims[a] - 1));
-        gv[a] = _mm_min_ps(_mm_max_ps(_mm_mul_ps(p, _mm_set1_ps(job->inv_spacing[a])), zero), top);
+    lanes_position(job, L, tm, gv, gi);
+    for (int a = 0; a < 3; a++)
         _mm_storeu_ps(g[a], gv[a]);
-        _mm_storeu_si128((__m128i *)gi[a], _mm_cvttps_epi32(gv[a]));
-    }
     int v[8][LANES];
     memset(v, 0, sizeof v);
     for (int k = 0; k < LANES; k++) {
@@ -956,7 +966,7 @@ static void lanes_extreme(const render_job *job, lanes *L, const int sampling[LA
  * miss becomes the predecessor and may jump as iso_jump does. Returns the lanes still live. */
 static int lanes_iso_step(const render_job *job, lanes *L)
 {
-    const __m128 step = _mm_set1_ps(job->step), zero = _mm_setzero_ps();
+    const __m128 step = _mm_set1_ps(job->step);
     __m128 ds, tm;
     lanes_segment(L, step, &ds, &tm);
     float dsv[LANES], tmv[LANES], sv[LANES];
@@ -964,12 +974,7 @@ static int lanes_iso_step(const render_job *job, lanes *L)
     _mm_storeu_ps(dsv, ds);
     _mm_storeu_ps(tmv, tm);
     __m128 gv[3];
-    for (int a = 0; a < 3; a++) {
-        __m128 p = _mm_add_ps(_mm_loadu_ps(L->o[a]), _mm_mul_ps(tm, _mm_loadu_ps(L->d[a])));
-        __m128 top = _mm_set1_ps((float)(job->dims[a] - 1));
-        gv[a] = _mm_min_ps(_mm_max_ps(_mm_mul_ps(p, _mm_set1_ps(job->inv_spacing[a])), zero), top);
-        _mm_storeu_si128((__m128i *)gi[a], _mm_cvttps_epi32(gv[a]));
-    }
+    lanes_position(job, L, tm, gv, gi);
     memset(v, 0, sizeof v);
     for (int k = 0; k < LANES; k++) {
         if (L->live[k] && !(dsv[k] > 0.0f)) /* the definition stops before an empty last one */
