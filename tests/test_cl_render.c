@@ -5,8 +5,8 @@
  * over large empty regions, and over compact blobs, where rays start and stop at the box
  * around the visible bricks); without skipping the sample counts equal the CPU's; zero/full
  * opacity, tiny and huge steps; odd image sizes; oriented volumes (oblique, mirrored, sheared);
- * the voxel layouts (a frame's voxels, its quads on a second render, 64-bit indices) give the
- * same pixels and samples, also on volumes one voxel thick in x or y; misuse errors. */
+ * the voxel layouts (a frame's voxels, its tiled copy on a second render, 64-bit indices)
+ * give the same pixels and samples, also on volumes one voxel thick in x or y; misuse errors. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -179,8 +179,9 @@ static void engine_scenes(cdvr_cl *cl, const char *data)
 }
 
 /* The ray caster's voxel layouts give the same image: the first render reads the frame's
- * voxels, a render of the same frame again reads its quads (the stream grows by 4 bytes per
- * voxel), and 64-bit voxel indices (CDVR_CL_LONG_INDEX=1) read the voxels too. */
+ * voxels, a render of the same frame again reads its tiled copy (the stream grows by a byte
+ * per voxel, in whole tiles), and 64-bit voxel indices (CDVR_CL_LONG_INDEX=1) read the
+ * voxels too. */
 static void check_layouts(cdvr_cl *cl, const cdvr_volume *vol, const scene *sc)
 {
     cdvr_error err;
@@ -210,10 +211,10 @@ static void check_layouts(cdvr_cl *cl, const cdvr_volume *vol, const scene *sc)
         cdvr_cl_stream_free(s);
         unsetenv("CDVR_CL_LONG_INDEX");
     }
-    size_t tiled = 1; /* quads fill whole 4x4x4 tiles (kernels/common/cl_shared.h) */
+    size_t tiled = 1; /* the copy fills whole 4x4x4 tiles (kernels/common/cl_shared.h) */
     for (int a = 0; a < 3; a++)
         tiled *= (vol->dims[a] + 3) / 4 * 4;
-    CHECK(bytes[1] == bytes[0] + 4 * tiled, "%s: quads of %zu voxels (%zu in tiles): stream "
+    CHECK(bytes[1] == bytes[0] + tiled, "%s: tiled copy of %zu voxels (%zu in tiles): stream "
           "%llu -> %llu bytes", sc->name, cdvr_volume_voxels(vol), tiled,
           (unsigned long long)bytes[0], (unsigned long long)bytes[1]);
     for (int k = 1; k < 4; k++)
@@ -255,7 +256,7 @@ static void synthetic_scenes(cdvr_cl *cl)
         CHECK(check_scene(&sc) > 0.02, "%s is empty", sc.name);
         check_layouts(cl, vol, &sc);
     }
-    /* flat volumes: the quads' clamped neighbours along x and along y */
+    /* flat volumes: the tiled copy's clamped neighbours along x and along y */
     static const size_t flat[2][3] = {{1, 9, 7}, {8, 1, 6}};
     for (int f = 0; f < 2; f++) {
         cdvr_generate_opts g2 = {{flat[f][0], flat[f][1], flat[f][2]}, 1, CDVR_TYPE_U8, 0, 0, 0, 0};

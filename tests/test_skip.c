@@ -8,7 +8,10 @@
  * exactly as setup from the device's own min/max kernel, taking the same samples with 4^3
  * tables and at least as many with coarser ones; a store written with 4^3 LZO tables before
  * (tests/data/v2_lzo_store.cdv) reads them as the ranges of its decoded frames; a packed table
- * claiming another size, or index flags claiming two packings, are refused. */
+ * claiming another size, or index flags claiming two packings, are refused; the entry
+ * distances (cdvr_skip_entry_tiles) never lie past the first visible brick of any pixel's ray
+ * (perspective and orthographic views, axis-aligned and rotated volumes, anisotropic
+ * spacing, cells of 1, 2 and 4 bricks) and are off with the eye inside the volume. */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -418,10 +421,190 @@ static void test_hostile_tables(void)
     unlink(bad);
 }
 
+/* ---- entry distances ------------------------------------------------------------------- */
+
+/* t where the ray o + t d (grid units per t: d) enters box lo..hi, or +inf if it misses. */
+static double enter_box(const double o[3], const double d[3], const double lo[3],
+                        const double hi[3])
+{
+    double t0 = -INFINITY, t1 = INFINITY;
+    for (int a = 0; a < 3; a++) {
+        if (d[a] == 0.0) {
+            if (o[a] < lo[a] || o[a] > hi[a])
+                return INFINITY;
+            continue;
+        }
+        double u = (lo[a] - o[a]) / d[a], w = (hi[a] - o[a]) / d[a];
+        t0 = fmax(t0, fmin(u, w));
+        t1 = fmin(t1, fmax(u, w));
+    }
+    return t0 <= t1 && t1 >= 0.0 ? fmax(t0, 0.0) : INFINITY;
+}
+
+/* The ray of pixel (px, py) as the ray caster casts it (cdvr_skip_view), in the grid: origin
+ * and direction per unit of t. */
+static void pixel_ray(const cdvr_skip_view *v, int px, int py, double o[3], double d[3])
+{
+    double sx = (2.0 * (px + 0.5) / v->width - 1.0) * v->aspect;
+    double sy = 2.0 * (py + 0.5) / v->height - 1.0, w[3], from[3], len = 0;
+    for (int a = 0; a < 3; a++) {
+        double side = sx * v->r[a] - sy * v->u[a];
+        w[a] = v->orthographic ? v->f[a] : v->f[a] + side * v->tan_half;
+        from[a] = v->eye[a] + (v->orthographic ? side * v->ortho_half_height : 0.0);
+        len += w[a] * w[a];
+    }
+    for (int a = 0; a < 3; a++)
+        w[a] /= sqrt(len);
+    /* D is a rotation here: D^-1 = D^T */
+    for (int c = 0; c < 3; c++) {
+        o[c] = d[c] = 0;
+        for (int r = 0; r < 3; r++) {
+            o[c] += v->direction[3 * r + c] * (from[r] - v->origin[r]);
+            d[c] += v->direction[3 * r + c] * w[r];
+        }
+        o[c] /= v->spacing[c];
+        d[c] /= v->spacing[c];
+    }
+}
+
+/* A camera at distance `dist` from the volume's centre (world), looking at it from azimuth
+ * az and elevation el (degrees). */
+static void orbit(cdvr_skip_view *v, const double centre[3], double dist, double az, double el,
+                  int ortho)
+{
+    double a = az * M_PI / 180, e = el * M_PI / 180;
+    double eye[3] = {centre[0] + dist * cos(e) * cos(a), centre[1] + dist * cos(e) * sin(a),
+                     centre[2] + dist * sin(e)};
+    double up[3] = {0, 0, 1}, fl = 0, dot = 0, ul = 0;
+    for (int i = 0; i < 3; i++) {
+        v->eye[i] = eye[i];
+        v->f[i] = centre[i] - eye[i];
+        fl += v->f[i] * v->f[i];
+    }
+    for (int i = 0; i < 3; i++)
+        v->f[i] /= sqrt(fl);
+    for (int i = 0; i < 3; i++)
+        dot += up[i] * v->f[i];
+    for (int i = 0; i < 3; i++) {
+        v->u[i] = up[i] - dot * v->f[i];
+        ul += v->u[i] * v->u[i];
+    }
+    for (int i = 0; i < 3; i++)
+        v->u[i] /= sqrt(ul);
+    v->r[0] = v->f[1] * v->u[2] - v->f[2] * v->u[1];
+    v->r[1] = v->f[2] * v->u[0] - v->f[0] * v->u[2];
+    v->r[2] = v->f[0] * v->u[1] - v->f[1] * v->u[0];
+    v->tan_half = tan(20 * M_PI / 180);
+    v->aspect = (double)v->width / v->height;
+    v->orthographic = ortho;
+    v->ortho_half_height = dist * 0.4;
+}
+
+/* Every pixel's ray reaches no visible sample before its tile's bound (a visible brick's
+ * cells, within the volume's box, entered at t >= bound; none where the bound is +inf), and
+ * some tiles get +inf. Returns how many pixels' bounds lie past the volume's near face. */
+static size_t check_entry_view(const cdvr_skip_grid *g, const cdvr_skip_entry *e,
+                               const cdvr_skip_view *v, const char *what)
+{
+    const int tw = 4, th = 4;
+    size_t tx = (size_t)(v->width + tw - 1) / tw, ty = (size_t)(v->height + th - 1) / th;
+    float *tiles = malloc(tx * ty * sizeof *tiles);
+    CHECK(cdvr_skip_entry_tiles(e, v, tw, th, tx, ty, tiles) == 1, "%s: entry tiles made", what);
+    size_t early = 0, none = 0, bounded = 0;
+    double vol_lo[3] = {0, 0, 0}, vol_hi[3];
+    for (int a = 0; a < 3; a++)
+        vol_hi[a] = (double)g->vol_dims[a] - 1.0;
+    for (int py = 0; py < v->height; py++)
+        for (int px = 0; px < v->width; px++) {
+            double o[3], d[3], first = INFINITY;
+            pixel_ray(v, px, py, o, d);
+            double near = enter_box(o, d, vol_lo, vol_hi);
+            for (size_t b = 0; b < g->nbricks && isfinite(near); b++) {
+                if (g->flags[b] < 128)
+                    continue;
+                size_t at[3] = {b % g->dims[0], b / g->dims[0] % g->dims[1],
+                                b / (g->dims[0] * g->dims[1])};
+                double lo[3], hi[3];
+                for (int a = 0; a < 3; a++) {
+                    lo[a] = fmax((double)(at[a] << g->shift), 0.0);
+                    hi[a] = fmin((double)((at[a] + 1) << g->shift), vol_hi[a]);
+                }
+                first = fmin(first, enter_box(o, d, lo, hi));
+            }
+            float bound = tiles[(size_t)(py / th) * tx + (size_t)(px / tw)];
+            early += first < bound;
+            none += isinf(bound);
+            bounded += isfinite(bound) && bound > near + 1.0;
+        }
+    CHECK(early == 0, "%s: %zu rays meet a visible brick before their tile's bound", what,
+          early);
+    CHECK(none > 0, "%s: no pixel without a visible brick", what);
+    free(tiles);
+    return bounded;
+}
+
+static void test_entry(void)
+{
+    size_t d[3] = {41, 27, 30};
+    uint8_t *f = malloc(d[0] * d[1] * d[2]);
+    fill_frame(f, d, 0);
+    cdvr_skip_grid g;
+    cdvr_error err;
+    CHECK_OK(cdvr_skip_grid_init(&g, d, 2, &err), err);
+    CHECK_OK(cdvr_skip_minmax_from_frame(&g, f, &err), err);
+    cdvr_tf tf;
+    tf_window(&tf, 100, 180);
+    cdvr_skip_flags(&g, &tf);
+    cdvr_skip_entry e = {0};
+    double c30 = cos(M_PI / 6), s30 = sin(M_PI / 6);
+    const double rotation[9] = {c30, -s30, 0, s30, c30, 0, 0, 0, 1};
+    for (unsigned cell = 0; cell <= 2; cell++) {
+        size_t bounded = 0;
+        CHECK_OK(cdvr_skip_entry_make(&e, &g, cell, &err), err);
+        CHECK(e.count > 0, "cells of 2^%u bricks: boxes", cell);
+        for (int k = 0; k < 6; k++) {
+            cdvr_skip_view v;
+            memset(&v, 0, sizeof v);
+            v.width = 37 + 10 * (k & 1);
+            v.height = 29;
+            const double spacing[3] = {1.0, 1.3, 0.8}, origin[3] = {-5, 3, 2};
+            memcpy(v.spacing, spacing, sizeof spacing);
+            memcpy(v.origin, origin, sizeof origin);
+            memcpy(v.direction, k >= 3 ? rotation : (const double[9]){1, 0, 0, 0, 1, 0, 0, 0, 1},
+                   sizeof v.direction);
+            double centre[3];
+            for (int r = 0; r < 3; r++) {
+                centre[r] = origin[r];
+                for (int c = 0; c < 3; c++)
+                    centre[r] += v.direction[3 * r + c] * 0.5 * (double)(d[c] - 1) * spacing[c];
+            }
+            orbit(&v, centre, 90, 30 + 70 * k, k == 2 ? -60 : 25, k == 4);
+            char what[80];
+            snprintf(what, sizeof what, "cells 2^%u, view %d", cell, k);
+            bounded += check_entry_view(&g, &e, &v, what);
+            if (k == 0) { /* an eye inside the volume: no bound */
+                memcpy(v.eye, centre, sizeof centre);
+                float tile;
+                CHECK(cdvr_skip_entry_tiles(&e, &v, 4, 4, 1, 1, &tile) == 0,
+                      "eye inside: no entry tiles");
+            }
+        }
+        CHECK(bounded > 0, "cells of 2^%u bricks: no bound past the volume's face", cell);
+    }
+    tf_window(&tf, 250, 254); /* nothing visible: every tile +inf */
+    cdvr_skip_flags(&g, &tf);
+    CHECK_OK(cdvr_skip_entry_make(&e, &g, 2, &err), err);
+    CHECK(e.count == 0, "nothing visible: no boxes");
+    cdvr_skip_entry_free(&e);
+    cdvr_skip_grid_free(&g);
+    free(f);
+}
+
 int main(void)
 {
     test_distance();
     test_flags();
+    test_entry();
     test_store_grid(CDVR_RANGE_SHIFT);
     test_store_grid(3);
     test_store_grid(4);

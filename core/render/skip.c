@@ -284,3 +284,204 @@ cdvr_status cdvr_skip_grid_expand(const cdvr_skip_grid *coarse, cdvr_skip_grid *
     fine->flags_valid = 1;
     return CDVR_OK;
 }
+
+/* ---- entry distances ---------------------------------------------------------------------- */
+
+void cdvr_skip_entry_free(cdvr_skip_entry *e)
+{
+    free(e->boxes);
+    e->boxes = NULL;
+    e->count = e->capacity = 0;
+}
+
+/* A visible brick met first by a ray from outside: one with an invisible brick among its 26
+ * neighbours (code 128 + 1) or on the grid's border (bricks beyond it count as invisible). */
+static int boundary_brick(const cdvr_skip_grid *g, size_t x, size_t y, size_t z, uint8_t code)
+{
+    const size_t *n = g->dims;
+    return code >= 128 && (code == 129 || x == 0 || y == 0 || z == 0 || x + 1 == n[0] ||
+                           y + 1 == n[1] || z + 1 == n[2]);
+}
+
+/* Appends the grid box (a voxel of margin, clamped to [-1, dims]) around the boundary
+ * bricks of the cell from brick c0 (cell_edge bricks per axis), if it has any. */
+static int add_cell_box(cdvr_skip_entry *e, const cdvr_skip_grid *g, const size_t c0[3],
+                        size_t cell_edge)
+{
+    size_t lo[3] = {SIZE_MAX, SIZE_MAX, SIZE_MAX}, hi[3] = {0, 0, 0}, end[3];
+    for (int a = 0; a < 3; a++)
+        end[a] = c0[a] + cell_edge < g->dims[a] ? c0[a] + cell_edge : g->dims[a];
+    for (size_t z = c0[2]; z < end[2]; z++)
+        for (size_t y = c0[1]; y < end[1]; y++)
+            for (size_t x = c0[0]; x < end[0]; x++) {
+                if (!boundary_brick(g, x, y, z, g->flags[x + g->dims[0] * (y + g->dims[1] * z)]))
+                    continue;
+                size_t at[3] = {x, y, z};
+                for (int a = 0; a < 3; a++) {
+                    lo[a] = at[a] < lo[a] ? at[a] : lo[a];
+                    hi[a] = at[a] > hi[a] ? at[a] : hi[a];
+                }
+            }
+    if (lo[0] == SIZE_MAX)
+        return 1;
+    if (e->count == e->capacity) {
+        size_t cap = e->capacity ? 2 * e->capacity : 256;
+        float *grown = realloc(e->boxes, cap * 6 * sizeof *grown);
+        if (!grown)
+            return 0;
+        e->boxes = grown;
+        e->capacity = cap;
+    }
+    float *box = e->boxes + 6 * e->count++;
+    for (int a = 0; a < 3; a++) {
+        double top = (double)g->vol_dims[a];
+        box[a] = (float)((double)(lo[a] << g->shift) - 1.0);
+        box[3 + a] = (float)fmin((double)((hi[a] + 1) << g->shift) + 1.0, top);
+    }
+    return 1;
+}
+
+cdvr_status cdvr_skip_entry_make(cdvr_skip_entry *e, const cdvr_skip_grid *g, unsigned cell_log2,
+                                 cdvr_error *err)
+{
+    e->count = 0;
+    e->version++;
+    if (!g->flags_valid)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "skip entry list: the grid's flags are not made");
+    if (cell_log2 > 8)
+        return cdvr_error_set(err, CDVR_ERR_ARG,
+                              "skip entry list: cells of 2^%u bricks (at most 2^8)", cell_log2);
+    e->cell_log2 = cell_log2;
+    memcpy(e->vol_dims, g->vol_dims, sizeof e->vol_dims);
+    size_t edge = (size_t)1 << cell_log2, c[3];
+    for (c[2] = 0; c[2] < g->dims[2]; c[2] += edge)
+        for (c[1] = 0; c[1] < g->dims[1]; c[1] += edge)
+            for (c[0] = 0; c[0] < g->dims[0]; c[0] += edge)
+                if (!add_cell_box(e, g, c, edge)) {
+                    e->count = 0;
+                    return cdvr_error_set(err, CDVR_ERR_NOMEM, "skip entry list: no memory for "
+                                          "%zu boxes", 2 * e->capacity);
+                }
+    return CDVR_OK;
+}
+
+static double dot3(const double a[3], const double b[3])
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+/* Corner k (bit 0: x, 1: y, 2: z from hi) of grid box lo..hi, relative to the eye. */
+static void corner_from_eye(const cdvr_skip_view *v, const double lo[3], const double hi[3],
+                            int k, double out[3])
+{
+    double q[3]; /* box frame (physical units) */
+    for (int a = 0; a < 3; a++)
+        q[a] = ((k >> a) & 1 ? hi[a] : lo[a]) * v->spacing[a];
+    for (int r = 0; r < 3; r++)
+        out[r] = v->origin[r] + dot3(v->direction + 3 * r, q) - v->eye[r];
+}
+
+/* Screen position (pixel units, pixel centres at whole numbers) of a point at p from the eye
+ * with view depth `depth` > 0. */
+static void project(const cdvr_skip_view *v, const double p[3], double depth, double *px,
+                    double *py)
+{
+    double scale = v->orthographic ? v->ortho_half_height : depth * v->tan_half;
+    double sx = dot3(p, v->r) / (scale * v->aspect), sy = -dot3(p, v->u) / scale;
+    *px = (sx + 1.0) * 0.5 * v->width - 0.5;
+    *py = (sy + 1.0) * 0.5 * v->height - 0.5;
+}
+
+/* The least view depth of grid box lo..hi and its pixel rectangle [x0, x1] x [y0, y1] (a
+ * pixel of margin, clamped to the image); 0 when it covers no pixel or lies behind the eye. */
+static int box_footprint(const cdvr_skip_view *v, const double lo[3], const double hi[3],
+                         double *depth_min, int rect[4])
+{
+    double x_lo = INFINITY, x_hi = -INFINITY, y_lo = INFINITY, y_hi = -INFINITY;
+    *depth_min = INFINITY;
+    for (int k = 0; k < 8; k++) {
+        double p[3], px, py;
+        corner_from_eye(v, lo, hi, k, p);
+        double depth = dot3(p, v->f);
+        if (!(depth > 0.0))
+            return 0;
+        project(v, p, depth, &px, &py);
+        *depth_min = fmin(*depth_min, depth);
+        x_lo = fmin(x_lo, px);
+        x_hi = fmax(x_hi, px);
+        y_lo = fmin(y_lo, py);
+        y_hi = fmax(y_hi, py);
+    }
+    x_lo = fmax(floor(x_lo) - 1.0, 0.0);
+    y_lo = fmax(floor(y_lo) - 1.0, 0.0);
+    x_hi = fmin(ceil(x_hi) + 1.0, v->width - 1.0);
+    y_hi = fmin(ceil(y_hi) + 1.0, v->height - 1.0);
+    if (!(x_lo <= x_hi && y_lo <= y_hi))
+        return 0;
+    rect[0] = (int)x_lo;
+    rect[1] = (int)x_hi;
+    rect[2] = (int)y_lo;
+    rect[3] = (int)y_hi;
+    return 1;
+}
+
+/* The pixel-centre coordinate in [-1, 1] of pixel i of n, and of the tile's pixel [i0, i1]
+ * nearest 0 (the axis). */
+static double nearest_axis(int i0, int i1, int n)
+{
+    double a = 2.0 * (i0 + 0.5) / n - 1.0, b = 2.0 * (i1 + 0.5) / n - 1.0;
+    return a <= 0.0 && b >= 0.0 ? 0.0 : fabs(a) < fabs(b) ? a : b;
+}
+
+/* Turns the tiles' least depths into bounds of t: t = depth / cos(ray, f) on a perspective
+ * ray, so dividing by the tile's largest cosine keeps a lower bound. */
+static void depth_to_t(const cdvr_skip_view *v, int tile_w, int tile_h, size_t tiles_x,
+                       size_t tiles_y, float *tiles)
+{
+    for (size_t ty = 0; ty < tiles_y; ty++)
+        for (size_t tx = 0; tx < tiles_x; tx++) {
+            float *t = tiles + ty * tiles_x + tx;
+            if (!isfinite(*t) || v->orthographic)
+                continue;
+            int x0 = (int)tx * tile_w, y0 = (int)ty * tile_h;
+            double sx = nearest_axis(x0, x0 + tile_w - 1, v->width) * v->aspect;
+            double sy = nearest_axis(y0, y0 + tile_h - 1, v->height);
+            double cos_max = 1.0 / sqrt(1.0 + (sx * sx + sy * sy) * v->tan_half * v->tan_half);
+            *t = (float)(*t / cos_max * (1.0 - 1e-6));
+        }
+}
+
+int cdvr_skip_entry_tiles(const cdvr_skip_entry *e, const cdvr_skip_view *v, int tile_w,
+                          int tile_h, size_t tiles_x, size_t tiles_y, float *tiles)
+{
+    double vol_lo[3] = {-1.0, -1.0, -1.0}, vol_hi[3];
+    for (int a = 0; a < 3; a++)
+        vol_hi[a] = (double)e->vol_dims[a];
+    for (int k = 0; k < 8; k++) { /* every box corner in front of the eye */
+        double p[3];
+        corner_from_eye(v, vol_lo, vol_hi, k, p);
+        if (!(dot3(p, v->f) > 0.0))
+            return 0;
+    }
+    size_t n = tiles_x * tiles_y;
+    for (size_t i = 0; i < n; i++)
+        tiles[i] = INFINITY;
+    for (size_t b = 0; b < e->count; b++) {
+        const float *box = e->boxes + 6 * b;
+        double lo[3] = {box[0], box[1], box[2]}, hi[3] = {box[3], box[4], box[5]}, depth;
+        int rect[4];
+        if (!box_footprint(v, lo, hi, &depth, rect))
+            continue;
+        float d = (float)(depth * (1.0 - 1e-6)); /* rounded down, in float */
+        size_t tx1 = (size_t)(rect[1] / tile_w), ty1 = (size_t)(rect[3] / tile_h);
+        tx1 = tx1 < tiles_x ? tx1 : tiles_x - 1;
+        ty1 = ty1 < tiles_y ? ty1 : tiles_y - 1;
+        for (size_t ty = (size_t)(rect[2] / tile_h); ty <= ty1; ty++)
+            for (size_t tx = (size_t)(rect[0] / tile_w); tx <= tx1; tx++) {
+                float *t = tiles + ty * tiles_x + tx;
+                *t = d < *t ? d : *t;
+            }
+    }
+    depth_to_t(v, tile_w, tile_h, tiles_x, tiles_y, tiles);
+    return 1;
+}

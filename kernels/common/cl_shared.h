@@ -18,12 +18,12 @@ typedef int32_t cdvr_cl_i32;
  * in lock-step on 16-wide vectors (lanes row by row). */
 #define CDVR_CL_PACKET_W 4
 #define CDVR_CL_PACKET_H 4
-/* The ray caster's quads (kernels/render/raycast.cl) are stored in tiles of 4 x 4 x 4 voxels
- * (64 words, 256 bytes: four cache lines), tiles x fastest, then y, z; within a tile x
- * fastest, then y, z. The buffer holds whole tiles: ceil(dims / 4) of them per axis. A
- * sample's two quad reads (planes z0 and z0 + 1) and the neighbouring rays of a packet then
- * fall on a few nearby cache lines instead of rows and planes apart. */
-#define CDVR_CL_QUAD_TILE_SHIFT 2
+/* The ray caster's tiled copy of a frame (kernels/render/raycast.cl) holds its voxels in tiles
+ * of 4 x 4 x 4 (64 bytes: one cache line), tiles x fastest, then y, z; within a tile x
+ * fastest, then y, z, so each tile row of 4 voxels is one 32-bit word (the shift must stay 2).
+ * The buffer holds whole tiles: ceil(dims / 4) of them per axis; voxels past the frame's
+ * edge repeat its last voxel (never read). */
+#define CDVR_CL_TILE_SHIFT 2
 /* The largest whole specular power taken by repeated squaring: CDVR_SHADE_WHOLE_POWER_MAX of
  * render.h, shading (cl_render.c checks that they agree). */
 #define CDVR_CL_WHOLE_POWER_MAX 128.0f

@@ -37,30 +37,24 @@ __kernel void brick_minmax(__global const uchar *frames, __constant uchar *param
     minmax[b] = (uchar2)((uchar)lo, (uchar)hi);
 }
 
-/* The quads of a dense frame for the ray caster (raycast.cl): per voxel (x, y, z), one word
- * holding voxels (x, y), (x1, y), (x, y1), (x1, y1) of its plane, low byte first, with
- * x1 = min(x + 1, X - 1) and y1 = min(y + 1, Y - 1), at its place in the tiled layout of
- * kernels/common/cl_shared.h (quad_slot; the padding of the last tiles is never read). One
- * work-item per voxel. */
-static size_t quad_slot(uint x, uint y, uint z, uint X, uint Y)
-{
-    const uint sh = CDVR_CL_QUAD_TILE_SHIFT, m = (1u << sh) - 1u;
-    size_t tx = (X + m) >> sh, ty = (Y + m) >> sh;
-    size_t tile = ((size_t)(z >> sh) * ty + (y >> sh)) * tx + (x >> sh);
-    return (tile << (3 * sh)) + ((z & m) << (2 * sh)) + ((y & m) << sh) + (x & m);
-}
-
-__kernel void make_quads(__global const uchar *frames, ulong offset, uint X, uint Y, uint Z,
-                         __global uint *quads)
+/* The tiled copy of a dense frame for the ray caster (kernels/common/cl_shared.h): one
+ * work-item per tile row (a 32-bit word, low byte first), rows = tiles * 16; voxels past the
+ * frame's edge repeat its last one. */
+__kernel void make_tiles(__global const uchar *frames, ulong offset, uint X, uint Y, uint Z,
+                         __global uint *tiles)
 {
     size_t i = get_global_id(0);
-    if (i >= (size_t)X * Y * Z)
+    const uint edge = 1u << CDVR_CL_TILE_SHIFT;
+    uint tx = (X + edge - 1) / edge, ty = (Y + edge - 1) / edge, tz = (Z + edge - 1) / edge;
+    if (i >= (size_t)tx * ty * tz * 16)
         return;
-    __global const uchar *f = frames + offset;
-    uint x = i % X, y = (i / X) % Y, z = i / ((size_t)X * Y);
-    size_t row = i - x, up = y + 1 < Y ? X : 0;
-    uint x1 = x + 1 < X ? x + 1 : x;
-    quads[quad_slot(x, y, z, X, Y)] = (uint)f[row + x] | (uint)f[row + x1] << 8 |
-                                      (uint)f[row + up + x] << 16 |
-                                      (uint)f[row + up + x1] << 24;
+    size_t tile = i >> 4;
+    uint ly = (uint)i & 3u, lz = ((uint)i >> 2) & 3u;
+    uint cx = tile % tx, cy = (tile / tx) % ty, cz = tile / ((size_t)tx * ty);
+    uint y = min(edge * cy + ly, Y - 1), z = min(edge * cz + lz, Z - 1);
+    __global const uchar *row = frames + offset + ((size_t)z * Y + y) * X;
+    uint word = 0;
+    for (uint k = 0; k < 4; k++)
+        word |= (uint)row[min(edge * cx + k, X - 1)] << (8 * k);
+    tiles[i] = word;
 }

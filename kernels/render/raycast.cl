@@ -14,19 +14,24 @@
  * left in its run and none after it terminates, so the samples and their order are those of
  * one sample per step.
  *
- * Dense frames are read as rows of voxel pairs, or, when the host made them for a frame it
- * renders again (cdvr_cl_render), as "quads": one 32-bit word per voxel holding its 2x2
- * neighbourhood in x and y, stored in 4x4x4 tiles (kernels/common/cl_shared.h), so a sample
- * is two gathers instead of eight loads, from nearby cache lines. Both give the
- * same values. Voxel indices are 32-bit unless the program is built with
- * -DCDVR_LONG_INDEX (frames of 2^31 voxels or more; no quads then).
+ * Dense frames are read as rows of voxel pairs, or, when the host made it for a frame it
+ * renders again (cdvr_cl_render), from a tiled copy: the voxels in 4x4x4 tiles of 64 bytes,
+ * one cache line each (kernels/common/cl_shared.h), read as 32-bit tile rows, so a sample's
+ * eight voxels mostly lie on one line and a frame's rays touch a quarter of the lines that a
+ * 4-byte-per-voxel layout (each voxel with its 2x2 neighbourhood, read in two gathers) did:
+ * misses, not gathers, limit the march. Both give the same values. Voxel indices are 32-bit
+ * unless the program is built with -DCDVR_LONG_INDEX (frames of 2^31 voxels or more; no tiled
+ * copy then).
  *
  * Rays are carried in grid (voxel) coordinates: sample i of the full segments sits at
  * g0 + i*dg. Empty-space skipping walks the brick grid: for the brick holding a lane's current
  * sample it computes, in sample units, where the ray leaves the cube of like bricks around
  * it; an invisible cube is jumped in one step (conservatively, so a skipped sample is always
  * inside it), a visible cube's samples need no further look-ups. Skipped samples are exactly
- * those whose value range has zero opacity under the TF.
+ * those whose value range has zero opacity under the TF. With skipping on, the host may also
+ * give each packet a bound of the ray parameter before which none of its rays can meet a
+ * visible brick (cdvr/skip.h, entry distances; composite only): lanes start at the sample
+ * before it, and a packet whose bound is +inf stores the image of no sample without casting.
  *
  * Built after kernels/render/brick_cache.cl (which defines CDVR_BRICK_CACHE), the composite
  * blend can march through the brick cache's payload brick by brick instead of fetching every
@@ -71,8 +76,8 @@ typedef struct volume_geo {
     __global const uchar *vol;
     __constant uchar *params;
     int frame;
-    int quads;      /* vol holds the frame's quads (see the top of this file) */
-    int2 quad_tiles; /* quad tiles along x and y (kernels/common/cl_shared.h) */
+    int tiled;      /* vol holds the frame's tiled copy (see the top of this file) */
+    int2 tile_counts; /* tiles along x and y (kernels/common/cl_shared.h) */
     int3 dims;
     int3 base_max;  /* largest lower trilinear corner per axis: max(dims - 2, 0) */
     long3 stride;   /* index step to the upper corner per axis; 0 where dims is 1 */
@@ -198,16 +203,6 @@ static vfloat lerp_pairs(ushort16 w, vfloat fx)
 }
 #endif
 
-#ifndef CDVR_LONG_INDEX
-/* The quads of each lane at q[idx] (one gather) and their x-lerps: rows y0 and y1. */
-#define QUAD_AT(k) q[idx.s##k]
-static void lerp_quads(__global const uint *q, vint idx, vfloat fx, vfloat *row0, vfloat *row1)
-{
-    vuint w = (vuint)(L16(QUAD_AT));
-    *row0 = mix(convert_vfloat(w & 0xffu), convert_vfloat((w >> 8) & 0xffu), fx);
-    *row1 = mix(convert_vfloat((w >> 16) & 0xffu), convert_vfloat(w >> 24), fx);
-}
-#endif
 
 #ifdef CDVR_FETCH
 /* Voxel (x, y, z) of each lane through the codec's fetch function. */
@@ -226,13 +221,38 @@ static vfloat fetch16(const volume_geo *v, vint x, vint y, vint z)
 #endif
 
 #ifndef CDVR_LONG_INDEX
-/* Where the quad of voxel (x, y, z) lies: the tiled layout of kernels/common/cl_shared.h
- * (make_quads in bricks.cl writes it; the host keeps tiles * 64 below 2^31). */
-static vint quad_index(const volume_geo *v, vint x, vint y, vint z)
+/* The tiled copy's word offsets of voxel rows (kernels/common/cl_shared.h; make_tiles in
+ * bricks.cl writes it, the host keeps its words below 2^31): word(x, y, z) = along_x(x) +
+ * along_y(y) + along_z(z) is the tile row holding voxel (x, y, z), at byte x & 3 of it. */
+static vint along_x(vint x)
 {
-    const int sh = CDVR_CL_QUAD_TILE_SHIFT, m = (1 << sh) - 1;
-    vint tile = ((z >> sh) * v->quad_tiles.y + (y >> sh)) * v->quad_tiles.x + (x >> sh);
-    return (tile << (3 * sh)) + ((z & m) << (2 * sh)) + ((y & m) << sh) + (x & m);
+    return (x >> CDVR_CL_TILE_SHIFT) << (3 * CDVR_CL_TILE_SHIFT - 2);
+}
+
+static vint along_y(const volume_geo *v, vint y)
+{
+    const int m = (1 << CDVR_CL_TILE_SHIFT) - 1;
+    return (y >> CDVR_CL_TILE_SHIFT) * (v->tile_counts.x << (3 * CDVR_CL_TILE_SHIFT - 2)) + (y & m);
+}
+
+static vint along_z(const volume_geo *v, vint z)
+{
+    const int m = (1 << CDVR_CL_TILE_SHIFT) - 1;
+    return (z >> CDVR_CL_TILE_SHIFT) *
+               (v->tile_counts.x * v->tile_counts.y << (3 * CDVR_CL_TILE_SHIFT - 2)) +
+           ((z & m) << CDVR_CL_TILE_SHIFT);
+}
+
+/* The x-lerp of voxels x0 and x1 (words at row + wx0 and row + wx1, bytes at bit offsets sh0
+ * and sh1) of each lane's row: two gathers, the same word unless x1 starts the next tile. */
+#define ROW_WORD0(k) q[w0.s##k]
+#define ROW_WORD1(k) q[w1.s##k]
+static vfloat lerp_row(__global const uint *q, vint row, vint wx0, vint wx1, vuint sh0,
+                       vuint sh1, vfloat fx)
+{
+    vint w0 = row + wx0, w1 = row + wx1;
+    vuint a = (vuint)(L16(ROW_WORD0)), b = (vuint)(L16(ROW_WORD1));
+    return mix(convert_vfloat((a >> sh0) & 0xffu), convert_vfloat((b >> sh1) & 0xffu), fx);
 }
 #endif
 
@@ -428,11 +448,18 @@ __attribute__((always_inline)) static inline vfloat trilinear_on(const volume_ge
     __global const uchar *p = v->vol;
     vfloat c00, c10, c01, c11;
 #ifndef CDVR_LONG_INDEX
-    if (v->quads) {
+    if (v->tiled) {
         __global const uint *q = (__global const uint *)p;
+        vint x1 = x0 + (sx != 0), y1 = y0 + (sy != 0), z1 = z0 + (sz != 0);
+        vint wx0 = along_x(x0), wx1 = along_x(x1);
+        vuint sh0 = as_uint16((x0 & 3) << 3), sh1 = as_uint16((x1 & 3) << 3);
+        vint wy0 = along_y(v, y0), wy1 = along_y(v, y1);
+        vint wz0 = along_z(v, z0), wz1 = along_z(v, z1);
         vint zero = (vint)(0);
-        lerp_quads(q, select(zero, quad_index(v, x0, y0, z0), on), fx, &c00, &c10);
-        lerp_quads(q, select(zero, quad_index(v, x0, y0, z0 + (sz != 0)), on), fx, &c01, &c11);
+        c00 = lerp_row(q, select(zero, wy0 + wz0, on), wx0, wx1, sh0, sh1, fx);
+        c10 = lerp_row(q, select(zero, wy1 + wz0, on), wx0, wx1, sh0, sh1, fx);
+        c01 = lerp_row(q, select(zero, wy0 + wz1, on), wx0, wx1, sh0, sh1, fx);
+        c11 = lerp_row(q, select(zero, wy1 + wz1, on), wx0, wx1, sh0, sh1, fx);
         return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
     }
 #endif
@@ -1189,15 +1216,15 @@ static rgbax march_iso(const packet *p, vint n, float step, float3 inv_spacing,
 }
 
 static volume_geo make_geo(__global const uchar *vol, __constant uchar *params, int frame,
-                           int quads, int X, int Y, int Z, const clip_params *clip)
+                           int tiled, int X, int Y, int Z, const clip_params *clip)
 {
     volume_geo v;
     v.vol = vol;
     v.params = params;
     v.frame = frame;
-    v.quads = quads;
-    v.quad_tiles = (int2)((X + (1 << CDVR_CL_QUAD_TILE_SHIFT) - 1) >> CDVR_CL_QUAD_TILE_SHIFT,
-                          (Y + (1 << CDVR_CL_QUAD_TILE_SHIFT) - 1) >> CDVR_CL_QUAD_TILE_SHIFT);
+    v.tiled = tiled;
+    v.tile_counts = (int2)((X + (1 << CDVR_CL_TILE_SHIFT) - 1) >> CDVR_CL_TILE_SHIFT,
+                          (Y + (1 << CDVR_CL_TILE_SHIFT) - 1) >> CDVR_CL_TILE_SHIFT);
     v.dims = (int3)(X, Y, Z);
     v.base_max = max(v.dims - 2, 0);
     v.stride = (long3)(X > 1 ? 1 : 0, Y > 1 ? (long)X : 0, Z > 1 ? (long)X * (long)Y : 0);
@@ -1278,8 +1305,8 @@ __attribute__((always_inline)) static inline void visible_range(vec3x g0, vec3x 
     *stop = min(convert_vint(exit), n_full);
 }
 
-/* frames/params/offset: a dense frame at frames + offset (params unused; with quads != 0, the
- * frame's quads), or, with CDVR_FETCH, the chunk payload, its parameter blob and the frame
+/* frames/params/offset: a dense frame at frames + offset (params unused; with tiled != 0, the
+ * frame's tiled copy), or, with CDVR_FETCH, the chunk payload, its parameter blob and the frame
  * index within the chunk.
  * Geometry as render_cpu.c holds it: the box frame (origin, D^-1), 1/spacing and the box's
  * upper corner (dims-1)*spacing in the box frame (computed in double on the host; the whole
@@ -1287,7 +1314,7 @@ __attribute__((always_inline)) static inline void visible_range(vec3x g0, vec3x 
  * shorter last segment). Bricks: edge 1 << brick_shift, counts nbx, nby, nbz, skipping on/off.
  * Work-item (gx, gy) renders the PACKET_W x PACKET_H pixels from (PACKET_W gx, PACKET_H gy). */
 __kernel void raycast(__global const uchar *frames, __constant uchar *params, ulong offset,
-                      int quads, int X, int Y, int Z,
+                      int tiled, int X, int Y, int Z,
                       box_frame box, float isx, float isy, float isz,
                       float hx, float hy, float hz,
                       float step, float term_alpha, cam_params cam, clip_params clip,
@@ -1296,7 +1323,8 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
                       int nbx, int nby, int nbz, int skipping, float vlx, float vly,
                       float vlz, float vhx, float vhy, float vhz, __global float4 *image,
                       __global uint *samples, /* per work-item */
-                      look_params look, __global const uchar2 *brick_minmax, int minmax_valid)
+                      look_params look, __global const uchar2 *brick_minmax, int minmax_valid,
+                      __global const float *entry, int entry_tiles_x, int entry_on)
 {
     int px0 = get_global_id(0) * PACKET_W, py0 = get_global_id(1) * PACKET_H;
     size_t slot = get_global_id(1) * get_global_size(0) + get_global_id(0);
@@ -1306,6 +1334,13 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     }
     vint px = px0 + (vint)(0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3);
     vint py = py0 + (vint)(0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3);
+    if (entry_on && isinf(entry[get_global_id(1) * entry_tiles_x + get_global_id(0)])) {
+        /* no ray of the packet meets a visible brick: the image of no sample */
+        rgbax none = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
+        store_pixels(image, px, py, cam.width, cam.height, none);
+        samples[slot] = 0;
+        return;
+    }
     packet p;
     camera_rays(&cam, px, py, &p);
     p.hit = px < cam.width & py < cam.height;
@@ -1334,7 +1369,7 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     v.limit = (uint)min(bc_payload_bytes(params) - 2, (ulong)UINT_MAX);
 #endif
 #else
-    volume_geo v = make_geo(frames + offset, params, 0, quads, X, Y, Z, &clip);
+    volume_geo v = make_geo(frames + offset, params, 0, tiled, X, Y, Z, &clip);
 #endif
     if (look.blend != 0) { /* max, min, average, iso: no TF skipping, no termination */
         vint taken;
@@ -1372,6 +1407,12 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
         visible_range(g0, dg, vis_lo, vis_hi, m.n_full, &m.i, &stop);
         last &= stop >= m.n_full; /* the last segment lies beyond the full ones */
         m.n_full = stop;
+        if (entry_on) { /* no visible sample before t = entry (cdvr/skip.h, entry distances) */
+            float te = entry[get_global_id(1) * entry_tiles_x + get_global_id(0)];
+            vfloat first = floor((te - p.t_near) / step - 0.5f) - 1.0f;
+            first = clamp(first, 0.0f, convert_vfloat(m.n_full));
+            m.i = max(m.i, convert_vint(first));
+        }
     }
     if (clip.enabled) { /* only the samples near the owned cells (owned() decides); the host
                            turns skipping off for clipped renders */

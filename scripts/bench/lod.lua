@@ -169,7 +169,7 @@ local function bench_hvq()
     end
   end
   -- runs instead of alternation: the dense render of the same frame again is its best case
-  -- (the device keeps the frame and makes its quads, raycast.cl); the cache at a quarter
+  -- (the device keeps the frame and makes its tiled copy, raycast.cl); the cache at a quarter
   local quarter = {variant = "hvq", cache = true, budget_mb = quarter_mb, lod_error = 1}
   local rms, qms, qs = {}, {}, nil
   local n_run = 3 * int("repeats")

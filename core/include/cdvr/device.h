@@ -179,8 +179,10 @@ cdvr_status cdvr_cl_setup_grid(cdvr_cl_stream *s, size_t frame, const cdvr_tf *t
 
 /* b5: ray casts device frame `frame` with the TF of the last cdvr_cl_setup (which must have
  * been called for this frame) following render.h exactly, in float. A frame rendered a second
- * time in a row gets a 4-byte-per-voxel copy ("quads") that the ray caster reads faster; the
- * images are the same. Frames of 2^31 voxels or more use kernels with 64-bit voxel indices
+ * time in a row gets a tiled copy (a byte per voxel in 4x4x4 tiles of one cache line) that
+ * the ray caster reads faster; the images are the same; with empty-space skipping, rays start
+ * at a per-packet bound of where they can first meet a visible brick (cdvr/skip.h, entry
+ * distances). Frames of 2^31 voxels or more use kernels with 64-bit voxel indices
  * (built on first use; the environment variable CDVR_CL_LONG_INDEX=1 forces them, for tests). The volume's geometry:
  * spacing, origin and direction (volume.h: row-major 3x3, column c = world direction of index
  * axis c; NULL or all zeros = identity; must be invertible). opts->tf is used only

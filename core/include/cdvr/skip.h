@@ -69,4 +69,48 @@ cdvr_status cdvr_skip_grid_expand(const cdvr_skip_grid *coarse, cdvr_skip_grid *
  * chamfer, which is exact for the chessboard metric. */
 void cdvr_skip_distance(const uint8_t *seed, uint8_t *dist, const size_t dims[3]);
 
+/* ---- entry distances --------------------------------------------------------------------
+ * Where a ray can first meet a visible brick, per screen tile, so the ray caster starts its
+ * rays there instead of walking the empty space in front of the data. A ray that starts
+ * outside the grid meets a visible brick first at a boundary brick (a visible brick with an
+ * invisible or missing 26-neighbour: code 129 or on the grid's border): the entry list holds,
+ * per cell of 2^cell_log2 bricks per axis, the grid box (voxel units, with a voxel of margin
+ * for rounding) around the cell's boundary bricks. cdvr_skip_entry_tiles projects the boxes
+ * with a camera: a tile's value is the least depth along the view axis of any box whose
+ * screen footprint (the corners' hull, a pixel of margin) covers one of its pixel centres,
+ * divided by the largest cosine of the tile's rays to the view axis: a lower bound of the ray
+ * parameter t (world distance along the unit ray) of every visible sample of the tile's
+ * rays. Samples before it lie in invisible bricks, so starting there skips exactly the
+ * samples brick skipping would skip (images and sample counts unchanged). */
+typedef struct cdvr_skip_entry {
+    float *boxes;          /* 6 per box: grid lo x, y, z, hi x, y, z */
+    size_t count, capacity;
+    unsigned cell_log2;
+    size_t vol_dims[3];
+    uint64_t version;      /* +1 on each cdvr_skip_entry_make */
+} cdvr_skip_entry;
+
+/* The camera and the volume's placement, as the ray caster takes them (render.h): rays from
+ * eye (perspective) along normalize(f + (sx aspect r - sy u) tan_half), or from
+ * eye + (sx aspect r - sy u) ortho_half_height along f (orthographic), sx, sy the pixel
+ * centre in [-1, 1] (y down); f, u, r orthonormal. A grid point g (voxel units) lies at world
+ * origin + direction * (g * spacing), direction row-major. */
+typedef struct cdvr_skip_view {
+    double eye[3], f[3], u[3], r[3];
+    double tan_half, aspect, ortho_half_height;
+    int orthographic, width, height;
+    double origin[3], direction[9], spacing[3];
+} cdvr_skip_view;
+
+/* The entry list of g's flags (which must be made) for cells of 2^cell_log2 bricks. */
+cdvr_status cdvr_skip_entry_make(cdvr_skip_entry *e, const cdvr_skip_grid *g, unsigned cell_log2,
+                                 cdvr_error *err);
+void cdvr_skip_entry_free(cdvr_skip_entry *e);
+/* Fills tiles (tiles_x * tiles_y, row by row; tile (x, y) holds pixels from
+ * (tile_w x, tile_h y)) with the entry bounds of e for view v, +inf where no visible brick can
+ * be met. Returns 0 and fills nothing when the bound does not apply: some corner of the volume
+ * box is not in front of the eye (a camera inside or beside the volume). */
+int cdvr_skip_entry_tiles(const cdvr_skip_entry *e, const cdvr_skip_view *v, int tile_w,
+                          int tile_h, size_t tiles_x, size_t tiles_y, float *tiles);
+
 #endif

@@ -51,8 +51,8 @@ struct cdvr_cl {
     cl_device_id device;
     cl_context context;
     cl_command_queue queue;
-    cl_program program;              /* dense brick min/max, ray cast and quads */
-    cl_kernel k_bricks, k_raycast, k_quads;
+    cl_program program;              /* dense brick min/max, ray cast, tiled copy */
+    cl_kernel k_bricks, k_raycast, k_tiles;
     cl_program program_long;         /* the same with 64-bit voxel indices (frames of 2^31
                                         voxels or more), built on first use */
     cl_kernel k_bricks_long, k_raycast_long;
@@ -106,9 +106,9 @@ struct cdvr_cl_stream {
                                     a max or min render uploads them) */
     int minmax_valid;            /* brick_minmax holds the set-up frame's ranges (the max and
                                     min blend modes skip by them) */
-    cl_mem quads;                /* quads of frame quads_frame for the ray caster (raycast.cl) */
-    size_t quads_capacity, quads_frame;
-    size_t last_rendered;        /* frame of the last render: a second render of it makes quads */
+    cl_mem tiles;                /* tiled copy of frame tiles_frame for the ray caster */
+    size_t tiles_capacity, tiles_frame;
+    size_t last_rendered;        /* frame of the last render: a second render of it makes tiles */
     cl_mem brick_visible;        /* nbricks uchar flags */
     cl_mem image;                /* width*height float4 */
     cl_mem samples;              /* uint sample counter per ray-cast work-item */
@@ -128,6 +128,12 @@ struct cdvr_cl_stream {
     cl_float visible_lo[3];      /* grid box holding every visible brick (lower corner of its */
     cl_float visible_hi[3];      /* bricks, +-inf at the grid's faces); lo > hi: none visible */
     int skipping;
+    cdvr_skip_entry entry;       /* boxes of the uploaded flags' boundary bricks (cdvr/skip.h) */
+    int entry_ok;                /* entry describes the flags in brick_visible */
+    cl_mem entry_tiles;          /* per packet: t before which no ray meets a visible brick */
+    size_t entry_capacity;       /* bytes of entry_tiles */
+    unsigned char entry_key[512]; /* the camera, placement and list the tiles were made for */
+    size_t entry_key_bytes;      /* 0: entry_tiles holds none */
     uint64_t last_samples;
     cdvr_cl_decode_path decode_path;      /* what cdvr_cl_decode may use (AUTO: choose) */
     cdvr_cl_decode_path last_decode_path; /* what the last decode used */

@@ -37,7 +37,7 @@ typedef struct voxel_source {
     cl_kernel k_bricks, k_raycast;
     cl_mem vol, params;
     cl_ulong offset;
-    cl_int quads;               /* vol holds the frame's quads (ray caster only) */
+    cl_int tiled;               /* vol holds the frame's tiled copy (ray caster only) */
 } voxel_source;
 
 static cdvr_status source_of(cdvr_cl_stream *s, size_t frame, voxel_source *v, cdvr_error *err)
@@ -130,7 +130,10 @@ static int iso_flags_ready(cdvr_cl_stream *s, size_t frame, float code)
     return 1;
 }
 
-/* Uploads the flags of grid g and takes its visible box and count. */
+/* Cells of the entry list (cdvr/skip.h): 2^2 bricks of 4 voxels per axis. */
+#define ENTRY_CELL_LOG2 2
+
+/* Uploads the flags of grid g and takes its visible box, count and entry list. */
 static cdvr_status use_grid(cdvr_cl_stream *s, const cdvr_skip_grid *g, cdvr_error *err)
 {
     s->bricks_visible = g->bricks_visible;
@@ -138,6 +141,9 @@ static cdvr_status use_grid(cdvr_cl_stream *s, const cdvr_skip_grid *g, cdvr_err
         s->visible_lo[a] = g->visible_lo[a];
         s->visible_hi[a] = g->visible_hi[a];
     }
+    cdvr_error ignored; /* without the list rays start at the visible box, as without a camera */
+    s->entry_ok = cdvr_skip_entry_make(&s->entry, g, ENTRY_CELL_LOG2, &ignored) == CDVR_OK;
+    s->entry_key_bytes = 0;
     return write_buffer(s->cl, s->brick_visible, g->flags, s->nbricks, "upload brick flags",
                         err);
 }
@@ -389,23 +395,89 @@ static cdvr_cl_look look_of(const cdvr_look *look, const cdvr_tf *tf, const box_
     return k;
 }
 
+/* The entry tiles of this render in s->entry_tiles (one per packet: global work-items), made
+ * again only when the camera, the volume's placement or the flags change. Returns 1 when the
+ * kernel may start its rays there; 0 leaves a buffer for the argument all the same. */
+static int entry_tiles_ready(cdvr_cl_stream *s, const cam_params *cam, const double spacing[3],
+                             const double origin[3], const double direction[9],
+                             const size_t global[2], int wanted)
+{
+    static const double identity[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    size_t tiles = global[0] * global[1], bytes = tiles * sizeof(float);
+    cdvr_error ignored;
+    size_t capacity = s->entry_capacity;
+    if (cdvr_cl_ensure_buffer(s->cl, &s->entry_tiles, &s->entry_capacity, wanted ? bytes : 4,
+                              CL_MEM_READ_ONLY, "entry tiles", &ignored) != CDVR_OK) {
+        s->entry_key_bytes = 0;
+        return 0;
+    }
+    if (s->entry_capacity != capacity) /* a new buffer: its contents are gone */
+        s->entry_key_bytes = 0;
+    if (!wanted || !s->entry_ok)
+        return 0;
+    int zero = 1;
+    for (int i = 0; direction && i < 9; i++)
+        zero &= direction[i] == 0.0;
+    cdvr_skip_view v;
+    memset(&v, 0, sizeof v);
+    for (int a = 0; a < 3; a++) {
+        v.eye[a] = cam->eye[a];
+        v.f[a] = cam->f[a];
+        v.u[a] = cam->u[a];
+        v.r[a] = cam->r[a];
+        v.origin[a] = origin[a];
+        v.spacing[a] = spacing[a];
+    }
+    memcpy(v.direction, direction && !zero ? direction : identity, sizeof v.direction);
+    v.tan_half = cam->tan_half;
+    v.aspect = cam->aspect;
+    v.ortho_half_height = cam->ortho_half_height;
+    v.orthographic = cam->orthographic;
+    v.width = cam->width;
+    v.height = cam->height;
+    unsigned char key[sizeof s->entry_key];
+    size_t key_bytes = 0;
+#define KEY(x) (memcpy(key + key_bytes, &(x), sizeof(x)), key_bytes += sizeof(x))
+    _Static_assert(sizeof v + sizeof s->entry.version + 2 * sizeof(size_t) <= sizeof key,
+                   "entry key fits");
+    KEY(v);
+    KEY(s->entry.version);
+    KEY(global[0]);
+    KEY(global[1]);
+#undef KEY
+    if (s->entry_key_bytes == key_bytes && !memcmp(s->entry_key, key, key_bytes))
+        return 1;
+    s->entry_key_bytes = 0;
+    float *map = malloc(bytes);
+    int usable = map && cdvr_skip_entry_tiles(&s->entry, &v, PACKET_W, PACKET_H, global[0],
+                                              global[1], map);
+    usable = usable && write_buffer(s->cl, s->entry_tiles, map, bytes, "upload entry tiles",
+                                    &ignored) == CDVR_OK;
+    free(map);
+    if (usable) {
+        memcpy(s->entry_key, key, key_bytes);
+        s->entry_key_bytes = key_bytes;
+    }
+    return usable;
+}
+
 /* Sets the ray-cast kernel's arguments (in the order of kernels/render/raycast.cl). A clipped
  * render casts the whole volume's rays and skips no empty space (the brick grid describes
  * the stream's own voxels only). */
 static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_params rp,
                                     const cam_params *cam, const cdvr_render_clip *clip,
                                     const double spacing[3], const box_frame *box,
-                                    const cdvr_cl_look *look, cl_mem image, cl_kernel *kernel,
-                                    cdvr_error *err)
+                                    const cdvr_cl_look *look, cl_mem image, cl_int entry_on,
+                                    cl_int entry_tiles_x, cl_kernel *kernel, cdvr_error *err)
 {
     voxel_source src;
     cdvr_status sst = source_of(s, frame, &src, err);
     if (sst)
         return sst;
-    if (!s->fetch && s->quads_frame == frame) {
-        src.vol = s->quads;
+    if (!s->fetch && s->tiles_frame == frame) {
+        src.vol = s->tiles;
         src.offset = 0;
-        src.quads = 1;
+        src.tiled = 1;
     }
     cl_kernel k = *kernel = src.k_raycast;
     cl_int ints[3] = {(cl_int)s->dims[0], (cl_int)s->dims[1], (cl_int)s->dims[2]};
@@ -438,7 +510,7 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
     struct {
         size_t size;
         const void *value;
-    } args[] = {{sizeof src.quads, &src.quads},
+    } args[] = {{sizeof src.tiled, &src.tiled},
                 {sizeof(cl_int), &ints[0]},   {sizeof(cl_int), &ints[1]},
                 {sizeof(cl_int), &ints[2]},   {sizeof *box, box},
                 {sizeof(cl_float), &geo[0]},  {sizeof(cl_float), &geo[1]},
@@ -456,7 +528,8 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
                 {sizeof(cl_float), &s->visible_hi[1]}, {sizeof(cl_float), &s->visible_hi[2]},
                 {sizeof(cl_mem), &image},     {sizeof(cl_mem), &s->samples},
                 {sizeof *look, look},         {sizeof(cl_mem), &s->brick_minmax},
-                {sizeof(cl_int), &minmax_valid}};
+                {sizeof(cl_int), &minmax_valid}, {sizeof(cl_mem), &s->entry_tiles},
+                {sizeof entry_tiles_x, &entry_tiles_x}, {sizeof entry_on, &entry_on}};
     cdvr_status st = set_source_args(k, "raycast", &src, err);
     for (cl_uint i = 0; !st && i < sizeof args / sizeof *args; i++)
         st = cdvr_cl_arg(k, "raycast", 3 + i, args[i].size, args[i].value, err);
@@ -464,16 +537,14 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
 }
 
 /* A frame rendered a second time (a scene shown again: another camera, TF or step) gets its
- * quads (raycast.cl), which the ray caster reads with two gathers per sample instead of eight
- * loads: 4 bytes per voxel in whole 4x4x4 tiles, so only below 2^29 words and when the
- * device takes the buffer.
- * Playback renders each frame once and never pays for them. On any failure the frame is
- * simply rendered from its voxels. */
-/* Words of the tiled quads of a frame of dims (whole tiles, kernels/common/cl_shared.h);
- * SIZE_MAX on overflow. */
-static size_t quad_slots(const size_t dims[3])
+ * tiled copy (kernels/common/cl_shared.h), which the ray caster reads from fewer cache lines:
+ * a byte per voxel in whole 4x4x4 tiles, so only below 2^31 bytes and when the device takes
+ * the buffer. Playback renders each frame once and never pays for it. On any failure the
+ * frame is simply rendered from its voxels. */
+/* Bytes of the tiled copy of a frame of dims (whole tiles); SIZE_MAX on overflow. */
+static size_t tiled_bytes(const size_t dims[3])
 {
-    size_t edge = (size_t)1 << CDVR_CL_QUAD_TILE_SHIFT, n = 1;
+    size_t edge = (size_t)1 << CDVR_CL_TILE_SHIFT, n = 1;
     for (int a = 0; a < 3; a++) {
         size_t tiles = dims[a] / edge + (dims[a] % edge != 0);
         if (!cdvr_size_mul(n, tiles * edge, &n))
@@ -482,39 +553,39 @@ static size_t quad_slots(const size_t dims[3])
     return n;
 }
 
-static void make_quads_if_rerendered(cdvr_cl_stream *s, size_t frame)
+static void make_tiles_if_rerendered(cdvr_cl_stream *s, size_t frame)
 {
     int again = s->last_rendered == frame;
     s->last_rendered = frame;
     const char *force_long = getenv("CDVR_CL_LONG_INDEX");
-    size_t slots = quad_slots(s->dims);
-    if (s->fetch || !again || s->quads_frame == frame || slots > INT_MAX / 4 ||
+    size_t bytes = tiled_bytes(s->dims), rows = bytes / 4;
+    if (s->fetch || !again || s->tiles_frame == frame || bytes > INT_MAX ||
         (force_long && !strcmp(force_long, "1")))
         return;
     cdvr_error err;
-    cl_kernel k = s->cl->k_quads;
+    cl_kernel k = s->cl->k_tiles;
     cl_ulong offset = frame * s->voxels;
     cl_mem frames = cdvr_cl_frames_mem(s);
     cl_uint d[3] = {(cl_uint)s->dims[0], (cl_uint)s->dims[1], (cl_uint)s->dims[2]};
-    cdvr_status st = cdvr_cl_ensure_buffer(s->cl, &s->quads, &s->quads_capacity, 4 * slots,
-                                           CL_MEM_READ_WRITE, "quads", &err);
+    cdvr_status st = cdvr_cl_ensure_buffer(s->cl, &s->tiles, &s->tiles_capacity, bytes,
+                                           CL_MEM_READ_WRITE, "tiled frame", &err);
     if (!st)
-        st = cdvr_cl_arg(k, "make_quads", 0, sizeof(cl_mem), &frames, &err);
+        st = cdvr_cl_arg(k, "make_tiles", 0, sizeof(cl_mem), &frames, &err);
     if (!st)
-        st = cdvr_cl_arg(k, "make_quads", 1, sizeof offset, &offset, &err);
+        st = cdvr_cl_arg(k, "make_tiles", 1, sizeof offset, &offset, &err);
     for (cl_uint i = 0; !st && i < 3; i++)
-        st = cdvr_cl_arg(k, "make_quads", 2 + i, sizeof(cl_uint), &d[i], &err);
+        st = cdvr_cl_arg(k, "make_tiles", 2 + i, sizeof(cl_uint), &d[i], &err);
     if (!st)
-        st = cdvr_cl_arg(k, "make_quads", 5, sizeof(cl_mem), &s->quads, &err);
+        st = cdvr_cl_arg(k, "make_tiles", 5, sizeof(cl_mem), &s->tiles, &err);
     if (!st)
-        st = run_kernel(s->cl, k, 1, &s->voxels, NULL, "make_quads kernel", &err);
+        st = run_kernel(s->cl, k, 1, &rows, NULL, "make_tiles kernel", &err);
     if (st) {
-        cdvr_cl_release(&s->quads);
-        s->quads_capacity = 0;
-        s->quads_frame = (size_t)-1;
+        cdvr_cl_release(&s->tiles);
+        s->tiles_capacity = 0;
+        s->tiles_frame = (size_t)-1;
         return;
     }
-    s->quads_frame = frame;
+    s->tiles_frame = frame;
 }
 
 /* Device image of `pixels` and one sample counter per work-item (`items`). */
@@ -685,12 +756,16 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
         st = upload_tables(s, rp, err);
     if (st)
         return st;
-    make_quads_if_rerendered(s, frame);
+    make_tiles_if_rerendered(s, frame);
     cl_mem host_image = wrap_host_image(s->cl, img, pixels);
     cl_kernel kernel;
     cdvr_cl_look look = look_of(&opts->look, &s->tf, &box, spacing);
+    int entry_wanted = s->skipping && !opts->clip && look.blend == CDVR_BLEND_COMPOSITE;
+    cl_int entry_on = entry_tiles_ready(s, &cam, spacing, origin, direction, global,
+                                        entry_wanted);
     st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box, &look,
-                          host_image ? host_image : s->image, &kernel, err);
+                          host_image ? host_image : s->image, entry_on, (cl_int)global[0],
+                          &kernel, err);
     if (!st)
         st = cast_and_read(s, kernel, global, local, host_image, img, pixels, err);
     cdvr_cl_release(&host_image);

@@ -71,7 +71,7 @@ cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_str
     s->decode_path = decode_path_from_env();
     s->setup_frame = (size_t)-1;
     s->minmax_frame = (size_t)-1;
-    s->quads_frame = s->last_rendered = (size_t)-1;
+    s->tiles_frame = s->last_rendered = (size_t)-1;
     size_t cap = 0, minmax_bytes = 2 * s->nbricks; /* nbricks < voxels: no overflow */
     cdvr_status st = cdvr_cl_ensure_buffer(cl, &s->table, &cap, 256 * 4 * sizeof(float),
                                            CL_MEM_READ_ONLY, "TF table", err);
@@ -107,13 +107,14 @@ void cdvr_cl_stream_free(cdvr_cl_stream *s)
 {
     if (!s)
         return;
-    cl_mem *mems[] = {&s->payload, &s->params, &s->frames, &s->host_frames, &s->quads, &s->table,
+    cl_mem *mems[] = {&s->payload, &s->params, &s->frames, &s->host_frames, &s->tiles, &s->table,
                       &s->alpha_unit,
                       &s->brick_minmax, &s->brick_visible, &s->iso_flags, &s->image,
-                      &s->samples};
+                      &s->samples, &s->entry_tiles};
     for (size_t i = 0; i < sizeof mems / sizeof *mems; i++)
         cdvr_cl_release(mems[i]);
     cdvr_skip_grid_free(&s->grid);
+    cdvr_skip_entry_free(&s->entry);
     free(s);
 }
 
@@ -126,7 +127,7 @@ static void invalidate_frames(cdvr_cl_stream *s)
     s->minmax_frame = (size_t)-1;
     s->minmax_valid = 0;
     s->pending_minmax = NULL;
-    s->quads_frame = s->last_rendered = (size_t)-1;
+    s->tiles_frame = s->last_rendered = (size_t)-1;
 }
 
 cdvr_status cdvr_cl_upload(cdvr_cl_stream *s, const void *payload, size_t bytes, cdvr_error *err)
@@ -505,7 +506,7 @@ cdvr_status cdvr_cl_use_host_frames(cdvr_cl_stream *s, const uint8_t *frames, si
 uint64_t cdvr_cl_stream_bytes(const cdvr_cl_stream *s)
 {
     uint64_t b = (uint64_t)s->payload_capacity + s->frame_capacity + CDVR_CL_PARAMS_BUFFER_BYTES;
-    b += s->quads_capacity;
+    b += s->tiles_capacity;
     b += 256 * 4 * sizeof(float) + 256 * sizeof(float); /* TF tables */
     b += 3 * (uint64_t)s->nbricks;                       /* brick min/max + flags */
     b += (uint64_t)s->image_pixels * 4 * sizeof(float) + s->sample_slots * sizeof(cl_uint);
