@@ -247,8 +247,9 @@ static vint along_z(const volume_geo *v, vint z)
  * and sh1) of each lane's row: two gathers, the same word unless x1 starts the next tile. */
 #define ROW_WORD0(k) q[w0.s##k]
 #define ROW_WORD1(k) q[w1.s##k]
-static vfloat lerp_row(__global const uint *q, vint row, vint wx0, vint wx1, vuint sh0,
-                       vuint sh1, vfloat fx)
+__attribute__((always_inline)) static inline vfloat lerp_row(__global const uint *q, vint row,
+                                                            vint wx0, vint wx1, vuint sh0,
+                                                            vuint sh1, vfloat fx)
 {
     vint w0 = row + wx0, w1 = row + wx1;
     vuint a = (vuint)(L16(ROW_WORD0)), b = (vuint)(L16(ROW_WORD1));
