@@ -90,16 +90,23 @@ static void fill_frame(uint8_t *f, const size_t d[3], int t)
             }
 }
 
+/* g: the 4^3 grid of fill_frame's field of d voxels, its ranges computed; *frame: the field. */
+static void blob_grid(cdvr_skip_grid *g, const size_t d[3], uint8_t **frame)
+{
+    cdvr_error err;
+    *frame = malloc(d[0] * d[1] * d[2]);
+    fill_frame(*frame, d, 0);
+    CHECK_OK(cdvr_skip_grid_init(g, d, 2, &err), err);
+    CHECK_OK(cdvr_skip_minmax_from_frame(g, *frame, &err), err);
+}
+
 static void test_flags(void)
 {
     size_t d[3] = {41, 27, 30};
-    uint8_t *f = malloc(d[0] * d[1] * d[2]);
-    fill_frame(f, d, 0);
+    uint8_t *f;
     cdvr_skip_grid g;
-    cdvr_error err;
-    CHECK_OK(cdvr_skip_grid_init(&g, d, 2, &err), err);
+    blob_grid(&g, d, &f);
     CHECK(g.dims[0] == 11 && g.dims[1] == 7 && g.dims[2] == 8, "grid dims");
-    CHECK_OK(cdvr_skip_minmax_from_frame(&g, f, &err), err);
     cdvr_tf tf;
     tf_window(&tf, 100, 180);
     CHECK(cdvr_skip_flags(&g, &tf) == 1 && cdvr_skip_flags(&g, &tf) == 0, "flags cached per TF");
@@ -546,12 +553,10 @@ static size_t check_entry_view(const cdvr_skip_grid *g, const cdvr_skip_entry *e
 static void test_entry(void)
 {
     size_t d[3] = {41, 27, 30};
-    uint8_t *f = malloc(d[0] * d[1] * d[2]);
-    fill_frame(f, d, 0);
+    uint8_t *f;
     cdvr_skip_grid g;
     cdvr_error err;
-    CHECK_OK(cdvr_skip_grid_init(&g, d, 2, &err), err);
-    CHECK_OK(cdvr_skip_minmax_from_frame(&g, f, &err), err);
+    blob_grid(&g, d, &f);
     cdvr_tf tf;
     tf_window(&tf, 100, 180);
     cdvr_skip_flags(&g, &tf);
