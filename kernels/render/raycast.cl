@@ -1266,6 +1266,8 @@ static bricks make_bricks(__global const uchar *dist, int shift, int nbx, int nb
     return b;
 }
 
+/* A packet wholly inside the image stores each row of 4 pixels as one 16-float vector;
+ * packets over the image's edge store pixel by pixel. */
 static void store_pixels(__global float4 *image, vint px, vint py, int width, int height,
                          rgbax acc)
 {
@@ -1275,6 +1277,18 @@ static void store_pixels(__global float4 *image, vint px, vint py, int width, in
     vstore16(acc.g, 0, g);
     vstore16(acc.b, 0, b);
     vstore16(acc.a, 0, a);
+    int px0 = px.s0, py0 = py.s0;
+    if (px0 + PACKET_W <= width && py0 + PACKET_H <= height) { /* whole packet: rows of 4 */
+        __global float *row = (__global float *)(image + (size_t)py0 * width + px0);
+        for (int y = 0; y < PACKET_H; y++, row += 4 * width) {
+            int k = PACKET_W * y;
+            vstore16((float16)(r[k], g[k], b[k], a[k], r[k + 1], g[k + 1], b[k + 1], a[k + 1],
+                               r[k + 2], g[k + 2], b[k + 2], a[k + 2], r[k + 3], g[k + 3],
+                               b[k + 3], a[k + 3]),
+                     0, row);
+        }
+        return;
+    }
     vstore16(px, 0, px_);
     vstore16(py, 0, py_);
     for (int k = 0; k < RAY_PACKET; k++)
