@@ -50,14 +50,34 @@ static cdvr_status upload_volume(cdvr_cl *cl, const cdvr_volume *vol, cdvr_cl_st
     return st;
 }
 
-/* Renders sc on the device; NULL on failure (recorded). */
+/* An image of NaN pixels (cdvr_image_create_unset, then filled): a render into it must write
+ * every pixel, or the comparisons below fail. */
+static cdvr_status nan_image(int width, int height, cdvr_image **out, cdvr_error *err)
+{
+    cdvr_status st = cdvr_image_create_unset(width, height, out, err);
+    for (size_t i = 0; !st && i < 4 * (size_t)width * (size_t)height; i++)
+        (*out)->rgba[i] = NAN;
+    return st;
+}
+
+/* Pixels of img that still hold a NaN. */
+static size_t unwritten(const cdvr_image *img)
+{
+    size_t n = 0, pixels = (size_t)img->width * (size_t)img->height;
+    for (size_t i = 0; i < pixels; i++)
+        n += isnan(img->rgba[4 * i]) || isnan(img->rgba[4 * i + 1]) ||
+             isnan(img->rgba[4 * i + 2]) || isnan(img->rgba[4 * i + 3]);
+    return n;
+}
+
+/* Renders sc on the device into an image of NaNs; NULL on failure (recorded). */
 static cdvr_image *render_cl(const scene *sc, int skipping, uint64_t *samples)
 {
     cdvr_error err;
     cdvr_image *img = NULL;
     cdvr_render_opts opts = {.tf = &sc->tf, .camera = &sc->cam, .step = sc->step};
     cdvr_cl_set_skipping(sc->stream, skipping);
-    cdvr_status st = cdvr_image_create(sc->cam.width, sc->cam.height, &img, &err);
+    cdvr_status st = nan_image(sc->cam.width, sc->cam.height, &img, &err);
     if (!st)
         st = cdvr_cl_setup(sc->stream, 0, &sc->tf, &err);
     if (!st)
@@ -68,6 +88,8 @@ static cdvr_image *render_cl(const scene *sc, int skipping, uint64_t *samples)
         return NULL;
     }
     *samples = cdvr_cl_last_samples(sc->stream);
+    CHECK(unwritten(img) == 0, "%s: %zu pixels not written (skipping %d)", sc->name,
+          unwritten(img), skipping);
     return img;
 }
 
@@ -197,7 +219,7 @@ static void check_layouts(cdvr_cl *cl, const cdvr_volume *vol, const scene *sc)
         for (int rep = 0; !st && rep <= (k < 3 ? k : 1); rep++) {
             cdvr_image_free(img[k]);
             img[k] = NULL;
-            st = cdvr_image_create(sc->cam.width, sc->cam.height, &img[k], &err);
+            st = nan_image(sc->cam.width, sc->cam.height, &img[k], &err);
             if (!st)
                 st = cdvr_cl_setup(s, 0, &sc->tf, &err);
             if (!st)
@@ -207,6 +229,7 @@ static void check_layouts(cdvr_cl *cl, const cdvr_volume *vol, const scene *sc)
                 bytes[rep] = cdvr_cl_stream_bytes(s);
         }
         CHECK(st == CDVR_OK, "%s: layout %d: %s", sc->name, k, err.msg);
+        CHECK(!img[k] || unwritten(img[k]) == 0, "%s: layout %d: pixels not written", sc->name, k);
         samples[k] = s ? cdvr_cl_last_samples(s) : 0;
         cdvr_cl_stream_free(s);
         unsetenv("CDVR_CL_LONG_INDEX");

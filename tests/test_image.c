@@ -1,5 +1,5 @@
 /* tests/test_image.c - PNG written and readable, compositing over the background, rgba8
- * rounding, bad paths. */
+ * rounding, bad paths and sizes; an image made with its pixels unset. */
 #include "check.h"
 #include "cdvr/image.h"
 
@@ -120,6 +120,22 @@ static void test_bad_sizes(void)
     cdvr_error err;
     CHECK(cdvr_image_create(0, 5, &img, &err) == CDVR_ERR_ARG && !img, "width 0 accepted");
     CHECK(cdvr_image_create(5, -1, &img, &err) == CDVR_ERR_ARG, "height -1 accepted");
+    CHECK(cdvr_image_create_unset(0, 5, &img, &err) == CDVR_ERR_ARG && !img,
+          "unset: width 0 accepted");
+}
+
+/* An unset image has the size and background of a zeroed one; its pixels can be written. */
+static void test_unset(void)
+{
+    cdvr_image *img = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_image_create_unset(3, 2, &img, &err), err);
+    CHECK(img->width == 3 && img->height == 2 && img->background[3] == 1.0f &&
+              img->background[0] == 0.0f, "unset image: size or background");
+    for (int i = 0; i < 3 * 2 * 4; i++)
+        img->rgba[i] = 0.5f;
+    CHECK(cdvr_image_pixel(img, 2, 1)[3] == 0.5f, "unset image: pixel written");
+    cdvr_image_free(img);
 }
 
 int main(void)
@@ -128,5 +144,6 @@ int main(void)
     test_rgba8_rounding();
     test_png();
     test_bad_sizes();
+    test_unset();
     return check_finish();
 }

@@ -20,7 +20,8 @@
 #include <stb_image_write.h>
 #pragma GCC diagnostic pop
 
-cdvr_status cdvr_image_create(int width, int height, cdvr_image **out, cdvr_error *err)
+/* A new image; its pixels zeroed when `zero`. */
+static cdvr_status image_new(int width, int height, int zero, cdvr_image **out, cdvr_error *err)
 {
     *out = NULL;
     if (width <= 0 || height <= 0)
@@ -32,7 +33,7 @@ cdvr_status cdvr_image_create(int width, int height, cdvr_image **out, cdvr_erro
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "image: %dx%d overflows size_t", width,
                               height);
     cdvr_image *img = malloc(sizeof *img);
-    float *rgba = img ? calloc(pixels, 4 * sizeof(float)) : NULL;
+    float *rgba = !img ? NULL : zero ? calloc(pixels, 4 * sizeof(float)) : malloc(floats);
     if (!rgba) {
         free(img);
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "image: no memory for %dx%d pixels", width,
@@ -45,6 +46,16 @@ cdvr_status cdvr_image_create(int width, int height, cdvr_image **out, cdvr_erro
     img->background[3] = 1.0f;
     *out = img;
     return CDVR_OK;
+}
+
+cdvr_status cdvr_image_create(int width, int height, cdvr_image **out, cdvr_error *err)
+{
+    return image_new(width, height, 1, out, err);
+}
+
+cdvr_status cdvr_image_create_unset(int width, int height, cdvr_image **out, cdvr_error *err)
+{
+    return image_new(width, height, 0, out, err);
 }
 
 void cdvr_image_free(cdvr_image *img)

@@ -208,7 +208,8 @@ static cdvr_status render_device_frame(cdvr_render_ctx *ctx, cdvr_cl_stream *s, 
                                        double start, cdvr_render_stats *stats, cdvr_image **out,
                                        cdvr_error *err)
 {
-    cdvr_status st = cdvr_image_create(opts->camera->width, opts->camera->height, out, err);
+    /* unset: cdvr_cl_render writes every pixel */
+    cdvr_status st = cdvr_image_create_unset(opts->camera->width, opts->camera->height, out, err);
     if (st == CDVR_OK)
         st = cdvr_cl_setup(s, frame, opts->tf, err);
     if (st == CDVR_OK)
@@ -283,7 +284,8 @@ static cdvr_status render_march(cdvr_render_ctx *ctx, cdvr_brick_cache *bc, cdvr
                                 double start, double *setup_ms, cdvr_render_stats *stats,
                                 cdvr_image **out, cdvr_error *err)
 {
-    cdvr_status status = cdvr_image_create(opts->camera->width, opts->camera->height, out, err);
+    cdvr_status status = cdvr_image_create_unset(opts->camera->width, opts->camera->height, out,
+                                                 err); /* cdvr_cl_render writes every pixel */
     if (status == CDVR_OK)
         status = march_into(bc, s, payload, bytes, info, opts, *out, setup_ms, err);
     if (status != CDVR_OK) {

@@ -19,6 +19,9 @@ typedef struct cdvr_image {
 } cdvr_image;
 
 cdvr_status cdvr_image_create(int width, int height, cdvr_image **out, cdvr_error *err);
+/* The same with the pixels left unset, for a renderer that writes every one of them (the
+ * OpenCL ray caster: zeroing a 512^2 image cost 5-10% of a frame). */
+cdvr_status cdvr_image_create_unset(int width, int height, cdvr_image **out, cdvr_error *err);
 void cdvr_image_free(cdvr_image *img);
 /* Pointer to the 4 floats of pixel (x, y). */
 float *cdvr_image_pixel(const cdvr_image *img, int x, int y);
