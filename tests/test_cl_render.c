@@ -202,7 +202,7 @@ static void engine_scenes(cdvr_cl *cl, const char *data)
 
 /* The ray caster's voxel layouts give the same image: the first render reads the frame's
  * voxels, a render of the same frame again reads its tiled copy (the stream grows by a byte
- * per voxel, in whole tiles), and 64-bit voxel indices (CDVR_CL_LONG_INDEX=1) read the
+ * per voxel, in whole pages), and 64-bit voxel indices (CDVR_CL_LONG_INDEX=1) read the
  * voxels too. */
 static void check_layouts(cdvr_cl *cl, const cdvr_volume *vol, const scene *sc)
 {
@@ -234,10 +234,10 @@ static void check_layouts(cdvr_cl *cl, const cdvr_volume *vol, const scene *sc)
         cdvr_cl_stream_free(s);
         unsetenv("CDVR_CL_LONG_INDEX");
     }
-    size_t tiled = 1; /* the copy fills whole 4x4x4 tiles (kernels/common/cl_shared.h) */
+    size_t tiled = 1; /* the copy fills whole pages of 16^3 (kernels/common/cl_shared.h) */
     for (int a = 0; a < 3; a++)
-        tiled *= (vol->dims[a] + 3) / 4 * 4;
-    CHECK(bytes[1] == bytes[0] + tiled, "%s: tiled copy of %zu voxels (%zu in tiles): stream "
+        tiled *= (vol->dims[a] + 15) / 16 * 16;
+    CHECK(bytes[1] == bytes[0] + tiled, "%s: tiled copy of %zu voxels (%zu in pages): stream "
           "%llu -> %llu bytes", sc->name, cdvr_volume_voxels(vol), tiled,
           (unsigned long long)bytes[0], (unsigned long long)bytes[1]);
     for (int k = 1; k < 4; k++)

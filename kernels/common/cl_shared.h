@@ -19,11 +19,12 @@ typedef int32_t cdvr_cl_i32;
 #define CDVR_CL_PACKET_W 4
 #define CDVR_CL_PACKET_H 4
 /* The ray caster's tiled copy of a frame (kernels/render/raycast.cl) holds its voxels in tiles
- * of 4 x 4 x 4 (64 bytes: one cache line), tiles x fastest, then y, z; within a tile x
- * fastest, then y, z, so each tile row of 4 voxels is one 32-bit word (the shift must stay 2).
- * The buffer holds whole tiles: ceil(dims / 4) of them per axis; voxels past the frame's
- * edge repeat its last voxel (never read). */
-#define CDVR_CL_TILE_SHIFT 2
+ * of 4 x 4 x 4 (64 bytes: one cache line; within a tile x fastest, then y, z, so each tile
+ * row of 4 voxels is one 32-bit word), 4 x 4 x 4 tiles to a page of 16^3 voxels (4096 bytes:
+ * one memory page; tiles x fastest, then y, z), pages x fastest, then y, z. The buffer holds
+ * whole pages: ceil(dims / 16) of them per axis; voxels past the frame's edge repeat its last
+ * voxel (never read). Rays near each other read few lines and few pages (TLB entries). */
+#define CDVR_CL_PAGE_EDGE 16
 /* The largest whole specular power taken by repeated squaring: CDVR_SHADE_WHOLE_POWER_MAX of
  * render.h, shading (cl_render.c checks that they agree). */
 #define CDVR_CL_WHOLE_POWER_MAX 128.0f

@@ -38,23 +38,25 @@ __kernel void brick_minmax(__global const uchar *frames, __constant uchar *param
 }
 
 /* The tiled copy of a dense frame for the ray caster (kernels/common/cl_shared.h): one
- * work-item per tile row (a 32-bit word, low byte first), rows = tiles * 16; voxels past the
+ * work-item per tile row (a 32-bit word, low byte first), rows = pages * 1024; voxels past the
  * frame's edge repeat its last one. */
 __kernel void make_tiles(__global const uchar *frames, ulong offset, uint X, uint Y, uint Z,
                          __global uint *tiles)
 {
     size_t i = get_global_id(0);
-    const uint edge = 1u << CDVR_CL_TILE_SHIFT;
-    uint tx = (X + edge - 1) / edge, ty = (Y + edge - 1) / edge, tz = (Z + edge - 1) / edge;
-    if (i >= (size_t)tx * ty * tz * 16)
+    const uint edge = CDVR_CL_PAGE_EDGE;
+    uint px = (X + edge - 1) / edge, py = (Y + edge - 1) / edge, pz = (Z + edge - 1) / edge;
+    if (i >= (size_t)px * py * pz * 1024)
         return;
-    size_t tile = i >> 4;
-    uint ly = (uint)i & 3u, lz = ((uint)i >> 2) & 3u;
-    uint cx = tile % tx, cy = (tile / tx) % ty, cz = tile / ((size_t)tx * ty);
-    uint y = min(edge * cy + ly, Y - 1), z = min(edge * cz + lz, Z - 1);
-    __global const uchar *row = frames + offset + ((size_t)z * Y + y) * X;
+    size_t page = i >> 10;
+    uint within = (uint)i & 1023u, tile = within >> 4, row = within & 15u;
+    uint cx = page % px, cy = (page / px) % py, cz = page / ((size_t)px * py);
+    uint y = min(edge * cy + 4 * ((tile >> 2) & 3u) + (row & 3u), Y - 1);
+    uint z = min(edge * cz + 4 * (tile >> 4) + (row >> 2), Z - 1);
+    uint x0 = edge * cx + 4 * (tile & 3u);
+    __global const uchar *line = frames + offset + ((size_t)z * Y + y) * X;
     uint word = 0;
     for (uint k = 0; k < 4; k++)
-        word |= (uint)row[min(edge * cx + k, X - 1)] << (8 * k);
+        word |= (uint)line[min(x0 + k, X - 1)] << (8 * k);
     tiles[i] = word;
 }

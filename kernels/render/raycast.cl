@@ -79,7 +79,7 @@ typedef struct volume_geo {
     __constant uchar *params;
     int frame;
     int tiled;      /* vol holds the frame's tiled copy (see the top of this file) */
-    int2 tile_counts; /* tiles along x and y (kernels/common/cl_shared.h) */
+    int2 page_counts; /* tiled copy: pages along x and y (kernels/common/cl_shared.h) */
     int3 dims;
     int3 base_max;  /* largest lower trilinear corner per axis: max(dims - 2, 0) */
     long3 stride;   /* index step to the upper corner per axis; 0 where dims is 1 */
@@ -225,24 +225,22 @@ static vfloat fetch16(const volume_geo *v, vint x, vint y, vint z)
 #ifndef CDVR_LONG_INDEX
 /* The tiled copy's word offsets of voxel rows (kernels/common/cl_shared.h; make_tiles in
  * bricks.cl writes it, the host keeps its words below 2^31): word(x, y, z) = along_x(x) +
- * along_y(y) + along_z(z) is the tile row holding voxel (x, y, z), at byte x & 3 of it. */
+ * along_y(y) + along_z(z) is the tile row holding voxel (x, y, z), at byte x & 3 of it: page
+ * (16^3 voxels, 1024 words), tile within the page (4^3, 16 words), row within the tile. */
 static vint along_x(vint x)
 {
-    return (x >> CDVR_CL_TILE_SHIFT) << (3 * CDVR_CL_TILE_SHIFT - 2);
+    return ((x >> 4) << 10) + (((x >> 2) & 3) << 4);
 }
 
 static vint along_y(const volume_geo *v, vint y)
 {
-    const int m = (1 << CDVR_CL_TILE_SHIFT) - 1;
-    return (y >> CDVR_CL_TILE_SHIFT) * (v->tile_counts.x << (3 * CDVR_CL_TILE_SHIFT - 2)) + (y & m);
+    return (y >> 4) * (v->page_counts.x << 10) + (((y >> 2) & 3) << 6) + (y & 3);
 }
 
 static vint along_z(const volume_geo *v, vint z)
 {
-    const int m = (1 << CDVR_CL_TILE_SHIFT) - 1;
-    return (z >> CDVR_CL_TILE_SHIFT) *
-               (v->tile_counts.x * v->tile_counts.y << (3 * CDVR_CL_TILE_SHIFT - 2)) +
-           ((z & m) << CDVR_CL_TILE_SHIFT);
+    return (z >> 4) * (v->page_counts.x * v->page_counts.y << 10) + (((z >> 2) & 3) << 8) +
+           ((z & 3) << 2);
 }
 
 /* The x-lerp of voxels x0 and x1 (words at row + wx0 and row + wx1, bytes at bit offsets sh0
@@ -1235,8 +1233,8 @@ static volume_geo make_geo(__global const uchar *vol, __constant uchar *params, 
     v.params = params;
     v.frame = frame;
     v.tiled = tiled;
-    v.tile_counts = (int2)((X + (1 << CDVR_CL_TILE_SHIFT) - 1) >> CDVR_CL_TILE_SHIFT,
-                          (Y + (1 << CDVR_CL_TILE_SHIFT) - 1) >> CDVR_CL_TILE_SHIFT);
+    v.page_counts = (int2)((X + CDVR_CL_PAGE_EDGE - 1) / CDVR_CL_PAGE_EDGE,
+                           (Y + CDVR_CL_PAGE_EDGE - 1) / CDVR_CL_PAGE_EDGE);
     v.dims = (int3)(X, Y, Z);
     v.base_max = max(v.dims - 2, 0);
     v.stride = (long3)(X > 1 ? 1 : 0, Y > 1 ? (long)X : 0, Z > 1 ? (long)X * (long)Y : 0);

@@ -538,13 +538,13 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
 
 /* A frame rendered a second time (a scene shown again: another camera, TF or step) gets its
  * tiled copy (kernels/common/cl_shared.h), which the ray caster reads from fewer cache lines:
- * a byte per voxel in whole 4x4x4 tiles, so only below 2^31 bytes and when the device takes
+ * a byte per voxel in whole pages of 16^3, so only below 2^31 bytes and when the device takes
  * the buffer. Playback renders each frame once and never pays for it. On any failure the
  * frame is simply rendered from its voxels. */
-/* Bytes of the tiled copy of a frame of dims (whole tiles); SIZE_MAX on overflow. */
+/* Bytes of the tiled copy of a frame of dims (whole pages); SIZE_MAX on overflow. */
 static size_t tiled_bytes(const size_t dims[3])
 {
-    size_t edge = (size_t)1 << CDVR_CL_TILE_SHIFT, n = 1;
+    size_t edge = CDVR_CL_PAGE_EDGE, n = 1;
     for (int a = 0; a < 3; a++) {
         size_t tiles = dims[a] / edge + (dims[a] % edge != 0);
         if (!cdvr_size_mul(n, tiles * edge, &n))
