@@ -810,6 +810,19 @@ __attribute__((always_inline)) static inline void sample_steps(
 #ifndef BRICK_HOPS
 #define BRICK_HOPS 4
 #endif
+/* Look-ups are made when at least HOP_MIN lanes (of 16) need one, or no lane can sample
+ * without: a look-up costs the whole packet about a step of samples, however few lanes it
+ * serves (Colin27 and engine CT 512^2: 3-5% less time than looking up for any lane; 12
+ * measured the same). */
+#define HOP_MIN 8
+
+/* How many lanes of mask m are set. */
+static int lanes(vint m)
+{
+    int8 m8 = (m & 1).lo + (m & 1).hi;
+    int4 m4 = m8.lo + m8.hi;
+    return m4.s0 + m4.s1 + m4.s2 + m4.s3;
+}
 static void march_full(march *m, int skipping, const bricks *b, const volume_geo *v,
                        const clip_params *clip, vec3x g0, vec3x dg,
                        __global const float4 *table, float term_alpha, const look_params *lk,
@@ -819,11 +832,16 @@ static void march_full(march *m, int skipping, const bricks *b, const volume_geo
     while (any(m->active)) {
         if (skipping) {
             vint need = m->active & (m->i >= m->end);
-            for (int hop = 0; hop < BRICK_HOPS && any(need); hop++) {
-                brick_step(m, need, b, v, g0, dg);
-                m->active &= m->i < m->n_full;
-                need = m->active & (m->i >= m->end);
-            }
+            if (lanes(need) < HOP_MIN && any(m->active & (m->i < m->end)))
+                /* few lanes at a run's end: they sample one step on, unlooked, with the
+                 * others (samples in invisible bricks add nothing) */
+                m->end = select(m->end, min(m->i + m->unroll, m->n_full), need);
+            else
+                for (int hop = 0; hop < BRICK_HOPS && any(need); hop++) {
+                    brick_step(m, need, b, v, g0, dg);
+                    m->active &= m->i < m->n_full;
+                    need = m->active & (m->i >= m->end);
+                }
         }
         vint run = m->active & (m->i < m->end);
         if (!any(run))
