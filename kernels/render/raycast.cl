@@ -816,6 +816,14 @@ __attribute__((always_inline)) static inline void sample_steps(
  * measured the same). */
 #define HOP_MIN 8
 
+/* Samples in RUN_VOXELS voxels along a ray at `step` (world units) on a grid of 1/spacing
+ * inv_spacing: the fewest a visible run holds. */
+static int run_samples(float step, float3 inv_spacing)
+{
+    float voxels_per_step = step * fmax(inv_spacing.x, fmax(inv_spacing.y, inv_spacing.z));
+    return max((int)(RUN_VOXELS / voxels_per_step + 0.5f), 1);
+}
+
 /* How many lanes of mask m are set. */
 static int lanes(vint m)
 {
@@ -1071,10 +1079,11 @@ typedef struct extreme_bricks {
 } extreme_bricks;
 
 /* Lanes `need` look up the brick holding their sample i: one that cannot beat best moves i
- * past its exit face, one that can sets *end to the first sample past it (the lane then
- * samples up to there without looking again). */
+ * past its exit face, one that can sets *end to the first sample past it, and at least
+ * run_min samples on (the lane then samples up to there without looking again; samples of a
+ * brick that cannot beat best change nothing). */
 static void extreme_step(const extreme_bricks *eb, const volume_geo *v, vint *i, vint *end,
-                         vfloat best, int is_max, vint need)
+                         vfloat best, int is_max, vint need, int run_min)
 {
     vec3x g = at(eb->g0, eb->dg, *i);
     vint bx = min(convert_vint(clamp(g.x, 0.0f, v->top.x)) >> eb->shift, eb->nbx - 1);
@@ -1098,7 +1107,7 @@ static void extreme_step(const extreme_bricks *eb, const volume_geo *v, vint *i,
     vfloat tz = (convert_vfloat(fz) - eb->g0.z) * eb->inv_dg.z;
     vfloat t_exit = fmin(tx, fmin(ty, tz));
     vint past = max(*i + 1, convert_vint(ceil(t_exit - SKIP_MARGIN)));
-    vint run_end = max(*i + 1, convert_vint(ceil(t_exit)));
+    vint run_end = max(*i + 1, max(convert_vint(ceil(t_exit)), *i + run_min));
     *i = select(*i, past, need & dull);
     *end = select(*end, run_end, need & ~dull);
 }
@@ -1133,10 +1142,13 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
         /* no code lies beyond 255 (below 0): a lane whose extreme got there is done */
         float saturated = is_max ? 255.0f : 0.0f;
         vint i = (vint)(0), end = (vint)(0), live = p->hit & (i < n);
+        int run_min = run_samples(step, inv_spacing);
         while (any(live)) {
             vint need = live & (i >= end) & (i < n - 1);
-            if (any(need)) {
-                extreme_step(eb, v, &i, &end, best, is_max, need);
+            if (lanes(need) < HOP_MIN && any(live & (i < end))) /* as march_full */
+                end = select(end, i + 4, need);
+            else if (any(need)) {
+                extreme_step(eb, v, &i, &end, best, is_max, need, run_min);
                 i = min(i, n - 1);
             }
             end = select(end, n, i >= n - 1); /* the last sample needs no look-up */
@@ -1471,8 +1483,7 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     m.done = (vint)(0);
     m.taken = (vint)(0);
     /* visible runs hold at least run_min samples: UNROLL per step unless that is fewer */
-    float voxels_per_step = step * fmax(isx, fmax(isy, isz));
-    m.run_min = max((int)(RUN_VOXELS / voxels_per_step + 0.5f), 1);
+    m.run_min = run_samples(step, inv_spacing);
     m.unroll = skipping && m.run_min < UNROLL ? UNROLL_SHORT : UNROLL;
     rgbax acc = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
 #ifdef CDVR_BRICK_CACHE
