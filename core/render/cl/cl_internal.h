@@ -84,6 +84,15 @@ void cdvr_cl_store_fetch_choice(cdvr_cl *cl, const cdvr_codec *codec, unsigned s
 cdvr_status cdvr_cl_arg(cl_kernel k, const char *name, cl_uint index, size_t size,
                         const void *value, cdvr_error *err);
 
+/* What a stream's entry tiles were made for (cl_render.c): the camera and the volume's
+ * placement, the entry list's version and the tiles' count. */
+typedef struct cdvr_cl_entry_made {
+    cdvr_skip_view view;
+    uint64_t version;
+    size_t tiles[2];
+    int valid;
+} cdvr_cl_entry_made;
+
 struct cdvr_cl_stream {
     cdvr_cl *cl;
     size_t dims[3];
@@ -132,8 +141,7 @@ struct cdvr_cl_stream {
     int entry_ok;                /* entry describes the flags in brick_visible */
     cl_mem entry_tiles;          /* per packet: t before which no ray meets a visible brick */
     size_t entry_capacity;       /* bytes of entry_tiles */
-    unsigned char entry_key[512]; /* the camera, placement and list the tiles were made for */
-    size_t entry_key_bytes;      /* 0: entry_tiles holds none */
+    cdvr_cl_entry_made entry_made; /* what entry_tiles were made for (valid 0: none) */
     uint64_t last_samples;
     cdvr_cl_decode_path decode_path;      /* what cdvr_cl_decode may use (AUTO: choose) */
     cdvr_cl_decode_path last_decode_path; /* what the last decode used */

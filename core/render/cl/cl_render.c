@@ -143,7 +143,7 @@ static cdvr_status use_grid(cdvr_cl_stream *s, const cdvr_skip_grid *g, cdvr_err
     }
     cdvr_error ignored; /* without the list rays start at the visible box, as without a camera */
     s->entry_ok = cdvr_skip_entry_make(&s->entry, g, ENTRY_CELL_LOG2, &ignored) == CDVR_OK;
-    s->entry_key_bytes = 0;
+    s->entry_made.valid = 0;
     return write_buffer(s->cl, s->brick_visible, g->flags, s->nbricks, "upload brick flags",
                         err);
 }
@@ -322,16 +322,23 @@ static cdvr_status upload_tables(cdvr_cl_stream *s, render_params rp, cdvr_error
     return st;
 }
 
-/* render.h step 0: origin and D^-1 (computed in double, rounded to float); 0 if D is singular
- * or not finite. NULL or all zeros: the identity. */
-static int make_box_frame(const double origin[3], const double direction[9], box_frame *out)
+/* The direction matrix D a render uses: direction, or the identity when that is NULL or all
+ * zeros (as cdvr_volume_direction). */
+static void box_direction(const double direction[9], double D[9])
 {
-    static const double identity[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
     int zero = 1;
     for (int i = 0; direction && i < 9; i++)
         zero &= direction[i] == 0.0;
+    for (int i = 0; i < 9; i++)
+        D[i] = direction && !zero ? direction[i] : (i % 4 == 0 ? 1.0 : 0.0);
+}
+
+/* render.h step 0: origin and D^-1 (computed in double, rounded to float); 0 if D is singular
+ * or not finite. */
+static int make_box_frame(const double origin[3], const double D[9], box_frame *out)
+{
     double inv[9];
-    if (!cdvr_mat3_inverse(direction && !zero ? direction : identity, inv))
+    if (!cdvr_mat3_inverse(D, inv))
         return 0;
     for (int i = 0; i < 3; i++)
         out->origin[i] = (cl_float)origin[i];
@@ -399,65 +406,54 @@ static cdvr_cl_look look_of(const cdvr_look *look, const cdvr_tf *tf, const box_
  * again only when the camera, the volume's placement or the flags change. Returns 1 when the
  * kernel may start its rays there; 0 leaves a buffer for the argument all the same. */
 static int entry_tiles_ready(cdvr_cl_stream *s, const cam_params *cam, const double spacing[3],
-                             const double origin[3], const double direction[9],
-                             const size_t global[2], int wanted)
+                             const double origin[3], const double D[9], const size_t global[2],
+                             int wanted)
 {
-    static const double identity[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
     size_t tiles = global[0] * global[1], bytes = tiles * sizeof(float);
     cdvr_error ignored;
     size_t capacity = s->entry_capacity;
     if (cdvr_cl_ensure_buffer(s->cl, &s->entry_tiles, &s->entry_capacity, wanted ? bytes : 4,
                               CL_MEM_READ_ONLY, "entry tiles", &ignored) != CDVR_OK) {
-        s->entry_key_bytes = 0;
+        s->entry_made.valid = 0;
         return 0;
     }
     if (s->entry_capacity != capacity) /* a new buffer: its contents are gone */
-        s->entry_key_bytes = 0;
+        s->entry_made.valid = 0;
     if (!wanted || !s->entry_ok)
         return 0;
-    int zero = 1;
-    for (int i = 0; direction && i < 9; i++)
-        zero &= direction[i] == 0.0;
-    cdvr_skip_view v;
-    memset(&v, 0, sizeof v);
+    cdvr_cl_entry_made made;
+    memset(&made, 0, sizeof made); /* padding too: compared with memcmp */
+    cdvr_skip_view *v = &made.view;
     for (int a = 0; a < 3; a++) {
-        v.eye[a] = cam->eye[a];
-        v.f[a] = cam->f[a];
-        v.u[a] = cam->u[a];
-        v.r[a] = cam->r[a];
-        v.origin[a] = origin[a];
-        v.spacing[a] = spacing[a];
+        v->eye[a] = cam->eye[a];
+        v->f[a] = cam->f[a];
+        v->u[a] = cam->u[a];
+        v->r[a] = cam->r[a];
+        v->origin[a] = origin[a];
+        v->spacing[a] = spacing[a];
     }
-    memcpy(v.direction, direction && !zero ? direction : identity, sizeof v.direction);
-    v.tan_half = cam->tan_half;
-    v.aspect = cam->aspect;
-    v.ortho_half_height = cam->ortho_half_height;
-    v.orthographic = cam->orthographic;
-    v.width = cam->width;
-    v.height = cam->height;
-    unsigned char key[sizeof s->entry_key];
-    size_t key_bytes = 0;
-#define KEY(x) (memcpy(key + key_bytes, &(x), sizeof(x)), key_bytes += sizeof(x))
-    _Static_assert(sizeof v + sizeof s->entry.version + 2 * sizeof(size_t) <= sizeof key,
-                   "entry key fits");
-    KEY(v);
-    KEY(s->entry.version);
-    KEY(global[0]);
-    KEY(global[1]);
-#undef KEY
-    if (s->entry_key_bytes == key_bytes && !memcmp(s->entry_key, key, key_bytes))
+    memcpy(v->direction, D, sizeof v->direction);
+    v->tan_half = cam->tan_half;
+    v->aspect = cam->aspect;
+    v->ortho_half_height = cam->ortho_half_height;
+    v->orthographic = cam->orthographic;
+    v->width = cam->width;
+    v->height = cam->height;
+    made.version = s->entry.version;
+    made.tiles[0] = global[0];
+    made.tiles[1] = global[1];
+    made.valid = 1;
+    if (!memcmp(&made, &s->entry_made, sizeof made))
         return 1;
-    s->entry_key_bytes = 0;
+    s->entry_made.valid = 0;
     float *map = malloc(bytes);
-    int usable = map && cdvr_skip_entry_tiles(&s->entry, &v, PACKET_W, PACKET_H, global[0],
+    int usable = map && cdvr_skip_entry_tiles(&s->entry, v, PACKET_W, PACKET_H, global[0],
                                               global[1], map);
     usable = usable && write_buffer(s->cl, s->entry_tiles, map, bytes, "upload entry tiles",
                                     &ignored) == CDVR_OK;
     free(map);
-    if (usable) {
-        memcpy(s->entry_key, key, key_bytes);
-        s->entry_key_bytes = key_bytes;
-    }
+    if (usable)
+        memcpy(&s->entry_made, &made, sizeof made); /* with its padding: memcmp above */
     return usable;
 }
 
@@ -725,7 +721,9 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
         st = camera_params(opts->camera, &cam, err);
     if (st)
         return st;
-    if (!make_box_frame(origin, direction, &box))
+    double D[9];
+    box_direction(direction, D);
+    if (!make_box_frame(origin, D, &box))
         return cdvr_error_set(err, CDVR_ERR_ARG,
                               "OpenCL render: volume direction matrix is singular or not finite");
     cdvr_render_opts checked = *opts; /* the look is checked against the stream's TF window */
@@ -761,8 +759,7 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     cl_kernel kernel;
     cdvr_cl_look look = look_of(&opts->look, &s->tf, &box, spacing);
     int entry_wanted = s->skipping && !opts->clip && look.blend == CDVR_BLEND_COMPOSITE;
-    cl_int entry_on = entry_tiles_ready(s, &cam, spacing, origin, direction, global,
-                                        entry_wanted);
+    cl_int entry_on = entry_tiles_ready(s, &cam, spacing, origin, D, global, entry_wanted);
     st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box, &look,
                           host_image ? host_image : s->image, entry_on, (cl_int)global[0],
                           &kernel, err);
