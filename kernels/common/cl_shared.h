@@ -23,7 +23,9 @@ typedef int32_t cdvr_cl_i32;
  * row of 4 voxels is one 32-bit word), 4 x 4 x 4 tiles to a page of 16^3 voxels (4096 bytes:
  * one memory page; tiles x fastest, then y, z), pages x fastest, then y, z. The buffer holds
  * whole pages: ceil(dims / 16) of them per axis; voxels past the frame's edge repeat its last
- * voxel (never read). Rays near each other read few lines and few pages (TLB entries). */
+ * voxel (never read). Rays near each other read few lines and few pages (TLB entries).
+ * raycast.cl's along_x/y/z and bricks.cl's make_tiles spell out these sizes: the edge must
+ * stay 16. */
 #define CDVR_CL_PAGE_EDGE 16
 /* The largest whole specular power taken by repeated squaring: CDVR_SHADE_WHOLE_POWER_MAX of
  * render.h, shading (cl_render.c checks that they agree). */

@@ -29,11 +29,11 @@
  * it; an invisible cube is jumped in one step (conservatively, so a skipped sample is always
  * inside it), a visible cube's samples need no further look-ups, and a visible run lasts to
  * the cube's exit and at least RUN_VOXELS voxels (samples past the exit may lie in invisible
- * bricks: they add nothing, and are counted). Skipped samples are exactly those whose value range has zero
- * opacity under the TF. With skipping on, the host may also
- * give each packet a bound of the ray parameter before which none of its rays can meet a
- * visible brick (cdvr/skip.h, entry distances; composite only): lanes start at the sample
- * before it, and a packet whose bound is +inf stores the image of no sample without casting.
+ * bricks: they add nothing, and are counted). Skipped samples are exactly those whose value
+ * range has zero opacity under the TF. With skipping on, the host may also give each packet a
+ * bound of the ray parameter before which none of its rays can meet a visible brick
+ * (cdvr/skip.h, entry distances; composite only): lanes start at the sample before it, and a
+ * packet whose bound is +inf stores the image of no sample without casting.
  *
  * Built after kernels/render/brick_cache.cl (which defines CDVR_BRICK_CACHE), the composite
  * blend can march through the brick cache's payload brick by brick instead of fetching every
@@ -701,14 +701,14 @@ static vfloat brick_exit(const bricks *b, const volume_geo *v, vec3x g0, vec3x g
     return fmin(tx, fmin(ty, tz));
 }
 
-/* Tolerance (in samples) that keeps a skip short of the computed brick exit, so rounding
- * never skips a sample that lies past the brick's face. */
 /* The least length (in voxels along the ray's longest axis) of a visible run: a lane that
  * meets a visible brick samples on past its face rather than look up every 4-voxel brick
  * (samples in invisible bricks add nothing: their alpha is 0, so the image is the same). A
  * look-up costs about as much as a step of samples: Colin27 512^2 at 2 voxels per sample,
  * 10.4 -> 8.0 ms per frame, engine CT 11.3 -> 8.6 ms; 8, 12, 24 voxels measured no better. */
 #define RUN_VOXELS 16.0f
+/* Tolerance (in samples) that keeps a skip short of the computed brick exit, so rounding
+ * never skips a sample that lies past the brick's face. */
 #define SKIP_MARGIN 0.01f
 
 /* March state of a packet over its full segments. */
@@ -824,12 +824,15 @@ static int run_samples(float step, float3 inv_spacing)
     return max((int)(RUN_VOXELS / voxels_per_step + 0.5f), 1);
 }
 
-/* How many lanes of mask m are set. */
-static int lanes(vint m)
+/* Whether lanes `need` (at their run's end) look up their bricks now (HOP_MIN): yes when
+ * enough of them need it, or when no lane of `can_sample` could sample meanwhile; else they
+ * sample a step on unlooked with the others. */
+static int look_up_now(vint need, vint can_sample)
 {
-    int8 m8 = (m & 1).lo + (m & 1).hi;
+    vint one = need & 1;
+    int8 m8 = one.lo + one.hi;
     int4 m4 = m8.lo + m8.hi;
-    return m4.s0 + m4.s1 + m4.s2 + m4.s3;
+    return m4.s0 + m4.s1 + m4.s2 + m4.s3 >= HOP_MIN || !any(can_sample);
 }
 static void march_full(march *m, int skipping, const bricks *b, const volume_geo *v,
                        const clip_params *clip, vec3x g0, vec3x dg,
@@ -840,9 +843,8 @@ static void march_full(march *m, int skipping, const bricks *b, const volume_geo
     while (any(m->active)) {
         if (skipping) {
             vint need = m->active & (m->i >= m->end);
-            if (lanes(need) < HOP_MIN && any(m->active & (m->i < m->end)))
-                /* few lanes at a run's end: they sample one step on, unlooked, with the
-                 * others (samples in invisible bricks add nothing) */
+            if (!look_up_now(need, m->active & (m->i < m->end)))
+                /* samples in invisible bricks add nothing */
                 m->end = select(m->end, min(m->i + m->unroll, m->n_full), need);
             else
                 for (int hop = 0; hop < BRICK_HOPS && any(need); hop++) {
@@ -1145,7 +1147,7 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
         int run_min = run_samples(step, inv_spacing);
         while (any(live)) {
             vint need = live & (i >= end) & (i < n - 1);
-            if (lanes(need) < HOP_MIN && any(live & (i < end))) /* as march_full */
+            if (!look_up_now(need, live & (i < end))) /* a step's samples on, unlooked */
                 end = select(end, i + 4, need);
             else if (any(need)) {
                 extreme_step(eb, v, &i, &end, best, is_max, need, run_min);
@@ -1388,7 +1390,9 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     }
     vint px = px0 + (vint)(0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3);
     vint py = py0 + (vint)(0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3);
-    if (entry_on && isinf(entry[get_global_id(1) * entry_tiles_x + get_global_id(0)])) {
+    /* no visible sample before t = te (cdvr/skip.h, entry distances) */
+    float te = entry_on ? entry[get_global_id(1) * entry_tiles_x + get_global_id(0)] : 0.0f;
+    if (isinf(te)) {
         /* no ray of the packet meets a visible brick: the image of no sample */
         rgbax none = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
         store_pixels(image, px, py, cam.width, cam.height, none);
@@ -1461,8 +1465,7 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
         visible_range(g0, dg, vis_lo, vis_hi, m.n_full, &m.i, &stop);
         last &= stop >= m.n_full; /* the last segment lies beyond the full ones */
         m.n_full = stop;
-        if (entry_on) { /* no visible sample before t = entry (cdvr/skip.h, entry distances) */
-            float te = entry[get_global_id(1) * entry_tiles_x + get_global_id(0)];
+        if (entry_on) { /* the sample before the first one at te */
             vfloat first = floor((te - p.t_near) / step - 0.5f) - 1.0f;
             first = clamp(first, 0.0f, convert_vfloat(m.n_full));
             m.i = max(m.i, convert_vint(first));
