@@ -351,7 +351,6 @@ cdvr_status cdvr_skip_entry_make(cdvr_skip_entry *e, const cdvr_skip_grid *g, un
     if (cell_log2 > 8)
         return cdvr_error_set(err, CDVR_ERR_ARG,
                               "skip entry list: cells of 2^%u bricks (at most 2^8)", cell_log2);
-    e->cell_log2 = cell_log2;
     memcpy(e->vol_dims, g->vol_dims, sizeof e->vol_dims);
     size_t edge = (size_t)1 << cell_log2, c[3];
     for (c[2] = 0; c[2] < g->dims[2]; c[2] += edge)
@@ -464,6 +463,8 @@ int cdvr_skip_entry_tiles(const cdvr_skip_entry *e, const cdvr_skip_view *v, int
             return 0;
     }
     size_t n = tiles_x * tiles_y;
+    if (n == 0)
+        return 1;
     for (size_t i = 0; i < n; i++)
         tiles[i] = INFINITY;
     for (size_t b = 0; b < e->count; b++) {

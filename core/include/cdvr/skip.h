@@ -80,12 +80,12 @@ void cdvr_skip_distance(const uint8_t *seed, uint8_t *dist, const size_t dims[3]
  * screen footprint (the corners' hull, a pixel of margin) covers one of its pixel centres,
  * divided by the largest cosine of the tile's rays to the view axis: a lower bound of the ray
  * parameter t (world distance along the unit ray) of every visible sample of the tile's
- * rays. Samples before it lie in invisible bricks, so starting there skips exactly the
- * samples brick skipping would skip (images and sample counts unchanged). */
+ * rays. Samples before it lie in invisible bricks, so starting there skips only samples that
+ * add nothing: the image is unchanged (sample counts may drop: the ray caster casts no ray of
+ * a tile whose bound is +inf, not even its empty last segment). */
 typedef struct cdvr_skip_entry {
     float *boxes;          /* 6 per box: grid lo x, y, z, hi x, y, z */
     size_t count, capacity;
-    unsigned cell_log2;
     size_t vol_dims[3];
     uint64_t version;      /* +1 on each cdvr_skip_entry_make */
 } cdvr_skip_entry;
