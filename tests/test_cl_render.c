@@ -204,12 +204,13 @@ static void engine_scenes(cdvr_cl *cl, const char *data)
  * voxels, a render of the same frame again reads its tiled copy (the stream grows by a byte
  * per voxel, in whole pages), and 64-bit voxel indices (CDVR_CL_LONG_INDEX=1) read the
  * voxels too. */
-static void check_layouts(cdvr_cl *cl, const cdvr_volume *vol, const scene *sc)
+static void check_layouts_look(cdvr_cl *cl, const cdvr_volume *vol, const scene *sc,
+                               const cdvr_look *look, const char *look_name)
 {
     cdvr_error err;
     cdvr_image *img[4] = {NULL, NULL, NULL, NULL};
     uint64_t samples[4] = {0, 0, 0, 0}, bytes[2] = {0, 0};
-    cdvr_render_opts opts = {.tf = &sc->tf, .camera = &sc->cam, .step = sc->step};
+    cdvr_render_opts opts = {.tf = &sc->tf, .camera = &sc->cam, .step = sc->step, .look = *look};
     size_t n = (size_t)sc->cam.width * (size_t)sc->cam.height;
     for (int k = 0; k < 4; k++) {
         if (k == 3)
@@ -228,8 +229,9 @@ static void check_layouts(cdvr_cl *cl, const cdvr_volume *vol, const scene *sc)
             if (!st && k == 1)
                 bytes[rep] = cdvr_cl_stream_bytes(s);
         }
-        CHECK(st == CDVR_OK, "%s: layout %d: %s", sc->name, k, err.msg);
-        CHECK(!img[k] || unwritten(img[k]) == 0, "%s: layout %d: pixels not written", sc->name, k);
+        CHECK(st == CDVR_OK, "%s, %s: layout %d: %s", sc->name, look_name, k, err.msg);
+        CHECK(!img[k] || unwritten(img[k]) == 0, "%s, %s: layout %d: pixels not written",
+              sc->name, look_name, k);
         samples[k] = s ? cdvr_cl_last_samples(s) : 0;
         cdvr_cl_stream_free(s);
         unsetenv("CDVR_CL_LONG_INDEX");
@@ -242,9 +244,36 @@ static void check_layouts(cdvr_cl *cl, const cdvr_volume *vol, const scene *sc)
           (unsigned long long)bytes[0], (unsigned long long)bytes[1]);
     for (int k = 1; k < 4; k++)
         CHECK(img[0] && img[k] && memcmp(img[0]->rgba, img[k]->rgba, 4 * sizeof(float) * n) == 0 &&
-              samples[k] == samples[0], "%s: layout %d differs from the voxels' image", sc->name, k);
+              samples[k] == samples[0], "%s, %s: layout %d differs from the voxels' image",
+              sc->name, look_name, k);
     for (int k = 0; k < 4; k++)
         cdvr_image_free(img[k]);
+}
+
+/* check_layouts_look for every blend mode, with shading and gradient opacity (the tiled
+ * copy's gradient reads its 32 voxels from 12 tile rows, raycast.cl central_tiled; max, min
+ * and average skip dull blocks of bricks). */
+static void check_layouts(cdvr_cl *cl, const cdvr_volume *vol, const scene *sc)
+{
+    cdvr_look plain = {0}, shaded = {0}, go = {0}, max = {0}, min = {0}, avg = {0}, iso = {0};
+    cdvr_shading_default(&shaded.shade);
+    go.shade = shaded.shade;
+    go.gradient_opacity.npoints = 2;
+    go.gradient_opacity.magnitude[0] = 2;
+    go.gradient_opacity.magnitude[1] = 40;
+    go.gradient_opacity.factor[0] = 0.1;
+    go.gradient_opacity.factor[1] = 1;
+    max.blend = CDVR_BLEND_MAX;
+    min.blend = CDVR_BLEND_MIN;
+    avg.blend = CDVR_BLEND_AVERAGE;
+    iso.blend = CDVR_BLEND_ISO;
+    iso.iso_value = 140;
+    iso.shade = shaded.shade;
+    const struct { const cdvr_look *look; const char *name; } looks[] = {
+        {&plain, "composite"}, {&shaded, "shaded"}, {&go, "gradient opacity"}, {&max, "max"},
+        {&min, "min"}, {&avg, "average"}, {&iso, "iso shaded"}};
+    for (size_t i = 0; i < sizeof looks / sizeof *looks; i++)
+        check_layouts_look(cl, vol, sc, looks[i].look, looks[i].name);
 }
 
 static void synthetic_scenes(cdvr_cl *cl)

@@ -20,8 +20,9 @@
  *  - a constant volume shaded (zero gradient) gives finite pixels: rgb * ambient composited;
  *  - gradient opacity 0 at every magnitude makes the image empty;
  *  - bad options are refused naming them (blend, light, gradient_opacity order, clipping);
- *  - the OpenCL ray caster matches the CPU in every mode at >= 50 dB (on the engine CT when
- *    ../shared/data is present, else on the bundled neghip volume).
+ *  - the OpenCL ray caster matches the CPU in every mode at >= 80 dB (on the engine CT when
+ *    ../shared/data is present, else on the bundled neghip volume): float rounding gives
+ *    116-150 dB, a skip that drops one brick's maximum about 58 dB.
  */
 #include "check.h"
 
@@ -397,7 +398,7 @@ static void test_cl(void)
         if (a && b) {
             cdvr_compare_result r;
             CHECK_OK(cdvr_compare_images(a, b, &r, &err), err);
-            CHECK(r.psnr >= 50.0, "%s: cl against cpu %.2f dB", names[k], r.psnr);
+            CHECK(r.psnr >= 80.0, "%s: cl against cpu %.2f dB", names[k], r.psnr);
             printf("%s: cl against cpu %.2f dB\n", names[k], r.psnr);
         }
         cdvr_image_free(a);

@@ -32,6 +32,9 @@ typedef int32_t cdvr_cl_i32;
 #define CDVR_CL_WHOLE_POWER_MAX 128.0f
 /* Edge of the min/max bricks for empty-space skipping: 1 << CDVR_CL_BRICK_SHIFT voxels. */
 #define CDVR_CL_BRICK_SHIFT 2
+/* Edge of the blocks of bricks whose ranges follow the bricks' (max, min and average skip a
+ * dull block at once): 1 << CDVR_CL_BLOCK_SHIFT bricks. */
+#define CDVR_CL_BLOCK_SHIFT 2
 /* Bytes of the codec parameter blob handed to decode kernels and fetch functions
  * (CDVR_CODEC_PARAMS_MAX in cdvr/codec.h). */
 #define CDVR_CL_PARAMS_BYTES 48

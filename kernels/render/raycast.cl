@@ -571,14 +571,164 @@ static vec3x clamp_grid(const volume_geo *v, vec3x g)
         dq.AX = select((vfloat)(0.0f), diff / (h * (SP)), h > 0.0f);                           \
     } while (0)
 
-/* World gradient (codes per world unit) at grid position g (clamped like render_cpu.c). */
-static vec3x gradient(const volume_geo *v, const look_params *lk, vec3x g)
+#ifndef CDVR_LONG_INDEX
+/* ---- the gradient from the tiled copy ------------------------------------------------------
+ * The six trilinear values of the central differences at g +- one voxel per axis use 32
+ * voxels: rows x0 - 1 .. x0 + 2 at (y0, y1) x (z0, z1), and x0, x1 at rows y0 - 1 .. y0 + 2
+ * (z0, z1) and z0 - 1 .. z0 + 2 (y0, y1), where (x0, y0, z0) is g's trilinear corner. They lie
+ * in 12 tile rows of two words each: 24 gathers instead of the 48 of six trilinear calls (the
+ * gradient was 55% of a shaded frame). Each value is computed as trilinear() computes it, from
+ * the corners and weights of its own position (g + 1 may round, and both ends clamp), so the
+ * results are the same bits; a voxel outside the rows read only ever gets weight 0 (the upper
+ * corner of a position that rounded up to a whole number), and a packet with any lane whose
+ * corners fall outside (clipped rendering's offsets) takes six trilinear calls instead. */
+
+/* Per lane, the corners of g, g + 1 and g - 1 (clamped as CENTRAL clamps) on one axis: c0 and
+ * weight f0 of g; dp, dm the corners of g + 1 and g - 1 relative to c0, fp, fm their weights;
+ * h the distance between the two. Returns the lanes whose corners the tile rows hold. */
+typedef struct axis_corners {
+    vint c0, dp, dm;
+    vfloat f0, fp, fm, h;
+} axis_corners;
+
+static vint axis_corners_at(vfloat g, float top, int base_max, float offset, axis_corners *a)
+{
+    vfloat gp = fmin(g + 1.0f, top), gm = fmax(g - 1.0f, 0.0f);
+    a->h = gp - gm;
+    a->c0 = corner(g - offset, top, base_max, &a->f0);
+    a->dp = corner(gp - offset, top, base_max, &a->fp) - a->c0;
+    a->dm = corner(gm - offset, top, base_max, &a->fm) - a->c0;
+    return ((a->dp >= 0 & a->dp <= 1) | (a->dp == 2 & a->fp == 0.0f)) &
+           (a->dm == -1 | a->dm == 0);
+}
+
+/* Voxels x0 - 1 .. x0 + 2 of tile row `row` per lane, as bytes 0..3 (low first): the words at
+ * row + wlo and row + whi funnel-shifted by sh bits. Voxels outside the volume are arbitrary. */
+#define QUAD_LO(k) q[lo.s##k]
+#define QUAD_HI(k) q[hi.s##k]
+__attribute__((always_inline)) static inline vuint row_quad(__global const uint *q, vint row,
+                                                            vint wlo, vint whi, ulong16 sh)
+{
+    vint lo = row + wlo, hi = row + whi;
+    ulong16 both = convert_ulong16((vuint)(L16(QUAD_LO))) |
+                   (convert_ulong16((vuint)(L16(QUAD_HI))) << 32);
+    return convert_uint16(both >> sh);
+}
+
+/* Byte k (0..3) of each lane's quad, as a float. */
+static vfloat quad_at(vuint quad, vint k)
+{
+    return convert_vfloat((quad >> as_uint16(k << 3)) & 0xffu);
+}
+
+/* The x-lerp of quad slots k and k + 1 (slot 3 stands in for slot 4, which only gets weight 0). */
+static vfloat quad_lerp(vuint quad, vint k, vfloat f)
+{
+    return mix(quad_at(quad, k), quad_at(quad, min(k + 1, 3)), f);
+}
+
+/* Row j in -1..2 of four per lane: r[j + 1]. */
+static vfloat row_pick(const vfloat *r, vint j)
+{
+    return select(select(select(r[0], r[1], j == 0), r[2], j == 1), r[3], j == 2);
+}
+
+/* Lerp of rows r[dp + 1], r[dp + 2] by fp (g + 1) and of r[dm + 1], r[dm + 2] by fm (g - 1):
+ * four values per lane indexed -1..2 along an axis with corners `a`. */
+static void along_axis(const vfloat *r, const axis_corners *a, vfloat *plus, vfloat *minus)
+{
+    *plus = mix(row_pick(r, a->dp), row_pick(r, min(a->dp + 1, 2)), a->fp);
+    *minus = mix(row_pick(r, a->dm), row_pick(r, a->dm + 1), a->fm);
+}
+
+/* The differences trilinear(g + 1) - trilinear(g - 1) per axis (dq) and the distances h of
+ * CENTRAL, from the tile rows; returns 0 (dq unset) when some lane of `on` needs voxels
+ * outside them. */
+static int central_tiled(const volume_geo *v, vec3x g, vint on, vec3x *dq, vec3x *h)
+{
+    axis_corners ax, ay, az;
+    vint ok = axis_corners_at(g.x, v->top.x, v->base_max.x, v->offset.x, &ax) &
+              axis_corners_at(g.y, v->top.y, v->base_max.y, v->offset.y, &ay) &
+              axis_corners_at(g.z, v->top.z, v->base_max.z, v->offset.z, &az);
+    if (any(on & ~ok))
+        return 0;
+    __global const uint *q = (__global const uint *)v->vol;
+    int xmax = v->dims.x - 1;
+    vint wlo = along_x(clamp(ax.c0 - 1, 0, xmax)), whi = along_x(clamp(ax.c0 + 2, 0, xmax));
+    ulong16 sh = convert_ulong16(((ax.c0 - 1) & 3) << 3);
+    vint one = (vint)(1);
+    /* word offsets of rows y0 - 1 .. y0 + 2 and z0 - 1 .. z0 + 2 (clamped to the volume; lanes
+     * off `on` read word 0, as trilinear_on reads voxel 0) */
+    vint wy[4], wz[4];
+    for (int j = 0; j < 4; j++) {
+        wy[j] = along_y(v, clamp(ay.c0 + (j - 1), 0, v->dims.y - 1));
+        wz[j] = along_z(v, clamp(az.c0 + (j - 1), 0, v->dims.z - 1));
+    }
+    vint zero = (vint)(0);
+    /* y rows -1..2 at z0 and z1; z rows -1..2 at y0 and y1 (the four central rows in both) */
+    vuint yq0[4], yq1[4], zq0[4], zq1[4];
+    for (int j = 0; j < 4; j++) {
+        yq0[j] = row_quad(q, select(zero, wy[j] + wz[1], on), wlo, whi, sh);
+        yq1[j] = row_quad(q, select(zero, wy[j] + wz[2], on), wlo, whi, sh);
+    }
+    zq0[1] = yq0[1];
+    zq0[2] = yq1[1];
+    zq1[1] = yq0[2];
+    zq1[2] = yq1[2];
+    for (int l = 0; l < 4; l += 3) {
+        zq0[l] = row_quad(q, select(zero, wy[1] + wz[l], on), wlo, whi, sh);
+        zq1[l] = row_quad(q, select(zero, wy[2] + wz[l], on), wlo, whi, sh);
+    }
+    /* x: the four central rows, lerped at g + 1 and g - 1 along x, then y, then z */
+    vint kp = ax.dp + 1, km = ax.dm + 1;
+    vfloat p00 = quad_lerp(yq0[1], kp, ax.fp), p10 = quad_lerp(yq0[2], kp, ax.fp);
+    vfloat p01 = quad_lerp(yq1[1], kp, ax.fp), p11 = quad_lerp(yq1[2], kp, ax.fp);
+    vfloat m00 = quad_lerp(yq0[1], km, ax.fm), m10 = quad_lerp(yq0[2], km, ax.fm);
+    vfloat m01 = quad_lerp(yq1[1], km, ax.fm), m11 = quad_lerp(yq1[2], km, ax.fm);
+    vfloat xp = mix(mix(p00, p10, ay.f0), mix(p01, p11, ay.f0), az.f0);
+    vfloat xm = mix(mix(m00, m10, ay.f0), mix(m01, m11, ay.f0), az.f0);
+    /* y: rows x-lerped at g's x, along y at z0 and z1, then z */
+    vfloat r0[4], r1[4];
+    for (int j = 0; j < 4; j++) {
+        r0[j] = quad_lerp(yq0[j], one, ax.f0);
+        r1[j] = quad_lerp(yq1[j], one, ax.f0);
+    }
+    vfloat yp0, ym0, yp1, ym1;
+    along_axis(r0, &ay, &yp0, &ym0);
+    along_axis(r1, &ay, &yp1, &ym1);
+    vfloat yp = mix(yp0, yp1, az.f0), ym = mix(ym0, ym1, az.f0);
+    /* z: rows x-lerped, y-lerped per z, then along z */
+    vfloat rz[4];
+    for (int l = 0; l < 4; l++)
+        rz[l] = mix(quad_lerp(zq0[l], one, ax.f0), quad_lerp(zq1[l], one, ax.f0), ay.f0);
+    vfloat zp, zm;
+    along_axis(rz, &az, &zp, &zm);
+    *dq = (vec3x){xp - xm, yp - ym, zp - zm};
+    *h = (vec3x){ax.h, ay.h, az.h};
+    return 1;
+}
+#endif
+/* World gradient (codes per world unit) at grid position g (clamped like render_cpu.c) on
+ * lanes `on` (others get any finite value). */
+static vec3x gradient(const volume_geo *v, const look_params *lk, vec3x g, vint on)
 {
     g = clamp_grid(v, g);
     vec3x dq;
-    CENTRAL(x, lk->spacing[0]);
-    CENTRAL(y, lk->spacing[1]);
-    CENTRAL(z, lk->spacing[2]);
+#ifndef CDVR_LONG_INDEX
+#ifndef CDVR_FETCH
+    vec3x diff, h;
+    if (v->tiled && central_tiled(v, g, on, &diff, &h)) {
+        dq.x = select((vfloat)(0.0f), diff.x / (h.x * lk->spacing[0]), h.x > 0.0f);
+        dq.y = select((vfloat)(0.0f), diff.y / (h.y * lk->spacing[1]), h.y > 0.0f);
+        dq.z = select((vfloat)(0.0f), diff.z / (h.z * lk->spacing[2]), h.z > 0.0f);
+    } else
+#endif
+#endif
+    {
+        CENTRAL(x, lk->spacing[0]);
+        CENTRAL(y, lk->spacing[1]);
+        CENTRAL(z, lk->spacing[2]);
+    }
     const float *m = lk->grad_to_world;
     return (vec3x){m[0] * dq.x + m[1] * dq.y + m[2] * dq.z, m[3] * dq.x + m[4] * dq.y + m[5] * dq.z,
                    m[6] * dq.x + m[7] * dq.y + m[8] * dq.z};
@@ -653,7 +803,7 @@ static void look_sample(const volume_geo *v, const look_params *lk, vec3x g, vin
                         vfloat fr, vfloat ds, float unit, __global const float *alpha, vec3x V,
                         vint on, rgbax *c)
 {
-    vec3x G = gradient(v, lk, g);
+    vec3x G = gradient(v, lk, g, on);
     if (lk->go_points) {
         vfloat raw = mix((vfloat)(L16(RAW_ALPHA0)), (vfloat)(L16(RAW_ALPHA1)), fr);
         vfloat a = raw * go_factor(lk, length3x(G) * lk->value_per_code);
@@ -1101,9 +1251,30 @@ static void extreme_step(const extreme_bricks *eb, const volume_geo *v, vint *i,
     }
     vfloat limit = vload16(0, lim);
     vint dull = is_max ? limit <= best : limit >= best;
-    vint fx = select(bx << eb->shift, (bx + 1) << eb->shift, eb->dg.x >= 0.0f);
-    vint fy = select(by << eb->shift, (by + 1) << eb->shift, eb->dg.y >= 0.0f);
-    vint fz = select(bz << eb->shift, (bz + 1) << eb->shift, eb->dg.z >= 0.0f);
+    /* a dull brick's block (CDVR_CL_BLOCK_SHIFT), when dull too, is left at once */
+    vint block = need & dull, shift = (vint)(eb->shift);
+    if (any(block)) {
+        int kx = (eb->nbx + (1 << CDVR_CL_BLOCK_SHIFT) - 1) >> CDVR_CL_BLOCK_SHIFT;
+        int ky = (eb->nby + (1 << CDVR_CL_BLOCK_SHIFT) - 1) >> CDVR_CL_BLOCK_SHIFT;
+        vint kidx = (bx >> CDVR_CL_BLOCK_SHIFT) +
+                    kx * ((by >> CDVR_CL_BLOCK_SHIFT) + ky * (bz >> CDVR_CL_BLOCK_SHIFT));
+        __global const uchar2 *blocks = eb->minmax + eb->nbx * eb->nby * eb->nbz;
+        vstore16(select((vint)(0), kidx, block), 0, ids);
+        for (int k = 0; k < RAY_PACKET; k++) {
+            uchar2 mm = blocks[ids[k]];
+            lim[k] = is_max ? (float)mm.y : (float)mm.x;
+        }
+        limit = vload16(0, lim);
+        block &= is_max ? limit <= best : limit >= best;
+        /* the block as a brick of 2^CDVR_CL_BLOCK_SHIFT times the edge */
+        bx = select(bx, bx >> CDVR_CL_BLOCK_SHIFT, block);
+        by = select(by, by >> CDVR_CL_BLOCK_SHIFT, block);
+        bz = select(bz, bz >> CDVR_CL_BLOCK_SHIFT, block);
+        shift = select(shift, shift + CDVR_CL_BLOCK_SHIFT, block);
+    }
+    vint fx = select(bx << shift, (bx + 1) << shift, eb->dg.x >= 0.0f);
+    vint fy = select(by << shift, (by + 1) << shift, eb->dg.y >= 0.0f);
+    vint fz = select(bz << shift, (bz + 1) << shift, eb->dg.z >= 0.0f);
     vfloat tx = (convert_vfloat(fx) - eb->g0.x) * eb->inv_dg.x;
     vfloat ty = (convert_vfloat(fy) - eb->g0.y) * eb->inv_dg.y;
     vfloat tz = (convert_vfloat(fz) - eb->g0.z) * eb->inv_dg.z;
@@ -1114,7 +1285,9 @@ static void extreme_step(const extreme_bricks *eb, const volume_geo *v, vint *i,
     *end = select(*end, run_end, need & ~dull);
 }
 
-/* Max, min or average of every sample's code (max and min skip dull bricks; no termination). */
+/* Max, min or average of every sample's code (no termination). With the ranges, lanes skip
+ * dull bricks (whose range cannot beat the lane's best; for average, bricks of zeros) and a
+ * dull brick's whole block when the block is dull too (CDVR_CL_BLOCK_SHIFT). */
 static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spacing,
                            const volume_geo *v, const look_params *lk,
                            __global const float4 *table, __global const float *alpha,
@@ -1122,12 +1295,12 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
 {
     vfloat best = (vfloat)(lk->blend == 2 ? INFINITY : -INFINITY), sum = (vfloat)(0.0f);
     vint count = (vint)(0);
-    int nmax = 0;
-    int ns[RAY_PACKET];
-    vstore16(select((vint)(0), n, p->hit), 0, ns);
-    for (int k = 0; k < RAY_PACKET; k++)
-        nmax = max(nmax, ns[k]);
-    if (lk->blend == 3 || !eb->minmax) {
+    if (!eb->minmax) {
+        int nmax = 0;
+        int ns[RAY_PACKET];
+        vstore16(select((vint)(0), n, p->hit), 0, ns);
+        for (int k = 0; k < RAY_PACKET; k++)
+            nmax = max(nmax, ns[k]);
         for (int i = 0; i < nmax; i++) {
             vint ok;
             vfloat tm;
@@ -1139,20 +1312,28 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
             best = select(best, ext, ok);
         }
     } else { /* per-lane sample index: lanes skip dull bricks on their own; the last, shorter
-                segment is always sampled */
-        int is_max = lk->blend == 1;
+                segment is always sampled. Average skips the bricks whose voxels are all 0 (as
+                max does while its best is 0): their samples are 0, add nothing to the sum and
+                count in the mean. */
+        int is_avg = lk->blend == 3, is_max = lk->blend == 1 || is_avg;
         /* no code lies beyond 255 (below 0): a lane whose extreme got there is done */
-        float saturated = is_max ? 255.0f : 0.0f;
+        float saturated = is_avg ? NAN : is_max ? 255.0f : 0.0f;
         vint i = (vint)(0), end = (vint)(0), live = p->hit & (i < n);
         int run_min = run_samples(step, inv_spacing);
         while (any(live)) {
             vint need = live & (i >= end) & (i < n - 1);
             if (!look_up_now(need, live & (i < end))) /* a step's samples on, unlooked */
                 end = select(end, i + 4, need);
-            else if (any(need)) {
-                extreme_step(eb, v, &i, &end, best, is_max, need, run_min);
-                i = min(i, n - 1);
-            }
+            else /* a lane that skipped a dull brick looks up the next at once (BRICK_HOPS) */
+                for (int hop = 0; hop < BRICK_HOPS && any(need); hop++) {
+                    vint before = i;
+                    extreme_step(eb, v, &i, &end, is_avg ? (vfloat)(0.0f) : best, is_max, need,
+                                 run_min);
+                    i = min(i, n - 1);
+                    if (is_avg) /* the skipped samples count in the mean */
+                        count += select((vint)(0), i - before, need);
+                    need &= (i >= end) & (i < n - 1);
+                }
             end = select(end, n, i >= n - 1); /* the last sample needs no look-up */
             for (int k = 0; k < 4; k++) {
                 vint run = live & (i < end);
@@ -1164,6 +1345,8 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
                 ok &= run;
                 vfloat s = trilinear(v, g);
                 count -= ok;
+                if (is_avg)
+                    sum += select((vfloat)(0.0f), s, ok);
                 vfloat ext = is_max ? fmax(best, s) : fmin(best, s);
                 best = select(best, ext, ok);
                 i -= run;
@@ -1171,7 +1354,7 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
             }
             /* after the step's samples: as a condition of each sample it would chain their
              * loads to the previous sample's value */
-            live &= best != saturated;
+            live &= best != saturated; /* never for average (NaN) */
         }
     }
     *taken = count;
@@ -1252,7 +1435,7 @@ static rgbax march_iso(const packet *p, vint n, float step, float3 inv_spacing,
         col = (rgbax){(vfloat)(lk->iso_rgb[0]), (vfloat)(lk->iso_rgb[1]), (vfloat)(lk->iso_rgb[2]),
                       (vfloat)(1.0f)};
     if (lk->shade)
-        shade_rgb(lk, gradient(v, lk, point_at(p, t_hit, inv_spacing)), V, &col);
+        shade_rgb(lk, gradient(v, lk, point_at(p, t_hit, inv_spacing), found), V, &col);
     vfloat a = select((vfloat)(0.0f), (vfloat)(lk->iso_alpha), found);
     return (rgbax){col.r * a, col.g * a, col.b * a, a};
 }
@@ -1392,9 +1575,9 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     vint py = py0 + (vint)(0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3);
     /* no visible sample before t = te (cdvr/skip.h, entry distances) */
     float te = entry_on ? entry[get_global_id(1) * entry_tiles_x + get_global_id(0)] : 0.0f;
+    rgbax none = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
     if (isinf(te)) {
         /* no ray of the packet meets a visible brick: the image of no sample */
-        rgbax none = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
         store_pixels(image, px, py, cam.width, cam.height, none);
         samples[slot] = 0;
         return;
@@ -1409,6 +1592,11 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     /* lanes that miss get an empty, well-defined segment (their t values may be inf/NaN) */
     p.t_near = select((vfloat)(0.0f), p.t_near, p.hit);
     p.t_far = select((vfloat)(0.0f), p.t_far, p.hit);
+    if (!any(p.hit)) { /* every blend mode's image of no sample */
+        store_pixels(image, px, py, cam.width, cam.height, none);
+        samples[slot] = 0;
+        return;
+    }
     vint n = max(convert_vint(ceil((p.t_far - p.t_near) / step)), 1);
     vfloat t0 = p.t_near + 0.5f * step;
     vec3x g0 = {(p.o.x + t0 * p.d.x) * inv_spacing.x, (p.o.y + t0 * p.d.y) * inv_spacing.y,

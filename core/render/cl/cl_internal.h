@@ -110,7 +110,10 @@ struct cdvr_cl_stream {
                                            fetch kernels (NULL: dense frames) */
     cl_mem table;                /* 256 float4: rgb + step-corrected alpha (per render) */
     cl_mem alpha_unit;           /* 256 floats: alpha per unit length (shorter last segment) */
-    cl_mem brick_minmax;         /* nbricks uchar2: value range per brick incl. apron */
+    cl_mem brick_minmax;         /* nbricks uchar2: value range per brick incl. apron, then
+                                    nblocks uchar2: the range of each block of bricks
+                                    (CDVR_CL_BLOCK_SHIFT) */
+    size_t block_dims[3], nblocks; /* blocks per axis, in all */
     const uint8_t *pending_minmax; /* cdvr_cl_setup_grid's grid ranges, not uploaded yet (only
                                     a max or min render uploads them) */
     int minmax_valid;            /* brick_minmax holds the set-up frame's ranges (the max and

@@ -66,7 +66,37 @@ static cdvr_status set_source_args(cl_kernel k, const char *name, const voxel_so
     return st;
 }
 
-/* Min/max of every brick of device frame `frame`, copied to s->grid.minmax. */
+/* The ranges of the blocks of 2^CDVR_CL_BLOCK_SHIFT bricks per axis from the bricks' ranges
+ * (lo, hi pairs), written after them in brick_minmax. */
+static cdvr_status upload_block_ranges(cdvr_cl_stream *s, const uint8_t *bricks, cdvr_error *err)
+{
+    uint8_t *blocks = malloc(2 * s->nblocks);
+    if (!blocks)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL block ranges: out of memory");
+    for (size_t i = 0; i < s->nblocks; i++) {
+        blocks[2 * i] = 255;
+        blocks[2 * i + 1] = 0;
+    }
+    const size_t *bd = s->brick_dims, *kd = s->block_dims;
+    const unsigned shift = CDVR_CL_BLOCK_SHIFT;
+    size_t b = 0;
+    for (size_t z = 0; z < bd[2]; z++)
+        for (size_t y = 0; y < bd[1]; y++)
+            for (size_t x = 0; x < bd[0]; x++, b++) {
+                size_t k = (x >> shift) + kd[0] * ((y >> shift) + kd[1] * (z >> shift));
+                if (bricks[2 * b] < blocks[2 * k])
+                    blocks[2 * k] = bricks[2 * b];
+                if (bricks[2 * b + 1] > blocks[2 * k + 1])
+                    blocks[2 * k + 1] = bricks[2 * b + 1];
+            }
+    cl_int code = clEnqueueWriteBuffer(s->cl->queue, s->brick_minmax, CL_TRUE, 2 * s->nbricks,
+                                       2 * s->nblocks, blocks, 0, NULL, NULL);
+    free(blocks);
+    return cdvr_cl_check(code, "upload block ranges", err);
+}
+
+/* Min/max of every brick of device frame `frame`, copied to s->grid.minmax, and of every
+ * block. */
 static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *err)
 {
     voxel_source src;
@@ -90,7 +120,8 @@ static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *e
                                       s->grid.minmax, 0, NULL, NULL);
     cdvr_skip_grid_touch(&s->grid);
     s->minmax_count++;
-    return cdvr_cl_check(code, "read brick min/max grid", err);
+    st = cdvr_cl_check(code, "read brick min/max grid", err);
+    return st ? st : upload_block_ranges(s, s->grid.minmax, err);
 }
 
 /* Iso skipping (raycast.cl, march_iso): iso_flags gets the flags of the set-up frame's ranges
@@ -494,11 +525,14 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
     }
     cl_float step = (cl_float)rp.step, term_alpha = (cl_float)rp.term_alpha;
     cl_float unit = (cl_float)rp.unit;
-    if ((look->blend == CDVR_BLEND_MAX || look->blend == CDVR_BLEND_MIN) && !s->minmax_valid &&
+    if ((look->blend == CDVR_BLEND_MAX || look->blend == CDVR_BLEND_MIN ||
+         look->blend == CDVR_BLEND_AVERAGE) &&
+        !s->minmax_valid &&
         s->pending_minmax) {
         cdvr_error ignored; /* without the ranges max and min just take every sample */
         s->minmax_valid = write_buffer(s->cl, s->brick_minmax, s->pending_minmax, 2 * s->nbricks,
-                                       "upload brick ranges", &ignored) == CDVR_OK;
+                                       "upload brick ranges", &ignored) == CDVR_OK &&
+                          upload_block_ranges(s, s->pending_minmax, &ignored) == CDVR_OK;
         s->pending_minmax = NULL;
     }
     cl_int minmax_valid = s->minmax_valid && s->setup_frame == frame;

@@ -72,7 +72,13 @@ cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_str
     s->setup_frame = (size_t)-1;
     s->minmax_frame = (size_t)-1;
     s->tiles_frame = s->last_rendered = (size_t)-1;
-    size_t cap = 0, minmax_bytes = 2 * s->nbricks; /* nbricks < voxels: no overflow */
+    s->nblocks = 1;
+    for (int i = 0; i < 3; i++) {
+        s->block_dims[i] = ceil_div(s->brick_dims[i], (size_t)1 << CDVR_CL_BLOCK_SHIFT);
+        s->nblocks *= s->block_dims[i];
+    }
+    /* nbricks < voxels: no overflow */
+    size_t cap = 0, minmax_bytes = 2 * (s->nbricks + s->nblocks);
     cdvr_status st = cdvr_cl_ensure_buffer(cl, &s->table, &cap, 256 * 4 * sizeof(float),
                                            CL_MEM_READ_ONLY, "TF table", err);
     if (!st)
