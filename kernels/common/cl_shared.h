@@ -27,6 +27,15 @@ typedef int32_t cdvr_cl_i32;
  * raycast.cl's along_x/y/z and bricks.cl's make_tiles spell out these sizes: the edge must
  * stay 16. */
 #define CDVR_CL_PAGE_EDGE 16
+/* The gradient copy of a frame (made with the tiled copy for renders that shade or use
+ * gradient opacity): per voxel (x, y, z) one 32-bit word at index 4 * w + (x & 3), where w is
+ * the voxel's tile row word in the tiled copy, holding the central differences
+ * D_a = v(p + e_a) - v(p - e_a) (neighbours clamped to the frame) as D_x + 512 in bits 0-9,
+ * D_y + 512 in bits 10-19 and D_z + 512 in bits 20-29. Inside the frame the trilinear
+ * interpolation of D at g equals the difference of the trilinear values at g + e_a and
+ * g - e_a (render.h's gradient) in exact arithmetic; raycast.cl reads it only where every
+ * corner's neighbours lie in the frame. */
+#define CDVR_CL_GRAD_BIAS 512
 /* The largest whole specular power taken by repeated squaring: CDVR_SHADE_WHOLE_POWER_MAX of
  * render.h, shading (cl_render.c checks that they agree). */
 #define CDVR_CL_WHOLE_POWER_MAX 128.0f

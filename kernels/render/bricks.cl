@@ -60,3 +60,35 @@ __kernel void make_tiles(__global const uchar *frames, ulong offset, uint X, uin
         word |= (uint)line[min(x0 + k, X - 1)] << (8 * k);
     tiles[i] = word;
 }
+
+/* The gradient copy (kernels/common/cl_shared.h) of the frame at frames + offset: work-item
+ * i writes the four voxels of tile row word i of the tiled copy (words 4i .. 4i + 3). */
+__kernel void make_grads(__global const uchar *frames, ulong offset, uint X, uint Y, uint Z,
+                         __global uint *grads)
+{
+    size_t i = get_global_id(0);
+    const uint edge = CDVR_CL_PAGE_EDGE;
+    uint px = (X + edge - 1) / edge, py = (Y + edge - 1) / edge, pz = (Z + edge - 1) / edge;
+    if (i >= (size_t)px * py * pz * 1024)
+        return;
+    size_t page = i >> 10;
+    uint within = (uint)i & 1023u, tile = within >> 4, row = within & 15u;
+    uint cx = page % px, cy = (page / px) % py, cz = page / ((size_t)px * py);
+    uint y = min(edge * cy + 4 * ((tile >> 2) & 3u) + (row & 3u), Y - 1);
+    uint z = min(edge * cz + 4 * (tile >> 4) + (row >> 2), Z - 1);
+    uint x0 = edge * cx + 4 * (tile & 3u);
+    __global const uchar *f = frames + offset;
+    size_t sy = X, sz = (size_t)X * Y;
+    size_t ym = (size_t)(y > 0 ? y - 1 : 0), yp = (size_t)min(y + 1, Y - 1);
+    size_t zm = (size_t)(z > 0 ? z - 1 : 0), zp = (size_t)min(z + 1, Z - 1);
+    for (uint k = 0; k < 4; k++) {
+        uint x = min(x0 + k, X - 1);
+        size_t at = (size_t)z * sz + (size_t)y * sy;
+        int dx = (int)f[at + min(x + 1, X - 1)] - (int)f[at + (x > 0 ? x - 1 : 0)];
+        int dy = (int)f[(size_t)z * sz + yp * sy + x] - (int)f[(size_t)z * sz + ym * sy + x];
+        int dz = (int)f[zp * sz + (size_t)y * sy + x] - (int)f[zm * sz + (size_t)y * sy + x];
+        grads[4 * i + k] = (uint)(dx + CDVR_CL_GRAD_BIAS) |
+                           ((uint)(dy + CDVR_CL_GRAD_BIAS) << 10) |
+                           ((uint)(dz + CDVR_CL_GRAD_BIAS) << 20);
+    }
+}

@@ -495,7 +495,8 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
                                     const cam_params *cam, const cdvr_render_clip *clip,
                                     const double spacing[3], const box_frame *box,
                                     const cdvr_cl_look *look, cl_mem image, cl_int entry_on,
-                                    cl_int entry_tiles_x, cl_kernel *kernel, cdvr_error *err)
+                                    cl_int entry_tiles_x, cl_int grads_on, cl_kernel *kernel,
+                                    cdvr_error *err)
 {
     voxel_source src;
     cdvr_status sst = source_of(s, frame, &src, err);
@@ -559,7 +560,8 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
                 {sizeof(cl_mem), &image},     {sizeof(cl_mem), &s->samples},
                 {sizeof *look, look},         {sizeof(cl_mem), &s->brick_minmax},
                 {sizeof(cl_int), &minmax_valid}, {sizeof(cl_mem), &s->entry_tiles},
-                {sizeof entry_tiles_x, &entry_tiles_x}, {sizeof entry_on, &entry_on}};
+                {sizeof entry_tiles_x, &entry_tiles_x}, {sizeof entry_on, &entry_on},
+                {sizeof(cl_mem), &s->grads},  {sizeof grads_on, &grads_on}};
     cdvr_status st = set_source_args(k, "raycast", &src, err);
     for (cl_uint i = 0; !st && i < sizeof args / sizeof *args; i++)
         st = cdvr_cl_arg(k, "raycast", 3 + i, args[i].size, args[i].value, err);
@@ -616,6 +618,49 @@ static void make_tiles_if_rerendered(cdvr_cl_stream *s, size_t frame)
         return;
     }
     s->tiles_frame = frame;
+}
+
+/* With the tiled copy of `frame`, a render that shades (or uses gradient opacity) gets the
+ * frame's gradient copy (kernels/common/cl_shared.h): 4 bytes per voxel of the tiled copy,
+ * read as 8 words per gradient instead of 32 voxels from 12 tile rows (raycast.cl). Off with
+ * CDVR_CL_GRADS=0; on any failure the gradients come from the voxels. Returns 1 when the
+ * render reads it. */
+static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
+{
+    const char *env = getenv("CDVR_CL_GRADS");
+    int wanted = look->shade.enabled || look->gradient_opacity.npoints > 0;
+    if (s->tiles_frame != frame || !wanted || (env && !strcmp(env, "0")))
+        return 0;
+    if (s->grads_frame == frame)
+        return 1;
+    size_t words = tiled_bytes(s->dims), rows = words / 4, bytes;
+    if (!cdvr_size_mul(words, 4, &bytes))
+        return 0;
+    cdvr_error err;
+    cl_kernel k = s->cl->k_grads;
+    cl_ulong offset = frame * s->voxels;
+    cl_mem frames = cdvr_cl_frames_mem(s);
+    cl_uint d[3] = {(cl_uint)s->dims[0], (cl_uint)s->dims[1], (cl_uint)s->dims[2]};
+    cdvr_status st = cdvr_cl_ensure_buffer(s->cl, &s->grads, &s->grads_capacity, bytes,
+                                           CL_MEM_READ_WRITE, "gradient copy", &err);
+    if (!st)
+        st = cdvr_cl_arg(k, "make_grads", 0, sizeof(cl_mem), &frames, &err);
+    if (!st)
+        st = cdvr_cl_arg(k, "make_grads", 1, sizeof offset, &offset, &err);
+    for (cl_uint i = 0; !st && i < 3; i++)
+        st = cdvr_cl_arg(k, "make_grads", 2 + i, sizeof(cl_uint), &d[i], &err);
+    if (!st)
+        st = cdvr_cl_arg(k, "make_grads", 5, sizeof(cl_mem), &s->grads, &err);
+    if (!st)
+        st = run_kernel(s->cl, k, 1, &rows, NULL, "make_grads kernel", &err);
+    if (st) {
+        cdvr_cl_release(&s->grads);
+        s->grads_capacity = 0;
+        s->grads_frame = (size_t)-1;
+        return 0;
+    }
+    s->grads_frame = frame;
+    return 1;
 }
 
 /* Device image of `pixels` and one sample counter per work-item (`items`). */
@@ -794,9 +839,10 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     cdvr_cl_look look = look_of(&opts->look, &s->tf, &box, spacing);
     int entry_wanted = s->skipping && !opts->clip && look.blend == CDVR_BLEND_COMPOSITE;
     cl_int entry_on = entry_tiles_ready(s, &cam, spacing, origin, D, global, entry_wanted);
+    cl_int grads_on = !opts->clip && grads_ready(s, frame, &opts->look);
     st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box, &look,
                           host_image ? host_image : s->image, entry_on, (cl_int)global[0],
-                          &kernel, err);
+                          grads_on, &kernel, err);
     if (!st)
         st = cast_and_read(s, kernel, global, local, host_image, img, pixels, err);
     cdvr_cl_release(&host_image);
