@@ -806,25 +806,48 @@ static vfloat power_of(vfloat x, vint n)
 }
 
 /* render.h's |n.H|^power: repeated squaring for a whole power up to CDVR_CL_WHOLE_POWER_MAX
- * (VTK's default 10), else pow. */
+ * (VTK's default 10), else pow. The power is the same for every lane: power_of's products,
+ * in a loop the compiler unrolls without per-bit lane tests. */
 static vfloat specular_power(vfloat x, float power)
 {
-    if (power == floor(power) && power <= CDVR_CL_WHOLE_POWER_MAX)
-        return power_of(x, (vint)((int)power));
+    if (power == floor(power) && power <= CDVR_CL_WHOLE_POWER_MAX) {
+        vfloat p = (vfloat)(1.0f);
+        for (int n = (int)power; n != 0; n >>= 1) {
+            if (n & 1)
+                p = p * x;
+            x = x * x;
+        }
+        return p;
+    }
     return pow(x, power);
 }
 
+/* Per ray, what shading needs of the viewer: the light L (the headlight: towards the eye),
+ * the half vector H = L + V and its length (made once per packet, not per sample). */
+typedef struct viewer {
+    vec3x L, H;
+    vfloat hl;
+} viewer;
+
+static viewer make_viewer(const look_params *lk, vec3x V)
+{
+    viewer w;
+    w.L = lk->headlight ? V : (vec3x){(vfloat)lk->light[0], (vfloat)lk->light[1],
+                                      (vfloat)lk->light[2]};
+    w.H = (vec3x){w.L.x + V.x, w.L.y + V.y, w.L.z + V.z};
+    w.hl = length3x(w.H);
+    return w;
+}
+
 /* rgb' = min(1, rgb (ambient + diffuse |n.L|) + specular |n.H|^power), two-sided. */
-static void shade_rgb(const look_params *lk, vec3x G, vec3x V, rgbax *c)
+static void shade_rgb(const look_params *lk, vec3x G, const viewer *view, rgbax *c)
 {
     vfloat len = length3x(G);
     vint ok = len >= 1e-12f;
     vfloat inv = select((vfloat)(0.0f), 1.0f / len, ok);
     vec3x n = {G.x * inv, G.y * inv, G.z * inv};
-    vec3x L = lk->headlight ? V : (vec3x){(vfloat)lk->light[0], (vfloat)lk->light[1],
-                                          (vfloat)lk->light[2]};
-    vec3x H = {L.x + V.x, L.y + V.y, L.z + V.z};
-    vfloat hl = length3x(H);
+    vec3x L = view->L, H = view->H;
+    vfloat hl = view->hl;
     vfloat ndl = fabs(n.x * L.x + n.y * L.y + n.z * L.z);
     vfloat ndh = select((vfloat)(0.0f), fabs(n.x * H.x + n.y * H.y + n.z * H.z) / hl, hl > 0.0f);
     vfloat spec = select((vfloat)(0.0f), lk->specular * specular_power(ndh, lk->power), ndh > 0.0f);
@@ -856,7 +879,7 @@ static vfloat go_factor(const look_params *lk, vfloat m)
  * frame's time outside the gradient) */
 __attribute__((always_inline)) static inline void look_sample(
     const volume_geo *v, const look_params *lk, vec3x g, vint i0, vfloat fr, vfloat ds,
-    float unit, __global const float *alpha, vec3x V, vint on, rgbax *c)
+    float unit, __global const float *alpha, const viewer *V, vint on, rgbax *c)
 {
     vec3x G = gradient(v, lk, g, on);
     if (lk->go_points) {
@@ -968,7 +991,7 @@ static vint owned(const clip_params *c, vec3x g)
 __attribute__((always_inline)) static inline void sample_steps(
     march *m, vint run, const volume_geo *v, const clip_params *clip, vec3x g0, vec3x dg,
     __global const float4 *table, float term_alpha, const look_params *lk,
-    __global const float *alpha, float step, float unit, vec3x V, rgbax *acc, const int unroll)
+    __global const float *alpha, float step, float unit, const viewer *V, rgbax *acc, const int unroll)
 {
     vfloat s[UNROLL];
     vint own[UNROLL];
@@ -1042,7 +1065,7 @@ static int look_up_now(vint need, vint can_sample)
 static void march_full(march *m, int skipping, const bricks *b, const volume_geo *v,
                        const clip_params *clip, vec3x g0, vec3x dg,
                        __global const float4 *table, float term_alpha, const look_params *lk,
-                       __global const float *alpha, float step, float unit, vec3x V,
+                       __global const float *alpha, float step, float unit, const viewer *V,
                        rgbax *acc)
 {
     while (any(m->active)) {
@@ -1107,7 +1130,7 @@ static void cache_sample_steps(march *m, vint run, vint fresh, cache_lanes *cl, 
                                vec3x g0, vec3x dg,
                                __global const float4 *table, float term_alpha,
                                const look_params *lk, __global const float *alpha, float step,
-                               float unit, vec3x V, rgbax *acc)
+                               float unit, const viewer *V, rgbax *acc)
 {
     cache_run r = load_run(cl, limit);
     vint stop_at = min(m->end, r.end);
@@ -1169,7 +1192,7 @@ static void cache_sample_steps(march *m, vint run, vint fresh, cache_lanes *cl, 
 static void march_cached(march *m, int skipping, const bricks *b, const volume_geo *v,
                          const clip_params *clip, vec3x g0, vec3x dg,
                          __global const float4 *table, float term_alpha, const look_params *lk,
-                         __global const float *alpha, float step, float unit, vec3x V,
+                         __global const float *alpha, float step, float unit, const viewer *V,
                          rgbax *acc)
 {
     cache_lanes cl;
@@ -1198,7 +1221,7 @@ static void march_cached(march *m, int skipping, const bricks *b, const volume_g
 static void last_segment(const packet *p, vint n, vint last, float step, float unit,
                          const volume_geo *v, const clip_params *clip, float3 inv_spacing,
                          __global const float4 *table, __global const float *alpha,
-                         const look_params *lk, vec3x V, rgbax *acc, vint *taken)
+                         const look_params *lk, const viewer *V, rgbax *acc, vint *taken)
 {
     vfloat ts = p->t_near + convert_vfloat(n - 1) * step;
     vfloat ds = p->t_far - ts;
@@ -1428,7 +1451,7 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
  * the samples between are counted as taken (the same image and count as without skipping). */
 static rgbax march_iso(const packet *p, vint n, float step, float3 inv_spacing,
                        const volume_geo *v, const look_params *lk,
-                       __global const float4 *table, vec3x V, const bricks *b, vec3x g0,
+                       __global const float4 *table, const viewer *V, const bricks *b, vec3x g0,
                        vec3x dg, vint *taken)
 {
     float c = lk->iso_code;
@@ -1643,7 +1666,8 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     packet p;
     camera_rays(&cam, px, py, &p);
     p.hit = px < cam.width & py < cam.height;
-    vec3x V = {-p.d.x, -p.d.y, -p.d.z}; /* towards the eye, world (shading) */
+    /* towards the eye, world (shading) */
+    viewer view = make_viewer(&look, (vec3x){-p.d.x, -p.d.y, -p.d.z});
     to_box_frame(&box, &p);
     float3 inv_spacing = (float3)(isx, isy, isz);
     intersect_box(&p, (float3)(0.0f), (float3)(hx, hy, hz));
@@ -1692,7 +1716,7 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
                             select((vfloat)(INFINITY), 1.0f / dg.y, dg.y != 0.0f),
                             select((vfloat)(INFINITY), 1.0f / dg.z, dg.z != 0.0f)};
         rgbax out = look.blend == 4
-                        ? march_iso(&p, n, step, inv_spacing, &v, &look, table, V,
+                        ? march_iso(&p, n, step, inv_spacing, &v, &look, table, &view,
                                     skipping ? &iso_bricks : 0, g0, dg, &taken)
                         : march_extreme(&p, n, step, inv_spacing, &v, &look, table, alpha, &eb,
                                         &taken);
@@ -1740,13 +1764,13 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
 #ifdef CDVR_BRICK_CACHE
     if (v.march)
         march_cached(&m, skipping, &b, &v, &clip, g0, dg, table, term_alpha, &look, alpha, step,
-                     unit, V, &acc);
+                     unit, &view, &acc);
     else
 #endif
         march_full(&m, skipping, &b, &v, &clip, g0, dg, table, term_alpha, &look, alpha, step,
-                   unit, V, &acc);
+                   unit, &view, &acc);
     last_segment(&p, n, last & ~m.done, step, unit, &v, &clip, inv_spacing, table, alpha, &look,
-                 V, &acc, &m.taken);
+                 &view, &acc, &m.taken);
     store_pixels(image, px, py, cam.width, cam.height, acc);
     int8 t8 = m.taken.lo + m.taken.hi;
     int4 t4 = t8.lo + t8.hi;
