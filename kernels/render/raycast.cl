@@ -1448,17 +1448,19 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
  * not hold it (all its samples lie strictly on one side of c: adjacent bricks' ranges share
  * voxels, so the cube's ranges cannot straddle c) moves on to the cube's last sample, which
  * the crossing test and the refinement of the first sample past it read as the predecessor;
- * the samples between are counted as taken (the same image and count as without skipping). */
+ * the samples between are counted as taken (the same image and count as without skipping).
+ * Lanes start at sample `first` (the iso entry bound, else 0), which has no predecessor: the
+ * samples before it are counted as taken too. */
 static rgbax march_iso(const packet *p, vint n, float step, float3 inv_spacing,
                        const volume_geo *v, const look_params *lk,
                        __global const float4 *table, const viewer *V, const bricks *b, vec3x g0,
-                       vec3x dg, vint *taken)
+                       vec3x dg, vint first, vint *taken)
 {
     float c = lk->iso_code;
     vfloat prev = (vfloat)(0.0f), t_prev = (vfloat)(0.0f), t_hit = (vfloat)(0.0f);
-    vint found = (vint)(0), count = (vint)(0);
+    vint found = (vint)(0), count = first;
     vfloat ta = (vfloat)(0.0f), tb = (vfloat)(0.0f), sa = (vfloat)(0.0f), sb = (vfloat)(0.0f);
-    vint i = (vint)(0), end = (vint)(0), live = p->hit & (i < n);
+    vint i = first, end = (vint)(0), live = p->hit & (i < n);
     while (any(live)) {
         vint ok;
         vfloat tm;
@@ -1466,7 +1468,7 @@ static rgbax march_iso(const packet *p, vint n, float step, float3 inv_spacing,
         ok &= live;
         vfloat s = trilinear(v, g);
         count -= ok;
-        vint hit = ok & (s == c | (i > 0 & (prev - c) * (s - c) < 0.0f));
+        vint hit = ok & (s == c | (i > first & (prev - c) * (s - c) < 0.0f));
         ta = select(ta, t_prev, hit);
         tb = select(tb, tm, hit);
         sa = select(sa, prev, hit);
@@ -1657,8 +1659,9 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     /* no visible sample before t = te (cdvr/skip.h, entry distances) */
     float te = entry_on ? entry[get_global_id(1) * entry_tiles_x + get_global_id(0)] : 0.0f;
     rgbax none = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
-    if (isinf(te)) {
-        /* no ray of the packet meets a visible brick: the image of no sample */
+    if (isinf(te) && look.blend == 0) {
+        /* no ray of the packet meets a visible brick: the image of no sample (iso marches
+         * its last sample only, so its count stays that of every sample) */
         store_pixels(image, px, py, cam.width, cam.height, none);
         samples[slot] = 0;
         return;
@@ -1715,11 +1718,25 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
         eb.inv_dg = (vec3x){select((vfloat)(INFINITY), 1.0f / dg.x, dg.x != 0.0f),
                             select((vfloat)(INFINITY), 1.0f / dg.y, dg.y != 0.0f),
                             select((vfloat)(INFINITY), 1.0f / dg.z, dg.z != 0.0f)};
-        rgbax out = look.blend == 4
-                        ? march_iso(&p, n, step, inv_spacing, &v, &look, table, &view,
-                                    skipping ? &iso_bricks : 0, g0, dg, &taken)
-                        : march_extreme(&p, n, step, inv_spacing, &v, &look, table, alpha, &eb,
-                                        &taken);
+        /* iso with the iso flags' entry bound: from the sample before it (samples 0 .. first
+         * lie in bricks that do not hold the code, all on one side of it: no crossing) */
+        vint first = (vint)(0);
+        if (entry_on) {
+            vfloat k = floor((te - p.t_near) / step - 0.5f) - 1.0f;
+            first = select((vint)(0), convert_vint(clamp(k, 0.0f, convert_vfloat(n - 1))), p.hit);
+        }
+        rgbax out = none;
+        if (look.blend == 4 && entry_on && isinf(te)) {
+            /* no ray meets a brick that can hold the code: march_iso's count from sample
+             * n - 1 alone (n - 1 before it, and it unless its segment is empty) */
+            vfloat ts = p.t_near + convert_vfloat(n - 1) * step;
+            vint last_ok = p.hit & (p.t_far - ts > 0.0f);
+            taken = select((vint)(0), n - 1, p.hit) - last_ok;
+        } else if (look.blend == 4)
+            out = march_iso(&p, n, step, inv_spacing, &v, &look, table, &view,
+                            skipping ? &iso_bricks : 0, g0, dg, first, &taken);
+        else
+            out = march_extreme(&p, n, step, inv_spacing, &v, &look, table, alpha, &eb, &taken);
         store_pixels(image, px, py, cam.width, cam.height, out);
         int8 s8 = taken.lo + taken.hi;
         int4 s4 = s8.lo + s8.hi;

@@ -85,11 +85,12 @@ cdvr_status cdvr_cl_arg(cl_kernel k, const char *name, cl_uint index, size_t siz
                         const void *value, cdvr_error *err);
 
 /* What a stream's entry tiles were made for (cl_render.c): the camera and the volume's
- * placement, the entry list's version and the tiles' count. */
+ * placement, which entry list (iso: the iso flags') and its version, and the tiles' count. */
 typedef struct cdvr_cl_entry_made {
     cdvr_skip_view view;
     uint64_t version;
     size_t tiles[2];
+    int iso;
     int valid;
 } cdvr_cl_entry_made;
 
@@ -145,6 +146,8 @@ struct cdvr_cl_stream {
     int skipping;
     cdvr_skip_entry entry;       /* boxes of the uploaded flags' boundary bricks (cdvr/skip.h) */
     int entry_ok;                /* entry describes the flags in brick_visible */
+    cdvr_skip_entry iso_entry;   /* the same for the flags in iso_flags */
+    int iso_entry_ok;
     cl_mem entry_tiles;          /* per packet: t before which no ray meets a visible brick */
     size_t entry_capacity;       /* bytes of entry_tiles */
     cdvr_cl_entry_made entry_made; /* what entry_tiles were made for (valid 0: none) */

@@ -124,6 +124,9 @@ static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *e
     return st ? st : upload_block_ranges(s, s->grid.minmax, err);
 }
 
+/* Cells of the entry list (cdvr/skip.h): 2^2 bricks of 4 voxels per axis. */
+#define ENTRY_CELL_LOG2 2
+
 /* Iso skipping (raycast.cl, march_iso): iso_flags gets the flags of the set-up frame's ranges
  * for the one code floor(code): a brick whose (whole-code) range [lo, hi] can hold the iso
  * code has lo <= floor(code) <= hi, so one without lies strictly on one side of it. Made
@@ -153,6 +156,12 @@ static int iso_flags_ready(cdvr_cl_stream *s, size_t frame, float code)
     cdvr_skip_flags_into(&s->grid, marks, flags);
     cdvr_status st = write_buffer(s->cl, s->iso_flags, flags, s->nbricks,
                                   "upload iso brick flags", &ignored);
+    cdvr_skip_grid iso_grid = s->grid; /* its ranges with the iso flags: the iso entry list */
+    iso_grid.flags = flags;
+    iso_grid.flags_valid = 1;
+    s->iso_entry_ok = st == CDVR_OK && cdvr_skip_entry_make(&s->iso_entry, &iso_grid,
+                                                            ENTRY_CELL_LOG2, &ignored) == CDVR_OK;
+    s->entry_made.valid = 0;
     free(flags);
     if (st != CDVR_OK)
         return 0;
@@ -161,8 +170,6 @@ static int iso_flags_ready(cdvr_cl_stream *s, size_t frame, float code)
     return 1;
 }
 
-/* Cells of the entry list (cdvr/skip.h): 2^2 bricks of 4 voxels per axis. */
-#define ENTRY_CELL_LOG2 2
 
 /* Uploads the flags of grid g and takes its visible box, count and entry list. */
 static cdvr_status use_grid(cdvr_cl_stream *s, const cdvr_skip_grid *g, cdvr_error *err)
@@ -438,8 +445,9 @@ static cdvr_cl_look look_of(const cdvr_look *look, const cdvr_tf *tf, const box_
  * kernel may start its rays there; 0 leaves a buffer for the argument all the same. */
 static int entry_tiles_ready(cdvr_cl_stream *s, const cam_params *cam, const double spacing[3],
                              const double origin[3], const double D[9], const size_t global[2],
-                             int wanted)
+                             int wanted, int iso)
 {
+    const cdvr_skip_entry *entry = iso ? &s->iso_entry : &s->entry;
     size_t tiles = global[0] * global[1], bytes = tiles * sizeof(float);
     cdvr_error ignored;
     size_t capacity = s->entry_capacity;
@@ -450,7 +458,7 @@ static int entry_tiles_ready(cdvr_cl_stream *s, const cam_params *cam, const dou
     }
     if (s->entry_capacity != capacity) /* a new buffer: its contents are gone */
         s->entry_made.valid = 0;
-    if (!wanted || !s->entry_ok)
+    if (!wanted || !(iso ? s->iso_entry_ok : s->entry_ok))
         return 0;
     cdvr_cl_entry_made made;
     memset(&made, 0, sizeof made); /* padding too: compared with memcmp */
@@ -470,7 +478,8 @@ static int entry_tiles_ready(cdvr_cl_stream *s, const cam_params *cam, const dou
     v->orthographic = cam->orthographic;
     v->width = cam->width;
     v->height = cam->height;
-    made.version = s->entry.version;
+    made.version = entry->version;
+    made.iso = iso;
     made.tiles[0] = global[0];
     made.tiles[1] = global[1];
     made.valid = 1;
@@ -478,7 +487,7 @@ static int entry_tiles_ready(cdvr_cl_stream *s, const cam_params *cam, const dou
         return 1;
     s->entry_made.valid = 0;
     float *map = malloc(bytes);
-    int usable = map && cdvr_skip_entry_tiles(&s->entry, v, PACKET_W, PACKET_H, global[0],
+    int usable = map && cdvr_skip_entry_tiles(entry, v, PACKET_W, PACKET_H, global[0],
                                               global[1], map);
     usable = usable && write_buffer(s->cl, s->entry_tiles, map, bytes, "upload entry tiles",
                                     &ignored) == CDVR_OK;
@@ -837,8 +846,11 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     cl_mem host_image = wrap_host_image(s->cl, img, pixels);
     cl_kernel kernel;
     cdvr_cl_look look = look_of(&opts->look, &s->tf, &box, spacing);
-    int entry_wanted = s->skipping && !opts->clip && look.blend == CDVR_BLEND_COMPOSITE;
-    cl_int entry_on = entry_tiles_ready(s, &cam, spacing, origin, D, global, entry_wanted);
+    int iso = look.blend == CDVR_BLEND_ISO;
+    int entry_wanted = s->skipping && !opts->clip &&
+                       (look.blend == CDVR_BLEND_COMPOSITE ||
+                        (iso && iso_flags_ready(s, frame, look.iso_code)));
+    cl_int entry_on = entry_tiles_ready(s, &cam, spacing, origin, D, global, entry_wanted, iso);
     cl_int grads_on = !opts->clip && grads_ready(s, frame, &opts->look);
     st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box, &look,
                           host_image ? host_image : s->image, entry_on, (cl_int)global[0],

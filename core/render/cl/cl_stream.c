@@ -121,6 +121,7 @@ void cdvr_cl_stream_free(cdvr_cl_stream *s)
         cdvr_cl_release(mems[i]);
     cdvr_skip_grid_free(&s->grid);
     cdvr_skip_entry_free(&s->entry);
+    cdvr_skip_entry_free(&s->iso_entry);
     free(s);
 }
 
