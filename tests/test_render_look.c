@@ -316,6 +316,79 @@ static void test_refusals(void)
     cdvr_volume_free(v);
 }
 
+/* Min on the device against the CPU where bricks with a 0 among non-zero voxels sit beside
+ * bricks of zeros: a 40^3 volume of 100 with single zeros on a lattice and a slab of zeros
+ * (z < 8), seen from above at a slant (some rays cross the slab, some leave before it). The
+ * device takes a sample in a brick of zeros as 0 without reading it (raycast.cl, zero_brick):
+ * the images must agree within float rounding (a 0 taken where the brick only holds one: 9 dB),
+ * min, max and average (which skips those bricks). */
+static void test_cl_zero_bricks(cdvr_render_ctx *ctx)
+{
+    enum { M = 40 };
+    size_t dims[3] = {M, M, M};
+    cdvr_volume *v;
+    cdvr_error err;
+    if (cdvr_volume_create(dims, 1, CDVR_TYPE_U8, &v, &err) != CDVR_OK) {
+        CHECK(0, "zero bricks volume: %s", err.msg);
+        return;
+    }
+    uint8_t *d = v->data;
+    for (size_t z = 0; z < M; z++)
+        for (size_t y = 0; y < M; y++)
+            for (size_t x = 0; x < M; x++)
+                d[x + M * (y + M * z)] =
+                    z < 8 || (x % 6 == 3 && y % 6 == 3 && z % 6 == 3) ? 0 : 100;
+    cdvr_tf_point pts[3] = {{0, 1, 0, 0, 0.2}, {100, 0, 1, 0, 0.8}, {255, 0, 0, 1, 1}};
+    cdvr_tf tf = tf_of(pts, 3);
+    cdvr_camera cam;
+    memset(&cam, 0, sizeof cam);
+    double c = (M - 1) / 2.0;
+    cam.center[0] = cam.center[1] = cam.center[2] = c;
+    cam.eye[0] = c + 1.2 * M;
+    cam.eye[1] = c - 0.9 * M;
+    cam.eye[2] = c + 1.6 * M;
+    cam.up[2] = 1;
+    cam.fov = 40;
+    cam.width = cam.height = 96;
+    const cdvr_render_method *ray = cdvr_render_method_find("raycast");
+    cdvr_method_params p;
+    cdvr_render_method_params_parse(ray, NULL, NULL, 0, &p, &err);
+    for (int blend = CDVR_BLEND_MIN; blend <= CDVR_BLEND_AVERAGE; blend++) {
+        cdvr_render_opts o = {.tf = &tf, .camera = &cam, .step = 0.5};
+        o.look.blend = blend;
+        cdvr_image *ref = NULL, *img = NULL;
+        CHECK_OK(ray->render(ctx, CDVR_DEVICE_CPU, v, 0, &o, &p, NULL, &ref, &err), err);
+        for (int rep = 0; rep < 2; rep++) { /* the second reads the tiled copy */
+            cdvr_image_free(img);
+            img = NULL;
+            CHECK_OK(ray->render(ctx, CDVR_DEVICE_CL, v, 0, &o, &p, NULL, &img, &err), err);
+        }
+        if (!ref || !img) {
+            cdvr_image_free(ref);
+            cdvr_image_free(img);
+            break;
+        }
+        cdvr_compare_result r;
+        CHECK_OK(cdvr_compare_images(ref, img, &r, &err), err);
+        size_t n = (size_t)cam.width * cam.height, zeros = 0, others = 0;
+        for (size_t i = 0; i < n; i++) { /* pixels of min 0 (red) and of min > 0 (green) */
+            zeros += ref->rgba[4 * i] > 0.1f && ref->rgba[4 * i + 1] < 0.05f;
+            others += ref->rgba[4 * i + 1] > 0.1f;
+        }
+        if (blend == CDVR_BLEND_MIN) {
+            CHECK(r.psnr >= 80.0, "zero bricks, min: cl against cpu %.2f dB", r.psnr);
+            CHECK(zeros > n / 20 && others > n / 20, "zero bricks, min: %zu pixels of 0 and %zu "
+                  "above of %zu (the scene must hold both)", zeros, others, n);
+        } else {
+            CHECK(r.psnr >= 80.0, "zero bricks, %s: cl against cpu %.2f dB",
+                  cdvr_blend_name(blend), r.psnr);
+        }
+        cdvr_image_free(ref);
+        cdvr_image_free(img);
+    }
+    cdvr_volume_free(v);
+}
+
 /* The OpenCL ray caster against the CPU in every mode. */
 static void test_cl(void)
 {
@@ -327,6 +400,7 @@ static void test_cl(void)
         cdvr_render_ctx_free(ctx);
         return;
     }
+    test_cl_zero_bricks(ctx);
     const char *dir = check_shared_data(), *src = getenv("CDVR_SOURCE_DIR");
     char path[1024];
     if (dir)

@@ -1363,6 +1363,22 @@ static void extreme_step(const extreme_bricks *eb, const volume_geo *v, vint *i,
     *end = select(*end, run_end, need & ~dull);
 }
 
+/* Lanes whose sample at grid position g lies in a brick whose voxels are all 0: the brick of
+ * its lower trilinear corner, as trilinear() clamps it (a range brick covers its cells'
+ * corners, the upper apron included). */
+static vint zero_brick(const extreme_bricks *eb, const volume_geo *v, vec3x g)
+{
+    vint bx = min(convert_vint(clamp(g.x, 0.0f, v->top.x)), v->base_max.x) >> eb->shift;
+    vint by = min(convert_vint(clamp(g.y, 0.0f, v->top.y)), v->base_max.y) >> eb->shift;
+    vint bz = min(convert_vint(clamp(g.z, 0.0f, v->top.z)), v->base_max.z) >> eb->shift;
+    vint idx = bx + eb->nbx * (by + eb->nby * bz);
+    int ids[RAY_PACKET], zero[RAY_PACKET];
+    vstore16(idx, 0, ids);
+    for (int k = 0; k < RAY_PACKET; k++)
+        zero[k] = -(eb->minmax[ids[k]].y == 0);
+    return vload16(0, zero);
+}
+
 /* Max, min or average of every sample's code (no termination). With the ranges, lanes skip
  * dull bricks (whose range cannot beat the lane's best; for average, bricks of zeros) and a
  * dull brick's whole block when the block is dull too (CDVR_CL_BLOCK_SHIFT). */
@@ -1399,7 +1415,7 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
         vint i = (vint)(0), end = (vint)(0), live = p->hit & (i < n);
         int run_min = run_samples(step, inv_spacing);
         while (any(live)) {
-            vint need = live & (i >= end) & (i < n - 1);
+            vint need = live & (i >= end) & (i < n - 1), end_before = end;
             if (!look_up_now(need, live & (i < end))) /* a step's samples on, unlooked */
                 end = select(end, i + 4, need);
             else /* a lane that skipped a dull brick looks up the next at once (BRICK_HOPS) */
@@ -1412,6 +1428,21 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
                         count += select((vint)(0), i - before, need);
                     need &= (i >= end) & (i < n - 1);
                 }
+            if (!is_max) {
+                /* min: a lane whose new run starts in a brick all of whose voxels are 0 has
+                 * that sample's value without reading it: done (for max, bricks of 255 are
+                 * too rare to pay for the look) */
+                vint fresh = live & (end != end_before) & (i < end);
+                if (any(fresh)) {
+                    vint ok;
+                    vfloat tm;
+                    vec3x g = sample_point(p, i, n, step, inv_spacing, &ok, &tm);
+                    vint known = fresh & ok & zero_brick(eb, v, g);
+                    count -= known;
+                    best = select(best, (vfloat)(0.0f), known);
+                    live &= ~known;
+                }
+            }
             end = select(end, n, i >= n - 1); /* the last sample needs no look-up */
             for (int k = 0; k < 4; k++) {
                 vint run = live & (i < end);
