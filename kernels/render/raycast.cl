@@ -711,11 +711,6 @@ static int central_tiled(const volume_geo *v, vec3x g, vint on, vec3x *dq, vec3x
 }
 #endif
 #ifndef CDVR_LONG_INDEX
-/* The differences of CENTRAL per axis (dq) and distances h from the gradient copy: the
- * trilinear interpolation of the voxels' central differences at g (8 words instead of 32
- * voxels; equal to CENTRAL's in exact arithmetic, within float rounding otherwise). Returns
- * 0 when some lane of `on` has a corner voxel on the frame's border (its differences there
- * are one-sided: CENTRAL then). */
 /* The gradient copy's words at w per lane, unpacked: D_x, D_y, D_z. */
 #define GRAD_AT(k) v->grads[w.s##k]
 static vec3x grad_words(const volume_geo *v, vint w)
@@ -732,8 +727,13 @@ static vec3x mix3(vec3x a, vec3x b, vfloat f)
     return (vec3x){mix(a.x, b.x, f), mix(a.y, b.y, f), mix(a.z, b.z, f)};
 }
 
-/* (Clipped renders have no gradient copy: g is the frame's own grid position.) */
-static int central_copied(const volume_geo *v, vec3x g, vint on, vec3x *dq, vec3x *h)
+/* The differences of CENTRAL per axis (dq) from the gradient copy: the
+ * trilinear interpolation of the voxels' central differences at g (8 words instead of 32
+ * voxels; equal to CENTRAL's in exact arithmetic, within float rounding otherwise). Returns
+ * 0 when some lane of `on` has a corner voxel on the frame's border (its differences there
+ * are one-sided: CENTRAL then). Clipped renders have no gradient copy: g is the frame's own
+ * grid position. */
+static int central_copied(const volume_geo *v, vec3x g, vint on, vec3x *dq)
 {
     vfloat fx, fy, fz;
     vint x0 = corner(g.x, v->top.x, v->base_max.x, &fx);
@@ -753,36 +753,56 @@ static int central_copied(const volume_geo *v, vec3x g, vint on, vec3x *dq, vec3
     vec3x c01 = mix3(grad_words(v, r01 + wx0), grad_words(v, r01 + wx1), fx);
     vec3x c11 = mix3(grad_words(v, r11 + wx0), grad_words(v, r11 + wx1), fx);
     *dq = mix3(mix3(c00, c10, fy), mix3(c01, c11, fy), fz);
-    *h = (vec3x){fmin(g.x + 1.0f, v->top.x) - fmax(g.x - 1.0f, 0.0f),
-                 fmin(g.y + 1.0f, v->top.y) - fmax(g.y - 1.0f, 0.0f),
-                 fmin(g.z + 1.0f, v->top.z) - fmax(g.z - 1.0f, 0.0f)};
     return 1;
 }
 #endif
 
-/* World gradient (codes per world unit) at grid position g (clamped like render_cpu.c) on
- * lanes `on` (others get any finite value). */
-static vec3x gradient(const volume_geo *v, const look_params *lk, vec3x g, vint on)
+/* CENTRAL's differences per axis, divided by distance and spacing, as render.h defines them
+ * (from the tile rows when the frame is tiled); noinline: only packets off the gradient copy
+ * come here. */
+__attribute__((noinline)) static vec3x central_exact(const volume_geo *v,
+                                                     const look_params *lk, vec3x g, vint on)
 {
-    g = clamp_grid(v, g);
     vec3x dq;
 #ifndef CDVR_LONG_INDEX
 #ifndef CDVR_FETCH
     vec3x diff, h;
-    int done = v->grads_on && central_copied(v, g, on, &diff, &h);
-    if (done || (v->tiled && central_tiled(v, g, on, &diff, &h))) {
+    if (v->tiled && central_tiled(v, g, on, &diff, &h)) {
         dq.x = select((vfloat)(0.0f), diff.x / (h.x * lk->spacing[0]), h.x > 0.0f);
         dq.y = select((vfloat)(0.0f), diff.y / (h.y * lk->spacing[1]), h.y > 0.0f);
         dq.z = select((vfloat)(0.0f), diff.z / (h.z * lk->spacing[2]), h.z > 0.0f);
-    } else
-#endif
-#endif
-    {
-        CENTRAL(x, lk->spacing[0]);
-        CENTRAL(y, lk->spacing[1]);
-        CENTRAL(z, lk->spacing[2]);
+        return dq;
     }
+#endif
+#endif
+    CENTRAL(x, lk->spacing[0]);
+    CENTRAL(y, lk->spacing[1]);
+    CENTRAL(z, lk->spacing[2]);
+    return dq;
+}
+
+/* World gradient (codes per world unit) at grid position g (clamped like render_cpu.c) on
+ * lanes `on` (others get any finite value). From the gradient copy, the differences (over a
+ * distance of 2 voxels: inside the frame CENTRAL's h is 2 within rounding) go through
+ * grad_to_world with the division folded in. */
+__attribute__((always_inline)) static inline vec3x gradient(const volume_geo *v,
+                                                            const look_params *lk, vec3x g,
+                                                            vint on)
+{
+    g = clamp_grid(v, g);
     const float *m = lk->grad_to_world;
+#ifndef CDVR_LONG_INDEX
+#ifndef CDVR_FETCH
+    vec3x diff;
+    if (v->grads_on && central_copied(v, g, on, &diff)) {
+        float sx = 0.5f / lk->spacing[0], sy = 0.5f / lk->spacing[1], sz = 0.5f / lk->spacing[2];
+        return (vec3x){m[0] * sx * diff.x + m[1] * sy * diff.y + m[2] * sz * diff.z,
+                       m[3] * sx * diff.x + m[4] * sy * diff.y + m[5] * sz * diff.z,
+                       m[6] * sx * diff.x + m[7] * sy * diff.y + m[8] * sz * diff.z};
+    }
+#endif
+#endif
+    vec3x dq = central_exact(v, lk, g, on);
     return (vec3x){m[0] * dq.x + m[1] * dq.y + m[2] * dq.z, m[3] * dq.x + m[4] * dq.y + m[5] * dq.z,
                    m[6] * dq.x + m[7] * dq.y + m[8] * dq.z};
 }
