@@ -842,11 +842,11 @@ static vfloat specular_power(vfloat x, float power)
     return pow(x, power);
 }
 
-/* Per ray, what shading needs of the viewer: the light L (the headlight: towards the eye),
- * the half vector H = L + V and its length (made once per packet, not per sample). */
+/* Per ray, what shading needs of the viewer: the light L (the headlight: towards the eye)
+ * and the half vector H = L + V over its length (0 where that is 0), made once per packet:
+ * |n.H| / |H| per sample is then a product (within rounding of the quotient). */
 typedef struct viewer {
     vec3x L, H;
-    vfloat hl;
 } viewer;
 
 static viewer make_viewer(const look_params *lk, vec3x V)
@@ -854,8 +854,10 @@ static viewer make_viewer(const look_params *lk, vec3x V)
     viewer w;
     w.L = lk->headlight ? V : (vec3x){(vfloat)lk->light[0], (vfloat)lk->light[1],
                                       (vfloat)lk->light[2]};
-    w.H = (vec3x){w.L.x + V.x, w.L.y + V.y, w.L.z + V.z};
-    w.hl = length3x(w.H);
+    vec3x H = {w.L.x + V.x, w.L.y + V.y, w.L.z + V.z};
+    vfloat hl = length3x(H);
+    vfloat inv = select((vfloat)(0.0f), 1.0f / hl, hl > 0.0f);
+    w.H = (vec3x){H.x * inv, H.y * inv, H.z * inv};
     return w;
 }
 
@@ -867,9 +869,8 @@ static void shade_rgb(const look_params *lk, vec3x G, const viewer *view, rgbax 
     vfloat inv = select((vfloat)(0.0f), 1.0f / len, ok);
     vec3x n = {G.x * inv, G.y * inv, G.z * inv};
     vec3x L = view->L, H = view->H;
-    vfloat hl = view->hl;
     vfloat ndl = fabs(n.x * L.x + n.y * L.y + n.z * L.z);
-    vfloat ndh = select((vfloat)(0.0f), fabs(n.x * H.x + n.y * H.y + n.z * H.z) / hl, hl > 0.0f);
+    vfloat ndh = fabs(n.x * H.x + n.y * H.y + n.z * H.z);
     vfloat spec = select((vfloat)(0.0f), lk->specular * specular_power(ndh, lk->power), ndh > 0.0f);
     vfloat k = lk->ambient + lk->diffuse * ndl;
     c->r = fmin(c->r * k + spec, 1.0f);
