@@ -319,7 +319,8 @@ static void test_refusals(void)
 /* Min on the device against the CPU where bricks with a 0 among non-zero voxels sit beside
  * bricks of zeros: a 40^3 volume of 100 with single zeros on a lattice and a slab of zeros
  * (z < 8), seen from above at a slant (some rays cross the slab, some leave before it). The
- * device takes a sample in a brick of zeros as 0 without reading it (raycast.cl, zero_brick):
+ * device takes the samples in a brick of one code as that code without reading them
+ * (raycast.cl, extreme_step's flat bricks):
  * the images must agree within float rounding (a 0 taken where the brick only holds one: 9 dB),
  * min, max and average (which skips those bricks). */
 static void test_cl_zero_bricks(cdvr_render_ctx *ctx)

@@ -1333,8 +1333,8 @@ typedef struct extreme_bricks {
  * past its exit face, one that can sets *end to the first sample past it, and at least
  * run_min samples on (the lane then samples up to there without looking again; samples of a
  * brick that cannot beat best change nothing). */
-static void extreme_step(const extreme_bricks *eb, const volume_geo *v, vint *i, vint *end,
-                         vfloat best, int is_max, vint need, int run_min)
+static vint extreme_step(const extreme_bricks *eb, const volume_geo *v, vint *i, vint *end,
+                         vfloat *best_io, int is_max, int flats, vint need, int run_min)
 {
     vec3x g = at(eb->g0, eb->dg, *i);
     vint bx = min(convert_vint(clamp(g.x, 0.0f, v->top.x)) >> eb->shift, eb->nbx - 1);
@@ -1342,13 +1342,20 @@ static void extreme_step(const extreme_bricks *eb, const volume_geo *v, vint *i,
     vint bz = min(convert_vint(clamp(g.z, 0.0f, v->top.z)) >> eb->shift, eb->nbz - 1);
     vint idx = bx + eb->nbx * (by + eb->nby * bz);
     int ids[RAY_PACKET];
-    float lim[RAY_PACKET];
+    float lim[RAY_PACKET], other[RAY_PACKET];
     vstore16(select((vint)(0), idx, need), 0, ids);
     for (int k = 0; k < RAY_PACKET; k++) {
         uchar2 mm = eb->minmax[ids[k]];
         lim[k] = is_max ? (float)mm.y : (float)mm.x;
+        other[k] = is_max ? (float)mm.x : (float)mm.y;
     }
     vfloat limit = vload16(0, lim);
+    /* `flats`: a brick of one code c (its range a single code) gives every sample in it the
+     * value c, so the lane takes c and skips the brick as dull */
+    vint flat = need & (limit == vload16(0, other)) & (vint)(-flats);
+    vfloat best = select(*best_io, is_max ? fmax(*best_io, limit) : fmin(*best_io, limit),
+                         flat);
+    *best_io = best;
     vint dull = is_max ? limit <= best : limit >= best;
     /* a dull brick's block (CDVR_CL_BLOCK_SHIFT), when dull too, is left at once */
     vint block = need & dull, shift = (vint)(eb->shift);
@@ -1382,27 +1389,14 @@ static void extreme_step(const extreme_bricks *eb, const volume_geo *v, vint *i,
     vint run_end = max(*i + 1, max(convert_vint(ceil(t_exit)), *i + run_min));
     *i = select(*i, past, need & dull);
     *end = select(*end, run_end, need & ~dull);
-}
-
-/* Lanes whose sample at grid position g lies in a brick whose voxels are all 0: the brick of
- * its lower trilinear corner, as trilinear() clamps it (a range brick covers its cells'
- * corners, the upper apron included). */
-static vint zero_brick(const extreme_bricks *eb, const volume_geo *v, vec3x g)
-{
-    vint bx = min(convert_vint(clamp(g.x, 0.0f, v->top.x)), v->base_max.x) >> eb->shift;
-    vint by = min(convert_vint(clamp(g.y, 0.0f, v->top.y)), v->base_max.y) >> eb->shift;
-    vint bz = min(convert_vint(clamp(g.z, 0.0f, v->top.z)), v->base_max.z) >> eb->shift;
-    vint idx = bx + eb->nbx * (by + eb->nby * bz);
-    int ids[RAY_PACKET], zero[RAY_PACKET];
-    vstore16(idx, 0, ids);
-    for (int k = 0; k < RAY_PACKET; k++)
-        zero[k] = -(eb->minmax[ids[k]].y == 0);
-    return vload16(0, zero);
+    return flat;
 }
 
 /* Max, min or average of every sample's code (no termination). With the ranges, lanes skip
  * dull bricks (whose range cannot beat the lane's best; for average, bricks of zeros) and a
- * dull brick's whole block when the block is dull too (CDVR_CL_BLOCK_SHIFT). */
+ * dull brick's whole block when the block is dull too (CDVR_CL_BLOCK_SHIFT); max and min
+ * take a flat brick's code (a range of one code: every sample in it has that value) without
+ * reading its samples, which count as taken. */
 static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spacing,
                            const volume_geo *v, const look_params *lk,
                            __global const float4 *table, __global const float *alpha,
@@ -1436,34 +1430,22 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
         vint i = (vint)(0), end = (vint)(0), live = p->hit & (i < n);
         int run_min = run_samples(step, inv_spacing);
         while (any(live)) {
-            vint need = live & (i >= end) & (i < n - 1), end_before = end;
+            vint need = live & (i >= end) & (i < n - 1);
             if (!look_up_now(need, live & (i < end))) /* a step's samples on, unlooked */
                 end = select(end, i + 4, need);
             else /* a lane that skipped a dull brick looks up the next at once (BRICK_HOPS) */
                 for (int hop = 0; hop < BRICK_HOPS && any(need); hop++) {
                     vint before = i;
-                    extreme_step(eb, v, &i, &end, is_avg ? (vfloat)(0.0f) : best, is_max, need,
-                                 run_min);
+                    vfloat zero = (vfloat)(0.0f);
+                    vint flat = extreme_step(eb, v, &i, &end, is_avg ? &zero : &best, is_max,
+                                             !is_avg, need, run_min);
                     i = min(i, n - 1);
-                    if (is_avg) /* the skipped samples count in the mean */
-                        count += select((vint)(0), i - before, need);
-                    need &= (i >= end) & (i < n - 1);
+                    /* the skipped samples count in the mean, and as taken where a constant
+                     * brick gave their value */
+                    count += select((vint)(0), i - before, is_avg ? need : flat);
+                    need &= (i >= end) & (i < n - 1) & (best != saturated);
                 }
-            if (!is_max) {
-                /* min: a lane whose new run starts in a brick all of whose voxels are 0 has
-                 * that sample's value without reading it: done (for max, bricks of 255 are
-                 * too rare to pay for the look) */
-                vint fresh = live & (end != end_before) & (i < end);
-                if (any(fresh)) {
-                    vint ok;
-                    vfloat tm;
-                    vec3x g = sample_point(p, i, n, step, inv_spacing, &ok, &tm);
-                    vint known = fresh & ok & zero_brick(eb, v, g);
-                    count -= known;
-                    best = select(best, (vfloat)(0.0f), known);
-                    live &= ~known;
-                }
-            }
+            live &= best != saturated; /* a flat brick of the saturated code ends the lane */
             end = select(end, n, i >= n - 1); /* the last sample needs no look-up */
             for (int k = 0; k < 4; k++) {
                 vint run = live & (i < end);
