@@ -629,6 +629,10 @@ static void make_tiles_if_rerendered(cdvr_cl_stream *s, size_t frame)
     s->tiles_frame = frame;
 }
 
+/* The largest gradient copy made (a frame of 512 M voxels): beyond it the gradients come
+ * from the tiled copy's 12 rows per sample, about 1.3x the time per gradient. */
+#define GRADS_MAX_BYTES ((size_t)2 << 30)
+
 /* With the tiled copy of `frame`, a render that shades (or uses gradient opacity) gets the
  * frame's gradient copy (kernels/common/cl_shared.h): 4 bytes per voxel of the tiled copy,
  * read as 8 words per gradient instead of 32 voxels from 12 tile rows (raycast.cl). Off with
@@ -643,7 +647,7 @@ static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
     if (s->grads_frame == frame)
         return 1;
     size_t words = tiled_bytes(s->dims), rows = words / 4, bytes;
-    if (!cdvr_size_mul(words, 4, &bytes))
+    if (!cdvr_size_mul(words, 4, &bytes) || bytes > GRADS_MAX_BYTES)
         return 0;
     cdvr_error err;
     cl_kernel k = s->cl->k_grads;
