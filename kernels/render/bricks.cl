@@ -37,58 +37,87 @@ __kernel void brick_minmax(__global const uchar *frames, __constant uchar *param
     minmax[b] = (uchar2)((uchar)lo, (uchar)hi);
 }
 
+/* Where tile t of the tiled copy (kernels/common/cl_shared.h) lies: its first voxel (x0, y0,
+ * z0); 0 when t is past the last page. */
+static int tile_origin(size_t t, uint X, uint Y, uint Z, uint *x0, uint *y0, uint *z0)
+{
+    const uint edge = CDVR_CL_PAGE_EDGE;
+    uint px = (X + edge - 1) / edge, py = (Y + edge - 1) / edge, pz = (Z + edge - 1) / edge;
+    if (t >= (size_t)px * py * pz * 64)
+        return 0;
+    size_t page = t >> 6;
+    uint tile = (uint)t & 63u;
+    uint cx = page % px, cy = (page / px) % py, cz = page / ((size_t)px * py);
+    *x0 = edge * cx + 4 * (tile & 3u);
+    *y0 = edge * cy + 4 * ((tile >> 2) & 3u);
+    *z0 = edge * cz + 4 * (tile >> 4);
+    return 1;
+}
+
+/* Voxels x0 .. x0 + 3 of a frame row (indices past X - 1 clamped to it). */
+static uint4 row_voxels(__global const uchar *line, uint x0, uint X)
+{
+    if (x0 + 3 < X)
+        return convert_uint4(vload4(0, line + x0));
+    return (uint4)(line[min(x0, X - 1)], line[min(x0 + 1, X - 1)], line[min(x0 + 2, X - 1)],
+                   line[min(x0 + 3, X - 1)]);
+}
+
 /* The tiled copy of a dense frame for the ray caster (kernels/common/cl_shared.h): one
- * work-item per tile row (a 32-bit word, low byte first), rows = pages * 1024; voxels past the
- * frame's edge repeat its last one. */
+ * work-item per tile (16 rows of 4 voxels, each a 32-bit word, low byte first: words 16t ..
+ * 16t + 15), tiles = pages * 64; voxels past the frame's edge repeat its last one. */
 __kernel void make_tiles(__global const uchar *frames, ulong offset, uint X, uint Y, uint Z,
                          __global uint *tiles)
 {
-    size_t i = get_global_id(0);
-    const uint edge = CDVR_CL_PAGE_EDGE;
-    uint px = (X + edge - 1) / edge, py = (Y + edge - 1) / edge, pz = (Z + edge - 1) / edge;
-    if (i >= (size_t)px * py * pz * 1024)
+    size_t t = get_global_id(0);
+    uint x0, y0, z0;
+    if (!tile_origin(t, X, Y, Z, &x0, &y0, &z0))
         return;
-    size_t page = i >> 10;
-    uint within = (uint)i & 1023u, tile = within >> 4, row = within & 15u;
-    uint cx = page % px, cy = (page / px) % py, cz = page / ((size_t)px * py);
-    uint y = min(edge * cy + 4 * ((tile >> 2) & 3u) + (row & 3u), Y - 1);
-    uint z = min(edge * cz + 4 * (tile >> 4) + (row >> 2), Z - 1);
-    uint x0 = edge * cx + 4 * (tile & 3u);
-    __global const uchar *line = frames + offset + ((size_t)z * Y + y) * X;
-    uint word = 0;
-    for (uint k = 0; k < 4; k++)
-        word |= (uint)line[min(x0 + k, X - 1)] << (8 * k);
-    tiles[i] = word;
+    uint words[16];
+    for (uint row = 0; row < 16; row++) {
+        uint y = min(y0 + (row & 3u), Y - 1), z = min(z0 + (row >> 2), Z - 1);
+        uint4 b = row_voxels(frames + offset + ((size_t)z * Y + y) * X, x0, X);
+        words[row] = b.x | (b.y << 8) | (b.z << 16) | (b.w << 24);
+    }
+    vstore16(vload16(0, words), t, tiles);
 }
 
-/* The gradient copy (kernels/common/cl_shared.h) of the frame at frames + offset: work-item
- * i writes the four voxels of tile row word i of the tiled copy (words 4i .. 4i + 3). */
+/* The gradient copy (kernels/common/cl_shared.h) of the frame at frames + offset: one
+ * work-item per tile of the tiled copy, its 64 voxels' words at 64t .. 64t + 63 (row by row,
+ * x fastest). */
 __kernel void make_grads(__global const uchar *frames, ulong offset, uint X, uint Y, uint Z,
                          __global uint *grads)
 {
-    size_t i = get_global_id(0);
-    const uint edge = CDVR_CL_PAGE_EDGE;
-    uint px = (X + edge - 1) / edge, py = (Y + edge - 1) / edge, pz = (Z + edge - 1) / edge;
-    if (i >= (size_t)px * py * pz * 1024)
+    size_t t = get_global_id(0);
+    uint x0, y0, z0;
+    if (!tile_origin(t, X, Y, Z, &x0, &y0, &z0))
         return;
-    size_t page = i >> 10;
-    uint within = (uint)i & 1023u, tile = within >> 4, row = within & 15u;
-    uint cx = page % px, cy = (page / px) % py, cz = page / ((size_t)px * py);
-    uint y = min(edge * cy + 4 * ((tile >> 2) & 3u) + (row & 3u), Y - 1);
-    uint z = min(edge * cz + 4 * (tile >> 4) + (row >> 2), Z - 1);
-    uint x0 = edge * cx + 4 * (tile & 3u);
     __global const uchar *f = frames + offset;
     size_t sy = X, sz = (size_t)X * Y;
-    size_t ym = (size_t)(y > 0 ? y - 1 : 0), yp = (size_t)min(y + 1, Y - 1);
-    size_t zm = (size_t)(z > 0 ? z - 1 : 0), zp = (size_t)min(z + 1, Z - 1);
-    for (uint k = 0; k < 4; k++) {
-        uint x = min(x0 + k, X - 1);
-        size_t at = (size_t)z * sz + (size_t)y * sy;
-        int dx = (int)f[at + min(x + 1, X - 1)] - (int)f[at + (x > 0 ? x - 1 : 0)];
-        int dy = (int)f[(size_t)z * sz + yp * sy + x] - (int)f[(size_t)z * sz + ym * sy + x];
-        int dz = (int)f[zp * sz + (size_t)y * sy + x] - (int)f[zm * sz + (size_t)y * sy + x];
-        grads[4 * i + k] = (uint)(dx + CDVR_CL_GRAD_BIAS) |
-                           ((uint)(dy + CDVR_CL_GRAD_BIAS) << 10) |
-                           ((uint)(dz + CDVR_CL_GRAD_BIAS) << 20);
+    for (uint row = 0; row < 16; row++) {
+        uint y = min(y0 + (row & 3u), Y - 1), z = min(z0 + (row >> 2), Z - 1);
+        uint ym = y > 0 ? y - 1 : 0, yp = min(y + 1, Y - 1);
+        uint zm = z > 0 ? z - 1 : 0, zp = min(z + 1, Z - 1);
+        __global const uchar *line = f + z * sz + y * sy;
+        int4 dx;
+        if (x0 + 4 < X) { /* neighbours along x: voxels x0 - 1 .. x0 + 4 */
+            int4 mid = convert_int4(vload4(0, line + x0));
+            dx = (int4)(mid.y, mid.z, mid.w, line[x0 + 4]) -
+                 (int4)(line[x0 > 0 ? x0 - 1 : 0], mid.x, mid.y, mid.z);
+        } else { /* at the frame's edge, as a voxel past it repeats the last one */
+            int d[4];
+            for (uint k = 0; k < 4; k++) {
+                uint x = min(x0 + k, X - 1);
+                d[k] = (int)line[min(x + 1, X - 1)] - (int)line[x > 0 ? x - 1 : 0];
+            }
+            dx = vload4(0, d);
+        }
+        int4 dy = convert_int4(row_voxels(f + z * sz + yp * sy, x0, X)) -
+                  convert_int4(row_voxels(f + z * sz + ym * sy, x0, X));
+        int4 dz = convert_int4(row_voxels(f + zp * sz + y * sy, x0, X)) -
+                  convert_int4(row_voxels(f + zm * sz + y * sy, x0, X));
+        int4 bias = (int4)(CDVR_CL_GRAD_BIAS);
+        uint4 word = as_uint4(dx + bias) | (as_uint4(dy + bias) << 10) | (as_uint4(dz + bias) << 20);
+        vstore4(word, 0, grads + 64 * t + 4 * row);
     }
 }

@@ -599,7 +599,7 @@ static void make_tiles_if_rerendered(cdvr_cl_stream *s, size_t frame)
     int again = s->last_rendered == frame;
     s->last_rendered = frame;
     const char *force_long = getenv("CDVR_CL_LONG_INDEX");
-    size_t bytes = tiled_bytes(s->dims), rows = bytes / 4;
+    size_t bytes = tiled_bytes(s->dims), tiles = bytes / 64; /* a work-item per tile */
     if (s->fetch || !again || s->tiles_frame == frame || bytes > INT_MAX ||
         (force_long && !strcmp(force_long, "1")))
         return;
@@ -619,7 +619,7 @@ static void make_tiles_if_rerendered(cdvr_cl_stream *s, size_t frame)
     if (!st)
         st = cdvr_cl_arg(k, "make_tiles", 5, sizeof(cl_mem), &s->tiles, &err);
     if (!st)
-        st = run_kernel(s->cl, k, 1, &rows, NULL, "make_tiles kernel", &err);
+        st = run_kernel(s->cl, k, 1, &tiles, NULL, "make_tiles kernel", &err);
     if (st) {
         cdvr_cl_release(&s->tiles);
         s->tiles_capacity = 0;
@@ -646,7 +646,7 @@ static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
         return 0;
     if (s->grads_frame == frame)
         return 1;
-    size_t words = tiled_bytes(s->dims), rows = words / 4, bytes;
+    size_t words = tiled_bytes(s->dims), tiles = words / 64, bytes;
     if (!cdvr_size_mul(words, 4, &bytes) || bytes > GRADS_MAX_BYTES)
         return 0;
     cdvr_error err;
@@ -665,7 +665,7 @@ static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
     if (!st)
         st = cdvr_cl_arg(k, "make_grads", 5, sizeof(cl_mem), &s->grads, &err);
     if (!st)
-        st = run_kernel(s->cl, k, 1, &rows, NULL, "make_grads kernel", &err);
+        st = run_kernel(s->cl, k, 1, &tiles, NULL, "make_grads kernel", &err);
     if (st) {
         cdvr_cl_release(&s->grads);
         s->grads_capacity = 0;
