@@ -316,6 +316,22 @@ static void test_refusals(void)
     cdvr_volume_free(v);
 }
 
+/* A perspective camera (z up) on `centre` from centre + dir * ext per axis, size^2 pixels. */
+static cdvr_camera oblique_camera(const double centre[3], const double ext[3],
+                                  const double dir[3], double fov, int size)
+{
+    cdvr_camera cam;
+    memset(&cam, 0, sizeof cam);
+    for (int a = 0; a < 3; a++) {
+        cam.center[a] = centre[a];
+        cam.eye[a] = centre[a] + dir[a] * ext[a];
+    }
+    cam.up[2] = 1;
+    cam.fov = fov;
+    cam.width = cam.height = size;
+    return cam;
+}
+
 /* Min on the device against the CPU where bricks with a 0 among non-zero voxels sit beside
  * bricks of zeros: a 40^3 volume of 100 with single zeros on a lattice and a slab of zeros
  * (z < 8), seen from above at a slant (some rays cross the slab, some leave before it). The
@@ -341,16 +357,9 @@ static void test_cl_zero_bricks(cdvr_render_ctx *ctx)
                     z < 8 || (x % 6 == 3 && y % 6 == 3 && z % 6 == 3) ? 0 : 100;
     cdvr_tf_point pts[3] = {{0, 1, 0, 0, 0.2}, {100, 0, 1, 0, 0.8}, {255, 0, 0, 1, 1}};
     cdvr_tf tf = tf_of(pts, 3);
-    cdvr_camera cam;
-    memset(&cam, 0, sizeof cam);
-    double c = (M - 1) / 2.0;
-    cam.center[0] = cam.center[1] = cam.center[2] = c;
-    cam.eye[0] = c + 1.2 * M;
-    cam.eye[1] = c - 0.9 * M;
-    cam.eye[2] = c + 1.6 * M;
-    cam.up[2] = 1;
-    cam.fov = 40;
-    cam.width = cam.height = 96;
+    double c = (M - 1) / 2.0, centre[3] = {c, c, c}, ext[3] = {M, M, M};
+    const double dir[3] = {1.2, -0.9, 1.6};
+    cdvr_camera cam = oblique_camera(centre, ext, dir, 40, 96);
     const cdvr_render_method *ray = cdvr_render_method_find("raycast");
     cdvr_method_params p;
     cdvr_render_method_params_parse(ray, NULL, NULL, 0, &p, &err);
@@ -417,19 +426,13 @@ static void test_cl(void)
     cdvr_tf_point pts[4] = {{0, 0, 0, 0, 0}, {60, 0.3, 0.2, 0.1, 0.0}, {140, 0.9, 0.7, 0.5, 0.4},
                             {255, 1, 1, 0.9, 0.9}};
     cdvr_tf tf = tf_of(pts, 4);
-    cdvr_camera cam;
-    memset(&cam, 0, sizeof cam);
-    double ext[3];
+    double ext[3], centre[3];
     for (int a = 0; a < 3; a++) {
         ext[a] = (double)(v->dims[a] - 1) * v->spacing[a];
-        cam.center[a] = v->origin[a] + ext[a] / 2;
+        centre[a] = v->origin[a] + ext[a] / 2;
     }
-    cam.eye[0] = cam.center[0] + 1.5 * ext[0];
-    cam.eye[1] = cam.center[1] - 1.8 * ext[1];
-    cam.eye[2] = cam.center[2] + 1.2 * ext[2];
-    cam.up[2] = 1;
-    cam.fov = 35;
-    cam.width = cam.height = 128;
+    const double view[3] = {1.5, -1.8, 1.2};
+    cdvr_camera cam = oblique_camera(centre, ext, view, 35, 128);
     const cdvr_render_method *ray = cdvr_render_method_find("raycast");
     cdvr_method_params p;
     cdvr_render_method_params_parse(ray, NULL, NULL, 0, &p, &err);

@@ -594,39 +594,48 @@ static size_t tiled_bytes(const size_t dims[3])
     return n;
 }
 
+/* Runs copy kernel k (make_tiles or make_grads in bricks.cl: frames, offset, X, Y, Z, out; a
+ * work-item per tile of the tiled copy) on `frame` into *mem of `bytes`. Returns 1 when it
+ * ran; on any failure *mem is released (the render then reads the voxels). */
+static int run_copy_kernel(cdvr_cl_stream *s, size_t frame, cl_kernel k, const char *name,
+                           cl_mem *mem, size_t *capacity, size_t bytes)
+{
+    cdvr_error err;
+    size_t tiles = tiled_bytes(s->dims) / 64;
+    cl_ulong offset = frame * s->voxels;
+    cl_mem frames = cdvr_cl_frames_mem(s);
+    cl_uint d[3] = {(cl_uint)s->dims[0], (cl_uint)s->dims[1], (cl_uint)s->dims[2]};
+    cdvr_status st = cdvr_cl_ensure_buffer(s->cl, mem, capacity, bytes, CL_MEM_READ_WRITE, name,
+                                           &err);
+    if (!st)
+        st = cdvr_cl_arg(k, name, 0, sizeof(cl_mem), &frames, &err);
+    if (!st)
+        st = cdvr_cl_arg(k, name, 1, sizeof offset, &offset, &err);
+    for (cl_uint i = 0; !st && i < 3; i++)
+        st = cdvr_cl_arg(k, name, 2 + i, sizeof(cl_uint), &d[i], &err);
+    if (!st)
+        st = cdvr_cl_arg(k, name, 5, sizeof(cl_mem), mem, &err);
+    if (!st)
+        st = run_kernel(s->cl, k, 1, &tiles, NULL, name, &err);
+    if (st) {
+        cdvr_cl_release(mem);
+        *capacity = 0;
+    }
+    return st == CDVR_OK;
+}
+
 static void make_tiles_if_rerendered(cdvr_cl_stream *s, size_t frame)
 {
     int again = s->last_rendered == frame;
     s->last_rendered = frame;
     const char *force_long = getenv("CDVR_CL_LONG_INDEX");
-    size_t bytes = tiled_bytes(s->dims), tiles = bytes / 64; /* a work-item per tile */
+    size_t bytes = tiled_bytes(s->dims);
     if (s->fetch || !again || s->tiles_frame == frame || bytes > INT_MAX ||
         (force_long && !strcmp(force_long, "1")))
         return;
-    cdvr_error err;
-    cl_kernel k = s->cl->k_tiles;
-    cl_ulong offset = frame * s->voxels;
-    cl_mem frames = cdvr_cl_frames_mem(s);
-    cl_uint d[3] = {(cl_uint)s->dims[0], (cl_uint)s->dims[1], (cl_uint)s->dims[2]};
-    cdvr_status st = cdvr_cl_ensure_buffer(s->cl, &s->tiles, &s->tiles_capacity, bytes,
-                                           CL_MEM_READ_WRITE, "tiled frame", &err);
-    if (!st)
-        st = cdvr_cl_arg(k, "make_tiles", 0, sizeof(cl_mem), &frames, &err);
-    if (!st)
-        st = cdvr_cl_arg(k, "make_tiles", 1, sizeof offset, &offset, &err);
-    for (cl_uint i = 0; !st && i < 3; i++)
-        st = cdvr_cl_arg(k, "make_tiles", 2 + i, sizeof(cl_uint), &d[i], &err);
-    if (!st)
-        st = cdvr_cl_arg(k, "make_tiles", 5, sizeof(cl_mem), &s->tiles, &err);
-    if (!st)
-        st = run_kernel(s->cl, k, 1, &tiles, NULL, "make_tiles kernel", &err);
-    if (st) {
-        cdvr_cl_release(&s->tiles);
-        s->tiles_capacity = 0;
-        s->tiles_frame = (size_t)-1;
-        return;
-    }
-    s->tiles_frame = frame;
+    int made = run_copy_kernel(s, frame, s->cl->k_tiles, "make_tiles", &s->tiles,
+                               &s->tiles_capacity, bytes);
+    s->tiles_frame = made ? frame : (size_t)-1;
 }
 
 /* The largest gradient copy made (a frame of 512 M voxels): beyond it the gradients come
@@ -646,34 +655,13 @@ static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
         return 0;
     if (s->grads_frame == frame)
         return 1;
-    size_t words = tiled_bytes(s->dims), tiles = words / 64, bytes;
-    if (!cdvr_size_mul(words, 4, &bytes) || bytes > GRADS_MAX_BYTES)
+    size_t bytes;
+    if (!cdvr_size_mul(tiled_bytes(s->dims), 4, &bytes) || bytes > GRADS_MAX_BYTES)
         return 0;
-    cdvr_error err;
-    cl_kernel k = s->cl->k_grads;
-    cl_ulong offset = frame * s->voxels;
-    cl_mem frames = cdvr_cl_frames_mem(s);
-    cl_uint d[3] = {(cl_uint)s->dims[0], (cl_uint)s->dims[1], (cl_uint)s->dims[2]};
-    cdvr_status st = cdvr_cl_ensure_buffer(s->cl, &s->grads, &s->grads_capacity, bytes,
-                                           CL_MEM_READ_WRITE, "gradient copy", &err);
-    if (!st)
-        st = cdvr_cl_arg(k, "make_grads", 0, sizeof(cl_mem), &frames, &err);
-    if (!st)
-        st = cdvr_cl_arg(k, "make_grads", 1, sizeof offset, &offset, &err);
-    for (cl_uint i = 0; !st && i < 3; i++)
-        st = cdvr_cl_arg(k, "make_grads", 2 + i, sizeof(cl_uint), &d[i], &err);
-    if (!st)
-        st = cdvr_cl_arg(k, "make_grads", 5, sizeof(cl_mem), &s->grads, &err);
-    if (!st)
-        st = run_kernel(s->cl, k, 1, &tiles, NULL, "make_grads kernel", &err);
-    if (st) {
-        cdvr_cl_release(&s->grads);
-        s->grads_capacity = 0;
-        s->grads_frame = (size_t)-1;
-        return 0;
-    }
-    s->grads_frame = frame;
-    return 1;
+    int made = run_copy_kernel(s, frame, s->cl->k_grads, "make_grads", &s->grads,
+                               &s->grads_capacity, bytes);
+    s->grads_frame = made ? frame : (size_t)-1;
+    return made;
 }
 
 /* Device image of `pixels` and one sample counter per work-item (`items`). */
