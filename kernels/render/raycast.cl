@@ -1433,7 +1433,10 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
         int run_min = run_samples(step, inv_spacing) * (is_avg ? 4 : 1);
         while (any(live)) {
             vint need = live & (i >= end) & (i < n - 1);
-            if (!look_up_now(need, live & (i < end))) /* a step's samples on, unlooked */
+            /* look-ups only when no lane can sample without one (lanes at their run's end
+             * meanwhile sample a step on, unlooked): engine CT and Colin27 512^2 max 4% and
+             * 12% less time than the HOP_MIN rule, average 2-3%, min the same */
+            if (any(live & (i < end)))
                 end = select(end, i + 4, need);
             else /* a lane that skipped a dull brick looks up the next at once (BRICK_HOPS) */
                 for (int hop = 0; hop < BRICK_HOPS && any(need); hop++) {
