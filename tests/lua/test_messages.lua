@@ -174,6 +174,14 @@ local function entry_of(line)
 end
 
 local wrong = {n = 8, nil, true, "zz", {}, function() end, 0 / 0, -1, 1e300}
+-- A number where a path goes is a path (Lua's string coercion, as io.open takes it): the
+-- writers called with one leave files named after it in the working directory; those this
+-- test made are removed at its end.
+local number_paths = {}
+for _, w in ipairs{tostring(0 / 0), tostring(-1), tostring(1e300)} do
+  local f = io.open(w, "rb")
+  if f then f:close() else number_paths[#number_paths + 1] = w end
+end
 local function show(v)
   if type(v) == "function" then return "function" end
   if type(v) == "table" then return "{}" end
@@ -358,4 +366,5 @@ end
 if win then win:close() end
 pl:close()
 os.execute(("rm -rf %q"):format(tmp))
+for _, path in ipairs(number_paths) do os.remove(path) end
 checks.finish()
