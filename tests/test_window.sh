@@ -34,6 +34,10 @@ if ! command -v xvfb-run >/dev/null || ! command -v python3 >/dev/null; then
   [ $failed -eq 0 ] && exit 77 || exit 1
 fi
 
+# screenshots without a path (w:screenshot(), key p) land in the working directory: the
+# temporary one, not the build tree
+cdvr=$(cd "$(dirname "$cdvr")" && pwd)/$(basename "$cdvr")
+cd "$tmp" || exit 1
 xvfb-run -a "$cdvr" "$src/tests/lua/window_checks.lua"; rc=$?
 check "window scene checks" [ $rc -eq 0 ]
 # the scene contract shared with the player; under a timeout: a callback that loops must end
