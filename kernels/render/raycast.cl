@@ -1402,7 +1402,9 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
                            __global const float4 *table, __global const float *alpha,
                            const extreme_bricks *eb, vint *taken)
 {
-    vfloat best = (vfloat)(lk->blend == 2 ? INFINITY : -INFINITY), sum = (vfloat)(0.0f);
+    /* average keeps best at 0: the bound it skips bricks by (those whose maximum is 0) */
+    vfloat best = (vfloat)(lk->blend == 2 ? INFINITY : lk->blend == 3 ? 0.0f : -INFINITY);
+    vfloat sum = (vfloat)(0.0f);
     vint count = (vint)(0);
     if (!eb->minmax) {
         int nmax = 0;
@@ -1416,9 +1418,10 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
             vec3x g = sample_point(p, (vint)(i), n, step, inv_spacing, &ok, &tm);
             vfloat s = trilinear(v, g);
             count -= ok;
-            sum += select((vfloat)(0.0f), s, ok);
-            vfloat ext = lk->blend == 1 ? fmax(best, s) : fmin(best, s);
-            best = select(best, ext, ok);
+            if (lk->blend == 3)
+                sum += select((vfloat)(0.0f), s, ok);
+            else
+                best = select(best, lk->blend == 1 ? fmax(best, s) : fmin(best, s), ok);
         }
     } else { /* per-lane sample index: lanes skip dull bricks on their own; the last, shorter
                 segment is always sampled. Average skips the bricks whose voxels are all 0 (as
@@ -1442,12 +1445,11 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
             else /* a lane that skipped a dull brick looks up the next at once (BRICK_HOPS) */
                 for (int hop = 0; hop < BRICK_HOPS && any(need); hop++) {
                     vint before = i;
-                    vfloat zero = (vfloat)(0.0f);
-                    vint flat = extreme_step(eb, v, &i, &end, is_avg ? &zero : &best, is_max,
-                                             !is_avg, need, run_min);
+                    vint flat = extreme_step(eb, v, &i, &end, &best, is_max, !is_avg, need,
+                                             run_min);
                     i = min(i, n - 1);
-                    /* the skipped samples count in the mean, and as taken where a constant
-                     * brick gave their value */
+                    /* the skipped samples count in the mean, and as taken where a flat brick
+                     * gave their value */
                     count += select((vint)(0), i - before, is_avg ? need : flat);
                     need &= (i >= end) & (i < n - 1) & (best != saturated);
                 }
@@ -1465,8 +1467,8 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
                 count -= ok;
                 if (is_avg)
                     sum += select((vfloat)(0.0f), s, ok);
-                vfloat ext = is_max ? fmax(best, s) : fmin(best, s);
-                best = select(best, ext, ok);
+                else
+                    best = select(best, is_max ? fmax(best, s) : fmin(best, s), ok);
                 i -= run;
                 live &= i < n;
             }
