@@ -161,7 +161,6 @@ static int iso_flags_ready(cdvr_cl_stream *s, size_t frame, float code)
     iso_grid.flags_valid = 1;
     s->iso_entry_ok = st == CDVR_OK && cdvr_skip_entry_make(&s->iso_entry, &iso_grid,
                                                             ENTRY_CELL_LOG2, &ignored) == CDVR_OK;
-    s->entry_made.valid = 0;
     free(flags);
     if (st != CDVR_OK)
         return 0;
@@ -169,7 +168,6 @@ static int iso_flags_ready(cdvr_cl_stream *s, size_t frame, float code)
     s->iso_mark = mark;
     return 1;
 }
-
 
 /* Uploads the flags of grid g and takes its visible box, count and entry list. */
 static cdvr_status use_grid(cdvr_cl_stream *s, const cdvr_skip_grid *g, cdvr_error *err)
@@ -181,7 +179,6 @@ static cdvr_status use_grid(cdvr_cl_stream *s, const cdvr_skip_grid *g, cdvr_err
     }
     cdvr_error ignored; /* without the list rays start at the visible box, as without a camera */
     s->entry_ok = cdvr_skip_entry_make(&s->entry, g, ENTRY_CELL_LOG2, &ignored) == CDVR_OK;
-    s->entry_made.valid = 0;
     return write_buffer(s->cl, s->brick_visible, g->flags, s->nbricks, "upload brick flags",
                         err);
 }
@@ -503,9 +500,9 @@ static int entry_tiles_ready(cdvr_cl_stream *s, const cam_params *cam, const dou
 static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_params rp,
                                     const cam_params *cam, const cdvr_render_clip *clip,
                                     const double spacing[3], const box_frame *box,
-                                    const cdvr_cl_look *look, cl_mem image, cl_int entry_on,
-                                    cl_int entry_tiles_x, cl_int grads_on, cl_kernel *kernel,
-                                    cdvr_error *err)
+                                    const cdvr_cl_look *look, int iso_skip, cl_mem image,
+                                    cl_int entry_on, cl_int entry_tiles_x, cl_int grads_on,
+                                    cl_kernel *kernel, cdvr_error *err)
 {
     voxel_source src;
     cdvr_status sst = source_of(s, frame, &src, err);
@@ -529,8 +526,8 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
                         (cl_int)s->brick_dims[2], s->skipping && !clip};
     cl_mem flags = s->brick_visible;
     if (look->blend == CDVR_BLEND_ISO) { /* skipping by the iso code's flags, or none */
-        bricks[4] = !clip && iso_flags_ready(s, frame, look->iso_code);
-        if (bricks[4])
+        bricks[4] = iso_skip;
+        if (iso_skip)
             flags = s->iso_flags;
     }
     cl_float step = (cl_float)rp.step, term_alpha = (cl_float)rp.term_alpha;
@@ -539,7 +536,7 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
          look->blend == CDVR_BLEND_AVERAGE) &&
         !s->minmax_valid &&
         s->pending_minmax) {
-        cdvr_error ignored; /* without the ranges max and min just take every sample */
+        cdvr_error ignored; /* without the ranges these modes just take every sample */
         s->minmax_valid = write_buffer(s->cl, s->brick_minmax, s->pending_minmax, 2 * s->nbricks,
                                        "upload brick ranges", &ignored) == CDVR_OK &&
                           upload_block_ranges(s, s->pending_minmax, &ignored) == CDVR_OK;
@@ -839,12 +836,12 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     cl_kernel kernel;
     cdvr_cl_look look = look_of(&opts->look, &s->tf, &box, spacing);
     int iso = look.blend == CDVR_BLEND_ISO;
+    int iso_skip = iso && !opts->clip && iso_flags_ready(s, frame, look.iso_code);
     int entry_wanted = s->skipping && !opts->clip &&
-                       (look.blend == CDVR_BLEND_COMPOSITE ||
-                        (iso && iso_flags_ready(s, frame, look.iso_code)));
+                       (look.blend == CDVR_BLEND_COMPOSITE || iso_skip);
     cl_int entry_on = entry_tiles_ready(s, &cam, spacing, origin, D, global, entry_wanted, iso);
     cl_int grads_on = !opts->clip && grads_ready(s, frame, &opts->look);
-    st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box, &look,
+    st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box, &look, iso_skip,
                           host_image ? host_image : s->image, entry_on, (cl_int)global[0],
                           grads_on, &kernel, err);
     if (!st)
