@@ -94,6 +94,21 @@ if devices[2] then
     end
   end
   check(cdvr.compare(before, render{device = "cl"}).maxerr == 0, "composite after iso renders")
+  -- max, min and average skip by the brick ranges unless skip=false: the same image, and
+  -- without skipping every sample is taken (as on cpu)
+  for _, blend in ipairs{"max", "min", "average"} do
+    local o = {tf = tf, camera = cam, device = "cl", blend = blend}
+    local a = cdvr.render(v, o)
+    o.skip = false
+    local b = cdvr.render(v, o)
+    o.device = "cpu"
+    local c = cdvr.render(v, o)
+    check(cdvr.compare(a, b).maxerr == 0, blend .. " on cl: skipping changes nothing")
+    check(b:stats().samples == c:stats().samples, blend .. " on cl, skip=false: samples " ..
+          b:stats().samples .. ", cpu " .. c:stats().samples)
+    check(blend == "average" or a:stats().samples < b:stats().samples,
+          blend .. " on cl skips samples: " .. a:stats().samples .. " of " .. b:stats().samples)
+  end
 end
 
 -- annotate= in cdvr.render and the player: the same pixels as img:annotate of the plain image

@@ -542,7 +542,8 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
                           upload_block_ranges(s, s->pending_minmax, &ignored) == CDVR_OK;
         s->pending_minmax = NULL;
     }
-    cl_int minmax_valid = s->minmax_valid && s->setup_frame == frame;
+    /* skip=false: max, min and average take every sample too */
+    cl_int minmax_valid = s->minmax_valid && s->setup_frame == frame && s->skipping;
     /* (size, value) of arguments 3.. in kernel order */
     struct {
         size_t size;
