@@ -10,6 +10,7 @@
  * (tests/data/v2_lzo_store.cdv) reads them as the ranges of its decoded frames; a packed table
  * claiming another size, or index flags claiming two packings, are refused; the entry
  * distances (cdvr_skip_entry_tiles) never lie past the first visible brick of any pixel's ray
+ * and the exit distances (cdvr_skip_exit_tiles) never before its last
  * (perspective and orthographic views, axis-aligned and rotated volumes, anisotropic
  * spacing, cells of 1, 2 and 4 bricks) and are off with the eye inside the volume. */
 #include <math.h>
@@ -448,6 +449,19 @@ static double enter_box(const double o[3], const double d[3], const double lo[3]
     return t0 <= t1 && t1 >= 0.0 ? fmax(t0, 0.0) : INFINITY;
 }
 
+/* t where the ray o + t d leaves box lo..hi, or -inf if it misses. */
+static double leave_box(const double o[3], const double d[3], const double lo[3],
+                        const double hi[3])
+{
+    if (isinf(enter_box(o, d, lo, hi)))
+        return -INFINITY;
+    double t1 = INFINITY;
+    for (int a = 0; a < 3; a++)
+        if (d[a] != 0.0)
+            t1 = fmin(t1, fmax((lo[a] - o[a]) / d[a], (hi[a] - o[a]) / d[a]));
+    return t1;
+}
+
 /* The ray of pixel (px, py) as the ray caster casts it (cdvr_skip_view), in the grid: origin
  * and direction per unit of t. */
 static void pixel_ray(const cdvr_skip_view *v, int px, int py, double o[3], double d[3])
@@ -507,25 +521,29 @@ static void orbit(cdvr_skip_view *v, const double centre[3], double dist, double
     v->ortho_half_height = dist * 0.4;
 }
 
-/* Every pixel's ray reaches no visible sample before its tile's bound (a visible brick's
- * cells, within the volume's box, entered at t >= bound; none where the bound is +inf), and
- * some tiles get +inf. Returns how many pixels' bounds lie past the volume's near face. */
+/* Every pixel's ray reaches no visible sample before its tile's entry bound (a visible brick's
+ * cells, within the volume's box, entered at t >= bound; none where the bound is +inf) nor
+ * after its exit bound (left at t <= bound; -inf exactly where the entry is +inf), and some
+ * tiles get +inf. Returns how many pixels' entry bounds lie past the volume's near face and
+ * their exit bounds before its far face. */
 static size_t check_entry_view(const cdvr_skip_grid *g, const cdvr_skip_entry *e,
                                const cdvr_skip_view *v, const char *what)
 {
     const int tw = 4, th = 4;
     size_t tx = (size_t)(v->width + tw - 1) / tw, ty = (size_t)(v->height + th - 1) / th;
     float *tiles = malloc(tx * ty * sizeof *tiles);
+    float *exits = malloc(tx * ty * sizeof *exits);
     CHECK(cdvr_skip_entry_tiles(e, v, tw, th, tx, ty, tiles) == 1, "%s: entry tiles made", what);
-    size_t early = 0, none = 0, bounded = 0;
+    CHECK(cdvr_skip_exit_tiles(e, v, tw, th, tx, ty, exits) == 1, "%s: exit tiles made", what);
+    size_t early = 0, late = 0, none = 0, bounded = 0, mismatched = 0;
     double vol_lo[3] = {0, 0, 0}, vol_hi[3];
     for (int a = 0; a < 3; a++)
         vol_hi[a] = (double)g->vol_dims[a] - 1.0;
     for (int py = 0; py < v->height; py++)
         for (int px = 0; px < v->width; px++) {
-            double o[3], d[3], first = INFINITY;
+            double o[3], d[3], first = INFINITY, last = -INFINITY;
             pixel_ray(v, px, py, o, d);
-            double near = enter_box(o, d, vol_lo, vol_hi);
+            double near = enter_box(o, d, vol_lo, vol_hi), far = leave_box(o, d, vol_lo, vol_hi);
             for (size_t b = 0; b < g->nbricks && isfinite(near); b++) {
                 if (g->flags[b] < 128)
                     continue;
@@ -537,16 +555,25 @@ static size_t check_entry_view(const cdvr_skip_grid *g, const cdvr_skip_entry *e
                     hi[a] = fmin((double)((at[a] + 1) << g->shift), vol_hi[a]);
                 }
                 first = fmin(first, enter_box(o, d, lo, hi));
+                last = fmax(last, leave_box(o, d, lo, hi));
             }
-            float bound = tiles[(size_t)(py / th) * tx + (size_t)(px / tw)];
+            size_t tile = (size_t)(py / th) * tx + (size_t)(px / tw);
+            float bound = tiles[tile], exit = exits[tile];
             early += first < bound;
+            late += last > exit;
             none += isinf(bound);
-            bounded += isfinite(bound) && bound > near + 1.0;
+            mismatched += !isinf(bound) != !isinf(exit) || (isfinite(exit) && exit < bound);
+            bounded += isfinite(bound) && bound > near + 1.0 && exit < far - 1.0;
         }
     CHECK(early == 0, "%s: %zu rays meet a visible brick before their tile's bound", what,
           early);
+    CHECK(late == 0, "%s: %zu rays leave a visible brick after their tile's exit bound", what,
+          late);
+    CHECK(mismatched == 0, "%s: %zu pixels with an exit bound before their entry or only one "
+          "infinite", what, mismatched);
     CHECK(none > 0, "%s: no pixel without a visible brick", what);
     free(tiles);
+    free(exits);
     return bounded;
 }
 

@@ -391,13 +391,15 @@ static void project(const cdvr_skip_view *v, const double p[3], double depth, do
     *py = (sy + 1.0) * 0.5 * v->height - 0.5;
 }
 
-/* The least view depth of grid box lo..hi and its pixel rectangle [x0, x1] x [y0, y1] (a
- * pixel of margin, clamped to the image); 0 when it covers no pixel or lies behind the eye. */
+/* The least and greatest view depth of grid box lo..hi and its pixel rectangle [x0, x1] x
+ * [y0, y1] (a pixel of margin, clamped to the image); 0 when it covers no pixel or lies behind
+ * the eye. */
 static int box_footprint(const cdvr_skip_view *v, const double lo[3], const double hi[3],
-                         double *depth_min, int rect[4])
+                         double *depth_min, double *depth_max, int rect[4])
 {
     double x_lo = INFINITY, x_hi = -INFINITY, y_lo = INFINITY, y_hi = -INFINITY;
     *depth_min = INFINITY;
+    *depth_max = -INFINITY;
     for (int k = 0; k < 8; k++) {
         double p[3], px, py;
         corner_from_eye(v, lo, hi, k, p);
@@ -406,6 +408,7 @@ static int box_footprint(const cdvr_skip_view *v, const double lo[3], const doub
             return 0;
         project(v, p, depth, &px, &py);
         *depth_min = fmin(*depth_min, depth);
+        *depth_max = fmax(*depth_max, depth);
         x_lo = fmin(x_lo, px);
         x_hi = fmax(x_hi, px);
         y_lo = fmin(y_lo, py);
@@ -424,18 +427,21 @@ static int box_footprint(const cdvr_skip_view *v, const double lo[3], const doub
     return 1;
 }
 
-/* The pixel-centre coordinate in [-1, 1] of pixel i of n, and of the tile's pixel [i0, i1]
- * nearest 0 (the axis). */
-static double nearest_axis(int i0, int i1, int n)
+/* The pixel-centre coordinate in [-1, 1] of the tile's pixel [i0, i1] (of n) nearest 0 (the
+ * axis), or (far) farthest from it. */
+static double tile_axis(int i0, int i1, int n, int far)
 {
     double a = 2.0 * (i0 + 0.5) / n - 1.0, b = 2.0 * (i1 + 0.5) / n - 1.0;
+    if (far)
+        return fabs(a) > fabs(b) ? a : b;
     return a <= 0.0 && b >= 0.0 ? 0.0 : fabs(a) < fabs(b) ? a : b;
 }
 
-/* Turns the tiles' least depths into bounds of t: t = depth / cos(ray, f) on a perspective
- * ray, so dividing by the tile's largest cosine keeps a lower bound. */
+/* Turns the tiles' least (far: greatest) depths into bounds of t: t = depth / cos(ray, f) on
+ * a perspective ray, so dividing by the tile's largest (far: smallest) cosine keeps a lower
+ * (upper) bound; on an orthographic ray t is the depth. */
 static void depth_to_t(const cdvr_skip_view *v, int tile_w, int tile_h, size_t tiles_x,
-                       size_t tiles_y, float *tiles)
+                       size_t tiles_y, int far, float *tiles)
 {
     for (size_t ty = 0; ty < tiles_y; ty++)
         for (size_t tx = 0; tx < tiles_x; tx++) {
@@ -443,15 +449,19 @@ static void depth_to_t(const cdvr_skip_view *v, int tile_w, int tile_h, size_t t
             if (!isfinite(*t) || v->orthographic)
                 continue;
             int x0 = (int)tx * tile_w, y0 = (int)ty * tile_h;
-            double sx = nearest_axis(x0, x0 + tile_w - 1, v->width) * v->aspect;
-            double sy = nearest_axis(y0, y0 + tile_h - 1, v->height);
-            double cos_max = 1.0 / sqrt(1.0 + (sx * sx + sy * sy) * v->tan_half * v->tan_half);
-            *t = (float)(*t / cos_max * (1.0 - 1e-6));
+            int x1 = x0 + tile_w - 1, y1 = y0 + tile_h - 1;
+            x1 = x1 < v->width ? x1 : v->width - 1; /* the image's last tiles are cut */
+            y1 = y1 < v->height ? y1 : v->height - 1;
+            double sx = tile_axis(x0, x1, v->width, far) * v->aspect;
+            double sy = tile_axis(y0, y1, v->height, far);
+            double cosine = 1.0 / sqrt(1.0 + (sx * sx + sy * sy) * v->tan_half * v->tan_half);
+            *t = (float)(*t / cosine * (far ? 1.0 + 1e-6 : 1.0 - 1e-6));
         }
 }
 
-int cdvr_skip_entry_tiles(const cdvr_skip_entry *e, const cdvr_skip_view *v, int tile_w,
-                          int tile_h, size_t tiles_x, size_t tiles_y, float *tiles)
+/* cdvr_skip_entry_tiles, or (far) cdvr_skip_exit_tiles. */
+static int bound_tiles(const cdvr_skip_entry *e, const cdvr_skip_view *v, int tile_w,
+                       int tile_h, size_t tiles_x, size_t tiles_y, int far, float *tiles)
 {
     double vol_lo[3] = {-1.0, -1.0, -1.0}, vol_hi[3];
     for (int a = 0; a < 3; a++)
@@ -466,23 +476,36 @@ int cdvr_skip_entry_tiles(const cdvr_skip_entry *e, const cdvr_skip_view *v, int
     if (n == 0)
         return 1;
     for (size_t i = 0; i < n; i++)
-        tiles[i] = INFINITY;
+        tiles[i] = far ? -INFINITY : INFINITY;
     for (size_t b = 0; b < e->count; b++) {
         const float *box = e->boxes + 6 * b;
-        double lo[3] = {box[0], box[1], box[2]}, hi[3] = {box[3], box[4], box[5]}, depth;
+        double lo[3] = {box[0], box[1], box[2]}, hi[3] = {box[3], box[4], box[5]}, near, deep;
         int rect[4];
-        if (!box_footprint(v, lo, hi, &depth, rect))
+        if (!box_footprint(v, lo, hi, &near, &deep, rect))
             continue;
-        float d = (float)(depth * (1.0 - 1e-6)); /* rounded down, in float */
+        /* rounded outwards, in float */
+        float d = far ? (float)(deep * (1.0 + 1e-6)) : (float)(near * (1.0 - 1e-6));
         size_t tx1 = (size_t)(rect[1] / tile_w), ty1 = (size_t)(rect[3] / tile_h);
         tx1 = tx1 < tiles_x ? tx1 : tiles_x - 1;
         ty1 = ty1 < tiles_y ? ty1 : tiles_y - 1;
         for (size_t ty = (size_t)(rect[2] / tile_h); ty <= ty1; ty++)
             for (size_t tx = (size_t)(rect[0] / tile_w); tx <= tx1; tx++) {
                 float *t = tiles + ty * tiles_x + tx;
-                *t = d < *t ? d : *t;
+                *t = (far ? d > *t : d < *t) ? d : *t;
             }
     }
-    depth_to_t(v, tile_w, tile_h, tiles_x, tiles_y, tiles);
+    depth_to_t(v, tile_w, tile_h, tiles_x, tiles_y, far, tiles);
     return 1;
+}
+
+int cdvr_skip_entry_tiles(const cdvr_skip_entry *e, const cdvr_skip_view *v, int tile_w,
+                          int tile_h, size_t tiles_x, size_t tiles_y, float *tiles)
+{
+    return bound_tiles(e, v, tile_w, tile_h, tiles_x, tiles_y, 0, tiles);
+}
+
+int cdvr_skip_exit_tiles(const cdvr_skip_entry *e, const cdvr_skip_view *v, int tile_w,
+                         int tile_h, size_t tiles_x, size_t tiles_y, float *tiles)
+{
+    return bound_tiles(e, v, tile_w, tile_h, tiles_x, tiles_y, 1, tiles);
 }
