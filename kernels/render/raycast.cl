@@ -1396,23 +1396,42 @@ static vint extreme_step(const extreme_bricks *eb, const volume_geo *v, vint *i,
  * dull bricks (whose range cannot beat the lane's best; for average, bricks of zeros) and a
  * dull brick's whole block when the block is dull too (CDVR_CL_BLOCK_SHIFT); max and min
  * take a flat brick's code (a range of one code: every sample in it has that value) without
- * reading its samples, which count as taken. */
+ * reading its samples, which count as taken. Average with `bounds` instead reads, in lock-step,
+ * only the samples between the packet's entry bound te and exit bound tx of the bricks above
+ * 0 (cdvr/skip.h; cl_render.c, avg_entry_ready): the others are 0 and count in the mean only
+ * (engine CT and Colin27 512^2: the per-lane march reads 74% and 52% of the samples, this 88%
+ * and 61%, in the same time and 0.79x). *taken: the samples read. */
 static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spacing,
                            const volume_geo *v, const look_params *lk,
                            __global const float4 *table, __global const float *alpha,
-                           const extreme_bricks *eb, vint *taken)
+                           const extreme_bricks *eb, int bounds, float te, float tx,
+                           vint *taken)
 {
     /* average keeps best at 0: the bound it skips bricks by (those whose maximum is 0) */
     vfloat best = (vfloat)(lk->blend == 2 ? INFINITY : lk->blend == 3 ? 0.0f : -INFINITY);
     vfloat sum = (vfloat)(0.0f);
-    vint count = (vint)(0);
-    if (!eb->minmax) {
-        int nmax = 0;
-        int ns[RAY_PACKET];
-        vstore16(select((vint)(0), n, p->hit), 0, ns);
-        for (int k = 0; k < RAY_PACKET; k++)
-            nmax = max(nmax, ns[k]);
-        for (int i = 0; i < nmax; i++) {
+    vint count = (vint)(0); /* samples read (max, min: and those of flat bricks) */
+    vint zeros = (vint)(0); /* average: samples of bricks of zeros not read (0, in the mean) */
+    if (!eb->minmax || bounds) { /* every lane's samples from..to - 1 in lock-step */
+        int from = 0, to = 0;
+        int ns[RAY_PACKET], firsts[RAY_PACKET];
+        vint first = (vint)(0), end = n;
+        if (bounds) {
+            /* average with entry and exit bounds (te, tx) of the bricks above 0: samples
+             * before the one before te and after the one after tx lie in bricks of zeros */
+            vfloat k0 = floor((te - p->t_near) / step - 0.5f) - 1.0f;
+            vfloat k1 = ceil((tx - p->t_near) / step - 0.5f) + 2.0f;
+            first = convert_vint(clamp(k0, 0.0f, convert_vfloat(n)));
+            end = convert_vint(clamp(k1, 0.0f, convert_vfloat(n)));
+        }
+        vstore16(select((vint)(0), end, p->hit & (first < end)), 0, ns);
+        vstore16(select((vint)(INT_MAX), first, p->hit & (first < end)), 0, firsts);
+        from = INT_MAX;
+        for (int k = 0; k < RAY_PACKET; k++) {
+            to = max(to, ns[k]);
+            from = min(from, firsts[k]);
+        }
+        for (int i = from; i < to; i++) {
             vint ok;
             vfloat tm;
             vec3x g = sample_point(p, (vint)(i), n, step, inv_spacing, &ok, &tm);
@@ -1422,6 +1441,11 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
                 sum += select((vfloat)(0.0f), s, ok);
             else
                 best = select(best, lk->blend == 1 ? fmax(best, s) : fmin(best, s), ok);
+        }
+        if (bounds) { /* every sample is in the mean: n - 1 full segments and the last unless
+                         empty */
+            vfloat ts = p->t_near + convert_vfloat(n - 1) * step;
+            zeros = select((vint)(0), n - 1 - (p->t_far - ts > 0.0f), p->hit) - count;
         }
     } else { /* per-lane sample index: lanes skip dull bricks on their own; the last, shorter
                 segment is always sampled. Average skips the bricks whose voxels are all 0 (as
@@ -1450,7 +1474,10 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
                     i = min(i, n - 1);
                     /* the skipped samples count in the mean, and as taken where a flat brick
                      * gave their value */
-                    count += select((vint)(0), i - before, is_avg ? need : flat);
+                    if (is_avg)
+                        zeros += select((vint)(0), i - before, need);
+                    else
+                        count += select((vint)(0), i - before, flat);
                     need &= (i >= end) & (i < n - 1) & (best != saturated);
                 }
             live &= best != saturated; /* a flat brick of the saturated code ends the lane */
@@ -1478,10 +1505,11 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
         }
     }
     *taken = count;
-    vfloat s = lk->blend == 3 ? sum / convert_vfloat(max(count, 1)) : best;
-    s = select((vfloat)(0.0f), s, count > 0);
+    vint in_mean = count + zeros;
+    vfloat s = lk->blend == 3 ? sum / convert_vfloat(max(in_mean, 1)) : best;
+    s = select((vfloat)(0.0f), s, in_mean > 0);
     rgbax c = table_at(s, table);
-    vfloat a = select((vfloat)(0.0f), raw_alpha(s, alpha), count > 0);
+    vfloat a = select((vfloat)(0.0f), raw_alpha(s, alpha), in_mean > 0);
     return (rgbax){c.r * a, c.g * a, c.b * a, a};
 }
 
@@ -1699,7 +1727,11 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     vint px = px0 + (vint)(0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3);
     vint py = py0 + (vint)(0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3);
     /* no visible sample before t = te (cdvr/skip.h, entry distances) */
-    float te = entry_on ? entry[get_global_id(1) * entry_tiles_x + get_global_id(0)] : 0.0f;
+    size_t tile = get_global_id(1) * entry_tiles_x + get_global_id(0);
+    float te = entry_on ? entry[tile] : 0.0f;
+    /* average: the exit bounds follow the entry bounds (cl_render.c, entry_tiles_ready) */
+    float tx = entry_on && look.blend == 3 ? entry[get_global_size(0) * get_global_size(1) + tile]
+                                           : INFINITY;
     rgbax none = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
     if (isinf(te) && look.blend == 0) {
         /* no ray of the packet meets a visible brick: the image of no sample (iso marches
@@ -1778,7 +1810,8 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
             out = march_iso(&p, n, step, inv_spacing, &v, &look, table, &view,
                             skipping ? &iso_bricks : 0, g0, dg, first, &taken);
         else
-            out = march_extreme(&p, n, step, inv_spacing, &v, &look, table, alpha, &eb, &taken);
+            out = march_extreme(&p, n, step, inv_spacing, &v, &look, table, alpha, &eb,
+                                look.blend == 3 && entry_on, te, tx, &taken);
         store_pixels(image, px, py, cam.width, cam.height, out);
         int8 s8 = taken.lo + taken.hi;
         int4 s4 = s8.lo + s8.hi;

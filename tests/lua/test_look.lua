@@ -6,7 +6,9 @@
 -- neighbours of every brick it renders, so a skipped brick never feeds a gradient; max, min
 -- and iso do not skip by the TF); bad and unsupported options are refused naming them;
 -- cdvr.methods() lists raycast's blend modes and shading; the player refuses what bricks mode
--- cannot composite.
+-- cannot composite; on cl, skip=false turns off max, min and average's skipping (same image,
+-- every sample read, as on cpu), and average between its entry and exit bounds gives the image
+-- of skip=false from outside and inside a volume of zeros around a hollow block.
 local checks = dofile((arg[0]:match("^(.*)/") or ".") .. "/checks.lua")
 local check, raises = checks.check, checks.raises
 
@@ -106,8 +108,47 @@ if devices[2] then
     check(cdvr.compare(a, b).maxerr == 0, blend .. " on cl: skipping changes nothing")
     check(b:stats().samples == c:stats().samples, blend .. " on cl, skip=false: samples " ..
           b:stats().samples .. ", cpu " .. c:stats().samples)
-    check(blend == "average" or a:stats().samples < b:stats().samples,
+    check(a:stats().samples < b:stats().samples,
           blend .. " on cl skips samples: " .. a:stats().samples .. " of " .. b:stats().samples)
+  end
+  -- average reads only the samples between the entry and exit bounds of the bricks above 0
+  -- (a block with a hollow inside a volume of zeros): the image of skip=false from outside
+  -- (perspective, orthographic, a view along an axis) and from inside the volume (no bounds)
+  local dims = {40, 36, 30}
+  local box = cdvr.volume{dims = dims}
+  for x = 8, 30 do for y = 6, 27 do for z = 5, 22 do
+    local hollow = x > 14 and x < 24 and y > 12 and y < 21 and z > 10 and z < 17
+    box:set(x, y, z, hollow and 0 or (x * 7 + y * 3 + z * 11) % 200 + 20)
+  end end end
+  local views = {
+    {"perspective", cdvr.orbit_camera(box, {azimuth = 35, elevation = 20, width = 61, height = 47})},
+    {"orthographic", cdvr.camera{eye = {-40, -50, 45}, center = {19.5, 17.5, 14.5}, up = {0, 0, 1},
+                                 orthographic = true, ortho_height = 60, width = 48, height = 48}},
+    {"along x", cdvr.camera{eye = {-60, 17.5, 14.5}, center = {19.5, 17.5, 14.5}, up = {0, 0, 1},
+                            fov = 30, width = 40, height = 36}},
+    {"inside", cdvr.camera{eye = {19.5, 17.5, 14.5}, center = {40, 30, 20}, up = {0, 0, 1},
+                           fov = 60, width = 40, height = 40}},
+    -- few samples per brick: a bound a few samples too tight or too loose changes the image
+    {"along x, step 3", cdvr.camera{eye = {-60, 17.5, 14.5}, center = {19.5, 17.5, 14.5},
+                                    up = {0, 0, 1}, fov = 30, width = 40, height = 36}, 3},
+    {"along -y, step 2.5", cdvr.camera{eye = {19.5, 90, 14.5}, center = {19.5, 17.5, 14.5},
+                                       up = {0, 0, 1}, fov = 30, width = 40, height = 36}, 2.5},
+  }
+  local ramp = cdvr.tf{{0, 0, 0, 0, 0}, {64, 1, 0.6, 0.3, 0.5}, {255, 1, 1, 1, 1}}
+  for _, view in ipairs(views) do
+    local o = {tf = ramp, camera = view[2], device = "cl", blend = "average", step = view[3]}
+    local a = cdvr.render(box, o)
+    o.skip = false
+    local b = cdvr.render(box, o)
+    o.device = "cpu"
+    local c = cdvr.render(box, o)
+    check(cdvr.compare(a, b).maxerr == 0, "average, " .. view[1] .. ": the image of skip=false")
+    check(cdvr.compare(a, c).psnr >= 80, "average, " .. view[1] .. ": cl against cpu " ..
+          cdvr.compare(a, c).psnr .. " dB")
+    local black = cdvr.render(cdvr.volume{dims = dims}, o)
+    check(cdvr.compare(a, black).psnr < 30, "average, " .. view[1] .. ": a picture of the block")
+    check(a:stats().samples < b:stats().samples, "average, " .. view[1] .. ": samples read " ..
+          a:stats().samples .. " of " .. b:stats().samples)
   end
 end
 

@@ -84,13 +84,17 @@ void cdvr_cl_store_fetch_choice(cdvr_cl *cl, const cdvr_codec *codec, unsigned s
 cdvr_status cdvr_cl_arg(cl_kernel k, const char *name, cl_uint index, size_t size,
                         const void *value, cdvr_error *err);
 
+/* Which entry list a render's entry tiles come from: the TF's visible bricks (composite), the
+ * iso flags' or the bricks above 0 (average: entry and exit tiles). */
+typedef enum { CDVR_CL_ENTRY_VISIBLE, CDVR_CL_ENTRY_ISO, CDVR_CL_ENTRY_AVERAGE } cdvr_cl_entry_kind;
+
 /* What a stream's entry tiles were made for (cl_render.c): the camera and the volume's
- * placement, which entry list (iso: the iso flags') and its version, and the tiles' count. */
+ * placement, which entry list and its version, and the tiles' count. */
 typedef struct cdvr_cl_entry_made {
     cdvr_skip_view view;
     uint64_t version;
     size_t tiles[2];
-    int iso;
+    int kind; /* cdvr_cl_entry_kind */
     int valid;
 } cdvr_cl_entry_made;
 
@@ -148,6 +152,9 @@ struct cdvr_cl_stream {
     int entry_ok;                /* entry describes the flags in brick_visible */
     cdvr_skip_entry iso_entry;   /* the same for the flags in iso_flags */
     int iso_entry_ok;
+    cdvr_skip_entry avg_entry;   /* the same for the bricks holding a code above 0 (average) */
+    int avg_entry_ok;
+    uint64_t avg_minmax;         /* minmax_count of the ranges avg_entry was made of, 0: none */
     cl_mem entry_tiles;          /* per packet: t before which no ray meets a visible brick */
     size_t entry_capacity;       /* bytes of entry_tiles */
     cdvr_cl_entry_made entry_made; /* what entry_tiles were made for (valid 0: none) */

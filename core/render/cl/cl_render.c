@@ -169,6 +169,35 @@ static int iso_flags_ready(cdvr_cl_stream *s, size_t frame, float code)
     return 1;
 }
 
+/* Average (raycast.cl, march_extreme): the entry list of the set-up frame's bricks whose
+ * range holds a code above 0, for entry and exit bounds: samples outside them lie in bricks of
+ * zeros, whose samples are 0 (they add nothing to the sum and count in the mean). Made again
+ * only when the ranges change. Returns 1 when avg_entry holds it; 0 (the average render then
+ * skips brick by brick) as iso_flags_ready. */
+static int avg_entry_ready(cdvr_cl_stream *s, size_t frame)
+{
+    if (!s->skipping || s->grid_uploaded || s->minmax_frame != frame || !s->minmax_count)
+        return 0;
+    if (s->avg_minmax == s->minmax_count)
+        return s->avg_entry_ok;
+    uint8_t *flags = malloc(s->nbricks);
+    if (!flags)
+        return 0;
+    uint8_t above_zero[256];
+    memset(above_zero, 1, sizeof above_zero);
+    above_zero[0] = 0;
+    cdvr_skip_flags_into(&s->grid, above_zero, flags);
+    cdvr_skip_grid g = s->grid; /* its ranges with these flags */
+    g.flags = flags;
+    g.flags_valid = 1;
+    cdvr_error ignored;
+    s->avg_entry_ok = cdvr_skip_entry_make(&s->avg_entry, &g, ENTRY_CELL_LOG2, &ignored) ==
+                      CDVR_OK;
+    free(flags);
+    s->avg_minmax = s->minmax_count;
+    return s->avg_entry_ok;
+}
+
 /* Uploads the flags of grid g and takes its visible box, count and entry list. */
 static cdvr_status use_grid(cdvr_cl_stream *s, const cdvr_skip_grid *g, cdvr_error *err)
 {
@@ -437,15 +466,22 @@ static cdvr_cl_look look_of(const cdvr_look *look, const cdvr_tf *tf, const box_
     return k;
 }
 
-/* The entry tiles of this render in s->entry_tiles (one per packet: global work-items), made
- * again only when the camera, the volume's placement or the flags change. Returns 1 when the
- * kernel may start its rays there; 0 leaves a buffer for the argument all the same. */
+/* The entry tiles of this render in s->entry_tiles (one per packet: global work-items; for
+ * average the exit tiles follow them), made again only when the camera, the volume's
+ * placement or the flags change. Returns 1 when the kernel may start its rays there; 0 leaves
+ * a buffer for the argument all the same. */
 static int entry_tiles_ready(cdvr_cl_stream *s, const cam_params *cam, const double spacing[3],
                              const double origin[3], const double D[9], const size_t global[2],
-                             int wanted, int iso)
+                             int wanted, cdvr_cl_entry_kind kind)
 {
-    const cdvr_skip_entry *entry = iso ? &s->iso_entry : &s->entry;
-    size_t tiles = global[0] * global[1], bytes = tiles * sizeof(float);
+    const cdvr_skip_entry *entry = kind == CDVR_CL_ENTRY_ISO       ? &s->iso_entry
+                                   : kind == CDVR_CL_ENTRY_AVERAGE ? &s->avg_entry
+                                                                   : &s->entry;
+    int entry_ok = kind == CDVR_CL_ENTRY_ISO       ? s->iso_entry_ok
+                   : kind == CDVR_CL_ENTRY_AVERAGE ? s->avg_entry_ok
+                                                   : s->entry_ok;
+    int with_exit = kind == CDVR_CL_ENTRY_AVERAGE;
+    size_t tiles = global[0] * global[1], bytes = (1 + with_exit) * tiles * sizeof(float);
     cdvr_error ignored;
     size_t capacity = s->entry_capacity;
     if (cdvr_cl_ensure_buffer(s->cl, &s->entry_tiles, &s->entry_capacity, wanted ? bytes : 4,
@@ -455,7 +491,7 @@ static int entry_tiles_ready(cdvr_cl_stream *s, const cam_params *cam, const dou
     }
     if (s->entry_capacity != capacity) /* a new buffer: its contents are gone */
         s->entry_made.valid = 0;
-    if (!wanted || !(iso ? s->iso_entry_ok : s->entry_ok))
+    if (!wanted || !entry_ok)
         return 0;
     cdvr_cl_entry_made made;
     memset(&made, 0, sizeof made); /* padding too: compared with memcmp */
@@ -476,7 +512,7 @@ static int entry_tiles_ready(cdvr_cl_stream *s, const cam_params *cam, const dou
     v->width = cam->width;
     v->height = cam->height;
     made.version = entry->version;
-    made.iso = iso;
+    made.kind = kind;
     made.tiles[0] = global[0];
     made.tiles[1] = global[1];
     made.valid = 1;
@@ -486,6 +522,9 @@ static int entry_tiles_ready(cdvr_cl_stream *s, const cam_params *cam, const dou
     float *map = malloc(bytes);
     int usable = map && cdvr_skip_entry_tiles(entry, v, PACKET_W, PACKET_H, global[0],
                                               global[1], map);
+    if (with_exit)
+        usable = usable && cdvr_skip_exit_tiles(entry, v, PACKET_W, PACKET_H, global[0],
+                                                global[1], map + tiles);
     usable = usable && write_buffer(s->cl, s->entry_tiles, map, bytes, "upload entry tiles",
                                     &ignored) == CDVR_OK;
     free(map);
@@ -838,9 +877,14 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     cdvr_cl_look look = look_of(&opts->look, &s->tf, &box, spacing);
     int iso = look.blend == CDVR_BLEND_ISO;
     int iso_skip = iso && !opts->clip && iso_flags_ready(s, frame, look.iso_code);
+    int avg_bounds = look.blend == CDVR_BLEND_AVERAGE && !opts->clip &&
+                     avg_entry_ready(s, frame);
     int entry_wanted = s->skipping && !opts->clip &&
-                       (look.blend == CDVR_BLEND_COMPOSITE || iso_skip);
-    cl_int entry_on = entry_tiles_ready(s, &cam, spacing, origin, D, global, entry_wanted, iso);
+                       (look.blend == CDVR_BLEND_COMPOSITE || iso_skip || avg_bounds);
+    cdvr_cl_entry_kind kind = iso          ? CDVR_CL_ENTRY_ISO
+                              : avg_bounds ? CDVR_CL_ENTRY_AVERAGE
+                                           : CDVR_CL_ENTRY_VISIBLE;
+    cl_int entry_on = entry_tiles_ready(s, &cam, spacing, origin, D, global, entry_wanted, kind);
     cl_int grads_on = !opts->clip && grads_ready(s, frame, &opts->look);
     st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box, &look, iso_skip,
                           host_image ? host_image : s->image, entry_on, (cl_int)global[0],
