@@ -169,17 +169,17 @@ static int iso_flags_ready(cdvr_cl_stream *s, size_t frame, float code)
     return 1;
 }
 
-/* Average (raycast.cl, march_extreme): the entry list of the set-up frame's bricks whose
- * range holds a code above 0, for entry and exit bounds: samples outside them lie in bricks of
- * zeros, whose samples are 0 (they add nothing to the sum and count in the mean). Made again
- * only when the ranges change. Returns 1 when avg_entry holds it; 0 (the average render then
- * skips brick by brick) as iso_flags_ready. */
-static int avg_entry_ready(cdvr_cl_stream *s, size_t frame)
+/* Max, min and average (raycast.cl, march_extreme): the entry list of the set-up frame's
+ * bricks whose range holds a code above 0, for entry and exit bounds: samples outside them lie
+ * in bricks of zeros and are 0 (average: they add nothing to the sum and count in the mean;
+ * max: its extreme is at least 0; min: 0). Made again only when the ranges change. Returns 1
+ * when zero_entry holds it; 0 (the render then skips brick by brick) as iso_flags_ready. */
+static int zero_entry_ready(cdvr_cl_stream *s, size_t frame)
 {
     if (!s->skipping || s->grid_uploaded || s->minmax_frame != frame || !s->minmax_count)
         return 0;
-    if (s->avg_minmax == s->minmax_count)
-        return s->avg_entry_ok;
+    if (s->zero_minmax == s->minmax_count)
+        return s->zero_entry_ok;
     uint8_t *flags = malloc(s->nbricks);
     if (!flags)
         return 0;
@@ -191,11 +191,11 @@ static int avg_entry_ready(cdvr_cl_stream *s, size_t frame)
     g.flags = flags;
     g.flags_valid = 1;
     cdvr_error ignored;
-    s->avg_entry_ok = cdvr_skip_entry_make(&s->avg_entry, &g, ENTRY_CELL_LOG2, &ignored) ==
+    s->zero_entry_ok = cdvr_skip_entry_make(&s->zero_entry, &g, ENTRY_CELL_LOG2, &ignored) ==
                       CDVR_OK;
     free(flags);
-    s->avg_minmax = s->minmax_count;
-    return s->avg_entry_ok;
+    s->zero_minmax = s->minmax_count;
+    return s->zero_entry_ok;
 }
 
 /* Uploads the flags of grid g and takes its visible box, count and entry list. */
@@ -467,7 +467,7 @@ static cdvr_cl_look look_of(const cdvr_look *look, const cdvr_tf *tf, const box_
 }
 
 /* The entry tiles of this render in s->entry_tiles (one per packet: global work-items; for
- * average the exit tiles follow them), made again only when the camera, the volume's
+ * max, min and average the exit tiles follow them), made again only when the camera, the volume's
  * placement or the flags change. Returns 1 when the kernel may start its rays there; 0 leaves
  * a buffer for the argument all the same. */
 static int entry_tiles_ready(cdvr_cl_stream *s, const cam_params *cam, const double spacing[3],
@@ -475,12 +475,12 @@ static int entry_tiles_ready(cdvr_cl_stream *s, const cam_params *cam, const dou
                              int wanted, cdvr_cl_entry_kind kind)
 {
     const cdvr_skip_entry *entry = kind == CDVR_CL_ENTRY_ISO       ? &s->iso_entry
-                                   : kind == CDVR_CL_ENTRY_AVERAGE ? &s->avg_entry
+                                   : kind == CDVR_CL_ENTRY_ZEROS ? &s->zero_entry
                                                                    : &s->entry;
     int entry_ok = kind == CDVR_CL_ENTRY_ISO       ? s->iso_entry_ok
-                   : kind == CDVR_CL_ENTRY_AVERAGE ? s->avg_entry_ok
+                   : kind == CDVR_CL_ENTRY_ZEROS ? s->zero_entry_ok
                                                    : s->entry_ok;
-    int with_exit = kind == CDVR_CL_ENTRY_AVERAGE;
+    int with_exit = kind == CDVR_CL_ENTRY_ZEROS;
     size_t tiles = global[0] * global[1], bytes = (1 + with_exit) * tiles * sizeof(float);
     cdvr_error ignored;
     size_t capacity = s->entry_capacity;
@@ -877,13 +877,14 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     cdvr_cl_look look = look_of(&opts->look, &s->tf, &box, spacing);
     int iso = look.blend == CDVR_BLEND_ISO;
     int iso_skip = iso && !opts->clip && iso_flags_ready(s, frame, look.iso_code);
-    int avg_bounds = look.blend == CDVR_BLEND_AVERAGE && !opts->clip &&
-                     avg_entry_ready(s, frame);
+    int extreme = look.blend == CDVR_BLEND_MAX || look.blend == CDVR_BLEND_MIN ||
+                  look.blend == CDVR_BLEND_AVERAGE;
+    int zero_bounds = extreme && !opts->clip && zero_entry_ready(s, frame);
     int entry_wanted = s->skipping && !opts->clip &&
-                       (look.blend == CDVR_BLEND_COMPOSITE || iso_skip || avg_bounds);
-    cdvr_cl_entry_kind kind = iso          ? CDVR_CL_ENTRY_ISO
-                              : avg_bounds ? CDVR_CL_ENTRY_AVERAGE
-                                           : CDVR_CL_ENTRY_VISIBLE;
+                       (look.blend == CDVR_BLEND_COMPOSITE || iso_skip || zero_bounds);
+    cdvr_cl_entry_kind kind = iso           ? CDVR_CL_ENTRY_ISO
+                              : zero_bounds ? CDVR_CL_ENTRY_ZEROS
+                                            : CDVR_CL_ENTRY_VISIBLE;
     cl_int entry_on = entry_tiles_ready(s, &cam, spacing, origin, D, global, entry_wanted, kind);
     cl_int grads_on = !opts->clip && grads_ready(s, frame, &opts->look);
     st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box, &look, iso_skip,

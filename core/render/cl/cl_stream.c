@@ -122,7 +122,7 @@ void cdvr_cl_stream_free(cdvr_cl_stream *s)
     cdvr_skip_grid_free(&s->grid);
     cdvr_skip_entry_free(&s->entry);
     cdvr_skip_entry_free(&s->iso_entry);
-    cdvr_skip_entry_free(&s->avg_entry);
+    cdvr_skip_entry_free(&s->zero_entry);
     free(s);
 }
 
