@@ -1412,6 +1412,35 @@ static vint zero_window(const packet *p, vint n, float step, float te, float tx,
     return select((vint)(0), before + after, p->hit);
 }
 
+/* Max: a sparse pass over every `every`-th sample of each lane's window [first, lim) raises
+ * *best before the march, which then finds more bricks dull. These are samples of the ray, so
+ * *best stays at most its maximum and the result is the same. Lanes already at 255 take no
+ * part. Returns the samples read per lane. */
+static vint sparse_max(const packet *p, vint n, float step, float3 inv_spacing,
+                       const volume_geo *v, vint first, vint lim, int every, vfloat *best)
+{
+    int from = INT_MAX, to = 0, fs[RAY_PACKET], ls[RAY_PACKET];
+    vint on = p->hit & (first < lim) & (*best < 255.0f), read = (vint)(0);
+    vstore16(select((vint)(INT_MAX), first, on), 0, fs);
+    vstore16(select((vint)(0), lim, on), 0, ls);
+    for (int k = 0; k < RAY_PACKET; k++) {
+        from = min(from, fs[k]);
+        to = max(to, ls[k]);
+    }
+    if (from >= to)
+        return read;
+    for (int j = from + every / 2; j < to; j += every) {
+        vint ok;
+        vfloat tm;
+        vec3x g = sample_point(p, (vint)(j), n, step, inv_spacing, &ok, &tm);
+        ok &= on & (j >= first) & (j < lim);
+        vfloat s = trilinear_on(v, g, ok);
+        *best = select(*best, fmax(*best, s), ok);
+        read -= ok;
+    }
+    return read;
+}
+
 /* Max, min or average of every sample's code (no termination). With the ranges, lanes skip
  * dull bricks (whose range cannot beat the lane's best; for average, bricks of zeros) and a
  * dull brick's whole block when the block is dull too (CDVR_CL_BLOCK_SHIFT); max and min
@@ -1478,6 +1507,12 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
         float saturated = is_avg ? NAN : is_max ? 255.0f : 0.0f;
         vint i = first, lim = end; /* lanes march from first to lim - 1 */
         end = (vint)(0);
+        /* max: a sample per RUN_VOXELS first (engine CT 512^2: 27.8 -> 23.9 ms, Colin27
+         * 22.8 -> 23.6 ms; every 8, 16 or 64 voxels: 1.1x, 1.02x, 1.0x that time on the
+         * engine; min, whose lanes end at 0, lost 1.2x and 3.7x) */
+        if (lk->blend == 1)
+            count += sparse_max(p, n, step, inv_spacing, v, i, lim,
+                                run_samples(step, inv_spacing), &best);
         vint live = p->hit & (i < lim) & (best != saturated);
         /* runs of 2 RUN_VOXELS for max and min (engine CT and Colin27 512^2 max: 1.5% and 4%
          * less time than 1; 4 was 4% slower on the engine), 4 for average, whose look-ups
