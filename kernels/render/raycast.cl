@@ -1393,7 +1393,7 @@ static vint extreme_step(const extreme_bricks *eb, const volume_geo *v, vint *i,
 }
 
 /* The window [*first, *lim) of each lane's samples between the entry bound te and the exit
- * bound tx of the bricks above 0 (cdvr/skip.h; cl_render.c, zero_bounds_ready): the samples
+ * bound tx of the bricks above 0 (cdvr/skip.h; cl_render.c, zero_entry_ready): the samples
  * outside it lie in bricks of zeros (the sample before the one before te and after the one
  * after tx: a sample of margin for rounding). Returns how many of the samples outside count
  * (render.h: n - 1 full segments, the last unless empty): all of them have the value 0. */
@@ -1492,8 +1492,8 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
             else
                 best = select(best, lk->blend == 1 ? fmax(best, s) : fmin(best, s), ok);
         }
-        /* average reads the packet's widest window: its lanes' samples read outside their
-         * own window are not among their zeros */
+        /* the packet's widest window was read: a lane's samples read outside its own window
+         * are not among its zeros */
         if (bounds) {
             vfloat ts = p->t_near + convert_vfloat(n - 1) * step;
             zeros = select((vint)(0), n - 1 - (p->t_far - ts > 0.0f), p->hit) - count;
@@ -1790,8 +1790,8 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     float te = entry_on ? entry[tile] : 0.0f;
     /* max, min, average: the exit bounds follow the entry bounds (cl_render.c,
      * entry_tiles_ready) */
-    float tx = entry_on && look.blend >= 1 && look.blend <= 3 ? entry[get_global_size(0) * get_global_size(1) + tile]
-                                           : INFINITY;
+    size_t tiles = get_global_size(0) * get_global_size(1);
+    float tx = entry_on && look.blend >= 1 && look.blend <= 3 ? entry[tiles + tile] : INFINITY;
     rgbax none = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
     if (isinf(te) && look.blend == 0) {
         /* no ray of the packet meets a visible brick: the image of no sample (iso marches

@@ -96,20 +96,30 @@ if devices[2] then
     end
   end
   check(cdvr.compare(before, render{device = "cl"}).maxerr == 0, "composite after iso renders")
+  -- the render of o on cl, then with skip=false on cl and on cpu
+  local function skip_noskip_cpu(vol, o)
+    local a, p = cdvr.render(vol, o), {}
+    for k, x in pairs(o) do p[k] = x end
+    p.skip = false
+    local b = cdvr.render(vol, p)
+    p.device = "cpu"
+    return a, b, cdvr.render(vol, p)
+  end
+  -- cl reads fewer samples than skip=false (max reads a sparse pass first, some samples
+  -- twice, and counts the samples of flat bricks as taken)
+  local function fewer_samples(blend, a, b, what)
+    local fewer = blend == "max" and a:stats().samples <= 1.25 * b:stats().samples or
+                  a:stats().samples < b:stats().samples
+    check(fewer, what .. ": samples read " .. a:stats().samples .. " of " .. b:stats().samples)
+  end
   -- max, min and average skip by the brick ranges unless skip=false: the same image, and
   -- without skipping every sample is taken (as on cpu)
   for _, blend in ipairs{"max", "min", "average"} do
-    local o = {tf = tf, camera = cam, device = "cl", blend = blend}
-    local a = cdvr.render(v, o)
-    o.skip = false
-    local b = cdvr.render(v, o)
-    o.device = "cpu"
-    local c = cdvr.render(v, o)
+    local a, b, c = skip_noskip_cpu(v, {tf = tf, camera = cam, device = "cl", blend = blend})
     check(cdvr.compare(a, b).maxerr == 0, blend .. " on cl: skipping changes nothing")
     check(b:stats().samples == c:stats().samples, blend .. " on cl, skip=false: samples " ..
           b:stats().samples .. ", cpu " .. c:stats().samples)
-    check(a:stats().samples < b:stats().samples,
-          blend .. " on cl skips samples: " .. a:stats().samples .. " of " .. b:stats().samples)
+    fewer_samples(blend, a, b, blend .. " on cl")
   end
   -- max, min and average read only the samples between the entry and exit bounds of the
   -- bricks above 0 (a block with a hollow inside a volume of zeros): the image of skip=false
@@ -140,21 +150,13 @@ if devices[2] then
     for _, view in ipairs(views) do
       local what = blend .. ", " .. view[1]
       local o = {tf = ramp, camera = view[2], device = "cl", blend = blend, step = view[3]}
-      local a = cdvr.render(box, o)
-      o.skip = false
-      local b = cdvr.render(box, o)
-      o.device = "cpu"
-      local c = cdvr.render(box, o)
+      local a, b, c = skip_noskip_cpu(box, o)
       check(cdvr.compare(a, b).maxerr == 0, what .. ": the image of skip=false")
       check(cdvr.compare(a, c).psnr >= 80, what .. ": cl against cpu " .. cdvr.compare(a, c).psnr .. " dB")
       if blend ~= "min" then -- min: 0 on every ray through the zeros
         check(cdvr.compare(a, cdvr.render(black, o)).psnr < 30, what .. ": a picture of the block")
       end
-      -- (max reads a sparse pass first, some samples twice, and counts the samples of flat
-      -- bricks as taken)
-      local fewer = blend == "max" and a:stats().samples <= 1.25 * b:stats().samples or
-                    a:stats().samples < b:stats().samples
-      check(fewer, what .. ": samples read " .. a:stats().samples .. " of " .. b:stats().samples)
+      fewer_samples(blend, a, b, what)
     end
   end
 end

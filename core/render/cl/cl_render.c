@@ -191,8 +191,8 @@ static int zero_entry_ready(cdvr_cl_stream *s, size_t frame)
     g.flags = flags;
     g.flags_valid = 1;
     cdvr_error ignored;
-    s->zero_entry_ok = cdvr_skip_entry_make(&s->zero_entry, &g, ENTRY_CELL_LOG2, &ignored) ==
-                      CDVR_OK;
+    s->zero_entry_ok =
+        cdvr_skip_entry_make(&s->zero_entry, &g, ENTRY_CELL_LOG2, &ignored) == CDVR_OK;
     free(flags);
     s->zero_minmax = s->minmax_count;
     return s->zero_entry_ok;
@@ -467,19 +467,19 @@ static cdvr_cl_look look_of(const cdvr_look *look, const cdvr_tf *tf, const box_
 }
 
 /* The entry tiles of this render in s->entry_tiles (one per packet: global work-items; for
- * max, min and average the exit tiles follow them), made again only when the camera, the volume's
- * placement or the flags change. Returns 1 when the kernel may start its rays there; 0 leaves
- * a buffer for the argument all the same. */
+ * max, min and average the exit tiles follow them), made again only when the camera, the
+ * volume's placement or the flags change. Returns 1 when the kernel may start its rays there;
+ * 0 leaves a buffer for the argument all the same. */
 static int entry_tiles_ready(cdvr_cl_stream *s, const cam_params *cam, const double spacing[3],
                              const double origin[3], const double D[9], const size_t global[2],
                              int wanted, cdvr_cl_entry_kind kind)
 {
-    const cdvr_skip_entry *entry = kind == CDVR_CL_ENTRY_ISO       ? &s->iso_entry
+    const cdvr_skip_entry *entry = kind == CDVR_CL_ENTRY_ISO     ? &s->iso_entry
                                    : kind == CDVR_CL_ENTRY_ZEROS ? &s->zero_entry
-                                                                   : &s->entry;
-    int entry_ok = kind == CDVR_CL_ENTRY_ISO       ? s->iso_entry_ok
+                                                                 : &s->entry;
+    int entry_ok = kind == CDVR_CL_ENTRY_ISO     ? s->iso_entry_ok
                    : kind == CDVR_CL_ENTRY_ZEROS ? s->zero_entry_ok
-                                                   : s->entry_ok;
+                                                 : s->entry_ok;
     int with_exit = kind == CDVR_CL_ENTRY_ZEROS;
     size_t tiles = global[0] * global[1], bytes = (1 + with_exit) * tiles * sizeof(float);
     cdvr_error ignored;
