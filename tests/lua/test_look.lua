@@ -7,8 +7,9 @@
 -- and iso do not skip by the TF); bad and unsupported options are refused naming them;
 -- cdvr.methods() lists raycast's blend modes and shading; the player refuses what bricks mode
 -- cannot composite; on cl, skip=false turns off max, min and average's skipping (same image,
--- every sample read, as on cpu), and max, min and average between their entry and exit bounds
--- give the image of skip=false from outside and inside a volume of zeros around a hollow block.
+-- every sample read, as on cpu), and max and average between their entry and exit bounds (and
+-- min, skipping brick by brick) give the image of skip=false from outside and inside a volume of
+-- zeros around a hollow block.
 local checks = dofile((arg[0]:match("^(.*)/") or ".") .. "/checks.lua")
 local check, raises = checks.check, checks.raises
 
@@ -121,9 +122,10 @@ if devices[2] then
           b:stats().samples .. ", cpu " .. c:stats().samples)
     fewer_samples(blend, a, b, blend .. " on cl")
   end
-  -- max, min and average read only the samples between the entry and exit bounds of the
-  -- bricks above 0 (a block with a hollow inside a volume of zeros): the image of skip=false
-  -- from outside (perspective, orthographic, along axes) and from inside the volume (no bounds)
+  -- max and average read only the samples between the entry and exit bounds of the bricks
+  -- above 0 (a block with a hollow inside a volume of zeros): the image of skip=false from
+  -- outside (perspective, orthographic, along axes) and from inside the volume (no bounds); min
+  -- too (it skips brick by brick)
   local dims = {40, 36, 30}
   local box = cdvr.volume{dims = dims}
   for x = 8, 30 do for y = 6, 27 do for z = 5, 22 do

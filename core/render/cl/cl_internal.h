@@ -85,7 +85,7 @@ cdvr_status cdvr_cl_arg(cl_kernel k, const char *name, cl_uint index, size_t siz
                         const void *value, cdvr_error *err);
 
 /* Which entry list a render's entry tiles come from: the TF's visible bricks (composite), the
- * iso flags' or the bricks above 0 (max, min, average: entry and exit tiles). */
+ * iso flags' or the bricks above 0 (max, average: entry and exit tiles). */
 typedef enum { CDVR_CL_ENTRY_VISIBLE, CDVR_CL_ENTRY_ISO, CDVR_CL_ENTRY_ZEROS } cdvr_cl_entry_kind;
 
 /* What a stream's entry tiles were made for (cl_render.c): the camera and the volume's
@@ -152,8 +152,8 @@ struct cdvr_cl_stream {
     int entry_ok;                /* entry describes the flags in brick_visible */
     cdvr_skip_entry iso_entry;   /* the same for the flags in iso_flags */
     int iso_entry_ok;
-    cdvr_skip_entry zero_entry;  /* the same for the bricks holding a code above 0 (max, min
-                                    and average: entry and exit bounds) */
+    cdvr_skip_entry zero_entry;  /* the same for the bricks holding a code above 0 (max and
+                                    average: entry and exit bounds) */
     int zero_entry_ok;
     uint64_t zero_minmax;        /* minmax_count of the ranges zero_entry was made of, 0: none */
     cl_mem entry_tiles;          /* per packet: t before which no ray meets a visible brick */
