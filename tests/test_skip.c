@@ -10,7 +10,7 @@
  * (tests/data/v2_lzo_store.cdv) reads them as the ranges of its decoded frames; a packed table
  * claiming another size, or index flags claiming two packings, are refused; the entry
  * distances (cdvr_skip_entry_tiles) never lie past the first visible brick of any pixel's ray
- * and the exit distances (cdvr_skip_exit_tiles) never before its last
+ * and the exit distances (cdvr_skip_entry_exit_tiles) never before its last
  * (perspective and orthographic views, axis-aligned and rotated volumes, anisotropic
  * spacing, cells of 1, 2 and 4 bricks) and are off with the eye inside the volume. */
 #include <math.h>
@@ -533,8 +533,12 @@ static size_t check_entry_view(const cdvr_skip_grid *g, const cdvr_skip_entry *e
     size_t tx = (size_t)(v->width + tw - 1) / tw, ty = (size_t)(v->height + th - 1) / th;
     float *tiles = malloc(tx * ty * sizeof *tiles);
     float *exits = malloc(tx * ty * sizeof *exits);
-    CHECK(cdvr_skip_entry_tiles(e, v, tw, th, tx, ty, tiles) == 1, "%s: entry tiles made", what);
-    CHECK(cdvr_skip_exit_tiles(e, v, tw, th, tx, ty, exits) == 1, "%s: exit tiles made", what);
+    float *alone = malloc(tx * ty * sizeof *alone);
+    CHECK(cdvr_skip_entry_tiles(e, v, tw, th, tx, ty, alone) == 1, "%s: entry tiles made", what);
+    CHECK(cdvr_skip_entry_exit_tiles(e, v, tw, th, tx, ty, tiles, exits) == 1,
+          "%s: entry and exit tiles made", what);
+    CHECK(!memcmp(alone, tiles, tx * ty * sizeof *alone), "%s: entry tiles alone differ", what);
+    free(alone);
     size_t early = 0, late = 0, none = 0, bounded = 0, mismatched = 0;
     double vol_lo[3] = {0, 0, 0}, vol_hi[3];
     for (int a = 0; a < 3; a++)

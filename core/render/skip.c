@@ -459,9 +459,10 @@ static void depth_to_t(const cdvr_skip_view *v, int tile_w, int tile_h, size_t t
         }
 }
 
-/* cdvr_skip_entry_tiles, or (far) cdvr_skip_exit_tiles. */
+/* cdvr_skip_entry_tiles into entry, and with exit (not NULL) the exit bounds into exit:
+ * one projection of the boxes for both. */
 static int bound_tiles(const cdvr_skip_entry *e, const cdvr_skip_view *v, int tile_w,
-                       int tile_h, size_t tiles_x, size_t tiles_y, int far, float *tiles)
+                       int tile_h, size_t tiles_x, size_t tiles_y, float *entry, float *exit)
 {
     double vol_lo[3] = {-1.0, -1.0, -1.0}, vol_hi[3];
     for (int a = 0; a < 3; a++)
@@ -475,8 +476,11 @@ static int bound_tiles(const cdvr_skip_entry *e, const cdvr_skip_view *v, int ti
     size_t n = tiles_x * tiles_y;
     if (n == 0)
         return 1;
-    for (size_t i = 0; i < n; i++)
-        tiles[i] = far ? -INFINITY : INFINITY;
+    for (size_t i = 0; i < n; i++) {
+        entry[i] = INFINITY;
+        if (exit)
+            exit[i] = -INFINITY;
+    }
     for (size_t b = 0; b < e->count; b++) {
         const float *box = e->boxes + 6 * b;
         double lo[3] = {box[0], box[1], box[2]}, hi[3] = {box[3], box[4], box[5]}, near, deep;
@@ -484,28 +488,33 @@ static int bound_tiles(const cdvr_skip_entry *e, const cdvr_skip_view *v, int ti
         if (!box_footprint(v, lo, hi, &near, &deep, rect))
             continue;
         /* rounded outwards, in float */
-        float d = far ? (float)(deep * (1.0 + 1e-6)) : (float)(near * (1.0 - 1e-6));
+        float d_near = (float)(near * (1.0 - 1e-6)), d_far = (float)(deep * (1.0 + 1e-6));
         size_t tx1 = (size_t)(rect[1] / tile_w), ty1 = (size_t)(rect[3] / tile_h);
         tx1 = tx1 < tiles_x ? tx1 : tiles_x - 1;
         ty1 = ty1 < tiles_y ? ty1 : tiles_y - 1;
         for (size_t ty = (size_t)(rect[2] / tile_h); ty <= ty1; ty++)
             for (size_t tx = (size_t)(rect[0] / tile_w); tx <= tx1; tx++) {
-                float *t = tiles + ty * tiles_x + tx;
-                *t = (far ? d > *t : d < *t) ? d : *t;
+                size_t t = ty * tiles_x + tx;
+                entry[t] = d_near < entry[t] ? d_near : entry[t];
+                if (exit)
+                    exit[t] = d_far > exit[t] ? d_far : exit[t];
             }
     }
-    depth_to_t(v, tile_w, tile_h, tiles_x, tiles_y, far, tiles);
+    depth_to_t(v, tile_w, tile_h, tiles_x, tiles_y, 0, entry);
+    if (exit)
+        depth_to_t(v, tile_w, tile_h, tiles_x, tiles_y, 1, exit);
     return 1;
 }
 
 int cdvr_skip_entry_tiles(const cdvr_skip_entry *e, const cdvr_skip_view *v, int tile_w,
                           int tile_h, size_t tiles_x, size_t tiles_y, float *tiles)
 {
-    return bound_tiles(e, v, tile_w, tile_h, tiles_x, tiles_y, 0, tiles);
+    return bound_tiles(e, v, tile_w, tile_h, tiles_x, tiles_y, tiles, NULL);
 }
 
-int cdvr_skip_exit_tiles(const cdvr_skip_entry *e, const cdvr_skip_view *v, int tile_w,
-                         int tile_h, size_t tiles_x, size_t tiles_y, float *tiles)
+int cdvr_skip_entry_exit_tiles(const cdvr_skip_entry *e, const cdvr_skip_view *v, int tile_w,
+                               int tile_h, size_t tiles_x, size_t tiles_y, float *entry,
+                               float *exit)
 {
-    return bound_tiles(e, v, tile_w, tile_h, tiles_x, tiles_y, 1, tiles);
+    return bound_tiles(e, v, tile_w, tile_h, tiles_x, tiles_y, entry, exit);
 }

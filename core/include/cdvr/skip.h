@@ -112,12 +112,14 @@ void cdvr_skip_entry_free(cdvr_skip_entry *e);
  * box is not in front of the eye (a camera inside or beside the volume). */
 int cdvr_skip_entry_tiles(const cdvr_skip_entry *e, const cdvr_skip_view *v, int tile_w,
                           int tile_h, size_t tiles_x, size_t tiles_y, float *tiles);
-/* The same with exit bounds: an upper bound of t of every visible sample of the tile's rays
- * (the greatest depth of the boxes covering it, divided by the tile's smallest cosine to the
- * view axis), -inf where no visible brick can be met. A ray's last visible sample lies in a
- * boundary brick or before one (the last visible brick it crosses is followed by an invisible
- * one or the grid's border), so samples after the bound lie in invisible bricks. */
-int cdvr_skip_exit_tiles(const cdvr_skip_entry *e, const cdvr_skip_view *v, int tile_w,
-                         int tile_h, size_t tiles_x, size_t tiles_y, float *tiles);
+/* The entry tiles as above, and in one pass the exit bounds: an upper bound of t of every
+ * visible sample of the tile's rays (the greatest depth of the boxes covering it, divided by
+ * the tile's smallest cosine to the view axis), -inf where no visible brick can be met. A
+ * ray's last visible sample lies in a boundary brick or before one (the last visible brick it
+ * crosses is followed by an invisible one or the grid's border), so samples after the bound
+ * lie in invisible bricks. Returns as cdvr_skip_entry_tiles. */
+int cdvr_skip_entry_exit_tiles(const cdvr_skip_entry *e, const cdvr_skip_view *v, int tile_w,
+                               int tile_h, size_t tiles_x, size_t tiles_y, float *entry,
+                               float *exit);
 
 #endif

@@ -520,11 +520,8 @@ static int entry_tiles_ready(cdvr_cl_stream *s, const cam_params *cam, const dou
         return 1;
     s->entry_made.valid = 0;
     float *map = malloc(bytes);
-    int usable = map && cdvr_skip_entry_tiles(entry, v, PACKET_W, PACKET_H, global[0],
-                                              global[1], map);
-    if (with_exit)
-        usable = usable && cdvr_skip_exit_tiles(entry, v, PACKET_W, PACKET_H, global[0],
-                                                global[1], map + tiles);
+    int usable = map && cdvr_skip_entry_exit_tiles(entry, v, PACKET_W, PACKET_H, global[0],
+                                                   global[1], map, with_exit ? map + tiles : NULL);
     usable = usable && write_buffer(s->cl, s->entry_tiles, map, bytes, "upload entry tiles",
                                     &ignored) == CDVR_OK;
     free(map);
