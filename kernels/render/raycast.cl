@@ -1508,7 +1508,7 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
         vint i = first, lim = end; /* lanes march from first to lim - 1 */
         end = (vint)(0);
         /* max: a sample per RUN_VOXELS first (engine CT 512^2: 27.8 -> 23.9 ms, Colin27
-         * 22.8 -> 23.6 ms; every 8, 16 or 64 voxels: 1.1x, 1.02x, 1.0x that time on the
+         * 22.8 -> 23.5 ms; every 4, 8 or 32 voxels: 1.1x, 1.02x, 1.01x that time on the
          * engine; min, whose lanes end at 0, lost 1.2x and 3.7x) */
         if (lk->blend == 1)
             count += sparse_max(p, n, step, inv_spacing, v, i, lim,
