@@ -700,9 +700,9 @@ static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
 }
 
 /* The largest apron copy made. Measured on a 2-core Xeon (PoCL, 512^2 step 0.5, against the
- * tile rows alone): the engine CT's 16 MiB copy took composite 12.2 -> 11.0 ms, max 23.6 ->
+ * tile rows alone): the engine CT's 16 MiB copy took composite 12.2 -> 11.0 ms, max 23.7 ->
  * 21.8, average 36.9 -> 29.7; Colin27's 75 MiB copy took max 23.2 -> 25.7 ms and average
- * 27.8 -> 29.8 (composite 8.4 -> 7.7): twice the bytes of a large frame miss the caches more
+ * 27.8 -> 29.8 (composite 8.5 -> 7.9): twice the bytes of a large frame miss the caches more
  * than the fewer loads save. */
 #define APRONS_MAX_BYTES ((size_t)32 << 20)
 
