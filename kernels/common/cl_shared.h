@@ -36,8 +36,8 @@ typedef int32_t cdvr_cl_i32;
  * g - e_a (render.h's gradient) in exact arithmetic; raycast.cl reads it only where every
  * corner's neighbours lie in the frame. */
 #define CDVR_CL_GRAD_BIAS 512
-/* The apron copy of a frame (made with the tiled copy on CPU devices, for every look but iso,
- * up to 32 MiB; cdvr_cl_info.apron_tiles): per tile t of the tiled copy, 128 bytes at 128t holding its
+/* The apron copy of a frame (made with the tiled copy on CPU devices, for every look but iso;
+ * cdvr_cl_info.apron_tiles): per tile t of the tiled copy, 128 bytes at 128t holding its
  * voxels and the next ones along each axis, 5 x 5 x 5 (x fastest, then y, z: voxel (i, j, k)
  * from the tile's first at byte 25k + 5j + i; past the frame's edge its last voxel), then 3
  * bytes of 0. A sample's cell at corner (x0, y0, z0) then lies in the 8 bytes at the corner's

