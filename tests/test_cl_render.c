@@ -202,10 +202,8 @@ static void engine_scenes(cdvr_cl *cl, const char *data)
 
 /* The ray caster's voxel layouts give the same image: the first render reads the frame's
  * voxels, a render of the same frame again reads its tiled copy (the stream grows by a byte
- * per voxel, in whole pages; on a device with apron tiles by two more, the apron copy, for
- * every look but iso; CDVR_CL_TILES=rows, a second run of this test, turns that off), and
- * 64-bit voxel indices (CDVR_CL_LONG_INDEX=1) read the voxels too; so does the tiled copy
- * without the gradient copy (CDVR_CL_GRADS=0, layout 4).
+ * per voxel, in whole pages), and 64-bit voxel indices (CDVR_CL_LONG_INDEX=1) read the
+ * voxels too; so does the tiled copy without the gradient copy (CDVR_CL_GRADS=0, layout 4).
  * A render that shades takes its gradients from the gradient copy (4 bytes more per voxel of
  * the tiled copy) in layouts 1 and 2: the same image within float rounding (>= 120 dB; a
  * wrong difference or weight costs far more). */
@@ -249,9 +247,7 @@ static void check_layouts_look(cdvr_cl *cl, const cdvr_volume *vol, const scene 
     size_t tiled = 1; /* the copy fills whole pages of 16^3 (kernels/common/cl_shared.h) */
     for (int a = 0; a < 3; a++)
         tiled *= (vol->dims[a] + 15) / 16 * 16;
-    /* devices with apron tiles add the apron copy (2 bytes per voxel) for all but iso */
-    int aprons = cdvr_cl_get_info(cl)->apron_tiles && look->blend != CDVR_BLEND_ISO;
-    size_t copies = tiled * ((grads ? 5 : 1) + (aprons ? 2 : 0));
+    size_t copies = tiled * (grads ? 5 : 1);
     CHECK(bytes[1] == bytes[0] + copies, "%s, %s: copies of %zu voxels (%zu in pages): stream "
           "%llu -> %llu bytes", sc->name, look_name, cdvr_volume_voxels(vol), tiled,
           (unsigned long long)bytes[0], (unsigned long long)bytes[1]);

@@ -36,13 +36,6 @@ typedef int32_t cdvr_cl_i32;
  * g - e_a (render.h's gradient) in exact arithmetic; raycast.cl reads it only where every
  * corner's neighbours lie in the frame. */
 #define CDVR_CL_GRAD_BIAS 512
-/* The apron copy of a frame (made with the tiled copy on CPU devices, for every look but iso;
- * cdvr_cl_info.apron_tiles): per tile t of the tiled copy, 128 bytes at 128t holding its
- * voxels and the next ones along each axis, 5 x 5 x 5 (x fastest, then y, z: voxel (i, j, k)
- * from the tile's first at byte 25k + 5j + i; past the frame's edge its last voxel), then 3
- * bytes of 0. A sample's cell at corner (x0, y0, z0) then lies in the 8 bytes at the corner's
- * byte (bytes 0, 1: row y0; 5, 6: row y0 + 1) and the 8 bytes 25 on (z0 + 1): two unaligned
- * 64-bit loads instead of 8 tile-row words. */
 /* The largest whole specular power taken by repeated squaring: CDVR_SHADE_WHOLE_POWER_MAX of
  * render.h, shading (cl_render.c checks that they agree). */
 #define CDVR_CL_WHOLE_POWER_MAX 128.0f

@@ -63,35 +63,6 @@ static uint4 row_voxels(__global const uchar *line, uint x0, uint X)
                    line[min(x0 + 3, X - 1)]);
 }
 
-/* The apron copy (kernels/common/cl_shared.h): one work-item per tile of the tiled copy, its
- * 5^3 voxels at bytes 128t + 25k + 5j + i (i, j, k: x, y, z from the tile's first voxel; past
- * the frame's edge its last voxel), then 3 bytes of 0. */
-__kernel void make_aprons(__global const uchar *frames, ulong offset, uint X, uint Y, uint Z,
-                          __global uint *aprons)
-{
-    size_t t = get_global_id(0);
-    uint x0, y0, z0;
-    if (!tile_origin(t, X, Y, Z, &x0, &y0, &z0))
-        return;
-    uchar out[128];
-    for (uint k = 0; k < 5; k++)
-        for (uint j = 0; j < 5; j++) {
-            uint y = min(y0 + j, Y - 1), z = min(z0 + k, Z - 1);
-            __global const uchar *line = frames + offset + ((size_t)z * Y + y) * X;
-            uint4 b = row_voxels(line, x0, X);
-            uchar *row = out + 25 * k + 5 * j;
-            row[0] = (uchar)b.x;
-            row[1] = (uchar)b.y;
-            row[2] = (uchar)b.z;
-            row[3] = (uchar)b.w;
-            row[4] = line[min(x0 + 4, X - 1)];
-        }
-    out[125] = out[126] = out[127] = 0;
-    __global uchar16 *dst = (__global uchar16 *)aprons + 8 * t;
-    for (uint l = 0; l < 8; l++)
-        dst[l] = vload16(l, out);
-}
-
 /* The tiled copy of a dense frame for the ray caster (kernels/common/cl_shared.h): one
  * work-item per tile (16 rows of 4 voxels, each a 32-bit word, low byte first: words 16t ..
  * 16t + 15), tiles = pages * 64; voxels past the frame's edge repeat its last one. */

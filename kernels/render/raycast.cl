@@ -87,8 +87,6 @@ typedef struct volume_geo {
     float3 offset;  /* clipped rendering: whole-volume index of voxel (0,0,0), else 0 */
     __global const uint *grads; /* the frame's gradient copy (cl_shared.h) when grads_on */
     int grads_on;
-    __global const uchar *aprons; /* the frame's apron copy (cl_shared.h) when aprons_on */
-    int aprons_on;
     int march;      /* CDVR_BRICK_CACHE: vol is a cache payload read brick by brick */
     uint limit;     /* then the largest byte index a voxel pair may start at */
 } volume_geo;
@@ -259,20 +257,6 @@ __attribute__((always_inline)) static inline vfloat lerp_row(__global const uint
     vuint a = (vuint)(L16(ROW_WORD0)), b = (vuint)(L16(ROW_WORD1));
     return mix(convert_vfloat((a >> sh0) & 0xffu), convert_vfloat((b >> sh1) & 0xffu), fx);
 }
-
-#ifdef CDVR_APRON_TILES
-/* The 8 bytes at a + at (+ 25: the next z) of each lane, an unaligned 64-bit load (devices
- * built with CDVR_APRON_TILES only). */
-#define CELL_AT0(k) *(__global const ulong *)(a + at.s##k)
-#define CELL_AT1(k) *(__global const ulong *)(a + at.s##k + 25)
-
-/* The x-lerp of the bytes at bit `row` and row + 8 of each lane's 8 bytes. */
-__attribute__((always_inline)) static inline vfloat lerp_bytes(ulong16 q, uint row, vfloat fx)
-{
-    vuint w = convert_uint16(q >> (ulong)row);
-    return mix(convert_vfloat(w & 0xffu), convert_vfloat((w >> 8) & 0xffu), fx);
-}
-#endif
 #endif
 
 #ifdef CDVR_BRICK_CACHE
@@ -475,24 +459,6 @@ __attribute__((always_inline)) static inline vfloat trilinear_on(const volume_ge
         vint wy0 = along_y(v, y0), wy1 = along_y(v, y1);
         vint wz0 = along_z(v, z0), wz1 = along_z(v, z1);
         vint zero = (vint)(0);
-#ifdef CDVR_APRON_TILES
-        if (v->aprons_on) {
-            /* the cell's voxels at z0 in one 64-bit load from the corner's byte (bytes 0, 1:
-             * row y0; 5, 6: row y0 + 1), those at z1 in another 25 bytes on (cl_shared.h); on
-             * an axis of one voxel the copy repeats it there, as x1 = x0 above */
-            __global const uchar *a = v->aprons;
-            vint tile = (((x0 >> 4) + (y0 >> 4) * v->page_counts.x +
-                          (z0 >> 4) * v->page_counts.x * v->page_counts.y) << 6) +
-                        ((x0 >> 2) & 3) + (((y0 >> 2) & 3) << 2) + (((z0 >> 2) & 3) << 4);
-            vint at = select(zero, (tile << 7) + (z0 & 3) * 25 + (y0 & 3) * 5 + (x0 & 3), on);
-            ulong16 q0 = (ulong16)(L16(CELL_AT0)), q1 = (ulong16)(L16(CELL_AT1));
-            c00 = lerp_bytes(q0, 0, fx);
-            c10 = lerp_bytes(q0, 40, fx);
-            c01 = lerp_bytes(q1, 0, fx);
-            c11 = lerp_bytes(q1, 40, fx);
-            return mix(mix(c00, c10, fy), mix(c01, c11, fy), fz);
-        }
-#endif
         c00 = lerp_row(q, select(zero, wy0 + wz0, on), wx0, wx1, sh0, sh1, fx);
         c10 = lerp_row(q, select(zero, wy1 + wz0, on), wx0, wx1, sh0, sh1, fx);
         c01 = lerp_row(q, select(zero, wy0 + wz1, on), wx0, wx1, sh0, sh1, fx);
@@ -798,7 +764,8 @@ __attribute__((noinline)) static vec3x central_exact(const volume_geo *v,
                                                      const look_params *lk, vec3x g, vint on)
 {
     vec3x dq;
-#if !defined(CDVR_LONG_INDEX) && !defined(CDVR_FETCH)
+#ifndef CDVR_LONG_INDEX
+#ifndef CDVR_FETCH
     vec3x diff, h;
     if (v->tiled && central_tiled(v, g, on, &diff, &h)) {
         dq.x = select((vfloat)(0.0f), diff.x / (h.x * lk->spacing[0]), h.x > 0.0f);
@@ -806,6 +773,7 @@ __attribute__((noinline)) static vec3x central_exact(const volume_geo *v,
         dq.z = select((vfloat)(0.0f), diff.z / (h.z * lk->spacing[2]), h.z > 0.0f);
         return dq;
     }
+#endif
 #endif
     CENTRAL(x, lk->spacing[0]);
     CENTRAL(y, lk->spacing[1]);
@@ -1699,8 +1667,6 @@ static volume_geo make_geo(__global const uchar *vol, __constant uchar *params, 
                              : (float3)(0.0f);
     v.grads = 0;
     v.grads_on = 0;
-    v.aprons = 0;
-    v.aprons_on = 0;
     v.march = 0;
     v.limit = 0;
     return v;
@@ -1809,8 +1775,7 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
                       __global uint *samples, /* per work-item */
                       look_params look, __global const uchar2 *brick_minmax, int minmax_valid,
                       __global const float *entry, int entry_tiles_x, int entry_on,
-                      __global const uint *grads, int grads_on,
-                      __global const uchar *aprons, int aprons_on)
+                      __global const uint *grads, int grads_on)
 {
     int px0 = get_global_id(0) * PACKET_W, py0 = get_global_id(1) * PACKET_H;
     size_t slot = get_global_id(1) * get_global_size(0) + get_global_id(0);
@@ -1871,8 +1836,6 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     volume_geo v = make_geo(frames + offset, params, 0, tiled, X, Y, Z, &clip);
     v.grads = grads;
     v.grads_on = grads_on && tiled && !clip.enabled;
-    v.aprons = aprons;
-    v.aprons_on = aprons_on && tiled && !clip.enabled;
 #endif
     if (look.blend != 0) { /* max, min, average, iso: no TF skipping, no termination */
         vint taken;

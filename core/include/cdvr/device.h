@@ -50,9 +50,6 @@ typedef struct cdvr_cl_info {
     double build_seconds;        /* time to get the program (compile, or load from cache) */
     int from_cache;              /* 1 if the program binary came from the on-disk cache */
     char cache_path[512];        /* the cache file used or written ("" if caching failed) */
-    int apron_tiles;             /* 1: a re-rendered frame also gets its apron copy (2 bytes per
-                                    voxel, kernels/common/cl_shared.h) for every look but iso:
-                                    CPU devices, unless CDVR_CL_TILES=rows */
 } cdvr_cl_info;
 
 /* Chooses a device (see above), creates context, queue and program. On failure *out is NULL

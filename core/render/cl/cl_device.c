@@ -509,13 +509,8 @@ static cdvr_status build_program(cdvr_cl *cl, cdvr_error *err)
     cdvr_status st = load_sources(NULL, render_files, NRENDER_FILES, &source, err);
     if (st)
         return st;
-    /* apron tiles need unaligned 64-bit loads, which CPU devices take (cl_shared.h) */
-    const char *tiles = getenv("CDVR_CL_TILES");
-    cl->info.apron_tiles = !cl->info.is_gpu && !(tiles && !strcmp(tiles, "rows"));
-    st = build_cached(cl, source,
-                      cl->info.apron_tiles ? BUILD_OPTIONS " -DCDVR_APRON_TILES" : BUILD_OPTIONS,
-                      "the render kernels", &cl->program, &cl->info.from_cache,
-                      cl->info.cache_path, sizeof cl->info.cache_path, err);
+    st = build_cached(cl, source, BUILD_OPTIONS, "the render kernels", &cl->program,
+                      &cl->info.from_cache, cl->info.cache_path, sizeof cl->info.cache_path, err);
     free(source);
     cl->info.build_seconds = (cdvr_now_ms() - start) / 1e3;
     return st;
@@ -698,8 +693,6 @@ cdvr_status cdvr_cl_open(cdvr_cl **out, cdvr_error *err)
     if (!st)
         st = create_kernel(cl->program, "make_tiles", &cl->k_tiles, err);
     if (!st)
-        st = create_kernel(cl->program, "make_aprons", &cl->k_aprons, err);
-    if (!st)
         st = create_kernel(cl->program, "make_grads", &cl->k_grads, err);
     if (st) {
         cdvr_cl_close(cl);
@@ -789,8 +782,8 @@ void cdvr_cl_close(cdvr_cl *cl)
         return;
     for (size_t i = 0; i < cl->ncodecs; i++)
         release_codec_program(&cl->codecs[i]);
-    cl_kernel kernels[] = {cl->k_bricks,       cl->k_raycast,     cl->k_tiles, cl->k_aprons,
-                           cl->k_grads,        cl->k_bricks_long, cl->k_raycast_long};
+    cl_kernel kernels[] = {cl->k_bricks, cl->k_raycast, cl->k_tiles, cl->k_grads,
+                           cl->k_bricks_long, cl->k_raycast_long};
     for (size_t i = 0; i < sizeof kernels / sizeof *kernels; i++)
         if (kernels[i])
             clReleaseKernel(kernels[i]);

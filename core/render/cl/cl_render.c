@@ -538,7 +538,7 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
                                     const double spacing[3], const box_frame *box,
                                     const cdvr_cl_look *look, int iso_skip, cl_mem image,
                                     cl_int entry_on, cl_int entry_tiles_x, cl_int grads_on,
-                                    cl_int aprons_on, cl_kernel *kernel, cdvr_error *err)
+                                    cl_kernel *kernel, cdvr_error *err)
 {
     voxel_source src;
     cdvr_status sst = source_of(s, frame, &src, err);
@@ -604,8 +604,7 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
                 {sizeof *look, look},         {sizeof(cl_mem), &s->brick_minmax},
                 {sizeof(cl_int), &minmax_valid}, {sizeof(cl_mem), &s->entry_tiles},
                 {sizeof entry_tiles_x, &entry_tiles_x}, {sizeof entry_on, &entry_on},
-                {sizeof(cl_mem), &s->grads},  {sizeof grads_on, &grads_on},
-                {sizeof(cl_mem), &s->aprons}, {sizeof aprons_on, &aprons_on}};
+                {sizeof(cl_mem), &s->grads},  {sizeof grads_on, &grads_on}};
     cdvr_status st = set_source_args(k, "raycast", &src, err);
     for (cl_uint i = 0; !st && i < sizeof args / sizeof *args; i++)
         st = cdvr_cl_arg(k, "raycast", 3 + i, args[i].size, args[i].value, err);
@@ -696,29 +695,6 @@ static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
     int made = run_copy_kernel(s, frame, s->cl->k_grads, "make_grads", &s->grads,
                                &s->grads_capacity, bytes);
     s->grads_frame = made ? frame : (size_t)-1;
-    return made;
-}
-
-/* With the tiled copy of `frame`, on a device with cdvr_cl_info.apron_tiles (kernels take
- * unaligned 64-bit loads), a render of any look but iso gets the frame's apron copy
- * (kernels/common/cl_shared.h): 2 bytes per voxel of the tiled copy, where a sample reads its
- * 8 voxels in two 64-bit loads instead of 8 tile-row words; the same values, the same image.
- * Engine CT 512^2 step 0.5: composite 12.2 -> 11.1 ms, max 28.7 -> 22.3, average 36.0 ->
- * 29.7; iso reads few samples per ray, and twice the lines cost it 3% (engine) to 18%
- * (Colin27). On any failure the samples come from the tiled copy. Returns 1 when the render
- * reads it. */
-static int aprons_ready(cdvr_cl_stream *s, size_t frame, int blend)
-{
-    if (!s->cl->info.apron_tiles || s->tiles_frame != frame || blend == CDVR_BLEND_ISO)
-        return 0;
-    if (s->aprons_frame == frame)
-        return 1;
-    size_t bytes = tiled_bytes(s->dims);
-    if (bytes > INT_MAX / 2) /* byte offsets are ints */
-        return 0;
-    int made = run_copy_kernel(s, frame, s->cl->k_aprons, "make_aprons", &s->aprons,
-                               &s->aprons_capacity, 2 * bytes);
-    s->aprons_frame = made ? frame : (size_t)-1;
     return made;
 }
 
@@ -909,10 +885,9 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
                                             : CDVR_CL_ENTRY_VISIBLE;
     cl_int entry_on = entry_tiles_ready(s, &cam, spacing, origin, D, global, entry_wanted, kind);
     cl_int grads_on = !opts->clip && grads_ready(s, frame, &opts->look);
-    cl_int aprons_on = !opts->clip && aprons_ready(s, frame, look.blend);
     st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box, &look, iso_skip,
                           host_image ? host_image : s->image, entry_on, (cl_int)global[0],
-                          grads_on, aprons_on, &kernel, err);
+                          grads_on, &kernel, err);
     if (!st)
         st = cast_and_read(s, kernel, global, local, host_image, img, pixels, err);
     cdvr_cl_release(&host_image);
