@@ -1392,6 +1392,15 @@ static vint extreme_step(const extreme_bricks *eb, const volume_geo *v, vint *i,
     return flat;
 }
 
+/* The samples that count per lane (render.h: n - 1 full segments, and the last unless its
+ * segment is empty; none on lanes that miss); *last: -1 where the last one counts. */
+static vint counted_samples(const packet *p, vint n, float step, vint *last)
+{
+    vfloat ts = p->t_near + convert_vfloat(n - 1) * step;
+    *last = p->t_far - ts > 0.0f;
+    return select((vint)(0), n - 1 - *last, p->hit);
+}
+
 /* The window [*first, *lim) of each lane's samples between the entry bound te and the exit
  * bound tx of the bricks above 0 (cdvr/skip.h; cl_render.c, zero_entry_ready): the samples
  * outside it lie in bricks of zeros (the sample before the one before te and after the one
@@ -1404,8 +1413,8 @@ static vint zero_window(const packet *p, vint n, float step, float te, float tx,
     vfloat k1 = ceil((tx - p->t_near) / step - 0.5f) + 2.0f;
     *first = convert_vint(clamp(k0, 0.0f, convert_vfloat(n)));
     *lim = max(convert_vint(clamp(k1, 0.0f, convert_vfloat(n))), *first);
-    vfloat ts = p->t_near + convert_vfloat(n - 1) * step;
-    vint last_counts = p->t_far - ts > 0.0f; /* -1: the last sample counts */
+    vint last_counts;
+    counted_samples(p, n, step, &last_counts);
     /* counting samples in [0, first) and [lim, n): every full one, the last where it counts */
     vint before = min(*first, n - 1) - ((*first == n) & last_counts);
     vint after = n - 1 - min(*lim, n - 1) - ((*lim < n) & last_counts);
@@ -1494,10 +1503,9 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
         }
         /* the packet's widest window was read: a lane's samples read outside its own window
          * are not among its zeros */
-        if (bounds) {
-            vfloat ts = p->t_near + convert_vfloat(n - 1) * step;
-            zeros = select((vint)(0), n - 1 - (p->t_far - ts > 0.0f), p->hit) - count;
-        }
+        vint last;
+        if (bounds)
+            zeros = counted_samples(p, n, step, &last) - count;
     } else { /* per-lane sample index: lanes skip dull bricks on their own; the last, shorter
                 segment is always sampled. Average skips the bricks whose voxels are all 0 (as
                 max does while its best is 0): their samples are 0, add nothing to the sum and
@@ -1862,9 +1870,8 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
         if (look.blend == 4 && entry_on && isinf(te)) {
             /* no ray meets a brick that can hold the code: march_iso's count from sample
              * n - 1 alone (n - 1 before it, and it unless its segment is empty) */
-            vfloat ts = p.t_near + convert_vfloat(n - 1) * step;
-            vint last_ok = p.hit & (p.t_far - ts > 0.0f);
-            taken = select((vint)(0), n - 1, p.hit) - last_ok;
+            vint last;
+            taken = counted_samples(&p, n, step, &last);
         } else if (look.blend == 4)
             out = march_iso(&p, n, step, inv_spacing, &v, &look, table, &view,
                             skipping ? &iso_bricks : 0, g0, dg, first, &taken);
