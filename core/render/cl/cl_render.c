@@ -127,6 +127,17 @@ static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *e
 /* Cells of the entry list (cdvr/skip.h): 2^2 bricks of 4 voxels per axis. */
 #define ENTRY_CELL_LOG2 2
 
+/* Makes *e the entry list of the stream's ranges with `flags` (cdvr_skip_flags_into's) in
+ * place of the grid's own; returns 1 when it holds it. */
+static int entry_list_of(const cdvr_cl_stream *s, uint8_t *flags, cdvr_skip_entry *e)
+{
+    cdvr_skip_grid g = s->grid;
+    g.flags = flags;
+    g.flags_valid = 1;
+    cdvr_error ignored;
+    return cdvr_skip_entry_make(e, &g, ENTRY_CELL_LOG2, &ignored) == CDVR_OK;
+}
+
 /* Iso skipping (raycast.cl, march_iso): iso_flags gets the flags of the set-up frame's ranges
  * for the one code floor(code): a brick whose (whole-code) range [lo, hi] can hold the iso
  * code has lo <= floor(code) <= hi, so one without lies strictly on one side of it. Made
@@ -156,11 +167,7 @@ static int iso_flags_ready(cdvr_cl_stream *s, size_t frame, float code)
     cdvr_skip_flags_into(&s->grid, marks, flags);
     cdvr_status st = write_buffer(s->cl, s->iso_flags, flags, s->nbricks,
                                   "upload iso brick flags", &ignored);
-    cdvr_skip_grid iso_grid = s->grid; /* its ranges with the iso flags: the iso entry list */
-    iso_grid.flags = flags;
-    iso_grid.flags_valid = 1;
-    s->iso_entry_ok = st == CDVR_OK && cdvr_skip_entry_make(&s->iso_entry, &iso_grid,
-                                                            ENTRY_CELL_LOG2, &ignored) == CDVR_OK;
+    s->iso_entry_ok = st == CDVR_OK && entry_list_of(s, flags, &s->iso_entry);
     free(flags);
     if (st != CDVR_OK)
         return 0;
@@ -187,12 +194,7 @@ static int zero_entry_ready(cdvr_cl_stream *s, size_t frame)
     memset(above_zero, 1, sizeof above_zero);
     above_zero[0] = 0;
     cdvr_skip_flags_into(&s->grid, above_zero, flags);
-    cdvr_skip_grid g = s->grid; /* its ranges with these flags */
-    g.flags = flags;
-    g.flags_valid = 1;
-    cdvr_error ignored;
-    s->zero_entry_ok =
-        cdvr_skip_entry_make(&s->zero_entry, &g, ENTRY_CELL_LOG2, &ignored) == CDVR_OK;
+    s->zero_entry_ok = entry_list_of(s, flags, &s->zero_entry);
     free(flags);
     s->zero_minmax = s->minmax_count;
     return s->zero_entry_ok;
