@@ -123,6 +123,8 @@ struct cdvr_cl_stream {
                                     a max or min render uploads them) */
     int minmax_valid;            /* brick_minmax holds the set-up frame's ranges (the max and
                                     min blend modes skip by them) */
+    int blocks_valid;            /* and after them its blocks' ranges (made when a max, min or
+                                    average render first needs them) */
     cl_mem tiles;                /* tiled copy of frame tiles_frame for the ray caster */
     size_t tiles_capacity, tiles_frame;
     cl_mem grads;                /* gradient copy of frame grads_frame (cl_shared.h), made with

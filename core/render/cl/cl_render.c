@@ -95,8 +95,8 @@ static cdvr_status upload_block_ranges(cdvr_cl_stream *s, const uint8_t *bricks,
     return cdvr_cl_check(code, "upload block ranges", err);
 }
 
-/* Min/max of every brick of device frame `frame`, copied to s->grid.minmax, and of every
- * block. */
+/* Min/max of every brick of device frame `frame`, copied to s->grid.minmax (the blocks'
+ * ranges follow when a render needs them, set_raycast_args). */
 static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *err)
 {
     voxel_source src;
@@ -120,8 +120,8 @@ static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *e
                                       s->grid.minmax, 0, NULL, NULL);
     cdvr_skip_grid_touch(&s->grid);
     s->minmax_count++;
-    st = cdvr_cl_check(code, "read brick min/max grid", err);
-    return st ? st : upload_block_ranges(s, s->grid.minmax, err);
+    s->blocks_valid = 0;
+    return cdvr_cl_check(code, "read brick min/max grid", err);
 }
 
 /* Cells of the entry list (cdvr/skip.h): 2^2 bricks of 4 voxels per axis. */
@@ -275,7 +275,7 @@ cdvr_status cdvr_cl_setup_grid(cdvr_cl_stream *s, size_t frame, const cdvr_tf *t
      * (pending_minmax: the caller keeps g until then); brick_minmax no longer holds s->grid's
      * (a later cdvr_cl_setup computes them again) */
     s->minmax_frame = (size_t)-1;
-    s->minmax_valid = 0;
+    s->minmax_valid = s->blocks_valid = 0;
     s->pending_minmax = g->minmax;
     s->setup_frame = frame;
     return CDVR_OK;
@@ -570,18 +570,21 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
     }
     cl_float step = (cl_float)rp.step, term_alpha = (cl_float)rp.term_alpha;
     cl_float unit = (cl_float)rp.unit;
-    if ((look->blend == CDVR_BLEND_MAX || look->blend == CDVR_BLEND_MIN ||
-         look->blend == CDVR_BLEND_AVERAGE) &&
-        !s->minmax_valid &&
-        s->pending_minmax) {
-        cdvr_error ignored; /* without the ranges these modes just take every sample */
+    int extreme = look->blend == CDVR_BLEND_MAX || look->blend == CDVR_BLEND_MIN ||
+                  look->blend == CDVR_BLEND_AVERAGE;
+    cdvr_error ignored; /* without the ranges these modes just take every sample */
+    if (extreme && !s->minmax_valid && s->pending_minmax) {
         s->minmax_valid = write_buffer(s->cl, s->brick_minmax, s->pending_minmax, 2 * s->nbricks,
                                        "upload brick ranges", &ignored) == CDVR_OK &&
                           upload_block_ranges(s, s->pending_minmax, &ignored) == CDVR_OK;
+        s->blocks_valid = s->minmax_valid;
         s->pending_minmax = NULL;
     }
+    if (extreme && s->minmax_valid && !s->blocks_valid) /* the device's ranges, on the host */
+        s->blocks_valid = upload_block_ranges(s, s->grid.minmax, &ignored) == CDVR_OK;
     /* skip=false: max, min and average take every sample too */
-    cl_int minmax_valid = s->minmax_valid && s->setup_frame == frame && s->skipping;
+    cl_int minmax_valid = s->minmax_valid && s->blocks_valid && s->setup_frame == frame &&
+                          s->skipping;
     /* (size, value) of arguments 3.. in kernel order */
     struct {
         size_t size;

@@ -133,7 +133,7 @@ static void invalidate_frames(cdvr_cl_stream *s)
     s->fetch = NULL;
     s->setup_frame = (size_t)-1;
     s->minmax_frame = (size_t)-1;
-    s->minmax_valid = 0;
+    s->minmax_valid = s->blocks_valid = 0;
     s->pending_minmax = NULL;
     s->tiles_frame = s->grads_frame = s->last_rendered = (size_t)-1;
 }
