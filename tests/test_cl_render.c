@@ -201,27 +201,33 @@ static void engine_scenes(cdvr_cl *cl, const char *data)
 }
 
 /* The ray caster's voxel layouts give the same image: the first render reads the frame's
- * voxels, a render of the same frame again reads its tiled copy (the stream grows by a byte
- * per voxel, in whole pages), and 64-bit voxel indices (CDVR_CL_LONG_INDEX=1) read the
- * voxels too; so does the tiled copy without the gradient copy (CDVR_CL_GRADS=0, layout 4).
- * A render that shades takes its gradients from the gradient copy (4 bytes more per voxel of
- * the tiled copy) in layouts 1 and 2: the same image within float rounding (>= 120 dB; a
- * wrong difference or weight costs far more). */
+ * voxels (layout 0), a render of the same frame again reads its tiled copy and its quad copy
+ * (layout 1, CDVR_CL_QUADS=1: the stream grows by 5 bytes per voxel, in whole pages; layout 2:
+ * the device's default), and 64-bit voxel indices (CDVR_CL_LONG_INDEX=1, layout 3) read the
+ * voxels too; so do the copies without the gradient copy (CDVR_CL_GRADS=0, layout 4) and the
+ * tiled copy without the quad copy (CDVR_CL_QUADS=0, layout 5). A render that shades takes its
+ * gradients from the gradient copy (4 bytes more per voxel of the tiled copy) in layouts 1, 2
+ * and 5: the same image within float rounding (>= 120 dB; a wrong difference or weight costs
+ * far more). */
 static void check_layouts_look(cdvr_cl *cl, const cdvr_volume *vol, const scene *sc,
                                const cdvr_look *look, const char *look_name)
 {
-    enum { LAYOUTS = 5 };
+    enum { LAYOUTS = 6 };
     cdvr_error err;
-    cdvr_image *img[LAYOUTS] = {NULL, NULL, NULL, NULL, NULL};
-    uint64_t samples[LAYOUTS] = {0, 0, 0, 0, 0}, bytes[2] = {0, 0};
+    cdvr_image *img[LAYOUTS] = {NULL};
+    uint64_t samples[LAYOUTS] = {0}, bytes[2] = {0, 0};
     cdvr_render_opts opts = {.tf = &sc->tf, .camera = &sc->cam, .step = sc->step, .look = *look};
     size_t n = (size_t)sc->cam.width * (size_t)sc->cam.height;
     int grads = look->shade.enabled || look->gradient_opacity.npoints > 0;
     for (int k = 0; k < LAYOUTS; k++) {
+        if (k == 1)
+            setenv("CDVR_CL_QUADS", "1", 1);
         if (k == 3)
             setenv("CDVR_CL_LONG_INDEX", "1", 1);
         if (k == 4)
             setenv("CDVR_CL_GRADS", "0", 1);
+        if (k == 5)
+            setenv("CDVR_CL_QUADS", "0", 1);
         cdvr_cl_stream *s = NULL;
         cdvr_status st = upload_volume(cl, vol, &s, &err);
         for (int rep = 0; !st && rep <= (k < 3 ? k : 1); rep++) {
@@ -243,11 +249,12 @@ static void check_layouts_look(cdvr_cl *cl, const cdvr_volume *vol, const scene 
         cdvr_cl_stream_free(s);
         unsetenv("CDVR_CL_LONG_INDEX");
         unsetenv("CDVR_CL_GRADS");
+        unsetenv("CDVR_CL_QUADS");
     }
     size_t tiled = 1; /* the copy fills whole pages of 16^3 (kernels/common/cl_shared.h) */
     for (int a = 0; a < 3; a++)
         tiled *= (vol->dims[a] + 15) / 16 * 16;
-    size_t copies = tiled * (grads ? 5 : 1);
+    size_t copies = tiled * (grads ? 9 : 5);
     CHECK(bytes[1] == bytes[0] + copies, "%s, %s: copies of %zu voxels (%zu in pages): stream "
           "%llu -> %llu bytes", sc->name, look_name, cdvr_volume_voxels(vol), tiled,
           (unsigned long long)bytes[0], (unsigned long long)bytes[1]);
@@ -256,7 +263,7 @@ static void check_layouts_look(cdvr_cl *cl, const cdvr_volume *vol, const scene 
                    memcmp(img[0]->rgba, img[k]->rgba, 4 * sizeof(float) * n) == 0;
         double maxerr = 0, psnr = same || !img[0] || !img[k] ? INFINITY
                                                              : compare(img[0], img[k], &maxerr);
-        int copied = grads && (k == 1 || k == 2);
+        int copied = grads && (k == 1 || k == 2 || k == 5);
         CHECK((same || (copied && psnr >= 120.0)) && samples[k] == samples[0],
               "%s, %s: layout %d differs from the voxels' image (%.1f dB)", sc->name, look_name,
               k, psnr);
@@ -323,9 +330,10 @@ static void synthetic_scenes(cdvr_cl *cl)
         CHECK(check_scene(&sc) > 0.02, "%s is empty", sc.name);
         check_layouts(cl, vol, &sc);
     }
-    /* flat volumes: the tiled copy's clamped neighbours along x and along y */
-    static const size_t flat[2][3] = {{1, 9, 7}, {8, 1, 6}};
-    for (int f = 0; f < 2; f++) {
+    /* flat volumes: the copies' clamped neighbours along x, y and z */
+    static const size_t flat[3][3] = {{1, 9, 7}, {8, 1, 6}, {9, 7, 1}};
+    static const char *const flat_names[3] = {"flat in x", "flat in y", "flat in z"};
+    for (int f = 0; f < 3; f++) {
         cdvr_generate_opts g2 = {{flat[f][0], flat[f][1], flat[f][2]}, 1, CDVR_TYPE_U8, 0, 0, 0, 0};
         cdvr_volume *thin = NULL;
         if (cdvr_volume_generate("ml", &g2, &thin, &err) == CDVR_OK) {
@@ -335,7 +343,7 @@ static void synthetic_scenes(cdvr_cl *cl)
             look(&ts.cam, tc, tc, tup);
             cdvr_camera_orbit(&ts.cam, tc, tup, 3 * te + 5, 35 + 40 * f, 25);
             ts.step = 0.3;
-            ts.name = f ? "flat in y" : "flat in x";
+            ts.name = flat_names[f];
             check_layouts(cl, thin, &ts);
         }
         cdvr_volume_free(thin);

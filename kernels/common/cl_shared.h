@@ -36,6 +36,11 @@ typedef int32_t cdvr_cl_i32;
  * g - e_a (render.h's gradient) in exact arithmetic; raycast.cl reads it only where every
  * corner's neighbours lie in the frame. */
 #define CDVR_CL_GRAD_BIAS 512
+/* The quad copy of a frame (made with the tiled copy where cl_render.c's quads_ready says):
+ * per voxel (x, y, z) one 32-bit word at index 4 * w + (x & 3), as the gradient copy's,
+ * holding v(x, y, z), v(x + 1, y, z), v(x, y + 1, z) and v(x + 1, y + 1, z) from the low byte
+ * up (x + 1 and y + 1 clamped to the frame), so a trilinear sample reads two words (its
+ * cell's z faces) instead of eight tile rows, the same values in the same order. */
 /* The largest whole specular power taken by repeated squaring: CDVR_SHADE_WHOLE_POWER_MAX of
  * render.h, shading (cl_render.c checks that they agree). */
 #define CDVR_CL_WHOLE_POWER_MAX 128.0f

@@ -82,6 +82,28 @@ __kernel void make_tiles(__global const uchar *frames, ulong offset, uint X, uin
     vstore16(vload16(0, words), t, tiles);
 }
 
+/* The quad copy (kernels/common/cl_shared.h) of the frame at frames + offset: one work-item
+ * per tile of the tiled copy, its 64 voxels' words at 64t .. 64t + 63 (row by row, x
+ * fastest). */
+__kernel void make_quads(__global const uchar *frames, ulong offset, uint X, uint Y, uint Z,
+                         __global uint *quads)
+{
+    size_t t = get_global_id(0);
+    uint x0, y0, z0;
+    if (!tile_origin(t, X, Y, Z, &x0, &y0, &z0))
+        return;
+    __global const uchar *f = frames + offset;
+    for (uint row = 0; row < 16; row++) {
+        uint y = min(y0 + (row & 3u), Y - 1), z = min(z0 + (row >> 2), Z - 1);
+        __global const uchar *line = f + ((size_t)z * Y + y) * X;
+        __global const uchar *next = f + ((size_t)z * Y + min(y + 1, Y - 1)) * X;
+        uint4 a = row_voxels(line, x0, X), b = row_voxels(next, x0, X);
+        uint4 a1 = (uint4)(a.y, a.z, a.w, line[min(x0 + 4, X - 1)]);
+        uint4 b1 = (uint4)(b.y, b.z, b.w, next[min(x0 + 4, X - 1)]);
+        vstore4(a | (a1 << 8) | (b << 16) | (b1 << 24), 0, quads + 64 * t + 4 * row);
+    }
+}
+
 /* The gradient copy (kernels/common/cl_shared.h) of the frame at frames + offset: one
  * work-item per tile of the tiled copy, its 64 voxels' words at 64t .. 64t + 63 (row by row,
  * x fastest). */

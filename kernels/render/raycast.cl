@@ -87,6 +87,8 @@ typedef struct volume_geo {
     float3 offset;  /* clipped rendering: whole-volume index of voxel (0,0,0), else 0 */
     __global const uint *grads; /* the frame's gradient copy (cl_shared.h) when grads_on */
     int grads_on;
+    __global const uint *quads; /* the frame's quad copy (cl_shared.h) when quads_on */
+    int quads_on;
     int march;      /* CDVR_BRICK_CACHE: vol is a cache payload read brick by brick */
     uint limit;     /* then the largest byte index a voxel pair may start at */
 } volume_geo;
@@ -257,6 +259,14 @@ __attribute__((always_inline)) static inline vfloat lerp_row(__global const uint
     vuint a = (vuint)(L16(ROW_WORD0)), b = (vuint)(L16(ROW_WORD1));
     return mix(convert_vfloat((a >> sh0) & 0xffu), convert_vfloat((b >> sh1) & 0xffu), fx);
 }
+
+/* The x-lerp of the low two bytes of each lane's quad word (voxels x0 and x0 + 1). */
+static vfloat pair_lerp(vuint q, vfloat fx)
+{
+    return mix(convert_vfloat(q & 0xffu), convert_vfloat((q >> 8) & 0xffu), fx);
+}
+#define QUAD0(k) v->quads[i0.s##k]
+#define QUAD1(k) v->quads[i1.s##k]
 #endif
 
 #ifdef CDVR_BRICK_CACHE
@@ -451,6 +461,15 @@ __attribute__((always_inline)) static inline vfloat trilinear_on(const volume_ge
     __global const uchar *p = v->vol;
     vfloat c00, c10, c01, c11;
 #ifndef CDVR_LONG_INDEX
+    if (v->quads_on) { /* two words: rows y0, y1 of the cell's z0 and z1 faces */
+        vint wx = along_x(x0), wy = along_y(v, y0);
+        vint wz0 = along_z(v, z0), wz1 = along_z(v, z0 + (sz != 0));
+        vint lo = ((wx + wy) << 2) + (x0 & 3), zero = (vint)(0);
+        vint i0 = select(zero, lo + (wz0 << 2), on), i1 = select(zero, lo + (wz1 << 2), on);
+        vuint q0 = (vuint)(L16(QUAD0)), q1 = (vuint)(L16(QUAD1));
+        return mix(mix(pair_lerp(q0, fx), pair_lerp(q0 >> 16, fx), fy),
+                   mix(pair_lerp(q1, fx), pair_lerp(q1 >> 16, fx), fy), fz);
+    }
     if (v->tiled) {
         __global const uint *q = (__global const uint *)p;
         vint x1 = x0 + (sx != 0), y1 = y0 + (sy != 0), z1 = z0 + (sz != 0);
@@ -1675,6 +1694,8 @@ static volume_geo make_geo(__global const uchar *vol, __constant uchar *params, 
                              : (float3)(0.0f);
     v.grads = 0;
     v.grads_on = 0;
+    v.quads = 0;
+    v.quads_on = 0;
     v.march = 0;
     v.limit = 0;
     return v;
@@ -1783,7 +1804,8 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
                       __global uint *samples, /* per work-item */
                       look_params look, __global const uchar2 *brick_minmax, int minmax_valid,
                       __global const float *entry, int entry_tiles_x, int entry_on,
-                      __global const uint *grads, int grads_on)
+                      __global const uint *grads, int grads_on, __global const uint *quads,
+                      int quads_on)
 {
     int px0 = get_global_id(0) * PACKET_W, py0 = get_global_id(1) * PACKET_H;
     size_t slot = get_global_id(1) * get_global_size(0) + get_global_id(0);
@@ -1844,6 +1866,8 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     volume_geo v = make_geo(frames + offset, params, 0, tiled, X, Y, Z, &clip);
     v.grads = grads;
     v.grads_on = grads_on && tiled && !clip.enabled;
+    v.quads = quads;
+    v.quads_on = quads_on && tiled && !clip.enabled;
 #endif
     if (look.blend != 0) { /* max, min, average, iso: no TF skipping, no termination */
         vint taken;

@@ -694,6 +694,8 @@ cdvr_status cdvr_cl_open(cdvr_cl **out, cdvr_error *err)
         st = create_kernel(cl->program, "make_tiles", &cl->k_tiles, err);
     if (!st)
         st = create_kernel(cl->program, "make_grads", &cl->k_grads, err);
+    if (!st)
+        st = create_kernel(cl->program, "make_quads", &cl->k_quads, err);
     if (st) {
         cdvr_cl_close(cl);
         return st;
@@ -783,7 +785,7 @@ void cdvr_cl_close(cdvr_cl *cl)
     for (size_t i = 0; i < cl->ncodecs; i++)
         release_codec_program(&cl->codecs[i]);
     cl_kernel kernels[] = {cl->k_bricks, cl->k_raycast, cl->k_tiles, cl->k_grads,
-                           cl->k_bricks_long, cl->k_raycast_long};
+                           cl->k_quads, cl->k_bricks_long, cl->k_raycast_long};
     for (size_t i = 0; i < sizeof kernels / sizeof *kernels; i++)
         if (kernels[i])
             clReleaseKernel(kernels[i]);

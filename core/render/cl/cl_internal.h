@@ -52,7 +52,7 @@ struct cdvr_cl {
     cl_context context;
     cl_command_queue queue;
     cl_program program;              /* dense brick min/max, ray cast, tiled copy, gradients */
-    cl_kernel k_bricks, k_raycast, k_tiles, k_grads;
+    cl_kernel k_bricks, k_raycast, k_tiles, k_grads, k_quads;
     cl_program program_long;         /* the same with 64-bit voxel indices (frames of 2^31
                                         voxels or more), built on first use */
     cl_kernel k_bricks_long, k_raycast_long;
@@ -130,6 +130,9 @@ struct cdvr_cl_stream {
     cl_mem grads;                /* gradient copy of frame grads_frame (cl_shared.h), made with
                                     the tiled copy for renders that shade */
     size_t grads_capacity, grads_frame;
+    cl_mem quads;                /* quad copy of frame quads_frame (cl_shared.h), made with the
+                                    tiled copy (cl_render.c, quads_ready) */
+    size_t quads_capacity, quads_frame;
     size_t last_rendered;        /* frame of the last render: a second render of it makes tiles */
     cl_mem brick_visible;        /* nbricks uchar flags */
     cl_mem image;                /* width*height float4 */

@@ -71,7 +71,7 @@ cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_str
     s->decode_path = decode_path_from_env();
     s->setup_frame = (size_t)-1;
     s->minmax_frame = (size_t)-1;
-    s->tiles_frame = s->grads_frame = s->last_rendered = (size_t)-1;
+    s->tiles_frame = s->grads_frame = s->quads_frame = s->last_rendered = (size_t)-1;
     s->nblocks = 1;
     for (int i = 0; i < 3; i++) {
         s->block_dims[i] = ceil_div(s->brick_dims[i], (size_t)1 << CDVR_CL_BLOCK_SHIFT);
@@ -114,7 +114,7 @@ void cdvr_cl_stream_free(cdvr_cl_stream *s)
     if (!s)
         return;
     cl_mem *mems[] = {&s->payload, &s->params, &s->frames, &s->host_frames, &s->tiles, &s->grads,
-                      &s->table, &s->alpha_unit,
+                      &s->quads,                       &s->table, &s->alpha_unit,
                       &s->brick_minmax, &s->brick_visible, &s->iso_flags, &s->image,
                       &s->samples, &s->entry_tiles};
     for (size_t i = 0; i < sizeof mems / sizeof *mems; i++)
@@ -135,7 +135,7 @@ static void invalidate_frames(cdvr_cl_stream *s)
     s->minmax_frame = (size_t)-1;
     s->minmax_valid = s->blocks_valid = 0;
     s->pending_minmax = NULL;
-    s->tiles_frame = s->grads_frame = s->last_rendered = (size_t)-1;
+    s->tiles_frame = s->grads_frame = s->quads_frame = s->last_rendered = (size_t)-1;
 }
 
 cdvr_status cdvr_cl_upload(cdvr_cl_stream *s, const void *payload, size_t bytes, cdvr_error *err)
@@ -514,7 +514,7 @@ cdvr_status cdvr_cl_use_host_frames(cdvr_cl_stream *s, const uint8_t *frames, si
 uint64_t cdvr_cl_stream_bytes(const cdvr_cl_stream *s)
 {
     uint64_t b = (uint64_t)s->payload_capacity + s->frame_capacity + CDVR_CL_PARAMS_BUFFER_BYTES;
-    b += s->tiles_capacity + s->grads_capacity;
+    b += s->tiles_capacity + s->grads_capacity + s->quads_capacity;
     b += 256 * 4 * sizeof(float) + 256 * sizeof(float); /* TF tables */
     b += 3 * (uint64_t)s->nbricks + 2 * (uint64_t)s->nblocks; /* ranges + flags */
     b += (uint64_t)s->image_pixels * 4 * sizeof(float) + s->sample_slots * sizeof(cl_uint);
