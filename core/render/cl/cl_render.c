@@ -710,24 +710,27 @@ static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
  * from 32.1, 58.2 and 41.2 to 26.5, 47.0 and 39.1 ms, the engine CT's average from 36.8 to
  * 28.7 ms; at 320^3 (131 MB) composite and max were even, and on Colin27 (149 MB) average
  * and max took 1.4x the time of the tiled copy: beyond this its cache misses cost more than
- * its six fewer gathers per sample save. Not measured on GPUs, which keep the tiled copy. */
+ * its six fewer gathers per sample save. Not measured on GPUs, which keep the tiled copy.
+ * Iso, whose rays read few samples, took 1.04-1.08x the time with it (engine CT) and keeps
+ * the tiled copy. */
 #define QUADS_AUTO_MAX_BYTES ((size_t)64 << 20)
 /* The largest quad copy made when CDVR_CL_QUADS=1 asks for it (a frame of 512 M voxels). */
 #define QUADS_MAX_BYTES ((size_t)2 << 30)
 
-/* With the tiled copy of `frame`, a render on a CPU device gets the frame's quad copy
- * (kernels/common/cl_shared.h) when it is at most QUADS_AUTO_MAX_BYTES: 4 bytes per voxel of
+/* With the tiled copy of `frame`, a render of blend mode `blend` (not iso) on a CPU device gets
+ * the frame's quad copy (kernels/common/cl_shared.h) when it is at most QUADS_AUTO_MAX_BYTES: 4 bytes per voxel of
  * the tiled copy, read as 2 words per sample instead of 8 tile rows (the same values).
  * CDVR_CL_QUADS=0 turns it off, =1 on for any device up to QUADS_MAX_BYTES. On any failure the
  * samples come from the tiled copy. Returns 1 when the render reads it. */
-static int quads_ready(cdvr_cl_stream *s, size_t frame)
+static int quads_ready(cdvr_cl_stream *s, size_t frame, int blend)
 {
     const char *env = getenv("CDVR_CL_QUADS");
     size_t bytes;
     if (s->tiles_frame != frame || (env && !strcmp(env, "0")) ||
         !cdvr_size_mul(tiled_bytes(s->dims), 4, &bytes) || bytes > QUADS_MAX_BYTES)
         return 0;
-    if (!(env && !strcmp(env, "1")) && (s->cl->info.is_gpu || bytes > QUADS_AUTO_MAX_BYTES))
+    if (!(env && !strcmp(env, "1")) &&
+        (s->cl->info.is_gpu || bytes > QUADS_AUTO_MAX_BYTES || blend == CDVR_BLEND_ISO))
         return 0;
     if (s->quads_frame == frame)
         return 1;
@@ -924,7 +927,7 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
                                             : CDVR_CL_ENTRY_VISIBLE;
     cl_int entry_on = entry_tiles_ready(s, &cam, spacing, origin, D, global, entry_wanted, kind);
     cl_int grads_on = !opts->clip && grads_ready(s, frame, &opts->look);
-    cl_int quads_on = !opts->clip && quads_ready(s, frame);
+    cl_int quads_on = !opts->clip && quads_ready(s, frame, look.blend);
     st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box, &look, iso_skip,
                           host_image ? host_image : s->image, entry_on, (cl_int)global[0],
                           grads_on, quads_on, &kernel, err);
