@@ -1420,6 +1420,25 @@ static vint counted_samples(const packet *p, vint n, float step, vint *last)
     return select((vint)(0), n - 1 - *last, p->hit);
 }
 
+/* Sample i of each lane as average reads it: at g0 + i dg (eb's, as composite's `at`) on the
+ * full segments and sample_point's midpoint on the last, shorter one; within float rounding of
+ * render.h's sample position. *ok: lanes where segment i exists. */
+static vec3x march_point(const packet *p, const extreme_bricks *eb, vint i, vint n, float step,
+                         float3 inv_spacing, vint *ok)
+{
+    vec3x g = at(eb->g0, eb->dg, i);
+    *ok = p->hit & (i < n);
+    vint last = *ok & (i >= n - 1);
+    if (any(last)) {
+        vint ok_last;
+        vfloat tm;
+        vec3x gl = sample_point(p, i, n, step, inv_spacing, &ok_last, &tm);
+        g = (vec3x){select(g.x, gl.x, last), select(g.y, gl.y, last), select(g.z, gl.z, last)};
+        *ok = select(*ok, ok_last, last);
+    }
+    return g;
+}
+
 /* The window [*first, *lim) of each lane's samples between the entry bound te and the exit
  * bound tx of the bricks above 0 (cdvr/skip.h; cl_render.c, zero_entry_ready): the samples
  * outside it lie in bricks of zeros (the sample before the one before te and after the one
@@ -1505,14 +1524,25 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
         vstore16(select((vint)(0), end, p->hit & (first < end)), 0, ns);
         vstore16(select((vint)(INT_MAX), first, p->hit & (first < end)), 0, firsts);
         from = INT_MAX;
+        /* samples below `full` are full segments on every lane (march_point) */
+        int lanes_n[RAY_PACKET], full = INT_MAX;
+        vstore16(select((vint)(INT_MAX), n - 1, p->hit), 0, lanes_n);
         for (int k = 0; k < RAY_PACKET; k++) {
             to = max(to, ns[k]);
             from = min(from, firsts[k]);
+            full = min(full, lanes_n[k]);
         }
         for (int i = from; i < to; i++) {
             vint ok;
             vfloat tm;
-            vec3x g = sample_point(p, (vint)(i), n, step, inv_spacing, &ok, &tm);
+            vec3x g;
+            if (lk->blend == 3 && i < full) { /* march_point's at() for every lane */
+                g = at(eb->g0, eb->dg, (vint)(i));
+                ok = p->hit & (i < n);
+            } else {
+                g = lk->blend == 3 ? march_point(p, eb, (vint)(i), n, step, inv_spacing, &ok)
+                                   : sample_point(p, (vint)(i), n, step, inv_spacing, &ok, &tm);
+            }
             vfloat s = trilinear(v, g);
             count -= ok;
             if (lk->blend == 3)
@@ -1574,7 +1604,8 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
                     break;
                 vint ok;
                 vfloat tm;
-                vec3x g = sample_point(p, i, n, step, inv_spacing, &ok, &tm);
+                vec3x g = is_avg ? march_point(p, eb, i, n, step, inv_spacing, &ok)
+                                 : sample_point(p, i, n, step, inv_spacing, &ok, &tm);
                 ok &= run;
                 vfloat s = trilinear(v, g);
                 count -= ok;
