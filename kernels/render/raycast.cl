@@ -1422,7 +1422,10 @@ static vint counted_samples(const packet *p, vint n, float step, vint *last)
 
 /* Sample i of each lane as average reads it: at g0 + i dg (eb's, as composite's `at`) on the
  * full segments and sample_point's midpoint on the last, shorter one; within float rounding of
- * render.h's sample position. *ok: lanes where segment i exists. */
+ * render.h's sample position (engine CT and Colin27 average 512^2: 9% less time than
+ * sample_point everywhere). The lock-step loop takes the `at` side by a packet-wide test
+ * (i < full): with this lane-wise test in it, the compiler computed both sides and it gained
+ * nothing. *ok: lanes where segment i exists. */
 static vec3x march_point(const packet *p, const extreme_bricks *eb, vint i, vint n, float step,
                          float3 inv_spacing, vint *ok)
 {
