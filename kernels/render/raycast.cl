@@ -1411,6 +1411,25 @@ static vint extreme_step(const extreme_bricks *eb, const volume_geo *v, vint *i,
     return flat;
 }
 
+/* The least and the greatest of a packet's lanes. */
+static int lanes_min(vint x)
+{
+    int xs[RAY_PACKET], m = INT_MAX;
+    vstore16(x, 0, xs);
+    for (int k = 0; k < RAY_PACKET; k++)
+        m = min(m, xs[k]);
+    return m;
+}
+
+static int lanes_max(vint x)
+{
+    int xs[RAY_PACKET], m = INT_MIN;
+    vstore16(x, 0, xs);
+    for (int k = 0; k < RAY_PACKET; k++)
+        m = max(m, xs[k]);
+    return m;
+}
+
 /* The samples that count per lane (render.h: n - 1 full segments, and the last unless its
  * segment is empty; none on lanes that miss); *last: -1 where the last one counts. */
 static vint counted_samples(const packet *p, vint n, float step, vint *last)
@@ -1469,14 +1488,9 @@ static vint zero_window(const packet *p, vint n, float step, float te, float tx,
 static vint sparse_max(const packet *p, vint n, float step, float3 inv_spacing,
                        const volume_geo *v, vint first, vint lim, int every, vfloat *best)
 {
-    int from = INT_MAX, to = 0, fs[RAY_PACKET], ls[RAY_PACKET];
     vint on = p->hit & (first < lim) & (*best < 255.0f), read = (vint)(0);
-    vstore16(select((vint)(INT_MAX), first, on), 0, fs);
-    vstore16(select((vint)(0), lim, on), 0, ls);
-    for (int k = 0; k < RAY_PACKET; k++) {
-        from = min(from, fs[k]);
-        to = max(to, ls[k]);
-    }
+    int from = lanes_min(select((vint)(INT_MAX), first, on));
+    int to = lanes_max(select((vint)(0), lim, on));
     if (from >= to)
         return read;
     for (int j = from + every / 2; j < to; j += every) {
@@ -1522,19 +1536,11 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
         best = select(best, fmax(best, 0.0f), (zeros > 0) & (vint)(-(lk->blend == 1)));
     }
     if (!eb->minmax || (bounds && lk->blend == 3)) { /* samples from..to - 1 in lock-step */
-        int from = 0, to = 0;
-        int ns[RAY_PACKET], firsts[RAY_PACKET];
-        vstore16(select((vint)(0), end, p->hit & (first < end)), 0, ns);
-        vstore16(select((vint)(INT_MAX), first, p->hit & (first < end)), 0, firsts);
-        from = INT_MAX;
+        vint on = p->hit & (first < end);
+        int from = lanes_min(select((vint)(INT_MAX), first, on));
+        int to = lanes_max(select((vint)(0), end, on));
         /* samples below `full` are full segments on every lane (march_point) */
-        int lanes_n[RAY_PACKET], full = INT_MAX;
-        vstore16(select((vint)(INT_MAX), n - 1, p->hit), 0, lanes_n);
-        for (int k = 0; k < RAY_PACKET; k++) {
-            to = max(to, ns[k]);
-            from = min(from, firsts[k]);
-            full = min(full, lanes_n[k]);
-        }
+        int full = lanes_min(select((vint)(INT_MAX), n - 1, p->hit));
         for (int i = from; i < to; i++) {
             vint ok;
             vfloat tm;
