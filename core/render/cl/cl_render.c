@@ -634,12 +634,16 @@ static size_t tiled_bytes(const size_t dims[3])
     return n;
 }
 
-/* Runs copy kernel k (make_tiles or make_grads in bricks.cl: frames, offset, X, Y, Z, out; a
- * work-item per tile of the tiled copy) on `frame` into *mem of `bytes`. Returns 1 when it
- * ran; on any failure *mem is released (the render then reads the voxels). */
-static int run_copy_kernel(cdvr_cl_stream *s, size_t frame, cl_kernel k, const char *name,
-                           cl_mem *mem, size_t *capacity, size_t bytes)
+/* Makes *mem (of `bytes`) the copy of `frame` that copy kernel k makes (make_tiles,
+ * make_grads or make_quads in bricks.cl: frames, offset, X, Y, Z, out; a work-item per tile
+ * of the tiled copy), unless *copy_frame says it holds it already; *copy_frame records the
+ * frame made. Returns 1 when *mem holds the copy; on any failure *mem is released (the render
+ * then reads the voxels). */
+static int copy_ready(cdvr_cl_stream *s, size_t frame, cl_kernel k, const char *name,
+                      cl_mem *mem, size_t *capacity, size_t *copy_frame, size_t bytes)
 {
+    if (*copy_frame == frame)
+        return 1;
     cdvr_error err;
     size_t tiles = tiled_bytes(s->dims) / 64;
     cl_ulong offset = frame * s->voxels;
@@ -661,6 +665,7 @@ static int run_copy_kernel(cdvr_cl_stream *s, size_t frame, cl_kernel k, const c
         cdvr_cl_release(mem);
         *capacity = 0;
     }
+    *copy_frame = st ? (size_t)-1 : frame;
     return st == CDVR_OK;
 }
 
@@ -670,17 +675,16 @@ static void make_tiles_if_rerendered(cdvr_cl_stream *s, size_t frame)
     s->last_rendered = frame;
     const char *force_long = getenv("CDVR_CL_LONG_INDEX");
     size_t bytes = tiled_bytes(s->dims);
-    if (s->fetch || !again || s->tiles_frame == frame || bytes > INT_MAX ||
-        (force_long && !strcmp(force_long, "1")))
+    if (s->fetch || !again || bytes > INT_MAX || (force_long && !strcmp(force_long, "1")))
         return;
-    int made = run_copy_kernel(s, frame, s->cl->k_tiles, "make_tiles", &s->tiles,
-                               &s->tiles_capacity, bytes);
-    s->tiles_frame = made ? frame : (size_t)-1;
+    copy_ready(s, frame, s->cl->k_tiles, "make_tiles", &s->tiles, &s->tiles_capacity,
+               &s->tiles_frame, bytes);
 }
 
-/* The largest gradient copy made (a frame of 512 M voxels): beyond it the gradients come
- * from the tiled copy's 12 rows per sample (engine CT: 1.8x the time per gradient). */
-#define GRADS_MAX_BYTES ((size_t)2 << 30)
+/* The largest copy of 4 bytes per voxel made (gradients, quads: a frame of 512 M voxels):
+ * beyond it the gradients come from the tiled copy's 12 rows per sample (engine CT: 1.8x the
+ * time per gradient), the samples from its 8 rows. */
+#define WORD_COPY_MAX_BYTES ((size_t)2 << 30)
 
 /* With the tiled copy of `frame`, a render that shades (or uses gradient opacity) gets the
  * frame's gradient copy (kernels/common/cl_shared.h): 4 bytes per voxel of the tiled copy,
@@ -691,17 +695,12 @@ static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
 {
     const char *env = getenv("CDVR_CL_GRADS");
     int wanted = look->shade.enabled || look->gradient_opacity.npoints > 0;
-    if (s->tiles_frame != frame || !wanted || (env && !strcmp(env, "0")))
-        return 0;
-    if (s->grads_frame == frame)
-        return 1;
     size_t bytes;
-    if (!cdvr_size_mul(tiled_bytes(s->dims), 4, &bytes) || bytes > GRADS_MAX_BYTES)
+    if (s->tiles_frame != frame || !wanted || (env && !strcmp(env, "0")) ||
+        !cdvr_size_mul(tiled_bytes(s->dims), 4, &bytes) || bytes > WORD_COPY_MAX_BYTES)
         return 0;
-    int made = run_copy_kernel(s, frame, s->cl->k_grads, "make_grads", &s->grads,
-                               &s->grads_capacity, bytes);
-    s->grads_frame = made ? frame : (size_t)-1;
-    return made;
+    return copy_ready(s, frame, s->cl->k_grads, "make_grads", &s->grads, &s->grads_capacity,
+                      &s->grads_frame, bytes);
 }
 
 /* The largest quad copy made by default (a frame of 16 M voxels, 256^3): on the CPU device
@@ -714,30 +713,25 @@ static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
  * Iso, whose rays read few samples, took 1.04-1.08x the time with it (engine CT) and keeps
  * the tiled copy. */
 #define QUADS_AUTO_MAX_BYTES ((size_t)64 << 20)
-/* The largest quad copy made when CDVR_CL_QUADS=1 asks for it (a frame of 512 M voxels). */
-#define QUADS_MAX_BYTES ((size_t)2 << 30)
 
-/* With the tiled copy of `frame`, a render of blend mode `blend` (not iso) on a CPU device gets
- * the frame's quad copy (kernels/common/cl_shared.h) when it is at most QUADS_AUTO_MAX_BYTES: 4 bytes per voxel of
- * the tiled copy, read as 2 words per sample instead of 8 tile rows (the same values).
- * CDVR_CL_QUADS=0 turns it off, =1 on for any device up to QUADS_MAX_BYTES. On any failure the
- * samples come from the tiled copy. Returns 1 when the render reads it. */
+/* With the tiled copy of `frame`, a render of blend mode `blend` (not iso) on a CPU device
+ * gets the frame's quad copy (kernels/common/cl_shared.h) when it is at most
+ * QUADS_AUTO_MAX_BYTES: 4 bytes per voxel of the tiled copy, read as 2 words per sample
+ * instead of 8 tile rows (the same values). CDVR_CL_QUADS=0 turns it off, =1 on for any
+ * device and mode up to WORD_COPY_MAX_BYTES. On any failure the samples come from the tiled
+ * copy. Returns 1 when the render reads it. */
 static int quads_ready(cdvr_cl_stream *s, size_t frame, int blend)
 {
     const char *env = getenv("CDVR_CL_QUADS");
     size_t bytes;
     if (s->tiles_frame != frame || (env && !strcmp(env, "0")) ||
-        !cdvr_size_mul(tiled_bytes(s->dims), 4, &bytes) || bytes > QUADS_MAX_BYTES)
+        !cdvr_size_mul(tiled_bytes(s->dims), 4, &bytes) || bytes > WORD_COPY_MAX_BYTES)
         return 0;
     if (!(env && !strcmp(env, "1")) &&
         (s->cl->info.is_gpu || bytes > QUADS_AUTO_MAX_BYTES || blend == CDVR_BLEND_ISO))
         return 0;
-    if (s->quads_frame == frame)
-        return 1;
-    int made = run_copy_kernel(s, frame, s->cl->k_quads, "make_quads", &s->quads,
-                               &s->quads_capacity, bytes);
-    s->quads_frame = made ? frame : (size_t)-1;
-    return made;
+    return copy_ready(s, frame, s->cl->k_quads, "make_quads", &s->quads, &s->quads_capacity,
+                      &s->quads_frame, bytes);
 }
 
 /* Device image of `pixels` and one sample counter per work-item (`items`). */
