@@ -476,12 +476,11 @@ static int entry_tiles_ready(cdvr_cl_stream *s, const cam_params *cam, const dou
                              const double origin[3], const double D[9], const size_t global[2],
                              int wanted, cdvr_cl_entry_kind kind)
 {
-    const cdvr_skip_entry *entry = kind == CDVR_CL_ENTRY_ISO     ? &s->iso_entry
-                                   : kind == CDVR_CL_ENTRY_ZEROS ? &s->zero_entry
-                                                                 : &s->entry;
-    int entry_ok = kind == CDVR_CL_ENTRY_ISO     ? s->iso_entry_ok
-                   : kind == CDVR_CL_ENTRY_ZEROS ? s->zero_entry_ok
-                                                 : s->entry_ok;
+    /* in the order of cdvr_cl_entry_kind */
+    const cdvr_skip_entry *lists[] = {&s->entry, &s->iso_entry, &s->zero_entry};
+    const int lists_ok[] = {s->entry_ok, s->iso_entry_ok, s->zero_entry_ok};
+    const cdvr_skip_entry *entry = lists[kind];
+    int entry_ok = lists_ok[kind];
     int with_exit = kind == CDVR_CL_ENTRY_ZEROS;
     size_t tiles = global[0] * global[1], bytes = (1 + with_exit) * tiles * sizeof(float);
     cdvr_error ignored;
