@@ -496,6 +496,126 @@ static void blob_scenes(cdvr_cl *cl)
     cdvr_volume_free(vol);
 }
 
+/* Renders `look` of sc's volume on a new stream of cl twice (the first render reads the
+ * voxels, the second the tiled and quad copies) into out[0] and out[1], with their sample
+ * counts; the images stay NULL on failure (recorded). */
+static void render_look_twice(cdvr_cl *cl, const scene *sc, const cdvr_look *look,
+                              cdvr_image *out[2], uint64_t samples[2])
+{
+    cdvr_error err;
+    cdvr_cl_stream *s = NULL;
+    cdvr_render_opts opts = {.tf = &sc->tf, .camera = &sc->cam, .step = sc->step, .look = *look};
+    cdvr_status st = upload_volume(cl, sc->vol, &s, &err);
+    for (int rep = 0; rep < 2; rep++) {
+        out[rep] = NULL;
+        samples[rep] = 0;
+        if (!st)
+            st = nan_image(sc->cam.width, sc->cam.height, &out[rep], &err);
+        if (!st)
+            st = cdvr_cl_setup(s, 0, &sc->tf, &err);
+        if (!st)
+            st = cdvr_cl_render(s, 0, &opts, sc->vol->spacing, sc->vol->origin,
+                                sc->vol->direction, out[rep], &err);
+        CHECK(st == CDVR_OK, "%s: render %d: %s", sc->name, rep, err.msg);
+        if (st) {
+            cdvr_image_free(out[rep]);
+            out[rep] = NULL;
+        } else {
+            samples[rep] = cdvr_cl_last_samples(s);
+            CHECK(unwritten(out[rep]) == 0, "%s: render %d: pixels not written", sc->name, rep);
+        }
+    }
+    cdvr_cl_stream_free(s);
+}
+
+/* Average's leaps (raycast.cl, zero_leap): a packet skips the samples where all its rays lie
+ * in cubes of zero bricks. Blocks of noise with gaps of zeros 2 to 14 voxels wide between
+ * them, in a volume whose edges are not whole bricks, one block against three far faces;
+ * images small enough that a packet's rays spread over more than a brick, and larger ones;
+ * axis-parallel (rays still along two axes) and oblique views; whole and fractional steps.
+ * With the leaps and without (CDVR_CL_LEAPS=0) the image must be the same bit for bit on the
+ * voxels and on the copies, the leaps may only drop samples and must drop some, and the image
+ * must match the CPU's within float rounding. */
+static void average_leap_scenes(cdvr_cl *cl)
+{
+    size_t dims[3] = {61, 47, 53};
+    cdvr_volume *vol;
+    cdvr_error err;
+    if (cdvr_volume_create(dims, 1, CDVR_TYPE_U8, &vol, &err) != CDVR_OK) {
+        CHECK(0, "leaps volume: %s", err.msg);
+        return;
+    }
+    const size_t lo[4][3] = {{5, 4, 3}, {23, 4, 3}, {39, 10, 10}, {58, 20, 40}};
+    const size_t hi[4][3] = {{20, 40, 50}, {30, 40, 50}, {45, 30, 45}, {60, 46, 52}};
+    uint32_t seed = 12345;
+    for (int b = 0; b < 4; b++)
+        for (size_t z = lo[b][2]; z <= hi[b][2]; z++)
+            for (size_t y = lo[b][1]; y <= hi[b][1]; y++)
+                for (size_t x = lo[b][0]; x <= hi[b][0]; x++) {
+                    seed = seed * 1664525u + 1013904223u;
+                    ((uint8_t *)vol->data)[x + dims[0] * (y + dims[1] * z)] =
+                        (uint8_t)(1 + (seed >> 24) % 255);
+                }
+    vol->spacing[2] = 1.2;
+    scene sc = {.vol = vol, .name = "average leaps"};
+    const cdvr_tf_point pts[] = {{0, 0, 0, 0, 0}, {255, 1, .8, .4, 1}};
+    make_tf(&sc.tf, pts, 2);
+    cdvr_look avg = {0};
+    avg.blend = CDVR_BLEND_AVERAGE;
+    double c[3], ext, up[3] = {0, 0, 1};
+    volume_centre(vol, c, &ext);
+    const double views[][2] = {{0, 0}, {90, 0}, {33, 21}, {145, -38}, {260, 60}};
+    const int sizes[][2] = {{23, 19}, {64, 64}, {128, 96}};
+    const double steps[] = {0.5, 1.3};
+    uint64_t with_leaps = 0, without = 0;
+    for (size_t v = 0; v < sizeof views / sizeof *views; v++)
+        for (size_t z = 0; z < sizeof sizes / sizeof *sizes; z++)
+            for (size_t k = 0; k < sizeof steps / sizeof *steps; k++) {
+                look(&sc.cam, c, c, up);
+                cdvr_camera_orbit(&sc.cam, c, up, 1.7 * ext, views[v][0], views[v][1]);
+                sc.cam.width = sizes[z][0];
+                sc.cam.height = sizes[z][1];
+                sc.step = steps[k];
+                cdvr_image *on[2], *off[2], *ref = NULL;
+                uint64_t n_on[2], n_off[2];
+                render_look_twice(cl, &sc, &avg, on, n_on);
+                setenv("CDVR_CL_LEAPS", "0", 1);
+                render_look_twice(cl, &sc, &avg, off, n_off);
+                unsetenv("CDVR_CL_LEAPS");
+                size_t bytes = 4 * sizeof(float) * (size_t)sc.cam.width * sc.cam.height;
+                for (int rep = 0; rep < 2; rep++) {
+                    CHECK(on[rep] && off[rep] && !memcmp(on[rep]->rgba, off[rep]->rgba, bytes),
+                          "leaps: view %zu, %dx%d, step %g, render %d: the image changed", v,
+                          sc.cam.width, sc.cam.height, sc.step, rep);
+                    CHECK(n_on[rep] <= n_off[rep], "leaps: view %zu, %dx%d, step %g, render %d: "
+                          "%llu samples, %llu without", v, sc.cam.width, sc.cam.height, sc.step,
+                          rep, (unsigned long long)n_on[rep], (unsigned long long)n_off[rep]);
+                    with_leaps += n_on[rep];
+                    without += n_off[rep];
+                }
+                cdvr_render_opts opts = {.tf = &sc.tf, .camera = &sc.cam, .step = sc.step,
+                                         .look = avg};
+                CHECK_OK(cdvr_render_cpu(vol, 0, &opts, &ref, &err), err);
+                double maxerr = 0;
+                if (ref && on[1]) {
+                    double psnr = compare(on[1], ref, &maxerr);
+                    CHECK(psnr >= 80.0, "leaps: view %zu, %dx%d, step %g: cl against cpu "
+                          "%.1f dB", v, sc.cam.width, sc.cam.height, sc.step, psnr);
+                }
+                cdvr_image_free(ref);
+                for (int rep = 0; rep < 2; rep++) {
+                    cdvr_image_free(on[rep]);
+                    cdvr_image_free(off[rep]);
+                }
+            }
+    printf("average leaps: %llu samples read, %llu without the leaps\n",
+           (unsigned long long)with_leaps, (unsigned long long)without);
+    CHECK(with_leaps < without - without / 10, "leaps: %llu samples read, %llu without (the "
+          "scenes must leave gaps to leap)", (unsigned long long)with_leaps,
+          (unsigned long long)without);
+    cdvr_volume_free(vol);
+}
+
 static void misuse(cdvr_cl *cl)
 {
     size_t dims[3] = {8, 8, 8};
@@ -551,6 +671,7 @@ int main(void)
     oriented_scenes(cl);
     sparse_scenes(cl);
     blob_scenes(cl);
+    average_leap_scenes(cl);
     misuse(cl);
     cdvr_cl_close(cl);
     if (!data) {

@@ -79,7 +79,8 @@ typedef struct volume_geo {
     __constant uchar *params;
     int frame;
     int tiled;      /* vol holds the frame's tiled copy (see the top of this file) */
-    int2 page_counts; /* tiled copy: pages along x and y (kernels/common/cl_shared.h) */
+    int page_row;   /* tiled copy: words per row of pages along x, and per slab of them */
+    int page_slab;  /* (kernels/common/cl_shared.h) */
     int3 dims;
     int3 base_max;  /* largest lower trilinear corner per axis: max(dims - 2, 0) */
     long3 stride;   /* index step to the upper corner per axis; 0 where dims is 1 */
@@ -183,7 +184,10 @@ static vfloat gather16(__global const uchar *p, vindex idx)
  * render.h); *frac gets the weight of the upper corner. */
 static vint corner(vfloat g, float top, int base_max, vfloat *frac)
 {
-    g = clamp(g, 0.0f, top);
+    /* clamp() as two selects (NaN -> 0, as clamp): clamp's NaN rules cost four
+       instructions */
+    g = select((vfloat)(0.0f), g, g > 0.0f);
+    g = select((vfloat)(top), g, g < top);
     vint i0 = min(convert_vint(g), base_max);
     *frac = g - convert_vfloat(i0);
     return i0;
@@ -238,14 +242,56 @@ static vint along_x(vint x)
 
 static vint along_y(const volume_geo *v, vint y)
 {
-    return (y >> 4) * (v->page_counts.x << 10) + (((y >> 2) & 3) << 6) + (y & 3);
+    return (y >> 4) * v->page_row + (((y >> 2) & 3) << 6) + (y & 3);
 }
 
 static vint along_z(const volume_geo *v, vint z)
 {
-    return (z >> 4) * (v->page_counts.x * v->page_counts.y << 10) + (((z >> 2) & 3) << 8) +
+    return (z >> 4) * v->page_slab + (((z >> 2) & 3) << 8) +
            ((z & 3) << 2);
 }
+
+/* The word of voxel (x, y, z) in the gradient and quad copies (cl_shared.h: 4 w + (x & 3),
+ * w the voxel's row word in the tiled copy) is copy_x(x) + copy_y(y) + copy_z(z). */
+#ifdef __AVX512F__
+/* PoCL on a CPU with AVX-512: the bits within a page come from a 16-entry table indexed by
+ * the coordinate's low 4 bits (vpermd, one instruction where the shifts and masks took
+ * five: engine CT average 512^2 5% less time, composite 2%). */
+#define PAGE_BITS(c, shift)                                                                    \
+    as_int16(__builtin_ia32_permvarsi512(                                                      \
+        (int16)(0, 1, 2, 3, 64, 65, 66, 67, 128, 129, 130, 131, 192, 193, 194, 195) << (shift),  \
+        (c)))
+static vint copy_x(vint x)
+{
+    return PAGE_BITS(x, 0) + ((x >> 4) << 12);
+}
+
+static vint copy_y(const volume_geo *v, vint y)
+{
+    return PAGE_BITS(y, 2) + (y >> 4) * (v->page_row << 2);
+}
+
+static vint copy_z(const volume_geo *v, vint z)
+{
+    return PAGE_BITS(z, 4) + (z >> 4) * (v->page_slab << 2);
+}
+#undef PAGE_BITS
+#else
+static vint copy_x(vint x)
+{
+    return (along_x(x) << 2) + (x & 3);
+}
+
+static vint copy_y(const volume_geo *v, vint y)
+{
+    return along_y(v, y) << 2;
+}
+
+static vint copy_z(const volume_geo *v, vint z)
+{
+    return along_z(v, z) << 2;
+}
+#endif
 
 /* The x-lerp of voxels x0 and x1 (words at row + wx0 and row + wx1, bytes at bit offsets sh0
  * and sh1) of each lane's row: two gathers, the same word unless x1 starts the next tile. */
@@ -440,6 +486,20 @@ __attribute__((always_inline)) static inline vfloat trilinear_on(const volume_ge
                                                                  vint on)
 {
     vfloat fx, fy, fz;
+#if !defined(CDVR_FETCH) && !defined(CDVR_LONG_INDEX)
+    if (v->quads_on) { /* two words: rows y0, y1 of the cell's z0 and z1 faces (never
+                          clipped: no offset) */
+        vint x0 = corner(g.x, v->top.x, v->base_max.x, &fx);
+        vint y0 = corner(g.y, v->top.y, v->base_max.y, &fy);
+        vint z0 = corner(g.z, v->top.z, v->base_max.z, &fz);
+        vint xy = copy_x(x0) + copy_y(v, y0), zero = (vint)(0);
+        vint i0 = select(zero, xy + copy_z(v, z0), on);
+        vint i1 = select(zero, xy + copy_z(v, z0 + (v->stride.z != 0)), on);
+        vuint q0 = (vuint)(L16(QUAD0)), q1 = (vuint)(L16(QUAD1));
+        return mix(mix(pair_lerp(q0, fx), pair_lerp(q0 >> 16, fx), fy),
+                   mix(pair_lerp(q1, fx), pair_lerp(q1 >> 16, fx), fy), fz);
+    }
+#endif
     vint x0 = corner(g.x - v->offset.x, v->top.x, v->base_max.x, &fx);
     vint y0 = corner(g.y - v->offset.y, v->top.y, v->base_max.y, &fy);
     vint z0 = corner(g.z - v->offset.z, v->top.z, v->base_max.z, &fz);
@@ -461,15 +521,6 @@ __attribute__((always_inline)) static inline vfloat trilinear_on(const volume_ge
     __global const uchar *p = v->vol;
     vfloat c00, c10, c01, c11;
 #ifndef CDVR_LONG_INDEX
-    if (v->quads_on) { /* two words: rows y0, y1 of the cell's z0 and z1 faces */
-        vint wx = along_x(x0), wy = along_y(v, y0);
-        vint wz0 = along_z(v, z0), wz1 = along_z(v, z0 + (sz != 0));
-        vint lo = ((wx + wy) << 2) + (x0 & 3), zero = (vint)(0);
-        vint i0 = select(zero, lo + (wz0 << 2), on), i1 = select(zero, lo + (wz1 << 2), on);
-        vuint q0 = (vuint)(L16(QUAD0)), q1 = (vuint)(L16(QUAD1));
-        return mix(mix(pair_lerp(q0, fx), pair_lerp(q0 >> 16, fx), fy),
-                   mix(pair_lerp(q1, fx), pair_lerp(q1 >> 16, fx), fy), fz);
-    }
     if (v->tiled) {
         __global const uint *q = (__global const uint *)p;
         vint x1 = x0 + (sx != 0), y1 = y0 + (sy != 0), z1 = z0 + (sz != 0);
@@ -763,10 +814,10 @@ static int central_copied(const volume_geo *v, vec3x g, vint on, vec3x *dq)
     if (any(on & ~inside))
         return 0;
     vint x1 = x0 + 1, y1 = y0 + 1, z1 = z0 + 1, zero = (vint)(0);
-    vint wx0 = (along_x(x0) << 2) + (x0 & 3), wx1 = (along_x(x1) << 2) + (x1 & 3);
-    vint wy0 = along_y(v, y0), wy1 = along_y(v, y1), wz0 = along_z(v, z0), wz1 = along_z(v, z1);
-    vint r00 = select(zero, (wy0 + wz0) << 2, on), r10 = select(zero, (wy1 + wz0) << 2, on);
-    vint r01 = select(zero, (wy0 + wz1) << 2, on), r11 = select(zero, (wy1 + wz1) << 2, on);
+    vint wx0 = copy_x(x0), wx1 = copy_x(x1);
+    vint wy0 = copy_y(v, y0), wy1 = copy_y(v, y1), wz0 = copy_z(v, z0), wz1 = copy_z(v, z1);
+    vint r00 = select(zero, wy0 + wz0, on), r10 = select(zero, wy1 + wz0, on);
+    vint r01 = select(zero, wy0 + wz1, on), r11 = select(zero, wy1 + wz1, on);
     vec3x c00 = mix3(grad_words(v, r00 + wx0), grad_words(v, r00 + wx1), fx);
     vec3x c10 = mix3(grad_words(v, r10 + wx0), grad_words(v, r10 + wx1), fx);
     vec3x c01 = mix3(grad_words(v, r01 + wx0), grad_words(v, r01 + wx1), fx);
@@ -1505,6 +1556,159 @@ static vint sparse_max(const packet *p, vint n, float step, float3 inv_spacing,
     return read;
 }
 
+/* Average's leaps: a packet in lock-step skips the samples where every lane lies in bricks
+ * of zeros (their samples are 0: they add nothing to the sum and count in the mean, as
+ * samples outside the window do). One lane leads: where it lies in a cube of zero bricks
+ * (the flags of the bricks above 0, cdvr/skip.h: code d, the cube within d - 1 is all
+ * zeros) at least `spread` inside its faces and inside the volume (so no lane's sample is
+ * clamped), every lane's sample of the same index lies in the cube too: `spread` bounds each
+ * axis of the distance between a lane's sample and the lead's over the indices the leaps
+ * cover (a linear function of the index: its bound at the two ends). */
+typedef struct zero_leap {
+    __global const uchar *dist;
+    int shift, nbx, nby, nbz;
+    float3 g0, dg, inv_dg; /* the lead's sample i at g0 + i dg; 1 / dg */
+    float3 spread, top;
+} zero_leap;
+
+#define LEAP_MARGIN 0.01f /* voxels added to the spread for the rounding of positions */
+#define LEAPS_MAX 16 /* leaps kept per packet, more are not taken (engine CT and Colin27
+                        512^2: 0.3 and 0.6 per packet, none over 16) */
+
+/* The least and the greatest of a packet's lanes (no NaN among them: selects, which
+ * compile to one instruction where fmin and fmax take three). */
+#define LESS_OF(a, b) select(b, a, (a) < (b))
+#define GREATER_OF(a, b) select(b, a, (a) > (b))
+static float lanes_min_float(vfloat x)
+{
+    float8 m8 = LESS_OF(x.lo, x.hi);
+    float4 m4 = LESS_OF(m8.lo, m8.hi);
+    float2 m2 = LESS_OF(m4.lo, m4.hi);
+    return min(m2.x, m2.y);
+}
+
+static float lanes_max_float(vfloat x)
+{
+    float8 m8 = GREATER_OF(x.lo, x.hi);
+    float4 m4 = GREATER_OF(m8.lo, m8.hi);
+    float2 m2 = GREATER_OF(m4.lo, m4.hi);
+    return max(m2.x, m2.y);
+}
+#undef LESS_OF
+#undef GREATER_OF
+
+/* One axis of the lead: through the middle of the lanes' samples `from` and `last` (hit
+ * lanes), and the greater half-width of the two as the spread (the distance of a lane's
+ * sample to the lead's is a linear function of the index: at most that between them). */
+#define LEAD_AXIS(AX)                                                                          \
+    do {                                                                                       \
+        vfloat pa = eb->g0.AX + fa * eb->dg.AX, pb = eb->g0.AX + fb * eb->dg.AX;               \
+        float lo_a = lanes_min_float(select((vfloat)(INFINITY), pa, p->hit));                  \
+        float hi_a = lanes_max_float(select((vfloat)(-INFINITY), pa, p->hit));                 \
+        float lo_b = lanes_min_float(select((vfloat)(INFINITY), pb, p->hit));                  \
+        float hi_b = lanes_max_float(select((vfloat)(-INFINITY), pb, p->hit));                 \
+        float mid_a = 0.5f * (lo_a + hi_a), mid_b = 0.5f * (lo_b + hi_b);                      \
+        z->dg.AX = (mid_b - mid_a) / (float)(last - from);                                     \
+        z->g0.AX = mid_a - (float)from * z->dg.AX;                                             \
+        z->spread.AX = 0.5f * fmax(hi_a - lo_a, hi_b - lo_b) + LEAP_MARGIN;                    \
+    } while (0)
+
+/* The lead of samples from..last (from < last) of the packet's lanes (eb: their
+ * positions), with `zb`'s flags; 0 when no lane hits. */
+static int zero_leap_make(const packet *p, const extreme_bricks *eb, const bricks *zb,
+                          const volume_geo *v, int from, int last, zero_leap *z)
+{
+    if (!any(p->hit))
+        return 0;
+    vfloat fa = (vfloat)((float)from), fb = (vfloat)((float)last);
+    LEAD_AXIS(x);
+    LEAD_AXIS(y);
+    LEAD_AXIS(z);
+    z->inv_dg = 1.0f / z->dg; /* inf where dg is 0 (LEAP_AXIS then takes the still case) */
+    z->dist = zb->dist;
+    z->shift = zb->shift;
+    z->nbx = zb->nbx;
+    z->nby = zb->nby;
+    z->nbz = zb->nbz;
+    z->top = (float3)(v->top.x, v->top.y, v->top.z);
+    return 1;
+}
+#undef LEAD_AXIS
+
+/* One axis of the lead's cube look-ups (a lane per look-up): the inner box [lo, hi) of the
+ * cube of bricks b - reach .. b + reach, max(cube, 0) + spread .. min(cube, top) - spread,
+ * and the sample parameters `enter` and `leave` between which the lead lies inside it on this
+ * axis (t0, t1: where it crosses the faces; on an axis it does not move along, all or none:
+ * `in`); wide: the box is not empty on this axis. */
+#define LEAP_AXIS(AX, NB)                                                                      \
+    vint b##AX = min(convert_vint(clamp(g.AX, 0.0f, z->top.AX)) >> z->shift, z->NB - 1);       \
+    vfloat lo##AX = fmax(convert_vfloat((b##AX - reach) << z->shift), 0.0f) + z->spread.AX;    \
+    vfloat hi##AX = fmin(convert_vfloat((b##AX + reach + 1) << z->shift), z->top.AX) -         \
+                    z->spread.AX;                                                              \
+    vfloat t0##AX = (lo##AX - z->g0.AX) * z->inv_dg.AX;                                        \
+    vfloat t1##AX = (hi##AX - z->g0.AX) * z->inv_dg.AX;                                        \
+    vint still##AX = (vint)(-(z->dg.AX == 0.0f));                                             \
+    vint in##AX = z->g0.AX >= lo##AX & z->g0.AX < hi##AX;                                      \
+    vint wide##AX = lo##AX < hi##AX; /* the box is not empty on this axis */                  \
+    vfloat enter##AX = select(fmin(t0##AX, t1##AX),                                            \
+                              select((vfloat)(INFINITY), (vfloat)(-INFINITY), in##AX),         \
+                              still##AX);                                                      \
+    vfloat leave##AX = select(fmax(t0##AX, t1##AX),                                            \
+                              select((vfloat)(-INFINITY), (vfloat)(INFINITY), in##AX),         \
+                              still##AX)
+
+/* Adds to skip_from/skip_to (*skips of them, in order) the leaps found by looking up the
+ * lead at samples first + k stride (k = 0..15, those below limit): each look-up gives the
+ * samples where the lead lies in the inner box of its cube of zero bricks. Sixteen at once,
+ * since one look-up after another cost more than the leaps saved (each waited on the one
+ * before). Returns the sample after the last looked up. */
+static int zero_leaps(const zero_leap *z, int first, int stride, int from, int limit,
+                      int *skip_from, int *skip_to, int *skips)
+{
+    vint k = first + stride * (vint)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    vint on = k < limit;
+    vfloat fk = convert_vfloat(k);
+    vec3x g = {z->g0.x + fk * z->dg.x, z->g0.y + fk * z->dg.y, z->g0.z + fk * z->dg.z};
+    vint cx = min(convert_vint(clamp(g.x, 0.0f, z->top.x)) >> z->shift, z->nbx - 1);
+    vint cy = min(convert_vint(clamp(g.y, 0.0f, z->top.y)) >> z->shift, z->nby - 1);
+    vint cz = min(convert_vint(clamp(g.z, 0.0f, z->top.z)) >> z->shift, z->nbz - 1);
+    vint idx = select((vint)(0), cx + z->nbx * (cy + z->nby * cz), on);
+    __global const uchar *d = z->dist;
+#define LEAP_CODE(k) d[idx.s##k]
+    vint code = convert_vint((uchar16)(L16(LEAP_CODE)));
+#undef LEAP_CODE
+    vint reach = max(code & 127, 1) - 1; /* bricks on each side that are alike */
+    LEAP_AXIS(x, nbx);
+    LEAP_AXIS(y, nby);
+    LEAP_AXIS(z, nbz);
+    vfloat enter = fmax(enterx, fmax(entery, enterz));
+    vfloat leave = fmin(leavex, fmin(leavey, leavez));
+    /* samples k_in .. k_out - 1 lie in the box, rounding aside */
+    vfloat k_in = fmax(ceil(enter + SKIP_MARGIN), (float)from);
+    vfloat k_out = fmin(ceil(leave - SKIP_MARGIN), (float)limit);
+    vint leap = on & (code < 128) & (k_out > k_in) & widex & widey & widez;
+    if (!any(leap))
+        return first + RAY_PACKET * stride;
+    float ins[RAY_PACKET], outs[RAY_PACKET];
+    int leaps[RAY_PACKET];
+    vstore16(k_in, 0, ins);
+    vstore16(k_out, 0, outs);
+    vstore16(leap, 0, leaps);
+    for (int j = 0; j < RAY_PACKET; j++) { /* in order along the ray: merge those that meet */
+        if (!leaps[j])
+            continue;
+        int a = (int)ins[j], b = (int)outs[j];
+        if (*skips > 0 && a <= skip_to[*skips - 1])
+            skip_to[*skips - 1] = max(skip_to[*skips - 1], b);
+        else if (*skips < LEAPS_MAX) {
+            skip_from[*skips] = a;
+            skip_to[(*skips)++] = b;
+        }
+    }
+    return first + RAY_PACKET * stride;
+}
+#undef LEAP_AXIS
+
 /* Max, min or average of every sample's code (no termination). With the ranges, lanes skip
  * dull bricks (whose range cannot beat the lane's best; for average, bricks of zeros) and a
  * dull brick's whole block when the block is dull too (CDVR_CL_BLOCK_SHIFT); max and min
@@ -1514,14 +1718,15 @@ static vint sparse_max(const packet *p, vint n, float step, float3 inv_spacing,
  * others are 0, in the mean and the extreme, not read. Average then reads the packet's widest
  * window in lock-step instead of skipping bricks of zeros lane by lane (engine CT and Colin27
  * 512^2: the per-lane march reads 74% and 52% of the samples, this 88% and 61%, in the same
- * time and 0.79x); max marches its window lane by lane. (The host gives min no bounds: its
- * lanes end at their first brick of zeros anyway.) *taken: the samples read (and those of
- * flat bricks). */
+ * time and 0.79x), and with zb (the flags of the bricks above 0) leaps over the samples where
+ * the whole packet lies in zeros (zero_leap: 88% -> 77% and 61% -> 49%); max marches its
+ * window lane by lane. (The host gives min no bounds: its lanes end at their first brick of
+ * zeros anyway.) *taken: the samples read (and those of flat bricks). */
 static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spacing,
                            const volume_geo *v, const look_params *lk,
                            __global const float4 *table, __global const float *alpha,
                            const extreme_bricks *eb, int bounds, float te, float tx,
-                           vint *taken)
+                           const bricks *zb, vint *taken)
 {
     /* average keeps best at 0: the bound it skips bricks by (those whose maximum is 0) */
     vfloat best = (vfloat)(lk->blend == 2 ? INFINITY : lk->blend == 3 ? 0.0f : -INFINITY);
@@ -1541,23 +1746,51 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
         int to = lanes_max(select((vint)(0), end, on));
         /* samples below `full` are full segments on every lane (march_point) */
         int full = lanes_min(select((vint)(INT_MAX), n - 1, p->hit));
-        for (int i = from; i < to; i++) {
-            vint ok;
-            vfloat tm;
-            vec3x g;
-            if (lk->blend == 3 && i < full) { /* march_point's at() for every lane */
-                g = at(eb->g0, eb->dg, (vint)(i));
-                ok = p->hit & (i < n);
-            } else {
-                g = lk->blend == 3 ? march_point(p, eb, (vint)(i), n, step, inv_spacing, &ok)
-                                   : sample_point(p, (vint)(i), n, step, inv_spacing, &ok, &tm);
+        /* average with the zero flags: the leaps below `full` (zero_leap), found before the
+         * samples are read (the samples' addresses then never wait on a look-up) */
+        int skip_from[LEAPS_MAX], skip_to[LEAPS_MAX], skips = 0;
+        int limit = min(full, to);
+        zero_leap zl;
+        if (lk->blend == 3 && bounds && zb && from < limit &&
+            zero_leap_make(p, eb, zb, v, from, limit, &zl)) {
+            /* a look-up per brick edge of the lead's path along its longest axis */
+            float most = fmax(fabs(zl.dg.x), fmax(fabs(zl.dg.y), fabs(zl.dg.z)));
+            int stride = (int)clamp((float)(1 << zl.shift) / most, 1.0f, 64.0f);
+            for (int first = from; first < limit;)
+                first = zero_leaps(&zl, first, stride, from, limit, skip_from, skip_to,
+                                   &skips);
+        }
+        int i = from;
+        for (int k = 0; k <= skips; k++) {
+            int stop = k < skips ? skip_from[k] : to;
+            /* average's full segments in a loop of their own, with no blend or `full` tests:
+               every hit lane has sample i (i < full), and a lane that misses reads voxel 0
+               (g0 = dg = 0) into a sum it never shows (in_mean is 0) */
+            int end = lk->blend == 3 ? min(stop, full) : i;
+            count += p->hit & (vint)(max(end - i, 0));
+            for (; i < end; i++)
+                sum += trilinear(v, at(eb->g0, eb->dg, (vint)(i)));
+            for (; i < stop; i++) {
+                vint ok;
+                vfloat tm;
+                vec3x g;
+                if (lk->blend == 3 && i < full) { /* march_point's at() for every lane */
+                    g = at(eb->g0, eb->dg, (vint)(i));
+                    ok = p->hit & (i < n);
+                } else {
+                    g = lk->blend == 3
+                            ? march_point(p, eb, (vint)(i), n, step, inv_spacing, &ok)
+                            : sample_point(p, (vint)(i), n, step, inv_spacing, &ok, &tm);
+                }
+                vfloat s = trilinear(v, g);
+                count -= ok;
+                if (lk->blend == 3)
+                    sum += select((vfloat)(0.0f), s, ok);
+                else
+                    best = select(best, lk->blend == 1 ? fmax(best, s) : fmin(best, s), ok);
             }
-            vfloat s = trilinear(v, g);
-            count -= ok;
-            if (lk->blend == 3)
-                sum += select((vfloat)(0.0f), s, ok);
-            else
-                best = select(best, lk->blend == 1 ? fmax(best, s) : fmin(best, s), ok);
+            if (k < skips)
+                i = skip_to[k];
         }
         /* the packet's widest window was read: a lane's samples read outside its own window
          * are not among its zeros */
@@ -1724,8 +1957,10 @@ static volume_geo make_geo(__global const uchar *vol, __constant uchar *params, 
     v.params = params;
     v.frame = frame;
     v.tiled = tiled;
-    v.page_counts = (int2)((X + CDVR_CL_PAGE_EDGE - 1) / CDVR_CL_PAGE_EDGE,
-                           (Y + CDVR_CL_PAGE_EDGE - 1) / CDVR_CL_PAGE_EDGE);
+    int pages_x = (X + CDVR_CL_PAGE_EDGE - 1) / CDVR_CL_PAGE_EDGE;
+    int pages_y = (Y + CDVR_CL_PAGE_EDGE - 1) / CDVR_CL_PAGE_EDGE;
+    v.page_row = pages_x << 10;
+    v.page_slab = pages_x * pages_y << 10;
     v.dims = (int3)(X, Y, Z);
     v.base_max = max(v.dims - 2, 0);
     v.stride = (long3)(X > 1 ? 1 : 0, Y > 1 ? (long)X : 0, Z > 1 ? (long)X * (long)Y : 0);
@@ -1919,7 +2154,8 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
         eb.nbz = nbz;
         eb.g0 = g0;
         eb.dg = dg;
-        bricks iso_bricks = make_bricks(brick_visible, brick_shift, nbx, nby, nbz, dg);
+        /* the flags of iso (the bricks that can hold its code) or of average (those above 0) */
+        bricks flag_bricks = make_bricks(brick_visible, brick_shift, nbx, nby, nbz, dg);
         eb.inv_dg = (vec3x){select((vfloat)(INFINITY), 1.0f / dg.x, dg.x != 0.0f),
                             select((vfloat)(INFINITY), 1.0f / dg.y, dg.y != 0.0f),
                             select((vfloat)(INFINITY), 1.0f / dg.z, dg.z != 0.0f)};
@@ -1938,11 +2174,11 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
             taken = counted_samples(&p, n, step, &last);
         } else if (look.blend == 4)
             out = march_iso(&p, n, step, inv_spacing, &v, &look, table, &view,
-                            skipping ? &iso_bricks : 0, g0, dg, first, &taken);
+                            skipping ? &flag_bricks : 0, g0, dg, first, &taken);
         else
             out = march_extreme(&p, n, step, inv_spacing, &v, &look, table, alpha, &eb,
                                 entry_on && (look.blend == 1 || look.blend == 3), te, tx,
-                                &taken);
+                                look.blend == 3 && skipping ? &flag_bricks : 0, &taken);
         store_pixels(image, px, py, cam.width, cam.height, out);
         int8 s8 = taken.lo + taken.hi;
         int4 s4 = s8.lo + s8.hi;

@@ -161,6 +161,9 @@ struct cdvr_cl_stream {
                                     average: entry and exit bounds) */
     int zero_entry_ok;
     uint64_t zero_minmax;        /* minmax_count of the ranges zero_entry was made of, 0: none */
+    cl_mem zero_flags;           /* nbricks uchar flags of those bricks (average's leaps,
+                                    raycast.cl; cl_render.c, zero_entry_ready) */
+    int zero_flags_ok;           /* zero_flags holds them */
     cl_mem entry_tiles;          /* per packet: t before which no ray meets a visible brick */
     size_t entry_capacity;       /* bytes of entry_tiles */
     cdvr_cl_entry_made entry_made; /* what entry_tiles were made for (valid 0: none) */

@@ -179,14 +179,17 @@ static int iso_flags_ready(cdvr_cl_stream *s, size_t frame, float code)
 /* Max and average (raycast.cl, march_extreme): the entry list of the set-up frame's bricks
  * whose range holds a code above 0, for entry and exit bounds: samples outside them lie in
  * bricks of zeros and are 0 (average: they add nothing to the sum and count in the mean; max:
- * its extreme is at least 0). Made again only when the ranges change. Returns 1
- * when zero_entry holds it; 0 (the render then skips brick by brick) as iso_flags_ready. */
+ * its extreme is at least 0), and those bricks' flags in zero_flags (average's leaps over
+ * cubes of zeros inside the bounds; zero_flags_ok says whether it holds them). Made again
+ * only when the ranges change. Returns 1 when zero_entry holds the list; 0 (the render then
+ * skips brick by brick) as iso_flags_ready. */
 static int zero_entry_ready(cdvr_cl_stream *s, size_t frame)
 {
     if (!s->skipping || s->grid_uploaded || s->minmax_frame != frame || !s->minmax_count)
         return 0;
     if (s->zero_minmax == s->minmax_count)
         return s->zero_entry_ok;
+    s->zero_flags_ok = 0;
     uint8_t *flags = malloc(s->nbricks);
     if (!flags)
         return 0;
@@ -195,6 +198,13 @@ static int zero_entry_ready(cdvr_cl_stream *s, size_t frame)
     above_zero[0] = 0;
     cdvr_skip_flags_into(&s->grid, above_zero, flags);
     s->zero_entry_ok = entry_list_of(s, flags, &s->zero_entry);
+    cdvr_error ignored; /* without the flags average reads its whole window */
+    size_t cap = s->zero_flags ? s->nbricks : 0;
+    s->zero_flags_ok = cdvr_cl_ensure_buffer(s->cl, &s->zero_flags, &cap, s->nbricks,
+                                             CL_MEM_READ_ONLY, "zero brick flags",
+                                             &ignored) == CDVR_OK &&
+                       write_buffer(s->cl, s->zero_flags, flags, s->nbricks,
+                                    "upload zero brick flags", &ignored) == CDVR_OK;
     free(flags);
     s->zero_minmax = s->minmax_count;
     return s->zero_entry_ok;
@@ -533,11 +543,12 @@ static int entry_tiles_ready(cdvr_cl_stream *s, const cam_params *cam, const dou
 
 /* Sets the ray-cast kernel's arguments (in the order of kernels/render/raycast.cl). A clipped
  * render casts the whole volume's rays and skips no empty space (the brick grid describes
- * the stream's own voxels only). */
+ * the stream's own voxels only). flags_skip: iso skips by iso_flags, average leaps by
+ * zero_flags (the kernel's brick flags are then those). */
 static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_params rp,
                                     const cam_params *cam, const cdvr_render_clip *clip,
                                     const double spacing[3], const box_frame *box,
-                                    const cdvr_cl_look *look, int iso_skip, cl_mem image,
+                                    const cdvr_cl_look *look, int flags_skip, cl_mem image,
                                     cl_int entry_on, cl_int entry_tiles_x, cl_int grads_on,
                                     cl_int quads_on, cl_kernel *kernel, cdvr_error *err)
 {
@@ -562,10 +573,11 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
     cl_int bricks[5] = {CDVR_CL_BRICK_SHIFT, (cl_int)s->brick_dims[0], (cl_int)s->brick_dims[1],
                         (cl_int)s->brick_dims[2], s->skipping && !clip};
     cl_mem flags = s->brick_visible;
-    if (look->blend == CDVR_BLEND_ISO) { /* skipping by the iso code's flags, or none */
-        bricks[4] = iso_skip;
-        if (iso_skip)
-            flags = s->iso_flags;
+    /* iso: skipping by the iso code's flags, or none; average: leaps by the zero flags */
+    if (look->blend == CDVR_BLEND_ISO || look->blend == CDVR_BLEND_AVERAGE) {
+        bricks[4] = flags_skip;
+        if (flags_skip)
+            flags = look->blend == CDVR_BLEND_ISO ? s->iso_flags : s->zero_flags;
     }
     cl_float step = (cl_float)rp.step, term_alpha = (cl_float)rp.term_alpha;
     cl_float unit = (cl_float)rp.unit;
@@ -921,7 +933,11 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     cl_int entry_on = entry_tiles_ready(s, &cam, spacing, origin, D, global, entry_wanted, kind);
     cl_int grads_on = !opts->clip && grads_ready(s, frame, &opts->look);
     cl_int quads_on = !opts->clip && quads_ready(s, frame, look.blend);
-    st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box, &look, iso_skip,
+    const char *leaps = getenv("CDVR_CL_LEAPS"); /* "0": average reads its whole window */
+    int flags_skip = iso ? iso_skip
+                         : look.blend == CDVR_BLEND_AVERAGE && zero_bounds && s->zero_flags_ok &&
+                               !(leaps && !strcmp(leaps, "0"));
+    st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box, &look, flags_skip,
                           host_image ? host_image : s->image, entry_on, (cl_int)global[0],
                           grads_on, quads_on, &kernel, err);
     if (!st)

@@ -115,7 +115,7 @@ void cdvr_cl_stream_free(cdvr_cl_stream *s)
         return;
     cl_mem *mems[] = {&s->payload, &s->params, &s->frames, &s->host_frames, &s->tiles, &s->grads,
                       &s->quads, &s->table, &s->alpha_unit,
-                      &s->brick_minmax, &s->brick_visible, &s->iso_flags, &s->image,
+                      &s->brick_minmax, &s->brick_visible, &s->iso_flags, &s->zero_flags, &s->image,
                       &s->samples, &s->entry_tiles};
     for (size_t i = 0; i < sizeof mems / sizeof *mems; i++)
         cdvr_cl_release(mems[i]);
