@@ -482,23 +482,45 @@ __attribute__((noinline)) static vfloat cache_value_at(const volume_geo *v, vec3
  * g - offset is exact in float). */
 /* Lanes off `on` read voxel (0, 0, 0) instead (their values are discarded): lanes that wait or
  * skip then cost cache hits, not misses on voxels they may never sample. */
+#if !defined(CDVR_FETCH) && !defined(CDVR_LONG_INDEX)
+/* A lower corner without the clamp of g into the volume: g lies in it up to the rounding of
+ * its position (below 0: the index truncates to 0, the weight is g; above dims - 1: the
+ * corner is dims - 2, the weight above 1), within float rounding of corner()'s sample. */
+static vint corner_inside(vfloat g, int base_max, vfloat *frac)
+{
+    vint i0 = min(convert_vint(g), base_max);
+    *frac = g - convert_vfloat(i0);
+    return i0;
+}
+
+/* The trilinear sample from the quad copy: two words, rows y0, y1 of the cell's z0 and z1
+ * faces (never clipped: no offset). `inside`: corner_inside's corners. */
+__attribute__((always_inline)) static inline vfloat quad_trilinear(const volume_geo *v, vec3x g,
+                                                                   vint on, int inside)
+{
+    vfloat fx, fy, fz;
+    vint x0 = inside ? corner_inside(g.x, v->base_max.x, &fx)
+                     : corner(g.x, v->top.x, v->base_max.x, &fx);
+    vint y0 = inside ? corner_inside(g.y, v->base_max.y, &fy)
+                     : corner(g.y, v->top.y, v->base_max.y, &fy);
+    vint z0 = inside ? corner_inside(g.z, v->base_max.z, &fz)
+                     : corner(g.z, v->top.z, v->base_max.z, &fz);
+    vint xy = copy_x(x0) + copy_y(v, y0), zero = (vint)(0);
+    vint i0 = select(zero, xy + copy_z(v, z0), on);
+    vint i1 = select(zero, xy + copy_z(v, z0 + (v->stride.z != 0)), on);
+    vuint q0 = (vuint)(L16(QUAD0)), q1 = (vuint)(L16(QUAD1));
+    return mix(mix(pair_lerp(q0, fx), pair_lerp(q0 >> 16, fx), fy),
+               mix(pair_lerp(q1, fx), pair_lerp(q1 >> 16, fx), fy), fz);
+}
+#endif
+
 __attribute__((always_inline)) static inline vfloat trilinear_on(const volume_geo *v, vec3x g,
                                                                  vint on)
 {
     vfloat fx, fy, fz;
 #if !defined(CDVR_FETCH) && !defined(CDVR_LONG_INDEX)
-    if (v->quads_on) { /* two words: rows y0, y1 of the cell's z0 and z1 faces (never
-                          clipped: no offset) */
-        vint x0 = corner(g.x, v->top.x, v->base_max.x, &fx);
-        vint y0 = corner(g.y, v->top.y, v->base_max.y, &fy);
-        vint z0 = corner(g.z, v->top.z, v->base_max.z, &fz);
-        vint xy = copy_x(x0) + copy_y(v, y0), zero = (vint)(0);
-        vint i0 = select(zero, xy + copy_z(v, z0), on);
-        vint i1 = select(zero, xy + copy_z(v, z0 + (v->stride.z != 0)), on);
-        vuint q0 = (vuint)(L16(QUAD0)), q1 = (vuint)(L16(QUAD1));
-        return mix(mix(pair_lerp(q0, fx), pair_lerp(q0 >> 16, fx), fy),
-                   mix(pair_lerp(q1, fx), pair_lerp(q1 >> 16, fx), fy), fz);
-    }
+    if (v->quads_on)
+        return quad_trilinear(v, g, on, 0);
 #endif
     vint x0 = corner(g.x - v->offset.x, v->top.x, v->base_max.x, &fx);
     vint y0 = corner(g.y - v->offset.y, v->top.y, v->base_max.y, &fy);
@@ -1768,8 +1790,21 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
                (g0 = dg = 0) into a sum it never shows (in_mean is 0) */
             int end = lk->blend == 3 ? min(stop, full) : i;
             count += p->hit & (vint)(max(end - i, 0));
-            for (; i < end; i++)
-                sum += trilinear(v, at(eb->g0, eb->dg, (vint)(i)));
+            /* i as a float counted up (exact below 2^24): at()'s conversion, one
+               instruction where at() takes three */
+            for (float fi = (float)i; i < end; i++, fi += 1.0f) {
+                vec3x g = {eb->g0.x + fi * eb->dg.x, eb->g0.y + fi * eb->dg.y,
+                           eb->g0.z + fi * eb->dg.z};
+#if !defined(CDVR_FETCH) && !defined(CDVR_LONG_INDEX)
+                /* inside the volume: every hit lane's full segments (a lane that misses
+                   samples voxel 0) */
+                if (v->quads_on) {
+                    sum += quad_trilinear(v, g, (vint)(-1), 1);
+                    continue;
+                }
+#endif
+                sum += trilinear(v, g);
+            }
             for (; i < stop; i++) {
                 vint ok;
                 vfloat tm;
