@@ -253,7 +253,12 @@ static vint along_z(const volume_geo *v, vint z)
 
 /* The word of voxel (x, y, z) in the gradient and quad copies (cl_shared.h: 4 w + (x & 3),
  * w the voxel's row word in the tiled copy) is copy_x(x) + copy_y(y) + copy_z(z). */
-#ifdef __AVX512F__
+#if defined(__AVX512F__) && defined(__has_builtin)
+#if __has_builtin(__builtin_ia32_permvarsi512)
+#define HAVE_VPERMD 1
+#endif
+#endif
+#ifdef HAVE_VPERMD
 /* PoCL on a CPU with AVX-512: the bits within a page come from a 16-entry table indexed by
  * the coordinate's low 4 bits (vpermd, one instruction where the shifts and masks took
  * five: engine CT average 512^2 5% less time, composite 2%). */
@@ -2029,6 +2034,14 @@ static bricks make_bricks(__global const uchar *dist, int shift, int nbx, int nb
     return b;
 }
 
+/* clang's two-vector shuffle with constant indices (one instruction each on AVX-512), where
+ * the compiler has it */
+#if defined(__has_builtin)
+#if __has_builtin(__builtin_shufflevector)
+#define HAVE_SHUFFLEVECTOR 1
+#endif
+#endif
+
 /* A packet wholly inside the image stores each row of 4 pixels as one 16-float vector;
  * packets over the image's edge store pixel by pixel. */
 static void store_pixels(__global float4 *image, vint px, vint py, int width, int height,
@@ -2042,8 +2055,10 @@ static void store_pixels(__global float4 *image, vint px, vint py, int width, in
     vstore16(acc.a, 0, a);
     int px0 = px.s0, py0 = py.s0;
     if (px0 + PACKET_W <= width && py0 + PACKET_H <= height) { /* whole packet: rows of 4 */
+        __global float *row = (__global float *)(image + (size_t)py0 * width + px0);
+#ifdef HAVE_SHUFFLEVECTOR
         /* rgba of lanes 4y .. 4y + 3 by six two-vector shuffles (through the arrays, the
-           stores took 40% of an empty frame) */
+           stores took 40% of an empty frame on PoCL) */
         float16 rg_lo = __builtin_shufflevector(acc.r, acc.g, 0, 16, 1, 17, 2, 18, 3, 19, 4,
                                                 20, 5, 21, 6, 22, 7, 23);
         float16 ba_lo = __builtin_shufflevector(acc.b, acc.a, 0, 16, 1, 17, 2, 18, 3, 19, 4,
@@ -2061,9 +2076,17 @@ static void store_pixels(__global float4 *image, vint px, vint py, int width, in
                                     7, 22, 23),
             __builtin_shufflevector(rg_hi, ba_hi, 8, 9, 24, 25, 10, 11, 26, 27, 12, 13, 28, 29,
                                     14, 15, 30, 31)};
-        __global float *row = (__global float *)(image + (size_t)py0 * width + px0);
         for (int y = 0; y < PACKET_H; y++, row += 4 * width)
             vstore16(rows[y], 0, row);
+#else
+        for (int y = 0; y < PACKET_H; y++, row += 4 * width) {
+            int k = PACKET_W * y;
+            vstore16((float16)(r[k], g[k], b[k], a[k], r[k + 1], g[k + 1], b[k + 1], a[k + 1],
+                               r[k + 2], g[k + 2], b[k + 2], a[k + 2], r[k + 3], g[k + 3],
+                               b[k + 3], a[k + 3]),
+                     0, row);
+        }
+#endif
         return;
     }
     vstore16(px, 0, px_);
