@@ -1651,7 +1651,7 @@ static int zero_leap_make(const packet *p, const extreme_bricks *eb, const brick
     LEAD_AXIS(x);
     LEAD_AXIS(y);
     LEAD_AXIS(z);
-    z->inv_dg = 1.0f / z->dg; /* inf where dg is 0 (LEAP_AXIS then takes the still case) */
+    z->inv_dg = 1.0f / z->dg; /* inf where dg is 0 or denormal: LEAP_AXIS's still case */
     z->dist = zb->dist;
     z->shift = zb->shift;
     z->nbx = zb->nbx;
@@ -1674,7 +1674,7 @@ static int zero_leap_make(const packet *p, const extreme_bricks *eb, const brick
                     z->spread.AX;                                                              \
     vfloat t0##AX = (lo##AX - z->g0.AX) * z->inv_dg.AX;                                        \
     vfloat t1##AX = (hi##AX - z->g0.AX) * z->inv_dg.AX;                                        \
-    vint still##AX = (vint)(-(z->dg.AX == 0.0f));                                             \
+    vint still##AX = (vint)(-isinf(z->inv_dg.AX)); /* dg 0, or too small to invert */         \
     vint in##AX = z->g0.AX >= lo##AX & z->g0.AX < hi##AX;                                      \
     vint wide##AX = lo##AX < hi##AX; /* the box is not empty on this axis */                  \
     vfloat enter##AX = select(fmin(t0##AX, t1##AX),                                            \
