@@ -1535,12 +1535,13 @@ static vint counted_samples(const packet *p, vint n, float step, vint *last)
     return select((vint)(0), n - 1 - *last, p->hit);
 }
 
-/* Sample i of each lane as average reads it: at g0 + i dg (eb's, as composite's `at`) on the
- * full segments and sample_point's midpoint on the last, shorter one; within float rounding of
- * render.h's sample position (engine CT and Colin27 average 512^2: 9% less time than
- * sample_point everywhere). The lock-step loop takes the `at` side by a packet-wide test
- * (i < full): with this lane-wise test in it, the compiler computed both sides and it gained
- * nothing. *ok: lanes where segment i exists. */
+/* Sample i of each lane as average, and max and min lane by lane, read it: at g0 + i dg (eb's,
+ * as composite's `at`) on the full segments and sample_point's midpoint on the last, shorter
+ * one; within float rounding of render.h's sample position (engine CT and Colin27 average
+ * 512^2: 9% less time than sample_point everywhere; Colin27 max 7%, engine max 2%, the image
+ * 19 pixels apart by one level of 255). The lock-step loop takes the `at` side by a
+ * packet-wide test (i < full): with this lane-wise test in it, the compiler computed both
+ * sides and it gained nothing. *ok: lanes where segment i exists. */
 static vec3x march_point(const packet *p, const extreme_bricks *eb, vint i, vint n, float step,
                          float3 inv_spacing, vint *ok)
 {
@@ -1581,8 +1582,9 @@ static vint zero_window(const packet *p, vint n, float step, float te, float tx,
  * *best before the march, which then finds more bricks dull. These are samples of the ray, so
  * *best stays at most its maximum and the result is the same. Lanes already at 255 take no
  * part. Returns the samples read per lane. */
-static vint sparse_max(const packet *p, vint n, float step, float3 inv_spacing,
-                       const volume_geo *v, vint first, vint lim, int every, vfloat *best)
+static vint sparse_max(const packet *p, const extreme_bricks *eb, vint n, float step,
+                       float3 inv_spacing, const volume_geo *v, vint first, vint lim, int every,
+                       vfloat *best)
 {
     vint on = p->hit & (first < lim) & (*best < 255.0f), read = (vint)(0);
     int from = lanes_min(select((vint)(INT_MAX), first, on));
@@ -1591,8 +1593,7 @@ static vint sparse_max(const packet *p, vint n, float step, float3 inv_spacing,
         return read;
     for (int j = from + every / 2; j < to; j += every) {
         vint ok;
-        vfloat tm;
-        vec3x g = sample_point(p, (vint)(j), n, step, inv_spacing, &ok, &tm);
+        vec3x g = march_point(p, eb, (vint)(j), n, step, inv_spacing, &ok);
         ok &= on & (j >= first) & (j < lim);
         vfloat s = trilinear_on(v, g, ok);
         *best = select(*best, fmax(*best, s), ok);
@@ -1830,15 +1831,12 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
             }
             for (; i < stop; i++) {
                 vint ok;
-                vfloat tm;
                 vec3x g;
-                if (lk->blend == 3 && i < full) { /* march_point's at() for every lane */
+                if (i < full) { /* march_point's at() for every lane */
                     g = at(eb->g0, eb->dg, (vint)(i));
                     ok = p->hit & (i < n);
                 } else {
-                    g = lk->blend == 3
-                            ? march_point(p, eb, (vint)(i), n, step, inv_spacing, &ok)
-                            : sample_point(p, (vint)(i), n, step, inv_spacing, &ok, &tm);
+                    g = march_point(p, eb, (vint)(i), n, step, inv_spacing, &ok);
                 }
                 vfloat s = trilinear(v, g);
                 count -= ok;
@@ -1868,7 +1866,7 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
          * 22.8 -> 23.5 ms; every 4, 8 or 32 voxels: 1.1x, 1.02x, 1.01x that time on the
          * engine; min, whose lanes end at 0, lost 1.2x and 3.7x) */
         if (lk->blend == 1)
-            count += sparse_max(p, n, step, inv_spacing, v, i, lim,
+            count += sparse_max(p, eb, n, step, inv_spacing, v, i, lim,
                                 run_samples(step, inv_spacing), &best);
         vint live = p->hit & (i < lim) & (best != saturated);
         /* runs of 2 RUN_VOXELS for max and min (engine CT and Colin27 512^2 max: 1.5% and 4%
@@ -1903,9 +1901,7 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
                 if (!lanes_any(run))
                     break;
                 vint ok;
-                vfloat tm;
-                vec3x g = is_avg ? march_point(p, eb, i, n, step, inv_spacing, &ok)
-                                 : sample_point(p, i, n, step, inv_spacing, &ok, &tm);
+                vec3x g = march_point(p, eb, i, n, step, inv_spacing, &ok);
                 ok &= run;
                 vfloat s = trilinear(v, g);
                 count -= ok;
