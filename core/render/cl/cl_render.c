@@ -40,6 +40,13 @@ typedef struct voxel_source {
     cl_int tiled;               /* vol holds the frame's tiled copy (ray caster only) */
 } voxel_source;
 
+/* Whether environment variable `name` is set to `value` (the CDVR_CL_* switches). */
+static int env_is(const char *name, const char *value)
+{
+    const char *env = getenv(name);
+    return env && !strcmp(env, value);
+}
+
 static cdvr_status source_of(cdvr_cl_stream *s, size_t frame, voxel_source *v, cdvr_error *err)
 {
     if (s->fetch) {
@@ -49,8 +56,7 @@ static cdvr_status source_of(cdvr_cl_stream *s, size_t frame, voxel_source *v, c
     }
     *v = (voxel_source){s->cl->k_bricks, s->cl->k_raycast, cdvr_cl_frames_mem(s), s->params,
                         (cl_ulong)(frame * s->voxels), 0};
-    const char *force = getenv("CDVR_CL_LONG_INDEX");
-    if (s->voxels > INT_MAX || (force && !strcmp(force, "1"))) /* 32-bit indices overflow */
+    if (s->voxels > INT_MAX || env_is("CDVR_CL_LONG_INDEX", "1")) /* 32-bit indices overflow */
         return cdvr_cl_long_index_kernels(s->cl, &v->k_bricks, &v->k_raycast, err);
     return CDVR_OK;
 }
@@ -138,6 +144,17 @@ static int entry_list_of(const cdvr_cl_stream *s, uint8_t *flags, cdvr_skip_entr
     return cdvr_skip_entry_make(e, &g, ENTRY_CELL_LOG2, &ignored) == CDVR_OK;
 }
 
+/* Puts the nbricks flags into device buffer *buf (made on first use). Returns 1 on success;
+ * on failure the render goes without them. */
+static int flags_uploaded(cdvr_cl_stream *s, cl_mem *buf, const uint8_t *flags, const char *what)
+{
+    cdvr_error ignored;
+    size_t cap = *buf ? s->nbricks : 0;
+    return cdvr_cl_ensure_buffer(s->cl, buf, &cap, s->nbricks, CL_MEM_READ_ONLY, what,
+                                 &ignored) == CDVR_OK &&
+           write_buffer(s->cl, *buf, flags, s->nbricks, what, &ignored) == CDVR_OK;
+}
+
 /* Iso skipping (raycast.cl, march_iso): iso_flags gets the flags of the set-up frame's ranges
  * for the one code floor(code): a brick whose (whole-code) range [lo, hi] can hold the iso
  * code has lo <= floor(code) <= hi, so one without lies strictly on one side of it. Made
@@ -153,23 +170,17 @@ static int iso_flags_ready(cdvr_cl_stream *s, size_t frame, float code)
     if (s->iso_minmax == s->minmax_count && s->iso_mark == mark)
         return 1;
     s->iso_minmax = 0;
-    cdvr_error ignored;
-    size_t cap = s->iso_flags ? s->nbricks : 0;
     uint8_t *flags = malloc(s->nbricks);
-    if (!flags || cdvr_cl_ensure_buffer(s->cl, &s->iso_flags, &cap, s->nbricks,
-                                        CL_MEM_READ_ONLY, "iso brick flags", &ignored) != CDVR_OK) {
-        free(flags);
+    if (!flags)
         return 0;
-    }
     uint8_t marks[256] = {0};
     if (mark >= 0)
         marks[mark] = 1;
     cdvr_skip_flags_into(&s->grid, marks, flags);
-    cdvr_status st = write_buffer(s->cl, s->iso_flags, flags, s->nbricks,
-                                  "upload iso brick flags", &ignored);
-    s->iso_entry_ok = st == CDVR_OK && entry_list_of(s, flags, &s->iso_entry);
+    int uploaded = flags_uploaded(s, &s->iso_flags, flags, "iso brick flags");
+    s->iso_entry_ok = uploaded && entry_list_of(s, flags, &s->iso_entry);
     free(flags);
-    if (st != CDVR_OK)
+    if (!uploaded)
         return 0;
     s->iso_minmax = s->minmax_count;
     s->iso_mark = mark;
@@ -198,13 +209,8 @@ static int zero_entry_ready(cdvr_cl_stream *s, size_t frame)
     above_zero[0] = 0;
     cdvr_skip_flags_into(&s->grid, above_zero, flags);
     s->zero_entry_ok = entry_list_of(s, flags, &s->zero_entry);
-    cdvr_error ignored; /* without the flags average reads its whole window */
-    size_t cap = s->zero_flags ? s->nbricks : 0;
-    s->zero_flags_ok = cdvr_cl_ensure_buffer(s->cl, &s->zero_flags, &cap, s->nbricks,
-                                             CL_MEM_READ_ONLY, "zero brick flags",
-                                             &ignored) == CDVR_OK &&
-                       write_buffer(s->cl, s->zero_flags, flags, s->nbricks,
-                                    "upload zero brick flags", &ignored) == CDVR_OK;
+    /* without the flags average reads its whole window */
+    s->zero_flags_ok = flags_uploaded(s, &s->zero_flags, flags, "zero brick flags");
     free(flags);
     s->zero_minmax = s->minmax_count;
     return s->zero_entry_ok;
@@ -684,9 +690,8 @@ static void make_tiles_if_rerendered(cdvr_cl_stream *s, size_t frame)
 {
     int again = s->last_rendered == frame;
     s->last_rendered = frame;
-    const char *force_long = getenv("CDVR_CL_LONG_INDEX");
     size_t bytes = tiled_bytes(s->dims);
-    if (s->fetch || !again || bytes > INT_MAX || (force_long && !strcmp(force_long, "1")))
+    if (s->fetch || !again || bytes > INT_MAX || env_is("CDVR_CL_LONG_INDEX", "1"))
         return;
     copy_ready(s, frame, s->cl->k_tiles, "make_tiles", &s->tiles, &s->tiles_capacity,
                &s->tiles_frame, bytes);
@@ -704,10 +709,9 @@ static void make_tiles_if_rerendered(cdvr_cl_stream *s, size_t frame)
  * render reads it. */
 static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
 {
-    const char *env = getenv("CDVR_CL_GRADS");
     int wanted = look->shade.enabled || look->gradient_opacity.npoints > 0;
     size_t bytes;
-    if (s->tiles_frame != frame || !wanted || (env && !strcmp(env, "0")) ||
+    if (s->tiles_frame != frame || !wanted || env_is("CDVR_CL_GRADS", "0") ||
         !cdvr_size_mul(tiled_bytes(s->dims), 4, &bytes) || bytes > WORD_COPY_MAX_BYTES)
         return 0;
     return copy_ready(s, frame, s->cl->k_grads, "make_grads", &s->grads, &s->grads_capacity,
@@ -733,12 +737,11 @@ static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
  * copy. Returns 1 when the render reads it. */
 static int quads_ready(cdvr_cl_stream *s, size_t frame, int blend)
 {
-    const char *env = getenv("CDVR_CL_QUADS");
     size_t bytes;
-    if (s->tiles_frame != frame || (env && !strcmp(env, "0")) ||
+    if (s->tiles_frame != frame || env_is("CDVR_CL_QUADS", "0") ||
         !cdvr_size_mul(tiled_bytes(s->dims), 4, &bytes) || bytes > WORD_COPY_MAX_BYTES)
         return 0;
-    if (!(env && !strcmp(env, "1")) &&
+    if (!env_is("CDVR_CL_QUADS", "1") &&
         (s->cl->info.is_gpu || bytes > QUADS_AUTO_MAX_BYTES || blend == CDVR_BLEND_ISO))
         return 0;
     return copy_ready(s, frame, s->cl->k_quads, "make_quads", &s->quads, &s->quads_capacity,
@@ -933,10 +936,10 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     cl_int entry_on = entry_tiles_ready(s, &cam, spacing, origin, D, global, entry_wanted, kind);
     cl_int grads_on = !opts->clip && grads_ready(s, frame, &opts->look);
     cl_int quads_on = !opts->clip && quads_ready(s, frame, look.blend);
-    const char *leaps = getenv("CDVR_CL_LEAPS"); /* "0": average reads its whole window */
+    /* CDVR_CL_LEAPS=0: average reads its whole window */
     int flags_skip = iso ? iso_skip
                          : look.blend == CDVR_BLEND_AVERAGE && zero_bounds && s->zero_flags_ok &&
-                               !(leaps && !strcmp(leaps, "0"));
+                               !env_is("CDVR_CL_LEAPS", "0");
     st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box, &look, flags_skip,
                           host_image ? host_image : s->image, entry_on, (cl_int)global[0],
                           grads_on, quads_on, &kernel, err);
