@@ -57,7 +57,7 @@ typedef uint16 vuint;
 #define convert_vfloat convert_float16
 #define convert_vint convert_int16
 #define convert_vlong convert_long16
-/* Whether any lane is set (its sign bit, as lanes_any()). PoCL 3.1 compiles lanes_any(int16) into a
+/* Whether any lane is set (its sign bit, as any()). PoCL 3.1 compiles any(int16) into a
  * chain of 16 sign tests, about 40 instructions; with AVX-512 DQ it is one vpmovd2m and a
  * test (Colin27 composite 512^2 step 1.0, where a packet takes about 4 samples per lane and
  * the march's tests are a large part: 5% less time; engine CT shaded 4%). */
@@ -879,8 +879,7 @@ __attribute__((noinline)) static vec3x central_exact(const volume_geo *v,
                                                      const look_params *lk, vec3x g, vint on)
 {
     vec3x dq;
-#ifndef CDVR_LONG_INDEX
-#ifndef CDVR_FETCH
+#if !defined(CDVR_LONG_INDEX) && !defined(CDVR_FETCH)
     vec3x diff, h;
     if (v->tiled && central_tiled(v, g, on, &diff, &h)) {
         dq.x = select((vfloat)(0.0f), diff.x / (h.x * lk->spacing[0]), h.x > 0.0f);
@@ -888,7 +887,6 @@ __attribute__((noinline)) static vec3x central_exact(const volume_geo *v,
         dq.z = select((vfloat)(0.0f), diff.z / (h.z * lk->spacing[2]), h.z > 0.0f);
         return dq;
     }
-#endif
 #endif
     CENTRAL(x, lk->spacing[0]);
     CENTRAL(y, lk->spacing[1]);
@@ -1507,24 +1505,25 @@ static vint extreme_step(const extreme_bricks *eb, const volume_geo *v, vint *i,
     return flat;
 }
 
-/* The least and the greatest of a packet's lanes. */
-static int lanes_min(vint x)
-{
-    int xs[RAY_PACKET], m = INT_MAX;
-    vstore16(x, 0, xs);
-    for (int k = 0; k < RAY_PACKET; k++)
-        m = min(m, xs[k]);
-    return m;
-}
-
-static int lanes_max(vint x)
-{
-    int xs[RAY_PACKET], m = INT_MIN;
-    vstore16(x, 0, xs);
-    for (int k = 0; k < RAY_PACKET; k++)
-        m = max(m, xs[k]);
-    return m;
-}
+/* The least and the greatest of a packet's lanes, halving the vector (floats: no NaN among
+ * them, so selects, which compile to one instruction where fmin and fmax take three). */
+#define LESS_OF(a, b) select(b, a, (a) < (b))
+#define GREATER_OF(a, b) select(b, a, (a) > (b))
+#define LANES_REDUCE(NAME, T, T8, T4, T2, PICK)                                                    \
+    static T NAME(T##16 x)                                                                         \
+    {                                                                                              \
+        T8 m8 = PICK(x.lo, x.hi);                                                                  \
+        T4 m4 = PICK(m8.lo, m8.hi);                                                                \
+        T2 m2 = PICK(m4.lo, m4.hi);                                                                \
+        return PICK(m2.x, m2.y);                                                                   \
+    }
+LANES_REDUCE(lanes_min, int, int8, int4, int2, min)
+LANES_REDUCE(lanes_max, int, int8, int4, int2, max)
+LANES_REDUCE(lanes_min_float, float, float8, float4, float2, LESS_OF)
+LANES_REDUCE(lanes_max_float, float, float8, float4, float2, GREATER_OF)
+#undef LANES_REDUCE
+#undef LESS_OF
+#undef GREATER_OF
 
 /* The samples that count per lane (render.h: n - 1 full segments, and the last unless its
  * segment is empty; none on lanes that miss); *last: -1 where the last one counts. */
@@ -1620,28 +1619,6 @@ typedef struct zero_leap {
 #define LEAP_MARGIN 0.01f /* voxels added to the spread for the rounding of positions */
 #define LEAPS_MAX 16 /* leaps kept per packet, more are not taken (engine CT and Colin27
                         512^2: 0.3 and 0.6 per packet, none over 16) */
-
-/* The least and the greatest of a packet's lanes (no NaN among them: selects, which
- * compile to one instruction where fmin and fmax take three). */
-#define LESS_OF(a, b) select(b, a, (a) < (b))
-#define GREATER_OF(a, b) select(b, a, (a) > (b))
-static float lanes_min_float(vfloat x)
-{
-    float8 m8 = LESS_OF(x.lo, x.hi);
-    float4 m4 = LESS_OF(m8.lo, m8.hi);
-    float2 m2 = LESS_OF(m4.lo, m4.hi);
-    return min(m2.x, m2.y);
-}
-
-static float lanes_max_float(vfloat x)
-{
-    float8 m8 = GREATER_OF(x.lo, x.hi);
-    float4 m4 = GREATER_OF(m8.lo, m8.hi);
-    float2 m2 = GREATER_OF(m4.lo, m4.hi);
-    return max(m2.x, m2.y);
-}
-#undef LESS_OF
-#undef GREATER_OF
 
 /* One axis of the lead: through the middle of the lanes' samples `from` and `last` (hit
  * lanes), and the greater half-width of the two as the spread (the distance of a lane's
