@@ -1110,9 +1110,9 @@ static vint owned(const clip_params *c, vec3x g)
         return (vint)(-1);
     vfloat gx = clamp(g.x, 0.0f, c->whole_top[0]), gy = clamp(g.y, 0.0f, c->whole_top[1]);
     vfloat gz = clamp(g.z, 0.0f, c->whole_top[2]);
-    return gx >= c->own_lo[0] & (gx < c->own_hi[0] | (vint)(-c->own_far[0])) &
-           gy >= c->own_lo[1] & (gy < c->own_hi[1] | (vint)(-c->own_far[1])) &
-           gz >= c->own_lo[2] & (gz < c->own_hi[2] | (vint)(-c->own_far[2]));
+    return (gx >= c->own_lo[0]) & ((gx < c->own_hi[0]) | (vint)(-c->own_far[0])) &
+           (gy >= c->own_lo[1]) & ((gy < c->own_hi[1]) | (vint)(-c->own_far[1])) &
+           (gz >= c->own_lo[2]) & ((gz < c->own_hi[2]) | (vint)(-c->own_far[2]));
 }
 
 /* Samples the lanes inside a visible run (all lanes run when skipping is off). */
@@ -1928,7 +1928,7 @@ static rgbax march_iso(const packet *p, vint n, float step, float3 inv_spacing,
         ok &= live;
         vfloat s = trilinear(v, g);
         count -= ok;
-        vint hit = ok & (s == c | (i > first & (prev - c) * (s - c) < 0.0f));
+        vint hit = ok & ((s == c) | ((i > first) & ((prev - c) * (s - c) < 0.0f)));
         ta = select(ta, t_prev, hit);
         tb = select(tb, tm, hit);
         sa = select(sa, prev, hit);
