@@ -23,8 +23,9 @@
 #include <readline/readline.h>
 #endif
 
-#include "cdvr/plugin.h"
+#include "cdvr/device.h"
 #include "cdvr/dist.h"
+#include "cdvr/plugin.h"
 #include "lcdvr.h"
 
 /* Sanitizer builds: the leak check runs when main has freed everything and joined its threads,
@@ -668,6 +669,10 @@ int main(int argc, char **argv)
         }
     }
 
+#if CDVR_HAVE_OPENCL
+    /* before plugins and MPI start threads, and before any OpenCL call */
+    cdvr_cl_default_affinity();
+#endif
     load_plugins();
     cdvr_error derr;
     if (cdvr_dist_init(&argc, &argv, &derr) != CDVR_OK) {

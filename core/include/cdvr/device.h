@@ -58,6 +58,20 @@ typedef struct cdvr_cl_info {
 cdvr_status cdvr_cl_open(cdvr_cl **out, cdvr_error *err);
 /* Releases everything; NULL is allowed. Streams must be freed first. */
 void cdvr_cl_close(cdvr_cl *cl);
+
+/* Pins PoCL's CPU worker threads, one per CPU, where that is safe; returns 1 when it did.
+ * PoCL runs kernels on one unpinned worker per core. Woken together by the host thread, two
+ * workers often start on one core and share it for the whole kernel while another core idles
+ * (Linux wakes a thread near its waker): in scripts/bench/vs_vtk.py's alternation, Colin27
+ * 512^2 frames of 12-19 ms among frames of 8-9 ms on 2 cores. Pinned (PoCL's POCL_AFFINITY=1:
+ * worker i on CPU i) the slow frames went (12 ms at most, 90% under 9.6 ms).
+ * It sets POCL_AFFINITY=1 in the environment unless CDVR_CL_AFFINITY is "0", the user set
+ * POCL_AFFINITY, POCL_MAX_PTHREAD_COUNT or POCL_PTHREAD_MIN_THREADS, or this process may not
+ * run on every online CPU (numbered 0 .. n-1): PoCL aborts when a pin is refused, as it is
+ * inside a restricted CPU set (taskset, container cpusets). Other OpenCL platforms ignore the
+ * variable. Call it before any other thread starts (setenv is not thread-safe) and before the
+ * first OpenCL call (PoCL reads it when it starts its workers); cdvr's main() does. */
+int cdvr_cl_default_affinity(void);
 /* Device name as the driver reports it. */
 const char *cdvr_cl_device_name(const cdvr_cl *cl);
 /* Platform, device and build details. */
