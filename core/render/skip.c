@@ -380,40 +380,72 @@ static void corner_from_eye(const cdvr_skip_view *v, const double lo[3], const d
         out[r] = v->origin[r] + dot3(v->direction + 3 * r, q) - v->eye[r];
 }
 
-/* Screen position (pixel units, pixel centres at whole numbers) of a point at p from the eye
- * with view depth `depth` > 0. */
-static void project(const cdvr_skip_view *v, const double p[3], double depth, double *px,
-                    double *py)
+/* The view as three affine maps of a grid point q (voxel units): its view depth (along f) and
+ * its offsets along r and u from the eye, each base[m] + sum over axes a of q_a coef[m][a]
+ * (corner_from_eye's point dotted with f, r, u, regrouped): a box's eight corners are then its
+ * lower corner plus sums of three edges, with no matrix product per corner (moving cameras
+ * make the entry tiles every frame: Colin27 512^2, 1.1 ms of host time per frame before). */
+typedef struct view_map {
+    double base[3], coef[3][3]; /* [0] depth, [1] along r, [2] along u */
+} view_map;
+
+static view_map view_map_of(const cdvr_skip_view *v)
 {
-    double scale = v->orthographic ? v->ortho_half_height : depth * v->tan_half;
-    double sx = dot3(p, v->r) / (scale * v->aspect), sy = -dot3(p, v->u) / scale;
-    *px = (sx + 1.0) * 0.5 * v->width - 0.5;
-    *py = (sy + 1.0) * 0.5 * v->height - 0.5;
+    const double *axis[3] = {v->f, v->r, v->u};
+    double from_eye[3];
+    for (int r = 0; r < 3; r++)
+        from_eye[r] = v->origin[r] - v->eye[r];
+    view_map m;
+    for (int i = 0; i < 3; i++) {
+        m.base[i] = dot3(from_eye, axis[i]);
+        for (int a = 0; a < 3; a++) {
+            double column = 0.0; /* D's column a, dotted with the axis */
+            for (int r = 0; r < 3; r++)
+                column += v->direction[3 * r + a] * axis[i][r];
+            m.coef[i][a] = column * v->spacing[a];
+        }
+    }
+    return m;
 }
 
 /* The least and greatest view depth of grid box lo..hi and its pixel rectangle [x0, x1] x
  * [y0, y1] (a pixel of margin, clamped to the image); 0 when it covers no pixel or lies behind
- * the eye. */
-static int box_footprint(const cdvr_skip_view *v, const double lo[3], const double hi[3],
-                         double *depth_min, double *depth_max, int rect[4])
+ * the eye. Screen positions in pixel units, pixel centres at whole numbers: x from the
+ * offset along r over depth tan_half aspect (over ortho_half_height aspect when
+ * orthographic), y from minus the offset along u over depth tan_half, mapped from [-1, 1]. */
+static int box_footprint(const cdvr_skip_view *v, const view_map *m, const double lo[3],
+                         const double hi[3], double *depth_min, double *depth_max, int rect[4])
 {
+    double at_lo[3], edge[3][3];
+    for (int i = 0; i < 3; i++) {
+        at_lo[i] = m->base[i];
+        for (int a = 0; a < 3; a++) {
+            at_lo[i] += lo[a] * m->coef[i][a];
+            edge[i][a] = (hi[a] - lo[a]) * m->coef[i][a];
+        }
+    }
     double x_lo = INFINITY, x_hi = -INFINITY, y_lo = INFINITY, y_hi = -INFINITY;
-    *depth_min = INFINITY;
-    *depth_max = -INFINITY;
+    double d_lo = INFINITY, d_hi = -INFINITY, inv_aspect = 1.0 / v->aspect;
     for (int k = 0; k < 8; k++) {
-        double p[3], px, py;
-        corner_from_eye(v, lo, hi, k, p);
-        double depth = dot3(p, v->f);
+        double at[3];
+        for (int i = 0; i < 3; i++)
+            at[i] = at_lo[i] + (k & 1 ? edge[i][0] : 0.0) + (k & 2 ? edge[i][1] : 0.0) +
+                    (k & 4 ? edge[i][2] : 0.0);
+        double depth = at[0];
         if (!(depth > 0.0))
             return 0;
-        project(v, p, depth, &px, &py);
-        *depth_min = fmin(*depth_min, depth);
-        *depth_max = fmax(*depth_max, depth);
-        x_lo = fmin(x_lo, px);
-        x_hi = fmax(x_hi, px);
-        y_lo = fmin(y_lo, py);
-        y_hi = fmax(y_hi, py);
+        double inv_scale = 1.0 / (v->orthographic ? v->ortho_half_height : depth * v->tan_half);
+        double sx = at[1] * inv_scale * inv_aspect, sy = -at[2] * inv_scale;
+        double px = (sx + 1.0) * 0.5 * v->width - 0.5, py = (sy + 1.0) * 0.5 * v->height - 0.5;
+        d_lo = depth < d_lo ? depth : d_lo;
+        d_hi = depth > d_hi ? depth : d_hi;
+        x_lo = px < x_lo ? px : x_lo;
+        x_hi = px > x_hi ? px : x_hi;
+        y_lo = py < y_lo ? py : y_lo;
+        y_hi = py > y_hi ? py : y_hi;
     }
+    *depth_min = d_lo;
+    *depth_max = d_hi;
     x_lo = fmax(floor(x_lo) - 1.0, 0.0);
     y_lo = fmax(floor(y_lo) - 1.0, 0.0);
     x_hi = fmin(ceil(x_hi) + 1.0, v->width - 1.0);
@@ -481,11 +513,12 @@ static int bound_tiles(const cdvr_skip_entry *e, const cdvr_skip_view *v, int ti
         if (exit)
             exit[i] = -INFINITY;
     }
+    view_map map = view_map_of(v);
     for (size_t b = 0; b < e->count; b++) {
         const float *box = e->boxes + 6 * b;
         double lo[3] = {box[0], box[1], box[2]}, hi[3] = {box[3], box[4], box[5]}, near, deep;
         int rect[4];
-        if (!box_footprint(v, lo, hi, &near, &deep, rect))
+        if (!box_footprint(v, &map, lo, hi, &near, &deep, rect))
             continue;
         /* rounded outwards, in float */
         float d_near = (float)(near * (1.0 - 1e-6)), d_far = (float)(deep * (1.0 + 1e-6));
