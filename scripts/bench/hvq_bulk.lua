@@ -13,7 +13,7 @@
 -- order rotates every repeat; the first render of each is a warm-up (program build).
 -- CSV on stdout: one row per case, median ms and the median of the per-repeat ratio to the
 -- dense volume render; loadavg on stderr.
-local common = dofile((debug.getinfo(1, "S").source:match("^@(.*)/[^/]*$") or ".") .. "/common.lua")
+local common = dofile((arg and arg[0] and arg[0]:match("^(.*/)") or "./") .. "common.lua")
 
 local _, opt = common.parse_args(arg, {store = "", size = "512", repeats = "7", data = ""})
 local SIZE, REPEATS = assert(math.tointeger(tonumber(opt.size))), assert(math.tointeger(tonumber(opt.repeats)))

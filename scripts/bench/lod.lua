@@ -26,7 +26,7 @@
 -- (path "runs") 3R dense renders in a row (from the second on the device renders the same
 -- frame again: its best case) against 3R cached ones at a quarter; and the store's own path
 -- (cache off) alternated with the dense render.
-local common = dofile((debug.getinfo(1, "S").source:match("^@(.*)/[^/]*$") or ".") .. "/common.lua")
+local common = dofile((arg and arg[0] and arg[0]:match("^(.*/)") or "./") .. "common.lua")
 
 local _, opt = common.parse_args(arg, {volume = "1024", series = "256", timesteps = "60",
   frames = "4", levels = "4", bricks = "8", pixels = "512", budgets = "64,256,1024",

@@ -18,7 +18,7 @@
 -- series (the sphere generator) played once through, near view, per mode: the median frame
 -- time (frame_ms) and setup_ms, and how many frames had every brick at its chosen level
 -- (bricks_coarser 0; async prefetches the next timestep, cdvr_brick_cache_set_next).
-local common = dofile((debug.getinfo(1, "S").source:match("^@(.*)/[^/]*$") or ".") .. "/common.lua")
+local common = dofile((arg and arg[0] and arg[0]:match("^(.*/)") or "./") .. "common.lua")
 
 local _, opt = common.parse_args(arg, {volume = "256", levels = "4", bricks = "8", pixels = "256",
   device = "cpu", codec = "hvq", lod = "1", repeats = "3", dir = "", series = "0"})
