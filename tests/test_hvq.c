@@ -90,6 +90,14 @@ static int verify(const cdvr_hvq_params *p, const size_t d[3], const uint8_t *fr
               p->residual);
         CHECK(fetch_bad == 0, "%s: %zu voxels fetch differently from the decoder", what,
               fetch_bad);
+        uint8_t *again = malloc(n);
+        for (unsigned threads = 1; again && threads <= 7; threads += 2) {
+            memset(again, 0x5A, n);
+            s = hvq_decode_threads(p, d, e->bytes, e->n, again, threads, &err);
+            CHECK(s == CDVR_OK && memcmp(again, dec, n) == 0,
+                  "%s: decoded on %u threads differently", what, threads);
+        }
+        free(again);
     }
     cdvr_hvq_stats st;
     s = cdvr_hvq_check(p, d, e->bytes, e->n, &st, &err);

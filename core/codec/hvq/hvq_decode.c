@@ -3,6 +3,7 @@
  * (kernels/codec/hvq_fetch.cl) mirrors line for line. */
 #include "codec/hvq/hvq_internal.h"
 
+#include <stdlib.h>
 #include <string.h>
 
 /* ---- check ---------------------------------------------------------------------------------- */
@@ -232,6 +233,25 @@ static void decode_block(const hvq_view *v, uint64_t bx, uint64_t by, uint64_t b
         c1 = v->p + L->off_c1 + 16u * read_index(hit, L->w1);
         c2 = v->p + L->off_c2 + 128u * read_index(hit + L->w1, L->w2);
     }
+    size_t X = v->dims[0], XY = v->dims[0] * v->dims[1];
+    uint8_t *first = out + 4 * bx + X * 4 * by + XY * 4 * bz;
+    if (4 * bx + 4 <= v->dims[0] && 4 * by + 4 <= v->dims[1] && 4 * bz + 4 <= v->dims[2]) {
+        /* a whole block: constant bounds, no test per voxel (the same values) */
+        for (unsigned z = 0; z < 4; z++)
+            for (unsigned y = 0; y < 4; y++) {
+                uint8_t *row = first + X * y + XY * z;
+                for (unsigned x = 0; x < 4; x++) {
+                    int val = mean;
+                    if (hit) {
+                        unsigned o8 = (x >> 1) + 2 * (y >> 1) + 4 * (z >> 1);
+                        val += hvq_rds16(c1 + 2 * o8) + hvq_rds16(c2 + 2 * (x + 4 * y + 16 * z));
+                        val = val < 0 ? 0 : val > 255 ? 255 : val;
+                    }
+                    row[x] = (uint8_t)val;
+                }
+            }
+        return;
+    }
     for (unsigned z = 0; z < 4 && 4 * bz + z < v->dims[2]; z++)
         for (unsigned y = 0; y < 4 && 4 * by + y < v->dims[1]; y++)
             for (unsigned x = 0; x < 4 && 4 * bx + x < v->dims[0]; x++) {
@@ -246,8 +266,10 @@ static void decode_block(const hvq_view *v, uint64_t bx, uint64_t by, uint64_t b
             }
 }
 
-/* Residual voxels of region r: every slot whose key maps to itself (the lookup's hits). */
-static void apply_residuals(const hvq_view *v, uint64_t r, uint8_t *out)
+/* Residual voxels of region r from its slots [s0, s1) (clamped to the table): every slot
+ * whose key maps to itself (the lookup's hits). */
+static void apply_residuals(const hvq_view *v, uint64_t r, uint64_t s0, uint64_t s1,
+                            uint8_t *out)
 {
     uint32_t m, rr;
     const uint8_t *data = dir_hash(v->p, &v->L, r, 1, &m, &rr);
@@ -258,7 +280,7 @@ static void apply_residuals(const hvq_view *v, uint64_t r, uint8_t *out)
     region_extent(v, r, origin, ext);
     uint64_t m3 = (uint64_t)m * m * m, r3 = (uint64_t)rr * rr * rr;
     const uint8_t *slots = data + r3 * 3 * hvq_offset_width(m);
-    for (uint64_t s = 0; s < m3; s++) {
+    for (uint64_t s = s0; s < s1 && s < m3; s++) {
         const uint8_t *k = slots + 4 * s;
         if (k[0] < ext[0] && k[1] < ext[1] && k[2] < ext[2] &&
             hvq_psh_slot(data, m, rr, k[0], k[1], k[2]) == s)
@@ -267,20 +289,72 @@ static void apply_residuals(const hvq_view *v, uint64_t r, uint8_t *out)
     }
 }
 
-cdvr_status cdvr_hvq_decode(const cdvr_hvq_params *p, const size_t dims[3],
-                            const uint8_t *payload, size_t bytes, uint8_t *out, cdvr_error *err)
+/* The whole-frame decode in two parallel passes: the blocks by z slab of blocks, then the
+ * residuals by runs of RESIDUAL_RUN hash slots (they overwrite block values, so after every
+ * block). Each item writes only its own voxels (slabs do not overlap, and a perfect hash
+ * gives each voxel one slot): the same bytes on any number of threads. */
+#define RESIDUAL_RUN ((uint64_t)1 << 16)
+
+typedef struct decode_job {
+    const hvq_view *v;
+    uint8_t *out;
+    uint64_t *first_run; /* per region, its first run's item; nregions + 1 entries */
+} decode_job;
+
+static void decode_slab(void *ctx, size_t bz)
+{
+    const decode_job *job = ctx;
+    const hvq_layout *L = &job->v->L;
+    for (uint64_t by = 0; by < L->nby; by++)
+        for (uint64_t bx = 0; bx < L->nbx; bx++)
+            decode_block(job->v, bx, by, bz, job->out);
+}
+
+static void decode_residual_run(void *ctx, size_t item)
+{
+    const decode_job *job = ctx;
+    uint64_t r = 0;
+    while (job->first_run[r + 1] <= item)
+        r++;
+    uint64_t s0 = (item - job->first_run[r]) * RESIDUAL_RUN;
+    apply_residuals(job->v, r, s0, s0 + RESIDUAL_RUN, job->out);
+}
+
+/* first_run[r]: the item of region r's first run of slots; first_run[nregions]: all runs. */
+static void count_runs(const hvq_view *v, uint64_t *first_run)
+{
+    first_run[0] = 0;
+    for (uint64_t r = 0; r < v->L.nregions; r++) {
+        uint32_t m, rr;
+        dir_hash(v->p, &v->L, r, 1, &m, &rr);
+        uint64_t m3 = (uint64_t)m * m * m;
+        first_run[r + 1] = first_run[r] + (m3 + RESIDUAL_RUN - 1) / RESIDUAL_RUN;
+    }
+}
+
+cdvr_status hvq_decode_threads(const cdvr_hvq_params *p, const size_t dims[3],
+                               const uint8_t *payload, size_t bytes, uint8_t *out,
+                               unsigned threads, cdvr_error *err)
 {
     hvq_view v;
     cdvr_status s = view_open(&v, p, dims, payload, bytes, NULL, err);
     if (s != CDVR_OK)
         return s;
-    for (uint64_t bz = 0; bz < v.L.nbz; bz++)
-        for (uint64_t by = 0; by < v.L.nby; by++)
-            for (uint64_t bx = 0; bx < v.L.nbx; bx++)
-                decode_block(&v, bx, by, bz, out);
-    for (uint64_t r = 0; r < v.L.nregions; r++)
-        apply_residuals(&v, r, out);
+    decode_job job = {&v, out, malloc(((size_t)v.L.nregions + 1) * sizeof(uint64_t))};
+    if (!job.first_run)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq decode: no memory for %llu regions",
+                              (unsigned long long)v.L.nregions);
+    hvq_parallel_for(threads, (size_t)v.L.nbz, decode_slab, &job);
+    count_runs(&v, job.first_run);
+    hvq_parallel_for(threads, (size_t)job.first_run[v.L.nregions], decode_residual_run, &job);
+    free(job.first_run);
     return CDVR_OK;
+}
+
+cdvr_status cdvr_hvq_decode(const cdvr_hvq_params *p, const size_t dims[3],
+                            const uint8_t *payload, size_t bytes, uint8_t *out, cdvr_error *err)
+{
+    return hvq_decode_threads(p, dims, payload, bytes, out, hvq_threads_auto(), err);
 }
 
 /* ---- per-voxel fetch (kernels/codec/hvq_fetch.cl is the same function) ----------------------- */

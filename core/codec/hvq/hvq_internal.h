@@ -201,4 +201,10 @@ void hvq_parallel_for(unsigned threads, size_t count, void (*fn)(void *ctx, size
                       void *ctx);
 unsigned hvq_threads_auto(void);
 
+/* cdvr_hvq_decode on `threads` threads (cdvr_hvq_decode takes hvq_threads_auto()): the same
+ * bytes on any number. */
+cdvr_status hvq_decode_threads(const cdvr_hvq_params *p, const size_t dims[3],
+                               const uint8_t *payload, size_t bytes, uint8_t *out,
+                               unsigned threads, cdvr_error *err);
+
 #endif
