@@ -18,6 +18,7 @@
 #include "cdvr/render.h"
 #include "cdvr/store.h"
 #include "cdvr/tf.h"
+#include "render/cl/cl_internal.h" /* the stream's host copy of its min/max grid */
 #include "cdvr/volume.h"
 #include "check.h"
 
@@ -657,6 +658,53 @@ static void misuse(cdvr_cl *cl)
     cdvr_cl_stream_free(s);
 }
 
+/* The device's brick min/max grid (bricks.cl, brick_minmax: a whole brick and its apron read
+ * by rows, edge bricks voxel by voxel) equals the host's (cdvr_skip_minmax_from_frame, the
+ * definition) on noise with runs of constants, at dims that leave partial bricks, rows too
+ * short for the row reads and volumes one brick or one voxel thick. */
+static void minmax_grids(cdvr_cl *cl)
+{
+    static const size_t dims[][3] = {{37, 29, 23}, {64, 64, 64}, {9, 5, 4}, {1, 7, 3},
+                                     {130, 66, 17}, {8, 8, 8}, {12, 5, 9}};
+    cdvr_tf tf;
+    const cdvr_tf_point pts[] = {{0, 0, 0, 0, 0}, {255, 1, 1, 1, 1}};
+    make_tf(&tf, pts, 2);
+    uint32_t seed = 12345;
+    for (size_t k = 0; k < sizeof dims / sizeof dims[0]; k++) {
+        const size_t *d = dims[k];
+        size_t n = d[0] * d[1] * d[2];
+        uint8_t *voxels = malloc(n);
+        for (size_t i = 0; i < n; i++) {
+            seed = seed * 1664525u + 1013904223u;
+            voxels[i] = (i / 97) % 3 == 0 ? (uint8_t)(40 + (i / 97) % 7) : (uint8_t)(seed >> 24);
+        }
+        cdvr_cl_stream *s = NULL;
+        cdvr_error err;
+        cdvr_skip_grid host;
+        cdvr_status st = cdvr_cl_stream_create(cl, d, &s, &err);
+        if (!st)
+            st = cdvr_cl_upload_frames(s, voxels, 1, &err);
+        if (!st)
+            st = cdvr_cl_setup(s, 0, &tf, &err);
+        CHECK_OK(st, err);
+        st = cdvr_skip_grid_init(&host, d, CDVR_CL_BRICK_SHIFT, &err);
+        if (!st)
+            st = cdvr_skip_minmax_from_frame(&host, voxels, &err);
+        CHECK_OK(st, err);
+        if (s && s->grid.minmax && host.minmax) {
+            size_t differ = 0;
+            for (size_t b = 0; b < 2 * host.nbricks; b++)
+                differ += s->grid.minmax[b] != host.minmax[b];
+            CHECK(differ == 0 && s->grid.nbricks == host.nbricks,
+                  "%zux%zux%zu: %zu of %zu min/max bytes differ from the host's", d[0], d[1],
+                  d[2], differ, 2 * host.nbricks);
+        }
+        cdvr_skip_grid_free(&host);
+        cdvr_cl_stream_free(s);
+        free(voxels);
+    }
+}
+
 int main(void)
 {
     cdvr_cl *cl;
@@ -667,6 +715,7 @@ int main(void)
     const char *data = check_shared_data();
     if (data)
         engine_scenes(cl, data);
+    minmax_grids(cl);
     synthetic_scenes(cl);
     oriented_scenes(cl);
     sparse_scenes(cl);

@@ -17,6 +17,24 @@ __kernel void brick_minmax(__global const uchar *frames, __constant uchar *param
     uint x0 = (b % nbx) * B, y0 = ((b / nbx) % nby) * B, z0 = (b / (nbx * nby)) * B;
     uint x1 = min(x0 + B, X - 1), y1 = min(y0 + B, Y - 1), z1 = min(z0 + B, Z - 1);
     uint lo = 255, hi = 0;
+#ifndef CDVR_FETCH
+    if (B == 4 && x0 + 8 <= X && y1 == y0 + 4 && z1 == z0 + 4) {
+        /* a whole brick with its apron: 25 rows of 5 voxels, each read as 8 bytes of its row
+           (the voxel loop below read one byte at a time: Colin27, 0.56 M bricks, most of a
+           50 ms set-up) */
+        uchar8 lo8 = (uchar8)(255), hi8 = (uchar8)(0);
+        for (uint z = z0; z <= z1; z++)
+            for (uint y = y0; y <= y1; y++) {
+                uchar8 row = vload8(0, frame + (ulong)X * ((ulong)Y * z + y) + x0);
+                lo8 = min(lo8, row);
+                hi8 = max(hi8, row);
+            }
+        uchar4 lo4 = min(lo8.lo, (uchar4)(lo8.s4)), hi4 = max(hi8.lo, (uchar4)(hi8.s4));
+        uchar2 lo2 = min(lo4.lo, lo4.hi), hi2 = max(hi4.lo, hi4.hi);
+        minmax[b] = (uchar2)(min(lo2.x, lo2.y), max(hi2.x, hi2.y));
+        return;
+    }
+#endif
     for (uint z = z0; z <= z1; z++)
         for (uint y = y0; y <= y1; y++) {
 #ifdef CDVR_FETCH
