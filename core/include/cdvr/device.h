@@ -69,8 +69,10 @@ void cdvr_cl_close(cdvr_cl *cl);
  * POCL_AFFINITY, POCL_MAX_PTHREAD_COUNT or POCL_PTHREAD_MIN_THREADS, or this process may not
  * run on every online CPU (numbered 0 .. n-1): PoCL aborts when a pin is refused, as it is
  * inside a restricted CPU set (taskset, container cpusets). Other OpenCL platforms ignore the
- * variable. Call it before any other thread starts (setenv is not thread-safe) and before the
- * first OpenCL call (PoCL reads it when it starts its workers); cdvr's main() does. */
+ * variable. It also sets CDVR_CL_AFFINITY_SET=1, so that a cdvr started from this process
+ * (which inherits both) decides afresh in its own CPU set. Call it before any other thread
+ * starts (setenv is not thread-safe) and before the first OpenCL call (PoCL reads it when it
+ * starts its workers); cdvr's main() does. */
 int cdvr_cl_default_affinity(void);
 /* Device name as the driver reports it. */
 const char *cdvr_cl_device_name(const cdvr_cl *cl);

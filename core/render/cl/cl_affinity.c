@@ -28,6 +28,13 @@ static int runs_on_every_cpu(void)
 
 int cdvr_cl_default_affinity(void)
 {
+    /* a POCL_AFFINITY that a cdvr parent set (children inherit it) is decided afresh: this
+       process may run in a CPU set of its own */
+    const char *inherited = getenv("CDVR_CL_AFFINITY_SET");
+    if (inherited && strcmp(inherited, "1") == 0) {
+        unsetenv("POCL_AFFINITY");
+        unsetenv("CDVR_CL_AFFINITY_SET");
+    }
     const char *own = getenv("CDVR_CL_AFFINITY");
     if (own && strcmp(own, "0") == 0)
         return 0;
@@ -35,5 +42,5 @@ int cdvr_cl_default_affinity(void)
     if (getenv("POCL_AFFINITY") || getenv("POCL_MAX_PTHREAD_COUNT") ||
         getenv("POCL_PTHREAD_MIN_THREADS") || !runs_on_every_cpu())
         return 0;
-    return setenv("POCL_AFFINITY", "1", 0) == 0;
+    return setenv("POCL_AFFINITY", "1", 0) == 0 && setenv("CDVR_CL_AFFINITY_SET", "1", 1) == 0;
 }
