@@ -438,12 +438,61 @@ static void check_hash(const uint8_t *keys, size_t n, unsigned extent, const hvq
             for (unsigned x = 0; x < extent; x++)
                 if (!member[x + extent * (y + (size_t)extent * z)])
                     false_hits += hvq_psh_find(h->data, h->m, h->r, 5, x, y, z) != NULL;
+    hvq_psh_map map;
+    hvq_psh_map_open(&map, h->data, h->m, h->r);
+    size_t map_differs = 0;
+    for (unsigned z = 0; z < extent; z++)
+        for (unsigned y = 0; y < extent; y++)
+            for (unsigned x = 0; x < extent; x++)
+                map_differs += hvq_psh_map_find(&map, 5, x, y, z) !=
+                               hvq_psh_find(h->data, h->m, h->r, 5, x, y, z);
+    CHECK(map_differs == 0, "%s: hvq_psh_map_find differs from hvq_psh_find at %zu keys", what,
+          map_differs);
     uint64_t m3 = (uint64_t)h->m * h->m * h->m;
     CHECK(collisions == 0 && missing == 0 && wrong == 0 && false_hits == 0 && m3 >= n,
           "%s: %zu keys in %u^3 slots (r %u): %zu collisions, %zu missing, %zu wrong values, "
           "%zu absent keys found", what, n, h->m, h->r, collisions, missing, wrong, false_hits);
     free(member);
     free(slot_used);
+}
+
+/* hvq_psh_map_slot against hvq_psh_slot on made-up offset tables (every entry below m, as the
+ * check requires) for sides across both offset widths, at every key coordinate 0..255 on each
+ * axis and at random keys. */
+static void test_psh_map(void)
+{
+    const uint32_t sides[][2] = {{1, 1}, {2, 1}, {3, 2}, {7, 5}, {64, 9}, {255, 16},
+                                 {256, 17}, {257, 31}, {600, 101}, {1023, 256}};
+    uint32_t seed = 77;
+    for (size_t c = 0; c < sizeof sides / sizeof *sides; c++) {
+        uint32_t m = sides[c][0], r = sides[c][1];
+        unsigned w = hvq_offset_width(m);
+        size_t entries = (size_t)r * r * r;
+        uint8_t *data = malloc(3 * w * entries);
+        for (size_t i = 0; i < 3 * entries; i++) {
+            uint32_t off = rng_next(&seed) % m;
+            if (w == 1)
+                data[i] = (uint8_t)off;
+            else
+                hvq_wr16(data + 2 * i, off);
+        }
+        hvq_psh_map map;
+        hvq_psh_map_open(&map, data, m, r);
+        size_t differs = 0;
+        for (unsigned k = 0; k < 256; k++) {
+            unsigned kx = k, ky = 255 - k, kz = (k * 37) & 255;
+            differs += hvq_psh_map_slot(&map, kx, ky, kz) != hvq_psh_slot(data, m, r, kx, ky, kz);
+            differs += hvq_psh_map_slot(&map, kz, kx, ky) != hvq_psh_slot(data, m, r, kz, kx, ky);
+        }
+        for (int i = 0; i < 20000; i++) {
+            unsigned kx = rng_next(&seed) & 255, ky = rng_next(&seed) & 255,
+                     kz = rng_next(&seed) & 255;
+            differs += hvq_psh_map_slot(&map, kx, ky, kz) != hvq_psh_slot(data, m, r, kx, ky, kz);
+        }
+        CHECK(differs == 0, "hvq_psh_map_slot: m %u r %u: %zu keys map elsewhere than "
+              "hvq_psh_slot", m, r, differs);
+        free(data);
+    }
 }
 
 static void test_hashes(void)
@@ -613,6 +662,7 @@ int main(void)
     test_odd_dims();
     test_residual_extremes();
     test_regions_and_wide_indices();
+    test_psh_map();
     test_hashes();
     test_corrupt();
     test_neghip();

@@ -124,6 +124,8 @@ static cdvr_status check_hash(const hvq_view *v, uint64_t r, int kind, uint64_t 
                                   "offset entry %llu is not below %u", (unsigned long long)r,
                                   names[kind], (unsigned long long)(i / 3), m);
     const uint8_t *slots = data + r3 * 3 * w;
+    hvq_psh_map map; /* the offsets are below m: checked above */
+    hvq_psh_map_open(&map, data, m, rr);
     for (uint64_t s = 0; s < m3; s++) {
         const uint8_t *slot = slots + s * slot_bytes;
         if (kind == 0) {
@@ -136,7 +138,7 @@ static cdvr_status check_hash(const hvq_view *v, uint64_t r, int kind, uint64_t 
                                       i2, v->n1, v->n2);
         }
         if (slot[0] < ext[0] && slot[1] < ext[1] && slot[2] < ext[2] &&
-            hvq_psh_slot(data, m, rr, slot[0], slot[1], slot[2]) == s)
+            hvq_psh_map_slot(&map, slot[0], slot[1], slot[2]) == s)
             found++;
     }
     if (found != n)
@@ -239,16 +241,14 @@ static inline void write_block(uint8_t *first, size_t X, size_t XY, unsigned nx,
         }
 }
 
-/* Writes the block's voxels that lie inside the frame. */
-static void decode_block(const hvq_view *v, uint64_t bx, uint64_t by, uint64_t bz, uint8_t *out)
+/* Writes the block's voxels that lie inside the frame; index is its region's index hash. */
+static void decode_block(const hvq_view *v, const hvq_psh_map *index, uint64_t bx, uint64_t by,
+                         uint64_t bz, uint8_t *out)
 {
     const hvq_layout *L = &v->L;
     int mean = v->p[HVQ_HEADER_BYTES + bx + L->nbx * (by + L->nby * bz)];
-    uint64_t region = (bx >> 6) + L->nrx * ((by >> 6) + L->nry * (bz >> 6));
-    uint32_t m, rr;
-    const uint8_t *data = dir_hash(v->p, L, region, 0, &m, &rr);
-    const uint8_t *hit = hvq_psh_find(data, m, rr, 3 + L->w1 + L->w2, (unsigned)(bx & 63),
-                                      (unsigned)(by & 63), (unsigned)(bz & 63));
+    const uint8_t *hit = hvq_psh_map_find(index, 3 + L->w1 + L->w2, (unsigned)(bx & 63),
+                                          (unsigned)(by & 63), (unsigned)(bz & 63));
     const uint8_t *c1 = NULL, *c2 = NULL;
     if (hit) {
         c1 = v->p + L->off_c1 + 16u * read_index(hit, L->w1);
@@ -278,12 +278,13 @@ static void apply_residuals(const hvq_view *v, uint64_t r, uint64_t s0, uint64_t
     uint64_t origin[3];
     unsigned ext[3];
     region_extent(v, r, origin, ext);
-    uint64_t m3 = (uint64_t)m * m * m, r3 = (uint64_t)rr * rr * rr;
-    const uint8_t *slots = data + r3 * 3 * hvq_offset_width(m);
+    uint64_t m3 = (uint64_t)m * m * m;
+    hvq_psh_map map;
+    hvq_psh_map_open(&map, data, m, rr);
     for (uint64_t s = s0; s < s1 && s < m3; s++) {
-        const uint8_t *k = slots + 4 * s;
+        const uint8_t *k = map.slots + 4 * s;
         if (k[0] < ext[0] && k[1] < ext[1] && k[2] < ext[2] &&
-            hvq_psh_slot(data, m, rr, k[0], k[1], k[2]) == s)
+            hvq_psh_map_slot(&map, k[0], k[1], k[2]) == s)
             out[(origin[0] + k[0]) +
                 v->dims[0] * ((origin[1] + k[1]) + v->dims[1] * (origin[2] + k[2]))] = k[3];
     }
@@ -305,9 +306,21 @@ static void decode_slab(void *ctx, size_t bz)
 {
     const decode_job *job = ctx;
     const hvq_layout *L = &job->v->L;
-    for (uint64_t by = 0; by < L->nby; by++)
-        for (uint64_t bx = 0; bx < L->nbx; bx++)
-            decode_block(job->v, bx, by, bz, job->out);
+    const uint64_t side = HVQ_REGION_BLOCKS;
+    for (uint64_t ry = 0; ry < L->nry; ry++)
+        for (uint64_t rx = 0; rx < L->nrx; rx++) { /* the slab's part of region (rx, ry) */
+            uint32_t m, rr;
+            hvq_psh_map index;
+            const uint8_t *data =
+                dir_hash(job->v->p, L, rx + L->nrx * (ry + L->nry * ((uint64_t)bz / side)), 0,
+                         &m, &rr);
+            hvq_psh_map_open(&index, data, m, rr);
+            uint64_t y1 = (ry + 1) * side < L->nby ? (ry + 1) * side : L->nby;
+            uint64_t x1 = (rx + 1) * side < L->nbx ? (rx + 1) * side : L->nbx;
+            for (uint64_t by = ry * side; by < y1; by++)
+                for (uint64_t bx = rx * side; bx < x1; bx++)
+                    decode_block(job->v, &index, bx, by, bz, job->out);
+        }
 }
 
 static void decode_residual_run(void *ctx, size_t item)

@@ -92,6 +92,53 @@ const uint8_t *hvq_psh_find(const uint8_t *data, uint32_t m, uint32_t r, unsigne
 uint64_t hvq_psh_slot(const uint8_t *data, uint32_t m, uint32_t r, unsigned kx, unsigned ky,
                       unsigned kz);
 
+/* A checked hash (every offset entry below m, cdvr_hvq_check) set up for many lookups: the
+ * remainders of key coordinates (always below 256: one byte each) by r and by m come from
+ * tables, and (key % m + offset) % m is one conditional subtraction since both terms are
+ * below m. The same slots as hvq_psh_slot; the check and the whole-frame decode, which hash
+ * every slot and every block, spend a third of their time in its divisions otherwise. */
+typedef struct hvq_psh_map {
+    const uint8_t *offsets;  /* r^3 entries of 3 * w bytes */
+    const uint8_t *slots;    /* m^3 slots */
+    uint32_t m, r;
+    unsigned w;              /* offset bytes: hvq_offset_width(m) */
+    uint16_t mod_r[256], mod_m[256];
+} hvq_psh_map;
+
+/* Sets h up for the hash at data with sides m, r (m = 0: an empty hash, no lookups). */
+void hvq_psh_map_open(hvq_psh_map *h, const uint8_t *data, uint32_t m, uint32_t r);
+
+static inline unsigned hvq_psh_map_offset(const uint8_t *p, unsigned w)
+{
+    return w == 1 ? p[0] : (unsigned)hvq_rd16(p);
+}
+
+/* hvq_psh_slot of key (kx, ky, kz), each below 256. */
+static inline uint64_t hvq_psh_map_slot(const hvq_psh_map *h, unsigned kx, unsigned ky,
+                                        unsigned kz)
+{
+    uint64_t e = h->mod_r[kx] + (uint64_t)h->r * (h->mod_r[ky] + (uint64_t)h->r * h->mod_r[kz]);
+    const uint8_t *o = h->offsets + e * 3u * h->w;
+    unsigned m = h->m;
+    unsigned sx = h->mod_m[kx] + hvq_psh_map_offset(o, h->w);
+    unsigned sy = h->mod_m[ky] + hvq_psh_map_offset(o + h->w, h->w);
+    unsigned sz = h->mod_m[kz] + hvq_psh_map_offset(o + 2 * h->w, h->w);
+    sx -= sx >= m ? m : 0;
+    sy -= sy >= m ? m : 0;
+    sz -= sz >= m ? m : 0;
+    return sx + (uint64_t)m * (sy + (uint64_t)m * sz);
+}
+
+/* hvq_psh_find of key (kx, ky, kz), each below 256. */
+static inline const uint8_t *hvq_psh_map_find(const hvq_psh_map *h, unsigned slot_bytes,
+                                              unsigned kx, unsigned ky, unsigned kz)
+{
+    if (h->m == 0)
+        return NULL;
+    const uint8_t *slot = h->slots + hvq_psh_map_slot(h, kx, ky, kz) * slot_bytes;
+    return (slot[0] == kx && slot[1] == ky && slot[2] == kz) ? slot + 3 : NULL;
+}
+
 /* ---- codebook training --------------------------------------------------------------------- */
 
 typedef struct hvq_vq_report {

@@ -88,6 +88,21 @@ const uint8_t *hvq_psh_find(const uint8_t *data, uint32_t m, uint32_t r, unsigne
     return (slot[0] == kx && slot[1] == ky && slot[2] == kz) ? slot + 3 : NULL;
 }
 
+void hvq_psh_map_open(hvq_psh_map *h, const uint8_t *data, uint32_t m, uint32_t r)
+{
+    h->m = m;
+    h->r = r;
+    h->w = hvq_offset_width(m);
+    h->offsets = data;
+    h->slots = m ? data + (uint64_t)r * r * r * 3u * h->w : data;
+    uint16_t kr = 0, km = 0; /* k % r, k % m, counted up without a division */
+    for (unsigned k = 0; m && k < 256; k++) {
+        h->mod_r[k] = kr;
+        h->mod_m[k] = km;
+        kr = kr + 1u == r ? 0 : (uint16_t)(kr + 1);
+        km = km + 1u == m ? 0 : (uint16_t)(km + 1);
+    }
+}
 
 /* ---- construction ----------------------------------------------------------------------- */
 
