@@ -155,6 +155,65 @@ static void test_ranges(void)
     free(merged);
 }
 
+/* cdvr_range_compute against the definition, voxel by voxel: brick g (per axis) holds voxels
+ * E*g .. min(E*g + E, N - 1) of those in the box lo .. lo + bd - 1; whole frames and boxes,
+ * brick edges 4 to 32, dims that are not multiples of them, rows of 1 voxel. */
+static void test_ranges_definition(void)
+{
+    const size_t vols[][3] = {{131, 70, 37}, {1, 9, 5}, {64, 64, 64}};
+    const size_t boxes[][2][3] = {{{0, 0, 0}, {0, 0, 0}}, {{5, 3, 2}, {100, 40, 30}},
+                                  {{17, 1, 9}, {1, 60, 3}}};
+    cdvr_error err;
+    for (size_t v = 0; v < sizeof vols / sizeof *vols; v++) {
+        const size_t *vol = vols[v];
+        size_t n = vol[0] * vol[1] * vol[2];
+        uint8_t *frame = malloc(n);
+        uint32_t seed = 99 + (uint32_t)v;
+        for (size_t i = 0; i < n; i++) {
+            seed = seed * 1664525u + 1013904223u;
+            /* smooth ramps with noise: long runs and spikes both */
+            frame[i] = (uint8_t)((i % vol[0]) * 2 + (seed >> 29));
+        }
+        for (unsigned shift = 2; shift <= 5; shift++)
+            for (size_t b = 0; b < sizeof boxes / sizeof *boxes; b++) {
+                size_t lo[3], bd[3], g0[3], gn[3], bad = 0;
+                for (int a = 0; a < 3; a++) {
+                    lo[a] = b == 0 ? 0 : boxes[b][0][a] % vol[a];
+                    bd[a] = b == 0 ? vol[a] : boxes[b][1][a];
+                    bd[a] = bd[a] < vol[a] - lo[a] ? bd[a] : vol[a] - lo[a];
+                }
+                cdvr_range_window(vol, lo, bd, shift, g0, gn);
+                uint8_t *got = malloc(2 * gn[0] * gn[1] * gn[2]);
+                const uint8_t *first = frame + lo[0] + vol[0] * (lo[1] + vol[1] * lo[2]);
+                CHECK_OK(cdvr_range_compute(first, vol[0], vol[0] * vol[1], vol, lo, bd, shift,
+                                            got, &err), err);
+                size_t edge = (size_t)1 << shift;
+                for (size_t i = 0; i < gn[0] * gn[1] * gn[2]; i++) {
+                    size_t g[3] = {g0[0] + i % gn[0], g0[1] + i / gn[0] % gn[1],
+                                   g0[2] + i / (gn[0] * gn[1])}, a0[3], a1[3];
+                    for (int a = 0; a < 3; a++) {
+                        size_t top = edge * g[a] + edge < vol[a] - 1 ? edge * g[a] + edge : vol[a] - 1;
+                        a0[a] = edge * g[a] > lo[a] ? edge * g[a] : lo[a];
+                        a1[a] = top < lo[a] + bd[a] - 1 ? top : lo[a] + bd[a] - 1;
+                    }
+                    uint8_t mn = 255, mx = 0;
+                    for (size_t z = a0[2]; z <= a1[2]; z++)
+                        for (size_t y = a0[1]; y <= a1[1]; y++)
+                            for (size_t x = a0[0]; x <= a1[0]; x++) {
+                                uint8_t val = frame[x + vol[0] * (y + vol[1] * z)];
+                                mn = val < mn ? val : mn;
+                                mx = val > mx ? val : mx;
+                            }
+                    bad += got[2 * i] != mn || got[2 * i + 1] != mx;
+                }
+                CHECK(bad == 0, "ranges of %zux%zux%zu, box %zu, bricks of %zu: %zu wrong", vol[0],
+                      vol[1], vol[2], b, edge, bad);
+                free(got);
+            }
+        free(frame);
+    }
+}
+
 static void test_pack(void)
 {
     enum { N = 2 * 3000 };
@@ -227,6 +286,7 @@ int main(void)
     test_boxes();
     test_copies();
     test_ranges();
+    test_ranges_definition();
     test_pack();
     return check_finish();
 }

@@ -5,8 +5,9 @@
  * Range brick g (per axis) holds voxels E*g .. min(E*g + E, N - 1): its cube plus the upper
  * apron that trilinear interpolation reads. It meets a box whose voxels are lo .. hi
  * when E*g <= hi and E*g + E >= lo, i.e. g from ceil(lo / E) - 1 (at least 0) to hi / E.
- * Ranges are computed separably: per voxel row, the min and max of each brick's x span; then
- * each row is folded into the one or two bricks along y and z whose spans hold it. */
+ * Ranges are computed separably: per voxel row, the min and max of each brick's x span (for
+ * every x at once, by passes that double a window, so they vectorise); then each row is folded
+ * into the one or two bricks along y and z whose spans hold it. */
 #include "cdvr/bricks.h"
 
 #include <stdlib.h>
@@ -70,18 +71,92 @@ static int bricks_of(size_t i, size_t lo, unsigned shift, size_t g0, size_t n,
     return (int)k;
 }
 
+/* t[x] = min(a[x], b[x]) (max when take_max) for x < n: blocks of 16 with a constant count,
+ * which gcc vectorises at -O2 too, then the tail. */
+static void min_max_rows(const uint8_t *restrict a, const uint8_t *restrict b,
+                         uint8_t *restrict t, size_t n, int take_max)
+{
+    size_t x = 0;
+    if (take_max) {
+        for (; x + 16 <= n; x += 16)
+            for (int k = 0; k < 16; k++)
+                t[x + k] = a[x + k] > b[x + k] ? a[x + k] : b[x + k];
+        for (; x < n; x++)
+            t[x] = a[x] > b[x] ? a[x] : b[x];
+    } else {
+        for (; x + 16 <= n; x += 16)
+            for (int k = 0; k < 16; k++)
+                t[x + k] = a[x + k] < b[x + k] ? a[x + k] : b[x + k];
+        for (; x < n; x++)
+            t[x] = a[x] < b[x] ? a[x] : b[x];
+    }
+}
+
+/* acc[x] = min(acc[x], r[x]) (max when take_max) for x < n, as min_max_rows. */
+static void fold_into(uint8_t *restrict acc, const uint8_t *restrict r, size_t n, int take_max)
+{
+    size_t x = 0;
+    if (take_max) {
+        for (; x + 16 <= n; x += 16)
+            for (int k = 0; k < 16; k++)
+                acc[x + k] = r[x + k] > acc[x + k] ? r[x + k] : acc[x + k];
+        for (; x < n; x++)
+            acc[x] = r[x] > acc[x] ? r[x] : acc[x];
+    } else {
+        for (; x + 16 <= n; x += 16)
+            for (int k = 0; k < 16; k++)
+                acc[x + k] = r[x + k] < acc[x + k] ? r[x + k] : acc[x + k];
+        for (; x < n; x++)
+            acc[x] = r[x] < acc[x] ? r[x] : acc[x];
+    }
+}
+
+/* t[x] = min (max) of a[x] and a[min(x + span, len - 1)]: a window of a[] twice as long, or
+ * with the apron voxel, per pass. */
+static void fold_pass(const uint8_t *a, uint8_t *t, size_t len, size_t span, int take_max)
+{
+    size_t head = len > span ? len - span : 0;
+    min_max_rows(a, a + span, t, head, take_max);
+    for (size_t x = head; x < len; x++)
+        t[x] = take_max ? (a[len - 1] > a[x] ? a[len - 1] : a[x])
+                        : (a[len - 1] < a[x] ? a[len - 1] : a[x]);
+}
+
+/* The min (max) of row[x .. min(x + E, len - 1)] for every x, into one of buf's two halves
+ * (len bytes each): shift doubling passes give windows of E voxels, one more pass with the row
+ * itself the apron. Returns the half holding the result. */
+static const uint8_t *row_windows(const uint8_t *row, size_t len, unsigned shift, int take_max,
+                                  uint8_t *buf)
+{
+    const uint8_t *a = row;
+    uint8_t *t = buf;
+    for (unsigned k = 0; k < shift; k++) {
+        fold_pass(a, t, len, (size_t)1 << k, take_max);
+        a = t;
+        t = t == buf ? buf + len : buf;
+    }
+    /* the apron: the window [x, x + E - 1] and the voxel x + E (clamped to the row's end) */
+    size_t edge = (size_t)1 << shift, head = len > edge ? len - edge : 0;
+    min_max_rows(a, row + edge, t, head, take_max);
+    for (size_t x = head; x < len; x++)
+        t[x] = take_max ? (row[len - 1] > a[x] ? row[len - 1] : a[x])
+                        : (row[len - 1] < a[x] ? row[len - 1] : a[x]);
+    return t;
+}
+
 cdvr_status cdvr_range_compute(const uint8_t *voxels, size_t row_stride, size_t plane_stride,
                                const size_t vol_dims[3], const size_t lo[3], const size_t bd[3],
                                unsigned shift, uint8_t *out, cdvr_error *err)
 {
-    size_t g0[3], n[3];
+    size_t g0[3], n[3], edge = (size_t)1 << shift;
     cdvr_range_window(vol_dims, lo, bd, shift, g0, n);
-    size_t total = n[0] + n[1] + n[2];
+    size_t total = n[0] + n[1] + n[2], cells = n[0] * n[1] * n[2];
     size_t *first = malloc(2 * total * sizeof *first);
-    uint8_t *rminmax = malloc(2 * n[0]);
-    if (!first || !rminmax) {
+    uint8_t *rows = malloc(2 * n[0] + 4 * bd[0]), *acc = malloc(2 * cells);
+    if (!first || !rows || !acc) {
         free(first);
-        free(rminmax);
+        free(rows);
+        free(acc);
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "value ranges: no memory for %zu bricks",
                               total);
     }
@@ -90,11 +165,10 @@ cdvr_status cdvr_range_compute(const uint8_t *voxels, size_t row_stride, size_t 
     spans(vol_dims[0], lo[0], bd[0], shift, g0[0], n[0], fx, lx);
     spans(vol_dims[1], lo[1], bd[1], shift, g0[1], n[1], fy, ly);
     spans(vol_dims[2], lo[2], bd[2], shift, g0[2], n[2], fz, lz);
-    size_t cells = n[0] * n[1] * n[2];
-    for (size_t i = 0; i < cells; i++) {
-        out[2 * i] = 255;
-        out[2 * i + 1] = 0;
-    }
+    uint8_t *rmin = rows, *rmax = rows + n[0], *scratch = rows + 2 * n[0];
+    uint8_t *amin = acc, *amax = acc + cells; /* the bricks' minima, then maxima */
+    memset(amin, 255, cells);
+    memset(amax, 0, cells);
     for (size_t z = 0; z < bd[2]; z++) {
         size_t wz[2];
         int nz = bricks_of(z, lo[2], shift, g0[2], n[2], fz, lz, wz);
@@ -102,27 +176,37 @@ cdvr_status cdvr_range_compute(const uint8_t *voxels, size_t row_stride, size_t 
             size_t wy[2];
             int ny = bricks_of(y, lo[1], shift, g0[1], n[1], fy, ly, wy);
             const uint8_t *row = voxels + row_stride * y + plane_stride * z;
+            const uint8_t *tmin = row_windows(row, bd[0], shift, 0, scratch);
+            const uint8_t *tmax = row_windows(row, bd[0], shift, 1, scratch + 2 * bd[0]);
             for (size_t w = 0; w < n[0]; w++) {
-                uint8_t mn = 255, mx = 0;
+                size_t whole = fx[w] + edge < bd[0] - 1 ? fx[w] + edge : bd[0] - 1;
+                rmin[w] = tmin[fx[w]]; /* the window tmin/tmax hold */
+                rmax[w] = tmax[fx[w]];
+                if (lx[w] == whole)
+                    continue;
+                uint8_t mn = 255, mx = 0; /* cut short by the box: its own voxels */
                 for (size_t x = fx[w]; x <= lx[w]; x++) {
                     mn = row[x] < mn ? row[x] : mn;
                     mx = row[x] > mx ? row[x] : mx;
                 }
-                rminmax[2 * w] = mn;
-                rminmax[2 * w + 1] = mx;
+                rmin[w] = mn;
+                rmax[w] = mx;
             }
             for (int iz = 0; iz < nz; iz++)
                 for (int iy = 0; iy < ny; iy++) {
-                    uint8_t *o = out + 2 * n[0] * (wy[iy] + n[1] * wz[iz]);
-                    for (size_t w = 0; w < 2 * n[0]; w += 2) {
-                        o[w] = rminmax[w] < o[w] ? rminmax[w] : o[w];
-                        o[w + 1] = rminmax[w + 1] > o[w + 1] ? rminmax[w + 1] : o[w + 1];
-                    }
+                    size_t at = n[0] * (wy[iy] + n[1] * wz[iz]);
+                    fold_into(amin + at, rmin, n[0], 0);
+                    fold_into(amax + at, rmax, n[0], 1);
                 }
         }
     }
+    for (size_t i = 0; i < cells; i++) {
+        out[2 * i] = amin[i];
+        out[2 * i + 1] = amax[i];
+    }
     free(first);
-    free(rminmax);
+    free(rows);
+    free(acc);
     return CDVR_OK;
 }
 
