@@ -233,8 +233,9 @@ int main(void)
     const cdvr_codec *abi2 = load_good("tests/plugins_more/abi2.so", "abi2");
     CHECK(abi2 && abi2->id == 0x41424932u, "abi2 id");
     /* its table ends before `check` (ABI 4): a copy is registered, with check NULL */
-    CHECK(abi2 && abi2->check == NULL && abi2->decode, "ABI-2 table: check %p",
-          abi2 ? (void *)abi2->check : NULL);
+    CHECK(abi2 && abi2->check == NULL && abi2->decode_cells == NULL && abi2->decode,
+          "ABI-2 table: check %p, decode_cells %p", abi2 ? (void *)abi2->check : NULL,
+          abi2 ? (void *)abi2->decode_cells : NULL);
     /* a plugin refused after its first table: that one stays, and every load is refused */
     char partial[4096];
     path_in_build(partial, sizeof partial, "tests/plugins_more/partial.so");

@@ -71,6 +71,7 @@ typedef struct chunk_item {
     double host_decode_ms;   /* the host decode in the pipeline (b3) */
     size_t seq;              /* planning order in this run: items reach the device in it */
     size_t ngrids;           /* skip grids made for the group's first ngrids frames */
+    double decoded_share;    /* of the frames' voxels, the share the host decode wrote */
     /* kept from group to group */
     cdvr_camera *cams;       /* the camera of each frame (nframes), evaluated at planning */
     size_t cams_cap;
@@ -80,6 +81,8 @@ typedef struct chunk_item {
     size_t grids_cap;
     cdvr_skip_grid coarse;   /* a frame's grid at the tables' bricks when they are coarser
                                 than the device's (coarse.minmax NULL: not allocated) */
+    uint8_t *need;           /* decode_cells: the cells to decode, and scratch (2 per brick) */
+    size_t need_cap;
 } chunk_item;
 
 typedef struct item_queue {
@@ -119,6 +122,7 @@ struct cdvr_player {
     double t_last_frame, t_deadline;
 
     /* pipeline */
+    pthread_mutex_t decode_mu; /* one host decode of a codec that decodes in parallel at a time */
     pthread_mutex_t mu;
     pthread_cond_t cv;
     item_queue free_items, read_q, unzip_q;
@@ -921,10 +925,149 @@ static cdvr_status make_grids(cdvr_player *p, chunk_item *it, size_t count, cdvr
     return CDVR_OK;
 }
 
+/* Whether the group's host decode writes only the cells its frame's render reads
+ * (opts.decode_whole): a codec that decodes cells, one brick of one timestep, and the ray
+ * caster compositing on the cl device with the skip grid made here from the range tables
+ * (with_grids), whose visible bricks are the only ones its samples take. Max, min, average
+ * and iso read other bricks, other methods every voxel. */
+static int decodes_cells(const cdvr_player *p, const chunk_item *it, const cdvr_chunk_info *ch)
+{
+    return !p->opts.decode_whole && it->with_grids && p->nbricks == 1 && ch->count == 1 &&
+           ch->codec && ch->codec->decode_cells && !p->opts.cache &&
+           p->opts.look.blend == CDVR_BLEND_COMPOSITE &&
+           strcmp(p->opts.method->name, "raycast") == 0;
+}
+
+/* out[c] = in[c - d] or'ed over d = lo .. 1 (lo 0 or -1) along axis a of a grid of n bricks. */
+static void dilate_axis(const uint8_t *in, uint8_t *out, const size_t n[3], int a, int lo)
+{
+    size_t stride = a == 0 ? 1 : a == 1 ? n[0] : n[0] * n[1], len = n[a];
+    size_t outer = n[0] * n[1] * n[2] / (stride * len); /* runs of len * stride bricks */
+    for (size_t o = 0; o < outer; o++)
+        for (size_t at = 0; at < len; at++) {
+            const uint8_t *src = in + (o * len + at) * stride;
+            uint8_t *dst = out + (o * len + at) * stride;
+            memcpy(dst, src, stride);
+            for (size_t i = 0; at > 0 && i < stride; i++)
+                dst[i] |= src[i - stride];
+            for (size_t i = 0; lo < 0 && at + 1 < len && i < stride; i++)
+                dst[i] |= src[i + stride];
+        }
+}
+
+/* The cells (the grid's bricks) a composite render of grid g reads: a sample in a visible brick
+ * (flag >= 128, cdvr/skip.h) reads the voxels of its cell and one voxel past it (trilinear
+ * interpolation's upper apron), so the brick and its upper neighbours (d = 0..1 bricks per axis,
+ * bricks being at least 4 voxels); shading's central differences read one voxel more each way
+ * (d = -1..1). need: 2 * nbricks bytes, the first half the result. Returns the cells needed. */
+static size_t cells_needed(const cdvr_skip_grid *g, int shaded, uint8_t *need)
+{
+    uint8_t *a = need, *b = need + g->nbricks;
+    for (size_t i = 0; i < g->nbricks; i++)
+        a[i] = g->flags[i] >= 128;
+    dilate_axis(a, b, g->dims, 0, shaded ? -1 : 0);
+    dilate_axis(b, a, g->dims, 1, shaded ? -1 : 0);
+    dilate_axis(a, b, g->dims, 2, shaded ? -1 : 0);
+    size_t count = 0;
+    for (size_t i = 0; i < g->nbricks; i++)
+        count += (a[i] = b[i]) != 0;
+    return count;
+}
+
+/* A value for the cells not decoded, so that every sample the ray caster takes in an
+ * invisible brick stays transparent as it is with the decoded voxels. Its lanes do sample there
+ * (runs end past a brick, lanes sample on unlooked while others sample, skip_to stops short of
+ * a cube's exit: raycast.cl), relying on such samples adding nothing; their corners hold the
+ * brick's own values (its range) or, where not decoded, the fill. With lo .. hi spanning every
+ * invisible brick's range, the fill lo keeps each interpolated value in lo .. hi, transparent
+ * when every TF entry there is. Returns 0 when some entry there is visible (a TF transparent in
+ * two separate runs of values, say): then the frame is decoded whole. */
+static int transparent_fill(const cdvr_skip_grid *g, uint8_t *fill)
+{
+    unsigned lo = 255, hi = 0;
+    for (size_t i = 0; i < g->nbricks; i++)
+        if (g->flags[i] < 128) {
+            lo = g->minmax[2 * i] < lo ? g->minmax[2 * i] : lo;
+            hi = g->minmax[2 * i + 1] > hi ? g->minmax[2 * i + 1] : hi;
+        }
+    for (unsigned v = lo; v <= hi; v++)
+        if (g->tf_visible[v])
+            return 0;
+    *fill = (uint8_t)lo;
+    return 1;
+}
+
+/* Writes fill into the voxels of frame (dims) in the cells of g (its bricks) with need 0:
+ * spans of such cells along x at a time. */
+static void fill_cells(uint8_t *frame, const size_t dims[3], const cdvr_skip_grid *g,
+                       const uint8_t *need, uint8_t fill)
+{
+    unsigned sh = g->shift;
+    for (size_t z = 0; z < dims[2]; z++)
+        for (size_t y = 0; y < dims[1]; y++) {
+            const uint8_t *cells = need + g->dims[0] * ((y >> sh) + g->dims[1] * (z >> sh));
+            uint8_t *row = frame + dims[0] * (y + dims[1] * z);
+            for (size_t cx = 0; cx < g->dims[0];) {
+                if (cells[cx]) {
+                    cx++;
+                    continue;
+                }
+                size_t end = cx;
+                while (end < g->dims[0] && !cells[end])
+                    end++;
+                size_t x0 = cx << sh, x1 = end << sh < dims[0] ? end << sh : dims[0];
+                memset(row + x0, fill, x1 - x0);
+                cx = end;
+            }
+        }
+}
+
+/* The host decode of the group into slot k: whole frames, or (decodes_cells) after the grids,
+ * the cells the render reads and a transparent fill in the others. */
+static void decode_group(cdvr_player *p, int w, chunk_item *it, const cdvr_chunk_info *ch,
+                         int k)
+{
+    double t0 = cdvr_now_ms();
+    it->decoded_share = 1;
+    if (!decodes_cells(p, it, ch)) {
+        decode_host(p, w, it, ch->count, p->slots[k], &it->err);
+        it->host_decode_ms = cdvr_now_ms() - t0;
+        return;
+    }
+    make_grids(p, it, 1, &it->err);
+    it->grid_ms = cdvr_now_ms() - t0;
+    t0 = cdvr_now_ms();
+    const cdvr_skip_grid *g = &it->grids[0];
+    int all = 1;
+    uint8_t fill = 0;
+    if (it->err.status != CDVR_OK)
+        return;
+    if (!transparent_fill(g, &fill)) {
+        decode_host(p, w, it, 1, p->slots[k], &it->err);
+        it->host_decode_ms = cdvr_now_ms() - t0;
+        return;
+    }
+    if (!grow(&it->need, &it->need_cap, 2 * (uint64_t)g->nbricks)) {
+        cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "player: no memory for a %zu-cell mask",
+                       g->nbricks);
+        return;
+    }
+    size_t cells = cells_needed(g, shades(p), it->need);
+    cdvr_store_decode_chunk_cells(p->opts.store, (size_t)it->variant, it->chunk,
+                                  it->parts[0].payload, p->slots[k], it->need, g->shift, &all,
+                                  &it->err);
+    if (it->err.status == CDVR_OK && !all)
+        fill_cells(p->slots[k], p->vox_dims, g, it->need, fill);
+    it->decoded_share = all ? 1 : (double)cells / (double)g->nbricks;
+    it->host_decode_ms = cdvr_now_ms() - t0;
+}
+
 /* After b1': the host decode into a slot and the skip grids, when they apply. Their time is
  * the group's b3 (host_decode_ms) and b1g (grid_ms). */
 static void prepare(cdvr_player *p, int w, chunk_item *it)
 {
+    it->decoded_share = 0;
+    it->ngrids = 0;
     if (it->err.status != CDVR_OK || it->nframes == 0 || it->bricks_read == 0)
         return;
     const cdvr_chunk_info *ch = cdvr_store_chunk(p->opts.store, (size_t)it->variant, it->chunk);
@@ -936,15 +1079,21 @@ static void prepare(cdvr_player *p, int w, chunk_item *it)
             return;
         }
         it->slot = k;
-        double t0 = cdvr_now_ms();
-        if (!cdvr_size_mul(p->voxels, ch->count, &need) || !slot_room(p, k, need))
+        /* a codec that decodes on all cores: one group at a time (the items take their slots
+         * in planning order, so they come here in that order too but for a rare race) */
+        int one_at_a_time = ch->codec && ch->codec->decodes_in_parallel;
+        if (!cdvr_size_mul(p->voxels, ch->count, &need) || !slot_room(p, k, need)) {
             cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate %zu frames",
                            cdvr_store_path(p->opts.store), it->chunk + 1, ch->count);
-        else
-            decode_host(p, w, it, ch->count, p->slots[k], &it->err);
-        it->host_decode_ms = cdvr_now_ms() - t0;
+        } else {
+            if (one_at_a_time)
+                pthread_mutex_lock(&p->decode_mu);
+            decode_group(p, w, it, ch, k);
+            if (one_at_a_time)
+                pthread_mutex_unlock(&p->decode_mu);
+        }
     }
-    if (it->err.status == CDVR_OK && it->with_grids) {
+    if (it->err.status == CDVR_OK && it->with_grids && it->ngrids != ch->count) {
         double t0 = cdvr_now_ms();
         make_grids(p, it, ch->count, &it->err);
         it->grid_ms = cdvr_now_ms() - t0;
@@ -1184,6 +1333,7 @@ static void fill_row(const cdvr_player *p, cdvr_frame_row *row, const chunk_item
     row->payload_bytes = it->payload_bytes / n;
     row->bricks_read = it->bricks_read;
     row->bricks_skipped = p->nregion - it->bricks_region;
+    row->decoded_share = it->decoded_share;
     if (j == 0 && it->group_start) {
         row->group_start = 1;
         memcpy(row->reason, it->reason, sizeof row->reason);
@@ -1664,6 +1814,7 @@ cdvr_status cdvr_player_create(const cdvr_player_opts *opts, cdvr_player **out, 
     p->nworkers = p->opts.pipelined ? unzip_workers(p->opts.unzip_threads) : 1;
     p->nslots = p->nworkers + 1;
     pthread_mutex_init(&p->mu, NULL);
+    pthread_mutex_init(&p->decode_mu, NULL);
     pthread_cond_init(&p->cv, NULL);
     if (!p->items || p->nitems != (size_t)p->opts.ring * 2 + 1 || !p->host_decodes ||
         !p->fetch_bulk || !p->turn_passed) {
@@ -1723,6 +1874,7 @@ void cdvr_player_free(cdvr_player *p)
             cdvr_skip_grid_free(&p->items[i].grids[f]);
         cdvr_skip_grid_free(&p->items[i].coarse);
         free(p->items[i].grids);
+        free(p->items[i].need);
     }
     free(p->corners);
     free(p->own);
@@ -1742,6 +1894,7 @@ void cdvr_player_free(cdvr_player *p)
     cdvr_render_ctx_free(p->own_ctx);
     cdvr_brick_cache_free(p->cache);
     pthread_mutex_destroy(&p->mu);
+    pthread_mutex_destroy(&p->decode_mu);
     pthread_cond_destroy(&p->cv);
     free(p);
 }

@@ -602,6 +602,7 @@ static void render_options(lua_State *L, lplayer *lp, const cdvr_store_info *inf
     lp->opts.cold = lcdvr_optbooleanfield(L, 1, "cold", 0);
     lp->opts.read_mbps = rate_option(L, "read_mbps", 0, 1, CDVR_PLAYER_MIN_READ_MBPS, "MB/s");
     lp->opts.empty_skip = lcdvr_optbooleanfield(L, 1, "empty_skip", 1);
+    lp->opts.decode_whole = lcdvr_optbooleanfield(L, 1, "decode_whole", 0);
     lp->opts.fetch_path = fetch_option(L);
     lp->opts.cache = lcdvr_optbooleanfield(L, 1, "cache", 0);
     lp->opts.cache_async = lcdvr_optbooleanfield(L, 1, "cache_async", 0);
@@ -805,7 +806,7 @@ static int l_player(lua_State *L)
     static const char *const keys[] = {"store", "tf", "camera", "policy", "target_fps", "min_psnr",
                                        "variant", "device", "step", "unit", "term", "background",
                                        "threads", "pipeline", "ring", "cold", "read_mbps",
-                                       "empty_skip", "fetch", "cache", "cache_async", "budget_mb", "lod_error", "callback_limit", "callback_memory", "out", "pace", "width",
+                                       "empty_skip", "decode_whole", "fetch", "cache", "cache_async", "budget_mb", "lod_error", "callback_limit", "callback_memory", "out", "pace", "width",
                                        "height", "loop", "brick_skip", "frame", "distribute",
                                        "on_error", "fps", "crf", "preset", "progress", NULL};
     luaL_checktype(L, 1, LUA_TTABLE);
@@ -1101,7 +1102,7 @@ int lcdvr_open_player(lua_State *L)
                    "distribute='time'|'bricks' (mpirun: frames or bricks shared by the ranks)");
     lcdvr_help_add(L, "p:run{frames=N, first=1}",
                    "plays N frames -> {fps=, wall_ms=, ranks=, capture=, frames={rows: frame, t, variant, rank, why (the decision in "
-                   "force), read_ms .. render_ms, grid_ms (skip grid from the range tables), samples (cl: samples taken), composite_ms, wait_ms, frame_ms, bricks_read, bricks_skipped, reason (at group "
+                   "force), read_ms .. render_ms, grid_ms (skip grid from the range tables), samples (cl: samples taken), composite_ms, wait_ms, frame_ms, bricks_read, bricks_skipped, decoded_share, reason (at group "
                    "starts), error}, median={...}} (mpirun: rank 0 gets every rank's rows)");
     lcdvr_help_add(L, "p:close()", "release the player's buffers and its OpenCL stream");
     return 0;

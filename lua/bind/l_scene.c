@@ -50,6 +50,7 @@ void lcdvr_push_frame_row(lua_State *L, const cdvr_store *st, const cdvr_frame_r
     lua_pushinteger(L, (lua_Integer)r->bricks_skipped);
     lua_setfield(L, -2, "bricks_skipped");
     setnum(L, "samples", (double)r->samples);
+    setnum(L, "decoded_share", r->decoded_share);
     if (r->nlevels) { /* the brick cache (cache=true) */
         setnum(L, "resident_bytes", (double)r->resident_bytes);
         setnum(L, "lod_error", r->lod_error);

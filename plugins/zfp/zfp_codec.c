@@ -45,15 +45,17 @@
  * Threads: every function works on its own zfp_stream and buffers; zfp's serial code keeps no
  * global state, so chunks may be encoded and decoded in parallel. One chunk is decoded on
  * several threads too: fixed rate puts block k at bit k * maxbits, so each thread opens its
- * own zfp stream on the (read-only) payload, seeks to the first block of its slab of z block
- * rows (stream_rseek) and decodes that slab into its own part of the frame: the same bytes as
- * the serial decode for any thread count. Threads: CDVR_ZFP_THREADS when set to a number > 0
+ * own zfp stream on the (read-only) payload, takes z block rows in turn, seeks to each row's
+ * first block (stream_rseek) and decodes it into its own part of the frame: the same bytes as
+ * the serial decode for any thread count. decode_cells (codec.h) seeks past the blocks that
+ * meet no needed cell the same way. Threads: CDVR_ZFP_THREADS when set to a number > 0
  * (at most one per z block row), else one per online core, each given at least 4096 blocks
  * (smaller frames decode on the calling thread). Encode stays serial (the encode pool runs
  * chunks in parallel).
  */
 #include <math.h>
 #include <pthread.h>
+#include <stdatomic.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -307,29 +309,65 @@ static void store_block(const int32_t blk[64], uint8_t *dst, size_t X, size_t XY
             memcpy(dst + X * y + XY * z, v + 4 * y + 16 * z, 4);
 }
 
-/* Decodes the z block rows [z0, z1) (the stream positioned at the first block of row z0). */
-static void decode_blocks(zfp_stream *zfp, const zfpc_geometry *g, const size_t dims[3],
-                          uint8_t *frame, size_t z0, size_t z1)
+/* The cells decode_cells needs (codec.h): need[], cells of 2^log2 voxels, dims per axis. */
+typedef struct zfpc_cells {
+    const uint8_t *need;
+    unsigned log2;
+    size_t dims[3];
+} zfpc_cells;
+
+/* Whether block (bx, by, bz) holds a voxel of a needed cell. */
+static int block_needed(const zfpc_cells *c, const size_t dims[3], size_t bx, size_t by,
+                        size_t bz)
+{
+    size_t b[3] = {bx, by, bz}, lo[3], hi[3];
+    for (int a = 0; a < 3; a++) {
+        lo[a] = 4 * b[a] >> c->log2;
+        hi[a] = (4 * b[a] + extent(dims[a], b[a]) - 1) >> c->log2;
+    }
+    for (size_t z = lo[2]; z <= hi[2]; z++)
+        for (size_t y = lo[1]; y <= hi[1]; y++)
+            for (size_t x = lo[0]; x <= hi[0]; x++)
+                if (c->need[x + c->dims[0] * (y + c->dims[1] * z)])
+                    return 1;
+    return 0;
+}
+
+/* Decodes z block row bz (all of it, or with cells the blocks that meet a needed cell),
+ * seeking the stream to each block that follows a skipped one (fixed rate: block k starts at
+ * bit k * maxbits). */
+static void decode_row(zfp_stream *zfp, const zfpc_geometry *g, const size_t dims[3],
+                       uint8_t *frame, size_t bz, const zfpc_cells *cells)
 {
     const size_t X = dims[0], XY = dims[0] * dims[1];
     int32_t blk[64];
-    for (size_t bz = z0; bz < z1; bz++)
-        for (size_t by = 0; by < g->blocks[1]; by++)
-            for (size_t bx = 0; bx < g->blocks[0]; bx++) {
-                size_t nx = extent(dims[0], bx), ny = extent(dims[1], by);
-                size_t nz = extent(dims[2], bz);
-                uint8_t *dst = frame + 4 * bx + X * 4 * by + XY * 4 * bz;
-                if (nx == 4 && ny == 4 && nz == 4) {
-                    zfp_decode_block_int32_3(zfp, blk);
-                    store_block(blk, dst, X, XY);
-                    continue;
-                }
-                zfp_decode_partial_block_strided_int32_3(zfp, blk, nx, ny, nz, 1, 4, 16);
-                for (size_t z = 0; z < nz; z++)
-                    for (size_t y = 0; y < ny; y++)
-                        for (size_t x = 0; x < nx; x++)
-                            dst[x + X * y + XY * z] = to_u8(blk[x + 4 * y + 16 * z]);
+    bitstream *bs = zfp_stream_bit_stream(zfp);
+    size_t k = bz * g->blocks[0] * g->blocks[1]; /* the block's index in the stream */
+    stream_rseek(bs, (bitstream_offset)k * g->maxbits);
+    int positioned = 1; /* the stream is at block k */
+    for (size_t by = 0; by < g->blocks[1]; by++)
+        for (size_t bx = 0; bx < g->blocks[0]; bx++, k++) {
+            if (cells && !block_needed(cells, dims, bx, by, bz)) {
+                positioned = 0;
+                continue;
             }
+            if (!positioned)
+                stream_rseek(bs, (bitstream_offset)k * g->maxbits);
+            positioned = 1;
+            size_t nx = extent(dims[0], bx), ny = extent(dims[1], by);
+            size_t nz = extent(dims[2], bz);
+            uint8_t *dst = frame + 4 * bx + X * 4 * by + XY * 4 * bz;
+            if (nx == 4 && ny == 4 && nz == 4) {
+                zfp_decode_block_int32_3(zfp, blk);
+                store_block(blk, dst, X, XY);
+                continue;
+            }
+            zfp_decode_partial_block_strided_int32_3(zfp, blk, nx, ny, nz, 1, 4, 16);
+            for (size_t z = 0; z < nz; z++)
+                for (size_t y = 0; y < ny; y++)
+                    for (size_t x = 0; x < nx; x++)
+                        dst[x + X * y + XY * z] = to_u8(blk[x + 4 * y + 16 * z]);
+        }
 }
 
 /* Attaches a bit stream over buf (bytes, a multiple of 8) to a new fixed-rate zfp stream. */
@@ -351,25 +389,26 @@ static zfp_stream *open_on(unsigned maxbits, void *buf, size_t bytes, bitstream 
 #define MAX_DECODE_THREADS 64
 #define MIN_BLOCKS_PER_THREAD 4096
 
-typedef struct slab_job {
+typedef struct row_job {
     const zfpc_geometry *g;
     const size_t *dims;
     uint8_t *buf, *frame;
-    size_t z0, z1;
+    const zfpc_cells *cells; /* NULL: every block */
+    atomic_size_t *next_row; /* shared: the next z block row to take */
     int ok;
-} slab_job;
+} row_job;
 
-static void *slab_main(void *arg)
+/* One decode thread: its own zfp stream on the payload, z block rows taken in turn from the
+ * shared counter until none are left (rows differ in cost when only some blocks are
+ * needed). */
+static void *row_main(void *arg)
 {
-    slab_job *j = arg;
+    row_job *j = arg;
     bitstream *bs = NULL;
     zfp_stream *zfp = open_on(j->g->maxbits, j->buf, j->g->stream_bytes, &bs);
     j->ok = zfp != NULL;
-    if (zfp) {
-        size_t first = j->z0 * j->g->blocks[0] * j->g->blocks[1];
-        stream_rseek(bs, (bitstream_offset)first * j->g->maxbits);
-        decode_blocks(zfp, j->g, j->dims, j->frame, j->z0, j->z1);
-    }
+    for (size_t bz; zfp && (bz = atomic_fetch_add(j->next_row, 1)) < j->g->blocks[2];)
+        decode_row(zfp, j->g, j->dims, j->frame, bz, j->cells);
     zfp_stream_close(zfp);
     stream_close(bs);
     return NULL;
@@ -395,28 +434,29 @@ static size_t decode_threads(const zfpc_geometry *g)
     return n ? n : 1;
 }
 
-/* Decodes the whole payload buf into frame on decode_threads() threads; 0 when out of memory. */
+/* Decodes the payload buf (the blocks that meet a needed cell, or all when cells is NULL) into
+ * frame on decode_threads() threads; 0 when out of memory. */
 static int decode_parallel(const zfpc_geometry *g, const size_t dims[3], uint8_t *buf,
-                           uint8_t *frame)
+                           uint8_t *frame, const zfpc_cells *cells)
 {
-    size_t nt = decode_threads(g), rows = g->blocks[2], started = 1;
-    slab_job jobs[MAX_DECODE_THREADS];
+    size_t nt = decode_threads(g), started = 1;
+    atomic_size_t next_row;
+    atomic_init(&next_row, 0);
+    row_job jobs[MAX_DECODE_THREADS];
     pthread_t tids[MAX_DECODE_THREADS];
     for (size_t k = 0; k < nt; k++)
-        jobs[k] = (slab_job){g, dims, buf, frame, rows * k / nt, rows * (k + 1) / nt, 0};
+        jobs[k] = (row_job){g, dims, buf, frame, cells, &next_row, 0};
     for (size_t k = 1; k < nt; k++) {
-        if (pthread_create(&tids[k], NULL, slab_main, &jobs[k]) != 0)
+        if (pthread_create(&tids[k], NULL, row_main, &jobs[k]) != 0)
             break;
         started++;
     }
-    for (size_t k = 0; k < nt; k++) /* the caller: slab 0 and any no thread took */
-        if (k == 0 || k >= started)
-            slab_main(&jobs[k]);
-    int ok = 1;
-    for (size_t k = 1; k < started; k++)
+    row_main(&jobs[0]); /* the caller too: it also takes what no thread started for */
+    int ok = jobs[0].ok;
+    for (size_t k = 1; k < started; k++) {
         pthread_join(tids[k], NULL);
-    for (size_t k = 0; k < nt; k++)
         ok &= jobs[k].ok;
+    }
     return ok;
 }
 
@@ -457,17 +497,15 @@ static cdvr_status zfpc_encode(const cdvr_codec_params *p, const size_t dims[3],
     return CDVR_OK;
 }
 
-static cdvr_status zfpc_decode(const cdvr_codec_params *p, const size_t dims[3],
-                               const uint8_t *in, size_t in_bytes, uint8_t *const *frames,
-                               size_t count, cdvr_error *err)
+/* decode and decode_cells (cells NULL: the whole frame). */
+static cdvr_status decode_frame(const cdvr_codec_params *p, const size_t dims[3],
+                                const uint8_t *in, size_t in_bytes, uint8_t *frame,
+                                const zfpc_cells *cells, cdvr_error *err)
 {
     zfpc_geometry g;
     cdvr_status s = geometry(p, dims, &g, err);
     if (s != CDVR_OK)
         return s;
-    if (count != 1)
-        return cdvr_plugin_error(err, CDVR_ERR_ARG, "codec zfp: %zu frames asked of a chunk of "
-                                 "1", count);
     if (in_bytes != g.payload_bytes)
         return cdvr_plugin_error(err, CDVR_ERR_CORRUPT, "codec zfp: chunk of %zu bytes, rate %g "
                                  "on %zux%zux%zu needs %zu", in_bytes, g.maxbits / 64.0,
@@ -476,10 +514,34 @@ static cdvr_status zfpc_decode(const cdvr_codec_params *p, const size_t dims[3],
     uint8_t *buf = copy ? calloc(1, g.stream_bytes) : (uint8_t *)(uintptr_t)in;
     for (size_t i = 0; copy && buf && i < in_bytes; i++)
         buf[stream_index(i)] = in[i];
-    int ok = buf && decode_parallel(&g, dims, buf, frames[0]);
+    int ok = buf && decode_parallel(&g, dims, buf, frame, cells);
     if (copy)
         free(buf);
     return ok ? CDVR_OK : cdvr_plugin_error(err, CDVR_ERR_NOMEM, "codec zfp: out of memory");
+}
+
+static cdvr_status zfpc_decode(const cdvr_codec_params *p, const size_t dims[3],
+                               const uint8_t *in, size_t in_bytes, uint8_t *const *frames,
+                               size_t count, cdvr_error *err)
+{
+    if (count != 1)
+        return cdvr_plugin_error(err, CDVR_ERR_ARG, "codec zfp: %zu frames asked of a chunk of "
+                                 "1", count);
+    return decode_frame(p, dims, in, in_bytes, frames[0], NULL, err);
+}
+
+/* Only the blocks that hold a voxel of a needed cell (a skipped block's voxels keep what the
+ * frame held). */
+static cdvr_status zfpc_decode_cells(const cdvr_codec_params *p, const size_t dims[3],
+                                     const uint8_t *in, size_t in_bytes, uint8_t *frame,
+                                     const uint8_t *need, unsigned cell_log2, cdvr_error *err)
+{
+    if (cell_log2 > 30)
+        return cdvr_plugin_error(err, CDVR_ERR_ARG, "codec zfp: cells of 2^%u voxels", cell_log2);
+    zfpc_cells cells = {need, cell_log2, {0, 0, 0}};
+    for (int a = 0; a < 3; a++)
+        cells.dims[a] = ((dims[a] - 1) >> cell_log2) + 1;
+    return decode_frame(p, dims, in, in_bytes, frame, &cells, err);
 }
 
 static const cdvr_codec zfp_codec = {
@@ -497,6 +559,8 @@ static const cdvr_codec zfp_codec = {
     .encode = zfpc_encode,
     .decode = zfpc_decode,
     .cl_mode = CDVR_CODEC_CL_NONE,
+    .decode_cells = zfpc_decode_cells,
+    .decodes_in_parallel = 1,
 };
 
 static const cdvr_plugin_info zfp_plugin = {.abi = CDVR_PLUGIN_ABI, .codec = &zfp_codec};

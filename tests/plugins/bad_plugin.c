@@ -127,6 +127,13 @@ static cdvr_status poisoned_check(const cdvr_codec_params *p, const size_t dims[
     (void)p, (void)dims, (void)payload, (void)bytes;
     return cdvr_plugin_error(err, CDVR_ERR_CORRUPT, "the loader read past an ABI-2 table");
 }
+static cdvr_status poisoned_cells(const cdvr_codec_params *p, const size_t dims[3],
+                                  const uint8_t *in, size_t in_bytes, uint8_t *frame,
+                                  const uint8_t *need, unsigned cell_log2, cdvr_error *err)
+{
+    (void)p, (void)dims, (void)in, (void)in_bytes, (void)frame, (void)need, (void)cell_log2;
+    return cdvr_plugin_error(err, CDVR_ERR_CORRUPT, "the loader read past an ABI-2 table");
+}
 #endif
 
 static const cdvr_codec bad_codec = {
@@ -147,6 +154,7 @@ static const cdvr_codec bad_codec = {
     .cl_mode = CDVR_CODEC_CL_NONE,
 #if defined(BAD_ABI2)
     .check = poisoned_check,
+    .decode_cells = poisoned_cells,
 #endif
 };
 

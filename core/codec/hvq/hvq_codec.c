@@ -328,6 +328,7 @@ const cdvr_codec cdvr_codec_hvq = {
     .cl_file = "codec/hvq_fetch.cl",
     .cl_function = "hvq_fetch",
     .check = hvq_payload_check,
+    .decodes_in_parallel = 1,
 };
 
 /* ---- "hvqc": the compact form (cdvr/hvq.h), decoded on the CPU ------------------------------

@@ -139,13 +139,16 @@ static cdvr_status check_info(const char *path, const cdvr_plugin_info *info,
     return CDVR_OK;
 }
 
-/* A plugin built before ABI 4 has codec tables that end before `check`: out's codecs become
- * full-size copies with check NULL, so that nothing reads past the plugin's tables. The copies
- * are never freed (registered tables stay). CDVR_ERR_NOMEM naming the file. */
+/* A plugin built before ABI 6 has codec tables that end before `decode_cells` (before ABI 4,
+ * before `check`): out's codecs become full-size copies with those NULL, so that nothing reads
+ * past the plugin's tables. The copies are never freed (registered tables stay).
+ * CDVR_ERR_NOMEM naming the file. */
 static cdvr_status widen_codecs(const char *path, cdvr_plugin_info *out, cdvr_error *err)
 {
-    if (out->abi >= 4)
+    if (out->abi >= 6)
         return CDVR_OK;
+    size_t table_bytes = out->abi >= 4 ? offsetof(cdvr_codec, decode_cells)
+                                       : offsetof(cdvr_codec, check);
     size_t n = 0;
     while (codec_at(out, n))
         n++;
@@ -157,7 +160,7 @@ static cdvr_status widen_codecs(const char *path, cdvr_plugin_info *out, cdvr_er
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: out of memory", path);
     }
     for (size_t k = 0; k < n; k++) {
-        memcpy(&copies[k], codec_at(out, k), offsetof(cdvr_codec, check));
+        memcpy(&copies[k], codec_at(out, k), table_bytes);
         list[k] = &copies[k];
     }
     out->codec = NULL;

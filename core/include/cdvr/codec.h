@@ -170,6 +170,21 @@ struct cdvr_codec {
      * guard). */
     cdvr_status (*check)(const cdvr_codec_params *p, const size_t dims[3],
                          const uint8_t *payload, size_t bytes, cdvr_error *err);
+
+    /* Optional (may be NULL; plugin ABI 6): decode for chunks of one timestep, of the cells
+     * the caller needs only. The frame is cut into cells of 2^cell_log2 voxels per axis
+     * (ceil(dims / 2^cell_log2) per axis, x fastest, the last ones cut by the frame's edge);
+     * every voxel of a cell with need[cell] != 0 gets exactly the value `decode` gives it,
+     * and the other voxels of frame are either given that value too or left as they were.
+     * Errors as decode's. The player uses it on the cl device for the ray caster's composite
+     * renders, whose skip grid says which cells its samples read (player.c, decode_visible). */
+    cdvr_status (*decode_cells)(const cdvr_codec_params *p, const size_t dims[3],
+                                const uint8_t *in, size_t in_bytes, uint8_t *frame,
+                                const uint8_t *need, unsigned cell_log2, cdvr_error *err);
+    /* Plugin ABI 6: 1 when decode and decode_cells spread one chunk over all cores
+     * themselves (zfp, hvq): the player then runs one such decode at a time rather than one
+     * per unzip worker, which would only make the threads take turns on the cores. */
+    int decodes_in_parallel;
 };
 
 /* ---- registry ------------------------------------------------------------------------------

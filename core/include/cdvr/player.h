@@ -102,6 +102,8 @@ typedef struct cdvr_frame_row {
     size_t bricks_read;      /* bricks read and decoded for this frame's chunk group (0 with
                                 opts.cache: the cache reads what it needs itself) */
     size_t bricks_skipped;   /* bricks of the player's region not read (transparent or unseen) */
+    double decoded_share;    /* of the frame's voxels, the share the host decode wrote (1: all,
+                                0: no host decode; below 1 with opts.decode_whole 0) */
     uint64_t resident_bytes; /* brick cache (opts.cache): voxel bytes of the bricks the frame
                                 rendered from; 0 without the cache */
     size_t nlevels;          /* brick cache: the store's levels; bricks_at[l] level-0 bricks */
@@ -180,6 +182,11 @@ typedef struct cdvr_player_opts {
     int cold;                    /* drop chunks from the page cache (posix_fadvise) */
     double read_mbps;            /* > 0: cap read bandwidth (MB/s, 1e6 bytes) */
     int empty_skip;              /* 1 (default): empty-space skipping on the cl device */
+    int decode_whole;            /* 1: host decodes write whole frames; 0 (default): where the
+                                    codec decodes cells (codec.h, decode_cells), the cl ray
+                                    caster composites from the range tables' skip grid, and the
+                                    store is one brick of one timestep per chunk, only the cells
+                                    its samples read are decoded */
     int cache;                   /* 1: every frame renders through the brick cache
                                     (cdvr/brick_cache.h; the cl device with a method that renders
                                     streams (raycast), or the cpu device with any method, from

@@ -26,6 +26,9 @@
  *      cdvr_raw_opts ends with `select` (the object inside a file: array, series, dataset). The
  *      format tables of a version 2 to 4 plugin end before it: cdvr registers full-size
  *      copies with accepts_dir and expand_opts NULL (listed in the info's `formats`).
+ *   6  as 5; cdvr_codec ends with `decode_cells` (decode of the cells a render reads) and
+ *      `decodes_in_parallel`. The codec tables of a version 2 to 5 plugin end before them:
+ *      cdvr registers full-size copies with those NULL and 0 (and, before 4, check NULL).
  * A version outside that range is refused naming both versions. The ABI version covers the
  * layouts of cdvr_plugin_info, cdvr_codec, cdvr_codec_params, cdvr_codec_shape, cdvr_format,
  * cdvr_volume, cdvr_raw_opts and cdvr_error.
@@ -47,7 +50,7 @@
 #include "cdvr/error.h"
 #include "cdvr/format.h"
 
-#define CDVR_PLUGIN_ABI 5u     /* 5: cdvr_format.accepts_dir; 4: cdvr_codec.check; 3: lists of codecs and formats;
+#define CDVR_PLUGIN_ABI 6u     /* 6: cdvr_codec.decode_cells; 5: cdvr_format.accepts_dir; 4: cdvr_codec.check; 3: lists of codecs and formats;
                                   2: cdvr_codec.encode_part */
 #define CDVR_PLUGIN_ABI_MIN 2u /* the oldest version this cdvr still loads */
 #define CDVR_PLUGIN_SYMBOL "cdvr_plugin_v1"

@@ -1,0 +1,129 @@
+-- tests/lua/test_decode_cells.lua - the player's decode of only the cells a composite render
+-- reads (player.h decode_whole, codec.h decode_cells; zfp implements it) gives the very frames
+-- of the whole-frame decode: real data with empty space (neghip, dims 66 = not a multiple of
+-- zfp's 4^3 blocks; the 25-timestep ASL MRI series, so a decode slot holds another timestep's
+-- voxels outside the decoded cells), unshaded and shaded (gradients read one voxel further),
+-- several cameras (inside the volume too), range tables of 4^3 and 16^3 bricks. Each case checks
+-- that only part of the frame was decoded (decoded_share below 1), so the partial path ran.
+-- Max and iso renders decode whole frames. Skips (77) without OpenCL or the zfp plugin.
+local have_zfp = false
+for _, c in ipairs(cdvr.codecs()) do have_zfp = have_zfp or c.name == "zfp" end
+if not have_zfp or not cdvr.cl_info() then
+  print("skip: needs OpenCL and the zfp plugin")
+  os.exit(77)
+end
+
+local failed = 0
+local function check(cond, msg)
+  if not cond then
+    failed = failed + 1
+    io.stderr:write("check failed: ", msg, "\n")
+  end
+end
+
+local tmp = os.tmpname()
+os.remove(tmp)
+assert(os.execute(("mkdir -p %q"):format(tmp)))
+
+local function read(path)
+  local f = assert(io.open(path, "rb"))
+  local s = f:read("a")
+  f:close()
+  return s
+end
+
+-- plays `frames` frames of the zfp variant with decode_whole false and true and compares the
+-- captured PNGs byte for byte; returns the partial run's largest decoded_share
+local function compare(name, st, opts, frames)
+  local shares = {}
+  for _, whole in ipairs{false, true} do
+    local o = {store = st, variant = "zfp", device = "cl", decode_whole = whole, pace = false,
+               out = ("%s/%s_%s_%%03d.png"):format(tmp, name, whole and "whole" or "cells")}
+    for k, v in pairs(opts) do o[k] = v end
+    local p = cdvr.player(o)
+    local r = p:run{frames = frames}
+    p:close()
+    for i, row in ipairs(r.frames) do
+      check(not row.error, name .. ": " .. tostring(row.error))
+      if not whole then shares[i] = row.decoded_share end
+      if whole then check(row.decoded_share == 1, name .. ": whole decode share " .. row.decoded_share) end
+    end
+  end
+  local most = 0
+  for i = 1, frames do
+    local a = read(("%s/%s_cells_%03d.png"):format(tmp, name, i))
+    local b = read(("%s/%s_whole_%03d.png"):format(tmp, name, i))
+    check(a == b, ("%s: frame %d differs from the whole-frame decode (decoded share %.3f)"):format(
+      name, i, shares[i] or -1))
+    most = math.max(most, shares[i] or 1)
+  end
+  return most, shares
+end
+
+local data = os.getenv("CDVR_SOURCE_DIR") or "."
+local function share_data(file)
+  for _, dir in ipairs{data .. "/share/data/", "../share/data/", "share/data/"} do
+    local f = io.open(dir .. file)
+    if f then f:close() return dir .. file end
+  end
+  error("share/data/" .. file .. " not found")
+end
+
+-- neghip: one timestep, two range-table brick sizes, shaded and not, three cameras
+local neghip = cdvr.load(share_data("neghip_66x66x66_u8.nrrd"))
+local tf = cdvr.tf{{0, 0, 0, 0, 0}, {60, 0.9, 0.4, 0.1, 0}, {120, 1, 0.8, 0.3, 0.2}, {255, 1, 1, 1, 0.9}}
+local c = 32.5
+local cams = {
+  cdvr.camera{eye = {c + 150, c - 90, c + 80}, center = {c, c, c}, up = {0, 0, 1}, fov = 30, width = 64, height = 64},
+  cdvr.camera{eye = {c - 20, c + 170, c - 60}, center = {c, c, c}, up = {1, 0, 0}, fov = 25, width = 48, height = 56},
+  cdvr.camera{eye = {c + 5, c - 3, c + 2}, center = {c + 40, c, c}, up = {0, 0, 1}, fov = 60, width = 40, height = 40},
+}
+for _, shift in ipairs{2, 4} do
+  local st = assert(cdvr.encode(neghip, {path = ("%s/neghip%d.cdv"):format(tmp, shift), progress = false,
+    range_brick = 1 << shift, variants = {{codec = "zfp", rate = 2, name = "zfp"}}}))
+  for ci, cam in ipairs(cams) do
+    for _, shade in ipairs{false, true} do
+      local name = ("neghip_b%d_c%d_%s"):format(shift, ci, shade and "shaded" or "plain")
+      local most = compare(name, st, {tf = tf, camera = cam, shade = shade}, 1)
+      check(most < 1 and most > 0, name .. ": decoded share " .. most .. " (expected part of the frame)")
+    end
+  end
+  -- a TF transparent below and above a band: with 4^3 tables the invisible bricks' ranges lie
+  -- on both sides of it, no fill keeps all their samples transparent, so the frame is decoded
+  -- whole (with 16^3 tables every invisible brick lies below the band: decoded in part)
+  local band = cdvr.tf{{0, 0, 0, 0, 0}, {70, 1, 0.5, 0.2, 0}, {100, 1, 0.8, 0.3, 0.4},
+                       {130, 1, 1, 1, 0}, {255, 1, 1, 1, 0}}
+  local bname = ("neghip_b%d_band"):format(shift)
+  local most = compare(bname, st, {tf = band, camera = cams[1]}, 1)
+  check(shift ~= 2 or most == 1, bname .. ": decoded share " .. most .. " (expected whole)")
+  -- max and iso read other bricks than the TF's visible ones: whole frames
+  for _, look in ipairs{{blend = "max"}, {iso = {value = 100}}} do
+    local o = {store = st, variant = "zfp", device = "cl", tf = tf, camera = cams[1], pace = false}
+    for k, v in pairs(look) do o[k] = v end
+    local p = cdvr.player(o)
+    local r = p:run{frames = 1}
+    p:close()
+    check(r.frames[1].decoded_share == 1, "max/iso: whole frames, share " .. r.frames[1].decoded_share)
+  end
+end
+
+-- the ASL series: 25 timesteps played in turn, each slot reused with other voxels
+local asl = cdvr.load(share_data("mpld_asl_64x64x24x25_f32.nii.gz"))
+local st = assert(cdvr.encode(asl, {path = tmp .. "/asl.cdv", progress = false,
+  variants = {{codec = "zfp", rate = 1, name = "zfp"}}}))
+local atf = cdvr.tf{{0, 0, 0, 0, 0}, {90, 0.2, 0.3, 0.9, 0}, {160, 0.9, 0.8, 0.3, 0.3}, {255, 1, 1, 1, 0.9}}
+local acam = cdvr.orbit_camera(asl, {azimuth = 35, elevation = 25, width = 64, height = 64})
+for _, shade in ipairs{false, true} do
+  local name = "asl_" .. (shade and "shaded" or "plain")
+  local most, shares = compare(name, st, {tf = atf, camera = acam, shade = shade}, 25)
+  local least = 1
+  for _, s in ipairs(shares) do least = math.min(least, s) end
+  check(least < 1, name .. ": every frame decoded whole (least share " .. least .. ")")
+end
+
+os.execute(("rm -rf %q"):format(tmp))
+if failed > 0 then
+  print(("test_decode_cells: %d checks failed"):format(failed))
+  os.exit(1)
+end
+print("test_decode_cells: ok")
