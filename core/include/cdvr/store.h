@@ -287,12 +287,15 @@ cdvr_status cdvr_store_decode_chunk(const cdvr_store *st, size_t v, size_t c,
                                     cdvr_error *err);
 /* The same for a chunk of one timestep, decoding at least the voxels of the cells of
  * 2^cell_log2 voxels (ceil(brick dims / 2^cell_log2) per axis, x fastest) with need[cell] != 0
- * (codec.h, decode_cells): the other voxels of frame may keep what they held. A codec without
- * decode_cells decodes the whole frame. *all is set to 1 when every voxel was decoded. */
+ * into frame in layout (codec.h, decode_cells): the other voxels of frame may keep what they
+ * held. A codec without decode_cells decodes the whole frame (CDVR_LAYOUT_LINEAR only: else
+ * CDVR_ERR_UNSUPPORTED); *all is set to 1 then. */
 cdvr_status cdvr_store_decode_chunk_cells(const cdvr_store *st, size_t v, size_t c,
                                           const uint8_t *payload, uint8_t *frame,
-                                          const uint8_t *need, unsigned cell_log2, int *all,
-                                          cdvr_error *err);
+                                          unsigned layout, const uint8_t *need,
+                                          unsigned cell_log2, int *all, cdvr_error *err);
+/* Whether chunk c can be decoded by cells (a codec with decode_cells, one timestep). */
+int cdvr_store_chunk_decodes_cells(const cdvr_store *st, size_t v, size_t c);
 /* Convenience: read + unpack + decode timestep t of variant v (all bricks, assembled) into a
  * new u8 volume carrying the store's spacing, origin, direction and value window. */
 cdvr_status cdvr_store_decode(const cdvr_store *st, size_t v, size_t t, cdvr_volume **out,

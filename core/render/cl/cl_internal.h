@@ -127,6 +127,8 @@ struct cdvr_cl_stream {
                                     average render first needs them) */
     cl_mem tiles;                /* tiled copy of frame tiles_frame for the ray caster */
     size_t tiles_capacity, tiles_frame;
+    int only_tiles;              /* frame 0 is the caller's tiled copy (cdvr_cl_use_host_tiles):
+                                    tiles wraps that memory, and no frame holds its voxels */
     cl_mem grads;                /* gradient copy of frame grads_frame (cl_shared.h), made with
                                     the tiled copy for renders that shade */
     size_t grads_capacity, grads_frame;

@@ -105,6 +105,10 @@ static cdvr_status upload_block_ranges(cdvr_cl_stream *s, const uint8_t *bricks,
  * ranges follow when a render needs them, set_raycast_args). */
 static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *err)
 {
+    if (s->only_tiles)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL setup: frame %zu is only a tiled copy "
+                              "(cdvr_cl_use_host_tiles): its grid comes from the caller "
+                              "(cdvr_cl_setup_grid)", frame);
     voxel_source src;
     cdvr_status sst = source_of(s, frame, &src, err);
     if (sst)
@@ -639,16 +643,11 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
  * a byte per voxel in whole pages of 16^3, so only below 2^31 bytes and when the device takes
  * the buffer. Playback renders each frame once and never pays for it. On any failure the
  * frame is simply rendered from its voxels. */
-/* Bytes of the tiled copy of a frame of dims (whole pages); SIZE_MAX on overflow. */
+/* Bytes of the tiled copy of a frame of dims (whole pages, codec.h); SIZE_MAX on overflow. */
 static size_t tiled_bytes(const size_t dims[3])
 {
-    size_t edge = CDVR_CL_PAGE_EDGE, n = 1;
-    for (int a = 0; a < 3; a++) {
-        size_t tiles = dims[a] / edge + (dims[a] % edge != 0);
-        if (!cdvr_size_mul(n, tiles * edge, &n))
-            return SIZE_MAX;
-    }
-    return n;
+    size_t n = cdvr_tiled_bytes(dims);
+    return n ? n : SIZE_MAX;
 }
 
 /* Makes *mem (of `bytes`) the copy of `frame` that copy kernel k makes (make_tiles,
@@ -711,7 +710,7 @@ static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
 {
     int wanted = look->shade.enabled || look->gradient_opacity.npoints > 0;
     size_t bytes;
-    if (s->tiles_frame != frame || !wanted || env_is("CDVR_CL_GRADS", "0") ||
+    if (s->tiles_frame != frame || !wanted || s->only_tiles || env_is("CDVR_CL_GRADS", "0") ||
         !cdvr_size_mul(tiled_bytes(s->dims), 4, &bytes) || bytes > WORD_COPY_MAX_BYTES)
         return 0;
     return copy_ready(s, frame, s->cl->k_grads, "make_grads", &s->grads, &s->grads_capacity,
@@ -738,7 +737,7 @@ static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
 static int quads_ready(cdvr_cl_stream *s, size_t frame, int blend)
 {
     size_t bytes;
-    if (s->tiles_frame != frame || env_is("CDVR_CL_QUADS", "0") ||
+    if (s->tiles_frame != frame || s->only_tiles || env_is("CDVR_CL_QUADS", "0") ||
         !cdvr_size_mul(tiled_bytes(s->dims), 4, &bytes) || bytes > WORD_COPY_MAX_BYTES)
         return 0;
     if (!env_is("CDVR_CL_QUADS", "1") &&

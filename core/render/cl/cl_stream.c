@@ -1,6 +1,7 @@
 /* core/render/cl/cl_stream.c - device streams: upload (b2), decode (b3) through the codec table
  * (cdvr/codec.h) and download of u8 frames. */
 #include <stdio.h>
+#include <limits.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -129,6 +130,11 @@ void cdvr_cl_stream_free(cdvr_cl_stream *s)
 static void invalidate_frames(cdvr_cl_stream *s)
 {
     cdvr_cl_release(&s->host_frames);
+    if (s->only_tiles) { /* the caller's memory: never a buffer to reuse */
+        cdvr_cl_release(&s->tiles);
+        s->tiles_capacity = 0;
+        s->only_tiles = 0;
+    }
     s->frames_valid = 0;
     s->fetch = NULL;
     s->setup_frame = (size_t)-1;
@@ -511,6 +517,34 @@ cdvr_status cdvr_cl_use_host_frames(cdvr_cl_stream *s, const uint8_t *frames, si
     return CDVR_OK;
 }
 
+int cdvr_cl_takes_host_tiles(const cdvr_cl_stream *s)
+{
+    size_t bytes = cdvr_tiled_bytes(s->dims);
+    return bytes && bytes <= INT_MAX && s->voxels <= INT_MAX && bytes <= s->cl->info.max_alloc_bytes &&
+           !(getenv("CDVR_CL_LONG_INDEX") && !strcmp(getenv("CDVR_CL_LONG_INDEX"), "1"));
+}
+
+cdvr_status cdvr_cl_use_host_tiles(cdvr_cl_stream *s, const uint8_t *tiles, cdvr_error *err)
+{
+    invalidate_frames(s);
+    if (!tiles || !cdvr_cl_takes_host_tiles(s))
+        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "OpenCL: a tiled frame of %zux%zux%zu "
+                              "is not taken here (cdvr_cl_takes_host_tiles)", s->dims[0],
+                              s->dims[1], s->dims[2]);
+    cl_int code;
+    cl_mem mem = clCreateBuffer(s->cl->context, CL_MEM_READ_ONLY | CL_MEM_USE_HOST_PTR,
+                                cdvr_tiled_bytes(s->dims), (void *)tiles, &code);
+    if (code != CL_SUCCESS)
+        return cdvr_cl_check(code, "tiled frame in host memory", err);
+    cdvr_cl_release(&s->tiles);
+    s->tiles = mem;
+    s->tiles_capacity = 0;
+    s->only_tiles = 1;
+    s->tiles_frame = 0;
+    s->frames_valid = 1;
+    return CDVR_OK;
+}
+
 uint64_t cdvr_cl_stream_bytes(const cdvr_cl_stream *s)
 {
     uint64_t b = (uint64_t)s->payload_capacity + s->frame_capacity + CDVR_CL_PARAMS_BUFFER_BYTES;
@@ -534,9 +568,10 @@ cdvr_status cdvr_cl_download(cdvr_cl_stream *s, size_t frame, uint8_t *out, cdvr
         return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "OpenCL download: frames of codec %s "
                               "stay compressed on the device (decode on the CPU instead)",
                               s->fetch->codec->name);
-    if (frame >= s->frames_valid)
-        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL download: frame %zu not decoded (%zu frames)",
-                              frame, s->frames_valid);
+    if (frame >= s->frames_valid || s->only_tiles)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL download: frame %zu not decoded (%zu "
+                              "frames%s)", frame, s->frames_valid,
+                              s->only_tiles ? ", only a tiled copy" : "");
     cl_int code = clEnqueueReadBuffer(s->cl->queue, cdvr_cl_frames_mem(s), CL_TRUE,
                                       frame * s->voxels, s->voxels, out, 0, NULL, NULL);
     return cdvr_cl_check(code, "download frame", err);
