@@ -25,7 +25,9 @@
 --   --out DIR (stores; default a fresh directory under /tmp, removed at the end unless --keep),
 --   --skip encode|playback, --repeats 1 (playback repeats; medians of fps and stages),
 --   --range-brick 4|8|16 (the new executable's range tables; default its encoder's),
---   --empty-skip on|off (empty-space skipping of the players, default on).
+--   --empty-skip on|off (empty-space skipping of the players, default on),
+--   --read-mbps M (both players read at most M MB/s, player.h read_mbps: playback from a
+--   disk of that rate, e.g. the one --stage2-read-mbps models, rather than the page cache).
 -- Playback rows carry grid_ms (the skip grids made from the range tables; the old executable
 -- may count them in unzip_ms) and samples (median samples the ray caster took per frame, 0
 -- when the executable does not report them: with --empty-skip off, every sample).
@@ -188,7 +190,8 @@ p:close()
 print("OK," .. table.concat(out, ",") .. (",%%.1f"):format(vmhwm_mb()) .. "," .. table.concat(extra, ","))
 ]]):format(stores[exe.name][n][var], tf_points, c + 2.2 * D, c - 1.3 * D, c + 1.3 * D, c, c, c,
            size, size, var, opt.device,
-           opt["empty-skip"] == "off" and ", empty_skip=false" or "",
+           (opt["empty-skip"] == "off" and ", empty_skip=false" or "") ..
+           (opt["read-mbps"] and (", read_mbps=" .. assert(tonumber(opt["read-mbps"]), "--read-mbps M")) or ""),
            math.min(frames, 6), repeats, frames))
         if r then
           local share = r[7] > 0 and r[6] / r[8] or 0 / 0
