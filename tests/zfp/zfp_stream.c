@@ -24,6 +24,24 @@ static uint8_t reference_u8(int32_t i)
     return (uint8_t)(v < 0 ? 0 : v > 255 ? 255 : v);
 }
 
+/* The plugin's payload of frame v at rate (a new buffer; *p its parameters, *bytes its size;
+ * *bound the shape's bound). */
+static uint8_t *encode_frame(const cdvr_codec *zfp, const char *rate, const size_t dims[3],
+                             const uint8_t *v, cdvr_codec_params *p, size_t *bytes, size_t *bound)
+{
+    cdvr_codec_shape shape;
+    cdvr_error err;
+    const char *k[1] = {"rate"}, *val[1] = {rate};
+    CHECK_OK(cdvr_codec_params_parse(zfp, k, val, 1, p, &err), err);
+    CHECK_OK(cdvr_codec_shape_of(zfp, p, dims, &shape, &err), err);
+    uint8_t *payload = malloc(shape.bound_bytes);
+    const uint8_t *in[1] = {v};
+    *bytes = 0;
+    *bound = shape.bound_bytes;
+    CHECK_OK(zfp->encode(p, dims, in, 1, payload, shape.bound_bytes, bytes, &err), err);
+    return payload;
+}
+
 static void check_one(const cdvr_codec *zfp, const char *rate, const size_t dims[3], int pattern)
 {
     size_t n = dims[0] * dims[1] * dims[2];
@@ -50,19 +68,12 @@ static void check_one(const cdvr_codec *zfp, const char *rate, const size_t dims
     size_t ok_dec = zfp_decompress(zs, g);
     /* the plugin's way, through the codec table */
     cdvr_codec_params p;
-    cdvr_codec_shape shape;
     cdvr_error err;
-    const char *k[1] = {"rate"}, *val[1] = {rate};
-    CHECK_OK(cdvr_codec_params_parse(zfp, k, val, 1, &p, &err), err);
-    CHECK_OK(cdvr_codec_shape_of(zfp, &p, dims, &shape, &err), err);
-    uint8_t *payload = malloc(shape.bound_bytes);
-    size_t bytes = 0;
-    const uint8_t *in[1] = {v};
+    size_t bytes, bound;
+    uint8_t *payload = encode_frame(zfp, rate, dims, v, &p, &bytes, &bound);
     uint8_t *out[1] = {mine};
-    CHECK_OK(zfp->encode(&p, dims, in, 1, payload, shape.bound_bytes, &bytes, &err), err);
     CHECK_OK(zfp->decode(&p, dims, payload, bytes, out, 1, &err), err);
-    CHECK(cap == shape.bound_bytes, "bound %zu, zfp_stream_maximum_size %zu", shape.bound_bytes,
-          cap);
+    CHECK(cap == bound, "bound %zu, zfp_stream_maximum_size %zu", bound, cap);
     CHECK(ok_dec && bytes <= ref_bytes && ref_bytes - bytes < stream_word_bits / 8 + 1 &&
               memcmp(payload, ref, bytes) == 0,
           "rate %s %zux%zux%zu pattern %d: payload (%zu bytes) is not zfp_compress's (%zu)", rate,
@@ -98,16 +109,10 @@ static void check_parallel(const cdvr_codec *zfp, const char *rate, const size_t
         v[i] = (uint8_t)((i % dims[0]) * 5 + (h & 15));
     }
     cdvr_codec_params p;
-    cdvr_codec_shape shape;
     cdvr_error err;
-    const char *k[1] = {"rate"}, *val[1] = {rate};
-    CHECK_OK(cdvr_codec_params_parse(zfp, k, val, 1, &p, &err), err);
-    CHECK_OK(cdvr_codec_shape_of(zfp, &p, dims, &shape, &err), err);
-    uint8_t *payload = malloc(shape.bound_bytes);
-    size_t bytes = 0;
-    const uint8_t *in[1] = {v};
+    size_t bytes, bound;
+    uint8_t *payload = encode_frame(zfp, rate, dims, v, &p, &bytes, &bound);
     uint8_t *out[1] = {serial};
-    CHECK_OK(zfp->encode(&p, dims, in, 1, payload, shape.bound_bytes, &bytes, &err), err);
     setenv("CDVR_ZFP_THREADS", "1", 1);
     CHECK_OK(zfp->decode(&p, dims, payload, bytes, out, 1, &err), err);
     static const char *const threads[] = {"2", "3", "7", "64", "1000"};
@@ -140,16 +145,10 @@ static void check_cells(const cdvr_codec *zfp, const char *rate, const size_t di
     for (size_t i = 0; i < n; i++)
         v[i] = (uint8_t)((i % dims[0]) * 3 + (i / dims[0] % dims[1]) * 7 + i / (dims[0] * dims[1]));
     cdvr_codec_params p;
-    cdvr_codec_shape shape;
     cdvr_error err;
-    const char *k[1] = {"rate"}, *val[1] = {rate};
-    CHECK_OK(cdvr_codec_params_parse(zfp, k, val, 1, &p, &err), err);
-    CHECK_OK(cdvr_codec_shape_of(zfp, &p, dims, &shape, &err), err);
-    uint8_t *payload = malloc(shape.bound_bytes);
-    size_t bytes = 0;
-    const uint8_t *in[1] = {v};
+    size_t bytes, bound;
+    uint8_t *payload = encode_frame(zfp, rate, dims, v, &p, &bytes, &bound);
     uint8_t *out[1] = {whole};
-    CHECK_OK(zfp->encode(&p, dims, in, 1, payload, shape.bound_bytes, &bytes, &err), err);
     CHECK_OK(zfp->decode(&p, dims, payload, bytes, out, 1, &err), err);
     CHECK(zfp->decode_cells != NULL && zfp->decodes_in_parallel, "zfp: decode_cells, parallel");
     for (unsigned log2 = 2; zfp->decode_cells && log2 <= 3; log2++) {
