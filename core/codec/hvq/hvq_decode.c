@@ -241,6 +241,32 @@ static inline void write_block(uint8_t *first, size_t X, size_t XY, unsigned nx,
         }
 }
 
+/* write_block for a whole block (4^3 inside the frame) that the index hash holds: the 64
+ * values in one loop of constant count without a branch, which gcc vectorises at -O2, then
+ * the 16 rows of 4 (the general loop tested c1 per voxel and ran scalar). The same values:
+ * mean + c1[o8] + c2[o64], clamped to 0 .. 255. */
+static void write_coded_block(uint8_t *first, size_t X, size_t XY, int mean, const uint8_t *c1,
+                              const uint8_t *c2)
+{
+    int32_t near[8], base[64], word2[64];
+    uint8_t vals[64];
+    for (int k = 0; k < 8; k++)
+        near[k] = mean + hvq_rds16(c1 + 2 * k);
+    for (int row = 0; row < 16; row++) { /* row = y + 4 z: codebook-1 entries x >> 1 = 0, 1 */
+        const int32_t *e = near + 2 * ((row & 3) >> 1) + 4 * (row >> 3);
+        base[4 * row] = base[4 * row + 1] = e[0];
+        base[4 * row + 2] = base[4 * row + 3] = e[1];
+    }
+    for (int k = 0; k < 64; k++)
+        word2[k] = hvq_rds16(c2 + 2 * k);
+    for (int k = 0; k < 64; k++) {
+        int32_t val = base[k] + word2[k];
+        vals[k] = (uint8_t)(val < 0 ? 0 : val > 255 ? 255 : val);
+    }
+    for (int row = 0; row < 16; row++)
+        memcpy(first + X * (size_t)(row & 3) + XY * (size_t)(row >> 2), vals + 4 * row, 4);
+}
+
 /* Writes the block's voxels that lie inside the frame; index is its region's index hash. */
 static void decode_block(const hvq_view *v, const hvq_psh_map *index, uint64_t bx, uint64_t by,
                          uint64_t bz, uint8_t *out)
@@ -260,8 +286,10 @@ static void decode_block(const hvq_view *v, const hvq_psh_map *index, uint64_t b
         n[a] = v->dims[a] - at[a] < 4 ? (unsigned)(v->dims[a] - at[a]) : 4u;
     size_t X = v->dims[0], XY = v->dims[0] * v->dims[1];
     uint8_t *first = out + at[0] + X * at[1] + XY * at[2];
-    if (n[0] == 4 && n[1] == 4 && n[2] == 4) /* constant bounds: unrolled (1.1x the decode) */
-        write_block(first, X, XY, 4, 4, 4, mean, c1, c2);
+    if (n[0] == 4 && n[1] == 4 && n[2] == 4 && c1)
+        write_coded_block(first, X, XY, mean, c1, c2);
+    else if (n[0] == 4 && n[1] == 4 && n[2] == 4) /* constant bounds: unrolled */
+        write_block(first, X, XY, 4, 4, 4, mean, NULL, NULL);
     else
         write_block(first, X, XY, n[0], n[1], n[2], mean, c1, c2);
 }
