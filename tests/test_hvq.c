@@ -65,6 +65,51 @@ static int encode(const cdvr_hvq_params *p, const size_t d[3], const uint8_t *fr
     return s == CDVR_OK;
 }
 
+/* decode_cells (hvq_decode_cells_threads) against the whole decode dec: every voxel of a needed
+ * cell, residual ones included, in both layouts (tiled through cdvr_tiled_offset, the padding
+ * of edge tiles repeating the frame's last voxel), cells of 4 and 8 voxels, every third cell
+ * left out; voxels of cells left out keep what the frame held where no needed block covers
+ * them. */
+static void verify_cells(const cdvr_hvq_params *p, const size_t d[3], const encoded *e,
+                         const uint8_t *dec, const char *what)
+{
+    size_t n = d[0] * d[1] * d[2], tb = cdvr_tiled_bytes(d);
+    uint8_t *lin = malloc(n), *tiles = malloc(tb);
+    cdvr_error err;
+    for (unsigned log2 = 2; lin && tiles && log2 <= 3; log2++) {
+        size_t c[3], cells = 1, bad = 0, bad_pad = 0;
+        for (int a = 0; a < 3; a++)
+            cells *= c[a] = ((d[a] - 1) >> log2) + 1;
+        uint8_t *need = malloc(cells);
+        for (size_t i = 0; i < cells; i++)
+            need[i] = (uint8_t)(i % 3 != 1);
+        memset(lin, 0x5A, n);
+        memset(tiles, 0x5A, tb);
+        CHECK_OK(hvq_decode_cells_threads(p, d, e->bytes, e->n, lin, CDVR_LAYOUT_LINEAR, need,
+                                          log2, 3, &err), err);
+        CHECK_OK(hvq_decode_cells_threads(p, d, e->bytes, e->n, tiles, CDVR_LAYOUT_TILED, need,
+                                          log2, 2, &err), err);
+        for (size_t z = 0; z < (d[2] + 3) / 4 * 4; z++)
+            for (size_t y = 0; y < (d[1] + 3) / 4 * 4; y++)
+                for (size_t x = 0; x < (d[0] + 3) / 4 * 4; x++) {
+                    size_t sx = x < d[0] ? x : d[0] - 1, sy = y < d[1] ? y : d[1] - 1;
+                    size_t sz = z < d[2] ? z : d[2] - 1, i = sx + d[0] * (sy + d[1] * sz);
+                    if (!need[(sx >> log2) + c[0] * ((sy >> log2) + c[1] * (sz >> log2))])
+                        continue;
+                    uint8_t t = tiles[cdvr_tiled_offset(d, x, y, z)];
+                    if (x == sx && y == sy && z == sz)
+                        bad += lin[i] != dec[i] || t != dec[i];
+                    else
+                        bad_pad += t != dec[i];
+                }
+        CHECK(bad == 0 && bad_pad == 0, "%s: cells of %u: %zu voxels and %zu padding voxels "
+              "differ from the whole decode", what, 1u << log2, bad, bad_pad);
+        free(need);
+    }
+    free(lin);
+    free(tiles);
+}
+
 /* Decodes, checks the error bound, the fetch of every voxel, the check's figures. Returns the
  * largest error (or -1). */
 static int verify(const cdvr_hvq_params *p, const size_t d[3], const uint8_t *frame,
@@ -98,6 +143,7 @@ static int verify(const cdvr_hvq_params *p, const size_t d[3], const uint8_t *fr
                   "%s: decoded on %u threads differently", what, threads);
         }
         free(again);
+        verify_cells(p, d, e, dec, what);
     }
     cdvr_hvq_stats st;
     s = cdvr_hvq_check(p, d, e->bytes, e->n, &st, &err);

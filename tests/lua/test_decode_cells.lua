@@ -3,7 +3,8 @@
 -- of the whole-frame decode: real data with empty space (neghip, dims 66 = not a multiple of
 -- zfp's 4^3 blocks; the 25-timestep ASL MRI series, so a decode slot holds another timestep's
 -- voxels outside the decoded cells), unshaded and shaded (gradients read one voxel further),
--- several cameras (inside the volume too), range tables of 4^3 and 16^3 bricks. Each case checks
+-- several cameras (inside the volume too), range tables of 4^3 and 16^3 bricks, and hvq decoded on
+-- the host (fetch="bulk"). Each case checks
 -- that only part of the frame was decoded (decoded_share below 1), so the partial path ran.
 -- Max and iso renders decode whole frames. Skips (77) without OpenCL or the zfp plugin.
 local have_zfp = false
@@ -104,6 +105,18 @@ for _, shift in ipairs{2, 4} do
     local r = p:run{frames = 1}
     p:close()
     check(r.frames[1].decoded_share == 1, "max/iso: whole frames, share " .. r.frames[1].decoded_share)
+  end
+end
+
+-- hvq (a fetch-mode codec) decoded on the host (fetch="bulk"): blocks and residual voxels of
+-- the needed cells, tiled, against its whole decode
+do
+  local st = assert(cdvr.encode(neghip, {path = tmp .. "/neghip_hvq.cdv", progress = false,
+    variants = {{codec = "hvq", name = "zfp"}}})) -- named "zfp" for compare()
+  for _, shade in ipairs{false, true} do
+    local name = "hvq_" .. (shade and "shaded" or "plain")
+    local most = compare(name, st, {tf = tf, camera = cams[1], shade = shade, fetch = "bulk"}, 1)
+    check(most < 1 and most > 0, name .. ": decoded share " .. most .. " (expected part of the frame)")
   end
 end
 

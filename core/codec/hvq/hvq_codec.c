@@ -2,6 +2,7 @@
  * format is documented in cdvr/hvq.h. */
 #include "cdvr/codec.h"
 #include "cdvr/hvq.h"
+#include "codec/hvq/hvq_internal.h"
 
 #include <errno.h>
 #include <math.h>
@@ -277,6 +278,17 @@ static cdvr_status hvq_decode(const cdvr_codec_params *blob, const size_t dims[3
     return cdvr_hvq_decode(&p, dims, in, in_bytes, frames[0], err);
 }
 
+static cdvr_status hvq_decode_cells(const cdvr_codec_params *blob, const size_t dims[3],
+                                    const uint8_t *in, size_t in_bytes, uint8_t *frame,
+                                    unsigned layout, const uint8_t *need, unsigned cell_log2,
+                                    cdvr_error *err)
+{
+    cdvr_hvq_params p;
+    cdvr_hvq_params_from_blob(blob, &p);
+    return hvq_decode_cells_threads(&p, dims, in, in_bytes, frame, layout, need, cell_log2,
+                                    hvq_threads_auto(), err);
+}
+
 static cdvr_status hvq_describe(const cdvr_codec_params *blob, const size_t dims[3],
                                 const uint8_t *payload, size_t bytes,
                                 void (*emit)(void *ud, const char *key, double value), void *ud,
@@ -328,6 +340,7 @@ const cdvr_codec cdvr_codec_hvq = {
     .cl_file = "codec/hvq_fetch.cl",
     .cl_function = "hvq_fetch",
     .check = hvq_payload_check,
+    .decode_cells = hvq_decode_cells,
     .decodes_in_parallel = 1,
 };
 

@@ -2,6 +2,7 @@
  * the payload check, the whole-frame decoder and the per-voxel fetch that the OpenCL fetch
  * (kernels/codec/hvq_fetch.cl) mirrors line for line. */
 #include "codec/hvq/hvq_internal.h"
+#include "cdvr/codec.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -220,36 +221,46 @@ static unsigned read_index(const uint8_t *p, unsigned w)
     return w == 1 ? p[0] : hvq_rd16(p);
 }
 
-/* The voxels x < nx, y < ny, z < nz of a block from its mean and, where the index hash holds
- * the block (c1, c2 not NULL), its two codewords, clamped to 0 .. 255; rows of X, slices of
- * XY from first. */
-static inline void write_block(uint8_t *first, size_t X, size_t XY, unsigned nx, unsigned ny,
-                               unsigned nz, int mean, const uint8_t *c1, const uint8_t *c2)
+/* Where decode writes (codec.h decode_cells): the frame in its layout, and when need is set
+ * only the blocks and residual voxels of the cells need marks (cells of 2^cell_log2 voxels,
+ * cdims per axis). */
+typedef struct hvq_target {
+    uint8_t *frame;
+    unsigned layout;       /* CDVR_LAYOUT_LINEAR or CDVR_LAYOUT_TILED */
+    const uint8_t *need;   /* NULL: everything */
+    unsigned cell_log2;
+    size_t dims[3], cdims[3];
+} hvq_target;
+
+static int cell_needed(const hvq_target *t, uint64_t x, uint64_t y, uint64_t z)
 {
-    for (unsigned z = 0; z < nz; z++)
-        for (unsigned y = 0; y < ny; y++) {
-            uint8_t *row = first + X * y + XY * z;
-            for (unsigned x = 0; x < nx; x++) {
-                int val = mean;
-                if (c1) {
-                    unsigned o8 = (x >> 1) + 2 * (y >> 1) + 4 * (z >> 1), o64 = x + 4 * y + 16 * z;
-                    val += hvq_rds16(c1 + 2 * o8) + hvq_rds16(c2 + 2 * o64);
-                    val = val < 0 ? 0 : val > 255 ? 255 : val;
-                }
-                row[x] = (uint8_t)val;
-            }
-        }
+    unsigned l = t->cell_log2;
+    return t->need[(x >> l) + t->cdims[0] * ((y >> l) + t->cdims[1] * (z >> l))] != 0;
 }
 
-/* write_block for a whole block (4^3 inside the frame) that the index hash holds: the 64
- * values in one loop of constant count without a branch, which gcc vectorises at -O2, then
- * the 16 rows of 4 (the general loop tested c1 per voxel and ran scalar). The same values:
- * mean + c1[o8] + c2[o64], clamped to 0 .. 255. */
-static void write_coded_block(uint8_t *first, size_t X, size_t XY, int mean, const uint8_t *c1,
-                              const uint8_t *c2)
+/* Whether block (bx, by, bz), of n[] voxels inside the frame, meets a needed cell. */
+static inline int block_needed(const hvq_target *t, uint64_t bx, uint64_t by, uint64_t bz,
+                        const unsigned n[3])
+{
+    if (!t->need)
+        return 1;
+    unsigned l = t->cell_log2;
+    uint64_t lo[3] = {4 * bx >> l, 4 * by >> l, 4 * bz >> l};
+    uint64_t hi[3] = {(4 * bx + n[0] - 1) >> l, (4 * by + n[1] - 1) >> l, (4 * bz + n[2] - 1) >> l};
+    for (uint64_t z = lo[2]; z <= hi[2]; z++)
+        for (uint64_t y = lo[1]; y <= hi[1]; y++)
+            for (uint64_t x = lo[0]; x <= hi[0]; x++)
+                if (t->need[x + t->cdims[0] * (y + t->cdims[1] * z)])
+                    return 1;
+    return 0;
+}
+
+/* The 64 values of a block with codewords, x fastest, then y, z: mean + c1[o8] + c2[o64]
+ * clamped to 0 .. 255, in one loop of constant count without a branch, which gcc vectorises
+ * at -O2 (a per-voxel loop that tested c1 ran scalar). */
+static inline void coded_values(int mean, const uint8_t *c1, const uint8_t *c2, uint8_t vals[64])
 {
     int32_t near[8], base[64], word2[64];
-    uint8_t vals[64];
     for (int k = 0; k < 8; k++)
         near[k] = mean + hvq_rds16(c1 + 2 * k);
     for (int row = 0; row < 16; row++) { /* row = y + 4 z: codebook-1 entries x >> 1 = 0, 1 */
@@ -263,41 +274,94 @@ static void write_coded_block(uint8_t *first, size_t X, size_t XY, int mean, con
         int32_t val = base[k] + word2[k];
         vals[k] = (uint8_t)(val < 0 ? 0 : val > 255 ? 255 : val);
     }
-    for (int row = 0; row < 16; row++)
-        memcpy(first + X * (size_t)(row & 3) + XY * (size_t)(row >> 2), vals + 4 * row, 4);
 }
 
-/* Writes the block's voxels that lie inside the frame; index is its region's index hash. */
+/* Writes the block's voxels (n[] of them inside the frame) from its 64 values: rows into a
+ * linear frame; the whole tile into a tiled one, the voxels past the frame's edge repeating
+ * its last voxel along each axis (codec.h). */
+static inline void store_values(const hvq_target *t, uint64_t bx, uint64_t by, uint64_t bz,
+                         const unsigned n[3], const uint8_t vals[64])
+{
+    if (t->layout == CDVR_LAYOUT_TILED) {
+        uint8_t *tile = t->frame + cdvr_tiled_offset(t->dims, 4 * bx, 4 * by, 4 * bz);
+        if (n[0] == 4 && n[1] == 4 && n[2] == 4) {
+            memcpy(tile, vals, 64);
+            return;
+        }
+        for (unsigned z = 0; z < 4; z++)
+            for (unsigned y = 0; y < 4; y++)
+                for (unsigned x = 0; x < 4; x++) {
+                    unsigned sx = x < n[0] ? x : n[0] - 1, sy = y < n[1] ? y : n[1] - 1;
+                    unsigned sz = z < n[2] ? z : n[2] - 1;
+                    tile[x + 4 * y + 16 * z] = vals[sx + 4 * sy + 16 * sz];
+                }
+        return;
+    }
+    size_t X = t->dims[0], XY = t->dims[0] * t->dims[1];
+    uint8_t *first = t->frame + 4 * bx + X * 4 * by + XY * 4 * bz;
+    if (n[0] == 4 && n[1] == 4 && n[2] == 4) { /* constant sizes: 16 moves of 4 bytes */
+        for (unsigned row = 0; row < 16; row++)
+            memcpy(first + X * (row & 3) + XY * (row >> 2), vals + 4 * row, 4);
+        return;
+    }
+    for (unsigned z = 0; z < n[2]; z++)
+        for (unsigned y = 0; y < n[1]; y++)
+            memcpy(first + X * y + XY * z, vals + 4 * y + 16 * z, n[0]);
+}
+
+/* Writes the block's voxels that lie inside the frame (all of the block when it meets a
+ * needed cell); index is its region's index hash. */
 static void decode_block(const hvq_view *v, const hvq_psh_map *index, uint64_t bx, uint64_t by,
-                         uint64_t bz, uint8_t *out)
+                         uint64_t bz, const hvq_target *t)
 {
     const hvq_layout *L = &v->L;
-    int mean = v->p[HVQ_HEADER_BYTES + bx + L->nbx * (by + L->nby * bz)];
-    const uint8_t *hit = hvq_psh_map_find(index, 3 + L->w1 + L->w2, (unsigned)(bx & 63),
-                                          (unsigned)(by & 63), (unsigned)(bz & 63));
-    const uint8_t *c1 = NULL, *c2 = NULL;
-    if (hit) {
-        c1 = v->p + L->off_c1 + 16u * read_index(hit, L->w1);
-        c2 = v->p + L->off_c2 + 128u * read_index(hit + L->w1, L->w2);
-    }
     uint64_t at[3] = {4 * bx, 4 * by, 4 * bz};
     unsigned n[3]; /* the block's extent inside the frame: 4 but at the far edges */
     for (int a = 0; a < 3; a++)
         n[a] = v->dims[a] - at[a] < 4 ? (unsigned)(v->dims[a] - at[a]) : 4u;
-    size_t X = v->dims[0], XY = v->dims[0] * v->dims[1];
-    uint8_t *first = out + at[0] + X * at[1] + XY * at[2];
-    if (n[0] == 4 && n[1] == 4 && n[2] == 4 && c1)
-        write_coded_block(first, X, XY, mean, c1, c2);
-    else if (n[0] == 4 && n[1] == 4 && n[2] == 4) /* constant bounds: unrolled */
-        write_block(first, X, XY, 4, 4, 4, mean, NULL, NULL);
+    if (!block_needed(t, bx, by, bz, n))
+        return;
+    int mean = v->p[HVQ_HEADER_BYTES + bx + L->nbx * (by + L->nby * bz)];
+    const uint8_t *hit = hvq_psh_map_find(index, 3 + L->w1 + L->w2, (unsigned)(bx & 63),
+                                          (unsigned)(by & 63), (unsigned)(bz & 63));
+    uint8_t vals[64];
+    if (!hit && t->layout == CDVR_LAYOUT_LINEAR && n[0] == 4 && n[1] == 4 && n[2] == 4) {
+        size_t X = t->dims[0], XY = t->dims[0] * t->dims[1]; /* the mean alone */
+        uint8_t *first = t->frame + 4 * bx + X * 4 * by + XY * 4 * bz;
+        for (unsigned row = 0; row < 16; row++)
+            memset(first + X * (row & 3) + XY * (row >> 2), mean, 4);
+        return;
+    }
+    if (hit)
+        coded_values(mean, v->p + L->off_c1 + 16u * read_index(hit, L->w1),
+                     v->p + L->off_c2 + 128u * read_index(hit + L->w1, L->w2), vals);
     else
-        write_block(first, X, XY, n[0], n[1], n[2], mean, c1, c2);
+        memset(vals, mean, 64);
+    store_values(t, bx, by, bz, n, vals);
+}
+
+/* Voxel (x, y, z) of the frame gets val; in a tiled frame also the copies of it that pad its
+ * tile past the frame's edge. */
+static void put_voxel(const hvq_target *t, uint64_t x, uint64_t y, uint64_t z, uint8_t val)
+{
+    const size_t *d = t->dims;
+    if (t->layout != CDVR_LAYOUT_TILED) {
+        t->frame[x + d[0] * (y + d[1] * z)] = val;
+        return;
+    }
+    uint64_t end[3], at[3] = {x, y, z}; /* past the last voxel: to its tile's end */
+    for (int a = 0; a < 3; a++)
+        end[a] = at[a] + 1 == d[a] ? (at[a] | 3) + 1 : at[a] + 1;
+    for (uint64_t pz = z; pz < end[2]; pz++)
+        for (uint64_t py = y; py < end[1]; py++)
+            for (uint64_t px = x; px < end[0]; px++)
+                t->frame[cdvr_tiled_offset(d, px, py, pz)] = val;
 }
 
 /* Residual voxels of region r from its slots [s0, s1) (clamped to the table): every slot
- * whose key maps to itself (the lookup's hits). */
+ * whose key maps to itself (the lookup's hits), of the needed cells. */
 static void apply_residuals(const hvq_view *v, uint64_t r, uint64_t s0, uint64_t s1,
-                            uint8_t *out)
+                            const hvq_target *t)
 {
     uint32_t m, rr;
     const uint8_t *data = dir_hash(v->p, &v->L, r, 1, &m, &rr);
@@ -312,21 +376,26 @@ static void apply_residuals(const hvq_view *v, uint64_t r, uint64_t s0, uint64_t
     for (uint64_t s = s0; s < s1 && s < m3; s++) {
         const uint8_t *k = map.slots + 4 * s;
         if (k[0] < ext[0] && k[1] < ext[1] && k[2] < ext[2] &&
-            hvq_psh_map_slot(&map, k[0], k[1], k[2]) == s)
-            out[(origin[0] + k[0]) +
-                v->dims[0] * ((origin[1] + k[1]) + v->dims[1] * (origin[2] + k[2]))] = k[3];
+            hvq_psh_map_slot(&map, k[0], k[1], k[2]) == s) {
+            uint64_t x = origin[0] + k[0], y = origin[1] + k[1], z = origin[2] + k[2];
+            if (!t->need && t->layout == CDVR_LAYOUT_LINEAR)
+                t->frame[x + v->dims[0] * (y + v->dims[1] * z)] = k[3];
+            else if (!t->need || cell_needed(t, x, y, z))
+                put_voxel(t, x, y, z, k[3]);
+        }
     }
 }
 
 /* The whole-frame decode in two parallel passes: the blocks by z slab of blocks, then the
  * residuals by runs of RESIDUAL_RUN hash slots (they overwrite block values, so after every
  * block). Each item writes only its own voxels (slabs do not overlap, and a perfect hash
- * gives each voxel one slot): the same bytes on any number of threads. */
+ * gives each voxel one slot; a tile's padding copies the voxel of its own tile): the same
+ * bytes on any number of threads. */
 #define RESIDUAL_RUN ((uint64_t)1 << 16)
 
 typedef struct decode_job {
     const hvq_view *v;
-    uint8_t *out;
+    const hvq_target *t;
     uint64_t *first_run; /* per region, its first run's item; nregions + 1 entries */
 } decode_job;
 
@@ -347,7 +416,7 @@ static void decode_slab(void *ctx, size_t bz)
             uint64_t x1 = (rx + 1) * side < L->nbx ? (rx + 1) * side : L->nbx;
             for (uint64_t by = ry * side; by < y1; by++)
                 for (uint64_t bx = rx * side; bx < x1; bx++)
-                    decode_block(job->v, &index, bx, by, bz, job->out);
+                    decode_block(job->v, &index, bx, by, bz, job->t);
         }
 }
 
@@ -358,7 +427,7 @@ static void decode_residual_run(void *ctx, size_t item)
     while (job->first_run[r + 1] <= item)
         r++;
     uint64_t s0 = (item - job->first_run[r]) * RESIDUAL_RUN;
-    apply_residuals(job->v, r, s0, s0 + RESIDUAL_RUN, job->out);
+    apply_residuals(job->v, r, s0, s0 + RESIDUAL_RUN, job->t);
 }
 
 /* first_run[r]: the item of region r's first run of slots; first_run[nregions]: all runs. */
@@ -373,15 +442,15 @@ static void count_runs(const hvq_view *v, uint64_t *first_run)
     }
 }
 
-cdvr_status hvq_decode_threads(const cdvr_hvq_params *p, const size_t dims[3],
-                               const uint8_t *payload, size_t bytes, uint8_t *out,
+static cdvr_status decode_into(const cdvr_hvq_params *p, const size_t dims[3],
+                               const uint8_t *payload, size_t bytes, const hvq_target *t,
                                unsigned threads, cdvr_error *err)
 {
     hvq_view v;
     cdvr_status s = view_open(&v, p, dims, payload, bytes, NULL, err);
     if (s != CDVR_OK)
         return s;
-    decode_job job = {&v, out, malloc(((size_t)v.L.nregions + 1) * sizeof(uint64_t))};
+    decode_job job = {&v, t, malloc(((size_t)v.L.nregions + 1) * sizeof(uint64_t))};
     if (!job.first_run)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "hvq decode: no memory for %llu regions",
                               (unsigned long long)v.L.nregions);
@@ -390,6 +459,28 @@ cdvr_status hvq_decode_threads(const cdvr_hvq_params *p, const size_t dims[3],
     hvq_parallel_for(threads, (size_t)job.first_run[v.L.nregions], decode_residual_run, &job);
     free(job.first_run);
     return CDVR_OK;
+}
+
+cdvr_status hvq_decode_threads(const cdvr_hvq_params *p, const size_t dims[3],
+                               const uint8_t *payload, size_t bytes, uint8_t *out,
+                               unsigned threads, cdvr_error *err)
+{
+    hvq_target t = {out, CDVR_LAYOUT_LINEAR, NULL, 0, {dims[0], dims[1], dims[2]}, {0, 0, 0}};
+    return decode_into(p, dims, payload, bytes, &t, threads, err);
+}
+
+cdvr_status hvq_decode_cells_threads(const cdvr_hvq_params *p, const size_t dims[3],
+                                     const uint8_t *payload, size_t bytes, uint8_t *frame,
+                                     unsigned layout, const uint8_t *need, unsigned cell_log2,
+                                     unsigned threads, cdvr_error *err)
+{
+    if (cell_log2 > 30 || (layout != CDVR_LAYOUT_LINEAR && layout != CDVR_LAYOUT_TILED) || !need)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "hvq decode: cells of 2^%u voxels, layout %u",
+                              cell_log2, layout);
+    hvq_target t = {frame, layout, need, cell_log2, {dims[0], dims[1], dims[2]}, {0, 0, 0}};
+    for (int a = 0; a < 3; a++)
+        t.cdims[a] = dims[a] ? ((dims[a] - 1) >> cell_log2) + 1 : 0;
+    return decode_into(p, dims, payload, bytes, &t, threads, err);
 }
 
 cdvr_status cdvr_hvq_decode(const cdvr_hvq_params *p, const size_t dims[3],

@@ -253,5 +253,12 @@ unsigned hvq_threads_auto(void);
 cdvr_status hvq_decode_threads(const cdvr_hvq_params *p, const size_t dims[3],
                                const uint8_t *payload, size_t bytes, uint8_t *out,
                                unsigned threads, cdvr_error *err);
+/* The codec's decode_cells (codec.h) on `threads` threads: the blocks that meet a needed cell
+ * and the residual voxels inside one, into a frame of either layout; other voxels keep what
+ * they held. The check of the whole payload runs first, as for the whole decode. */
+cdvr_status hvq_decode_cells_threads(const cdvr_hvq_params *p, const size_t dims[3],
+                                     const uint8_t *payload, size_t bytes, uint8_t *frame,
+                                     unsigned layout, const uint8_t *need, unsigned cell_log2,
+                                     unsigned threads, cdvr_error *err);
 
 #endif
