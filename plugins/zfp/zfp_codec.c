@@ -330,35 +330,11 @@ static void store_partial_tile(const int32_t blk[64], size_t nx, size_t ny, size
             }
 }
 
-/* The cells decode_cells needs (codec.h): need[], cells of 2^log2 voxels, dims per axis. */
-typedef struct zfpc_cells {
-    const uint8_t *need;
-    unsigned log2;
-    size_t dims[3];
-} zfpc_cells;
-
-/* Whether block (bx, by, bz) holds a voxel of a needed cell. */
-static int block_needed(const zfpc_cells *c, const size_t dims[3], size_t bx, size_t by,
-                        size_t bz)
-{
-    size_t b[3] = {bx, by, bz}, lo[3], hi[3];
-    for (int a = 0; a < 3; a++) {
-        lo[a] = 4 * b[a] >> c->log2;
-        hi[a] = (4 * b[a] + extent(dims[a], b[a]) - 1) >> c->log2;
-    }
-    for (size_t z = lo[2]; z <= hi[2]; z++)
-        for (size_t y = lo[1]; y <= hi[1]; y++)
-            for (size_t x = lo[0]; x <= hi[0]; x++)
-                if (c->need[x + c->dims[0] * (y + c->dims[1] * z)])
-                    return 1;
-    return 0;
-}
-
 /* Decodes z block row bz (all of it, or with cells the blocks that meet a needed cell),
  * seeking the stream to each block that follows a skipped one (fixed rate: block k starts at
  * bit k * maxbits). */
 static void decode_row(zfp_stream *zfp, const zfpc_geometry *g, const size_t dims[3],
-                       uint8_t *frame, unsigned layout, size_t bz, const zfpc_cells *cells)
+                       uint8_t *frame, unsigned layout, size_t bz, const cdvr_cells *cells)
 {
     const size_t X = dims[0], XY = dims[0] * dims[1];
     int32_t blk[64];
@@ -368,15 +344,16 @@ static void decode_row(zfp_stream *zfp, const zfpc_geometry *g, const size_t dim
     int positioned = 1; /* the stream is at block k */
     for (size_t by = 0; by < g->blocks[1]; by++)
         for (size_t bx = 0; bx < g->blocks[0]; bx++, k++) {
-            if (cells && !block_needed(cells, dims, bx, by, bz)) {
+            size_t at[3] = {4 * bx, 4 * by, 4 * bz};
+            size_t n[3] = {extent(dims[0], bx), extent(dims[1], by), extent(dims[2], bz)};
+            if (cells && !cdvr_cells_meet(cells, at, n)) {
                 positioned = 0;
                 continue;
             }
             if (!positioned)
                 stream_rseek(bs, (bitstream_offset)k * g->maxbits);
             positioned = 1;
-            size_t nx = extent(dims[0], bx), ny = extent(dims[1], by);
-            size_t nz = extent(dims[2], bz);
+            size_t nx = n[0], ny = n[1], nz = n[2];
             if (layout == CDVR_LAYOUT_TILED) {
                 uint8_t *tile = frame + cdvr_tiled_offset(dims, 4 * bx, 4 * by, 4 * bz);
                 if (nx == 4 && ny == 4 && nz == 4) {
@@ -426,7 +403,7 @@ typedef struct row_job {
     const size_t *dims;
     uint8_t *buf, *frame;
     unsigned layout;         /* codec.h: CDVR_LAYOUT_LINEAR or CDVR_LAYOUT_TILED */
-    const zfpc_cells *cells; /* NULL: every block */
+    const cdvr_cells *cells; /* NULL: every block */
     atomic_size_t *next_row; /* shared: the next z block row to take */
     int ok;
 } row_job;
@@ -470,7 +447,7 @@ static size_t decode_threads(const zfpc_geometry *g)
 /* Decodes the payload buf (the blocks that meet a needed cell, or all when cells is NULL) into
  * frame on decode_threads() threads; 0 when out of memory. */
 static int decode_parallel(const zfpc_geometry *g, const size_t dims[3], uint8_t *buf,
-                           uint8_t *frame, unsigned layout, const zfpc_cells *cells)
+                           uint8_t *frame, unsigned layout, const cdvr_cells *cells)
 {
     size_t nt = decode_threads(g), started = 1;
     atomic_size_t next_row;
@@ -533,7 +510,7 @@ static cdvr_status zfpc_encode(const cdvr_codec_params *p, const size_t dims[3],
 /* decode and decode_cells (cells NULL: the whole frame). */
 static cdvr_status decode_frame(const cdvr_codec_params *p, const size_t dims[3],
                                 const uint8_t *in, size_t in_bytes, uint8_t *frame,
-                                unsigned layout, const zfpc_cells *cells, cdvr_error *err)
+                                unsigned layout, const cdvr_cells *cells, cdvr_error *err)
 {
     zfpc_geometry g;
     cdvr_status s = geometry(p, dims, &g, err);
@@ -573,9 +550,7 @@ static cdvr_status zfpc_decode_cells(const cdvr_codec_params *p, const size_t di
     if (cell_log2 > 30 || (layout != CDVR_LAYOUT_LINEAR && layout != CDVR_LAYOUT_TILED))
         return cdvr_plugin_error(err, CDVR_ERR_ARG, "codec zfp: cells of 2^%u voxels, layout %u",
                                  cell_log2, layout);
-    zfpc_cells cells = {need, cell_log2, {0, 0, 0}};
-    for (int a = 0; a < 3; a++)
-        cells.dims[a] = ((dims[a] - 1) >> cell_log2) + 1;
+    cdvr_cells cells = cdvr_cells_of(need, cell_log2, dims);
     return decode_frame(p, dims, in, in_bytes, frame, layout, &cells, err);
 }
 

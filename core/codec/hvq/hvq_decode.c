@@ -222,37 +222,19 @@ static unsigned read_index(const uint8_t *p, unsigned w)
 }
 
 /* Where decode writes (codec.h decode_cells): the frame in its layout, and when need is set
- * only the blocks and residual voxels of the cells need marks (cells of 2^cell_log2 voxels,
- * cdims per axis). */
+ * only the blocks and residual voxels of the needed cells. */
 typedef struct hvq_target {
     uint8_t *frame;
     unsigned layout;       /* CDVR_LAYOUT_LINEAR or CDVR_LAYOUT_TILED */
     const uint8_t *need;   /* NULL: everything */
-    unsigned cell_log2;
-    size_t dims[3], cdims[3];
+    cdvr_cells cells;      /* over need */
+    size_t dims[3];
 } hvq_target;
 
 static int cell_needed(const hvq_target *t, uint64_t x, uint64_t y, uint64_t z)
 {
-    unsigned l = t->cell_log2;
-    return t->need[(x >> l) + t->cdims[0] * ((y >> l) + t->cdims[1] * (z >> l))] != 0;
-}
-
-/* Whether block (bx, by, bz), of n[] voxels inside the frame, meets a needed cell. */
-static inline int block_needed(const hvq_target *t, uint64_t bx, uint64_t by, uint64_t bz,
-                        const unsigned n[3])
-{
-    if (!t->need)
-        return 1;
-    unsigned l = t->cell_log2;
-    uint64_t lo[3] = {4 * bx >> l, 4 * by >> l, 4 * bz >> l};
-    uint64_t hi[3] = {(4 * bx + n[0] - 1) >> l, (4 * by + n[1] - 1) >> l, (4 * bz + n[2] - 1) >> l};
-    for (uint64_t z = lo[2]; z <= hi[2]; z++)
-        for (uint64_t y = lo[1]; y <= hi[1]; y++)
-            for (uint64_t x = lo[0]; x <= hi[0]; x++)
-                if (t->need[x + t->cdims[0] * (y + t->cdims[1] * z)])
-                    return 1;
-    return 0;
+    size_t at[3] = {(size_t)x, (size_t)y, (size_t)z}, one[3] = {1, 1, 1};
+    return cdvr_cells_meet(&t->cells, at, one);
 }
 
 /* The 64 values of a block with codewords, x fastest, then y, z: mean + c1[o8] + c2[o64]
@@ -319,7 +301,8 @@ static void decode_block(const hvq_view *v, const hvq_psh_map *index, uint64_t b
     unsigned n[3]; /* the block's extent inside the frame: 4 but at the far edges */
     for (int a = 0; a < 3; a++)
         n[a] = v->dims[a] - at[a] < 4 ? (unsigned)(v->dims[a] - at[a]) : 4u;
-    if (!block_needed(t, bx, by, bz, n))
+    size_t box_lo[3] = {(size_t)at[0], (size_t)at[1], (size_t)at[2]}, box_n[3] = {n[0], n[1], n[2]};
+    if (t->need && !cdvr_cells_meet(&t->cells, box_lo, box_n))
         return;
     int mean = v->p[HVQ_HEADER_BYTES + bx + L->nbx * (by + L->nby * bz)];
     const uint8_t *hit = hvq_psh_map_find(index, 3 + L->w1 + L->w2, (unsigned)(bx & 63),
@@ -465,7 +448,7 @@ cdvr_status hvq_decode_threads(const cdvr_hvq_params *p, const size_t dims[3],
                                const uint8_t *payload, size_t bytes, uint8_t *out,
                                unsigned threads, cdvr_error *err)
 {
-    hvq_target t = {out, CDVR_LAYOUT_LINEAR, NULL, 0, {dims[0], dims[1], dims[2]}, {0, 0, 0}};
+    hvq_target t = {out, CDVR_LAYOUT_LINEAR, NULL, {NULL, 0, {0, 0, 0}}, {dims[0], dims[1], dims[2]}};
     return decode_into(p, dims, payload, bytes, &t, threads, err);
 }
 
@@ -477,9 +460,12 @@ cdvr_status hvq_decode_cells_threads(const cdvr_hvq_params *p, const size_t dims
     if (cell_log2 > 30 || (layout != CDVR_LAYOUT_LINEAR && layout != CDVR_LAYOUT_TILED) || !need)
         return cdvr_error_set(err, CDVR_ERR_ARG, "hvq decode: cells of 2^%u voxels, layout %u",
                               cell_log2, layout);
-    hvq_target t = {frame, layout, need, cell_log2, {dims[0], dims[1], dims[2]}, {0, 0, 0}};
     for (int a = 0; a < 3; a++)
-        t.cdims[a] = dims[a] ? ((dims[a] - 1) >> cell_log2) + 1 : 0;
+        if (dims[a] == 0)
+            return cdvr_error_set(err, CDVR_ERR_ARG, "hvq decode: dims %zux%zux%zu", dims[0],
+                                  dims[1], dims[2]);
+    hvq_target t = {frame, layout, need, cdvr_cells_of(need, cell_log2, dims),
+                    {dims[0], dims[1], dims[2]}};
     return decode_into(p, dims, payload, bytes, &t, threads, err);
 }
 

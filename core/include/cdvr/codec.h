@@ -126,6 +126,40 @@ static inline size_t cdvr_tiled_bytes(const size_t dims[3])
     return n;
 }
 
+/* decode_cells' cells: need[] over cells of 2^cell_log2 voxels, cdims per axis (x fastest). */
+typedef struct cdvr_cells {
+    const uint8_t *need;
+    unsigned log2;
+    size_t cdims[3];
+} cdvr_cells;
+
+/* The cells of a frame of dims (each >= 1). */
+static inline cdvr_cells cdvr_cells_of(const uint8_t *need, unsigned cell_log2,
+                                       const size_t dims[3])
+{
+    cdvr_cells c = {need, cell_log2, {0, 0, 0}};
+    for (int a = 0; a < 3; a++)
+        c.cdims[a] = ((dims[a] - 1) >> cell_log2) + 1;
+    return c;
+}
+
+/* Whether the box of voxels lo[a] .. lo[a] + n[a] - 1 (each n >= 1) meets a needed cell: a
+ * codec's test for one of its blocks. */
+static inline int cdvr_cells_meet(const cdvr_cells *c, const size_t lo[3], const size_t n[3])
+{
+    size_t a0[3], a1[3];
+    for (int a = 0; a < 3; a++) {
+        a0[a] = lo[a] >> c->log2;
+        a1[a] = (lo[a] + n[a] - 1) >> c->log2;
+    }
+    for (size_t z = a0[2]; z <= a1[2]; z++)
+        for (size_t y = a0[1]; y <= a1[1]; y++)
+            for (size_t x = a0[0]; x <= a1[0]; x++)
+                if (c->need[x + c->cdims[0] * (y + c->cdims[1] * z)])
+                    return 1;
+    return 0;
+}
+
 typedef struct cdvr_codec cdvr_codec;
 
 struct cdvr_codec {
