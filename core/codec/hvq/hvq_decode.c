@@ -240,7 +240,7 @@ static int cell_needed(const hvq_target *t, uint64_t x, uint64_t y, uint64_t z)
 /* The 64 values of a block with codewords, x fastest, then y, z: mean + c1[o8] + c2[o64]
  * clamped to 0 .. 255, in one loop of constant count without a branch, which gcc vectorises
  * at -O2 (a per-voxel loop that tested c1 ran scalar). */
-static inline void coded_values(int mean, const uint8_t *c1, const uint8_t *c2, uint8_t vals[64])
+static void coded_values(int mean, const uint8_t *c1, const uint8_t *c2, uint8_t vals[64])
 {
     int32_t near[8], base[64], word2[64];
     for (int k = 0; k < 8; k++)
@@ -261,8 +261,8 @@ static inline void coded_values(int mean, const uint8_t *c1, const uint8_t *c2, 
 /* Writes the block's voxels (n[] of them inside the frame) from its 64 values: rows into a
  * linear frame; the whole tile into a tiled one, the voxels past the frame's edge repeating
  * its last voxel along each axis (codec.h). */
-static inline void store_values(const hvq_target *t, uint64_t bx, uint64_t by, uint64_t bz,
-                         const unsigned n[3], const uint8_t vals[64])
+static void store_values(const hvq_target *t, uint64_t bx, uint64_t by, uint64_t bz,
+                               const unsigned n[3], const uint8_t vals[64])
 {
     if (t->layout == CDVR_LAYOUT_TILED) {
         uint8_t *tile = t->frame + cdvr_tiled_offset(t->dims, 4 * bx, 4 * by, 4 * bz);
@@ -281,14 +281,22 @@ static inline void store_values(const hvq_target *t, uint64_t bx, uint64_t by, u
     }
     size_t X = t->dims[0], XY = t->dims[0] * t->dims[1];
     uint8_t *first = t->frame + 4 * bx + X * 4 * by + XY * 4 * bz;
-    if (n[0] == 4 && n[1] == 4 && n[2] == 4) { /* constant sizes: 16 moves of 4 bytes */
-        for (unsigned row = 0; row < 16; row++)
-            memcpy(first + X * (row & 3) + XY * (row >> 2), vals + 4 * row, 4);
-        return;
-    }
     for (unsigned z = 0; z < n[2]; z++)
         for (unsigned y = 0; y < n[1]; y++)
             memcpy(first + X * y + XY * z, vals + 4 * y + 16 * z, n[0]);
+}
+
+/* A whole block with codewords into a linear frame: its values, then 16 rows of 4 bytes (the
+ * hot case of the whole-frame decode, kept apart so that gcc vectorises coded_values). */
+static void write_coded_block(uint8_t *first, size_t X, size_t XY, int mean, const uint8_t *c1,
+                              const uint8_t *c2)
+{
+    uint8_t vals[64];
+    coded_values(mean, c1, c2, vals);
+    const uint8_t *from = vals;
+    for (unsigned z = 0; z < 4; z++, first += XY)
+        for (unsigned y = 0; y < 4; y++, from += 4)
+            memcpy(first + X * y, from, 4);
 }
 
 /* Writes the block's voxels that lie inside the frame (all of the block when it meets a
@@ -307,17 +315,26 @@ static void decode_block(const hvq_view *v, const hvq_psh_map *index, uint64_t b
     int mean = v->p[HVQ_HEADER_BYTES + bx + L->nbx * (by + L->nby * bz)];
     const uint8_t *hit = hvq_psh_map_find(index, 3 + L->w1 + L->w2, (unsigned)(bx & 63),
                                           (unsigned)(by & 63), (unsigned)(bz & 63));
-    uint8_t vals[64];
-    if (!hit && t->layout == CDVR_LAYOUT_LINEAR && n[0] == 4 && n[1] == 4 && n[2] == 4) {
-        size_t X = t->dims[0], XY = t->dims[0] * t->dims[1]; /* the mean alone */
+    const uint8_t *c1 = NULL, *c2 = NULL;
+    if (hit) {
+        c1 = v->p + L->off_c1 + 16u * read_index(hit, L->w1);
+        c2 = v->p + L->off_c2 + 128u * read_index(hit + L->w1, L->w2);
+    }
+    if (t->layout == CDVR_LAYOUT_LINEAR && n[0] == 4 && n[1] == 4 && n[2] == 4) {
+        size_t X = t->dims[0], XY = t->dims[0] * t->dims[1];
         uint8_t *first = t->frame + 4 * bx + X * 4 * by + XY * 4 * bz;
-        for (unsigned row = 0; row < 16; row++)
-            memset(first + X * (row & 3) + XY * (row >> 2), mean, 4);
+        if (c1) {
+            write_coded_block(first, X, XY, mean, c1, c2);
+            return;
+        }
+        for (unsigned z = 0; z < 4; z++, first += XY) /* the mean alone */
+            for (unsigned y = 0; y < 4; y++)
+                memset(first + X * y, mean, 4);
         return;
     }
-    if (hit)
-        coded_values(mean, v->p + L->off_c1 + 16u * read_index(hit, L->w1),
-                     v->p + L->off_c2 + 128u * read_index(hit + L->w1, L->w2), vals);
+    uint8_t vals[64];
+    if (c1)
+        coded_values(mean, c1, c2, vals);
     else
         memset(vals, mean, 64);
     store_values(t, bx, by, bz, n, vals);
