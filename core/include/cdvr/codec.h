@@ -238,7 +238,7 @@ struct cdvr_codec {
 
     /* Optional (may be NULL; plugin ABI 6): decode for chunks of one timestep, of the cells
      * the caller needs only, into a frame of either layout (CDVR_LAYOUT_LINEAR or
-     * CDVR_LAYOUT_TILED, below; both must be supported). The frame is cut into cells of
+     * CDVR_LAYOUT_TILED, above; both must be supported). The frame is cut into cells of
      * 2^cell_log2 voxels per axis (ceil(dims / 2^cell_log2) per axis, x fastest, the last
      * ones cut by the frame's edge); every voxel of a cell with need[cell] != 0 gets exactly
      * the value `decode` gives it, and the other voxels of frame are either given that value
