@@ -14,13 +14,8 @@ if not have_zfp or not cdvr.cl_info() then
   os.exit(77)
 end
 
-local failed = 0
-local function check(cond, msg)
-  if not cond then
-    failed = failed + 1
-    io.stderr:write("check failed: ", msg, "\n")
-  end
-end
+local checks = dofile((arg[0]:match("^(.*)/") or ".") .. "/checks.lua")
+local check = checks.check
 
 local tmp = os.tmpname()
 os.remove(tmp)
@@ -135,8 +130,4 @@ for _, shade in ipairs{false, true} do
 end
 
 os.execute(("rm -rf %q"):format(tmp))
-if failed > 0 then
-  print(("test_decode_cells: %d checks failed"):format(failed))
-  os.exit(1)
-end
-print("test_decode_cells: ok")
+checks.finish()
