@@ -45,6 +45,15 @@ static inline int check_opencl_unavailable(const char *why)
     return 77;
 }
 
+/* The main() of a test whose subject this build leaves out (why: "built without OpenCL"):
+ * says so and exits 77, skipped. */
+#define CHECK_SKIPPED_MAIN(why)                                                                   \
+    int main(void)                                                                                \
+    {                                                                                             \
+        printf("skip: %s\n", why);                                                                \
+        return 77;                                                                                \
+    }
+
 /* Directory of ../shared/data (env CDVR_SHARED_DATA), or NULL. */
 static inline const char *check_shared_data(void)
 {

@@ -126,9 +126,5 @@ int main(void)
 }
 
 #else
-int main(void)
-{
-    printf("skip: built without OpenCL\n");
-    return 77;
-}
+CHECK_SKIPPED_MAIN("built without OpenCL")
 #endif

@@ -18,11 +18,11 @@
 #include "cdvr/render.h"
 #include "cdvr/store.h"
 #include "cdvr/tf.h"
-#include "render/cl/cl_internal.h" /* the stream's host copy of its min/max grid */
 #include "cdvr/volume.h"
 #include "check.h"
 
 #if CDVR_HAVE_OPENCL
+#include "render/cl/cl_internal.h" /* the stream's host copy of its min/max grid */
 
 #define IMAGE_SIZE 128
 
@@ -731,9 +731,5 @@ int main(void)
 }
 
 #else
-int main(void)
-{
-    printf("skip: built without OpenCL\n");
-    return 77;
-}
+CHECK_SKIPPED_MAIN("built without OpenCL")
 #endif
