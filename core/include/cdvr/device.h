@@ -183,7 +183,8 @@ cdvr_status cdvr_cl_use_host_frames(cdvr_cl_stream *s, const uint8_t *frames, si
  * refuse it), its samples and gradients come from the tiles (no quad or gradient copy).
  * CDVR_ERR_UNSUPPORTED where cdvr_cl_takes_host_tiles says no. */
 cdvr_status cdvr_cl_use_host_tiles(cdvr_cl_stream *s, const uint8_t *tiles, cdvr_error *err);
-/* Whether the stream takes tiled frames: they fit the ray caster's 32-bit indices and the
+/* Whether the stream's frames fit the ray caster's tiled copy, the device's own (made for a
+ * frame rendered again) or the caller's: whole pages within its 32-bit indices and the
  * device's largest buffer (not with CDVR_CL_LONG_INDEX=1). */
 int cdvr_cl_takes_host_tiles(const cdvr_cl_stream *s);
 

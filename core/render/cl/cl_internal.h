@@ -8,10 +8,20 @@
 #include <CL/cl.h>
 #endif
 
+#include <stdlib.h>
+#include <string.h>
+
 #include "cdvr/codec.h"
 #include "cdvr/device.h"
 #include "cdvr/skip.h"
 #include "common/cl_shared.h"
+
+/* Whether environment variable `name` is set to `value` (the CDVR_CL_* switches). */
+static inline int cdvr_cl_env_is(const char *name, const char *value)
+{
+    const char *env = getenv(name);
+    return env && !strcmp(env, value);
+}
 
 /* The dense render kernels with 64-bit voxel indices (built on first use). */
 cdvr_status cdvr_cl_long_index_kernels(cdvr_cl *cl, cl_kernel *bricks, cl_kernel *raycast,

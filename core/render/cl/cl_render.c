@@ -40,13 +40,6 @@ typedef struct voxel_source {
     cl_int tiled;               /* vol holds the frame's tiled copy (ray caster only) */
 } voxel_source;
 
-/* Whether environment variable `name` is set to `value` (the CDVR_CL_* switches). */
-static int env_is(const char *name, const char *value)
-{
-    const char *env = getenv(name);
-    return env && !strcmp(env, value);
-}
-
 static cdvr_status source_of(cdvr_cl_stream *s, size_t frame, voxel_source *v, cdvr_error *err)
 {
     if (s->fetch) {
@@ -56,7 +49,8 @@ static cdvr_status source_of(cdvr_cl_stream *s, size_t frame, voxel_source *v, c
     }
     *v = (voxel_source){s->cl->k_bricks, s->cl->k_raycast, cdvr_cl_frames_mem(s), s->params,
                         (cl_ulong)(frame * s->voxels), 0};
-    if (s->voxels > INT_MAX || env_is("CDVR_CL_LONG_INDEX", "1")) /* 32-bit indices overflow */
+    /* 32-bit indices overflow */
+    if (s->voxels > INT_MAX || cdvr_cl_env_is("CDVR_CL_LONG_INDEX", "1"))
         return cdvr_cl_long_index_kernels(s->cl, &v->k_bricks, &v->k_raycast, err);
     return CDVR_OK;
 }
@@ -689,11 +683,10 @@ static void make_tiles_if_rerendered(cdvr_cl_stream *s, size_t frame)
 {
     int again = s->last_rendered == frame;
     s->last_rendered = frame;
-    size_t bytes = tiled_bytes(s->dims);
-    if (s->fetch || !again || bytes > INT_MAX || env_is("CDVR_CL_LONG_INDEX", "1"))
+    if (s->fetch || !again || !cdvr_cl_takes_host_tiles(s)) /* tiled frames fit */
         return;
     copy_ready(s, frame, s->cl->k_tiles, "make_tiles", &s->tiles, &s->tiles_capacity,
-               &s->tiles_frame, bytes);
+               &s->tiles_frame, tiled_bytes(s->dims));
 }
 
 /* The largest copy of 4 bytes per voxel made (gradients, quads: a frame of 512 M voxels):
@@ -710,8 +703,9 @@ static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
 {
     int wanted = look->shade.enabled || look->gradient_opacity.npoints > 0;
     size_t bytes;
-    if (s->tiles_frame != frame || !wanted || s->only_tiles || env_is("CDVR_CL_GRADS", "0") ||
-        !cdvr_size_mul(tiled_bytes(s->dims), 4, &bytes) || bytes > WORD_COPY_MAX_BYTES)
+    if (s->tiles_frame != frame || !wanted || s->only_tiles ||
+        cdvr_cl_env_is("CDVR_CL_GRADS", "0") || !cdvr_size_mul(tiled_bytes(s->dims), 4, &bytes) ||
+        bytes > WORD_COPY_MAX_BYTES)
         return 0;
     return copy_ready(s, frame, s->cl->k_grads, "make_grads", &s->grads, &s->grads_capacity,
                       &s->grads_frame, bytes);
@@ -737,10 +731,10 @@ static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
 static int quads_ready(cdvr_cl_stream *s, size_t frame, int blend)
 {
     size_t bytes;
-    if (s->tiles_frame != frame || s->only_tiles || env_is("CDVR_CL_QUADS", "0") ||
+    if (s->tiles_frame != frame || s->only_tiles || cdvr_cl_env_is("CDVR_CL_QUADS", "0") ||
         !cdvr_size_mul(tiled_bytes(s->dims), 4, &bytes) || bytes > WORD_COPY_MAX_BYTES)
         return 0;
-    if (!env_is("CDVR_CL_QUADS", "1") &&
+    if (!cdvr_cl_env_is("CDVR_CL_QUADS", "1") &&
         (s->cl->info.is_gpu || bytes > QUADS_AUTO_MAX_BYTES || blend == CDVR_BLEND_ISO))
         return 0;
     return copy_ready(s, frame, s->cl->k_quads, "make_quads", &s->quads, &s->quads_capacity,
@@ -938,7 +932,7 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     /* CDVR_CL_LEAPS=0: average reads its whole window */
     int flags_skip = iso ? iso_skip
                          : look.blend == CDVR_BLEND_AVERAGE && zero_bounds && s->zero_flags_ok &&
-                               !env_is("CDVR_CL_LEAPS", "0");
+                               !cdvr_cl_env_is("CDVR_CL_LEAPS", "0");
     st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box, &look, flags_skip,
                           host_image ? host_image : s->image, entry_on, (cl_int)global[0],
                           grads_on, quads_on, &kernel, err);

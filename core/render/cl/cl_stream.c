@@ -520,8 +520,8 @@ cdvr_status cdvr_cl_use_host_frames(cdvr_cl_stream *s, const uint8_t *frames, si
 int cdvr_cl_takes_host_tiles(const cdvr_cl_stream *s)
 {
     size_t bytes = cdvr_tiled_bytes(s->dims);
-    return bytes && bytes <= INT_MAX && s->voxels <= INT_MAX && bytes <= s->cl->info.max_alloc_bytes &&
-           !(getenv("CDVR_CL_LONG_INDEX") && !strcmp(getenv("CDVR_CL_LONG_INDEX"), "1"));
+    return bytes && bytes <= INT_MAX && bytes <= s->cl->info.max_alloc_bytes &&
+           !cdvr_cl_env_is("CDVR_CL_LONG_INDEX", "1");
 }
 
 cdvr_status cdvr_cl_use_host_tiles(cdvr_cl_stream *s, const uint8_t *tiles, cdvr_error *err)
