@@ -932,10 +932,10 @@ static cdvr_status make_grids(cdvr_player *p, chunk_item *it, size_t count, cdvr
  * caster compositing on the cl device with the skip grid made here from the range tables
  * (with_grids), whose visible bricks are the only ones its samples take. Max, min, average
  * and iso read other bricks, other methods every voxel. */
-static int decodes_cells(const cdvr_player *p, const chunk_item *it, const cdvr_chunk_info *ch)
+static int decodes_cells(const cdvr_player *p, const chunk_item *it)
 {
-    return !p->opts.decode_whole && it->with_grids && p->nbricks == 1 && ch->count == 1 &&
-           ch->codec && ch->codec->decode_cells && !p->opts.cache &&
+    return !p->opts.decode_whole && it->with_grids && p->nbricks == 1 && !p->opts.cache &&
+           cdvr_store_chunk_decodes_cells(p->opts.store, (size_t)it->variant, it->chunk) &&
            p->opts.look.blend == CDVR_BLEND_COMPOSITE &&
            strcmp(p->opts.method->name, "raycast") == 0;
 }
@@ -1050,33 +1050,11 @@ static void fill_tiles(uint8_t *tiles, const size_t dims[3], const cdvr_skip_gri
                     memset(tiles + cdvr_tiled_offset(dims, 4 * x, 4 * y, 4 * z), fill, 64);
 }
 
-/* The host decode of the group into slot k: whole frames, or (decodes_cells) after the grids,
- * the cells the render reads and a transparent fill in the others, tiled where the stream
- * takes it. */
-static void decode_group(cdvr_player *p, int w, chunk_item *it, const cdvr_chunk_info *ch,
-                         int k)
+/* decodes_cells' decode of the group's frame into slot k, its grid made: the cells the render
+ * reads (tiled where the stream takes it), fill in the others. */
+static void decode_needed_cells(cdvr_player *p, chunk_item *it, int k, uint8_t fill)
 {
-    double t0 = cdvr_now_ms();
-    it->decoded_share = 1;
-    it->tiled = 0;
-    if (!decodes_cells(p, it, ch)) {
-        decode_host(p, w, it, ch->count, p->slots[k], &it->err);
-        it->host_decode_ms = cdvr_now_ms() - t0;
-        return;
-    }
-    make_grids(p, it, 1, &it->err);
-    it->grid_ms = cdvr_now_ms() - t0;
-    t0 = cdvr_now_ms();
     const cdvr_skip_grid *g = &it->grids[0];
-    int all = 1;
-    uint8_t fill = 0;
-    if (it->err.status != CDVR_OK)
-        return;
-    if (!transparent_fill(g, &fill)) {
-        decode_host(p, w, it, 1, p->slots[k], &it->err);
-        it->host_decode_ms = cdvr_now_ms() - t0;
-        return;
-    }
     if (!grow(&it->need, &it->need_cap, 2 * (uint64_t)g->nbricks)) {
         cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "player: no memory for a %zu-cell mask",
                        g->nbricks);
@@ -1084,16 +1062,41 @@ static void decode_group(cdvr_player *p, int w, chunk_item *it, const cdvr_chunk
     }
     size_t cells = cells_needed(g, shades(p), it->need);
     int tiled = decodes_tiled(p) && g->shift == 2; /* cells are tiles */
-    cdvr_store_decode_chunk_cells(p->opts.store, (size_t)it->variant, it->chunk,
-                                  it->parts[0].payload, p->slots[k],
-                                  tiled ? CDVR_LAYOUT_TILED : CDVR_LAYOUT_LINEAR, it->need,
-                                  g->shift, &all, &it->err);
-    if (it->err.status == CDVR_OK && !all && tiled)
+    if (cdvr_store_decode_chunk_cells(p->opts.store, (size_t)it->variant, it->chunk,
+                                      it->parts[0].payload, p->slots[k],
+                                      tiled ? CDVR_LAYOUT_TILED : CDVR_LAYOUT_LINEAR, it->need,
+                                      g->shift, &it->err) != CDVR_OK)
+        return;
+    if (tiled)
         fill_tiles(p->slots[k], p->vox_dims, g, it->need, fill);
-    else if (it->err.status == CDVR_OK && !all)
+    else
         fill_cells(p->slots[k], p->vox_dims, g, it->need, fill);
     it->tiled = tiled;
-    it->decoded_share = all ? 1 : (double)cells / (double)g->nbricks;
+    it->decoded_share = (double)cells / (double)g->nbricks;
+}
+
+/* The host decode of the group into slot k: whole frames, or (decodes_cells, and a fill that
+ * keeps the render's other samples transparent) after the grid, the cells the render reads. */
+static void decode_group(cdvr_player *p, int w, chunk_item *it, const cdvr_chunk_info *ch,
+                         int k)
+{
+    double t0 = cdvr_now_ms();
+    uint8_t fill = 0;
+    int by_cells = decodes_cells(p, it);
+    it->decoded_share = 1;
+    it->tiled = 0;
+    if (by_cells) { /* the grid first: it says which cells the render reads */
+        make_grids(p, it, 1, &it->err);
+        it->grid_ms = cdvr_now_ms() - t0;
+        t0 = cdvr_now_ms();
+        if (it->err.status != CDVR_OK)
+            return;
+        by_cells = transparent_fill(&it->grids[0], &fill);
+    }
+    if (by_cells)
+        decode_needed_cells(p, it, k, fill);
+    else
+        decode_host(p, w, it, ch->count, p->slots[k], &it->err);
     it->host_decode_ms = cdvr_now_ms() - t0;
 }
 
@@ -1119,7 +1122,7 @@ static void prepare(cdvr_player *p, int w, chunk_item *it)
          * in planning order, so they come here in that order too but for a rare race) */
         int one_at_a_time = ch->codec && ch->codec->decodes_in_parallel;
         int ok = cdvr_size_mul(p->voxels, ch->count, &need);
-        if (ok && decodes_cells(p, it, ch) && decodes_tiled(p)) /* whole pages: never less */
+        if (ok && decodes_cells(p, it) && decodes_tiled(p)) /* whole pages: never less */
             need = cdvr_tiled_bytes(p->vox_dims);
         if (!ok || !slot_room(p, k, need)) {
             cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate %zu frames",

@@ -1220,20 +1220,15 @@ int cdvr_store_chunk_decodes_cells(const cdvr_store *st, size_t v, size_t c)
 cdvr_status cdvr_store_decode_chunk_cells(const cdvr_store *st, size_t v, size_t c,
                                           const uint8_t *payload, uint8_t *frame,
                                           unsigned layout, const uint8_t *need,
-                                          unsigned cell_log2, int *all, cdvr_error *err)
+                                          unsigned cell_log2, cdvr_error *err)
 {
     const cdvr_chunk_info *ci;
     cdvr_status s = chunk_lookup(st, v, c, &ci, err);
     if (s != CDVR_OK)
         return s;
-    *all = 1;
-    if (!cdvr_store_chunk_decodes_cells(st, v, c)) {
-        if (layout != CDVR_LAYOUT_LINEAR)
-            return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "%s: variant %s chunk %zu: its "
-                                  "codec decodes no tiled frames", st->path,
-                                  st->variants[v].name, c + 1);
-        return cdvr_store_decode_chunk(st, v, c, payload, &frame, err);
-    }
+    if (!cdvr_store_chunk_decodes_cells(st, v, c))
+        return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "%s: variant %s chunk %zu: its codec "
+                              "does not decode by cells", st->path, st->variants[v].name, c + 1);
     size_t lo[3], dims[3];
     cdvr_store_brick_box(&st->info, ci->brick, lo, dims);
     cdvr_error derr;
@@ -1241,7 +1236,6 @@ cdvr_status cdvr_store_decode_chunk_cells(const cdvr_store *st, size_t v, size_t
                                 layout, need, cell_log2, &derr) != CDVR_OK)
         return cdvr_error_set(err, derr.status, "%s: variant %s chunk %zu: %s", st->path,
                               st->variants[v].name, c + 1, derr.msg);
-    *all = 0;
     return CDVR_OK;
 }
 

@@ -285,17 +285,16 @@ cdvr_status cdvr_store_load_payload(const cdvr_store *st, size_t v, size_t c, ui
 cdvr_status cdvr_store_decode_chunk(const cdvr_store *st, size_t v, size_t c,
                                     const uint8_t *payload, uint8_t *const *frames,
                                     cdvr_error *err);
-/* The same for a chunk of one timestep, decoding at least the voxels of the cells of
- * 2^cell_log2 voxels (ceil(brick dims / 2^cell_log2) per axis, x fastest) with need[cell] != 0
- * into frame in layout (codec.h, decode_cells): the other voxels of frame may keep what they
- * held. A codec without decode_cells decodes the whole frame (CDVR_LAYOUT_LINEAR only: else
- * CDVR_ERR_UNSUPPORTED); *all is set to 1 then. */
+/* Whether chunk c can be decoded by cells (a codec with decode_cells, one timestep). */
+int cdvr_store_chunk_decodes_cells(const cdvr_store *st, size_t v, size_t c);
+/* For such a chunk, the voxels of the cells of 2^cell_log2 voxels (ceil(brick dims /
+ * 2^cell_log2) per axis, x fastest) with need[cell] != 0 into frame in layout (codec.h,
+ * decode_cells): the other voxels of frame may keep what they held. CDVR_ERR_UNSUPPORTED for
+ * another chunk. */
 cdvr_status cdvr_store_decode_chunk_cells(const cdvr_store *st, size_t v, size_t c,
                                           const uint8_t *payload, uint8_t *frame,
                                           unsigned layout, const uint8_t *need,
-                                          unsigned cell_log2, int *all, cdvr_error *err);
-/* Whether chunk c can be decoded by cells (a codec with decode_cells, one timestep). */
-int cdvr_store_chunk_decodes_cells(const cdvr_store *st, size_t v, size_t c);
+                                          unsigned cell_log2, cdvr_error *err);
 /* Convenience: read + unpack + decode timestep t of variant v (all bricks, assembled) into a
  * new u8 volume carrying the store's spacing, origin, direction and value window. */
 cdvr_status cdvr_store_decode(const cdvr_store *st, size_t v, size_t t, cdvr_volume **out,
