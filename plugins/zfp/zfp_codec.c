@@ -317,19 +317,6 @@ static void store_tile(const int32_t blk[64], uint8_t *dst)
         dst[k] = to_u8(blk[k]);
 }
 
-/* A partial block (nx x ny x nz voxels inside the frame) as its tile, the voxels past the
- * frame's edge repeating the last one along each axis. */
-static void store_partial_tile(const int32_t blk[64], size_t nx, size_t ny, size_t nz,
-                               uint8_t *dst)
-{
-    for (size_t z = 0; z < 4; z++)
-        for (size_t y = 0; y < 4; y++)
-            for (size_t x = 0; x < 4; x++) {
-                size_t sx = x < nx ? x : nx - 1, sy = y < ny ? y : ny - 1, sz = z < nz ? z : nz - 1;
-                dst[x + 4 * y + 16 * z] = to_u8(blk[sx + 4 * sy + 16 * sz]);
-            }
-}
-
 /* Decodes z block row bz (all of it, or with cells the blocks that meet a needed cell),
  * seeking the stream to each block that follows a skipped one (fixed rate: block k starts at
  * bit k * maxbits). */
@@ -353,29 +340,21 @@ static void decode_row(zfp_stream *zfp, const zfpc_geometry *g, const size_t dim
             if (!positioned)
                 stream_rseek(bs, (bitstream_offset)k * g->maxbits);
             positioned = 1;
-            size_t nx = n[0], ny = n[1], nz = n[2];
-            if (layout == CDVR_LAYOUT_TILED) {
-                uint8_t *tile = frame + cdvr_tiled_offset(dims, 4 * bx, 4 * by, 4 * bz);
-                if (nx == 4 && ny == 4 && nz == 4) {
-                    zfp_decode_block_int32_3(zfp, blk);
-                    store_tile(blk, tile);
-                } else {
-                    zfp_decode_partial_block_strided_int32_3(zfp, blk, nx, ny, nz, 1, 4, 16);
-                    store_partial_tile(blk, nx, ny, nz, tile);
-                }
-                continue;
-            }
-            uint8_t *dst = frame + 4 * bx + X * 4 * by + XY * 4 * bz;
-            if (nx == 4 && ny == 4 && nz == 4) {
+            if (n[0] == 4 && n[1] == 4 && n[2] == 4) { /* the hot cases, converted in place */
                 zfp_decode_block_int32_3(zfp, blk);
-                store_block(blk, dst, X, XY);
+                if (layout == CDVR_LAYOUT_LINEAR)
+                    store_block(blk, frame + 4 * bx + X * 4 * by + XY * 4 * bz, X, XY);
+                else
+                    store_tile(blk, frame + cdvr_tiled_offset(dims, at[0], at[1], at[2]));
                 continue;
             }
-            zfp_decode_partial_block_strided_int32_3(zfp, blk, nx, ny, nz, 1, 4, 16);
-            for (size_t z = 0; z < nz; z++)
-                for (size_t y = 0; y < ny; y++)
-                    for (size_t x = 0; x < nx; x++)
-                        dst[x + X * y + XY * z] = to_u8(blk[x + 4 * y + 16 * z]);
+            /* a block cut by the frame's edge (the values past it: 0, never stored) */
+            memset(blk, 0, sizeof blk);
+            zfp_decode_partial_block_strided_int32_3(zfp, blk, n[0], n[1], n[2], 1, 4, 16);
+            uint8_t vals[64];
+            for (size_t i = 0; i < 64; i++)
+                vals[i] = to_u8(blk[i]);
+            cdvr_block_store(frame, dims, layout, at, n, vals);
         }
 }
 

@@ -226,8 +226,7 @@ static unsigned read_index(const uint8_t *p, unsigned w)
 typedef struct hvq_target {
     uint8_t *frame;
     unsigned layout;       /* CDVR_LAYOUT_LINEAR or CDVR_LAYOUT_TILED */
-    const uint8_t *need;   /* NULL: everything */
-    cdvr_cells cells;      /* over need */
+    cdvr_cells cells;      /* cells.need NULL: everything */
     size_t dims[3];
 } hvq_target;
 
@@ -258,34 +257,6 @@ static void coded_values(int mean, const uint8_t *c1, const uint8_t *c2, uint8_t
     }
 }
 
-/* Writes the block's voxels (n[] of them inside the frame) from its 64 values: rows into a
- * linear frame; the whole tile into a tiled one, the voxels past the frame's edge repeating
- * its last voxel along each axis (codec.h). */
-static void store_values(const hvq_target *t, uint64_t bx, uint64_t by, uint64_t bz,
-                               const unsigned n[3], const uint8_t vals[64])
-{
-    if (t->layout == CDVR_LAYOUT_TILED) {
-        uint8_t *tile = t->frame + cdvr_tiled_offset(t->dims, 4 * bx, 4 * by, 4 * bz);
-        if (n[0] == 4 && n[1] == 4 && n[2] == 4) {
-            memcpy(tile, vals, 64);
-            return;
-        }
-        for (unsigned z = 0; z < 4; z++)
-            for (unsigned y = 0; y < 4; y++)
-                for (unsigned x = 0; x < 4; x++) {
-                    unsigned sx = x < n[0] ? x : n[0] - 1, sy = y < n[1] ? y : n[1] - 1;
-                    unsigned sz = z < n[2] ? z : n[2] - 1;
-                    tile[x + 4 * y + 16 * z] = vals[sx + 4 * sy + 16 * sz];
-                }
-        return;
-    }
-    size_t X = t->dims[0], XY = t->dims[0] * t->dims[1];
-    uint8_t *first = t->frame + 4 * bx + X * 4 * by + XY * 4 * bz;
-    for (unsigned z = 0; z < n[2]; z++)
-        for (unsigned y = 0; y < n[1]; y++)
-            memcpy(first + X * y + XY * z, vals + 4 * y + 16 * z, n[0]);
-}
-
 /* A whole block with codewords into a linear frame: its values, then 16 rows of 4 bytes (the
  * hot case of the whole-frame decode, kept apart so that gcc vectorises coded_values). */
 static void write_coded_block(uint8_t *first, size_t X, size_t XY, int mean, const uint8_t *c1,
@@ -305,12 +276,10 @@ static void decode_block(const hvq_view *v, const hvq_psh_map *index, uint64_t b
                          uint64_t bz, const hvq_target *t)
 {
     const hvq_layout *L = &v->L;
-    uint64_t at[3] = {4 * bx, 4 * by, 4 * bz};
-    unsigned n[3]; /* the block's extent inside the frame: 4 but at the far edges */
+    size_t at[3] = {4 * bx, 4 * by, 4 * bz}, n[3]; /* n: 4 but at the frame's far edges */
     for (int a = 0; a < 3; a++)
-        n[a] = v->dims[a] - at[a] < 4 ? (unsigned)(v->dims[a] - at[a]) : 4u;
-    size_t box_lo[3] = {(size_t)at[0], (size_t)at[1], (size_t)at[2]}, box_n[3] = {n[0], n[1], n[2]};
-    if (t->need && !cdvr_cells_meet(&t->cells, box_lo, box_n))
+        n[a] = t->dims[a] - at[a] < 4 ? t->dims[a] - at[a] : 4;
+    if (t->cells.need && !cdvr_cells_meet(&t->cells, at, n))
         return;
     int mean = v->p[HVQ_HEADER_BYTES + bx + L->nbx * (by + L->nby * bz)];
     const uint8_t *hit = hvq_psh_map_find(index, 3 + L->w1 + L->w2, (unsigned)(bx & 63),
@@ -322,7 +291,7 @@ static void decode_block(const hvq_view *v, const hvq_psh_map *index, uint64_t b
     }
     if (t->layout == CDVR_LAYOUT_LINEAR && n[0] == 4 && n[1] == 4 && n[2] == 4) {
         size_t X = t->dims[0], XY = t->dims[0] * t->dims[1];
-        uint8_t *first = t->frame + 4 * bx + X * 4 * by + XY * 4 * bz;
+        uint8_t *first = t->frame + at[0] + X * at[1] + XY * at[2];
         if (c1) {
             write_coded_block(first, X, XY, mean, c1, c2);
             return;
@@ -337,7 +306,7 @@ static void decode_block(const hvq_view *v, const hvq_psh_map *index, uint64_t b
         coded_values(mean, c1, c2, vals);
     else
         memset(vals, mean, 64);
-    store_values(t, bx, by, bz, n, vals);
+    cdvr_block_store(t->frame, t->dims, t->layout, at, n, vals);
 }
 
 /* Voxel (x, y, z) of the frame gets val; in a tiled frame also the copies of it that pad its
@@ -378,9 +347,9 @@ static void apply_residuals(const hvq_view *v, uint64_t r, uint64_t s0, uint64_t
         if (k[0] < ext[0] && k[1] < ext[1] && k[2] < ext[2] &&
             hvq_psh_map_slot(&map, k[0], k[1], k[2]) == s) {
             uint64_t x = origin[0] + k[0], y = origin[1] + k[1], z = origin[2] + k[2];
-            if (!t->need && t->layout == CDVR_LAYOUT_LINEAR)
+            if (!t->cells.need && t->layout == CDVR_LAYOUT_LINEAR)
                 t->frame[x + v->dims[0] * (y + v->dims[1] * z)] = k[3];
-            else if (!t->need || cell_needed(t, x, y, z))
+            else if (!t->cells.need || cell_needed(t, x, y, z))
                 put_voxel(t, x, y, z, k[3]);
         }
     }
@@ -465,7 +434,7 @@ cdvr_status hvq_decode_threads(const cdvr_hvq_params *p, const size_t dims[3],
                                const uint8_t *payload, size_t bytes, uint8_t *out,
                                unsigned threads, cdvr_error *err)
 {
-    hvq_target t = {out, CDVR_LAYOUT_LINEAR, NULL, {NULL, 0, {0, 0, 0}}, {dims[0], dims[1], dims[2]}};
+    hvq_target t = {out, CDVR_LAYOUT_LINEAR, {NULL, 0, {0, 0, 0}}, {dims[0], dims[1], dims[2]}};
     return decode_into(p, dims, payload, bytes, &t, threads, err);
 }
 
@@ -481,7 +450,7 @@ cdvr_status hvq_decode_cells_threads(const cdvr_hvq_params *p, const size_t dims
         if (dims[a] == 0)
             return cdvr_error_set(err, CDVR_ERR_ARG, "hvq decode: dims %zux%zux%zu", dims[0],
                                   dims[1], dims[2]);
-    hvq_target t = {frame, layout, need, cdvr_cells_of(need, cell_log2, dims),
+    hvq_target t = {frame, layout, cdvr_cells_of(need, cell_log2, dims),
                     {dims[0], dims[1], dims[2]}};
     return decode_into(p, dims, payload, bytes, &t, threads, err);
 }

@@ -113,6 +113,35 @@ static inline size_t cdvr_tiled_offset(const size_t dims[3], size_t x, size_t y,
     return 4096 * page + 64 * tile + (x & 3) + 4 * (y & 3) + 16 * (z & 3);
 }
 
+/* Writes a codec block of 4^3 values (vals: x fastest, then y, z) whose first n[a] voxels per
+ * axis lie inside the frame (dims), its first voxel at `at`, into frame in layout: rows of
+ * n[0] bytes into a linear frame; the whole tile into a tiled one, the voxels past the
+ * frame's edge repeating the last one inside along each axis. */
+static inline void cdvr_block_store(uint8_t *frame, const size_t dims[3], unsigned layout,
+                                    const size_t at[3], const size_t n[3],
+                                    const uint8_t vals[64])
+{
+    if (layout == CDVR_LAYOUT_TILED) {
+        uint8_t *tile = frame + cdvr_tiled_offset(dims, at[0], at[1], at[2]);
+        if (n[0] == 4 && n[1] == 4 && n[2] == 4) {
+            memcpy(tile, vals, 64);
+            return;
+        }
+        for (size_t z = 0; z < 4; z++)
+            for (size_t y = 0; y < 4; y++)
+                for (size_t x = 0; x < 4; x++) {
+                    size_t sx = x < n[0] ? x : n[0] - 1, sy = y < n[1] ? y : n[1] - 1;
+                    size_t sz = z < n[2] ? z : n[2] - 1;
+                    tile[x + 4 * y + 16 * z] = vals[sx + 4 * sy + 16 * sz];
+                }
+        return;
+    }
+    uint8_t *first = frame + at[0] + dims[0] * (at[1] + dims[1] * at[2]);
+    for (size_t z = 0; z < n[2]; z++)
+        for (size_t y = 0; y < n[1]; y++)
+            memcpy(first + dims[0] * (y + dims[1] * z), vals + 4 * y + 16 * z, n[0]);
+}
+
 /* Bytes of a tiled frame of dims (whole pages), or 0 when that overflows a size_t. */
 static inline size_t cdvr_tiled_bytes(const size_t dims[3])
 {
