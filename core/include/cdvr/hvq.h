@@ -270,8 +270,8 @@ cdvr_status cdvr_hvq_check(const cdvr_hvq_params *p, const size_t dims[3],
                            cdvr_error *err);
 
 /* Decodes a payload into out (X*Y*Z bytes). Checks it first (cdvr_hvq_check). Runs on up to
- * one thread per online CPU (at most 16): slabs of blocks, then regions of residuals; the
- * same bytes on any number of threads. */
+ * one thread per online CPU (at most 16): slabs of blocks, then runs of 64 K residual-hash
+ * slots; the same bytes on any number of threads. */
 cdvr_status cdvr_hvq_decode(const cdvr_hvq_params *p, const size_t dims[3],
                             const uint8_t *payload, size_t bytes, uint8_t *out,
                             cdvr_error *err);
