@@ -1116,15 +1116,17 @@ static vint owned(const clip_params *c, vec3x g)
 }
 
 /* CPU devices (PoCL) prefetch, PREFETCH_AHEAD samples ahead of each step, the tile row (or quad
- * word) of every running lane's lower corner, so the cache misses of a ray entering new tiles
- * overlap the samples before it: the composite march waits on its gathers' misses, not on
- * their count (perf on an AMD EPYC, Colin27 512^2: a fifth of march_full's cycles on the
- * first gather of a sample). Measured with both kernels alternating (CDVR_KERNELS, 8-12
- * pairs, medians of per-pair ratios) on that machine: Colin27 512^2 step 0.5 0.943 of the
- * time without, engine CT (quad copy) 512^2 step 0.5 0.921, step 1 0.927; Colin27 1024^2
- * step 0.5 and the 256^3 zfp playback of scale.lua even (1.009, 0.98 of the fps); 8 and
- * 32 samples ahead no better than 16. OpenCL's prefetch() is a no-op in PoCL;
- * __builtin_prefetch never faults, so lanes off the volume need no clamp beyond the
+ * word) of every running lane's lower corner, and its gradient copy's word when the render
+ * reads one, so the cache misses of a ray entering new tiles overlap the samples before it:
+ * the composite march waits on its gathers' misses, not on their count (perf on an AMD EPYC,
+ * Colin27 512^2: a fifth of march_full's cycles on the first gather of a sample). Measured
+ * with both kernels alternating (CDVR_KERNELS, 6-12 pairs, medians of per-pair ratios) on
+ * that machine: Colin27 512^2 step 0.5 0.943 of the time without, engine CT (quad copy)
+ * 512^2 step 0.5 0.921, step 1 0.927; shaded (gradient copy) Colin27 0.941, engine CT
+ * 0.954; max (march_extreme, every 4 samples) engine CT 0.915, Colin27 0.999; Colin27 1024^2
+ * step 0.5, average and the 256^3 zfp playback of scale.lua even (1.009, 0.98-1.0, 0.98 of
+ * the fps); 8 and 32 samples ahead no better than 16. OpenCL's prefetch() is a no-op in
+ * PoCL; __builtin_prefetch never faults, so lanes off the volume need no clamp beyond the
  * corners'. GPU compilers leave it out. */
 #if defined(__has_builtin) && (defined(__x86_64__) || defined(__aarch64__)) &&                  \
     !defined(CDVR_FETCH) && !defined(CDVR_LONG_INDEX)
@@ -1152,6 +1154,12 @@ static void prefetch_corners(const volume_geo *v, vec3x g, vint on)
     vstore16(select((vint)(0), w, on), 0, words);
     for (int k = 0; k < RAY_PACKET; k++)
         __builtin_prefetch(q + words[k]);
+    if (v->grads_on) {
+        vint gw = v->quads_on ? w : copy_x(x) + copy_y(v, y) + copy_z(v, z);
+        vstore16(select((vint)(0), gw, on), 0, words);
+        for (int k = 0; k < RAY_PACKET; k++)
+            __builtin_prefetch(v->grads + words[k]);
+    }
 }
 #endif
 
@@ -1917,6 +1925,10 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
                 }
             live &= best != saturated; /* a flat brick of the saturated code ends the lane */
             end = select(end, lim, i >= lim - 1); /* the last sample needs no look-up */
+#ifdef HAVE_PREFETCH
+            if (v->tiled | v->quads_on)
+                prefetch_corners(v, at(eb->g0, eb->dg, i + PREFETCH_AHEAD), live);
+#endif
             for (int k = 0; k < 4; k++) {
                 vint run = live & (i < end);
                 if (!lanes_any(run))
