@@ -185,7 +185,8 @@ cdvr_status cdvr_cl_use_host_frames(cdvr_cl_stream *s, const uint8_t *frames, si
 cdvr_status cdvr_cl_use_host_tiles(cdvr_cl_stream *s, const uint8_t *tiles, cdvr_error *err);
 /* Whether the stream's frames fit the ray caster's tiled copy, the device's own (made for a
  * frame rendered again) or the caller's: whole pages within its 32-bit indices and the
- * device's largest buffer (not with CDVR_CL_LONG_INDEX=1). */
+ * device's largest buffer (not with CDVR_CL_LONG_INDEX=1, nor with CDVR_CL_TILES=0, which
+ * keeps every frame dense). */
 int cdvr_cl_takes_host_tiles(const cdvr_cl_stream *s);
 
 /* Device memory the stream holds now (all its buffers), and the part that holds the volume
