@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
-# CDVR_CL_TILES=0 (cdvr_cl_takes_host_tiles, device.h) keeps every OpenCL frame dense: the
-# images of a frame rendered again (tiled and quad copies by default, a dense frame then) are
-# byte-identical, unshaded composite and max on neghip (dims 66, not whole tiles) from two
+# The OpenCL frame layout (cdvr_cl_info.dense_frames, device.h): CDVR_CL_TILES=0 keeps every
+# frame dense, =1 makes the tiled copies (the test environment's setting): the images of a
+# frame rendered again (tiled and quad copies, or a dense frame) are byte-identical, unshaded composite and max on neghip (dims 66, not whole tiles) from two
 # cameras, one inside the volume; and the player's partial zfp decode (test_decode_cells.lua)
-# passes with dense frames too. Skips (77) without OpenCL.
+# passes with dense frames too; without the variable cdvr_cl_open measures the layouts once
+# and remembers its choice. Skips (77) without OpenCL.
 cdvr=${1:?usage: test_cl_layouts.sh path/to/cdvr}
 src=${CDVR_SOURCE_DIR:-$(cd "$(dirname "$0")/.." && pwd)}
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
@@ -34,7 +35,7 @@ print(bytes) -- the device's buffers: the frame and its copies
 LUA
 neghip=$src/share/data/neghip_66x66x66_u8.nrrd
 mkdir -p "$tmp/copies" "$tmp/dense"
-check "render with the device's copies" eval '"$cdvr" "$tmp/render.lua" "$tmp/copies" "$neghip" >"$tmp/copies.bytes"'
+check "render with the device's copies" eval 'CDVR_CL_TILES=1 "$cdvr" "$tmp/render.lua" "$tmp/copies" "$neghip" >"$tmp/copies.bytes"'
 check "render dense" eval 'CDVR_CL_TILES=0 "$cdvr" "$tmp/render.lua" "$tmp/dense" "$neghip" >"$tmp/dense.bytes"'
 # the copies (tiled: whole 16^3 pages, 80^3 here; quads 4 bytes per tiled voxel) hold more
 # than the dense frame (66^3 bytes) and the grids
@@ -51,5 +52,27 @@ cells_dense() { # 77: no zfp plugin, the case does not apply
   [ "$rc" -eq 0 ] || [ "$rc" -eq 77 ]
 }
 check "partial zfp decode with dense frames" cells_dense
+# the measured choice (cdvr_cl_open, without CDVR_CL_TILES): made once into a fresh cache
+# directory, then read back from it; dense exactly where it cast below CDVR_CL_DENSE_SHARE
+# (0.93) of the tiled time
+cat >"$tmp/layout.lua" <<'LUA'
+local i = assert(cdvr.cl_info())
+print(("%s %.17g %.17g"):format(i.frames, i.layout_dense_ms, i.layout_tiled_ms))
+LUA
+first=$(env -u CDVR_CL_TILES CDVR_CACHE_DIR="$tmp/cache" "$cdvr" "$tmp/layout.lua")
+again=$(env -u CDVR_CL_TILES CDVR_CACHE_DIR="$tmp/cache" "$cdvr" "$tmp/layout.lua")
+echo "layout: $first"
+measured() { # frames dense_ms tiled_ms
+  awk -v f="$1" -v d="$2" -v t="$3" 'BEGIN { ok = d > 0 && t > 0 &&
+    ((f == "dense") == (d < 0.93 * t)) && (f == "dense" || f == "tiled"); exit !ok }'
+}
+check "measured once ($first)" measured $first
+same_record() { # the second run read the first one's record (times to its 4 decimals)
+  echo "$first $again" | awk '{ exit !($1 == $4 && ($2 - $5) ^ 2 < 1e-6 && ($3 - $6) ^ 2 < 1e-6) }'
+}
+check "remembered: the same choice and times ($again)" same_record
+check "one layout record in the cache" test "$(ls "$tmp"/cache/*.layout 2>/dev/null | wc -l)" -eq 1
+check "CDVR_CL_TILES=0 overrides, nothing measured" test "$(CDVR_CL_TILES=0 CDVR_CACHE_DIR="$tmp/cache2" "$cdvr" "$tmp/layout.lua")" = "dense 0 0"
+check "CDVR_CL_TILES=1 overrides" test "$(CDVR_CL_TILES=1 CDVR_CACHE_DIR="$tmp/cache2" "$cdvr" "$tmp/layout.lua")" = "tiled 0 0"
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ]

@@ -71,7 +71,7 @@ static int l_cl_info(lua_State *L)
     if (cdvr_render_ctx_cl(lcdvr_render_ctx(L), &cl, &err) != CDVR_OK)
         return lcdvr_fail(L, &err);
     const cdvr_cl_info *info = cdvr_cl_get_info(cl);
-    lua_createtable(L, 0, 12);
+    lua_createtable(L, 0, 15);
     set_string(L, "platform", info->platform);
     set_string(L, "device", info->device);
     set_string(L, "type", info->is_gpu ? "gpu" : "cpu");
@@ -86,6 +86,9 @@ static int l_cl_info(lua_State *L)
     lua_pushboolean(L, info->from_cache);
     lua_setfield(L, -2, "from_cache");
     set_string(L, "cache", info->cache_path);
+    set_string(L, "frames", info->dense_frames ? "dense" : "tiled");
+    set_number(L, "layout_dense_ms", info->layout_dense_ms);
+    set_number(L, "layout_tiled_ms", info->layout_tiled_ms);
     return 1;
 }
 
@@ -95,7 +98,9 @@ int lcdvr_open_device(lua_State *L)
     lcdvr_setfuncs(L, funcs);
     lcdvr_help_add(L, "cdvr.cl_info()",
                    "OpenCL device in use {platform=, device=, type=\"cpu\"|\"gpu\", version=, driver=, "
-                   "compute_units=, build_seconds=, from_cache=, ...}, or nil, message "
+                   "compute_units=, build_seconds=, from_cache=, frames=\"dense\"|\"tiled\" (the layout "
+                   "casts read: measured once per CPU device, CDVR_CL_TILES=0|1 overrides), "
+                   "layout_dense_ms=, layout_tiled_ms=, ...}, or nil, message "
                    "(CDVR_CL_DEVICE=gpu|cpu|none|P:D|name picks the device)");
     lcdvr_help_add(L, "cdvr.render(v, {device=\"cl\", skip=true, ...})",
                    "ray cast on the OpenCL device (same image as the CPU within 50 dB PSNR); "

@@ -50,12 +50,23 @@ typedef struct cdvr_cl_info {
     double build_seconds;        /* time to get the program (compile, or load from cache) */
     int from_cache;              /* 1 if the program binary came from the on-disk cache */
     char cache_path[512];        /* the cache file used or written ("" if caching failed) */
+    int dense_frames;            /* 1: frames stay dense, with no tiled, quad or gradient copy
+                                    (cdvr_cl_takes_host_tiles says no): CDVR_CL_TILES=0, or a
+                                    CPU device where cdvr_cl_open measured dense casts faster;
+                                    CDVR_CL_TILES=1 forces the copies */
+    double layout_dense_ms;      /* that measurement (remembered beside the program cache):  */
+    double layout_tiled_ms;      /* median cast of the dense and the tiled probe frame; 0: none */
 } cdvr_cl_info;
 
-/* Chooses a device (see above), creates context, queue and program. On failure *out is NULL
+/* Chooses a device (see above), creates context, queue and program, and on a CPU device the
+ * frame layout the ray caster reads (info.dense_frames): the one that cast faster, measured
+ * once per device, driver and cdvr version on a synthetic 272^3 frame (5 alternating pairs,
+ * medians; dense where it takes below CDVR_CL_DENSE_SHARE of the tiled time) and remembered
+ * beside the program cache; GPUs keep the tiled copies. On failure *out is NULL
  * and err names the reason (no platform, CDVR_CL_DEVICE=none, no match for the override,
  * missing kernel file, build failure with the build log). */
 cdvr_status cdvr_cl_open(cdvr_cl **out, cdvr_error *err);
+#define CDVR_CL_DENSE_SHARE 0.93
 /* Releases everything; NULL is allowed. Streams must be freed first. */
 void cdvr_cl_close(cdvr_cl *cl);
 
@@ -185,8 +196,8 @@ cdvr_status cdvr_cl_use_host_frames(cdvr_cl_stream *s, const uint8_t *frames, si
 cdvr_status cdvr_cl_use_host_tiles(cdvr_cl_stream *s, const uint8_t *tiles, cdvr_error *err);
 /* Whether the stream's frames fit the ray caster's tiled copy, the device's own (made for a
  * frame rendered again) or the caller's: whole pages within its 32-bit indices and the
- * device's largest buffer (not with CDVR_CL_LONG_INDEX=1, nor with CDVR_CL_TILES=0, which
- * keeps every frame dense). */
+ * device's largest buffer (not with CDVR_CL_LONG_INDEX=1, nor where the device keeps frames
+ * dense: cdvr_cl_info.dense_frames). */
 int cdvr_cl_takes_host_tiles(const cdvr_cl_stream *s);
 
 /* Device memory the stream holds now (all its buffers), and the part that holds the volume

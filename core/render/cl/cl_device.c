@@ -543,18 +543,20 @@ cdvr_status cdvr_cl_long_index_kernels(cdvr_cl *cl, cl_kernel *bricks, cl_kernel
     return CDVR_OK;
 }
 
-/* ---- remembered decode and fetch paths -------------------------------------------------
+/* ---- remembered decode and fetch paths, and the frame layout ------------------------------
  * One cache entry per device, codec, kind ("decode" or "fetch") and size class, in the
  * program cache's format, holding the text "NAME A_MS B_MS": for decode "host|kernel
  * KERNEL_MS HOST_MS", for fetch "sample|bulk SAMPLE_MS BULK_MS". Its key covers the codec's
  * kernel source, the device and its driver, and the cdvr version (whose C decoder was
- * measured). */
+ * measured). The layout (no codec: the render kernels' source) is "layout", size class 0:
+ * "dense|tiled DENSE_MS TILED_MS". */
 
 static int choice_path(cdvr_cl *cl, const cdvr_codec *codec, const char *kind,
                        unsigned size_class, char *path, size_t n, char key[33])
 {
     char dir[400], what[96], *source = NULL;
-    if (load_sources(codec, NULL, 0, &source, NULL) != CDVR_OK)
+    if ((codec ? load_sources(codec, NULL, 0, &source, NULL)
+               : load_sources(NULL, render_files, NRENDER_FILES, &source, NULL)) != CDVR_OK)
         return 0;
     snprintf(what, sizeof what, "%s path, size class %u, cdvr %s", kind, size_class,
              CDVR_VERSION);
@@ -632,6 +634,36 @@ void cdvr_cl_store_fetch_choice(cdvr_cl *cl, const cdvr_codec *codec, unsigned s
                  path == CDVR_CL_FETCH_SAMPLE ? "sample" : "bulk", sample_ms, bulk_ms);
 }
 
+/* info.dense_frames (cdvr_cl_open): CDVR_CL_TILES=0 or 1, else tiled on a GPU, else what
+ * this device measured, remembered or measured now (a failed measurement keeps the tiles). */
+static void choose_layout(cdvr_cl *cl)
+{
+    cdvr_cl_info *info = &cl->info;
+    const char *env = getenv("CDVR_CL_TILES");
+    info->dense_frames = 0;
+    if ((env && *env) || info->is_gpu) {
+        info->dense_frames = env && !strcmp(env, "0");
+        return;
+    }
+    char which[8];
+    load_choice(cl, NULL, "layout", 0, which, &info->layout_dense_ms, &info->layout_tiled_ms);
+    if (!strcmp(which, "dense") || !strcmp(which, "tiled")) {
+        info->dense_frames = !strcmp(which, "dense");
+        return;
+    }
+    cdvr_error err;
+    double dense_ms, tiled_ms;
+    if (cdvr_cl_measure_layouts(cl, &dense_ms, &tiled_ms, &err) != CDVR_OK) {
+        info->layout_dense_ms = info->layout_tiled_ms = 0;
+        return;
+    }
+    info->layout_dense_ms = dense_ms;
+    info->layout_tiled_ms = tiled_ms;
+    info->dense_frames = dense_ms < CDVR_CL_DENSE_SHARE * tiled_ms;
+    store_choice(cl, NULL, "layout", 0, info->dense_frames ? "dense" : "tiled", dense_ms,
+                 tiled_ms);
+}
+
 static cdvr_status create_kernel(cl_program program, const char *name, cl_kernel *out,
                                 cdvr_error *err)
 {
@@ -700,6 +732,7 @@ cdvr_status cdvr_cl_open(cdvr_cl **out, cdvr_error *err)
         cdvr_cl_close(cl);
         return st;
     }
+    choose_layout(cl);
     *out = cl;
     return CDVR_OK;
 }

@@ -90,6 +90,10 @@ cdvr_cl_fetch_path cdvr_cl_load_fetch_choice(cdvr_cl *cl, const cdvr_codec *code
                                              double *bulk_ms);
 void cdvr_cl_store_fetch_choice(cdvr_cl *cl, const cdvr_codec *codec, unsigned size_class,
                                 cdvr_cl_fetch_path path, double sample_ms, double bulk_ms);
+/* Median times of casting a synthetic frame (cl_render.c: 272^3, 256^2 pixels) from the dense
+ * frame and from its tiled copy, alternating (cdvr_cl_open's choice of info.dense_frames). */
+cdvr_status cdvr_cl_measure_layouts(cdvr_cl *cl, double *dense_ms, double *tiled_ms,
+                                    cdvr_error *err);
 /* Sets argument `index` of kernel `name`; on failure fills err naming both. */
 cdvr_status cdvr_cl_arg(cl_kernel k, const char *name, cl_uint index, size_t size,
                         const void *value, cdvr_error *err);

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "cl_internal.h"
+#include "cdvr/timing.h"
 
 _Static_assert(CDVR_CL_WHOLE_POWER_MAX == (float)CDVR_SHADE_WHOLE_POWER_MAX,
                "raycast.cl and render.h take the same whole specular powers by squaring");
@@ -943,4 +944,104 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
         return st;
     memcpy(img->background, opts->background, sizeof img->background);
     return CDVR_OK;
+}
+
+/* ---- which layout casts faster on this device (cdvr_cl_open) --------------------------- */
+
+/* The probe's frame: PROBE_EDGE^3 voxels, whose tiled copy (288^3) gets no quad copy (95 MB,
+ * over QUADS_AUTO_MAX_BYTES), so tiles meet the dense frame itself; a smooth field of nested
+ * shells, rendered at PROBE_PIXELS^2 through a TF that keeps rays long, as playback is. */
+#define PROBE_EDGE 272
+#define PROBE_PIXELS 256
+#define PROBE_PAIRS 5
+
+static uint8_t *probe_frames(size_t n_edge)
+{
+    size_t n = n_edge * n_edge * n_edge;
+    uint8_t *v = malloc(2 * n);
+    if (!v)
+        return NULL;
+    for (size_t z = 0, i = 0; z < n_edge; z++)
+        for (size_t y = 0; y < n_edge; y++)
+            for (size_t x = 0; x < n_edge; x++, i++) {
+                double f = sin(0.11 * (double)x) * sin(0.13 * (double)y + 1.0) *
+                           sin(0.17 * (double)z + 2.0);
+                v[i] = (uint8_t)lrint(127.5 + 127.0 * f);
+            }
+    memcpy(v + n, v, n); /* frame 1 = frame 0: a stream that alternates never tiles */
+    return v;
+}
+
+static cdvr_status probe_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_opts *opts,
+                                cdvr_image *img, double *ms, cdvr_error *err)
+{
+    static const double spacing[3] = {1, 1, 1}, origin[3] = {0, 0, 0},
+                        direction[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    cdvr_status st = cdvr_cl_setup(s, frame, opts->tf, err);
+    double t0 = cdvr_now_ms();
+    if (st == CDVR_OK)
+        st = cdvr_cl_render(s, frame, opts, spacing, origin, direction, img, err);
+    *ms = cdvr_now_ms() - t0;
+    return st;
+}
+
+static int compare_ms(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+cdvr_status cdvr_cl_measure_layouts(cdvr_cl *cl, double *dense_ms, double *tiled_ms,
+                                    cdvr_error *err)
+{
+    const size_t dims[3] = {PROBE_EDGE, PROBE_EDGE, PROBE_EDGE};
+    const cdvr_tf_point points[] = {{0, 0, 0, 0, 0}, {90, 0.2, 0.3, 0.8, 0},
+                                    {160, 0.9, 0.6, 0.3, 0.03}, {255, 1, 1, 1, 0.3}};
+    double c = 0.5 * (PROBE_EDGE - 1);
+    cdvr_camera cam = {.eye = {c + 2.2 * PROBE_EDGE, c - 1.3 * PROBE_EDGE, c + 1.3 * PROBE_EDGE},
+                       .center = {c, c, c}, .up = {0, 0, 1}, .fov = 30,
+                       .width = PROBE_PIXELS, .height = PROBE_PIXELS};
+    uint8_t *frames = probe_frames(PROBE_EDGE);
+    cdvr_tf *tf = malloc(sizeof *tf);
+    cdvr_cl_stream *dense = NULL, *tiled = NULL;
+    cdvr_image *img = NULL;
+    cdvr_status st = frames && tf ? CDVR_OK
+                                  : cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL layout probe: "
+                                                   "out of memory");
+    if (!st)
+        st = cdvr_tf_init(tf, points, sizeof points / sizeof *points, 0, err);
+    if (!st)
+        st = cdvr_cl_stream_create(cl, dims, &dense, err);
+    if (!st)
+        st = cdvr_cl_stream_create(cl, dims, &tiled, err);
+    if (!st)
+        st = cdvr_cl_upload_frames(dense, frames, 2, err);
+    if (!st)
+        st = cdvr_cl_upload_frames(tiled, frames, 1, err);
+    if (!st)
+        st = cdvr_image_create_unset(PROBE_PIXELS, PROBE_PIXELS, &img, err);
+    cdvr_render_opts opts = {.tf = tf, .camera = &cam};
+    double d[PROBE_PAIRS], t[PROBE_PAIRS], warm;
+    size_t next = 0; /* the dense stream's frames in turn: never the same frame twice */
+    /* warm-up: both frames of the dense stream, the tiled one twice (its copy is made then) */
+    for (int i = 0; i < 4 && !st; i++)
+        st = i < 2 ? probe_render(dense, next++ & 1, &opts, img, &warm, err)
+                   : probe_render(tiled, 0, &opts, img, &warm, err);
+    for (int i = 0; i < PROBE_PAIRS && !st; i++) { /* A B, B A, ... */
+        for (int k = 0; k < 2 && !st; k++)
+            st = (k ^ (i & 1)) ? probe_render(tiled, 0, &opts, img, &t[i], err)
+                               : probe_render(dense, next++ & 1, &opts, img, &d[i], err);
+    }
+    if (!st) {
+        qsort(d, PROBE_PAIRS, sizeof *d, compare_ms);
+        qsort(t, PROBE_PAIRS, sizeof *t, compare_ms);
+        *dense_ms = d[PROBE_PAIRS / 2];
+        *tiled_ms = t[PROBE_PAIRS / 2];
+    }
+    cdvr_image_free(img);
+    cdvr_cl_stream_free(dense);
+    cdvr_cl_stream_free(tiled);
+    free(tf);
+    free(frames);
+    return st;
 }

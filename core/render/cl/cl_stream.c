@@ -521,7 +521,7 @@ int cdvr_cl_takes_host_tiles(const cdvr_cl_stream *s)
 {
     size_t bytes = cdvr_tiled_bytes(s->dims);
     return bytes && bytes <= INT_MAX && bytes <= s->cl->info.max_alloc_bytes &&
-           !cdvr_cl_env_is("CDVR_CL_LONG_INDEX", "1") && !cdvr_cl_env_is("CDVR_CL_TILES", "0");
+           !cdvr_cl_env_is("CDVR_CL_LONG_INDEX", "1") && !s->cl->info.dense_frames;
 }
 
 cdvr_status cdvr_cl_use_host_tiles(cdvr_cl_stream *s, const uint8_t *tiles, cdvr_error *err)
