@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # The OpenCL frame layout (cdvr_cl_info.dense_frames, device.h): CDVR_CL_TILES=0 keeps every
-# frame dense, =1 makes the tiled copies (the test environment's setting): the images of a
-# frame rendered again (tiled and quad copies, or a dense frame) are byte-identical, unshaded composite and max on neghip (dims 66, not whole tiles) from two
-# cameras, one inside the volume; and the player's partial zfp decode (test_decode_cells.lua)
-# passes with dense frames too; without the variable cdvr_cl_open measures the layouts once
+# frame dense, =1 makes the tiled copies (the test environment's setting). The images of a
+# frame rendered again (from the tiled and quad copies, or from the dense frame) are
+# byte-identical: unshaded composite and max on neghip (dims 66, not whole tiles) from two
+# cameras, one inside the volume, and shaded composite (which casts from the tiled and
+# gradient copies in either layout). The player's partial zfp decode (test_decode_cells.lua)
+# passes with dense frames too. Without the variable cdvr_cl_open measures the layouts once
 # and remembers its choice. Skips (77) without OpenCL.
 cdvr=${1:?usage: test_cl_layouts.sh path/to/cdvr}
 src=${CDVR_SOURCE_DIR:-$(cd "$(dirname "$0")/.." && pwd)}
@@ -22,16 +24,18 @@ local cams = {outside = cdvr.orbit_camera(v, {azimuth = 30, elevation = 20, widt
               inside = cdvr.camera{eye = {30, 33, 36}, center = {60, 10, 20}, up = {0, 0, 1},
                                    fov = 60, width = 96, height = 80}}
 local bytes = 0
-for name, cam in pairs(cams) do
-  for _, blend in ipairs{"composite", "max"} do
-    local o = {tf = tf, camera = cam, blend = blend, device = "cl"}
+-- shaded last: its copies stay on the device's stream, which every case shares
+for _, blend in ipairs{"composite", "max", "shaded"} do
+  for name, cam in pairs(cams) do
+    local o = {tf = tf, camera = cam, blend = blend == "shaded" and "composite" or blend,
+               shade = blend == "shaded", device = "cl"}
     cdvr.render(v, o)
     local img = cdvr.render(v, o)
     img:save(("%s/%s_%s.png"):format(out, name, blend))
-    bytes = math.max(bytes, img:stats().device_bytes)
+    if blend ~= "shaded" then bytes = math.max(bytes, img:stats().device_bytes) end
   end
 end
-print(bytes) -- the device's buffers: the frame and its copies
+print(bytes) -- the device's buffers of the unshaded cases: the frame and its copies
 LUA
 neghip=$src/share/data/neghip_66x66x66_u8.nrrd
 mkdir -p "$tmp/copies" "$tmp/dense"
@@ -44,7 +48,7 @@ check "dense frames hold no copies ($(cat "$tmp/dense.bytes") < $(cat "$tmp/copi
 for f in "$tmp"/copies/*.png; do
   check "$(basename "$f") byte-identical" cmp -s "$f" "$tmp/dense/$(basename "$f")"
 done
-check "four images" test "$(ls "$tmp"/dense/*.png 2>/dev/null | wc -l)" -eq 4
+check "six images" test "$(ls "$tmp"/dense/*.png 2>/dev/null | wc -l)" -eq 6
 
 cells_dense() { # 77: no zfp plugin, the case does not apply
   CDVR_CL_TILES=0 "$cdvr" "$src/tests/lua/test_decode_cells.lua"

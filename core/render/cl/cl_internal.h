@@ -90,6 +90,11 @@ cdvr_cl_fetch_path cdvr_cl_load_fetch_choice(cdvr_cl *cl, const cdvr_codec *code
                                              double *bulk_ms);
 void cdvr_cl_store_fetch_choice(cdvr_cl *cl, const cdvr_codec *codec, unsigned size_class,
                                 cdvr_cl_fetch_path path, double sample_ms, double bulk_ms);
+/* Whether the stream's frames fit the tiled copy (cdvr_cl_takes_host_tiles, whatever the
+ * device's layout): a shaded render on a device that keeps frames dense still gets the tiled
+ * and gradient copies (cl_render.c: from the dense frame, central differences took 1.6-1.8x
+ * the time on the AMD EPYC that prefers dense frames otherwise). */
+int cdvr_cl_tiles_fit(const cdvr_cl_stream *s);
 /* Median times of casting a synthetic frame (cl_render.c: 272^3, 256^2 pixels) from the dense
  * frame and from its tiled copy, alternating (cdvr_cl_open's choice of info.dense_frames). */
 cdvr_status cdvr_cl_measure_layouts(cdvr_cl *cl, double *dense_ms, double *tiled_ms,

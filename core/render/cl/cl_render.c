@@ -546,6 +546,19 @@ static int entry_tiles_ready(cdvr_cl_stream *s, const cam_params *cam, const dou
     return usable;
 }
 
+/* Whether a render of `look` reads gradients (the gradient copy wants the tiled one). */
+static int wants_grads(const cdvr_look *look)
+{
+    return look->shade.enabled || look->gradient_opacity.npoints > 0;
+}
+
+/* Whether the render casts from the tiled copy of a frame that has one: not where the device
+ * keeps frames dense (info.dense_frames), unless it reads gradients (cdvr_cl_tiles_fit). */
+static int casts_tiled(const cdvr_cl_stream *s, int grads)
+{
+    return !s->cl->info.dense_frames || grads;
+}
+
 /* Sets the ray-cast kernel's arguments (in the order of kernels/render/raycast.cl). A clipped
  * render casts the whole volume's rays and skips no empty space (the brick grid describes
  * the stream's own voxels only). flags_skip: iso skips by iso_flags, average leaps by
@@ -561,7 +574,7 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
     cdvr_status sst = source_of(s, frame, &src, err);
     if (sst)
         return sst;
-    if (!s->fetch && s->tiles_frame == frame) {
+    if (!s->fetch && s->tiles_frame == frame && casts_tiled(s, grads_on)) {
         src.vol = s->tiles;
         src.offset = 0;
         src.tiled = 1;
@@ -680,11 +693,11 @@ static int copy_ready(cdvr_cl_stream *s, size_t frame, cl_kernel k, const char *
     return st == CDVR_OK;
 }
 
-static void make_tiles_if_rerendered(cdvr_cl_stream *s, size_t frame)
+static void make_tiles_if_rerendered(cdvr_cl_stream *s, size_t frame, int grads)
 {
     int again = s->last_rendered == frame;
     s->last_rendered = frame;
-    if (s->fetch || !again || !cdvr_cl_takes_host_tiles(s)) /* tiled frames fit */
+    if (s->fetch || !again || !cdvr_cl_tiles_fit(s) || !casts_tiled(s, grads))
         return;
     copy_ready(s, frame, s->cl->k_tiles, "make_tiles", &s->tiles, &s->tiles_capacity,
                &s->tiles_frame, tiled_bytes(s->dims));
@@ -702,7 +715,7 @@ static void make_tiles_if_rerendered(cdvr_cl_stream *s, size_t frame)
  * render reads it. */
 static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
 {
-    int wanted = look->shade.enabled || look->gradient_opacity.npoints > 0;
+    int wanted = wants_grads(look);
     size_t bytes;
     if (s->tiles_frame != frame || !wanted || s->only_tiles ||
         cdvr_cl_env_is("CDVR_CL_GRADS", "0") || !cdvr_size_mul(tiled_bytes(s->dims), 4, &bytes) ||
@@ -912,7 +925,7 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
         st = upload_tables(s, rp, err);
     if (st)
         return st;
-    make_tiles_if_rerendered(s, frame);
+    make_tiles_if_rerendered(s, frame, !opts->clip && wants_grads(&opts->look));
     cl_mem host_image = wrap_host_image(s->cl, img, pixels);
     cl_kernel kernel;
     cdvr_cl_look look = look_of(&opts->look, &s->tf, &box, spacing);
@@ -929,7 +942,7 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
                                             : CDVR_CL_ENTRY_VISIBLE;
     cl_int entry_on = entry_tiles_ready(s, &cam, spacing, origin, D, global, entry_wanted, kind);
     cl_int grads_on = !opts->clip && grads_ready(s, frame, &opts->look);
-    cl_int quads_on = !opts->clip && quads_ready(s, frame, look.blend);
+    cl_int quads_on = !opts->clip && casts_tiled(s, grads_on) && quads_ready(s, frame, look.blend);
     /* CDVR_CL_LEAPS=0: average reads its whole window */
     int flags_skip = iso ? iso_skip
                          : look.blend == CDVR_BLEND_AVERAGE && zero_bounds && s->zero_flags_ok &&

@@ -517,11 +517,16 @@ cdvr_status cdvr_cl_use_host_frames(cdvr_cl_stream *s, const uint8_t *frames, si
     return CDVR_OK;
 }
 
-int cdvr_cl_takes_host_tiles(const cdvr_cl_stream *s)
+int cdvr_cl_tiles_fit(const cdvr_cl_stream *s)
 {
     size_t bytes = cdvr_tiled_bytes(s->dims);
     return bytes && bytes <= INT_MAX && bytes <= s->cl->info.max_alloc_bytes &&
-           !cdvr_cl_env_is("CDVR_CL_LONG_INDEX", "1") && !s->cl->info.dense_frames;
+           !cdvr_cl_env_is("CDVR_CL_LONG_INDEX", "1");
+}
+
+int cdvr_cl_takes_host_tiles(const cdvr_cl_stream *s)
+{
+    return cdvr_cl_tiles_fit(s) && !s->cl->info.dense_frames;
 }
 
 cdvr_status cdvr_cl_use_host_tiles(cdvr_cl_stream *s, const uint8_t *tiles, cdvr_error *err)
