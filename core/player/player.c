@@ -1031,7 +1031,7 @@ static void fill_cells(uint8_t *frame, const size_t dims[3], const cdvr_skip_gri
 static int decodes_tiled(const cdvr_player *p)
 {
 #if CDVR_HAVE_OPENCL
-    return p->on_stream && cdvr_cl_takes_host_tiles(p->stream);
+    return p->on_stream && cdvr_cl_takes_host_tiles(p->stream, shades(p));
 #else
     (void)p;
     return 0;

@@ -50,10 +50,10 @@ typedef struct cdvr_cl_info {
     double build_seconds;        /* time to get the program (compile, or load from cache) */
     int from_cache;              /* 1 if the program binary came from the on-disk cache */
     char cache_path[512];        /* the cache file used or written ("" if caching failed) */
-    int dense_frames;            /* 1: frames stay dense, with no tiled, quad or gradient copy
-                                    (cdvr_cl_takes_host_tiles says no): CDVR_CL_TILES=0, or a
-                                    CPU device where cdvr_cl_open measured dense casts faster;
-                                    CDVR_CL_TILES=1 forces the copies */
+    int dense_frames;            /* 1: frames stay dense, with no tiled or quad copy, for
+                                    renders that read no gradients (cdvr_cl_takes_host_tiles):
+                                    CDVR_CL_TILES=0, or a CPU device where cdvr_cl_open measured
+                                    dense casts faster; CDVR_CL_TILES=1 forces the copies */
     double layout_dense_ms;      /* that measurement (remembered beside the program cache):  */
     double layout_tiled_ms;      /* median cast of the dense and the tiled probe frame; 0: none */
 } cdvr_cl_info;
@@ -192,13 +192,15 @@ cdvr_status cdvr_cl_use_host_frames(cdvr_cl_stream *s, const uint8_t *frames, si
  * casts on the CPU device). No frame holds the dense voxels then: such a frame is rendered
  * only with a grid from the caller (cdvr_cl_setup_grid; cdvr_cl_setup and cdvr_cl_download
  * refuse it), its samples and gradients come from the tiles (no quad or gradient copy).
- * CDVR_ERR_UNSUPPORTED where cdvr_cl_takes_host_tiles says no. */
+ * CDVR_ERR_UNSUPPORTED where the frames do not fit a tiled copy (cdvr_cl_takes_host_tiles). */
 cdvr_status cdvr_cl_use_host_tiles(cdvr_cl_stream *s, const uint8_t *tiles, cdvr_error *err);
-/* Whether the stream's frames fit the ray caster's tiled copy, the device's own (made for a
- * frame rendered again) or the caller's: whole pages within its 32-bit indices and the
- * device's largest buffer (not with CDVR_CL_LONG_INDEX=1, nor where the device keeps frames
- * dense: cdvr_cl_info.dense_frames). */
-int cdvr_cl_takes_host_tiles(const cdvr_cl_stream *s);
+/* Whether a render that reads gradients (1: shading or gradient opacity) or not (0) casts
+ * from the ray caster's tiled copy, the device's own (made for a frame rendered again) or the
+ * caller's: the stream's frames fit it (whole pages within its 32-bit indices and the
+ * device's largest buffer; not with CDVR_CL_LONG_INDEX=1), and the device casts from tiles
+ * (cdvr_cl_info.dense_frames 0, or a render that reads gradients: those come from the tiles
+ * and their gradient copy faster than from a dense frame). */
+int cdvr_cl_takes_host_tiles(const cdvr_cl_stream *s, int gradients);
 
 /* Device memory the stream holds now (all its buffers), and the part that holds the volume
  * data of the current frames (dense frames, or payload + parameters in fetch mode). */

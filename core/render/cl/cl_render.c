@@ -552,29 +552,32 @@ static int wants_grads(const cdvr_look *look)
     return look->shade.enabled || look->gradient_opacity.npoints > 0;
 }
 
-/* Whether the render casts from the tiled copy of a frame that has one: not where the device
- * keeps frames dense (info.dense_frames), unless it reads gradients (cdvr_cl_tiles_fit). */
+/* Whether a render that reads gradients (grads) or not casts from the tiled copy of a frame
+ * that has one: not where the device keeps frames dense (info.dense_frames), unless it reads
+ * gradients (cdvr_cl_tiles_fit) or the tiles are the only copy (cdvr_cl_use_host_tiles). */
 static int casts_tiled(const cdvr_cl_stream *s, int grads)
 {
-    return !s->cl->info.dense_frames || grads;
+    return !s->cl->info.dense_frames || grads || s->only_tiles;
 }
 
 /* Sets the ray-cast kernel's arguments (in the order of kernels/render/raycast.cl). A clipped
  * render casts the whole volume's rays and skips no empty space (the brick grid describes
  * the stream's own voxels only). flags_skip: iso skips by iso_flags, average leaps by
- * zero_flags (the kernel's brick flags are then those). */
+ * zero_flags (the kernel's brick flags are then those). tiled: the samples come from the
+ * frame's tiled copy where it has one (casts_tiled). */
 static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_params rp,
                                     const cam_params *cam, const cdvr_render_clip *clip,
                                     const double spacing[3], const box_frame *box,
                                     const cdvr_cl_look *look, int flags_skip, cl_mem image,
                                     cl_int entry_on, cl_int entry_tiles_x, cl_int grads_on,
-                                    cl_int quads_on, cl_kernel *kernel, cdvr_error *err)
+                                    cl_int quads_on, int tiled, cl_kernel *kernel,
+                                    cdvr_error *err)
 {
     voxel_source src;
     cdvr_status sst = source_of(s, frame, &src, err);
     if (sst)
         return sst;
-    if (!s->fetch && s->tiles_frame == frame && casts_tiled(s, grads_on)) {
+    if (!s->fetch && s->tiles_frame == frame && tiled) {
         src.vol = s->tiles;
         src.offset = 0;
         src.tiled = 1;
@@ -942,14 +945,15 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
                                             : CDVR_CL_ENTRY_VISIBLE;
     cl_int entry_on = entry_tiles_ready(s, &cam, spacing, origin, D, global, entry_wanted, kind);
     cl_int grads_on = !opts->clip && grads_ready(s, frame, &opts->look);
-    cl_int quads_on = !opts->clip && casts_tiled(s, grads_on) && quads_ready(s, frame, look.blend);
+    int tiled = casts_tiled(s, !opts->clip && wants_grads(&opts->look));
+    cl_int quads_on = !opts->clip && tiled && quads_ready(s, frame, look.blend);
     /* CDVR_CL_LEAPS=0: average reads its whole window */
     int flags_skip = iso ? iso_skip
                          : look.blend == CDVR_BLEND_AVERAGE && zero_bounds && s->zero_flags_ok &&
                                !cdvr_cl_env_is("CDVR_CL_LEAPS", "0");
     st = set_raycast_args(s, frame, rp, &cam, opts->clip, spacing, &box, &look, flags_skip,
                           host_image ? host_image : s->image, entry_on, (cl_int)global[0],
-                          grads_on, quads_on, &kernel, err);
+                          grads_on, quads_on, tiled, &kernel, err);
     if (!st)
         st = cast_and_read(s, kernel, global, local, host_image, img, pixels, err);
     cdvr_cl_release(&host_image);

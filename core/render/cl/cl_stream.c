@@ -524,15 +524,15 @@ int cdvr_cl_tiles_fit(const cdvr_cl_stream *s)
            !cdvr_cl_env_is("CDVR_CL_LONG_INDEX", "1");
 }
 
-int cdvr_cl_takes_host_tiles(const cdvr_cl_stream *s)
+int cdvr_cl_takes_host_tiles(const cdvr_cl_stream *s, int gradients)
 {
-    return cdvr_cl_tiles_fit(s) && !s->cl->info.dense_frames;
+    return cdvr_cl_tiles_fit(s) && (!s->cl->info.dense_frames || gradients);
 }
 
 cdvr_status cdvr_cl_use_host_tiles(cdvr_cl_stream *s, const uint8_t *tiles, cdvr_error *err)
 {
     invalidate_frames(s);
-    if (!tiles || !cdvr_cl_takes_host_tiles(s))
+    if (!tiles || !cdvr_cl_tiles_fit(s))
         return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "OpenCL: a tiled frame of %zux%zux%zu "
                               "is not taken here (cdvr_cl_takes_host_tiles)", s->dims[0],
                               s->dims[1], s->dims[2]);
