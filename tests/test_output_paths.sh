@@ -119,9 +119,11 @@ signal_run() { # signal, expected exit, what (encode|capture), mode (named|unnam
   if [ "$what" = encode ]; then
     code='local v = cdvr.generate("ml", {dims = {64, 64, 64}, timesteps = 24})
           cdvr.encode(v, {path = "sig/out.cdv", progress = false})'
-  else # frames whose PNG takes longer than their render (the camera looks away from the box)
+  else # frames whose PNG takes longer than their render (the camera looks away from the box);
+    # loop: the store has 3 timesteps, which alone end the run within about 0.3 s, before a
+    # loaded machine's poll below may see a temporary file
     code='local st = assert(cdvr.open("s.cdv"))
-          local p = cdvr.player{store = st, tf = cdvr.tf("hot"), width = 700, height = 700, device = "cpu",
+          local p = cdvr.player{store = st, tf = cdvr.tf("hot"), width = 700, height = 700, device = "cpu", loop = true,
                                 out = "sig/%03d.png", camera = cdvr.camera{eye = {100, 0, 0}, center = {200, 0, 0}, up = {0, 0, 1}}}
           p:run{frames = 400}'
   fi
