@@ -1136,8 +1136,11 @@ static vint owned(const clip_params *c, vec3x g)
 #endif
 #ifdef HAVE_PREFETCH
 #define PREFETCH_AHEAD 16
-static void prefetch_corners(const volume_geo *v, vec3x g, vint on)
+__attribute__((always_inline)) static inline void prefetch_corners(const volume_geo *v, vec3x g,
+                                                                vint on)
 {
+    if (!(v->tiled | v->quads_on)) /* dense frames: a prefetch measured no gain */
+        return;
     vint x = clamp(convert_vint(g.x - v->offset.x), 0, v->base_max.x);
     vint y = clamp(convert_vint(g.y - v->offset.y), 0, v->base_max.y);
     vint z = clamp(convert_vint(g.z - v->offset.z), 0, v->base_max.z);
@@ -1184,8 +1187,7 @@ __attribute__((always_inline)) static inline void sample_steps(
         s[k] = trilinear_on(v, g, run & (i_first + k < m->end));
     }
 #ifdef HAVE_PREFETCH
-    if (v->tiled | v->quads_on)
-        prefetch_corners(v, at(g0, dg, i_first + PREFETCH_AHEAD), run);
+    prefetch_corners(v, at(g0, dg, i_first + PREFETCH_AHEAD), run);
 #endif
     vint stop = (vint)(0), live = run;
     for (int k = 0; k < unroll; k++) {
@@ -1926,8 +1928,7 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
             live &= best != saturated; /* a flat brick of the saturated code ends the lane */
             end = select(end, lim, i >= lim - 1); /* the last sample needs no look-up */
 #ifdef HAVE_PREFETCH
-            if (v->tiled | v->quads_on)
-                prefetch_corners(v, at(eb->g0, eb->dg, i + PREFETCH_AHEAD), live);
+            prefetch_corners(v, at(eb->g0, eb->dg, i + PREFETCH_AHEAD), live);
 #endif
             for (int k = 0; k < 4; k++) {
                 vint run = live & (i < end);

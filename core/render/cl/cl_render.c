@@ -700,7 +700,7 @@ static void make_tiles_if_rerendered(cdvr_cl_stream *s, size_t frame, int grads)
 {
     int again = s->last_rendered == frame;
     s->last_rendered = frame;
-    if (s->fetch || !again || !cdvr_cl_tiles_fit(s) || !casts_tiled(s, grads))
+    if (s->fetch || !again || !cdvr_cl_takes_host_tiles(s, grads))
         return;
     copy_ready(s, frame, s->cl->k_tiles, "make_tiles", &s->tiles, &s->tiles_capacity,
                &s->tiles_frame, tiled_bytes(s->dims));
@@ -928,7 +928,8 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
         st = upload_tables(s, rp, err);
     if (st)
         return st;
-    make_tiles_if_rerendered(s, frame, !opts->clip && wants_grads(&opts->look));
+    int grads_wanted = !opts->clip && wants_grads(&opts->look);
+    make_tiles_if_rerendered(s, frame, grads_wanted);
     cl_mem host_image = wrap_host_image(s->cl, img, pixels);
     cl_kernel kernel;
     cdvr_cl_look look = look_of(&opts->look, &s->tf, &box, spacing);
@@ -945,7 +946,7 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
                                             : CDVR_CL_ENTRY_VISIBLE;
     cl_int entry_on = entry_tiles_ready(s, &cam, spacing, origin, D, global, entry_wanted, kind);
     cl_int grads_on = !opts->clip && grads_ready(s, frame, &opts->look);
-    int tiled = casts_tiled(s, !opts->clip && wants_grads(&opts->look));
+    int tiled = casts_tiled(s, grads_wanted);
     cl_int quads_on = !opts->clip && tiled && quads_ready(s, frame, look.blend);
     /* CDVR_CL_LEAPS=0: average reads its whole window */
     int flags_skip = iso ? iso_skip
@@ -1002,12 +1003,6 @@ static cdvr_status probe_render(cdvr_cl_stream *s, size_t frame, const cdvr_rend
     return st;
 }
 
-static int compare_ms(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 cdvr_status cdvr_cl_measure_layouts(cdvr_cl *cl, double *dense_ms, double *tiled_ms,
                                     cdvr_error *err)
 {
@@ -1050,10 +1045,8 @@ cdvr_status cdvr_cl_measure_layouts(cdvr_cl *cl, double *dense_ms, double *tiled
                                : probe_render(dense, next++ & 1, &opts, img, &d[i], err);
     }
     if (!st) {
-        qsort(d, PROBE_PAIRS, sizeof *d, compare_ms);
-        qsort(t, PROBE_PAIRS, sizeof *t, compare_ms);
-        *dense_ms = d[PROBE_PAIRS / 2];
-        *tiled_ms = t[PROBE_PAIRS / 2];
+        *dense_ms = cdvr_median(d, PROBE_PAIRS);
+        *tiled_ms = cdvr_median(t, PROBE_PAIRS);
     }
     cdvr_image_free(img);
     cdvr_cl_stream_free(dense);
