@@ -1,6 +1,6 @@
 /* tests/test_skip.c - empty-space skipping grids on the host (cdvr/skip.h): the row-wise
  * chamfer distance equals the chessboard distance by brute force (random seeds, thin and
- * odd grids, no seed, all seeds); flags and the visible box follow their definition; the
+ * odd grids, one seed in rows of 300 bricks (distances past 255 are 255), no seed, all seeds); flags and the visible box follow their definition; the
  * grid made from a store's range tables (range bricks of 4^3, 8^3, 16^3) equals the one
  * computed from the decoded frame; a coarse grid spread over the 4^3 bricks
  * (cdvr_skip_grid_expand) is conservative and its flags keep their meaning; and on the
@@ -38,14 +38,15 @@ static uint32_t rng(void)
 static void test_distance(void)
 {
     static const size_t grids[][3] = {{1, 1, 1}, {7, 1, 1}, {1, 9, 1}, {1, 1, 6},
-                                      {5, 4, 3}, {13, 11, 9}, {33, 2, 17}};
+                                      {5, 4, 3}, {13, 11, 9}, {33, 2, 17}, {300, 3, 2}};
     for (size_t gi = 0; gi < sizeof grids / sizeof *grids; gi++) {
         const size_t *n = grids[gi];
         size_t count = n[0] * n[1] * n[2];
         uint8_t *seed = malloc(count), *dist = malloc(count);
-        for (int density = 0; density < 4; density++) { /* none, sparse, dense, all */
+        for (int density = 0; density < 5; density++) { /* none, sparse, dense, all, one */
             for (size_t b = 0; b < count; b++)
-                seed[b] = density == 0 ? 0 : density == 3 ? 1 : rng() % (density == 1 ? 40 : 3) == 0;
+                seed[b] = density == 0 ? 0 : density == 3 ? 1 : density == 4 ? b == 0 :
+                          rng() % (density == 1 ? 40 : 3) == 0;
             cdvr_skip_distance(seed, dist, n);
             size_t wrong = 0;
             for (size_t b = 0; b < count; b++) {

@@ -5,9 +5,10 @@
  * Range brick g (per axis) holds voxels E*g .. min(E*g + E, N - 1): its cube plus the upper
  * apron that trilinear interpolation reads. It meets a box whose voxels are lo .. hi
  * when E*g <= hi and E*g + E >= lo, i.e. g from ceil(lo / E) - 1 (at least 0) to hi / E.
- * Ranges are computed separably: per voxel row, the min and max of each brick's x span (for
- * every x at once, by passes that double a window, so they vectorise); then each row is folded
- * into the one or two bricks along y and z whose spans hold it. */
+ * Ranges are computed separably, one z slab of bricks at a time: each voxel row is folded
+ * voxelwise into the rows of the one or two bricks along y whose spans hold it (min and max
+ * of whole rows, which vectorise); then per brick row the min and max of each brick's x span
+ * (for every x at once, by passes that double a window). */
 #include "cdvr/bricks.h"
 
 #include <stdlib.h>
@@ -150,12 +151,13 @@ cdvr_status cdvr_range_compute(const uint8_t *voxels, size_t row_stride, size_t 
 {
     size_t g0[3], n[3], edge = (size_t)1 << shift;
     cdvr_range_window(vol_dims, lo, bd, shift, g0, n);
-    size_t total = n[0] + n[1] + n[2], cells = n[0] * n[1] * n[2];
+    size_t total = n[0] + n[1] + n[2], X = bd[0];
     size_t *first = malloc(2 * total * sizeof *first);
-    uint8_t *rows = malloc(2 * n[0] + 4 * bd[0]), *acc = malloc(2 * cells);
-    if (!first || !rows || !acc) {
+    /* per window brick row along y of one z brick slab: the voxelwise min and max over the
+     * rows its y and z spans hold (X bytes each), then the x windows of one such row */
+    uint8_t *acc = malloc(2 * n[1] * X + 4 * X);
+    if (!first || !acc) {
         free(first);
-        free(rows);
         free(acc);
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "value ranges: no memory for %zu bricks",
                               total);
@@ -165,47 +167,42 @@ cdvr_status cdvr_range_compute(const uint8_t *voxels, size_t row_stride, size_t 
     spans(vol_dims[0], lo[0], bd[0], shift, g0[0], n[0], fx, lx);
     spans(vol_dims[1], lo[1], bd[1], shift, g0[1], n[1], fy, ly);
     spans(vol_dims[2], lo[2], bd[2], shift, g0[2], n[2], fz, lz);
-    uint8_t *rmin = rows, *rmax = rows + n[0], *scratch = rows + 2 * n[0];
-    uint8_t *amin = acc, *amax = acc + cells; /* the bricks' minima, then maxima */
-    memset(amin, 255, cells);
-    memset(amax, 0, cells);
-    for (size_t z = 0; z < bd[2]; z++) {
-        size_t wz[2];
-        int nz = bricks_of(z, lo[2], shift, g0[2], n[2], fz, lz, wz);
-        for (size_t y = 0; y < bd[1]; y++) {
-            size_t wy[2];
-            int ny = bricks_of(y, lo[1], shift, g0[1], n[1], fy, ly, wy);
-            const uint8_t *row = voxels + row_stride * y + plane_stride * z;
-            const uint8_t *tmin = row_windows(row, bd[0], shift, 0, scratch);
-            const uint8_t *tmax = row_windows(row, bd[0], shift, 1, scratch + 2 * bd[0]);
-            for (size_t w = 0; w < n[0]; w++) {
-                size_t whole = fx[w] + edge < bd[0] - 1 ? fx[w] + edge : bd[0] - 1;
-                rmin[w] = tmin[fx[w]]; /* the window tmin/tmax hold */
-                rmax[w] = tmax[fx[w]];
-                if (lx[w] == whole)
-                    continue;
-                uint8_t mn = 255, mx = 0; /* cut short by the box: its own voxels */
-                for (size_t x = fx[w]; x <= lx[w]; x++) {
-                    mn = row[x] < mn ? row[x] : mn;
-                    mx = row[x] > mx ? row[x] : mx;
-                }
-                rmin[w] = mn;
-                rmax[w] = mx;
-            }
-            for (int iz = 0; iz < nz; iz++)
+    uint8_t *amin = acc, *amax = acc + n[1] * X, *scratch = acc + 2 * n[1] * X;
+    for (size_t wz = 0; wz < n[2]; wz++) {
+        memset(amin, 255, n[1] * X);
+        memset(amax, 0, n[1] * X);
+        for (size_t z = fz[wz]; z <= lz[wz]; z++)
+            for (size_t y = 0; y < bd[1]; y++) {
+                size_t wy[2];
+                int ny = bricks_of(y, lo[1], shift, g0[1], n[1], fy, ly, wy);
+                const uint8_t *row = voxels + row_stride * y + plane_stride * z;
                 for (int iy = 0; iy < ny; iy++) {
-                    size_t at = n[0] * (wy[iy] + n[1] * wz[iz]);
-                    fold_into(amin + at, rmin, n[0], 0);
-                    fold_into(amax + at, rmax, n[0], 1);
+                    fold_into(amin + X * wy[iy], row, X, 0);
+                    fold_into(amax + X * wy[iy], row, X, 1);
                 }
+            }
+        for (size_t wy = 0; wy < n[1]; wy++) {
+            const uint8_t *rmin = amin + X * wy, *rmax = amax + X * wy;
+            const uint8_t *tmin = row_windows(rmin, X, shift, 0, scratch);
+            const uint8_t *tmax = row_windows(rmax, X, shift, 1, scratch + 2 * X);
+            uint8_t *dst = out + 2 * n[0] * (wy + n[1] * wz);
+            for (size_t w = 0; w < n[0]; w++) {
+                size_t whole = fx[w] + edge < X - 1 ? fx[w] + edge : X - 1;
+                uint8_t mn = tmin[fx[w]], mx = tmax[fx[w]]; /* the window tmin/tmax hold */
+                if (lx[w] != whole) { /* cut short by the box: its own voxels */
+                    mn = 255;
+                    mx = 0;
+                    for (size_t x = fx[w]; x <= lx[w]; x++) {
+                        mn = rmin[x] < mn ? rmin[x] : mn;
+                        mx = rmax[x] > mx ? rmax[x] : mx;
+                    }
+                }
+                dst[2 * w] = mn;
+                dst[2 * w + 1] = mx;
+            }
         }
     }
-    for (size_t i = 0; i < cells; i++) {
-        out[2 * i] = amin[i];
-        out[2 * i + 1] = amax[i];
-    }
     free(first);
-    free(rows);
     free(acc);
     return CDVR_OK;
 }

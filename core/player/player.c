@@ -1050,6 +1050,70 @@ static void fill_tiles(uint8_t *tiles, const size_t dims[3], const cdvr_skip_gri
                     memset(tiles + cdvr_tiled_offset(dims, 4 * x, 4 * y, 4 * z), fill, 64);
 }
 
+/* The box of bricks (per axis first and last) whose flags say visible; 0 when none is. */
+static int visible_bricks_box(const cdvr_skip_grid *g, size_t first[3], size_t last[3])
+{
+    const size_t *n = g->dims;
+    int any = 0;
+    for (int a = 0; a < 3; a++) {
+        first[a] = n[a];
+        last[a] = 0;
+    }
+    for (size_t z = 0, i = 0; z < n[2]; z++)
+        for (size_t y = 0; y < n[1]; y++)
+            for (size_t x = 0; x < n[0]; x++, i++) {
+                if (g->flags[i] < 128)
+                    continue;
+                size_t at[3] = {x, y, z};
+                for (int a = 0; a < 3; a++) {
+                    first[a] = at[a] < first[a] ? at[a] : first[a];
+                    last[a] = at[a] > last[a] ? at[a] : last[a];
+                }
+                any = 1;
+            }
+    return any;
+}
+
+/* After a decode by cells from range tables of bricks coarser than the grid's: each brick the
+ * tables made visible gets its exact range from the decoded frame (linear layout), and the
+ * flags are made again, so the render skips the bricks that only the coarse ranges kept
+ * visible (the same image: a brick's samples read its cube and upper apron, all decoded for
+ * a visible brick, cells_needed). Ranges are computed over the box of the visible bricks,
+ * from its lower bricks' first voxel; the window's bricks below that box (cut short by it)
+ * are not taken. */
+static void refine_grid(cdvr_player *p, chunk_item *it, const uint8_t *frame)
+{
+    cdvr_skip_grid *g = &it->grids[0];
+    size_t first[3], last[3], lo[3], bd[3], g0[3], n[3];
+    if (!visible_bricks_box(g, first, last))
+        return;
+    for (int a = 0; a < 3; a++) {
+        size_t hi = (last[a] + 1) << g->shift;
+        lo[a] = first[a] << g->shift;
+        hi = hi < p->vox_dims[a] - 1 ? hi : p->vox_dims[a] - 1;
+        bd[a] = hi - lo[a] + 1;
+    }
+    cdvr_range_window(p->vox_dims, lo, bd, g->shift, g0, n);
+    size_t X = p->vox_dims[0], XY = X * p->vox_dims[1];
+    uint8_t *window = it->need; /* the cells are decoded: the mask is free */
+    if (2 * n[0] * n[1] * n[2] > it->need_cap ||
+        cdvr_range_compute(frame + lo[0] + X * lo[1] + XY * lo[2], X, XY, p->vox_dims, lo, bd,
+                           g->shift, window, &(cdvr_error){0}) != CDVR_OK)
+        return; /* the coarse grid stays: the same image, more samples */
+    for (size_t z = first[2]; z <= last[2]; z++)
+        for (size_t y = first[1]; y <= last[1]; y++)
+            for (size_t x = first[0]; x <= last[0]; x++) {
+                size_t i = x + g->dims[0] * (y + g->dims[1] * z);
+                size_t w = (x - g0[0]) + n[0] * ((y - g0[1]) + n[1] * (z - g0[2]));
+                if (g->flags[i] < 128)
+                    continue;
+                g->minmax[2 * i] = window[2 * w];
+                g->minmax[2 * i + 1] = window[2 * w + 1];
+            }
+    cdvr_skip_grid_touch(g);
+    cdvr_skip_flags(g, p->opts.tf);
+}
+
 /* decodes_cells' decode of the group's frame into slot k, its grid made: the cells the render
  * reads (tiled where the stream takes it), fill in the others. */
 static void decode_needed_cells(cdvr_player *p, chunk_item *it, int k, uint8_t fill)
@@ -1071,6 +1135,10 @@ static void decode_needed_cells(cdvr_player *p, chunk_item *it, int k, uint8_t f
         fill_tiles(p->slots[k], p->vox_dims, g, it->need, fill);
     else
         fill_cells(p->slots[k], p->vox_dims, g, it->need, fill);
+    unsigned table_shift =
+        cdvr_store_chunk(p->opts.store, (size_t)it->variant, it->chunk)->ranges_shift;
+    if (!tiled && table_shift > g->shift && !getenv("CDVR_REFINE_OFF"))
+        refine_grid(p, it, p->slots[k]);
     it->tiled = tiled;
     it->decoded_share = (double)cells / (double)g->nbricks;
 }

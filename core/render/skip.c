@@ -67,6 +67,19 @@ static uint8_t min_u8(uint8_t a, uint8_t b)
     return a < b ? a : b;
 }
 
+/* The loops below work in blocks of BLOCK bytes with a constant count, which gcc vectorises
+ * at -O2 too (it leaves loops of unknown count scalar there), then the tail: the flags of a
+ * 256^3 frame's 4^3 bricks took 9.8 ms with the loops written plainly, 2.x ms so. */
+#define BLOCK 16
+
+/* x + s, or 255 (none) when that passes 254 (s at most 255; the wrapped sum is below x
+ * exactly when it passes 255: gcc makes it an unsigned saturating add). */
+static uint8_t add_sat(uint8_t x, uint8_t s)
+{
+    uint8_t sum = (uint8_t)(x + s);
+    return sum < x ? 255 : sum;
+}
+
 /* out[x] = min(row[x - 1], row[x], row[x + 1]) over the entries inside the row. */
 static void row_min3(const uint8_t *restrict row, size_t n, uint8_t *restrict out)
 {
@@ -75,49 +88,85 @@ static void row_min3(const uint8_t *restrict row, size_t n, uint8_t *restrict ou
         return;
     }
     out[0] = min_u8(row[0], row[1]);
-    for (size_t x = 1; x + 1 < n; x++)
+    size_t x = 1;
+    for (; x + BLOCK < n; x += BLOCK)
+        for (int k = 0; k < BLOCK; k++)
+            out[x + k] = min_u8(min_u8(row[x + k - 1], row[x + k]), row[x + k + 1]);
+    for (; x + 1 < n; x++)
         out[x] = min_u8(min_u8(row[x - 1], row[x]), row[x + 1]);
     out[n - 1] = min_u8(row[n - 2], row[n - 1]);
 }
 
+/* row[x] = min(row[x], src[x] + 1) for x < n (255 stays 255). */
+static void take_neighbour(uint8_t *restrict row, const uint8_t *restrict src, size_t n)
+{
+    size_t x = 0;
+    for (; x + BLOCK <= n; x += BLOCK)
+        for (int k = 0; k < BLOCK; k++)
+            row[x + k] = min_u8(row[x + k], add_sat(src[x + k], 1));
+    for (; x < n; x++)
+        row[x] = min_u8(row[x], add_sat(src[x], 1));
+}
+
+/* out[x] = min(in[x], in[x - s] + s) (dir +1; in[x + s] for dir -1) where that entry is in
+ * the row, else in[x]. */
+static void scan_step(const uint8_t *restrict in, uint8_t *restrict out, size_t n, size_t s,
+                      int dir)
+{
+    size_t lo = dir > 0 ? s : 0, hi = dir > 0 ? n : n - s; /* the entries with a neighbour */
+    const uint8_t *from = dir > 0 ? in - s : in + s;
+    uint8_t by = s < 255 ? (uint8_t)s : 255; /* farther is 255 (none) anyway */
+    memcpy(out, in, n);
+    size_t x = lo;
+    for (; x + BLOCK <= hi; x += BLOCK)
+        for (int k = 0; k < BLOCK; k++)
+            out[x + k] = min_u8(in[x + k], add_sat(from[x + k], by));
+    for (; x < hi; x++)
+        out[x] = min_u8(in[x], add_sat(from[x], by));
+}
+
+/* The row's own chamfer scan, row[x] = min(row[x], row[x - dir] + 1) in the direction dir, as
+ * its closed form min over j behind x of row[j] + |x - j| (capped at 255): steps of 1, 2, 4,
+ * .. (each taking the entries up to twice as far back), in tmp (2 * n bytes), vectorised
+ * where the step by step scan is one long dependency chain. */
+static void row_scan(uint8_t *row, size_t n, int dir, uint8_t *tmp)
+{
+    uint8_t *a = tmp, *b = tmp + n;
+    const uint8_t *in = row;
+    for (size_t s = 1; s < n; s <<= 1) {
+        scan_step(in, a, n, s, dir);
+        in = a;
+        uint8_t *t = a;
+        a = b;
+        b = t;
+    }
+    if (in != row)
+        memcpy(row, in, n);
+}
+
 /* One chamfer pass; dir = +1 forward (raster order), -1 backward. near3 holds, per row of the
  * planes visited so far, the row_min3 of its final values (two planes: the one before and
- * the current one). */
+ * the current one), then 2 * nx bytes of scratch. */
 static void chamfer_pass(uint8_t *dist, const size_t n[3], int dir, uint8_t *near3)
 {
     const size_t nx = n[0], ny = n[1], nz = n[2], plane = nx * ny;
-    uint8_t *prev = near3, *cur = near3 + plane;
+    uint8_t *prev = near3, *cur = near3 + plane, *tmp = near3 + 2 * plane;
     for (size_t zi = 0; zi < nz; zi++) {
         size_t z = dir > 0 ? zi : nz - 1 - zi;
         for (size_t yi = 0; yi < ny; yi++) {
             size_t y = dir > 0 ? yi : ny - 1 - yi;
             uint8_t *row = dist + nx * (y + ny * z);
             /* earlier rows: plane z - dir at y - 1, y, y + 1, and this plane at y - dir */
-            const uint8_t *src[4];
-            int k = 0;
             if (zi > 0) {
-                src[k++] = prev + nx * y;
+                take_neighbour(row, prev + nx * y, nx);
                 if (y > 0)
-                    src[k++] = prev + nx * (y - 1);
+                    take_neighbour(row, prev + nx * (y - 1), nx);
                 if (y + 1 < ny)
-                    src[k++] = prev + nx * (y + 1);
+                    take_neighbour(row, prev + nx * (y + 1), nx);
             }
             if (yi > 0)
-                src[k++] = cur + nx * (dir > 0 ? y - 1 : y + 1);
-            for (int i = 0; i < k; i++)
-                for (size_t x = 0; x < nx; x++) {
-                    uint8_t c = src[i][x] == 255 ? 255 : (uint8_t)(src[i][x] + 1);
-                    row[x] = min_u8(row[x], c);
-                }
-            if (dir > 0) {
-                for (size_t x = 1; x < nx; x++)
-                    if (row[x - 1] < 255)
-                        row[x] = min_u8(row[x], (uint8_t)(row[x - 1] + 1));
-            } else {
-                for (size_t x = nx - 1; x-- > 0;)
-                    if (row[x + 1] < 255)
-                        row[x] = min_u8(row[x], (uint8_t)(row[x + 1] + 1));
-            }
+                take_neighbour(row, cur + nx * (dir > 0 ? y - 1 : y + 1), nx);
+            row_scan(row, nx, dir, tmp);
             row_min3(row, nx, cur + nx * y);
         }
         uint8_t *t = prev;
@@ -131,7 +180,7 @@ void cdvr_skip_distance(const uint8_t *seed, uint8_t *dist, const size_t dims[3]
     size_t count = dims[0] * dims[1] * dims[2];
     for (size_t b = 0; b < count; b++)
         dist[b] = seed[b] ? 0 : 255;
-    uint8_t *near3 = malloc(2 * dims[0] * dims[1]);
+    uint8_t *near3 = malloc(2 * dims[0] * dims[1] + 2 * dims[0]);
     if (!near3) { /* out of memory: every distance 1 (no skipping across bricks, still exact) */
         for (size_t b = 0; b < count; b++)
             dist[b] = seed[b] ? 0 : 1;
