@@ -23,7 +23,7 @@ in_history=()
 
 # a plain Lua loop; the line is in the history file while it still runs
 session 'expect:> ' \
-  'send:print("looping"); for i = 1, 1e15 do end' 'expect:looping' 'sleep:0.3' \
+  'send:print("loop" .. "ing"); for i = 1, 1e15 do end' 'expect:looping' 'sleep:0.3' \
   "${in_history[@]}" \
   intr 'expect:interrupted!' 'sleep:0.5' \
   'send:print("alive" .. 1)' 'expect:alive1' \
@@ -37,8 +37,8 @@ fi
 
 # a long render (one thread, a 3000x3000 image at step 0.05: minutes if not interrupted)
 session 'expect:> ' \
-  'send:v = cdvr.generate("ml", {dims = {64, 64, 64}})' \
-  'send:print("rendering"); img = cdvr.render(v, {tf = "hot", camera = cdvr.orbit_camera(v, {width = 3000, height = 3000}), step = 0.05, threads = 1})' \
+  'send:v = cdvr.generate("ml", {dims = {64, 64, 64}}); print("made" .. 1)' 'expect:made1' \
+  'send:print("render" .. "ing"); img = cdvr.render(v, {tf = "hot", camera = cdvr.orbit_camera(v, {width = 3000, height = 3000}), step = 0.05, threads = 1})' \
   'expect:rendering' 'sleep:0.5' intr 'expect:interrupted!' 'sleep:0.5' \
   'send:print("image", img)' 'expect:image\snil' \
   'send:print("small", (cdvr.render(v, {tf = "hot", camera = cdvr.orbit_camera(v, {width = 8, height = 8})})))' \
@@ -46,11 +46,15 @@ session 'expect:> ' \
   'send:os.exit()' 'exit:0'
 check "Ctrl-C in a long render" [ $? -eq 0 ]
 
-# playback of a store
+# playback of a store. Every line waits for its output, which its echo does not hold (a
+# line typed ahead while the encode ran once let "playing" match the echo, and the Ctrl-C
+# meant for the playback interrupted cdvr.player under load)
 session 'expect:> ' \
-  'send:st = cdvr.encode(cdvr.generate("sphere", {dims = {40, 40, 40}, timesteps = 4}), {codec = "raw", path = "'"$tmp"'/s.cdv"})' \
-  'send:p = cdvr.player{store = st, loop = true, tf = cdvr.tf("hot"), camera = cdvr.orbit_camera({dims = {40, 40, 40}}, {width = 128, height = 128})}' \
-  'send:print("playing"); r = p:run{frames = 1000000}' 'expect:playing' 'sleep:0.5' \
+  'send:st = cdvr.encode(cdvr.generate("sphere", {dims = {40, 40, 40}, timesteps = 4}), {codec = "raw", path = "'"$tmp"'/s.cdv"}); print("encoded" .. 1)' \
+  'expect:encoded1' \
+  'send:p = cdvr.player{store = st, loop = true, tf = cdvr.tf("hot"), camera = cdvr.orbit_camera({dims = {40, 40, 40}}, {width = 128, height = 128})}; print("made" .. 2)' \
+  'expect:made2' \
+  'send:print("play" .. "ing"); r = p:run{frames = 1000000}' 'expect:playing' 'sleep:0.5' \
   intr 'expect:interrupted!' 'sleep:0.5' \
   'send:print("report", r)' 'expect:report\snil' \
   'send:print("again", #p:run{frames = 2}.frames)' 'expect:again\s2' \
