@@ -6,8 +6,9 @@
 -- several cameras (inside the volume too), range tables of 4^3 and 16^3 bricks, and hvq decoded on
 -- the host (fetch="bulk"). Each case checks
 -- that only part of the frame was decoded (decoded_share below 1), so the partial path ran,
--- and that it took no more samples than the whole decode (fewer with 16^3 tables on a
--- dense-frame device, whose partial decode refines the visible bricks' ranges).
+-- and that it took no more samples than the whole decode (fewer with 16^3 tables where the
+-- frame is dense: the partial decode refines the visible bricks' ranges, player.c refine_grid;
+-- tests/test_cl_layouts.sh runs this file with dense frames).
 -- Max and iso renders decode whole frames. Skips (77) without OpenCL or the zfp plugin.
 local have_zfp = false
 for _, c in ipairs(cdvr.codecs()) do have_zfp = have_zfp or c.name == "zfp" end
@@ -57,9 +58,9 @@ local function compare(name, st, opts, frames)
       name, i, shares[i] or -1))
     most = math.max(most, shares[i] or 1)
   end
-  -- a frame decoded in part on a dense-frame device gets the exact ranges of the bricks that
-  -- coarser tables kept visible (player.c refine_grid): never more samples than the whole
-  -- decode's grid from the tables
+  -- a dense frame decoded in part gets the exact ranges of the bricks that coarser tables
+  -- kept visible (player.c refine_grid): never more samples than the whole decode's grid from
+  -- the tables
   check(samples.cells <= samples.whole, ("%s: %d samples, the whole decode %d"):format(
     name, samples.cells, samples.whole))
   return most, shares, samples
@@ -92,8 +93,8 @@ for _, shift in ipairs{2, 4} do
       local name = ("neghip_b%d_c%d_%s"):format(shift, ci, shade and "shaded" or "plain")
       local most, _, samples = compare(name, st, {tf = tf, camera = cam, shade = shade}, 1)
       check(most < 1 and most > 0, name .. ": decoded share " .. most .. " (expected part of the frame)")
-      -- 16^3 tables seen from outside, unshaded (shaded renders cast from tiles, not refined):
-      -- their bricks refined to 4^3 skip more
+      -- 16^3 tables seen from outside, decoded into a dense frame (not a shaded render, which
+      -- casts from tiles): their bricks refined to 4^3 skip more
       check(not dense or shade or shift == 2 or ci == 3 or samples.cells < samples.whole,
             ("%s: %d samples, as many as the whole decode's"):format(name, samples.cells))
     end
