@@ -658,11 +658,7 @@ static void misuse(cdvr_cl *cl)
     cdvr_cl_stream_free(s);
 }
 
-/* The device's brick min/max grid (bricks.cl, brick_minmax: a whole brick and its apron read
- * by rows, edge bricks voxel by voxel) equals the host's (cdvr_skip_minmax_from_frame, the
- * definition) on noise with runs of constants, at dims that leave partial bricks, rows too
- * short for the row reads and volumes one brick or one voxel thick. */
-static void minmax_grids(cdvr_cl *cl)
+static void minmax_grids_once(cdvr_cl *cl)
 {
     static const size_t dims[][3] = {{37, 29, 23}, {64, 64, 64}, {9, 5, 4}, {1, 7, 3},
                                      {130, 66, 17}, {8, 8, 8}, {12, 5, 9}};
@@ -702,6 +698,22 @@ static void minmax_grids(cdvr_cl *cl)
         cdvr_skip_grid_free(&host);
         cdvr_cl_stream_free(s);
         free(voxels);
+    }
+}
+
+/* The device's brick min/max grid (bricks.cl, brick_minmax: a whole brick and its apron read
+ * by rows, edge bricks voxel by voxel; on a CPU device by default the host's ranges of the
+ * mapped frame, cl_render.c host_minmax, so the kernel runs with CDVR_CL_HOST_MINMAX=0) equals
+ * the host's (cdvr_skip_minmax_from_frame, the definition) on noise with runs of constants, at
+ * dims that leave partial bricks, rows too short for the row reads and volumes one brick or
+ * one voxel thick. */
+static void minmax_grids(cdvr_cl *cl)
+{
+    for (int kernel = 0; kernel < 2; kernel++) {
+        if (kernel)
+            setenv("CDVR_CL_HOST_MINMAX", "0", 1);
+        minmax_grids_once(cl);
+        unsetenv("CDVR_CL_HOST_MINMAX");
     }
 }
 
