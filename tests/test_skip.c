@@ -1,7 +1,8 @@
 /* tests/test_skip.c - empty-space skipping grids on the host (cdvr/skip.h): the row-wise
  * chamfer distance equals the chessboard distance by brute force (random seeds, thin and
- * odd grids, one seed in rows of 300 bricks (distances past 255 are 255), no seed, all seeds); flags and the visible box follow their definition; the
- * grid made from a store's range tables (range bricks of 4^3, 8^3, 16^3) equals the one
+ * odd grids, one seed in rows of 300 bricks (distances past 255 are 255), no seed, all
+ * seeds); flags and the visible box follow their definition; the ranges of a frame split over
+ * the cores equal those of one pass; the grid made from a store's range tables (range bricks of 4^3, 8^3, 16^3) equals the one
  * computed from the decoded frame; a coarse grid spread over the 4^3 bricks
  * (cdvr_skip_grid_expand) is conservative and its flags keep their meaning; and on the
  * OpenCL device, setup from the recorded ranges (cdvr_cl_setup_grid) renders every pixel
@@ -22,6 +23,7 @@
 
 #include "cdvr/crc32c.h"
 #include "cdvr/device.h"
+#include "cdvr/bricks.h"
 #include "cdvr/skip.h"
 #include "cdvr/store.h"
 #include "check.h"
@@ -637,8 +639,40 @@ static void test_entry(void)
     free(f);
 }
 
+/* cdvr_skip_minmax_from_frame splits the brick planes over the cores (2 on CI) when the frame
+ * has at least 4 M voxels per share: the same bytes as one cdvr_range_compute of the whole
+ * frame, at brick edges 4 and 8 and dims that leave partial bricks and uneven shares. */
+static void test_minmax_shares(void)
+{
+    static const size_t dims[][3] = {{301, 150, 203}, {130, 257, 255}};
+    for (size_t k = 0; k < sizeof dims / sizeof *dims; k++) {
+        const size_t *d = dims[k];
+        size_t n = d[0] * d[1] * d[2];
+        uint8_t *frame = malloc(n);
+        for (size_t i = 0; i < n; i++)
+            frame[i] = (i / 131) % 5 == 0 ? (uint8_t)(30 + (i / 131) % 9) : (uint8_t)rng();
+        for (unsigned shift = 2; shift <= 3; shift++) {
+            static const size_t origin[3] = {0, 0, 0};
+            cdvr_skip_grid g;
+            cdvr_error err;
+            CHECK_OK(cdvr_skip_grid_init(&g, d, shift, &err), err);
+            uint8_t *want = malloc(2 * g.nbricks);
+            CHECK_OK(cdvr_skip_minmax_from_frame(&g, frame, &err), err);
+            CHECK_OK(cdvr_range_compute(frame, d[0], d[0] * d[1], d, origin, d, shift, want,
+                                        &err), err);
+            CHECK(memcmp(want, g.minmax, 2 * g.nbricks) == 0,
+                  "%zux%zux%zu bricks of 2^%u: ranges by shares differ from the whole frame's",
+                  d[0], d[1], d[2], shift);
+            free(want);
+            cdvr_skip_grid_free(&g);
+        }
+        free(frame);
+    }
+}
+
 int main(void)
 {
+    test_minmax_shares();
     test_distance();
     test_flags();
     test_entry();
