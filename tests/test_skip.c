@@ -1,19 +1,20 @@
 /* tests/test_skip.c - empty-space skipping grids on the host (cdvr/skip.h): the row-wise
- * chamfer distance equals the chessboard distance by brute force (random seeds, thin and
- * odd grids, one seed in rows of 300 bricks (distances past 255 are 255), no seed, all
- * seeds); flags and the visible box follow their definition; the ranges of a frame split over
- * the cores equal those of one pass; the grid made from a store's range tables (range bricks of 4^3, 8^3, 16^3) equals the one
- * computed from the decoded frame; a coarse grid spread over the 4^3 bricks
- * (cdvr_skip_grid_expand) is conservative and its flags keep their meaning; and on the
- * OpenCL device, setup from the recorded ranges (cdvr_cl_setup_grid) renders every pixel
- * exactly as setup from the device's own min/max kernel, taking the same samples with 4^3
- * tables and at least as many with coarser ones; a store written with 4^3 LZO tables before
- * (tests/data/v2_lzo_store.cdv) reads them as the ranges of its decoded frames; a packed table
- * claiming another size, or index flags claiming two packings, are refused; the entry
- * distances (cdvr_skip_entry_tiles) never lie past the first visible brick of any pixel's ray
- * and the exit distances (cdvr_skip_entry_exit_tiles) never before its last
- * (perspective and orthographic views, axis-aligned and rotated volumes, anisotropic
- * spacing, cells of 1, 2 and 4 bricks) and are off with the eye inside the volume. */
+ * chamfer distance equals the chessboard distance by brute force (random seeds, thin and odd
+ * grids, one seed in rows of 300 bricks (distances past 255 are 255), no seed, all seeds);
+ * flags and the visible box follow their definition; the ranges of a frame split over the
+ * cores equal those of one pass; the grid made from a store's range tables (range bricks of
+ * 4^3, 8^3, 16^3) equals the one computed from the decoded frame; a coarse grid spread over
+ * the 4^3 bricks (cdvr_skip_grid_expand) is conservative and its flags keep their meaning; and
+ * on the OpenCL device, setup from the recorded ranges (cdvr_cl_setup_grid) renders every
+ * pixel exactly as setup from the frame itself (cdvr_cl_setup), taking the same samples with
+ * 4^3 tables and at least as many with coarser ones; a store written with 4^3 LZO tables
+ * before (tests/data/v2_lzo_store.cdv) reads them as the ranges of its decoded frames; a
+ * packed table claiming another size, or index flags claiming two packings, are refused; the
+ * entry distances (cdvr_skip_entry_tiles) never lie past the first visible brick of any
+ * pixel's ray and the exit distances (cdvr_skip_entry_exit_tiles) never before its last
+ * (perspective and orthographic views, axis-aligned and rotated volumes, anisotropic spacing,
+ * cells of 1, 2 and 4 bricks) and are off with the eye inside the volume.
+ */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
