@@ -668,6 +668,31 @@ static void test_corrupt(void)
         uint64_t slot0 = ioff + (uint64_t)ir * ir * ir * 3;
         MUTATE("index >= n1", m[slot0 + 3] = 0xff);
     }
+    /* the slots of every hash are checked on several threads: with both of the region's
+     * hashes damaged, the error is the index hash's (the first in the payload) on any number */
+    uint32_t rm = hvq_rd16(dir + 16);
+    uint64_t roff = hvq_rd64(dir + 24);
+    CHECK(rm > 0, "the corrupt-payload volume has a residual hash");
+    if (im > 0 && rm > 0) {
+        memcpy(m, e.bytes, e.n);
+        m[ioff] = (uint8_t)im;
+        m[roff] = (uint8_t)rm;
+        char first[sizeof(((cdvr_error *)0)->msg)] = "";
+        for (unsigned threads = 1; threads <= 4; threads += 3) {
+            uint8_t *out = malloc(d[0] * d[1] * d[2]);
+            cdvr_error err;
+            cdvr_status s = hvq_decode_threads(&p, d, m, e.n, out, threads, &err);
+            CHECK(s == CDVR_ERR_CORRUPT && strstr(err.msg, "index hash"),
+                  "two damaged hashes on %u threads: status %d (%s)", threads, (int)s,
+                  s ? err.msg : "ok");
+            if (threads == 1)
+                snprintf(first, sizeof first, "%s", err.msg);
+            else
+                CHECK(strcmp(first, err.msg) == 0, "%u threads: '%s', one thread: '%s'",
+                      threads, err.msg, first);
+            free(out);
+        }
+    }
 #undef MUTATE
     free(m);
     free(e.bytes);

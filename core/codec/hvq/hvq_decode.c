@@ -79,56 +79,81 @@ static cdvr_status check_header(hvq_view *v, const cdvr_hvq_params *p, cdvr_erro
     return CDVR_OK;
 }
 
-/* One hash of region r (kind 0: index, 1: residual); *at: where its data must start, moved
- * past it. Counts its keys into *keys. */
-static cdvr_status check_hash(const hvq_view *v, uint64_t r, int kind, uint64_t *at,
-                              cdvr_error *err)
+/* One hash of region r (kind 0: index, 1: residual), read from the region directory. */
+typedef struct hash_entry {
+    uint32_t m, rr, n;
+    uint64_t offset, domain;
+    unsigned ext[3], slot_bytes;
+} hash_entry;
+
+static const char *const hash_names[2] = {"index", "residual"};
+
+static hash_entry hash_entry_of(const hvq_view *v, uint64_t r, int kind)
 {
-    static const char *const names[2] = {"index", "residual"};
     const uint8_t *dir = v->p + v->L.off_dir + HVQ_DIR_ENTRY_BYTES * r + 16 * kind;
-    uint32_t m = hvq_rd16(dir), rr = hvq_rd16(dir + 2), n = hvq_rd32(dir + 4);
-    uint64_t offset = hvq_rd64(dir + 8), origin[3];
-    unsigned ext[3];
-    region_extent(v, r, origin, ext);
+    hash_entry h = {hvq_rd16(dir), hvq_rd16(dir + 2), hvq_rd32(dir + 4), hvq_rd64(dir + 8), 0,
+                    {0, 0, 0}, kind == 0 ? 3 + v->L.w1 + v->L.w2 : 4};
+    uint64_t origin[3];
+    region_extent(v, r, origin, h.ext);
     if (kind == 0)
         for (int a = 0; a < 3; a++)
-            ext[a] = (ext[a] + 3) / 4;
-    uint64_t domain = (uint64_t)ext[0] * ext[1] * ext[2];
-    unsigned slot_bytes = kind == 0 ? 3 + v->L.w1 + v->L.w2 : 4;
-    if (offset != *at)
+            h.ext[a] = (h.ext[a] + 3) / 4;
+    h.domain = (uint64_t)h.ext[0] * h.ext[1] * h.ext[2];
+    return h;
+}
+
+/* The place and size of one hash of region r: *at, where its data must start, moved past
+ * it. The cheap part of the check, in payload order (check_hash_slots reads the slots). */
+static cdvr_status check_hash_place(const hvq_view *v, uint64_t r, int kind, uint64_t *at,
+                                    cdvr_error *err)
+{
+    hash_entry h = hash_entry_of(v, r, kind);
+    if (h.offset != *at)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload: region %llu %s hash at byte "
-                              "%llu, expected %llu", (unsigned long long)r, names[kind],
-                              (unsigned long long)offset, (unsigned long long)*at);
-    if (n == 0 || m == 0 || rr == 0) {
-        if (n || m || rr)
+                              "%llu, expected %llu", (unsigned long long)r, hash_names[kind],
+                              (unsigned long long)h.offset, (unsigned long long)*at);
+    if (h.n == 0 || h.m == 0 || h.rr == 0) {
+        if (h.n || h.m || h.rr)
             return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload: region %llu %s hash of "
                                   "%u keys has sides %u, %u", (unsigned long long)r,
-                                  names[kind], n, m, rr);
+                                  hash_names[kind], h.n, h.m, h.rr);
         return CDVR_OK;
     }
-    if (m > HVQ_M_MAX || rr > HVQ_R_MAX || n > domain || n > (uint64_t)m * m * m)
+    if (h.m > HVQ_M_MAX || h.rr > HVQ_R_MAX || h.n > h.domain ||
+        h.n > (uint64_t)h.m * h.m * h.m)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload: region %llu %s hash of %u "
                               "keys with sides %u, %u (at most %llu keys, sides %u, %u)",
-                              (unsigned long long)r, names[kind], n, m, rr,
-                              (unsigned long long)domain, HVQ_M_MAX, HVQ_R_MAX);
-    uint64_t size = hvq_psh_data_bytes(m, rr, slot_bytes);
+                              (unsigned long long)r, hash_names[kind], h.n, h.m, h.rr,
+                              (unsigned long long)h.domain, HVQ_M_MAX, HVQ_R_MAX);
+    uint64_t size = hvq_psh_data_bytes(h.m, h.rr, h.slot_bytes);
     if (size > v->bytes - *at)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload: region %llu %s hash needs "
-                              "%llu bytes, %llu left", (unsigned long long)r, names[kind],
+                              "%llu bytes, %llu left", (unsigned long long)r, hash_names[kind],
                               (unsigned long long)size, (unsigned long long)(v->bytes - *at));
-    const uint8_t *data = v->p + *at;
-    unsigned w = hvq_offset_width(m);
-    uint64_t r3 = (uint64_t)rr * rr * rr, m3 = (uint64_t)m * m * m, found = 0;
+    *at += size;
+    return CDVR_OK;
+}
+
+/* The contents of one hash whose place check_hash_place checked: offsets below its side,
+ * codebook indices inside the codebooks, and as many keys in their own slots as it says. */
+static cdvr_status check_hash_slots(const hvq_view *v, uint64_t r, int kind, cdvr_error *err)
+{
+    hash_entry h = hash_entry_of(v, r, kind);
+    if (h.n == 0)
+        return CDVR_OK;
+    const uint8_t *data = v->p + h.offset;
+    unsigned w = hvq_offset_width(h.m);
+    uint64_t r3 = (uint64_t)h.rr * h.rr * h.rr, m3 = (uint64_t)h.m * h.m * h.m, found = 0;
     for (uint64_t i = 0; i < 3 * r3; i++)
-        if ((w == 1 ? data[i] : hvq_rd16(data + 2 * i)) >= m)
+        if ((w == 1 ? data[i] : hvq_rd16(data + 2 * i)) >= h.m)
             return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload: region %llu %s hash: "
                                   "offset entry %llu is not below %u", (unsigned long long)r,
-                                  names[kind], (unsigned long long)(i / 3), m);
+                                  hash_names[kind], (unsigned long long)(i / 3), h.m);
     const uint8_t *slots = data + r3 * 3 * w;
     hvq_psh_map map; /* the offsets are below m: checked above */
-    hvq_psh_map_open(&map, data, m, rr);
+    hvq_psh_map_open(&map, data, h.m, h.rr);
     for (uint64_t s = 0; s < m3; s++) {
-        const uint8_t *slot = slots + s * slot_bytes;
+        const uint8_t *slot = slots + s * h.slot_bytes;
         if (kind == 0) {
             uint32_t i1 = v->L.w1 == 1 ? slot[3] : hvq_rd16(slot + 3);
             uint32_t i2 = v->L.w2 == 1 ? slot[3 + v->L.w1] : hvq_rd16(slot + 3 + v->L.w1);
@@ -138,21 +163,55 @@ static cdvr_status check_hash(const hvq_view *v, uint64_t r, int kind, uint64_t 
                                       "%u)", (unsigned long long)r, (unsigned long long)s, i1,
                                       i2, v->n1, v->n2);
         }
-        if (slot[0] < ext[0] && slot[1] < ext[1] && slot[2] < ext[2] &&
+        if (slot[0] < h.ext[0] && slot[1] < h.ext[1] && slot[2] < h.ext[2] &&
             hvq_psh_map_slot(&map, slot[0], slot[1], slot[2]) == s)
             found++;
     }
-    if (found != n)
+    if (found != h.n)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload: region %llu %s hash says %u "
-                              "keys, its slots hold %llu", (unsigned long long)r, names[kind], n,
-                              (unsigned long long)found);
-    *at += size;
+                              "keys, its slots hold %llu", (unsigned long long)r,
+                              hash_names[kind], h.n, (unsigned long long)found);
     return CDVR_OK;
 }
 
+/* check_hash_slots of every hash (item 2 r + kind) on several threads, each item its own
+ * status; the error reported is the first hash's in payload order, as on one thread. */
+typedef struct slots_job {
+    const hvq_view *v;
+    cdvr_status *status;
+    cdvr_error *errs;
+} slots_job;
+
+static void check_slots_item(void *ctx, size_t item)
+{
+    slots_job *job = ctx;
+    job->status[item] = check_hash_slots(job->v, item / 2, (int)(item % 2), &job->errs[item]);
+}
+
+static cdvr_status check_all_slots(const hvq_view *v, unsigned threads, cdvr_error *err)
+{
+    size_t items = 2 * (size_t)v->L.nregions;
+    slots_job job = {v, malloc(items * sizeof *job.status), malloc(items * sizeof *job.errs)};
+    cdvr_status s = CDVR_OK;
+    if (!job.status || !job.errs) {
+        for (size_t i = 0; s == CDVR_OK && i < items; i++) /* one at a time, in order */
+            s = check_hash_slots(v, i / 2, (int)(i % 2), err);
+    } else {
+        hvq_parallel_for(threads, items, check_slots_item, &job);
+        for (size_t i = 0; s == CDVR_OK && i < items; i++)
+            if ((s = job.status[i]) != CDVR_OK)
+                *err = job.errs[i];
+    }
+    free(job.status);
+    free(job.errs);
+    return s;
+}
+
+/* Checks the payload (the header, then every hash's place in payload order, then their slots
+ * on `threads` threads) and opens the view of it. */
 static cdvr_status view_open(hvq_view *v, const cdvr_hvq_params *p, const size_t dims[3],
                              const uint8_t *payload, size_t bytes, cdvr_hvq_stats *stats,
-                             cdvr_error *err)
+                             unsigned threads, cdvr_error *err)
 {
     memset(v, 0, sizeof *v);
     for (int a = 0; a < 3; a++) {
@@ -170,13 +229,15 @@ static cdvr_status view_open(hvq_view *v, const cdvr_hvq_params *p, const size_t
     for (uint64_t r = 0; s == CDVR_OK && r < v->L.nregions; r++)
         for (int kind = 0; s == CDVR_OK && kind < 2; kind++) {
             uint64_t before = at;
-            s = check_hash(v, r, kind, &at, err);
+            s = check_hash_place(v, r, kind, &at, err);
             sizes[kind] += at - before;
             keys[kind] += hvq_rd32(v->p + v->L.off_dir + HVQ_DIR_ENTRY_BYTES * r + 16 * kind + 4);
         }
     if (s == CDVR_OK && at != bytes)
         s = cdvr_error_set(err, CDVR_ERR_CORRUPT, "hvq payload of %zu bytes: its parts end at "
                            "byte %llu", bytes, (unsigned long long)at);
+    if (s == CDVR_OK)
+        s = check_all_slots(v, threads, err);
     if (s == CDVR_OK && stats) {
         memset(stats, 0, sizeof *stats);
         stats->means = (size_t)v->L.nblocks;
@@ -201,7 +262,7 @@ cdvr_status cdvr_hvq_check(const cdvr_hvq_params *p, const size_t dims[3],
                            cdvr_error *err)
 {
     hvq_view v;
-    return view_open(&v, p, dims, payload, bytes, stats, err);
+    return view_open(&v, p, dims, payload, bytes, stats, hvq_threads_auto(), err);
 }
 
 /* ---- decode --------------------------------------------------------------------------------- */
@@ -416,7 +477,7 @@ static cdvr_status decode_into(const cdvr_hvq_params *p, const size_t dims[3],
                                unsigned threads, cdvr_error *err)
 {
     hvq_view v;
-    cdvr_status s = view_open(&v, p, dims, payload, bytes, NULL, err);
+    cdvr_status s = view_open(&v, p, dims, payload, bytes, NULL, threads, err);
     if (s != CDVR_OK)
         return s;
     decode_job job = {&v, t, malloc(((size_t)v.L.nregions + 1) * sizeof(uint64_t))};

@@ -1,4 +1,5 @@
-/* core/codec/hvq/hvq_thread.c - a parallel for over work items (pthreads) for the hvq encoder.
+/* core/codec/hvq/hvq_thread.c - a parallel for over work items (pthreads) for the hvq encoder,
+ * decoder and payload check.
  * Items are handed out in order from a shared counter; every item writes only its own
  * results, so what the encoder produces does not depend on the number of threads. */
 #include "codec/hvq/hvq_internal.h"
