@@ -31,6 +31,7 @@
 
 #include "cdvr/bricks.h"
 #include "cdvr/skip.h"
+#include "render/cpu/brick_range.h"
 
 #if CDVR_HAVE_OPENCL
 #include "cdvr/device.h"
@@ -1050,64 +1051,6 @@ static void fill_tiles(uint8_t *tiles, const size_t dims[3], const cdvr_skip_gri
                     memset(tiles + cdvr_tiled_offset(dims, 4 * x, 4 * y, 4 * z), fill, 64);
 }
 
-/* The box of bricks (per axis first and last) whose flags say visible; 0 when none is. */
-static int visible_bricks_box(const cdvr_skip_grid *g, size_t first[3], size_t last[3])
-{
-    const size_t *n = g->dims;
-    int any = 0;
-    for (int a = 0; a < 3; a++) {
-        first[a] = n[a];
-        last[a] = 0;
-    }
-    for (size_t z = 0, i = 0; z < n[2]; z++)
-        for (size_t y = 0; y < n[1]; y++)
-            for (size_t x = 0; x < n[0]; x++, i++) {
-                if (g->flags[i] < 128)
-                    continue;
-                size_t at[3] = {x, y, z};
-                for (int a = 0; a < 3; a++) {
-                    first[a] = at[a] < first[a] ? at[a] : first[a];
-                    last[a] = at[a] > last[a] ? at[a] : last[a];
-                }
-                any = 1;
-            }
-    return any;
-}
-
-/* refine_grid's exact ranges, over the box of the visible bricks from its lower bricks' first
- * voxel (the window's bricks below that box, cut short by it, are not taken). Returns 0
- * without memory. */
-static int refine_linear(chunk_item *it, const size_t dims[3], const uint8_t *frame,
-                         const size_t first[3], const size_t last[3])
-{
-    cdvr_skip_grid *g = &it->grids[0];
-    size_t lo[3], bd[3], g0[3], n[3];
-    for (int a = 0; a < 3; a++) {
-        size_t hi = (last[a] + 1) << g->shift;
-        lo[a] = first[a] << g->shift;
-        hi = hi < dims[a] - 1 ? hi : dims[a] - 1;
-        bd[a] = hi - lo[a] + 1;
-    }
-    cdvr_range_window(dims, lo, bd, g->shift, g0, n);
-    size_t X = dims[0], XY = X * dims[1];
-    uint8_t *window = it->need; /* the cells are decoded: the mask is free */
-    if (2 * n[0] * n[1] * n[2] > it->need_cap ||
-        cdvr_range_compute(frame + lo[0] + X * lo[1] + XY * lo[2], X, XY, dims, lo, bd,
-                           g->shift, window, &(cdvr_error){0}) != CDVR_OK)
-        return 0;
-    for (size_t z = first[2]; z <= last[2]; z++)
-        for (size_t y = first[1]; y <= last[1]; y++)
-            for (size_t x = first[0]; x <= last[0]; x++) {
-                size_t b = x + g->dims[0] * (y + g->dims[1] * z);
-                size_t w = (x - g0[0]) + n[0] * ((y - g0[1]) + n[1] * (z - g0[2]));
-                if (g->flags[b] < 128)
-                    continue;
-                g->minmax[2 * b] = window[2 * w];
-                g->minmax[2 * b + 1] = window[2 * w + 1];
-            }
-    return 1;
-}
-
 /* CDVR_REFINE=0 turns refine_grid off (for comparison). */
 static int refine_off(void)
 {
@@ -1117,22 +1060,27 @@ static int refine_off(void)
 
 /* After a decode by cells into a linear frame from range tables of bricks coarser than the
  * grid's (4^3): each brick the tables made visible gets its exact range from the decoded
- * frame (its voxels and upper apron were all decoded, cells_needed), and the flags are made
- * again, so the render skips the bricks only the coarse ranges kept visible: the same image
- * with fewer samples (256^3 series, 8^3 tables: 15%, zfp1 512^2 playback 1.03x the fps).
- * Tiled frames are not refined: the same from tiles (each brick's tile and the faces of the 7
- * above it) made that decode 1.9x as long and the playback 0.9x as fast. Without memory the
- * coarse grid stays. */
+ * frame (its voxels and upper apron were all decoded, cells_needed; the ranges of the other
+ * bricks, which hold the fill, are not taken), and the flags are made again, so the render
+ * skips the bricks only the coarse ranges kept visible: the same image with fewer samples
+ * (256^3 series, 8^3 tables: 15%). The ranges go into it->need (2 bytes per brick; the cells
+ * are decoded) on the calling thread: the render runs beside it. Tiled frames are not
+ * refined: the same from tiles (each brick's tile and the faces of the 7 above it) made that
+ * decode 1.9x as long and the playback 0.9x as fast. On failure the coarse grid stays. */
 static void refine_grid(cdvr_player *p, chunk_item *it, const uint8_t *frame)
 {
     cdvr_skip_grid *g = &it->grids[0];
-    size_t first[3], last[3];
-    if (!visible_bricks_box(g, first, last))
+    uint8_t *exact = it->need;
+    cdvr_error ignored;
+    if (cdvr_cpu_brick_ranges(frame, p->vox_dims, g->shift, 1, exact, &ignored) != CDVR_OK)
         return;
-    if (refine_linear(it, p->vox_dims, frame, first, last)) {
-        cdvr_skip_grid_touch(g);
-        cdvr_skip_flags(g, p->opts.tf);
-    }
+    for (size_t b = 0; b < g->nbricks; b++)
+        if (g->flags[b] >= 128) {
+            g->minmax[2 * b] = exact[2 * b];
+            g->minmax[2 * b + 1] = exact[2 * b + 1];
+        }
+    cdvr_skip_grid_touch(g);
+    cdvr_skip_flags(g, p->opts.tf);
 }
 
 /* decodes_cells' decode of the group's frame into slot k, its grid made: the cells the render

@@ -10,10 +10,8 @@
 #include "cdvr/bricks.h"
 
 #include <math.h>
-#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 cdvr_status cdvr_skip_grid_init(cdvr_skip_grid *g, const size_t vol_dims[3], unsigned shift,
                                 cdvr_error *err)
@@ -53,84 +51,13 @@ void cdvr_skip_grid_touch(cdvr_skip_grid *g)
     g->flags_valid = 0;
 }
 
-/* One thread's share of cdvr_skip_minmax_from_frame: the grid's brick planes z0 .. z1 - 1,
- * from the box of their voxels (their lower neighbour's plane, cut short by the box, is
- * computed and not taken). */
-typedef struct slab_job {
-    const cdvr_skip_grid *g;
-    const uint8_t *frame;
-    size_t z0, z1;
-    cdvr_status status;
-    cdvr_error err;
-} slab_job;
-
-static void *slab_main(void *arg)
-{
-    slab_job *j = arg;
-    const size_t *d = j->g->vol_dims;
-    unsigned shift = j->g->shift;
-    size_t top = j->z1 << shift, lo[3] = {0, 0, j->z0 << shift}, bd[3] = {d[0], d[1], 0};
-    bd[2] = (top < d[2] - 1 ? top : d[2] - 1) - lo[2] + 1;
-    size_t g0[3], n[3];
-    cdvr_range_window(d, lo, bd, shift, g0, n);
-    size_t plane = 2 * n[0] * n[1];
-    uint8_t *window = malloc(plane * n[2]);
-    if (!window) {
-        j->status = cdvr_error_set(&j->err, CDVR_ERR_NOMEM, "value ranges: no memory for %zu "
-                                   "bricks", n[0] * n[1] * n[2]);
-        return NULL;
-    }
-    j->status = cdvr_range_compute(j->frame + d[0] * d[1] * lo[2], d[0], d[0] * d[1], d, lo, bd,
-                                   shift, window, &j->err);
-    if (j->status == CDVR_OK)
-        memcpy(j->g->minmax + plane * j->z0, window + plane * (j->z0 - g0[2]),
-               plane * (j->z1 - j->z0));
-    free(window);
-    return NULL;
-}
-
-#define MINMAX_THREADS_MAX 16
-#define MINMAX_VOXELS_PER_THREAD ((size_t)4 << 20) /* less is not worth a thread */
-
-/* The ranges in planes of bricks along z, one share per online core (each of at least
- * MINMAX_VOXELS_PER_THREAD voxels): the same bytes as one cdvr_range_compute of the frame
- * (Colin27, 0.56 M bricks: 2 cores took half the time of one). */
 cdvr_status cdvr_skip_minmax_from_frame(cdvr_skip_grid *g, const uint8_t *frame,
                                         cdvr_error *err)
 {
-    const size_t *d = g->vol_dims, nz = g->dims[2];
+    static const size_t origin[3] = {0, 0, 0};
+    const size_t *d = g->vol_dims;
     g->flags_valid = 0;
-    long cores = sysconf(_SC_NPROCESSORS_ONLN);
-    size_t threads = cores > 0 ? (size_t)cores : 1, voxels = d[0] * d[1] * d[2];
-    threads = threads < voxels / MINMAX_VOXELS_PER_THREAD ? threads
-                                                          : voxels / MINMAX_VOXELS_PER_THREAD;
-    threads = threads < nz ? threads : nz;
-    threads = threads < MINMAX_THREADS_MAX ? threads : MINMAX_THREADS_MAX;
-    if (threads < 2) {
-        static const size_t origin[3] = {0, 0, 0};
-        return cdvr_range_compute(frame, d[0], d[0] * d[1], d, origin, d, g->shift, g->minmax,
-                                  err);
-    }
-    slab_job jobs[MINMAX_THREADS_MAX];
-    pthread_t tids[MINMAX_THREADS_MAX];
-    int started[MINMAX_THREADS_MAX] = {0};
-    for (size_t k = 0; k < threads; k++)
-        jobs[k] = (slab_job){g, frame, nz * k / threads, nz * (k + 1) / threads, CDVR_OK, {0}};
-    for (size_t k = 1; k < threads; k++)
-        started[k] = pthread_create(&tids[k], NULL, slab_main, &jobs[k]) == 0;
-    slab_main(&jobs[0]);
-    for (size_t k = 1; k < threads; k++) {
-        if (started[k])
-            pthread_join(tids[k], NULL);
-        else
-            slab_main(&jobs[k]); /* no thread: the caller does its share */
-    }
-    for (size_t k = 0; k < threads; k++)
-        if (jobs[k].status != CDVR_OK) {
-            *err = jobs[k].err;
-            return jobs[k].status;
-        }
-    return CDVR_OK;
+    return cdvr_range_compute(frame, d[0], d[0] * d[1], d, origin, d, g->shift, g->minmax, err);
 }
 
 /* ---- distance transform ---------------------------------------------------------------- */
@@ -142,7 +69,7 @@ static uint8_t min_u8(uint8_t a, uint8_t b)
 
 /* The loops below work in blocks of BLOCK bytes with a constant count, which gcc vectorises
  * at -O2 too (it leaves loops of unknown count scalar there), then the tail: the flags of a
- * 256^3 frame's 4^3 bricks took 9.8 ms with the loops written plainly, 2.x ms so. */
+ * 256^3 frame's 4^3 bricks took 9.7 ms with the loops written plainly, 2.25 ms so. */
 #define BLOCK 16
 
 /* x + s, or 255 (none) when that passes 254 (s at most 255; the wrapped sum is below x

@@ -4,9 +4,11 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "cl_internal.h"
 #include "cdvr/timing.h"
+#include "render/cpu/brick_range.h"
 
 _Static_assert(CDVR_CL_WHOLE_POWER_MAX == (float)CDVR_SHADE_WHOLE_POWER_MAX,
                "raycast.cl and render.h take the same whole specular powers by squaring");
@@ -96,11 +98,12 @@ static cdvr_status upload_block_ranges(cdvr_cl_stream *s, const uint8_t *bricks,
     return cdvr_cl_check(code, "upload block ranges", err);
 }
 
-/* On a CPU device the ranges of a dense frame come from the host's cdvr_range_compute on the
- * mapped frame (no copy in PoCL), then go to brick_minmax: the same bytes as the
- * brick_minmax kernel, in a third of its CPU time (Colin27: 0.56 M bricks). Returns 1 when
- * s->grid.minmax and brick_minmax hold them; 0 (the kernel then runs) on any failure, or
- * with CDVR_CL_HOST_MINMAX=0. */
+/* On a CPU device the ranges of a dense frame come from the host: the CPU ray caster's
+ * cdvr_cpu_brick_ranges (render/cpu/brick_range.h) on the mapped frame (no copy in PoCL), on
+ * every online core, then uploaded to brick_minmax: the same bytes as the brick_minmax
+ * kernel, in a third of its CPU time (Colin27: 0.56 M bricks). Returns 1 when s->grid.minmax
+ * and brick_minmax hold them; 0 (the kernel then runs) on any failure, or with
+ * CDVR_CL_HOST_MINMAX=0. */
 static int host_minmax(cdvr_cl_stream *s, size_t frame)
 {
     if (s->cl->info.is_gpu || s->fetch || cdvr_cl_env_is("CDVR_CL_HOST_MINMAX", "0"))
@@ -111,36 +114,27 @@ static int host_minmax(cdvr_cl_stream *s, size_t frame)
                                       s->voxels, 0, NULL, NULL, &code);
     if (code != CL_SUCCESS || !voxels)
         return 0;
+    long cores = sysconf(_SC_NPROCESSORS_ONLN);
     cdvr_error ignored;
-    int ok = cdvr_skip_minmax_from_frame(&s->grid, voxels, &ignored) == CDVR_OK;
+    int ok = cdvr_cpu_brick_ranges(voxels, s->dims, CDVR_CL_BRICK_SHIFT, cores > 0 ? (int)cores : 1,
+                                   s->grid.minmax, &ignored) == CDVR_OK;
     ok &= clEnqueueUnmapMemObject(s->cl->queue, mem, voxels, 0, NULL, NULL) == CL_SUCCESS;
     return ok && write_buffer(s->cl, s->brick_minmax, s->grid.minmax, 2 * s->nbricks,
                               "upload brick min/max grid", &ignored) == CDVR_OK;
 }
 
-/* Min/max of every brick of device frame `frame`, copied to s->grid.minmax (the blocks'
- * ranges follow when a render needs them, set_raycast_args). */
-static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *err)
+/* The brick_minmax kernel on device frame `frame`, its grid read back into s->grid.minmax. */
+static cdvr_status kernel_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *err)
 {
-    if (s->only_tiles)
-        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL setup: frame %zu is only a tiled copy "
-                              "(cdvr_cl_use_host_tiles): its grid comes from the caller "
-                              "(cdvr_cl_setup_grid)", frame);
-    if (host_minmax(s, frame)) {
-        cdvr_skip_grid_touch(&s->grid);
-        s->minmax_count++;
-        s->blocks_valid = 0;
-        return CDVR_OK;
-    }
     voxel_source src;
-    cdvr_status sst = source_of(s, frame, &src, err);
-    if (sst)
-        return sst;
+    cdvr_status st = source_of(s, frame, &src, err);
+    if (st)
+        return st;
     cl_kernel k = src.k_bricks;
     cl_uint args[7] = {(cl_uint)s->dims[0], (cl_uint)s->dims[1], (cl_uint)s->dims[2],
                        CDVR_CL_BRICK, (cl_uint)s->brick_dims[0], (cl_uint)s->brick_dims[1],
                        (cl_uint)s->brick_dims[2]};
-    cdvr_status st = set_source_args(k, "brick_minmax", &src, err);
+    st = set_source_args(k, "brick_minmax", &src, err);
     for (cl_uint i = 0; !st && i < 7; i++)
         st = cdvr_cl_arg(k, "brick_minmax", 3 + i, sizeof(cl_uint), &args[i], err);
     if (!st)
@@ -151,10 +145,22 @@ static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *e
         return st;
     cl_int code = clEnqueueReadBuffer(s->cl->queue, s->brick_minmax, CL_TRUE, 0, 2 * s->nbricks,
                                       s->grid.minmax, 0, NULL, NULL);
+    return cdvr_cl_check(code, "read brick min/max grid", err);
+}
+
+/* Min/max of every brick of device frame `frame` into s->grid.minmax and brick_minmax (the
+ * blocks' ranges follow when a render needs them, set_raycast_args). */
+static cdvr_status compute_minmax(cdvr_cl_stream *s, size_t frame, cdvr_error *err)
+{
+    if (s->only_tiles)
+        return cdvr_error_set(err, CDVR_ERR_ARG, "OpenCL setup: frame %zu is only a tiled copy "
+                              "(cdvr_cl_use_host_tiles): its grid comes from the caller "
+                              "(cdvr_cl_setup_grid)", frame);
+    cdvr_status st = host_minmax(s, frame) ? CDVR_OK : kernel_minmax(s, frame, err);
     cdvr_skip_grid_touch(&s->grid);
     s->minmax_count++;
     s->blocks_valid = 0;
-    return cdvr_cl_check(code, "read brick min/max grid", err);
+    return st;
 }
 
 /* Cells of the entry list (cdvr/skip.h): 2^2 bricks of 4 voxels per axis. */

@@ -1,7 +1,9 @@
 /* core/render/cpu/brick_range.h - the value range of every range brick of a dense u8 frame
  * (cdvr/bricks.h: brick g along an axis of N voxels holds voxels E*g .. min(E*g + E, N - 1),
  * E = 2^shift), as cdvr_range_compute gives for the whole frame, on several threads with
- * SSE2 min/max over whole rows. Internal to the CPU ray caster's empty-space skipping. */
+ * SSE2 min/max over whole rows. Internal to core: the CPU ray caster's empty-space skipping,
+ * the OpenCL set-up of a dense frame on a CPU device (cl_render.c) and the player's refined
+ * grids (player.c). */
 #ifndef CDVR_RENDER_CPU_BRICK_RANGE_H
 #define CDVR_RENDER_CPU_BRICK_RANGE_H
 
