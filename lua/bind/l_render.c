@@ -216,12 +216,10 @@ static int push_result(lua_State *L, const render_call *c, cdvr_status status, c
 static int render_store_direct(lua_State *L, render_call *c, const cdvr_store *st, size_t v,
                                size_t t)
 {
-    lua_settop(L, 4);           /* st, opts, (tf), (camera) */
-    lua_getfield(L, 1, "info"); /* st:info(): the box of the default camera */
-    lua_pushvalue(L, 1);
-    lua_call(L, 1, 1);          /* st, opts, tf, camera, info */
+    lua_settop(L, 4); /* st, opts, (tf), (camera) */
     cdvr_render_opts o = {0};
-    read_options(L, &o, 5);
+    read_options(L, &o, 1); /* the default camera frames st's box (not st:info(), whose
+                             * details read every chunk) */
     o.look = c->look;
     const cdvr_store_info *info = cdvr_store_get_info(st);
     const double window[2] = {info->qlo, info->qhi};
