@@ -5,6 +5,8 @@
  * cores equal those of one pass; the grid made from a store's range tables (range bricks of
  * 4^3, 8^3, 16^3) equals the one computed from the decoded frame; a coarse grid spread over
  * the 4^3 bricks (cdvr_skip_grid_expand) is conservative and its flags keep their meaning; and
+ * the cells a composite render reads, their fills and the refined grid follow their
+ * definitions (cdvr_skip_cells_needed, cdvr_skip_refine); and
  * on the OpenCL device, setup from the recorded ranges (cdvr_cl_setup_grid) renders every
  * pixel exactly as setup from the frame itself (cdvr_cl_setup), taking the same samples with
  * 4^3 tables and at least as many with coarser ones; a store written with 4^3 LZO tables
@@ -22,6 +24,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "cdvr/codec.h"
 #include "cdvr/crc32c.h"
 #include "cdvr/device.h"
 #include "cdvr/skip.h"
@@ -130,6 +133,131 @@ static void test_flags(void)
     CHECK(g.bricks_visible == 0 && g.visible_lo[0] > g.visible_hi[0], "nothing visible");
     cdvr_skip_grid_free(&g);
     free(f);
+}
+
+/* Whether cell c (x, y, z) of g is read by a composite render: some visible brick b with
+ * c - b in {0, 1}^3, or {-1, 0, 1}^3 with gradients (cdvr_skip_cells_needed's definition). */
+static int cell_read(const cdvr_skip_grid *g, long x, long y, long z, int gradients)
+{
+    const size_t *n = g->dims;
+    for (long dz = -1; dz <= 1; dz++)
+        for (long dy = -1; dy <= 1; dy++)
+            for (long dx = -1; dx <= 1; dx++) {
+                long b[3] = {x - dx, y - dy, z - dz};
+                int inside = gradients || (dx >= 0 && dy >= 0 && dz >= 0);
+                for (int a = 0; a < 3; a++)
+                    inside &= b[a] >= 0 && b[a] < (long)n[a];
+                if (inside && g->flags[b[0] + (long)n[0] * (b[1] + (long)n[1] * b[2])] >= 128)
+                    return 1;
+            }
+    return 0;
+}
+
+/* The cells a render reads, against their definition; the transparent fill (none when an
+ * invisible brick holds values above the TF's visible band); cell and tile fills write the
+ * fill into exactly the cells not needed; refine gives the visible bricks of a grid spread
+ * from 16^3 ranges their exact ranges when enough are visible, and leaves the grid alone
+ * when few are. */
+static void test_cells(void)
+{
+    size_t d[3] = {37, 22, 19};
+    uint8_t *f;
+    cdvr_skip_grid g;
+    cdvr_error err;
+    blob_grid(&g, d, &f);
+    cdvr_tf tf;
+    tf_window(&tf, 100, 180);
+    cdvr_skip_flags(&g, &tf);
+    uint8_t *need = malloc(2 * g.nbricks), *scratch = malloc(2 * g.nbricks);
+    for (int gradients = 0; gradients < 2; gradients++) {
+        size_t count = cdvr_skip_cells_needed(&g, gradients, need), wrong = 0, expect = 0;
+        for (size_t c = 0; c < g.nbricks; c++) {
+            int read = cell_read(&g, (long)(c % g.dims[0]), (long)(c / g.dims[0] % g.dims[1]),
+                                 (long)(c / (g.dims[0] * g.dims[1])), gradients);
+            expect += (size_t)read;
+            wrong += (need[c] != 0) != read;
+        }
+        CHECK(wrong == 0 && count == expect && count > g.bricks_visible && count < g.nbricks,
+              "cells needed (gradients %d): %zu wrong, %zu counted, %zu expected", gradients,
+              wrong, count, expect);
+    }
+    uint8_t fill = 1;
+    unsigned lowest = 255;
+    for (size_t b = 0; b < g.nbricks; b++)
+        lowest = g.flags[b] < 128 && g.minmax[2 * b] < lowest ? g.minmax[2 * b] : lowest;
+    CHECK(cdvr_skip_transparent_fill(&g, &fill) && fill == lowest && tf.table[fill][3] == 0,
+          "transparent fill %u (lowest invisible value %u)", fill, lowest);
+
+    /* every voxel of a frame of 7s: 99 where its cell is not needed */
+    size_t voxels = d[0] * d[1] * d[2], tiled_bytes = cdvr_tiled_bytes(d), wrong = 0;
+    uint8_t *linear = malloc(voxels), *tiles = malloc(tiled_bytes);
+    memset(linear, 7, voxels);
+    memset(tiles, 7, tiled_bytes);
+    cdvr_skip_fill_cells(linear, &g, need, 99);
+    cdvr_skip_fill_tiles(tiles, &g, need, 99);
+    for (size_t z = 0; z < d[2]; z++)
+        for (size_t y = 0; y < d[1]; y++)
+            for (size_t x = 0; x < d[0]; x++) {
+                uint8_t want = need[x / 4 + g.dims[0] * (y / 4 + g.dims[1] * (z / 4))] ? 7 : 99;
+                wrong += linear[x + d[0] * (y + d[1] * z)] != want;
+                wrong += tiles[cdvr_tiled_offset(d, x, y, z)] != want;
+            }
+    CHECK(wrong == 0, "cell and tile fills: %zu voxels wrong", wrong);
+
+    /* refine a grid spread from 16^3 bricks: exact ranges for its visible bricks (a larger
+     * volume, where one 16^3 brick is less than 1/16 of the 4^3 ones) */
+    size_t big[3] = {70, 60, 50};
+    cdvr_skip_grid exact;
+    uint8_t *bf, *big_scratch = malloc(2 * 18 * 15 * 13);
+    blob_grid(&exact, big, &bf);
+    for (int few = 0; few < 2; few++) {
+        cdvr_skip_grid coarse, fine;
+        CHECK_OK(cdvr_skip_grid_init(&coarse, big, 4, &err), err);
+        CHECK_OK(cdvr_skip_grid_init(&fine, big, 2, &err), err);
+        CHECK_OK(cdvr_skip_minmax_from_frame(&coarse, bf, &err), err);
+        tf_window(&tf, few ? 215 : 100, few ? 230 : 180);
+        cdvr_skip_flags(&coarse, &tf);
+        CHECK_OK(cdvr_skip_grid_expand(&coarse, &fine, &err), err);
+        uint8_t *before = malloc(2 * fine.nbricks), *flags = malloc(fine.nbricks);
+        memcpy(before, fine.minmax, 2 * fine.nbricks);
+        memcpy(flags, fine.flags, fine.nbricks);
+        size_t visible = fine.bricks_visible;
+        CHECK_OK(cdvr_skip_refine(&fine, bf, &tf, 2, big_scratch, &err), err);
+        size_t off = 0;
+        int refines = visible * 16 >= fine.nbricks;
+        for (size_t b = 0; b < fine.nbricks; b++) {
+            const uint8_t *want = refines && flags[b] >= 128 ? exact.minmax + 2 * b
+                                                             : before + 2 * b;
+            off += fine.minmax[2 * b] != want[0] || fine.minmax[2 * b + 1] != want[1];
+        }
+        CHECK(refines == !few && off == 0 && fine.flags_valid &&
+              (few ? fine.bricks_visible == visible : fine.bricks_visible < visible),
+              "refine (%s visible: %zu of %zu, then %zu): %zu ranges wrong", few ? "few" : "many",
+              visible, fine.nbricks, fine.bricks_visible, off);
+        free(before);
+        free(flags);
+        cdvr_skip_grid_free(&coarse);
+        cdvr_skip_grid_free(&fine);
+    }
+    cdvr_skip_grid_free(&exact);
+    free(bf);
+    free(big_scratch);
+
+    /* bricks of 255 (invisible: the TF's alpha is 0 there) above the visible band: no fill */
+    for (size_t z = 12; z < d[2]; z++)
+        for (size_t y = 0; y < d[1]; y++)
+            memset(f + d[0] * (y + d[1] * z), 255, 8);
+    CHECK_OK(cdvr_skip_minmax_from_frame(&g, f, &err), err);
+    cdvr_skip_grid_touch(&g);
+    tf_window(&tf, 100, 180);
+    cdvr_skip_flags(&g, &tf);
+    CHECK(!cdvr_skip_transparent_fill(&g, &fill), "no transparent fill around a visible band");
+    free(linear);
+    free(tiles);
+    free(need);
+    free(scratch);
+    free(f);
+    cdvr_skip_grid_free(&g);
 }
 
 /* fine, spread from a coarser grid, against exact (the same bricks, from the frame): every
@@ -677,6 +805,7 @@ int main(void)
     test_minmax_shares();
     test_distance();
     test_flags();
+    test_cells();
     test_entry();
     test_store_grid(CDVR_RANGE_SHIFT);
     test_store_grid(3);

@@ -31,7 +31,6 @@
 
 #include "cdvr/bricks.h"
 #include "cdvr/skip.h"
-#include "render/cpu/brick_range.h"
 
 #if CDVR_HAVE_OPENCL
 #include "cdvr/device.h"
@@ -941,90 +940,6 @@ static int decodes_cells(const cdvr_player *p, const chunk_item *it)
            strcmp(p->opts.method->name, "raycast") == 0;
 }
 
-/* out[c] = in[c - d] or'ed over d = lo .. 1 (lo 0 or -1) along axis a of a grid of n bricks. */
-static void dilate_axis(const uint8_t *in, uint8_t *out, const size_t n[3], int a, int lo)
-{
-    size_t stride = a == 0 ? 1 : a == 1 ? n[0] : n[0] * n[1], len = n[a];
-    size_t outer = n[0] * n[1] * n[2] / (stride * len); /* runs of len * stride bricks */
-    for (size_t o = 0; o < outer; o++)
-        for (size_t at = 0; at < len; at++) {
-            const uint8_t *src = in + (o * len + at) * stride;
-            uint8_t *dst = out + (o * len + at) * stride;
-            memcpy(dst, src, stride);
-            for (size_t i = 0; at > 0 && i < stride; i++)
-                dst[i] |= src[i - stride];
-            for (size_t i = 0; lo < 0 && at + 1 < len && i < stride; i++)
-                dst[i] |= src[i + stride];
-        }
-}
-
-/* The cells (the grid's bricks) a composite render of grid g reads: a sample in a visible brick
- * (flag >= 128, cdvr/skip.h) reads the voxels of its cell and one voxel past it (trilinear
- * interpolation's upper apron), so the brick and its upper neighbours (d = 0..1 bricks per axis,
- * bricks being at least 4 voxels); shading's central differences read one voxel more each way
- * (d = -1..1). need: 2 * nbricks bytes, the first half the result. Returns the cells needed. */
-static size_t cells_needed(const cdvr_skip_grid *g, int shaded, uint8_t *need)
-{
-    uint8_t *a = need, *b = need + g->nbricks;
-    for (size_t i = 0; i < g->nbricks; i++)
-        a[i] = g->flags[i] >= 128;
-    dilate_axis(a, b, g->dims, 0, shaded ? -1 : 0);
-    dilate_axis(b, a, g->dims, 1, shaded ? -1 : 0);
-    dilate_axis(a, b, g->dims, 2, shaded ? -1 : 0);
-    size_t count = 0;
-    for (size_t i = 0; i < g->nbricks; i++)
-        count += (a[i] = b[i]) != 0;
-    return count;
-}
-
-/* A value for the cells not decoded, so that every sample the ray caster takes in an
- * invisible brick stays transparent as it is with the decoded voxels. Its lanes do sample there
- * (runs end past a brick, lanes sample on unlooked while others sample, skip_to stops short of
- * a cube's exit: raycast.cl), relying on such samples adding nothing; their corners hold the
- * brick's own values (its range) or, where not decoded, the fill. With lo .. hi spanning every
- * invisible brick's range, the fill lo keeps each interpolated value in lo .. hi, transparent
- * when every TF entry there is. Returns 0 when some entry there is visible (a TF transparent in
- * two separate runs of values, say): then the frame is decoded whole. */
-static int transparent_fill(const cdvr_skip_grid *g, uint8_t *fill)
-{
-    unsigned lo = 255, hi = 0;
-    for (size_t i = 0; i < g->nbricks; i++)
-        if (g->flags[i] < 128) {
-            lo = g->minmax[2 * i] < lo ? g->minmax[2 * i] : lo;
-            hi = g->minmax[2 * i + 1] > hi ? g->minmax[2 * i + 1] : hi;
-        }
-    for (unsigned v = lo; v <= hi; v++)
-        if (g->tf_visible[v])
-            return 0;
-    *fill = (uint8_t)lo;
-    return 1;
-}
-
-/* Writes fill into the voxels of frame (dims) in the cells of g (its bricks) with need 0:
- * spans of such cells along x at a time. */
-static void fill_cells(uint8_t *frame, const size_t dims[3], const cdvr_skip_grid *g,
-                       const uint8_t *need, uint8_t fill)
-{
-    unsigned sh = g->shift;
-    for (size_t z = 0; z < dims[2]; z++)
-        for (size_t y = 0; y < dims[1]; y++) {
-            const uint8_t *cells = need + g->dims[0] * ((y >> sh) + g->dims[1] * (z >> sh));
-            uint8_t *row = frame + dims[0] * (y + dims[1] * z);
-            for (size_t cx = 0; cx < g->dims[0];) {
-                if (cells[cx]) {
-                    cx++;
-                    continue;
-                }
-                size_t end = cx;
-                while (end < g->dims[0] && !cells[end])
-                    end++;
-                size_t x0 = cx << sh, x1 = end << sh < dims[0] ? end << sh : dims[0];
-                memset(row + x0, fill, x1 - x0);
-                cx = end;
-            }
-        }
-}
-
 /* Whether a decodes_cells group is decoded as the ray caster's tiled copy (codec.h,
  * CDVR_LAYOUT_TILED), which the device then casts from instead of the dense frame it would
  * never tile for a frame rendered once (cl_render.c): 1.17x faster casts (Viscous fingers
@@ -1039,50 +954,6 @@ static int decodes_tiled(const cdvr_player *p)
 #endif
 }
 
-/* fill_cells for a tiled frame whose tiles are g's bricks (shift 2): a tile per cell. */
-static void fill_tiles(uint8_t *tiles, const size_t dims[3], const cdvr_skip_grid *g,
-                       const uint8_t *need, uint8_t fill)
-{
-    const size_t *n = g->dims;
-    for (size_t z = 0; z < n[2]; z++)
-        for (size_t y = 0; y < n[1]; y++)
-            for (size_t x = 0; x < n[0]; x++)
-                if (!need[x + n[0] * (y + n[1] * z)])
-                    memset(tiles + cdvr_tiled_offset(dims, 4 * x, 4 * y, 4 * z), fill, 64);
-}
-
-/* CDVR_REFINE=0 turns refine_grid off (for comparison). */
-static int refine_off(void)
-{
-    const char *e = getenv("CDVR_REFINE");
-    return e && strcmp(e, "0") == 0;
-}
-
-/* After a decode by cells into a linear frame from range tables of bricks coarser than the
- * grid's (4^3): each brick the tables made visible gets its exact range from the decoded
- * frame (its voxels and upper apron were all decoded, cells_needed; the ranges of the other
- * bricks, which hold the fill, are not taken), and the flags are made again, so the render
- * skips the bricks only the coarse ranges kept visible: the same image with fewer samples
- * (256^3 series, 8^3 tables: 15%). The ranges go into it->need (2 bytes per brick; the cells
- * are decoded) on the calling thread: the render runs beside it. Tiled frames are not
- * refined: the same from tiles (each brick's tile and the faces of the 7 above it) made that
- * decode 1.9x as long and the playback 0.9x as fast. On failure the coarse grid stays. */
-static void refine_grid(cdvr_player *p, chunk_item *it, const uint8_t *frame)
-{
-    cdvr_skip_grid *g = &it->grids[0];
-    uint8_t *exact = it->need;
-    cdvr_error ignored;
-    if (cdvr_cpu_brick_ranges(frame, p->vox_dims, g->shift, 1, exact, &ignored) != CDVR_OK)
-        return;
-    for (size_t b = 0; b < g->nbricks; b++)
-        if (g->flags[b] >= 128) {
-            g->minmax[2 * b] = exact[2 * b];
-            g->minmax[2 * b + 1] = exact[2 * b + 1];
-        }
-    cdvr_skip_grid_touch(g);
-    cdvr_skip_flags(g, p->opts.tf);
-}
-
 /* decodes_cells' decode of the group's frame into slot k, its grid made: the cells the render
  * reads (tiled where the stream takes it), fill in the others. */
 static void decode_needed_cells(cdvr_player *p, chunk_item *it, int k, uint8_t fill)
@@ -1093,7 +964,7 @@ static void decode_needed_cells(cdvr_player *p, chunk_item *it, int k, uint8_t f
                        g->nbricks);
         return;
     }
-    size_t cells = cells_needed(g, shades(p), it->need);
+    size_t cells = cdvr_skip_cells_needed(g, shades(p), it->need);
     int tiled = decodes_tiled(p) && g->shift == 2; /* cells are tiles */
     if (cdvr_store_decode_chunk_cells(p->opts.store, (size_t)it->variant, it->chunk,
                                       it->parts[0].payload, p->slots[k],
@@ -1101,13 +972,18 @@ static void decode_needed_cells(cdvr_player *p, chunk_item *it, int k, uint8_t f
                                       g->shift, &it->err) != CDVR_OK)
         return;
     if (tiled)
-        fill_tiles(p->slots[k], p->vox_dims, g, it->need, fill);
+        cdvr_skip_fill_tiles(p->slots[k], g, it->need, fill);
     else
-        fill_cells(p->slots[k], p->vox_dims, g, it->need, fill);
+        cdvr_skip_fill_cells(p->slots[k], g, it->need, fill);
     unsigned table_shift =
         cdvr_store_chunk(p->opts.store, (size_t)it->variant, it->chunk)->ranges_shift;
-    if (!tiled && table_shift > g->shift && !refine_off())
-        refine_grid(p, it, p->slots[k]);
+    if (!tiled && table_shift > g->shift && cdvr_skip_refine_enabled()) {
+        /* exact ranges of the visible bricks on this thread (the render runs beside it); the
+         * same from tiles made that decode 1.9x as long and the playback 0.9x as fast; on
+         * failure the coarse grid stays */
+        cdvr_error ignored;
+        cdvr_skip_refine(&it->grids[0], p->slots[k], p->opts.tf, 1, it->need, &ignored);
+    }
     it->tiled = tiled;
     it->decoded_share = (double)cells / (double)g->nbricks;
 }
@@ -1128,7 +1004,7 @@ static void decode_group(cdvr_player *p, int w, chunk_item *it, const cdvr_chunk
         t0 = cdvr_now_ms();
         if (it->err.status != CDVR_OK)
             return;
-        by_cells = transparent_fill(&it->grids[0], &fill);
+        by_cells = cdvr_skip_transparent_fill(&it->grids[0], &fill);
     }
     if (by_cells)
         decode_needed_cells(p, it, k, fill);

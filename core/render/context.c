@@ -15,6 +15,7 @@
 #include "cdvr/device.h"
 #include "cdvr/gl.h"
 #include "cdvr/store.h"
+#include "cdvr/visible.h"
 
 struct cdvr_render_ctx {
     cdvr_cl *cl;
@@ -32,6 +33,7 @@ struct cdvr_render_ctx {
     char *cache_path;            /* its store's path and size: a new store at the address of */
     uint64_t cache_file_bytes;   /* a closed one is not taken for it */
     cdvr_cpu_skip_cache *cpu_skip;
+    cdvr_visible *visible;       /* frames decoded by visible cells (the stream may read one) */
 };
 
 cdvr_status cdvr_render_ctx_create(cdvr_render_ctx **out, cdvr_error *err)
@@ -81,9 +83,21 @@ void cdvr_render_ctx_free(cdvr_render_ctx *ctx)
     cdvr_cl_stream_free(ctx->stream);
     cdvr_cl_close(ctx->cl);
 #endif
+    cdvr_visible_free(ctx->visible); /* after the stream, which may use its frame */
     cdvr_gl_free(ctx->gl);
     cdvr_cpu_skip_cache_free(ctx->cpu_skip);
     free(ctx);
+}
+
+cdvr_status cdvr_render_ctx_visible(cdvr_render_ctx *ctx, cdvr_visible **out, cdvr_error *err)
+{
+    if (!ctx->visible) {
+        cdvr_status s = cdvr_visible_create(&ctx->visible, err);
+        if (s != CDVR_OK)
+            return s;
+    }
+    *out = ctx->visible;
+    return CDVR_OK;
 }
 
 cdvr_status cdvr_render_ctx_brick_cache(cdvr_render_ctx *ctx, const cdvr_store *st, size_t v,

@@ -7,9 +7,10 @@
 -- the host (fetch="bulk"). Each case checks
 -- that only part of the frame was decoded (decoded_share below 1), so the partial path ran,
 -- and that it took no more samples than the whole decode (fewer with 16^3 tables where the
--- frame is dense: the partial decode refines the visible bricks' ranges, player.c refine_grid;
+-- frame is dense: the partial decode refines the visible bricks' ranges, cdvr_skip_refine;
 -- tests/test_cl_layouts.sh runs this file with dense frames).
--- Max and iso renders decode whole frames. Skips (77) without OpenCL or the zfp plugin.
+-- Max and iso renders decode whole frames. cdvr.render of a store chunk on cl decodes by cells
+-- too (cdvr/visible.h; its section below). Skips (77) without OpenCL or the zfp plugin.
 local have_zfp = false
 for _, c in ipairs(cdvr.codecs()) do have_zfp = have_zfp or c.name == "zfp" end
 if not have_zfp or not cdvr.cl_info() then
@@ -59,7 +60,7 @@ local function compare(name, st, opts, frames)
     most = math.max(most, shares[i] or 1)
   end
   -- a dense frame decoded in part gets the exact ranges of the bricks that coarser tables
-  -- kept visible (player.c refine_grid): never more samples than the whole decode's grid from
+  -- kept visible (cdvr_skip_refine): never more samples than the whole decode's grid from
   -- the tables
   check(samples.cells <= samples.whole, ("%s: %d samples, the whole decode %d"):format(
     name, samples.cells, samples.whole))
@@ -130,6 +131,55 @@ do
   end
 end
 
+-- cdvr.render of a store chunk on cl (cdvr/visible.h): zfp (no device code) and hvq on its
+-- bulk path decode only the cells the render reads, into a linear frame whose grid is refined:
+-- the image of the decoded volume's render, byte for byte, with no more samples; a TF whose
+-- fill cannot be transparent, max, skip=false and hvq's per-sample fetch decode whole frames
+-- (no decoded_share in the stats). The ASL series is rendered timestep by timestep below,
+-- each decode reusing the frame that held another timestep.
+local function render_cells(name, st, variant, opts, expect_cells)
+  local o = {variant = variant, device = "cl"}
+  for k, v in pairs(opts) do o[k] = v end
+  local img, stats = cdvr.render(st, o)
+  o.variant, o.fetch, o.t = nil, nil, nil
+  local ref, ref_stats = cdvr.render(st:decode(opts.t or 1, variant), o)
+  check(cdvr.compare(img, ref).maxerr == 0, name .. ": differs from the decoded volume's render")
+  if expect_cells == nil then -- either path (the frame's TF decides): the same image
+    return stats.decoded_share or 1
+  elseif expect_cells then
+    check(stats.decoded_share and stats.decoded_share > 0 and stats.decoded_share < 1,
+          name .. ": decoded share " .. tostring(stats.decoded_share) .. " (expected part)")
+    check(stats.samples <= ref_stats.samples, ("%s: %d samples, the decoded volume %d"):format(
+      name, stats.samples, ref_stats.samples))
+  else
+    check(stats.decoded_share == nil, name .. ": decoded by cells (share " ..
+          tostring(stats.decoded_share) .. "), expected whole")
+  end
+end
+for _, shift in ipairs{2, 4} do
+  local st = cdvr.open(("%s/neghip%d.cdv"):format(tmp, shift))
+  for ci, cam in ipairs(cams) do
+    for _, shade in ipairs{false, true} do
+      render_cells(("render_b%d_c%d_%s"):format(shift, ci, shade and "shaded" or "plain"), st,
+                   "zfp", {tf = tf, camera = cam, shade = shade}, true)
+    end
+  end
+  local band = cdvr.tf{{0, 0, 0, 0, 0}, {70, 1, 0.5, 0.2, 0}, {100, 1, 0.8, 0.3, 0.4},
+                       {130, 1, 1, 1, 0}, {255, 1, 1, 1, 0}}
+  render_cells(("render_b%d_band"):format(shift), st, "zfp", {tf = band, camera = cams[1]},
+               shift ~= 2)
+  render_cells(("render_b%d_max"):format(shift), st, "zfp", {tf = tf, camera = cams[1], blend = "max"}, false)
+  render_cells(("render_b%d_noskip"):format(shift), st, "zfp", {tf = tf, camera = cams[1], skip = false}, false)
+end
+do
+  local st = cdvr.open(tmp .. "/neghip_hvq.cdv")
+  for _, shade in ipairs{false, true} do
+    render_cells("render_hvq_" .. (shade and "shaded" or "plain"), st, "zfp",
+                 {tf = tf, camera = cams[1], shade = shade, fetch = "bulk"}, true)
+  end
+  render_cells("render_hvq_sample", st, "zfp", {tf = tf, camera = cams[1], fetch = "sample"}, false)
+end
+
 -- the ASL series: 25 timesteps played in turn, each slot reused with other voxels
 local asl = cdvr.load(share_data("mpld_asl_64x64x24x25_f32.nii.gz"))
 local st = assert(cdvr.encode(asl, {path = tmp .. "/asl.cdv", progress = false,
@@ -143,6 +193,11 @@ for _, shade in ipairs{false, true} do
   for _, s in ipairs(shares) do least = math.min(least, s) end
   check(least < 1, name .. ": every frame decoded whole (least share " .. least .. ")")
 end
+local least = 1
+for t = 1, 25 do
+  least = math.min(least, render_cells("render_asl_t" .. t, st, "zfp", {t = t, tf = atf, camera = acam}, nil))
+end
+check(least < 1, "render_asl: every timestep decoded whole")
 
 os.execute(("rm -rf %q"):format(tmp))
 checks.finish()

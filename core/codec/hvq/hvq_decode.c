@@ -293,8 +293,15 @@ typedef struct hvq_target {
 
 static int cell_needed(const hvq_target *t, uint64_t x, uint64_t y, uint64_t z)
 {
-    size_t at[3] = {(size_t)x, (size_t)y, (size_t)z}, one[3] = {1, 1, 1};
-    return cdvr_cells_meet(&t->cells, at, one);
+    const cdvr_cells *c = &t->cells;
+    return c->need[(x >> c->log2) + c->cdims[0] * ((y >> c->log2) + c->cdims[1] * (z >> c->log2))];
+}
+
+/* Whether block (bx, by, bz) may be skipped: cells of at least a block's 4 voxels hold it
+ * whole, and its one cell is not needed. */
+static int block_unneeded(const hvq_target *t, uint64_t bx, uint64_t by, uint64_t bz)
+{
+    return t->cells.need && t->cells.log2 >= 2 && !cell_needed(t, 4 * bx, 4 * by, 4 * bz);
 }
 
 /* The 64 values of a block with codewords, x fastest, then y, z: mean + c1[o8] + c2[o64]
@@ -405,14 +412,17 @@ static void apply_residuals(const hvq_view *v, uint64_t r, uint64_t s0, uint64_t
     hvq_psh_map_open(&map, data, m, rr);
     for (uint64_t s = s0; s < s1 && s < m3; s++) {
         const uint8_t *k = map.slots + 4 * s;
-        if (k[0] < ext[0] && k[1] < ext[1] && k[2] < ext[2] &&
-            hvq_psh_map_slot(&map, k[0], k[1], k[2]) == s) {
-            uint64_t x = origin[0] + k[0], y = origin[1] + k[1], z = origin[2] + k[2];
-            if (!t->cells.need && t->layout == CDVR_LAYOUT_LINEAR)
-                t->frame[x + v->dims[0] * (y + v->dims[1] * z)] = k[3];
-            else if (!t->cells.need || cell_needed(t, x, y, z))
-                put_voxel(t, x, y, z, k[3]);
-        }
+        if (k[0] >= ext[0] || k[1] >= ext[1] || k[2] >= ext[2])
+            continue;
+        uint64_t x = origin[0] + k[0], y = origin[1] + k[1], z = origin[2] + k[2];
+        /* the cell test before the hash's (a lookup against a slot's key hashed) */
+        if ((t->cells.need && !cell_needed(t, x, y, z)) ||
+            hvq_psh_map_slot(&map, k[0], k[1], k[2]) != s)
+            continue;
+        if (!t->cells.need && t->layout == CDVR_LAYOUT_LINEAR)
+            t->frame[x + v->dims[0] * (y + v->dims[1] * z)] = k[3];
+        else
+            put_voxel(t, x, y, z, k[3]);
     }
 }
 
@@ -446,7 +456,8 @@ static void decode_slab(void *ctx, size_t bz)
             uint64_t x1 = (rx + 1) * side < L->nbx ? (rx + 1) * side : L->nbx;
             for (uint64_t by = ry * side; by < y1; by++)
                 for (uint64_t bx = rx * side; bx < x1; bx++)
-                    decode_block(job->v, &index, bx, by, bz, job->t);
+                    if (!block_unneeded(job->t, bx, by, bz))
+                        decode_block(job->v, &index, bx, by, bz, job->t);
         }
 }
 

@@ -272,6 +272,11 @@ cdvr_status cdvr_render_ctx_brick_cache(cdvr_render_ctx *ctx, const struct cdvr_
 cdvr_status cdvr_render_ctx_load_chunk(cdvr_render_ctx *ctx, const cdvr_store *st, size_t v,
                                        size_t t, cdvr_cl_stream **stream, size_t *frame,
                                        cdvr_error *err);
+/* Frames decoded by visible cells for the context's stream (cdvr/visible.h), created on first
+ * use; they live as long as the context. */
+struct cdvr_visible;
+cdvr_status cdvr_render_ctx_visible(cdvr_render_ctx *ctx, struct cdvr_visible **out,
+                                    cdvr_error *err);
 /* The EGL slicer, created on first use. */
 cdvr_status cdvr_render_ctx_gl(cdvr_render_ctx *ctx, cdvr_gl **out, cdvr_error *err);
 /* The CPU ray caster's skip cache (cdvr/render.h), created on first use; NULL when ctx is

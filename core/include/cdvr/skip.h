@@ -64,6 +64,50 @@ void cdvr_skip_flags_into(cdvr_skip_grid *g, const uint8_t visible_entry[256], u
 cdvr_status cdvr_skip_grid_expand(const cdvr_skip_grid *coarse, cdvr_skip_grid *fine,
                                   cdvr_error *err);
 
+/* ---- decoding only the cells a render reads -----------------------------------------------
+ * A codec that decodes by cells (codec.h decode_cells) can write only the voxels a composite
+ * ray cast of a frame reads, given the frame's grid from a store's range tables (flags made):
+ * the player and cdvr.render of a store chunk on cl do so (cdvr/visible.h). */
+
+/* The cells (g's bricks) a composite render of g reads: a sample in a visible brick (flag
+ * >= 128) reads the voxels of its cell and one voxel past it (trilinear interpolation's upper
+ * apron), so the brick and its upper neighbours (d = 0..1 bricks per axis, bricks being at
+ * least 4 voxels); with gradients (shading, gradient opacity) the central differences read one
+ * voxel more each way (d = -1..1). need: 2 * nbricks bytes, the first half the result (1:
+ * needed). Returns the cells needed. */
+size_t cdvr_skip_cells_needed(const cdvr_skip_grid *g, int gradients, uint8_t *need);
+/* A value for the cells not decoded, so that every sample the ray caster takes in an invisible
+ * brick stays transparent as it is with the decoded voxels. Its lanes do sample there (runs end
+ * past a brick, lanes sample on unlooked while others sample, skip_to stops short of a cube's
+ * exit: raycast.cl), relying on such samples adding nothing; their corners hold the brick's
+ * own values (its range) or, where not decoded, the fill. With lo .. hi spanning every
+ * invisible brick's range, the fill lo keeps each interpolated value in lo .. hi, transparent
+ * when every TF entry there is. Returns 0 when some entry there is visible (a TF transparent
+ * in two separate runs of values, say): then the frame must be decoded whole. */
+int cdvr_skip_transparent_fill(const cdvr_skip_grid *g, uint8_t *fill);
+/* Writes fill into the voxels of a dense frame of g's volume in the cells with need 0 (spans
+ * of such cells along x at a time). */
+void cdvr_skip_fill_cells(uint8_t *frame, const cdvr_skip_grid *g, const uint8_t *need,
+                          uint8_t fill);
+/* The same for a tiled frame (codec.h CDVR_LAYOUT_TILED) whose tiles are g's bricks (shift 2):
+ * a whole tile per cell. */
+void cdvr_skip_fill_tiles(uint8_t *tiles, const cdvr_skip_grid *g, const uint8_t *need,
+                          uint8_t fill);
+/* After a decode by cells into a dense frame from range tables of bricks coarser than g's:
+ * each brick the coarse tables made visible gets its exact range from the frame (its voxels
+ * and upper apron were all decoded, cdvr_skip_cells_needed; the other bricks hold the fill,
+ * and keep their coarse range), and the flags are made again for tf, so the render skips the
+ * bricks only the coarse ranges kept visible: the same image with fewer samples. The frame is
+ * ranged on `threads` threads (cdvr_cpu_brick_ranges). Only when at least 1/16 of the bricks
+ * are visible (else g stays as it is: the passes over the frame and the grid would cost more
+ * than the samples they save). scratch: 2 * nbricks bytes. On failure (CDVR_ERR_NOMEM) g is
+ * unchanged. */
+cdvr_status cdvr_skip_refine(cdvr_skip_grid *g, const uint8_t *frame, const cdvr_tf *tf,
+                             unsigned threads, uint8_t *scratch, cdvr_error *err);
+/* 0 when the environment has CDVR_REFINE=0 (for comparison: the player and cdvr/visible.h
+ * then keep the coarse grid), else 1. */
+int cdvr_skip_refine_enabled(void);
+
 /* Chessboard distance in bricks from each brick to the nearest brick with seed[b] != 0 (0 for
  * the seeds; at most 255, which also stands for "none"), by the two-pass 26-neighbour
  * chamfer, which is exact for the chessboard metric. */

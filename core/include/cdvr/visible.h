@@ -1,0 +1,47 @@
+/* cdvr/visible.h - a store chunk decoded only where a composite ray cast looks.
+ *
+ * For a chunk whose codec decodes by cells (codec.h decode_cells: hvq, zfp), one timestep of
+ * a store of one brick with a range table of bricks at least the ray caster's (store.h): the
+ * skip grid for the TF comes from the table, only the cells the render reads are decoded
+ * (cdvr_skip_cells_needed), the others get a transparent fill, and a linear frame's grid is
+ * refined to exact ranges (cdvr_skip_refine). The image is the one of the whole frame (the
+ * player does the same per group, cdvr/player.h). cdvr.render of such a chunk on cl takes
+ * this path when the chunk is decoded on the host anyway (a fetch-mode codec's bulk path,
+ * or a codec without kernels); render stats report the share of cells decoded. */
+#ifndef CDVR_VISIBLE_H
+#define CDVR_VISIBLE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "cdvr/error.h"
+#include "cdvr/skip.h"
+#include "cdvr/store.h"
+#include "cdvr/tf.h"
+
+/* The frame, its grid and their scratch, reused from one decode to the next. */
+typedef struct cdvr_visible cdvr_visible;
+
+cdvr_status cdvr_visible_create(cdvr_visible **out, cdvr_error *err);
+void cdvr_visible_free(cdvr_visible *vis);
+
+/* Whether chunk c of variant v of st can be decoded by visible cells (see above). */
+int cdvr_visible_applies(const cdvr_store *st, size_t v, size_t c);
+
+/* Decodes chunk c of variant v (cdvr_visible_applies) for a composite render with tf, with
+ * gradients (shading or gradient opacity) or not, into the frame (linear). *applied 0 (and
+ * nothing decoded) when the fill cannot be transparent for this TF
+ * (cdvr_skip_transparent_fill): decode it whole then. Errors: the store's (reading, checking,
+ * decoding) and CDVR_ERR_NOMEM. */
+cdvr_status cdvr_visible_decode(cdvr_visible *vis, const cdvr_store *st, size_t v, size_t c,
+                                const cdvr_tf *tf, int gradients, int *applied,
+                                cdvr_error *err);
+
+/* After a decode that applied: the frame (page-aligned, linear, the store's dims; valid
+ * until the next decode or free), its grid at the ray caster's bricks (CDVR_RANGE_SHIFT,
+ * flags made for the TF) and the share of cells decoded (0 .. 1). */
+const uint8_t *cdvr_visible_frame(const cdvr_visible *vis);
+const cdvr_skip_grid *cdvr_visible_grid(const cdvr_visible *vis);
+double cdvr_visible_share(const cdvr_visible *vis);
+
+#endif
