@@ -108,6 +108,14 @@ static void blob_grid(cdvr_skip_grid *g, const size_t d[3], uint8_t **frame)
     CHECK_OK(cdvr_skip_minmax_from_frame(g, *frame, &err), err);
 }
 
+/* blob_grid with its flags for the TF window 100 .. 180 (tf). */
+static void flagged_blob_grid(cdvr_skip_grid *g, const size_t d[3], uint8_t **frame, cdvr_tf *tf)
+{
+    blob_grid(g, d, frame);
+    tf_window(tf, 100, 180);
+    cdvr_skip_flags(g, tf);
+}
+
 static void test_flags(void)
 {
     size_t d[3] = {41, 27, 30};
@@ -164,11 +172,9 @@ static void test_cells(void)
     uint8_t *f;
     cdvr_skip_grid g;
     cdvr_error err;
-    blob_grid(&g, d, &f);
     cdvr_tf tf;
-    tf_window(&tf, 100, 180);
-    cdvr_skip_flags(&g, &tf);
-    uint8_t *need = malloc(2 * g.nbricks), *scratch = malloc(2 * g.nbricks);
+    flagged_blob_grid(&g, d, &f, &tf);
+    uint8_t *need = malloc(2 * g.nbricks);
     for (int gradients = 0; gradients < 2; gradients++) {
         size_t count = cdvr_skip_cells_needed(&g, gradients, need), wrong = 0, expect = 0;
         for (size_t c = 0; c < g.nbricks; c++) {
@@ -255,7 +261,6 @@ static void test_cells(void)
     free(linear);
     free(tiles);
     free(need);
-    free(scratch);
     free(f);
     cdvr_skip_grid_free(&g);
 }
@@ -719,10 +724,8 @@ static void test_entry(void)
     uint8_t *f;
     cdvr_skip_grid g;
     cdvr_error err;
-    blob_grid(&g, d, &f);
     cdvr_tf tf;
-    tf_window(&tf, 100, 180);
-    cdvr_skip_flags(&g, &tf);
+    flagged_blob_grid(&g, d, &f, &tf);
     cdvr_skip_entry e = {0};
     double c30 = cos(M_PI / 6), s30 = sin(M_PI / 6);
     const double rotation[9] = {c30, -s30, 0, s30, c30, 0, 0, 0, 1};
