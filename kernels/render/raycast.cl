@@ -608,51 +608,34 @@ typedef struct rgbax {
     vfloat r, g, b, a;
 } rgbax;
 
-/* Float w of the table per lane: the table as floats (rgba per row), so each channel of 16
- * lanes is one gather instead of 16 row loads and a transpose (engine CT 512^2 step 0.5:
- * 11% less frame time). Little-endian devices read two floats per gather (table_pairs,
- * another 1-7%). */
-#define TABLE_CH(k) t[w.s##k]
-static vfloat table_channel(__global const float *t, vint w)
+/* Row w of the TF table per lane, one 64-bit word (cl_render.c upload_tables: the
+ * step-corrected alpha as a float in the low half, r, g, b as unorm 11, 11, 10 bits in the
+ * high one), so a lane's two rows are two gathers (engine CT 512^2 step 0.5: 0.87 of the
+ * time of four). */
+#define TABLE_ROW(k) t[w.s##k]
+static ulong16 table_rows(__global const ulong *t, vint w)
 {
-    return (vfloat)(L16(TABLE_CH));
+    return (ulong16)(L16(TABLE_ROW));
 }
 
-#ifdef __ENDIAN_LITTLE__
-/* Floats 2w and 2w + 1 of the table per lane, as one 64-bit word (one gather). */
-#define TABLE_PAIR(k) t[w.s##k]
-static ulong16 table_pairs(__global const ulong *t, vint w)
+/* A table row's rgba. */
+static rgbax table_rgba(ulong16 row)
 {
-    return (ulong16)(L16(TABLE_PAIR));
+    uint16 hi = convert_uint16(row >> 32);
+    return (rgbax){convert_vfloat(hi & 0x7ffu) * (1.0f / 2047.0f),
+                   convert_vfloat((hi >> 11) & 0x7ffu) * (1.0f / 2047.0f),
+                   convert_vfloat(hi >> 22) * (1.0f / 1023.0f),
+                   as_float16(convert_uint16(row))};
 }
-#define LOW_FLOAT(q) as_float16(convert_uint16(q))
-#define HIGH_FLOAT(q) as_float16(convert_uint16((q) >> 32))
-#endif
 
 /* render.h step 4 for full segments: lerp of rgb and of the step-corrected alpha. *i0_out and
  * *fr_out give the table position for the shorter last segment's alpha. */
-__attribute__((always_inline)) static inline rgbax classify(vfloat s, __global const float4 *table,
+__attribute__((always_inline)) static inline rgbax classify(vfloat s, __global const ulong *table,
                                                             vint *i0_out, vfloat *fr_out)
 {
     vint i0 = min(convert_vint(s), 254);
     vfloat fr = s - convert_vfloat(i0);
-    rgbax c0, c1;
-#ifdef __ENDIAN_LITTLE__
-    /* rows i0 and i0 + 1 as (r, g) and (b, a) words: four 64-bit gathers */
-    __global const ulong *t = (__global const ulong *)table;
-    vint w = i0 << 1;
-    ulong16 rg0 = table_pairs(t, w), ba0 = table_pairs(t, w + 1);
-    ulong16 rg1 = table_pairs(t, w + 2), ba1 = table_pairs(t, w + 3);
-    c0 = (rgbax){LOW_FLOAT(rg0), HIGH_FLOAT(rg0), LOW_FLOAT(ba0), HIGH_FLOAT(ba0)};
-    c1 = (rgbax){LOW_FLOAT(rg1), HIGH_FLOAT(rg1), LOW_FLOAT(ba1), HIGH_FLOAT(ba1)};
-#else
-    __global const float *t = (__global const float *)table;
-    vint w0 = i0 << 2, w1 = w0 + 4;
-    c0 = (rgbax){table_channel(t, w0), table_channel(t, w0 + 1), table_channel(t, w0 + 2),
-                 table_channel(t, w0 + 3)};
-    c1 = (rgbax){table_channel(t, w1), table_channel(t, w1 + 1), table_channel(t, w1 + 2),
-                 table_channel(t, w1 + 3)};
-#endif
+    rgbax c0 = table_rgba(table_rows(table, i0)), c1 = table_rgba(table_rows(table, i0 + 1));
     *i0_out = i0;
     *fr_out = fr;
     return (rgbax){mix(c0.r, c1.r, fr), mix(c0.g, c1.g, fr), mix(c0.b, c1.b, fr),
@@ -1004,8 +987,8 @@ static vfloat go_factor(const look_params *lk, vfloat m)
     return select(f, (vfloat)(lk->go_factor[0]), m <= lk->go_mag[0]);
 }
 
-#define RAW_ALPHA0(k) alpha[i0.s##k]
-#define RAW_ALPHA1(k) alpha[i0.s##k + 1]
+#define RAW_ALPHA0(k) alpha[4 * i0.s##k + 3]
+#define RAW_ALPHA1(k) alpha[4 * i0.s##k + 7]
 
 /* Shading and gradient opacity of composite samples c at g on lanes `on` (opacity > 0): the
  * alpha becomes 1 - (1 - a * factor)^(ds/unit) from the table's alpha per unit. */
@@ -1175,7 +1158,7 @@ __attribute__((always_inline)) static inline void prefetch_corners(const volume_
  * sample outside the owned cells (clipped rendering) advances the lane but adds nothing. */
 __attribute__((always_inline)) static inline void sample_steps(
     march *m, vint run, const volume_geo *v, const clip_params *clip, vec3x g0, vec3x dg,
-    __global const float4 *table, float term_alpha, const look_params *lk,
+    __global const ulong *table, float term_alpha, const look_params *lk,
     __global const float *alpha, float step, float unit, const viewer *V, rgbax *acc, const int unroll)
 {
     vfloat s[UNROLL];
@@ -1252,7 +1235,7 @@ static int look_up_now(vint need, vint can_sample)
 }
 static void march_full(march *m, int skipping, const bricks *b, const volume_geo *v,
                        const clip_params *clip, vec3x g0, vec3x dg,
-                       __global const float4 *table, float term_alpha, const look_params *lk,
+                       __global const ulong *table, float term_alpha, const look_params *lk,
                        __global const float *alpha, float step, float unit, const viewer *V,
                        rgbax *acc)
 {
@@ -1316,7 +1299,7 @@ static vint range_visible(const bricks *b, const volume_geo *v, vec3x g)
 static void cache_sample_steps(march *m, vint run, vint fresh, cache_lanes *cl, uint limit,
                                const bricks *b, const volume_geo *v, const clip_params *clip,
                                vec3x g0, vec3x dg,
-                               __global const float4 *table, float term_alpha,
+                               __global const ulong *table, float term_alpha,
                                const look_params *lk, __global const float *alpha, float step,
                                float unit, const viewer *V, rgbax *acc)
 {
@@ -1379,7 +1362,7 @@ static void cache_sample_steps(march *m, vint run, vint fresh, cache_lanes *cl, 
 /* march_full through the cache: the skip grid's runs, cut at the cache bricks' exits. */
 static void march_cached(march *m, int skipping, const bricks *b, const volume_geo *v,
                          const clip_params *clip, vec3x g0, vec3x dg,
-                         __global const float4 *table, float term_alpha, const look_params *lk,
+                         __global const ulong *table, float term_alpha, const look_params *lk,
                          __global const float *alpha, float step, float unit, const viewer *V,
                          rgbax *acc)
 {
@@ -1408,7 +1391,7 @@ static void march_cached(march *m, int skipping, const bricks *b, const volume_g
 /* The last segment, shorter than step unless L is a multiple of it, on lanes `last`. */
 static void last_segment(const packet *p, vint n, vint last, float step, float unit,
                          const volume_geo *v, const clip_params *clip, float3 inv_spacing,
-                         __global const float4 *table, __global const float *alpha,
+                         __global const ulong *table, __global const float *alpha,
                          const look_params *lk, const viewer *V, rgbax *acc, vint *taken)
 {
     vfloat ts = p->t_near + convert_vfloat(n - 1) * step;
@@ -1426,8 +1409,8 @@ static void last_segment(const packet *p, vint n, vint last, float step, float u
     vfloat fr;
     rgbax c = classify(trilinear(v, g), table, &i0, &fr);
     vint i1 = i0 + 1;
-#define ALPHA0(k) alpha[i0.s##k]
-#define ALPHA1(k) alpha[i1.s##k]
+#define ALPHA0(k) alpha[4 * i0.s##k + 3]
+#define ALPHA1(k) alpha[4 * i1.s##k + 3]
     vfloat a0 = (vfloat)(L16(ALPHA0)), a1 = (vfloat)(L16(ALPHA1));
     vfloat a = mix(a0, a1, fr);
     /* 1 - pow(1, x) is exactly 0: most last segments lie in empty space */
@@ -1446,24 +1429,29 @@ static void last_segment(const packet *p, vint n, vint last, float step, float u
     *taken -= last;
 }
 
-/* The TF at codes s without unit correction (max, min, average, the iso colour). */
-static rgbax table_at(vfloat s, __global const float4 *table)
-{
-    vint i0;
-    vfloat fr;
-    s = clamp(s, 0.0f, 255.0f);
-    rgbax c = classify(s, table, &i0, &fr); /* rgb lerped; alpha from the step table: redone */
-    return c;
-}
-
-#define TABLE_RAW0(k) alpha[i0.s##k]
-#define TABLE_RAW1(k) alpha[i0.s##k + 1]
-static vfloat raw_alpha(vfloat s, __global const float *alpha)
+/* Channel ch of the exact TF rows (r, g, b, alpha per unit as floats: cl_render.c
+ * upload_tables) lerped at codes s: the colours of max, min, average and iso, exact where the
+ * composite march reads the packed rows. */
+#define TF_ROW0(k) alpha[4 * i0.s##k + ch]
+#define TF_ROW1(k) alpha[4 * i0.s##k + 4 + ch]
+static vfloat row_channel(vfloat s, __global const float *alpha, int ch)
 {
     s = clamp(s, 0.0f, 255.0f);
     vint i0 = min(convert_vint(s), 254);
     vfloat fr = s - convert_vfloat(i0);
-    return mix((vfloat)(L16(TABLE_RAW0)), (vfloat)(L16(TABLE_RAW1)), fr);
+    return mix((vfloat)(L16(TF_ROW0)), (vfloat)(L16(TF_ROW1)), fr);
+}
+
+/* The TF's colour at codes s (alpha 0: max, min, average and iso take their own). */
+static rgbax table_at(vfloat s, __global const float *alpha)
+{
+    return (rgbax){row_channel(s, alpha, 0), row_channel(s, alpha, 1), row_channel(s, alpha, 2),
+                   (vfloat)(0.0f)};
+}
+
+static vfloat raw_alpha(vfloat s, __global const float *alpha)
+{
+    return row_channel(s, alpha, 3);
 }
 
 /* Sample i (from 0) of each lane: the midpoint of segment i (the shorter last one included),
@@ -1801,7 +1789,7 @@ static int zero_leaps(const zero_leap *z, int first, int stride, int from, int l
  * zeros anyway.) *taken: the samples read (and those of flat bricks). */
 static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spacing,
                            const volume_geo *v, const look_params *lk,
-                           __global const float4 *table, __global const float *alpha,
+                           __global const ulong *table, __global const float *alpha,
                            const extreme_bricks *eb, int bounds, float te, float tx,
                            const bricks *zb, vint *taken)
 {
@@ -1955,7 +1943,7 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
     vint in_mean = count + zeros;
     vfloat s = lk->blend == 3 ? sum / convert_vfloat(max(in_mean, 1)) : best;
     s = select((vfloat)(0.0f), s, in_mean > 0);
-    rgbax c = table_at(s, table);
+    rgbax c = table_at(s, alpha);
     vfloat a = select((vfloat)(0.0f), raw_alpha(s, alpha), in_mean > 0);
     return (rgbax){c.r * a, c.g * a, c.b * a, a};
 }
@@ -1970,7 +1958,7 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
  * samples before it are counted as taken too. */
 static rgbax march_iso(const packet *p, vint n, float step, float3 inv_spacing,
                        const volume_geo *v, const look_params *lk,
-                       __global const float4 *table, const viewer *V, const bricks *b, vec3x g0,
+                       __global const float *alpha, const viewer *V, const bricks *b, vec3x g0,
                        vec3x dg, vint first, vint *taken)
 {
     float c = lk->iso_code;
@@ -2027,7 +2015,7 @@ static rgbax march_iso(const packet *p, vint n, float step, float3 inv_spacing,
         ta = select(ta, t, refine & ~lower);
         sa = select(sa, st, refine & ~lower);
     }
-    rgbax col = table_at((vfloat)(c), table);
+    rgbax col = table_at((vfloat)(c), alpha);
     if (!lk->iso_tf_color)
         col = (rgbax){(vfloat)(lk->iso_rgb[0]), (vfloat)(lk->iso_rgb[1]), (vfloat)(lk->iso_rgb[2]),
                       (vfloat)(1.0f)};
@@ -2192,7 +2180,7 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
                       box_frame box, float isx, float isy, float isz,
                       float hx, float hy, float hz,
                       float step, float term_alpha, cam_params cam, clip_params clip,
-                      __global const float4 *table, __global const float *alpha,
+                      __global const ulong *table, __global const float *alpha,
                       float unit, __global const uchar *brick_visible, int brick_shift,
                       int nbx, int nby, int nbz, int skipping, float vlx, float vly,
                       float vlz, float vhx, float vhy, float vhz, __global float4 *image,
@@ -2293,7 +2281,7 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
             vint last;
             taken = counted_samples(&p, n, step, &last);
         } else if (look.blend == 4)
-            out = march_iso(&p, n, step, inv_spacing, &v, &look, table, &view,
+            out = march_iso(&p, n, step, inv_spacing, &v, &look, alpha, &view,
                             skipping ? &flag_bricks : 0, g0, dg, first, &taken);
         else
             out = march_extreme(&p, n, step, inv_spacing, &v, &look, table, alpha, &eb,

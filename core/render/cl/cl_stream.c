@@ -80,11 +80,11 @@ cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_str
     }
     /* nbricks < voxels: no overflow */
     size_t cap = 0, minmax_bytes = 2 * (s->nbricks + s->nblocks);
-    cdvr_status st = cdvr_cl_ensure_buffer(cl, &s->table, &cap, 256 * 4 * sizeof(float),
+    cdvr_status st = cdvr_cl_ensure_buffer(cl, &s->table, &cap, 256 * sizeof(cl_ulong),
                                            CL_MEM_READ_ONLY, "TF table", err);
     if (!st)
-        st = cdvr_cl_ensure_buffer(cl, &s->alpha_unit, &cap, 256 * sizeof(float),
-                                   CL_MEM_READ_ONLY, "alpha table", err);
+        st = cdvr_cl_ensure_buffer(cl, &s->alpha_unit, &cap, 256 * 4 * sizeof(float),
+                                   CL_MEM_READ_ONLY, "TF rows", err);
     if (!st) /* zeros: dense frames read no parameters, but the argument must be a buffer */
         st = cdvr_cl_ensure_buffer(cl, &s->params, &cap, CDVR_CL_PARAMS_BUFFER_BYTES,
                                    CL_MEM_READ_ONLY, "codec parameters", err);
@@ -554,7 +554,7 @@ uint64_t cdvr_cl_stream_bytes(const cdvr_cl_stream *s)
 {
     uint64_t b = (uint64_t)s->payload_capacity + s->frame_capacity + CDVR_CL_PARAMS_BUFFER_BYTES;
     b += s->tiles_capacity + s->grads_capacity + s->quads_capacity;
-    b += 256 * 4 * sizeof(float) + 256 * sizeof(float); /* TF tables */
+    b += 256 * sizeof(cl_ulong) + 256 * 4 * sizeof(float); /* TF tables */
     b += 3 * (uint64_t)s->nbricks + 2 * (uint64_t)s->nblocks; /* ranges + flags */
     b += (uint64_t)s->image_pixels * 4 * sizeof(float) + s->sample_slots * sizeof(cl_uint);
     return b;
