@@ -1,7 +1,9 @@
 /* cdvr/render.h - the CPU reference ray caster (DESIGN.md section 6).
  *
  * This file is the definition of cdvr's ray casting; the OpenCL kernel follows it step by step
- * (in float arithmetic, like this code) and must match it to image PSNR >= 50 dB.
+ * (in float arithmetic, like this code) and must match it to image PSNR >= 50 dB. (Its
+ * composite march reads the TF's colours as unorm 11, 11 and 10 bits, within an eighth of an
+ * 8-bit step of these, and its opacities exactly: cl_render.c upload_tables.)
  *
  * For pixel (x, y) with ray o + t*d from cdvr_camera_ray (world coordinates, |d| = 1, so t is
  * world distance from the eye):
