@@ -680,10 +680,12 @@ done:
 }
 
 /* The threaded brick ranges equal cdvr_range_compute's (through cdvr_skip_minmax_from_frame)
- * for odd and even sizes, one voxel thick axes, shifts 1..3 and 1..7 threads. */
+ * for odd and even sizes, one voxel thick axes, frames of 9-10 M voxels whose dims leave
+ * partial bricks and uneven shares, shifts 1..3 and 1..7 threads and the online cores (0). */
 static void test_brick_ranges(void)
 {
-    static const size_t sizes[][3] = {{45, 38, 33}, {33, 17, 1}, {1, 9, 20}, {64, 16, 8}, {70, 3, 5}};
+    static const size_t sizes[][3] = {{45, 38, 33}, {33, 17, 1},    {1, 9, 20},     {64, 16, 8},
+                                      {70, 3, 5},   {301, 150, 203}, {130, 257, 255}};
     for (size_t k = 0; k < sizeof sizes / sizeof sizes[0]; k++) {
         const size_t *d = sizes[k];
         size_t n = d[0] * d[1] * d[2];
@@ -703,7 +705,7 @@ static void test_brick_ranges(void)
             CHECK_OK(cdvr_skip_grid_init(&g, d, shift, &err), err);
             CHECK_OK(cdvr_skip_minmax_from_frame(&g, frame, &err), err);
             uint8_t *mine = malloc(2 * g.nbricks);
-            for (int threads = 1; mine && threads <= 7; threads += 2) {
+            for (int threads = 0; mine && threads <= 7; threads += threads ? 2 : 1) {
                 memset(mine, 0xAA, 2 * g.nbricks);
                 CHECK_OK(cdvr_cpu_brick_ranges(frame, d, shift, threads, mine, &err), err);
                 CHECK(memcmp(mine, g.minmax, 2 * g.nbricks) == 0,

@@ -1,9 +1,8 @@
 /* tests/test_skip.c - empty-space skipping grids on the host (cdvr/skip.h): the row-wise
  * chamfer distance equals the chessboard distance by brute force (random seeds, thin and odd
  * grids, one seed in rows of 300 bricks (distances past 255 are 255), no seed, all seeds);
- * flags and the visible box follow their definition; the ranges of a frame split over the
- * cores equal those of one pass; the grid made from a store's range tables (range bricks of
- * 4^3, 8^3, 16^3) equals the one computed from the decoded frame; a coarse grid spread over
+ * flags and the visible box follow their definition; the grid made from a store's range
+ * tables (range bricks of 4^3, 8^3, 16^3) equals the one computed from the decoded frame; a coarse grid spread over
  * the 4^3 bricks (cdvr_skip_grid_expand) is conservative and its flags keep their meaning; and
  * the cells a composite render reads, their fills and the refined grid follow their
  * definitions (cdvr_skip_cells_needed, cdvr_skip_refine); and
@@ -30,7 +29,6 @@
 #include "cdvr/skip.h"
 #include "cdvr/store.h"
 #include "check.h"
-#include "render/cpu/brick_range.h"
 #include "store/store_format.h"
 
 static uint32_t rng_state = 12345;
@@ -771,41 +769,8 @@ static void test_entry(void)
     free(f);
 }
 
-/* The ranges the OpenCL set-up takes on a CPU device (cl_render.c host_minmax: the brick planes
- * split over the cores by cdvr_cpu_brick_ranges) equal one cdvr_skip_minmax_from_frame of the
- * whole frame, at brick edges 4 and 8 on frames of 9-10 M voxels whose dims leave partial
- * bricks and uneven shares. */
-static void test_minmax_shares(void)
-{
-    static const size_t dims[][3] = {{301, 150, 203}, {130, 257, 255}};
-    for (size_t k = 0; k < sizeof dims / sizeof *dims; k++) {
-        const size_t *d = dims[k];
-        size_t n = d[0] * d[1] * d[2];
-        uint8_t *frame = malloc(n);
-        for (size_t i = 0; i < n; i++)
-            frame[i] = (i / 131) % 5 == 0 ? (uint8_t)(30 + (i / 131) % 9) : (uint8_t)rng();
-        for (unsigned shift = 2; shift <= 3; shift++) {
-            cdvr_skip_grid g;
-            cdvr_error err;
-            CHECK_OK(cdvr_skip_grid_init(&g, d, shift, &err), err);
-            CHECK_OK(cdvr_skip_minmax_from_frame(&g, frame, &err), err);
-            uint8_t *split = malloc(2 * g.nbricks);
-            for (int threads = 2; threads <= 4; threads += 2) {
-                CHECK_OK(cdvr_cpu_brick_ranges(frame, d, shift, threads, split, &err), err);
-                CHECK(memcmp(split, g.minmax, 2 * g.nbricks) == 0,
-                      "%zux%zux%zu bricks of 2^%u, %d threads: ranges by shares differ from "
-                      "the whole frame's", d[0], d[1], d[2], shift, threads);
-            }
-            free(split);
-            cdvr_skip_grid_free(&g);
-        }
-        free(frame);
-    }
-}
-
 int main(void)
 {
-    test_minmax_shares();
     test_distance();
     test_flags();
     test_cells();

@@ -31,6 +31,7 @@
 
 #include "cdvr/bricks.h"
 #include "cdvr/skip.h"
+#include "cdvr/visible.h"
 
 #if CDVR_HAVE_OPENCL
 #include "cdvr/device.h"
@@ -862,25 +863,6 @@ static int slot_room(cdvr_player *p, int k, size_t need)
     return 1;
 }
 
-/* The grid at the tables' bricks (2^shift) that frame f of the group merges into: the frame's
- * own grid when they are the device's bricks, else the item's coarse scratch grid. */
-static cdvr_status table_grid(chunk_item *it, const size_t dims[3], unsigned shift, size_t f,
-                              cdvr_skip_grid **g, cdvr_error *err)
-{
-    *g = &it->grids[f];
-    if (shift == it->grids[f].shift)
-        return CDVR_OK;
-    if (it->coarse.minmax && it->coarse.shift != shift)
-        cdvr_skip_grid_free(&it->coarse);
-    if (!it->coarse.minmax) {
-        cdvr_status s = cdvr_skip_grid_init(&it->coarse, dims, shift, err);
-        if (s != CDVR_OK)
-            return s;
-    }
-    *g = &it->coarse;
-    return CDVR_OK;
-}
-
 /* The skip grid and flags of each frame of the group from the range tables (cdvr/skip.h):
  * the whole volume, every brick read, one brick size in every table, at least the device's
  * (wants_grids). Tables of coarser bricks make their grid and flags at that size (cheap: 8^3
@@ -902,29 +884,19 @@ static cdvr_status make_grids(cdvr_player *p, chunk_item *it, size_t count, cdvr
             it->grids_cap = f + 1;
         }
     }
-    for (size_t f = 0; f < count; f++) {
-        cdvr_skip_grid *g;
-        cdvr_status s = table_grid(it, info->dims, shift, f, &g, err);
-        if (s != CDVR_OK)
-            return s;
-        for (size_t i = 0; i < g->nbricks; i++) {
-            g->minmax[2 * i] = 255;
-            g->minmax[2 * i + 1] = 0;
-        }
-        for (size_t b = 0; b < p->nbricks; b++) {
-            size_t lo[3], bd[3], g0[3], n[3];
-            cdvr_store_brick_owned(info, b, lo, bd);
-            cdvr_range_window(info->dims, lo, bd, shift, g0, n);
-            cdvr_range_merge(it->parts[b].ranges + f * 2 * n[0] * n[1] * n[2], g0, n, g->dims,
-                             g->minmax);
-        }
-        cdvr_skip_grid_touch(g);
-        cdvr_skip_flags(g, p->opts.tf);
-        if (g != &it->grids[f] && (s = cdvr_skip_grid_expand(g, &it->grids[f], err)) != CDVR_OK)
-            return s;
-    }
-    it->ngrids = count;
-    return CDVR_OK;
+    const uint8_t **tables = malloc(p->nbricks * sizeof *tables);
+    if (!tables)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "player: no memory for skip grids");
+    for (size_t b = 0; b < p->nbricks; b++)
+        tables[b] = it->parts[b].ranges;
+    cdvr_status s = CDVR_OK;
+    for (size_t f = 0; s == CDVR_OK && f < count; f++)
+        s = cdvr_visible_table_grid(&it->grids[f], &it->coarse, info, shift, tables, f,
+                                    p->opts.tf, err);
+    free(tables);
+    if (s == CDVR_OK)
+        it->ngrids = count;
+    return s;
 }
 
 /* Whether the group's host decode writes only the cells its frame's render reads

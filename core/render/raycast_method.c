@@ -204,11 +204,12 @@ static cdvr_status raycast_stream(cdvr_cl_stream *s, size_t frame, const cdvr_sk
 
 /* Renders device frame `frame` of s into a new image, with the skip grid made on the host
  * (NULL: the device's own), and reports the device's figures. */
-static cdvr_status render_grid_frame(cdvr_render_ctx *ctx, cdvr_cl_stream *s, size_t frame,
-                                     const cdvr_skip_grid *grid, const cdvr_render_opts *opts,
-                                     const double spacing[3], const double origin[3],
-                                     const double direction[9], double start,
-                                     cdvr_render_stats *stats, cdvr_image **out, cdvr_error *err)
+static cdvr_status render_device_frame(cdvr_render_ctx *ctx, cdvr_cl_stream *s, size_t frame,
+                                       const cdvr_skip_grid *grid, const cdvr_render_opts *opts,
+                                       const double spacing[3], const double origin[3],
+                                       const double direction[9], double start,
+                                       cdvr_render_stats *stats, cdvr_image **out,
+                                       cdvr_error *err)
 {
     /* unset: cdvr_cl_render writes every pixel */
     cdvr_status st = cdvr_image_create_unset(opts->camera->width, opts->camera->height, out, err);
@@ -224,16 +225,6 @@ static cdvr_status render_grid_frame(cdvr_render_ctx *ctx, cdvr_cl_stream *s, si
     }
     cl_stats(ctx, s, cdvr_now_ms() - start, stats);
     return CDVR_OK;
-}
-
-static cdvr_status render_device_frame(cdvr_render_ctx *ctx, cdvr_cl_stream *s, size_t frame,
-                                       const cdvr_render_opts *opts, const double spacing[3],
-                                       const double origin[3], const double direction[9],
-                                       double start, cdvr_render_stats *stats, cdvr_image **out,
-                                       cdvr_error *err)
-{
-    return render_grid_frame(ctx, s, frame, NULL, opts, spacing, origin, direction, start,
-                             stats, out, err);
 }
 
 static cdvr_status render_cl(cdvr_render_ctx *ctx, const cdvr_volume *vol, size_t t,
@@ -252,8 +243,8 @@ static cdvr_status render_cl(cdvr_render_ctx *ctx, const cdvr_volume *vol, size_
     st = cdvr_render_ctx_upload(ctx, s, vol, t, err);
     if (st != CDVR_OK)
         return st;
-    st = render_device_frame(ctx, s, 0, opts, vol->spacing, vol->origin, vol->direction, start,
-                             stats, out, err);
+    st = render_device_frame(ctx, s, 0, NULL, opts, vol->spacing, vol->origin, vol->direction,
+                             start, stats, out, err);
     if (st == CDVR_OK) /* 0 when the device held the frame already */
         cdvr_render_stats_integer(stats, "uploaded_bytes",
                                   cdvr_render_ctx_uploads(ctx) != uploads
@@ -367,7 +358,7 @@ static cdvr_status raycast_cached(cdvr_render_ctx *ctx, const cdvr_store *st, si
     } else {
         status = load_cached_frame(bc, s, dense, payload, bytes, err);
         if (status == CDVR_OK)
-            status = render_device_frame(ctx, s, 0, opts, info->spacing, info->origin,
+            status = render_device_frame(ctx, s, 0, NULL, opts, info->spacing, info->origin,
                                          info->direction, start, stats, out, err);
     }
     if (status == CDVR_OK) {
@@ -401,8 +392,8 @@ static cdvr_status load_and_render(cdvr_render_ctx *ctx, cdvr_cl_stream *s, cons
     if (status != CDVR_OK)
         return status;
     cdvr_cl_set_skipping(s, rp->skip);
-    return render_device_frame(ctx, s, frame, opts, info->spacing, info->origin, info->direction,
-                               start, stats, out, err);
+    return render_device_frame(ctx, s, frame, NULL, opts, info->spacing, info->origin,
+                               info->direction, start, stats, out, err);
 }
 
 /* Whether timestep t's chunk, which the host decodes (a codec without device code, or a
@@ -442,8 +433,8 @@ static cdvr_status render_visible(cdvr_render_ctx *ctx, cdvr_cl_stream *s, const
     cdvr_render_ctx_forget_frame(ctx); /* the stream's frame is replaced */
     status = cdvr_cl_use_host_frames(s, cdvr_visible_frame(vis), 1, err);
     if (status == CDVR_OK)
-        status = render_grid_frame(ctx, s, 0, cdvr_visible_grid(vis), opts, info->spacing,
-                                   info->origin, info->direction, start, stats, out, err);
+        status = render_device_frame(ctx, s, 0, cdvr_visible_grid(vis), opts, info->spacing,
+                                     info->origin, info->direction, start, stats, out, err);
     if (status == CDVR_OK)
         cdvr_render_stats_number(stats, "decoded_share", cdvr_visible_share(vis));
     return status;

@@ -4,7 +4,6 @@
 
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 #include "cdvr/bricks.h"
 #include "cdvr/codec.h"
@@ -114,8 +113,8 @@ cdvr_status cdvr_skip_refine(cdvr_skip_grid *g, const uint8_t *frame, const cdvr
         visible += g->flags[b] >= 128;
     if (visible * REFINE_SHARE < g->nbricks)
         return CDVR_OK;
-    cdvr_status s = cdvr_cpu_brick_ranges(frame, g->vol_dims, g->shift, threads ? threads : 1,
-                                          scratch, err);
+    cdvr_status s = cdvr_cpu_brick_ranges(frame, g->vol_dims, g->shift, (int)threads, scratch,
+                                          err);
     if (s != CDVR_OK)
         return s;
     for (size_t b = 0; b < g->nbricks; b++)
@@ -168,8 +167,8 @@ void cdvr_visible_free(cdvr_visible *vis)
 int cdvr_visible_applies(const cdvr_store *st, size_t v, size_t c)
 {
     const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, c);
-    return ci && cdvr_store_get_info(st)->nbricks == 1 && cdvr_store_chunk_decodes_cells(st, v, c) &&
-           ci->ranges_shift >= CDVR_RANGE_SHIFT;
+    return ci && cdvr_store_get_info(st)->nbricks == 1 &&
+           cdvr_store_chunk_decodes_cells(st, v, c) && ci->ranges_shift >= CDVR_RANGE_SHIFT;
 }
 
 static int grow(uint8_t **buf, size_t *cap, size_t need)
@@ -196,39 +195,51 @@ static cdvr_status fit_grid(cdvr_skip_grid *g, const size_t dims[3], unsigned sh
     return cdvr_skip_grid_init(g, dims, shift, err);
 }
 
-/* vis->grid with flags for tf from chunk c's range table (cdvr/bricks.h: one brick, its window
- * is the whole grid), made at the table's bricks and spread over the ray caster's. */
+cdvr_status cdvr_visible_table_grid(cdvr_skip_grid *grid, cdvr_skip_grid *coarse,
+                                    const cdvr_store_info *info, unsigned shift,
+                                    const uint8_t *const *tables, size_t frame,
+                                    const cdvr_tf *tf, cdvr_error *err)
+{
+    cdvr_skip_grid *g = grid;
+    if (shift != grid->shift) {
+        cdvr_status s = fit_grid(coarse, info->dims, shift, err);
+        if (s != CDVR_OK)
+            return s;
+        g = coarse;
+    }
+    for (size_t i = 0; i < g->nbricks; i++) {
+        g->minmax[2 * i] = 255;
+        g->minmax[2 * i + 1] = 0;
+    }
+    for (size_t b = 0; b < info->nbricks; b++) {
+        size_t lo[3], bd[3], g0[3], n[3];
+        cdvr_store_brick_owned(info, b, lo, bd);
+        cdvr_range_window(info->dims, lo, bd, shift, g0, n);
+        cdvr_range_merge(tables[b] + frame * 2 * n[0] * n[1] * n[2], g0, n, g->dims, g->minmax);
+    }
+    cdvr_skip_grid_touch(g);
+    cdvr_skip_flags(g, tf);
+    return g == grid ? CDVR_OK : cdvr_skip_grid_expand(g, grid, err);
+}
+
+/* vis->grid with flags for tf from chunk c's range table (the store's one brick). */
 static cdvr_status make_grid(cdvr_visible *vis, const cdvr_store *st, size_t v, size_t c,
                              const cdvr_tf *tf, cdvr_error *err)
 {
     const cdvr_store_info *info = cdvr_store_get_info(st);
-    unsigned shift = cdvr_store_chunk(st, v, c)->ranges_shift;
     size_t bytes = cdvr_store_ranges_bytes(st, v, c);
     cdvr_status s = fit_grid(&vis->grid, info->dims, CDVR_RANGE_SHIFT, err);
-    cdvr_skip_grid *g = &vis->grid;
-    if (s == CDVR_OK && shift != CDVR_RANGE_SHIFT) {
-        s = fit_grid(&vis->coarse, info->dims, shift, err);
-        g = &vis->coarse;
-    }
     if (s != CDVR_OK)
         return s;
     if (!bytes || !grow(&vis->ranges, &vis->ranges_cap, bytes))
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: chunk %zu: no memory for its %zu-byte "
                               "range table", cdvr_store_path(st), c + 1, bytes);
     s = cdvr_store_read_ranges(st, v, c, vis->ranges, err);
-    if (s != CDVR_OK)
-        return s;
-    size_t lo[3], bd[3], g0[3], n[3];
-    cdvr_store_brick_owned(info, 0, lo, bd);
-    cdvr_range_window(info->dims, lo, bd, shift, g0, n);
-    for (size_t i = 0; i < g->nbricks; i++) {
-        g->minmax[2 * i] = 255;
-        g->minmax[2 * i + 1] = 0;
-    }
-    cdvr_range_merge(vis->ranges, g0, n, g->dims, g->minmax);
-    cdvr_skip_grid_touch(g);
-    cdvr_skip_flags(g, tf);
-    return g == &vis->grid ? CDVR_OK : cdvr_skip_grid_expand(g, &vis->grid, err);
+    const uint8_t *tables[1] = {vis->ranges};
+    return s != CDVR_OK ? s
+                        : cdvr_visible_table_grid(&vis->grid, &vis->coarse, info,
+                                                  cdvr_store_chunk(st, v, c)->ranges_shift,
+                                                  tables, 0, tf, err);
 }
 
 /* vis->frame with room for a frame of `bytes` (page-aligned). It grows only for larger dims,
@@ -245,12 +256,6 @@ static cdvr_status fit_frame(cdvr_visible *vis, size_t bytes, cdvr_error *err)
     vis->frame = mem;
     vis->frame_cap = bytes;
     return CDVR_OK;
-}
-
-static unsigned online_cores(void)
-{
-    long n = sysconf(_SC_NPROCESSORS_ONLN);
-    return n > 0 && n < 1024 ? (unsigned)n : 1;
 }
 
 cdvr_status cdvr_visible_decode(cdvr_visible *vis, const cdvr_store *st, size_t v, size_t c,
@@ -286,7 +291,7 @@ cdvr_status cdvr_visible_decode(cdvr_visible *vis, const cdvr_store *st, size_t 
         return s;
     unsigned table_shift = cdvr_store_chunk(st, v, c)->ranges_shift;
     if (table_shift > vis->grid.shift && cdvr_skip_refine_enabled() &&
-        (s = cdvr_skip_refine(&vis->grid, vis->frame, tf, online_cores(), vis->need, err)) !=
+        (s = cdvr_skip_refine(&vis->grid, vis->frame, tf, 0, vis->need, err)) !=
             CDVR_OK)
         return s;
     vis->share = vis->grid.nbricks ? (double)cells / (double)vis->grid.nbricks : 0;

@@ -509,7 +509,7 @@ static size_t s2_sample(const uint8_t *payload, size_t payload_n, size_t seg, ui
 /* AUTO: the modelled b1 + b1' of every candidate (NONE: the read alone, the player keeps the
  * stored bytes as the payload; the others: the read of the packed bytes and the best of two
  * single-thread unpacks, checked against their input) on the chunk or its sample, scaled to
- * the chunk; the smallest is packed into bufs.packed. */
+ * the chunk; the smallest ends in bufs.packed (a sampled chunk is packed for it then). */
 static cdvr_status s2_choose(const cdvr_variant_info *vi, chunk_job *job, size_t payload,
                              unsigned *codec, size_t *packed, cdvr_error *err)
 {
@@ -546,10 +546,19 @@ static cdvr_status s2_choose(const cdvr_variant_info *vi, chunk_job *job, size_t
         if (s == CDVR_OK && t < best) {
             best = t;
             *codec = c;
+            if (!sampled) { /* the whole chunk packed: keep it */
+                uint8_t *tb = b->packed;
+                size_t tc = b->packed_cap;
+                b->packed = b->trial;
+                b->packed_cap = b->trial_cap;
+                b->trial = tb;
+                b->trial_cap = tc;
+                *packed = n;
+            }
         }
     }
     free(sample);
-    if (s != CDVR_OK || !*codec)
+    if (s != CDVR_OK || !*codec || !sampled)
         return s;
     s = s2_pack(*codec, b->payload, payload, seg, b->packed, b->packed_cap, packed, err);
     if (s == CDVR_OK && *packed >= payload) /* the sample shrank, the chunk does not */

@@ -987,8 +987,15 @@ static vfloat go_factor(const look_params *lk, vfloat m)
     return select(f, (vfloat)(lk->go_factor[0]), m <= lk->go_mag[0]);
 }
 
-#define RAW_ALPHA0(k) alpha[4 * i0.s##k + 3]
-#define RAW_ALPHA1(k) alpha[4 * i0.s##k + 7]
+/* Channel ch of the exact TF rows (r, g, b, alpha per unit as floats: cl_render.c
+ * upload_tables) lerped between rows i0 and i0 + 1 by fr. */
+#define TF_ROW0(k) rows[4 * i0.s##k + ch]
+#define TF_ROW1(k) rows[4 * i0.s##k + 4 + ch]
+__attribute__((always_inline)) static inline vfloat row_lerp(__global const float *rows,
+                                                            vint i0, vfloat fr, int ch)
+{
+    return mix((vfloat)(L16(TF_ROW0)), (vfloat)(L16(TF_ROW1)), fr);
+}
 
 /* Shading and gradient opacity of composite samples c at g on lanes `on` (opacity > 0): the
  * alpha becomes 1 - (1 - a * factor)^(ds/unit) from the table's alpha per unit. */
@@ -996,11 +1003,11 @@ static vfloat go_factor(const look_params *lk, vfloat m)
  * frame's time outside the gradient) */
 __attribute__((always_inline)) static inline void look_sample(
     const volume_geo *v, const look_params *lk, vec3x g, vint i0, vfloat fr, vfloat ds,
-    float unit, __global const float *alpha, const viewer *V, vint on, rgbax *c)
+    float unit, __global const float *rows, const viewer *V, vint on, rgbax *c)
 {
     vec3x G = gradient(v, lk, g, on);
     if (lk->go_points) {
-        vfloat raw = mix((vfloat)(L16(RAW_ALPHA0)), (vfloat)(L16(RAW_ALPHA1)), fr);
+        vfloat raw = row_lerp(rows, i0, fr, 3);
         vfloat a = raw * go_factor(lk, length3x(G) * lk->value_per_code);
         vfloat corrected = select((vfloat)(0.0f), 1.0f - pow(1.0f - a, ds / unit), a > 0.0f);
         c->a = select(c->a, corrected, on);
@@ -1159,7 +1166,7 @@ __attribute__((always_inline)) static inline void prefetch_corners(const volume_
 __attribute__((always_inline)) static inline void sample_steps(
     march *m, vint run, const volume_geo *v, const clip_params *clip, vec3x g0, vec3x dg,
     __global const ulong *table, float term_alpha, const look_params *lk,
-    __global const float *alpha, float step, float unit, const viewer *V, rgbax *acc, const int unroll)
+    __global const float *rows, float step, float unit, const viewer *V, rgbax *acc, const int unroll)
 {
     vfloat s[UNROLL];
     vint own[UNROLL];
@@ -1183,7 +1190,7 @@ __attribute__((always_inline)) static inline void sample_steps(
         if (lk->shade | lk->go_points) {
             vint on = keep & (c.a > 0.0f);
             if (lanes_any(on))
-                look_sample(v, lk, at(g0, dg, i_first + k), i0, fr, (vfloat)(step), unit, alpha,
+                look_sample(v, lk, at(g0, dg, i_first + k), i0, fr, (vfloat)(step), unit, rows,
                             V, on, &c);
             c.a = select((vfloat)(0.0f), c.a, on);
         }
@@ -1236,7 +1243,7 @@ static int look_up_now(vint need, vint can_sample)
 static void march_full(march *m, int skipping, const bricks *b, const volume_geo *v,
                        const clip_params *clip, vec3x g0, vec3x dg,
                        __global const ulong *table, float term_alpha, const look_params *lk,
-                       __global const float *alpha, float step, float unit, const viewer *V,
+                       __global const float *rows, float step, float unit, const viewer *V,
                        rgbax *acc)
 {
     while (lanes_any(m->active)) {
@@ -1256,10 +1263,10 @@ static void march_full(march *m, int skipping, const bricks *b, const volume_geo
         if (!lanes_any(run))
             continue;
         if (m->unroll == UNROLL) /* two copies, each with a constant count */
-            sample_steps(m, run, v, clip, g0, dg, table, term_alpha, lk, alpha, step, unit, V,
+            sample_steps(m, run, v, clip, g0, dg, table, term_alpha, lk, rows, step, unit, V,
                          acc, UNROLL);
         else
-            sample_steps(m, run, v, clip, g0, dg, table, term_alpha, lk, alpha, step, unit, V,
+            sample_steps(m, run, v, clip, g0, dg, table, term_alpha, lk, rows, step, unit, V,
                          acc, UNROLL_SHORT);
     }
 }
@@ -1300,7 +1307,7 @@ static void cache_sample_steps(march *m, vint run, vint fresh, cache_lanes *cl, 
                                const bricks *b, const volume_geo *v, const clip_params *clip,
                                vec3x g0, vec3x dg,
                                __global const ulong *table, float term_alpha,
-                               const look_params *lk, __global const float *alpha, float step,
+                               const look_params *lk, __global const float *rows, float step,
                                float unit, const viewer *V, rgbax *acc)
 {
     cache_run r = load_run(cl, limit);
@@ -1341,7 +1348,7 @@ static void cache_sample_steps(march *m, vint run, vint fresh, cache_lanes *cl, 
             vec3x g = {g0.x + fi[k] * dg.x, g0.y + fi[k] * dg.y, g0.z + fi[k] * dg.z};
             if (lanes_any(on))
                 look_sample(v, lk, g, i0, fr, convert_vfloat(max(len[k], 1)) * step, unit,
-                            alpha, V, on, &c);
+                            rows, V, on, &c);
             c.a = select((vfloat)(0.0f), c.a, on);
         }
         composite(acc, c);
@@ -1363,7 +1370,7 @@ static void cache_sample_steps(march *m, vint run, vint fresh, cache_lanes *cl, 
 static void march_cached(march *m, int skipping, const bricks *b, const volume_geo *v,
                          const clip_params *clip, vec3x g0, vec3x dg,
                          __global const ulong *table, float term_alpha, const look_params *lk,
-                         __global const float *alpha, float step, float unit, const viewer *V,
+                         __global const float *rows, float step, float unit, const viewer *V,
                          rgbax *acc)
 {
     cache_lanes cl;
@@ -1383,7 +1390,7 @@ static void march_cached(march *m, int skipping, const bricks *b, const volume_g
             cache_lookup(&cl, fresh, m->i, m->n_full, v, g0, dg, b);
         if (lanes_any(run))
             cache_sample_steps(m, run, fresh, &cl, limit, b, v, clip, g0, dg, table, term_alpha,
-                               lk, alpha, step, unit, V, acc);
+                               lk, rows, step, unit, V, acc);
     }
 }
 #endif
@@ -1391,7 +1398,7 @@ static void march_cached(march *m, int skipping, const bricks *b, const volume_g
 /* The last segment, shorter than step unless L is a multiple of it, on lanes `last`. */
 static void last_segment(const packet *p, vint n, vint last, float step, float unit,
                          const volume_geo *v, const clip_params *clip, float3 inv_spacing,
-                         __global const ulong *table, __global const float *alpha,
+                         __global const ulong *table, __global const float *rows,
                          const look_params *lk, const viewer *V, rgbax *acc, vint *taken)
 {
     vfloat ts = p->t_near + convert_vfloat(n - 1) * step;
@@ -1408,11 +1415,7 @@ static void last_segment(const packet *p, vint n, vint last, float step, float u
     vint i0;
     vfloat fr;
     rgbax c = classify(trilinear(v, g), table, &i0, &fr);
-    vint i1 = i0 + 1;
-#define ALPHA0(k) alpha[4 * i0.s##k + 3]
-#define ALPHA1(k) alpha[4 * i1.s##k + 3]
-    vfloat a0 = (vfloat)(L16(ALPHA0)), a1 = (vfloat)(L16(ALPHA1));
-    vfloat a = mix(a0, a1, fr);
+    vfloat a = row_lerp(rows, i0, fr, 3);
     /* 1 - pow(1, x) is exactly 0: most last segments lie in empty space */
     vint partial = ds < step & a > 0.0f;
     if (lanes_any(partial))
@@ -1422,36 +1425,32 @@ static void last_segment(const packet *p, vint n, vint last, float step, float u
     if (lk->shade | lk->go_points) {
         vint on = last & (c.a > 0.0f);
         if (lanes_any(on))
-            look_sample(v, lk, g, i0, fr, ds, unit, alpha, V, on, &c);
+            look_sample(v, lk, g, i0, fr, ds, unit, rows, V, on, &c);
         c.a = select((vfloat)(0.0f), c.a, on);
     }
     composite(acc, c);
     *taken -= last;
 }
 
-/* Channel ch of the exact TF rows (r, g, b, alpha per unit as floats: cl_render.c
- * upload_tables) lerped at codes s: the colours of max, min, average and iso, exact where the
- * composite march reads the packed rows. */
-#define TF_ROW0(k) alpha[4 * i0.s##k + ch]
-#define TF_ROW1(k) alpha[4 * i0.s##k + 4 + ch]
-static vfloat row_channel(vfloat s, __global const float *alpha, int ch)
+/* row_lerp at codes s: the colours of max, min, average and iso, exact where the composite
+ * march reads the packed rows. */
+static vfloat row_channel(vfloat s, __global const float *rows, int ch)
 {
     s = clamp(s, 0.0f, 255.0f);
     vint i0 = min(convert_vint(s), 254);
-    vfloat fr = s - convert_vfloat(i0);
-    return mix((vfloat)(L16(TF_ROW0)), (vfloat)(L16(TF_ROW1)), fr);
+    return row_lerp(rows, i0, s - convert_vfloat(i0), ch);
 }
 
 /* The TF's colour at codes s (alpha 0: max, min, average and iso take their own). */
-static rgbax table_at(vfloat s, __global const float *alpha)
+static rgbax table_at(vfloat s, __global const float *rows)
 {
-    return (rgbax){row_channel(s, alpha, 0), row_channel(s, alpha, 1), row_channel(s, alpha, 2),
+    return (rgbax){row_channel(s, rows, 0), row_channel(s, rows, 1), row_channel(s, rows, 2),
                    (vfloat)(0.0f)};
 }
 
-static vfloat raw_alpha(vfloat s, __global const float *alpha)
+static vfloat raw_alpha(vfloat s, __global const float *rows)
 {
-    return row_channel(s, alpha, 3);
+    return row_channel(s, rows, 3);
 }
 
 /* Sample i (from 0) of each lane: the midpoint of segment i (the shorter last one included),
@@ -1789,7 +1788,7 @@ static int zero_leaps(const zero_leap *z, int first, int stride, int from, int l
  * zeros anyway.) *taken: the samples read (and those of flat bricks). */
 static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spacing,
                            const volume_geo *v, const look_params *lk,
-                           __global const ulong *table, __global const float *alpha,
+                           __global const ulong *table, __global const float *rows,
                            const extreme_bricks *eb, int bounds, float te, float tx,
                            const bricks *zb, vint *taken)
 {
@@ -1943,8 +1942,8 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
     vint in_mean = count + zeros;
     vfloat s = lk->blend == 3 ? sum / convert_vfloat(max(in_mean, 1)) : best;
     s = select((vfloat)(0.0f), s, in_mean > 0);
-    rgbax c = table_at(s, alpha);
-    vfloat a = select((vfloat)(0.0f), raw_alpha(s, alpha), in_mean > 0);
+    rgbax c = table_at(s, rows);
+    vfloat a = select((vfloat)(0.0f), raw_alpha(s, rows), in_mean > 0);
     return (rgbax){c.r * a, c.g * a, c.b * a, a};
 }
 
@@ -1958,7 +1957,7 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
  * samples before it are counted as taken too. */
 static rgbax march_iso(const packet *p, vint n, float step, float3 inv_spacing,
                        const volume_geo *v, const look_params *lk,
-                       __global const float *alpha, const viewer *V, const bricks *b, vec3x g0,
+                       __global const float *rows, const viewer *V, const bricks *b, vec3x g0,
                        vec3x dg, vint first, vint *taken)
 {
     float c = lk->iso_code;
@@ -2015,7 +2014,7 @@ static rgbax march_iso(const packet *p, vint n, float step, float3 inv_spacing,
         ta = select(ta, t, refine & ~lower);
         sa = select(sa, st, refine & ~lower);
     }
-    rgbax col = table_at((vfloat)(c), alpha);
+    rgbax col = table_at((vfloat)(c), rows);
     if (!lk->iso_tf_color)
         col = (rgbax){(vfloat)(lk->iso_rgb[0]), (vfloat)(lk->iso_rgb[1]), (vfloat)(lk->iso_rgb[2]),
                       (vfloat)(1.0f)};
@@ -2172,15 +2171,16 @@ __attribute__((always_inline)) static inline void visible_range(vec3x g0, vec3x 
  * index within the chunk.
  * Geometry as render_cpu.c holds it: the box frame (origin, D^-1), 1/spacing and the box's
  * upper corner (dims-1)*spacing in the box frame (computed in double on the host; the whole
- * volume's when clipped: clip, render.h). table: rgb + step-corrected alpha; alpha: alpha per unit (for the
- * shorter last segment). Bricks: edge 1 << brick_shift, counts nbx, nby, nbz, skipping on/off.
+ * volume's when clipped: clip, render.h). table: the packed TF rows (rgb + step-corrected
+ * alpha, classify); rows: the exact TF rows as floats (rgb + alpha per unit: the shorter last
+ * segment, shading, the colours of max, min, average and iso). Bricks: edge 1 << brick_shift, counts nbx, nby, nbz, skipping on/off.
  * Work-item (gx, gy) renders the PACKET_W x PACKET_H pixels from (PACKET_W gx, PACKET_H gy). */
 __kernel void raycast(__global const uchar *frames, __constant uchar *params, ulong offset,
                       int tiled, int X, int Y, int Z,
                       box_frame box, float isx, float isy, float isz,
                       float hx, float hy, float hz,
                       float step, float term_alpha, cam_params cam, clip_params clip,
-                      __global const ulong *table, __global const float *alpha,
+                      __global const ulong *table, __global const float *rows,
                       float unit, __global const uchar *brick_visible, int brick_shift,
                       int nbx, int nby, int nbz, int skipping, float vlx, float vly,
                       float vlz, float vhx, float vhy, float vhz, __global float4 *image,
@@ -2281,10 +2281,10 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
             vint last;
             taken = counted_samples(&p, n, step, &last);
         } else if (look.blend == 4)
-            out = march_iso(&p, n, step, inv_spacing, &v, &look, alpha, &view,
+            out = march_iso(&p, n, step, inv_spacing, &v, &look, rows, &view,
                             skipping ? &flag_bricks : 0, g0, dg, first, &taken);
         else
-            out = march_extreme(&p, n, step, inv_spacing, &v, &look, table, alpha, &eb,
+            out = march_extreme(&p, n, step, inv_spacing, &v, &look, table, rows, &eb,
                                 entry_on && (look.blend == 1 || look.blend == 3), te, tx,
                                 look.blend == 3 && skipping ? &flag_bricks : 0, &taken);
         store_pixels(image, px, py, cam.width, cam.height, out);
@@ -2330,13 +2330,13 @@ __kernel void raycast(__global const uchar *frames, __constant uchar *params, ul
     rgbax acc = {(vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f), (vfloat)(0.0f)};
 #ifdef CDVR_BRICK_CACHE
     if (v.march)
-        march_cached(&m, skipping, &b, &v, &clip, g0, dg, table, term_alpha, &look, alpha, step,
+        march_cached(&m, skipping, &b, &v, &clip, g0, dg, table, term_alpha, &look, rows, step,
                      unit, &view, &acc);
     else
 #endif
-        march_full(&m, skipping, &b, &v, &clip, g0, dg, table, term_alpha, &look, alpha, step,
+        march_full(&m, skipping, &b, &v, &clip, g0, dg, table, term_alpha, &look, rows, step,
                    unit, &view, &acc);
-    last_segment(&p, n, last & ~m.done, step, unit, &v, &clip, inv_spacing, table, alpha, &look,
+    last_segment(&p, n, last & ~m.done, step, unit, &v, &clip, inv_spacing, table, rows, &look,
                  &view, &acc, &m.taken);
     store_pixels(image, px, py, cam.width, cam.height, acc);
     int8 t8 = m.taken.lo + m.taken.hi;

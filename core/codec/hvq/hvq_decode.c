@@ -297,12 +297,6 @@ static int cell_needed(const hvq_target *t, uint64_t x, uint64_t y, uint64_t z)
     return c->need[(x >> c->log2) + c->cdims[0] * ((y >> c->log2) + c->cdims[1] * (z >> c->log2))];
 }
 
-/* Whether block (bx, by, bz) may be skipped: cells of at least a block's 4 voxels hold it
- * whole, and its one cell is not needed. */
-static int block_unneeded(const hvq_target *t, uint64_t bx, uint64_t by, uint64_t bz)
-{
-    return t->cells.need && t->cells.log2 >= 2 && !cell_needed(t, 4 * bx, 4 * by, 4 * bz);
-}
 
 /* The 64 values of a block with codewords, x fastest, then y, z: mean + c1[o8] + c2[o64]
  * clamped to 0 .. 255, in one loop of constant count without a branch, which gcc vectorises
@@ -345,9 +339,12 @@ static void decode_block(const hvq_view *v, const hvq_psh_map *index, uint64_t b
 {
     const hvq_layout *L = &v->L;
     size_t at[3] = {4 * bx, 4 * by, 4 * bz}, n[3]; /* n: 4 but at the frame's far edges */
+    /* cells of a block's 4 voxels or more hold it whole: its one cell's byte */
+    if (t->cells.need && t->cells.log2 >= 2 && !cell_needed(t, at[0], at[1], at[2]))
+        return;
     for (int a = 0; a < 3; a++)
         n[a] = t->dims[a] - at[a] < 4 ? t->dims[a] - at[a] : 4;
-    if (t->cells.need && !cdvr_cells_meet(&t->cells, at, n))
+    if (t->cells.need && t->cells.log2 < 2 && !cdvr_cells_meet(&t->cells, at, n))
         return;
     int mean = v->p[HVQ_HEADER_BYTES + bx + L->nbx * (by + L->nby * bz)];
     const uint8_t *hit = hvq_psh_map_find(index, 3 + L->w1 + L->w2, (unsigned)(bx & 63),
@@ -456,8 +453,7 @@ static void decode_slab(void *ctx, size_t bz)
             uint64_t x1 = (rx + 1) * side < L->nbx ? (rx + 1) * side : L->nbx;
             for (uint64_t by = ry * side; by < y1; by++)
                 for (uint64_t bx = rx * side; bx < x1; bx++)
-                    if (!block_unneeded(job->t, bx, by, bz))
-                        decode_block(job->v, &index, bx, by, bz, job->t);
+                    decode_block(job->v, &index, bx, by, bz, job->t);
         }
 }
 

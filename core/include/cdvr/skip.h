@@ -98,10 +98,10 @@ void cdvr_skip_fill_tiles(uint8_t *tiles, const cdvr_skip_grid *g, const uint8_t
  * and upper apron were all decoded, cdvr_skip_cells_needed; the other bricks hold the fill,
  * and keep their coarse range), and the flags are made again for tf, so the render skips the
  * bricks only the coarse ranges kept visible: the same image with fewer samples. The frame is
- * ranged on `threads` threads (cdvr_cpu_brick_ranges). Only when at least 1/16 of the bricks
- * are visible (else g stays as it is: the passes over the frame and the grid would cost more
- * than the samples they save). scratch: 2 * nbricks bytes. On failure (CDVR_ERR_NOMEM) g is
- * unchanged. */
+ * ranged on `threads` threads (0: the online cores; cdvr_cpu_brick_ranges). Only when at
+ * least 1/16 of the bricks are visible (else g stays as it is: the passes over the frame and
+ * the grid would cost more than the samples they save). scratch: 2 * nbricks bytes. On
+ * failure (CDVR_ERR_NOMEM) g is unchanged. */
 cdvr_status cdvr_skip_refine(cdvr_skip_grid *g, const uint8_t *frame, const cdvr_tf *tf,
                              unsigned threads, uint8_t *scratch, cdvr_error *err);
 /* 0 when the environment has CDVR_REFINE=0 (for comparison: the player and cdvr/visible.h

@@ -19,6 +19,17 @@
 #include "cdvr/store.h"
 #include "cdvr/tf.h"
 
+/* The skip grid (the ray caster's bricks, CDVR_RANGE_SHIFT; allocated for info's dims) of
+ * frame `frame` of a chunk group for tf from its range tables (store.h; tables[b]: brick b's
+ * chunk's table, every brick's of bricks of 2^shift, at least grid's): the tables' ranges
+ * merged over the store's bricks (cdvr_range_merge), made at the tables' bricks in coarse
+ * (allocated or remade as needed; its minmax NULL at first) when coarser, and spread over
+ * grid (cdvr_skip_grid_expand). The player and cdvr_visible_decode make their grids so. */
+cdvr_status cdvr_visible_table_grid(cdvr_skip_grid *grid, cdvr_skip_grid *coarse,
+                                    const cdvr_store_info *info, unsigned shift,
+                                    const uint8_t *const *tables, size_t frame,
+                                    const cdvr_tf *tf, cdvr_error *err);
+
 /* The frame, its grid and their scratch, reused from one decode to the next. */
 typedef struct cdvr_visible cdvr_visible;
 

@@ -132,8 +132,8 @@ struct cdvr_cl_stream {
                                  /* read instead of `frames` while set */
     const cdvr_cl_codec_program *fetch; /* frames stay compressed: read through this codec's
                                            fetch kernels (NULL: dense frames) */
-    cl_mem table;                /* 256 float4: rgb + step-corrected alpha (per render) */
-    cl_mem alpha_unit;           /* 256 floats: alpha per unit length (shorter last segment) */
+    cl_mem table;                /* 256 ulong: packed rgb + step-corrected alpha (per render) */
+    cl_mem tf_rows;              /* 256 x 4 floats: the TF's r, g, b, alpha per unit length */
     cl_mem brick_minmax;         /* nbricks uchar2: value range per brick incl. apron, then
                                     nblocks uchar2: the range of each block of bricks
                                     (CDVR_CL_BLOCK_SHIFT) */

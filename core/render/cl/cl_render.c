@@ -4,7 +4,6 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 #include "cl_internal.h"
 #include "cdvr/timing.h"
@@ -114,10 +113,9 @@ static int host_minmax(cdvr_cl_stream *s, size_t frame)
                                       s->voxels, 0, NULL, NULL, &code);
     if (code != CL_SUCCESS || !voxels)
         return 0;
-    long cores = sysconf(_SC_NPROCESSORS_ONLN);
     cdvr_error ignored;
-    int ok = cdvr_cpu_brick_ranges(voxels, s->dims, CDVR_CL_BRICK_SHIFT, cores > 0 ? (int)cores : 1,
-                                   s->grid.minmax, &ignored) == CDVR_OK;
+    int ok = cdvr_cpu_brick_ranges(voxels, s->dims, CDVR_CL_BRICK_SHIFT, 0, s->grid.minmax,
+                                   &ignored) == CDVR_OK;
     ok &= clEnqueueUnmapMemObject(s->cl->queue, mem, voxels, 0, NULL, NULL) == CL_SUCCESS;
     return ok && write_buffer(s->cl, s->brick_minmax, s->grid.minmax, 2 * s->nbricks,
                               "upload brick min/max grid", &ignored) == CDVR_OK;
@@ -452,7 +450,7 @@ static cdvr_status upload_tables(cdvr_cl_stream *s, render_params rp, cdvr_error
     }
     cdvr_status st = write_buffer(s->cl, s->table, table, sizeof table, "upload TF table", err);
     if (!st)
-        st = write_buffer(s->cl, s->alpha_unit, rows, sizeof rows, "upload TF rows", err);
+        st = write_buffer(s->cl, s->tf_rows, rows, sizeof rows, "upload TF rows", err);
     return st;
 }
 
@@ -683,7 +681,7 @@ static cdvr_status set_raycast_args(cdvr_cl_stream *s, size_t frame, render_para
                 {sizeof step, &step},         {sizeof term_alpha, &term_alpha},
                 {sizeof *cam, cam},           {sizeof kclip, &kclip},
                 {sizeof(cl_mem), &s->table},
-                {sizeof(cl_mem), &s->alpha_unit}, {sizeof unit, &unit},
+                {sizeof(cl_mem), &s->tf_rows}, {sizeof unit, &unit},
                 {sizeof(cl_mem), &flags},     {sizeof(cl_int), &bricks[0]},
                 {sizeof(cl_int), &bricks[1]}, {sizeof(cl_int), &bricks[2]},
                 {sizeof(cl_int), &bricks[3]}, {sizeof(cl_int), &bricks[4]},

@@ -83,7 +83,7 @@ cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_str
     cdvr_status st = cdvr_cl_ensure_buffer(cl, &s->table, &cap, 256 * sizeof(cl_ulong),
                                            CL_MEM_READ_ONLY, "TF table", err);
     if (!st)
-        st = cdvr_cl_ensure_buffer(cl, &s->alpha_unit, &cap, 256 * 4 * sizeof(float),
+        st = cdvr_cl_ensure_buffer(cl, &s->tf_rows, &cap, 256 * 4 * sizeof(float),
                                    CL_MEM_READ_ONLY, "TF rows", err);
     if (!st) /* zeros: dense frames read no parameters, but the argument must be a buffer */
         st = cdvr_cl_ensure_buffer(cl, &s->params, &cap, CDVR_CL_PARAMS_BUFFER_BYTES,
@@ -115,7 +115,7 @@ void cdvr_cl_stream_free(cdvr_cl_stream *s)
     if (!s)
         return;
     cl_mem *mems[] = {&s->payload, &s->params, &s->frames, &s->host_frames, &s->tiles, &s->grads,
-                      &s->quads, &s->table, &s->alpha_unit,
+                      &s->quads, &s->table, &s->tf_rows,
                       &s->brick_minmax, &s->brick_visible, &s->iso_flags, &s->zero_flags, &s->image,
                       &s->samples, &s->entry_tiles};
     for (size_t i = 0; i < sizeof mems / sizeof *mems; i++)

@@ -7,6 +7,7 @@
 #include "render/cpu/brick_range.h"
 
 #include <pthread.h>
+#include <unistd.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -146,7 +147,11 @@ cdvr_status cdvr_cpu_brick_ranges(const uint8_t *frame, const size_t dims[3], un
     }
     if (pthread_mutex_init(&job.lock, NULL) != 0)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "brick ranges: no mutex");
-    int n = threads < 1 ? 1 : threads > MAX_THREADS ? MAX_THREADS : threads;
+    if (threads < 1) {
+        long online = sysconf(_SC_NPROCESSORS_ONLN);
+        threads = online > 0 && online < MAX_THREADS ? (int)online : 1;
+    }
+    int n = threads > MAX_THREADS ? MAX_THREADS : threads;
     if ((size_t)n > job.nb[2])
         n = (int)job.nb[2];
     pthread_t tid[MAX_THREADS];
