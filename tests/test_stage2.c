@@ -12,12 +12,16 @@
  *     23832e2, with its decoded timesteps beside it) opens and decodes bit for bit;
  *   - a stored chunk whose segment table claims more than the chunk (CRC fixed, so only the
  *     table check can find it) fails with an error naming the file, the chunk and the reason;
+ *   - AUTO's unpack rates: measured once, read back from the cache as measured; with rates
+ *     remembered that make LZ4 free, AUTO packs with LZ4 only, and two encodes (2 threads,
+ *     1 thread) write the same bytes;
  *   - the player plays frames identical to the render of each timestep decoded alone from the
  *     store without stage 2, for none, lzo, lz4, zstd and auto, serial and with 2 workers. */
 #include "check.h"
 #include "player_frames.h"
 
 #include "codec/stage2/stage2.h"
+#include "cdvr/cache.h"
 #include "cdvr/pvtc.h"
 #include "store/store_format.h"
 
@@ -327,6 +331,76 @@ static void check_store_roundtrips(void)
     cdvr_volume_free(vol);
 }
 
+/* ---- AUTO's unpack rates ------------------------------------------------------------------ */
+
+/* The one *.s2rates entry in cache_dir into path (its key: the name's stem). */
+static int rates_entry(const char *cache_dir, char *path, size_t n, char key[33])
+{
+    char cmd[600];
+    snprintf(cmd, sizeof cmd, "ls '%s' | grep '\\.s2rates$'", cache_dir);
+    FILE *p = popen(cmd, "r");
+    char name[128] = "";
+    int found = p && fgets(name, sizeof name, p) && strlen(name) == 32 + 8 + 1;
+    if (p)
+        pclose(p);
+    if (!found)
+        return 0;
+    memcpy(key, name, 32);
+    key[32] = '\0';
+    snprintf(path, n, "%s/%.40s", cache_dir, name);
+    return 1;
+}
+
+/* Rates are measured once, then read back equal from the cache; AUTO follows them: with LZ4
+ * remembered as free and the others as slow, every chunk that packs at all takes LZ4, and two
+ * encodes write the same bytes. */
+static void check_rates(void)
+{
+    char cache_dir[300], entry[400], key[33];
+    snprintf(cache_dir, sizeof cache_dir, "%s/cache", dir);
+    setenv("CDVR_CACHE_DIR", cache_dir, 1);
+    cdvr_s2_rates first, again;
+    cdvr_error err;
+    CHECK_OK(cdvr_s2_unpack_rates(&first, &err), err);
+    CHECK(!first.from_cache, "a new cache: measured");
+    for (unsigned c = CDVR_S2_LZO; c < CDVR_S2_CODECS; c++)
+        CHECK(first.mbps[c] > 1 && first.mbps[c] < 1e6, "%s: %.1f MB/s", cdvr_s2_name(c),
+              first.mbps[c]);
+    CHECK_OK(cdvr_s2_unpack_rates(&again, &err), err);
+    CHECK(again.from_cache && !memcmp(again.mbps, first.mbps, sizeof first.mbps),
+          "read back from the cache as measured");
+    if (!rates_entry(cache_dir, entry, sizeof entry, key)) {
+        CHECK(0, "no .s2rates entry in %s", cache_dir);
+        return;
+    }
+    const char *forced = "lzo 1.0 lz4 100000000.0 zstd 1.0";
+    cdvr_cache_store(entry, key, (const unsigned char *)forced, strlen(forced));
+    CHECK_OK(cdvr_s2_unpack_rates(&again, &err), err);
+    CHECK(again.from_cache && again.mbps[CDVR_S2_LZ4] == 1e8 && again.mbps[CDVR_S2_LZO] == 1,
+          "the remembered rates are the ones used");
+    cdvr_volume *vol = make_series(30, 20, 15, 5);
+    cdvr_variant_spec vs[2] = {raw_spec(CDVR_STAGE2_AUTO, 256), pvtc_spec(CDVR_STAGE2_AUTO, 256)};
+    encode(vol, vs, 2, tmp_path("rates_a.cdv"), 2);
+    encode(vol, vs, 2, tmp_path("rates_b.cdv"), 1);
+    cdvr_store *st = NULL;
+    CHECK_OK(cdvr_store_open(tmp_path("rates_a.cdv"), &st, &err), err);
+    for (size_t v = 0; st && v < 2; v++) {
+        const cdvr_variant_info *vi = cdvr_store_variant(st, v);
+        CHECK(vi->stage2_chunks[CDVR_S2_LZ4] > 0 && vi->stage2_chunks[CDVR_S2_LZO] == 0 &&
+                  vi->stage2_chunks[CDVR_S2_ZSTD] == 0,
+              "%s: chunks none %zu lz4 %zu (lzo %zu zstd %zu)", vi->name,
+              (size_t)vi->stage2_chunks[0], (size_t)vi->stage2_chunks[CDVR_S2_LZ4],
+              (size_t)vi->stage2_chunks[CDVR_S2_LZO], (size_t)vi->stage2_chunks[CDVR_S2_ZSTD]);
+    }
+    cdvr_store_close(st);
+    char cmd[700];
+    snprintf(cmd, sizeof cmd, "cmp -s '%s' '%s'", tmp_path("rates_a.cdv"), tmp_path("rates_b.cdv"));
+    CHECK(system(cmd) == 0, "two AUTO encodes (2 threads, 1 thread) write the same bytes");
+    remove(entry);
+    cdvr_volume_free(vol);
+    unsetenv("CDVR_CACHE_DIR");
+}
+
 /* ---- a store from before this change ------------------------------------------------------ */
 
 static void check_old_store(void)
@@ -550,6 +624,7 @@ int main(void)
           "bad bounds are 0");
     check_hostile_tables();
     check_store_roundtrips();
+    check_rates();
     check_old_store();
     check_hostile_store();
     check_hostile_index();

@@ -287,9 +287,9 @@ static cdvr_status window_need(frame_window *w, size_t from, size_t to, cdvr_err
 
 /* Buffers of one chunk in flight, kept for the next chunk that uses the job. */
 typedef struct job_bufs {
-    uint8_t *payload, *packed, *bricks, *decoded, *ranges, *ranges_packed, *trial, *unpacked;
+    uint8_t *payload, *packed, *bricks, *decoded, *ranges, *ranges_packed, *trial;
     size_t payload_cap, packed_cap, bricks_cap, decoded_cap, ranges_cap, ranges_packed_cap;
-    size_t trial_cap, unpacked_cap; /* AUTO: a candidate's stored bytes, its unpacked bytes */
+    size_t trial_cap;            /* AUTO: a candidate's stored bytes */
 } job_bufs;
 
 /* One chunk being encoded: the codec runs in nparts parts (encode_part), or in one call, then
@@ -329,6 +329,7 @@ typedef struct encode_pool {
     size_t nthreads;
     int stop;
     const cdvr_store *st;
+    cdvr_s2_rates s2_rates;      /* AUTO's unpack rates (read once, before the workers start) */
 } encode_pool;
 
 static int reserve(uint8_t **buf, size_t *cap, size_t need)
@@ -352,7 +353,6 @@ static void bufs_free(job_bufs *b)
     free(b->ranges);
     free(b->ranges_packed);
     free(b->trial);
-    free(b->unpacked);
 }
 
 /* First local index along an axis that the brick starting at voxel lo owns: a voxel two
@@ -478,14 +478,6 @@ static cdvr_status s2_pack(unsigned codec, const uint8_t *in, size_t n, size_t s
     return cdvr_lzo_compress(in, n, out, cap, out_n, err);
 }
 
-static cdvr_status s2_unpack(unsigned codec, const uint8_t *in, size_t n, uint8_t *out,
-                             size_t expect, size_t seg, cdvr_error *err)
-{
-    if (s2_segmented(codec, expect, seg))
-        return cdvr_s2_unpack(codec, in, n, out, expect, 1, err);
-    return cdvr_lzo_decompress(in, n, out, expect, err);
-}
-
 /* AUTO models a chunk of more than S2_SAMPLE_EVERY segments from a sample of it: every
  * S2_SAMPLE_EVERY-th segment from the first, whose stored bytes and unpack time are scaled to
  * the chunk; only the chosen codec then packs the whole chunk. Trying every codec on the
@@ -507,11 +499,13 @@ static size_t s2_sample(const uint8_t *payload, size_t payload_n, size_t seg, ui
 }
 
 /* AUTO: the modelled b1 + b1' of every candidate (NONE: the read alone, the player keeps the
- * stored bytes as the payload; the others: the read of the packed bytes and the best of two
- * single-thread unpacks, checked against their input) on the chunk or its sample, scaled to
- * the chunk; the smallest ends in bufs.packed (a sampled chunk is packed for it then). */
-static cdvr_status s2_choose(const cdvr_variant_info *vi, chunk_job *job, size_t payload,
-                             unsigned *codec, size_t *packed, cdvr_error *err)
+ * stored bytes as the payload; the others: the read of the packed bytes and the unpack of the
+ * payload at this machine's rate, rates) on the chunk or its sample, scaled to the chunk; the
+ * smallest ends in bufs.packed (a sampled chunk is packed for it then). Packed sizes are
+ * deterministic and the rates are remembered, so the choice does not follow the load. */
+static cdvr_status s2_choose(const cdvr_variant_info *vi, const cdvr_s2_rates *rates,
+                             chunk_job *job, size_t payload, unsigned *codec, size_t *packed,
+                             cdvr_error *err)
 {
     job_bufs *b = &job->bufs;
     size_t seg = vi->stage2_segment;
@@ -532,18 +526,8 @@ static cdvr_status s2_choose(const cdvr_variant_info *vi, chunk_job *job, size_t
         s = s2_pack(c, in, in_n, seg, b->trial, b->trial_cap, &n, err);
         if (s != CDVR_OK || n >= in_n)
             continue;
-        double unpack = 0;
-        for (int run = 0; run < 2 && s == CDVR_OK; run++) {
-            double t0 = cdvr_now_ms();
-            s = s2_unpack(c, b->trial, n, b->unpacked, in_n, seg, err);
-            double dt = cdvr_now_ms() - t0;
-            unpack = run == 0 || dt < unpack ? dt : unpack;
-        }
-        if (s == CDVR_OK && memcmp(b->unpacked, in, in_n) != 0)
-            s = cdvr_error_set(err, CDVR_ERR_IO, "stage 2 %s does not give the payload back "
-                               "(internal error)", cdvr_s2_name(c));
-        double t = ((double)n * per_byte_ms + unpack) * scale;
-        if (s == CDVR_OK && t < best) {
+        double t = (double)n * scale * per_byte_ms + (double)payload / (rates->mbps[c] * 1e3);
+        if (t < best) {
             best = t;
             *codec = c;
             if (!sampled) { /* the whole chunk packed: keep it */
@@ -568,15 +552,15 @@ static cdvr_status s2_choose(const cdvr_variant_info *vi, chunk_job *job, size_t
 
 /* Stage 2 of the chunk: ci->stage2, stage2_segmented and stored_bytes; the stored bytes are
  * bufs.packed when stage 2 applies, else bufs.payload. */
-static cdvr_status apply_stage2(const cdvr_variant_info *vi, chunk_job *job, size_t payload,
-                                cdvr_error *err)
+static cdvr_status apply_stage2(const cdvr_variant_info *vi, const cdvr_s2_rates *rates,
+                                chunk_job *job, size_t payload, cdvr_error *err)
 {
     cdvr_chunk_info *ci = job->ci;
     unsigned codec = 0;
     size_t packed = 0;
     cdvr_status s = CDVR_OK;
     if (vi->stage2 == CDVR_STAGE2_AUTO) {
-        s = s2_choose(vi, job, payload, &codec, &packed, err);
+        s = s2_choose(vi, rates, job, payload, &codec, &packed, err);
     } else if (vi->stage2 != CDVR_STAGE2_NONE) {
         s = s2_pack((unsigned)vi->stage2, job->bufs.payload, payload, vi->stage2_segment,
                     job->bufs.packed, job->bufs.packed_cap, &packed, err);
@@ -592,7 +576,8 @@ static cdvr_status apply_stage2(const cdvr_variant_info *vi, chunk_job *job, siz
     return CDVR_OK;
 }
 
-static cdvr_status finish_job(const cdvr_store *st, chunk_job *job, cdvr_error *err)
+static cdvr_status finish_job(const cdvr_store *st, const cdvr_s2_rates *rates, chunk_job *job,
+                              cdvr_error *err)
 {
     cdvr_chunk_info *ci = job->ci;
     const cdvr_variant_info *vi = &st->variants[job->variant];
@@ -602,7 +587,7 @@ static cdvr_status finish_job(const cdvr_store *st, chunk_job *job, cdvr_error *
         return cdvr_error_set(err, CDVR_ERR_ARG, "%s: codec %s wrote %zu bytes (size %zu, bound "
                               "%zu)", st->path, ci->codec->name, payload,
                               job->shape.payload_bytes, job->shape.bound_bytes);
-    cdvr_status s = apply_stage2(vi, job, payload, err);
+    cdvr_status s = apply_stage2(vi, rates, job, payload, err);
     if (s != CDVR_OK)
         return s;
     ci->crc32c = cdvr_crc32c(0, ci->stage2 ? job->bufs.packed : job->bufs.payload,
@@ -625,7 +610,7 @@ static cdvr_status finish_job(const cdvr_store *st, chunk_job *job, cdvr_error *
 static void run_finish(encode_pool *pool, chunk_job *job)
 {
     cdvr_error e;
-    if (finish_job(pool->st, job, &e) != CDVR_OK)
+    if (finish_job(pool->st, &pool->s2_rates, job, &e) != CDVR_OK)
         job_fail(pool, job, &e);
 }
 
@@ -693,6 +678,13 @@ static cdvr_status pool_start(encode_pool *pool, const cdvr_store *st, size_t th
 {
     memset(pool, 0, sizeof *pool);
     pool->st = st;
+    for (size_t v = 0; v < st->info.nvariants; v++)
+        if (st->variants[v].stage2 == CDVR_STAGE2_AUTO) {
+            cdvr_status s = cdvr_s2_unpack_rates(&pool->s2_rates, err);
+            if (s != CDVR_OK)
+                return s;
+            break;
+        }
     pool->cap = queue_cap;
     pool->queue = malloc(queue_cap * sizeof *pool->queue);
     pool->threads = malloc((threads ? threads : 1) * sizeof *pool->threads);
@@ -860,9 +852,7 @@ static cdvr_status prepare_job(write_ctx *wc, const frame_window *win, size_t v,
     if (!cdvr_size_mul(voxels, ci->count, &decoded) ||
         !reserve(&job->bufs.payload, &job->bufs.payload_cap, job->shape.bound_bytes) ||
         s2_cap == 0 || !reserve(&job->bufs.packed, &job->bufs.packed_cap, s2_cap) ||
-        (s2_auto && (!reserve(&job->bufs.trial, &job->bufs.trial_cap, s2_cap) ||
-                     !reserve(&job->bufs.unpacked, &job->bufs.unpacked_cap,
-                              job->shape.bound_bytes))) ||
+        (s2_auto && !reserve(&job->bufs.trial, &job->bufs.trial_cap, s2_cap)) ||
         !reserve(&job->bufs.decoded, &job->bufs.decoded_cap, decoded) ||
         !reserve(&job->bufs.ranges, &job->bufs.ranges_cap, job->ranges_bytes) ||
         !reserve(&job->bufs.ranges_packed, &job->bufs.ranges_packed_cap,

@@ -1155,6 +1155,21 @@ const char *cdvr_stage2_name(int stage2)
     return stage2 == CDVR_STAGE2_AUTO ? "auto" : cdvr_s2_name((unsigned)stage2);
 }
 
+cdvr_status cdvr_stage2_unpack_rates(double mbps[5], int *from_cache, cdvr_error *err)
+{
+    cdvr_s2_rates r;
+    cdvr_status s = cdvr_s2_unpack_rates(&r, err);
+    memset(mbps, 0, 5 * sizeof *mbps);
+    *from_cache = 0;
+    if (s != CDVR_OK)
+        return s;
+    mbps[CDVR_STAGE2_LZO] = r.mbps[CDVR_S2_LZO];
+    mbps[CDVR_STAGE2_LZ4] = r.mbps[CDVR_S2_LZ4];
+    mbps[CDVR_STAGE2_ZSTD] = r.mbps[CDVR_S2_ZSTD];
+    *from_cache = r.from_cache;
+    return CDVR_OK;
+}
+
 cdvr_status cdvr_store_unpack_chunk_threads(const cdvr_store *st, size_t v, size_t c,
                                             const uint8_t *stored, uint8_t *out, int threads,
                                             cdvr_error *err)

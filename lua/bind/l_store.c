@@ -247,7 +247,7 @@ static void check_top_keys(lua_State *L, int idx, const cdvr_variant_spec *specs
 /* Parses opts (at idx) into a userdata array of specs left on the stack; returns it. */
 static cdvr_variant_spec *parse_variants(lua_State *L, int idx, size_t *n)
 {
-    top_defaults top = {.idx = idx, .stage2 = CDVR_STAGE2_LZO,
+    top_defaults top = {.idx = idx, .stage2 = CDVR_STAGE2_AUTO,
                         .lzo_min_saving = CDVR_LZO_MIN_SAVING,
                         .stage2_read_mbps = CDVR_STAGE2_READ_MBPS,
                         .stage2_segment = CDVR_STAGE2_SEGMENT};
@@ -1048,7 +1048,24 @@ static const luaL_Reg store_methods[] = {
 static const luaL_Reg store_meta[] = {
     {"__gc", store_gc}, {"__close", store_gc}, {"__tostring", store_tostring}, {NULL, NULL}};
 
+/* cdvr.stage2_rates() -> {lzo=, lz4=, zstd= (MB/s), from_cache=} */
+static int l_stage2_rates(lua_State *L)
+{
+    double mbps[5];
+    int from_cache = 0;
+    cdvr_error err;
+    if (cdvr_stage2_unpack_rates(mbps, &from_cache, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    lua_createtable(L, 0, 4);
+    for (int c = CDVR_STAGE2_LZO; c <= CDVR_STAGE2_ZSTD; c++)
+        setnum(L, stage2_names[c], mbps[c]);
+    lua_pushboolean(L, from_cache);
+    lua_setfield(L, -2, "from_cache");
+    return 1;
+}
+
 static const luaL_Reg store_funcs[] = {{"encode", l_encode},
+                                       {"stage2_rates", l_stage2_rates},
                                        {"open", l_open},
                                        {"clock", l_clock},
                                        {"bench_memcpy", l_bench_memcpy},
@@ -1061,9 +1078,10 @@ int lcdvr_open_store(lua_State *L)
     lcdvr_help_add(L, "cdvr.encode(volume, {path=, codec=, S=, T=, pack=, encoder=, stage2=, "
                       "lzo_min_saving=, stage2_read_mbps=, stage2_segment=, name=, variants=, schedule=, progress=, bricks=, threads=, ranges=, range_brick=, levels=, level_variants=})",
                    "encode a series into a .cdv store (written atomically; defaults codec=pvtc "
-                   "S=4 T=3 pack=time encoder=lsq stage2=lzo lzo_min_saving=0.1; stage2=none|lzo|lz4|"
+                   "S=4 T=3 pack=time encoder=lsq stage2=auto lzo_min_saving=0.1; stage2=none|lzo|lz4|"
                    "zstd|auto (auto: per chunk the smallest modelled read at stage2_read_mbps=500 "
-                   "MB/s + unpack time measured here; stage2_segment=1048576 payload bytes per "
+                   "MB/s + unpack at this machine's rates, measured once and remembered, "
+                   "cdvr.stage2_rates(); stage2_segment=1048576 payload bytes per "
                    "independently packed segment); bricks={bx,by,bz} "
                    "splits each timestep into bricks; threads=0: one per core, the same bytes for "
                    "any count; ranges=true: per-brick value range tables for empty-space "
@@ -1072,6 +1090,10 @@ int lcdvr_open_store(lua_State *L)
                    "(default: variants=); schedule(t, variant) runs under callback_limit= instructions, "
                    "default 5e7, and callback_memory= MB, default 256); the opened store; raises "
                    "when it cannot write the file (the message names it)");
+    lcdvr_help_add(L, "cdvr.stage2_rates()",
+                   "this machine's single-thread stage-2 unpack rates that stage2=auto models "
+                   "(payload MB/s, measured once on a fixed calibration payload and remembered "
+                   "in the cache): {lzo=, lz4=, zstd=, from_cache=}");
     lcdvr_help_add(L, "cdvr.open(path)", "open a .cdv store (lazy); the store, or raises naming "
                                          "the file and the reason");
     lcdvr_help_add(L, "st:info()", "dims, timesteps, window, bytes, ratio and per-variant "

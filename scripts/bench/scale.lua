@@ -17,8 +17,9 @@
 -- Options: --old EXE (baseline executable), --new EXE (default: the cdvr running this script),
 --   --variants raw,S4T3,S1T3 (names: raw, SxTy or zfpR, zfp at rate R: the zfp plugin beside
 --   each executable),
---   --stage2 none|lzo|lz4|zstd|auto (the new executable's stores only; the old one keeps its
---   default, lzo), --stage2-read-mbps M (auto's modelled disk rate),
+--   --stage2 none|lzo|lz4|zstd|auto (the new executable's stores only; without it each
+--   executable keeps its default: auto since 2026-12-06, lzo before),
+--   --stage2-read-mbps M (auto's modelled disk rate),
 --   --rounds R (playback: R rounds alternating old, new, old, new, ...; the ratio is that of
 --   the medians; each row has the 1-minute load average before it ran),
 --   --encoder lsq|bbox, --sizes 512,64, --frames 30, --device cl|cpu, --threads 0,

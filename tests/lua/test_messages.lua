@@ -44,6 +44,7 @@ local calls = {
   ["cdvr.camera{"] = {cdvr.camera, {eye = {9, 0, 0}, width = 8, height = 8}, opts = 1},
   ["cdvr.cl_info"] = {cdvr.cl_info, skip = "no arguments; opens OpenCL"},
   ["cdvr.clock"] = {cdvr.clock},
+  ["cdvr.stage2_rates"] = {cdvr.stage2_rates},
   ["cdvr.codec_chunk"] = {cdvr.codec_chunk, "pvtc", {S = 4, T = 3}, {8, 8, 8}, opts = 2},
   ["cdvr.codecs"] = {cdvr.codecs},
   ["cdvr.compare"] = {cdvr.compare, vol, vol},

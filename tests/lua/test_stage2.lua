@@ -1,7 +1,8 @@
 -- tests/lua/test_stage2.lua: stage 2 beyond LZO from Lua (cdvr.encode stage2 = "none", "lzo",
 -- "lz4", "zstd", "auto"; stage2_read_mbps=, stage2_segment=): every choice decodes to the same
 -- voxels as no stage 2, the chunk listing names each chunk's codec, the variant counts them,
--- and bad values raise listing the valid ones.
+-- auto is the default and deterministic (cdvr.stage2_rates), and bad values raise listing the
+-- valid ones.
 local failures = 0
 local function check(cond, msg)
   if not cond then
@@ -63,6 +64,28 @@ local fast = cdvr.encode(src, {path = tmp("fast.cdv"), progress = false, codec =
                                stage2_read_mbps = 1e11})
 check(fast:info().variants[1].stage2_chunks.none == fast:info().variants[1].chunks,
       "auto at 10^11 MB/s packs nothing")
+
+-- auto is the default, and follows this machine's remembered unpack rates only: the
+-- default encode equals an explicit auto one byte for byte
+local rates = cdvr.stage2_rates()
+check(rates.lzo > 0 and rates.lz4 > 0 and rates.zstd > 0 and rates.from_cache == true,
+      ("stage2_rates: lzo %s lz4 %s zstd %s, remembered %s"):format(tostring(rates.lzo),
+       tostring(rates.lz4), tostring(rates.zstd), tostring(rates.from_cache)))
+local again = cdvr.stage2_rates()
+check(again.lzo == rates.lzo and again.lz4 == rates.lz4 and again.zstd == rates.zstd, "rates remembered")
+local function bytes(path)
+  local f = assert(io.open(path, "rb"))
+  local b = f:read("a")
+  f:close()
+  return b
+end
+local plain = cdvr.encode(src, {path = tmp("default.cdv"), progress = false, stage2_segment = 4096,
+                                variants = {{codec = "raw"}, {S = 4, T = 3}}})
+check(plain:info().variants[1].stage2 == "auto", "stage2 defaults to auto")
+plain:close()
+cdvr.encode(src, {path = tmp("auto2.cdv"), progress = false, stage2 = "auto", stage2_segment = 4096,
+                  variants = {{codec = "raw"}, {S = 4, T = 3}}}):close()
+check(bytes(tmp("default.cdv")) == bytes(tmp("auto2.cdv")), "two auto encodes write the same bytes")
 
 raises("option 'stage2': invalid value 'brotli' (expected none, lzo, lz4, zstd, auto)", cdvr.encode, src,
        {path = tmp("x.cdv"), stage2 = "brotli"})

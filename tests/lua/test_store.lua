@@ -49,7 +49,10 @@ check(info.variants[2].encoder == "bbox" and info.variants[2].pack == "space", "
 check(info.variants[3].codec == "raw" and info.variants[3].psnr == math.huge and info.variants[3].maxerr == 0,
       "raw lossless")
 -- S4T3 time packing with 5 timesteps: {1,2,3}, {4,5} padded
-check(info.variants[1].bytes == info.variants[1].payload_bytes or info.variants[1].stage2 == "lzo", "stage2")
+-- stage 2 defaults to auto: stored bytes equal the payload exactly when no chunk packs
+local v1 = info.variants[1]
+check(v1.stage2 == "auto" and (v1.stage2_chunks.none == v1.chunks) == (v1.bytes == v1.payload_bytes),
+      "stage2")
 
 -- decode: every timestep of every variant; PSNR recorded at encode time matches cdvr.compare
 for vi, v in ipairs(info.variants) do

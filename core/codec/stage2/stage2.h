@@ -63,4 +63,17 @@ cdvr_status cdvr_s2_unpack(unsigned codec, const uint8_t *in, size_t n, uint8_t 
 cdvr_status cdvr_s2_decompress(unsigned codec, const uint8_t *in, size_t n, uint8_t *out,
                                size_t expect, cdvr_error *err);
 
+/* ---- this machine's unpack rates (stage2_rates.c) -------------------------------------------
+ * mbps[c]: payload MB/s (10^6 bytes) of unpacking codec c (1..3) on one thread, the median of
+ * 7 unpacks of a fixed 2 MiB calibration volume (noisy smooth ramps, stage2_rates.c) cut
+ * into 1 MiB segments, rounded to 0.1 MB/s. Measured once per machine (CPU model, cdvr
+ * version, LZO, LZ4 and zstd versions) and remembered in the cache (cdvr/cache.h); without
+ * a cache directory every call measures again (about 0.1 s). mbps[0] is 0. */
+typedef struct cdvr_s2_rates {
+    double mbps[CDVR_S2_CODECS];
+    int from_cache;              /* 1: read from the cache, 0: measured by this call */
+} cdvr_s2_rates;
+
+cdvr_status cdvr_s2_unpack_rates(cdvr_s2_rates *out, cdvr_error *err);
+
 #endif

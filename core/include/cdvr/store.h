@@ -39,10 +39,14 @@
  *   ZSTD  zstd level 3, the smallest.
  *   AUTO  per chunk, the one of NONE, LZO, LZ4, ZSTD whose modelled b1 + b1' is the smallest:
  *         stored bytes / stage2_read_mbps (the disk read rate, default
- *         CDVR_STAGE2_READ_MBPS) + the time this machine takes to unpack that very chunk on
- *         one thread (measured at encode: the best of two runs; NONE costs the read alone,
- *         the player keeps the stored bytes as the payload). The choice is recorded per chunk (cdvr_chunk_info.stage2), so an
- *         AUTO store depends on the machine and load at encode time, unlike the others.
+ *         CDVR_STAGE2_READ_MBPS) + payload bytes / this machine's single-thread unpack rate of
+ *         the codec (NONE costs the read alone: the player keeps the stored bytes as the
+ *         payload). The rates are measured once per machine on a fixed calibration payload
+ *         and remembered in the cache (cdvr_s2_unpack_rates, core/codec/stage2/stage2.h;
+ *         cdvr/cache.h), so the choice follows the chunk's packed sizes and these rates, not
+ *         the load at encode time: two encodes on one machine write the same store. A chunk
+ *         of more than 4 segments is modelled from every 4th segment. The choice is recorded
+ *         per chunk (cdvr_chunk_info.stage2). The Lua layer's default (cdvr.encode).
  * A chunk's stage 2 is kept only where it pays: for LZO, LZ4 and ZSTD when it saves at least
  * lzo_min_saving of the chunk (AUTO: where the model says so). LZ4 and ZSTD chunks, and LZO
  * ones larger than one segment, are cut into segments of stage2_segment payload bytes
@@ -276,6 +280,10 @@ cdvr_status cdvr_store_unpack_chunk_threads(const cdvr_store *st, size_t v, size
                                             cdvr_error *err);
 /* "none", "lzo", "lz4", "zstd", "auto" for a cdvr_stage2; "?" otherwise. */
 const char *cdvr_stage2_name(int stage2);
+/* The single-thread unpack rates AUTO models this machine with (payload MB/s; measured once
+ * on a fixed calibration payload and remembered, see AUTO above), by cdvr_stage2: mbps[LZO],
+ * mbps[LZ4], mbps[ZSTD]; mbps[NONE] and mbps[AUTO] are 0. *from_cache: 1 when remembered. */
+cdvr_status cdvr_stage2_unpack_rates(double mbps[5], int *from_cache, cdvr_error *err);
 /* b1 + b1' in one call: a new malloc'ed buffer (*payload, freed by the caller) holding chunk c's
  * payload_bytes after the CRC check and stage 2. */
 cdvr_status cdvr_store_load_payload(const cdvr_store *st, size_t v, size_t c, uint8_t **payload,

@@ -8,13 +8,13 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "cdvr/cache.h"
 #include "cdvr/timing.h"
 #include "cl_internal.h"
 
 #define MAX_PLATFORMS 16
 #define MAX_DEVICES 32
 #define BUILD_OPTIONS "-cl-std=CL1.2"
-#define CACHE_MAGIC "CDVRCLB1"
 
 /* The render kernels (after kernels/common/cl_shared.h and, for a fetch-mode codec, its
  * source). */
@@ -314,103 +314,12 @@ static cdvr_status load_sources(const cdvr_codec *codec, const char *const *file
     return CDVR_OK;
 }
 
-static uint64_t fnv1a(uint64_t h, const void *data, size_t n)
-{
-    const unsigned char *p = data;
-    for (size_t i = 0; i < n; i++) {
-        h ^= p[i];
-        h *= 1099511628211ULL;
-    }
-    return h;
-}
-
-static uint64_t hash_str(uint64_t h, const char *s)
-{
-    return fnv1a(h, s, strlen(s) + 1);
-}
-
-/* 128-bit key (two FNV-1a streams with different seeds) as 32 hex digits. */
+/* The cache key of something built or measured for this device. */
 static void cache_key(const cdvr_cl *cl, const char *source, const char *options, char key[33])
 {
     const char *parts[] = {source, options, cl->info.device, cl->info.driver_version,
                            cl->info.platform, cl->info.device_version};
-    uint64_t h1 = 14695981039346656037ULL, h2 = 0x9e3779b97f4a7c15ULL;
-    for (size_t i = 0; i < sizeof parts / sizeof *parts; i++) {
-        h1 = hash_str(h1, parts[i]);
-        h2 = hash_str(h2 ^ (uint64_t)(i + 1), parts[i]);
-    }
-    snprintf(key, 33, "%016llx%016llx", (unsigned long long)h1, (unsigned long long)h2);
-}
-
-static int mkdir_p(const char *dir)
-{
-    char path[512];
-    snprintf(path, sizeof path, "%s", dir);
-    for (char *p = path + 1; *p; p++) {
-        if (*p != '/')
-            continue;
-        *p = '\0';
-        if (mkdir(path, 0755) && errno != EEXIST)
-            return -1;
-        *p = '/';
-    }
-    return (mkdir(path, 0755) && errno != EEXIST) ? -1 : 0;
-}
-
-static int cache_dir(char *dir, size_t n)
-{
-    const char *env = getenv("CDVR_CACHE_DIR");
-    const char *xdg = getenv("XDG_CACHE_HOME");
-    const char *home = getenv("HOME");
-    if (env && *env)
-        snprintf(dir, n, "%s", env);
-    else if (xdg && *xdg)
-        snprintf(dir, n, "%s/cdvr", xdg);
-    else if (home && *home)
-        snprintf(dir, n, "%s/.cache/cdvr", home);
-    else
-        return -1;
-    return mkdir_p(dir);
-}
-
-/* Cache file: magic, key (32 hex), binary size (u64), FNV-1a of the binary (u64), binary. */
-static unsigned char *cache_load(const char *path, const char *key, size_t *size)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return NULL;
-    char magic[8], stored_key[32];
-    uint64_t len = 0, sum = 0;
-    unsigned char *bin = NULL;
-    if (fread(magic, 1, 8, f) == 8 && !memcmp(magic, CACHE_MAGIC, 8) &&
-        fread(stored_key, 1, 32, f) == 32 && !memcmp(stored_key, key, 32) &&
-        fread(&len, sizeof len, 1, f) == 1 && fread(&sum, sizeof sum, 1, f) == 1 && len > 0 &&
-        len < ((uint64_t)1 << 31) && (bin = malloc((size_t)len)) != NULL) {
-        if (fread(bin, 1, (size_t)len, f) != len || fgetc(f) != EOF ||
-            fnv1a(14695981039346656037ULL, bin, (size_t)len) != sum) {
-            free(bin);
-            bin = NULL;
-        }
-    }
-    fclose(f);
-    *size = (size_t)len;
-    return bin;
-}
-
-static void cache_store(const char *path, const char *key, const unsigned char *bin, size_t size)
-{
-    char tmp[600];
-    snprintf(tmp, sizeof tmp, "%s.%ld.tmp", path, (long)getpid());
-    FILE *f = fopen(tmp, "wb");
-    if (!f)
-        return;
-    uint64_t len = size, sum = fnv1a(14695981039346656037ULL, bin, size);
-    int ok = fwrite(CACHE_MAGIC, 1, 8, f) == 8 && fwrite(key, 1, 32, f) == 32 &&
-             fwrite(&len, sizeof len, 1, f) == 1 && fwrite(&sum, sizeof sum, 1, f) == 1 &&
-             fwrite(bin, 1, size, f) == size;
-    ok = (fclose(f) == 0) && ok;
-    if (!ok || rename(tmp, path))
-        remove(tmp);
+    cdvr_cache_key(parts, sizeof parts / sizeof *parts, key);
 }
 
 static unsigned char *program_binary(cl_program prog, cl_device_id dev, size_t *size)
@@ -469,13 +378,12 @@ static cdvr_status build_cached(cdvr_cl *cl, const char *source, const char *opt
                                 const char *what, cl_program *out, int *from_cache,
                                 char *cache_path, size_t cache_path_size, cdvr_error *err)
 {
-    char key[33], dir[400];
+    char key[33];
     cache_key(cl, source, options, key);
-    cache_path[0] = '\0';
-    if (cache_dir(dir, sizeof dir) == 0)
-        snprintf(cache_path, cache_path_size, "%s/%s.clbin", dir, key);
+    if (!cdvr_cache_path(key, "clbin", cache_path, cache_path_size))
+        cache_path[0] = '\0';
     size_t size = 0;
-    unsigned char *bin = cache_path[0] ? cache_load(cache_path, key, &size) : NULL;
+    unsigned char *bin = cache_path[0] ? cdvr_cache_load(cache_path, key, &size) : NULL;
     *out = NULL;
     if (bin) {
         *out = program_from_binary(cl, bin, size, options);
@@ -496,7 +404,7 @@ static cdvr_status build_cached(cdvr_cl *cl, const char *source, const char *opt
     }
     bin = cache_path[0] ? program_binary(prog, cl->device, &size) : NULL;
     if (bin)
-        cache_store(cache_path, key, bin, size);
+        cdvr_cache_store(cache_path, key, bin, size);
     free(bin);
     *out = prog;
     return CDVR_OK;
@@ -554,7 +462,7 @@ cdvr_status cdvr_cl_long_index_kernels(cdvr_cl *cl, cl_kernel *bricks, cl_kernel
 static int choice_path(cdvr_cl *cl, const cdvr_codec *codec, const char *kind,
                        unsigned size_class, char *path, size_t n, char key[33])
 {
-    char dir[400], what[96], *source = NULL;
+    char what[96], *source = NULL;
     if ((codec ? load_sources(codec, NULL, 0, &source, NULL)
                : load_sources(NULL, render_files, NRENDER_FILES, &source, NULL)) != CDVR_OK)
         return 0;
@@ -562,10 +470,7 @@ static int choice_path(cdvr_cl *cl, const cdvr_codec *codec, const char *kind,
              CDVR_VERSION);
     cache_key(cl, source, what, key);
     free(source);
-    if (cache_dir(dir, sizeof dir) != 0)
-        return 0;
-    snprintf(path, n, "%s/%s.%s", dir, key, kind);
-    return 1;
+    return cdvr_cache_path(key, kind, path, n);
 }
 
 /* The remembered choice's name (empty when none) and its two times. */
@@ -577,7 +482,7 @@ static void load_choice(cdvr_cl *cl, const cdvr_codec *codec, const char *kind,
     which[0] = '\0';
     if (!choice_path(cl, codec, kind, size_class, path, sizeof path, key))
         return;
-    unsigned char *bin = cache_load(path, key, &size);
+    unsigned char *bin = cdvr_cache_load(path, key, &size);
     if (bin && size < sizeof text) {
         memcpy(text, bin, size);
         text[size] = '\0';
@@ -595,7 +500,7 @@ static void store_choice(cdvr_cl *cl, const cdvr_codec *codec, const char *kind,
         return;
     int n = snprintf(text, sizeof text, "%s %.4f %.4f", which, a_ms, b_ms);
     if (n > 0 && (size_t)n < sizeof text)
-        cache_store(file, key, (const unsigned char *)text, (size_t)n);
+        cdvr_cache_store(file, key, (const unsigned char *)text, (size_t)n);
 }
 
 cdvr_cl_decode_path cdvr_cl_load_decode_choice(cdvr_cl *cl, const cdvr_codec *codec,
