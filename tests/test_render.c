@@ -512,6 +512,61 @@ static void test_extreme_stops_exact(void)
     cdvr_volume_free(v);
 }
 
+/* Max and min rays start from the extreme of the ray above them (render_cpu.c,
+ * GUESS_MARGIN): stripes of hot and cold voxels across the rows of the image (4 voxels wide,
+ * each about 3 pixel rows), so that many rays lie below (min: above) the guess their
+ * neighbour gives and are marched again; the images and samples equal no_skip bit for bit,
+ * with rows of 45 pixels (the one-ray tail too). */
+static void test_extreme_guess_exact(void)
+{
+    cdvr_volume *v = make_volume(40, 40, 20);
+    if (!v)
+        return;
+    uint8_t *d = v->data;
+    uint32_t state = 99u;
+    for (size_t z = 0, i = 0; z < 20; z++)
+        for (size_t y = 0; y < 40; y++)
+            for (size_t x = 0; x < 40; x++, i++) {
+                state = state * 1664525u + 1013904223u;
+                int hot = (y / 4) % 2 == 0;
+                d[i] = (uint8_t)((hot ? 180 : 70) + (state >> 27)); /* + 0..31 of noise */
+            }
+    cdvr_tf_point pts[] = {{0, 0, 0, 0, 0.2}, {255, 1, 1, 1, 0.9}};
+    cdvr_tf tf;
+    cdvr_error err;
+    CHECK_OK(cdvr_tf_init(&tf, pts, 2, 1.0, &err), err);
+    double eyes[][3] = {{19.5, 19.5, 90}, {60, -20, 70}}, center[3] = {19.5, 19.5, 9.5};
+    for (int e = 0; e < 2; e++)
+        for (int blend = 0; blend < 2; blend++) {
+            cdvr_camera cam = camera(eyes[e], center, 45);
+            if (e == 0)
+                cam.up[1] = 1, cam.up[2] = 0; /* looking down z, the stripes across the rows */
+            cdvr_render_opts a = options(&tf, &cam, e ? 0.45 : 0.5, 0.0);
+            a.look.blend = blend ? CDVR_BLEND_MIN : CDVR_BLEND_MAX;
+            cdvr_render_opts b = a;
+            b.no_skip = 1;
+            cdvr_image *ia = render(v, &a), *ib = render(v, &b);
+            if (ia && ib) {
+                size_t n = (size_t)45 * 45 * 4;
+                int hot = 0, cold = 0;
+                for (size_t i = 3; i < n; i += 4) {
+                    hot += ib->rgba[i] > 0.6f; /* a hot stripe's codes: >= 180, alpha > 0.69 */
+                    cold += ib->rgba[i] > 0.0f && ib->rgba[i] < 0.55f;
+                }
+                CHECK(memcmp(ia->rgba, ib->rgba, n * sizeof(float)) == 0,
+                      "eye %d blend %d: starting from the guess changed the image", e, blend);
+                CHECK(a.samples == b.samples, "eye %d blend %d: %llu samples, %llu without "
+                      "skipping", e, blend, (unsigned long long)a.samples,
+                      (unsigned long long)b.samples);
+                CHECK(e || (hot > 200 && cold > 200), "eye %d blend %d: %d hot, %d cold pixels:"
+                      " no stripes", e, blend, hot, cold);
+            }
+            cdvr_image_free(ia);
+            cdvr_image_free(ib);
+        }
+    cdvr_volume_free(v);
+}
+
 /* Average skips bricks of zeros (their samples add 0 to the sum but count): a volume of zeros
  * with a blob of noise (values 1..255, so a brick of ones is not skipped) and a faint shell
  * of ones around it, large enough for whole cubes of zero bricks: the image and samples
@@ -724,6 +779,7 @@ int main(void)
     test_brick_ranges();
     test_skipping_is_exact();
     test_extreme_stops_exact();
+    test_extreme_guess_exact();
     test_axis_rays_exact();
     test_average_skips_zeros_exact();
     test_skip_cache_is_exact();

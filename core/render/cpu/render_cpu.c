@@ -775,7 +775,9 @@ static void pixel_ray(const render_job *job, int x, int y, double origin[3], dou
 
 typedef struct lanes {
     int blend;               /* cdvr_blend */
-    float best[LANES];       /* max, min: the extreme so far */
+    float best[LANES];       /* max, min: the extreme so far (from the guess, see render_lanes) */
+    float guess[LANES];      /* max, min: the guess the march started from, or -inf / +inf */
+    int reached[LANES];      /* max, min: a sample reached the guess (at or beyond it) */
     double sum[LANES];       /* average: the sum of the codes */
     int live[LANES];         /* still marching */
     int i[LANES], n[LANES];  /* segment index, segments */
@@ -941,10 +943,15 @@ static void lanes_extreme(const render_job *job, lanes *L, const int sampling[LA
         if (!sampling[k])
             continue;
         float b = L->best[k];
-        if (L->blend == CDVR_BLEND_AVERAGE)
+        if (L->blend == CDVR_BLEND_AVERAGE) {
             L->sum[k] += sv[k];
-        else
-            L->best[k] = L->blend == CDVR_BLEND_MAX ? max_f(b, sv[k]) : min_f(b, sv[k]);
+        } else if (L->blend == CDVR_BLEND_MAX) {
+            L->best[k] = max_f(b, sv[k]);
+            L->reached[k] |= sv[k] >= L->guess[k];
+        } else {
+            L->best[k] = min_f(b, sv[k]);
+            L->reached[k] |= sv[k] <= L->guess[k];
+        }
         L->taken[k]++;
         L->i[k]++;
         L->live[k] = L->i[k] < L->n[k];
@@ -1174,8 +1181,16 @@ static int lanes_intersect(const render_job *job, const lanes *L, float t_near[L
     return _mm_movemask_ps(_mm_andnot_ps(miss, _mm_cmpgt_ps(t_exit, tn)));
 }
 
-/* Pixels x .. x + 3 of row y (x + 3 < width) by the four-lane march; returns their samples. */
-static uint64_t render_lanes(const render_job *job, int x, int y)
+/* Pixels x .. x + 3 of row y (x + 3 < width) by the four-lane march; returns their samples.
+ * Max and min may start from a guess of each ray's extreme (guess, NULL: none): the march then
+ * jumps the bricks whose range cannot pass the guess either, and its extreme is exact once a
+ * sample reaches the guess (every jumped sample lies at or below the best then, or the guess,
+ * which the best has reached); the rays whose samples all stay short of their guess are
+ * marched again together, without one. Only the lanes in the mask `want` are marched and
+ * written. best_out (NULL: not wanted) gets each ray's exact extreme, NaN for a ray that
+ * takes no sample. */
+static uint64_t render_lanes(const render_job *job, int x, int y, const float guess[LANES],
+                             float best_out[LANES], unsigned want)
 {
     lanes L;
     memset(&L, 0, sizeof L);
@@ -1184,7 +1199,8 @@ static uint64_t render_lanes(const render_job *job, int x, int y)
     float tn4[LANES], tf4[LANES];
     int hit4 = fast ? lanes_intersect(job, &L, tn4, tf4) : -1;
     for (int k = 0; k < LANES; k++) {
-        L.best[k] = job->blend == CDVR_BLEND_MIN ? INFINITY : -INFINITY;
+        L.guess[k] = guess ? guess[k] : job->blend == CDVR_BLEND_MIN ? INFINITY : -INFINITY;
+        L.best[k] = L.guess[k];
         float o[3], d[3], t_near = 0.0f, t_far = 0.0f;
         if (!fast) {
             double od[3], dd[3];
@@ -1200,6 +1216,8 @@ static uint64_t render_lanes(const render_job *job, int x, int y)
             o[a] = L.o[a][k];
             d[a] = L.d[a][k];
         }
+        if (!((want >> k) & 1))
+            continue;
         if (hit4 >= 0) {
             if (!((hit4 >> k) & 1))
                 continue;
@@ -1241,28 +1259,55 @@ static uint64_t render_lanes(const render_job *job, int x, int y)
         _mm_storeu_ps(out[c], C[c]);
     _mm_storeu_ps(out[3], A);
     uint64_t samples = 0;
+    unsigned again = 0; /* the lanes whose guess no sample reached */
     for (int k = 0; k < LANES; k++) {
         float *px = cdvr_image_pixel(job->img, x + k, y);
+        if (!((want >> k) & 1))
+            continue;
+        if (guess && L.taken[k] && !L.reached[k]) {
+            again |= 1u << k;
+            continue;
+        }
         if (job->blend == CDVR_BLEND_COMPOSITE)
             for (int c = 0; c < 4; c++)
                 px[c] = out[c][k];
         else
             extreme_pixel(job, L.best[k], L.sum[k], L.taken[k], px);
+        if (best_out)
+            best_out[k] = L.taken[k] ? L.best[k] : NAN;
         samples += L.taken[k];
     }
-    return samples;
+    return again ? samples + render_lanes(job, x, y, NULL, best_out, again) : samples;
 }
 #endif
 
+/* Max and min rays of a tile's rows after its first start from the extreme of the ray above
+ * less (min: plus) this many codes (render_lanes). Engine CT and Colin27, max at 512^2, step
+ * 0.5, 2 threads, 5 alternating rounds against no guess: margin 4: 0.76 / 0.93 of the time,
+ * 8: 0.735 / 0.945, 16: 0.74 / 0.97 (a smaller margin jumps more bricks, a larger one
+ * marches fewer rays twice). */
+#define GUESS_MARGIN 8.0f
+
 /* Pixels x0 .. x1 - 1 of row y: four at a time where four fit from x0 (a multiple of four)
- * and the march allows it, the others one at a time. */
-static uint64_t render_span(const render_job *job, int x0, int x1, int y)
+ * and the march allows it, the others one at a time. above (NULL: none) holds the extremes
+ * of row y - 1 from x0 (NaN: none), the guesses of max and min rays; row (NULL: not wanted)
+ * gets those of row y. */
+static uint64_t render_span(const render_job *job, int x0, int x1, int y, const float *above,
+                            float *row)
 {
     uint64_t samples = 0;
     int x = x0;
 #ifdef __SSE2__
-    for (; job->lanes && x + LANES <= x1; x += LANES)
-        samples += render_lanes(job, x, y);
+    for (; job->lanes && x + LANES <= x1; x += LANES) {
+        float guess[LANES];
+        for (int k = 0; above && k < LANES; k++) {
+            float a = above[x - x0 + k]; /* a != a: NaN, no guess */
+            guess[k] = job->blend == CDVR_BLEND_MIN ? (a == a ? a + GUESS_MARGIN : INFINITY)
+                                                    : (a == a ? a - GUESS_MARGIN : -INFINITY);
+        }
+        samples += render_lanes(job, x, y, above ? guess : NULL, row ? row + (x - x0) : NULL,
+                                (1u << LANES) - 1);
+    }
 #endif
     for (; x < x1; x++) {
         double od[3], dd[3];
@@ -1271,6 +1316,8 @@ static uint64_t render_span(const render_job *job, int x0, int x1, int y)
         to_box_frame(job, od, dd, o, d);
         float V[3] = {(float)-dd[0], (float)-dd[1], (float)-dd[2]}; /* |dd| = 1 */
         samples += march_ray(job, o, d, V, cdvr_image_pixel(job->img, x, y));
+        if (row)
+            row[x - x0] = NAN;
     }
     return samples;
 }
@@ -1288,14 +1335,18 @@ static void *render_worker(void *arg)
     uint64_t samples = 0;
     int w = job->img->width, h = job->img->height;
     int tiles_x = (w + TILE_W - 1) / TILE_W, tiles = tiles_x * ((h + TILE_H - 1) / TILE_H);
+    int guessing = job->lanes && job->skip_minmax &&
+                   (job->blend == CDVR_BLEND_MAX || job->blend == CDVR_BLEND_MIN);
     for (;;) {
         int t = atomic_fetch_add(&job->next_tile, 1);
         if (t >= tiles || (job->cancel && atomic_load(job->cancel)))
             break;
         int x0 = (t % tiles_x) * TILE_W, y0 = (t / tiles_x) * TILE_H;
         int x1 = x0 + TILE_W < w ? x0 + TILE_W : w, y1 = y0 + TILE_H < h ? y0 + TILE_H : h;
+        float rows[2][TILE_W]; /* max, min: the extremes of the last row and of this one */
         for (int y = y0; y < y1; y++)
-            samples += render_span(job, x0, x1, y);
+            samples += render_span(job, x0, x1, y, guessing && y > y0 ? rows[(y - 1) & 1] : NULL,
+                                   guessing ? rows[y & 1] : NULL);
     }
     atomic_fetch_add(&job->samples, samples);
     return NULL;
