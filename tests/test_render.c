@@ -416,15 +416,23 @@ static void test_skipping_is_exact(void)
     double eyes[][3] = {{-40, -55, 70}, {17.5, 18.5, 100}, {20, 20, 20}, {80, 30.3, 10}};
     double center[3] = {17.6, 18.5, 20.8};
     for (int e = 0; e < 4; e++)
-        for (int kind = 0; kind < 6; kind++) { /* composite, shaded, max, min, average, iso */
-            int shade = kind == 1 || kind == 5;
+        for (int kind = 0; kind < 8; kind++) { /* composite, shaded, max, min, average, iso,
+                                                  * shaded without gradient opacity: headlight
+                                                  * and power 10, fixed light and power 7.5 */
+            int shade = kind == 1 || kind >= 5;
             cdvr_camera cam = camera(eyes[e], center, 48);
             if (e == 1)
                 cam.up[0] = 1, cam.up[2] = 0; /* looking down z: rays parallel to it at the centre */
             cdvr_render_opts a = options(&tf, &cam, e == 3 ? 0.37 : 0.5, 0.0);
-            if (shade && kind == 5)
+            if (shade && kind >= 5) {
                 cdvr_shading_default(&a.look.shade);
-            else if (shade) { /* with gradient opacity */
+                if (kind == 7) {
+                    a.look.shade.specular_power = 7.5;
+                    a.look.shade.light_fixed = 1;
+                    a.look.shade.light_dir[0] = 0.3, a.look.shade.light_dir[1] = -1;
+                    a.look.shade.light_dir[2] = -0.4;
+                }
+            } else if (shade) { /* with gradient opacity */
                 cdvr_shading_default(&a.look.shade);
                 a.look.gradient_opacity.npoints = 2;
                 a.look.gradient_opacity.magnitude[0] = 0.0;
@@ -451,7 +459,7 @@ static void test_skipping_is_exact(void)
                 CHECK(a.samples == b.samples, "eye %d case %d: %llu samples with skipping, %llu "
                       "without", e, kind, (unsigned long long)a.samples,
                       (unsigned long long)b.samples);
-                if (kind < 3 || kind == 5) /* min and average are low: little or nothing lit */
+                if (kind < 3 || kind >= 5) /* min and average are low: little or nothing lit */
                     CHECK(lit > 40 && lit < 48 * 48 - 40, "eye %d case %d: %d pixels lit: scene "
                           "too weak", e, kind, lit);
             }

@@ -339,13 +339,12 @@ static float go_factor(const render_job *job, float m)
     return job->go_factor[n - 1];
 }
 
-/* Shading and gradient opacity of a composite sample at grid position g (rgba from classify,
- * a > 0): rgb shaded, alpha multiplied by the factor and corrected for ds (render.h). */
-static void look_sample(const render_job *job, const float g[3], float s, float ds,
-                        const float V[3], float rgba[4])
+/* Shading and gradient opacity of a composite sample with world gradient G (rgba from
+ * classify, a > 0): rgb shaded, alpha multiplied by the factor and corrected for ds
+ * (render.h); look_sample: at grid position g. */
+static void look_gradient(const render_job *job, const float G[3], float s, float ds,
+                          const float V[3], float rgba[4])
 {
-    float G[3];
-    gradient(job, g, G);
     if (job->go_points) {
         int i0 = (int)s;
         if (i0 > 254)
@@ -356,6 +355,14 @@ static void look_sample(const render_job *job, const float g[3], float s, float 
     }
     if (job->shade && rgba[3] > 0.0f)
         shade_rgb(job, G, V, rgba);
+}
+
+static void look_sample(const render_job *job, const float g[3], float s, float ds,
+                        const float V[3], float rgba[4])
+{
+    float G[3];
+    gradient(job, g, G);
+    look_gradient(job, G, s, ds, V, rgba);
 }
 
 /* The TF at code s without unit correction (max, min, average, iso colour). */
@@ -837,6 +844,132 @@ static inline __m128 lanes_trilinear(const __m128 gv[3], int gi[3][LANES], int v
     return lerp4(lerp4(c00, c10, f[1]), lerp4(c01, c11, f[1]), f[2]);
 }
 
+/* gradient() for the lanes in mask at their grid positions L->g into G[.][k]: the six samples
+ * of each lane gathered as sample_axes loads them, blended four lanes at a time in its order
+ * (lanes_trilinear's lerps), the differences and the matrix as gradient() does them. */
+static void lanes_gradient(const render_job *job, const lanes *L, unsigned mask,
+                           __m128 G[3])
+{
+    int v[6][8][LANES];
+    float f[6][3][LANES], h[3][LANES], hs[3][LANES];
+    for (int k = 0; k < LANES; k++) {
+        if (!((mask >> k) & 1)) { /* zeros: a finite gradient, not used */
+            for (int j = 0; j < 6; j++) {
+                for (int c = 0; c < 8; c++)
+                    v[j][c][k] = 0;
+                f[j][0][k] = f[j][1][k] = f[j][2][k] = 0.0f;
+            }
+            h[0][k] = h[1][k] = h[2][k] = 0.0f;
+            continue;
+        }
+        axis_at ax[3][3]; /* [axis][at, up, down] */
+        for (int a = 0; a < 3; a++) {
+            float g = L->g[a][k], top = (float)(job->dims[a] - 1);
+            float gp = min_f(g + 1.0f, top), gm = max_f(g - 1.0f, 0.0f);
+            h[a][k] = gp - gm;
+            ax[a][0] = axis_setup(job, a, g);
+            ax[a][1] = axis_setup(job, a, gp);
+            ax[a][2] = axis_setup(job, a, gm);
+        }
+        for (int j = 0; j < 6; j++) { /* sample j moves axis j / 2, up then down */
+            const axis_at *X = &ax[0][j / 2 == 0 ? 1 + j % 2 : 0];
+            const axis_at *Y = &ax[1][j / 2 == 1 ? 1 + j % 2 : 0];
+            const axis_at *Z = &ax[2][j / 2 == 2 ? 1 + j % 2 : 0];
+            const uint8_t *p = job->voxels;
+            const uint8_t *r00 = p + Y->lo + Z->lo, *r10 = p + Y->hi + Z->lo,
+                          *r01 = p + Y->lo + Z->hi, *r11 = p + Y->hi + Z->hi;
+            v[j][0][k] = r00[X->lo], v[j][1][k] = r00[X->hi];
+            v[j][2][k] = r10[X->lo], v[j][3][k] = r10[X->hi];
+            v[j][4][k] = r01[X->lo], v[j][5][k] = r01[X->hi];
+            v[j][6][k] = r11[X->lo], v[j][7][k] = r11[X->hi];
+            f[j][0][k] = X->f, f[j][1][k] = Y->f, f[j][2][k] = Z->f;
+        }
+    }
+    __m128 sv[6];
+    for (int j = 0; j < 6; j++) {
+        __m128 fx = _mm_loadu_ps(f[j][0]), fy = _mm_loadu_ps(f[j][1]), fz = _mm_loadu_ps(f[j][2]);
+        __m128 c00 = lerp4(code4(v[j][0]), code4(v[j][1]), fx);
+        __m128 c10 = lerp4(code4(v[j][2]), code4(v[j][3]), fx);
+        __m128 c01 = lerp4(code4(v[j][4]), code4(v[j][5]), fx);
+        __m128 c11 = lerp4(code4(v[j][6]), code4(v[j][7]), fx);
+        sv[j] = lerp4(lerp4(c00, c10, fy), lerp4(c01, c11, fy), fz);
+    }
+    __m128 dq[3];
+    for (int a = 0; a < 3; a++) { /* h > 0 ? (s+ - s-) / (h spacing) : 0 */
+        for (int k = 0; k < LANES; k++)
+            hs[a][k] = h[a][k] * job->spacing[a];
+        __m128 hv = _mm_loadu_ps(h[a]);
+        __m128 q = _mm_div_ps(_mm_sub_ps(sv[2 * a], sv[2 * a + 1]), _mm_loadu_ps(hs[a]));
+        dq[a] = _mm_and_ps(_mm_cmpgt_ps(hv, _mm_setzero_ps()), q);
+    }
+    const float *m = job->grad_to_world;
+    for (int r = 0; r < 3; r++)
+        G[r] = _mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(m[3 * r]), dq[0]),
+                                     _mm_mul_ps(_mm_set1_ps(m[3 * r + 1]), dq[1])),
+                          _mm_mul_ps(_mm_set1_ps(m[3 * r + 2]), dq[2]));
+}
+
+static inline __m128 length4(const __m128 v[3])
+{
+    return _mm_sqrt_ps(_mm_add_ps(_mm_add_ps(_mm_mul_ps(v[0], v[0]), _mm_mul_ps(v[1], v[1])),
+                                  _mm_mul_ps(v[2], v[2])));
+}
+
+static inline __m128 dot4(const __m128 a[3], const __m128 b[3])
+{
+    return _mm_add_ps(_mm_add_ps(_mm_mul_ps(a[0], b[0]), _mm_mul_ps(a[1], b[1])),
+                      _mm_mul_ps(a[2], b[2]));
+}
+
+/* shade_rgb for the lanes in mask (gradients G, rgb[c][k] in place), four at a time: the
+ * same operations in its order (sqrtps, divps and minps round and choose as sqrtf, / and
+ * min_f do; a lane whose gradient is below 1e-12 gets ndl = ndh = 0 as there); a power that
+ * is not whole is taken per lane by powf. */
+static void lanes_shade(const render_job *job, const lanes *L, unsigned mask, const __m128 G[3],
+                        float rgb[3][LANES])
+{
+    const __m128 zero = _mm_setzero_ps(), sign = _mm_set1_ps(-0.0f);
+    __m128 V[3], Lv[3], H[3], n[3];
+    for (int a = 0; a < 3; a++) {
+        V[a] = _mm_loadu_ps(L->V[a]);
+        Lv[a] = job->headlight ? V[a] : _mm_set1_ps(job->light[a]);
+        H[a] = _mm_add_ps(Lv[a], V[a]);
+    }
+    __m128 len = length4(G), hl = length4(H);
+    __m128 ok = _mm_cmpge_ps(len, _mm_set1_ps(1e-12f));
+    for (int a = 0; a < 3; a++)
+        n[a] = _mm_div_ps(G[a], len);
+    __m128 ndl = _mm_and_ps(ok, _mm_andnot_ps(sign, dot4(n, Lv)));
+    __m128 ndh = _mm_div_ps(_mm_andnot_ps(sign, dot4(n, H)), hl);
+    ndh = _mm_and_ps(_mm_and_ps(ok, _mm_cmpgt_ps(hl, zero)), ndh);
+    __m128 pw;
+    if (job->whole_power >= 0) {
+        __m128 x = ndh;
+        pw = _mm_set1_ps(1.0f);
+        for (unsigned e = (unsigned)job->whole_power; e; e >>= 1) {
+            if (e & 1u)
+                pw = _mm_mul_ps(pw, x);
+            x = _mm_mul_ps(x, x);
+        }
+    } else {
+        float nv[LANES], pv[LANES];
+        _mm_storeu_ps(nv, ndh);
+        for (int k = 0; k < LANES; k++)
+            pv[k] = nv[k] > 0.0f ? powf(nv[k], job->power) : 0.0f;
+        pw = _mm_loadu_ps(pv);
+    }
+    __m128 spec = _mm_and_ps(_mm_cmpgt_ps(ndh, zero), _mm_mul_ps(_mm_set1_ps(job->specular), pw));
+    __m128 kd = _mm_add_ps(_mm_set1_ps(job->ambient), _mm_mul_ps(_mm_set1_ps(job->diffuse), ndl));
+    float out[3][LANES];
+    for (int c = 0; c < 3; c++)
+        _mm_storeu_ps(out[c], _mm_min_ps(_mm_add_ps(_mm_mul_ps(_mm_loadu_ps(rgb[c]), kd), spec),
+                                         _mm_set1_ps(1.0f)));
+    for (int k = 0; k < LANES; k++)
+        if ((mask >> k) & 1)
+            for (int c = 0; c < 3; c++)
+                rgb[c][k] = out[c][k];
+}
+
 /* Each lane's segment at its index i (render.h step 2, as sample_at): length ds (step, or
  * the rest of the ray for the last one) and midpoint tm. */
 static inline void lanes_segment(const lanes *L, __m128 step, __m128 *ds, __m128 *tm)
@@ -1056,6 +1189,7 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
     for (int c = 0; c < 3; c++)
         _mm_storeu_ps(rgb[c], lerp4(lo[c], hi[c], fr));
     int looks = job->shade || job->go_points;
+    unsigned lit = 0; /* the lanes to shade or weigh by their gradient */
     for (int k = 0; k < LANES; k++) {
         if (!sampling[k])
             alpha[k] = 0.0f;
@@ -1064,14 +1198,28 @@ static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
             classify(job, sv[k], dsv[k], 0, rgba);
             alpha[k] = rgba[3];
         }
-        if (looks && alpha[k] > 0.0f) { /* shading, gradient opacity: per lane (look_sample) */
-            float rgba[4] = {rgb[0][k], rgb[1][k], rgb[2][k], alpha[k]};
-            float gk[3] = {L->g[0][k], L->g[1][k], L->g[2][k]};
-            float Vk[3] = {L->V[0][k], L->V[1][k], L->V[2][k]};
-            look_sample(job, gk, sv[k], dsv[k], Vk, rgba);
-            for (int c = 0; c < 3; c++)
-                rgb[c][k] = rgba[c];
-            alpha[k] = rgba[3];
+        lit |= (unsigned)(looks && alpha[k] > 0.0f) << k;
+    }
+    if (lit) { /* look_sample: gradients and shading four at a time, gradient opacity per lane */
+        __m128 G[3];
+        lanes_gradient(job, L, lit, G);
+        if (!job->go_points) {
+            lanes_shade(job, L, lit, G, rgb);
+        } else {
+            float Gv[3][LANES];
+            for (int a = 0; a < 3; a++)
+                _mm_storeu_ps(Gv[a], G[a]);
+            for (int k = 0; k < LANES; k++) {
+                if (!((lit >> k) & 1))
+                    continue;
+                float rgba[4] = {rgb[0][k], rgb[1][k], rgb[2][k], alpha[k]};
+                float Gk[3] = {Gv[0][k], Gv[1][k], Gv[2][k]};
+                float Vk[3] = {L->V[0][k], L->V[1][k], L->V[2][k]};
+                look_gradient(job, Gk, sv[k], dsv[k], Vk, rgba);
+                for (int c = 0; c < 3; c++)
+                    rgb[c][k] = rgba[c];
+                alpha[k] = rgba[3];
+            }
         }
     }
     __m128 a = _mm_loadu_ps(alpha);
