@@ -797,6 +797,7 @@ typedef struct lanes {
     /* iso: the last sample's code and parameter before a hit, and the hit (code, parameter) */
     float prev[LANES], t_prev[LANES], hit_s[LANES], hit_tm[LANES];
     int hit[LANES];
+    int corner[8][LANES];    /* shading: the eight codes of the last sample (gather_lane) */
 } lanes;
 
 /* Four integer codes as floats (exact). */
@@ -871,17 +872,24 @@ static void lanes_gradient(const render_job *job, const lanes *L, unsigned mask,
             ax[a][1] = axis_setup(job, a, gp);
             ax[a][2] = axis_setup(job, a, gm);
         }
-        for (int j = 0; j < 6; j++) { /* sample j moves axis j / 2, up then down */
-            const axis_at *X = &ax[0][j / 2 == 0 ? 1 + j % 2 : 0];
-            const axis_at *Y = &ax[1][j / 2 == 1 ? 1 + j % 2 : 0];
-            const axis_at *Z = &ax[2][j / 2 == 2 ? 1 + j % 2 : 0];
-            const uint8_t *p = job->voxels;
-            const uint8_t *r00 = p + Y->lo + Z->lo, *r10 = p + Y->hi + Z->lo,
-                          *r01 = p + Y->lo + Z->hi, *r11 = p + Y->hi + Z->hi;
-            v[j][0][k] = r00[X->lo], v[j][1][k] = r00[X->hi];
-            v[j][2][k] = r10[X->lo], v[j][3][k] = r10[X->hi];
-            v[j][4][k] = r01[X->lo], v[j][5][k] = r01[X->hi];
-            v[j][6][k] = r11[X->lo], v[j][7][k] = r11[X->hi];
+#pragma GCC unroll 6
+        for (int j = 0; j < 6; j++) { /* sample j moves axis a = j / 2, up then down */
+            int a = j / 2, up = j % 2 == 0, bit = 1 << a;
+            const axis_at *X = &ax[0][a == 0 ? 2 - up : 0];
+            const axis_at *Y = &ax[1][a == 1 ? 2 - up : 0];
+            const axis_at *Z = &ax[2][a == 2 ? 2 - up : 0];
+            /* the face it shares with the sample's own cell: the same bytes, already read
+             * (corner c: bit 0 x, bit 1 y, bit 2 z on the high side, as gather_lane) */
+            int shared = up ? ax[a][1].lo == ax[a][0].hi : ax[a][2].hi == ax[a][0].lo;
+#pragma GCC unroll 8
+            for (int c = 0; c < 8; c++) {
+                int high = (c & bit) != 0;
+                if (shared && high != up)
+                    v[j][c][k] = L->corner[up ? c | bit : c & ~bit][k];
+                else
+                    v[j][c][k] = job->voxels[(c & 1 ? X->hi : X->lo) + (c & 2 ? Y->hi : Y->lo) +
+                                             (c & 4 ? Z->hi : Z->lo)];
+            }
             f[j][0][k] = X->f, f[j][1][k] = Y->f, f[j][2][k] = Z->f;
         }
     }
@@ -1063,6 +1071,8 @@ static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], fl
             gather_lane(job, gi[0][k], gi[1][k], gi[2][k], v, k);
     if (!(sampling[0] | sampling[1] | sampling[2] | sampling[3]))
         return 0;
+    if (job->shade || job->go_points) /* the gradient reads them again (lanes_gradient) */
+        memcpy(L->corner, v, sizeof v);
     *s = lanes_trilinear(gv, gi, v);
     return 1;
 }
