@@ -15,6 +15,8 @@
  *   - AUTO's unpack rates: measured once, read back from the cache as measured; with rates
  *     remembered that make LZ4 free, AUTO packs with LZ4 only, and two encodes (2 threads,
  *     1 thread) write the same bytes;
+ *   - cdvr_store_load_payload_into, its buffers kept over chunks of every stage 2, gives
+ *     cdvr_store_load_payload's payload;
  *   - the player plays frames identical to the render of each timestep decoded alone from the
  *     store without stage 2, for none, lzo, lz4, zstd and auto, serial and with 2 workers. */
 #include "check.h"
@@ -401,6 +403,43 @@ static void check_rates(void)
     unsetenv("CDVR_CACHE_DIR");
 }
 
+/* cdvr_store_load_payload_into, with the same two buffers kept over chunks of every variant
+ * (stage 2 none and lz4, raw and pvtc, so they grow and shrink in turn), gives the payload
+ * of cdvr_store_load_payload. */
+static void check_load_into(void)
+{
+    cdvr_volume *vol = make_series(30, 20, 15, 5);
+    cdvr_variant_spec vs[4] = {raw_spec(CDVR_STAGE2_NONE, 256), pvtc_spec(CDVR_STAGE2_LZ4, 256),
+                               raw_spec(CDVR_STAGE2_LZ4, 256), pvtc_spec(CDVR_STAGE2_NONE, 256)};
+    encode(vol, vs, 4, tmp_path("into.cdv"), 1);
+    cdvr_store *st = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_store_open(tmp_path("into.cdv"), &st, &err), err);
+    uint8_t *payload = NULL, *stored = NULL;
+    size_t payload_cap = 0, stored_cap = 0, loads = 0;
+    for (size_t c = 0; st && c < 3; c++)
+        for (size_t v = 0; v < 4; v++) {
+            const cdvr_variant_info *vi = cdvr_store_variant(st, v);
+            if (c >= vi->nchunks)
+                continue;
+            uint8_t *fresh = NULL;
+            CHECK_OK(cdvr_store_load_payload(st, v, c, &fresh, &err), err);
+            CHECK_OK(cdvr_store_load_payload_into(st, v, c, &payload, &payload_cap, &stored,
+                                                  &stored_cap, &err), err);
+            size_t n = (size_t)cdvr_store_chunk(st, v, c)->payload_bytes;
+            CHECK(fresh && payload && payload_cap >= n && memcmp(fresh, payload, n) == 0,
+                  "%s chunk %zu: the payload differs", vi->name, c + 1);
+            free(fresh);
+            loads++;
+        }
+    CHECK(loads >= 8, "%zu chunks loaded", loads);
+    CHECK(stored_cap > 0, "an lz4 chunk used the stored buffer");
+    free(payload);
+    free(stored);
+    cdvr_store_close(st);
+    cdvr_volume_free(vol);
+}
+
 /* ---- a store from before this change ------------------------------------------------------ */
 
 static void check_old_store(void)
@@ -625,6 +664,7 @@ int main(void)
     check_hostile_tables();
     check_store_roundtrips();
     check_rates();
+    check_load_into();
     check_old_store();
     check_hostile_store();
     check_hostile_index();

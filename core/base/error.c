@@ -3,6 +3,7 @@
 #include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <stdlib.h>
 
 cdvr_status cdvr_error_set(cdvr_error *err, cdvr_status status, const char *fmt, ...)
 {
@@ -53,5 +54,19 @@ int cdvr_size_add(size_t a, size_t b, size_t *out)
     if (b > SIZE_MAX - a)
         return 0;
     *out = a + b;
+    return 1;
+}
+
+int cdvr_grow_bytes(uint8_t **buf, size_t *cap, uint64_t need)
+{
+    if (need <= *cap && *buf)
+        return 1;
+    if (need > SIZE_MAX)
+        return 0;
+    uint8_t *nb = realloc(*buf, need ? (size_t)need : 1);
+    if (!nb)
+        return 0;
+    *buf = nb;
+    *cap = (size_t)need;
     return 1;
 }

@@ -254,20 +254,6 @@ static chunk_item *queue_take_seq(item_queue *q, size_t seq)
     return NULL;
 }
 
-static int grow(uint8_t **buf, size_t *cap, uint64_t need)
-{
-    if (need <= *cap)
-        return 1;
-    if (need > SIZE_MAX)
-        return 0;
-    uint8_t *nb = realloc(*buf, (size_t)need);
-    if (!nb)
-        return 0;
-    *buf = nb;
-    *cap = (size_t)need;
-    return 1;
-}
-
 /* ---- stage functions -------------------------------------------------------------------- */
 
 /* Runs fn(p, it) on the calling thread: directly when not threaded, else handed over to it
@@ -548,7 +534,7 @@ static void read_ranges(cdvr_player *p, chunk_item *it, chunk_part *part)
 {
     const cdvr_store *st = p->opts.store;
     size_t bytes = cdvr_store_ranges_bytes(st, (size_t)it->variant, part->chunk);
-    if (!grow(&part->ranges, &part->ranges_cap, bytes))
+    if (!cdvr_grow_bytes(&part->ranges, &part->ranges_cap, bytes))
         cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate a %zu-byte "
                        "range table", cdvr_store_path(st), part->chunk + 1, bytes);
     else
@@ -568,7 +554,7 @@ static void read_item(cdvr_player *p, chunk_item *it)
         const cdvr_chunk_info *pc = cdvr_store_chunk(st, (size_t)it->variant, part->chunk);
         it->stored_bytes += pc->stored_bytes;
         it->payload_bytes += pc->payload_bytes;
-        if (!grow(&part->stored, &part->stored_cap, pc->stored_bytes)) {
+        if (!cdvr_grow_bytes(&part->stored, &part->stored_cap, pc->stored_bytes)) {
             cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate %llu bytes",
                            cdvr_store_path(st), part->chunk + 1,
                            (unsigned long long)pc->stored_bytes);
@@ -638,7 +624,7 @@ static void unzip_chunks(cdvr_player *p, chunk_item *it)
             part->stored_cap = cap;
             continue;
         }
-        if (!grow(&part->payload, &part->payload_cap, ch->payload_bytes)) {
+        if (!cdvr_grow_bytes(&part->payload, &part->payload_cap, ch->payload_bytes)) {
             cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate %llu bytes",
                            cdvr_store_path(st), part->chunk + 1,
                            (unsigned long long)ch->payload_bytes);
@@ -724,7 +710,7 @@ static cdvr_status decode_brick(cdvr_player *p, int w, chunk_item *it, size_t b,
     bvox = bd[0] * bd[1] * bd[2];
     uint8_t *base = out, *frames[64];
     if (!whole) {
-        if (!grow(&p->brick_frames[w], &p->brick_frames_cap[w], (uint64_t)bvox * count))
+        if (!cdvr_grow_bytes(&p->brick_frames[w], &p->brick_frames_cap[w], (uint64_t)bvox * count))
             return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: cannot allocate a brick",
                                   cdvr_store_path(st));
         base = p->brick_frames[w];
@@ -931,7 +917,7 @@ static int decodes_tiled(const cdvr_player *p)
 static void decode_needed_cells(cdvr_player *p, chunk_item *it, int k, uint8_t fill)
 {
     const cdvr_skip_grid *g = &it->grids[0];
-    if (!grow(&it->need, &it->need_cap, 2 * (uint64_t)g->nbricks)) {
+    if (!cdvr_grow_bytes(&it->need, &it->need_cap, 2 * (uint64_t)g->nbricks)) {
         cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "player: no memory for a %zu-cell mask",
                        g->nbricks);
         return;

@@ -34,6 +34,8 @@ struct cdvr_render_ctx {
     uint64_t cache_file_bytes;   /* a closed one is not taken for it */
     cdvr_cpu_skip_cache *cpu_skip;
     cdvr_visible *visible;       /* frames decoded by visible cells (the stream may read one) */
+    uint8_t *payload, *stored;   /* a stored chunk's payload and stored bytes, kept: a new */
+    size_t payload_cap, stored_cap; /* buffer costs its page faults at every render */
 };
 
 cdvr_status cdvr_render_ctx_create(cdvr_render_ctx **out, cdvr_error *err)
@@ -84,6 +86,8 @@ void cdvr_render_ctx_free(cdvr_render_ctx *ctx)
     cdvr_cl_close(ctx->cl);
 #endif
     cdvr_visible_free(ctx->visible); /* after the stream, which may use its frame */
+    free(ctx->payload);
+    free(ctx->stored);
     cdvr_gl_free(ctx->gl);
     cdvr_cpu_skip_cache_free(ctx->cpu_skip);
     free(ctx);
@@ -283,12 +287,11 @@ cdvr_status cdvr_render_ctx_load_chunk(cdvr_render_ctx *ctx, const cdvr_store *s
     *frame = 0;
     if (info->nbricks > 1 || codec->cl_mode == CDVR_CODEC_CL_NONE)
         return decode_on_host(*stream, st, v, t, err);
-    uint8_t *payload;
-    status = cdvr_store_load_payload(st, v, c, &payload, err);
+    status = cdvr_store_load_payload_into(st, v, c, &ctx->payload, &ctx->payload_cap,
+                                          &ctx->stored, &ctx->stored_cap, err);
     if (status != CDVR_OK)
         return status;
-    status = cdvr_cl_upload(*stream, payload, (size_t)chunk->payload_bytes, err);
-    free(payload);
+    status = cdvr_cl_upload(*stream, ctx->payload, (size_t)chunk->payload_bytes, err);
     if (status == CDVR_OK)
         status = cdvr_cl_decode(*stream, chunk->codec, &chunk->params, chunk->count, err);
     if (status != CDVR_OK) {

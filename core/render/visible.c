@@ -138,8 +138,8 @@ int cdvr_skip_refine_enabled(void)
 struct cdvr_visible {
     cdvr_skip_grid grid;   /* the ray caster's bricks; grid.minmax NULL until first made */
     cdvr_skip_grid coarse; /* the table's bricks when coarser */
-    uint8_t *ranges, *need, *frame;
-    size_t ranges_cap, need_cap, frame_cap;
+    uint8_t *ranges, *need, *frame, *payload, *stored; /* payload, stored: the chunk's */
+    size_t ranges_cap, need_cap, frame_cap, payload_cap, stored_cap;
     double share;
 };
 
@@ -161,6 +161,8 @@ void cdvr_visible_free(cdvr_visible *vis)
     free(vis->ranges);
     free(vis->need);
     free(vis->frame);
+    free(vis->payload);
+    free(vis->stored);
     free(vis);
 }
 
@@ -169,18 +171,6 @@ int cdvr_visible_applies(const cdvr_store *st, size_t v, size_t c)
     const cdvr_chunk_info *ci = cdvr_store_chunk(st, v, c);
     return ci && cdvr_store_get_info(st)->nbricks == 1 &&
            cdvr_store_chunk_decodes_cells(st, v, c) && ci->ranges_shift >= CDVR_RANGE_SHIFT;
-}
-
-static int grow(uint8_t **buf, size_t *cap, size_t need)
-{
-    if (need <= *cap)
-        return 1;
-    uint8_t *nb = realloc(*buf, need);
-    if (!nb)
-        return 0;
-    *buf = nb;
-    *cap = need;
-    return 1;
 }
 
 /* g as a grid of dims at shift (made anew when either changed). */
@@ -231,7 +221,7 @@ static cdvr_status make_grid(cdvr_visible *vis, const cdvr_store *st, size_t v, 
     cdvr_status s = fit_grid(&vis->grid, info->dims, CDVR_RANGE_SHIFT, err);
     if (s != CDVR_OK)
         return s;
-    if (!bytes || !grow(&vis->ranges, &vis->ranges_cap, bytes))
+    if (!bytes || !cdvr_grow_bytes(&vis->ranges, &vis->ranges_cap, bytes))
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: chunk %zu: no memory for its %zu-byte "
                               "range table", cdvr_store_path(st), c + 1, bytes);
     s = cdvr_store_read_ranges(st, v, c, vis->ranges, err);
@@ -270,23 +260,22 @@ cdvr_status cdvr_visible_decode(cdvr_visible *vis, const cdvr_store *st, size_t 
     cdvr_status s = make_grid(vis, st, v, c, tf, err);
     if (s != CDVR_OK || !cdvr_skip_transparent_fill(&vis->grid, &fill))
         return s;
-    if (!grow(&vis->need, &vis->need_cap, 2 * vis->grid.nbricks))
+    if (!cdvr_grow_bytes(&vis->need, &vis->need_cap, 2 * vis->grid.nbricks))
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "visible cells: no memory for a %zu-cell "
                               "mask", vis->grid.nbricks);
     size_t voxels = dims[0] * dims[1] * dims[2];
     if ((s = fit_frame(vis, voxels, err)) != CDVR_OK)
         return s;
     size_t cells = cdvr_skip_cells_needed(&vis->grid, gradients, vis->need);
-    uint8_t *payload;
-    s = cdvr_store_load_payload(st, v, c, &payload, err);
+    s = cdvr_store_load_payload_into(st, v, c, &vis->payload, &vis->payload_cap, &vis->stored,
+                                     &vis->stored_cap, err);
     if (s != CDVR_OK)
         return s;
     /* the fill first, everywhere: the codec may write more than the needed cells, and writes
      * their true values (codec.h decode_cells), which keep samples as transparent as the fill */
     memset(vis->frame, fill, voxels);
-    s = cdvr_store_decode_chunk_cells(st, v, c, payload, vis->frame, CDVR_LAYOUT_LINEAR,
+    s = cdvr_store_decode_chunk_cells(st, v, c, vis->payload, vis->frame, CDVR_LAYOUT_LINEAR,
                                       vis->need, vis->grid.shift, err);
-    free(payload);
     if (s != CDVR_OK)
         return s;
     unsigned table_shift = cdvr_store_chunk(st, v, c)->ranges_shift;

@@ -332,18 +332,6 @@ typedef struct encode_pool {
     cdvr_s2_rates s2_rates;      /* AUTO's unpack rates (read once, before the workers start) */
 } encode_pool;
 
-static int reserve(uint8_t **buf, size_t *cap, size_t need)
-{
-    if (need <= *cap)
-        return 1;
-    uint8_t *nb = realloc(*buf, need ? need : 1);
-    if (!nb)
-        return 0;
-    *buf = nb;
-    *cap = need;
-    return 1;
-}
-
 static void bufs_free(job_bufs *b)
 {
     free(b->payload);
@@ -850,14 +838,14 @@ static cdvr_status prepare_job(write_ctx *wc, const frame_window *win, size_t v,
     window = cdvr_range_window_bytes(st->info.dims, own_lo, own_bd, job->ranges_shift);
     job->ranges_bytes = wc->opts->no_range_tables ? 0 : window * ci->count;
     if (!cdvr_size_mul(voxels, ci->count, &decoded) ||
-        !reserve(&job->bufs.payload, &job->bufs.payload_cap, job->shape.bound_bytes) ||
-        s2_cap == 0 || !reserve(&job->bufs.packed, &job->bufs.packed_cap, s2_cap) ||
-        (s2_auto && !reserve(&job->bufs.trial, &job->bufs.trial_cap, s2_cap)) ||
-        !reserve(&job->bufs.decoded, &job->bufs.decoded_cap, decoded) ||
-        !reserve(&job->bufs.ranges, &job->bufs.ranges_cap, job->ranges_bytes) ||
-        !reserve(&job->bufs.ranges_packed, &job->bufs.ranges_packed_cap,
+        !cdvr_grow_bytes(&job->bufs.payload, &job->bufs.payload_cap, job->shape.bound_bytes) ||
+        s2_cap == 0 || !cdvr_grow_bytes(&job->bufs.packed, &job->bufs.packed_cap, s2_cap) ||
+        (s2_auto && !cdvr_grow_bytes(&job->bufs.trial, &job->bufs.trial_cap, s2_cap)) ||
+        !cdvr_grow_bytes(&job->bufs.decoded, &job->bufs.decoded_cap, decoded) ||
+        !cdvr_grow_bytes(&job->bufs.ranges, &job->bufs.ranges_cap, job->ranges_bytes) ||
+        !cdvr_grow_bytes(&job->bufs.ranges_packed, &job->bufs.ranges_packed_cap,
                  cdvr_range_pack_bound(job->ranges_bytes)) ||
-        (st->info.nbricks > 1 && !reserve(&job->bufs.bricks, &job->bufs.bricks_cap, decoded)))
+        (st->info.nbricks > 1 && !cdvr_grow_bytes(&job->bufs.bricks, &job->bufs.bricks_cap, decoded)))
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for a %zu-byte chunk",
                               st->path, job->shape.bound_bytes);
     for (size_t i = 0; i < timesteps; i++) {

@@ -1296,24 +1296,34 @@ cdvr_status cdvr_store_read_ranges(const cdvr_store *st, size_t v, size_t c, uin
     return s;
 }
 
-/* Reads and unpacks chunk c; *payload is malloc'd (payload_bytes). */
-cdvr_status cdvr_store_load_payload(const cdvr_store *st, size_t v, size_t c, uint8_t **payload,
-                                    cdvr_error *err)
+cdvr_status cdvr_store_load_payload_into(const cdvr_store *st, size_t v, size_t c,
+                                         uint8_t **payload, size_t *payload_cap,
+                                         uint8_t **stored, size_t *stored_cap, cdvr_error *err)
 {
-    *payload = NULL;
     const cdvr_chunk_info *ci;
     cdvr_status s = chunk_lookup(st, v, c, &ci, err);
     if (s != CDVR_OK)
         return s;
-    if (ci->stored_bytes > SIZE_MAX || ci->payload_bytes > SIZE_MAX)
-        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: chunk %zu too large", st->path, c + 1);
-    uint8_t *stored = malloc(ci->stored_bytes ? (size_t)ci->stored_bytes : 1);
-    *payload = malloc(ci->payload_bytes ? (size_t)ci->payload_bytes : 1);
-    s = (!stored || !*payload) ? cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for chunk "
-                                                "%zu", st->path, c + 1)
-                               : cdvr_store_read_chunk(st, v, c, stored, err);
-    if (s == CDVR_OK)
-        s = cdvr_store_unpack_chunk(st, v, c, stored, *payload, err);
+    if (!cdvr_grow_bytes(payload, payload_cap, ci->payload_bytes) ||
+        (ci->stage2 && !cdvr_grow_bytes(stored, stored_cap, ci->stored_bytes)))
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for chunk %zu (%llu bytes)",
+                              st->path, c + 1, (unsigned long long)ci->payload_bytes);
+    /* without stage 2 the stored bytes are the payload: read them in place */
+    s = cdvr_store_read_chunk(st, v, c, ci->stage2 ? *stored : *payload, err);
+    if (s == CDVR_OK && ci->stage2)
+        s = cdvr_store_unpack_chunk(st, v, c, *stored, *payload, err);
+    return s;
+}
+
+/* Reads and unpacks chunk c; *payload is malloc'd (payload_bytes). */
+cdvr_status cdvr_store_load_payload(const cdvr_store *st, size_t v, size_t c, uint8_t **payload,
+                                    cdvr_error *err)
+{
+    uint8_t *stored = NULL;
+    size_t payload_cap = 0, stored_cap = 0;
+    *payload = NULL;
+    cdvr_status s = cdvr_store_load_payload_into(st, v, c, payload, &payload_cap, &stored,
+                                                 &stored_cap, err);
     free(stored);
     if (s != CDVR_OK) {
         free(*payload);

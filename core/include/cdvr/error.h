@@ -9,6 +9,7 @@
 #define CDVR_ERROR_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 #define CDVR_ERRMSG_MAX 512
 
@@ -45,5 +46,10 @@ const char *cdvr_status_name(cdvr_status status);
 /* Overflow-checked size arithmetic: return 1 and store the result, or 0 on overflow. */
 int cdvr_size_mul(size_t a, size_t b, size_t *out);
 int cdvr_size_add(size_t a, size_t b, size_t *out);
+
+/* A byte buffer *buf of *cap bytes grown to hold need (realloc: the contents are kept;
+ * need 0 allocates one byte): 1 when it holds need bytes, 0 when out of memory or need is
+ * past SIZE_MAX (*buf and *cap unchanged). */
+int cdvr_grow_bytes(uint8_t **buf, size_t *cap, uint64_t need);
 
 #endif
