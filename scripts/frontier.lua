@@ -7,8 +7,10 @@
 -- viscous-fingers series upsampled to --series-size^3 by scripts/bench/make_series.py, written
 -- under DIR/series; --series PATTERN takes an existing printf pattern of raw u8 cubes of that
 -- size instead, --series none leaves it out), encode every codec and variant into one store:
---   raw; raw with stage 2 zstd and lz4 (lossless, fewer bits);
---   PVTC S1T3, S4T3, S1T2, S4T2 (no stage 2), and S4T3 / S1T3 with stage 2 lzo, lz4, zstd;
+--   raw; raw with stage 2 zstd, lz4 and auto (lossless, fewer bits; auto: cdvr.encode's
+--   default, per chunk by the read + unpack model, the stage2 column names what it took);
+--   PVTC S1T3, S4T3, S1T2, S4T2 (no stage 2), and S4T3 / S1T3 with stage 2 lzo, lz4, zstd,
+--   auto;
 --   zfp at each rate of --zfp (bits per voxel, default 0.5,1,2,4) when the zfp plugin is
 --   loaded; hvq and hvqc (default parameters; hvqc also with shared=1 unless --quick) when
 --   those codecs are registered;
@@ -25,7 +27,8 @@
 --                an equal or higher image PSNR, one of them strictly (the front a user picks
 --                from: the best quality for a budget of bits).
 -- Each dataset keeps its first --timesteps timesteps (default 3). --quick: fewer variants
--- (raw, raw_zstd, S1T3, S4T3, S4T3_lz4, S4T3_zstd, zfp at 1 and 4 bpv, hvq, hvqc), 4 frames of
+-- (raw, raw_zstd, raw_auto, S1T3, S4T3, S4T3_lz4, S4T3_zstd, S4T3_auto, zfp at 1 and 4 bpv,
+-- hvq, hvqc), 4 frames of
 -- 96^2 and a 128^3 series, for a run of a few minutes on 2 cores.
 -- Writes DIR/frontier.csv (columns above, one row per dataset and variant) and
 -- DIR/frontier.png (gnuplot, one panel per dataset: image PSNR against bits per voxel, each
@@ -102,13 +105,15 @@ local function codec_loaded(name)
 end
 
 local function variant_list()
-  local list = {{name = "raw", codec = "raw"}, {name = "raw_zstd", codec = "raw", stage2 = "zstd"}}
+  local list = {{name = "raw", codec = "raw"}, {name = "raw_zstd", codec = "raw", stage2 = "zstd"},
+                {name = "raw_auto", codec = "raw", stage2 = "auto"}}
   local pvtc = quick and {{1, 3}, {4, 3}} or {{1, 3}, {4, 3}, {1, 2}, {4, 2}}
   for _, st in ipairs(pvtc) do
     list[#list + 1] = {name = ("S%dT%d"):format(st[1], st[2]), S = st[1], T = st[2]}
   end
-  local staged = quick and {{4, "lz4"}, {4, "zstd"}} or
-                 {{4, "lzo"}, {4, "lz4"}, {4, "zstd"}, {1, "lzo"}, {1, "lz4"}, {1, "zstd"}}
+  local staged = quick and {{4, "lz4"}, {4, "zstd"}, {4, "auto"}} or
+                 {{4, "lzo"}, {4, "lz4"}, {4, "zstd"}, {4, "auto"}, {1, "lzo"}, {1, "lz4"},
+                  {1, "zstd"}, {1, "auto"}}
   if not quick then table.insert(list, 3, {name = "raw_lz4", codec = "raw", stage2 = "lz4"}) end
   for _, s in ipairs(staged) do
     list[#list + 1] = {name = ("S%dT3_%s"):format(s[1], s[2]), S = s[1], T = 3, stage2 = s[2]}
@@ -166,7 +171,8 @@ local function measure(vol, name, rows)
       if cmp.psnr ~= math.huge then sum, n = sum + cmp.psnr, n + 1 end
     end
     local staged = var.stage2 ~= "none"
-    rows[#rows + 1] = {dataset = name, config = var.name, codec = var.codec, stage2 = var.stage2,
+    rows[#rows + 1] = {dataset = name, config = var.name, codec = var.codec,
+                       stage2 = common.stage2_label(var),
                        bpv = 8 * var.bytes / info.raw_bytes,
                        image_psnr = n == 0 and math.huge or sum / n, volume_psnr = var.psnr,
                        decode_gb_s = st:bench_decode(var.name, 3) / 1e3,

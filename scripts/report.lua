@@ -100,14 +100,7 @@ local function measure(spec, name, rows)
       nfinite = nfinite + (cmp.psnr == math.huge and 0 or 1)
     end
     local image_psnr = nfinite == 0 and math.huge or psnr_sum / nfinite
-    local stage2 = var.stage2
-    if stage2 == "auto" then
-      local parts = {}
-      for _, c in ipairs{"none", "lzo", "lz4", "zstd"} do
-        if var.stage2_chunks[c] > 0 then parts[#parts + 1] = c .. "=" .. var.stage2_chunks[c] end
-      end
-      stage2 = "auto:" .. table.concat(parts, "/")
-    end
+    local stage2 = common.stage2_label(var)
     rows[#rows + 1] = {dataset = name, config = var.name, codec = var.codec,
                        bpv = 8 * var.bytes / info.raw_bytes, ratio = var.bytes / info.raw_bytes,
                        fps = r.fps, frame_ms = r.median.frame_ms, image_psnr = image_psnr,

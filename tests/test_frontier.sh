@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # scripts/frontier.lua end to end on two tiny datasets (--quick, no generated series): exit 0,
-# the CSV's columns, one row per variant and dataset, raw lossless at 8 bpv, the pareto column
-# equal to the front recomputed from the rows written (per dataset), a PNG chart; a missing
-# dataset is reported and fails the run while the others are still written.
+# the CSV's columns, one row per variant and dataset, raw lossless at 8 bpv, auto's choices
+# named, the pareto column equal to the front recomputed from the rows written (per dataset),
+# a PNG chart; a missing dataset is reported and fails the run while the others are still
+# written.
 cdvr=${1:?usage: test_frontier.sh path/to/cdvr}
 src=${CDVR_SOURCE_DIR:-$(cd "$(dirname "$0")/.." && pwd)}
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
@@ -16,12 +17,13 @@ check "frontier.lua exit 0" [ $? -eq 0 ]
 [ -s "$tmp/f/frontier.csv" ] || cat "$tmp/f.err" >&2
 csv="$tmp/f/frontier.csv"
 check "frontier.csv columns" [ "$(head -1 "$csv")" = "dataset,config,codec,stage2,bpv,image_psnr,volume_psnr,decode_gb_s,unpack_gb_s,fps,frame_ms,pareto" ]
-nvar=$("$cdvr" -e 'local n = 6 for _, c in ipairs(cdvr.codecs()) do if c.name == "hvq" or c.name == "hvqc" then n = n + 1 end end print(n)')
+nvar=$("$cdvr" -e 'local n = 8 for _, c in ipairs(cdvr.codecs()) do if c.name == "hvq" or c.name == "hvqc" then n = n + 1 end end print(n)')
 check "one row per variant and dataset ($nvar each)" [ "$(grep -c '^neghip_66x66x66_u8,' "$csv")" -eq $nvar ] && \
   [ "$(grep -c '^mpld_asl_64x64x24x25_f32,' "$csv")" -eq $nvar ]
 check "every row has 12 fields" [ "$(awk -F, 'NR > 1 && NF != 12' "$csv" | wc -l)" -eq 0 ]
 check "raw is lossless at 8 bpv" grep -q '^neghip_66x66x66_u8,raw,raw,none,8.0000,inf,inf,' "$csv"
 check "stage 2 recorded" grep -q '^neghip_66x66x66_u8,S4T3_zstd,pvtc,zstd,' "$csv"
+check "auto lists what its chunks took" grep -Eq '^neghip_66x66x66_u8,raw_auto,raw,auto:(none|lzo|lz4|zstd)=[0-9]' "$csv"
 # the front, recomputed: a row is on it unless another row of its dataset has bpv <= and
 # image_psnr >= (inf the highest), one of them strictly
 front=$(awk -F, 'NR > 1 { n++; d[n] = $1; b[n] = $5 + 0; p[n] = ($6 == "inf") ? 1e30 : $6 + 0; m[n] = $12 }

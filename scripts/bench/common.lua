@@ -117,6 +117,17 @@ function M.view(v, az, el, width, height)
 end
 
 -- A number for a CSV cell: "inf" for math.huge, else 4 decimals.
+-- A variant's stage 2 for a table: its setting, and for "auto" what its chunks took
+-- ("auto:lz4=58/none=2", from st:info().variants[i]).
+function M.stage2_label(var)
+  if var.stage2 ~= "auto" then return var.stage2 end
+  local parts = {}
+  for _, c in ipairs{"none", "lzo", "lz4", "zstd"} do
+    if var.stage2_chunks[c] > 0 then parts[#parts + 1] = c .. "=" .. var.stage2_chunks[c] end
+  end
+  return "auto:" .. table.concat(parts, "/")
+end
+
 function M.csv_number(x) return x == math.huge and "inf" or ("%.4f"):format(x) end
 
 -- Writes DIR/NAME (header, then row_line(r) for each row), echoes it on stdout, and records the
