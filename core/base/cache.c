@@ -2,6 +2,7 @@
 #include "cdvr/cache.h"
 
 #include <errno.h>
+#include <pthread.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -98,8 +99,9 @@ unsigned char *cdvr_cache_load(const char *path, const char *key, size_t *size)
 void cdvr_cache_store(const char *path, const char *key, const unsigned char *content,
                       size_t size)
 {
-    char tmp[600];
-    if (snprintf(tmp, sizeof tmp, "%s.%ld.tmp", path, (long)getpid()) >= (int)sizeof tmp)
+    char tmp[640]; /* its own name per process and thread: writers never share a file */
+    if (snprintf(tmp, sizeof tmp, "%s.%ld.%lx.tmp", path, (long)getpid(),
+                 (unsigned long)pthread_self()) >= (int)sizeof tmp)
         return;
     FILE *f = fopen(tmp, "wb");
     if (!f)
