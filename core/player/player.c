@@ -922,28 +922,14 @@ static void decode_needed_cells(cdvr_player *p, chunk_item *it, int k, uint8_t f
                        g->nbricks);
         return;
     }
-    size_t cells = cdvr_skip_cells_needed(g, shades(p), it->need);
     int tiled = decodes_tiled(p) && g->shift == 2; /* cells are tiles */
-    if (cdvr_store_decode_chunk_cells(p->opts.store, (size_t)it->variant, it->chunk,
-                                      it->parts[0].payload, p->slots[k],
-                                      tiled ? CDVR_LAYOUT_TILED : CDVR_LAYOUT_LINEAR, it->need,
-                                      g->shift, &it->err) != CDVR_OK)
-        return;
-    if (tiled)
-        cdvr_skip_fill_tiles(p->slots[k], g, it->need, fill);
-    else
-        cdvr_skip_fill_cells(p->slots[k], g, it->need, fill);
-    unsigned table_shift =
-        cdvr_store_chunk(p->opts.store, (size_t)it->variant, it->chunk)->ranges_shift;
-    if (!tiled && table_shift > g->shift && cdvr_skip_refine_enabled()) {
-        /* exact ranges of the visible bricks on this thread (the render runs beside it); the
-         * same from tiles made that decode 1.9x as long and the playback 0.9x as fast; on
-         * failure the coarse grid stays */
-        cdvr_error ignored;
-        cdvr_skip_refine(&it->grids[0], p->slots[k], p->opts.tf, 1, it->need, &ignored);
-    }
-    it->tiled = tiled;
-    it->decoded_share = (double)cells / (double)g->nbricks;
+    /* a refine on this thread alone: the render runs beside it */
+    if (cdvr_visible_decode_cells(p->opts.store, (size_t)it->variant, it->chunk,
+                                  it->parts[0].payload, p->slots[k],
+                                  tiled ? CDVR_LAYOUT_TILED : CDVR_LAYOUT_LINEAR, &it->grids[0],
+                                  p->opts.tf, shades(p), fill, 1, it->need, &it->decoded_share,
+                                  &it->err) == CDVR_OK)
+        it->tiled = tiled;
 }
 
 /* The host decode of the group into slot k: whole frames, or (decodes_cells, and a fill that

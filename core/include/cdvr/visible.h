@@ -30,6 +30,20 @@ cdvr_status cdvr_visible_table_grid(cdvr_skip_grid *grid, cdvr_skip_grid *coarse
                                     const uint8_t *const *tables, size_t frame,
                                     const cdvr_tf *tf, cdvr_error *err);
 
+/* The decode by cells of chunk c of variant v from its payload into frame (layout: linear,
+ * or tiled with grid's bricks as tiles, shift 2), grid's flags made: the cells a composite
+ * render reads (cdvr_skip_cells_needed, with gradients or not), fill in the others
+ * (cdvr_skip_transparent_fill's value). Then a linear frame from range tables coarser than
+ * grid has grid refined to exact ranges (cdvr_skip_refine on `threads` threads, 0: the online
+ * cores; on failure the coarse grid stays, which renders the same image). need: 2 * nbricks
+ * bytes of scratch. *share: the share of cells decoded (0 .. 1). The player and
+ * cdvr_visible_decode decode so. Errors: the codec's. */
+cdvr_status cdvr_visible_decode_cells(const cdvr_store *st, size_t v, size_t c,
+                                      const uint8_t *payload, uint8_t *frame, unsigned layout,
+                                      cdvr_skip_grid *grid, const cdvr_tf *tf, int gradients,
+                                      uint8_t fill, unsigned threads, uint8_t *need,
+                                      double *share, cdvr_error *err);
+
 /* The frame, its grid and their scratch, reused from one decode to the next. */
 typedef struct cdvr_visible cdvr_visible;
 
