@@ -70,3 +70,13 @@ int cdvr_grow_bytes(uint8_t **buf, size_t *cap, uint64_t need)
     *cap = (size_t)need;
     return 1;
 }
+
+void cdvr_swap_buffers(uint8_t **a, size_t *a_cap, uint8_t **b, size_t *b_cap)
+{
+    uint8_t *buf = *a;
+    size_t cap = *a_cap;
+    *a = *b;
+    *a_cap = *b_cap;
+    *b = buf;
+    *b_cap = cap;
+}

@@ -616,12 +616,7 @@ static void unzip_chunks(cdvr_player *p, chunk_item *it)
             continue;
         const cdvr_chunk_info *ch = cdvr_store_chunk(st, (size_t)it->variant, part->chunk);
         if (!ch->stage2) { /* the stored bytes are the payload: take the buffer, no copy */
-            uint8_t *b = part->payload;
-            size_t cap = part->payload_cap;
-            part->payload = part->stored;
-            part->payload_cap = part->stored_cap;
-            part->stored = b;
-            part->stored_cap = cap;
+            cdvr_swap_buffers(&part->payload, &part->payload_cap, &part->stored, &part->stored_cap);
             continue;
         }
         if (!cdvr_grow_bytes(&part->payload, &part->payload_cap, ch->payload_bytes)) {
@@ -710,7 +705,8 @@ static cdvr_status decode_brick(cdvr_player *p, int w, chunk_item *it, size_t b,
     bvox = bd[0] * bd[1] * bd[2];
     uint8_t *base = out, *frames[64];
     if (!whole) {
-        if (!cdvr_grow_bytes(&p->brick_frames[w], &p->brick_frames_cap[w], (uint64_t)bvox * count))
+        if (!cdvr_grow_bytes(&p->brick_frames[w], &p->brick_frames_cap[w],
+                             (uint64_t)bvox * count))
             return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: cannot allocate a brick",
                                   cdvr_store_path(st));
         base = p->brick_frames[w];

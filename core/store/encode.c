@@ -519,12 +519,7 @@ static cdvr_status s2_choose(const cdvr_variant_info *vi, const cdvr_s2_rates *r
             best = t;
             *codec = c;
             if (!sampled) { /* the whole chunk packed: keep it */
-                uint8_t *tb = b->packed;
-                size_t tc = b->packed_cap;
-                b->packed = b->trial;
-                b->packed_cap = b->trial_cap;
-                b->trial = tb;
-                b->trial_cap = tc;
+                cdvr_swap_buffers(&b->packed, &b->packed_cap, &b->trial, &b->trial_cap);
                 *packed = n;
             }
         }
@@ -844,8 +839,9 @@ static cdvr_status prepare_job(write_ctx *wc, const frame_window *win, size_t v,
         !cdvr_grow_bytes(&job->bufs.decoded, &job->bufs.decoded_cap, decoded) ||
         !cdvr_grow_bytes(&job->bufs.ranges, &job->bufs.ranges_cap, job->ranges_bytes) ||
         !cdvr_grow_bytes(&job->bufs.ranges_packed, &job->bufs.ranges_packed_cap,
-                 cdvr_range_pack_bound(job->ranges_bytes)) ||
-        (st->info.nbricks > 1 && !cdvr_grow_bytes(&job->bufs.bricks, &job->bufs.bricks_cap, decoded)))
+                         cdvr_range_pack_bound(job->ranges_bytes)) ||
+        (st->info.nbricks > 1 &&
+         !cdvr_grow_bytes(&job->bufs.bricks, &job->bufs.bricks_cap, decoded)))
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for a %zu-byte chunk",
                               st->path, job->shape.bound_bytes);
     for (size_t i = 0; i < timesteps; i++) {

@@ -293,10 +293,8 @@ typedef struct hvq_target {
 
 static int cell_needed(const hvq_target *t, uint64_t x, uint64_t y, uint64_t z)
 {
-    const cdvr_cells *c = &t->cells;
-    return c->need[(x >> c->log2) + c->cdims[0] * ((y >> c->log2) + c->cdims[1] * (z >> c->log2))];
+    return cdvr_cells_voxel(&t->cells, (size_t)x, (size_t)y, (size_t)z);
 }
-
 
 /* The 64 values of a block with codewords, x fastest, then y, z: mean + c1[o8] + c2[o64]
  * clamped to 0 .. 255, in one loop of constant count without a branch, which gcc vectorises

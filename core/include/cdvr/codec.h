@@ -172,6 +172,12 @@ static inline cdvr_cells cdvr_cells_of(const uint8_t *need, unsigned cell_log2,
     return c;
 }
 
+/* The need byte of the cell holding voxel (x, y, z). */
+static inline uint8_t cdvr_cells_voxel(const cdvr_cells *c, size_t x, size_t y, size_t z)
+{
+    return c->need[(x >> c->log2) + c->cdims[0] * ((y >> c->log2) + c->cdims[1] * (z >> c->log2))];
+}
+
 /* Whether the box of voxels lo[a] .. lo[a] + n[a] - 1 (each n >= 1) meets a needed cell: a
  * codec's test for one of its blocks. */
 static inline int cdvr_cells_meet(const cdvr_cells *c, const size_t lo[3], const size_t n[3])

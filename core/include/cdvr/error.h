@@ -51,5 +51,7 @@ int cdvr_size_add(size_t a, size_t b, size_t *out);
  * need 0 allocates one byte): 1 when it holds need bytes, 0 when out of memory or need is
  * past SIZE_MAX (*buf and *cap unchanged). */
 int cdvr_grow_bytes(uint8_t **buf, size_t *cap, uint64_t need);
+/* Exchanges two such buffers (contents and capacities), no copy. */
+void cdvr_swap_buffers(uint8_t **a, size_t *a_cap, uint8_t **b, size_t *b_cap);
 
 #endif

@@ -13,9 +13,9 @@
 #include "cdvr/error.h"
 
 /* minmax: 2 per brick (min, max), bricks x fastest, ceil(dims / E) per axis. threads: 0 for
- * the online cores (more than there are brick planes are not used; threads that fail to start are replaced by
- * the caller's). Same bytes for any thread count. CDVR_ERR_NOMEM when the row buffers cannot
- * be allocated. */
+ * the online cores (more than there are brick planes are not used; threads that fail to
+ * start are replaced by the caller's). Same bytes for any thread count. CDVR_ERR_NOMEM when
+ * the row buffers cannot be allocated. */
 cdvr_status cdvr_cpu_brick_ranges(const uint8_t *frame, const size_t dims[3], unsigned shift,
                                   int threads, uint8_t *minmax, cdvr_error *err);
 
