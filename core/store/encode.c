@@ -287,9 +287,9 @@ static cdvr_status window_need(frame_window *w, size_t from, size_t to, cdvr_err
 
 /* Buffers of one chunk in flight, kept for the next chunk that uses the job. */
 typedef struct job_bufs {
-    uint8_t *payload, *packed, *bricks, *decoded, *ranges, *ranges_packed, *trial;
+    uint8_t *payload, *packed, *bricks, *decoded, *ranges, *ranges_packed, *trial, *sample;
     size_t payload_cap, packed_cap, bricks_cap, decoded_cap, ranges_cap, ranges_packed_cap;
-    size_t trial_cap;            /* AUTO: a candidate's stored bytes */
+    size_t trial_cap, sample_cap; /* AUTO: a candidate's stored bytes; a chunk's sample */
 } job_bufs;
 
 /* One chunk being encoded: the codec runs in nparts parts (encode_part), or in one call, then
@@ -341,6 +341,7 @@ static void bufs_free(job_bufs *b)
     free(b->ranges);
     free(b->ranges_packed);
     free(b->trial);
+    free(b->sample);
 }
 
 /* First local index along an axis that the brick starting at voxel lo owns: a voxel two
@@ -498,12 +499,11 @@ static cdvr_status s2_choose(const cdvr_variant_info *vi, const cdvr_s2_rates *r
     job_bufs *b = &job->bufs;
     size_t seg = vi->stage2_segment;
     int sampled = payload / seg > S2_SAMPLE_EVERY;
-    uint8_t *sample = sampled ? malloc(payload / S2_SAMPLE_EVERY + seg) : NULL;
-    if (sampled && !sample)
+    if (sampled && !cdvr_grow_bytes(&b->sample, &b->sample_cap, payload / S2_SAMPLE_EVERY + seg))
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "stage 2: no memory for a sample of a "
                               "%zu-byte chunk", payload);
-    const uint8_t *in = sampled ? sample : b->payload;
-    size_t in_n = sampled ? s2_sample(b->payload, payload, seg, sample) : payload;
+    const uint8_t *in = sampled ? b->sample : b->payload;
+    size_t in_n = sampled ? s2_sample(b->payload, payload, seg, b->sample) : payload;
     double scale = (double)payload / (double)in_n;
     double per_byte_ms = 1.0 / (vi->stage2_read_mbps * 1e3);
     double best = (double)payload * per_byte_ms; /* NONE: the player takes the bytes as read */
@@ -524,7 +524,6 @@ static cdvr_status s2_choose(const cdvr_variant_info *vi, const cdvr_s2_rates *r
             }
         }
     }
-    free(sample);
     if (s != CDVR_OK || !*codec || !sampled)
         return s;
     s = s2_pack(*codec, b->payload, payload, seg, b->packed, b->packed_cap, packed, err);
