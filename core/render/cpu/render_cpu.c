@@ -852,7 +852,7 @@ static void lanes_gradient(const render_job *job, const lanes *L, unsigned mask,
                            __m128 G[3])
 {
     int v[6][8][LANES];
-    float f[6][3][LANES], h[3][LANES], hs[3][LANES];
+    float f[6][3][LANES], h[3][LANES];
     for (int k = 0; k < LANES; k++) {
         if (!((mask >> k) & 1)) { /* zeros: a finite gradient, not used */
             for (int j = 0; j < 6; j++) {
@@ -904,10 +904,8 @@ static void lanes_gradient(const render_job *job, const lanes *L, unsigned mask,
     }
     __m128 dq[3];
     for (int a = 0; a < 3; a++) { /* h > 0 ? (s+ - s-) / (h spacing) : 0 */
-        for (int k = 0; k < LANES; k++)
-            hs[a][k] = h[a][k] * job->spacing[a];
-        __m128 hv = _mm_loadu_ps(h[a]);
-        __m128 q = _mm_div_ps(_mm_sub_ps(sv[2 * a], sv[2 * a + 1]), _mm_loadu_ps(hs[a]));
+        __m128 hv = _mm_loadu_ps(h[a]), hs = _mm_mul_ps(hv, _mm_set1_ps(job->spacing[a]));
+        __m128 q = _mm_div_ps(_mm_sub_ps(sv[2 * a], sv[2 * a + 1]), hs);
         dq[a] = _mm_and_ps(_mm_cmpgt_ps(hv, _mm_setzero_ps()), q);
     }
     const float *m = job->grad_to_world;
