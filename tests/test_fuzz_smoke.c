@@ -1,6 +1,7 @@
 /* tests/test_fuzz_smoke.c - runs the libFuzzer targets of tests/fuzz/ (store reader, PVTC
  * chunk decoder, codec-table decoders with the zfp and rle plugins, the hvq decoder, the hvq
- * OpenCL decode/fetch path when a device exists (PoCL here), LZO stage 2, NRRD/NIfTI/raw
+ * OpenCL decode/fetch path when a device exists (PoCL here), LZO stage 2, the on-disk cache
+ * and the stage-2 rates it holds, NRRD/NIfTI/raw
  * loaders, the VTK .vti/.vtk header parsers) without libFuzzer: a deterministic
  * corpus of valid inputs built here, then thousands of seeded mutations of each (bit flips,
  * byte sets, truncations, insertions, copies). In the sanitizer build any out-of-bounds access
@@ -24,6 +25,9 @@
 #undef LLVMFuzzerTestOneInput
 #define LLVMFuzzerTestOneInput fuzz_lzo_input
 #include "fuzz/fuzz_lzo.c"
+#undef LLVMFuzzerTestOneInput
+#define LLVMFuzzerTestOneInput fuzz_cache_input
+#include "fuzz/fuzz_cache.c"
 #undef LLVMFuzzerTestOneInput
 #define LLVMFuzzerTestOneInput fuzz_load_input
 #include "fuzz/fuzz_load.c"
@@ -414,6 +418,31 @@ static int make_lzo_seed(bytes *seed)
     return ok;
 }
 
+/* fuzz_cache.c's seeds: mode 1 and rates text (stored, loaded back, parsed), or mode 0 and
+ * the entry file cdvr_cache_store writes for that text under the target's key. */
+static int make_cache_seed(bytes *seed, int framed)
+{
+    static const char text[] = "lzo 581.0 lz4 3229.0 zstd 1146.0";
+    uint8_t mode = (uint8_t)framed;
+    if (framed)
+        return bytes_append(seed, &mode, 1) && bytes_append(seed, text, strlen(text));
+    const char *parts[] = {"fuzz cache entry"};
+    char key[33], path[256];
+    cdvr_cache_key(parts, 1, key);
+    if (!fuzz_write_temp((const uint8_t *)text, 0, ".entry", path))
+        return 0;
+    cdvr_cache_store(path, key, (const unsigned char *)text, strlen(text));
+    FILE *f = fopen(path, "rb");
+    uint8_t file[256];
+    size_t n = f ? fread(file, 1, sizeof file, f) : 0;
+    if (f)
+        fclose(f);
+    unlink(path);
+    int ok = n > 56 && bytes_append(seed, &mode, 1) && bytes_append(seed, file, n);
+    CHECK(ok, "cache seed: an entry file of %zu bytes", n);
+    return ok;
+}
+
 static int make_nrrd_seed(bytes *seed)
 {
     const char header[] = "NRRD0004\ntype: int16\ndimension: 4\nsizes: 3 4 2 2\n"
@@ -624,6 +653,12 @@ int main(void)
     seed.n = 0;
     if (make_lzo_seed(&seed))
         fuzz_seed("lzo", fuzz_lzo_input, &seed, 2000, 0, 3000u);
+    seed.n = 0;
+    if (make_cache_seed(&seed, 1)) /* rates content, stored and loaded back: the parse */
+        fuzz_seed("cache", fuzz_cache_input, &seed, 1500, 1, 3100u);
+    seed.n = 0;
+    if (make_cache_seed(&seed, 0)) /* a whole entry file: its header and checksum */
+        fuzz_seed("cache", fuzz_cache_input, &seed, 1500, 1, 3200u);
     seed.n = 0;
     if (make_nrrd_seed(&seed)) {
         check_loader_seed(&seed, ".nrrd", 1, 2);

@@ -76,4 +76,8 @@ typedef struct cdvr_s2_rates {
 
 cdvr_status cdvr_s2_unpack_rates(cdvr_s2_rates *out, cdvr_error *err);
 
+/* The rates of a cache entry's content (n bytes, "lzo R lz4 R zstd R", each rate in
+ * (0, 1e9) MB/s) into out (from_cache 0): 1, or 0 with out zeroed when it is not that. */
+int cdvr_s2_rates_parse(const unsigned char *content, size_t n, cdvr_s2_rates *out);
+
 #endif

@@ -114,6 +114,23 @@ static void cpu_model(char *model, size_t n)
         fclose(f);
 }
 
+int cdvr_s2_rates_parse(const unsigned char *content, size_t n, cdvr_s2_rates *out)
+{
+    char text[128];
+    double *m = out->mbps;
+    memset(out, 0, sizeof *out);
+    if (n >= sizeof text)
+        return 0;
+    memcpy(text, content, n);
+    text[n] = '\0';
+    int ok = sscanf(text, RATES_SCAN, &m[CDVR_S2_LZO], &m[CDVR_S2_LZ4], &m[CDVR_S2_ZSTD]) == 3;
+    for (unsigned c = CDVR_S2_LZO; ok && c < CDVR_S2_CODECS; c++)
+        ok = m[c] > 0 && m[c] < 1e9; /* NaN fails too */
+    if (!ok)
+        memset(out, 0, sizeof *out);
+    return ok;
+}
+
 cdvr_status cdvr_s2_unpack_rates(cdvr_s2_rates *out, cdvr_error *err)
 {
     char model[256], key[33], path[512], text[128];
@@ -122,18 +139,9 @@ cdvr_status cdvr_s2_unpack_rates(cdvr_s2_rates *out, cdvr_error *err)
                            LZ4_versionString(), ZSTD_versionString()};
     cdvr_cache_key(parts, sizeof parts / sizeof *parts, key);
     int cached = cdvr_cache_path(key, "s2rates", path, sizeof path);
-    memset(out, 0, sizeof *out);
     size_t size = 0;
     unsigned char *content = cached ? cdvr_cache_load(path, key, &size) : NULL;
-    if (content && size < sizeof text) {
-        memcpy(text, content, size);
-        text[size] = '\0';
-        double *m = out->mbps;
-        out->from_cache = sscanf(text, RATES_SCAN, &m[CDVR_S2_LZO], &m[CDVR_S2_LZ4],
-                                 &m[CDVR_S2_ZSTD]) == 3 &&
-                          m[CDVR_S2_LZO] > 0 && m[CDVR_S2_LZ4] > 0 && m[CDVR_S2_ZSTD] > 0 &&
-                          m[CDVR_S2_LZO] < 1e9 && m[CDVR_S2_LZ4] < 1e9 && m[CDVR_S2_ZSTD] < 1e9;
-    }
+    out->from_cache = content && cdvr_s2_rates_parse(content, size, out);
     free(content);
     if (out->from_cache)
         return CDVR_OK;
@@ -145,8 +153,8 @@ cdvr_status cdvr_s2_unpack_rates(cdvr_s2_rates *out, cdvr_error *err)
     if (len <= 0 || (size_t)len >= sizeof text)
         return cdvr_error_set(err, CDVR_ERR_IO, "stage 2: unpack rates out of range");
     /* the rates as the cache holds them, so this encode chooses as the later ones will */
-    double *m = out->mbps;
-    sscanf(text, RATES_SCAN, &m[CDVR_S2_LZO], &m[CDVR_S2_LZ4], &m[CDVR_S2_ZSTD]);
+    if (!cdvr_s2_rates_parse((const unsigned char *)text, (size_t)len, out))
+        return cdvr_error_set(err, CDVR_ERR_IO, "stage 2: unpack rates out of range");
     if (cached)
         cdvr_cache_store(path, key, (const unsigned char *)text, (size_t)len);
     return CDVR_OK;
