@@ -1,5 +1,6 @@
 /* core/io/volume.c - cdvr_volume allocation, access and type helpers. */
 #include "cdvr/volume.h"
+#include "cdvr/memory.h"
 #include "cdvr/regular_file.h"
 #include "volume_io.h"
 
@@ -66,7 +67,7 @@ cdvr_status cdvr_volume_create(const size_t dims[3], size_t timesteps, cdvr_type
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "volume %zux%zux%zu x %zu timesteps of %s: size overflows",
                               dims[0], dims[1], dims[2], timesteps, cdvr_type_name(type));
     cdvr_volume *vol = calloc(1, sizeof *vol);
-    void *data = vol ? calloc(1, bytes ? bytes : 1) : NULL;
+    void *data = vol ? cdvr_alloc_large(bytes, 1) : NULL; /* huge pages: cdvr/memory.h */
     if (!data) {
         free(vol);
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "volume %zux%zux%zu x %zu timesteps: cannot allocate %zu bytes",

@@ -35,6 +35,7 @@
 
 #if CDVR_HAVE_OPENCL
 #include "cdvr/device.h"
+#include "cdvr/memory.h"
 #endif
 
 #define MAX_UNZIP 2                /* unzip workers at most */
@@ -828,7 +829,8 @@ static void release_slot(cdvr_player *p, chunk_item *it)
     it->slot = -1;
 }
 
-/* Page-aligned room for `need` bytes in slot k (free: nothing else points into it). */
+/* Room for `need` bytes in slot k (free: nothing else points into it), on huge pages
+ * (cdvr/memory.h). */
 static int slot_room(cdvr_player *p, int k, size_t need)
 {
     if (p->slots[k] && p->slot_cap[k] >= need)
@@ -836,10 +838,10 @@ static int slot_room(cdvr_player *p, int k, size_t need)
     free(p->slots[k]);
     p->slots[k] = NULL;
     p->slot_cap[k] = 0;
-    void *mem = NULL;
-    if (posix_memalign(&mem, 4096, need ? need : 1) != 0)
+    /* zeroed: a tiled frame's tiles past the frame's edge are never written */
+    void *mem = cdvr_alloc_large(need, 1);
+    if (!mem)
         return 0;
-    memset(mem, 0, need); /* a tiled frame's tiles past the frame's edge are never written */
     p->slots[k] = mem;
     p->slot_cap[k] = need;
     return 1;

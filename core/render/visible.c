@@ -7,6 +7,7 @@
 
 #include "cdvr/bricks.h"
 #include "cdvr/codec.h"
+#include "cdvr/memory.h"
 #include "render/cpu/brick_range.h"
 
 /* ---- cells (cdvr/skip.h) ------------------------------------------------------------------ */
@@ -232,14 +233,14 @@ static cdvr_status make_grid(cdvr_visible *vis, const cdvr_store *st, size_t v, 
                                                   tables, 0, tf, err);
 }
 
-/* vis->frame with room for a frame of `bytes` (page-aligned). It grows only for larger dims,
- * whose render made a new stream: the one that read the old frame is gone. */
+/* vis->frame with room for a frame of `bytes` (on huge pages: cdvr/memory.h). It grows only
+ * for larger dims, whose render made a new stream: the one that read the old frame is gone. */
 static cdvr_status fit_frame(cdvr_visible *vis, size_t bytes, cdvr_error *err)
 {
     if (bytes <= vis->frame_cap)
         return CDVR_OK;
-    void *mem;
-    if (posix_memalign(&mem, 4096, bytes ? bytes : 1) != 0)
+    void *mem = cdvr_alloc_large(bytes, 0);
+    if (!mem)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "visible cells: no memory for a %zu-byte "
                               "frame", bytes);
     free(vis->frame);

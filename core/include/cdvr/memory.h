@@ -1,0 +1,27 @@
+/* cdvr/memory.h - large buffers on transparent huge pages.
+ *
+ * A ray caster gathers voxels at random from a volume of tens to thousands of MB: with 4 KiB
+ * pages most new voxel rows it reads miss the TLB. Linux backs a range with 2 MiB pages when
+ * the system allows it: always, or (the Debian default, "madvise") for ranges marked
+ * MADV_HUGEPAGE, as these are. With huge pages off, CDVR_HUGE_PAGES=0 in the environment, or
+ * elsewhere, these are ordinary aligned buffers.
+ */
+#ifndef CDVR_MEMORY_H
+#define CDVR_MEMORY_H
+
+#include <stddef.h>
+
+/* Size and alignment of a huge page (x86-64, and arm64 with 4 KiB base pages). */
+#define CDVR_HUGE_PAGE_BYTES ((size_t)2 << 20)
+
+/* A buffer of `bytes` (0 counts as 1), freed with free(): from CDVR_HUGE_PAGE_BYTES up aligned
+ * to a huge page and marked for huge pages (unless CDVR_HUGE_PAGES=0), below that to a 4 KiB page. zero: filled with
+ * zeros. NULL when out of memory. */
+void *cdvr_alloc_large(size_t bytes, int zero);
+
+/* 1 when the mapping that holds p may be backed by huge pages (/proc/self/smaps lists it
+ * THPeligible), 0 when not (or no mapping holds p), -1 when the kernel does not say. For
+ * tests and diagnostics. */
+int cdvr_on_huge_pages(const void *p);
+
+#endif

@@ -1,0 +1,124 @@
+/* tests/test_memory.c - large buffers (cdvr/memory.h): aligned (4 KiB below a huge page, 2 MiB
+ * from one up), zero-filled when asked, writable to the last byte, freed with free(); from a
+ * huge page up their mapping is eligible for huge pages whenever the system allows them
+ * (/sys/kernel/mm/transparent_hugepage/enabled "always" or "madvise", not disabled for the
+ * process, CDVR_HUGE_PAGES not 0), and a volume's voxels (cdvr_volume_create) are such a
+ * buffer. */
+#include "check.h"
+
+#include "cdvr/memory.h"
+#include "cdvr/volume.h"
+
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/prctl.h>
+
+/* The system's transparent huge page mode: 'a' always, 'm' madvise, 'n' never, 0 unknown. */
+static char thp_mode(void)
+{
+    FILE *f = fopen("/sys/kernel/mm/transparent_hugepage/enabled", "r");
+    char line[128] = "";
+    if (!f)
+        return 0;
+    if (!fgets(line, sizeof line, f))
+        line[0] = '\0';
+    fclose(f);
+#ifdef PR_GET_THP_DISABLE
+    if (prctl(PR_GET_THP_DISABLE, 0, 0, 0, 0) == 1)
+        return 'n';
+#endif
+    return strstr(line, "[always]") ? 'a' : strstr(line, "[madvise]") ? 'm'
+         : strstr(line, "[never]")  ? 'n' : 0;
+}
+
+/* p's mapping is eligible for huge pages exactly when the system allows them (unchecked where
+ * the mode or the kernel's answer is unknown). */
+static void expect_huge(const void *p, char mode, const char *what)
+{
+    int eligible = cdvr_on_huge_pages(p);
+    if (mode && eligible >= 0)
+        CHECK(eligible == (mode != 'n'), "%s: huge pages %s (mode %c)", what,
+              eligible ? "eligible" : "not eligible", mode);
+}
+
+static int all_zero(const uint8_t *p, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        if (p[i])
+            return 0;
+    return 1;
+}
+
+static void test_sizes(char mode)
+{
+    const size_t sizes[] = {0, 1, 4095, 4096, CDVR_HUGE_PAGE_BYTES - 1, CDVR_HUGE_PAGE_BYTES,
+                            CDVR_HUGE_PAGE_BYTES + 1, 5 * CDVR_HUGE_PAGE_BYTES + 3};
+    for (size_t i = 0; i < sizeof sizes / sizeof *sizes; i++) {
+        size_t n = sizes[i], align = n >= CDVR_HUGE_PAGE_BYTES ? CDVR_HUGE_PAGE_BYTES : 4096;
+        for (int zero = 0; zero <= 1; zero++) {
+            uint8_t *p = cdvr_alloc_large(n, zero);
+            CHECK(p != NULL, "%zu bytes", n);
+            if (!p)
+                continue;
+            CHECK((uintptr_t)p % align == 0, "%zu bytes at %p: aligned to %zu", n, (void *)p,
+                  align);
+            if (zero)
+                CHECK(all_zero(p, n ? n : 1), "%zu bytes zero-filled", n);
+            memset(p, 0xA5, n ? n : 1);
+            CHECK(p[n ? n - 1 : 0] == 0xA5, "%zu bytes writable", n);
+            if (n >= CDVR_HUGE_PAGE_BYTES)
+                expect_huge(p, mode, "a large buffer");
+            free(p);
+        }
+    }
+}
+
+/* In madvise mode nothing else is eligible: a stack variable is not. */
+static void test_unmarked(char mode)
+{
+    int local = 0;
+    if (mode == 'm')
+        CHECK(cdvr_on_huge_pages(&local) != 1, "the stack is not marked");
+    CHECK(cdvr_on_huge_pages(NULL) != 1, "no mapping at NULL");
+}
+
+/* CDVR_HUGE_PAGES=0: aligned the same, not marked. */
+static void test_off(char mode)
+{
+    setenv("CDVR_HUGE_PAGES", "0", 1);
+    uint8_t *p = cdvr_alloc_large(3 * CDVR_HUGE_PAGE_BYTES, 1);
+    CHECK(p && (uintptr_t)p % CDVR_HUGE_PAGE_BYTES == 0 && all_zero(p, 3 * CDVR_HUGE_PAGE_BYTES),
+          "CDVR_HUGE_PAGES=0: an aligned zeroed buffer");
+    if (p && mode == 'm')
+        CHECK(cdvr_on_huge_pages(p) != 1, "CDVR_HUGE_PAGES=0: not marked for huge pages");
+    free(p);
+    unsetenv("CDVR_HUGE_PAGES");
+}
+
+static void test_volume(char mode)
+{
+    const size_t dims[3] = {256, 256, 64}; /* 4 MiB */
+    cdvr_volume *vol = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_volume_create(dims, 1, CDVR_TYPE_U8, &vol, &err), err);
+    if (!vol)
+        return;
+    CHECK((uintptr_t)vol->data % CDVR_HUGE_PAGE_BYTES == 0, "voxels aligned to a huge page");
+    CHECK(all_zero(vol->data, 256 * 256 * 64), "voxels zero");
+    expect_huge(vol->data, mode, "a volume's voxels");
+    cdvr_volume_free(vol);
+}
+
+int main(void)
+{
+    char mode = thp_mode();
+    printf("transparent huge pages: %s\n", mode == 'a' ? "always" : mode == 'm' ? "madvise"
+                                           : mode == 'n' ? "never" : "unknown");
+    test_off(mode); /* first: no range of this process is marked yet */
+    test_sizes(mode);
+    test_unmarked(mode);
+    test_volume(mode);
+    return check_finish();
+}
