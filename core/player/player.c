@@ -30,12 +30,12 @@
 #include <unistd.h>
 
 #include "cdvr/bricks.h"
+#include "cdvr/memory.h"
 #include "cdvr/skip.h"
 #include "cdvr/visible.h"
 
 #if CDVR_HAVE_OPENCL
 #include "cdvr/device.h"
-#include "cdvr/memory.h"
 #endif
 
 #define MAX_UNZIP 2                /* unzip workers at most */

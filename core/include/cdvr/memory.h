@@ -15,8 +15,8 @@
 #define CDVR_HUGE_PAGE_BYTES ((size_t)2 << 20)
 
 /* A buffer of `bytes` (0 counts as 1), freed with free(): from CDVR_HUGE_PAGE_BYTES up aligned
- * to a huge page and marked for huge pages (unless CDVR_HUGE_PAGES=0), below that to a 4 KiB page. zero: filled with
- * zeros. NULL when out of memory. */
+ * to a huge page and marked for huge pages (unless CDVR_HUGE_PAGES=0), below that aligned to
+ * a 4 KiB page. zero: filled with zeros. NULL when out of memory. */
 void *cdvr_alloc_large(size_t bytes, int zero);
 
 /* 1 when the mapping that holds p may be backed by huge pages (/proc/self/smaps lists it
