@@ -334,12 +334,16 @@ static void structure_range(const uint8_t *payload, uint64_t *dir, uint64_t *dir
 
 int main(void)
 {
+#if CDVR_HAVE_OPENCL
     cdvr_cl *cl;
     cdvr_error err;
     if (cdvr_cl_open(&cl, &err) != CDVR_OK) {
         return check_opencl_unavailable(err.msg);
     }
     cdvr_cl_close(cl);
+#else
+    return check_opencl_unavailable("built without OpenCL");
+#endif
     char dir[] = "/tmp/cdvr_hostile_hvq_XXXXXX";
     if (!mkdtemp(dir)) {
         CHECK(0, "mkdtemp: %s", strerror(errno));

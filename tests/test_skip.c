@@ -412,6 +412,8 @@ static void test_store_grid(unsigned shift)
             }
             cdvr_cl_stream_free(s);
             cdvr_cl_close(cl);
+#else
+            (void)for_device; /* the device's grid: checked on OpenCL only */
 #endif
             cdvr_volume_free(dec);
         }

@@ -1036,6 +1036,7 @@ static cdvr_status upload_decode(cdvr_player *p, chunk_item *it, double *upload_
     }
     return s;
 #else
+    (void)ch; /* read by the OpenCL paths only */
     return cdvr_error_set(err, CDVR_ERR_UNSUPPORTED, "player: no host decode (internal error)");
 #endif
 }
