@@ -3,7 +3,7 @@
  * huge page up their mapping is eligible for huge pages whenever the system allows them
  * (/sys/kernel/mm/transparent_hugepage/enabled "always" or "madvise", not disabled for the
  * process, CDVR_HUGE_PAGES not 0), and a volume's voxels (cdvr_volume_create) are such a
- * buffer. */
+ * buffer; cdvr_grow_large grows a kept buffer into one. */
 #include "check.h"
 
 #include "cdvr/memory.h"
@@ -111,6 +111,40 @@ static void test_volume(char mode)
     cdvr_volume_free(vol);
 }
 
+/* cdvr_grow_large: grows only when asked for more, whole huge pages from one up (small sizes
+ * as asked), the new buffer large-aligned, marked and writable; the old one is freed. */
+static void test_grow(char mode)
+{
+    uint8_t *buf = NULL;
+    size_t cap = 0;
+    CHECK(cdvr_grow_large(&buf, &cap, 0) && buf && cap == 1, "nothing asked: a byte (cap %zu)",
+          cap);
+    CHECK(cdvr_grow_large(&buf, &cap, 5000) && cap == 5000 && (uintptr_t)buf % 4096 == 0,
+          "small: as asked, page aligned (cap %zu)", cap);
+    uint8_t *small = buf;
+    CHECK(cdvr_grow_large(&buf, &cap, 4000) && buf == small && cap == 5000,
+          "less than held: the same buffer");
+    const size_t big = 3 * CDVR_HUGE_PAGE_BYTES + 12345;
+    CHECK(cdvr_grow_large(&buf, &cap, big) && cap == 4 * CDVR_HUGE_PAGE_BYTES,
+          "large: rounded to whole huge pages (cap %zu)", cap);
+    CHECK(buf && (uintptr_t)buf % CDVR_HUGE_PAGE_BYTES == 0, "large: aligned to a huge page");
+    if (buf) {
+        memset(buf, 0xab, cap); /* writable to the end of what cap says */
+        CHECK(buf[cap - 1] == 0xab, "last byte written");
+        expect_huge(buf, mode, "a grown buffer");
+    }
+    uint8_t *large = buf;
+    CHECK(cdvr_grow_large(&buf, &cap, 4 * CDVR_HUGE_PAGE_BYTES) && buf == large,
+          "exactly the capacity: kept");
+    CHECK(cdvr_grow_large(&buf, &cap, 4 * CDVR_HUGE_PAGE_BYTES + 1) &&
+              cap == 5 * CDVR_HUGE_PAGE_BYTES,
+          "one byte more: a huge page more (cap %zu)", cap);
+    CHECK(!cdvr_grow_large(&buf, &cap, (uint64_t)SIZE_MAX) && cap == 5 * CDVR_HUGE_PAGE_BYTES &&
+              buf,
+          "an impossible size fails and keeps the buffer");
+    free(buf);
+}
+
 int main(void)
 {
     char mode = thp_mode();
@@ -120,5 +154,6 @@ int main(void)
     test_sizes(mode);
     test_unmarked(mode);
     test_volume(mode);
+    test_grow(mode);
     return check_finish();
 }

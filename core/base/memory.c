@@ -26,6 +26,24 @@ void *cdvr_alloc_large(size_t bytes, int zero)
     return p;
 }
 
+int cdvr_grow_large(uint8_t **buf, size_t *cap, uint64_t need)
+{
+    if (*buf && need <= *cap)
+        return 1;
+    if (need > SIZE_MAX - CDVR_HUGE_PAGE_BYTES)
+        return 0;
+    size_t n = need ? (size_t)need : 1;
+    if (n >= CDVR_HUGE_PAGE_BYTES) /* whole huge pages: the rest of the last one is free */
+        n += (CDVR_HUGE_PAGE_BYTES - n % CDVR_HUGE_PAGE_BYTES) % CDVR_HUGE_PAGE_BYTES;
+    uint8_t *grown = cdvr_alloc_large(n, 0);
+    if (!grown)
+        return 0;
+    free(*buf);
+    *buf = grown;
+    *cap = n;
+    return 1;
+}
+
 /* Whether line is an smaps mapping header ("lo-hi perms offset dev inode path", addresses in
  * hex); if so *holds says whether the mapping holds address at. */
 static int mapping_header(const char *line, uintptr_t at, int *holds)

@@ -555,7 +555,7 @@ static void read_item(cdvr_player *p, chunk_item *it)
         const cdvr_chunk_info *pc = cdvr_store_chunk(st, (size_t)it->variant, part->chunk);
         it->stored_bytes += pc->stored_bytes;
         it->payload_bytes += pc->payload_bytes;
-        if (!cdvr_grow_bytes(&part->stored, &part->stored_cap, pc->stored_bytes)) {
+        if (!cdvr_grow_large(&part->stored, &part->stored_cap, pc->stored_bytes)) {
             cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate %llu bytes",
                            cdvr_store_path(st), part->chunk + 1,
                            (unsigned long long)pc->stored_bytes);
@@ -620,7 +620,7 @@ static void unzip_chunks(cdvr_player *p, chunk_item *it)
             cdvr_swap_buffers(&part->payload, &part->payload_cap, &part->stored, &part->stored_cap);
             continue;
         }
-        if (!cdvr_grow_bytes(&part->payload, &part->payload_cap, ch->payload_bytes)) {
+        if (!cdvr_grow_large(&part->payload, &part->payload_cap, ch->payload_bytes)) {
             cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate %llu bytes",
                            cdvr_store_path(st), part->chunk + 1,
                            (unsigned long long)ch->payload_bytes);

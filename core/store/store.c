@@ -88,6 +88,7 @@
 #include "store_format.h"
 
 #include "codec/stage2/stage2.h"
+#include "cdvr/memory.h"
 #include "cdvr/pvtc.h"
 #include "cdvr/regular_file.h"
 
@@ -1304,8 +1305,8 @@ cdvr_status cdvr_store_load_payload_into(const cdvr_store *st, size_t v, size_t 
     cdvr_status s = chunk_lookup(st, v, c, &ci, err);
     if (s != CDVR_OK)
         return s;
-    if (!cdvr_grow_bytes(payload, payload_cap, ci->payload_bytes) ||
-        (ci->stage2 && !cdvr_grow_bytes(stored, stored_cap, ci->stored_bytes)))
+    if (!cdvr_grow_large(payload, payload_cap, ci->payload_bytes) ||
+        (ci->stage2 && !cdvr_grow_large(stored, stored_cap, ci->stored_bytes)))
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory for chunk %zu (%llu bytes)",
                               st->path, c + 1, (unsigned long long)ci->payload_bytes);
     /* without stage 2 the stored bytes are the payload: read them in place */

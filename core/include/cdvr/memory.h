@@ -10,6 +10,7 @@
 #define CDVR_MEMORY_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 /* Size and alignment of a huge page (x86-64, and arm64 with 4 KiB base pages). */
 #define CDVR_HUGE_PAGE_BYTES ((size_t)2 << 20)
@@ -18,6 +19,15 @@
  * to a huge page and marked for huge pages (unless CDVR_HUGE_PAGES=0), below that aligned to
  * a 4 KiB page. zero: filled with zeros. NULL when out of memory. */
 void *cdvr_alloc_large(size_t bytes, int zero);
+
+/* Makes *buf (a buffer freed with free(), or NULL with *cap 0) hold at least `need` bytes,
+ * without keeping its contents: a buffer that holds them already stays; else a new one from
+ * cdvr_alloc_large replaces it, from a huge page up rounded to whole huge pages (*cap says how
+ * many bytes it holds), so a buffer refilled with sizes that differ a little grows rarely. For
+ * buffers read into or unpacked into again and again (the player's chunks): on this kind of VM
+ * a 4 KiB page fault costs microseconds, and a fresh 16 MB buffer takes 4,096 of them.
+ * Returns 1, or 0 when out of memory (the old buffer is kept then). */
+int cdvr_grow_large(uint8_t **buf, size_t *cap, uint64_t need);
 
 /* 1 when the mapping that holds p may be backed by huge pages (/proc/self/smaps lists it
  * THPeligible), 0 when not (or no mapping holds p), -1 when the kernel does not say. For

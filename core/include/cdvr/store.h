@@ -288,9 +288,10 @@ cdvr_status cdvr_stage2_unpack_rates(double mbps[5], int *from_cache, cdvr_error
  * payload_bytes after the CRC check and stage 2. */
 cdvr_status cdvr_store_load_payload(const cdvr_store *st, size_t v, size_t c, uint8_t **payload,
                                     cdvr_error *err);
-/* cdvr_store_load_payload into buffers the caller keeps between calls (cdvr_grow_bytes:
- * *payload of *payload_cap bytes, and *stored for a chunk with stage 2): a new buffer of a
- * large chunk costs a page fault per page on first touch, on every call. */
+/* cdvr_store_load_payload into buffers the caller keeps between calls (cdvr_grow_large of
+ * cdvr/memory.h, contents not kept: *payload of *payload_cap bytes, and *stored for a chunk
+ * with stage 2): a new buffer of a large chunk costs a page fault per page on first touch, on
+ * every call. */
 cdvr_status cdvr_store_load_payload_into(const cdvr_store *st, size_t v, size_t c,
                                          uint8_t **payload, size_t *payload_cap,
                                          uint8_t **stored, size_t *stored_cap, cdvr_error *err);
