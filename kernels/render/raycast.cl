@@ -1115,9 +1115,14 @@ static vint owned(const clip_params *c, vec3x g)
  * 512^2 step 0.5 0.921, step 1 0.927; shaded (gradient copy) Colin27 0.941, engine CT
  * 0.954; max (march_extreme, every 4 samples) engine CT 0.915, Colin27 0.999; Colin27 1024^2
  * step 0.5, average and the 256^3 zfp playback of scale.lua even (1.009, 0.98-1.0, 0.98 of
- * the fps); 8 and 32 samples ahead no better than 16. OpenCL's prefetch() is a no-op in
- * PoCL; __builtin_prefetch never faults, so lanes off the volume need no clamp beyond the
- * corners'. GPU compilers leave it out. */
+ * the fps); 8 and 32 samples ahead no better than 16. Dense frames (the device's choice on
+ * that machine, cl_device.c) get the four voxel rows of the lower corners PREFETCH_AHEAD_DENSE
+ * samples ahead in the composite march: Colin27 512^2 step 0.5 0.87-0.92 of the time (8 ahead;
+ * 6: 0.91, 12: 0.89, 16: 0.94; two rows instead of four: 0.97), 1024^2 0.97, step 1 even;
+ * engine CT composite even; the zfp playback 1.03x the fps. The extreme march leaves dense
+ * frames out: engine CT max took 1.08x the time with it, Colin27 max 0.98. OpenCL's
+ * prefetch() is a no-op in PoCL; __builtin_prefetch never faults, so lanes off the volume
+ * need no clamp beyond the corners'. GPU compilers leave it out. */
 #if defined(__has_builtin) && (defined(__x86_64__) || defined(__aarch64__)) &&                  \
     !defined(CDVR_FETCH) && !defined(CDVR_LONG_INDEX)
 #if __has_builtin(__builtin_prefetch)
@@ -1125,15 +1130,34 @@ static vint owned(const clip_params *c, vec3x g)
 #endif
 #endif
 #ifdef HAVE_PREFETCH
-#define PREFETCH_AHEAD 16
-__attribute__((always_inline)) static inline void prefetch_corners(const volume_geo *v, vec3x g,
-                                                                vint on)
+#define PREFETCH_AHEAD 16      /* samples ahead: tiled and quad copies */
+#define PREFETCH_AHEAD_DENSE 8 /* dense frames, whose four voxel rows per sample lie apart */
+/* The prefetch for lanes `on` at sample i + the layout's distance along g0 + i * dg; of dense
+ * frames only with `dense_too`. */
+__attribute__((always_inline)) static inline void prefetch_corners(const volume_geo *v, vec3x g0,
+                                                                vec3x dg, vint i, vint on,
+                                                                int dense_too)
 {
-    if (!(v->tiled | v->quads_on)) /* dense frames: a prefetch measured no gain */
+    int dense = !(v->tiled | v->quads_on);
+    if (dense && !dense_too)
         return;
+    vec3x g = at(g0, dg, i + (dense ? PREFETCH_AHEAD_DENSE : PREFETCH_AHEAD));
     vint x = clamp(convert_vint(g.x - v->offset.x), 0, v->base_max.x);
     vint y = clamp(convert_vint(g.y - v->offset.y), 0, v->base_max.y);
     vint z = clamp(convert_vint(g.z - v->offset.z), 0, v->base_max.z);
+    int words[RAY_PACKET];
+    if (dense) { /* the rows of the cell's four voxel pairs (trilinear_on's pairs16) */
+        int sy = (int)v->stride.y, sz = (int)v->stride.z;
+        vstore16(select((vint)(0), x + sy * y + sz * z, on), 0, words);
+        for (int k = 0; k < RAY_PACKET; k++) {
+            __global const uchar *row = v->vol + words[k];
+            __builtin_prefetch(row);
+            __builtin_prefetch(row + sy);
+            __builtin_prefetch(row + sz);
+            __builtin_prefetch(row + sz + sy);
+        }
+        return;
+    }
     vint w;
     __global const uint *q;
     if (v->quads_on) {
@@ -1143,7 +1167,6 @@ __attribute__((always_inline)) static inline void prefetch_corners(const volume_
         w = along_x(x) + along_y(v, y) + along_z(v, z);
         q = (__global const uint *)v->vol;
     }
-    int words[RAY_PACKET];
     vstore16(select((vint)(0), w, on), 0, words);
     for (int k = 0; k < RAY_PACKET; k++)
         __builtin_prefetch(q + words[k]);
@@ -1177,7 +1200,7 @@ __attribute__((always_inline)) static inline void sample_steps(
         s[k] = trilinear_on(v, g, run & (i_first + k < m->end));
     }
 #ifdef HAVE_PREFETCH
-    prefetch_corners(v, at(g0, dg, i_first + PREFETCH_AHEAD), run);
+    prefetch_corners(v, g0, dg, i_first, run, 1);
 #endif
     vint stop = (vint)(0), live = run;
     for (int k = 0; k < unroll; k++) {
@@ -1915,7 +1938,7 @@ static rgbax march_extreme(const packet *p, vint n, float step, float3 inv_spaci
             live &= best != saturated; /* a flat brick of the saturated code ends the lane */
             end = select(end, lim, i >= lim - 1); /* the last sample needs no look-up */
 #ifdef HAVE_PREFETCH
-            prefetch_corners(v, at(eb->g0, eb->dg, i + PREFETCH_AHEAD), live);
+            prefetch_corners(v, eb->g0, eb->dg, i, live, 0);
 #endif
             for (int k = 0; k < 4; k++) {
                 vint run = live & (i < end);
