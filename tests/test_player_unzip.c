@@ -3,7 +3,8 @@
  * its own decode slot, and reach the device thread in planning order. Every frame of a
  * pipelined run with 2 workers is byte-identical to the run with 1 worker, to the serial run
  * and to the render of that timestep decoded alone: raw + LZO and PVTC, cpu and cl devices
- * (host decode and decode kernel forced), whole runs, runs stopped inside a group, runs that
+ * (host decode, where a raw chunk's slot trades buffers with its payload, and decode kernel
+ * forced), whole runs, runs stopped inside a group, runs that
  * wrap around, and several runs of one player. A chunk whose LZO stream is corrupt (CRC
  * fixed, so the worker finds it) and one whose bytes fail the CRC (the reader finds it) give
  * error rows naming the chunk and the store, the other frames play, and nothing hangs. */
