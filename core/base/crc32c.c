@@ -9,9 +9,9 @@
  * them (as Intel's and Mark Adler's crc32c do). The CRC register is linear over GF(2): for
  * data A then B, reg(A B) = reg(A) * x^(8 |B|) mod P  xor  reg0(B), reg0 starting from 0. The
  * product is a carry-less multiply in the reflected bit order of the register (bit 31 holds
- * x^0), reduced by P = 0x82F63B78 (reflected); x^(8 * STREAM_BYTES) = x^(2^16) comes from
- * squaring x 16 times. The value is the same as the single-stream one, bit for bit
- * (tests/test_crc32c.c).
+ * x^0), reduced by P = 0x82F63B78 (reflected); x^(8 * STREAM_BYTES) = x^(2^16) mod P is
+ * STREAM_SHIFT, x (1 << 30) squared 16 times with that multiply. The value is the same as the
+ * single-stream one, bit for bit (tests/test_crc32c.c; a wrong STREAM_SHIFT fails it).
  */
 #include "crc32c.h"
 
@@ -79,7 +79,8 @@ static uint32_t crc32c_sw(uint32_t crc, const uint8_t *p, size_t n)
 
 #ifdef CDVR_CRC32C_HW
 #define CRC32C_POLY 0x82F63B78u /* reflected */
-enum { STREAM_BYTES = 8192, STREAM_SQUARINGS = 16 }; /* 8 * 8192 = 2^16 bits */
+#define STREAM_BYTES 8192        /* 8 * 8192 = 2^16 bits */
+#define STREAM_SHIFT 0x28461564u /* x^(2^16) mod P, reflected (see the top) */
 
 /* a * b mod P, both in the register's reflected order (bit 31: x^0). */
 static uint32_t crc32c_multiply(uint32_t a, uint32_t b)
@@ -93,16 +94,6 @@ static uint32_t crc32c_multiply(uint32_t a, uint32_t b)
     return product;
 }
 
-/* x^(8 * STREAM_BYTES) mod P: what a register is multiplied by when STREAM_BYTES zero bytes
- * pass through it. */
-static uint32_t crc32c_stream_shift(void)
-{
-    uint32_t power = 1u << 30; /* x^1 */
-    for (int i = 0; i < STREAM_SQUARINGS; i++)
-        power = crc32c_multiply(power, power);
-    return power;
-}
-
 static uint64_t load_u64(const uint8_t *p)
 {
     uint64_t word;
@@ -114,20 +105,18 @@ __attribute__((target("sse4.2"))) static uint32_t crc32c_hw(uint32_t crc, const 
                                                             size_t n)
 {
     uint64_t c = crc;
-    if (n >= 3 * (size_t)STREAM_BYTES) {
-        uint32_t shift = crc32c_stream_shift();
-        do { /* three blocks at once, then joined: reg(A B C) = (reg(A) x^8L ^ reg0(B)) x^8L ^ reg0(C) */
-            uint64_t c1 = 0, c2 = 0;
-            for (size_t i = 0; i < STREAM_BYTES; i += 8) {
-                c = _mm_crc32_u64(c, load_u64(p + i));
-                c1 = _mm_crc32_u64(c1, load_u64(p + STREAM_BYTES + i));
-                c2 = _mm_crc32_u64(c2, load_u64(p + 2 * STREAM_BYTES + i));
-            }
-            c = crc32c_multiply((uint32_t)c, shift) ^ (uint32_t)c1;
-            c = crc32c_multiply((uint32_t)c, shift) ^ (uint32_t)c2;
-            p += 3 * STREAM_BYTES;
-            n -= 3 * STREAM_BYTES;
-        } while (n >= 3 * (size_t)STREAM_BYTES);
+    /* three blocks at once, joined: reg(A B C) = (reg(A) x^8L ^ reg0(B)) x^8L ^ reg0(C) */
+    while (n >= 3 * (size_t)STREAM_BYTES) {
+        uint64_t c1 = 0, c2 = 0;
+        for (size_t i = 0; i < STREAM_BYTES; i += 8) {
+            c = _mm_crc32_u64(c, load_u64(p + i));
+            c1 = _mm_crc32_u64(c1, load_u64(p + STREAM_BYTES + i));
+            c2 = _mm_crc32_u64(c2, load_u64(p + 2 * STREAM_BYTES + i));
+        }
+        c = crc32c_multiply((uint32_t)c, STREAM_SHIFT) ^ (uint32_t)c1;
+        c = crc32c_multiply((uint32_t)c, STREAM_SHIFT) ^ (uint32_t)c2;
+        p += 3 * STREAM_BYTES;
+        n -= 3 * STREAM_BYTES;
     }
     while (n >= 8) {
         c = _mm_crc32_u64(c, load_u64(p));

@@ -833,17 +833,11 @@ static void release_slot(cdvr_player *p, chunk_item *it)
  * (cdvr/memory.h). */
 static int slot_room(cdvr_player *p, int k, size_t need)
 {
-    if (p->slots[k] && p->slot_cap[k] >= need)
-        return 1;
-    free(p->slots[k]);
-    p->slots[k] = NULL;
-    p->slot_cap[k] = 0;
-    /* zeroed: a tiled frame's tiles past the frame's edge are never written */
-    void *mem = cdvr_alloc_large(need, 1);
-    if (!mem)
+    const uint8_t *held = p->slots[k];
+    if (!cdvr_grow_large(&p->slots[k], &p->slot_cap[k], need))
         return 0;
-    p->slots[k] = mem;
-    p->slot_cap[k] = need;
+    if (p->slots[k] != held) /* new: a tiled frame's tiles past the frame's edge stay unwritten */
+        memset(p->slots[k], 0, p->slot_cap[k]);
     return 1;
 }
 
@@ -930,8 +924,6 @@ static void decode_needed_cells(cdvr_player *p, chunk_item *it, int k, uint8_t f
         it->tiled = tiled;
 }
 
-/* The host decode of the group into slot k: whole frames, or (decodes_cells, and a fill that
- * keeps the render's other samples transparent) after the grid, the cells the render reads. */
 /* A raw chunk of the player's one brick is its frame as it stands (codec/raw: the payload
  * is the dense volume): instead of the copy that raw's decode makes, slot k and the unpacked
  * payload trade buffers (both freed with free(), each big enough for the other's use).
@@ -940,18 +932,16 @@ static void decode_needed_cells(cdvr_player *p, chunk_item *it, int k, uint8_t f
 static int slot_takes_raw_payload(cdvr_player *p, chunk_item *it, const cdvr_chunk_info *ch,
                                   int k)
 {
-    chunk_part *part = &it->parts[0];
-    size_t lo[3], bd[3];
+    chunk_part *part = &it->parts[0]; /* one brick of p->voxels: the whole region */
     if (!ch->codec || ch->codec->id != CDVR_CODEC_ID_RAW || p->nbricks != 1 || !part->needed ||
-        ch->count != 1 || ch->payload_bytes != p->voxels || part->payload_cap < p->voxels)
+        ch->count != 1 || ch->payload_bytes != p->voxels)
         return 0;
-    region_box(p, 0, lo, bd);
-    for (int a = 0; a < 3; a++)
-        if (lo[a] != 0 || bd[a] != p->vox_dims[a])
-            return 0;
     cdvr_swap_buffers(&p->slots[k], &p->slot_cap[k], &part->payload, &part->payload_cap);
     return 1;
 }
+
+/* The host decode of the group into slot k: whole frames, or (decodes_cells, and a fill that
+ * keeps the render's other samples transparent) after the grid, the cells the render reads. */
 
 static void decode_group(cdvr_player *p, int w, chunk_item *it, const cdvr_chunk_info *ch,
                          int k)

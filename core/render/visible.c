@@ -237,15 +237,9 @@ static cdvr_status make_grid(cdvr_visible *vis, const cdvr_store *st, size_t v, 
  * for larger dims, whose render made a new stream: the one that read the old frame is gone. */
 static cdvr_status fit_frame(cdvr_visible *vis, size_t bytes, cdvr_error *err)
 {
-    if (bytes <= vis->frame_cap)
-        return CDVR_OK;
-    void *mem = cdvr_alloc_large(bytes, 0);
-    if (!mem)
+    if (!cdvr_grow_large(&vis->frame, &vis->frame_cap, bytes))
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "visible cells: no memory for a %zu-byte "
                               "frame", bytes);
-    free(vis->frame);
-    vis->frame = mem;
-    vis->frame_cap = bytes;
     return CDVR_OK;
 }
 
