@@ -7,7 +7,9 @@
  * forced), whole runs, runs stopped inside a group, runs that
  * wrap around, and several runs of one player. A chunk whose LZO stream is corrupt (CRC
  * fixed, so the worker finds it) and one whose bytes fail the CRC (the reader finds it) give
- * error rows naming the chunk and the store, the other frames play, and nothing hangs. */
+ * error rows naming the chunk and the store, the other frames play, and nothing hangs. On
+ * Linux the reader and the workers run at the nice increment CDVR_PLAYER_NICE (default 5)
+ * above the caller, which keeps its own. */
 #include "check.h"
 #include "player_frames.h"
 
@@ -21,6 +23,11 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
+#if defined(__linux__)
+#include <dirent.h>
+#include <errno.h>
+#include <sys/resource.h>
+#endif
 
 #define W 40
 #define H 32
@@ -223,6 +230,82 @@ static void check_damaged(const char *path, size_t v, size_t c, int fix_crc,
     cdvr_store_close(st);
 }
 
+#if defined(__linux__)
+/* Threads of this process seen from frame callbacks: the most at nice `lowered` at once, and
+ * whether the calling thread ever had another nice than `base`. */
+typedef struct nice_watch {
+    int base, lowered, most_lowered, caller_moved;
+} nice_watch;
+
+static cdvr_status watch_nice(void *ud, const cdvr_frame_row *row, const cdvr_image *img,
+                              cdvr_error *err)
+{
+    nice_watch *w = ud;
+    (void)row, (void)img, (void)err;
+    errno = 0;
+    int caller = getpriority(PRIO_PROCESS, 0); /* Linux: the calling thread's */
+    w->caller_moved |= errno == 0 && caller != w->base;
+    DIR *d = opendir("/proc/self/task");
+    if (!d)
+        return CDVR_OK;
+    int lowered = 0;
+    for (struct dirent *e; (e = readdir(d)) != NULL;) {
+        if (e->d_name[0] == '.')
+            continue;
+        errno = 0;
+        int n = getpriority(PRIO_PROCESS, (id_t)atoi(e->d_name));
+        lowered += errno == 0 && n == w->lowered;
+    }
+    closedir(d);
+    if (lowered > w->most_lowered)
+        w->most_lowered = lowered;
+    return CDVR_OK;
+}
+
+/* A run of the raw variant on the cpu device with CDVR_PLAYER_NICE `env` (NULL: unset) and
+ * `workers` unzip workers (0: serial) has at least `want` threads at the caller's nice +
+ * `increment` while it plays (the reader and the workers: with a ring of 2 the reader still
+ * waits for buffers at the first frame; threads they start may add to them), and the caller
+ * keeps its nice. */
+static void check_nice(const cdvr_store *st, const char *env, int workers, int increment,
+                       int want)
+{
+    errno = 0;
+    int base = getpriority(PRIO_PROCESS, 0);
+    if (errno != 0 || base + increment > 19) {
+        printf("nice %d: the background priority cannot be checked\n", base);
+        return;
+    }
+    if (env)
+        setenv("CDVR_PLAYER_NICE", env, 1);
+    nice_watch w = {.base = base, .lowered = base + increment};
+    cdvr_tf tf;
+    make_tf(&tf);
+    cdvr_player_opts o = {.store = st, .device = CDVR_DEVICE_CPU, .tf = &tf,
+                          .camera = make_camera(), .variant = 1, .pipelined = workers > 0,
+                          .ring = 2, .unzip_threads = workers, .frame_fn = watch_nice,
+                          .frame_ud = &w};
+    cdvr_player *p = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_player_create(&o, &p, &err), err);
+    if (p)
+        CHECK_OK(cdvr_player_run(p, 0, T, &err), err);
+    cdvr_player_free(p);
+    unsetenv("CDVR_PLAYER_NICE");
+    const char *name = env ? env : "unset";
+    CHECK(!w.caller_moved, "CDVR_PLAYER_NICE %s, %d workers: the caller's nice moved", name,
+          workers);
+    if (want == 0)
+        CHECK(w.most_lowered == 0, "CDVR_PLAYER_NICE %s, %d workers: %d threads at nice %d",
+              name, workers, w.most_lowered, w.lowered);
+    else
+        CHECK(w.most_lowered >= want,
+              "CDVR_PLAYER_NICE %s, %d workers: %d threads at nice %d, want the reader and the "
+              "workers (%d)",
+              name, workers, w.most_lowered, w.lowered, want);
+}
+#endif
+
 int main(void)
 {
     cdvr_volume *vol = make_series();
@@ -260,6 +343,14 @@ int main(void)
             unsetenv("CDVR_CL_DECODE");
         }
     }
+#if defined(__linux__)
+    if (st) {
+        check_nice(st, NULL, 2, 5, 3);
+        check_nice(st, "7", 1, 7, 2);
+        check_nice(st, "0", 2, 5, 0);
+        check_nice(st, NULL, 0, 5, 0);
+    }
+#endif
     /* damaged raw chunk 4 (timestep 4, a group's first), then PVTC chunk 2 (timesteps 4..6) */
     static const struct { size_t v, c; int fix_crc; } cases[] = {{1, 3, 1}, {1, 3, 0}, {0, 1, 0}};
     for (size_t i = 0; st && i < 3; i++) {

@@ -14,6 +14,9 @@
  * when set to a number > 0, else 2 on a machine with 2 or more cores and 1 otherwise; at most
  * 2): consecutive groups are unzipped (and host-decoded, below) at the same time and reach
  * the calling thread in their planning order, so every frame is the same whatever the count.
+ * The reader and the unzip workers (and threads they start) run at a nice value 5 above the
+ * caller's on Linux (the environment variable CDVR_PLAYER_NICE, 0..19, sets the increment;
+ * 0 keeps the caller's), so the frame being rendered gets the cores before the work ahead.
  *
  * A store is read one chunk group at a time: the chunks of the group's timesteps, one per
  * brick (an unbricked store has one brick). On the cl device a chunk is decoded by its
