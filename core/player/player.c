@@ -911,24 +911,42 @@ static int decodes_tiled(const cdvr_player *p)
 #endif
 }
 
-/* decodes_cells' decode of the group's frame into slot k, its grid made: the cells the render
- * reads (tiled where the stream takes it), fill in the others. */
-static void decode_needed_cells(cdvr_player *p, chunk_item *it, int k, uint8_t fill)
+/* Locks mu; returns the milliseconds it waited. */
+static double lock_timed(pthread_mutex_t *mu)
 {
-    const cdvr_skip_grid *g = &it->grids[0];
+    double t0 = cdvr_now_ms();
+    pthread_mutex_lock(mu);
+    return cdvr_now_ms() - t0;
+}
+
+/* decodes_cells' decode of the group's frame into slot k, its grid made: the cells the render
+ * reads (tiled where the stream takes it), fill in the others. Only the codec's decode holds
+ * `serial` (when not NULL; *waited: the milliseconds it waited for it). */
+static void decode_needed_cells(cdvr_player *p, chunk_item *it, int k, uint8_t fill,
+                                pthread_mutex_t *serial, double *waited)
+{
+    cdvr_skip_grid *g = &it->grids[0];
     if (!cdvr_grow_bytes(&it->need, &it->need_cap, 2 * (uint64_t)g->nbricks)) {
         cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "player: no memory for a %zu-cell mask",
                        g->nbricks);
         return;
     }
     int tiled = decodes_tiled(p) && g->shift == 2; /* cells are tiles */
+    unsigned layout = tiled ? CDVR_LAYOUT_TILED : CDVR_LAYOUT_LINEAR;
+    const cdvr_store *st = p->opts.store;
+    if (serial)
+        *waited = lock_timed(serial);
+    cdvr_status s = cdvr_visible_cells_decode(st, (size_t)it->variant, it->chunk,
+                                              it->parts[0].payload, p->slots[k], layout, g,
+                                              shades(p), it->need, &it->decoded_share, &it->err);
+    if (serial)
+        pthread_mutex_unlock(serial);
+    if (s != CDVR_OK)
+        return;
     /* a refine on this thread alone: the render runs beside it */
-    if (cdvr_visible_decode_cells(p->opts.store, (size_t)it->variant, it->chunk,
-                                  it->parts[0].payload, p->slots[k],
-                                  tiled ? CDVR_LAYOUT_TILED : CDVR_LAYOUT_LINEAR, &it->grids[0],
-                                  p->opts.tf, shades(p), fill, 1, it->need, &it->decoded_share,
-                                  &it->err) == CDVR_OK)
-        it->tiled = tiled;
+    cdvr_visible_cells_finish(st, (size_t)it->variant, it->chunk, p->slots[k], layout, g,
+                              p->opts.tf, fill, 1, it->need);
+    it->tiled = tiled;
 }
 
 /* A raw chunk of the player's one brick is its frame as it stands (codec/raw: the payload
@@ -948,10 +966,13 @@ static int slot_takes_raw_payload(cdvr_player *p, chunk_item *it, const cdvr_chu
 }
 
 /* The host decode of the group into slot k: whole frames, or (decodes_cells, and a fill that
- * keeps the render's other samples transparent) after the grid, the cells the render reads. */
-
+ * keeps the render's other samples transparent) after the grid, the cells the render reads.
+ * The codec's decode holds `serial` when not NULL; the grid, fill and refine run beside
+ * another worker's decode (zfp1 512^2 playback with both around the decode: a worker's grid
+ * and fill left a core idle while the frame waited for them). Time waiting for `serial` is
+ * not the decode's. */
 static void decode_group(cdvr_player *p, int w, chunk_item *it, const cdvr_chunk_info *ch,
-                         int k)
+                         int k, pthread_mutex_t *serial)
 {
     double t0 = cdvr_now_ms();
     uint8_t fill = 0;
@@ -966,11 +987,17 @@ static void decode_group(cdvr_player *p, int w, chunk_item *it, const cdvr_chunk
             return;
         by_cells = cdvr_skip_transparent_fill(&it->grids[0], &fill);
     }
-    if (by_cells)
-        decode_needed_cells(p, it, k, fill);
-    else if (!slot_takes_raw_payload(p, it, ch, k))
+    double waited = 0;
+    if (by_cells) {
+        decode_needed_cells(p, it, k, fill, serial, &waited);
+    } else if (!slot_takes_raw_payload(p, it, ch, k)) {
+        if (serial)
+            waited = lock_timed(serial);
         decode_host(p, w, it, ch->count, p->slots[k], &it->err);
-    it->host_decode_ms = cdvr_now_ms() - t0;
+        if (serial)
+            pthread_mutex_unlock(serial);
+    }
+    it->host_decode_ms = cdvr_now_ms() - t0 - waited;
 }
 
 /* After b1': the host decode into a slot and the skip grids, when they apply. Their time is
@@ -1001,11 +1028,7 @@ static void prepare(cdvr_player *p, int w, chunk_item *it)
             cdvr_error_set(&it->err, CDVR_ERR_NOMEM, "%s: chunk %zu: cannot allocate %zu frames",
                            cdvr_store_path(p->opts.store), it->chunk + 1, ch->count);
         } else {
-            if (one_at_a_time)
-                pthread_mutex_lock(&p->decode_mu);
-            decode_group(p, w, it, ch, k);
-            if (one_at_a_time)
-                pthread_mutex_unlock(&p->decode_mu);
+            decode_group(p, w, it, ch, k, one_at_a_time ? &p->decode_mu : NULL);
         }
     }
     if (it->err.status == CDVR_OK && it->with_grids && it->ngrids != ch->count) {

@@ -243,22 +243,25 @@ static cdvr_status fit_frame(cdvr_visible *vis, size_t bytes, cdvr_error *err)
     return CDVR_OK;
 }
 
-cdvr_status cdvr_visible_decode_cells(const cdvr_store *st, size_t v, size_t c,
+cdvr_status cdvr_visible_cells_decode(const cdvr_store *st, size_t v, size_t c,
                                       const uint8_t *payload, uint8_t *frame, unsigned layout,
-                                      cdvr_skip_grid *grid, const cdvr_tf *tf, int gradients,
-                                      uint8_t fill, unsigned threads, uint8_t *need,
+                                      const cdvr_skip_grid *grid, int gradients, uint8_t *need,
                                       double *share, cdvr_error *err)
 {
     size_t cells = cdvr_skip_cells_needed(grid, gradients, need);
-    cdvr_status s = cdvr_store_decode_chunk_cells(st, v, c, payload, frame, layout, need,
-                                                  grid->shift, err);
-    if (s != CDVR_OK)
-        return s;
+    *share = grid->nbricks ? (double)cells / (double)grid->nbricks : 0;
+    return cdvr_store_decode_chunk_cells(st, v, c, payload, frame, layout, need, grid->shift,
+                                         err);
+}
+
+void cdvr_visible_cells_finish(const cdvr_store *st, size_t v, size_t c, uint8_t *frame,
+                               unsigned layout, cdvr_skip_grid *grid, const cdvr_tf *tf,
+                               uint8_t fill, unsigned threads, uint8_t *need)
+{
     if (layout == CDVR_LAYOUT_TILED)
         cdvr_skip_fill_tiles(frame, grid, need, fill);
     else
         cdvr_skip_fill_cells(frame, grid, need, fill);
-    *share = grid->nbricks ? (double)cells / (double)grid->nbricks : 0;
     /* tiled frames are not refined: the same from tiles made the player's decode 1.9x as
      * long and its playback 0.9x as fast */
     unsigned table_shift = cdvr_store_chunk(st, v, c)->ranges_shift;
@@ -266,7 +269,19 @@ cdvr_status cdvr_visible_decode_cells(const cdvr_store *st, size_t v, size_t c,
         cdvr_error ignored;
         cdvr_skip_refine(grid, frame, tf, threads, need, &ignored);
     }
-    return CDVR_OK;
+}
+
+cdvr_status cdvr_visible_decode_cells(const cdvr_store *st, size_t v, size_t c,
+                                      const uint8_t *payload, uint8_t *frame, unsigned layout,
+                                      cdvr_skip_grid *grid, const cdvr_tf *tf, int gradients,
+                                      uint8_t fill, unsigned threads, uint8_t *need,
+                                      double *share, cdvr_error *err)
+{
+    cdvr_status s = cdvr_visible_cells_decode(st, v, c, payload, frame, layout, grid, gradients,
+                                              need, share, err);
+    if (s == CDVR_OK)
+        cdvr_visible_cells_finish(st, v, c, frame, layout, grid, tf, fill, threads, need);
+    return s;
 }
 
 cdvr_status cdvr_visible_decode(cdvr_visible *vis, const cdvr_store *st, size_t v, size_t c,

@@ -44,6 +44,19 @@ cdvr_status cdvr_visible_decode_cells(const cdvr_store *st, size_t v, size_t c,
                                       uint8_t fill, unsigned threads, uint8_t *need,
                                       double *share, cdvr_error *err);
 
+/* cdvr_visible_decode_cells in two halves, for a caller that serialises the codec's work
+ * (the player: a codec that decodes on all cores decodes one chunk at a time) but not the
+ * rest: cells_decode marks the cells the render reads in need (its first nbricks bytes),
+ * sets *share and decodes them (errors: the codec's); cells_finish then fills the other
+ * cells and refines the grid, as above. */
+cdvr_status cdvr_visible_cells_decode(const cdvr_store *st, size_t v, size_t c,
+                                      const uint8_t *payload, uint8_t *frame, unsigned layout,
+                                      const cdvr_skip_grid *grid, int gradients, uint8_t *need,
+                                      double *share, cdvr_error *err);
+void cdvr_visible_cells_finish(const cdvr_store *st, size_t v, size_t c, uint8_t *frame,
+                               unsigned layout, cdvr_skip_grid *grid, const cdvr_tf *tf,
+                               uint8_t fill, unsigned threads, uint8_t *need);
+
 /* The frame, its grid and their scratch, reused from one decode to the next. */
 typedef struct cdvr_visible cdvr_visible;
 
