@@ -20,6 +20,7 @@
 #include "cdvr/brick_cache.h"
 #include "cdvr/timing.h"
 
+#include <limits.h>
 #include <math.h>
 #include <pthread.h>
 #include <stddef.h>
@@ -911,12 +912,20 @@ static int decodes_tiled(const cdvr_player *p)
 #endif
 }
 
-/* Locks mu; returns the milliseconds it waited. */
-static double lock_timed(pthread_mutex_t *mu)
+/* Locks mu unless it is NULL; returns the milliseconds it waited. */
+static double serial_begin(pthread_mutex_t *mu)
 {
+    if (!mu)
+        return 0;
     double t0 = cdvr_now_ms();
     pthread_mutex_lock(mu);
     return cdvr_now_ms() - t0;
+}
+
+static void serial_end(pthread_mutex_t *mu)
+{
+    if (mu)
+        pthread_mutex_unlock(mu);
 }
 
 /* decodes_cells' decode of the group's frame into slot k, its grid made: the cells the render
@@ -934,13 +943,11 @@ static void decode_needed_cells(cdvr_player *p, chunk_item *it, int k, uint8_t f
     int tiled = decodes_tiled(p) && g->shift == 2; /* cells are tiles */
     unsigned layout = tiled ? CDVR_LAYOUT_TILED : CDVR_LAYOUT_LINEAR;
     const cdvr_store *st = p->opts.store;
-    if (serial)
-        *waited = lock_timed(serial);
+    *waited = serial_begin(serial);
     cdvr_status s = cdvr_visible_cells_decode(st, (size_t)it->variant, it->chunk,
                                               it->parts[0].payload, p->slots[k], layout, g,
                                               shades(p), it->need, &it->decoded_share, &it->err);
-    if (serial)
-        pthread_mutex_unlock(serial);
+    serial_end(serial);
     if (s != CDVR_OK)
         return;
     /* a refine on this thread alone: the render runs beside it */
@@ -991,11 +998,9 @@ static void decode_group(cdvr_player *p, int w, chunk_item *it, const cdvr_chunk
     if (by_cells) {
         decode_needed_cells(p, it, k, fill, serial, &waited);
     } else if (!slot_takes_raw_payload(p, it, ch, k)) {
-        if (serial)
-            waited = lock_timed(serial);
+        waited = serial_begin(serial);
         decode_host(p, w, it, ch->count, p->slots[k], &it->err);
-        if (serial)
-            pthread_mutex_unlock(serial);
+        serial_end(serial);
     }
     it->host_decode_ms = cdvr_now_ms() - t0 - waited;
 }
@@ -1435,10 +1440,10 @@ static void put(cdvr_player *p, item_queue *q, chunk_item *it)
  * wake-ups and the device's threads (zfp1 512^2 playback on 2 cores: the calling thread
  * once waited 5 ms for a core while the other sat idle). So each background thread lowers
  * its own priority by `increment` (Linux nice values are per thread; threads it starts,
- * such as a codec's decode threads, inherit it). Measured on 2 cores, 8 alternating rounds against the same
- * priority, fps: raw 64^2 1.24x at +5 (+7 1.26x, +10 1.23x), zfp1 512^2 1.02x at +5 (+7
- * 0.98x, +10 0.98x: the decode then falls behind the render). Elsewhere, and on failure, the
- * priority stays. */
+ * such as a codec's decode threads, inherit it). Measured on 2 cores, 8 alternating rounds
+ * against the same priority, fps: raw 64^2 1.24x at +5 (+7 1.26x, +10 1.23x); zfp1 512^2
+ * (with decode_group's lock around the decode alone) 1.08x at +5 (+3 1.03x, +8 1.06x).
+ * Elsewhere, and on failure, the priority stays. */
 static void lower_priority(int increment)
 {
 #if defined(__linux__)
@@ -1649,15 +1654,20 @@ static cdvr_status set_region(cdvr_player *p, cdvr_error *err)
     return CDVR_OK;
 }
 
+/* The environment variable `name` when it is a whole decimal number in lo..hi, else
+ * `otherwise`. */
+static long env_number(const char *name, long lo, long hi, long otherwise)
+{
+    const char *env = getenv(name);
+    char *end = NULL;
+    long n = env ? strtol(env, &end, 10) : 0;
+    return !env || end == env || *end != '\0' || n < lo || n > hi ? otherwise : n;
+}
+
 /* CDVR_PLAYER_NICE when set to a number in 0..19, else DEFAULT_BACKGROUND_NICE. */
 static int background_nice(void)
 {
-    const char *env = getenv("CDVR_PLAYER_NICE");
-    char *end = NULL;
-    long n = env ? strtol(env, &end, 10) : -1;
-    if (!env || end == env || *end != '\0' || n < 0 || n > 19)
-        return DEFAULT_BACKGROUND_NICE;
-    return (int)n;
+    return (int)env_number("CDVR_PLAYER_NICE", 0, 19, DEFAULT_BACKGROUND_NICE);
 }
 
 /* Unzip workers of a pipelined player: `requested` (player.h) when > 0, else
@@ -1666,13 +1676,9 @@ static int background_nice(void)
 static int unzip_workers(int requested)
 {
     long n = requested;
-    if (n <= 0) {
-        const char *env = getenv("CDVR_UNZIP_THREADS");
-        char *end = NULL;
-        n = env ? strtol(env, &end, 10) : 0;
-        if (!env || end == env || *end != '\0' || n <= 0)
-            n = sysconf(_SC_NPROCESSORS_ONLN) >= 2 ? 2 : 1;
-    }
+    if (n <= 0)
+        n = env_number("CDVR_UNZIP_THREADS", 1, LONG_MAX,
+                       sysconf(_SC_NPROCESSORS_ONLN) >= 2 ? 2 : 1);
     return n > MAX_UNZIP ? MAX_UNZIP : (int)n;
 }
 
