@@ -190,9 +190,12 @@ typedef vint vindex;
 typedef int sindex;
 #define convert_vindex convert_vint
 /* A lane's index (never negative) as unsigned: the address then takes it as it stands, where a
- * signed one is sign-extended to 64 bits lane by lane. So are the other gathers' indices.
+ * signed one is sign-extended to 64 bits lane by lane. So are the TF rows' and brick codes'.
  * Alternating kernels: engine CT 512^2 step 0.5 0.958 of the time, Colin27 0.97-0.99, the
- * 256^3 zfp1 frame 0.958, its playback at 512^2 1.048x the fps. */
+ * 256^3 zfp1 frame 0.95, its playback at 512^2 1.048x the fps. The gathers of 32-bit words
+ * (tile rows, quad and gradient words, the exact TF rows) keep signed indices: unsigned ones
+ * let the compiler use AVX-512 hardware gathers there, and shaded frames (tiles and gradient
+ * words) took 1.05-1.07x the time. */
 #define LANE_INDEX(i) ((uint)(i))
 #endif
 
@@ -324,8 +327,8 @@ static vint copy_z(const volume_geo *v, vint z)
 
 /* The x-lerp of voxels x0 and x1 (words at row + wx0 and row + wx1, bytes at bit offsets sh0
  * and sh1) of each lane's row: two gathers, the same word unless x1 starts the next tile. */
-#define ROW_WORD0(k) q[(uint)w0.s##k]
-#define ROW_WORD1(k) q[(uint)w1.s##k]
+#define ROW_WORD0(k) q[w0.s##k]
+#define ROW_WORD1(k) q[w1.s##k]
 __attribute__((always_inline)) static inline vfloat lerp_row(__global const uint *q, vint row,
                                                             vint wx0, vint wx1, vuint sh0,
                                                             vuint sh1, vfloat fx)
@@ -340,8 +343,8 @@ static vfloat pair_lerp(vuint q, vfloat fx)
 {
     return mix(convert_vfloat(q & 0xffu), convert_vfloat((q >> 8) & 0xffu), fx);
 }
-#define QUAD0(k) v->quads[(uint)i0.s##k]
-#define QUAD1(k) v->quads[(uint)i1.s##k]
+#define QUAD0(k) v->quads[i0.s##k]
+#define QUAD1(k) v->quads[i1.s##k]
 #endif
 
 #ifdef CDVR_BRICK_CACHE
@@ -721,8 +724,8 @@ static vint axis_corners_at(vfloat g, float top, int base_max, float offset, axi
 
 /* Voxels x0 - 1 .. x0 + 2 of tile row `row` per lane, as bytes 0..3 (low first): the words at
  * row + wlo and row + whi funnel-shifted by sh bits. Voxels outside the volume are arbitrary. */
-#define QUAD_LO(k) q[(uint)lo.s##k]
-#define QUAD_HI(k) q[(uint)hi.s##k]
+#define QUAD_LO(k) q[lo.s##k]
+#define QUAD_HI(k) q[hi.s##k]
 __attribute__((always_inline)) static inline vuint row_quad(__global const uint *q, vint row,
                                                             vint wlo, vint whi, ulong16 sh)
 {
@@ -827,7 +830,7 @@ static int central_tiled(const volume_geo *v, vec3x g, vint on, vec3x *dq, vec3x
 #endif
 #ifndef CDVR_LONG_INDEX
 /* The gradient copy's words at w per lane, unpacked: D_x, D_y, D_z. */
-#define GRAD_AT(k) v->grads[(uint)w.s##k]
+#define GRAD_AT(k) v->grads[w.s##k]
 static vec3x grad_words(const volume_geo *v, vint w)
 {
     vuint d = (vuint)(L16(GRAD_AT));
@@ -1006,8 +1009,8 @@ static vfloat go_factor(const look_params *lk, vfloat m)
 
 /* Channel ch of the exact TF rows (r, g, b, alpha per unit as floats: cl_render.c
  * upload_tables) lerped between rows i0 and i0 + 1 by fr. */
-#define TF_ROW0(k) rows[(uint)(4 * i0.s##k + ch)]
-#define TF_ROW1(k) rows[(uint)(4 * i0.s##k + 4 + ch)]
+#define TF_ROW0(k) rows[4 * i0.s##k + ch]
+#define TF_ROW1(k) rows[4 * i0.s##k + 4 + ch]
 __attribute__((always_inline)) static inline vfloat row_lerp(__global const float *rows,
                                                             vint i0, vfloat fr, int ch)
 {
