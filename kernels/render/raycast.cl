@@ -190,12 +190,13 @@ typedef vint vindex;
 typedef int sindex;
 #define convert_vindex convert_vint
 /* A lane's index (never negative) as unsigned: the address then takes it as it stands, where a
- * signed one is sign-extended to 64 bits lane by lane. So are the TF rows' and brick codes'.
- * Alternating kernels: engine CT 512^2 step 0.5 0.958 of the time, Colin27 0.97-0.99, the
- * 256^3 zfp1 frame 0.95, its playback at 512^2 1.048x the fps. The gathers of 32-bit words
- * (tile rows, quad and gradient words, the exact TF rows) keep signed indices: unsigned ones
- * let the compiler use AVX-512 hardware gathers there, and shaded frames (tiles and gradient
- * words) took 1.05-1.07x the time. */
+ * signed one is sign-extended to 64 bits lane by lane. The packed TF rows (TABLE_PAIR) and the
+ * brick and leap codes (CODE_AT, LEAP_CODE) index the same way. Alternating kernels: engine
+ * CT 512^2 step 0.5 0.958 of the time, Colin27 0.97-0.99, the 256^3 zfp1 frame 0.95, its
+ * playback at 512^2 1.048x the fps. The gathers of 32-bit words (tile rows, quad and gradient
+ * words, the exact TF rows) keep signed indices: unsigned ones let the compiler use AVX-512
+ * hardware gathers there, and shaded frames (tiles and gradient words) took 1.05-1.07x the
+ * time. */
 #define LANE_INDEX(i) ((uint)(i))
 #endif
 
