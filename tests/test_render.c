@@ -675,6 +675,45 @@ static void test_axis_rays_exact(void)
     cdvr_volume_free(v);
 }
 
+/* Rays whose last segment is empty: n = ceil((t_far - t_near) / step) rounds up past the
+ * last whole step when the quotient lies just above an integer, and t_near + (n - 1) step
+ * then rounds to t_far (far from the eye the floats are coarse). The definition neither takes
+ * nor counts that segment, so a max or min march that jumps to the end, or stops at code 255
+ * or 0, must leave it out of its count too. A box of zeros (min stops at its first sample,
+ * max jumps the rest) and of 255s, seen from 1000 voxels away down z, at steps a few floats
+ * below 19 / m for many m: the images and samples count equal no_skip. */
+static void test_extreme_empty_last_segment(void)
+{
+    cdvr_volume *v = make_volume(20, 20, 20);
+    if (!v)
+        return;
+    cdvr_tf_point pts[] = {{0, 1, 0, 0, 0.5}, {255, 0, 1, 0, 0.5}};
+    cdvr_tf tf;
+    cdvr_error err;
+    CHECK_OK(cdvr_tf_init(&tf, pts, 2, 1.0, &err), err);
+    double eye[3] = {9.5, 9.5, -990.0}, center[3] = {9.5, 9.5, 9.5};
+    cdvr_camera cam = camera(eye, center, 9);
+    cam.fov = 0.05;
+    cam.up[0] = 1, cam.up[2] = 0;
+    for (int fill = 0; fill < 2; fill++) {
+        memset(v->data, fill ? 255 : 0, cdvr_volume_voxels(v));
+        for (int m = 150; m < 250; m++)
+            for (int j = 0; j < 4; j++)
+                for (int blend = 0; blend < 2; blend++) {
+                    char what[96];
+                    snprintf(what, sizeof what, "%s box, %s, step 19/%d less %d floats",
+                             fill ? "255" : "zero", blend ? "min" : "max", m, j);
+                    float step = 19.0f / (float)m;
+                    for (int k = 0; k < j; k++)
+                        step = nextafterf(step, 0.0f);
+                    cdvr_render_opts a = options(&tf, &cam, step, 0.0);
+                    a.look.blend = blend ? CDVR_BLEND_MIN : CDVR_BLEND_MAX;
+                    cdvr_image_free(render_as_unskipped(v, &a, what));
+                }
+    }
+    cdvr_volume_free(v);
+}
+
 /* One skip cache across a sequence of renders keeps exactly the images of no_skip: the same
  * TF again (flags kept), a TF that makes more entries visible (stale flags would jump the
  * bricks between 60 and 200), iso and max on the same ranges, the first TF again, a voxel edit
@@ -795,6 +834,7 @@ int main(void)
     test_extreme_stops_exact();
     test_extreme_guess_exact();
     test_axis_rays_exact();
+    test_extreme_empty_last_segment();
     test_average_skips_zeros_exact();
     test_skip_cache_is_exact();
     test_analytic_box();

@@ -774,9 +774,9 @@ static void pixel_ray(const render_job *job, int x, int y, double origin[3], dou
  * march_iso (IEEE single precision, the same operand order, no fused multiply-add:
  * maxps/minps are max_f/min_f, cvttps2dq is the (int) truncation, cvtdq2ps is exact for the
  * at most 2^24 segments of a ray); voxel, brick and table reads are per lane. Lanes that
- * jump empty space or have finished add zero weight, which leaves C and A bit for bit
- * unchanged. The shorter
- * last segment's alpha (powf) is taken per lane as classify does. */
+ * jump empty space or have finished read voxels too (at positions clamped into the volume)
+ * but add zero weight, which leaves C and A bit for bit unchanged. The shorter last
+ * segment's alpha (powf) is taken per lane as classify does. */
 #ifdef __SSE2__
 #define LANES 4
 
@@ -793,7 +793,7 @@ typedef struct lanes {
     float t_near[LANES], t_far[LANES];
     float o[3][LANES], d[3][LANES];
     float V[3][LANES];       /* shading: towards the eye, world */
-    float g[3][LANES];       /* the grid positions of the last lanes_sample */
+    float g[3][LANES];       /* shading: the grid positions of the last sample (lanes_march) */
     /* iso: the last sample's code and parameter before a hit, and the hit (code, parameter) */
     float prev[LANES], t_prev[LANES], hit_s[LANES], hit_tm[LANES];
     int hit[LANES];
@@ -1003,110 +1003,280 @@ static inline void lanes_position(const render_job *job, const lanes *L, __m128 
     }
 }
 
-/* Steps 2-3 for the live lanes at their segment index: lanes in empty space (composite:
- * invisible bricks; max, min: dull bricks; average: bricks of zeros) jump, the others
- * interpolate their sample into *s (sampling[k] = 1; ds[k] its segment length). Returns 0
- * when no lane samples. */
-static int lanes_sample(const render_job *job, lanes *L, int sampling[LANES], float dsv[LANES],
-                        __m128 *s)
+/* ---- the march of four lanes (composite, max, min, average) -------------------------------
+ * The lanes' indices, masks and results stay in registers from step to step, and the
+ * choice to jump or sample is made for four lanes at once: a step branches per lane only
+ * where a lane jumps (branches on the data of single lanes mispredict often). Every step
+ * and sample is the one-ray march's (march_ray), in its order. */
+
+typedef struct march_lanes {
+    __m128i i, live, taken; /* segment index, still marching (-1: yes), samples counted */
+    __m128i reached;        /* max, min: a sample reached the guess (-1: yes) */
+    __m128 best;            /* max, min: the extreme so far */
+    __m128d sum[2];         /* average: the sums of lanes 0-1 and of lanes 2-3 */
+    __m128 C[3], A;         /* composite: colour and opacity */
+} march_lanes;
+
+/* The live lanes in empty space at cells gi, in bricks brick (composite: an invisible
+ * brick; max: a brick whose max is at most the best, min: whose min is at least it; average:
+ * a brick of zeros), as a mask. */
+static __m128i lanes_empty(const render_job *job, const lanes *L, const march_lanes *M,
+                           int gi[3][LANES], size_t brick[LANES])
 {
-    const __m128 step = _mm_set1_ps(job->step);
-    __m128 ds, tm;
-    lanes_segment(L, step, &ds, &tm);
-    float (*g)[LANES] = L->g;
-    int gi[3][LANES];
-    _mm_storeu_ps(dsv, ds);
-    __m128 gv[3];
-    lanes_position(job, L, tm, gv, gi);
-    for (int a = 0; a < 3; a++)
-        _mm_storeu_ps(g[a], gv[a]);
-    int v[8][LANES];
-    memset(v, 0, sizeof v);
-    for (int k = 0; k < LANES; k++) {
-        sampling[k] = 0;
-        if (!L->live[k])
-            continue;
-        if (!(dsv[k] > 0.0f)) { /* the definition stops before an empty last segment */
-            L->live[k] = 0;
-            continue;
-        }
-        int cell[3] = {gi[0][k], gi[1][k], gi[2][k]};
-        int jump = 0, code = 1;
-        if (job->skip_flags) {
-            code = job->skip_flags[brick_of_cell(job, cell)];
-            jump = code < 128;
-        } else if (job->skip_minmax) {
-            /* max: bricks whose max is at most the best; min: whose min is at least the best;
-             * average: bricks of zeros (their samples are 0 and leave the sum as it is) */
-            int is_max = L->blend != CDVR_BLEND_MIN;
-            float best = L->blend == CDVR_BLEND_AVERAGE ? 0.0f : L->best[k];
-            size_t b = brick_of_cell(job, cell);
-            float edge = job->skip_minmax[2 * b + is_max]; /* max: the brick's max; min: min */
-            jump = is_max ? edge <= best : edge >= best;
-            if (jump && job->skip_wide) { /* the whole cube around the brick is dull too? */
-                float wide = job->skip_wide[2 * b + is_max];
-                if (is_max ? wide <= best : wide >= best)
-                    code = WIDE_REACH + 1;
-            }
-        }
-        {
-            if (jump) {
-                long next = skip_target(job, &L->gr[k], cell, code, L->i[k]);
-                int n = L->n[k];
-                next = next < n ? next : n;
-                L->taken[k] += (uint64_t)(next - L->i[k]);
-                if (next == n && L->t_far[k] - (L->t_near[k] + (float)(n - 1) * job->step) <= 0.0f)
-                    L->taken[k]--;
-                L->i[k] = (int)next;
-                L->live[k] = next < n;
-                continue;
-            }
-        }
-        sampling[k] = 1;
+    if (!job->skip_flags && !job->skip_minmax) /* skipping is only a saving */
+        return _mm_setzero_si128();
+    const int sh = job->skip_shift;
+    const size_t nb0 = (size_t)job->skip_nb[0], nb01 = nb0 * (size_t)job->skip_nb[1];
+    for (int k = 0; k < LANES; k++) /* every gi lies in the volume: lanes off too */
+        brick[k] = (size_t)(gi[0][k] >> sh) + nb0 * (size_t)(gi[1][k] >> sh) +
+                   nb01 * (size_t)(gi[2][k] >> sh);
+    /* the vectors are built in registers: four scalar stores read back as one vector load
+     * would stall */
+    if (job->skip_flags) {
+        const uint8_t *f = job->skip_flags;
+        __m128i code = _mm_setr_epi32(f[brick[0]], f[brick[1]], f[brick[2]], f[brick[3]]);
+        return _mm_and_si128(M->live, _mm_cmplt_epi32(code, _mm_set1_epi32(128)));
     }
-    for (int k = 0; k < LANES; k++) /* the loads of all sampling lanes together */
-        if (sampling[k])
-            gather_lane(job, gi[0][k], gi[1][k], gi[2][k], v, k);
-    if (!(sampling[0] | sampling[1] | sampling[2] | sampling[3]))
-        return 0;
-    if (job->shade || job->go_points) /* the gradient reads them again (lanes_gradient) */
-        memcpy(L->corner, v, sizeof v);
-    *s = lanes_trilinear(gv, gi, v);
-    return 1;
+    const int is_min = L->blend == CDVR_BLEND_MIN;
+    const __m128 best = L->blend == CDVR_BLEND_AVERAGE ? _mm_setzero_ps() : M->best;
+    const uint8_t *e = job->skip_minmax + !is_min; /* max, average: the bricks' max */
+    __m128 edge = _mm_cvtepi32_ps(
+        _mm_setr_epi32(e[2 * brick[0]], e[2 * brick[1]], e[2 * brick[2]], e[2 * brick[3]]));
+    __m128 dull = is_min ? _mm_cmpge_ps(edge, best) : _mm_cmple_ps(edge, best);
+    return _mm_and_si128(M->live, _mm_castps_si128(dull));
 }
 
-/* Max, min, average: the codes of the sampling lanes into their extreme or sum. */
-static void lanes_extreme(const render_job *job, lanes *L, const int sampling[LANES], __m128 s)
+/* skip_target's code for a lane in empty space in brick b: composite the brick's flag (the
+ * reach of its invisible cube), the others the cube of reach WIDE_REACH when it is dull too
+ * (best: the lane's extreme, 0 for average). */
+static inline int empty_code(const render_job *job, int blend, size_t b, float best)
 {
-    float sv[LANES];
-    _mm_storeu_ps(sv, s);
+    if (job->skip_flags)
+        return job->skip_flags[b];
+    if (!job->skip_wide)
+        return 1;
+    int is_min = blend == CDVR_BLEND_MIN;
+    float wide = job->skip_wide[2 * b + !is_min];
+    return (is_min ? wide >= best : wide <= best) ? WIDE_REACH + 1 : 1;
+}
+
+/* The lanes in the mask `jump` (bits `jumps`) jump from cells gi to the exit of the empty
+ * cube around their bricks (skip_target), at most n; the samples jumped count as the
+ * definition takes them: not an empty last segment (empty_end). */
+static void lanes_jump(const render_job *job, const lanes *L, int jumps, __m128i jump,
+                       int gi[3][LANES], const size_t brick[LANES], __m128i n,
+                       __m128i empty_end, march_lanes *M)
+{
+    int iv[LANES], nv[LANES], next[LANES];
+    float bv[LANES];
+    _mm_storeu_si128((__m128i *)iv, M->i);
+    _mm_storeu_si128((__m128i *)nv, n);
+    _mm_storeu_ps(bv, L->blend == CDVR_BLEND_AVERAGE ? _mm_setzero_ps() : M->best);
     for (int k = 0; k < LANES; k++) {
-        if (!sampling[k])
+        next[k] = iv[k];
+        if (!((jumps >> k) & 1))
             continue;
-        float b = L->best[k];
-        if (L->blend == CDVR_BLEND_AVERAGE) {
-            L->sum[k] += sv[k];
-        } else if (L->blend == CDVR_BLEND_MAX) {
-            L->best[k] = max_f(b, sv[k]);
-            L->reached[k] |= sv[k] >= L->guess[k];
-        } else {
-            L->best[k] = min_f(b, sv[k]);
-            L->reached[k] |= sv[k] <= L->guess[k];
-        }
-        L->taken[k]++;
-        L->i[k]++;
-        L->live[k] = L->i[k] < L->n[k];
-        if (L->live[k] && L->best[k] == (L->blend == CDVR_BLEND_MAX ? 255.0f : 0.0f)) {
-            /* no code lies beyond 255 (below 0): the rest cannot change the extreme; they
-             * are counted as the definition takes them (not an empty last segment) */
-            int n = L->n[k];
-            L->taken[k] += (uint64_t)(n - L->i[k]);
-            if (L->t_far[k] - (L->t_near[k] + (float)(n - 1) * job->step) <= 0.0f)
-                L->taken[k]--;
-            L->i[k] = n;
-            L->live[k] = 0;
-        }
+        int cell[3] = {gi[0][k], gi[1][k], gi[2][k]};
+        int code = empty_code(job, L->blend, brick[k], bv[k]);
+        long to = skip_target(job, &L->gr[k], cell, code, iv[k]);
+        next[k] = (int)(to < nv[k] ? to : nv[k]);
     }
+    __m128i to = _mm_setr_epi32(next[0], next[1], next[2], next[3]);
+    __m128i at_end = _mm_and_si128(jump, _mm_cmpeq_epi32(to, n));
+    M->taken = _mm_add_epi32(M->taken, _mm_sub_epi32(to, M->i));
+    M->taken = _mm_add_epi32(M->taken, _mm_and_si128(at_end, empty_end)); /* -1 there */
+    M->i = to;
+    M->live = _mm_andnot_si128(at_end, M->live);
+}
+
+/* look_sample for the lanes in the mask lit: gradients and shading four at a time, the
+ * gradient opacity lane by lane (samples sv over segments dsv). */
+static void lanes_look(const render_job *job, const lanes *L, unsigned lit, const float sv[LANES],
+                       const float dsv[LANES], float rgb[3][LANES], float alpha[LANES])
+{
+    __m128 G[3];
+    lanes_gradient(job, L, lit, G);
+    if (!job->go_points) {
+        lanes_shade(job, L, lit, G, rgb);
+        return;
+    }
+    float Gv[3][LANES];
+    for (int a = 0; a < 3; a++)
+        _mm_storeu_ps(Gv[a], G[a]);
+    for (int k = 0; k < LANES; k++) {
+        if (!((lit >> k) & 1))
+            continue;
+        float rgba[4] = {rgb[0][k], rgb[1][k], rgb[2][k], alpha[k]};
+        float Gk[3] = {Gv[0][k], Gv[1][k], Gv[2][k]};
+        float Vk[3] = {L->V[0][k], L->V[1][k], L->V[2][k]};
+        look_gradient(job, Gk, sv[k], dsv[k], Vk, rgba);
+        for (int c = 0; c < 3; c++)
+            rgb[c][k] = rgba[c];
+        alpha[k] = rgba[3];
+    }
+}
+
+/* Composite, render.h steps 4-5: the sampling lanes' samples s over segments ds classified,
+ * lit and composited; the lanes whose opacity reaches the termination stop. */
+static void composite_take(const render_job *job, const lanes *L, __m128i sampling, __m128 s,
+                           __m128 ds, march_lanes *M)
+{
+    /* step 4: i0 = min((int)s, 254) as the truncation of min(s, 254) */
+    __m128i si = _mm_cvttps_epi32(_mm_min_ps(s, _mm_set1_ps(254.0f)));
+    __m128 fr = _mm_sub_ps(s, _mm_cvtepi32_ps(si));
+    int ti[LANES];
+    _mm_storeu_si128((__m128i *)ti, si);
+    /* each lane's two entries (r, g, b, a_c) of the table, transposed to channels */
+    __m128 lo[4], hi[4];
+    for (int k = 0; k < LANES; k++) {
+        lo[k] = _mm_loadu_ps(job->rgb_alpha_step[ti[k]]);
+        hi[k] = _mm_loadu_ps(job->rgb_alpha_step[ti[k] + 1]);
+    }
+    _MM_TRANSPOSE4_PS(lo[0], lo[1], lo[2], lo[3]);
+    _MM_TRANSPOSE4_PS(hi[0], hi[1], hi[2], hi[3]);
+    const __m128 on = _mm_castsi128_ps(sampling), step = _mm_set1_ps(job->step);
+    float alpha[LANES], rgb[3][LANES], sv[LANES], dsv[LANES];
+    __m128 a = _mm_and_ps(on, lerp4(lo[3], hi[3], fr));
+    for (int c = 0; c < 3; c++)
+        _mm_storeu_ps(rgb[c], lerp4(lo[c], hi[c], fr));
+    _mm_storeu_ps(sv, s);
+    _mm_storeu_ps(dsv, ds);
+    int shorter = _mm_movemask_ps(_mm_and_ps(on, _mm_cmpnge_ps(ds, step)));
+    if (shorter) { /* the shorter last segment (classify) */
+        _mm_storeu_ps(alpha, a);
+        for (int k = 0; k < LANES; k++) {
+            if (!((shorter >> k) & 1))
+                continue;
+            float rgba[4];
+            classify(job, sv[k], dsv[k], 0, rgba);
+            alpha[k] = rgba[3];
+        }
+        a = _mm_loadu_ps(alpha);
+    }
+    unsigned lit = job->shade || job->go_points
+                       ? (unsigned)_mm_movemask_ps(_mm_cmpgt_ps(a, _mm_setzero_ps()))
+                       : 0;
+    if (lit) {
+        _mm_storeu_ps(alpha, a);
+        lanes_look(job, L, lit, sv, dsv, rgb, alpha);
+        a = _mm_loadu_ps(alpha);
+    }
+    const __m128 one = _mm_set1_ps(1.0f);
+    __m128 w = _mm_mul_ps(_mm_sub_ps(one, M->A), a);
+    for (int c = 0; c < 3; c++)
+        M->C[c] = _mm_add_ps(M->C[c], _mm_mul_ps(w, _mm_loadu_ps(rgb[c])));
+    M->A = _mm_add_ps(M->A, w);
+    __m128 opaque = _mm_or_ps(_mm_cmpge_ps(M->A, _mm_set1_ps(job->term_alpha)),
+                              _mm_cmpge_ps(M->A, one));
+    __m128 stop = _mm_and_ps(_mm_cmpgt_ps(a, _mm_setzero_ps()), opaque);
+    M->live = _mm_andnot_si128(_mm_and_si128(sampling, _mm_castps_si128(stop)), M->live);
+}
+
+/* Max and min: the sampling lanes' samples s into their extremes; a lane at code 255 (min:
+ * 0) stops, the rest counted as the definition takes them (not an empty last segment). */
+static void extreme_take(const lanes *L, __m128i sampling, __m128 s, __m128i n,
+                         __m128i empty_end, march_lanes *M)
+{
+    const int is_max = L->blend == CDVR_BLEND_MAX;
+    const __m128 on = _mm_castsi128_ps(sampling), guess = _mm_loadu_ps(L->guess);
+    __m128 best = is_max ? _mm_max_ps(M->best, s) : _mm_min_ps(M->best, s);
+    M->best = _mm_or_ps(_mm_and_ps(on, best), _mm_andnot_ps(on, M->best));
+    __m128 reach = is_max ? _mm_cmpge_ps(s, guess) : _mm_cmple_ps(s, guess);
+    M->reached = _mm_or_si128(M->reached, _mm_and_si128(sampling, _mm_castps_si128(reach)));
+    /* no code lies beyond 255 (below 0): the rest cannot change the extreme */
+    __m128 stop = _mm_set1_ps(is_max ? 255.0f : 0.0f);
+    __m128i done = _mm_and_si128(_mm_and_si128(M->live, sampling),
+                                 _mm_castps_si128(_mm_cmpeq_ps(M->best, stop)));
+    if (_mm_movemask_epi8(done)) {
+        M->taken = _mm_add_epi32(M->taken, _mm_and_si128(done, _mm_sub_epi32(n, M->i)));
+        M->taken = _mm_add_epi32(M->taken, _mm_and_si128(done, empty_end)); /* -1 there */
+        M->i = _mm_or_si128(_mm_and_si128(done, n), _mm_andnot_si128(done, M->i));
+        M->live = _mm_andnot_si128(done, M->live);
+    }
+}
+
+/* Average: the sampling lanes' samples into their sums, in double (the others add +0). */
+static void average_take(__m128i sampling, __m128 s, march_lanes *M)
+{
+    __m128 on = _mm_and_ps(_mm_castsi128_ps(sampling), s);
+    M->sum[0] = _mm_add_pd(M->sum[0], _mm_cvtps_pd(on));
+    M->sum[1] = _mm_add_pd(M->sum[1], _mm_cvtps_pd(_mm_movehl_ps(on, on)));
+}
+
+/* The march of the live lanes of L to their ends (composite: into C and A). */
+static void lanes_march(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
+{
+    const __m128 step = _mm_set1_ps(job->step), zero = _mm_setzero_ps();
+    const __m128 t_near = _mm_loadu_ps(L->t_near), t_far = _mm_loadu_ps(L->t_far);
+    const __m128i n = _mm_loadu_si128((const __m128i *)L->n);
+    const __m128i last = _mm_sub_epi32(n, _mm_set1_epi32(1));
+    /* the ray's last segment is empty: the definition neither takes nor counts it */
+    const __m128 end = _mm_add_ps(t_near, _mm_mul_ps(_mm_cvtepi32_ps(last), step));
+    const __m128i empty_end = _mm_castps_si128(_mm_cmple_ps(_mm_sub_ps(t_far, end), zero));
+    const int looks = job->shade || job->go_points;
+    march_lanes M = {
+        .i = _mm_loadu_si128((const __m128i *)L->i),
+        .live = _mm_sub_epi32(_mm_setzero_si128(), _mm_loadu_si128((const __m128i *)L->live)),
+        .best = _mm_loadu_ps(L->best),
+        .sum = {_mm_setzero_pd(), _mm_setzero_pd()},
+        .C = {zero, zero, zero},
+    };
+    for (;;) {
+        /* step 2 (lanes_segment): a lane at an empty last segment stops */
+        __m128 ts = _mm_add_ps(t_near, _mm_mul_ps(_mm_cvtepi32_ps(M.i), step));
+        __m128 full = _mm_castsi128_ps(_mm_cmplt_epi32(M.i, last));
+        __m128 ds = _mm_or_ps(_mm_and_ps(full, step), _mm_andnot_ps(full, _mm_sub_ps(t_far, ts)));
+        __m128 tm = _mm_add_ps(ts, _mm_mul_ps(_mm_set1_ps(0.5f), ds));
+        M.live = _mm_and_si128(M.live, _mm_castps_si128(_mm_cmpgt_ps(ds, zero)));
+        if (!_mm_movemask_epi8(M.live))
+            break;
+        __m128 gv[3];
+        int gi[3][LANES];
+        size_t brick[LANES];
+        lanes_position(job, L, tm, gv, gi);
+        __m128i jump = lanes_empty(job, L, &M, gi, brick);
+        __m128i sampling = _mm_andnot_si128(jump, M.live);
+        int jumps = _mm_movemask_ps(_mm_castsi128_ps(jump));
+        if (jumps)
+            lanes_jump(job, L, jumps, jump, gi, brick, n, empty_end, &M);
+        if (!_mm_movemask_epi8(sampling))
+            continue;
+        /* step 3 for every lane: a branch per lane costs more than the loads it saves */
+        int v[8][LANES];
+        for (int k = 0; k < LANES; k++)
+            gather_lane(job, gi[0][k], gi[1][k], gi[2][k], v, k);
+        if (looks) { /* the gradient reads them again (lanes_gradient) */
+            memcpy(L->corner, v, sizeof v);
+            for (int a = 0; a < 3; a++)
+                _mm_storeu_ps(L->g[a], gv[a]);
+        }
+        __m128 s = lanes_trilinear(gv, gi, v);
+        M.taken = _mm_sub_epi32(M.taken, sampling); /* -1 in the sampling lanes */
+        M.i = _mm_sub_epi32(M.i, sampling);
+        M.live = _mm_andnot_si128(_mm_andnot_si128(_mm_cmplt_epi32(M.i, n), sampling), M.live);
+        if (L->blend == CDVR_BLEND_COMPOSITE)
+            composite_take(job, L, sampling, s, ds, &M);
+        else if (L->blend == CDVR_BLEND_AVERAGE)
+            average_take(sampling, s, &M);
+        else
+            extreme_take(L, sampling, s, n, empty_end, &M);
+    }
+    int iv[LANES], tv[LANES], rv[LANES];
+    _mm_storeu_si128((__m128i *)iv, M.i);
+    _mm_storeu_si128((__m128i *)tv, M.taken);
+    _mm_storeu_si128((__m128i *)rv, M.reached);
+    _mm_storeu_ps(L->best, M.best);
+    _mm_storeu_pd(L->sum, M.sum[0]);
+    _mm_storeu_pd(L->sum + 2, M.sum[1]);
+    for (int k = 0; k < LANES; k++) {
+        L->i[k] = iv[k];
+        L->taken[k] += (uint64_t)(unsigned)tv[k]; /* at most n: an int */
+        L->reached[k] = rv[k] != 0;
+        L->live[k] = 0;
+    }
+    for (int c = 0; c < 3; c++)
+        C[c] = M.C[c];
+    *A = M.A;
 }
 
 /* Iso (march_iso lane by lane): every live lane takes its sample (computed for all lanes:
@@ -1161,89 +1331,6 @@ static int lanes_iso_step(const render_job *job, lanes *L)
         }
         L->i[k] = (int)(i + 1);
         L->live[k] = i + 1 < n;
-    }
-    return L->live[0] | L->live[1] | L->live[2] | L->live[3];
-}
-
-/* One step of every live lane; returns the lanes still live. */
-static int lanes_step(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
-{
-    int sampling[LANES];
-    float dsv[LANES];
-    __m128 s;
-    if (!lanes_sample(job, L, sampling, dsv, &s))
-        return L->live[0] | L->live[1] | L->live[2] | L->live[3];
-    if (L->blend != CDVR_BLEND_COMPOSITE) {
-        lanes_extreme(job, L, sampling, s);
-        return L->live[0] | L->live[1] | L->live[2] | L->live[3];
-    }
-    /* step 4: i0 = min((int)s, 254) as the truncation of min(s, 254) */
-    __m128i si = _mm_cvttps_epi32(_mm_min_ps(s, _mm_set1_ps(254.0f)));
-    __m128 fr = _mm_sub_ps(s, _mm_cvtepi32_ps(si));
-    int ti[LANES];
-    float sv[LANES];
-    _mm_storeu_si128((__m128i *)ti, si);
-    _mm_storeu_ps(sv, s);
-    /* each lane's two entries (r, g, b, a_c) of the table, transposed to channels */
-    __m128 lo[4], hi[4];
-    for (int k = 0; k < LANES; k++) {
-        lo[k] = _mm_loadu_ps(job->rgb_alpha_step[ti[k]]);
-        hi[k] = _mm_loadu_ps(job->rgb_alpha_step[ti[k] + 1]);
-    }
-    _MM_TRANSPOSE4_PS(lo[0], lo[1], lo[2], lo[3]);
-    _MM_TRANSPOSE4_PS(hi[0], hi[1], hi[2], hi[3]);
-    float alpha[LANES], rgb[3][LANES];
-    _mm_storeu_ps(alpha, lerp4(lo[3], hi[3], fr));
-    for (int c = 0; c < 3; c++)
-        _mm_storeu_ps(rgb[c], lerp4(lo[c], hi[c], fr));
-    int looks = job->shade || job->go_points;
-    unsigned lit = 0; /* the lanes to shade or weigh by their gradient */
-    for (int k = 0; k < LANES; k++) {
-        if (!sampling[k])
-            alpha[k] = 0.0f;
-        else if (!(dsv[k] >= job->step)) { /* the shorter last segment (classify) */
-            float rgba[4];
-            classify(job, sv[k], dsv[k], 0, rgba);
-            alpha[k] = rgba[3];
-        }
-        lit |= (unsigned)(looks && alpha[k] > 0.0f) << k;
-    }
-    if (lit) { /* look_sample: gradients and shading four at a time, gradient opacity per lane */
-        __m128 G[3];
-        lanes_gradient(job, L, lit, G);
-        if (!job->go_points) {
-            lanes_shade(job, L, lit, G, rgb);
-        } else {
-            float Gv[3][LANES];
-            for (int a = 0; a < 3; a++)
-                _mm_storeu_ps(Gv[a], G[a]);
-            for (int k = 0; k < LANES; k++) {
-                if (!((lit >> k) & 1))
-                    continue;
-                float rgba[4] = {rgb[0][k], rgb[1][k], rgb[2][k], alpha[k]};
-                float Gk[3] = {Gv[0][k], Gv[1][k], Gv[2][k]};
-                float Vk[3] = {L->V[0][k], L->V[1][k], L->V[2][k]};
-                look_gradient(job, Gk, sv[k], dsv[k], Vk, rgba);
-                for (int c = 0; c < 3; c++)
-                    rgb[c][k] = rgba[c];
-                alpha[k] = rgba[3];
-            }
-        }
-    }
-    __m128 a = _mm_loadu_ps(alpha);
-    __m128 w = _mm_mul_ps(_mm_sub_ps(_mm_set1_ps(1.0f), *A), a);
-    for (int c = 0; c < 3; c++)
-        C[c] = _mm_add_ps(C[c], _mm_mul_ps(w, _mm_loadu_ps(rgb[c])));
-    *A = _mm_add_ps(*A, w);
-    float Av[LANES];
-    _mm_storeu_ps(Av, *A);
-    for (int k = 0; k < LANES; k++) {
-        if (!sampling[k])
-            continue;
-        L->taken[k]++;
-        L->i[k]++;
-        if ((alpha[k] > 0.0f && (Av[k] >= job->term_alpha || Av[k] >= 1.0f)) || L->i[k] >= L->n[k])
-            L->live[k] = 0;
     }
     return L->live[0] | L->live[1] | L->live[2] | L->live[3];
 }
@@ -1408,8 +1495,7 @@ static uint64_t render_lanes(const render_job *job, int x, int y, const float gu
         }
         return samples;
     }
-    while (lanes_step(job, &L, C, &A))
-        ;
+    lanes_march(job, &L, C, &A);
     float out[4][LANES];
     for (int c = 0; c < 3; c++)
         _mm_storeu_ps(out[c], C[c]);
