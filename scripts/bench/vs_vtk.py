@@ -66,7 +66,9 @@ def ensure_packages():
                               env=dict(os.environ, DEBIAN_FRONTEND="noninteractive"))
     if not os.environ.get("DISPLAY") and not os.environ.get("CDVR_UNDER_XVFB"):
         env = dict(os.environ, CDVR_UNDER_XVFB="1")
-        os.execvpe("xvfb-run", ["xvfb-run", "-a", "-s", "-screen 0 1024x768x24",
+        # -noreset: the server otherwise resets when its last client leaves, and a window
+        # opened meanwhile (look_vtk.py's next volume) fails with "bad X server connection"
+        os.execvpe("xvfb-run", ["xvfb-run", "-a", "-s", "-screen 0 1024x768x24 -noreset",
                                 "/usr/bin/python3"] + sys.argv, env)
 
 
