@@ -797,7 +797,6 @@ typedef struct lanes {
     /* iso: the last sample's code and parameter before a hit, and the hit (code, parameter) */
     float prev[LANES], t_prev[LANES], hit_s[LANES], hit_tm[LANES];
     int hit[LANES];
-    int corner[8][LANES];    /* shading: the eight codes of the last sample (gather_lane) */
 } lanes;
 
 /* Four integer codes as floats (exact). */
@@ -874,22 +873,14 @@ static void lanes_gradient(const render_job *job, const lanes *L, unsigned mask,
         }
 #pragma GCC unroll 6
         for (int j = 0; j < 6; j++) { /* sample j moves axis a = j / 2, up then down */
-            int a = j / 2, up = j % 2 == 0, bit = 1 << a;
+            int a = j / 2, up = j % 2 == 0;
             const axis_at *X = &ax[0][a == 0 ? 2 - up : 0];
             const axis_at *Y = &ax[1][a == 1 ? 2 - up : 0];
             const axis_at *Z = &ax[2][a == 2 ? 2 - up : 0];
-            /* the face it shares with the sample's own cell: the same bytes, already read
-             * (corner c: bit 0 x, bit 1 y, bit 2 z on the high side, as gather_lane) */
-            int shared = up ? ax[a][1].lo == ax[a][0].hi : ax[a][2].hi == ax[a][0].lo;
 #pragma GCC unroll 8
-            for (int c = 0; c < 8; c++) {
-                int high = (c & bit) != 0;
-                if (shared && high != up)
-                    v[j][c][k] = L->corner[up ? c | bit : c & ~bit][k];
-                else
-                    v[j][c][k] = job->voxels[(c & 1 ? X->hi : X->lo) + (c & 2 ? Y->hi : Y->lo) +
-                                             (c & 4 ? Z->hi : Z->lo)];
-            }
+            for (int c = 0; c < 8; c++)
+                v[j][c][k] = job->voxels[(c & 1 ? X->hi : X->lo) + (c & 2 ? Y->hi : Y->lo) +
+                                         (c & 4 ? Z->hi : Z->lo)];
             f[j][0][k] = X->f, f[j][1][k] = Y->f, f[j][2][k] = Z->f;
         }
     }
@@ -1245,11 +1236,9 @@ static void lanes_march(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
         int v[8][LANES];
         for (int k = 0; k < LANES; k++)
             gather_lane(job, gi[0][k], gi[1][k], gi[2][k], v, k);
-        if (looks) { /* the gradient reads them again (lanes_gradient) */
-            memcpy(L->corner, v, sizeof v);
+        if (looks) /* the gradient's positions (lanes_gradient) */
             for (int a = 0; a < 3; a++)
                 _mm_storeu_ps(L->g[a], gv[a]);
-        }
         __m128 s = lanes_trilinear(gv, gi, v);
         M.taken = _mm_sub_epi32(M.taken, sampling); /* -1 in the sampling lanes */
         M.i = _mm_sub_epi32(M.i, sampling);
