@@ -967,19 +967,6 @@ static void lanes_shade(const render_job *job, const lanes *L, unsigned mask, co
                 rgb[c][k] = out[c][k];
 }
 
-/* Each lane's segment at its index i (render.h step 2, as sample_at): length ds (step, or
- * the rest of the ray for the last one) and midpoint tm. */
-static inline void lanes_segment(const lanes *L, __m128 step, __m128 *ds, __m128 *tm)
-{
-    __m128i iv = _mm_loadu_si128((const __m128i *)L->i);
-    __m128 ts = _mm_add_ps(_mm_loadu_ps(L->t_near), _mm_mul_ps(_mm_cvtepi32_ps(iv), step));
-    __m128i last = _mm_sub_epi32(_mm_loadu_si128((const __m128i *)L->n), _mm_set1_epi32(1));
-    __m128 is_full = _mm_castsi128_ps(_mm_cmplt_epi32(iv, last));
-    *ds = _mm_or_ps(_mm_and_ps(is_full, step),
-                    _mm_andnot_ps(is_full, _mm_sub_ps(_mm_loadu_ps(L->t_far), ts)));
-    *tm = _mm_add_ps(ts, _mm_mul_ps(_mm_set1_ps(0.5f), *ds));
-}
-
 /* Step 2 at the four lanes' segment midpoints tm: grid positions clamped into the volume (gv)
  * and their lower corners (gi). */
 static inline void lanes_position(const render_job *job, const lanes *L, __m128 tm,
@@ -992,6 +979,18 @@ static inline void lanes_position(const render_job *job, const lanes *L, __m128 
         gv[a] = _mm_min_ps(_mm_max_ps(_mm_mul_ps(p, _mm_set1_ps(job->inv_spacing[a])), zero), top);
         _mm_storeu_si128((__m128i *)gi[a], _mm_cvttps_epi32(gv[a]));
     }
+}
+
+/* Step 2 as sample_at, for lanes at segment indices i (last: n - 1): returns the segment
+ * lengths ds (the step, or the rest of the ray for the last one) and gives the midpoints tm. */
+static inline __m128 lanes_segment(__m128 t_near, __m128 t_far, __m128i i, __m128i last,
+                                   __m128 step, __m128 *tm)
+{
+    __m128 ts = _mm_add_ps(t_near, _mm_mul_ps(_mm_cvtepi32_ps(i), step));
+    __m128 full = _mm_castsi128_ps(_mm_cmplt_epi32(i, last));
+    __m128 ds = _mm_or_ps(_mm_and_ps(full, step), _mm_andnot_ps(full, _mm_sub_ps(t_far, ts)));
+    *tm = _mm_add_ps(ts, _mm_mul_ps(_mm_set1_ps(0.5f), ds));
+    return ds;
 }
 
 /* ---- the march of four lanes (composite, max, min, average) -------------------------------
@@ -1213,11 +1212,8 @@ static void lanes_march(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
         .C = {zero, zero, zero},
     };
     for (;;) {
-        /* step 2 (lanes_segment): a lane at an empty last segment stops */
-        __m128 ts = _mm_add_ps(t_near, _mm_mul_ps(_mm_cvtepi32_ps(M.i), step));
-        __m128 full = _mm_castsi128_ps(_mm_cmplt_epi32(M.i, last));
-        __m128 ds = _mm_or_ps(_mm_and_ps(full, step), _mm_andnot_ps(full, _mm_sub_ps(t_far, ts)));
-        __m128 tm = _mm_add_ps(ts, _mm_mul_ps(_mm_set1_ps(0.5f), ds));
+        __m128 tm, ds = lanes_segment(t_near, t_far, M.i, last, step, &tm);
+        /* a lane at an empty last segment stops (the definition does not take it) */
         M.live = _mm_and_si128(M.live, _mm_castps_si128(_mm_cmpgt_ps(ds, zero)));
         if (!_mm_movemask_epi8(M.live))
             break;
@@ -1268,60 +1264,95 @@ static void lanes_march(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
     *A = M.A;
 }
 
-/* Iso (march_iso lane by lane): every live lane takes its sample (computed for all lanes:
- * positions are clamped into the volume); a hit stops the lane and is kept for iso_hit, a
- * miss becomes the predecessor and may jump as iso_jump does. Returns the lanes still live. */
-static int lanes_iso_step(const render_job *job, lanes *L)
+/* Iso misses that lie in an invisible brick (flag code < 128, the lanes in `misses`) jump as
+ * iso_jump does: the samples after i inside the cube are on its side, none is a hit, and the
+ * march resumes at the last of them (next - 2 before the step's i + 1), counted as taken. */
+static void iso_jumps(const render_job *job, const lanes *L, int misses, int gi[3][LANES],
+                      __m128i n, __m128i *i, __m128i *taken)
 {
-    const __m128 step = _mm_set1_ps(job->step);
-    __m128 ds, tm;
-    lanes_segment(L, step, &ds, &tm);
-    float dsv[LANES], tmv[LANES], sv[LANES];
-    int gi[3][LANES], v[8][LANES];
-    _mm_storeu_ps(dsv, ds);
-    _mm_storeu_ps(tmv, tm);
-    __m128 gv[3];
-    lanes_position(job, L, tm, gv, gi);
-    memset(v, 0, sizeof v);
+    int iv[LANES], nv[LANES], next[LANES], add[LANES];
+    _mm_storeu_si128((__m128i *)iv, *i);
+    _mm_storeu_si128((__m128i *)nv, n);
     for (int k = 0; k < LANES; k++) {
-        if (L->live[k] && !(dsv[k] > 0.0f)) /* the definition stops before an empty last one */
-            L->live[k] = 0;
-        if (L->live[k])
+        next[k] = iv[k], add[k] = 0;
+        if (!((misses >> k) & 1))
+            continue;
+        int cell[3] = {gi[0][k], gi[1][k], gi[2][k]};
+        int code = job->skip_flags[brick_of_cell(job, cell)];
+        if (code >= 128)
+            continue;
+        long to = skip_target(job, &L->gr[k], cell, code, iv[k]);
+        to = to < nv[k] ? to : nv[k];
+        if (to - 2 > iv[k]) { /* samples i + 1 .. next - 2: full segments */
+            add[k] = (int)(to - 2 - iv[k]);
+            next[k] = (int)(to - 2);
+        }
+    }
+    /* built in registers: four scalar stores read back as one vector load would stall */
+    *i = _mm_setr_epi32(next[0], next[1], next[2], next[3]);
+    *taken = _mm_add_epi32(*taken, _mm_setr_epi32(add[0], add[1], add[2], add[3]));
+}
+
+/* Iso (march_iso lane by lane, its state in registers as lanes_march keeps it): every live
+ * lane takes its sample (every lane reads its voxels: positions are clamped into the
+ * volume); a hit stops the lane and is kept for iso_hit, a miss becomes the predecessor and
+ * may jump as iso_jump does. */
+static void lanes_iso_march(const render_job *job, lanes *L)
+{
+    const __m128 step = _mm_set1_ps(job->step), zero = _mm_setzero_ps();
+    const __m128 c = _mm_set1_ps(job->iso_code);
+    const __m128 t_near = _mm_loadu_ps(L->t_near), t_far = _mm_loadu_ps(L->t_far);
+    const __m128i n = _mm_loadu_si128((const __m128i *)L->n);
+    const __m128i last = _mm_sub_epi32(n, _mm_set1_epi32(1));
+    __m128i i = _mm_loadu_si128((const __m128i *)L->i), taken = _mm_setzero_si128();
+    __m128i live = _mm_sub_epi32(_mm_setzero_si128(), _mm_loadu_si128((const __m128i *)L->live));
+    __m128i hit = _mm_setzero_si128();
+    __m128 prev = zero, t_prev = zero, hit_s = zero, hit_tm = zero;
+    for (;;) {
+        __m128 tm, ds = lanes_segment(t_near, t_far, i, last, step, &tm);
+        /* a lane at an empty last segment stops (the definition does not take it) */
+        live = _mm_and_si128(live, _mm_castps_si128(_mm_cmpgt_ps(ds, zero)));
+        if (!_mm_movemask_epi8(live))
+            break;
+        __m128 gv[3];
+        int gi[3][LANES], v[8][LANES];
+        lanes_position(job, L, tm, gv, gi);
+        for (int k = 0; k < LANES; k++)
             gather_lane(job, gi[0][k], gi[1][k], gi[2][k], v, k);
+        __m128 s = lanes_trilinear(gv, gi, v), on = _mm_castsi128_ps(live);
+        taken = _mm_sub_epi32(taken, live); /* -1 in the live lanes */
+        /* a hit: s == c, or a change of side from the predecessor (none before sample 0) */
+        __m128 cross = _mm_cmplt_ps(_mm_mul_ps(_mm_sub_ps(prev, c), _mm_sub_ps(s, c)), zero);
+        __m128 after = _mm_castsi128_ps(_mm_cmpgt_epi32(i, _mm_setzero_si128()));
+        __m128 hits = _mm_and_ps(on, _mm_or_ps(_mm_cmpeq_ps(s, c), _mm_and_ps(after, cross)));
+        __m128 miss = _mm_andnot_ps(hits, on);
+        hit = _mm_or_si128(hit, _mm_castps_si128(hits));
+        hit_s = _mm_or_ps(_mm_and_ps(hits, s), _mm_andnot_ps(hits, hit_s));
+        hit_tm = _mm_or_ps(_mm_and_ps(hits, tm), _mm_andnot_ps(hits, hit_tm));
+        prev = _mm_or_ps(_mm_and_ps(miss, s), _mm_andnot_ps(miss, prev));
+        t_prev = _mm_or_ps(_mm_and_ps(miss, tm), _mm_andnot_ps(miss, t_prev));
+        int misses = _mm_movemask_ps(miss);
+        if (misses && job->skip_flags)
+            iso_jumps(job, L, misses, gi, n, &i, &taken);
+        __m128i missed = _mm_castps_si128(miss);
+        i = _mm_sub_epi32(i, missed); /* i + 1 in the lanes that missed */
+        live = _mm_andnot_si128(_mm_castps_si128(hits), live);
+        live = _mm_andnot_si128(_mm_andnot_si128(_mm_cmplt_epi32(i, n), missed), live);
     }
-    _mm_storeu_ps(sv, lanes_trilinear(gv, gi, v));
-    float c = job->iso_code;
+    int iv[LANES], tv[LANES], hv[LANES];
+    _mm_storeu_si128((__m128i *)iv, i);
+    _mm_storeu_si128((__m128i *)tv, taken);
+    _mm_storeu_si128((__m128i *)hv, hit);
+    _mm_storeu_ps(L->prev, prev);
+    _mm_storeu_ps(L->t_prev, t_prev);
+    _mm_storeu_ps(L->hit_s, hit_s);
+    _mm_storeu_ps(L->hit_tm, hit_tm);
     for (int k = 0; k < LANES; k++) {
-        if (!L->live[k])
-            continue;
-        long i = L->i[k], n = L->n[k];
-        float s = sv[k];
-        L->taken[k]++;
-        if (s == c || (i > 0 && (L->prev[k] - c) * (s - c) < 0.0f)) {
-            L->hit[k] = 1;
-            L->hit_s[k] = s;
-            L->hit_tm[k] = tmv[k];
-            L->live[k] = 0;
-            continue;
-        }
-        L->prev[k] = s;
-        L->t_prev[k] = tmv[k];
-        if (job->skip_flags) {
-            int cell[3] = {gi[0][k], gi[1][k], gi[2][k]};
-            int code = job->skip_flags[brick_of_cell(job, cell)];
-            if (code < 128) {
-                long next = skip_target(job, &L->gr[k], cell, code, i);
-                next = next < n ? next : n;
-                if (next - 2 > i) { /* samples i + 1 .. next - 2: full segments */
-                    L->taken[k] += (uint64_t)(next - 2 - i);
-                    i = next - 2;
-                }
-            }
-        }
-        L->i[k] = (int)(i + 1);
-        L->live[k] = i + 1 < n;
+        L->i[k] = iv[k];
+        L->taken[k] += (uint64_t)(unsigned)tv[k]; /* at most n: an int */
+        L->hit[k] = hv[k] != 0;
+        L->live[k] = 0;
     }
-    return L->live[0] | L->live[1] | L->live[2] | L->live[3];
 }
 
 /* Steps 0 of pixels x .. x + 3 of row y for a pinhole camera, two rays at a time in double
@@ -1468,8 +1499,7 @@ static uint64_t render_lanes(const render_job *job, int x, int y, const float gu
     }
     __m128 C[3] = {_mm_setzero_ps(), _mm_setzero_ps(), _mm_setzero_ps()}, A = _mm_setzero_ps();
     if (job->blend == CDVR_BLEND_ISO) {
-        while (lanes_iso_step(job, &L))
-            ;
+        lanes_iso_march(job, &L);
         uint64_t samples = 0;
         for (int k = 0; k < LANES; k++) {
             float *px = cdvr_image_pixel(job->img, x + k, y);
