@@ -786,8 +786,8 @@ typedef struct lanes {
     float guess[LANES];      /* max, min: the guess the march started from, or -inf / +inf */
     int reached[LANES];      /* max, min: a sample reached the guess (at or beyond it) */
     double sum[LANES];       /* average: the sum of the codes */
-    int live[LANES];         /* still marching */
-    int i[LANES], n[LANES];  /* segment index, segments */
+    int live[LANES];         /* the lanes that meet the volume: the marches start these */
+    int n[LANES];            /* segments (the marches keep their indices in registers) */
     uint64_t taken[LANES];
     grid_ray gr[LANES];
     float t_near[LANES], t_far[LANES];
@@ -1015,11 +1015,10 @@ static __m128i lanes_empty(const render_job *job, const lanes *L, const march_la
 {
     if (!job->skip_flags && !job->skip_minmax) /* skipping is only a saving */
         return _mm_setzero_si128();
-    const int sh = job->skip_shift;
-    const size_t nb0 = (size_t)job->skip_nb[0], nb01 = nb0 * (size_t)job->skip_nb[1];
-    for (int k = 0; k < LANES; k++) /* every gi lies in the volume: lanes off too */
-        brick[k] = (size_t)(gi[0][k] >> sh) + nb0 * (size_t)(gi[1][k] >> sh) +
-                   nb01 * (size_t)(gi[2][k] >> sh);
+    for (int k = 0; k < LANES; k++) { /* every gi lies in the volume: lanes off too */
+        int cell[3] = {gi[0][k], gi[1][k], gi[2][k]};
+        brick[k] = brick_of_cell(job, cell);
+    }
     /* the vectors are built in registers: four scalar stores read back as one vector load
      * would stall */
     if (job->skip_flags) {
@@ -1205,7 +1204,6 @@ static void lanes_march(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
     const __m128i empty_end = _mm_castps_si128(_mm_cmple_ps(_mm_sub_ps(t_far, end), zero));
     const int looks = job->shade || job->go_points;
     march_lanes M = {
-        .i = _mm_loadu_si128((const __m128i *)L->i),
         .live = _mm_sub_epi32(_mm_setzero_si128(), _mm_loadu_si128((const __m128i *)L->live)),
         .best = _mm_loadu_ps(L->best),
         .sum = {_mm_setzero_pd(), _mm_setzero_pd()},
@@ -1246,18 +1244,15 @@ static void lanes_march(const render_job *job, lanes *L, __m128 C[3], __m128 *A)
         else
             extreme_take(L, sampling, s, n, empty_end, &M);
     }
-    int iv[LANES], tv[LANES], rv[LANES];
-    _mm_storeu_si128((__m128i *)iv, M.i);
+    int tv[LANES], rv[LANES];
     _mm_storeu_si128((__m128i *)tv, M.taken);
     _mm_storeu_si128((__m128i *)rv, M.reached);
     _mm_storeu_ps(L->best, M.best);
     _mm_storeu_pd(L->sum, M.sum[0]);
     _mm_storeu_pd(L->sum + 2, M.sum[1]);
     for (int k = 0; k < LANES; k++) {
-        L->i[k] = iv[k];
         L->taken[k] += (uint64_t)(unsigned)tv[k]; /* at most n: an int */
         L->reached[k] = rv[k] != 0;
-        L->live[k] = 0;
     }
     for (int c = 0; c < 3; c++)
         C[c] = M.C[c];
@@ -1304,7 +1299,7 @@ static void lanes_iso_march(const render_job *job, lanes *L)
     const __m128 t_near = _mm_loadu_ps(L->t_near), t_far = _mm_loadu_ps(L->t_far);
     const __m128i n = _mm_loadu_si128((const __m128i *)L->n);
     const __m128i last = _mm_sub_epi32(n, _mm_set1_epi32(1));
-    __m128i i = _mm_loadu_si128((const __m128i *)L->i), taken = _mm_setzero_si128();
+    __m128i i = _mm_setzero_si128(), taken = _mm_setzero_si128();
     __m128i live = _mm_sub_epi32(_mm_setzero_si128(), _mm_loadu_si128((const __m128i *)L->live));
     __m128i hit = _mm_setzero_si128();
     __m128 prev = zero, t_prev = zero, hit_s = zero, hit_tm = zero;
@@ -1339,8 +1334,7 @@ static void lanes_iso_march(const render_job *job, lanes *L)
         live = _mm_andnot_si128(_mm_castps_si128(hits), live);
         live = _mm_andnot_si128(_mm_andnot_si128(_mm_cmplt_epi32(i, n), missed), live);
     }
-    int iv[LANES], tv[LANES], hv[LANES];
-    _mm_storeu_si128((__m128i *)iv, i);
+    int tv[LANES], hv[LANES];
     _mm_storeu_si128((__m128i *)tv, taken);
     _mm_storeu_si128((__m128i *)hv, hit);
     _mm_storeu_ps(L->prev, prev);
@@ -1348,10 +1342,8 @@ static void lanes_iso_march(const render_job *job, lanes *L)
     _mm_storeu_ps(L->hit_s, hit_s);
     _mm_storeu_ps(L->hit_tm, hit_tm);
     for (int k = 0; k < LANES; k++) {
-        L->i[k] = iv[k];
         L->taken[k] += (uint64_t)(unsigned)tv[k]; /* at most n: an int */
         L->hit[k] = hv[k] != 0;
-        L->live[k] = 0;
     }
 }
 
