@@ -61,22 +61,39 @@ check "partial zfp decode with dense frames" cells_dense
 # (0.93) of the tiled time
 cat >"$tmp/layout.lua" <<'LUA'
 local i = assert(cdvr.cl_info())
-print(("%s %.17g %.17g"):format(i.frames, i.layout_dense_ms, i.layout_tiled_ms))
+print(("%s %.17g %.17g %d %.17g %.17g"):format(i.frames, i.layout_dense_ms, i.layout_tiled_ms,
+                                              i.quads_max_bytes, i.quads_tiled_ms, i.quads_ms))
 LUA
 first=$(env -u CDVR_CL_TILES CDVR_CACHE_DIR="$tmp/cache" "$cdvr" "$tmp/layout.lua")
 again=$(env -u CDVR_CL_TILES CDVR_CACHE_DIR="$tmp/cache" "$cdvr" "$tmp/layout.lua")
 echo "layout: $first"
-measured() { # frames dense_ms tiled_ms
-  awk -v f="$1" -v d="$2" -v t="$3" 'BEGIN { ok = d > 0 && t > 0 &&
-    ((f == "dense") == (d < 0.93 * t)) && (f == "dense" || f == "tiled"); exit !ok }'
+# and with tiled frames the quad copy's limit (device.h, CDVR_CL_QUADS_SHARE 0.95): 256 MB
+# exactly where the probe's quad casts took below 0.95 of its tiled ones, else 64 MB; dense
+# frames measure no quads
+small=$((64 << 20)); large=$((256 << 20))
+measured() { # frames dense_ms tiled_ms quads_max quads_tiled_ms quads_ms
+  awk -v f="$1" -v d="$2" -v t="$3" -v q="$4" -v qt="$5" -v qq="$6" -v s=$small -v l=$large \
+    'BEGIN { ok = d > 0 && t > 0 && ((f == "dense") == (d < 0.93 * t)) &&
+                  (f == "dense" || f == "tiled");
+             if (f == "dense") ok = ok && q == s && qt == 0 && qq == 0;
+             else ok = ok && qt > 0 && qq > 0 && (q == (qq < 0.95 * qt ? l : s));
+             exit !ok }'
 }
 check "measured once ($first)" measured $first
-same_record() { # the second run read the first one's record (times to its 4 decimals)
-  echo "$first $again" | awk '{ exit !($1 == $4 && ($2 - $5) ^ 2 < 1e-6 && ($3 - $6) ^ 2 < 1e-6) }'
+same_record() { # the second run read the first one's records (times to their 4 decimals)
+  echo "$first $again" | awk '{ exit !($1 == $7 && ($2 - $8) ^ 2 < 1e-6 && ($3 - $9) ^ 2 < 1e-6 &&
+                                     $4 == $10 && ($5 - $11) ^ 2 < 1e-6 && ($6 - $12) ^ 2 < 1e-6) }'
 }
-check "remembered: the same choice and times ($again)" same_record
+check "remembered: the same choices and times ($again)" same_record
 check "one layout record in the cache" test "$(ls "$tmp"/cache/*.layout 2>/dev/null | wc -l)" -eq 1
-check "CDVR_CL_TILES=0 overrides, nothing measured" test "$(CDVR_CL_TILES=0 CDVR_CACHE_DIR="$tmp/cache2" "$cdvr" "$tmp/layout.lua")" = "dense 0 0"
-check "CDVR_CL_TILES=1 overrides" test "$(CDVR_CL_TILES=1 CDVR_CACHE_DIR="$tmp/cache2" "$cdvr" "$tmp/layout.lua")" = "tiled 0 0"
+quads_records=$(ls "$tmp"/cache/*.quads 2>/dev/null | wc -l)
+case "$first" in
+  dense*) check "no quad record with dense frames" test "$quads_records" -eq 0 ;;
+  *) check "one quad record in the cache" test "$quads_records" -eq 1 ;;
+esac
+check "CDVR_CL_TILES=0 overrides, nothing measured" test "$(CDVR_CL_TILES=0 CDVR_CACHE_DIR="$tmp/cache2" "$cdvr" "$tmp/layout.lua")" = "dense 0 0 $small 0 0"
+check "CDVR_CL_TILES=1 overrides, no quads measured" test "$(CDVR_CL_TILES=1 CDVR_CACHE_DIR="$tmp/cache2" "$cdvr" "$tmp/layout.lua")" = "tiled 0 0 $small 0 0"
+check "CDVR_CL_QUADS set: no quads measured" eval 'CDVR_CL_QUADS=1 CDVR_CACHE_DIR="$tmp/cache3" "$cdvr" "$tmp/layout.lua" | grep -q " $small 0 0\$"'
+check "nothing recorded for them" test "$(ls "$tmp"/cache2 "$tmp"/cache3 2>/dev/null | grep -c '\.quads$')" -eq 0
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ]

@@ -89,6 +89,9 @@ static int l_cl_info(lua_State *L)
     set_string(L, "frames", info->dense_frames ? "dense" : "tiled");
     set_number(L, "layout_dense_ms", info->layout_dense_ms);
     set_number(L, "layout_tiled_ms", info->layout_tiled_ms);
+    set_number(L, "quads_max_bytes", (double)info->quads_max_bytes);
+    set_number(L, "quads_tiled_ms", info->quads_tiled_ms);
+    set_number(L, "quads_ms", info->quads_ms);
     return 1;
 }
 
@@ -100,7 +103,9 @@ int lcdvr_open_device(lua_State *L)
                    "OpenCL device in use {platform=, device=, type=\"cpu\"|\"gpu\", version=, driver=, "
                    "compute_units=, build_seconds=, from_cache=, frames=\"dense\"|\"tiled\" (the layout "
                    "casts read: measured once per CPU device, CDVR_CL_TILES=0|1 overrides), "
-                   "layout_dense_ms=, layout_tiled_ms=, ...}, or nil, message "
+                   "layout_dense_ms=, layout_tiled_ms=, quads_max_bytes= (the largest quad copy "
+                   "made by default: measured once per CPU device against quads_tiled_ms=, "
+                   "quads_ms=), ...}, or nil, message "
                    "(CDVR_CL_DEVICE=gpu|cpu|none|P:D|name picks the device)");
     lcdvr_help_add(L, "cdvr.render(v, {device=\"cl\", skip=true, ...})",
                    "ray cast on the OpenCL device (same image as the CPU within 50 dB PSNR); "

@@ -56,6 +56,12 @@ typedef struct cdvr_cl_info {
                                     dense casts faster; CDVR_CL_TILES=1 forces the copies */
     double layout_dense_ms;      /* that measurement (remembered beside the program cache):  */
     double layout_tiled_ms;      /* median cast of the dense and the tiled probe frame; 0: none */
+    size_t quads_max_bytes;      /* the largest quad copy a CPU device makes by default:
+                                    CDVR_CL_QUADS_MAX_BYTES, or CDVR_CL_QUADS_LARGE_MAX_BYTES
+                                    where cdvr_cl_open measured the probe frame's quad copy
+                                    faster than its tiled copy (0 on GPUs: no quad copy) */
+    double quads_tiled_ms;       /* that measurement (remembered): the probe's composite and */
+    double quads_ms;             /* max casts, tiled copy alone and with quads; 0: none */
 } cdvr_cl_info;
 
 /* Chooses a device (see above), creates context, queue and program, and on a CPU device the
@@ -67,6 +73,17 @@ typedef struct cdvr_cl_info {
  * missing kernel file, build failure with the build log). */
 cdvr_status cdvr_cl_open(cdvr_cl **out, cdvr_error *err);
 #define CDVR_CL_DENSE_SHARE 0.93
+/* The quad copy (cl_render.c, quads_ready: 4 bytes per voxel of the tiled copy, 2 reads per
+ * sample instead of 8) is made for frames whose copy takes at most CDVR_CL_QUADS_MAX_BYTES.
+ * Beyond that its cache misses may cost more than its fewer reads save, and which wins depends
+ * on the CPU's caches, so cdvr_cl_open measures it once per CPU device with tiled frames (the
+ * probe frame's quad copy is 95 MB; composite and max, 5 alternating pairs each, the sums of
+ * their medians) and raises the limit to CDVR_CL_QUADS_LARGE_MAX_BYTES where quads take below
+ * CDVR_CL_QUADS_SHARE of the tiled time. CDVR_CL_QUADS=0|1 at render time overrides both;
+ * with it or CDVR_CL_TILES set, nothing is measured and the limit stays the default. */
+#define CDVR_CL_QUADS_MAX_BYTES ((size_t)64 << 20)
+#define CDVR_CL_QUADS_LARGE_MAX_BYTES ((size_t)256 << 20)
+#define CDVR_CL_QUADS_SHARE 0.95
 /* Releases everything; NULL is allowed. Streams must be freed first. */
 void cdvr_cl_close(cdvr_cl *cl);
 

@@ -569,6 +569,36 @@ static void choose_layout(cdvr_cl *cl)
                  tiled_ms);
 }
 
+/* info.quads_max_bytes (cdvr_cl_open, after choose_layout): CDVR_CL_QUADS_MAX_BYTES, or on a
+ * CPU device with tiled frames the large limit where the remembered or measured quad probe
+ * cast below CDVR_CL_QUADS_SHARE of the tiled time. CDVR_CL_QUADS (which overrides at render
+ * time) or CDVR_CL_TILES set, dense frames or a failed measurement keep the default and
+ * measure nothing. */
+static void choose_quads(cdvr_cl *cl)
+{
+    cdvr_cl_info *info = &cl->info;
+    const char *quads_env = getenv("CDVR_CL_QUADS"), *tiles_env = getenv("CDVR_CL_TILES");
+    info->quads_max_bytes = info->is_gpu ? 0 : CDVR_CL_QUADS_MAX_BYTES;
+    info->quads_tiled_ms = info->quads_ms = 0;
+    if ((quads_env && *quads_env) || (tiles_env && *tiles_env) || info->is_gpu ||
+        info->dense_frames)
+        return;
+    char which[8];
+    double tiled_ms, quads_ms;
+    load_choice(cl, NULL, "quads", 0, which, &tiled_ms, &quads_ms);
+    if (strcmp(which, "large") && strcmp(which, "small")) {
+        cdvr_error err;
+        if (cdvr_cl_measure_quads(cl, &tiled_ms, &quads_ms, &err) != CDVR_OK)
+            return;
+        strcpy(which, quads_ms < CDVR_CL_QUADS_SHARE * tiled_ms ? "large" : "small");
+        store_choice(cl, NULL, "quads", 0, which, tiled_ms, quads_ms);
+    }
+    info->quads_tiled_ms = tiled_ms;
+    info->quads_ms = quads_ms;
+    if (!strcmp(which, "large"))
+        info->quads_max_bytes = CDVR_CL_QUADS_LARGE_MAX_BYTES;
+}
+
 static cdvr_status create_kernel(cl_program program, const char *name, cl_kernel *out,
                                 cdvr_error *err)
 {
@@ -638,6 +668,7 @@ cdvr_status cdvr_cl_open(cdvr_cl **out, cdvr_error *err)
         return st;
     }
     choose_layout(cl);
+    choose_quads(cl);
     *out = cl;
     return CDVR_OK;
 }

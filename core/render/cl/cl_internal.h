@@ -99,6 +99,10 @@ int cdvr_cl_tiles_fit(const cdvr_cl_stream *s);
  * frame and from its tiled copy, alternating (cdvr_cl_open's choice of info.dense_frames). */
 cdvr_status cdvr_cl_measure_layouts(cdvr_cl *cl, double *dense_ms, double *tiled_ms,
                                     cdvr_error *err);
+/* The sums of the median composite and max casts of that frame from its tiled copy alone
+ * and with its quad copy (95 MB), alternating (cdvr_cl_open's info.quads_max_bytes). */
+cdvr_status cdvr_cl_measure_quads(cdvr_cl *cl, double *tiled_ms, double *quads_ms,
+                                  cdvr_error *err);
 /* Sets argument `index` of kernel `name`; on failure fills err naming both. */
 cdvr_status cdvr_cl_arg(cl_kernel k, const char *name, cl_uint index, size_t size,
                         const void *value, cdvr_error *err);
@@ -154,6 +158,8 @@ struct cdvr_cl_stream {
     cl_mem quads;                /* quad copy of frame quads_frame (cl_shared.h), made with the
                                     tiled copy (cl_render.c, quads_ready) */
     size_t quads_capacity, quads_frame;
+    int quads_probe;             /* cdvr_cl_measure_quads' streams: 1 always makes the quad
+                                    copy, -1 never; 0 (every other stream): quads_ready's rule */
     size_t last_rendered;        /* frame of the last render: a second render of it makes tiles */
     cl_mem brick_visible;        /* nbricks uchar flags */
     cl_mem image;                /* width*height float4 */

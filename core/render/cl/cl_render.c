@@ -779,20 +779,23 @@ static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
                       &s->grads_frame, bytes);
 }
 
-/* The largest quad copy made by default (a frame of 16 M voxels, 256^3): on the CPU device
- * (PoCL, 2 cores, 2 MB L2 each; cdvr.generate("ml") at 512^2, step 0.5) it took composite,
- * average and max at 192^3 from 23.8, 42.5 and 31.9 ms to 20.7, 30.6 and 27.1 ms, at 256^3
- * from 32.1, 58.2 and 41.2 to 26.5, 47.0 and 39.1 ms, the engine CT's average from 36.8 to
- * 28.7 ms; at 320^3 (131 MB) composite and max were even, and on Colin27 (149 MB) average
- * and max took 1.4x the time of the tiled copy: beyond this its cache misses cost more than
- * its six fewer gathers per sample save. Not measured on GPUs, which keep the tiled copy.
- * Iso, whose rays read few samples, took 1.04-1.08x the time with it (engine CT) and keeps
- * the tiled copy. */
-#define QUADS_AUTO_MAX_BYTES ((size_t)64 << 20)
+/* The largest quad copy made by default, CDVR_CL_QUADS_MAX_BYTES (device.h: a frame of 16 M
+ * voxels, 256^3): on the CPU device (PoCL, 2 cores of an AMD EPYC, 2 MB L2 each;
+ * cdvr.generate("ml") at 512^2, step 0.5) it took composite, average and max at 192^3 from
+ * 23.8, 42.5 and 31.9 ms to 20.7, 30.6 and 27.1 ms, at 256^3 from 32.1, 58.2 and 41.2 to 26.5,
+ * 47.0 and 39.1 ms, the engine CT's average from 36.8 to 28.7 ms; at 320^3 (131 MB) composite
+ * and max were even, and on Colin27 (149 MB) average and max took 1.4x the time of the tiled
+ * copy: beyond this its cache misses cost more than its six fewer gathers per sample save.
+ * On 2 cores of an Intel Xeon (2 MB L2 each, 260 MB L3) the same Colin27 copy took composite
+ * to 0.84 of the time, average to 0.74, shaded 0.95 and max even (512^2, step 0.5, per-process
+ * minimums of 30-40 frames, 4-5 alternating pairs), so the limit beyond it is measured per
+ * device (cdvr_cl_open, info.quads_max_bytes). Not measured on GPUs, which keep the tiled
+ * copy. Iso, whose rays read few samples, took 1.04-1.08x the time with it (engine CT) and
+ * keeps the tiled copy. */
 
 /* With the tiled copy of `frame`, a render of blend mode `blend` (not iso) on a CPU device
  * gets the frame's quad copy (kernels/common/cl_shared.h) when it is at most
- * QUADS_AUTO_MAX_BYTES: 4 bytes per voxel of the tiled copy, read as 2 words per sample
+ * info.quads_max_bytes: 4 bytes per voxel of the tiled copy, read as 2 words per sample
  * instead of 8 tile rows (the same values). CDVR_CL_QUADS=0 turns it off, =1 on for any
  * device and mode up to WORD_COPY_MAX_BYTES. On any failure the samples come from the tiled
  * copy. Returns 1 when the render reads it. */
@@ -802,8 +805,9 @@ static int quads_ready(cdvr_cl_stream *s, size_t frame, int blend)
     if (s->tiles_frame != frame || s->only_tiles || cdvr_cl_env_is("CDVR_CL_QUADS", "0") ||
         !cdvr_size_mul(tiled_bytes(s->dims), 4, &bytes) || bytes > WORD_COPY_MAX_BYTES)
         return 0;
-    if (!cdvr_cl_env_is("CDVR_CL_QUADS", "1") &&
-        (s->cl->info.is_gpu || bytes > QUADS_AUTO_MAX_BYTES || blend == CDVR_BLEND_ISO))
+    if (s->quads_probe < 0 ||
+        (!cdvr_cl_env_is("CDVR_CL_QUADS", "1") && s->quads_probe == 0 &&
+         (s->cl->info.is_gpu || bytes > s->cl->info.quads_max_bytes || blend == CDVR_BLEND_ISO)))
         return 0;
     return copy_ready(s, frame, s->cl->k_quads, "make_quads", &s->quads, &s->quads_capacity,
                       &s->quads_frame, bytes);
@@ -1017,9 +1021,10 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
 
 /* ---- which layout casts faster on this device (cdvr_cl_open) --------------------------- */
 
-/* The probe's frame: PROBE_EDGE^3 voxels, whose tiled copy (288^3) gets no quad copy (95 MB,
- * over QUADS_AUTO_MAX_BYTES), so tiles meet the dense frame itself; a smooth field of nested
- * shells, rendered at PROBE_PIXELS^2 through a TF that keeps rays long, as playback is. */
+/* The probe's frame: PROBE_EDGE^3 voxels, whose tiled copy (288^3) gets no quad copy while
+ * info.quads_max_bytes is CDVR_CL_QUADS_MAX_BYTES (its quad copy is 95 MB), so tiles meet the
+ * dense frame itself; a smooth field of nested shells, rendered at PROBE_PIXELS^2 through a TF
+ * that keeps rays long, as playback is. */
 #define PROBE_EDGE 272
 #define PROBE_PIXELS 256
 #define PROBE_PAIRS 5
@@ -1041,6 +1046,56 @@ static uint8_t *probe_frames(size_t n_edge)
     return v;
 }
 
+/* What every probe renders: its frames, TF, camera and image, and two streams of them. */
+typedef struct probe_scene {
+    uint8_t *frames;
+    cdvr_tf *tf;
+    cdvr_camera cam;
+    cdvr_image *img;
+    cdvr_cl_stream *a, *b;
+} probe_scene;
+
+static void probe_free(probe_scene *p)
+{
+    cdvr_image_free(p->img);
+    cdvr_cl_stream_free(p->a);
+    cdvr_cl_stream_free(p->b);
+    free(p->tf);
+    free(p->frames);
+}
+
+/* Streams a and b with frames_a and frames_b of the probe frames uploaded. */
+static cdvr_status probe_init(cdvr_cl *cl, probe_scene *p, size_t frames_a, size_t frames_b,
+                              cdvr_error *err)
+{
+    const size_t dims[3] = {PROBE_EDGE, PROBE_EDGE, PROBE_EDGE};
+    const cdvr_tf_point points[] = {{0, 0, 0, 0, 0}, {90, 0.2, 0.3, 0.8, 0},
+                                    {160, 0.9, 0.6, 0.3, 0.03}, {255, 1, 1, 1, 0.3}};
+    double c = 0.5 * (PROBE_EDGE - 1);
+    *p = (probe_scene){.cam = {.eye = {c + 2.2 * PROBE_EDGE, c - 1.3 * PROBE_EDGE,
+                                       c + 1.3 * PROBE_EDGE},
+                               .center = {c, c, c}, .up = {0, 0, 1}, .fov = 30,
+                               .width = PROBE_PIXELS, .height = PROBE_PIXELS}};
+    p->frames = probe_frames(PROBE_EDGE);
+    p->tf = malloc(sizeof *p->tf);
+    cdvr_status st = p->frames && p->tf ? CDVR_OK
+                                        : cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL layout "
+                                                         "probe: out of memory");
+    if (!st)
+        st = cdvr_tf_init(p->tf, points, sizeof points / sizeof *points, 0, err);
+    if (!st)
+        st = cdvr_cl_stream_create(cl, dims, &p->a, err);
+    if (!st)
+        st = cdvr_cl_stream_create(cl, dims, &p->b, err);
+    if (!st)
+        st = cdvr_cl_upload_frames(p->a, p->frames, frames_a, err);
+    if (!st)
+        st = cdvr_cl_upload_frames(p->b, p->frames, frames_b, err);
+    if (!st)
+        st = cdvr_image_create_unset(PROBE_PIXELS, PROBE_PIXELS, &p->img, err);
+    return st;
+}
+
 static cdvr_status probe_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_opts *opts,
                                 cdvr_image *img, double *ms, cdvr_error *err)
 {
@@ -1057,52 +1112,59 @@ static cdvr_status probe_render(cdvr_cl_stream *s, size_t frame, const cdvr_rend
 cdvr_status cdvr_cl_measure_layouts(cdvr_cl *cl, double *dense_ms, double *tiled_ms,
                                     cdvr_error *err)
 {
-    const size_t dims[3] = {PROBE_EDGE, PROBE_EDGE, PROBE_EDGE};
-    const cdvr_tf_point points[] = {{0, 0, 0, 0, 0}, {90, 0.2, 0.3, 0.8, 0},
-                                    {160, 0.9, 0.6, 0.3, 0.03}, {255, 1, 1, 1, 0.3}};
-    double c = 0.5 * (PROBE_EDGE - 1);
-    cdvr_camera cam = {.eye = {c + 2.2 * PROBE_EDGE, c - 1.3 * PROBE_EDGE, c + 1.3 * PROBE_EDGE},
-                       .center = {c, c, c}, .up = {0, 0, 1}, .fov = 30,
-                       .width = PROBE_PIXELS, .height = PROBE_PIXELS};
-    uint8_t *frames = probe_frames(PROBE_EDGE);
-    cdvr_tf *tf = malloc(sizeof *tf);
-    cdvr_cl_stream *dense = NULL, *tiled = NULL;
-    cdvr_image *img = NULL;
-    cdvr_status st = frames && tf ? CDVR_OK
-                                  : cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL layout probe: "
-                                                   "out of memory");
-    if (!st)
-        st = cdvr_tf_init(tf, points, sizeof points / sizeof *points, 0, err);
-    if (!st)
-        st = cdvr_cl_stream_create(cl, dims, &dense, err);
-    if (!st)
-        st = cdvr_cl_stream_create(cl, dims, &tiled, err);
-    if (!st)
-        st = cdvr_cl_upload_frames(dense, frames, 2, err);
-    if (!st)
-        st = cdvr_cl_upload_frames(tiled, frames, 1, err);
-    if (!st)
-        st = cdvr_image_create_unset(PROBE_PIXELS, PROBE_PIXELS, &img, err);
-    cdvr_render_opts opts = {.tf = tf, .camera = &cam};
+    probe_scene p;
+    cdvr_status st = probe_init(cl, &p, 2, 1, err); /* a: dense, b: tiled */
+    cdvr_render_opts opts = {.tf = p.tf, .camera = &p.cam};
     double d[PROBE_PAIRS], t[PROBE_PAIRS], warm;
     size_t next = 0; /* the dense stream's frames in turn: never the same frame twice */
     /* warm-up: both frames of the dense stream, the tiled one twice (its copy is made then) */
     for (int i = 0; i < 4 && !st; i++)
-        st = i < 2 ? probe_render(dense, next++ & 1, &opts, img, &warm, err)
-                   : probe_render(tiled, 0, &opts, img, &warm, err);
+        st = i < 2 ? probe_render(p.a, next++ & 1, &opts, p.img, &warm, err)
+                   : probe_render(p.b, 0, &opts, p.img, &warm, err);
     for (int i = 0; i < PROBE_PAIRS && !st; i++) { /* A B, B A, ... */
         for (int k = 0; k < 2 && !st; k++)
-            st = (k ^ (i & 1)) ? probe_render(tiled, 0, &opts, img, &t[i], err)
-                               : probe_render(dense, next++ & 1, &opts, img, &d[i], err);
+            st = (k ^ (i & 1)) ? probe_render(p.b, 0, &opts, p.img, &t[i], err)
+                               : probe_render(p.a, next++ & 1, &opts, p.img, &d[i], err);
     }
     if (!st) {
         *dense_ms = cdvr_median(d, PROBE_PAIRS);
         *tiled_ms = cdvr_median(t, PROBE_PAIRS);
     }
-    cdvr_image_free(img);
-    cdvr_cl_stream_free(dense);
-    cdvr_cl_stream_free(tiled);
-    free(tf);
-    free(frames);
+    probe_free(&p);
+    return st;
+}
+
+cdvr_status cdvr_cl_measure_quads(cdvr_cl *cl, double *tiled_ms, double *quads_ms,
+                                  cdvr_error *err)
+{
+    probe_scene p;
+    cdvr_status st = probe_init(cl, &p, 1, 1, err);
+    if (!st) {
+        p.a->quads_probe = -1; /* the tiled copy alone */
+        p.b->quads_probe = 1;  /* and with its quad copy */
+    }
+    const cdvr_blend blends[2] = {CDVR_BLEND_COMPOSITE, CDVR_BLEND_MAX};
+    double sums[2] = {0, 0}, warm;
+    for (int m = 0; m < 2 && !st; m++) {
+        cdvr_render_opts opts = {.tf = p.tf, .camera = &p.cam, .look = {.blend = blends[m]}};
+        double ms[2][PROBE_PAIRS];
+        /* warm-up: each stream twice (the copies are made on the second render) */
+        for (int i = 0; i < 4 && !st; i++)
+            st = probe_render(i & 1 ? p.b : p.a, 0, &opts, p.img, &warm, err);
+        for (int i = 0; i < PROBE_PAIRS && !st; i++) /* A B, B A, ... */
+            for (int k = 0; k < 2 && !st; k++) {
+                int quads = k ^ (i & 1);
+                st = probe_render(quads ? p.b : p.a, 0, &opts, p.img, &ms[quads][i], err);
+            }
+        for (int q = 0; q < 2 && !st; q++)
+            sums[q] += cdvr_median(ms[q], PROBE_PAIRS);
+    }
+    if (!st && !(p.b->quads_frame == 0 && p.b->quads && !p.a->quads))
+        st = cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL quad probe: no quad copy was made");
+    if (!st) {
+        *tiled_ms = sums[0];
+        *quads_ms = sums[1];
+    }
+    probe_free(&p);
     return st;
 }
