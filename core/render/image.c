@@ -29,11 +29,16 @@ static cdvr_status image_new(int width, int height, int zero, cdvr_image **out, 
                               height);
     size_t pixels, floats;
     if (!cdvr_size_mul((size_t)width, (size_t)height, &pixels) ||
-        !cdvr_size_mul(pixels, 4 * sizeof(float), &floats))
+        !cdvr_size_mul(pixels, 4 * sizeof(float), &floats) || floats > SIZE_MAX - 63)
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "image: %dx%d overflows size_t", width,
                               height);
     cdvr_image *img = malloc(sizeof *img);
-    float *rgba = !img ? NULL : zero ? calloc(pixels, 4 * sizeof(float)) : malloc(floats);
+    /* 64-byte aligned (a cache line): the OpenCL ray caster writes whole lines of a packet's
+     * pixels without reading them first (raycast.cl, store_pixels) */
+    size_t padded = (floats + 63) & ~(size_t)63;
+    float *rgba = !img ? NULL : aligned_alloc(64, padded);
+    if (rgba && zero)
+        memset(rgba, 0, floats);
     if (!rgba) {
         free(img);
         return cdvr_error_set(err, CDVR_ERR_NOMEM, "image: no memory for %dx%d pixels", width,

@@ -14,7 +14,8 @@
 
 typedef struct cdvr_image {
     int width, height;
-    float *rgba;          /* width*height*4, premultiplied */
+    float *rgba;          /* width*height*4, premultiplied; 64-byte aligned when made by
+                             cdvr_image_create* */
     float background[4];  /* straight RGBA, default opaque black */
 } cdvr_image;
 
