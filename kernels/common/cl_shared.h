@@ -46,6 +46,10 @@ typedef int32_t cdvr_cl_i32;
 #define CDVR_CL_WHOLE_POWER_MAX 128.0f
 /* Edge of the min/max bricks for empty-space skipping: 1 << CDVR_CL_BRICK_SHIFT voxels. */
 #define CDVR_CL_BRICK_SHIFT 2
+/* Bytes after the last brick's flag in every brick flag buffer (brick_visible, the iso and
+ * zero flags): a CPU device with AVX-512 reads a flag as the low byte of a 32-bit word at its
+ * index (raycast.cl, brick_exit: one gather instead of a load per lane). */
+#define CDVR_CL_FLAGS_PAD 3
 /* Edge of the blocks of bricks whose ranges follow the bricks' (max, min and average skip a
  * dull block at once): 1 << CDVR_CL_BLOCK_SHIFT bricks. */
 #define CDVR_CL_BLOCK_SHIFT 2

@@ -180,8 +180,8 @@ static int entry_list_of(const cdvr_cl_stream *s, uint8_t *flags, cdvr_skip_entr
 static int flags_uploaded(cdvr_cl_stream *s, cl_mem *buf, const uint8_t *flags, const char *what)
 {
     cdvr_error ignored;
-    size_t cap = *buf ? s->nbricks : 0;
-    return cdvr_cl_ensure_buffer(s->cl, buf, &cap, s->nbricks, CL_MEM_READ_ONLY, what,
+    size_t bytes = s->nbricks + CDVR_CL_FLAGS_PAD, cap = *buf ? bytes : 0;
+    return cdvr_cl_ensure_buffer(s->cl, buf, &cap, bytes, CL_MEM_READ_ONLY, what,
                                  &ignored) == CDVR_OK &&
            write_buffer(s->cl, *buf, flags, s->nbricks, what, &ignored) == CDVR_OK;
 }

@@ -98,8 +98,8 @@ cdvr_status cdvr_cl_stream_create(cdvr_cl *cl, const size_t dims[3], cdvr_cl_str
         st = cdvr_cl_ensure_buffer(cl, &s->brick_minmax, &cap, minmax_bytes, CL_MEM_READ_WRITE,
                                    "brick min/max grid", err);
     if (!st)
-        st = cdvr_cl_ensure_buffer(cl, &s->brick_visible, &cap, s->nbricks, CL_MEM_READ_ONLY,
-                                   "brick flags", err);
+        st = cdvr_cl_ensure_buffer(cl, &s->brick_visible, &cap, s->nbricks + CDVR_CL_FLAGS_PAD,
+                                   CL_MEM_READ_ONLY, "brick flags", err);
     if (!st) /* host copies only once the device has accepted the sizes */
         st = cdvr_skip_grid_init(&s->grid, dims, CDVR_CL_BRICK_SHIFT, err);
     if (st) {
