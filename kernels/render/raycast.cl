@@ -2183,7 +2183,9 @@ static void store_pixels(__global float4 *image, vint px, vint py, int width, in
          * a frame's image is written once and read after the kernel, so its lines need not be
          * read into the cache first (Colin27 512^2 on PoCL, 2 cores of an Intel Xeon: 0.94 of
          * the time at step 1, 0.93 at 0.5; engine CT step 1 0.96: per-process minimums of 40
-         * frames, 6-8 alternating pairs) */
+         * frames, 6-8 alternating pairs). They need no fence here: the worker's locked
+         * operations that report the work-group done drain them (Intel SDM 11.3.1) before
+         * the host sees the kernel complete. */
         if (((size_t)row & 63) == 0 && (width & 3) == 0) {
             for (int y = 0; y < PACKET_H; y++, row += 4 * width)
                 __builtin_nontemporal_store(rows[y], (__global float16 *)row);
