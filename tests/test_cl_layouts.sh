@@ -58,42 +58,42 @@ cells_dense() { # 77: no zfp plugin, the case does not apply
 check "partial zfp decode with dense frames" cells_dense
 # the measured choice (cdvr_cl_open, without CDVR_CL_TILES): made once into a fresh cache
 # directory, then read back from it; dense exactly where it cast below CDVR_CL_DENSE_SHARE
-# (0.93) of the tiled time
+# (1.0) of the tiled time
 cat >"$tmp/layout.lua" <<'LUA'
 local i = assert(cdvr.cl_info())
-print(("%s %.17g %.17g %d %.17g %.17g"):format(i.frames, i.layout_dense_ms, i.layout_tiled_ms,
-                                              i.quads_max_bytes, i.quads_tiled_ms, i.quads_ms))
+print(("%s %.17g %.17g %d %.17g %.17g %d"):format(i.frames, i.layout_dense_ms, i.layout_tiled_ms,
+                                                 i.quads_max_bytes, i.quads_base_ms, i.quads_ms,
+                                                 i.still_quads and 1 or 0))
 LUA
 first=$(env -u CDVR_CL_TILES CDVR_CACHE_DIR="$tmp/cache" "$cdvr" "$tmp/layout.lua")
 again=$(env -u CDVR_CL_TILES CDVR_CACHE_DIR="$tmp/cache" "$cdvr" "$tmp/layout.lua")
 echo "layout: $first"
-# and with tiled frames the quad copy's limit (device.h, CDVR_CL_QUADS_SHARE 0.95): 256 MB
-# exactly where the probe's quad casts took below 0.95 of its tiled ones, else 64 MB; dense
-# frames measure no quads
+# and the quad copy's limit (device.h, CDVR_CL_QUADS_SHARE 0.95): 256 MB exactly where the
+# probe's quad casts took below 0.95 of its casts without (the tiled copy, or dense frames),
+# else 64 MB; with dense frames that also keeps the copies of frames rendered again
+# (still_quads)
 small=$((64 << 20)); large=$((256 << 20))
-measured() { # frames dense_ms tiled_ms quads_max quads_tiled_ms quads_ms
-  awk -v f="$1" -v d="$2" -v t="$3" -v q="$4" -v qt="$5" -v qq="$6" -v s=$small -v l=$large \
-    'BEGIN { ok = d > 0 && t > 0 && ((f == "dense") == (d < 0.93 * t)) &&
-                  (f == "dense" || f == "tiled");
-             if (f == "dense") ok = ok && q == s && qt == 0 && qq == 0;
-             else ok = ok && qt > 0 && qq > 0 && (q == (qq < 0.95 * qt ? l : s));
+measured() { # frames dense_ms tiled_ms quads_max quads_base_ms quads_ms still_quads
+  awk -v f="$1" -v d="$2" -v t="$3" -v q="$4" -v qt="$5" -v qq="$6" -v sq="$7" -v s=$small \
+      -v l=$large \
+    'BEGIN { ok = d > 0 && t > 0 && ((f == "dense") == (d < 1.0 * t)) &&
+                  (f == "dense" || f == "tiled") && qt > 0 && qq > 0 &&
+                  q == (qq < 0.95 * qt ? l : s) && sq == (f == "dense" && q == l);
              exit !ok }'
 }
 check "measured once ($first)" measured $first
 same_record() { # the second run read the first one's records (times to their 4 decimals)
-  echo "$first $again" | awk '{ exit !($1 == $7 && ($2 - $8) ^ 2 < 1e-6 && ($3 - $9) ^ 2 < 1e-6 &&
-                                     $4 == $10 && ($5 - $11) ^ 2 < 1e-6 && ($6 - $12) ^ 2 < 1e-6) }'
+  echo "$first $again" | awk '{ exit !($1 == $8 && ($2 - $9) ^ 2 < 1e-6 && ($3 - $10) ^ 2 < 1e-6 &&
+                                     $4 == $11 && ($5 - $12) ^ 2 < 1e-6 && ($6 - $13) ^ 2 < 1e-6 &&
+                                     $7 == $14) }'
 }
 check "remembered: the same choices and times ($again)" same_record
 check "one layout record in the cache" test "$(ls "$tmp"/cache/*.layout 2>/dev/null | wc -l)" -eq 1
 quads_records=$(ls "$tmp"/cache/*.quads 2>/dev/null | wc -l)
-case "$first" in
-  dense*) check "no quad record with dense frames" test "$quads_records" -eq 0 ;;
-  *) check "one quad record in the cache" test "$quads_records" -eq 1 ;;
-esac
-check "CDVR_CL_TILES=0 overrides, nothing measured" test "$(CDVR_CL_TILES=0 CDVR_CACHE_DIR="$tmp/cache2" "$cdvr" "$tmp/layout.lua")" = "dense 0 0 $small 0 0"
-check "CDVR_CL_TILES=1 overrides, no quads measured" test "$(CDVR_CL_TILES=1 CDVR_CACHE_DIR="$tmp/cache2" "$cdvr" "$tmp/layout.lua")" = "tiled 0 0 $small 0 0"
-check "CDVR_CL_QUADS set: no quads measured" eval 'CDVR_CL_QUADS=1 CDVR_CACHE_DIR="$tmp/cache3" "$cdvr" "$tmp/layout.lua" | grep -q " $small 0 0\$"'
+check "one quad record in the cache" test "$quads_records" -eq 1
+check "CDVR_CL_TILES=0 overrides, nothing measured" test "$(CDVR_CL_TILES=0 CDVR_CACHE_DIR="$tmp/cache2" "$cdvr" "$tmp/layout.lua")" = "dense 0 0 $small 0 0 0"
+check "CDVR_CL_TILES=1 overrides, no quads measured" test "$(CDVR_CL_TILES=1 CDVR_CACHE_DIR="$tmp/cache2" "$cdvr" "$tmp/layout.lua")" = "tiled 0 0 $small 0 0 0"
+check "CDVR_CL_QUADS set: no quads measured" eval 'CDVR_CL_QUADS=1 CDVR_CACHE_DIR="$tmp/cache3" "$cdvr" "$tmp/layout.lua" | grep -q " $small 0 0 0\$"'
 check "nothing recorded for them" test "$(ls "$tmp"/cache2 "$tmp"/cache3 2>/dev/null | grep -c '\.quads$')" -eq 0
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ]

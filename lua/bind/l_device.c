@@ -90,7 +90,9 @@ static int l_cl_info(lua_State *L)
     set_number(L, "layout_dense_ms", info->layout_dense_ms);
     set_number(L, "layout_tiled_ms", info->layout_tiled_ms);
     set_number(L, "quads_max_bytes", (double)info->quads_max_bytes);
-    set_number(L, "quads_tiled_ms", info->quads_tiled_ms);
+    lua_pushboolean(L, info->still_quads);
+    lua_setfield(L, -2, "still_quads");
+    set_number(L, "quads_base_ms", info->quads_base_ms);
     set_number(L, "quads_ms", info->quads_ms);
     return 1;
 }
@@ -104,8 +106,9 @@ int lcdvr_open_device(lua_State *L)
                    "compute_units=, build_seconds=, from_cache=, frames=\"dense\"|\"tiled\" (the layout "
                    "casts read: measured once per CPU device, CDVR_CL_TILES=0|1 overrides), "
                    "layout_dense_ms=, layout_tiled_ms=, quads_max_bytes= (the largest quad copy "
-                   "made by default: measured once per CPU device against quads_tiled_ms=, "
-                   "quads_ms=), ...}, or nil, message "
+                   "made by default: measured once per CPU device, quads_ms= against quads_base_ms=, "
+                   "the tiled copy or dense frames; still_quads=true: frames stay dense but one "
+                   "rendered again gets the copies), ...}, or nil, message "
                    "(CDVR_CL_DEVICE=gpu|cpu|none|P:D|name picks the device)");
     lcdvr_help_add(L, "cdvr.render(v, {device=\"cl\", skip=true, ...})",
                    "ray cast on the OpenCL device (same image as the CPU within 50 dB PSNR); "

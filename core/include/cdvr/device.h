@@ -59,28 +59,41 @@ typedef struct cdvr_cl_info {
     size_t quads_max_bytes;      /* the largest quad copy a CPU device makes by default:
                                     CDVR_CL_QUADS_MAX_BYTES, or CDVR_CL_QUADS_LARGE_MAX_BYTES
                                     where cdvr_cl_open measured the probe frame's quad copy
-                                    faster than its tiled copy (0 on GPUs: no quad copy) */
-    double quads_tiled_ms;       /* that measurement (remembered): the probe's composite and */
-    double quads_ms;             /* max casts, tiled copy alone and with quads; 0: none */
+                                    faster than its tiled copy, or than its dense frame where
+                                    frames stay dense (0 on GPUs: no quad copy) */
+    int still_quads;             /* dense frames only: a frame rendered again still gets its
+                                    tiled and quad copies (quad copy within quads_max_bytes,
+                                    not iso, not clipped), as that measurement found faster */
+    double quads_base_ms;        /* that measurement (remembered): the probe's composite and */
+    double quads_ms;             /* max casts without quads (the tiled copy, or the dense
+                                    frame where frames stay dense) and with them; 0: none */
 } cdvr_cl_info;
 
 /* Chooses a device (see above), creates context, queue and program, and on a CPU device the
  * frame layout the ray caster reads (info.dense_frames): the one that cast faster, measured
  * once per device, driver and cdvr version on a synthetic 272^3 frame (5 alternating pairs,
  * medians; dense where it takes below CDVR_CL_DENSE_SHARE of the tiled time) and remembered
- * beside the program cache; GPUs keep the tiled copies. On failure *out is NULL
+ * beside the program cache; GPUs keep the tiled copies. The layout decides the frames cast
+ * once (playback, a frame's first render): frames rendered again get the quad copy where it
+ * measured faster either way (still_quads), and renders that read gradients the tiled copy. On failure *out is NULL
  * and err names the reason (no platform, CDVR_CL_DEVICE=none, no match for the override,
  * missing kernel file, build failure with the build log). */
 cdvr_status cdvr_cl_open(cdvr_cl **out, cdvr_error *err);
-#define CDVR_CL_DENSE_SHARE 0.93
+/* 0.93 while dense devices gave up the copies of frames rendered again (an Intel Xeon then
+ * measured 0.924-0.935 from run to run after pairs16_gathered, and its still frames lost the
+ * quads when the record said dense); since still_quads, the faster one */
+#define CDVR_CL_DENSE_SHARE 1.0
 /* The quad copy (cl_render.c, quads_ready: 4 bytes per voxel of the tiled copy, 2 reads per
  * sample instead of 8) is made for frames whose copy takes at most CDVR_CL_QUADS_MAX_BYTES.
  * Beyond that its cache misses may cost more than its fewer reads save, and which wins depends
- * on the CPU's caches, so cdvr_cl_open measures it once per CPU device with tiled frames (the
- * probe frame's quad copy is 95 MB; composite and max, 5 alternating pairs each, the sums of
- * their medians) and raises the limit to CDVR_CL_QUADS_LARGE_MAX_BYTES where quads take below
- * CDVR_CL_QUADS_SHARE of the tiled time. CDVR_CL_QUADS=0|1 at render time overrides both;
- * with it or CDVR_CL_TILES set, nothing is measured and the limit stays the default. */
+ * on the CPU's caches, so cdvr_cl_open measures it once per CPU device (the probe frame's
+ * quad copy is 95 MB; composite and max, 5 alternating pairs each, the sums of their medians)
+ * against the tiled copy, or against the dense frame where frames stay dense, and raises the
+ * limit to CDVR_CL_QUADS_LARGE_MAX_BYTES where quads take below CDVR_CL_QUADS_SHARE of that
+ * time; where frames stay dense, a frame rendered again then still gets the copies
+ * (info.still_quads), while the player's frames stay dense. CDVR_CL_QUADS=0|1 at render time
+ * overrides the limit; with it or CDVR_CL_TILES set, nothing is measured and the limit stays
+ * the default (no copies where frames stay dense). */
 #define CDVR_CL_QUADS_MAX_BYTES ((size_t)64 << 20)
 #define CDVR_CL_QUADS_LARGE_MAX_BYTES ((size_t)256 << 20)
 #define CDVR_CL_QUADS_SHARE 0.95

@@ -466,8 +466,9 @@ static int choice_path(cdvr_cl *cl, const cdvr_codec *codec, const char *kind,
     if ((codec ? load_sources(codec, NULL, 0, &source, NULL)
                : load_sources(NULL, render_files, NRENDER_FILES, &source, NULL)) != CDVR_OK)
         return 0;
-    snprintf(what, sizeof what, "%s path, size class %u, cdvr %s", kind, size_class,
-             CDVR_VERSION);
+    /* the rules' shares too: a record made under another rule is measured again */
+    snprintf(what, sizeof what, "%s path, size class %u, cdvr %s, shares %g %g", kind,
+             size_class, CDVR_VERSION, CDVR_CL_DENSE_SHARE, CDVR_CL_QUADS_SHARE);
     cache_key(cl, source, what, key);
     free(source);
     return cdvr_cache_path(key, kind, path, n);
@@ -569,34 +570,37 @@ static void choose_layout(cdvr_cl *cl)
                  tiled_ms);
 }
 
-/* info.quads_max_bytes (cdvr_cl_open, after choose_layout): CDVR_CL_QUADS_MAX_BYTES, or on a
- * CPU device with tiled frames the large limit where the remembered or measured quad probe
- * cast below CDVR_CL_QUADS_SHARE of the tiled time. CDVR_CL_QUADS (which overrides at render
- * time) or CDVR_CL_TILES set, dense frames or a failed measurement keep the default and
- * measure nothing. */
+/* info.quads_max_bytes and still_quads (cdvr_cl_open, after choose_layout): on a CPU device,
+ * the large limit where the remembered or measured quad probe cast below CDVR_CL_QUADS_SHARE
+ * of the probe without quads (the tiled copy, or dense frames where frames stay dense: then
+ * still_quads too; remembered apart, size class 1). CDVR_CL_QUADS (which overrides at render
+ * time) or CDVR_CL_TILES set, or a failed measurement keep the default and no still_quads. */
 static void choose_quads(cdvr_cl *cl)
 {
     cdvr_cl_info *info = &cl->info;
     const char *quads_env = getenv("CDVR_CL_QUADS"), *tiles_env = getenv("CDVR_CL_TILES");
     info->quads_max_bytes = info->is_gpu ? 0 : CDVR_CL_QUADS_MAX_BYTES;
-    info->quads_tiled_ms = info->quads_ms = 0;
-    if ((quads_env && *quads_env) || (tiles_env && *tiles_env) || info->is_gpu ||
-        info->dense_frames)
+    info->still_quads = 0;
+    info->quads_base_ms = info->quads_ms = 0;
+    if ((quads_env && *quads_env) || (tiles_env && *tiles_env) || info->is_gpu)
         return;
+    unsigned against_dense = info->dense_frames != 0;
     char which[8];
-    double tiled_ms, quads_ms;
-    load_choice(cl, NULL, "quads", 0, which, &tiled_ms, &quads_ms);
+    double base_ms, quads_ms;
+    load_choice(cl, NULL, "quads", against_dense, which, &base_ms, &quads_ms);
     if (strcmp(which, "large") && strcmp(which, "small")) {
         cdvr_error err;
-        if (cdvr_cl_measure_quads(cl, &tiled_ms, &quads_ms, &err) != CDVR_OK)
+        if (cdvr_cl_measure_quads(cl, against_dense, &base_ms, &quads_ms, &err) != CDVR_OK)
             return;
-        strcpy(which, quads_ms < CDVR_CL_QUADS_SHARE * tiled_ms ? "large" : "small");
-        store_choice(cl, NULL, "quads", 0, which, tiled_ms, quads_ms);
+        strcpy(which, quads_ms < CDVR_CL_QUADS_SHARE * base_ms ? "large" : "small");
+        store_choice(cl, NULL, "quads", against_dense, which, base_ms, quads_ms);
     }
-    info->quads_tiled_ms = tiled_ms;
+    info->quads_base_ms = base_ms;
     info->quads_ms = quads_ms;
-    if (!strcmp(which, "large"))
+    if (!strcmp(which, "large")) {
         info->quads_max_bytes = CDVR_CL_QUADS_LARGE_MAX_BYTES;
+        info->still_quads = (int)against_dense;
+    }
 }
 
 static cdvr_status create_kernel(cl_program program, const char *name, cl_kernel *out,

@@ -100,8 +100,9 @@ int cdvr_cl_tiles_fit(const cdvr_cl_stream *s);
 cdvr_status cdvr_cl_measure_layouts(cdvr_cl *cl, double *dense_ms, double *tiled_ms,
                                     cdvr_error *err);
 /* The sums of the median composite and max casts of that frame from its tiled copy alone
- * and with its quad copy (95 MB), alternating (cdvr_cl_open's info.quads_max_bytes). */
-cdvr_status cdvr_cl_measure_quads(cdvr_cl *cl, double *tiled_ms, double *quads_ms,
+ * (or its dense frame when `dense`) and with its quad copy (95 MB), alternating (cdvr_cl_open's
+ * info.quads_max_bytes and still_quads). */
+cdvr_status cdvr_cl_measure_quads(cdvr_cl *cl, int dense, double *base_ms, double *quads_ms,
                                   cdvr_error *err);
 /* Sets argument `index` of kernel `name`; on failure fills err naming both. */
 cdvr_status cdvr_cl_arg(cl_kernel k, const char *name, cl_uint index, size_t size,

@@ -603,12 +603,28 @@ static int wants_grads(const cdvr_look *look)
     return look->shade.enabled || look->gradient_opacity.npoints > 0;
 }
 
+static size_t tiled_bytes(const size_t dims[3]);
+
+/* Whether a frame rendered again in blend mode `blend` (unclipped) gets its tiled and quad
+ * copies where the device keeps frames dense (info.still_quads: the quad probe beat dense
+ * frames), or always on the quad probe's own stream. */
+static int still_quads(const cdvr_cl_stream *s, int blend)
+{
+    size_t bytes;
+    if (s->quads_probe)
+        return s->quads_probe > 0;
+    return s->cl->info.dense_frames && s->cl->info.still_quads && blend != CDVR_BLEND_ISO &&
+           !cdvr_cl_env_is("CDVR_CL_QUADS", "0") && cdvr_cl_tiles_fit(s) &&
+           cdvr_size_mul(tiled_bytes(s->dims), 4, &bytes) && bytes <= s->cl->info.quads_max_bytes;
+}
+
 /* Whether a render that reads gradients (grads) or not casts from the tiled copy of a frame
  * that has one: not where the device keeps frames dense (info.dense_frames), unless it reads
- * gradients (cdvr_cl_tiles_fit) or the tiles are the only copy (cdvr_cl_use_host_tiles). */
-static int casts_tiled(const cdvr_cl_stream *s, int grads)
+ * gradients (cdvr_cl_tiles_fit), the tiles are the only copy (cdvr_cl_use_host_tiles) or it
+ * reads the quad copy of a frame rendered again (quads_still, still_quads). */
+static int casts_tiled(const cdvr_cl_stream *s, int grads, int quads_still)
 {
-    return !s->cl->info.dense_frames || grads || s->only_tiles;
+    return !s->cl->info.dense_frames || grads || s->only_tiles || quads_still;
 }
 
 /* Sets the ray-cast kernel's arguments (in the order of kernels/render/raycast.cl). A clipped
@@ -747,11 +763,12 @@ static int copy_ready(cdvr_cl_stream *s, size_t frame, cl_kernel k, const char *
     return st == CDVR_OK;
 }
 
-static void make_tiles_if_rerendered(cdvr_cl_stream *s, size_t frame, int grads)
+static void make_tiles_if_rerendered(cdvr_cl_stream *s, size_t frame, int grads,
+                                     int quads_still)
 {
     int again = s->last_rendered == frame;
     s->last_rendered = frame;
-    if (s->fetch || !again || !cdvr_cl_takes_host_tiles(s, grads))
+    if (s->fetch || !again || !(cdvr_cl_takes_host_tiles(s, grads) || quads_still))
         return;
     copy_ready(s, frame, s->cl->k_tiles, "make_tiles", &s->tiles, &s->tiles_capacity,
                &s->tiles_frame, tiled_bytes(s->dims));
@@ -984,7 +1001,8 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
     if (st)
         return st;
     int grads_wanted = !opts->clip && wants_grads(&opts->look);
-    make_tiles_if_rerendered(s, frame, grads_wanted);
+    int quads_still = !opts->clip && still_quads(s, opts->look.blend);
+    make_tiles_if_rerendered(s, frame, grads_wanted, quads_still);
     cl_mem host_image = wrap_host_image(s->cl, img, pixels);
     cl_kernel kernel;
     cdvr_cl_look look = look_of(&opts->look, &s->tf, &box, spacing);
@@ -1001,7 +1019,7 @@ cdvr_status cdvr_cl_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_op
                                             : CDVR_CL_ENTRY_VISIBLE;
     cl_int entry_on = entry_tiles_ready(s, &cam, spacing, origin, D, global, entry_wanted, kind);
     cl_int grads_on = !opts->clip && grads_ready(s, frame, &opts->look);
-    int tiled = casts_tiled(s, grads_wanted);
+    int tiled = casts_tiled(s, grads_wanted, quads_still);
     cl_int quads_on = !opts->clip && tiled && quads_ready(s, frame, look.blend);
     /* CDVR_CL_LEAPS=0: average reads its whole window */
     int flags_skip = iso ? iso_skip
@@ -1134,15 +1152,16 @@ cdvr_status cdvr_cl_measure_layouts(cdvr_cl *cl, double *dense_ms, double *tiled
     return st;
 }
 
-cdvr_status cdvr_cl_measure_quads(cdvr_cl *cl, double *tiled_ms, double *quads_ms,
+cdvr_status cdvr_cl_measure_quads(cdvr_cl *cl, int dense, double *base_ms, double *quads_ms,
                                   cdvr_error *err)
 {
     probe_scene p;
-    cdvr_status st = probe_init(cl, &p, 1, 1, err);
+    cdvr_status st = probe_init(cl, &p, dense ? 2 : 1, 1, err);
     if (!st) {
-        p.a->quads_probe = -1; /* the tiled copy alone */
-        p.b->quads_probe = 1;  /* and with its quad copy */
+        p.a->quads_probe = -1; /* the tiled copy alone, or dense frames (never twice the same) */
+        p.b->quads_probe = 1;  /* the tiled copy with its quad copy */
     }
+    size_t next = 0;
     const cdvr_blend blends[2] = {CDVR_BLEND_COMPOSITE, CDVR_BLEND_MAX};
     double sums[2] = {0, 0}, warm;
     for (int m = 0; m < 2 && !st; m++) {
@@ -1150,11 +1169,14 @@ cdvr_status cdvr_cl_measure_quads(cdvr_cl *cl, double *tiled_ms, double *quads_m
         double ms[2][PROBE_PAIRS];
         /* warm-up: each stream twice (the copies are made on the second render) */
         for (int i = 0; i < 4 && !st; i++)
-            st = probe_render(i & 1 ? p.b : p.a, 0, &opts, p.img, &warm, err);
+            st = i & 1 ? probe_render(p.b, 0, &opts, p.img, &warm, err)
+                       : probe_render(p.a, dense ? next++ & 1 : 0, &opts, p.img, &warm, err);
         for (int i = 0; i < PROBE_PAIRS && !st; i++) /* A B, B A, ... */
             for (int k = 0; k < 2 && !st; k++) {
                 int quads = k ^ (i & 1);
-                st = probe_render(quads ? p.b : p.a, 0, &opts, p.img, &ms[quads][i], err);
+                st = quads ? probe_render(p.b, 0, &opts, p.img, &ms[1][i], err)
+                           : probe_render(p.a, dense ? next++ & 1 : 0, &opts, p.img, &ms[0][i],
+                                          err);
             }
         for (int q = 0; q < 2 && !st; q++)
             sums[q] += cdvr_median(ms[q], PROBE_PAIRS);
@@ -1162,7 +1184,7 @@ cdvr_status cdvr_cl_measure_quads(cdvr_cl *cl, double *tiled_ms, double *quads_m
     if (!st && !(p.b->quads_frame == 0 && p.b->quads && !p.a->quads))
         st = cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL quad probe: no quad copy was made");
     if (!st) {
-        *tiled_ms = sums[0];
+        *base_ms = sums[0];
         *quads_ms = sums[1];
     }
     probe_free(&p);
