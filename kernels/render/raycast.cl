@@ -1085,13 +1085,11 @@ typedef struct bricks {
     vint fwd_x, fwd_y, fwd_z;   /* -1 where dg >= 0: the ray leaves by the upper face */
 } bricks;
 
-/* A CPU device with AVX-512 reads the lanes' brick flags as the low bytes of 32-bit words at
- * their indices, one gather (the buffers hold CDVR_CL_FLAGS_PAD bytes more), where a load per
- * lane took 5-6% of the composite march's time (perf, Colin27 512^2 step 1.0; with it 0.975
- * of the time, slicer TF 0.979: per-process minimums of 40 frames, 6 alternating pairs, Intel
- * Xeon). */
-
-/* The flag buffer d's codes at brick indices idx. */
+/* The flag buffer d's codes at brick indices idx. A CPU device with AVX-512 reads them as
+ * the low bytes of 32-bit words at the indices, one gather (the buffers hold
+ * CDVR_CL_FLAGS_PAD bytes more), where a load per lane took 5-6% of the composite march's
+ * time (perf, Colin27 512^2 step 1.0; with it 0.975 of the time, slicer TF 0.979: per-process
+ * minimums of 40 frames, 6 alternating pairs, Intel Xeon). */
 #define CODE_AT(k) d[(uint)idx.s##k]
 static vint flag_codes(__global const uchar *d, vint idx)
 {

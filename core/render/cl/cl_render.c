@@ -603,21 +603,6 @@ static int wants_grads(const cdvr_look *look)
     return look->shade.enabled || look->gradient_opacity.npoints > 0;
 }
 
-static size_t tiled_bytes(const size_t dims[3]);
-
-/* Whether a frame rendered again in blend mode `blend` (unclipped) gets its tiled and quad
- * copies where the device keeps frames dense (info.still_quads: the quad probe beat dense
- * frames), or always on the quad probe's own stream. */
-static int still_quads(const cdvr_cl_stream *s, int blend)
-{
-    size_t bytes;
-    if (s->quads_probe)
-        return s->quads_probe > 0;
-    return s->cl->info.dense_frames && s->cl->info.still_quads && blend != CDVR_BLEND_ISO &&
-           !cdvr_cl_env_is("CDVR_CL_QUADS", "0") && cdvr_cl_tiles_fit(s) &&
-           cdvr_size_mul(tiled_bytes(s->dims), 4, &bytes) && bytes <= s->cl->info.quads_max_bytes;
-}
-
 /* Whether a render that reads gradients (grads) or not casts from the tiled copy of a frame
  * that has one: not where the device keeps frames dense (info.dense_frames), unless it reads
  * gradients (cdvr_cl_tiles_fit), the tiles are the only copy (cdvr_cl_use_host_tiles) or it
@@ -810,6 +795,18 @@ static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
  * copy. Iso, whose rays read few samples, took 1.04-1.08x the time with it (engine CT) and
  * keeps the tiled copy. */
 
+/* The rule of quads_ready, whatever copies the stream holds: whether a render of blend mode
+ * `blend` reads the quad copy of this stream's frames (*bytes: its size). */
+static int quads_allowed(const cdvr_cl_stream *s, int blend, size_t *bytes)
+{
+    if (s->quads_probe < 0 || cdvr_cl_env_is("CDVR_CL_QUADS", "0") ||
+        !cdvr_size_mul(tiled_bytes(s->dims), 4, bytes) || *bytes > WORD_COPY_MAX_BYTES)
+        return 0;
+    return s->quads_probe > 0 || cdvr_cl_env_is("CDVR_CL_QUADS", "1") ||
+           (!s->cl->info.is_gpu && *bytes <= s->cl->info.quads_max_bytes &&
+            blend != CDVR_BLEND_ISO);
+}
+
 /* With the tiled copy of `frame`, a render of blend mode `blend` (not iso) on a CPU device
  * gets the frame's quad copy (kernels/common/cl_shared.h) when it is at most
  * info.quads_max_bytes: 4 bytes per voxel of the tiled copy, read as 2 words per sample
@@ -819,15 +816,22 @@ static int grads_ready(cdvr_cl_stream *s, size_t frame, const cdvr_look *look)
 static int quads_ready(cdvr_cl_stream *s, size_t frame, int blend)
 {
     size_t bytes;
-    if (s->tiles_frame != frame || s->only_tiles || cdvr_cl_env_is("CDVR_CL_QUADS", "0") ||
-        !cdvr_size_mul(tiled_bytes(s->dims), 4, &bytes) || bytes > WORD_COPY_MAX_BYTES)
-        return 0;
-    if (s->quads_probe < 0 ||
-        (!cdvr_cl_env_is("CDVR_CL_QUADS", "1") && s->quads_probe == 0 &&
-         (s->cl->info.is_gpu || bytes > s->cl->info.quads_max_bytes || blend == CDVR_BLEND_ISO)))
+    if (s->tiles_frame != frame || s->only_tiles || !quads_allowed(s, blend, &bytes))
         return 0;
     return copy_ready(s, frame, s->cl->k_quads, "make_quads", &s->quads, &s->quads_capacity,
                       &s->quads_frame, bytes);
+}
+
+/* Whether a frame rendered again in blend mode `blend` (unclipped) gets its tiled and quad
+ * copies where the device keeps frames dense (info.still_quads: the quad probe beat dense
+ * frames), or always on the quad probe's own stream. */
+static int still_quads(const cdvr_cl_stream *s, int blend)
+{
+    size_t bytes;
+    if (s->quads_probe)
+        return s->quads_probe > 0;
+    return s->cl->info.dense_frames && s->cl->info.still_quads && cdvr_cl_tiles_fit(s) &&
+           quads_allowed(s, blend, &bytes);
 }
 
 /* Device image of `pixels` and one sample counter per work-item (`items`). */
@@ -1071,6 +1075,7 @@ typedef struct probe_scene {
     cdvr_camera cam;
     cdvr_image *img;
     cdvr_cl_stream *a, *b;
+    size_t next; /* a's frame to cast next where a casts its two frames in turn */
 } probe_scene;
 
 static void probe_free(probe_scene *p)
@@ -1127,27 +1132,44 @@ static cdvr_status probe_render(cdvr_cl_stream *s, size_t frame, const cdvr_rend
     return st;
 }
 
+/* One cast of the probe through stream b, or through stream a (its two frames in turn when
+ * a_dense: never the same frame twice, so it gets no copies), into *ms. */
+static cdvr_status probe_cast(probe_scene *p, int b, int a_dense, const cdvr_render_opts *opts,
+                              double *ms, cdvr_error *err)
+{
+    return b ? probe_render(p->b, 0, opts, p->img, ms, err)
+             : probe_render(p->a, a_dense ? p->next++ & 1 : 0, opts, p->img, ms, err);
+}
+
+/* Median casts of streams a and b, alternating (A B, B A, ...) after a warm-up of two casts
+ * each (b's copies are made on its second). */
+static cdvr_status probe_pairs(probe_scene *p, int a_dense, const cdvr_render_opts *opts,
+                               double *a_ms, double *b_ms, cdvr_error *err)
+{
+    double ms[2][PROBE_PAIRS], warm;
+    cdvr_status st = CDVR_OK;
+    for (int i = 0; i < 4 && !st; i++)
+        st = probe_cast(p, i & 1, a_dense, opts, &warm, err);
+    for (int i = 0; i < PROBE_PAIRS && !st; i++)
+        for (int k = 0; k < 2 && !st; k++) {
+            int b = k ^ (i & 1);
+            st = probe_cast(p, b, a_dense, opts, &ms[b][i], err);
+        }
+    if (!st) {
+        *a_ms = cdvr_median(ms[0], PROBE_PAIRS);
+        *b_ms = cdvr_median(ms[1], PROBE_PAIRS);
+    }
+    return st;
+}
+
 cdvr_status cdvr_cl_measure_layouts(cdvr_cl *cl, double *dense_ms, double *tiled_ms,
                                     cdvr_error *err)
 {
     probe_scene p;
     cdvr_status st = probe_init(cl, &p, 2, 1, err); /* a: dense, b: tiled */
     cdvr_render_opts opts = {.tf = p.tf, .camera = &p.cam};
-    double d[PROBE_PAIRS], t[PROBE_PAIRS], warm;
-    size_t next = 0; /* the dense stream's frames in turn: never the same frame twice */
-    /* warm-up: both frames of the dense stream, the tiled one twice (its copy is made then) */
-    for (int i = 0; i < 4 && !st; i++)
-        st = i < 2 ? probe_render(p.a, next++ & 1, &opts, p.img, &warm, err)
-                   : probe_render(p.b, 0, &opts, p.img, &warm, err);
-    for (int i = 0; i < PROBE_PAIRS && !st; i++) { /* A B, B A, ... */
-        for (int k = 0; k < 2 && !st; k++)
-            st = (k ^ (i & 1)) ? probe_render(p.b, 0, &opts, p.img, &t[i], err)
-                               : probe_render(p.a, next++ & 1, &opts, p.img, &d[i], err);
-    }
-    if (!st) {
-        *dense_ms = cdvr_median(d, PROBE_PAIRS);
-        *tiled_ms = cdvr_median(t, PROBE_PAIRS);
-    }
+    if (!st)
+        st = probe_pairs(&p, 1, &opts, dense_ms, tiled_ms, err);
     probe_free(&p);
     return st;
 }
@@ -1158,28 +1180,19 @@ cdvr_status cdvr_cl_measure_quads(cdvr_cl *cl, int dense, double *base_ms, doubl
     probe_scene p;
     cdvr_status st = probe_init(cl, &p, dense ? 2 : 1, 1, err);
     if (!st) {
-        p.a->quads_probe = -1; /* the tiled copy alone, or dense frames (never twice the same) */
+        p.a->quads_probe = -1; /* the tiled copy alone, or dense frames */
         p.b->quads_probe = 1;  /* the tiled copy with its quad copy */
     }
-    size_t next = 0;
     const cdvr_blend blends[2] = {CDVR_BLEND_COMPOSITE, CDVR_BLEND_MAX};
-    double sums[2] = {0, 0}, warm;
+    double sums[2] = {0, 0};
     for (int m = 0; m < 2 && !st; m++) {
         cdvr_render_opts opts = {.tf = p.tf, .camera = &p.cam, .look = {.blend = blends[m]}};
-        double ms[2][PROBE_PAIRS];
-        /* warm-up: each stream twice (the copies are made on the second render) */
-        for (int i = 0; i < 4 && !st; i++)
-            st = i & 1 ? probe_render(p.b, 0, &opts, p.img, &warm, err)
-                       : probe_render(p.a, dense ? next++ & 1 : 0, &opts, p.img, &warm, err);
-        for (int i = 0; i < PROBE_PAIRS && !st; i++) /* A B, B A, ... */
-            for (int k = 0; k < 2 && !st; k++) {
-                int quads = k ^ (i & 1);
-                st = quads ? probe_render(p.b, 0, &opts, p.img, &ms[1][i], err)
-                           : probe_render(p.a, dense ? next++ & 1 : 0, &opts, p.img, &ms[0][i],
-                                          err);
-            }
-        for (int q = 0; q < 2 && !st; q++)
-            sums[q] += cdvr_median(ms[q], PROBE_PAIRS);
+        double a_ms, b_ms;
+        st = probe_pairs(&p, dense, &opts, &a_ms, &b_ms, err);
+        if (!st) {
+            sums[0] += a_ms;
+            sums[1] += b_ms;
+        }
     }
     if (!st && !(p.b->quads_frame == 0 && p.b->quads && !p.a->quads))
         st = cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL quad probe: no quad copy was made");
