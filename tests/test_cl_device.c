@@ -1,15 +1,19 @@
 /* tests/test_cl_device.c - device choice (CDVR_CL_DEVICE), the on-disk program cache (cold,
  * warm, corrupt, stale), kernel build failures reporting the build log, and a missing kernel
- * directory. Uses a private cache directory and private kernel copies under the build dir. */
+ * directory; the buffers of gathered frame copies (cdvr_cl_ensure_gathered: on a CPU device,
+ * from a huge page up, host memory of our own marked for huge pages). Uses a private cache
+ * directory and private kernel copies under the build dir. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
 #include "cdvr/device.h"
+#include "cdvr/memory.h"
 #include "check.h"
 
 #if CDVR_HAVE_OPENCL
+#include "render/cl/cl_internal.h" /* cdvr_cl_ensure_gathered */
 
 static cdvr_status open_with(const char *device, cdvr_cl **cl, cdvr_error *err)
 {
@@ -168,6 +172,79 @@ static void cache_and_build(const char *src_kernels, const char *work)
     CHECK(system(cmd) == 0, "%s", cmd);
 }
 
+/* Whether the system backs MADV_HUGEPAGE ranges with huge pages ("always" or "madvise") and
+ * CDVR_HUGE_PAGES=0 does not turn them off. */
+static int huge_pages_on(void)
+{
+    const char *env = getenv("CDVR_HUGE_PAGES");
+    if (env && strcmp(env, "0") == 0)
+        return 0;
+    FILE *f = fopen("/sys/kernel/mm/transparent_hugepage/enabled", "r");
+    char line[128] = "";
+    if (f) {
+        if (!fgets(line, sizeof line, f))
+            line[0] = 0;
+        fclose(f);
+    }
+    return strstr(line, "[always]") || strstr(line, "[madvise]");
+}
+
+/* A gathered copy's buffer holds what is written to it, grows and keeps its capacity like
+ * any other; on a CPU device one of a huge page or more lies in our own storage, aligned to a
+ * huge page and (where the system has them) marked for them; smaller ones and GPU buffers are
+ * the driver's. Releasing frees the storage (the sanitizer build's leak check). */
+static void gathered_buffers(void)
+{
+    cdvr_cl *cl = NULL;
+    cdvr_error err;
+    if (open_with(NULL, &cl, &err) != CDVR_OK)
+        return;
+    cl_mem mem = NULL;
+    size_t cap = 0, small = 4096, big = CDVR_HUGE_PAGE_BYTES * 3 / 2;
+    const char *what = "test copy";
+    cdvr_status st = cdvr_cl_ensure_gathered(cl, &mem, &cap, small, what, &err);
+    CHECK_OK(st, err);
+    void *host = NULL;
+    CHECK(mem && clGetMemObjectInfo(mem, CL_MEM_HOST_PTR, sizeof host, &host, NULL) ==
+                     CL_SUCCESS && !host && cap == small,
+          "a page-sized copy is the driver's buffer (host %p, capacity %zu)", host, cap);
+    st = cdvr_cl_ensure_gathered(cl, &mem, &cap, big, what, &err);
+    CHECK_OK(st, err);
+    CHECK(cap == big, "capacity %zu after growing to %zu", cap, big);
+    host = NULL;
+    CHECK(mem && clGetMemObjectInfo(mem, CL_MEM_HOST_PTR, sizeof host, &host, NULL) ==
+                     CL_SUCCESS, "CL_MEM_HOST_PTR");
+    if (cl->info.is_gpu) {
+        CHECK(host == NULL, "a GPU's copy is the driver's buffer (host %p)", host);
+    } else {
+        CHECK(host && (uintptr_t)host % CDVR_HUGE_PAGE_BYTES == 0,
+              "a CPU device's copy of %zu bytes in huge-page aligned storage (host %p)", big,
+              host);
+        if (host && huge_pages_on())
+            CHECK(cdvr_on_huge_pages(host) != 0, "the copy's storage is marked for huge pages");
+    }
+    enum { N = 1000 };
+    uint32_t in[N], out[N];
+    for (uint32_t i = 0; i < N; i++)
+        in[i] = i * 2654435761u;
+    size_t at = big - sizeof in;
+    cl_int code = clEnqueueWriteBuffer(cl->queue, mem, CL_TRUE, at, sizeof in, in, 0, NULL, NULL);
+    if (code == CL_SUCCESS)
+        code = clEnqueueReadBuffer(cl->queue, mem, CL_TRUE, at, sizeof out, out, 0, NULL, NULL);
+    CHECK(code == CL_SUCCESS && memcmp(in, out, sizeof in) == 0,
+          "the copy's last bytes read back as written (%s)", cdvr_cl_error_name(code));
+    const cl_mem before = mem;
+    st = cdvr_cl_ensure_gathered(cl, &mem, &cap, small, what, &err);
+    CHECK(st == CDVR_OK && mem == before && cap == big, "a smaller request keeps the buffer");
+    cdvr_cl_release(&mem);
+    CHECK(mem == NULL, "released");
+    st = cdvr_cl_ensure_gathered(cl, &mem, &cap, (size_t)cl->info.max_alloc_bytes + 1, what,
+                                 &err);
+    CHECK(st == CDVR_ERR_NOMEM && mem == NULL && strstr(err.msg, what),
+          "over the device's largest buffer: %s", err.msg);
+    cdvr_cl_close(cl);
+}
+
 int main(void)
 {
     cdvr_cl *cl;
@@ -177,6 +254,7 @@ int main(void)
     }
     cdvr_cl_close(cl);
     device_choice();
+    gathered_buffers();
     const char *src = getenv("CDVR_SOURCE_DIR"), *bin = getenv("CDVR_BINARY_DIR");
     char kernels[600], work[600];
     snprintf(kernels, sizeof kernels, "%s/kernels", src ? src : "..");

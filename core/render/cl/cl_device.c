@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include "cdvr/cache.h"
+#include "cdvr/memory.h"
 #include "cdvr/timing.h"
 #include "cl_internal.h"
 
@@ -70,8 +71,37 @@ void cdvr_cl_release(cl_mem *mem)
     *mem = NULL;
 }
 
-cdvr_status cdvr_cl_ensure_buffer(cdvr_cl *cl, cl_mem *mem, size_t *capacity, size_t bytes,
-                                  cl_mem_flags flags, const char *what, cdvr_error *err)
+static void CL_CALLBACK free_host_storage(cl_mem mem, void *storage)
+{
+    (void)mem;
+    free(storage);
+}
+
+/* On a CPU device: a buffer in host memory of our own, from a huge page up marked for huge
+ * pages (cdvr/memory.h), freed when the buffer is. PoCL's own allocations have 4 KiB pages. */
+static cdvr_status create_on_huge_pages(cdvr_cl *cl, cl_mem *mem, size_t bytes,
+                                        cl_mem_flags flags, const char *what, cdvr_error *err)
+{
+    void *storage = cdvr_alloc_large(bytes, 0);
+    if (!storage)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL: %s: %zu bytes of host memory for "
+                              "%s", what, bytes, cl->info.device);
+    cl_int code;
+    *mem = clCreateBuffer(cl->context, flags | CL_MEM_USE_HOST_PTR, bytes, storage, &code);
+    if (code == CL_SUCCESS)
+        code = clSetMemObjectDestructorCallback(*mem, free_host_storage, storage);
+    if (code != CL_SUCCESS) {
+        cdvr_cl_release(mem);
+        free(storage);
+        return cdvr_cl_check(code, what, err);
+    }
+    return CDVR_OK;
+}
+
+/* cdvr_cl_ensure_buffer; on_huge_pages: from a huge page up in our own huge-page storage. */
+static cdvr_status ensure(cdvr_cl *cl, cl_mem *mem, size_t *capacity, size_t bytes,
+                          cl_mem_flags flags, int on_huge_pages, const char *what,
+                          cdvr_error *err)
 {
     if (*mem && *capacity >= bytes)
         return CDVR_OK;
@@ -82,14 +112,32 @@ cdvr_status cdvr_cl_ensure_buffer(cdvr_cl *cl, cl_mem *mem, size_t *capacity, si
                               "OpenCL: %s: %zu bytes exceed the device's largest buffer (%llu) on %s",
                               what, bytes, (unsigned long long)cl->info.max_alloc_bytes,
                               cl->info.device);
-    cl_int code;
-    *mem = clCreateBuffer(cl->context, flags, bytes ? bytes : 1, NULL, &code);
-    if (code != CL_SUCCESS) {
-        *mem = NULL;
-        return cdvr_cl_check(code, what, err);
+    cdvr_status st = CDVR_OK;
+    if (on_huge_pages && bytes >= CDVR_HUGE_PAGE_BYTES) {
+        st = create_on_huge_pages(cl, mem, bytes, flags, what, err);
+    } else {
+        cl_int code;
+        *mem = clCreateBuffer(cl->context, flags, bytes ? bytes : 1, NULL, &code);
+        if (code != CL_SUCCESS) {
+            *mem = NULL;
+            st = cdvr_cl_check(code, what, err);
+        }
     }
-    *capacity = bytes;
-    return CDVR_OK;
+    if (st == CDVR_OK)
+        *capacity = bytes;
+    return st;
+}
+
+cdvr_status cdvr_cl_ensure_buffer(cdvr_cl *cl, cl_mem *mem, size_t *capacity, size_t bytes,
+                                  cl_mem_flags flags, const char *what, cdvr_error *err)
+{
+    return ensure(cl, mem, capacity, bytes, flags, 0, what, err);
+}
+
+cdvr_status cdvr_cl_ensure_gathered(cdvr_cl *cl, cl_mem *mem, size_t *capacity, size_t bytes,
+                                    const char *what, cdvr_error *err)
+{
+    return ensure(cl, mem, capacity, bytes, CL_MEM_READ_WRITE, !cl->info.is_gpu, what, err);
 }
 
 /* ---- device choice ---------------------------------------------------------------------- */

@@ -215,6 +215,13 @@ cdvr_status cdvr_cl_check(cl_int code, const char *what, cdvr_error *err);
 /* (Re)allocates *mem to hold at least bytes (contents are lost on growth). */
 cdvr_status cdvr_cl_ensure_buffer(cdvr_cl *cl, cl_mem *mem, size_t *capacity, size_t bytes,
                                   cl_mem_flags flags, const char *what, cdvr_error *err);
+/* cdvr_cl_ensure_buffer (CL_MEM_READ_WRITE) for a frame's copy that kernels gather voxels from
+ * at random (tiles, quads, gradients): on a CPU device, from a huge page up, in host memory
+ * marked for huge pages. Copies of up to hundreds of MB are read by lanes that each land on
+ * another page; once other programs have taken the caches (a frame drawn after a pause, or
+ * after VTK's frame in vs_vtk.py) each such read's page walk goes to memory too. */
+cdvr_status cdvr_cl_ensure_gathered(cdvr_cl *cl, cl_mem *mem, size_t *capacity, size_t bytes,
+                                    const char *what, cdvr_error *err);
 /* Releases a buffer if set and clears the handle. */
 void cdvr_cl_release(cl_mem *mem);
 

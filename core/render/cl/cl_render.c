@@ -728,8 +728,7 @@ static int copy_ready(cdvr_cl_stream *s, size_t frame, cl_kernel k, const char *
     cl_ulong offset = frame * s->voxels;
     cl_mem frames = cdvr_cl_frames_mem(s);
     cl_uint d[3] = {(cl_uint)s->dims[0], (cl_uint)s->dims[1], (cl_uint)s->dims[2]};
-    cdvr_status st = cdvr_cl_ensure_buffer(s->cl, mem, capacity, bytes, CL_MEM_READ_WRITE, name,
-                                           &err);
+    cdvr_status st = cdvr_cl_ensure_gathered(s->cl, mem, capacity, bytes, name, &err);
     if (!st)
         st = cdvr_cl_arg(k, name, 0, sizeof(cl_mem), &frames, &err);
     if (!st)
