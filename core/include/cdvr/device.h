@@ -72,7 +72,9 @@ typedef struct cdvr_cl_info {
 /* Chooses a device (see above), creates context, queue and program, and on a CPU device the
  * frame layout the ray caster reads (info.dense_frames): the one that cast faster, measured
  * once per device, driver and cdvr version on a synthetic 272^3 frame (5 alternating pairs,
- * medians; dense where it takes below CDVR_CL_DENSE_SHARE of the tiled time) and remembered
+ * medians; dense where it takes below CDVR_CL_DENSE_SHARE of the tiled time; both sides cast
+ * two frames in turn, the tiled side from frames tiled by the host as the player's decoder
+ * writes them, so neither casts a frame it cast just before) and remembered
  * beside the program cache; GPUs keep the tiled copies. The layout decides the frames cast
  * once (playback, a frame's first render): frames rendered again get the quad copy where it
  * measured faster either way (still_quads), and renders that read gradients the tiled copy. On failure *out is NULL
@@ -83,6 +85,12 @@ cdvr_status cdvr_cl_open(cdvr_cl **out, cdvr_error *err);
  * measured 0.924-0.935 from run to run after pairs16_gathered, and its still frames lost the
  * quads when the record said dense); since still_quads, the faster one */
 #define CDVR_CL_DENSE_SHARE 1.0
+/* Which probes made a remembered choice: 2 since the layout probe's tiled side casts two
+ * host-tiled frames in turn (before, one tiled copy again and again, which the caches kept:
+ * an Intel Xeon measured tiled 0.99 of dense there, but 1.09-1.11 cast once, and zfp1
+ * playback's render took 55-58 ms tiled against 47-52 dense). A record of other probes is
+ * measured again. */
+#define CDVR_CL_PROBES_REVISION 2
 /* The quad copy (cl_render.c, quads_ready: 4 bytes per voxel of the tiled copy, 2 reads per
  * sample instead of 8) is made for frames whose copy takes at most CDVR_CL_QUADS_MAX_BYTES.
  * Beyond that its cache misses may cost more than its fewer reads save, and which wins depends

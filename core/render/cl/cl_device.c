@@ -515,8 +515,9 @@ static int choice_path(cdvr_cl *cl, const cdvr_codec *codec, const char *kind,
                : load_sources(NULL, render_files, NRENDER_FILES, &source, NULL)) != CDVR_OK)
         return 0;
     /* the rules' shares too: a record made under another rule is measured again */
-    snprintf(what, sizeof what, "%s path, size class %u, cdvr %s, shares %g %g", kind,
-             size_class, CDVR_VERSION, CDVR_CL_DENSE_SHARE, CDVR_CL_QUADS_SHARE);
+    snprintf(what, sizeof what, "%s path, size class %u, cdvr %s, shares %g %g, probes %d",
+             kind, size_class, CDVR_VERSION, CDVR_CL_DENSE_SHARE, CDVR_CL_QUADS_SHARE,
+             CDVR_CL_PROBES_REVISION);
     cache_key(cl, source, what, key);
     free(source);
     return cdvr_cache_path(key, kind, path, n);

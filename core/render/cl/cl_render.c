@@ -1074,7 +1074,10 @@ typedef struct probe_scene {
     cdvr_camera cam;
     cdvr_image *img;
     cdvr_cl_stream *a, *b;
-    size_t next; /* a's frame to cast next where a casts its two frames in turn */
+    size_t next;        /* a's frame to cast next where a casts its two frames in turn */
+    uint8_t *tiles[2];  /* b's two frames as a decoder writes them tiled, or NULL */
+    cdvr_skip_grid grid; /* their ranges (cdvr_cl_setup_grid), with tiles */
+    size_t next_tiles;  /* b's tiled frame to cast next */
 } probe_scene;
 
 static void probe_free(probe_scene *p)
@@ -1084,6 +1087,34 @@ static void probe_free(probe_scene *p)
     cdvr_cl_stream_free(p->b);
     free(p->tf);
     free(p->frames);
+    for (int k = 0; k < 2; k++)
+        free(p->tiles[k]);
+    cdvr_skip_grid_free(&p->grid); /* zeroed by probe_init where unused */
+}
+
+/* Gives b the probe frame twice as the player's decoder writes it for a device that casts
+ * from tiles (cdvr_cl_use_host_tiles, CDVR_LAYOUT_TILED; PROBE_EDGE is a whole number of
+ * pages), with its ranges and flags for the probe's TF. */
+static cdvr_status probe_host_tiles(probe_scene *p, cdvr_error *err)
+{
+    const size_t dims[3] = {PROBE_EDGE, PROBE_EDGE, PROBE_EDGE};
+    cdvr_status st = cdvr_skip_grid_init(&p->grid, dims, CDVR_CL_BRICK_SHIFT, err);
+    if (st)
+        return st;
+    size_t bytes = cdvr_tiled_bytes(dims);
+    for (int k = 0; k < 2; k++)
+        p->tiles[k] = malloc(bytes);
+    if (!p->tiles[0] || !p->tiles[1])
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "OpenCL layout probe: out of memory");
+    for (size_t z = 0, i = 0; z < PROBE_EDGE; z++)
+        for (size_t y = 0; y < PROBE_EDGE; y++)
+            for (size_t x = 0; x < PROBE_EDGE; x++, i++)
+                p->tiles[0][cdvr_tiled_offset(dims, x, y, z)] = p->frames[i];
+    memcpy(p->tiles[1], p->tiles[0], bytes);
+    st = cdvr_skip_minmax_from_frame(&p->grid, p->frames, err);
+    if (!st)
+        cdvr_skip_flags(&p->grid, p->tf);
+    return st;
 }
 
 /* Streams a and b with frames_a and frames_b of the probe frames uploaded. */
@@ -1131,13 +1162,32 @@ static cdvr_status probe_render(cdvr_cl_stream *s, size_t frame, const cdvr_rend
     return st;
 }
 
-/* One cast of the probe through stream b, or through stream a (its two frames in turn when
- * a_dense: never the same frame twice, so it gets no copies), into *ms. */
+/* A cast of b's next tiled frame, set up as the player sets one up (untimed). */
+static cdvr_status probe_tiled_render(probe_scene *p, const cdvr_render_opts *opts, double *ms,
+                                      cdvr_error *err)
+{
+    static const double spacing[3] = {1, 1, 1}, origin[3] = {0, 0, 0},
+                        direction[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    cdvr_status st = cdvr_cl_use_host_tiles(p->b, p->tiles[p->next_tiles++ & 1], err);
+    if (!st)
+        st = cdvr_cl_setup_grid(p->b, 0, opts->tf, &p->grid, err);
+    double t0 = cdvr_now_ms();
+    if (!st)
+        st = cdvr_cl_render(p->b, 0, opts, spacing, origin, direction, p->img, err);
+    *ms = cdvr_now_ms() - t0;
+    return st;
+}
+
+/* One cast of the probe through stream b (its two tiled frames in turn where it has them),
+ * or through stream a (its two frames in turn when a_dense: never the same frame twice, so
+ * it gets no copies), into *ms. */
 static cdvr_status probe_cast(probe_scene *p, int b, int a_dense, const cdvr_render_opts *opts,
                               double *ms, cdvr_error *err)
 {
-    return b ? probe_render(p->b, 0, opts, p->img, ms, err)
-             : probe_render(p->a, a_dense ? p->next++ & 1 : 0, opts, p->img, ms, err);
+    if (b)
+        return p->tiles[0] ? probe_tiled_render(p, opts, ms, err)
+                           : probe_render(p->b, 0, opts, p->img, ms, err);
+    return probe_render(p->a, a_dense ? p->next++ & 1 : 0, opts, p->img, ms, err);
 }
 
 /* Median casts of streams a and b, alternating (A B, B A, ...) after a warm-up of two casts
@@ -1166,6 +1216,8 @@ cdvr_status cdvr_cl_measure_layouts(cdvr_cl *cl, double *dense_ms, double *tiled
 {
     probe_scene p;
     cdvr_status st = probe_init(cl, &p, 2, 1, err); /* a: dense, b: tiled */
+    if (!st)
+        st = probe_host_tiles(&p, err);
     cdvr_render_opts opts = {.tf = p.tf, .camera = &p.cam};
     if (!st)
         st = probe_pairs(&p, 1, &opts, dense_ms, tiled_ms, err);
