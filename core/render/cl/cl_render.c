@@ -1149,31 +1149,19 @@ static cdvr_status probe_init(cdvr_cl *cl, probe_scene *p, size_t frames_a, size
     return st;
 }
 
+/* A timed cast of `frame`, set up untimed: from the caller's grid (frames tiled on the host),
+ * or by the stream (grid NULL). */
 static cdvr_status probe_render(cdvr_cl_stream *s, size_t frame, const cdvr_render_opts *opts,
-                                cdvr_image *img, double *ms, cdvr_error *err)
+                                const cdvr_skip_grid *grid, cdvr_image *img, double *ms,
+                                cdvr_error *err)
 {
     static const double spacing[3] = {1, 1, 1}, origin[3] = {0, 0, 0},
                         direction[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-    cdvr_status st = cdvr_cl_setup(s, frame, opts->tf, err);
+    cdvr_status st = grid ? cdvr_cl_setup_grid(s, frame, opts->tf, grid, err)
+                          : cdvr_cl_setup(s, frame, opts->tf, err);
     double t0 = cdvr_now_ms();
     if (st == CDVR_OK)
         st = cdvr_cl_render(s, frame, opts, spacing, origin, direction, img, err);
-    *ms = cdvr_now_ms() - t0;
-    return st;
-}
-
-/* A cast of b's next tiled frame, set up as the player sets one up (untimed). */
-static cdvr_status probe_tiled_render(probe_scene *p, const cdvr_render_opts *opts, double *ms,
-                                      cdvr_error *err)
-{
-    static const double spacing[3] = {1, 1, 1}, origin[3] = {0, 0, 0},
-                        direction[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-    cdvr_status st = cdvr_cl_use_host_tiles(p->b, p->tiles[p->next_tiles++ & 1], err);
-    if (!st)
-        st = cdvr_cl_setup_grid(p->b, 0, opts->tf, &p->grid, err);
-    double t0 = cdvr_now_ms();
-    if (!st)
-        st = cdvr_cl_render(p->b, 0, opts, spacing, origin, direction, p->img, err);
     *ms = cdvr_now_ms() - t0;
     return st;
 }
@@ -1184,10 +1172,13 @@ static cdvr_status probe_tiled_render(probe_scene *p, const cdvr_render_opts *op
 static cdvr_status probe_cast(probe_scene *p, int b, int a_dense, const cdvr_render_opts *opts,
                               double *ms, cdvr_error *err)
 {
+    if (b && p->tiles[0]) {
+        cdvr_status st = cdvr_cl_use_host_tiles(p->b, p->tiles[p->next_tiles++ & 1], err);
+        return st ? st : probe_render(p->b, 0, opts, &p->grid, p->img, ms, err);
+    }
     if (b)
-        return p->tiles[0] ? probe_tiled_render(p, opts, ms, err)
-                           : probe_render(p->b, 0, opts, p->img, ms, err);
-    return probe_render(p->a, a_dense ? p->next++ & 1 : 0, opts, p->img, ms, err);
+        return probe_render(p->b, 0, opts, NULL, p->img, ms, err);
+    return probe_render(p->a, a_dense ? p->next++ & 1 : 0, opts, NULL, p->img, ms, err);
 }
 
 /* Median casts of streams a and b, alternating (A B, B A, ...) after a warm-up of two casts
