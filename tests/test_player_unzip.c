@@ -93,10 +93,13 @@ static cdvr_player *make_player(const cdvr_store *st, size_t v, cdvr_device_kind
 }
 
 /* Plays `frames` frames from timestep `first` and checks each against ref (by timestep) and
- * against the frames of other runs with the same first frame (*same, when it holds any). */
+ * against the frames of other runs with the same first frame (*same, when it holds any);
+ * each row's unzip CPU time is above 0 where the chunks have stage 2 (0 where they have
+ * none) and within its wall time on all cores. */
 static void play_check(cdvr_player *p, capture *cap, size_t first, size_t frames,
-                       const float *ref, const char *what)
+                       const float *ref, int stage2, const char *what)
 {
+    long cores = sysconf(_SC_NPROCESSORS_ONLN);
     cdvr_error err;
     memset(cap->pixels, 0, sizeof(float) * PX * cap->frames);
     CHECK_OK(cdvr_player_run(p, first, frames, &err), err);
@@ -110,6 +113,11 @@ static void play_check(cdvr_player *p, capture *cap, size_t first, size_t frames
         CHECK(memcmp(cap->pixels + i * PX, ref + rows[i].t * PX, sizeof(float) * PX) == 0,
               "%s: frame %zu (timestep %zu) differs from its render alone", what, i,
               rows[i].t + 1);
+        double cpu = rows[i].unzip_cpu_ms, wall = rows[i].unzip_ms;
+        CHECK(stage2 ? cpu > 0 && cpu <= wall * (double)(cores > 0 ? cores : 1) + 0.05
+                     : cpu == 0,
+              "%s: frame %zu: unzip %.4f ms of CPU in %.4f ms (stage 2: %d)", what, i, cpu,
+              wall, stage2);
     }
 }
 
@@ -134,7 +142,8 @@ static void check_variant(const cdvr_store *st, size_t v, cdvr_device_kind devic
             char what[128];
             snprintf(what, sizeof what, "%s, variant %zu, %d workers, first %zu frames %zu",
                      dev_name, v + 1, workers[w], runs[r][0], runs[r][1]);
-            play_check(p, &cap, runs[r][0], runs[r][1], ref, what);
+            play_check(p, &cap, runs[r][0], runs[r][1], ref,
+                       cdvr_store_chunk(st, v, 0)->stage2 != 0, what);
         }
         cdvr_player_free(p);
     }

@@ -25,6 +25,7 @@
 #include "codec/stage2/stage2.h"
 #include "cdvr/cache.h"
 #include "cdvr/pvtc.h"
+#include "cdvr/timing.h"
 #include "store/store_format.h"
 
 #include <math.h>
@@ -63,6 +64,15 @@ static void check_roundtrip(unsigned codec, size_t n, size_t seg)
         CHECK(memcmp(out, in, n) == 0, "%s %zu bytes in %zu-byte segments, %d threads: differs",
               cdvr_s2_name(codec), n, seg, threads[t]);
     }
+    /* the CPU time of an unpack adds to what the caller holds, within its wall time on
+     * its threads */
+    double cpu = 1.5, t0 = cdvr_now_ms();
+    memset(out, 0xA5, n);
+    CHECK_OK(cdvr_s2_unpack_cpu(codec, packed, got, out, n, 2, &cpu, &err), err);
+    double wall = cdvr_now_ms() - t0;
+    CHECK(memcmp(out, in, n) == 0 && cpu > 1.5 && cpu - 1.5 <= 2 * wall + 0.05,
+          "%s %zu bytes: unpack took %.4f ms of CPU in %.4f ms on 2 threads",
+          cdvr_s2_name(codec), n, cpu - 1.5, wall);
     /* the expected size is part of the check: one byte more or less is refused */
     if (n > 1)
         CHECK(cdvr_s2_unpack(codec, packed, got, out2, n - 1, 1, &err) == CDVR_ERR_CORRUPT,

@@ -69,6 +69,7 @@ typedef struct chunk_item {
     char reason[160];
     double lod_error;        /* opts.cache: the brick cache's lod_error for its frames */
     double read_ms, unzip_ms;
+    double unzip_cpu_ms;     /* the CPU time of unzip_ms on all its threads */
     double grid_ms;          /* making the frames' skip grids from the range tables (b1g) */
     uint64_t stored_bytes, payload_bytes;
     size_t bricks_read, bricks_region; /* decoded; decoded inside the region */
@@ -619,6 +620,7 @@ static void unzip_chunks(cdvr_player *p, chunk_item *it)
         return;
     const cdvr_store *st = p->opts.store;
     double t0 = cdvr_now_ms();
+    it->unzip_cpu_ms = 0;
     for (size_t b = 0; b < p->nbricks && it->err.status == CDVR_OK; b++) {
         chunk_part *part = &it->parts[b];
         if (!part->needed)
@@ -634,8 +636,8 @@ static void unzip_chunks(cdvr_player *p, chunk_item *it)
                            (unsigned long long)ch->payload_bytes);
             break;
         }
-        cdvr_store_unpack_chunk(st, (size_t)it->variant, part->chunk, part->stored,
-                                part->payload, &it->err);
+        cdvr_store_unpack_chunk_cpu(st, (size_t)it->variant, part->chunk, part->stored,
+                                    part->payload, &it->unzip_cpu_ms, &it->err);
     }
     it->unzip_ms = cdvr_now_ms() - t0;
 }
@@ -1274,6 +1276,7 @@ static void fill_row(const cdvr_player *p, cdvr_frame_row *row, const chunk_item
     row->rank = p->opts.rank;
     row->read_ms = it->read_ms / n;
     row->unzip_ms = it->unzip_ms / n;
+    row->unzip_cpu_ms = it->unzip_cpu_ms / n;
     row->grid_ms = it->grid_ms / n;
     row->bytes = it->stored_bytes / n;
     row->payload_bytes = it->payload_bytes / n;

@@ -89,6 +89,7 @@
 
 #include "codec/stage2/stage2.h"
 #include "cdvr/memory.h"
+#include "cdvr/timing.h"
 #include "cdvr/pvtc.h"
 #include "cdvr/regular_file.h"
 
@@ -1171,30 +1172,49 @@ cdvr_status cdvr_stage2_unpack_rates(double mbps[5], int *from_cache, cdvr_error
     return CDVR_OK;
 }
 
-cdvr_status cdvr_store_unpack_chunk_threads(const cdvr_store *st, size_t v, size_t c,
-                                            const uint8_t *stored, uint8_t *out, int threads,
-                                            cdvr_error *err)
+/* b1' on `threads` threads, adding the CPU time it took to *cpu_ms. */
+static cdvr_status unpack_chunk(const cdvr_store *st, size_t v, size_t c, const uint8_t *stored,
+                                uint8_t *out, int threads, double *cpu_ms, cdvr_error *err)
 {
     const cdvr_chunk_info *ci;
     cdvr_status s = chunk_lookup(st, v, c, &ci, err);
     if (s != CDVR_OK)
         return s;
+    double cpu0 = cdvr_thread_cpu_ms();
     if (!ci->stage2) {
         memcpy(out, stored, (size_t)ci->payload_bytes);
+        *cpu_ms += cdvr_thread_cpu_ms() - cpu0;
         return CDVR_OK;
     }
     cdvr_error lerr;
-    if (ci->stage2_segmented)
-        s = cdvr_s2_unpack((unsigned)ci->stage2, stored, (size_t)ci->stored_bytes, out,
-                           (size_t)ci->payload_bytes, threads, &lerr);
-    else
+    if (ci->stage2_segmented) {
+        s = cdvr_s2_unpack_cpu((unsigned)ci->stage2, stored, (size_t)ci->stored_bytes, out,
+                               (size_t)ci->payload_bytes, threads, cpu_ms, &lerr);
+    } else {
         s = cdvr_lzo_decompress(stored, (size_t)ci->stored_bytes, out,
                                 (size_t)ci->payload_bytes, &lerr);
+        *cpu_ms += cdvr_thread_cpu_ms() - cpu0;
+    }
     if (s != CDVR_OK)
         return cdvr_error_set(err, lerr.status, "%s: variant %s chunk %zu: stage 2 %s: %s",
                               st->path, st->variants[v].name, c + 1,
                               cdvr_s2_name((unsigned)ci->stage2), lerr.msg);
     return CDVR_OK;
+}
+
+cdvr_status cdvr_store_unpack_chunk_threads(const cdvr_store *st, size_t v, size_t c,
+                                            const uint8_t *stored, uint8_t *out, int threads,
+                                            cdvr_error *err)
+{
+    double ignored = 0;
+    return unpack_chunk(st, v, c, stored, out, threads, &ignored, err);
+}
+
+cdvr_status cdvr_store_unpack_chunk_cpu(const cdvr_store *st, size_t v, size_t c,
+                                        const uint8_t *stored, uint8_t *out, double *cpu_ms,
+                                        cdvr_error *err)
+{
+    return unpack_chunk(st, v, c, stored, out, 0, cpu_ms, err);
 }
 
 cdvr_status cdvr_store_unpack_chunk(const cdvr_store *st, size_t v, size_t c,

@@ -869,22 +869,25 @@ static int l_player(lua_State *L)
     return 1;
 }
 
-/* Pushes {read_ms=, ..., frame_ms=, serial_ms=} medians over frames without error. */
+/* Pushes {read_ms=, ..., frame_ms=, serial_ms=, ..., unzip_cpu_ms=} medians over frames
+ * without error. */
 static void push_stage_medians(lua_State *L, const cdvr_frame_row *rows, size_t n)
 {
-    static const char *const names[] = {"read_ms", "unzip_ms", "upload_ms", "decode_ms", "setup_ms", "render_ms", "frame_ms", "serial_ms", "interval_ms", "grid_ms"};
+    static const char *const names[] = {"read_ms", "unzip_ms", "upload_ms", "decode_ms", "setup_ms", "render_ms", "frame_ms", "serial_ms", "interval_ms", "grid_ms", "unzip_cpu_ms"};
+    enum { NSTAGES = sizeof names / sizeof *names };
     double *vals = lua_newuserdatauv(L, (n ? n : 1) * sizeof(double), 0); /* scratch */
-    lua_createtable(L, 0, 10);                                            /* scratch, medians */
-    for (int k = 0; k < 10; k++) {
+    lua_createtable(L, 0, NSTAGES);                                       /* scratch, medians */
+    for (int k = 0; k < NSTAGES; k++) {
         size_t m = 0;
         for (size_t i = 0; i < n; i++) {
             const cdvr_frame_row *r = &rows[i];
             if (r->status != CDVR_OK)
                 continue;
-            double stage[10] = {r->read_ms, r->unzip_ms, r->upload_ms, r->decode_ms, r->setup_ms, r->render_ms, r->frame_ms,
-                                r->read_ms + r->unzip_ms + r->grid_ms + r->upload_ms + r->decode_ms + r->setup_ms +
-                                    r->render_ms,
-                                r->interval_ms, r->grid_ms};
+            double stage[NSTAGES] = {r->read_ms, r->unzip_ms, r->upload_ms, r->decode_ms, r->setup_ms, r->render_ms,
+                                     r->frame_ms,
+                                     r->read_ms + r->unzip_ms + r->grid_ms + r->upload_ms + r->decode_ms +
+                                         r->setup_ms + r->render_ms,
+                                     r->interval_ms, r->grid_ms, r->unzip_cpu_ms};
             vals[m++] = stage[k];
         }
         setnum(L, names[k], cdvr_median(vals, m));

@@ -33,6 +33,7 @@ void lcdvr_push_frame_row(lua_State *L, const cdvr_store *st, const cdvr_frame_r
     lua_setfield(L, -2, "variant");
     setnum(L, "read_ms", r->read_ms);
     setnum(L, "unzip_ms", r->unzip_ms);
+    setnum(L, "unzip_cpu_ms", r->unzip_cpu_ms);
     setnum(L, "grid_ms", r->grid_ms);
     setnum(L, "upload_ms", r->upload_ms);
     setnum(L, "decode_ms", r->decode_ms);
@@ -245,7 +246,7 @@ cdvr_status lcdvr_store_decode_group(const cdvr_store *st, size_t v, size_t t, c
     cdvr_status s = cdvr_volume_create(info->dims, count, CDVR_TYPE_U8, &vol, err);
     if (s != CDVR_OK)
         return s;
-    double read_ms = 0, unzip_ms = 0, decode_ms = 0;
+    double read_ms = 0, unzip_ms = 0, unzip_cpu_ms = 0, decode_ms = 0;
     uint64_t bytes = 0, payload_bytes = 0;
     int whole = info->nbricks == 1;
     uint8_t **frames = calloc(count, sizeof *frames);
@@ -275,7 +276,7 @@ cdvr_status lcdvr_store_decode_group(const cdvr_store *st, size_t v, size_t t, c
         double mid = cdvr_now_ms();
         read_ms += mid - start;
         if (s == CDVR_OK)
-            s = cdvr_store_unpack_chunk(st, v, c0 + b, stored, payload, err);
+            s = cdvr_store_unpack_chunk_cpu(st, v, c0 + b, stored, payload, &unzip_cpu_ms, err);
         double mid2 = cdvr_now_ms();
         unzip_ms += mid2 - mid;
         if (s == CDVR_OK)
@@ -307,6 +308,7 @@ cdvr_status lcdvr_store_decode_group(const cdvr_store *st, size_t v, size_t t, c
     memset(share, 0, sizeof *share);
     share->read_ms = read_ms / (double)count;
     share->unzip_ms = unzip_ms / (double)count;
+    share->unzip_cpu_ms = unzip_cpu_ms / (double)count;
     share->decode_ms = decode_ms / (double)count;
     share->bytes = bytes / count;
     share->payload_bytes = payload_bytes / count;

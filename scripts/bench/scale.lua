@@ -31,7 +31,11 @@
 --   disk of that rate, e.g. the one --stage2-read-mbps models, rather than the page cache).
 -- Playback rows carry grid_ms (the skip grids made from the range tables; the old executable
 -- may count them in unzip_ms) and samples (median samples the ray caster took per frame, 0
--- when the executable does not report them: with --empty-skip off, every sample).
+-- when the executable does not report them: with --empty-skip off, every sample),
+-- unzip_cpu_ms (b1' in CPU time on all its threads, per frame; nan from an executable that
+-- does not report it: unzip_ms, a worker's wall time, also counts its waits for the render's
+-- cores) and unzip_cpu_share (that CPU time over the machine's, nproc cores, in a frame's
+-- interval 1000 / fps: the share of the machine stage 2 takes).
 package.path = (arg[0]:match("^(.*)/[^/]*$") or ".") .. "/?.lua;" .. package.path
 local common = require "common"
 
@@ -146,7 +150,15 @@ local tf_points = "{0, 0,0,0, 0}, {40, 0.2,0.1,0.5, 0}, {90, 0.9,0.5,0.2, 0.05},
 local fps_of = {} -- fps_of[exe][n][var][size], setup share too
 print()
 print("section,exe,timesteps,variant,size,fps,read_ms,unzip_ms,upload_ms,decode_ms,setup_ms," ..
-      "render_ms,frame_ms,setup_share,peak_rss_mb,round,loadavg,grid_ms,samples")
+      "render_ms,frame_ms,setup_share,peak_rss_mb,round,loadavg,grid_ms,samples,unzip_cpu_ms," ..
+      "unzip_cpu_share")
+local function online_cpus()
+  local p = io.popen("nproc 2>/dev/null")
+  local n = p and tonumber(p:read("l") or "") or nil
+  if p then p:close() end
+  return n or 1
+end
+local cpus = online_cpus()
 local function loadavg()
   local f = io.open("/proc/loadavg")
   local l = f and f:read("l") or ""
@@ -186,7 +198,8 @@ local function frames_median(r, k)
   return v[(#v + 1) // 2] or 0
 end
 local extra = {("%%.3f"):format(med(function(r) return r.median.grid_ms or 0 end)),
-               ("%%.0f"):format(med(function(r) return frames_median(r, "samples") end))}
+               ("%%.0f"):format(med(function(r) return frames_median(r, "samples") end)),
+               ("%%.3f"):format(med(function(r) return r.median.unzip_cpu_ms or 0 / 0 end))}
 p:close()
 print("OK," .. table.concat(out, ",") .. (",%%.1f"):format(vmhwm_mb()) .. "," .. table.concat(extra, ","))
 ]]):format(stores[exe.name][n][var], tf_points, c + 2.2 * D, c - 1.3 * D, c + 1.3 * D, c, c, c,
@@ -196,9 +209,11 @@ print("OK," .. table.concat(out, ",") .. (",%%.1f"):format(vmhwm_mb()) .. "," ..
            math.min(frames, 6), repeats, frames))
         if r then
           local share = r[7] > 0 and r[6] / r[8] or 0 / 0
-          print(("playback,%s,%d,%s,%d,%.2f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.1f,%d,%.2f,%.3f,%.0f"):format(
+          -- unzip's CPU per frame as a share of the machine's CPU in a frame's interval
+          local unzip_share = r[12] / (cpus * 1000 / r[1])
+          print(("playback,%s,%d,%s,%d,%.2f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.1f,%d,%.2f,%.3f,%.0f,%.3f,%.3f"):format(
             exe.name, n, var, size, r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], share, r[9],
-            round, load, r[10], r[11]))
+            round, load, r[10], r[11], r[12], unzip_share))
           fps_of[exe.name] = fps_of[exe.name] or {}
           local key = n .. var .. size
           fps_of[exe.name][key] = fps_of[exe.name][key] or {}

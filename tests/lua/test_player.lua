@@ -12,7 +12,8 @@ local st = assert(cdvr.encode(vol, {variants = {{S = 4, T = 3}, {S = 1, T = 2, p
                                                 {codec = "raw"}}, stage2 = "none", path = path}))
 local tf = cdvr.tf("hot")
 local cam = cdvr.orbit_camera(vol, {azimuth = 30, elevation = 20, width = 48, height = 40})
-local stages = {"read_ms", "unzip_ms", "upload_ms", "decode_ms", "setup_ms", "render_ms", "frame_ms"}
+local stages = {"read_ms", "unzip_ms", "unzip_cpu_ms", "upload_ms", "decode_ms", "setup_ms",
+                "render_ms", "frame_ms"}
 
 local devices = {"cpu"}
 if cdvr.cl_info() then devices[2] = "cl" end
@@ -27,6 +28,10 @@ local function check_rows(r, frames, first_t, ntimesteps)
       assert(type(row[k]) == "number" and row[k] >= 0, k .. " missing in row " .. i)
     end
     assert(row.render_ms > 0, "render time measured")
+    assert(row.unzip_cpu_ms == 0, "no stage 2 here: no unzip CPU time")
+  end
+  for _, k in ipairs(stages) do
+    assert(type(r.median[k]) == "number" and r.median[k] >= 0, k .. " missing in the medians")
   end
   assert(r.fps > 0)
 end

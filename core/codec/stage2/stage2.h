@@ -57,6 +57,9 @@ cdvr_status cdvr_s2_pack(unsigned codec, const uint8_t *in, size_t n, size_t seg
  * CDVR_ERR_CORRUPT); the output is the same for every thread count. */
 cdvr_status cdvr_s2_unpack(unsigned codec, const uint8_t *in, size_t n, uint8_t *out,
                            size_t expect, int threads, cdvr_error *err);
+/* The same, adding to *cpu_ms the CPU time all its threads took (cdvr_thread_cpu_ms). */
+cdvr_status cdvr_s2_unpack_cpu(unsigned codec, const uint8_t *in, size_t n, uint8_t *out,
+                               size_t expect, int threads, double *cpu_ms, cdvr_error *err);
 
 /* Decompresses one unsegmented LZO chunk or one segment of the given codec: exactly expect
  * bytes (CDVR_ERR_CORRUPT otherwise). */

@@ -2,6 +2,8 @@
  * segmented framing of a chunk (stage2.h), unpacked on several threads. */
 #include "stage2.h"
 
+#include "cdvr/timing.h"
+
 #include <lz4.h>
 #include <pthread.h>
 #include <stdlib.h>
@@ -152,11 +154,13 @@ typedef struct unpack_job {
     size_t seg, nseg, expect;
     size_t stride, first;    /* this thread does segments first, first + stride, ... */
     cdvr_error err;          /* the first failure of this thread, by segment order */
+    double cpu_ms;           /* CPU time this share took */
 } unpack_job;
 
 static void *unpack_main(void *arg)
 {
     unpack_job *j = arg;
+    double cpu0 = cdvr_thread_cpu_ms();
     for (size_t i = j->first; i < j->nseg; i += j->stride) {
         size_t len = i + 1 < j->nseg ? j->seg : j->expect - i * j->seg;
         cdvr_error e;
@@ -166,6 +170,7 @@ static void *unpack_main(void *arg)
             break;
         }
     }
+    j->cpu_ms = cdvr_thread_cpu_ms() - cpu0;
     return NULL;
 }
 
@@ -173,6 +178,13 @@ static void *unpack_main(void *arg)
 
 cdvr_status cdvr_s2_unpack(unsigned codec, const uint8_t *in, size_t n, uint8_t *out,
                            size_t expect, int threads, cdvr_error *err)
+{
+    double ignored = 0;
+    return cdvr_s2_unpack_cpu(codec, in, n, out, expect, threads, &ignored, err);
+}
+
+cdvr_status cdvr_s2_unpack_cpu(unsigned codec, const uint8_t *in, size_t n, uint8_t *out,
+                               size_t expect, int threads, double *cpu_ms, cdvr_error *err)
 {
     if (codec == 0 || codec >= CDVR_S2_CODECS)
         return cdvr_error_set(err, CDVR_ERR_CORRUPT, "unknown stage-2 codec %u", codec);
@@ -235,6 +247,8 @@ cdvr_status cdvr_s2_unpack(unsigned codec, const uint8_t *in, size_t n, uint8_t 
     for (size_t k = 1; k < started; k++)
         pthread_join(tids[k], NULL);
     free(offsets);
+    for (size_t k = 0; k < nt; k++)
+        *cpu_ms += jobs[k].cpu_ms;
     for (size_t k = 0; k < nt; k++)
         if (jobs[k].err.status != CDVR_OK) {
             if (err)

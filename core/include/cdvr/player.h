@@ -91,6 +91,8 @@ typedef struct cdvr_frame_row {
     size_t t;                /* timestep (0-based) */
     int variant;             /* variant index (0-based) */
     double read_ms, unzip_ms, upload_ms, decode_ms, setup_ms, render_ms, frame_ms;
+    double unzip_cpu_ms;     /* b1' in CPU time on all its threads: unzip_ms also counts the
+                                waits of the low-priority workers for the render's cores */
     double grid_ms;          /* b1g: the skip grid made from the range tables (0 without) */
     uint64_t samples;        /* cl device: samples the ray caster took (0 elsewhere); with
                                 empty-space skipping off, all of them: 1 - on/off is the

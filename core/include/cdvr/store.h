@@ -278,6 +278,11 @@ cdvr_status cdvr_store_unpack_chunk(const cdvr_store *st, size_t v, size_t c,
 cdvr_status cdvr_store_unpack_chunk_threads(const cdvr_store *st, size_t v, size_t c,
                                             const uint8_t *stored, uint8_t *out, int threads,
                                             cdvr_error *err);
+/* cdvr_store_unpack_chunk, adding to *cpu_ms the CPU time it took on all its threads
+ * (cdvr_thread_cpu_ms: the work itself, without the waits a low-priority thread has). */
+cdvr_status cdvr_store_unpack_chunk_cpu(const cdvr_store *st, size_t v, size_t c,
+                                        const uint8_t *stored, uint8_t *out, double *cpu_ms,
+                                        cdvr_error *err);
 /* "none", "lzo", "lz4", "zstd", "auto" for a cdvr_stage2; "?" otherwise. */
 const char *cdvr_stage2_name(int stage2);
 /* The single-thread unpack rates AUTO models this machine with (payload MB/s; measured once
