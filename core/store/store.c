@@ -89,9 +89,9 @@
 
 #include "codec/stage2/stage2.h"
 #include "cdvr/memory.h"
-#include "cdvr/timing.h"
 #include "cdvr/pvtc.h"
 #include "cdvr/regular_file.h"
+#include "cdvr/timing.h"
 
 #include <errno.h>
 #include <fcntl.h>
