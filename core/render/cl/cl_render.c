@@ -1117,7 +1117,8 @@ static cdvr_status probe_host_tiles(probe_scene *p, cdvr_error *err)
     return st;
 }
 
-/* Streams a and b with frames_a and frames_b of the probe frames uploaded. */
+/* Streams a and b with frames_a and frames_b of the probe frames uploaded (none for b when
+ * frames_b is 0: it casts host-tiled frames, probe_host_tiles). */
 static cdvr_status probe_init(cdvr_cl *cl, probe_scene *p, size_t frames_a, size_t frames_b,
                               cdvr_error *err)
 {
@@ -1142,7 +1143,7 @@ static cdvr_status probe_init(cdvr_cl *cl, probe_scene *p, size_t frames_a, size
         st = cdvr_cl_stream_create(cl, dims, &p->b, err);
     if (!st)
         st = cdvr_cl_upload_frames(p->a, p->frames, frames_a, err);
-    if (!st)
+    if (!st && frames_b)
         st = cdvr_cl_upload_frames(p->b, p->frames, frames_b, err);
     if (!st)
         st = cdvr_image_create_unset(PROBE_PIXELS, PROBE_PIXELS, &p->img, err);
@@ -1182,7 +1183,7 @@ static cdvr_status probe_cast(probe_scene *p, int b, int a_dense, const cdvr_ren
 }
 
 /* Median casts of streams a and b, alternating (A B, B A, ...) after a warm-up of two casts
- * each (b's copies are made on its second). */
+ * each (where b makes copies of its frame, on its second). */
 static cdvr_status probe_pairs(probe_scene *p, int a_dense, const cdvr_render_opts *opts,
                                double *a_ms, double *b_ms, cdvr_error *err)
 {
@@ -1206,7 +1207,7 @@ cdvr_status cdvr_cl_measure_layouts(cdvr_cl *cl, double *dense_ms, double *tiled
                                     cdvr_error *err)
 {
     probe_scene p;
-    cdvr_status st = probe_init(cl, &p, 2, 1, err); /* a: dense, b: tiled */
+    cdvr_status st = probe_init(cl, &p, 2, 0, err); /* a: dense, b: tiled on the host */
     if (!st)
         st = probe_host_tiles(&p, err);
     cdvr_render_opts opts = {.tf = p.tf, .camera = &p.cam};
