@@ -11,8 +11,9 @@
 --                    variant against the render of the uncompressed data (same camera);
 --   volume_psnr, maxerr : measured at encode time over all timesteps;
 --   stage2         : the stage 2 of the variant's chunks (--stage2, default none; auto models
---                    read at --read-mbps, default 500 MB/s, + unpack per chunk and records
---                    its choice: "auto:lz4=5/none=1" counts the chunks of each choice);
+--                    read at --read-mbps, default the rate the store's filesystem reads
+--                    uncached data at, measured once and remembered, + unpack per chunk and
+--                    records its choice: "auto:lz4=5/none=1" counts the chunks of each choice);
 --   unpack_mb_s    : payload MB/s of undoing it (st:bench_unpack, all cores, median of 3).
 -- --timesteps N keeps the first N timesteps of each dataset (for quick runs); a printf
 -- pattern ("vf_t%03d.nrrd") starts at index --first (default 0) and takes --count files or as

@@ -345,21 +345,23 @@ static void check_store_roundtrips(void)
 
 /* ---- AUTO's unpack rates ------------------------------------------------------------------ */
 
-/* The one *.s2rates entry in cache_dir into path (its key: the name's stem). */
-static int rates_entry(const char *cache_dir, char *path, size_t n, char key[33])
+/* The one *.KIND entry in cache_dir into path (its key: the name's stem). */
+static int cache_entry(const char *cache_dir, const char *kind, char *path, size_t n,
+                       char key[33])
 {
     char cmd[600];
-    snprintf(cmd, sizeof cmd, "ls '%s' | grep '\\.s2rates$'", cache_dir);
+    snprintf(cmd, sizeof cmd, "ls '%s' | grep '\\.%s$'", cache_dir, kind);
     FILE *p = popen(cmd, "r");
     char name[128] = "";
-    int found = p && fgets(name, sizeof name, p) && strlen(name) == 32 + 8 + 1;
+    int found = p && fgets(name, sizeof name, p) && strlen(name) == 32 + 1 + strlen(kind) + 1;
     if (p)
         pclose(p);
     if (!found)
         return 0;
     memcpy(key, name, 32);
     key[32] = '\0';
-    snprintf(path, n, "%s/%.40s", cache_dir, name);
+    name[strcspn(name, "\n")] = '\0';
+    snprintf(path, n, "%s/%s", cache_dir, name);
     return 1;
 }
 
@@ -381,7 +383,7 @@ static void check_rates(void)
     CHECK_OK(cdvr_s2_unpack_rates(&again, &err), err);
     CHECK(again.from_cache && !memcmp(again.mbps, first.mbps, sizeof first.mbps),
           "read back from the cache as measured");
-    if (!rates_entry(cache_dir, entry, sizeof entry, key)) {
+    if (!cache_entry(cache_dir, "s2rates", entry, sizeof entry, key)) {
         CHECK(0, "no .s2rates entry in %s", cache_dir);
         return;
     }
@@ -409,6 +411,113 @@ static void check_rates(void)
     snprintf(cmd, sizeof cmd, "cmp -s '%s' '%s'", tmp_path("rates_a.cdv"), tmp_path("rates_b.cdv"));
     CHECK(system(cmd) == 0, "two AUTO encodes (2 threads, 1 thread) write the same bytes");
     remove(entry);
+    cdvr_volume_free(vol);
+    unsetenv("CDVR_CACHE_DIR");
+}
+
+/* Test files the read-rate measurement left in the test's directory (it unlinks its own). */
+static int probe_files_left(void)
+{
+    char cmd[400];
+    snprintf(cmd, sizeof cmd, "ls -A '%s' | grep -c cdvr-read-rate", dir);
+    FILE *p = popen(cmd, "r");
+    int n = -1;
+    if (p && fscanf(p, "%d", &n) != 1)
+        n = -1;
+    if (p)
+        pclose(p);
+    return n;
+}
+
+/* Stage 2 of each variant of the store at path: chunks stored without it, the rate AUTO
+ * recorded. */
+static void stored_choice(const char *path, size_t v, size_t *none, size_t *chunks,
+                          double *read_mbps)
+{
+    cdvr_store *st = NULL;
+    cdvr_error err;
+    *none = *chunks = 0;
+    *read_mbps = -1;
+    CHECK_OK(cdvr_store_open(path, &st, &err), err);
+    if (!st)
+        return;
+    const cdvr_variant_info *vi = cdvr_store_variant(st, v);
+    *none = vi->stage2_chunks[0];
+    *chunks = vi->nchunks;
+    *read_mbps = vi->stage2_read_mbps;
+    cdvr_store_close(st);
+}
+
+/* AUTO's read side: without a rate it models the rate the player will read at, measured in
+ * the store's directory (leaving no file there) and remembered: the page cache's for a
+ * series that fits in half the memory (these do), the disk's for one that does not
+ * (cdvr_store_modelled_read_mbps); recorded in the store; the choice follows it (1 MB/s:
+ * stage 2 wherever it saves; 10^7 MB/s: never). A rate given, or a variant that is not AUTO,
+ * is recorded as before. */
+static void check_read_rate(void)
+{
+    char cache_dir[300], entry[400], key[33];
+    snprintf(cache_dir, sizeof cache_dir, "%s/cache_read", dir);
+    setenv("CDVR_CACHE_DIR", cache_dir, 1);
+    cdvr_read_rates first, again;
+    cdvr_error err;
+    CHECK_OK(cdvr_store_read_rates(tmp_path("any.cdv"), &first, &err), err);
+    double rate[2] = {first.disk_mbps, first.cache_mbps};
+    for (int k = 0; k < 2; k++) {
+        double unit = rate[k] > 0 ? pow(10.0, floor(log10(rate[k])) - 1.0) : 1;
+        CHECK(!first.from_cache && rate[k] >= 1 && rate[k] <= 1e7 &&
+                  rate[k] / unit == round(rate[k] / unit),
+              "measured %s %g MB/s (from the cache: %d), two significant digits",
+              k ? "cache" : "disk", rate[k], first.from_cache);
+    }
+    CHECK(probe_files_left() == 0, "%d test files left in %s", probe_files_left(), dir);
+    CHECK_OK(cdvr_store_read_rates(tmp_path("other.cdv"), &again, &err), err);
+    CHECK(again.from_cache && again.disk_mbps == first.disk_mbps &&
+              again.cache_mbps == first.cache_mbps,
+          "the same filesystem: remembered (%d, %g and %g MB/s)", again.from_cache,
+          again.disk_mbps, again.cache_mbps);
+    CHECK(cdvr_store_read_rates("/nonexistent-cdvr-dir/a.cdv", &again, &err) == CDVR_ERR_IO &&
+              strstr(err.msg, "/nonexistent-cdvr-dir") && again.disk_mbps == 0,
+          "a missing directory: %s", err.msg);
+    cdvr_read_rates two = {.disk_mbps = 300, .cache_mbps = 5000};
+    CHECK(cdvr_store_modelled_read_mbps(&two, 1000, 2000) == 5000 &&
+              cdvr_store_modelled_read_mbps(&two, 1001, 2000) == 300 &&
+              cdvr_store_modelled_read_mbps(&two, 1, 0) == 300,
+          "the page cache's rate for a series in half the memory, else the disk's");
+
+    cdvr_volume *vol = make_series(30, 20, 15, 5);
+    cdvr_variant_spec vs[3] = {raw_spec(CDVR_STAGE2_AUTO, 256), raw_spec(CDVR_STAGE2_AUTO, 256),
+                               raw_spec(CDVR_STAGE2_LZ4, 256)};
+    vs[1].stage2_read_mbps = 200;
+    snprintf(vs[1].name, sizeof vs[1].name, "raw_auto_200");
+    size_t none = 0, chunks = 0;
+    double recorded = 0;
+    encode(vol, vs, 3, tmp_path("read_rate.cdv"), 0);
+    stored_choice(tmp_path("read_rate.cdv"), 0, &none, &chunks, &recorded);
+    CHECK(recorded == first.cache_mbps, "AUTO records the page cache's %g MB/s: %g",
+          first.cache_mbps, recorded);
+    stored_choice(tmp_path("read_rate.cdv"), 1, &none, &chunks, &recorded);
+    CHECK(recorded == 200, "a rate given is recorded: %g", recorded);
+    stored_choice(tmp_path("read_rate.cdv"), 2, &none, &chunks, &recorded);
+    CHECK(recorded == CDVR_STAGE2_READ_MBPS, "lz4: the default recorded: %g", recorded);
+    CHECK(probe_files_left() == 0, "%d test files left after the encode", probe_files_left());
+    if (!cache_entry(cache_dir, "readrate", entry, sizeof entry, key)) {
+        CHECK(0, "no .readrate entry in %s", cache_dir);
+    } else {
+        static const struct { const char *text; double mbps; int all_none; } remembered[] = {
+            {"disk 1e+07 cache 1", 1, 0}, {"disk 1 cache 1e+07", 1e7, 1}};
+        for (int d = 0; d < 2; d++) {
+            cdvr_cache_store(entry, key, (const unsigned char *)remembered[d].text,
+                             strlen(remembered[d].text));
+            encode(vol, vs, 1, tmp_path("read_rate.cdv"), 0);
+            stored_choice(tmp_path("read_rate.cdv"), 0, &none, &chunks, &recorded);
+            CHECK(recorded == remembered[d].mbps && chunks > 0 &&
+                      (remembered[d].all_none ? none == chunks : none < chunks),
+                  "'%s' remembered: recorded %g, %zu of %zu chunks without stage 2",
+                  remembered[d].text, recorded, none, chunks);
+        }
+        remove(entry);
+    }
     cdvr_volume_free(vol);
     unsetenv("CDVR_CACHE_DIR");
 }
@@ -674,6 +783,7 @@ int main(void)
     check_hostile_tables();
     check_store_roundtrips();
     check_rates();
+    check_read_rate();
     check_load_into();
     check_old_store();
     check_hostile_store();

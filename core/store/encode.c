@@ -60,9 +60,11 @@ static cdvr_status resolve_variant(const char *path, const cdvr_variant_spec *sp
     if ((unsigned)spec->stage2 > CDVR_STAGE2_AUTO)
         return cdvr_error_set(err, CDVR_ERR_ARG, "%s: bad stage2 %d (none, lzo, lz4, zstd or "
                               "auto)", path, (int)spec->stage2);
-    double mbps = spec->stage2_read_mbps == 0 ? CDVR_STAGE2_READ_MBPS : spec->stage2_read_mbps;
+    /* AUTO without a rate: 0 until model_read_rate fills in the filesystem's */
+    double mbps = spec->stage2_read_mbps != 0 ? spec->stage2_read_mbps
+                  : spec->stage2 == CDVR_STAGE2_AUTO ? 0 : CDVR_STAGE2_READ_MBPS;
     size_t segment = spec->stage2_segment ? spec->stage2_segment : CDVR_STAGE2_SEGMENT;
-    if (!(mbps > 0 && mbps < 1e12))
+    if (!(mbps >= 0 && mbps < 1e12))
         return cdvr_error_set(err, CDVR_ERR_ARG, "%s: stage2_read_mbps %g must be > 0", path,
                               spec->stage2_read_mbps);
     if (segment < CDVR_STAGE2_SEGMENT_MIN || segment > CDVR_STAGE2_SEGMENT_MAX)
@@ -474,6 +476,16 @@ static cdvr_status s2_pack(unsigned codec, const uint8_t *in, size_t n, size_t s
  * 5.2 s). */
 #define S2_SAMPLE_EVERY 4
 
+/* The share of the machine AUTO lets stage 2 take, as a factor on its unpack time: 2, at most
+ * half, the rest being the render's (issue 25: unzip below half the frame time). */
+#define S2_UNPACK_SHARE 2.0
+
+static size_t online_cores(void)
+{
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    return n > 0 ? (size_t)n : 1;
+}
+
 /* The segments of payload (seg bytes each, the last one shorter) taken by the sample, copied
  * into out; returns the sample's bytes. */
 static size_t s2_sample(const uint8_t *payload, size_t payload_n, size_t seg, uint8_t *out)
@@ -487,11 +499,12 @@ static size_t s2_sample(const uint8_t *payload, size_t payload_n, size_t seg, ui
     return n;
 }
 
-/* AUTO: the modelled b1 + b1' of every candidate (NONE: the read alone, the player keeps the
- * stored bytes as the payload; the others: the read of the packed bytes and the unpack of the
- * payload at this machine's rate, rates) on the chunk or its sample, scaled to the chunk; the
- * smallest ends in bufs.packed (a sampled chunk is packed for it then). Packed sizes are
- * deterministic and the rates are remembered, so the choice does not follow the load. */
+/* AUTO (store.h): the modelled time per chunk of every candidate in the pipelined player
+ * (NONE: the read alone, the player keeps the stored bytes as the payload; the others: the
+ * read of the packed bytes or twice the unpack of the payload on all cores at this machine's
+ * rates, whichever is longer) on the chunk or its sample, scaled to the chunk; the smallest
+ * ends in bufs.packed (a sampled chunk is packed for it then). Packed sizes are deterministic
+ * and the rates are remembered, so the choice does not follow the load. */
 static cdvr_status s2_choose(const cdvr_variant_info *vi, const cdvr_s2_rates *rates,
                              chunk_job *job, size_t payload, unsigned *codec, size_t *packed,
                              cdvr_error *err)
@@ -506,6 +519,7 @@ static cdvr_status s2_choose(const cdvr_variant_info *vi, const cdvr_s2_rates *r
     size_t in_n = sampled ? s2_sample(b->payload, payload, seg, b->sample) : payload;
     double scale = (double)payload / (double)in_n;
     double per_byte_ms = 1.0 / (vi->stage2_read_mbps * 1e3);
+    double cores = (double)online_cores();
     double best = (double)payload * per_byte_ms; /* NONE: the player takes the bytes as read */
     cdvr_status s = CDVR_OK;
     *codec = 0;
@@ -514,7 +528,9 @@ static cdvr_status s2_choose(const cdvr_variant_info *vi, const cdvr_s2_rates *r
         s = s2_pack(c, in, in_n, seg, b->trial, b->trial_cap, &n, err);
         if (s != CDVR_OK || n >= in_n)
             continue;
-        double t = (double)n * scale * per_byte_ms + (double)payload / (rates->mbps[c] * 1e3);
+        double read_ms = (double)n * scale * per_byte_ms;
+        double unpack_ms = S2_UNPACK_SHARE * (double)payload / (rates->mbps[c] * 1e3 * cores);
+        double t = read_ms > unpack_ms ? read_ms : unpack_ms;
         if (t < best) {
             best = t;
             *codec = c;
@@ -647,12 +663,6 @@ static void *worker_main(void *arg)
     }
     pthread_mutex_unlock(&pool->mu);
     return NULL;
-}
-
-static size_t online_cores(void)
-{
-    long n = sysconf(_SC_NPROCESSORS_ONLN);
-    return n > 0 ? (size_t)n : 1;
 }
 
 static cdvr_status pool_start(encode_pool *pool, const cdvr_store *st, size_t threads,
@@ -1058,6 +1068,35 @@ static void finish_variants(cdvr_store *st, const uint64_t *sse, const double *m
     }
 }
 
+/* This machine's memory in bytes (0 when unknown). */
+static uint64_t memory_bytes(void)
+{
+    long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGESIZE);
+    return pages > 0 && size > 0 ? (uint64_t)pages * (uint64_t)size : 0;
+}
+
+/* AUTO variants given no read rate model the rate the player will read the store at
+ * (cdvr_store_modelled_read_mbps over the rates of the filesystem path is written to,
+ * measured once and remembered; CDVR_STAGE2_READ_MBPS where they cannot be measured, e.g.
+ * no room for the test file), recorded in the store. */
+static void model_read_rate(cdvr_store *st, const char *path)
+{
+    double mbps = 0;
+    for (size_t v = 0; v < st->info.nvariants; v++) {
+        if (st->variants[v].stage2_read_mbps != 0)
+            continue;
+        if (mbps == 0) {
+            cdvr_read_rates rates;
+            cdvr_error ignored;
+            mbps = cdvr_store_read_rates(path, &rates, &ignored) == CDVR_OK
+                       ? cdvr_store_modelled_read_mbps(&rates, st->info.raw_bytes,
+                                                       memory_bytes())
+                       : CDVR_STAGE2_READ_MBPS;
+        }
+        st->variants[v].stage2_read_mbps = mbps;
+    }
+}
+
 static size_t encode_threads(const cdvr_encode_opts *opts)
 {
     size_t n = opts->threads > 0 ? (size_t)opts->threads : online_cores();
@@ -1096,6 +1135,7 @@ cdvr_status cdvr_store_encode_source(const cdvr_encode_source *src,
         return s;
     }
     wc.fd = fileno(af.f); /* written with pwrite only: the FILE buffers nothing */
+    model_read_rate(st, path);
     s = train_shared(&wc, err);
     if (s == CDVR_OK)
         s = write_chunks(&wc, err);

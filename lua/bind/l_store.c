@@ -178,6 +178,21 @@ typedef struct top_defaults {
     lua_Integer stage2_segment;
 } top_defaults;
 
+/* stage2_read_mbps= of the table at idx: a read rate > 0 in MB/s, or def when absent (0: the
+ * store's filesystem's, measured by the encoder). */
+static double read_rate_field(lua_State *L, int idx, double def)
+{
+    if (lua_getfield(L, idx, "stage2_read_mbps") == LUA_TNIL) {
+        lua_pop(L, 1);
+        return def;
+    }
+    lua_pop(L, 1);
+    double mbps = lcdvr_optnumberfield(L, idx, "stage2_read_mbps", def);
+    if (!(mbps > 0 && mbps < 1e12))
+        lcdvr_error(L, "option 'stage2_read_mbps': %f must be a read rate > 0 in MB/s", mbps);
+    return mbps;
+}
+
 /* Fills *out from the variant table at idx (0: the top-level table is the only variant):
  * codec defaults, then the top-level keys the codec takes, then the variant's own keys. */
 static void parse_spec(lua_State *L, int idx, const top_defaults *top, cdvr_variant_spec *out)
@@ -198,11 +213,7 @@ static void parse_spec(lua_State *L, int idx, const top_defaults *top, cdvr_vari
     out->lzo_min_saving = lcdvr_optnumberfield(L, from, "lzo_min_saving", top->lzo_min_saving);
     if (!(out->lzo_min_saving >= 0 && out->lzo_min_saving <= 1))
         lcdvr_error(L, "option 'lzo_min_saving': %f is not in [0, 1]", out->lzo_min_saving);
-    out->stage2_read_mbps = lcdvr_optnumberfield(L, from, "stage2_read_mbps",
-                                                 top->stage2_read_mbps);
-    if (!(out->stage2_read_mbps > 0 && out->stage2_read_mbps < 1e12))
-        lcdvr_error(L, "option 'stage2_read_mbps': %f must be a read rate > 0 in MB/s",
-                    out->stage2_read_mbps);
+    out->stage2_read_mbps = read_rate_field(L, from, top->stage2_read_mbps);
     lua_Integer seg = lcdvr_optintegerfield(L, from, "stage2_segment", top->stage2_segment);
     if (seg < CDVR_STAGE2_SEGMENT_MIN || seg > CDVR_STAGE2_SEGMENT_MAX)
         lcdvr_error(L, "option 'stage2_segment': %I bytes is not in %d..%d", seg,
@@ -249,12 +260,12 @@ static cdvr_variant_spec *parse_variants(lua_State *L, int idx, size_t *n)
 {
     top_defaults top = {.idx = idx, .stage2 = CDVR_STAGE2_AUTO,
                         .lzo_min_saving = CDVR_LZO_MIN_SAVING,
-                        .stage2_read_mbps = CDVR_STAGE2_READ_MBPS,
+                        .stage2_read_mbps = 0,
                         .stage2_segment = CDVR_STAGE2_SEGMENT};
     top.codec = codecfield(L, idx, cdvr_codec_find(CDVR_CODEC_DEFAULT));
     top.stage2 = (cdvr_stage2)optionfield(L, idx, "stage2", stage2_names, (int)top.stage2);
     top.lzo_min_saving = lcdvr_optnumberfield(L, idx, "lzo_min_saving", top.lzo_min_saving);
-    top.stage2_read_mbps = lcdvr_optnumberfield(L, idx, "stage2_read_mbps", top.stage2_read_mbps);
+    top.stage2_read_mbps = read_rate_field(L, idx, top.stage2_read_mbps);
     top.stage2_segment = lcdvr_optintegerfield(L, idx, "stage2_segment", top.stage2_segment);
     int t = lua_getfield(L, idx, "variants");
     if (t != LUA_TNIL && t != LUA_TTABLE)
@@ -1048,19 +1059,30 @@ static const luaL_Reg store_methods[] = {
 static const luaL_Reg store_meta[] = {
     {"__gc", store_gc}, {"__close", store_gc}, {"__tostring", store_tostring}, {NULL, NULL}};
 
-/* cdvr.stage2_rates() -> {lzo=, lz4=, zstd= (MB/s), from_cache=} */
+/* cdvr.stage2_rates([path]) -> {lzo=, lz4=, zstd= (MB/s), from_cache=[, read_disk=,
+ * read_cache=, read_from_cache=]} */
 static int l_stage2_rates(lua_State *L)
 {
+    const char *path = luaL_optstring(L, 1, NULL);
     double mbps[5];
     int from_cache = 0;
+    cdvr_read_rates read;
     cdvr_error err;
     if (cdvr_stage2_unpack_rates(mbps, &from_cache, &err) != CDVR_OK)
         return lcdvr_raise(L, &err);
-    lua_createtable(L, 0, 4);
+    if (path && cdvr_store_read_rates(path, &read, &err) != CDVR_OK)
+        return lcdvr_raise(L, &err);
+    lua_createtable(L, 0, 7);
     for (int c = CDVR_STAGE2_LZO; c <= CDVR_STAGE2_ZSTD; c++)
         setnum(L, stage2_names[c], mbps[c]);
     lua_pushboolean(L, from_cache);
     lua_setfield(L, -2, "from_cache");
+    if (path) {
+        setnum(L, "read_disk", read.disk_mbps);
+        setnum(L, "read_cache", read.cache_mbps);
+        lua_pushboolean(L, read.from_cache);
+        lua_setfield(L, -2, "read_from_cache");
+    }
     return 1;
 }
 
@@ -1079,9 +1101,12 @@ int lcdvr_open_store(lua_State *L)
                       "lzo_min_saving=, stage2_read_mbps=, stage2_segment=, name=, variants=, schedule=, progress=, bricks=, threads=, ranges=, range_brick=, levels=, level_variants=})",
                    "encode a series into a .cdv store (written atomically; defaults codec=pvtc "
                    "S=4 T=3 pack=time encoder=lsq stage2=auto lzo_min_saving=0.1; stage2=none|lzo|lz4|"
-                   "zstd|auto (auto: per chunk the smallest modelled read at stage2_read_mbps=500 "
-                   "MB/s + unpack at this machine's rates, measured once and remembered, "
-                   "cdvr.stage2_rates(); stage2_segment=1048576 payload bytes per "
+                   "zstd|auto (auto: per chunk the shortest modelled time in the pipelined "
+                   "player, the read at stage2_read_mbps= MB/s or twice the unpack on all "
+                   "cores at this machine's rates, whichever is longer; the read rate by "
+                   "default that of the store's filesystem, from the page cache where the "
+                   "series fits in half the memory, else from the disk; rates measured once "
+                   "and remembered, cdvr.stage2_rates(path); stage2_segment=1048576 payload bytes per "
                    "independently packed segment); bricks={bx,by,bz} "
                    "splits each timestep into bricks; threads=0: one per core, the same bytes for "
                    "any count; ranges=true: per-brick value range tables for empty-space "
@@ -1090,10 +1115,14 @@ int lcdvr_open_store(lua_State *L)
                    "(default: variants=); schedule(t, variant) runs under callback_limit= instructions, "
                    "default 5e7, and callback_memory= MB, default 256); the opened store; raises "
                    "when it cannot write the file (the message names it)");
-    lcdvr_help_add(L, "cdvr.stage2_rates()",
-                   "this machine's single-thread stage-2 unpack rates that stage2=auto models "
-                   "(payload MB/s, measured once on a fixed calibration payload and remembered "
-                   "in the cache): {lzo=, lz4=, zstd=, from_cache=}");
+    lcdvr_help_add(L, "cdvr.stage2_rates([path])",
+                   "the rates stage2=auto models: this machine's single-thread stage-2 unpack "
+                   "rates (payload MB/s, measured once on a fixed calibration payload) and, "
+                   "given a store's path, the rates its filesystem reads at from the disk and "
+                   "from the page cache (MB/s; a 32 MiB test file written, synced and read "
+                   "there, dropped from the page cache and cached), each remembered in the "
+                   "cache: {lzo=, lz4=, zstd=, from_cache=, read_disk=, read_cache=, "
+                   "read_from_cache=}");
     lcdvr_help_add(L, "cdvr.open(path)", "open a .cdv store (lazy); the store, or raises naming "
                                          "the file and the reason");
     lcdvr_help_add(L, "st:info()", "dims, timesteps, window, bytes, ratio and per-variant "

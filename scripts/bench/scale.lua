@@ -19,7 +19,9 @@
 --   each executable),
 --   --stage2 none|lzo|lz4|zstd|auto (the new executable's stores only; without it each
 --   executable keeps its default: auto since 2026-12-06, lzo before),
---   --stage2-read-mbps M (auto's modelled disk rate),
+--   --stage2-read-mbps M (the new executable's stores: auto's modelled read rate; by default
+--   its store's filesystem's, from the page cache where the series fits in half the memory,
+--   else from the disk, store.h),
 --   --rounds R (playback: R rounds alternating old, new, old, new, ...; the ratio is that of
 --   the medians; each row has the 1-minute load average before it ran),
 --   --encoder lsq|bbox, --sizes 512,64, --frames 30, --device cl|cpu, --threads 0,
@@ -28,7 +30,9 @@
 --   --range-brick 4|8|16 (the new executable's range tables; default its encoder's),
 --   --empty-skip on|off (empty-space skipping of the players, default on),
 --   --read-mbps M (both players read at most M MB/s, player.h read_mbps: playback from a
---   disk of that rate, e.g. the one --stage2-read-mbps models, rather than the page cache).
+--   disk of that rate, e.g. the one --stage2-read-mbps models, rather than the page cache),
+--   --cold (both players drop each chunk from the page cache before reading it, player.h
+--   cold: playback from the disk itself, the out-of-core case).
 -- Playback rows carry grid_ms (the skip grids made from the range tables; the old executable
 -- may count them in unzip_ms) and samples (median samples the ray caster took per frame, 0
 -- when the executable does not report them: with --empty-skip off, every sample),
@@ -65,8 +69,8 @@ local function range_opts(exe)
 end
 
 local function stage2_opts(exe)
-  if exe.name ~= "new" or not opt.stage2 then return "" end
-  return (', stage2=%q'):format(opt.stage2) ..
+  if exe.name ~= "new" then return "" end
+  return (opt.stage2 and (', stage2=%q'):format(opt.stage2) or "") ..
          (opt["stage2-read-mbps"] and (", stage2_read_mbps=" .. opt["stage2-read-mbps"]) or "")
 end
 
@@ -205,7 +209,8 @@ print("OK," .. table.concat(out, ",") .. (",%%.1f"):format(vmhwm_mb()) .. "," ..
 ]]):format(stores[exe.name][n][var], tf_points, c + 2.2 * D, c - 1.3 * D, c + 1.3 * D, c, c, c,
            size, size, var, opt.device,
            (opt["empty-skip"] == "off" and ", empty_skip=false" or "") ..
-           (opt["read-mbps"] and (", read_mbps=" .. assert(tonumber(opt["read-mbps"]), "--read-mbps M")) or ""),
+           (opt["read-mbps"] and (", read_mbps=" .. assert(tonumber(opt["read-mbps"]), "--read-mbps M")) or "") ..
+           (opt.cold and ", cold=true" or ""),
            math.min(frames, 6), repeats, frames))
         if r then
           local share = r[7] > 0 and r[6] / r[8] or 0 / 0

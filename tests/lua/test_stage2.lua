@@ -1,8 +1,8 @@
 -- tests/lua/test_stage2.lua: stage 2 beyond LZO from Lua (cdvr.encode stage2 = "none", "lzo",
 -- "lz4", "zstd", "auto"; stage2_read_mbps=, stage2_segment=): every choice decodes to the same
 -- voxels as no stage 2, the chunk listing names each chunk's codec, the variant counts them,
--- auto is the default and deterministic (cdvr.stage2_rates), and bad values raise listing the
--- valid ones.
+-- auto is the default and deterministic (cdvr.stage2_rates; its disk rate, by default the
+-- store's filesystem's, measured once), and bad values raise listing the valid ones.
 local failures = 0
 local function check(cond, msg)
   if not cond then
@@ -82,6 +82,18 @@ end
 local plain = cdvr.encode(src, {path = tmp("default.cdv"), progress = false, stage2_segment = 4096,
                                 variants = {{codec = "raw"}, {S = 4, T = 3}}})
 check(plain:info().variants[1].stage2 == "auto", "stage2 defaults to auto")
+-- without stage2_read_mbps= auto models the rate the player will read the store at: this
+-- small series fits in memory, so the page cache's of the store's filesystem, measured once
+-- and remembered (cdvr.stage2_rates(path)), and records it
+local disk = cdvr.stage2_rates(tmp("default.cdv"))
+check(disk.read_disk and disk.read_disk >= 1 and disk.read_cache >= 1 and disk.read_from_cache == true,
+      ("stage2_rates(path): disk %s cache %s MB/s, remembered %s"):format(tostring(disk.read_disk),
+       tostring(disk.read_cache), tostring(disk.read_from_cache)))
+check(plain:info().variants[1].stage2_read_mbps == disk.read_cache,
+      ("the default store records the page cache's %s MB/s: %s"):format(tostring(disk.read_cache),
+       tostring(plain:info().variants[1].stage2_read_mbps)))
+check(rates.read_disk == nil, "stage2_rates() without a path measures no disk")
+raises("/nonexistent-cdvr-dir", cdvr.stage2_rates, "/nonexistent-cdvr-dir/x.cdv")
 plain:close()
 cdvr.encode(src, {path = tmp("auto2.cdv"), progress = false, stage2 = "auto", stage2_segment = 4096,
                   variants = {{codec = "raw"}, {S = 4, T = 3}}}):close()
@@ -93,6 +105,8 @@ raises("option 'stage2': invalid value 'LZ4'", cdvr.encode, src, {path = tmp("x.
 raises("option 'stage2_segment': 10 bytes is not in 64..1073741824", cdvr.encode, src,
        {path = tmp("x.cdv"), stage2_segment = 10})
 raises("option 'stage2_read_mbps'", cdvr.encode, src, {path = tmp("x.cdv"), stage2_read_mbps = 0})
+raises("option 'stage2_read_mbps'", cdvr.encode, src, {path = tmp("x.cdv"), variants = {{stage2_read_mbps = -5}}})
+raises("option 'stage2_read_mbps'", cdvr.encode, src, {path = tmp("x.cdv"), stage2_read_mbps = "fast"})
 raises("stage2_segmentz", cdvr.encode, src, {path = tmp("x.cdv"), stage2_segmentz = 4096})
 os.execute("rm -rf " .. dir)
 if failures > 0 then

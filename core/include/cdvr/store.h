@@ -37,16 +37,25 @@
  *   LZO   LZO1X-1 (seed 001; stores of the seed keep reading bit-identically).
  *   LZ4   LZ4 (LZ4_compress_default), the fastest to unpack.
  *   ZSTD  zstd level 3, the smallest.
- *   AUTO  per chunk, the one of NONE, LZO, LZ4, ZSTD whose modelled b1 + b1' is the smallest:
- *         stored bytes / stage2_read_mbps (the disk read rate, default
- *         CDVR_STAGE2_READ_MBPS) + payload bytes / this machine's single-thread unpack rate of
- *         the codec (NONE costs the read alone: the player keeps the stored bytes as the
- *         payload). The rates are measured once per machine on a fixed calibration payload
- *         and remembered in the cache (cdvr_s2_unpack_rates, core/codec/stage2/stage2.h;
- *         cdvr/cache.h), so the choice follows the chunk's packed sizes and these rates, not
- *         the load at encode time: two encodes on one machine write the same store. A chunk
- *         of more than 4 segments is modelled from every 4th segment. The choice is recorded
- *         per chunk (cdvr_chunk_info.stage2). The Lua layer's default (cdvr.encode).
+ *   AUTO  per chunk, the one of NONE, LZO, LZ4, ZSTD with the smallest modelled time per chunk
+ *         in the pipelined player, which reads one chunk while it unpacks another on all
+ *         cores: NONE costs payload bytes / R (the player keeps the stored bytes as the
+ *         payload), a codec c max(stored bytes / R, 2 * payload bytes / (U_c * n)), where
+ *         U_c is this machine's single-thread unpack rate of c, n its online cores, and the 2
+ *         keeps stage 2 to at most half of the machine, the rest being the render's. R is
+ *         stage2_read_mbps, by default the rate the player will read at
+ *         (cdvr_store_modelled_read_mbps): the page cache's where the series (its u8 voxels)
+ *         fits in half this machine's memory, as it is read from there after the first pass,
+ *         else the disk's, as a loop larger than the page cache finds no chunk still there;
+ *         both measured once per filesystem (cdvr_store_read_rates), CDVR_STAGE2_READ_MBPS
+ *         where they cannot be measured; the R used is recorded
+ *         (cdvr_variant_info.stage2_read_mbps). The unpack rates are measured once per
+ *         machine on a fixed calibration payload and remembered in the cache
+ *         (cdvr_s2_unpack_rates, core/codec/stage2/stage2.h; cdvr/cache.h), so the choice
+ *         follows the chunk's packed sizes and these rates, not the load at encode time: two
+ *         encodes on one machine write the same store. A chunk of more than 4 segments is
+ *         modelled from every 4th segment. The choice is recorded per chunk
+ *         (cdvr_chunk_info.stage2). The Lua layer's default (cdvr.encode).
  * A chunk's stage 2 is kept only where it pays: for LZO, LZ4 and ZSTD when it saves at least
  * lzo_min_saving of the chunk (AUTO: where the model says so). LZ4 and ZSTD chunks, and LZO
  * ones larger than one segment, are cut into segments of stage2_segment payload bytes
@@ -60,7 +69,8 @@ typedef enum cdvr_stage2 {
     CDVR_STAGE2_AUTO = 4 /* a variant's setting only; a chunk records what AUTO chose */
 } cdvr_stage2;
 
-#define CDVR_STAGE2_READ_MBPS 500.0          /* AUTO's disk read rate, MB/s (10^6 bytes) */
+#define CDVR_STAGE2_READ_MBPS 500.0          /* AUTO's disk read rate where none is measured,
+                                                MB/s (10^6 bytes) */
 #define CDVR_STAGE2_SEGMENT (1u << 20)       /* payload bytes per segment */
 #define CDVR_STAGE2_SEGMENT_MIN 64u
 #define CDVR_STAGE2_SEGMENT_MAX (1u << 30)
@@ -76,7 +86,9 @@ typedef struct cdvr_variant_spec {
     cdvr_stage2 stage2;
     double lzo_min_saving;         /* stage 2 kept only if it saves at least this fraction of
                                       the chunk (default CDVR_LZO_MIN_SAVING); <0 -> default */
-    double stage2_read_mbps;       /* AUTO's read rate in MB/s; 0 -> CDVR_STAGE2_READ_MBPS */
+    double stage2_read_mbps;       /* AUTO's read rate in MB/s; 0 -> the store's filesystem's
+                                      (cdvr_store_modelled_read_mbps; non-AUTO variants
+                                      record CDVR_STAGE2_READ_MBPS) */
     size_t stage2_segment;         /* segment bytes; 0 -> CDVR_STAGE2_SEGMENT */
 } cdvr_variant_spec;
 
@@ -289,6 +301,26 @@ const char *cdvr_stage2_name(int stage2);
  * on a fixed calibration payload and remembered, see AUTO above), by cdvr_stage2: mbps[LZO],
  * mbps[LZ4], mbps[ZSTD]; mbps[NONE] and mbps[AUTO] are 0. *from_cache: 1 when remembered. */
 cdvr_status cdvr_stage2_unpack_rates(double mbps[5], int *from_cache, cdvr_error *err);
+/* The rates at which the filesystem holding path (a store's path: its directory is measured)
+ * reads, MB/s (10^6 bytes): disk_mbps for bytes not in the page cache, cache_mbps for bytes
+ * in it. A 32 MiB test file is written and synced there (unlinked at once: nothing is left),
+ * then read with 4 MiB preads three times after dropping it from the page cache and three
+ * times while cached; each rate is the median pass rounded to two significant digits, in
+ * [1, 1e7]. Measured once per filesystem (device, id and size) and remembered in the cache
+ * (cdvr/cache.h; from_cache 1); about 0.2 s on an SSD. Where files live in memory (tmpfs)
+ * both are the memory's rate. Fails (CDVR_ERR_IO naming the directory and the reason, the
+ * rates 0) where the test file cannot be written. */
+typedef struct cdvr_read_rates {
+    double disk_mbps, cache_mbps;
+    int from_cache;
+} cdvr_read_rates;
+
+cdvr_status cdvr_store_read_rates(const char *path, cdvr_read_rates *out, cdvr_error *err);
+
+/* The read rate AUTO models for a series of raw_bytes u8 voxels (all timesteps) on a machine
+ * of memory_bytes: rates->cache_mbps when raw_bytes <= memory_bytes / 2, else disk_mbps. */
+double cdvr_store_modelled_read_mbps(const cdvr_read_rates *rates, uint64_t raw_bytes,
+                                     uint64_t memory_bytes);
 /* b1 + b1' in one call: a new malloc'ed buffer (*payload, freed by the caller) holding chunk c's
  * payload_bytes after the CRC check and stage 2. */
 cdvr_status cdvr_store_load_payload(const cdvr_store *st, size_t v, size_t c, uint8_t **payload,
