@@ -1,5 +1,5 @@
 /* tests/test_render_ctx.c - what the render context keeps on the OpenCL device between renders
- * (cdvr_render_ctx_upload, cdvr_render_ctx_hold_volume in cdvr/method.h; revision in
+ * (cdvr_render_ctx_volume_stream, cdvr_render_ctx_hold_volume in cdvr/method.h; revision in
  * cdvr/volume.h).
  *
  * Proves, on the raycast method on cl, each image compared bit for bit with the render of a
@@ -13,6 +13,9 @@
  *    with other voxels, hold B and render: B's image; the same without any hold (the memcmp
  *    path), with B held while A is still alive, and with B at A's address for certain (A's
  *    memory given other voxels and revision 0 after hold NULL);
+ *  - two held volumes rendered in turn keep a stream each: the second round uploads nothing,
+ *    a third volume (other dims) takes the place of the one used least recently, a released
+ *    volume is uploaded again;
  *  - a volume not held keeps the memcmp path: a second render uploads nothing, and a write
  *    without touch is still seen.
  * The same free-and-reallocate cases, and an edit of a held volume, on the cpu device (whose
@@ -201,6 +204,10 @@ static void test_reallocate(cdvr_render_ctx *ctx, scene *sc, int hold)
         b = volume_with_block(1, 0, 16, 12, 10);
         same_address = 0;
         cdvr_render_ctx_hold_volume(ctx, b);
+        CHECK(cdvr_render_ctx_held_index(ctx, a) >= 0 && cdvr_render_ctx_held_index(ctx, b) >= 0,
+              "hold 2: A and B held at once");
+        cdvr_render_ctx_release_volume(ctx, a);
+        CHECK(cdvr_render_ctx_held_index(ctx, a) < 0, "hold 2: A released");
         cdvr_volume_free(a);
     } else {
         const void *a_at = a, *a_data = a->data;
@@ -225,6 +232,62 @@ static void test_reallocate(cdvr_render_ctx *ctx, scene *sc, int hold)
     cdvr_render_ctx_hold_volume(ctx, NULL);
     cdvr_image_free(ia);
     cdvr_volume_free(b);
+}
+
+/* Frames uploaded by a render of frame 0 of vol, held, whose image must equal a fresh
+ * context's. */
+static uint64_t held_render(cdvr_render_ctx *ctx, scene *sc, const cdvr_volume *vol,
+                            const char *what)
+{
+    cdvr_render_ctx_hold_volume(ctx, vol);
+    uint64_t n0 = cdvr_render_ctx_uploads(ctx);
+    cdvr_image *img = render(ctx, sc, vol, 0, NULL);
+    check_fresh(sc, img, vol, 0, what);
+    cdvr_image_free(img);
+    return cdvr_render_ctx_uploads(ctx) - n0;
+}
+
+/* Two held volumes rendered in turn keep a stream each (CDVR_RENDER_CTX_STREAMS): A and B
+ * of the same dims, then C of other dims in place of the one used least recently; a volume
+ * released is uploaded again. */
+static void test_two_held(cdvr_render_ctx *ctx, scene *sc)
+{
+    cdvr_volume *a = volume_with_block(1, 0, 4, 4, 4), *b = volume_with_block(1, 0, 16, 12, 10);
+    size_t other[3] = {20, 24, 12};
+    cdvr_volume *c = NULL;
+    cdvr_error err;
+    CHECK_OK(cdvr_volume_create(other, 1, CDVR_TYPE_U8, &c, &err), err);
+    if (!a || !b || !c)
+        return;
+    memset(c->data, 200, cdvr_volume_frame_bytes(c) / 2);
+    const cdvr_volume *order[] = {a, b, a, b, c, b, c, a, a};
+    const char *names[] = {"A", "B", "A", "B", "C", "B", "C", "A", "A"};
+    /* C takes the hold and stream of A (both used least recently), A then those of B */
+    const uint64_t want[] = {1, 1, 0, 0, 1, 0, 0, 1, 0};
+    for (size_t i = 0; i < sizeof order / sizeof *order; i++) {
+        char what[64];
+        snprintf(what, sizeof what, "two held, render %zu (%s)", i + 1, names[i]);
+        uint64_t n = held_render(ctx, sc, order[i], what);
+        CHECK(n == want[i], "%s: %llu uploads, want %llu", what, (unsigned long long)n,
+              (unsigned long long)want[i]);
+    }
+    CHECK(cdvr_render_ctx_held_index(ctx, b) < 0 && cdvr_render_ctx_held_index(ctx, a) >= 0 &&
+              cdvr_render_ctx_held_index(ctx, c) >= 0,
+          "held: A and C, B released when A was held again");
+    cdvr_render_ctx_release_volume(ctx, a);
+    CHECK(cdvr_render_ctx_held_index(ctx, a) < 0, "A released");
+    uint64_t n0 = cdvr_render_ctx_uploads(ctx);
+    cdvr_image *img = render(ctx, sc, a, 0, NULL);
+    CHECK(cdvr_render_ctx_uploads(ctx) == n0 + 1, "A released: uploaded again (%llu)",
+          (unsigned long long)(cdvr_render_ctx_uploads(ctx) - n0));
+    check_fresh(sc, img, a, 0, "A after its release");
+    cdvr_image_free(img);
+    cdvr_render_ctx_forget_frame(ctx); /* its copy: test_not_held renders the same voxels */
+    cdvr_render_ctx_hold_volume(ctx, NULL);
+    CHECK(cdvr_render_ctx_held_index(ctx, c) < 0, "hold NULL releases all");
+    cdvr_volume_free(a);
+    cdvr_volume_free(b);
+    cdvr_volume_free(c);
 }
 
 static void test_not_held(cdvr_render_ctx *ctx, scene *sc)
@@ -293,6 +356,7 @@ int main(void)
     test_held_timesteps(ctx, &sc);
     for (int hold = 0; hold < 4; hold++)
         test_reallocate(ctx, &sc, hold);
+    test_two_held(ctx, &sc);
     test_not_held(ctx, &sc);
     cdvr_render_ctx_free(ctx);
     return check_finish();

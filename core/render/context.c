@@ -1,7 +1,8 @@
 /* core/render/context.c - the devices a render uses (cdvr_render_ctx, cdvr/method.h): the
- * OpenCL device with one stream reused while the frame dims stay the same, what the stream's
- * frame 0 holds (so rendering the same frame twice uploads nothing: the identity and revision
- * of a held volume's frame, else a host copy of the voxels), and the EGL slicer; the CPU ray
+ * OpenCL device with up to CDVR_RENDER_CTX_STREAMS streams, each reused while its frame dims
+ * stay the same and knowing what its frame 0 holds (so rendering the same frame twice uploads
+ * nothing: the identity and revision of a held volume's frame, else a host copy of the
+ * voxels; two volumes rendered in turn keep a stream each), and the EGL slicer; the CPU ray
  * caster's skip cache. Each is opened on first use; a failed OpenCL open is remembered, so the
  * default device rule asks the driver once. */
 #include "cdvr/method.h"
@@ -17,17 +18,27 @@
 #include "cdvr/store.h"
 #include "cdvr/visible.h"
 
+/* One OpenCL stream and what its frame 0 holds. */
+typedef struct ctx_slot {
+    cdvr_cl_stream *stream;      /* NULL: not made yet */
+    size_t dims[3];
+    uint8_t *frame_copy;         /* host copy of the voxels of the stream's frame 0, or NULL */
+    size_t frame_bytes;
+    cdvr_frame_stamp uploaded;   /* a held volume's frame on the stream (vol NULL: none) */
+    uint64_t used;               /* the context's tick at its last use (0: never) */
+} ctx_slot;
+
 struct cdvr_render_ctx {
     cdvr_cl *cl;
     int cl_failed;               /* cdvr_cl_open failed: cl_error says why */
     cdvr_error cl_error;
-    cdvr_cl_stream *stream;
-    size_t stream_dims[3];
-    uint8_t *frame_copy;         /* host copy of the voxels of the stream's frame 0, or NULL */
-    size_t frame_bytes;
-    const cdvr_volume *held;     /* cdvr_render_ctx_hold_volume's volume, or NULL */
-    cdvr_frame_stamp uploaded;   /* the held volume's frame on the stream (vol NULL: none) */
-    uint64_t uploads;            /* frames sent by cdvr_render_ctx_upload */
+    ctx_slot slots[CDVR_RENDER_CTX_STREAMS];
+    ctx_slot *current;           /* the slot whose stream was handed out last, or NULL */
+    uint64_t tick;
+    const cdvr_volume *held[CDVR_RENDER_CTX_HOLDS]; /* cdvr_render_ctx_hold_volume's, or NULL */
+    uint64_t held_used[CDVR_RENDER_CTX_HOLDS];      /* tick of each hold (0: none) */
+    const cdvr_volume *last_held; /* the volume held last (the CPU skip cache keeps its ranges) */
+    uint64_t uploads;            /* frames sent by cdvr_render_ctx_volume_stream */
     cdvr_gl *gl;
     cdvr_brick_cache *cache;     /* the brick cache of the last cached store render, or NULL */
     char *cache_path;            /* its store's path and size: a new store at the address of */
@@ -46,27 +57,74 @@ cdvr_status cdvr_render_ctx_create(cdvr_render_ctx **out, cdvr_error *err)
     return CDVR_OK;
 }
 
+static void slot_forget(ctx_slot *slot)
+{
+    free(slot->frame_copy);
+    slot->frame_copy = NULL;
+    slot->frame_bytes = 0;
+    memset(&slot->uploaded, 0, sizeof slot->uploaded);
+}
+
 void cdvr_render_ctx_forget_frame(cdvr_render_ctx *ctx)
 {
-    free(ctx->frame_copy);
-    ctx->frame_copy = NULL;
-    ctx->frame_bytes = 0;
-    memset(&ctx->uploaded, 0, sizeof ctx->uploaded);
+    if (ctx->current)
+        slot_forget(ctx->current);
 }
 
-void cdvr_render_ctx_hold_volume(cdvr_render_ctx *ctx, const cdvr_volume *vol)
+int cdvr_render_ctx_held_index(const cdvr_render_ctx *ctx, const cdvr_volume *vol)
 {
-    if (vol == ctx->held)
+    for (int i = 0; vol && i < CDVR_RENDER_CTX_HOLDS; i++)
+        if (ctx->held[i] == vol)
+            return i;
+    return -1;
+}
+
+static void release_at(cdvr_render_ctx *ctx, int i)
+{
+    const cdvr_volume *old = ctx->held[i];
+    if (!old)
         return;
-    ctx->held = vol;
-    /* the volume held before may be freed from now on, and another allocated at its address */
-    memset(&ctx->uploaded, 0, sizeof ctx->uploaded);
-    cdvr_cpu_skip_cache_hold(ctx->cpu_skip, vol);
+    ctx->held[i] = NULL;
+    ctx->held_used[i] = 0;
+    /* it may be freed from now on, and another allocated at its address */
+    for (int k = 0; k < CDVR_RENDER_CTX_STREAMS; k++)
+        if (ctx->slots[k].uploaded.vol == old)
+            memset(&ctx->slots[k].uploaded, 0, sizeof ctx->slots[k].uploaded);
+    if (ctx->last_held == old) {
+        ctx->last_held = NULL;
+        cdvr_cpu_skip_cache_hold(ctx->cpu_skip, NULL);
+    }
 }
 
-const cdvr_volume *cdvr_render_ctx_held(const cdvr_render_ctx *ctx)
+int cdvr_render_ctx_hold_volume(cdvr_render_ctx *ctx, const cdvr_volume *vol)
 {
-    return ctx->held;
+    if (!vol) {
+        for (int i = 0; i < CDVR_RENDER_CTX_HOLDS; i++)
+            release_at(ctx, i);
+        return -1;
+    }
+    int at = cdvr_render_ctx_held_index(ctx, vol);
+    if (at < 0) { /* in place of the hold used least recently (or none) */
+        at = 0;
+        for (int i = 1; i < CDVR_RENDER_CTX_HOLDS; i++)
+            if (ctx->held_used[i] < ctx->held_used[at])
+                at = i;
+        release_at(ctx, at);
+        ctx->held[at] = vol;
+    }
+    ctx->held_used[at] = ++ctx->tick;
+    if (ctx->last_held != vol) {
+        ctx->last_held = vol;
+        cdvr_cpu_skip_cache_hold(ctx->cpu_skip, vol);
+    }
+    return at;
+}
+
+void cdvr_render_ctx_release_volume(cdvr_render_ctx *ctx, const cdvr_volume *vol)
+{
+    int at = cdvr_render_ctx_held_index(ctx, vol);
+    if (at >= 0)
+        release_at(ctx, at);
 }
 
 uint64_t cdvr_render_ctx_uploads(const cdvr_render_ctx *ctx)
@@ -78,11 +136,15 @@ void cdvr_render_ctx_free(cdvr_render_ctx *ctx)
 {
     if (!ctx)
         return;
-    cdvr_render_ctx_forget_frame(ctx);
     cdvr_brick_cache_free(ctx->cache);
     free(ctx->cache_path);
+    for (int k = 0; k < CDVR_RENDER_CTX_STREAMS; k++) {
+        slot_forget(&ctx->slots[k]);
 #if CDVR_HAVE_OPENCL
-    cdvr_cl_stream_free(ctx->stream);
+        cdvr_cl_stream_free(ctx->slots[k].stream);
+#endif
+    }
+#if CDVR_HAVE_OPENCL
     cdvr_cl_close(ctx->cl);
 #endif
     cdvr_visible_free(ctx->visible); /* after the stream, which may use its frame */
@@ -144,7 +206,7 @@ cdvr_cpu_skip_cache *cdvr_render_ctx_cpu_skip(cdvr_render_ctx *ctx)
         return NULL;
     if (!ctx->cpu_skip && cdvr_cpu_skip_cache_create(&ctx->cpu_skip, NULL) != CDVR_OK)
         ctx->cpu_skip = NULL;
-    cdvr_cpu_skip_cache_hold(ctx->cpu_skip, ctx->held);
+    cdvr_cpu_skip_cache_hold(ctx->cpu_skip, ctx->last_held);
     return ctx->cpu_skip;
 }
 
@@ -169,6 +231,49 @@ int cdvr_render_ctx_has_cl(cdvr_render_ctx *ctx)
     return cdvr_render_ctx_cl(ctx, &cl, NULL) == CDVR_OK;
 }
 
+/* The slot used least recently (one never used first). */
+static ctx_slot *least_recent(cdvr_render_ctx *ctx)
+{
+    ctx_slot *slot = &ctx->slots[0];
+    for (int k = 1; k < CDVR_RENDER_CTX_STREAMS; k++)
+        if (ctx->slots[k].used < slot->used)
+            slot = &ctx->slots[k];
+    return slot;
+}
+
+/* The slot with a stream of dims used most recently, or NULL. */
+static ctx_slot *recent_of_dims(cdvr_render_ctx *ctx, const size_t dims[3])
+{
+    ctx_slot *slot = NULL;
+    for (int k = 0; k < CDVR_RENDER_CTX_STREAMS; k++) {
+        ctx_slot *c = &ctx->slots[k];
+        if (c->stream && memcmp(c->dims, dims, sizeof c->dims) == 0 &&
+            (!slot || c->used > slot->used))
+            slot = c;
+    }
+    return slot;
+}
+
+/* Makes slot's stream one of dims (a new one, its frame unknown, when the dims differ), the
+ * context's current one, and *out. */
+static cdvr_status use_slot(cdvr_render_ctx *ctx, cdvr_cl *cl, ctx_slot *slot,
+                            const size_t dims[3], cdvr_cl_stream **out, cdvr_error *err)
+{
+    if (!slot->stream || memcmp(slot->dims, dims, sizeof slot->dims) != 0) {
+        cdvr_cl_stream_free(slot->stream);
+        slot->stream = NULL;
+        slot_forget(slot);
+        cdvr_status s = cdvr_cl_stream_create(cl, dims, &slot->stream, err);
+        if (s != CDVR_OK)
+            return s;
+        memcpy(slot->dims, dims, sizeof slot->dims);
+    }
+    slot->used = ++ctx->tick;
+    ctx->current = slot;
+    *out = slot->stream;
+    return CDVR_OK;
+}
+
 cdvr_status cdvr_render_ctx_stream(cdvr_render_ctx *ctx, const size_t dims[3],
                                    cdvr_cl_stream **out, cdvr_error *err)
 {
@@ -176,17 +281,8 @@ cdvr_status cdvr_render_ctx_stream(cdvr_render_ctx *ctx, const size_t dims[3],
     cdvr_status s = cdvr_render_ctx_cl(ctx, &cl, err);
     if (s != CDVR_OK)
         return s;
-    if (!ctx->stream || memcmp(ctx->stream_dims, dims, sizeof ctx->stream_dims) != 0) {
-        cdvr_cl_stream_free(ctx->stream);
-        ctx->stream = NULL;
-        cdvr_render_ctx_forget_frame(ctx);
-        s = cdvr_cl_stream_create(cl, dims, &ctx->stream, err);
-        if (s != CDVR_OK)
-            return s;
-        memcpy(ctx->stream_dims, dims, sizeof ctx->stream_dims);
-    }
-    *out = ctx->stream;
-    return CDVR_OK;
+    ctx_slot *slot = recent_of_dims(ctx, dims);
+    return use_slot(ctx, cl, slot ? slot : least_recent(ctx), dims, out, err);
 }
 
 /* One half of same_bytes's comparison, on its own thread. */
@@ -218,39 +314,72 @@ static int same_bytes(const uint8_t *a, const uint8_t *b, size_t bytes)
     return lower_equal && upper.equal;
 }
 
-/* The frame of a held volume is known by its identity and revision (O(1), no host copy);
- * any other volume may have been edited in place (v:set) or freed and another allocated at
- * its address, so its voxels are compared with a host copy of what was uploaded (memcmp is
- * exact and faster than hashing the frame). */
-cdvr_status cdvr_render_ctx_upload(cdvr_render_ctx *ctx, cdvr_cl_stream *s,
-                                   const cdvr_volume *vol, size_t t, cdvr_error *err)
+/* 1 when slot's frame 0 is frame t of vol (voxels, bytes). The frame of a held volume is
+ * known by its identity and revision (O(1), no host copy); any other volume may have been
+ * edited in place (v:set) or freed and another allocated at its address, so its voxels are
+ * compared with a host copy of what was uploaded (memcmp is exact and faster than hashing
+ * the frame). */
+static int slot_has_frame(const ctx_slot *slot, const cdvr_volume *vol, size_t t, int held,
+                          const uint8_t *voxels, size_t bytes)
 {
-    /* the stream's frame 0 is frame t of the held volume at its current revision */
-    if (vol == ctx->held && cdvr_frame_stamp_same(ctx->uploaded, cdvr_volume_stamp(vol, t)))
-        return CDVR_OK;
+    if (!slot->stream || memcmp(slot->dims, vol->dims, sizeof slot->dims) != 0)
+        return 0;
+    if (held && cdvr_frame_stamp_same(slot->uploaded, cdvr_volume_stamp(vol, t)))
+        return 1;
+    return slot->frame_copy && slot->frame_bytes == bytes &&
+           same_bytes(slot->frame_copy, voxels, bytes);
+}
+
+/* Where frame t of vol goes when no stream holds it: the stream of another frame of this
+ * held volume, else for a held volume the one used least recently (two held volumes
+ * rendered in turn keep a stream each), else the most recently used one of its dims (a
+ * volume nobody holds, as the player's, keeps to one stream). */
+static ctx_slot *upload_target(cdvr_render_ctx *ctx, const cdvr_volume *vol, int held)
+{
+    for (int k = 0; held && k < CDVR_RENDER_CTX_STREAMS; k++)
+        if (ctx->slots[k].uploaded.vol == vol)
+            return &ctx->slots[k];
+    ctx_slot *slot = held ? NULL : recent_of_dims(ctx, vol->dims);
+    return slot ? slot : least_recent(ctx);
+}
+
+cdvr_status cdvr_render_ctx_volume_stream(cdvr_render_ctx *ctx, const cdvr_volume *vol,
+                                          size_t t, cdvr_cl_stream **out, cdvr_error *err)
+{
+    cdvr_cl *cl;
+    cdvr_status st = cdvr_render_ctx_cl(ctx, &cl, err);
+    if (st != CDVR_OK)
+        return st;
     const uint8_t *voxels = cdvr_volume_frame(vol, t);
     size_t bytes = cdvr_volume_voxels(vol);
-    int held = vol == ctx->held;
-    if (ctx->frame_copy && ctx->frame_bytes == bytes && same_bytes(ctx->frame_copy, voxels, bytes)) {
-        if (held) { /* known by identity from now on: the copy is not needed */
-            cdvr_render_ctx_forget_frame(ctx);
-            ctx->uploaded = cdvr_volume_stamp(vol, t);
+    int held = cdvr_render_ctx_held_index(ctx, vol) >= 0;
+    for (int k = 0; k < CDVR_RENDER_CTX_STREAMS; k++) {
+        ctx_slot *slot = &ctx->slots[k];
+        if (!slot_has_frame(slot, vol, t, held, voxels, bytes))
+            continue;
+        if (held && slot->frame_copy) { /* known by identity from now on: no copy needed */
+            slot_forget(slot);
+            slot->uploaded = cdvr_volume_stamp(vol, t);
         }
-        return CDVR_OK;
+        return use_slot(ctx, cl, slot, vol->dims, out, err);
     }
-    cdvr_render_ctx_forget_frame(ctx);
-    cdvr_status st = cdvr_cl_upload_frames(s, voxels, 1, err);
+    ctx_slot *slot = upload_target(ctx, vol, held);
+    st = use_slot(ctx, cl, slot, vol->dims, out, err);
+    if (st != CDVR_OK)
+        return st;
+    slot_forget(slot);
+    st = cdvr_cl_upload_frames(slot->stream, voxels, 1, err);
     if (st != CDVR_OK)
         return st;
     ctx->uploads++;
     if (held) {
-        ctx->uploaded = cdvr_volume_stamp(vol, t);
+        slot->uploaded = cdvr_volume_stamp(vol, t);
         return CDVR_OK;
     }
-    ctx->frame_copy = malloc(bytes ? bytes : 1);
-    if (ctx->frame_copy) { /* without a copy the next render uploads again */
-        memcpy(ctx->frame_copy, voxels, bytes);
-        ctx->frame_bytes = bytes;
+    slot->frame_copy = malloc(bytes ? bytes : 1);
+    if (slot->frame_copy) { /* without a copy the next render uploads again */
+        memcpy(slot->frame_copy, voxels, bytes);
+        slot->frame_bytes = bytes;
     }
     return CDVR_OK;
 }
@@ -332,10 +461,11 @@ cdvr_status cdvr_render_ctx_stream(cdvr_render_ctx *ctx, const size_t dims[3],
     return no_cl(err);
 }
 
-cdvr_status cdvr_render_ctx_upload(cdvr_render_ctx *ctx, cdvr_cl_stream *s,
-                                   const cdvr_volume *vol, size_t t, cdvr_error *err)
+cdvr_status cdvr_render_ctx_volume_stream(cdvr_render_ctx *ctx, const cdvr_volume *vol,
+                                          size_t t, cdvr_cl_stream **out, cdvr_error *err)
 {
-    (void)ctx; (void)s; (void)vol; (void)t;
+    (void)ctx; (void)vol; (void)t;
+    *out = NULL;
     return no_cl(err);
 }
 

@@ -234,15 +234,12 @@ static cdvr_status render_cl(cdvr_render_ctx *ctx, const cdvr_volume *vol, size_
     if (vol->type != CDVR_TYPE_U8 || t >= vol->timesteps)
         return cdvr_error_set(err, CDVR_ERR_ARG, "raycast on cl: needs a frame of a u8 volume");
     cdvr_cl_stream *s;
-    cdvr_status st = cdvr_render_ctx_stream(ctx, vol->dims, &s, err);
-    if (st != CDVR_OK)
-        return st;
     double start = cdvr_now_ms();
-    cdvr_cl_set_skipping(s, get_params(p).skip);
     uint64_t uploads = cdvr_render_ctx_uploads(ctx);
-    st = cdvr_render_ctx_upload(ctx, s, vol, t, err);
+    cdvr_status st = cdvr_render_ctx_volume_stream(ctx, vol, t, &s, err);
     if (st != CDVR_OK)
         return st;
+    cdvr_cl_set_skipping(s, get_params(p).skip);
     st = render_device_frame(ctx, s, 0, NULL, opts, vol->spacing, vol->origin, vol->direction,
                              start, stats, out, err);
     if (st == CDVR_OK) /* 0 when the device held the frame already */

@@ -14,7 +14,8 @@
 #define CTX_KEY "cdvr.render_ctx" /* registry: the state's context userdata */
 #define MAX_KEYS 128 /* base + look + scene + method keys (the player has about 50) */
 
-/* User value 1: the userdata of the volume the context holds (lcdvr_render_ctx_hold), or nil. */
+/* User value i + 1: the userdata of the volume the context holds at index i
+ * (lcdvr_render_ctx_hold, cdvr_render_ctx_hold_volume), or nil. */
 typedef struct lctx {
     cdvr_render_ctx *ctx;
 } lctx;
@@ -44,7 +45,8 @@ cdvr_render_ctx *lcdvr_render_ctx(lua_State *L)
     } else {
         lua_pop(L, 1);
     }
-    lctx *c = (lctx *)lua_newuserdatauv(L, sizeof *c, 1); /* userdata first, then the object */
+    lctx *c = (lctx *)lua_newuserdatauv(L, sizeof *c, CDVR_RENDER_CTX_HOLDS); /* userdata
+                                                         first, then the object */
     c->ctx = NULL;
     luaL_setmetatable(L, LCDVR_RENDER_CTX);
     cdvr_error err;
@@ -55,15 +57,20 @@ cdvr_render_ctx *lcdvr_render_ctx(lua_State *L)
 }
 
 /* The context c, its userdata on top of the stack, holds vol, whose userdata is at absolute
- * index idx (vol NULL: none) and becomes the context's user value. */
+ * index idx, as the user value of its hold (the volume held there before, if another, is
+ * released: its user value goes); vol NULL: releases them all. */
 static void ctx_hold(lua_State *L, lctx *c, int idx, const cdvr_volume *vol)
 {
-    if (vol)
-        lua_pushvalue(L, idx);
-    else
-        lua_pushnil(L);                          /* ctx, volume or nil */
-    cdvr_render_ctx_hold_volume(c->ctx, vol);    /* before the old userdata may go */
-    lua_setiuservalue(L, -2, 1);                 /* ctx */
+    int at = cdvr_render_ctx_hold_volume(c->ctx, vol); /* before the old userdata may go */
+    for (int i = 0; i < CDVR_RENDER_CTX_HOLDS; i++) {
+        if (vol && i != at)
+            continue;
+        if (vol)
+            lua_pushvalue(L, idx);
+        else
+            lua_pushnil(L);                      /* ctx, volume or nil */
+        lua_setiuservalue(L, -2, i + 1);         /* ctx */
+    }
 }
 
 void lcdvr_render_ctx_hold(lua_State *L, int idx, const cdvr_volume *vol)
@@ -79,8 +86,12 @@ void lcdvr_render_ctx_release(lua_State *L, const cdvr_volume *vol)
 {
     if (lua_getfield(L, LUA_REGISTRYINDEX, CTX_KEY) == LUA_TUSERDATA) { /* ctx */
         lctx *c = (lctx *)lua_touserdata(L, -1);
-        if (c->ctx && vol && cdvr_render_ctx_held(c->ctx) == vol)
-            ctx_hold(L, c, 0, NULL);
+        int at = c->ctx ? cdvr_render_ctx_held_index(c->ctx, vol) : -1;
+        if (at >= 0) {
+            cdvr_render_ctx_release_volume(c->ctx, vol);
+            lua_pushnil(L);                      /* ctx, nil */
+            lua_setiuservalue(L, -2, at + 1);    /* ctx */
+        }
     }
     lua_pop(L, 1);
 }

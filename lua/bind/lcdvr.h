@@ -284,11 +284,12 @@ void lcdvr_set_interrupt_flag(lua_State *L, atomic_int *flag);
 cdvr_render_ctx *lcdvr_render_ctx(lua_State *L);
 /* The context holds vol, the volume userdata at idx (cdvr_render_ctx_hold_volume: its frames
  * are known on the device by identity and revision), and keeps a reference to that userdata
- * (the context's user value) so it is not collected while held; idx 0 and vol NULL hold
- * none. The volume held before is released. */
+ * (a user value of the context per hold) so it is not collected while held; idx 0 and vol
+ * NULL release every held volume. Up to CDVR_RENDER_CTX_HOLDS volumes are held: holding
+ * another releases the one held least recently. */
 void lcdvr_render_ctx_hold(lua_State *L, int idx, const cdvr_volume *vol);
 /* Called before vol is freed (its __gc or __close): the state's context, if it holds vol,
- * holds none from now on. Makes no context. */
+ * releases it. Makes no context. */
 void lcdvr_render_ctx_release(lua_State *L, const cdvr_volume *vol);
 /* The method called name, or raises "what: option 'method': unknown method 'x' (methods: ...)". */
 const cdvr_render_method *lcdvr_method_lookup(lua_State *L, const char *name, const char *what);

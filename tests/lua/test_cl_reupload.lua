@@ -2,7 +2,8 @@
 -- between renders (the render context holds the volume: stat uploaded_bytes 0) but must upload
 -- it again when the volume is edited in place (v:set), even by a single voxel, when a
 -- different volume of the same dims is rendered, and when the held volume was dropped or
--- closed and another made (maybe at its address).
+-- closed and another made (maybe at its address); two volumes rendered in turn keep a stream
+-- each and upload nothing on the second round.
 local info, msg = cdvr.cl_info()
 if not info then
   print("skip: no OpenCL device: " .. tostring(msg))
@@ -51,6 +52,29 @@ local w = cdvr.volume{dims = dims}
 w:set(5, 5, 5, 255)
 check(cdvr.compare(cdvr.render(w, opts), cdvr.render(w, {tf = tf, camera = cam, device = "cpu"})).psnr >= 50,
       "second volume of the same dims")
+
+-- two volumes rendered in turn (an original beside its edited copy): the context holds both
+-- and keeps a device stream for each, so the second round uploads nothing, and each image
+-- stays its own
+local p, q = cdvr.volume{dims = dims}, cdvr.volume{dims = dims}
+p:set(3, 3, 3, 255)
+q:set(20, 15, 12, 255)
+local first = {cdvr.render(p, opts), cdvr.render(q, opts)}
+for round = 1, 2 do
+  for i, vol in ipairs({p, q}) do
+    local img = cdvr.render(vol, opts)
+    check(img:stats().uploaded_bytes == 0, ("in turn, round %d, volume %d: uploaded %s bytes"):format(
+          round, i, tostring(img:stats().uploaded_bytes)))
+    check(cdvr.compare(img, first[i]).maxerr == 0, ("in turn, round %d, volume %d: image"):format(round, i))
+  end
+end
+check(cdvr.compare(first[1], first[2]).maxerr > 0.5, "the two volumes render differently")
+-- a third volume of other dims takes the place of the one rendered least recently (p)
+local wide = cdvr.volume{dims = {30, 12, 10}}
+wide:set(15, 6, 5, 255)
+cdvr.render(wide, opts)
+check(cdvr.render(q, opts):stats().uploaded_bytes == 0, "q kept its stream beside the third volume")
+check(cdvr.render(p, opts):stats().uploaded_bytes == 24 * 20 * 16, "p was uploaded again")
 
 -- a held volume dropped and another loaded (maybe where it lay): the new one's image
 local function block_volume(x)

@@ -234,29 +234,45 @@ void cdvr_render_ctx_free(cdvr_render_ctx *ctx);
 cdvr_status cdvr_render_ctx_cl(cdvr_render_ctx *ctx, cdvr_cl **out, cdvr_error *err);
 /* 1 when an OpenCL device is open or opens now. */
 int cdvr_render_ctx_has_cl(cdvr_render_ctx *ctx);
-/* A stream for frames of dims on the context's device, reused while the dims stay. */
+/* The OpenCL streams a context keeps (cdvr_cl_stream: frames and their copies on the
+ * device), and the volumes it holds at once: two volumes rendered in turn keep a stream each
+ * and upload nothing on the second round (the comparison of an original with its decoded
+ * copy, two datasets side by side). */
+#define CDVR_RENDER_CTX_STREAMS 2
+#define CDVR_RENDER_CTX_HOLDS 2
+/* A stream for frames of dims on the context's device: the one of these dims used most
+ * recently, else a new one in place of the one used least recently. It becomes the
+ * context's current stream (cdvr_render_ctx_forget_frame). */
 cdvr_status cdvr_render_ctx_stream(cdvr_render_ctx *ctx, const size_t dims[3],
                                    cdvr_cl_stream **out, cdvr_error *err);
-/* Uploads frame t of a u8 volume as the stream's frame 0, unless the stream holds exactly
- * these voxels already (a second render of the same frame uploads nothing). */
-cdvr_status cdvr_render_ctx_upload(cdvr_render_ctx *ctx, cdvr_cl_stream *s,
-                                   const cdvr_volume *vol, size_t t, cdvr_error *err);
-/* Forgets the uploaded frame (the stream's frame 0 was overwritten by someone else). */
+/* A stream whose frame 0 is frame t of a u8 volume: one holding exactly these voxels already
+ * (a second render of the same frame uploads nothing), else it uploads them into the stream
+ * of another frame of this volume, or, for a held volume, the stream used least recently
+ * (made for the volume's dims when needed), or, for one not held, the most recently used
+ * stream of its dims. It becomes the current stream. */
+cdvr_status cdvr_render_ctx_volume_stream(cdvr_render_ctx *ctx, const cdvr_volume *vol,
+                                          size_t t, cdvr_cl_stream **out, cdvr_error *err);
+/* Forgets the current stream's frame (its frame 0 was overwritten by someone else). */
 void cdvr_render_ctx_forget_frame(cdvr_render_ctx *ctx);
-/* The caller's promise that vol (NULL: none) stays alive, never freed nor its data pointer
- * replaced, until it calls this again with another volume or NULL, or frees ctx. While vol is
- * held, cdvr_render_ctx_upload knows its frame t is on the device when the frame pointer,
+/* The caller's promise that vol stays alive, never freed nor its data pointer replaced,
+ * until the context releases it: up to CDVR_RENDER_CTX_HOLDS volumes are held at once, and
+ * holding one more releases the one held least recently; the caller releases one with
+ * cdvr_render_ctx_release_volume, all with vol NULL, and must do so before freeing a held
+ * volume. Returns the index of vol's hold (0 .. CDVR_RENDER_CTX_HOLDS - 1; the volume held
+ * there before, if another, is released), -1 for NULL. While vol is held,
+ * cdvr_render_ctx_volume_stream knows its frame t is on a stream when the frame pointer,
  * dims, type, t and vol->revision (volume.h) equal those of the upload that put it there:
  * O(1), and no host copy of the frame is kept. So whoever changes voxels of a held volume in
  * place must call cdvr_volume_touch. Volumes not held are compared voxel by voxel with a host
  * copy of the uploaded frame (a volume freed and another allocated at its address is never
- * taken for it). Call it with NULL (or another volume) before freeing the held volume: the
- * context forgets the held volume's frame then. A context without a held volume works as
- * before (the memcmp path), as the player's does. */
-void cdvr_render_ctx_hold_volume(cdvr_render_ctx *ctx, const cdvr_volume *vol);
-/* The volume ctx holds, or NULL. */
-const cdvr_volume *cdvr_render_ctx_held(const cdvr_render_ctx *ctx);
-/* How many frames cdvr_render_ctx_upload sent to the device since ctx was created (a render
+ * taken for it). A context without a held volume works as before (the memcmp path), as the
+ * player's does. The CPU ray caster's skip cache keeps the ranges of the volume held last. */
+int cdvr_render_ctx_hold_volume(cdvr_render_ctx *ctx, const cdvr_volume *vol);
+/* Releases vol if ctx holds it (nothing otherwise). */
+void cdvr_render_ctx_release_volume(cdvr_render_ctx *ctx, const cdvr_volume *vol);
+/* The index of vol's hold, or -1 when ctx does not hold it (or vol is NULL). */
+int cdvr_render_ctx_held_index(const cdvr_render_ctx *ctx, const cdvr_volume *vol);
+/* How many frames cdvr_render_ctx_volume_stream sent to the device since ctx was created (a render
  * of a frame the device holds already sends none). */
 uint64_t cdvr_render_ctx_uploads(const cdvr_render_ctx *ctx);
 /* The context's brick cache (cdvr/brick_cache.h) for variant v of st with this budget, made
