@@ -84,8 +84,12 @@ local function block_volume(x)
 end
 local a = block_volume(4)
 local ia = cdvr.render(a, opts)
+local dropped = setmetatable({a}, {__mode = "v"})
 a = nil
+cdvr.render(p, opts) -- two other volumes take the context's holds: a is released
+cdvr.render(q, opts)
 collectgarbage()
+check(dropped[1] == nil, "a dropped volume the context no longer holds is collected")
 collectgarbage()
 local b = block_volume(18)
 local ib = cdvr.render(b, opts)
