@@ -3,7 +3,9 @@
  * huge page up their mapping is eligible for huge pages whenever the system allows them
  * (/sys/kernel/mm/transparent_hugepage/enabled "always" or "madvise", not disabled for the
  * process, CDVR_HUGE_PAGES not 0), and a volume's voxels (cdvr_volume_create) are such a
- * buffer; cdvr_grow_large grows a kept buffer into one. */
+ * buffer; cdvr_grow_large grows a kept buffer into one. The memory a process may fill: the
+ * smallest control-group limit on the way to the root, v1 and v2, over a made-up cgroup tree
+ * (cdvr_cgroup_memory_limit), and never more than the machine's (cdvr_usable_memory_bytes). */
 #include "check.h"
 
 #include "cdvr/memory.h"
@@ -14,6 +16,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/prctl.h>
+#include <unistd.h>
 
 /* The system's transparent huge page mode: 'a' always, 'm' madvise, 'n' never, 0 unknown. */
 static char thp_mode(void)
@@ -145,6 +148,70 @@ static void test_grow(char mode)
     free(buf);
 }
 
+static void write_text(const char *path, const char *text)
+{
+    FILE *f = fopen(path, "w");
+    CHECK(f != NULL, "cannot write %s", path);
+    if (f) {
+        fputs(text, f);
+        fclose(f);
+    }
+}
+
+static void test_cgroup_limit(void)
+{
+    char root[] = "/tmp/cdvr_test_cgroup_XXXXXX", path[512], cmd[600];
+    if (!mkdtemp(root)) {
+        CHECK(0, "mkdtemp");
+        return;
+    }
+    snprintf(cmd, sizeof cmd, "mkdir -p '%s/job/step' '%s/memory/slurm/job' '%s/free'", root,
+             root, root);
+    CHECK(system(cmd) == 0, "%s", cmd);
+    /* v2: the job's limit is below its step's "max" and the root's */
+    snprintf(path, sizeof path, "%s/job/memory.max", root);
+    write_text(path, "1073741824\n");
+    snprintf(path, sizeof path, "%s/job/step/memory.max", root);
+    write_text(path, "max\n");
+    snprintf(path, sizeof path, "%s/memory.max", root);
+    write_text(path, "4294967296\n");
+    snprintf(path, sizeof path, "%s/free/memory.max", root);
+    write_text(path, "max\n");
+    /* v1: the memory controller's hierarchy, a parent's limit, "no limit" written as 2^63 - 4096 */
+    snprintf(path, sizeof path, "%s/memory/slurm/job/memory.limit_in_bytes", root);
+    write_text(path, "9223372036854771712\n");
+    snprintf(path, sizeof path, "%s/memory/slurm/memory.limit_in_bytes", root);
+    write_text(path, "536870912\n");
+    static const struct { const char *cgroup; uint64_t want; } cases[] = {
+        {"0::/job/step\n", 1073741824ull},
+        {"0::/free\n", 4294967296ull},
+        {"4:memory:/slurm/job\n3:cpu:/slurm/job\n0::/free\n", 536870912ull},
+        {"7:cpuacct,memory:/slurm/job\n", 536870912ull},
+        {"4:cpu:/job\n", UINT64_MAX},
+        {"0::/nowhere\n", 4294967296ull},
+        {"garbage\n", UINT64_MAX},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
+        char file[512];
+        snprintf(file, sizeof file, "%s/cgroup%zu", root, i);
+        write_text(file, cases[i].cgroup);
+        uint64_t got = cdvr_cgroup_memory_limit(file, root);
+        CHECK(got == cases[i].want, "cgroup case %zu: %llu, want %llu", i,
+              (unsigned long long)got, (unsigned long long)cases[i].want);
+    }
+    snprintf(path, sizeof path, "%s/missing", root);
+    CHECK(cdvr_cgroup_memory_limit(path, root) == UINT64_MAX, "no cgroup file: no limit");
+    snprintf(path, sizeof path, "%s/empty", root);
+    CHECK(cdvr_cgroup_memory_limit("/proc/self/cgroup", path) == UINT64_MAX,
+          "no cgroup tree: no limit");
+    uint64_t usable = cdvr_usable_memory_bytes();
+    long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGESIZE);
+    CHECK(usable > 0 && usable <= (uint64_t)pages * (uint64_t)size,
+          "usable memory %llu within the machine's", (unsigned long long)usable);
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", root);
+    CHECK(system(cmd) == 0, "%s", cmd);
+}
+
 int main(void)
 {
     char mode = thp_mode();
@@ -155,5 +222,6 @@ int main(void)
     test_unmarked(mode);
     test_volume(mode);
     test_grow(mode);
+    test_cgroup_limit();
     return check_finish();
 }

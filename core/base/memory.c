@@ -1,11 +1,14 @@
-/* core/base/memory.c - large buffers on transparent huge pages (cdvr/memory.h). */
+/* core/base/memory.c - large buffers on transparent huge pages, and the memory a process may
+ * fill (cdvr/memory.h). */
 #include "cdvr/memory.h"
 
+#include <limits.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
+#include <unistd.h>
 
 void *cdvr_alloc_large(size_t bytes, int zero)
 {
@@ -75,4 +78,77 @@ int cdvr_on_huge_pages(const void *p)
     }
     fclose(f);
     return eligible;
+}
+
+/* The limit in file (a number of bytes; "max" or a value of 2^62 and more: none), or
+ * UINT64_MAX. */
+static uint64_t read_limit(const char *file)
+{
+    FILE *f = fopen(file, "r");
+    char text[64] = "";
+    if (!f)
+        return UINT64_MAX;
+    int got = fgets(text, sizeof text, f) != NULL;
+    fclose(f);
+    char *end;
+    unsigned long long value = got ? strtoull(text, &end, 10) : 0;
+    if (!got || end == text || value >= (1ull << 62))
+        return UINT64_MAX;
+    return (uint64_t)value;
+}
+
+/* The smallest limit named `leaf` in dir and its parents up to base (dir starts with base). */
+static uint64_t limit_up_to(char *dir, size_t base_len, const char *leaf)
+{
+    uint64_t limit = UINT64_MAX;
+    for (;;) {
+        char file[PATH_MAX + 64];
+        snprintf(file, sizeof file, "%s/%s", dir, leaf);
+        uint64_t here = read_limit(file);
+        limit = here < limit ? here : limit;
+        char *slash = strrchr(dir, '/');
+        if (!slash || (size_t)(slash - dir) < base_len)
+            return limit;
+        *slash = '\0';
+    }
+}
+
+uint64_t cdvr_cgroup_memory_limit(const char *cgroup_file, const char *root)
+{
+    FILE *f = fopen(cgroup_file, "r");
+    if (!f)
+        return UINT64_MAX;
+    uint64_t limit = UINT64_MAX;
+    char line[PATH_MAX + 128];
+    while (fgets(line, sizeof line, f)) {
+        line[strcspn(line, "\n")] = '\0';
+        char *controllers = strchr(line, ':');
+        char *path = controllers ? strchr(controllers + 1, ':') : NULL;
+        if (!path)
+            continue;
+        *path++ = '\0';        /* line: "ID\0CONTROLLERS\0PATH" */
+        *controllers++ = '\0';
+        int v2 = strcmp(line, "0") == 0 && controllers[0] == '\0';
+        int v1 = !v2 && (strcmp(controllers, "memory") == 0 || strstr(controllers, "memory,") ||
+                         strstr(controllers, ",memory"));
+        if (!v1 && !v2)
+            continue;
+        char dir[PATH_MAX];
+        int base = snprintf(dir, sizeof dir, "%s%s", root, v1 ? "/memory" : "");
+        if (base < 0 || (size_t)base + strlen(path) >= sizeof dir)
+            continue;
+        snprintf(dir + base, sizeof dir - (size_t)base, "%s", strcmp(path, "/") == 0 ? "" : path);
+        uint64_t here = limit_up_to(dir, (size_t)base, v2 ? "memory.max" : "memory.limit_in_bytes");
+        limit = here < limit ? here : limit;
+    }
+    fclose(f);
+    return limit;
+}
+
+uint64_t cdvr_usable_memory_bytes(void)
+{
+    long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGESIZE);
+    uint64_t machine = pages > 0 && size > 0 ? (uint64_t)pages * (uint64_t)size : 0;
+    uint64_t group = cdvr_cgroup_memory_limit("/proc/self/cgroup", "/sys/fs/cgroup");
+    return group < machine ? group : machine;
 }

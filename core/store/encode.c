@@ -14,6 +14,7 @@
  */
 #include "cdvr/atomicfile.h"
 #include "cdvr/bricks.h"
+#include "cdvr/memory.h"
 #include "store_format.h"
 
 #include "codec/stage2/stage2.h"
@@ -1068,13 +1069,6 @@ static void finish_variants(cdvr_store *st, const uint64_t *sse, const double *m
     }
 }
 
-/* This machine's memory in bytes (0 when unknown). */
-static uint64_t memory_bytes(void)
-{
-    long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGESIZE);
-    return pages > 0 && size > 0 ? (uint64_t)pages * (uint64_t)size : 0;
-}
-
 /* AUTO variants given no read rate model the rate the player will read the store at
  * (cdvr_store_modelled_read_mbps over the rates of the filesystem path is written to,
  * measured once and remembered; CDVR_STAGE2_READ_MBPS where they cannot be measured, e.g.
@@ -1090,7 +1084,7 @@ static void model_read_rate(cdvr_store *st, const char *path)
             cdvr_error ignored;
             mbps = cdvr_store_read_rates(path, &rates, &ignored) == CDVR_OK
                        ? cdvr_store_modelled_read_mbps(&rates, st->info.raw_bytes,
-                                                       memory_bytes())
+                                                       cdvr_usable_memory_bytes())
                        : CDVR_STAGE2_READ_MBPS;
         }
         st->variants[v].stage2_read_mbps = mbps;

@@ -34,4 +34,17 @@ int cdvr_grow_large(uint8_t **buf, size_t *cap, uint64_t need);
  * tests and diagnostics. */
 int cdvr_on_huge_pages(const void *p);
 
+/* The memory this process may fill, page cache included, in bytes: the machine's
+ * (_SC_PHYS_PAGES), or less where a control group limits it (a batch job's or a container's
+ * memory limit: cdvr_cgroup_memory_limit over /proc/self/cgroup and /sys/fs/cgroup); 0 when
+ * unknown. Stage 2's AUTO asks it whether a series fits in the page cache (store.h). */
+uint64_t cdvr_usable_memory_bytes(void);
+
+/* The smallest memory limit of the control groups listed in cgroup_file (the format of
+ * /proc/self/cgroup) and their ancestors, read under root (the cgroup mount, /sys/fs/cgroup):
+ * cgroup v2 ("0::PATH": ROOT/PATH/memory.max and its parents', "max" meaning none) and v1
+ * ("N:...memory...:PATH": ROOT/memory/PATH/memory.limit_in_bytes, values of 2^62 and more
+ * meaning none). UINT64_MAX when none is set or nothing can be read. For tests: any root. */
+uint64_t cdvr_cgroup_memory_limit(const char *cgroup_file, const char *root);
+
 #endif

@@ -45,7 +45,8 @@
  *         keeps stage 2 to at most half of the machine, the rest being the render's. R is
  *         stage2_read_mbps, by default the rate the player will read at
  *         (cdvr_store_modelled_read_mbps): the page cache's where the series (its u8 voxels)
- *         fits in half this machine's memory, as it is read from there after the first pass,
+ *         fits in half the memory this process may fill (cdvr_usable_memory_bytes: the
+ *         machine's or its control group's limit), as it is read from there after the first pass,
  *         else the disk's, as a loop larger than the page cache finds no chunk still there;
  *         both measured once per filesystem (cdvr_store_read_rates), CDVR_STAGE2_READ_MBPS
  *         where they cannot be measured; the R used is recorded
