@@ -168,20 +168,20 @@ static void test_cgroup_limit(void)
     snprintf(cmd, sizeof cmd, "mkdir -p '%s/job/step' '%s/memory/slurm/job' '%s/free'", root,
              root, root);
     CHECK(system(cmd) == 0, "%s", cmd);
-    /* v2: the job's limit is below its step's "max" and the root's */
-    snprintf(path, sizeof path, "%s/job/memory.max", root);
-    write_text(path, "1073741824\n");
-    snprintf(path, sizeof path, "%s/job/step/memory.max", root);
-    write_text(path, "max\n");
-    snprintf(path, sizeof path, "%s/memory.max", root);
-    write_text(path, "4294967296\n");
-    snprintf(path, sizeof path, "%s/free/memory.max", root);
-    write_text(path, "max\n");
-    /* v1: the memory controller's hierarchy, a parent's limit, "no limit" written as 2^63 - 4096 */
-    snprintf(path, sizeof path, "%s/memory/slurm/job/memory.limit_in_bytes", root);
-    write_text(path, "9223372036854771712\n");
-    snprintf(path, sizeof path, "%s/memory/slurm/memory.limit_in_bytes", root);
-    write_text(path, "536870912\n");
+    /* v2: the job's limit is below its step's "max" and the root's; v1: the memory
+     * controller's hierarchy, a parent's limit, "no limit" written as 2^63 - 4096 */
+    static const char *const files[][2] = {
+        {"job/memory.max", "1073741824\n"},
+        {"job/step/memory.max", "max\n"},
+        {"memory.max", "4294967296\n"},
+        {"free/memory.max", "max\n"},
+        {"memory/slurm/job/memory.limit_in_bytes", "9223372036854771712\n"},
+        {"memory/slurm/memory.limit_in_bytes", "536870912\n"},
+    };
+    for (size_t i = 0; i < sizeof files / sizeof *files; i++) {
+        snprintf(path, sizeof path, "%s/%s", root, files[i][0]);
+        write_text(path, files[i][1]);
+    }
     static const struct { const char *cgroup; uint64_t want; } cases[] = {
         {"0::/job/step\n", 1073741824ull},
         {"0::/free\n", 4294967296ull},

@@ -321,6 +321,13 @@ typedef struct task {
     size_t part;
 } task;
 
+/* What AUTO models a chunk's playback with: this machine's single-thread unpack rates and
+ * the cores the player unpacks on. */
+typedef struct s2_model {
+    cdvr_s2_rates rates;
+    double cores;
+} s2_model;
+
 /* The encode pool: worker threads (threads - 1 of them; the calling thread works too while
  * it waits) and one queue of tasks, parts in submission order and finishes in front. */
 typedef struct encode_pool {
@@ -332,7 +339,7 @@ typedef struct encode_pool {
     size_t nthreads;
     int stop;
     const cdvr_store *st;
-    cdvr_s2_rates s2_rates;      /* AUTO's unpack rates (read once, before the workers start) */
+    s2_model s2;                 /* AUTO's model (read once, before the workers start) */
 } encode_pool;
 
 static void bufs_free(job_bufs *b)
@@ -506,7 +513,7 @@ static size_t s2_sample(const uint8_t *payload, size_t payload_n, size_t seg, ui
  * rates, whichever is longer) on the chunk or its sample, scaled to the chunk; the smallest
  * ends in bufs.packed (a sampled chunk is packed for it then). Packed sizes are deterministic
  * and the rates are remembered, so the choice does not follow the load. */
-static cdvr_status s2_choose(const cdvr_variant_info *vi, const cdvr_s2_rates *rates,
+static cdvr_status s2_choose(const cdvr_variant_info *vi, const s2_model *model,
                              chunk_job *job, size_t payload, unsigned *codec, size_t *packed,
                              cdvr_error *err)
 {
@@ -520,7 +527,6 @@ static cdvr_status s2_choose(const cdvr_variant_info *vi, const cdvr_s2_rates *r
     size_t in_n = sampled ? s2_sample(b->payload, payload, seg, b->sample) : payload;
     double scale = (double)payload / (double)in_n;
     double per_byte_ms = 1.0 / (vi->stage2_read_mbps * 1e3);
-    double cores = (double)online_cores();
     double best = (double)payload * per_byte_ms; /* NONE: the player takes the bytes as read */
     cdvr_status s = CDVR_OK;
     *codec = 0;
@@ -530,7 +536,8 @@ static cdvr_status s2_choose(const cdvr_variant_info *vi, const cdvr_s2_rates *r
         if (s != CDVR_OK || n >= in_n)
             continue;
         double read_ms = (double)n * scale * per_byte_ms;
-        double unpack_ms = S2_UNPACK_SHARE * (double)payload / (rates->mbps[c] * 1e3 * cores);
+        double unpack_ms = S2_UNPACK_SHARE * (double)payload /
+                           (model->rates.mbps[c] * 1e3 * model->cores);
         double t = read_ms > unpack_ms ? read_ms : unpack_ms;
         if (t < best) {
             best = t;
@@ -551,7 +558,7 @@ static cdvr_status s2_choose(const cdvr_variant_info *vi, const cdvr_s2_rates *r
 
 /* Stage 2 of the chunk: ci->stage2, stage2_segmented and stored_bytes; the stored bytes are
  * bufs.packed when stage 2 applies, else bufs.payload. */
-static cdvr_status apply_stage2(const cdvr_variant_info *vi, const cdvr_s2_rates *rates,
+static cdvr_status apply_stage2(const cdvr_variant_info *vi, const s2_model *model,
                                 chunk_job *job, size_t payload, cdvr_error *err)
 {
     cdvr_chunk_info *ci = job->ci;
@@ -559,7 +566,7 @@ static cdvr_status apply_stage2(const cdvr_variant_info *vi, const cdvr_s2_rates
     size_t packed = 0;
     cdvr_status s = CDVR_OK;
     if (vi->stage2 == CDVR_STAGE2_AUTO) {
-        s = s2_choose(vi, rates, job, payload, &codec, &packed, err);
+        s = s2_choose(vi, model, job, payload, &codec, &packed, err);
     } else if (vi->stage2 != CDVR_STAGE2_NONE) {
         s = s2_pack((unsigned)vi->stage2, job->bufs.payload, payload, vi->stage2_segment,
                     job->bufs.packed, job->bufs.packed_cap, &packed, err);
@@ -575,7 +582,7 @@ static cdvr_status apply_stage2(const cdvr_variant_info *vi, const cdvr_s2_rates
     return CDVR_OK;
 }
 
-static cdvr_status finish_job(const cdvr_store *st, const cdvr_s2_rates *rates, chunk_job *job,
+static cdvr_status finish_job(const cdvr_store *st, const s2_model *model, chunk_job *job,
                               cdvr_error *err)
 {
     cdvr_chunk_info *ci = job->ci;
@@ -586,7 +593,7 @@ static cdvr_status finish_job(const cdvr_store *st, const cdvr_s2_rates *rates, 
         return cdvr_error_set(err, CDVR_ERR_ARG, "%s: codec %s wrote %zu bytes (size %zu, bound "
                               "%zu)", st->path, ci->codec->name, payload,
                               job->shape.payload_bytes, job->shape.bound_bytes);
-    cdvr_status s = apply_stage2(vi, rates, job, payload, err);
+    cdvr_status s = apply_stage2(vi, model, job, payload, err);
     if (s != CDVR_OK)
         return s;
     ci->crc32c = cdvr_crc32c(0, ci->stage2 ? job->bufs.packed : job->bufs.payload,
@@ -609,7 +616,7 @@ static cdvr_status finish_job(const cdvr_store *st, const cdvr_s2_rates *rates, 
 static void run_finish(encode_pool *pool, chunk_job *job)
 {
     cdvr_error e;
-    if (finish_job(pool->st, &pool->s2_rates, job, &e) != CDVR_OK)
+    if (finish_job(pool->st, &pool->s2, job, &e) != CDVR_OK)
         job_fail(pool, job, &e);
 }
 
@@ -673,9 +680,10 @@ static cdvr_status pool_start(encode_pool *pool, const cdvr_store *st, size_t th
     pool->st = st;
     for (size_t v = 0; v < st->info.nvariants; v++)
         if (st->variants[v].stage2 == CDVR_STAGE2_AUTO) {
-            cdvr_status s = cdvr_s2_unpack_rates(&pool->s2_rates, err);
+            cdvr_status s = cdvr_s2_unpack_rates(&pool->s2.rates, err);
             if (s != CDVR_OK)
                 return s;
+            pool->s2.cores = (double)online_cores();
             break;
         }
     pool->cap = queue_cap;

@@ -107,40 +107,30 @@ static cdvr_status read_pass(int fd, uint8_t *buf, int cold, const char *dir, do
     return CDVR_OK;
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 /* The median of the passes rounded to two significant digits, in [RATE_MIN, RATE_MAX]. */
 static double median_rate(double *pass)
 {
-    qsort(pass, PROBE_PASSES, sizeof *pass, cmp_double);
-    double x = pass[PROBE_PASSES / 2];
+    double x = cdvr_median(pass, PROBE_PASSES);
     double unit = pow(10.0, floor(log10(x)) - 1.0);
     x = round(x / unit) * unit;
     return x < RATE_MIN ? RATE_MIN : x > RATE_MAX ? RATE_MAX : x;
 }
 
-static cdvr_status measure(const char *dir, cdvr_read_rates *out, cdvr_error *err)
+/* The test file in dir, open in *fd: created (mkstemp's template), unlinked at once so that
+ * nothing is left behind, filled with PROBE_BYTES of incompressible bytes (no filesystem or
+ * disk shrinks them) and synced. buf: PROBE_BLOCK bytes of scratch. */
+static cdvr_status write_probe_file(const char *dir, uint8_t *buf, int *fd, cdvr_error *err)
 {
     char name[PATH_MAX];
     if (snprintf(name, sizeof name, "%s/.cdvr-read-rate-XXXXXX", dir) >= (int)sizeof name)
         return cdvr_error_set(err, CDVR_ERR_ARG, "%s: path too long", dir);
-    uint8_t *buf = malloc(PROBE_BLOCK);
-    if (!buf)
-        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory to measure its read rate",
-                              dir);
-    int fd = mkstemp(name);
-    if (fd < 0) {
-        free(buf);
+    *fd = mkstemp(name);
+    if (*fd < 0)
         return cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot measure its read rate: creating a "
                               "test file: %s", dir, strerror(errno));
-    }
     (void)unlink(name); /* gone from the directory; its blocks live until the close */
-    (void)fcntl(fd, F_SETFD, FD_CLOEXEC);
-    uint32_t rng = 0x9e3779b9u; /* incompressible, so no filesystem or disk shrinks it */
+    (void)fcntl(*fd, F_SETFD, FD_CLOEXEC);
+    uint32_t rng = 0x9e3779b9u;
     cdvr_status s = CDVR_OK;
     for (size_t at = 0; s == CDVR_OK && at < PROBE_BYTES; at += PROBE_BLOCK) {
         for (size_t i = 0; i < PROBE_BLOCK; i += 4) {
@@ -149,17 +139,29 @@ static cdvr_status measure(const char *dir, cdvr_read_rates *out, cdvr_error *er
             rng ^= rng << 5;
             memcpy(buf + i, &rng, 4);
         }
-        s = write_all(fd, buf, PROBE_BLOCK, dir, err);
+        s = write_all(*fd, buf, PROBE_BLOCK, dir, err);
     }
-    if (s == CDVR_OK && fsync(fd) != 0)
+    if (s == CDVR_OK && fsync(*fd) != 0)
         s = cdvr_error_set(err, CDVR_ERR_IO, "%s: cannot measure its read rate: syncing the "
                            "test file: %s", dir, strerror(errno));
+    return s;
+}
+
+static cdvr_status measure(const char *dir, cdvr_read_rates *out, cdvr_error *err)
+{
+    uint8_t *buf = malloc(PROBE_BLOCK);
+    if (!buf)
+        return cdvr_error_set(err, CDVR_ERR_NOMEM, "%s: no memory to measure its read rate",
+                              dir);
+    int fd = -1;
+    cdvr_status s = write_probe_file(dir, buf, &fd, err);
     double disk[PROBE_PASSES], cache[PROBE_PASSES];
     for (int p = 0; s == CDVR_OK && p < PROBE_PASSES; p++)
         s = read_pass(fd, buf, 1, dir, &disk[p], err);
     for (int p = 0; s == CDVR_OK && p < PROBE_PASSES; p++)
         s = read_pass(fd, buf, 0, dir, &cache[p], err);
-    close(fd);
+    if (fd >= 0)
+        close(fd);
     free(buf);
     if (s != CDVR_OK)
         return s;
